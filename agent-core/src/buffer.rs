@@ -1,0 +1,343 @@
+//! Buffers: the only way subsystems exchange data.
+//!
+//! In the paper a subsystem has input buffers `_x c`, output buffers `_y c` and an
+//! internal memory `^c c`. Here an input buffer field is an [`In<T>`], an output
+//! buffer field is an [`Out<T>`], and the memory is a plain struct of the user's.
+//!
+//! Buffers are grouped by the component they are connected to (the paper's leading
+//! superscript: `^e_y c` are the outputs of `c` towards its virtual effector). A group
+//! is a struct implementing [`Group`]; a transition function that writes towards one
+//! target receives `&mut` to that group only, so it cannot write anywhere else.
+
+use std::borrow::Cow;
+use std::fmt;
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use crate::time::Stamp;
+
+/// What may travel through a buffer.
+///
+/// `Serialize`/`Deserialize` are required so that every transfer can be recorded,
+/// replayed and sent between processes; `Clone` so that one output can feed several
+/// inputs; `Debug` so that traces and test failures are readable.
+pub trait Payload: Clone + fmt::Debug + Serialize + DeserializeOwned + Send + 'static {}
+
+impl<T> Payload for T where T: Clone + fmt::Debug + Serialize + DeserializeOwned + Send + 'static {}
+
+/// The five kinds of components of an embodied agent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum NodeKind {
+    /// Control subsystem `c_j`.
+    Control,
+    /// Virtual effector `e_{j,n}`.
+    VirtualEffector,
+    /// Virtual receptor `r_{j,k}`.
+    VirtualReceptor,
+    /// Real effector `E_j` (hardware or simulator driver).
+    RealEffector,
+    /// Real receptor `R_j` (hardware or simulator driver).
+    RealReceptor,
+}
+
+impl NodeKind {
+    /// The paper's symbol for the kind: `c`, `e`, `r`, `E` or `R`.
+    pub const fn symbol(self) -> &'static str {
+        match self {
+            NodeKind::Control => "c",
+            NodeKind::VirtualEffector => "e",
+            NodeKind::VirtualReceptor => "r",
+            NodeKind::RealEffector => "E",
+            NodeKind::RealReceptor => "R",
+        }
+    }
+}
+
+impl fmt::Display for NodeKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            NodeKind::Control => "control subsystem",
+            NodeKind::VirtualEffector => "virtual effector",
+            NodeKind::VirtualReceptor => "virtual receptor",
+            NodeKind::RealEffector => "real effector",
+            NodeKind::RealReceptor => "real receptor",
+        })
+    }
+}
+
+/// A group of buffers connected to one peer: the paper's leading superscript.
+///
+/// For a control subsystem, a group whose `PEER` is [`NodeKind::Control`] is a
+/// group of transmission buffers towards (or from) another agent, the paper's `T`.
+///
+/// ```
+/// use agent_core::{Group, NodeKind, Out};
+/// /// `^e_y c`: what the control subsystem sends to its virtual effector.
+/// #[derive(Debug, Default)]
+/// struct ToValve {
+///     flow: Out<f64>,
+/// }
+/// impl Group for ToValve {
+///     const PEER: NodeKind = NodeKind::VirtualEffector;
+/// }
+/// ```
+pub trait Group: Send + 'static {
+    /// The kind of component at the other end of every buffer in this group.
+    const PEER: NodeKind;
+}
+
+/// An error reading a buffer.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BufferError {
+    /// The input buffer has never received a value, but the behaviour needs one.
+    #[error("input buffer `{buffer}` has not received any data yet")]
+    NoData {
+        /// Name of the buffer (as given to the link that feeds it).
+        buffer: Cow<'static, str>,
+    },
+}
+
+/// An input buffer: the latest value received, whether it is new, and its stamp.
+///
+/// `is_new()` is the paper's `isnew(buf)`: it is true during exactly the one
+/// iteration whose read brought the value in, and false afterwards until another
+/// value arrives. The value itself stays readable (`get()`) until it is replaced.
+pub struct In<T> {
+    value: Option<T>,
+    new: bool,
+    stamp: Option<Stamp>,
+    name: Cow<'static, str>,
+}
+
+impl<T> Default for In<T> {
+    fn default() -> Self {
+        In {
+            value: None,
+            new: false,
+            stamp: None,
+            name: Cow::Borrowed(""),
+        }
+    }
+}
+
+impl<T: Clone> Clone for In<T> {
+    fn clone(&self) -> Self {
+        In {
+            value: self.value.clone(),
+            new: self.new,
+            stamp: self.stamp,
+            name: self.name.clone(),
+        }
+    }
+}
+
+impl<T: fmt::Debug> fmt::Debug for In<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.value, self.new) {
+            (None, _) => f.write_str("∅"),
+            (Some(v), true) => write!(f, "new {v:?}"),
+            (Some(v), false) => write!(f, "old {v:?}"),
+        }
+    }
+}
+
+impl<T> In<T> {
+    /// An input buffer holding `value`, new in this iteration (for tests and
+    /// environment models).
+    pub fn new_value(value: T, stamp: Stamp) -> Self {
+        In {
+            value: Some(value),
+            new: true,
+            stamp: Some(stamp),
+            name: Cow::Borrowed(""),
+        }
+    }
+
+    /// `isnew(buf)`: whether the last read brought a value not seen before.
+    pub fn is_new(&self) -> bool {
+        self.new
+    }
+
+    /// The latest value received, new or not; `None` if nothing was ever received.
+    pub fn get(&self) -> Option<&T> {
+        self.value.as_ref()
+    }
+
+    /// The value only if it is new in this iteration.
+    pub fn fresh(&self) -> Option<&T> {
+        if self.new { self.value.as_ref() } else { None }
+    }
+
+    /// The latest value, or [`BufferError::NoData`] if nothing was ever received.
+    ///
+    /// Use it with `?` in a transition function that cannot proceed without data:
+    /// the executor reports the error with the subsystem, behaviour and iteration.
+    pub fn require(&self) -> Result<&T, BufferError> {
+        self.value.as_ref().ok_or_else(|| BufferError::NoData {
+            buffer: if self.name.is_empty() {
+                Cow::Borrowed("<unlinked>")
+            } else {
+                self.name.clone()
+            },
+        })
+    }
+
+    /// Whether a value was ever received.
+    pub fn has_data(&self) -> bool {
+        self.value.is_some()
+    }
+
+    /// When the current value was written (writer's iteration and time).
+    pub fn stamp(&self) -> Option<Stamp> {
+        self.stamp
+    }
+
+    /// The name of the link that feeds this buffer (empty until linked).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Deliver a new value, as a link does on a read (for environment models in tests).
+    pub fn deliver(&mut self, value: T, stamp: Stamp) {
+        self.value = Some(value);
+        self.new = true;
+        self.stamp = Some(stamp);
+    }
+
+    /// Mark the current value as already seen, as a read that brings nothing does.
+    pub fn age(&mut self) {
+        self.new = false;
+    }
+
+    /// Runtime side of a read: swap the slot with `incoming` (recycling storage) and
+    /// mark it new.
+    pub(crate) fn swap_in(&mut self, incoming: &mut Option<T>, stamp: Stamp) {
+        std::mem::swap(&mut self.value, incoming);
+        self.new = self.value.is_some();
+        self.stamp = Some(stamp);
+    }
+
+    pub(crate) fn set_name(&mut self, name: Cow<'static, str>) {
+        self.name = name;
+    }
+}
+
+/// An output buffer: the value written in the current iteration, if any.
+///
+/// Only the outputs written by an action are sent; an output not written in an
+/// iteration sends nothing, so the receiver's `is_new()` stays false.
+pub struct Out<T> {
+    value: Option<T>,
+    written: bool,
+}
+
+impl<T> Default for Out<T> {
+    fn default() -> Self {
+        Out {
+            value: None,
+            written: false,
+        }
+    }
+}
+
+impl<T: fmt::Debug> fmt::Debug for Out<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.written() {
+            Some(v) => write!(f, "{v:?}"),
+            None => f.write_str("–"),
+        }
+    }
+}
+
+impl<T> Out<T> {
+    /// Write `value`; it is sent at the end of the current elementary action.
+    pub fn set(&mut self, value: T) {
+        self.value = Some(value);
+        self.written = true;
+    }
+
+    /// Write in place, reusing the storage of an earlier transfer (no allocation for
+    /// `Vec`-like payloads once warmed up). The storage holds an unspecified earlier
+    /// value (or `T::default()`); overwrite it completely.
+    pub fn write_recycled(&mut self) -> &mut T
+    where
+        T: Default,
+    {
+        self.written = true;
+        self.value.get_or_insert_with(T::default)
+    }
+
+    /// The value written in the current iteration, if any.
+    pub fn written(&self) -> Option<&T> {
+        if self.written {
+            self.value.as_ref()
+        } else {
+            None
+        }
+    }
+
+    /// Whether the current iteration wrote this output.
+    pub fn is_written(&self) -> bool {
+        self.written
+    }
+
+    /// Forget a write made in the current iteration (the executor does this when an
+    /// action fails, so that a failed action sends nothing).
+    pub fn discard(&mut self) {
+        self.written = false;
+    }
+
+    /// Runtime side of a send: the slot to move or clone the value from, if written.
+    pub(crate) fn pending(&mut self) -> Option<&mut Option<T>> {
+        if self.written {
+            self.written = false;
+            Some(&mut self.value)
+        } else {
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time::Time;
+
+    #[test]
+    fn in_buffer_freshness() {
+        let mut x: In<u32> = In::default();
+        assert!(!x.is_new());
+        assert_eq!(x.get(), None);
+        assert_eq!(
+            x.require(),
+            Err(BufferError::NoData {
+                buffer: "<unlinked>".into()
+            })
+        );
+        let stamp = Stamp::new(3, Time::from_nanos(10));
+        x.deliver(7, stamp);
+        assert!(x.is_new());
+        assert_eq!(x.fresh(), Some(&7));
+        assert_eq!(x.stamp(), Some(stamp));
+        x.age();
+        assert!(!x.is_new());
+        assert_eq!(x.fresh(), None);
+        assert_eq!(x.get(), Some(&7), "an old value stays readable");
+        assert_eq!(format!("{x:?}"), "old 7");
+    }
+
+    #[test]
+    fn out_buffer_sends_only_what_was_written() {
+        let mut y: Out<Vec<u8>> = Out::default();
+        assert!(y.pending().is_none());
+        y.set(vec![1, 2]);
+        assert_eq!(y.written(), Some(&vec![1, 2]));
+        let slot = y.pending().expect("written");
+        assert_eq!(slot.as_deref(), Some(&[1u8, 2][..]));
+        assert!(y.pending().is_none(), "sent once");
+        y.write_recycled().push(3);
+        y.discard();
+        assert!(y.pending().is_none(), "a discarded write is not sent");
+    }
+}

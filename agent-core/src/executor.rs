@@ -1,0 +1,404 @@
+//! The deterministic executor: virtual time, multi-rate, a fixed stepping order.
+//!
+//! # Semantics
+//!
+//! Every node (subsystem or driver) has a period and is activated at
+//! `0, period, 2·period, …` of virtual time. The executor jumps from one activation
+//! instant to the next. At an instant `t`, with `D` the nodes due at `t` in
+//! declaration order (the order they were added to the [`SystemBuilder`]):
+//!
+//! 1. every node of `D` **reads** its input buffers from its links (the last line of
+//!    Algorithm 1: `y → x`, which ends the wait of the previous action);
+//! 2. every node of `D`, in order, **steps**: a subsystem's FSM tests the terminal
+//!    condition and selects an arc if the behaviour ends (Algorithms 2 and 3), then
+//!    the current behaviour's elementary action computes the transition function;
+//!    a driver advances its device;
+//! 3. right after its step, the node **sends** the output buffers it wrote into its
+//!    links (Algorithm 1's `→`). The wait `i → i + 1` is the time to its next instant.
+//!
+//! Because all reads of an instant happen before any send of that instant, a value
+//! sent at `t` is received at the receiver's first activation strictly after `t`, so
+//! the result does not depend on the order within `D`; that order only fixes the
+//! order of trace events (and of side effects outside the buffers, such as drivers
+//! sharing a simulated world). Everything is integer arithmetic on nanoseconds, so
+//! the same system with the same inputs gives a bit-identical [`Trace`](crate::Trace).
+//!
+//! [`SystemBuilder`]: crate::SystemBuilder
+
+use std::time::Duration;
+
+use crate::fsm::FsmFault;
+use crate::link::{Channels, LinkCx, LinkError, LinkId, LinkStats};
+use crate::node::{DriverInstance, Instance, NodeDyn, NodeStep};
+use crate::subsystem::{Driver, DriverError, Subsystem};
+use crate::system::{DriverHandle, SubsystemHandle, System};
+use crate::time::Time;
+use crate::trace::{NoObserver, Observer, SystemInfo};
+use crate::transition::ActionError;
+
+/// A subsystem's FSM violated its contract at run time.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("subsystem `{subsystem}`, iteration {iteration} at {time}: {fault}")]
+pub struct FsmError {
+    /// The subsystem.
+    pub subsystem: String,
+    /// Its iteration when the decision failed.
+    pub iteration: u64,
+    /// Virtual time.
+    pub time: Time,
+    /// What went wrong (which behaviour, which arcs, the predicate values).
+    pub fault: FsmFault,
+}
+
+/// An error during a run.
+#[derive(Debug, thiserror::Error)]
+pub enum ExecError {
+    /// An FSM found no arc or several arcs, or looped without acting.
+    #[error(transparent)]
+    Fsm(#[from] FsmError),
+    /// A transition function failed; nothing it wrote was sent.
+    #[error(
+        "subsystem `{subsystem}`, behaviour `{behaviour}`, iteration {iteration} at {time}: {source}"
+    )]
+    Action {
+        /// The subsystem.
+        subsystem: String,
+        /// The behaviour whose action failed.
+        behaviour: String,
+        /// The iteration.
+        iteration: u64,
+        /// Virtual time.
+        time: Time,
+        /// The error.
+        #[source]
+        source: ActionError,
+    },
+    /// A link refused a value (a full queue).
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// A driver failed; nothing it wrote was sent.
+    #[error("driver `{driver}`, iteration {iteration} at {time}: {source}")]
+    Driver {
+        /// The driver.
+        driver: String,
+        /// Its iteration.
+        iteration: u64,
+        /// Virtual time.
+        time: Time,
+        /// The error.
+        #[source]
+        source: DriverError,
+    },
+    /// The executor stopped on an earlier error (with [`OnError::Stop`]).
+    #[error("the executor stopped after an error; build a new executor to run again")]
+    Stopped,
+}
+
+/// What the executor does when a node reports an error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OnError {
+    /// Return the error from the run call; the executor then refuses to go on.
+    #[default]
+    Stop,
+    /// Record the error in the [`RunReport`] (and tell the observer) and go on:
+    /// a subsystem whose FSM failed is halted; a failed action or driver step sent
+    /// nothing and is retried at the next period; a value refused by a full queue is
+    /// counted in the link's statistics.
+    Continue,
+}
+
+/// Executor settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExecConfig {
+    /// Stop or continue on errors.
+    pub on_error: OnError,
+    /// With [`OnError::Continue`], how many errors the report keeps (the rest are
+    /// counted in [`RunReport::error_count`]).
+    pub max_recorded_errors: usize,
+}
+
+impl Default for ExecConfig {
+    fn default() -> Self {
+        ExecConfig {
+            on_error: OnError::Stop,
+            max_recorded_errors: 1000,
+        }
+    }
+}
+
+impl ExecConfig {
+    /// Settings that continue after errors.
+    pub fn continue_on_error() -> Self {
+        ExecConfig {
+            on_error: OnError::Continue,
+            ..Self::default()
+        }
+    }
+}
+
+/// What happened during a run, beyond the buffers.
+#[derive(Debug, Default)]
+pub struct RunReport {
+    /// Errors met under [`OnError::Continue`] (at most `max_recorded_errors`).
+    pub errors: Vec<ExecError>,
+    /// All errors met, including those not kept.
+    pub error_count: u64,
+    /// Instants executed.
+    pub instants: u64,
+}
+
+/// Runs a [`System`] in virtual time, deterministically. See the module docs.
+pub struct Executor<O: Observer = NoObserver> {
+    info: SystemInfo,
+    nodes: Vec<Box<dyn NodeDyn>>,
+    periods: Vec<u64>,
+    next: Vec<u64>,
+    due: Vec<usize>,
+    channels: Channels,
+    now: Time,
+    config: ExecConfig,
+    observer: O,
+    started: bool,
+    stopped: bool,
+    report: RunReport,
+}
+
+impl<O: Observer> std::fmt::Debug for Executor<O> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Executor")
+            .field("now", &self.now)
+            .field("nodes", &self.info.nodes.len())
+            .field("links", &self.info.links.len())
+            .finish()
+    }
+}
+
+impl Executor<NoObserver> {
+    /// An executor for `system`, observing nothing.
+    pub fn new(system: System, config: ExecConfig) -> Self {
+        Executor::with_observer(system, config, NoObserver)
+    }
+}
+
+impl<O: Observer> Executor<O> {
+    /// An executor for `system` that reports to `observer`.
+    pub fn with_observer(system: System, config: ExecConfig, observer: O) -> Self {
+        let System {
+            info,
+            mut nodes,
+            outs,
+            ins,
+            channels,
+        } = system;
+        // Handles were checked against the nodes' buffer types when the links were
+        // declared, so installation cannot fail.
+        for (node, plan) in &outs {
+            let installed = nodes[*node].install_out(plan.local());
+            debug_assert!(installed, "output port type checked at connect()");
+        }
+        for (node, plan) in &ins {
+            let installed = nodes[*node].install_in(plan.local());
+            debug_assert!(installed, "input port type checked at connect()");
+        }
+        let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
+        let n = nodes.len();
+        Executor {
+            channels: Channels {
+                items: channels.iter().map(|make| make()).collect(),
+            },
+            info,
+            nodes,
+            periods,
+            next: vec![0; n],
+            due: Vec::with_capacity(n),
+            now: Time::ZERO,
+            config,
+            observer,
+            started: false,
+            stopped: false,
+            report: RunReport::default(),
+        }
+    }
+
+    /// The current virtual time (the last instant executed).
+    pub fn now(&self) -> Time {
+        self.now
+    }
+
+    /// Names, kinds, periods and links.
+    pub fn info(&self) -> &SystemInfo {
+        &self.info
+    }
+
+    /// Errors and counters of the run so far.
+    pub fn report(&self) -> &RunReport {
+        &self.report
+    }
+
+    /// The observer.
+    pub fn observer(&self) -> &O {
+        &self.observer
+    }
+
+    /// The observer, mutably.
+    pub fn observer_mut(&mut self) -> &mut O {
+        &mut self.observer
+    }
+
+    /// Consume the executor, returning its observer (for instance a recorded trace).
+    pub fn into_observer(self) -> O {
+        self.observer
+    }
+
+    /// The next instant at which some node is due, or `None` if every node halted.
+    pub fn next_instant(&self) -> Option<Time> {
+        self.next
+            .iter()
+            .copied()
+            .min()
+            .filter(|t| *t != u64::MAX)
+            .map(Time::from_nanos)
+    }
+
+    /// Execute one instant (see the module docs). Returns the instant executed, or
+    /// `None` if every node has halted.
+    pub fn step(&mut self) -> Result<Option<Time>, ExecError> {
+        if self.stopped {
+            return Err(ExecError::Stopped);
+        }
+        if !self.started {
+            self.started = true;
+            self.observer.start(&self.info);
+        }
+        let Some(t) = self.next_instant() else {
+            return Ok(None);
+        };
+        self.now = t;
+        let tn = t.as_nanos();
+        self.due.clear();
+        self.due
+            .extend((0..self.next.len()).filter(|&i| self.next[i] == tn));
+        let mut cx = LinkCx {
+            channels: &mut self.channels,
+            observer: if self.observer.enabled() {
+                Some(&mut self.observer as &mut dyn Observer)
+            } else {
+                None
+            },
+            links: &self.info.links,
+        };
+        for &i in &self.due {
+            self.nodes[i].read(&mut cx);
+        }
+        for k in 0..self.due.len() {
+            let i = self.due[k];
+            let outcome = self.nodes[i].step(t, i, &mut cx);
+            match outcome {
+                Ok(NodeStep::Ran) => self.next[i] = tn.saturating_add(self.periods[i]),
+                Ok(NodeStep::Halted) => self.next[i] = u64::MAX,
+                Err(e) => {
+                    if let Some(o) = cx.observer.as_deref_mut() {
+                        o.error(t, &e);
+                    }
+                    self.report.error_count += 1;
+                    match self.config.on_error {
+                        OnError::Stop => {
+                            self.stopped = true;
+                            return Err(e);
+                        }
+                        OnError::Continue => {
+                            if matches!(e, ExecError::Fsm(_)) {
+                                self.nodes[i].halt();
+                                self.next[i] = u64::MAX;
+                            } else {
+                                self.next[i] = tn.saturating_add(self.periods[i]);
+                            }
+                            if self.report.errors.len() < self.config.max_recorded_errors {
+                                self.report.errors.push(e);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.report.instants += 1;
+        Ok(Some(t))
+    }
+
+    /// Execute every instant before `end` (`t < end`); the clock then reads `end`.
+    pub fn run_until(&mut self, end: Time) -> Result<(), ExecError> {
+        if self.stopped {
+            return Err(ExecError::Stopped);
+        }
+        while let Some(t) = self.next_instant() {
+            if t >= end {
+                break;
+            }
+            self.step()?;
+        }
+        self.now = self.now.max(end);
+        Ok(())
+    }
+
+    /// Execute the instants of the next `duration` of virtual time: those in
+    /// `[now, now + duration)` not yet executed.
+    pub fn run_for(&mut self, duration: Duration) -> Result<(), ExecError> {
+        self.run_until(self.now.saturating_add(duration))
+    }
+
+    fn instance<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&Instance<S>> {
+        self.nodes.get(h.id().index())?.as_any().downcast_ref()
+    }
+
+    /// The memory of a subsystem.
+    pub fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
+        self.instance(h).map(|i| &i.memory)
+    }
+
+    /// The input buffers of a subsystem, as read at its last activation.
+    pub fn input<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Input> {
+        self.instance(h).map(|i| &i.input)
+    }
+
+    /// The name of the behaviour a subsystem is in.
+    pub fn behaviour<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&str> {
+        self.instance(h)
+            .map(|i| i.fsm.behaviour_name(i.state.behaviour()))
+    }
+
+    /// The number of elementary actions (or driver steps) a node has executed.
+    pub fn iteration(&self, node: crate::NodeId) -> Option<u64> {
+        self.nodes.get(node.index()).map(|n| n.iteration())
+    }
+
+    /// Whether a node has halted (final behaviour, or an FSM error under `Continue`).
+    pub fn is_halted(&self, node: crate::NodeId) -> bool {
+        self.nodes.get(node.index()).is_some_and(|n| n.is_halted())
+    }
+
+    /// A driver's device.
+    pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
+        let node = self.nodes.get(h.id().index())?;
+        node.as_any()
+            .downcast_ref::<DriverInstance<D>>()
+            .map(|d| &d.driver)
+    }
+
+    /// A driver's device, mutably (to inject faults or change the world in tests).
+    pub fn driver_mut<D: Driver>(&mut self, h: &DriverHandle<D>) -> Option<&mut D> {
+        let node = self.nodes.get_mut(h.id().index())?;
+        node.as_any_mut()
+            .downcast_mut::<DriverInstance<D>>()
+            .map(|d| &mut d.driver)
+    }
+
+    /// Counters of a link.
+    pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
+        self.channels.items.get(link.index()).map(|c| *c.stats())
+    }
+
+    /// Values waiting in a link (0 or 1 for a sample link).
+    pub fn pending(&self, link: LinkId) -> Option<usize> {
+        self.channels.items.get(link.index()).map(|c| c.pending())
+    }
+}

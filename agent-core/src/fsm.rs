@@ -1,0 +1,1029 @@
+//! The finite state machine of one subsystem: nodes are behaviours, arcs carry
+//! initial conditions.
+//!
+//! When the current behaviour's terminal condition holds, exactly one outgoing arc's
+//! initial condition must hold; the FSM follows it and the target behaviour starts in
+//! the same activation. No arc or several arcs holding is an [`FsmFault`], returned
+//! with the predicate values that caused it: never a panic and never a silent choice.
+//! Conditions are Boolean [`Expr`]essions over named predicates, each predicate
+//! evaluated at most once per decision.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::fmt;
+
+use crate::behaviour::Behaviour;
+use crate::expr::{Expr, ExprError};
+use crate::subsystem::Subsystem;
+use crate::transition::ActionError;
+
+type PredicateFn<S> =
+    Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
+
+/// A named predicate over memory and inputs: the atoms of initial and terminal
+/// conditions (`f^σ`, `f^τ`).
+pub struct Predicate<S: Subsystem> {
+    name: Cow<'static, str>,
+    f: PredicateFn<S>,
+}
+
+impl<S: Subsystem> Predicate<S> {
+    /// The predicate's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Evaluate it.
+    pub fn holds(&self, memory: &S::Memory, input: &S::Input) -> bool {
+        (self.f)(memory, input)
+    }
+}
+
+/// An arc of the FSM.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Arc {
+    /// Index of the source behaviour.
+    pub from: usize,
+    /// Index of the target behaviour.
+    pub to: usize,
+    /// The initial condition, resolved to predicate indices.
+    pub condition: Expr<usize>,
+    /// The initial condition as written.
+    pub text: Cow<'static, str>,
+}
+
+struct Node<S: Subsystem> {
+    behaviour: Behaviour<S>,
+    terminal: Expr<usize>,
+    arcs: Vec<Arc>,
+    is_final: bool,
+}
+
+/// A problem found while building an FSM.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FsmProblem {
+    /// The FSM has no behaviour.
+    #[error("the FSM has no behaviour")]
+    Empty,
+    /// Two behaviours have the same name.
+    #[error("behaviour `{0}` is defined twice")]
+    DuplicateBehaviour(String),
+    /// Two predicates have the same name.
+    #[error("predicate `{0}` is defined twice")]
+    DuplicatePredicate(String),
+    /// No initial behaviour was named.
+    #[error("no initial behaviour: call `initial(name)`")]
+    NoInitial,
+    /// An arc, the initial node or a final declaration names an unknown behaviour.
+    #[error("{place} names behaviour `{name}`, which is not defined")]
+    UnknownBehaviour {
+        /// Where the name appears.
+        place: String,
+        /// The unknown name.
+        name: String,
+    },
+    /// A condition does not parse.
+    #[error("{place}: {error}")]
+    Syntax {
+        /// Which condition.
+        place: String,
+        /// The syntax error.
+        error: ExprError,
+    },
+    /// A condition names an undeclared predicate.
+    #[error("{place} uses predicate `{name}`, which is not declared")]
+    UnknownPredicate {
+        /// Which condition.
+        place: String,
+        /// The unknown predicate.
+        name: String,
+    },
+    /// A behaviour cannot be reached from the initial behaviour.
+    #[error("behaviour `{0}` cannot be reached from the initial behaviour")]
+    Unreachable(String),
+    /// A behaviour can end but has no outgoing arc and is not declared final.
+    #[error(
+        "behaviour `{0}` can end (its terminal condition is not `false`) but has no outgoing arc; add an arc or declare it final"
+    )]
+    NoWayOut(String),
+    /// A behaviour declared final also has outgoing arcs.
+    #[error("behaviour `{0}` is declared final but has outgoing arcs")]
+    FinalWithArcs(String),
+    /// The action of a behaviour is malformed (for instance two parts write one target).
+    #[error("behaviour `{behaviour}`: {message}")]
+    Action {
+        /// The behaviour.
+        behaviour: String,
+        /// What is wrong with its action.
+        message: String,
+    },
+}
+
+/// Every problem found while building an FSM.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub struct FsmBuildError {
+    /// The problems, in the order found.
+    pub problems: Vec<FsmProblem>,
+}
+
+impl fmt::Display for FsmBuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "the FSM is malformed ({} problem", self.problems.len())?;
+        if self.problems.len() != 1 {
+            f.write_str("s")?;
+        }
+        f.write_str("):")?;
+        for p in &self.problems {
+            write!(f, "\n  - {p}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Builds an [`Fsm`]; [`FsmBuilder::build`] checks it and reports every problem at once.
+pub struct FsmBuilder<S: Subsystem> {
+    predicates: Vec<Predicate<S>>,
+    behaviours: Vec<Behaviour<S>>,
+    arcs: Vec<(Cow<'static, str>, Cow<'static, str>, Cow<'static, str>)>,
+    initial: Option<Cow<'static, str>>,
+    finals: Vec<Cow<'static, str>>,
+}
+
+impl<S: Subsystem> Default for FsmBuilder<S> {
+    fn default() -> Self {
+        FsmBuilder {
+            predicates: Vec::new(),
+            behaviours: Vec::new(),
+            arcs: Vec::new(),
+            initial: None,
+            finals: Vec::new(),
+        }
+    }
+}
+
+impl<S: Subsystem> FsmBuilder<S> {
+    /// An empty builder.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Declare a named predicate usable in conditions.
+    pub fn predicate<F>(mut self, name: impl Into<Cow<'static, str>>, f: F) -> Self
+    where
+        F: Fn(&S::Memory, &S::Input) -> bool + Send + 'static,
+    {
+        self.predicates.push(Predicate {
+            name: name.into(),
+            f: Box::new(f),
+        });
+        self
+    }
+
+    /// Add a behaviour (a node).
+    pub fn behaviour(mut self, behaviour: Behaviour<S>) -> Self {
+        self.behaviours.push(behaviour);
+        self
+    }
+
+    /// Name the initial behaviour.
+    pub fn initial(mut self, name: impl Into<Cow<'static, str>>) -> Self {
+        self.initial = Some(name.into());
+        self
+    }
+
+    /// Add an arc `from -> to` labelled with an initial condition.
+    pub fn arc(
+        mut self,
+        from: impl Into<Cow<'static, str>>,
+        to: impl Into<Cow<'static, str>>,
+        condition: impl Into<Cow<'static, str>>,
+    ) -> Self {
+        self.arcs.push((from.into(), to.into(), condition.into()));
+        self
+    }
+
+    /// Declare a behaviour final: when it ends, the subsystem halts.
+    pub fn final_behaviour(mut self, name: impl Into<Cow<'static, str>>) -> Self {
+        self.finals.push(name.into());
+        self
+    }
+
+    /// Check the FSM and build it.
+    pub fn build(self) -> Result<Fsm<S>, FsmBuildError> {
+        let mut problems = Vec::new();
+        if self.behaviours.is_empty() {
+            problems.push(FsmProblem::Empty);
+        }
+        let mut index: HashMap<&str, usize> = HashMap::new();
+        for (i, b) in self.behaviours.iter().enumerate() {
+            if index.insert(&b.name, i).is_some() {
+                problems.push(FsmProblem::DuplicateBehaviour(b.name.to_string()));
+            }
+            for d in b.action.defects() {
+                problems.push(FsmProblem::Action {
+                    behaviour: b.name.to_string(),
+                    message: d.clone(),
+                });
+            }
+        }
+        let mut preds: HashMap<&str, usize> = HashMap::new();
+        for (i, p) in self.predicates.iter().enumerate() {
+            if preds.insert(&p.name, i).is_some() {
+                problems.push(FsmProblem::DuplicatePredicate(p.name.to_string()));
+            }
+        }
+        let terminals: Vec<Option<Expr<usize>>> = self
+            .behaviours
+            .iter()
+            .map(|b| {
+                resolve(
+                    &preds,
+                    &mut problems,
+                    format!("terminal condition of `{}`", b.name),
+                    &b.terminal,
+                )
+            })
+            .collect();
+        let mut arcs: Vec<Vec<Arc>> = self.behaviours.iter().map(|_| Vec::new()).collect();
+        for (from, to, cond) in &self.arcs {
+            let place = format!("arc `{from}` -> `{to}`");
+            let f = index.get(from.as_ref()).copied();
+            let t = index.get(to.as_ref()).copied();
+            for (name, found) in [(from, f), (to, t)] {
+                if found.is_none() {
+                    problems.push(FsmProblem::UnknownBehaviour {
+                        place: place.clone(),
+                        name: name.to_string(),
+                    });
+                }
+            }
+            let condition = resolve(
+                &preds,
+                &mut problems,
+                format!("initial condition of {place}"),
+                cond,
+            );
+            if let (Some(f), Some(t), Some(condition)) = (f, t, condition) {
+                arcs[f].push(Arc {
+                    from: f,
+                    to: t,
+                    condition,
+                    text: cond.clone(),
+                });
+            }
+        }
+        let mut is_final = vec![false; self.behaviours.len()];
+        for name in &self.finals {
+            match index.get(name.as_ref()) {
+                Some(&i) => is_final[i] = true,
+                None => problems.push(FsmProblem::UnknownBehaviour {
+                    place: "a final declaration".into(),
+                    name: name.to_string(),
+                }),
+            }
+        }
+        let initial = match &self.initial {
+            None => {
+                problems.push(FsmProblem::NoInitial);
+                None
+            }
+            Some(name) => {
+                let i = index.get(name.as_ref()).copied();
+                if i.is_none() {
+                    problems.push(FsmProblem::UnknownBehaviour {
+                        place: "the initial declaration".into(),
+                        name: name.to_string(),
+                    });
+                }
+                i
+            }
+        };
+        if let Some(start) = initial {
+            let mut seen = vec![false; self.behaviours.len()];
+            let mut stack = vec![start];
+            seen[start] = true;
+            while let Some(n) = stack.pop() {
+                for a in &arcs[n] {
+                    if !seen[a.to] {
+                        seen[a.to] = true;
+                        stack.push(a.to);
+                    }
+                }
+            }
+            for (i, b) in self.behaviours.iter().enumerate() {
+                if !seen[i] {
+                    problems.push(FsmProblem::Unreachable(b.name.to_string()));
+                }
+            }
+        }
+        for (i, b) in self.behaviours.iter().enumerate() {
+            let never_ends = terminals[i].as_ref().is_some_and(Expr::is_const_false);
+            if is_final[i] && !arcs[i].is_empty() {
+                problems.push(FsmProblem::FinalWithArcs(b.name.to_string()));
+            } else if !is_final[i] && arcs[i].is_empty() && !never_ends {
+                problems.push(FsmProblem::NoWayOut(b.name.to_string()));
+            }
+        }
+        if !problems.is_empty() {
+            return Err(FsmBuildError { problems });
+        }
+        let (Some(initial), Some(terminals)) =
+            (initial, terminals.into_iter().collect::<Option<Vec<_>>>())
+        else {
+            // Unreachable: every `None` above recorded a problem.
+            return Err(FsmBuildError { problems });
+        };
+        let nodes = self
+            .behaviours
+            .into_iter()
+            .zip(terminals)
+            .zip(arcs)
+            .zip(is_final)
+            .map(|(((behaviour, terminal), arcs), is_final)| Node {
+                behaviour,
+                terminal,
+                arcs,
+                is_final,
+            })
+            .collect();
+        Ok(Fsm {
+            predicates: self.predicates,
+            nodes,
+            initial,
+        })
+    }
+}
+
+/// Parse `text` and resolve its predicate names, recording problems.
+fn resolve(
+    preds: &HashMap<&str, usize>,
+    problems: &mut Vec<FsmProblem>,
+    place: String,
+    text: &str,
+) -> Option<Expr<usize>> {
+    let parsed = match Expr::parse(text) {
+        Ok(e) => e,
+        Err(error) => {
+            problems.push(FsmProblem::Syntax { place, error });
+            return None;
+        }
+    };
+    let mut missing: Vec<String> = Vec::new();
+    let resolved = parsed.try_map(&mut |name: &String| match preds.get(name.as_str()) {
+        Some(&i) => Ok::<usize, ()>(i),
+        None => {
+            if !missing.contains(name) {
+                missing.push(name.clone());
+            }
+            Ok(0)
+        }
+    });
+    for name in &missing {
+        problems.push(FsmProblem::UnknownPredicate {
+            place: place.clone(),
+            name: name.clone(),
+        });
+    }
+    match resolved {
+        Ok(e) if missing.is_empty() => Some(e),
+        _ => None,
+    }
+}
+
+/// Where an FSM is: its current behaviour and whether an action of it already ran.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct FsmState {
+    node: usize,
+    actions_done: bool,
+    halted: bool,
+}
+
+impl FsmState {
+    /// Index of the current behaviour.
+    pub fn behaviour(&self) -> usize {
+        self.node
+    }
+
+    /// Whether the FSM ended in a final behaviour (or was halted by the executor).
+    pub fn is_halted(&self) -> bool {
+        self.halted
+    }
+
+    /// Whether at least one action of the current behaviour has run.
+    pub fn actions_done(&self) -> bool {
+        self.actions_done
+    }
+
+    pub(crate) fn halt(&mut self) {
+        self.halted = true;
+    }
+}
+
+/// One decision of the FSM (terminal test and, if the behaviour ends, arc selection).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// The current behaviour goes on: run its action.
+    Run,
+    /// The behaviour ended and the FSM followed arc number `arc` of `from` to `to`.
+    Entered {
+        /// Behaviour that ended.
+        from: usize,
+        /// Index of the arc among `from`'s outgoing arcs.
+        arc: usize,
+        /// Behaviour entered.
+        to: usize,
+    },
+    /// A final behaviour ended: the subsystem halts.
+    Finished,
+}
+
+/// A run-time violation of the FSM's contract.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FsmFault {
+    /// The behaviour ended but no outgoing arc's initial condition holds.
+    #[error(
+        "behaviour `{behaviour}` ended but none of its arcs holds ({arcs}); predicates: {assignment}"
+    )]
+    NoArcHolds {
+        /// The behaviour that ended.
+        behaviour: String,
+        /// Its arcs, as `-> target [condition]`.
+        arcs: String,
+        /// The value of every predicate at that moment.
+        assignment: String,
+    },
+    /// The behaviour ended and several arcs' initial conditions hold.
+    #[error(
+        "behaviour `{behaviour}` ended and {count} arcs hold at once ({held}); predicates: {assignment}"
+    )]
+    SeveralArcsHold {
+        /// The behaviour that ended.
+        behaviour: String,
+        /// How many arcs hold.
+        count: usize,
+        /// The arcs that hold, as `-> target [condition]`.
+        held: String,
+        /// The value of every predicate at that moment.
+        assignment: String,
+    },
+    /// Behaviours keep ending and starting without any action: a cycle of
+    /// while-behaviours whose terminal conditions hold at once.
+    #[error("livelock: {transitions} transitions without an action, from `{from}` through {path}")]
+    Livelock {
+        /// The behaviour the activation started in.
+        from: String,
+        /// Transitions made.
+        transitions: usize,
+        /// The behaviours entered, in order.
+        path: String,
+    },
+}
+
+/// What one activation of a subsystem did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Activated {
+    /// The action of behaviour `behaviour` ran.
+    Ran {
+        /// Index of the behaviour whose action ran.
+        behaviour: usize,
+    },
+    /// The FSM is halted (it ended in a final behaviour); nothing ran.
+    Halted,
+}
+
+/// Why an activation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ActivationError {
+    /// The FSM's contract was violated.
+    #[error(transparent)]
+    Fsm(#[from] FsmFault),
+    /// The action of the current behaviour failed.
+    #[error("the action of behaviour `{behaviour}` failed: {source}")]
+    Action {
+        /// The behaviour.
+        behaviour: String,
+        /// The error.
+        #[source]
+        source: ActionError,
+    },
+}
+
+/// Memo of predicate values within one decision (up to 64 predicates are cached;
+/// more are evaluated on each use).
+#[derive(Default)]
+struct Memo {
+    known: u64,
+    value: u64,
+}
+
+impl Memo {
+    #[inline]
+    fn get(&mut self, i: usize, f: impl FnOnce() -> bool) -> bool {
+        if i >= 64 {
+            return f();
+        }
+        let bit = 1u64 << i;
+        if self.known & bit != 0 {
+            return self.value & bit != 0;
+        }
+        let v = f();
+        self.known |= bit;
+        if v {
+            self.value |= bit;
+        }
+        v
+    }
+}
+
+/// The FSM of one subsystem: behaviours, predicates, arcs and the initial behaviour.
+pub struct Fsm<S: Subsystem> {
+    predicates: Vec<Predicate<S>>,
+    nodes: Vec<Node<S>>,
+    initial: usize,
+}
+
+impl<S: Subsystem> fmt::Debug for Fsm<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Fsm")
+            .field("behaviours", &self.nodes.len())
+            .field("predicates", &self.predicates.len())
+            .field("initial", &self.behaviour_name(self.initial))
+            .finish()
+    }
+}
+
+impl<S: Subsystem> Fsm<S> {
+    /// Start building an FSM.
+    pub fn builder() -> FsmBuilder<S> {
+        FsmBuilder::new()
+    }
+
+    /// An FSM of one behaviour that never ends (typical of virtual effectors and
+    /// receptors). Its terminal condition must be `false`.
+    pub fn single(behaviour: Behaviour<S>) -> Result<Fsm<S>, FsmBuildError> {
+        let name = behaviour.name.clone();
+        FsmBuilder::new().behaviour(behaviour).initial(name).build()
+    }
+
+    /// The state at the start: in the initial behaviour, no action done yet.
+    pub fn start(&self) -> FsmState {
+        FsmState {
+            node: self.initial,
+            actions_done: false,
+            halted: false,
+        }
+    }
+
+    /// Number of behaviours.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether the FSM has no behaviour (never true for a built FSM).
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Index of the initial behaviour.
+    pub fn initial(&self) -> usize {
+        self.initial
+    }
+
+    /// The behaviour at `index`.
+    pub fn behaviour(&self, index: usize) -> Option<&Behaviour<S>> {
+        self.nodes.get(index).map(|n| &n.behaviour)
+    }
+
+    /// The name of the behaviour at `index` (`"?"` if out of range).
+    pub fn behaviour_name(&self, index: usize) -> &str {
+        self.nodes.get(index).map_or("?", |n| &n.behaviour.name)
+    }
+
+    /// The index of the behaviour called `name`.
+    pub fn behaviour_index(&self, name: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.behaviour.name == name)
+    }
+
+    /// The arcs leaving behaviour `index`.
+    pub fn arcs(&self, index: usize) -> &[Arc] {
+        self.nodes.get(index).map_or(&[], |n| &n.arcs)
+    }
+
+    /// The resolved terminal condition of behaviour `index`.
+    pub fn terminal(&self, index: usize) -> Option<&Expr<usize>> {
+        self.nodes.get(index).map(|n| &n.terminal)
+    }
+
+    /// Whether the terminal condition of behaviour `index` holds (false for an
+    /// unknown index).
+    pub fn terminal_holds(&self, index: usize, memory: &S::Memory, input: &S::Input) -> bool {
+        self.nodes
+            .get(index)
+            .is_some_and(|n| self.eval(&n.terminal, memory, input, &mut Memo::default()))
+    }
+
+    /// Whether behaviour `index` is declared final.
+    pub fn is_final(&self, index: usize) -> bool {
+        self.nodes.get(index).is_some_and(|n| n.is_final)
+    }
+
+    /// The declared predicates.
+    pub fn predicates(&self) -> &[Predicate<S>] {
+        &self.predicates
+    }
+
+    #[inline]
+    fn eval(&self, e: &Expr<usize>, m: &S::Memory, x: &S::Input, memo: &mut Memo) -> bool {
+        e.eval(&mut |&i: &usize| memo.get(i, || self.predicates[i].holds(m, x)))
+    }
+
+    fn assignment(&self, m: &S::Memory, x: &S::Input) -> String {
+        let parts: Vec<String> = self
+            .predicates
+            .iter()
+            .map(|p| format!("{}={}", p.name, p.holds(m, x)))
+            .collect();
+        if parts.is_empty() {
+            "none declared".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+
+    fn arc_label(&self, a: &Arc) -> String {
+        format!("-> {} [{}]", self.behaviour_name(a.to), a.text)
+    }
+
+    /// One decision: test the current behaviour's terminal condition (before every
+    /// iteration for while-type, after each iteration for repeat-type) and, if it
+    /// holds, select the one arc whose initial condition holds.
+    #[inline]
+    pub fn step(
+        &self,
+        state: &mut FsmState,
+        memory: &S::Memory,
+        input: &S::Input,
+    ) -> Result<Step, FsmFault> {
+        let from = state.node;
+        let node = &self.nodes[from];
+        let mut memo = Memo::default();
+        if !(node.behaviour.kind.tests_terminal(state.actions_done)
+            && self.eval(&node.terminal, memory, input, &mut memo))
+        {
+            return Ok(Step::Run);
+        }
+        let mut chosen = None;
+        let mut count = 0usize;
+        for (i, a) in node.arcs.iter().enumerate() {
+            if self.eval(&a.condition, memory, input, &mut memo) {
+                count += 1;
+                chosen.get_or_insert(i);
+            }
+        }
+        match (count, chosen) {
+            (1, Some(arc)) => {
+                let to = node.arcs[arc].to;
+                *state = FsmState {
+                    node: to,
+                    actions_done: false,
+                    halted: false,
+                };
+                Ok(Step::Entered { from, arc, to })
+            }
+            (0, _) if node.is_final => {
+                state.halted = true;
+                Ok(Step::Finished)
+            }
+            (0, _) => Err(FsmFault::NoArcHolds {
+                behaviour: node.behaviour.name.to_string(),
+                arcs: node
+                    .arcs
+                    .iter()
+                    .map(|a| self.arc_label(a))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                assignment: self.assignment(memory, input),
+            }),
+            _ => Err(FsmFault::SeveralArcsHold {
+                behaviour: node.behaviour.name.to_string(),
+                count,
+                held: node
+                    .arcs
+                    .iter()
+                    .filter(|a| self.eval(&a.condition, memory, input, &mut Memo::default()))
+                    .map(|a| self.arc_label(a))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                assignment: self.assignment(memory, input),
+            }),
+        }
+    }
+
+    /// One activation after the inputs were read: FSM decisions until a behaviour goes
+    /// on (at most one transition per behaviour), then that behaviour's elementary
+    /// action. `on_step` sees every transition. This is the code path of the executor
+    /// and of the termination-testing helpers alike.
+    pub fn activate(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+        mut on_step: impl FnMut(&Step),
+    ) -> Result<Activated, ActivationError> {
+        if state.halted {
+            return Ok(Activated::Halted);
+        }
+        let start = state.node;
+        let mut transitions = 0;
+        loop {
+            match self.step(state, memory, input)? {
+                Step::Run => break,
+                step @ Step::Entered { .. } => {
+                    on_step(&step);
+                    transitions += 1;
+                    if transitions >= self.nodes.len() {
+                        return Err(FsmFault::Livelock {
+                            from: self.behaviour_name(start).to_owned(),
+                            transitions,
+                            path: format!("… -> `{}`", self.behaviour_name(state.node)),
+                        }
+                        .into());
+                    }
+                }
+                Step::Finished => {
+                    on_step(&Step::Finished);
+                    return Ok(Activated::Halted);
+                }
+            }
+        }
+        let node = &self.nodes[state.node];
+        node.behaviour
+            .action
+            .compute(memory, input, output)
+            .map_err(|source| ActivationError::Action {
+                behaviour: node.behaviour.name.to_string(),
+                source,
+            })?;
+        state.actions_done = true;
+        Ok(Activated::Ran {
+            behaviour: state.node,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::buffer::{In, NodeKind, Out};
+    use crate::subsystem::SubsystemKind;
+    use crate::transition::Action;
+    use crate::{Group, Stamp, Time};
+
+    struct S;
+    #[derive(Default, Clone, Debug)]
+    struct X {
+        go: In<bool>,
+        stop: In<bool>,
+    }
+    #[derive(Default, Debug)]
+    struct Y {
+        e: ToE,
+    }
+    #[derive(Default, Debug)]
+    struct ToE {
+        n: Out<u32>,
+    }
+    impl Group for ToE {
+        const PEER: NodeKind = NodeKind::VirtualEffector;
+    }
+    impl Subsystem for S {
+        const KIND: SubsystemKind = SubsystemKind::Control;
+        type Memory = u32;
+        type Input = X;
+        type Output = Y;
+    }
+
+    fn count() -> Action<S> {
+        Action::<S>::new()
+            .memory(|m: &mut u32, _: &X| *m += 1)
+            .output(|y| &mut y.e, |m: &u32, _: &X, y: &mut ToE| y.n.set(*m))
+    }
+
+    fn builder() -> FsmBuilder<S> {
+        Fsm::builder()
+            .predicate("go", |_, x: &X| x.go.get() == Some(&true))
+            .predicate("stop", |_, x: &X| x.stop.get() == Some(&true))
+            .predicate("three", |m: &u32, _| *m >= 3)
+    }
+
+    fn input(go: bool, stop: bool) -> X {
+        let s = Stamp::new(0, Time::ZERO);
+        X {
+            go: In::new_value(go, s),
+            stop: In::new_value(stop, s),
+        }
+    }
+
+    #[test]
+    fn while_tests_before_and_repeat_after() {
+        let fsm = builder()
+            .behaviour(Behaviour::while_loop("w", count(), "true"))
+            .behaviour(Behaviour::repeat_loop("r", count(), "true"))
+            .behaviour(Behaviour::while_loop("idle", Action::new(), "false"))
+            .initial("w")
+            .arc("w", "r", "true")
+            .arc("r", "idle", "true")
+            .build()
+            .unwrap();
+        let mut st = fsm.start();
+        let (mut m, x, mut y) = (0u32, input(false, false), Y::default());
+        let mut steps = Vec::new();
+        // Activation 1: `w` ends before its first action (while-type); `r` runs once.
+        let a = fsm
+            .activate(&mut st, &mut m, &x, &mut y, |s| steps.push(*s))
+            .unwrap();
+        assert_eq!(a, Activated::Ran { behaviour: 1 });
+        assert_eq!(m, 1);
+        assert_eq!(
+            steps,
+            vec![Step::Entered {
+                from: 0,
+                arc: 0,
+                to: 1
+            }]
+        );
+        // Activation 2: `r` tests after its first action, ends, `idle` runs forever.
+        let a = fsm.activate(&mut st, &mut m, &x, &mut y, |_| {}).unwrap();
+        assert_eq!(a, Activated::Ran { behaviour: 2 });
+        assert_eq!(m, 1, "idle's action does nothing");
+    }
+
+    #[test]
+    fn exactly_one_arc_must_hold() {
+        let fsm = builder()
+            .behaviour(Behaviour::repeat_loop("a", count(), "three"))
+            .behaviour(Behaviour::while_loop("b", Action::new(), "false"))
+            .behaviour(Behaviour::while_loop("c", Action::new(), "false"))
+            .initial("a")
+            .arc("a", "b", "go")
+            .arc("a", "c", "stop")
+            .build()
+            .unwrap();
+        let mut st = fsm.start();
+        let mut m = 3;
+        // The first activation of a repeat behaviour does not test: it runs.
+        let a = fsm
+            .activate(
+                &mut st,
+                &mut m,
+                &input(false, false),
+                &mut Y::default(),
+                |_| {},
+            )
+            .unwrap();
+        assert_eq!((a, m), (Activated::Ran { behaviour: 0 }, 4));
+        // Now it ends, and no arc holds.
+        let err = fsm
+            .activate(
+                &mut st,
+                &mut m,
+                &input(false, false),
+                &mut Y::default(),
+                |_| {},
+            )
+            .unwrap_err();
+        let ActivationError::Fsm(FsmFault::NoArcHolds {
+            behaviour,
+            arcs,
+            assignment,
+        }) = err
+        else {
+            panic!("expected NoArcHolds, got {err:?}");
+        };
+        assert_eq!(behaviour, "a");
+        assert_eq!(arcs, "-> b [go], -> c [stop]");
+        assert_eq!(assignment, "go=false, stop=false, three=true");
+        // Several arcs hold.
+        let err = fsm
+            .activate(
+                &mut st,
+                &mut m,
+                &input(true, true),
+                &mut Y::default(),
+                |_| {},
+            )
+            .unwrap_err();
+        let ActivationError::Fsm(FsmFault::SeveralArcsHold { count, held, .. }) = err else {
+            panic!("expected SeveralArcsHold, got {err:?}");
+        };
+        assert_eq!((count, held.as_str()), (2, "-> b [go], -> c [stop]"));
+        assert_eq!(st.behaviour(), 0, "a failed decision does not move the FSM");
+        // Exactly one.
+        let a = fsm
+            .activate(
+                &mut st,
+                &mut m,
+                &input(false, true),
+                &mut Y::default(),
+                |_| {},
+            )
+            .unwrap();
+        assert_eq!(a, Activated::Ran { behaviour: 2 });
+    }
+
+    #[test]
+    fn livelock_is_detected() {
+        let fsm = builder()
+            .behaviour(Behaviour::while_loop("a", Action::new(), "true"))
+            .behaviour(Behaviour::while_loop("b", Action::new(), "true"))
+            .initial("a")
+            .arc("a", "b", "true")
+            .arc("b", "a", "true")
+            .build()
+            .unwrap();
+        let mut st = fsm.start();
+        let err = fsm
+            .activate(
+                &mut st,
+                &mut 0,
+                &input(false, false),
+                &mut Y::default(),
+                |_| {},
+            )
+            .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ActivationError::Fsm(FsmFault::Livelock { transitions: 2, .. })
+            ),
+            "{err:?}"
+        );
+    }
+
+    #[test]
+    fn final_behaviour_halts() {
+        let fsm = builder()
+            .behaviour(Behaviour::repeat_loop("once", count(), "true"))
+            .initial("once")
+            .final_behaviour("once")
+            .build()
+            .unwrap();
+        let mut st = fsm.start();
+        let mut m = 0;
+        let x = input(false, false);
+        assert_eq!(
+            fsm.activate(&mut st, &mut m, &x, &mut Y::default(), |_| {})
+                .unwrap(),
+            Activated::Ran { behaviour: 0 }
+        );
+        let mut steps = vec![];
+        assert_eq!(
+            fsm.activate(&mut st, &mut m, &x, &mut Y::default(), |s| steps.push(*s))
+                .unwrap(),
+            Activated::Halted
+        );
+        assert_eq!(steps, vec![Step::Finished]);
+        assert!(st.is_halted());
+        assert_eq!(m, 1);
+    }
+
+    #[test]
+    fn build_reports_every_problem() {
+        let err = builder()
+            .predicate("go", |_, _| true)
+            .behaviour(Behaviour::while_loop("a", count(), "go && "))
+            .behaviour(Behaviour::while_loop("a", count(), "false"))
+            .behaviour(Behaviour::repeat_loop("lost", count(), "nope"))
+            .behaviour(Behaviour::repeat_loop("dead_end", count(), "go"))
+            .behaviour(Behaviour::repeat_loop(
+                "twice",
+                Action::<S>::new()
+                    .memory(|_: &mut u32, _: &X| {})
+                    .memory(|_: &mut u32, _: &X| {}),
+                "false",
+            ))
+            .initial("a")
+            .arc("a", "dead_end", "go")
+            .arc("a", "nowhere", "stop")
+            .arc("dead_end", "twice", "unknown_pred")
+            .final_behaviour("ghost")
+            .build()
+            .unwrap_err();
+        let text = err.to_string();
+        for needle in [
+            "behaviour `a` is defined twice",
+            "predicate `go` is defined twice",
+            "terminal condition of `a`",
+            "uses predicate `nope`",
+            "names behaviour `nowhere`",
+            "uses predicate `unknown_pred`",
+            "names behaviour `ghost`",
+            "`lost` cannot be reached",
+            "`dead_end` can end",
+            "the memory part is set twice",
+        ] {
+            assert!(text.contains(needle), "missing {needle:?} in:\n{text}");
+        }
+    }
+}

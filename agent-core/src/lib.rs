@@ -1,0 +1,70 @@
+//! # agent-core: the embodied-agent formalism as a Rust library
+//!
+//! This crate implements the formalism of Zieliński's embodied agents as used by
+//! Janiak & Zieliński for the Rex mobile platform (Bull. Pol. Ac. Tech. 63(3), 2015),
+//! section 2, and a deterministic executor to run it.
+//!
+//! | paper | here |
+//! |---|---|
+//! | agent `a_j` | an agent of a [`SystemBuilder`]: one control subsystem, virtual effectors and receptors, drivers |
+//! | `c_j`, `e_{j,n}`, `r_{j,k}` | a type implementing [`Subsystem`] (kind, memory, input and output buffers) |
+//! | `E_j`, `R_j` | a type implementing [`Driver`] |
+//! | `_x c`, `_y c`, `^c c` | [`In`] and [`Out`] fields grouped by peer ([`Group`]); the memory is any struct |
+//! | `isnew(buf)`, `ι` | [`In::is_new`], [`In::stamp`] |
+//! | `^{c,e} f_{j,m}` | a part of an [`Action`] writing one group (type-checked target) |
+//! | `A_{j,m}` (Alg. 1) | [`Action`] + the executor's read / compute / send / wait cycle |
+//! | `B_{j,m}` (Alg. 2, 3) | [`Behaviour::while_loop`], [`Behaviour::repeat_loop`] |
+//! | `f^σ`, `f^τ` | Boolean [`Expr`]essions over named predicates |
+//! | FSM (Fig. 5) | [`Fsm`], built and checked by [`FsmBuilder`] |
+//! | links | [`SystemBuilder::connect`] with a [`Policy`] (sample or queue) |
+//!
+//! Start with [`Subsystem`], [`Action`], [`Behaviour`], [`Fsm`], then
+//! [`SystemBuilder`] and [`Executor`]. The `testing` feature adds
+//! [`testing`]: termination properties checked with proptest.
+
+pub mod behaviour;
+pub mod buffer;
+pub mod executor;
+pub mod expr;
+pub mod fsm;
+pub mod link;
+mod node;
+pub mod subsystem;
+pub mod system;
+#[cfg(feature = "testing")]
+pub mod testing;
+pub mod time;
+pub mod trace;
+pub mod transition;
+
+pub use behaviour::{Behaviour, BehaviourKind};
+pub use buffer::{BufferError, Group, In, NodeKind, Out, Payload};
+pub use executor::{ExecConfig, ExecError, Executor, FsmError, OnError, RunReport};
+pub use expr::{Expr, ExprError};
+pub use fsm::{
+    Activated, ActivationError, Arc, Fsm, FsmBuildError, FsmBuilder, FsmFault, FsmProblem,
+    FsmState, Predicate, Step,
+};
+pub use link::{LinkError, LinkId, LinkStats, Policy, Port};
+pub use subsystem::{DeviceKind, Driver, DriverContext, DriverError, Subsystem, SubsystemKind};
+pub use system::{
+    AgentId, BuildError, BuildProblem, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System,
+    SystemBuilder, structure_violation,
+};
+pub use time::{Period, PeriodError, Stamp, Time};
+pub use trace::{
+    ActionEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder, SystemInfo,
+    Trace, TraceEvent, TransferEvent, TransitionEvent,
+};
+pub use transition::{Action, ActionError, Outcome, PartTarget};
+
+/// Items used by macro-generated code. Not part of the public API.
+#[doc(hidden)]
+pub mod __private {
+    use crate::buffer::{Group, NodeKind};
+
+    /// The peer kind of the group a projection returns (the projection is never called).
+    pub fn peer_of<B, G: Group>(_projection: fn(&mut B) -> &mut G) -> NodeKind {
+        G::PEER
+    }
+}

@@ -1,0 +1,126 @@
+//! Subsystems (`c`, `e`, `r`) and drivers of real effectors and receptors (`E`, `R`).
+
+use std::fmt;
+
+use crate::buffer::NodeKind;
+use crate::time::{Period, Time};
+
+/// The kinds of subsystem a user implements with behaviours and an FSM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SubsystemKind {
+    /// Control subsystem `c_j`: coordinates the agent and talks to other agents.
+    Control,
+    /// Virtual effector `e_{j,n}`: turns the control subsystem's commands into
+    /// commands for the real effectors.
+    VirtualEffector,
+    /// Virtual receptor `r_{j,k}`: turns real receptor readings into concepts the
+    /// control subsystem uses.
+    VirtualReceptor,
+}
+
+impl From<SubsystemKind> for NodeKind {
+    fn from(k: SubsystemKind) -> NodeKind {
+        match k {
+            SubsystemKind::Control => NodeKind::Control,
+            SubsystemKind::VirtualEffector => NodeKind::VirtualEffector,
+            SubsystemKind::VirtualReceptor => NodeKind::VirtualReceptor,
+        }
+    }
+}
+
+/// The kinds of real devices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DeviceKind {
+    /// Real effector `E_j` (motors, valves, a simulated platform).
+    Effector,
+    /// Real receptor `R_j` (cameras, gauges, a simulated sensor).
+    Receptor,
+}
+
+impl From<DeviceKind> for NodeKind {
+    fn from(k: DeviceKind) -> NodeKind {
+        match k {
+            DeviceKind::Effector => NodeKind::RealEffector,
+            DeviceKind::Receptor => NodeKind::RealReceptor,
+        }
+    }
+}
+
+/// The types that make up one subsystem: its kind, internal memory, input buffers
+/// and output buffers.
+///
+/// Implement it on a marker type; the behaviour lives in an [`Fsm`](crate::Fsm) of
+/// [`Behaviour`](crate::Behaviour)s built over it. `Input` is a struct of [`Group`]s
+/// of [`In`](crate::In) buffers and `Output` a struct of groups of
+/// [`Out`](crate::Out) buffers.
+///
+/// [`Group`]: crate::Group
+#[diagnostic::on_unimplemented(
+    message = "`{Self}` is not a subsystem",
+    label = "this type does not implement `Subsystem`",
+    note = "implement `Subsystem` for `{Self}`: its KIND, Memory, Input and Output types"
+)]
+pub trait Subsystem: Sized + 'static {
+    /// Control subsystem, virtual effector or virtual receptor.
+    const KIND: SubsystemKind;
+    /// The internal memory `^c c`.
+    type Memory: Send + 'static;
+    /// The input buffers `_x c`.
+    type Input: Default + Send + 'static;
+    /// The output buffers `_y c`.
+    type Output: Default + Send + 'static;
+}
+
+/// Timing of one driver step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DriverContext {
+    /// Virtual time of this step.
+    pub now: Time,
+    /// The driver's own iteration counter.
+    pub iteration: u64,
+    /// The driver's period (the time until its next step).
+    pub period: Period,
+}
+
+/// A failure of a real device, reported by its driver.
+#[derive(Debug, thiserror::Error)]
+#[error("{message}")]
+pub struct DriverError {
+    /// What went wrong, for a person.
+    pub message: String,
+    /// The underlying error, if any.
+    #[source]
+    pub source: Option<Box<dyn std::error::Error + Send + Sync>>,
+}
+
+impl DriverError {
+    /// A driver error with a message.
+    pub fn new(message: impl fmt::Display) -> DriverError {
+        DriverError {
+            message: message.to_string(),
+            source: None,
+        }
+    }
+}
+
+/// A real effector or receptor: hardware, or a simulator standing in for it.
+///
+/// A driver exchanges buffers with its agent's virtual effectors or receptors like a
+/// subsystem does, but it has no FSM: the executor calls [`Driver::step`] once per
+/// period, between reading its inputs and sending its outputs.
+pub trait Driver: Send + 'static {
+    /// Real effector or real receptor.
+    const KIND: DeviceKind;
+    /// Commands received from virtual effectors or receptors (`_x E`).
+    type Input: Default + Send + 'static;
+    /// Readings sent to virtual effectors or receptors (`_y E`).
+    type Output: Default + Send + 'static;
+
+    /// Advance the device by one period: act on `input`, write readings to `output`.
+    fn step(
+        &mut self,
+        ctx: DriverContext,
+        input: &Self::Input,
+        output: &mut Self::Output,
+    ) -> Result<(), DriverError>;
+}

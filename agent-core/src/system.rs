@@ -1,0 +1,555 @@
+//! Agents and multi-agent systems: composing subsystems, drivers and links.
+//!
+//! A [`SystemBuilder`] collects agents, their components and the links between
+//! buffers, checks the agent structure of the paper (Fig. 2) and reports every
+//! problem at once from [`SystemBuilder::build`]:
+//!
+//! * every agent has exactly one control subsystem;
+//! * a virtual effector exchanges buffers only with its own agent's control
+//!   subsystem and real effectors; a virtual receptor only with its control
+//!   subsystem and real receptors; real devices only with their virtual ones;
+//! * agents talk only through their control subsystems (transmission buffers `T`);
+//! * every input buffer is fed by at most one output.
+
+use std::any::TypeId;
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::fmt;
+use std::marker::PhantomData;
+
+use crate::buffer::{In, NodeKind, Out, Payload};
+use crate::fsm::Fsm;
+use crate::link::{
+    ChannelFactory, InPlan, LinkId, OutPlan, Policy, Port, TypedInPlan, TypedOutPlan,
+    channel_factory,
+};
+use crate::node::{DriverInstance, Instance, NodeDyn};
+use crate::subsystem::{Driver, Subsystem};
+use crate::time::Period;
+use crate::trace::{LinkInfo, NodeInfo, SystemInfo};
+
+/// Identifies an agent of a [`SystemBuilder`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AgentId(usize);
+
+/// Identifies a node (subsystem or driver): its index in declaration order, which is
+/// also the executor's stepping order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct NodeId(pub(crate) usize);
+
+impl NodeId {
+    /// The node's index.
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
+/// A typed handle to a subsystem added to a system.
+pub struct SubsystemHandle<S> {
+    node: usize,
+    _s: PhantomData<fn() -> S>,
+}
+
+/// A typed handle to a driver added to a system.
+pub struct DriverHandle<D> {
+    node: usize,
+    _d: PhantomData<fn() -> D>,
+}
+
+macro_rules! handle_impls {
+    ($h:ident, $bound:ident) => {
+        impl<X> Clone for $h<X> {
+            fn clone(&self) -> Self {
+                *self
+            }
+        }
+        impl<X> Copy for $h<X> {}
+        impl<X> fmt::Debug for $h<X> {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{}({})", stringify!($h), self.node)
+            }
+        }
+        impl<X: $bound> $h<X> {
+            /// The node id.
+            pub fn id(&self) -> NodeId {
+                NodeId(self.node)
+            }
+
+            /// The output buffer `port` of this component, as the source of a link.
+            pub fn output<T>(&self, port: Port<X::Output, Out<T>>) -> Source<X::Output, T> {
+                Source {
+                    node: self.node,
+                    port,
+                }
+            }
+
+            /// The input buffer `port` of this component, as the destination of a link.
+            pub fn input<T>(&self, port: Port<X::Input, In<T>>) -> Sink<X::Input, T> {
+                Sink {
+                    node: self.node,
+                    port,
+                }
+            }
+        }
+    };
+}
+handle_impls!(SubsystemHandle, Subsystem);
+handle_impls!(DriverHandle, Driver);
+
+/// The sending end of a link: an output buffer of one node.
+pub struct Source<O, T> {
+    node: usize,
+    port: Port<O, Out<T>>,
+}
+
+/// The receiving end of a link: an input buffer of one node.
+pub struct Sink<I, T> {
+    node: usize,
+    port: Port<I, In<T>>,
+}
+
+/// A problem in a system's composition.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BuildProblem {
+    /// Two agents have the same name.
+    #[error("agent `{0}` is declared twice")]
+    DuplicateAgent(String),
+    /// Two nodes have the same name.
+    #[error("`{0}` is declared twice (subsystem and driver names are unique in a system)")]
+    DuplicateNode(String),
+    /// An id or handle from another builder.
+    #[error("{0} does not belong to this system builder")]
+    ForeignHandle(String),
+    /// An agent without a control subsystem.
+    #[error("agent `{0}` has no control subsystem")]
+    NoControl(String),
+    /// An agent with several control subsystems.
+    #[error("agent `{agent}` has {count} control subsystems ({names}); an agent has exactly one")]
+    SeveralControls {
+        /// The agent.
+        agent: String,
+        /// How many.
+        count: usize,
+        /// Their names.
+        names: String,
+    },
+    /// A link that breaks the agent structure.
+    #[error("link `{link}` breaks the agent structure: {reason}")]
+    Structure {
+        /// The link.
+        link: String,
+        /// Which rule.
+        reason: String,
+    },
+    /// A buffer group declares a peer kind that does not match the linked node.
+    #[error(
+        "link `{link}`: port `{port}` belongs to a group connected to a {declared}, but the other end is a {actual}"
+    )]
+    PeerMismatch {
+        /// The link.
+        link: String,
+        /// The port whose group disagrees.
+        port: String,
+        /// The group's declared peer.
+        declared: NodeKind,
+        /// The kind at the other end.
+        actual: NodeKind,
+    },
+    /// An input buffer fed by two outputs.
+    #[error("input `{input}` is fed by two outputs: `{first}` and `{second}`")]
+    InputFedTwice {
+        /// The input buffer.
+        input: String,
+        /// The first link.
+        first: String,
+        /// The second link.
+        second: String,
+    },
+    /// A queue of capacity zero.
+    #[error("link `{0}` is a queue of capacity 0; a queue holds at least one value")]
+    ZeroQueueBound(String),
+}
+
+/// Every problem found in a system's composition.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub struct BuildError {
+    /// The problems, in the order found.
+    pub problems: Vec<BuildProblem>,
+}
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "the system is malformed:")?;
+        for p in &self.problems {
+            write!(f, "\n  - {p}")?;
+        }
+        Ok(())
+    }
+}
+
+/// A checked system, ready for an executor.
+pub struct System {
+    pub(crate) info: SystemInfo,
+    pub(crate) nodes: Vec<Box<dyn NodeDyn>>,
+    pub(crate) outs: Vec<(usize, Box<dyn OutPlan>)>,
+    pub(crate) ins: Vec<(usize, Box<dyn InPlan>)>,
+    pub(crate) channels: Vec<ChannelFactory>,
+}
+
+impl fmt::Debug for System {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("System").field("info", &self.info).finish()
+    }
+}
+
+impl System {
+    /// Names, kinds, periods and links of the system.
+    pub fn info(&self) -> &SystemInfo {
+        &self.info
+    }
+}
+
+/// Builds a [`System`]: agents, their subsystems and drivers, and the links.
+#[derive(Default)]
+pub struct SystemBuilder {
+    info: SystemInfo,
+    nodes: Vec<Box<dyn NodeDyn>>,
+    node_agent: Vec<usize>,
+    names: HashMap<String, usize>,
+    outs: Vec<(usize, Box<dyn OutPlan>)>,
+    out_index: HashMap<(usize, &'static str), usize>,
+    ins: Vec<(usize, Box<dyn InPlan>)>,
+    fed: HashMap<(usize, &'static str), usize>,
+    channels: Vec<ChannelFactory>,
+    problems: Vec<BuildProblem>,
+}
+
+impl fmt::Debug for SystemBuilder {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("SystemBuilder")
+            .field("info", &self.info)
+            .field("problems", &self.problems)
+            .finish()
+    }
+}
+
+impl SystemBuilder {
+    /// An empty system.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Declare an agent.
+    pub fn agent(&mut self, name: impl Into<String>) -> AgentId {
+        let name = name.into();
+        if self.info.agents.contains(&name) {
+            self.problems
+                .push(BuildProblem::DuplicateAgent(name.clone()));
+        }
+        self.info.agents.push(name);
+        AgentId(self.info.agents.len() - 1)
+    }
+
+    fn add_node(&mut self, agent: AgentId, info: NodeInfo, node: Box<dyn NodeDyn>) -> usize {
+        let index = self.nodes.len();
+        if self.names.insert(info.name.clone(), index).is_some() {
+            self.problems
+                .push(BuildProblem::DuplicateNode(info.name.clone()));
+        }
+        if agent.0 >= self.info.agents.len() {
+            self.problems.push(BuildProblem::ForeignHandle(format!(
+                "the agent of `{}`",
+                info.name
+            )));
+        }
+        self.info.nodes.push(info);
+        self.nodes.push(node);
+        self.node_agent.push(agent.0);
+        index
+    }
+
+    /// Add subsystem `name` of kind `S::KIND` to `agent`, with its period, initial
+    /// memory and FSM.
+    pub fn subsystem<S: Subsystem>(
+        &mut self,
+        agent: AgentId,
+        name: impl Into<String>,
+        period: Period,
+        memory: S::Memory,
+        fsm: Fsm<S>,
+    ) -> SubsystemHandle<S> {
+        let info = NodeInfo {
+            name: name.into(),
+            kind: S::KIND.into(),
+            agent: self.agent_name(agent),
+            period,
+            behaviours: (0..fsm.len())
+                .map(|i| fsm.behaviour_name(i).to_owned())
+                .collect(),
+        };
+        let node = Box::new(Instance::new(info.clone(), memory, fsm));
+        SubsystemHandle {
+            node: self.add_node(agent, info, node),
+            _s: PhantomData,
+        }
+    }
+
+    /// Add driver `name` (a real effector or receptor) to `agent`, stepped every `period`.
+    pub fn driver<D: Driver>(
+        &mut self,
+        agent: AgentId,
+        name: impl Into<String>,
+        period: Period,
+        driver: D,
+    ) -> DriverHandle<D> {
+        let info = NodeInfo {
+            name: name.into(),
+            kind: D::KIND.into(),
+            agent: self.agent_name(agent),
+            period,
+            behaviours: Vec::new(),
+        };
+        let node = Box::new(DriverInstance::new(info.clone(), driver));
+        DriverHandle {
+            node: self.add_node(agent, info, node),
+            _d: PhantomData,
+        }
+    }
+
+    fn agent_name(&self, agent: AgentId) -> String {
+        self.info
+            .agents
+            .get(agent.0)
+            .cloned()
+            .unwrap_or_else(|| format!("<agent #{}>", agent.0))
+    }
+
+    /// Link the output buffer `src` to the input buffer `dst` with `policy`.
+    ///
+    /// Connecting one output to several inputs fans it out (each input gets the
+    /// value); connecting two outputs to one input is a [`BuildProblem`].
+    pub fn connect<O, I, T>(&mut self, src: Source<O, T>, dst: Sink<I, T>, policy: Policy) -> LinkId
+    where
+        O: Send + 'static,
+        I: Send + 'static,
+        T: Payload,
+    {
+        let link = self.info.links.len();
+        let node_name = |n: usize| {
+            self.info
+                .nodes
+                .get(n)
+                .map_or_else(|| format!("<node #{n}>"), |i| i.name.clone())
+        };
+        let (src_name, dst_name) = (node_name(src.node), node_name(dst.node));
+        let name = format!(
+            "{src_name}.{} -> {dst_name}.{}",
+            src.port.name(),
+            dst.port.name()
+        );
+        let buffer_types = |n: usize| self.nodes.get(n).map(|node| node.buffer_types());
+        let src_ok = buffer_types(src.node).is_some_and(|(_, o)| o == TypeId::of::<O>());
+        let dst_ok = buffer_types(dst.node).is_some_and(|(i, _)| i == TypeId::of::<I>());
+        if !(src_ok && dst_ok) {
+            self.problems.push(BuildProblem::ForeignHandle(format!(
+                "a handle used in link `{name}`"
+            )));
+        } else {
+            self.check_link(&name, &src, &dst, policy);
+        }
+        let dst_key = (dst.node, dst.port.name());
+        if let Some(&first) = self.fed.get(&dst_key) {
+            self.problems.push(BuildProblem::InputFedTwice {
+                input: format!("{dst_name}.{}", dst.port.name()),
+                first: self.info.links[first].name.clone(),
+                second: name.clone(),
+            });
+        } else {
+            self.fed.insert(dst_key, link);
+        }
+        let src_key = (src.node, src.port.name());
+        match self.out_index.get(&src_key) {
+            Some(&i) => self.outs[i].1.add_link(link),
+            None => {
+                self.out_index.insert(src_key, self.outs.len());
+                self.outs.push((
+                    src.node,
+                    Box::new(TypedOutPlan {
+                        port: src.port,
+                        links: vec![link],
+                    }),
+                ));
+            }
+        }
+        self.ins.push((
+            dst.node,
+            Box::new(TypedInPlan {
+                port: dst.port,
+                link,
+                name: Cow::Owned(format!("{dst_name}.{}", dst.port.name())),
+            }),
+        ));
+        // A zero bound was reported above; the channel gets capacity 1 so that the
+        // executor never sees an impossible queue.
+        let safe_policy = match policy {
+            Policy::Queue { bound: 0 } => Policy::queue(1),
+            p => p,
+        };
+        self.channels.push(channel_factory::<T>(safe_policy));
+        self.info.links.push(LinkInfo {
+            name,
+            from: src.node,
+            from_port: src.port.name(),
+            to: dst.node,
+            to_port: dst.port.name(),
+            policy,
+            payload: std::any::type_name::<T>(),
+        });
+        LinkId(link)
+    }
+
+    fn check_link<O, I, T>(
+        &mut self,
+        name: &str,
+        src: &Source<O, T>,
+        dst: &Sink<I, T>,
+        policy: Policy,
+    ) {
+        if policy == Policy::queue(0) {
+            self.problems
+                .push(BuildProblem::ZeroQueueBound(name.to_owned()));
+        }
+        let (s, d) = (&self.info.nodes[src.node], &self.info.nodes[dst.node]);
+        let same_agent = self.node_agent[src.node] == self.node_agent[dst.node];
+        if let Some(reason) = structure_violation(s.kind, d.kind, same_agent) {
+            self.problems.push(BuildProblem::Structure {
+                link: name.to_owned(),
+                reason: reason.to_owned(),
+            });
+        }
+        for (port, declared, actual) in [
+            (src.port.name(), src.port.peer(), d.kind),
+            (dst.port.name(), dst.port.peer(), s.kind),
+        ] {
+            if let Some(declared) = declared.filter(|k| *k != actual) {
+                self.problems.push(BuildProblem::PeerMismatch {
+                    link: name.to_owned(),
+                    port: port.to_owned(),
+                    declared,
+                    actual,
+                });
+            }
+        }
+    }
+
+    /// Check the whole composition and build the system.
+    pub fn build(mut self) -> Result<System, BuildError> {
+        for (a, agent) in self.info.agents.iter().enumerate() {
+            let controls: Vec<&str> = self
+                .info
+                .nodes
+                .iter()
+                .zip(&self.node_agent)
+                .filter(|(n, owner)| **owner == a && n.kind == NodeKind::Control)
+                .map(|(n, _)| n.name.as_str())
+                .collect();
+            match controls.len() {
+                1 => {}
+                0 => self.problems.push(BuildProblem::NoControl(agent.clone())),
+                count => self.problems.push(BuildProblem::SeveralControls {
+                    agent: agent.clone(),
+                    count,
+                    names: controls.join(", "),
+                }),
+            }
+        }
+        if !self.problems.is_empty() {
+            return Err(BuildError {
+                problems: self.problems,
+            });
+        }
+        Ok(System {
+            info: self.info,
+            nodes: self.nodes,
+            outs: self.outs,
+            ins: self.ins,
+            channels: self.channels,
+        })
+    }
+}
+
+/// Why a link from a `src` node to a `dst` node breaks the agent structure, if it does.
+pub fn structure_violation(src: NodeKind, dst: NodeKind, same_agent: bool) -> Option<&'static str> {
+    use NodeKind::*;
+    let allowed_within_agent = matches!(
+        (src, dst),
+        (Control, VirtualEffector | VirtualReceptor)
+            | (VirtualEffector | VirtualReceptor, Control)
+            | (VirtualEffector, RealEffector)
+            | (RealEffector, VirtualEffector)
+            | (VirtualReceptor, RealReceptor)
+            | (RealReceptor, VirtualReceptor)
+    );
+    match (src, dst) {
+        (Control, Control) if same_agent => {
+            Some("a control subsystem links to control subsystems of other agents only")
+        }
+        (Control, Control) => None,
+        _ if allowed_within_agent && same_agent => None,
+        _ if allowed_within_agent => Some(
+            "components of different agents exchange buffers only through their control subsystems (transmission buffers)",
+        ),
+        (VirtualEffector, _) | (_, VirtualEffector) => Some(
+            "a virtual effector exchanges buffers only with its own control subsystem and real effectors",
+        ),
+        (VirtualReceptor, _) | (_, VirtualReceptor) => Some(
+            "a virtual receptor exchanges buffers only with its own control subsystem and real receptors",
+        ),
+        _ => Some(
+            "real effectors and receptors exchange buffers only with their agent's virtual effectors and receptors",
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use NodeKind::*;
+
+    #[test]
+    fn structure_rules() {
+        let ok = [
+            (Control, VirtualEffector),
+            (VirtualEffector, Control),
+            (Control, VirtualReceptor),
+            (VirtualReceptor, Control),
+            (VirtualEffector, RealEffector),
+            (RealEffector, VirtualEffector),
+            (VirtualReceptor, RealReceptor),
+            (RealReceptor, VirtualReceptor),
+        ];
+        let all = [
+            Control,
+            VirtualEffector,
+            VirtualReceptor,
+            RealEffector,
+            RealReceptor,
+        ];
+        for s in all {
+            for d in all {
+                let within = structure_violation(s, d, true).is_none();
+                let across = structure_violation(s, d, false).is_none();
+                assert_eq!(
+                    within,
+                    ok.contains(&(s, d)),
+                    "{s:?} -> {d:?} within an agent"
+                );
+                assert_eq!(
+                    across,
+                    (s, d) == (Control, Control),
+                    "{s:?} -> {d:?} across agents"
+                );
+            }
+        }
+    }
+}

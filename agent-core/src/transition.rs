@@ -1,0 +1,384 @@
+//! Transition functions, decomposed by the buffer they write, and the elementary
+//! action they parameterise (Algorithm 1 of the paper).
+//!
+//! A subsystem's transition function `f` maps `(memory^ι, inputs^ι)` to
+//! `(memory^ι+1, outputs^ι+1)`. The paper decomposes it by target: `f_{c,c}`
+//! writes the memory, `f_{c,e}` the outputs towards the virtual effector, `f_{c,T}`
+//! the transmission buffers towards another agent, and so on. An [`Action`] is
+//! assembled from such parts:
+//!
+//! * [`Action::output`] takes a *target* (a projection `&mut Output -> &mut G` onto
+//!   one [`Group`]) and a function that receives `&mut G` only, so the compiler
+//!   rejects a write to any other buffer;
+//! * [`Action::memory`] takes the function that computes the next memory;
+//! * [`Action::common`] (optional) computes intermediate results shared by several
+//!   parts (a solver's solution both stored in memory and sent as a command).
+//!
+//! Order of evaluation within one action: `common`, then every output part (each
+//! sees the memory as `common` left it), then the memory part. Since `common` is a
+//! function of `(memory^ι, inputs^ι)`, every output is still a function of
+//! `(memory^ι, inputs^ι)`, as in the paper: outputs are computed from the memory of
+//! the current iteration, the memory part alone produces `memory^ι+1`.
+
+use std::any::TypeId;
+use std::borrow::Cow;
+use std::fmt;
+
+use crate::buffer::{BufferError, Group, NodeKind};
+use crate::subsystem::Subsystem;
+
+/// Why an elementary action could not complete.
+#[derive(Debug, thiserror::Error)]
+pub enum ActionError {
+    /// A buffer the action needs holds no data.
+    #[error(transparent)]
+    Buffer(#[from] BufferError),
+    /// The transition function refused to compute (bad data, solver failure...).
+    #[error("{0}")]
+    Failed(Cow<'static, str>),
+    /// Any other error raised by user code.
+    #[error(transparent)]
+    Other(Box<dyn std::error::Error + Send + Sync>),
+}
+
+impl ActionError {
+    /// An error with a message.
+    pub fn failed(message: impl Into<Cow<'static, str>>) -> ActionError {
+        ActionError::Failed(message.into())
+    }
+}
+
+impl From<Box<dyn std::error::Error + Send + Sync>> for ActionError {
+    fn from(e: Box<dyn std::error::Error + Send + Sync>) -> Self {
+        ActionError::Other(e)
+    }
+}
+
+/// What a transition function may return: `()` when it cannot fail, or
+/// `Result<(), E>` for any `E` convertible into [`ActionError`].
+#[diagnostic::on_unimplemented(
+    message = "a transition function must return `()` or `Result<(), E>` with `E: Into<ActionError>`, not `{Self}`"
+)]
+pub trait Outcome {
+    /// Convert into the runtime's result type.
+    fn into_result(self) -> Result<(), ActionError>;
+}
+
+impl Outcome for () {
+    #[inline]
+    fn into_result(self) -> Result<(), ActionError> {
+        Ok(())
+    }
+}
+
+impl<E: Into<ActionError>> Outcome for Result<(), E> {
+    #[inline]
+    fn into_result(self) -> Result<(), ActionError> {
+        self.map_err(Into::into)
+    }
+}
+
+type MemoryFn<S> = Box<
+    dyn Fn(&mut <S as Subsystem>::Memory, &<S as Subsystem>::Input) -> Result<(), ActionError>
+        + Send,
+>;
+type OutputFn<S> = Box<
+    dyn Fn(
+            &<S as Subsystem>::Memory,
+            &<S as Subsystem>::Input,
+            &mut <S as Subsystem>::Output,
+        ) -> Result<(), ActionError>
+        + Send,
+>;
+
+struct OutputPart<S: Subsystem> {
+    target: TypeId,
+    target_name: &'static str,
+    peer: NodeKind,
+    f: OutputFn<S>,
+}
+
+/// Description of one part of a transition function, for specs and diagrams.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PartTarget {
+    /// Computes intermediate results into the memory (evaluated first).
+    Common,
+    /// Writes the group `group` (a type name) towards a peer of kind `peer`.
+    Output {
+        /// Type name of the group.
+        group: &'static str,
+        /// Kind of the component the group is connected to.
+        peer: NodeKind,
+    },
+    /// Computes the next memory (evaluated last).
+    Memory,
+}
+
+/// An elementary action `A_{j,m}(f_{j,m})`: the decomposed transition function of one
+/// behaviour. The executor supplies the rest of Algorithm 1 (send, wait, read).
+pub struct Action<S: Subsystem> {
+    common: Option<MemoryFn<S>>,
+    outputs: Vec<OutputPart<S>>,
+    memory: Option<MemoryFn<S>>,
+    defects: Vec<String>,
+}
+
+impl<S: Subsystem> Default for Action<S> {
+    fn default() -> Self {
+        Action {
+            common: None,
+            outputs: Vec::new(),
+            memory: None,
+            defects: Vec::new(),
+        }
+    }
+}
+
+impl<S: Subsystem> fmt::Debug for Action<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(self.parts()).finish()
+    }
+}
+
+impl<S: Subsystem> Action<S> {
+    /// An action that computes nothing (the subsystem just waits for one period).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Add the part `f_{·,target}` that writes the output group selected by `target`.
+    ///
+    /// ```
+    /// # use agent_core::*;
+    /// # struct Ctl;
+    /// # #[derive(Default)] struct Input { level: In<f64> }
+    /// # #[derive(Default)] struct Output { to_valve: ToValve }
+    /// #[derive(Default)]
+    /// struct ToValve { flow: Out<f64> }
+    /// impl Group for ToValve { const PEER: NodeKind = NodeKind::VirtualEffector; }
+    /// # impl Subsystem for Ctl { const KIND: SubsystemKind = SubsystemKind::Control;
+    /// #   type Memory = f64; type Input = Input; type Output = Output; }
+    ///
+    /// // f_{c,e}: may write `ToValve` and nothing else.
+    /// fn open_valve(target: &f64, x: &Input, y: &mut ToValve) -> Result<(), ActionError> {
+    ///     let level = x.level.require()?;
+    ///     y.flow.set((target - level).clamp(0.0, 1.0));
+    ///     Ok(())
+    /// }
+    /// let action = Action::<Ctl>::new().output(|y| &mut y.to_valve, open_valve);
+    /// ```
+    pub fn output<G, F, R>(mut self, target: fn(&mut S::Output) -> &mut G, f: F) -> Self
+    where
+        G: Group,
+        F: Fn(&S::Memory, &S::Input, &mut G) -> R + Send + 'static,
+        R: Outcome,
+    {
+        let id = TypeId::of::<G>();
+        let target_name = short_type_name::<G>();
+        if self.outputs.iter().any(|p| p.target == id) {
+            self.defects.push(format!(
+                "two transition functions write the same target `{target_name}`"
+            ));
+        }
+        self.outputs.push(OutputPart {
+            target: id,
+            target_name,
+            peer: G::PEER,
+            f: Box::new(move |m, x, y| f(m, x, target(y)).into_result()),
+        });
+        self
+    }
+
+    /// Set the memory part `f_{·,·}`: computes `memory^ι+1` in place from
+    /// `memory^ι` and the inputs. It runs after every output part.
+    pub fn memory<F, R>(mut self, f: F) -> Self
+    where
+        F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
+        R: Outcome,
+    {
+        if self.memory.is_some() {
+            self.defects.push("the memory part is set twice".to_owned());
+        }
+        self.memory = Some(Box::new(move |m, x| f(m, x).into_result()));
+        self
+    }
+
+    /// Set the common part: intermediate results shared by several parts, stored in
+    /// memory before the output parts run.
+    pub fn common<F, R>(mut self, f: F) -> Self
+    where
+        F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
+        R: Outcome,
+    {
+        if self.common.is_some() {
+            self.defects.push("the common part is set twice".to_owned());
+        }
+        self.common = Some(Box::new(move |m, x| f(m, x).into_result()));
+        self
+    }
+
+    /// Evaluate the transition function once: `common`, the output parts in the order
+    /// they were added, then the memory part. Stops at the first error.
+    #[inline]
+    pub fn compute(
+        &self,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+    ) -> Result<(), ActionError> {
+        if let Some(c) = &self.common {
+            c(memory, input)?;
+        }
+        for part in &self.outputs {
+            (part.f)(memory, input, output)?;
+        }
+        if let Some(m) = &self.memory {
+            m(memory, input)?;
+        }
+        Ok(())
+    }
+
+    /// The parts of this action, in evaluation order.
+    pub fn parts(&self) -> Vec<PartTarget> {
+        let mut v = Vec::new();
+        if self.common.is_some() {
+            v.push(PartTarget::Common);
+        }
+        v.extend(self.outputs.iter().map(|p| PartTarget::Output {
+            group: p.target_name,
+            peer: p.peer,
+        }));
+        if self.memory.is_some() {
+            v.push(PartTarget::Memory);
+        }
+        v
+    }
+
+    /// Problems found while assembling the action (the FSM builder reports them).
+    pub(crate) fn defects(&self) -> &[String] {
+        &self.defects
+    }
+}
+
+/// `a::b::Name<c::D>` -> `Name<D>`.
+pub(crate) fn short_type_name<T: ?Sized>() -> &'static str {
+    let full = std::any::type_name::<T>();
+    let base = full.split('<').next().unwrap_or(full);
+    match base.rfind("::") {
+        Some(i) if !full.contains('<') => &full[i + 2..],
+        _ => full,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::buffer::{In, Out};
+    use crate::subsystem::SubsystemKind;
+
+    struct S;
+    #[derive(Default)]
+    struct X {
+        a: In<i32>,
+    }
+    #[derive(Default, Debug)]
+    struct ToE {
+        cmd: Out<i32>,
+    }
+    impl Group for ToE {
+        const PEER: NodeKind = NodeKind::VirtualEffector;
+    }
+    #[derive(Default, Debug)]
+    struct ToT {
+        ack: Out<bool>,
+    }
+    impl Group for ToT {
+        const PEER: NodeKind = NodeKind::Control;
+    }
+    #[derive(Default, Debug)]
+    struct Y {
+        e: ToE,
+        t: ToT,
+    }
+    impl Subsystem for S {
+        const KIND: SubsystemKind = SubsystemKind::Control;
+        type Memory = Vec<i32>;
+        type Input = X;
+        type Output = Y;
+    }
+
+    #[test]
+    fn outputs_see_the_old_memory_and_memory_part_runs_last() {
+        // Like Algorithms 6 and 7: f_{c,e} sends the first element of the list that
+        // f_{c,c} removes in the same iteration.
+        let action = Action::<S>::new()
+            .memory(|m: &mut Vec<i32>, _x: &X| {
+                m.remove(0);
+            })
+            .output(
+                |y| &mut y.e,
+                |m: &Vec<i32>, _x: &X, y: &mut ToE| y.cmd.set(m[0]),
+            );
+        let mut mem = vec![10, 20];
+        let mut y = Y::default();
+        action.compute(&mut mem, &X::default(), &mut y).unwrap();
+        assert_eq!(y.e.cmd.written(), Some(&10));
+        assert_eq!(mem, vec![20]);
+        assert!(!y.t.ack.is_written());
+    }
+
+    #[test]
+    fn common_part_runs_first() {
+        let action = Action::<S>::new()
+            .common(|m: &mut Vec<i32>, _x: &X| m.push(5))
+            .output(
+                |y| &mut y.e,
+                |m: &Vec<i32>, _x: &X, y: &mut ToE| y.cmd.set(m.iter().sum()),
+            );
+        let mut mem = vec![1];
+        let mut y = Y::default();
+        action.compute(&mut mem, &X::default(), &mut y).unwrap();
+        assert_eq!(y.e.cmd.written(), Some(&6));
+    }
+
+    #[test]
+    fn errors_stop_the_action() {
+        let action = Action::<S>::new()
+            .output(
+                |y| &mut y.e,
+                |_m: &Vec<i32>, x: &X, y: &mut ToE| {
+                    y.cmd.set(*x.a.require()?);
+                    Ok::<(), ActionError>(())
+                },
+            )
+            .memory(|m: &mut Vec<i32>, _x: &X| m.push(1));
+        let mut mem = vec![];
+        let err = action
+            .compute(&mut mem, &X::default(), &mut Y::default())
+            .unwrap_err();
+        assert!(matches!(
+            err,
+            ActionError::Buffer(BufferError::NoData { .. })
+        ));
+        assert!(mem.is_empty(), "the memory part did not run");
+    }
+
+    #[test]
+    fn duplicate_targets_are_defects() {
+        let action = Action::<S>::new()
+            .output(|y| &mut y.t, |_: &Vec<i32>, _: &X, _: &mut ToT| {})
+            .output(|y| &mut y.t, |_: &Vec<i32>, _: &X, _: &mut ToT| {});
+        assert_eq!(action.defects().len(), 1);
+        assert!(action.defects()[0].contains("ToT"));
+        assert_eq!(
+            action.parts(),
+            vec![
+                PartTarget::Output {
+                    group: "ToT",
+                    peer: NodeKind::Control
+                };
+                2
+            ]
+        );
+    }
+}

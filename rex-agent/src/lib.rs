@@ -1,0 +1,6 @@
+//! Rex, the skid-steer mobile platform of Janiak & Zieliński, as an embodied agent.
+//!
+//! The locomotion agent `a1` (control subsystem `c1`, virtual effector `e1,1`, virtual
+//! receptor `r1,1`), its simulated world (platform `E1`, stereo camera `R1`) and its
+//! partner agents `a2` (ontology) and `a3` (map) are built here against the public
+//! `embodied` API only, exactly as a user's crate would be.
