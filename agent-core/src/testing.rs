@@ -119,12 +119,19 @@ where
 
 /// A termination property that does not hold, with the shrunk counterexample
 /// rendered as a trace.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{message}")]
 pub struct TerminationFailure {
     /// The whole report: what failed, the minimal initial memory and environment,
     /// and one line per iteration.
     pub message: String,
+}
+
+/// Shows the report as it is, so that `.unwrap()` in a test prints a readable trace.
+impl Debug for TerminationFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
 }
 
 /// Settings of a termination check: the bound and the number of random cases.
@@ -247,6 +254,9 @@ impl Termination {
             }),
             Err(TestError::Fail(_, (m, env))) => {
                 let mut log = Some(Log::default());
+                if let Some(l) = &mut log {
+                    l.memory = format!("{m:?}");
+                }
                 let reason = run(m.clone(), env.clone(), &mut log)
                     .err()
                     .unwrap_or_else(|| "failed only on the first run (non-deterministic?)".into());
@@ -273,11 +283,26 @@ impl Termination {
 #[derive(Default)]
 struct Log {
     lines: Vec<String>,
+    memory: String,
 }
 
 fn log_line(log: &mut Option<Log>, f: impl FnOnce() -> String) {
     if let Some(l) = log {
         l.lines.push(f());
+    }
+}
+
+/// The memory's `Debug` text, or "unchanged" if it is the same as at the last call.
+fn memory_text(log: &mut Option<Log>, memory: &impl Debug) -> String {
+    let Some(l) = log else {
+        return String::new();
+    };
+    let text = format!("{memory:?}");
+    if text == l.memory {
+        "unchanged".to_owned()
+    } else {
+        l.memory.clone_from(&text);
+        text
     }
 }
 
@@ -313,8 +338,9 @@ where
         }
         let mut output = S::Output::default();
         let result = behaviour.action().compute(&mut memory, &input, &mut output);
+        let mem = memory_text(log, &memory);
         log_line(log, || {
-            format!("ι={iteration}: inputs {input:?} -> outputs {output:?}, memory {memory:?}")
+            format!("ι={iteration}: inputs {input:?} -> outputs {output:?}, memory {mem}")
         });
         if let Err(e) = result {
             return Err(format!(
