@@ -29,7 +29,7 @@ use std::time::Duration;
 
 use crate::fsm::FsmFault;
 use crate::link::{Channels, LinkCx, LinkError, LinkId, LinkStats};
-use crate::node::{DriverInstance, Instance, NodeDyn, NodeStep};
+use crate::node::{DriverCore, Instance, Local, LocalNode, NodeStep};
 use crate::subsystem::{Driver, DriverError, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -147,10 +147,12 @@ pub struct RunReport {
     pub instants: u64,
 }
 
-/// Runs a [`System`] in virtual time, deterministically. See the module docs.
+/// Runs a [`System`] in virtual time, deterministically, on the calling thread. See
+/// the module docs. (The executor itself is not `Send`: its links share channels
+/// without locks. Move the [`System`] to another thread and build the executor there.)
 pub struct Executor<O: Observer = NoObserver> {
     info: SystemInfo,
-    nodes: Vec<Box<dyn NodeDyn>>,
+    nodes: Vec<Box<dyn LocalNode>>,
     periods: Vec<u64>,
     next: Vec<u64>,
     due: Vec<usize>,
@@ -185,27 +187,33 @@ impl<O: Observer> Executor<O> {
     pub fn with_observer(system: System, config: ExecConfig, observer: O) -> Self {
         let System {
             info,
-            mut nodes,
+            nodes,
             outs,
             ins,
             channels,
         } = system;
+        let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
+        let channels = Channels { typed, stats };
+        let mut nodes: Vec<Box<dyn LocalNode>> = nodes.into_iter().map(|n| n.into_local()).collect();
         // Handles were checked against the nodes' buffer types when the links were
-        // declared, so installation cannot fail.
+        // declared, and every plan's channel was made from the same payload type, so
+        // installation cannot fail.
         for (node, plan) in &outs {
-            let installed = nodes[*node].install_out(plan.local());
+            let installed = plan
+                .local(&channels)
+                .is_some_and(|port| nodes[*node].install_out(port));
             debug_assert!(installed, "output port type checked at connect()");
         }
         for (node, plan) in &ins {
-            let installed = nodes[*node].install_in(plan.local());
+            let installed = plan
+                .local(&channels)
+                .is_some_and(|port| nodes[*node].install_in(port));
             debug_assert!(installed, "input port type checked at connect()");
         }
         let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
         let n = nodes.len();
         Executor {
-            channels: Channels {
-                items: channels.iter().map(|make| make()).collect(),
-            },
+            channels,
             info,
             nodes,
             periods,
@@ -279,7 +287,6 @@ impl<O: Observer> Executor<O> {
         self.due
             .extend((0..self.next.len()).filter(|&i| self.next[i] == tn));
         let mut cx = LinkCx {
-            channels: &mut self.channels,
             observer: if self.observer.enabled() {
                 Some(&mut self.observer as &mut dyn Observer)
             } else {
@@ -297,6 +304,7 @@ impl<O: Observer> Executor<O> {
                 Ok(NodeStep::Ran) => self.next[i] = tn.saturating_add(self.periods[i]),
                 Ok(NodeStep::Halted) => self.next[i] = u64::MAX,
                 Err(e) => {
+                    let e = *e;
                     if let Some(o) = cx.observer.as_deref_mut() {
                         o.error(t, &e);
                     }
@@ -347,7 +355,10 @@ impl<O: Observer> Executor<O> {
     }
 
     fn instance<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&Instance<S>> {
-        self.nodes.get(h.id().index())?.as_any().downcast_ref()
+        let node = self.nodes.get(h.id().index())?;
+        node.as_any()
+            .downcast_ref::<Local<Instance<S>>>()
+            .map(|l| &l.core)
     }
 
     /// The memory of a subsystem.
@@ -380,25 +391,31 @@ impl<O: Observer> Executor<O> {
     pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
         let node = self.nodes.get(h.id().index())?;
         node.as_any()
-            .downcast_ref::<DriverInstance<D>>()
-            .map(|d| &d.driver)
+            .downcast_ref::<Local<DriverCore<D>>>()
+            .map(|d| &d.core.driver)
     }
 
     /// A driver's device, mutably (to inject faults or change the world in tests).
     pub fn driver_mut<D: Driver>(&mut self, h: &DriverHandle<D>) -> Option<&mut D> {
         let node = self.nodes.get_mut(h.id().index())?;
         node.as_any_mut()
-            .downcast_mut::<DriverInstance<D>>()
-            .map(|d| &mut d.driver)
+            .downcast_mut::<Local<DriverCore<D>>>()
+            .map(|d| &mut d.core.driver)
     }
 
     /// Counters of a link.
     pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
-        self.channels.items.get(link.index()).map(|c| *c.stats())
+        self.channels
+            .stats
+            .get(link.index())
+            .map(|c| *c.borrow().stats())
     }
 
     /// Values waiting in a link (0 or 1 for a sample link).
     pub fn pending(&self, link: LinkId) -> Option<usize> {
-        self.channels.items.get(link.index()).map(|c| c.pending())
+        self.channels
+            .stats
+            .get(link.index())
+            .map(|c| c.borrow().pending())
     }
 }

@@ -72,6 +72,7 @@ impl Expr<String> {
 
 impl<A> Expr<A> {
     /// Evaluate with `atom` giving the value of each atom.
+    #[inline]
     pub fn eval(&self, atom: &mut impl FnMut(&A) -> bool) -> bool {
         match self {
             Expr::Const(b) => *b,

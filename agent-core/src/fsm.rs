@@ -55,6 +55,8 @@ pub struct Arc {
 struct Node<S: Subsystem> {
     behaviour: Behaviour<S>,
     terminal: Expr<usize>,
+    /// The terminal condition is the constant `false`: the behaviour never ends.
+    never_ends: bool,
     arcs: Vec<Arc>,
     is_final: bool,
 }
@@ -341,6 +343,7 @@ impl<S: Subsystem> FsmBuilder<S> {
             .zip(is_final)
             .map(|(((behaviour, terminal), arcs), is_final)| Node {
                 behaviour,
+                never_ends: terminal.is_const_false(),
                 terminal,
                 arcs,
                 is_final,
@@ -666,10 +669,11 @@ impl<S: Subsystem> Fsm<S> {
     ) -> Result<Step, FsmFault> {
         let from = state.node;
         let node = &self.nodes[from];
+        if node.never_ends || !node.behaviour.kind.tests_terminal(state.actions_done) {
+            return Ok(Step::Run);
+        }
         let mut memo = Memo::default();
-        if !(node.behaviour.kind.tests_terminal(state.actions_done)
-            && self.eval(&node.terminal, memory, input, &mut memo))
-        {
+        if !self.eval(&node.terminal, memory, input, &mut memo) {
             return Ok(Step::Run);
         }
         let mut chosen = None;

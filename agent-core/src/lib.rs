@@ -45,7 +45,7 @@ pub use fsm::{
     Activated, ActivationError, Arc, Fsm, FsmBuildError, FsmBuilder, FsmFault, FsmProblem,
     FsmState, Predicate, Step,
 };
-pub use link::{LinkError, LinkId, LinkStats, Policy, Port};
+pub use link::{Access, LinkError, LinkId, LinkStats, Policy, Port};
 pub use subsystem::{DeviceKind, Driver, DriverContext, DriverError, Subsystem, SubsystemKind};
 pub use system::{
     AgentId, BuildError, BuildProblem, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System,

@@ -15,8 +15,11 @@
 
 use std::any::Any;
 use std::borrow::Cow;
+use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::fmt;
+use std::marker::PhantomData;
+use std::rc::Rc;
 
 use crate::buffer::{In, NodeKind, Out, Payload};
 use crate::time::{Stamp, Time};
@@ -95,34 +98,50 @@ pub enum LinkError {
     },
 }
 
+/// How a [`Port`] reaches its field: a projection from the buffer struct `B` to the
+/// field `X`. Usually a closure made by [`port!`](crate::port), which the compiler
+/// inlines into the link's transfer code.
+pub trait Access<B, X>: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
+
+impl<B, X, F> Access<B, X> for F where F: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
+
 /// A typed reference to one buffer field of a component's input or output struct.
 ///
 /// Make one with the [`port!`](crate::port) macro, which records the field's path as
 /// its name and, for fields inside a [`Group`](crate::Group), the group's peer kind.
-pub struct Port<B, X> {
+pub struct Port<B, X, A = fn(&mut B) -> &mut X> {
     name: &'static str,
-    access: fn(&mut B) -> &mut X,
+    access: A,
     peer: Option<NodeKind>,
+    _b: PhantomData<fn(&mut B) -> &mut X>,
 }
 
-impl<B, X> Clone for Port<B, X> {
+impl<B, X, A: Copy> Clone for Port<B, X, A> {
     fn clone(&self) -> Self {
         *self
     }
 }
-impl<B, X> Copy for Port<B, X> {}
+impl<B, X, A: Copy> Copy for Port<B, X, A> {}
 
-impl<B, X> fmt::Debug for Port<B, X> {
+impl<B, X, A> fmt::Debug for Port<B, X, A> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "Port({})", self.name)
     }
 }
 
-impl<B, X> Port<B, X> {
+impl<B, X, A> Port<B, X, A>
+where
+    A: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static,
+{
     /// A port named `name` reached by `access`; `peer` is the kind of component the
     /// field's group is connected to, if it is in a group.
-    pub fn new(name: &'static str, access: fn(&mut B) -> &mut X, peer: Option<NodeKind>) -> Self {
-        Port { name, access, peer }
+    pub fn new(name: &'static str, access: A, peer: Option<NodeKind>) -> Self {
+        Port {
+            name,
+            access,
+            peer,
+            _b: PhantomData,
+        }
     }
 
     /// The field path, e.g. `to_valve.flow`.
@@ -135,6 +154,7 @@ impl<B, X> Port<B, X> {
         self.peer
     }
 
+    #[inline]
     pub(crate) fn get<'a>(&self, b: &'a mut B) -> &'a mut X {
         (self.access)(b)
     }
@@ -276,14 +296,13 @@ impl<T: Clone> Channel<T> {
     }
 }
 
-/// Type-erased channel, as stored in the executor's arena.
-pub(crate) trait AnyChannel: Send {
+/// Type-erased view of a channel, for statistics.
+pub(crate) trait AnyChannel {
     fn stats(&self) -> &LinkStats;
     fn pending(&self) -> usize;
-    fn as_any_mut(&mut self) -> &mut dyn Any;
 }
 
-impl<T: Payload> AnyChannel for Channel<T> {
+impl<T> AnyChannel for Channel<T> {
     fn stats(&self) -> &LinkStats {
         &self.stats
     }
@@ -293,28 +312,27 @@ impl<T: Payload> AnyChannel for Channel<T> {
             ChannelState::Queue { items, .. } => items.len(),
         }
     }
-    fn as_any_mut(&mut self) -> &mut dyn Any {
-        self
-    }
 }
 
-/// The channels of all links of a system, indexed by [`LinkId`].
+/// A channel shared by the two halves of an in-process link. The deterministic
+/// executor is single-threaded, so sharing needs no lock.
+pub(crate) type Shared<T> = Rc<RefCell<Channel<T>>>;
+
+/// The channels of all links of a system, by link index: typed (erased as `Any`, each
+/// a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics.
 pub(crate) struct Channels {
-    pub(crate) items: Vec<Box<dyn AnyChannel>>,
+    pub(crate) typed: Vec<Box<dyn Any>>,
+    pub(crate) stats: Vec<Rc<RefCell<dyn AnyChannel>>>,
 }
 
 impl Channels {
-    #[inline]
-    fn get<T: Payload>(&mut self, id: usize) -> Option<&mut Channel<T>> {
-        self.items
-            .get_mut(id)
-            .and_then(|c| c.as_any_mut().downcast_mut::<Channel<T>>())
+    fn shared<T: Payload>(&self, link: usize) -> Option<Shared<T>> {
+        self.typed.get(link)?.downcast_ref::<Shared<T>>().cloned()
     }
 }
 
 /// What ports need from the executor during a transfer.
 pub(crate) struct LinkCx<'a> {
-    pub(crate) channels: &'a mut Channels,
     pub(crate) observer: Option<&'a mut dyn Observer>,
     pub(crate) links: &'a [LinkInfo],
 }
@@ -322,52 +340,88 @@ pub(crate) struct LinkCx<'a> {
 // ---------------------------------------------------------------------------
 // Ports: the per-component halves of links.
 
-pub(crate) trait OutPort<O>: Send {
-    /// Send the buffer if it was written; every channel gets the value.
-    fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), LinkError>;
+/// A value refused by a full queue: which link, and its capacity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Refused {
+    pub(crate) link: usize,
+    pub(crate) bound: usize,
+}
+
+impl Refused {
+    /// The error the executor reports.
+    #[cold]
+    pub(crate) fn into_error(self, stamp: Stamp, links: &[LinkInfo]) -> LinkError {
+        LinkError::QueueOverflow {
+            link: links
+                .get(self.link)
+                .map(|l| l.name.clone())
+                .unwrap_or_default(),
+            bound: self.bound,
+            iteration: stamp.iteration,
+            time: stamp.time,
+        }
+    }
+}
+
+pub(crate) trait OutPort<O> {
+    /// Send the buffer if it was written; every channel gets the value. A refusal
+    /// (full queue) is returned as `(link, bound)`; the caller makes the error.
+    fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), Refused>;
     /// Forget a write (the action failed).
     fn discard(&mut self, y: &mut O);
 }
 
-pub(crate) trait InPort<I>: Send {
+pub(crate) trait InPort<I> {
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>);
     /// Called once when the port is installed: names the buffer after its link.
     fn attach(&self, x: &mut I);
 }
 
-pub(crate) struct LocalOut<O, T> {
-    pub(crate) port: Port<O, Out<T>>,
-    pub(crate) links: Vec<usize>,
+pub(crate) struct LocalOut<O, T, A> {
+    port: Port<O, Out<T>, A>,
+    /// The first destination (link index, channel), inline: most outputs have one.
+    first: (usize, Shared<T>),
+    /// Further destinations of a fanned-out output.
+    more: Vec<(usize, Shared<T>)>,
 }
 
-impl<O: 'static, T: Payload> OutPort<O> for LocalOut<O, T> {
+impl<O, T: Payload, A> LocalOut<O, T, A> {
     #[inline]
-    fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
+    fn put(
+        &self,
+        (link, channel): &(usize, Shared<T>),
+        value: &mut Option<T>,
+        last: bool,
+        stamp: Stamp,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<(), Refused> {
+        if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref()) {
+            obs.transfer(&TransferEvent { link: *link, stamp }, v);
+        }
+        channel
+            .borrow_mut()
+            .put(value, last, stamp)
+            .map_err(|bound| Refused { link: *link, bound })
+    }
+}
+
+impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T, A> {
+    #[inline]
+    fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), Refused> {
         let Some(value) = self.port.get(y).pending() else {
             return Ok(());
         };
-        let mut result = Ok(());
-        let n = self.links.len();
-        for (k, &link) in self.links.iter().enumerate() {
-            if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref()) {
-                obs.transfer(&TransferEvent { link, stamp }, v);
-            }
-            let Some(channel) = cx.channels.get::<T>(link) else {
-                continue;
-            };
-            if let Err(bound) = channel.put(value, k + 1 == n, stamp) {
-                if result.is_ok() {
-                    result = Err(LinkError::QueueOverflow {
-                        link: cx
-                            .links
-                            .get(link)
-                            .map(|l| l.name.clone())
-                            .unwrap_or_default(),
-                        bound,
-                        iteration: stamp.iteration,
-                        time: stamp.time,
-                    });
-                }
+        if self.more.is_empty() {
+            return self.put(&self.first, value, true, stamp, cx);
+        }
+        // Fan-out: clone into all but the last destination; report the first refusal
+        // after every destination had its chance.
+        let mut result = self.put(&self.first, value, false, stamp, cx);
+        let n = self.more.len();
+        for (k, dest) in self.more.iter().enumerate() {
+            let r = self.put(dest, value, k + 1 == n, stamp, cx);
+            if result.is_ok() {
+                result = r;
             }
         }
         result
@@ -378,18 +432,16 @@ impl<O: 'static, T: Payload> OutPort<O> for LocalOut<O, T> {
     }
 }
 
-pub(crate) struct LocalIn<I, T> {
-    pub(crate) port: Port<I, In<T>>,
-    pub(crate) link: usize,
-    pub(crate) name: Cow<'static, str>,
+pub(crate) struct LocalIn<I, T, A> {
+    port: Port<I, In<T>, A>,
+    channel: Shared<T>,
+    name: Cow<'static, str>,
 }
 
-impl<I: 'static, T: Payload> InPort<I> for LocalIn<I, T> {
+impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A> {
     #[inline]
-    fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) {
-        if let Some(channel) = cx.channels.get::<T>(self.link) {
-            channel.take_into(self.port.get(x));
-        }
+    fn read(&mut self, x: &mut I, _cx: &mut LinkCx<'_>) {
+        self.channel.borrow_mut().take_into(self.port.get(x));
     }
 
     fn attach(&self, x: &mut I) {
@@ -401,58 +453,88 @@ impl<I: 'static, T: Payload> InPort<I> for LocalIn<I, T> {
 // Plans: typed descriptions of links kept by the system until an executor
 // instantiates them with its own transport.
 
-/// The typed halves of a link, kept until an executor instantiates them.
+/// The typed sending half of one or more links (fan-out), kept until an executor
+/// instantiates it.
 pub(crate) trait OutPlan: Send {
     fn add_link(&mut self, link: usize);
-    /// A `Box<Box<dyn OutPort<O>>>` for the in-process executor, erased.
-    fn local(&self) -> Box<dyn Any>;
+    /// A `Box<dyn OutPort<O>>` for the in-process executor, erased as `Any`.
+    fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
 }
 
-pub(crate) struct TypedOutPlan<O, T> {
-    pub(crate) port: Port<O, Out<T>>,
+pub(crate) struct TypedOutPlan<O, T, A> {
+    pub(crate) port: Port<O, Out<T>, A>,
     pub(crate) links: Vec<usize>,
 }
 
-impl<O: Send + 'static, T: Payload> OutPlan for TypedOutPlan<O, T> {
+impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPlan<O, T, A> {
     fn add_link(&mut self, link: usize) {
         self.links.push(link);
     }
-    fn local(&self) -> Box<dyn Any> {
+    fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
+        let mut links = self
+            .links
+            .iter()
+            .map(|&l| Some((l, channels.shared::<T>(l)?)))
+            .collect::<Option<Vec<_>>>()?;
+        if links.is_empty() {
+            return None;
+        }
+        let first = links.remove(0);
         let port: Box<dyn OutPort<O>> = Box::new(LocalOut {
             port: self.port,
-            links: self.links.clone(),
+            first,
+            more: links,
         });
-        Box::new(port)
+        Some(Box::new(port))
     }
 }
 
+/// The typed receiving half of a link.
 pub(crate) trait InPlan: Send {
-    /// A `Box<Box<dyn InPort<I>>>` for the in-process executor, erased.
-    fn local(&self) -> Box<dyn Any>;
+    /// A `Box<dyn InPort<I>>` for the in-process executor, erased as `Any`.
+    fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
 }
 
-pub(crate) struct TypedInPlan<I, T> {
-    pub(crate) port: Port<I, In<T>>,
+pub(crate) struct TypedInPlan<I, T, A> {
+    pub(crate) port: Port<I, In<T>, A>,
     pub(crate) link: usize,
     pub(crate) name: Cow<'static, str>,
 }
 
-impl<I: Send + 'static, T: Payload> InPlan for TypedInPlan<I, T> {
-    fn local(&self) -> Box<dyn Any> {
+impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<I, T, A> {
+    fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
         let port: Box<dyn InPort<I>> = Box::new(LocalIn {
             port: self.port,
-            link: self.link,
+            channel: channels.shared::<T>(self.link)?,
             name: self.name.clone(),
         });
-        Box::new(port)
+        Some(Box::new(port))
     }
 }
 
-/// Makes the channel of one link.
-pub(crate) type ChannelFactory = Box<dyn Fn() -> Box<dyn AnyChannel> + Send>;
+/// Makes the in-process channel of one link.
+pub(crate) trait ChannelPlan: Send {
+    fn local(&self) -> (Box<dyn Any>, Rc<RefCell<dyn AnyChannel>>);
+}
 
-pub(crate) fn channel_factory<T: Payload>(policy: Policy) -> ChannelFactory {
-    Box::new(move || Box::new(Channel::<T>::new(policy)))
+struct TypedChannelPlan<T> {
+    policy: Policy,
+    _t: std::marker::PhantomData<fn() -> T>,
+}
+
+impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
+    fn local(&self) -> (Box<dyn Any>, Rc<RefCell<dyn AnyChannel>>) {
+        let shared: Shared<T> = Rc::new(RefCell::new(Channel::new(self.policy)));
+        let stats: Rc<RefCell<dyn AnyChannel>> = shared.clone();
+        (Box::new(shared), stats)
+    }
+}
+
+pub(crate) fn channel_plan<T: Payload>(policy: Policy) -> Box<dyn ChannelPlan> {
+    Box::new(TypedChannelPlan::<T> {
+        policy,
+        _t: std::marker::PhantomData,
+    })
 }
 
 #[cfg(test)]

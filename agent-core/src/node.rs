@@ -1,5 +1,9 @@
-//! The runtime form of subsystems and drivers, behind one object-safe trait so that
-//! executors can step a heterogeneous system.
+//! The runtime form of subsystems and drivers.
+//!
+//! A [`System`](crate::System) holds every node as a [`NodeSeed`]: its buffers, memory
+//! and FSM (or device), `Send`, without any transport. An executor turns each seed
+//! into its own runtime node by adding the ports of its transport; the deterministic
+//! executor makes a [`Local`] node whose ports share single-threaded channels.
 
 use std::any::{Any, TypeId};
 
@@ -19,9 +23,16 @@ pub(crate) enum NodeStep {
     Halted,
 }
 
-pub(crate) trait NodeDyn: Send {
+/// A node as a system holds it, before an executor gives it ports.
+pub(crate) trait NodeSeed: Send {
     /// `TypeId` of the input and output buffer structs, to check handles.
     fn buffer_types(&self) -> (TypeId, TypeId);
+    /// The node for the in-process executor.
+    fn into_local(self: Box<Self>) -> Box<dyn LocalNode>;
+}
+
+/// A node of the in-process executor.
+pub(crate) trait LocalNode {
     /// Install an erased `Box<dyn OutPort<Output>>`; false if the type does not match.
     fn install_out(&mut self, port: Box<dyn Any>) -> bool;
     /// Install an erased `Box<dyn InPort<Input>>`; false if the type does not match.
@@ -29,8 +40,13 @@ pub(crate) trait NodeDyn: Send {
     /// The read at the start of an activation (the end of Algorithm 1's wait).
     fn read(&mut self, cx: &mut LinkCx<'_>);
     /// FSM decision, action (or driver step) and send.
-    fn step(&mut self, now: Time, index: usize, cx: &mut LinkCx<'_>)
-    -> Result<NodeStep, ExecError>;
+    /// Errors are boxed: they are rare, and a small `Result` keeps the hot path lean.
+    fn step(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<NodeStep, Box<ExecError>>;
     fn halt(&mut self);
     fn is_halted(&self) -> bool;
     fn iteration(&self) -> u64;
@@ -38,22 +54,130 @@ pub(crate) trait NodeDyn: Send {
     fn as_any_mut(&mut self) -> &mut dyn Any;
 }
 
-fn send_all<O>(
-    outs: &mut [Box<dyn OutPort<O>>],
-    output: &mut O,
-    stamp: Stamp,
-    cx: &mut LinkCx<'_>,
-) -> Result<(), ExecError> {
-    let mut first = None;
-    for p in outs.iter_mut() {
-        if let Err(e) = p.send(output, stamp, cx) {
-            first.get_or_insert(e);
-        }
-    }
-    first.map_or(Ok(()), |e| Err(ExecError::Link(e)))
+/// What every node has, whatever the transport: buffers and a way to compute.
+pub(crate) trait Core: Send + Sized + 'static {
+    type Input: 'static;
+    type Output: 'static;
+    fn input(&mut self) -> &mut Self::Input;
+    fn output(&mut self) -> &mut Self::Output;
+    /// Decide and compute one activation. `Ok(Some(stamp))`: outputs are to be sent
+    /// with `stamp`; `Ok(None)`: the node is halted.
+    fn compute(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<Option<Stamp>, Box<ExecError>>;
+    fn halt(&mut self);
+    fn is_halted(&self) -> bool;
+    fn iteration(&self) -> u64;
 }
 
-/// A subsystem in a system: its buffers, memory, FSM and link ports.
+impl<C: Core> NodeSeed for C {
+    fn buffer_types(&self) -> (TypeId, TypeId) {
+        (TypeId::of::<C::Input>(), TypeId::of::<C::Output>())
+    }
+
+    fn into_local(self: Box<Self>) -> Box<dyn LocalNode> {
+        Box::new(Local {
+            core: *self,
+            ins: Vec::new(),
+            outs: Vec::new(),
+        })
+    }
+}
+
+/// A node with the ports of the in-process executor.
+pub(crate) struct Local<C: Core> {
+    pub(crate) core: C,
+    ins: Vec<Box<dyn InPort<C::Input>>>,
+    outs: Vec<Box<dyn OutPort<C::Output>>>,
+}
+
+impl<C: Core> LocalNode for Local<C> {
+    fn install_out(&mut self, port: Box<dyn Any>) -> bool {
+        match port.downcast::<Box<dyn OutPort<C::Output>>>() {
+            Ok(p) => {
+                self.outs.push(*p);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
+    fn install_in(&mut self, port: Box<dyn Any>) -> bool {
+        match port.downcast::<Box<dyn InPort<C::Input>>>() {
+            Ok(p) => {
+                p.attach(self.core.input());
+                self.ins.push(*p);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
+    #[inline]
+    fn read(&mut self, cx: &mut LinkCx<'_>) {
+        let input = self.core.input();
+        for p in &mut self.ins {
+            p.read(input, cx);
+        }
+    }
+
+    #[inline]
+    fn step(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<NodeStep, Box<ExecError>> {
+        match self.core.compute(now, index, cx) {
+            Ok(Some(stamp)) => {
+                let output = self.core.output();
+                let mut first = None;
+                for p in &mut self.outs {
+                    if let Err(refused) = p.send(output, stamp, cx) {
+                        first.get_or_insert(refused);
+                    }
+                }
+                match first {
+                    None => Ok(NodeStep::Ran),
+                    Some(r) => Err(Box::new(ExecError::Link(r.into_error(stamp, cx.links)))),
+                }
+            }
+            Ok(None) => Ok(NodeStep::Halted),
+            Err(e) => {
+                let output = self.core.output();
+                for p in &mut self.outs {
+                    p.discard(output);
+                }
+                Err(e)
+            }
+        }
+    }
+
+    fn halt(&mut self) {
+        self.core.halt();
+    }
+
+    fn is_halted(&self) -> bool {
+        self.core.is_halted()
+    }
+
+    fn iteration(&self) -> u64 {
+        self.core.iteration()
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// A subsystem: its buffers, memory and FSM.
 pub(crate) struct Instance<S: Subsystem> {
     pub(crate) info: NodeInfo,
     pub(crate) memory: S::Memory,
@@ -62,8 +186,6 @@ pub(crate) struct Instance<S: Subsystem> {
     pub(crate) fsm: Fsm<S>,
     pub(crate) state: FsmState,
     pub(crate) iteration: u64,
-    ins: Vec<Box<dyn InPort<S::Input>>>,
-    outs: Vec<Box<dyn OutPort<S::Output>>>,
 }
 
 impl<S: Subsystem> Instance<S> {
@@ -76,52 +198,29 @@ impl<S: Subsystem> Instance<S> {
             state: fsm.start(),
             fsm,
             iteration: 0,
-            ins: Vec::new(),
-            outs: Vec::new(),
         }
     }
 }
 
-impl<S: Subsystem> NodeDyn for Instance<S> {
-    fn buffer_types(&self) -> (TypeId, TypeId) {
-        (TypeId::of::<S::Input>(), TypeId::of::<S::Output>())
+impl<S: Subsystem> Core for Instance<S> {
+    type Input = S::Input;
+    type Output = S::Output;
+
+    fn input(&mut self) -> &mut S::Input {
+        &mut self.input
     }
 
-    fn install_out(&mut self, port: Box<dyn Any>) -> bool {
-        match port.downcast::<Box<dyn OutPort<S::Output>>>() {
-            Ok(p) => {
-                self.outs.push(*p);
-                true
-            }
-            Err(_) => false,
-        }
-    }
-
-    fn install_in(&mut self, port: Box<dyn Any>) -> bool {
-        match port.downcast::<Box<dyn InPort<S::Input>>>() {
-            Ok(p) => {
-                p.attach(&mut self.input);
-                self.ins.push(*p);
-                true
-            }
-            Err(_) => false,
-        }
+    fn output(&mut self) -> &mut S::Output {
+        &mut self.output
     }
 
     #[inline]
-    fn read(&mut self, cx: &mut LinkCx<'_>) {
-        for p in &mut self.ins {
-            p.read(&mut self.input, cx);
-        }
-    }
-
-    #[inline]
-    fn step(
+    fn compute(
         &mut self,
         now: Time,
         index: usize,
         cx: &mut LinkCx<'_>,
-    ) -> Result<NodeStep, ExecError> {
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
         let iteration = self.iteration;
         let observer = &mut cx.observer;
         let result = self.fsm.activate(
@@ -151,32 +250,23 @@ impl<S: Subsystem> NodeDyn for Instance<S> {
                     });
                 }
                 self.iteration += 1;
-                send_all(
-                    &mut self.outs,
-                    &mut self.output,
-                    Stamp::new(iteration, now),
-                    cx,
-                )?;
-                Ok(NodeStep::Ran)
+                Ok(Some(Stamp::new(iteration, now)))
             }
-            Ok(Activated::Halted) => Ok(NodeStep::Halted),
-            Err(ActivationError::Fsm(fault)) => Err(ExecError::Fsm(FsmError {
+            Ok(Activated::Halted) => Ok(None),
+            Err(ActivationError::Fsm(fault)) => Err(Box::new(ExecError::Fsm(FsmError {
                 subsystem: self.info.name.clone(),
                 iteration,
                 time: now,
                 fault,
-            })),
+            }))),
             Err(ActivationError::Action { behaviour, source }) => {
-                for p in &mut self.outs {
-                    p.discard(&mut self.output);
-                }
-                Err(ExecError::Action {
+                Err(Box::new(ExecError::Action {
                     subsystem: self.info.name.clone(),
                     behaviour,
                     iteration,
                     time: now,
                     source,
-                })
+                }))
             }
         }
     }
@@ -192,83 +282,51 @@ impl<S: Subsystem> NodeDyn for Instance<S> {
     fn iteration(&self) -> u64 {
         self.iteration
     }
-
-    fn as_any(&self) -> &dyn Any {
-        self
-    }
-
-    fn as_any_mut(&mut self) -> &mut dyn Any {
-        self
-    }
 }
 
-/// A driver in a system: the device, its buffers and link ports.
-pub(crate) struct DriverInstance<D: Driver> {
+/// A driver: the device and its buffers.
+pub(crate) struct DriverCore<D: Driver> {
     pub(crate) info: NodeInfo,
     pub(crate) driver: D,
     pub(crate) input: D::Input,
     pub(crate) output: D::Output,
     pub(crate) iteration: u64,
     halted: bool,
-    ins: Vec<Box<dyn InPort<D::Input>>>,
-    outs: Vec<Box<dyn OutPort<D::Output>>>,
 }
 
-impl<D: Driver> DriverInstance<D> {
+impl<D: Driver> DriverCore<D> {
     pub(crate) fn new(info: NodeInfo, driver: D) -> Self {
-        DriverInstance {
+        DriverCore {
             info,
             driver,
             input: D::Input::default(),
             output: D::Output::default(),
             iteration: 0,
             halted: false,
-            ins: Vec::new(),
-            outs: Vec::new(),
         }
     }
 }
 
-impl<D: Driver> NodeDyn for DriverInstance<D> {
-    fn buffer_types(&self) -> (TypeId, TypeId) {
-        (TypeId::of::<D::Input>(), TypeId::of::<D::Output>())
+impl<D: Driver> Core for DriverCore<D> {
+    type Input = D::Input;
+    type Output = D::Output;
+
+    fn input(&mut self) -> &mut D::Input {
+        &mut self.input
     }
 
-    fn install_out(&mut self, port: Box<dyn Any>) -> bool {
-        match port.downcast::<Box<dyn OutPort<D::Output>>>() {
-            Ok(p) => {
-                self.outs.push(*p);
-                true
-            }
-            Err(_) => false,
-        }
+    fn output(&mut self) -> &mut D::Output {
+        &mut self.output
     }
 
-    fn install_in(&mut self, port: Box<dyn Any>) -> bool {
-        match port.downcast::<Box<dyn InPort<D::Input>>>() {
-            Ok(p) => {
-                p.attach(&mut self.input);
-                self.ins.push(*p);
-                true
-            }
-            Err(_) => false,
-        }
-    }
-
-    fn read(&mut self, cx: &mut LinkCx<'_>) {
-        for p in &mut self.ins {
-            p.read(&mut self.input, cx);
-        }
-    }
-
-    fn step(
+    fn compute(
         &mut self,
         now: Time,
         index: usize,
         cx: &mut LinkCx<'_>,
-    ) -> Result<NodeStep, ExecError> {
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
         if self.halted {
-            return Ok(NodeStep::Halted);
+            return Ok(None);
         }
         let iteration = self.iteration;
         let ctx = DriverContext {
@@ -276,17 +334,16 @@ impl<D: Driver> NodeDyn for DriverInstance<D> {
             iteration,
             period: self.info.period,
         };
-        if let Err(source) = self.driver.step(ctx, &self.input, &mut self.output) {
-            for p in &mut self.outs {
-                p.discard(&mut self.output);
-            }
-            return Err(ExecError::Driver {
-                driver: self.info.name.clone(),
-                iteration,
-                time: now,
-                source,
-            });
-        }
+        self.driver
+            .step(ctx, &self.input, &mut self.output)
+            .map_err(|source| {
+                Box::new(ExecError::Driver {
+                    driver: self.info.name.clone(),
+                    iteration,
+                    time: now,
+                    source,
+                })
+            })?;
         if let Some(o) = cx.observer.as_deref_mut() {
             o.action(&ActionEvent {
                 time: now,
@@ -296,13 +353,7 @@ impl<D: Driver> NodeDyn for DriverInstance<D> {
             });
         }
         self.iteration += 1;
-        send_all(
-            &mut self.outs,
-            &mut self.output,
-            Stamp::new(iteration, now),
-            cx,
-        )?;
-        Ok(NodeStep::Ran)
+        Ok(Some(Stamp::new(iteration, now)))
     }
 
     fn halt(&mut self) {
@@ -315,13 +366,5 @@ impl<D: Driver> NodeDyn for DriverInstance<D> {
 
     fn iteration(&self) -> u64 {
         self.iteration
-    }
-
-    fn as_any(&self) -> &dyn Any {
-        self
-    }
-
-    fn as_any_mut(&mut self) -> &mut dyn Any {
-        self
     }
 }

@@ -20,10 +20,10 @@ use std::marker::PhantomData;
 use crate::buffer::{In, NodeKind, Out, Payload};
 use crate::fsm::Fsm;
 use crate::link::{
-    ChannelFactory, InPlan, LinkId, OutPlan, Policy, Port, TypedInPlan, TypedOutPlan,
-    channel_factory,
+    Access, ChannelPlan, InPlan, LinkId, OutPlan, Policy, Port, TypedInPlan, TypedOutPlan,
+    channel_plan,
 };
-use crate::node::{DriverInstance, Instance, NodeDyn};
+use crate::node::{DriverCore, Instance, NodeSeed};
 use crate::subsystem::{Driver, Subsystem};
 use crate::time::Period;
 use crate::trace::{LinkInfo, NodeInfo, SystemInfo};
@@ -76,7 +76,7 @@ macro_rules! handle_impls {
             }
 
             /// The output buffer `port` of this component, as the source of a link.
-            pub fn output<T>(&self, port: Port<X::Output, Out<T>>) -> Source<X::Output, T> {
+            pub fn output<T, A>(&self, port: Port<X::Output, Out<T>, A>) -> Source<X::Output, T, A> {
                 Source {
                     node: self.node,
                     port,
@@ -84,7 +84,7 @@ macro_rules! handle_impls {
             }
 
             /// The input buffer `port` of this component, as the destination of a link.
-            pub fn input<T>(&self, port: Port<X::Input, In<T>>) -> Sink<X::Input, T> {
+            pub fn input<T, A>(&self, port: Port<X::Input, In<T>, A>) -> Sink<X::Input, T, A> {
                 Sink {
                     node: self.node,
                     port,
@@ -97,15 +97,15 @@ handle_impls!(SubsystemHandle, Subsystem);
 handle_impls!(DriverHandle, Driver);
 
 /// The sending end of a link: an output buffer of one node.
-pub struct Source<O, T> {
+pub struct Source<O, T, A> {
     node: usize,
-    port: Port<O, Out<T>>,
+    port: Port<O, Out<T>, A>,
 }
 
 /// The receiving end of a link: an input buffer of one node.
-pub struct Sink<I, T> {
+pub struct Sink<I, T, A> {
     node: usize,
-    port: Port<I, In<T>>,
+    port: Port<I, In<T>, A>,
 }
 
 /// A problem in a system's composition.
@@ -188,12 +188,15 @@ impl fmt::Display for BuildError {
 }
 
 /// A checked system, ready for an executor.
+///
+/// A system is `Send`: build it on one thread and run it on another. It holds the
+/// nodes and typed link plans; each executor instantiates them with its transport.
 pub struct System {
     pub(crate) info: SystemInfo,
-    pub(crate) nodes: Vec<Box<dyn NodeDyn>>,
+    pub(crate) nodes: Vec<Box<dyn NodeSeed>>,
     pub(crate) outs: Vec<(usize, Box<dyn OutPlan>)>,
     pub(crate) ins: Vec<(usize, Box<dyn InPlan>)>,
-    pub(crate) channels: Vec<ChannelFactory>,
+    pub(crate) channels: Vec<Box<dyn ChannelPlan>>,
 }
 
 impl fmt::Debug for System {
@@ -213,14 +216,14 @@ impl System {
 #[derive(Default)]
 pub struct SystemBuilder {
     info: SystemInfo,
-    nodes: Vec<Box<dyn NodeDyn>>,
+    nodes: Vec<Box<dyn NodeSeed>>,
     node_agent: Vec<usize>,
     names: HashMap<String, usize>,
     outs: Vec<(usize, Box<dyn OutPlan>)>,
     out_index: HashMap<(usize, &'static str), usize>,
     ins: Vec<(usize, Box<dyn InPlan>)>,
     fed: HashMap<(usize, &'static str), usize>,
-    channels: Vec<ChannelFactory>,
+    channels: Vec<Box<dyn ChannelPlan>>,
     problems: Vec<BuildProblem>,
 }
 
@@ -250,7 +253,7 @@ impl SystemBuilder {
         AgentId(self.info.agents.len() - 1)
     }
 
-    fn add_node(&mut self, agent: AgentId, info: NodeInfo, node: Box<dyn NodeDyn>) -> usize {
+    fn add_node(&mut self, agent: AgentId, info: NodeInfo, node: Box<dyn NodeSeed>) -> usize {
         let index = self.nodes.len();
         if self.names.insert(info.name.clone(), index).is_some() {
             self.problems
@@ -309,7 +312,7 @@ impl SystemBuilder {
             period,
             behaviours: Vec::new(),
         };
-        let node = Box::new(DriverInstance::new(info.clone(), driver));
+        let node = Box::new(DriverCore::new(info.clone(), driver));
         DriverHandle {
             node: self.add_node(agent, info, node),
             _d: PhantomData,
@@ -328,11 +331,18 @@ impl SystemBuilder {
     ///
     /// Connecting one output to several inputs fans it out (each input gets the
     /// value); connecting two outputs to one input is a [`BuildProblem`].
-    pub fn connect<O, I, T>(&mut self, src: Source<O, T>, dst: Sink<I, T>, policy: Policy) -> LinkId
+    pub fn connect<O, I, T, AO, AI>(
+        &mut self,
+        src: Source<O, T, AO>,
+        dst: Sink<I, T, AI>,
+        policy: Policy,
+    ) -> LinkId
     where
         O: Send + 'static,
         I: Send + 'static,
         T: Payload,
+        AO: Access<O, Out<T>>,
+        AI: Access<I, In<T>>,
     {
         let link = self.info.links.len();
         let node_name = |n: usize| {
@@ -395,7 +405,7 @@ impl SystemBuilder {
             Policy::Queue { bound: 0 } => Policy::queue(1),
             p => p,
         };
-        self.channels.push(channel_factory::<T>(safe_policy));
+        self.channels.push(channel_plan::<T>(safe_policy));
         self.info.links.push(LinkInfo {
             name,
             from: src.node,
@@ -408,13 +418,16 @@ impl SystemBuilder {
         LinkId(link)
     }
 
-    fn check_link<O, I, T>(
+    fn check_link<O, I, T, AO, AI>(
         &mut self,
         name: &str,
-        src: &Source<O, T>,
-        dst: &Sink<I, T>,
+        src: &Source<O, T, AO>,
+        dst: &Sink<I, T, AI>,
         policy: Policy,
-    ) {
+    ) where
+        AO: Access<O, Out<T>>,
+        AI: Access<I, In<T>>,
+    {
         if policy == Policy::queue(0) {
             self.problems
                 .push(BuildProblem::ZeroQueueBound(name.to_owned()));

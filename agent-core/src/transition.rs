@@ -167,9 +167,10 @@ impl<S: Subsystem> Action<S> {
     /// }
     /// let action = Action::<Ctl>::new().output(|y| &mut y.to_valve, open_valve);
     /// ```
-    pub fn output<G, F, R>(mut self, target: fn(&mut S::Output) -> &mut G, f: F) -> Self
+    pub fn output<G, P, F, R>(mut self, target: P, f: F) -> Self
     where
         G: Group,
+        P: for<'a> Fn(&'a mut S::Output) -> &'a mut G + Send + 'static,
         F: Fn(&S::Memory, &S::Input, &mut G) -> R + Send + 'static,
         R: Outcome,
     {

@@ -1,0 +1,815 @@
+//! The executor's semantics and its reaction to every kind of bad input: multi-rate
+//! timing, sample and queue links, FSM contract violations, missing data, failing
+//! drivers, malformed systems.
+
+use agent_core::*;
+
+// ---------------------------------------------------------------------------
+// A control subsystem that counts and sends its count to its effector (every
+// `every`-th iteration), and an effector that records what it receives.
+
+struct Counter;
+
+#[derive(Clone, Debug)]
+struct CounterMemory {
+    n: u64,
+    every: u64,
+}
+
+#[derive(Debug, Default)]
+struct CountToE {
+    count: Out<u64>,
+}
+impl Group for CountToE {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+
+#[derive(Debug, Default)]
+struct CounterOut {
+    e: CountToE,
+}
+
+#[derive(Debug, Default, Clone)]
+struct EchoFromE {
+    echo: In<u64>,
+}
+impl Group for EchoFromE {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+
+#[derive(Debug, Default, Clone)]
+struct CounterIn {
+    e: EchoFromE,
+}
+
+impl Subsystem for Counter {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = CounterMemory;
+    type Input = CounterIn;
+    type Output = CounterOut;
+}
+
+fn counter_fsm() -> Fsm<Counter> {
+    Fsm::single(Behaviour::while_loop(
+        "count",
+        Action::<Counter>::new()
+            .output(
+                |y| &mut y.e,
+                |m: &CounterMemory, _: &CounterIn, y: &mut CountToE| {
+                    if m.n % m.every == 0 {
+                        y.count.set(m.n);
+                    }
+                },
+            )
+            .memory(|m: &mut CounterMemory, _: &CounterIn| m.n += 1),
+        "false",
+    ))
+    .unwrap()
+}
+
+struct Recv;
+
+#[derive(Clone, Debug, Default)]
+struct RecvMemory {
+    /// (own iteration, value, stamp) of every fresh value.
+    got: Vec<(u64, u64, Stamp)>,
+    /// `is_new()` at each iteration.
+    fresh: Vec<bool>,
+    iteration: u64,
+}
+
+#[derive(Debug, Default, Clone)]
+struct FromC {
+    count: In<u64>,
+}
+impl Group for FromC {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+#[derive(Debug, Default, Clone)]
+struct RecvIn {
+    c: FromC,
+}
+
+#[derive(Debug, Default)]
+struct EchoToC {
+    echo: Out<u64>,
+}
+impl Group for EchoToC {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+#[derive(Debug, Default)]
+struct RecvOut {
+    c: EchoToC,
+}
+
+impl Subsystem for Recv {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = RecvMemory;
+    type Input = RecvIn;
+    type Output = RecvOut;
+}
+
+fn recv_fsm(require: bool) -> Fsm<Recv> {
+    Fsm::single(Behaviour::while_loop(
+        "record",
+        Action::<Recv>::new()
+            .output(
+                |y| &mut y.c,
+                move |m: &RecvMemory, x: &RecvIn, y: &mut EchoToC| {
+                    // Written first, so that a failure below shows that a failed
+                    // action sends nothing.
+                    y.echo.set(m.iteration);
+                    if require {
+                        x.c.count.require()?;
+                    }
+                    Ok::<(), ActionError>(())
+                },
+            )
+            .memory(|m: &mut RecvMemory, x: &RecvIn| {
+                if let Some(&v) = x.c.count.fresh() {
+                    m.got.push((m.iteration, v, x.c.count.stamp().unwrap()));
+                }
+                m.fresh.push(x.c.count.is_new());
+                m.iteration += 1;
+            }),
+        "false",
+    ))
+    .unwrap()
+}
+
+fn ms(n: u64) -> Period {
+    Period::from_millis(n).unwrap()
+}
+
+fn t_ms(n: u64) -> Time {
+    Time::from_nanos(n * 1_000_000)
+}
+
+struct Pair {
+    system: System,
+    c: SubsystemHandle<Counter>,
+    e: SubsystemHandle<Recv>,
+    down: LinkId,
+}
+
+fn pair(c_period: u64, e_period: u64, every: u64, policy: Policy, require: bool) -> Pair {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let c = b.subsystem(
+        a,
+        "c",
+        ms(c_period),
+        CounterMemory { n: 0, every },
+        counter_fsm(),
+    );
+    let e = b.subsystem(
+        a,
+        "e",
+        ms(e_period),
+        RecvMemory::default(),
+        recv_fsm(require),
+    );
+    let down = b.connect(
+        c.output(port!(CounterOut, e.count)),
+        e.input(port!(RecvIn, c.count)),
+        policy,
+    );
+    b.connect(
+        e.output(port!(RecvOut, c.echo)),
+        c.input(port!(CounterIn, e.echo)),
+        Policy::Sample,
+    );
+    Pair {
+        system: b.build().unwrap(),
+        c,
+        e,
+        down,
+    }
+}
+
+#[test]
+fn multi_rate_timing_and_one_period_latency() {
+    let p = pair(10, 30, 1, Policy::Sample, false);
+    let mut x = Executor::new(p.system, ExecConfig::default());
+    x.run_until(t_ms(300)).unwrap();
+    assert_eq!(
+        x.iteration(p.c.id()),
+        Some(30),
+        "c runs at 0, 10, ..., 290 ms"
+    );
+    assert_eq!(
+        x.iteration(p.e.id()),
+        Some(10),
+        "e runs at 0, 30, ..., 270 ms"
+    );
+    let got = &x.memory(&p.e).unwrap().got;
+    // e's iteration k (at 30k ms) reads the latest value sent strictly before: c's
+    // iteration 3k-1, sent at 30k-10 ms. Nothing is read at k = 0.
+    let expected: Vec<(u64, u64, Stamp)> = (1..10)
+        .map(|k| (k, 3 * k - 1, Stamp::new(3 * k - 1, t_ms(30 * k - 10))))
+        .collect();
+    assert_eq!(got, &expected);
+    let stats = x.link_stats(p.down).unwrap();
+    assert_eq!(stats.sent, 30);
+    assert_eq!(stats.delivered, 9);
+    assert_eq!(
+        stats.overwritten, 20,
+        "two of every three values are replaced unread"
+    );
+    assert_eq!(x.now(), t_ms(300));
+}
+
+#[test]
+fn is_new_only_in_the_iteration_that_brought_the_value() {
+    // c sends every 3rd iteration at the same rate as e.
+    let p = pair(10, 10, 3, Policy::Sample, false);
+    let mut x = Executor::new(p.system, ExecConfig::default());
+    x.run_until(t_ms(100)).unwrap();
+    let m = x.memory(&p.e).unwrap();
+    // c sends at iterations 0, 3, 6, 9 (t = 0, 30, 60, 90 ms); e reads them at 10,
+    // 40, 70 ms.
+    assert_eq!(
+        m.fresh,
+        vec![
+            false, true, false, false, true, false, false, true, false, false
+        ]
+    );
+    assert_eq!(
+        m.got.iter().map(|g| g.1).collect::<Vec<_>>(),
+        vec![0, 3, 6],
+        "values"
+    );
+    // The last value stays readable but is no longer new.
+    let input = x.input(&p.e).unwrap();
+    assert_eq!(
+        (input.c.count.get(), input.c.count.is_new()),
+        (Some(&6), false)
+    );
+}
+
+#[test]
+fn queue_overflow_stops_the_run_when_configured_to() {
+    let p = pair(10, 100, 1, Policy::queue(3), false);
+    let mut x = Executor::new(p.system, ExecConfig::default());
+    let err = x.run_until(t_ms(1000)).unwrap_err();
+    // Sends at 0, 10, 20 ms fill the queue; e has not read yet (its next read is at
+    // 100 ms); the send at 30 ms is refused.
+    match &err {
+        ExecError::Link(LinkError::QueueOverflow {
+            link,
+            bound,
+            iteration,
+            time,
+        }) => {
+            assert_eq!(link, "c.e.count -> e.c.count");
+            assert_eq!((*bound, *iteration, *time), (3, 3, t_ms(30)));
+        }
+        other => panic!("expected a queue overflow, got {other:?}"),
+    }
+    assert!(err.to_string().contains("refused"), "{err}");
+    assert!(matches!(x.step(), Err(ExecError::Stopped)));
+    assert!(matches!(x.run_until(t_ms(2000)), Err(ExecError::Stopped)));
+}
+
+#[test]
+fn queue_is_lossless_and_overflow_is_counted_when_continuing() {
+    let p = pair(10, 100, 1, Policy::queue(3), false);
+    let mut x = Executor::new(p.system, ExecConfig::continue_on_error());
+    x.run_until(t_ms(1000)).unwrap();
+    let stats = x.link_stats(p.down).unwrap();
+    let received: Vec<u64> = x.memory(&p.e).unwrap().got.iter().map(|g| g.1).collect();
+    assert_eq!(
+        stats.sent + stats.overflowed,
+        100,
+        "every send is accounted for"
+    );
+    assert_eq!(stats.delivered as usize, received.len());
+    assert_eq!(
+        stats.sent,
+        stats.delivered + x.pending(p.down).unwrap() as u64,
+        "accepted values are delivered or still waiting"
+    );
+    assert!(
+        received.windows(2).all(|w| w[0] < w[1]),
+        "in order: {received:?}"
+    );
+    assert_eq!(
+        &received[..3],
+        &[0, 1, 2],
+        "the first values arrive in full"
+    );
+    assert_eq!(x.report().error_count, stats.overflowed);
+    assert!(
+        x.report()
+            .errors
+            .iter()
+            .all(|e| matches!(e, ExecError::Link(LinkError::QueueOverflow { .. })))
+    );
+    assert_eq!(stats.max_pending, 3);
+}
+
+#[test]
+fn reading_a_buffer_that_never_received_data_is_an_action_error() {
+    // e requires c's count, but c only sends from iteration 0 at 100 ms periods
+    // while e runs at 10 ms: e's first activation (t = 0) has no data.
+    let p = pair(100, 10, 1, Policy::Sample, true);
+    let mut x = Executor::new(p.system, ExecConfig::default());
+    let err = x.run_until(t_ms(100)).unwrap_err();
+    match &err {
+        ExecError::Action {
+            subsystem,
+            behaviour,
+            iteration,
+            time,
+            source: ActionError::Buffer(BufferError::NoData { buffer }),
+        } => {
+            assert_eq!((subsystem.as_str(), behaviour.as_str()), ("e", "record"));
+            assert_eq!((*iteration, *time), (0, Time::ZERO));
+            assert_eq!(buffer, "e.c.count");
+        }
+        other => panic!("expected a missing-data error, got {other:?}"),
+    }
+    assert_eq!(
+        err.to_string(),
+        "subsystem `e`, behaviour `record`, iteration 0 at 0.000000 s: input buffer `e.c.count` has not received any data yet"
+    );
+}
+
+#[test]
+fn a_failed_action_sends_nothing_and_is_retried_when_continuing() {
+    let p = pair(100, 10, 1, Policy::Sample, true);
+    let mut x = Executor::new(p.system, ExecConfig::continue_on_error());
+    x.run_until(t_ms(50)).unwrap();
+    // e failed at 0 ms (no data yet); from 10 ms on it has c's first value.
+    assert_eq!(x.report().error_count, 1);
+    assert_eq!(
+        x.iteration(p.e.id()),
+        Some(4),
+        "actions at 10..40 ms completed"
+    );
+    // The echo written before the failure at 0 ms was not sent: c's first echo is
+    // e's memory iteration 0 (first successful action), sent at 10 ms.
+    x.run_until(t_ms(250)).unwrap();
+    let echo = x.input(&p.c).unwrap().e.echo.stamp().unwrap();
+    assert!(echo.time > Time::ZERO);
+    assert_eq!(x.report().error_count, 1);
+}
+
+// ---------------------------------------------------------------------------
+// FSM contract violations.
+
+struct Chooser;
+
+#[derive(Clone, Debug, Default)]
+struct ChooserMemory {
+    n: u32,
+}
+
+impl Subsystem for Chooser {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = ChooserMemory;
+    type Input = ();
+    type Output = ();
+}
+
+/// `work` counts to 3 and ends; the arcs leaving it are given by the test.
+fn chooser_fsm(arcs: &[(&'static str, &'static str)]) -> Fsm<Chooser> {
+    let mut b = Fsm::<Chooser>::builder()
+        .predicate("three", |m: &ChooserMemory, _| m.n >= 3)
+        .predicate("odd", |m: &ChooserMemory, _| m.n % 2 == 1)
+        .predicate("big", |m: &ChooserMemory, _| m.n > 100)
+        .behaviour(Behaviour::repeat_loop(
+            "work",
+            Action::<Chooser>::new().memory(|m: &mut ChooserMemory, _: &()| m.n += 1),
+            "three",
+        ))
+        .behaviour(Behaviour::while_loop("left", Action::new(), "false"))
+        .behaviour(Behaviour::while_loop("right", Action::new(), "false"))
+        .initial("work");
+    for (to, cond) in arcs {
+        b = b.arc("work", *to, *cond);
+    }
+    b.build().unwrap()
+}
+
+fn chooser_system(
+    arcs: &[(&'static str, &'static str)],
+) -> (System, SubsystemHandle<Chooser>, SubsystemHandle<Counter>) {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let c = b.subsystem(
+        a,
+        "chooser",
+        ms(10),
+        ChooserMemory::default(),
+        chooser_fsm(arcs),
+    );
+    // An independent agent that must keep running after the chooser fails.
+    let a2 = b.agent("b");
+    let other = b.subsystem(
+        a2,
+        "other",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    (b.build().unwrap(), c, other)
+}
+
+#[test]
+fn no_arc_holding_is_an_error_with_the_predicate_values() {
+    let (system, _, _) = chooser_system(&[("left", "big"), ("right", "big && odd")]);
+    let mut x = Executor::new(system, ExecConfig::default());
+    let err = x.run_until(t_ms(100)).unwrap_err();
+    let ExecError::Fsm(FsmError {
+        subsystem,
+        iteration,
+        time,
+        fault,
+    }) = &err
+    else {
+        panic!("expected an FSM error, got {err:?}");
+    };
+    assert_eq!(
+        (subsystem.as_str(), *iteration, *time),
+        ("chooser", 3, t_ms(30))
+    );
+    assert_eq!(
+        fault,
+        &FsmFault::NoArcHolds {
+            behaviour: "work".into(),
+            arcs: "-> left [big], -> right [big && odd]".into(),
+            assignment: "three=true, odd=true, big=false".into(),
+        }
+    );
+}
+
+#[test]
+fn several_arcs_holding_is_an_error_never_a_silent_choice() {
+    let (system, _, _) = chooser_system(&[("left", "three"), ("right", "odd")]);
+    let mut x = Executor::new(system, ExecConfig::default());
+    let err = x.run_until(t_ms(100)).unwrap_err();
+    let ExecError::Fsm(FsmError { fault, .. }) = &err else {
+        panic!("expected an FSM error, got {err:?}");
+    };
+    let FsmFault::SeveralArcsHold { count, held, .. } = fault else {
+        panic!("expected several arcs, got {fault:?}");
+    };
+    assert_eq!(
+        (*count, held.as_str()),
+        (2, "-> left [three], -> right [odd]")
+    );
+    assert!(err.to_string().contains("2 arcs hold at once"), "{err}");
+}
+
+#[test]
+fn a_failed_fsm_halts_its_subsystem_and_the_rest_continues() {
+    let (system, chooser, other) = chooser_system(&[("left", "big"), ("right", "big")]);
+    let mut x = Executor::with_observer(system, ExecConfig::continue_on_error(), Recorder::new());
+    x.run_until(t_ms(100)).unwrap();
+    assert!(x.is_halted(chooser.id()));
+    assert_eq!(x.iteration(chooser.id()), Some(3));
+    assert_eq!(x.iteration(other.id()), Some(10), "the other agent ran on");
+    assert_eq!(x.report().errors.len(), 1);
+    assert!(matches!(x.report().errors[0], ExecError::Fsm(_)));
+    let errors: Vec<_> = x
+        .observer()
+        .trace()
+        .events
+        .iter()
+        .filter(|e| matches!(e, TraceEvent::Error { .. }))
+        .collect();
+    assert_eq!(errors.len(), 1, "the observer saw the error");
+}
+
+#[test]
+fn exactly_one_arc_is_followed() {
+    let (system, chooser, _) = chooser_system(&[("left", "odd"), ("right", "!odd")]);
+    let mut x = Executor::with_observer(system, ExecConfig::default(), Recorder::new());
+    x.run_until(t_ms(100)).unwrap();
+    assert_eq!(x.behaviour(&chooser), Some("left"));
+    let trace = x.observer().trace();
+    let seq: Vec<(u64, &str)> = trace.behaviours_of("chooser");
+    assert_eq!(
+        seq,
+        (0..10)
+            .map(|i| (i, if i < 3 { "work" } else { "left" }))
+            .collect::<Vec<_>>()
+    );
+    assert!(trace.events.iter().any(|e| matches!(
+        e,
+        TraceEvent::Transition {
+            from: 0,
+            to: 1,
+            arc: 0,
+            iteration: 3,
+            ..
+        }
+    )));
+}
+
+// ---------------------------------------------------------------------------
+// Drivers.
+
+/// Fails once, at iteration `fail_at`.
+struct Flaky {
+    fail_at: u64,
+    failed: bool,
+}
+
+#[derive(Debug, Default)]
+struct FlakyOut {
+    value: Out<u64>,
+}
+
+impl Driver for Flaky {
+    const KIND: DeviceKind = DeviceKind::Receptor;
+    type Input = ();
+    type Output = FlakyOut;
+    fn step(&mut self, cx: DriverContext, _: &(), y: &mut FlakyOut) -> Result<(), DriverError> {
+        y.value.set(cx.iteration);
+        if cx.iteration == self.fail_at && !self.failed {
+            self.failed = true;
+            return Err(DriverError::new("sensor bus timeout"));
+        }
+        Ok(())
+    }
+}
+
+struct Reader;
+
+#[derive(Debug, Default, Clone)]
+struct FromR {
+    value: In<u64>,
+}
+impl Group for FromR {
+    const PEER: NodeKind = NodeKind::RealReceptor;
+}
+
+#[derive(Debug, Default, Clone)]
+struct ReaderIn {
+    r: FromR,
+}
+
+impl Subsystem for Reader {
+    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
+    type Memory = Vec<u64>;
+    type Input = ReaderIn;
+    type Output = ();
+}
+
+fn reader_system() -> (System, SubsystemHandle<Reader>) {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    b.subsystem(
+        a,
+        "c",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    let r = b.subsystem(
+        a,
+        "r",
+        ms(10),
+        Vec::new(),
+        Fsm::single(Behaviour::while_loop(
+            "read",
+            Action::<Reader>::new().memory(|m: &mut Vec<u64>, x: &ReaderIn| {
+                if let Some(&v) = x.r.value.fresh() {
+                    m.push(v);
+                }
+            }),
+            "false",
+        ))
+        .unwrap(),
+    );
+    let dev = b.driver(
+        a,
+        "R",
+        ms(10),
+        Flaky {
+            fail_at: 2,
+            failed: false,
+        },
+    );
+    b.connect(
+        dev.output(port!(FlakyOut, value)),
+        r.input(port!(ReaderIn, r.value)),
+        Policy::Sample,
+    );
+    (b.build().unwrap(), r)
+}
+
+#[test]
+fn driver_failure_stops_or_is_retried() {
+    let (system, _) = reader_system();
+    let mut x = Executor::new(system, ExecConfig::default());
+    let err = x.run_until(t_ms(100)).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "driver `R`, iteration 2 at 0.020000 s: sensor bus timeout"
+    );
+
+    let (system, r) = reader_system();
+    let mut x = Executor::new(system, ExecConfig::continue_on_error());
+    x.run_until(t_ms(60)).unwrap();
+    // The failed step sent nothing; the retry at 30 ms is iteration 2 again.
+    assert_eq!(x.memory(&r).unwrap(), &vec![0, 1, 2, 3]);
+    assert_eq!(x.report().error_count, 1);
+}
+
+// ---------------------------------------------------------------------------
+// Malformed systems.
+
+#[test]
+fn zero_period_is_a_typed_error() {
+    assert_eq!(Period::from_millis(0), Err(PeriodError::Zero));
+    assert_eq!(
+        Period::from_hz(0.0).unwrap_err().to_string(),
+        "a period needs a positive finite number, got 0"
+    );
+}
+
+#[test]
+fn every_structural_problem_is_reported_at_once() {
+    let mut b = SystemBuilder::new();
+    let a1 = b.agent("a1");
+    let a2 = b.agent("a2");
+    let a3 = b.agent("a3");
+    let c1 = b.subsystem(
+        a1,
+        "c1",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    let e1 = b.subsystem(a1, "e1", ms(10), RecvMemory::default(), recv_fsm(false));
+    let c2 = b.subsystem(
+        a2,
+        "c2",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    let _c2b = b.subsystem(
+        a2,
+        "c2b",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    let e3 = b.subsystem(a3, "e3", ms(10), RecvMemory::default(), recv_fsm(false));
+    let _dup = b.subsystem(a1, "e1", ms(10), RecvMemory::default(), recv_fsm(false));
+    // Fine.
+    b.connect(
+        c1.output(port!(CounterOut, e.count)),
+        e1.input(port!(RecvIn, c.count)),
+        Policy::Sample,
+    );
+    // Fed twice.
+    b.connect(
+        c2.output(port!(CounterOut, e.count)),
+        e1.input(port!(RecvIn, c.count)),
+        Policy::Sample,
+    );
+    // Across agents to an effector.
+    b.connect(
+        c1.output(port!(CounterOut, e.count)),
+        e3.input(port!(RecvIn, c.count)),
+        Policy::queue(0),
+    );
+    // Effector to a control subsystem of another agent.
+    b.connect(
+        e3.output(port!(RecvOut, c.echo)),
+        c2.input(port!(CounterIn, e.echo)),
+        Policy::Sample,
+    );
+    let err = b.build().unwrap_err();
+    let p = &err.problems;
+    let has = |f: &dyn Fn(&BuildProblem) -> bool| p.iter().any(f);
+    assert!(
+        has(&|x| x == &BuildProblem::DuplicateNode("e1".into())),
+        "{err}"
+    );
+    assert!(
+        has(&|x| matches!(x, BuildProblem::InputFedTwice { input, .. } if input == "e1.c.count")),
+        "{err}"
+    );
+    assert!(
+        has(
+            &|x| matches!(x, BuildProblem::Structure { link, .. } if link == "c1.e.count -> e3.c.count")
+        ),
+        "{err}"
+    );
+    assert!(
+        has(
+            &|x| matches!(x, BuildProblem::Structure { link, .. } if link == "e3.c.echo -> c2.e.echo")
+        ),
+        "{err}"
+    );
+    assert!(
+        has(&|x| x == &BuildProblem::ZeroQueueBound("c1.e.count -> e3.c.count".into())),
+        "{err}"
+    );
+    assert!(
+        has(
+            &|x| matches!(x, BuildProblem::SeveralControls { agent, count: 2, .. } if agent == "a2")
+        ),
+        "{err}"
+    );
+    assert!(
+        has(&|x| x == &BuildProblem::NoControl("a3".into())),
+        "{err}"
+    );
+    assert!(
+        has(
+            &|x| matches!(x, BuildProblem::Structure { link, .. } if link == "c2.e.count -> e1.c.count")
+        ),
+        "{err}"
+    );
+    assert_eq!(p.len(), 8, "{err}");
+}
+
+#[test]
+fn a_group_peer_must_match_the_linked_kind() {
+    // A control subsystem's effector group linked to a virtual receptor.
+    struct Rx;
+    impl Subsystem for Rx {
+        const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
+        type Memory = ();
+        type Input = RecvIn;
+        type Output = ();
+    }
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let c = b.subsystem(
+        a,
+        "c",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    let r = b.subsystem(
+        a,
+        "r",
+        ms(10),
+        (),
+        Fsm::single(Behaviour::while_loop("idle", Action::<Rx>::new(), "false")).unwrap(),
+    );
+    b.connect(
+        c.output(port!(CounterOut, e.count)),
+        r.input(port!(RecvIn, c.count)),
+        Policy::Sample,
+    );
+    let err = b.build().unwrap_err();
+    assert_eq!(
+        err.problems,
+        vec![BuildProblem::PeerMismatch {
+            link: "c.e.count -> r.c.count".into(),
+            port: "e.count".into(),
+            declared: NodeKind::VirtualEffector,
+            actual: NodeKind::VirtualReceptor,
+        }]
+    );
+}
+
+#[test]
+fn handles_from_another_builder_are_refused() {
+    let mut other = SystemBuilder::new();
+    let oa = other.agent("x");
+    let foreign = other.subsystem(
+        oa,
+        "r",
+        ms(10),
+        Vec::<u64>::new(),
+        Fsm::single(Behaviour::while_loop(
+            "read",
+            Action::<Reader>::new(),
+            "false",
+        ))
+        .unwrap(),
+    );
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let c = b.subsystem(
+        a,
+        "c",
+        ms(10),
+        CounterMemory { n: 0, every: 1 },
+        counter_fsm(),
+    );
+    // Node 0 of `b` is a Counter, not a Reader: the handle is caught.
+    b.connect(
+        c.output(port!(CounterOut, e.count)),
+        foreign.input(port!(ReaderIn, r.value)),
+        Policy::Sample,
+    );
+    let err = b.build().unwrap_err();
+    assert!(
+        matches!(&err.problems[0], BuildProblem::ForeignHandle(_)),
+        "{err}"
+    );
+}
