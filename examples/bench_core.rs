@@ -30,7 +30,10 @@ static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
 
 // SAFETY: every method forwards to the system allocator with the caller's arguments
 // unchanged; counting has no effect on the memory handed out.
-#[expect(unsafe_code, reason = "a global allocator is an unsafe trait; this one only counts")]
+#[expect(
+    unsafe_code,
+    reason = "a global allocator is an unsafe trait; this one only counts"
+)]
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         ALLOCATIONS.fetch_add(1, Relaxed);
@@ -163,12 +166,36 @@ fn pair() -> Result<System, Box<dyn std::error::Error>> {
     let a = b.agent("bench");
     let c = b.subsystem(a, "c", period, 0, ctl_fsm()?);
     let e = b.subsystem(a, "e", period, 0, eff_fsm()?);
-    b.connect(c.output(port!(COut, e.a)), e.input(port!(EIn, c.a)), Policy::Sample);
-    b.connect(c.output(port!(COut, e.b)), e.input(port!(EIn, c.b)), Policy::Sample);
-    b.connect(c.output(port!(COut, e.c)), e.input(port!(EIn, c.c)), Policy::queue(4));
-    b.connect(e.output(port!(EOut, c.a)), c.input(port!(CIn, e.a)), Policy::Sample);
-    b.connect(e.output(port!(EOut, c.b)), c.input(port!(CIn, e.b)), Policy::Sample);
-    b.connect(e.output(port!(EOut, c.c)), c.input(port!(CIn, e.c)), Policy::queue(4));
+    b.connect(
+        c.output(port!(COut, e.a)),
+        e.input(port!(EIn, c.a)),
+        Policy::Sample,
+    );
+    b.connect(
+        c.output(port!(COut, e.b)),
+        e.input(port!(EIn, c.b)),
+        Policy::Sample,
+    );
+    b.connect(
+        c.output(port!(COut, e.c)),
+        e.input(port!(EIn, c.c)),
+        Policy::queue(4),
+    );
+    b.connect(
+        e.output(port!(EOut, c.a)),
+        c.input(port!(CIn, e.a)),
+        Policy::Sample,
+    );
+    b.connect(
+        e.output(port!(EOut, c.b)),
+        c.input(port!(CIn, e.b)),
+        Policy::Sample,
+    );
+    b.connect(
+        e.output(port!(EOut, c.c)),
+        c.input(port!(CIn, e.c)),
+        Policy::queue(4),
+    );
     Ok(b.build()?)
 }
 
@@ -184,7 +211,8 @@ impl Subsystem for Chooser {
 }
 
 fn chooser_fsm() -> Result<Fsm<Chooser>, FsmBuildError> {
-    let behaviour = |name: &'static str| Behaviour::while_loop(name, Action::<Chooser>::new(), "done");
+    let behaviour =
+        |name: &'static str| Behaviour::while_loop(name, Action::<Chooser>::new(), "done");
     Fsm::builder()
         .predicate("done", |m: &u64, _| *m < u64::MAX)
         .predicate("odd", |m: &u64, _| m & 1 == 1)

@@ -2,6 +2,8 @@
 //! determinism of the trace, and termination properties of the behaviours and the
 //! FSM with the proptest helpers.
 
+#![allow(clippy::expect_used, reason = "a failing expect is a failing test")]
+
 #[path = "../examples/tank/agent.rs"]
 mod agent;
 

@@ -155,7 +155,6 @@ pub struct Executor<O: Observer = NoObserver> {
     nodes: Vec<Box<dyn LocalNode>>,
     periods: Vec<u64>,
     next: Vec<u64>,
-    due: Vec<usize>,
     channels: Channels,
     now: Time,
     config: ExecConfig,
@@ -194,7 +193,8 @@ impl<O: Observer> Executor<O> {
         } = system;
         let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
         let channels = Channels { typed, stats };
-        let mut nodes: Vec<Box<dyn LocalNode>> = nodes.into_iter().map(|n| n.into_local()).collect();
+        let mut nodes: Vec<Box<dyn LocalNode>> =
+            nodes.into_iter().map(|n| n.into_local()).collect();
         // Handles were checked against the nodes' buffer types when the links were
         // declared, and every plan's channel was made from the same payload type, so
         // installation cannot fail.
@@ -218,7 +218,6 @@ impl<O: Observer> Executor<O> {
             nodes,
             periods,
             next: vec![0; n],
-            due: Vec::with_capacity(n),
             now: Time::ZERO,
             config,
             observer,
@@ -283,54 +282,61 @@ impl<O: Observer> Executor<O> {
         };
         self.now = t;
         let tn = t.as_nanos();
-        self.due.clear();
-        self.due
-            .extend((0..self.next.len()).filter(|&i| self.next[i] == tn));
+        let observe = self.observer.enabled();
         let mut cx = LinkCx {
-            observer: if self.observer.enabled() {
-                Some(&mut self.observer as &mut dyn Observer)
-            } else {
-                None
-            },
+            observer: observe.then_some(&mut self.observer as &mut dyn Observer),
             links: &self.info.links,
         };
-        for &i in &self.due {
-            self.nodes[i].read(&mut cx);
+        for (node, next) in self.nodes.iter_mut().zip(&self.next) {
+            if *next == tn {
+                node.read(&mut cx);
+            }
         }
-        for k in 0..self.due.len() {
-            let i = self.due[k];
-            let outcome = self.nodes[i].step(t, i, &mut cx);
-            match outcome {
+        for i in 0..self.nodes.len() {
+            if self.next[i] != tn {
+                continue;
+            }
+            let mut cx = LinkCx {
+                observer: observe.then_some(&mut self.observer as &mut dyn Observer),
+                links: &self.info.links,
+            };
+            match self.nodes[i].step(t, i, &mut cx) {
                 Ok(NodeStep::Ran) => self.next[i] = tn.saturating_add(self.periods[i]),
                 Ok(NodeStep::Halted) => self.next[i] = u64::MAX,
                 Err(e) => {
-                    let e = *e;
                     if let Some(o) = cx.observer.as_deref_mut() {
                         o.error(t, &e);
                     }
-                    self.report.error_count += 1;
-                    match self.config.on_error {
-                        OnError::Stop => {
-                            self.stopped = true;
-                            return Err(e);
-                        }
-                        OnError::Continue => {
-                            if matches!(e, ExecError::Fsm(_)) {
-                                self.nodes[i].halt();
-                                self.next[i] = u64::MAX;
-                            } else {
-                                self.next[i] = tn.saturating_add(self.periods[i]);
-                            }
-                            if self.report.errors.len() < self.config.max_recorded_errors {
-                                self.report.errors.push(e);
-                            }
-                        }
-                    }
+                    self.handle_error(i, tn, *e)?;
                 }
             }
         }
         self.report.instants += 1;
         Ok(Some(t))
+    }
+
+    /// Apply the error policy to an error of node `i` at instant `tn`.
+    #[cold]
+    fn handle_error(&mut self, i: usize, tn: u64, e: ExecError) -> Result<(), ExecError> {
+        self.report.error_count += 1;
+        match self.config.on_error {
+            OnError::Stop => {
+                self.stopped = true;
+                Err(e)
+            }
+            OnError::Continue => {
+                if matches!(e, ExecError::Fsm(_)) {
+                    self.nodes[i].halt();
+                    self.next[i] = u64::MAX;
+                } else {
+                    self.next[i] = tn.saturating_add(self.periods[i]);
+                }
+                if self.report.errors.len() < self.config.max_recorded_errors {
+                    self.report.errors.push(e);
+                }
+                Ok(())
+            }
+        }
     }
 
     /// Execute every instant before `end` (`t < end`); the clock then reads `end`.

@@ -76,7 +76,10 @@ macro_rules! handle_impls {
             }
 
             /// The output buffer `port` of this component, as the source of a link.
-            pub fn output<T, A>(&self, port: Port<X::Output, Out<T>, A>) -> Source<X::Output, T, A> {
+            pub fn output<T, A>(
+                &self,
+                port: Port<X::Output, Out<T>, A>,
+            ) -> Source<X::Output, T, A> {
                 Source {
                     node: self.node,
                     port,

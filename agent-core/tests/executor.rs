@@ -2,6 +2,8 @@
 //! timing, sample and queue links, FSM contract violations, missing data, failing
 //! drivers, malformed systems.
 
+#![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
+
 use agent_core::*;
 
 // ---------------------------------------------------------------------------
