@@ -1,9 +1,8 @@
-//! # embodied
+#![doc = include_str!("../README.md")]
 //!
-//! Specify, check and run robot control systems as *embodied agents*, the formalism of
-//! Zieliński used by Janiak & Zieliński for the Rex mobile platform.
+//! ---
 //!
 //! This crate is the one dependency a user adds: it re-exports the formalism and the
-//! executor of [`agent_core`]. See the README for a walk-through.
+//! executor of `agent-core`.
 
 pub use agent_core::*;
