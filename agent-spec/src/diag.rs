@@ -1,0 +1,365 @@
+//! Findings: stable codes, messages, help lines and labelled spans into the RON file,
+//! rendered like rustc/miette diagnostics.
+
+use std::fmt;
+use std::ops::Range;
+
+use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic, NamedSource};
+
+/// How bad a finding is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Severity {
+    /// The spec is wrong: `embodied check` exits with status 1.
+    Error,
+    /// Probably a mistake; the spec is still usable.
+    Warning,
+}
+
+macro_rules! codes {
+    ($( $(#[doc = $doc:literal])* $variant:ident = $text:literal, $sev:ident; )*) => {
+        /// The stable code of a finding. `Code::ALL` lists them; the README's
+        /// specification reference explains each.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        pub enum Code {
+            $( $(#[doc = $doc])* $variant, )*
+        }
+
+        impl Code {
+            /// Every code.
+            pub const ALL: &'static [Code] = &[ $( Code::$variant, )* ];
+
+            /// The code as printed: `spec::unknown_buffer`.
+            pub const fn as_str(self) -> &'static str {
+                match self { $( Code::$variant => $text, )* }
+            }
+
+            /// The severity of findings with this code.
+            pub const fn severity(self) -> Severity {
+                match self { $( Code::$variant => Severity::$sev, )* }
+            }
+
+            /// What the code means.
+            pub const fn description(self) -> &'static str {
+                match self { $( Code::$variant => concat!($($doc),*), )* }
+            }
+        }
+    };
+}
+
+codes! {
+    /// The file is not valid RON, or not a spec (wrong type, bad value).
+    Syntax = "spec::syntax", Error;
+    /// A field the schema does not have (misspelt?).
+    UnknownField = "spec::unknown_field", Error;
+    /// A required field is missing.
+    MissingField = "spec::missing_field", Error;
+    /// A name is not an identifier.
+    InvalidName = "spec::invalid_name", Error;
+    /// Two entries of one scope have the same name.
+    DuplicateName = "spec::duplicate_name", Error;
+    /// A reference to a component (subsystem or device) that does not exist.
+    UnknownComponent = "spec::unknown_component", Error;
+    /// A reference to a buffer that does not exist where it is looked for.
+    UnknownBuffer = "spec::unknown_buffer", Error;
+    /// A bare buffer name that several input groups have.
+    AmbiguousBuffer = "spec::ambiguous_buffer", Error;
+    /// A behaviour uses a transition function that is not defined.
+    UnknownFunction = "spec::unknown_function", Error;
+    /// A reference to a behaviour that does not exist.
+    UnknownBehaviour = "spec::unknown_behaviour", Error;
+    /// A condition or relation names an undeclared predicate.
+    UnknownPredicate = "spec::unknown_predicate", Error;
+    /// A function's target is not memory or one of the subsystem's output groups.
+    UnknownTarget = "spec::unknown_target", Error;
+    /// A transition function writes a buffer outside its declared target.
+    WriteOutsideTarget = "spec::write_outside_target", Error;
+    /// Two functions of one behaviour write the same target.
+    DuplicateTarget = "spec::duplicate_target", Error;
+    /// An agent without exactly one control subsystem.
+    AgentControl = "spec::agent_control", Error;
+    /// A group or link that breaks the agent structure (e and r talk only to their own c and devices; agents only through control subsystems).
+    Structure = "spec::structure", Error;
+    /// A link whose ends do not name each other as peers.
+    PeerMismatch = "spec::peer_mismatch", Error;
+    /// A link from an input or to an output.
+    LinkDirection = "spec::link_direction", Error;
+    /// A link between buffers of different types.
+    TypeMismatch = "spec::type_mismatch", Error;
+    /// An input buffer fed by no output.
+    UnfedInput = "spec::unfed_input", Error;
+    /// An input buffer fed by more than one output.
+    MultipleWriters = "spec::multiple_writers", Error;
+    /// An output buffer nobody reads.
+    UnreadOutput = "spec::unread_output", Warning;
+    /// A queue link with capacity zero.
+    QueueBound = "spec::queue_bound", Error;
+    /// A period that is not a positive finite number.
+    Period = "spec::period", Error;
+    /// An FSM without an initial behaviour.
+    NoInitial = "spec::no_initial", Error;
+    /// A behaviour that cannot be reached from the initial behaviour.
+    Unreachable = "spec::unreachable", Error;
+    /// A behaviour that can end but has no outgoing arc and is not declared final.
+    NoWayOut = "spec::no_way_out", Error;
+    /// A final behaviour with outgoing arcs.
+    FinalWithArcs = "spec::final_with_arcs", Error;
+    /// A condition that does not parse.
+    ConditionSyntax = "spec::condition_syntax", Error;
+    /// Two arcs leaving one behaviour can hold at once (with a counterexample).
+    ArcsOverlap = "spec::arcs_overlap", Error;
+    /// When a behaviour ends, possibly no arc holds (with a counterexample).
+    ArcsIncomplete = "spec::arcs_incomplete", Error;
+    /// A terminal condition that can never hold.
+    TerminalNever = "spec::terminal_never", Warning;
+    /// A function no behaviour uses.
+    UnusedFunction = "spec::unused_function", Warning;
+    /// A predicate no condition uses.
+    UnusedPredicate = "spec::unused_predicate", Warning;
+    /// A deployment names a component twice, or runs an omitted one.
+    DeployTwice = "spec::deploy_twice", Error;
+    /// A deployment neither runs nor omits a component.
+    DeployMissing = "spec::deploy_missing", Error;
+}
+
+impl fmt::Display for Code {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A labelled byte range of the source.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Label {
+    /// Byte range.
+    pub span: Range<usize>,
+    /// What to print under it.
+    pub text: String,
+}
+
+/// One finding of the checker.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Finding {
+    /// Stable code.
+    pub code: Code,
+    /// One sentence.
+    pub message: String,
+    /// How to fix it.
+    pub help: String,
+    /// Spans; the first is the primary one.
+    pub labels: Vec<Label>,
+}
+
+impl Finding {
+    /// A finding with a primary label.
+    pub fn new(
+        code: Code,
+        span: Range<usize>,
+        label: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Finding {
+            code,
+            message: message.into(),
+            help: String::new(),
+            labels: vec![Label {
+                span,
+                text: label.into(),
+            }],
+        }
+    }
+
+    /// Set the help line.
+    pub fn help(mut self, help: impl Into<String>) -> Self {
+        self.help = help.into();
+        self
+    }
+
+    /// Add a secondary label.
+    pub fn label(mut self, span: Range<usize>, text: impl Into<String>) -> Self {
+        self.labels.push(Label {
+            span,
+            text: text.into(),
+        });
+        self
+    }
+
+    /// Its severity.
+    pub fn severity(&self) -> Severity {
+        self.code.severity()
+    }
+
+    /// Byte offset of the primary label.
+    pub fn offset(&self) -> usize {
+        self.labels.first().map_or(0, |l| l.span.start)
+    }
+}
+
+/// All findings for one file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Report {
+    /// File name as given.
+    pub file: String,
+    /// Its text.
+    pub source: String,
+    /// Findings, sorted by position then code.
+    pub findings: Vec<Finding>,
+}
+
+impl Report {
+    /// A report, sorting the findings.
+    pub fn new(
+        file: impl Into<String>,
+        source: impl Into<String>,
+        mut findings: Vec<Finding>,
+    ) -> Self {
+        findings.sort_by(|a, b| {
+            (a.offset(), a.code, &a.message).cmp(&(b.offset(), b.code, &b.message))
+        });
+        findings.dedup();
+        Report {
+            file: file.into(),
+            source: source.into(),
+            findings,
+        }
+    }
+
+    /// Number of errors.
+    pub fn errors(&self) -> usize {
+        self.findings
+            .iter()
+            .filter(|f| f.severity() == Severity::Error)
+            .count()
+    }
+
+    /// Number of warnings.
+    pub fn warnings(&self) -> usize {
+        self.findings.len() - self.errors()
+    }
+
+    /// Whether the spec is usable (no errors).
+    pub fn is_ok(&self) -> bool {
+        self.errors() == 0
+    }
+
+    /// `line:col` (1-based) of a byte offset.
+    pub fn line_col(&self, offset: usize) -> (usize, usize) {
+        line_col(&self.source, offset)
+    }
+
+    /// Render every finding like rustc/miette, without colours, at `width` columns.
+    pub fn render(&self, width: usize) -> String {
+        let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor())
+            .with_width(width)
+            .with_links(false);
+        let mut out = String::new();
+        for f in &self.findings {
+            let labels = f.labels.iter().enumerate().map(|(i, l)| {
+                let span = clamp(&l.span, self.source.len());
+                let text = (!l.text.is_empty()).then(|| l.text.clone());
+                if i == 0 {
+                    LabeledSpan::new_primary_with_span(text, span)
+                } else {
+                    LabeledSpan::new_with_span(text, span)
+                }
+            });
+            let mut d = MietteDiagnostic::new(f.message.clone())
+                .with_code(f.code.as_str())
+                .with_severity(match f.severity() {
+                    Severity::Error => miette::Severity::Error,
+                    Severity::Warning => miette::Severity::Warning,
+                })
+                .with_labels(labels);
+            if !f.help.is_empty() {
+                d = d.with_help(f.help.clone());
+            }
+            let report = miette::Report::new(d)
+                .with_source_code(NamedSource::new(&self.file, self.source.clone()));
+            if handler.render_report(&mut out, report.as_ref()).is_err() {
+                let (l, c) = self.line_col(f.offset());
+                out.push_str(&format!(
+                    "{}:{l}:{c}: {}: {}\n",
+                    self.file, f.code, f.message
+                ));
+            }
+        }
+        out
+    }
+
+    /// One line per finding: `file:line:col: severity[code]: message`.
+    pub fn short(&self) -> String {
+        let mut out = String::new();
+        for f in &self.findings {
+            let (l, c) = self.line_col(f.offset());
+            let sev = match f.severity() {
+                Severity::Error => "error",
+                Severity::Warning => "warning",
+            };
+            out.push_str(&format!(
+                "{}:{l}:{c}: {sev}[{}]: {}\n",
+                self.file, f.code, f.message
+            ));
+        }
+        out
+    }
+}
+
+fn clamp(span: &Range<usize>, len: usize) -> (usize, usize) {
+    let start = span.start.min(len);
+    let end = span.end.clamp(start, len);
+    (start, end - start)
+}
+
+/// `line:col` (1-based, columns in characters) of byte `offset` of `text`.
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let mut offset = offset.min(text.len());
+    while !text.is_char_boundary(offset) {
+        offset -= 1;
+    }
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+/// Byte offset of 1-based `line:col` (columns in characters), clamped to the text.
+pub fn offset_of(text: &str, line: usize, col: usize) -> usize {
+    let mut off = 0;
+    for (i, l) in text.split_inclusive('\n').enumerate() {
+        if i + 1 == line {
+            let c = l
+                .char_indices()
+                .nth(col.saturating_sub(1))
+                .map_or(l.len(), |(b, _)| b);
+            return off + c;
+        }
+        off += l.len();
+    }
+    text.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_round_trip() {
+        let text = "ab\ncdé\nf";
+        for off in [0, 1, 3, 5, 8, 9] {
+            let (l, c) = line_col(text, off);
+            assert_eq!(offset_of(text, l, c), off, "offset {off} -> {l}:{c}");
+        }
+        assert_eq!(line_col(text, 100), (3, 2));
+    }
+
+    #[test]
+    fn codes_are_stable_and_documented() {
+        for c in Code::ALL {
+            assert!(c.as_str().starts_with("spec::"));
+            assert!(!c.description().is_empty());
+        }
+        let mut names: Vec<_> = Code::ALL.iter().map(|c| c.as_str()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), Code::ALL.len());
+    }
+}

@@ -1,0 +1,135 @@
+//! # agent-spec: specifications of embodied-agent systems
+//!
+//! A researcher writes the structure of a control system once, in RON: agents, their
+//! subsystems and devices, every buffer with its type, transition functions with what
+//! they read and the target they write, behaviours, FSMs with Boolean initial
+//! conditions, links with policies, periods and deployments. This crate loads such a
+//! file ([`model`]), checks it ([`check_source`]) and draws it ([`diagram`]).
+//!
+//! The checker reports every finding at once, each with a stable [`Code`], a message,
+//! a help line and labelled spans into the file, rendered like rustc diagnostics
+//! ([`Report::render`]). Beyond names, types and wiring, it proves for every FSM node
+//! that the initial conditions of the outgoing arcs are mutually exclusive and cover
+//! every case in which the node's terminal condition holds, under the declared
+//! relations between predicates, and prints the counterexample when they do not.
+//!
+//! The same loader and checker serve the `embodied` CLI, the diagrams and the macros:
+//! there is one parser.
+
+pub mod check;
+pub mod diag;
+pub mod diagram;
+mod logic;
+pub mod model;
+pub mod span;
+
+use std::path::Path;
+
+pub use diag::{Code, Finding, Label, Report, Severity};
+pub use model::Spec;
+
+/// A spec parsed from RON, with the span index of its text.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    /// The spec.
+    pub spec: Spec,
+    /// Spans of the text's values (absent only if the span parser gave up).
+    pub index: Option<span::SNode>,
+    /// File name, for diagnostics.
+    pub file: String,
+    /// The text.
+    pub source: String,
+}
+
+/// Parse `source` (named `file` in diagnostics). Syntax and schema errors come back
+/// as a report with one finding.
+pub fn load(file: impl Into<String>, source: impl Into<String>) -> Result<Loaded, Report> {
+    let (file, source) = (file.into(), source.into());
+    match options().from_str::<Spec>(&source) {
+        Ok(spec) => {
+            let index = span::parse(&source);
+            Ok(Loaded {
+                spec,
+                index,
+                file,
+                source,
+            })
+        }
+        Err(e) => {
+            let finding = syntax_finding(&source, &e);
+            Err(Report::new(file, source, vec![finding]))
+        }
+    }
+}
+
+/// The RON options of spec files: `implicit_some` is on, so optional fields are
+/// written without `Some(...)`.
+pub fn options() -> ron::Options {
+    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+}
+
+/// Load and check `source`; the spec is returned when it could be parsed.
+pub fn check_source(file: impl Into<String>, source: impl Into<String>) -> (Option<Spec>, Report) {
+    match load(file, source) {
+        Ok(loaded) => {
+            let report = check(&loaded);
+            (Some(loaded.spec), report)
+        }
+        Err(report) => (None, report),
+    }
+}
+
+/// Check a loaded spec.
+pub fn check(loaded: &Loaded) -> Report {
+    let findings = check::Checker::new(&loaded.spec, loaded.index.as_ref()).run();
+    Report::new(loaded.file.clone(), loaded.source.clone(), findings)
+}
+
+/// Read, load and check a file.
+pub fn check_file(path: &Path) -> std::io::Result<(Option<Spec>, Report)> {
+    let source = std::fs::read_to_string(path)?;
+    Ok(check_source(path.display().to_string(), source))
+}
+
+fn syntax_finding(source: &str, e: &ron::error::SpannedError) -> Finding {
+    use ron::error::Error as E;
+    let start = diag::offset_of(source, e.span.start.line, e.span.start.col);
+    let end = diag::offset_of(source, e.span.end.line, e.span.end.col).max(start);
+    let span = if end > start {
+        start..end
+    } else {
+        start..(start + 1).min(source.len())
+    };
+    let (code, message, help) = match &e.code {
+        E::NoSuchStructField {
+            expected,
+            found,
+            outer,
+        } => (
+            Code::UnknownField,
+            format!(
+                "unknown field `{found}`{}",
+                outer
+                    .as_ref()
+                    .map_or(String::new(), |o| format!(" in `{o}`"))
+            ),
+            format!("expected one of: {}", expected.join(", ")),
+        ),
+        E::MissingStructField { field, outer } => (
+            Code::MissingField,
+            format!(
+                "missing field `{field}`{}",
+                outer
+                    .as_ref()
+                    .map_or(String::new(), |o| format!(" in `{o}`"))
+            ),
+            format!("add `{field}: ...`"),
+        ),
+        other => (
+            Code::Syntax,
+            other.to_string(),
+            "see the specification reference in the README for the schema".to_owned(),
+        ),
+    };
+    Finding::new(code, span, "here", message).help(help)
+}

@@ -1,0 +1,339 @@
+//! The specification schema: what a RON spec file contains.
+//!
+//! Every struct denies unknown fields, so a misspelt field is an error that points at
+//! it. Optional parts have defaults. Names are identifiers (`[A-Za-z_][A-Za-z0-9_]*`),
+//! unique in their scope; component names (subsystems and devices) are unique in the
+//! whole system, as in the paper (`c1`, `e11`, `r11`, `E1`, `R1`).
+//!
+//! References between entries are by name:
+//!
+//! * a buffer group names its *peer*, the component at the other end of its buffers
+//!   (the paper's leading superscript: the group `e11` of `c1`'s outputs is `^e_y c`);
+//! * a function reads buffers (`plan` for memory, `e11.ready` or `ready` for an input)
+//!   and writes buffers of its one target (memory, or one output group);
+//! * a link joins `component.group.buffer` of an output to that of an input;
+//! * conditions are Boolean expressions over the subsystem's predicates.
+
+use serde::{Deserialize, Serialize};
+
+/// A multi-agent system.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Name of the system.
+    pub name: String,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+    /// The agents.
+    pub agents: Vec<Agent>,
+    /// Links from output buffers to input buffers.
+    #[serde(default)]
+    pub links: Vec<Link>,
+    /// Ways to place the components on hosts and processes.
+    #[serde(default)]
+    pub deployments: Vec<Deployment>,
+}
+
+/// An embodied agent: one control subsystem, virtual effectors and receptors, and
+/// real devices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Agent {
+    /// Name (`a1`).
+    pub name: String,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+    /// Control subsystem, virtual effectors and virtual receptors.
+    pub subsystems: Vec<Subsystem>,
+    /// Real effectors and receptors.
+    #[serde(default)]
+    pub devices: Vec<Device>,
+}
+
+/// The three kinds of subsystem.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum SubsystemKind {
+    /// `c`
+    Control,
+    /// `e`
+    VirtualEffector,
+    /// `r`
+    VirtualReceptor,
+}
+
+/// A subsystem: buffers, predicates, transition functions, behaviours and its FSM.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Subsystem {
+    /// Unique component name (`c1`).
+    pub name: String,
+    /// Control subsystem, virtual effector or virtual receptor.
+    pub kind: SubsystemKind,
+    /// Period in milliseconds (positive).
+    pub period_ms: f64,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+    /// Internal memory `^c c`.
+    #[serde(default)]
+    pub memory: Vec<Buffer>,
+    /// Input buffers `_x c`, grouped by peer.
+    #[serde(default)]
+    pub inputs: Vec<Group>,
+    /// Output buffers `_y c`, grouped by peer.
+    #[serde(default)]
+    pub outputs: Vec<Group>,
+    /// Named predicates: the atoms of conditions.
+    #[serde(default)]
+    pub predicates: Vec<Predicate>,
+    /// Declared relations between predicates, used by the arc proof.
+    #[serde(default)]
+    pub relations: Vec<Relation>,
+    /// Transition functions, each writing one target.
+    #[serde(default)]
+    pub functions: Vec<Function>,
+    /// Behaviours: the nodes of the FSM.
+    pub behaviours: Vec<Behaviour>,
+    /// The FSM's initial node, arcs and final nodes.
+    pub fsm: Fsm,
+}
+
+/// A buffer: a name and a (Rust) type.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Buffer {
+    /// Name (`desired_plan`).
+    pub name: String,
+    /// Type, as a Rust type (`Vec<Point>`, `f64`, `[f64; 4]`); links compare it.
+    #[serde(rename = "type")]
+    pub ty: String,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+}
+
+/// The buffers connected to one peer component.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Group {
+    /// The component at the other end.
+    pub peer: String,
+    /// Its buffers.
+    pub buffers: Vec<Buffer>,
+}
+
+/// A named predicate over memory and inputs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Predicate {
+    /// Name, used in conditions.
+    pub name: String,
+    /// Buffers it looks at (for the data-flow diagrams).
+    #[serde(default)]
+    pub reads: Vec<String>,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+}
+
+/// A fact about predicates that the arc proof may assume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Relation {
+    /// At most one of these predicates holds at a time.
+    Exclusive(Vec<String>),
+    /// If the first holds, so does the second.
+    Implies(String, String),
+}
+
+/// What a transition function writes.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Target {
+    /// The next memory (`f_{c,c}`), computed last.
+    Memory,
+    /// Intermediate results in memory shared by other parts, computed first.
+    Common,
+    /// The output group towards `peer` (`f_{c,e}`, `f_{c,T}`...).
+    Output(String),
+}
+
+/// A transition function (one part of a behaviour's decomposed transition function).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Function {
+    /// Name.
+    pub name: String,
+    /// Its target.
+    pub target: Target,
+    /// Buffers it reads: memory names, input names, or `group.name`.
+    #[serde(default)]
+    pub reads: Vec<String>,
+    /// Buffers it writes, all in its target.
+    #[serde(default)]
+    pub writes: Vec<String>,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+}
+
+/// While-type (Algorithm 2) or repeat-type (Algorithm 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum BehaviourKind {
+    /// Test before each iteration.
+    While,
+    /// Test after each iteration.
+    Repeat,
+}
+
+/// A behaviour: an elementary action repeated until a terminal condition.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Behaviour {
+    /// Name (`B1`).
+    pub name: String,
+    /// While or repeat.
+    pub kind: BehaviourKind,
+    /// The transition functions of its elementary action.
+    #[serde(default)]
+    pub functions: Vec<String>,
+    /// The terminal condition (`"false"`: never ends).
+    pub terminal: String,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+}
+
+/// The FSM of a subsystem.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fsm {
+    /// The initial behaviour.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial: Option<String>,
+    /// Arcs with initial conditions.
+    #[serde(default)]
+    pub arcs: Vec<Arc>,
+    /// Behaviours after which the subsystem halts.
+    #[serde(default)]
+    pub finals: Vec<String>,
+}
+
+/// An arc of an FSM.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Arc {
+    /// Source behaviour.
+    pub from: String,
+    /// Target behaviour.
+    pub to: String,
+    /// Initial condition.
+    pub when: String,
+}
+
+/// Real effector or receptor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum DeviceKind {
+    /// `E`
+    Effector,
+    /// `R`
+    Receptor,
+}
+
+/// A real effector or receptor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Device {
+    /// Unique component name (`E1`).
+    pub name: String,
+    /// Effector or receptor.
+    pub kind: DeviceKind,
+    /// Period in milliseconds (positive).
+    pub period_ms: f64,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doc: Option<String>,
+    /// Commands, grouped by peer.
+    #[serde(default)]
+    pub inputs: Vec<Group>,
+    /// Readings, grouped by peer.
+    #[serde(default)]
+    pub outputs: Vec<Group>,
+}
+
+/// How a link delivers values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Policy {
+    /// Latest value wins.
+    #[default]
+    Sample,
+    /// Lossless bounded FIFO.
+    Queue(usize),
+}
+
+/// A link from an output buffer to an input buffer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Link {
+    /// `component.group.buffer` of an output.
+    pub from: String,
+    /// `component.group.buffer` of an input.
+    pub to: String,
+    /// Delivery policy (default: sample).
+    #[serde(default)]
+    pub policy: Policy,
+}
+
+/// A placement of components on hosts and processes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Deployment {
+    /// Name (`paper`, `simulation`).
+    pub name: String,
+    /// Hosts.
+    pub hosts: Vec<Host>,
+    /// Components deliberately not deployed.
+    #[serde(default)]
+    pub omit: Vec<String>,
+}
+
+/// A machine.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Host {
+    /// Name (`PC1`).
+    pub name: String,
+    /// Processes on it.
+    pub processes: Vec<Process>,
+}
+
+/// An operating-system process.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Process {
+    /// Name.
+    pub name: String,
+    /// Components it runs.
+    pub runs: Vec<String>,
+}
+
+impl Spec {
+    /// Every subsystem, with its agent.
+    pub fn subsystems(&self) -> impl Iterator<Item = (&Agent, &Subsystem)> {
+        self.agents
+            .iter()
+            .flat_map(|a| a.subsystems.iter().map(move |s| (a, s)))
+    }
+
+    /// The subsystem called `name`.
+    pub fn subsystem(&self, name: &str) -> Option<&Subsystem> {
+        self.subsystems().map(|(_, s)| s).find(|s| s.name == name)
+    }
+}
+
+impl Subsystem {
+    /// The function called `name`.
+    pub fn function(&self, name: &str) -> Option<&Function> {
+        self.functions.iter().find(|f| f.name == name)
+    }
+}
