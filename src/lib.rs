@@ -3,6 +3,10 @@
 //! ---
 //!
 //! This crate is the one dependency a user adds: it re-exports the formalism and the
-//! executor of `agent-core`.
+//! executor of `agent-core`, and the specification tools of `agent-spec` as
+//! [`spec`].
 
 pub use agent_core::*;
+
+/// RON specifications: schema, checker, diagrams (the `agent-spec` crate).
+pub use agent_spec as spec;

@@ -921,7 +921,8 @@ impl<'a> Checker<'a> {
                 Sat::Yes(_) | Sat::Unknown => true,
             };
             let tpath = at(&[F("behaviours"), I(i), F("terminal")]);
-            if !can_end && !(literal_false && arcs[i].is_empty()) {
+            let runs_forever = literal_false && arcs[i].is_empty();
+            if !can_end && !runs_forever {
                 self.push(
                     Finding::new(
                         Code::TerminalNever,

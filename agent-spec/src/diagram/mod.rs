@@ -1,1 +1,224 @@
-//! Diagrams.
+//! Diagrams from a spec, as DOT, Mermaid or SVG (drawn here: no Graphviz needed).
+//!
+//! * [`Kind::Fsm`]: the FSM of a subsystem, like Fig. 5 of the paper: behaviours with
+//!   their kind and terminal condition, arcs labelled with initial conditions.
+//! * [`Kind::Structure`]: agents, their components with buffers, and the links
+//!   between them, like Figs. 2 and 4.
+//! * [`Kind::Dataflow`]: for each behaviour of a subsystem, which buffers its
+//!   transition functions read and write, like Figs. 6-8.
+//!
+//! Rendering is a pure function of the spec; output is byte-stable (declaration order,
+//! fixed number formatting), so it can be snapshot-tested and diffed in review.
+
+mod dataflow;
+mod fsm;
+mod structure;
+mod svg;
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::model::{Spec, Subsystem};
+
+/// Which diagram.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kind {
+    /// The FSM of a subsystem.
+    Fsm,
+    /// Agents, components, buffers and links.
+    Structure,
+    /// What the transition functions read and write.
+    Dataflow,
+}
+
+/// Output format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// Graphviz DOT.
+    Dot,
+    /// Mermaid (renders on GitHub and in many Markdown tools).
+    Mermaid,
+    /// SVG, laid out by this crate.
+    Svg,
+}
+
+/// A diagram that cannot be drawn.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum DiagramError {
+    /// `--subsystem` names no subsystem.
+    #[error("no subsystem `{name}` in the spec (subsystems: {known})")]
+    UnknownSubsystem {
+        /// The name asked for.
+        name: String,
+        /// The subsystems there are.
+        known: String,
+    },
+    /// A kind or format name that does not exist.
+    #[error("unknown {what} `{name}` (expected one of: {expected})")]
+    UnknownName {
+        /// "kind" or "format".
+        what: &'static str,
+        /// The name given.
+        name: String,
+        /// The accepted names.
+        expected: &'static str,
+    },
+}
+
+impl FromStr for Kind {
+    type Err = DiagramError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "fsm" => Ok(Kind::Fsm),
+            "structure" => Ok(Kind::Structure),
+            "dataflow" => Ok(Kind::Dataflow),
+            _ => Err(DiagramError::UnknownName {
+                what: "kind",
+                name: s.to_owned(),
+                expected: "fsm, structure, dataflow",
+            }),
+        }
+    }
+}
+
+impl FromStr for Format {
+    type Err = DiagramError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "dot" => Ok(Format::Dot),
+            "mermaid" => Ok(Format::Mermaid),
+            "svg" => Ok(Format::Svg),
+            _ => Err(DiagramError::UnknownName {
+                what: "format",
+                name: s.to_owned(),
+                expected: "dot, mermaid, svg",
+            }),
+        }
+    }
+}
+
+impl fmt::Display for Kind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Kind::Fsm => "fsm",
+            Kind::Structure => "structure",
+            Kind::Dataflow => "dataflow",
+        })
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Dot => "dot",
+            Format::Mermaid => "mermaid",
+            Format::Svg => "svg",
+        })
+    }
+}
+
+/// Render a diagram. For [`Kind::Fsm`] and [`Kind::Dataflow`], `subsystem` selects
+/// one subsystem; without it every subsystem is drawn. [`Kind::Structure`] draws the
+/// whole system (or, with `subsystem`, the agent that holds it).
+///
+/// The spec should have passed the checker; references that do not resolve are left
+/// out of the drawing rather than reported.
+pub fn render(
+    spec: &Spec,
+    kind: Kind,
+    subsystem: Option<&str>,
+    format: Format,
+) -> Result<String, DiagramError> {
+    let subs = select(spec, subsystem)?;
+    Ok(match kind {
+        Kind::Fsm => fsm::render(spec, &subs, format),
+        Kind::Dataflow => dataflow::render(spec, &subs, format),
+        Kind::Structure => {
+            let agents: Vec<usize> = spec
+                .agents
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| {
+                    subsystem.is_none_or(|name| a.subsystems.iter().any(|s| s.name == name))
+                })
+                .map(|(i, _)| i)
+                .collect();
+            structure::render(spec, &agents, format)
+        }
+    })
+}
+
+fn select<'a>(spec: &'a Spec, name: Option<&str>) -> Result<Vec<&'a Subsystem>, DiagramError> {
+    let all: Vec<&Subsystem> = spec.subsystems().map(|(_, s)| s).collect();
+    match name {
+        None => Ok(all),
+        Some(n) => match all.iter().find(|s| s.name == n) {
+            Some(s) => Ok(vec![*s]),
+            None => Err(DiagramError::UnknownSubsystem {
+                name: n.to_owned(),
+                known: all
+                    .iter()
+                    .map(|s| s.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            }),
+        },
+    }
+}
+
+/// Escape a DOT string (without the quotes).
+pub(crate) fn dot_esc(s: &str) -> String {
+    s.replace('\\', "\\\\").replace('"', "\\\"")
+}
+
+/// Escape Mermaid label text: quotes and the characters Mermaid's parsers treat as
+/// syntax become entity codes.
+pub(crate) fn mermaid_esc(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("#quot;"),
+            '&' => out.push_str("#amp;"),
+            '|' => out.push_str("#124;"),
+            '<' => out.push_str("#lt;"),
+            '>' => out.push_str("#gt;"),
+            ';' => out.push_str("#59;"),
+            '#' => out.push_str("#35;"),
+            ':' => out.push_str("#58;"),
+            '{' => out.push_str("#123;"),
+            '}' => out.push_str("#125;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A Mermaid-safe identifier for a name (names are identifiers already in a valid
+/// spec; anything else is replaced).
+pub(crate) fn mermaid_id(prefix: &str, s: &str) -> String {
+    let body: String = s
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    format!("{prefix}{body}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse() {
+        assert_eq!("fsm".parse::<Kind>(), Ok(Kind::Fsm));
+        assert_eq!("svg".parse::<Format>(), Ok(Format::Svg));
+        assert!("png".parse::<Format>().is_err());
+        assert_eq!(mermaid_esc("a && !b || c"), "a #amp;#amp; !b #124;#124; c");
+        assert_eq!(dot_esc(r#"say "hi""#), r#"say \"hi\""#);
+    }
+}

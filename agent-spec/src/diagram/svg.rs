@@ -1,0 +1,392 @@
+//! A small SVG writer and a layered graph layout, so diagrams need no Graphviz.
+//!
+//! Text is set in a monospace font so that box widths follow from character counts;
+//! every number is written with one decimal, so the output is byte-stable.
+
+use std::fmt::Write as _;
+
+/// Font size of labels [px].
+pub(crate) const FONT: f64 = 12.0;
+/// Width of one character of the monospace font at [`FONT`] [px].
+pub(crate) const CHAR_W: f64 = 7.3;
+/// Height of one line of text [px].
+pub(crate) const LINE_H: f64 = 15.0;
+/// Padding inside boxes [px].
+pub(crate) const PAD: f64 = 8.0;
+/// Vertical gap between layers [px].
+pub(crate) const LAYER_GAP: f64 = 70.0;
+/// Horizontal gap between boxes of a layer [px].
+pub(crate) const NODE_GAP: f64 = 40.0;
+/// Margin around a drawing [px].
+pub(crate) const MARGIN: f64 = 20.0;
+/// Stroke and text colour.
+pub(crate) const INK: &str = "#222222";
+/// Fill of boxes.
+pub(crate) const BOX_FILL: &str = "#f4f6fb";
+/// Fill of group frames (agents, behaviours).
+pub(crate) const FRAME_FILL: &str = "#fbfbf4";
+/// Colour of edges and their labels.
+pub(crate) const EDGE: &str = "#3b5b92";
+
+/// Escape text for XML.
+pub(crate) fn esc(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// Width of a text line [px].
+pub(crate) fn text_w(s: &str) -> f64 {
+    s.chars().count() as f64 * CHAR_W
+}
+
+/// A box with lines of text; the first line is the title.
+#[derive(Clone, Debug)]
+pub(crate) struct Boxed {
+    pub(crate) lines: Vec<String>,
+    pub(crate) x: f64,
+    pub(crate) y: f64,
+    pub(crate) w: f64,
+    pub(crate) h: f64,
+    /// Draw a double border (final FSM nodes).
+    pub(crate) double: bool,
+    /// Rounded corners.
+    pub(crate) rounded: bool,
+}
+
+impl Boxed {
+    pub(crate) fn new(lines: Vec<String>) -> Boxed {
+        let w = lines.iter().map(|l| text_w(l)).fold(0.0, f64::max) + 2.0 * PAD;
+        let h = lines.len() as f64 * LINE_H + 2.0 * PAD - 3.0;
+        Boxed {
+            lines,
+            x: 0.0,
+            y: 0.0,
+            w: w.max(40.0),
+            h,
+            double: false,
+            rounded: true,
+        }
+    }
+
+    pub(crate) fn cx(&self) -> f64 {
+        self.x + self.w / 2.0
+    }
+
+    pub(crate) fn cy(&self) -> f64 {
+        self.y + self.h / 2.0
+    }
+}
+
+/// An SVG document under construction.
+pub(crate) struct Svg {
+    body: String,
+}
+
+impl Svg {
+    pub(crate) fn new() -> Svg {
+        Svg {
+            body: String::new(),
+        }
+    }
+
+    pub(crate) fn finish(self, w: f64, h: f64, title: &str) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.1}" height="{h:.1}" viewBox="0 0 {w:.1} {h:.1}" font-family="monospace" font-size="{FONT:.1}">"#
+        );
+        let _ = writeln!(out, "<title>{}</title>", esc(title));
+        let _ = writeln!(
+            out,
+            r#"<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="8" markerHeight="8" orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="{EDGE}"/></marker></defs>"#
+        );
+        let _ = writeln!(
+            out,
+            r#"<rect x="0.0" y="0.0" width="{w:.1}" height="{h:.1}" fill="white"/>"#
+        );
+        out.push_str(&self.body);
+        out.push_str("</svg>\n");
+        out
+    }
+
+    pub(crate) fn frame(&mut self, x: f64, y: f64, w: f64, h: f64, title: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<rect x="{x:.1}" y="{y:.1}" width="{w:.1}" height="{h:.1}" rx="6.0" fill="{FRAME_FILL}" stroke="{INK}" stroke-dasharray="4 3"/>"#
+        );
+        let _ = writeln!(
+            self.body,
+            r#"<text x="{:.1}" y="{:.1}" fill="{INK}" font-weight="bold">{}</text>"#,
+            x + PAD,
+            y + LINE_H,
+            esc(title)
+        );
+    }
+
+    pub(crate) fn boxed(&mut self, b: &Boxed) {
+        let rx: f64 = if b.rounded { 8.0 } else { 0.0 };
+        let _ = writeln!(
+            self.body,
+            r#"<rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" rx="{rx:.1}" fill="{BOX_FILL}" stroke="{INK}"/>"#,
+            b.x, b.y, b.w, b.h
+        );
+        if b.double {
+            let _ = writeln!(
+                self.body,
+                r#"<rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" rx="{:.1}" fill="none" stroke="{INK}"/>"#,
+                b.x + 3.0,
+                b.y + 3.0,
+                b.w - 6.0,
+                b.h - 6.0,
+                (rx - 3.0).max(0.0)
+            );
+        }
+        for (i, line) in b.lines.iter().enumerate() {
+            let weight = if i == 0 { r#" font-weight="bold""# } else { "" };
+            let _ = writeln!(
+                self.body,
+                r#"<text x="{:.1}" y="{:.1}" fill="{INK}"{weight}>{}</text>"#,
+                b.x + PAD,
+                b.y + PAD + (i as f64 + 0.8) * LINE_H,
+                esc(line)
+            );
+        }
+    }
+
+    pub(crate) fn dot(&mut self, x: f64, y: f64, r: f64) {
+        let _ = writeln!(
+            self.body,
+            r#"<circle cx="{x:.1}" cy="{y:.1}" r="{r:.1}" fill="{INK}"/>"#
+        );
+    }
+
+    /// A path with an arrow head, and an optional label.
+    pub(crate) fn edge(&mut self, d: &str, label: Option<(&str, &LabelAt)>) {
+        let _ = writeln!(
+            self.body,
+            r#"<path d="{d}" fill="none" stroke="{EDGE}" marker-end="url(#arrow)"/>"#
+        );
+        if let Some((text, at)) = label.filter(|(t, _)| !t.is_empty()) {
+            let w = text_w(text) + 6.0;
+            let left = match at.align {
+                Align::Start => at.x,
+                Align::Middle => at.x - w / 2.0,
+                Align::End => at.x - w,
+            };
+            let _ = writeln!(
+                self.body,
+                r#"<rect x="{left:.1}" y="{:.1}" width="{w:.1}" height="{:.1}" fill="white" fill-opacity="0.85"/>"#,
+                at.y - LINE_H / 2.0 - 1.0,
+                LINE_H
+            );
+            let _ = writeln!(
+                self.body,
+                r#"<text x="{:.1}" y="{:.1}" fill="{EDGE}">{}</text>"#,
+                left + 3.0,
+                at.y + FONT / 2.0 - 2.0,
+                esc(text)
+            );
+        }
+    }
+}
+
+/// A layered layout: nodes in horizontal layers, top to bottom.
+pub(crate) struct Layered {
+    pub(crate) boxes: Vec<Boxed>,
+    pub(crate) width: f64,
+    pub(crate) height: f64,
+}
+
+/// Place `boxes` in the given `layers` (node indices per layer, top first), ordering
+/// each layer by the barycentre of its neighbours in the layer above (`edges` are
+/// `(from, to)` pairs). Coordinates start at `(x0, y0)`.
+pub(crate) fn layered(
+    mut boxes: Vec<Boxed>,
+    mut layers: Vec<Vec<usize>>,
+    edges: &[(usize, usize)],
+    x0: f64,
+    y0: f64,
+) -> Layered {
+    let n = boxes.len();
+    let mut pos = vec![0.0f64; n];
+    for layer in &layers {
+        for (k, &i) in layer.iter().enumerate() {
+            pos[i] = k as f64;
+        }
+    }
+    for _ in 0..4 {
+        for l in 1..layers.len() {
+            let above: Vec<usize> = layers[l - 1].clone();
+            let mut keyed: Vec<(f64, usize)> = layers[l]
+                .iter()
+                .map(|&i| {
+                    let ns: Vec<f64> = edges
+                        .iter()
+                        .filter_map(|&(a, b)| {
+                            if b == i && above.contains(&a) {
+                                Some(pos[a])
+                            } else if a == i && above.contains(&b) {
+                                Some(pos[b])
+                            } else {
+                                None
+                            }
+                        })
+                        .collect();
+                    let bary = if ns.is_empty() {
+                        pos[i]
+                    } else {
+                        ns.iter().sum::<f64>() / ns.len() as f64
+                    };
+                    (bary, i)
+                })
+                .collect();
+            keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            layers[l] = keyed.into_iter().map(|(_, i)| i).collect();
+            for (k, &i) in layers[l].iter().enumerate() {
+                pos[i] = k as f64;
+            }
+        }
+    }
+    let widths: Vec<f64> = layers
+        .iter()
+        .map(|l| {
+            l.iter().map(|&i| boxes[i].w).sum::<f64>() + NODE_GAP * l.len().saturating_sub(1) as f64
+        })
+        .collect();
+    let width = widths.iter().copied().fold(0.0, f64::max);
+    let mut y = y0;
+    for (l, layer) in layers.iter().enumerate() {
+        let mut x = x0 + (width - widths[l]) / 2.0;
+        let h = layer.iter().map(|&i| boxes[i].h).fold(0.0, f64::max);
+        for &i in layer {
+            boxes[i].x = x;
+            boxes[i].y = y + (h - boxes[i].h) / 2.0;
+            x += boxes[i].w + NODE_GAP;
+        }
+        y += h + LAYER_GAP;
+    }
+    Layered {
+        boxes,
+        width,
+        height: (y - LAYER_GAP - y0).max(0.0),
+    }
+}
+
+/// How a label sits on its anchor point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Align {
+    /// The anchor is the label's left end.
+    Start,
+    /// The anchor is the label's centre.
+    Middle,
+    /// The anchor is the label's right end.
+    End,
+}
+
+/// Where an edge label goes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LabelAt {
+    pub(crate) x: f64,
+    pub(crate) y: f64,
+    pub(crate) align: Align,
+}
+
+impl LabelAt {
+    /// The right end of a label of `text` placed here.
+    pub(crate) fn right(&self, text: &str) -> f64 {
+        let w = text_w(text) + 6.0;
+        match self.align {
+            Align::Start => self.x + w,
+            Align::Middle => self.x + w / 2.0,
+            Align::End => self.x,
+        }
+    }
+}
+
+/// The path of an edge from box `a` to box `b` in a top-down layered drawing, with
+/// the place of its label. `k` separates parallel edges; `right` is the x coordinate
+/// right of every box, where edges that go up or stay in their layer run.
+pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (String, LabelAt) {
+    let off = k as f64 * 12.0;
+    if std::ptr::eq(a, b) || (a.x == b.x && a.y == b.y) {
+        // A self-loop on the right side.
+        let (x, y) = (a.x + a.w, a.cy());
+        let d = format!(
+            "M{:.1},{:.1} C{:.1},{:.1} {:.1},{:.1} {:.1},{:.1}",
+            x,
+            y - 6.0,
+            x + 40.0 + off,
+            y - 30.0,
+            x + 40.0 + off,
+            y + 30.0,
+            x,
+            y + 6.0
+        );
+        return (
+            d,
+            LabelAt {
+                x: x + 36.0 + off,
+                y,
+                align: Align::Start,
+            },
+        );
+    }
+    if b.y > a.y + a.h {
+        // Downwards: bottom of a to top of b.
+        let (x1, y1) = (a.cx() + off / 2.0, a.y + a.h);
+        let (x2, y2) = (b.cx() + off, b.y);
+        let my = (y1 + y2) / 2.0;
+        let d = format!("M{x1:.1},{y1:.1} C{x1:.1},{my:.1} {x2:.1},{my:.1} {x2:.1},{y2:.1}");
+        return (
+            d,
+            LabelAt {
+                x: (x1 + x2) / 2.0,
+                y: my,
+                align: Align::Middle,
+            },
+        );
+    }
+    let same_layer = b.y < a.y + a.h && a.y < b.y + b.h;
+    if same_layer && (b.x > a.x + a.w || a.x > b.x + b.w) {
+        // Sideways to a neighbour: side to side.
+        let (x1, x2) = if b.x > a.x {
+            (a.x + a.w, b.x)
+        } else {
+            (a.x, b.x + b.w)
+        };
+        let (y1, y2) = (a.cy() + off, b.cy() + off);
+        let mx = (x1 + x2) / 2.0;
+        let d = format!("M{x1:.1},{y1:.1} C{mx:.1},{y1:.1} {mx:.1},{y2:.1} {x2:.1},{y2:.1}");
+        return (
+            d,
+            LabelAt {
+                x: mx,
+                y: (y1 + y2) / 2.0 - LINE_H / 2.0 - 2.0,
+                align: Align::Middle,
+            },
+        );
+    }
+    // Upwards: out of a's right side, along the lane, into b's right side.
+    let lane = right + 30.0 + off;
+    let (x1, y1) = (a.x + a.w, a.cy() + 4.0);
+    let (x2, y2) = (b.x + b.w, b.cy() - 4.0);
+    let d = format!("M{x1:.1},{y1:.1} C{lane:.1},{y1:.1} {lane:.1},{y2:.1} {x2:.1},{y2:.1}");
+    (
+        d,
+        LabelAt {
+            x: lane - 8.0,
+            y: (y1 + y2) / 2.0,
+            align: Align::Start,
+        },
+    )
+}
