@@ -91,15 +91,53 @@ pub fn check_file(path: &Path) -> std::io::Result<(Option<Spec>, Report)> {
     Ok(check_source(path.display().to_string(), source))
 }
 
+/// The span of the `name` field (or the opening) of the innermost struct whose
+/// closing parenthesis is at byte `close`.
+fn struct_name_ending_at(node: &span::SNode, close: usize) -> Option<std::ops::Range<usize>> {
+    use span::SKind;
+    let children: Vec<&span::SNode> = match &node.kind {
+        SKind::Struct { fields, .. } => fields.iter().map(|f| &f.value).collect(),
+        SKind::Tuple { items, .. } | SKind::List(items) => items.iter().collect(),
+        SKind::Map(entries) => entries.iter().map(|(_, v)| v).collect(),
+        SKind::Str { .. } | SKind::Atom => Vec::new(),
+    };
+    if let Some(inner) = children
+        .into_iter()
+        .filter(|c| c.span.start <= close && close < c.span.end)
+        .find_map(|c| struct_name_ending_at(c, close))
+    {
+        return Some(inner);
+    }
+    match &node.kind {
+        SKind::Struct { fields, .. } if node.span.end == close + 1 => Some(
+            fields
+                .iter()
+                .find(|f| f.key == "name")
+                .map_or(node.span.start..node.span.start + 1, |f| {
+                    f.value.content_span()
+                }),
+        ),
+        _ => None,
+    }
+}
+
 fn syntax_finding(source: &str, e: &ron::error::SpannedError) -> Finding {
     use ron::error::Error as E;
     let start = diag::offset_of(source, e.span.start.line, e.span.start.col);
     let end = diag::offset_of(source, e.span.end.line, e.span.end.col).max(start);
-    let span = if end > start {
+    let mut span = if end > start {
         start..end
     } else {
         start..(start + 1).min(source.len())
     };
+    if let E::MissingStructField { .. } = &e.code {
+        // `ron` points at the struct's closing parenthesis; point at its name instead.
+        if let Some(name) =
+            span::parse(source).and_then(|root| struct_name_ending_at(&root, span.start))
+        {
+            span = name;
+        }
+    }
     let (code, message, help) = match &e.code {
         E::NoSuchStructField {
             expected,

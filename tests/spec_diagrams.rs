@@ -1,0 +1,76 @@
+//! The three diagram kinds of Rex in the three formats, snapshot-tested; and the
+//! README's Mermaid FSM is the one the tool draws.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use embodied::spec::diagram::{Format, Kind, render};
+use embodied::spec::{Spec, check_file};
+
+fn rex() -> Spec {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/rex.ron");
+    let (spec, report) = check_file(&path).expect("readable");
+    assert!(report.is_ok(), "{}", report.render(100));
+    spec.expect("parses")
+}
+
+#[test]
+fn rex_diagrams_are_stable() {
+    let spec = rex();
+    for kind in [Kind::Fsm, Kind::Structure, Kind::Dataflow] {
+        for format in [Format::Dot, Format::Mermaid, Format::Svg] {
+            let text = render(&spec, kind, None, format).unwrap();
+            let again = render(&spec, kind, None, format).unwrap();
+            assert_eq!(text, again, "byte-stable");
+            insta::with_settings!({snapshot_path => "snapshots", prepend_module_to_snapshot => false}, {
+                insta::assert_snapshot!(format!("rex_{kind}_{format}"), text);
+            });
+        }
+    }
+}
+
+#[test]
+fn one_subsystem_and_its_content() {
+    let spec = rex();
+    let fsm = render(&spec, Kind::Fsm, Some("c1"), Format::Dot).unwrap();
+    for needle in [
+        r#""c1/__start" -> "c1/B1";"#,
+        r#""c1/B1" -> "c1/B2" [label="plan_valid"];"#,
+        r#""c1/B2" -> "c1/B3" [label="true"];"#,
+        r#""c1/B3" -> "c1/B1" [label="true"];"#,
+        r#"label="B2\nrepeat until plan_sent || planner_failed""#,
+    ] {
+        assert!(fsm.contains(needle), "missing {needle} in\n{fsm}");
+    }
+    assert!(!fsm.contains("e11"), "only c1");
+    let svg = render(&spec, Kind::Fsm, Some("c1"), Format::Svg).unwrap();
+    assert!(svg.starts_with("<svg ") && svg.ends_with("</svg>\n"));
+    assert_eq!(
+        svg.matches("<path d=").count(),
+        5 + 1,
+        "5 arcs and the start arrow"
+    );
+    let structure = render(&spec, Kind::Structure, Some("e11"), Format::Mermaid).unwrap();
+    assert!(structure.contains("agent a1") && !structure.contains("agent a2"));
+    assert!(
+        structure.contains(r#"n_c1 -->|"pose, A4x4, traj, steps, notify"| n_e11"#),
+        "{structure}"
+    );
+    let err = render(&spec, Kind::Fsm, Some("c9"), Format::Svg).unwrap_err();
+    assert!(err.to_string().contains("no subsystem `c9`"), "{err}");
+}
+
+#[test]
+fn the_readme_shows_the_rex_fsm_as_drawn() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let drawn = render(&rex(), Kind::Fsm, Some("c1"), Format::Mermaid).unwrap();
+    let block = format!("```mermaid\n{drawn}```");
+    assert!(
+        readme.contains(&block),
+        "the README's Mermaid block of c1 is out of date; it should read:\n{block}"
+    );
+}
