@@ -97,3 +97,29 @@ fn findings_are_sorted_and_reported_all_at_once() {
     let offsets: Vec<usize> = report.findings.iter().map(|f| f.offset()).collect();
     assert!(offsets.windows(2).all(|w| w[0] <= w[1]), "{offsets:?}");
 }
+
+#[test]
+fn the_reference_page_example_is_the_tested_minimal_spec_and_lists_every_code() {
+    let page = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/spec-reference.md"
+    ))
+    .unwrap();
+    let minimal = std::fs::read_to_string(corpus().join("valid/minimal.ron")).unwrap();
+    assert!(
+        page.contains(&format!("```ron\n{minimal}```")),
+        "docs/spec-reference.md has an outdated example"
+    );
+    for code in Code::ALL {
+        let row = format!(
+            "| `{}` | {} | {} |",
+            code.as_str(),
+            match code.severity() {
+                Severity::Error => "error",
+                Severity::Warning => "warning",
+            },
+            code.description()
+        );
+        assert!(page.contains(&row), "missing or outdated row: {row}");
+    }
+}

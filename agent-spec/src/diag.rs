@@ -40,7 +40,7 @@ macro_rules! codes {
 
             /// What the code means.
             pub const fn description(self) -> &'static str {
-                match self { $( Code::$variant => concat!($($doc),*), )* }
+                match self { $( Code::$variant => concat!($($doc),*).trim_ascii(), )* }
             }
         }
     };

@@ -1,0 +1,126 @@
+//! The `embodied` binary as a user runs it: exit statuses, output, files written.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::process::Command;
+
+fn embodied(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn check_exit_status_follows_the_worst_finding() {
+    let (code, stdout, _) = embodied(&["check", "specs/rex.ron"]);
+    assert_eq!(code, 0, "{stdout}");
+    assert!(stdout.contains("specs/rex.ron: ok (0 errors, 0 warnings)"));
+
+    let (code, stdout, stderr) = embodied(&["check", "tests/specs/invalid/unused_function.ron"]);
+    assert_eq!(code, 0, "warnings only: {stderr}");
+    assert!(stdout.contains("(0 errors, 1 warnings)"), "{stdout}");
+    assert!(stderr.contains("spec::unused_function"), "{stderr}");
+
+    let (code, stdout, stderr) = embodied(&[
+        "check",
+        "specs/rex.ron",
+        "tests/specs/invalid/arcs_overlap.ron",
+        "tests/specs/invalid/period.ron",
+    ]);
+    assert_eq!(code, 1);
+    assert!(stdout.contains("3 files: 2 errors, 0 warnings"), "{stdout}");
+    assert!(stderr.contains("spec::arcs_overlap") && stderr.contains("spec::period"));
+
+    let (code, _, stderr) = embodied(&["check", "no/such/file.ron"]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("cannot read no/such/file.ron"), "{stderr}");
+}
+
+#[test]
+fn short_style_is_one_line_per_finding() {
+    let (code, _, stderr) = embodied(&[
+        "check",
+        "--style",
+        "short",
+        "tests/specs/invalid/unfed_input.ron",
+    ]);
+    assert_eq!(code, 1);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("tests/specs/invalid/unfed_input.ron:")
+                && l.contains(
+                    ": error[spec::unfed_input]: input `e1.E1.odometer` is fed by no output"
+                )),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn diagram_writes_each_format() {
+    let dir = std::env::temp_dir().join(format!("embodied-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (format, start) in [
+        ("dot", "digraph"),
+        ("mermaid", "stateDiagram-v2"),
+        ("svg", "<svg"),
+    ] {
+        let path = dir.join(format!("c1.{format}"));
+        let (code, _, stderr) = embodied(&[
+            "diagram",
+            "specs/rex.ron",
+            "--kind",
+            "fsm",
+            "--subsystem",
+            "c1",
+            "--format",
+            format,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{stderr}");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.starts_with(start),
+            "{format}: {}",
+            &text[..40.min(text.len())]
+        );
+    }
+    let (code, _, stderr) = embodied(&[
+        "diagram",
+        "specs/rex.ron",
+        "--kind",
+        "fsm",
+        "--subsystem",
+        "nope",
+    ]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("no subsystem `nope`"), "{stderr}");
+    let (code, _, stderr) = embodied(&["diagram", "specs/rex.ron", "--kind", "plan"]);
+    assert_eq!(code, 2, "clap rejects an unknown kind");
+    assert!(stderr.contains("fsm, structure, dataflow"), "{stderr}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn help_explains_each_command() {
+    let (code, stdout, _) = embodied(&["--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("check") && stdout.contains("diagram"));
+    let (_, stdout, _) = embodied(&["help", "diagram"]);
+    for needle in ["--kind", "--subsystem", "--format", "--output", "Graphviz"] {
+        assert!(stdout.contains(needle), "missing {needle}:\n{stdout}");
+    }
+}
