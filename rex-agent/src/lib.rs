@@ -4,3 +4,13 @@
 //! receptor `r1,1`), its simulated world (platform `E1`, stereo camera `R1`) and its
 //! partner agents `a2` (ontology) and `a3` (map) are built here against the public
 //! `embodied` API only, exactly as a user's crate would be.
+
+pub mod camera;
+pub mod config;
+pub mod devices;
+pub mod mission;
+pub mod model;
+pub mod noise;
+pub mod partners;
+pub mod types;
+pub mod world;

@@ -1,0 +1,221 @@
+//! The stereo camera R1: a rectified pinhole pair fixed on the platform, rendering a
+//! textured scene, and KITTI-format output.
+//!
+//! Camera frame as in KITTI: x right, y down, z forward (the optical axis). The left
+//! camera is the reference; the right one is `baseline` metres along its x axis, with
+//! the same orientation and intrinsics, so a point at depth `Z` has disparity
+//! `f · b / Z` exactly.
+
+pub mod kitti;
+pub mod render;
+pub mod scene;
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::{Invalid, Validate, finite, non_negative, positive};
+
+pub use render::Renderer;
+pub use scene::{Obstacle, Room, SceneConfig, Texture, Textures};
+
+/// Resolution, optics and mounting of the stereo pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraConfig {
+    /// Image width [px].
+    pub width: u32,
+    /// Image height [px].
+    pub height: u32,
+    /// Focal length [px].
+    pub focal: f64,
+    /// Baseline between the left and right optical centres [m].
+    pub baseline: f64,
+    /// Height of the optical centres above the floor [m].
+    pub mount_height: f64,
+    /// Distance of the optical centres ahead of the platform's centre of mass [m].
+    pub mount_forward: f64,
+    /// Downward pitch of the optical axis [rad].
+    pub pitch: f64,
+}
+
+impl Default for CameraConfig {
+    /// 640×480, f = 400 px (77° horizontal field of view), baseline 0.3 m, 0.5 m
+    /// above the floor, 0.2 m ahead of the centre of mass, pitched 0.1 rad down.
+    fn default() -> Self {
+        CameraConfig {
+            width: 640,
+            height: 480,
+            focal: 400.0,
+            baseline: 0.3,
+            mount_height: 0.5,
+            mount_forward: 0.2,
+            pitch: 0.1,
+        }
+    }
+}
+
+impl Validate for CameraConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        if self.width < 16 || self.height < 16 || self.width > 8192 || self.height > 8192 {
+            return Err((
+                "width x height".into(),
+                format!("{}x{}", self.width, self.height),
+                "must be between 16 and 8192 pixels each",
+            ));
+        }
+        positive("focal", self.focal)?;
+        positive("baseline", self.baseline)?;
+        non_negative("mount_height", self.mount_height)?;
+        finite("mount_forward", self.mount_forward)?;
+        finite("pitch", self.pitch)?;
+        if self.pitch.abs() >= 1.5 {
+            return Err((
+                "pitch".into(),
+                self.pitch.to_string(),
+                "must be within ±1.5 rad",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A rigid transform: `world = rotation · camera + center`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPose {
+    /// Optical centre in the world [m].
+    pub center: [f64; 3],
+    /// Columns are the camera axes (x right, y down, z forward) in world coordinates.
+    pub rotation: [[f64; 3]; 3],
+}
+
+impl CameraPose {
+    /// World coordinates of camera-frame vector `v` (rotation only).
+    pub fn to_world_dir(&self, v: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
+    }
+
+    /// Camera coordinates of world point `p`.
+    pub fn to_camera(&self, p: [f64; 3]) -> [f64; 3] {
+        let d = [
+            p[0] - self.center[0],
+            p[1] - self.center[1],
+            p[2] - self.center[2],
+        ];
+        let r = &self.rotation;
+        [0, 1, 2].map(|j| r[0][j] * d[0] + r[1][j] * d[1] + r[2][j] * d[2])
+    }
+
+    /// As a 3×4 matrix `[R | c]` (camera to world), row-major.
+    pub fn matrix(&self) -> [[f64; 4]; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|i| [r[i][0], r[i][1], r[i][2], self.center[i]])
+    }
+}
+
+impl CameraConfig {
+    /// Principal point `(c_u, c_v)` [px]: the image centre.
+    pub fn principal_point(&self) -> (f64, f64) {
+        (f64::from(self.width) / 2.0, f64::from(self.height) / 2.0)
+    }
+
+    /// Pose of the left camera when the platform is at `(x, y, φ)`.
+    pub fn left_pose(&self, body: [f64; 3]) -> CameraPose {
+        let [x, y, phi] = body;
+        let (sp, cp) = phi.sin_cos();
+        let (st, ct) = self.pitch.sin_cos();
+        // Camera axes in the body frame (x forward, y left, z up).
+        let z_b = [ct, 0.0, -st];
+        let x_b = [0.0, -1.0, 0.0];
+        let y_b = [-st, 0.0, -ct];
+        let yaw = |v: [f64; 3]| [cp * v[0] - sp * v[1], sp * v[0] + cp * v[1], v[2]];
+        let (xw, yw, zw) = (yaw(x_b), yaw(y_b), yaw(z_b));
+        CameraPose {
+            center: [
+                x + cp * self.mount_forward,
+                y + sp * self.mount_forward,
+                self.mount_height,
+            ],
+            rotation: [
+                [xw[0], yw[0], zw[0]],
+                [xw[1], yw[1], zw[1]],
+                [xw[2], yw[2], zw[2]],
+            ],
+        }
+    }
+
+    /// Pose of the right camera: the left one moved by the baseline along its x axis.
+    pub fn right_pose(&self, body: [f64; 3]) -> CameraPose {
+        let left = self.left_pose(body);
+        let x = left.to_world_dir([1.0, 0.0, 0.0]);
+        CameraPose {
+            center: [0, 1, 2].map(|i| left.center[i] + self.baseline * x[i]),
+            ..left
+        }
+    }
+
+    /// Pixel `(u, v)` and depth of world point `p` seen from `pose`, if in front.
+    pub fn project(&self, pose: &CameraPose, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        let c = pose.to_camera(p);
+        if c[2] <= 1e-9 {
+            return None;
+        }
+        let (cu, cv) = self.principal_point();
+        Some((
+            self.focal * c[0] / c[2] + cu,
+            self.focal * c[1] / c[2] + cv,
+            c[2],
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_known_point_lands_on_the_predicted_pixel_with_disparity_fb_over_z() {
+        let cam = CameraConfig {
+            pitch: 0.0,
+            ..CameraConfig::default()
+        };
+        let body = [1.0, 2.0, 0.5];
+        let left = cam.left_pose(body);
+        let right = cam.right_pose(body);
+        // 4 m straight ahead of the left camera, 0.5 m to its right, 0.25 m below.
+        let p_cam = [0.5, 0.25, 4.0];
+        let p = [0, 1, 2]
+            .map(|i| left.center[i] + (0..3).map(|j| left.rotation[i][j] * p_cam[j]).sum::<f64>());
+        let (u, v, z) = cam.project(&left, p).unwrap();
+        let (cu, cv) = cam.principal_point();
+        assert!((u - (cu + 400.0 * 0.5 / 4.0)).abs() < 1e-9, "u = {u}");
+        assert!((v - (cv + 400.0 * 0.25 / 4.0)).abs() < 1e-9, "v = {v}");
+        assert!((z - 4.0).abs() < 1e-12);
+        let (ur, vr, _) = cam.project(&right, p).unwrap();
+        assert!((vr - v).abs() < 1e-9, "rectified: same row");
+        assert!(
+            ((u - ur) - cam.focal * cam.baseline / z).abs() < 1e-9,
+            "disparity f b / Z"
+        );
+        // The optical axis points along the heading, level with the floor.
+        let axis = left.to_world_dir([0.0, 0.0, 1.0]);
+        assert!((axis[0] - 0.5f64.cos()).abs() < 1e-12 && (axis[1] - 0.5f64.sin()).abs() < 1e-12);
+        assert!(axis[2].abs() < 1e-12);
+        assert!(
+            cam.project(
+                &left,
+                [left.center[0] - axis[0], left.center[1] - axis[1], 0.5]
+            )
+            .is_none(),
+            "behind"
+        );
+    }
+
+    #[test]
+    fn pitch_looks_down() {
+        let cam = CameraConfig::default();
+        let axis = cam.left_pose([0.0; 3]).to_world_dir([0.0, 0.0, 1.0]);
+        assert!(axis[2] < 0.0 && (axis[2] + cam.pitch.sin()).abs() < 1e-12);
+        let down = cam.left_pose([0.0; 3]).to_world_dir([0.0, 1.0, 0.0]);
+        assert!(down[2] < -0.9, "image y points down: {down:?}");
+    }
+}

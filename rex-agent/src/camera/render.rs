@@ -1,0 +1,441 @@
+//! Ray casting of the scene into grayscale images.
+//!
+//! One ray per pixel centre, in `f32`: the floor and the ceiling are planes, the walls
+//! the inside of an axis-aligned box, the obstacles axis-aligned boxes tested only
+//! where their projected bounding rectangle covers the pixel. Ray directions are
+//! stepped incrementally along each row. Textures are sampled bilinearly.
+
+use super::scene::{SceneConfig, Textures};
+use super::{CameraConfig, CameraPose};
+
+/// What a ray hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Surface {
+    /// The floor (z = 0).
+    Floor,
+    /// The ceiling.
+    Ceiling,
+    /// A wall of constant x.
+    WallX,
+    /// A wall of constant y.
+    WallY,
+    /// Obstacle `i`, face of constant x.
+    ObstacleX(usize),
+    /// Obstacle `i`, face of constant y.
+    ObstacleY(usize),
+    /// Obstacle `i`, top.
+    ObstacleTop(usize),
+}
+
+/// A ray hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray (the ray direction's length is the unit).
+    pub t: f64,
+    /// World point.
+    pub point: [f64; 3],
+    /// Which surface.
+    pub surface: Surface,
+}
+
+/// Renders the scene for a camera configuration.
+#[derive(Clone, Debug)]
+pub struct Renderer {
+    /// The camera.
+    pub camera: CameraConfig,
+    /// The scene.
+    pub scene: SceneConfig,
+    textures: Textures,
+    boxes: Vec<[f32; 5]>,
+    /// `(x0, y0, x1, y1, height)` of the room.
+    room: [f32; 5],
+}
+
+const CEILING_LEVEL: u8 = 196;
+
+type V3 = [f32; 3];
+
+#[inline]
+fn axpy(a: f32, x: V3, y: V3) -> V3 {
+    [a * x[0] + y[0], a * x[1] + y[1], a * x[2] + y[2]]
+}
+
+impl Renderer {
+    /// A renderer; textures are generated from the scene's seed.
+    pub fn new(camera: CameraConfig, scene: SceneConfig) -> Renderer {
+        let textures = Textures::generate(scene.texture_seed);
+        let boxes = scene
+            .obstacles
+            .iter()
+            .map(|o| {
+                [
+                    o.x0 as f32,
+                    o.y0 as f32,
+                    o.x1 as f32,
+                    o.y1 as f32,
+                    o.height as f32,
+                ]
+            })
+            .collect();
+        let r = &scene.room;
+        let room = [
+            r.x0 as f32,
+            r.y0 as f32,
+            r.x1 as f32,
+            r.y1 as f32,
+            r.height as f32,
+        ];
+        Renderer {
+            camera,
+            scene,
+            textures,
+            boxes,
+            room,
+        }
+    }
+
+    /// Render both images of the pair for the platform at `(x, y, φ)` into `left` and
+    /// `right` (resized to `width · height`; their storage is reused).
+    pub fn render_pair(&self, body: [f64; 3], left: &mut Vec<u8>, right: &mut Vec<u8>) {
+        let n = (self.camera.width * self.camera.height) as usize;
+        left.resize(n, 0);
+        right.resize(n, 0);
+        self.render(&self.camera.left_pose(body), left);
+        self.render(&self.camera.right_pose(body), right);
+    }
+
+    /// The first surface hit by the ray through pixel `(u, v)` (continuous pixel
+    /// coordinates; pixel centres are at `+0.5`).
+    pub fn cast(&self, pose: &CameraPose, u: f64, v: f64) -> Option<Hit> {
+        let (cu, cv) = self.camera.principal_point();
+        let d = pose.to_world_dir([u - cu, v - cv, self.camera.focal]);
+        let c = pose.center.map(|x| x as f32);
+        let d32 = d.map(|x| x as f32);
+        let (t, surface) = self.trace(c, d32, &self.all_boxes())?;
+        let t = f64::from(t);
+        Some(Hit {
+            t,
+            point: [0, 1, 2].map(|i| pose.center[i] + t * d[i]),
+            surface,
+        })
+    }
+
+    fn all_boxes(&self) -> Vec<usize> {
+        (0..self.boxes.len()).collect()
+    }
+
+    /// Nearest hit along `c + t d`, considering obstacles `active`.
+    fn trace(&self, c: V3, d: V3, active: &[usize]) -> Option<(f32, Surface)> {
+        let h = self.room[4];
+        let (tz, plane) = if d[2] < -1e-9 {
+            (-c[2] / d[2], Surface::Floor)
+        } else if d[2] > 1e-9 {
+            ((h - c[2]) / d[2], Surface::Ceiling)
+        } else {
+            (f32::INFINITY, Surface::Floor)
+        };
+        self.trace_from(c, d, tz, plane, active)
+    }
+
+    /// [`Self::trace`] with the floor or ceiling distance `tz` already known.
+    #[inline]
+    fn trace_from(
+        &self,
+        c: V3,
+        d: V3,
+        tz: f32,
+        plane: Surface,
+        active: &[usize],
+    ) -> Option<(f32, Surface)> {
+        let [x0, y0, x1, y1, _] = self.room;
+        let mut best = tz;
+        let mut surface = plane;
+        // The wall the ray leaves the room through: compare the two candidate
+        // distances without dividing, (X − c_x)/d_x < (Y − c_y)/d_y, then divide once.
+        let (ex, ax) = if d[0] >= 0.0 {
+            (x1 - c[0], d[0])
+        } else {
+            (c[0] - x0, -d[0])
+        };
+        let (ey, ay) = if d[1] >= 0.0 {
+            (y1 - c[1], d[1])
+        } else {
+            (c[1] - y0, -d[1])
+        };
+        let (t_wall, wall) = if ex * ay <= ey * ax {
+            (
+                if ax > 1e-9 { ex / ax } else { f32::INFINITY },
+                Surface::WallX,
+            )
+        } else {
+            (
+                if ay > 1e-9 { ey / ay } else { f32::INFINITY },
+                Surface::WallY,
+            )
+        };
+        if t_wall < best {
+            best = t_wall;
+            surface = wall;
+        }
+        if active.is_empty() {
+            return best.is_finite().then_some((best, surface));
+        }
+        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        // Plain comparisons (no NaN handling needed: the slab bounds are finite and
+        // an infinite inverse gives ±∞, which compares correctly).
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        let max = |a: f32, b: f32| if a > b { a } else { b };
+        for &i in active {
+            let [bx0, by0, bx1, by1, bh] = self.boxes[i];
+            let (x_a, x_b) = ((bx0 - c[0]) * inv[0], (bx1 - c[0]) * inv[0]);
+            let (y_a, y_b) = ((by0 - c[1]) * inv[1], (by1 - c[1]) * inv[1]);
+            let (z_a, z_b) = (-c[2] * inv[2], (bh - c[2]) * inv[2]);
+            let (tx, ty, tz) = (min(x_a, x_b), min(y_a, y_b), min(z_a, z_b));
+            let enter = max(max(tx, ty), tz);
+            let exit = min(min(max(x_a, x_b), max(y_a, y_b)), max(z_a, z_b));
+            if enter <= exit && enter > 1e-4 && enter < best {
+                best = enter;
+                surface = if enter == tx {
+                    Surface::ObstacleX(i)
+                } else if enter == ty {
+                    Surface::ObstacleY(i)
+                } else {
+                    Surface::ObstacleTop(i)
+                };
+            }
+        }
+        best.is_finite().then_some((best, surface))
+    }
+
+    #[inline]
+    fn shade(&self, p: V3, surface: Surface) -> u8 {
+        let t = &self.textures;
+        let scale = |v: u8, k: f32| (f32::from(v) * k) as u8;
+        match surface {
+            Surface::Floor => t.floor.sample(p[0], p[1]),
+            Surface::Ceiling => CEILING_LEVEL,
+            Surface::WallX => t.wall.sample(p[1], p[2]),
+            Surface::WallY => scale(t.wall.sample(p[0] + 7.3, p[2]), 0.85),
+            Surface::ObstacleX(_) => scale(t.obstacle.sample(p[1], p[2]), 0.95),
+            Surface::ObstacleY(_) => scale(t.obstacle.sample(p[0], p[2]), 0.8),
+            Surface::ObstacleTop(_) => scale(t.obstacle.sample(p[0], p[1]), 1.1),
+        }
+    }
+
+    /// The pixel rectangle `(u0, u1, v0, v1)` an obstacle can cover, or the whole
+    /// image when a corner is behind the camera.
+    fn screen_rect(&self, pose: &CameraPose, i: usize) -> (i64, i64, i64, i64) {
+        let (w, h) = (i64::from(self.camera.width), i64::from(self.camera.height));
+        let [x0, y0, x1, y1, bh] = self.boxes[i].map(f64::from);
+        let mut rect = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
+        for p in [
+            [x0, y0, 0.0],
+            [x1, y0, 0.0],
+            [x0, y1, 0.0],
+            [x1, y1, 0.0],
+            [x0, y0, bh],
+            [x1, y0, bh],
+            [x0, y1, bh],
+            [x1, y1, bh],
+        ] {
+            let c = pose.to_camera(p);
+            if c[2] < 0.05 {
+                return (0, w - 1, 0, h - 1);
+            }
+            let (cu, cv) = self.camera.principal_point();
+            let u = self.camera.focal * c[0] / c[2] + cu;
+            let v = self.camera.focal * c[1] / c[2] + cv;
+            rect = (
+                rect.0.min(u.floor() as i64 - 1),
+                rect.1.max(u.ceil() as i64 + 1),
+                rect.2.min(v.floor() as i64 - 1),
+                rect.3.max(v.ceil() as i64 + 1),
+            );
+        }
+        (
+            rect.0.max(0),
+            rect.1.min(w - 1),
+            rect.2.max(0),
+            rect.3.min(h - 1),
+        )
+    }
+
+    /// Render the view from `pose` into `out` (`width · height` bytes, row-major).
+    ///
+    /// The camera has no roll, so its x axis is horizontal and the vertical component
+    /// of the ray direction is constant along a row: the floor (or ceiling) distance
+    /// is one division per row. When that hit lies inside the room it is nearer than
+    /// any wall (the room is convex), so the walls are only intersected where the
+    /// floor or ceiling hit falls outside.
+    pub fn render(&self, pose: &CameraPose, out: &mut [u8]) {
+        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
+        let (cu, cv) = self.camera.principal_point();
+        let f = self.camera.focal as f32;
+        let axis = |v: [f64; 3]| pose.to_world_dir(v).map(|x| x as f32);
+        let (r0, r1, r2) = (
+            axis([1.0, 0.0, 0.0]),
+            axis([0.0, 1.0, 0.0]),
+            axis([0.0, 0.0, 1.0]),
+        );
+        let c = pose.center.map(|x| x as f32);
+        let [x0, y0, x1, y1, room_height] = self.room;
+        let rects: Vec<(i64, i64, i64, i64)> = (0..self.boxes.len())
+            .map(|i| self.screen_rect(pose, i))
+            .collect();
+        let mut active: Vec<usize> = Vec::with_capacity(self.boxes.len());
+        let mut in_row: Vec<(usize, i64, i64)> = Vec::with_capacity(self.boxes.len());
+        for (v, row) in out.chunks_exact_mut(w).take(h).enumerate() {
+            let vi = v as i64;
+            in_row.clear();
+            in_row.extend(
+                rects
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, r)| r.2 <= vi && vi <= r.3)
+                    .map(|(i, r)| (i, r.0, r.1)),
+            );
+            let dv = (v as f64 + 0.5 - cv) as f32;
+            let mut d = axpy(f, r2, axpy(dv, r1, axpy((0.5 - cu) as f32, r0, [0.0; 3])));
+            // Distance to the floor or the ceiling along this row's rays.
+            let (tz, plane) = if d[2] < -1e-6 {
+                (-c[2] / d[2], Surface::Floor)
+            } else if d[2] > 1e-6 {
+                ((room_height - c[2]) / d[2], Surface::Ceiling)
+            } else {
+                (f32::INFINITY, Surface::Floor)
+            };
+            for (u, px) in row.iter_mut().enumerate() {
+                let ui = u as i64;
+                active.clear();
+                if !in_row.is_empty() {
+                    active.extend(
+                        in_row
+                            .iter()
+                            .filter(|b| b.1 <= ui && ui <= b.2)
+                            .map(|b| b.0),
+                    );
+                }
+                let p = axpy(tz, d, c);
+                let plane_inside =
+                    tz.is_finite() && p[0] >= x0 && p[0] <= x1 && p[1] >= y0 && p[1] <= y1;
+                *px = if plane_inside && active.is_empty() {
+                    if plane == Surface::Floor {
+                        self.textures.floor.sample(p[0], p[1])
+                    } else {
+                        CEILING_LEVEL
+                    }
+                } else {
+                    match self.trace_from(c, d, tz, plane, &active) {
+                        Some((t, s)) => self.shade(axpy(t, d, c), s),
+                        None => CEILING_LEVEL,
+                    }
+                };
+                d = [d[0] + r0[0], d[1] + r0[1], d[2] + r0[2]];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::scene::Room;
+
+    fn renderer() -> Renderer {
+        Renderer::new(CameraConfig::default(), SceneConfig::default_room())
+    }
+
+    #[test]
+    fn rays_round_trip_through_the_pinhole_model() {
+        let r = renderer();
+        let pose = r.camera.left_pose([0.3, -0.4, 0.7]);
+        for (u, v) in [(10.5, 10.5), (320.5, 240.5), (600.5, 400.5), (100.5, 470.5)] {
+            let hit = r
+                .cast(&pose, u, v)
+                .expect("every ray hits something in a closed room");
+            let (pu, pv, _) = r.camera.project(&pose, hit.point).unwrap();
+            assert!(
+                (pu - u).abs() < 1e-3 && (pv - v).abs() < 1e-3,
+                "({u}, {v}) -> {hit:?} -> ({pu}, {pv})"
+            );
+        }
+        // Below the horizon, looking down: the floor.
+        let hit = r.cast(&pose, 320.5, 470.5).unwrap();
+        assert_eq!(hit.surface, Surface::Floor);
+        assert!(hit.point[2].abs() < 1e-4);
+    }
+
+    #[test]
+    fn disparity_of_a_wall_is_f_b_over_z() {
+        // An empty room; the camera level, facing the wall x = 4 from x = 0: the wall
+        // is at depth Z = 4 − 0.2 (mount) everywhere; match a patch between the images.
+        let scene = SceneConfig {
+            room: Room {
+                x0: -4.0,
+                y0: -6.0,
+                x1: 4.0,
+                y1: 6.0,
+                height: 3.0,
+            },
+            obstacles: Vec::new(),
+            texture_seed: 3,
+        };
+        let camera = CameraConfig {
+            pitch: 0.0,
+            ..CameraConfig::default()
+        };
+        let r = Renderer::new(camera.clone(), scene);
+        let (mut left, mut right) = (Vec::new(), Vec::new());
+        r.render_pair([0.0, 0.0, 0.0], &mut left, &mut right);
+        let z = 4.0 - camera.mount_forward;
+        let expected = camera.focal * camera.baseline / z;
+        let w = camera.width as usize;
+        let (u0, v0, half) = (330usize, 200usize, 7usize);
+        let sad = |d: usize| -> u64 {
+            let mut s = 0u64;
+            for y in v0 - half..=v0 + half {
+                for x in u0 - half..=u0 + half {
+                    s += u64::from(left[y * w + x].abs_diff(right[y * w + x - d]));
+                }
+            }
+            s
+        };
+        let best = (0..80).min_by_key(|&d| sad(d)).unwrap();
+        assert!(
+            (best as f64 - expected).abs() <= 1.0,
+            "disparity {best} vs f b / Z = {expected}"
+        );
+        let row_shift = (0..3usize).min_by_key(|&dy| {
+            let mut s = 0u64;
+            for x in u0 - half..=u0 + half {
+                s += u64::from(left[(v0 + dy) * w + x].abs_diff(right[v0 * w + x - best]));
+            }
+            s
+        });
+        assert_eq!(row_shift, Some(0), "rectified: matches lie on the same row");
+    }
+
+    #[test]
+    fn images_have_texture_everywhere_but_the_ceiling() {
+        let r = renderer();
+        let (mut left, mut right) = (Vec::new(), Vec::new());
+        r.render_pair([0.0, 0.0, 0.3], &mut left, &mut right);
+        let w = r.camera.width as usize;
+        // Local contrast in the lower half (floor and walls).
+        let mut textured_rows = 0;
+        for y in (240..480).step_by(20) {
+            let row = &left[y * w..(y + 1) * w];
+            let mean = row.iter().map(|&x| f64::from(x)).sum::<f64>() / w as f64;
+            let var = row
+                .iter()
+                .map(|&x| (f64::from(x) - mean).powi(2))
+                .sum::<f64>()
+                / w as f64;
+            if var.sqrt() > 8.0 {
+                textured_rows += 1;
+            }
+        }
+        assert!(textured_rows >= 10, "textured rows: {textured_rows}");
+        assert_ne!(left, right);
+    }
+}

@@ -1,0 +1,97 @@
+//! Missions of the ontology agent: sequences of plans, loaded from RON files.
+//!
+//! ```ron
+//! (
+//!     name: "square",
+//!     plans: [
+//!         [(x: 0.0, y: 0.0), (x: 2.0, y: 0.0), (x: 2.0, y: 2.0)],
+//!         [(x: 0.0, y: 2.0), (x: 0.0, y: 0.0)],
+//!     ],
+//! )
+//! ```
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::{self, ConfigError, Invalid, Validate, finite};
+use crate::types::{Plan, Point2};
+
+/// A mission: plans sent one after the other, each after the previous was acknowledged.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mission {
+    /// Name (`square`).
+    pub name: String,
+    /// The plans, each a list of points to pass in order.
+    pub plans: Vec<Vec<Point2>>,
+}
+
+impl Validate for Mission {
+    fn validate(&self) -> Result<(), Invalid> {
+        if self.plans.is_empty() {
+            return Err((
+                "plans".into(),
+                "[]".into(),
+                "a mission has at least one plan",
+            ));
+        }
+        for (i, plan) in self.plans.iter().enumerate() {
+            for (k, p) in plan.iter().enumerate() {
+                finite(&format!("plans[{i}][{k}].x"), p.x)?;
+                finite(&format!("plans[{i}][{k}].y"), p.y)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Mission {
+    /// Load a mission file.
+    pub fn load(path: &Path) -> Result<Mission, ConfigError> {
+        config::load(path)
+    }
+
+    /// Load one of the shipped missions (`square`, `figure_eight`, `slalom`).
+    pub fn shipped(name: &str) -> Result<Mission, ConfigError> {
+        Mission::load(&config::missions_dir().join(format!("{name}.ron")))
+    }
+
+    /// The names of the shipped missions.
+    pub const SHIPPED: [&'static str; 3] = ["square", "figure_eight", "slalom"];
+
+    /// Plan number `k` (ids start at 1).
+    pub fn plan(&self, k: usize) -> Option<Plan> {
+        self.plans.get(k).map(|points| Plan {
+            id: k as u32 + 1,
+            points: points.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_missions_load() {
+        for name in Mission::SHIPPED {
+            let m = Mission::shipped(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(m.name, name);
+            assert!(m.plans.iter().all(|p| p.len() >= 2));
+        }
+    }
+
+    #[test]
+    fn bad_missions_are_rejected() {
+        let err =
+            config::parse::<Mission>(Path::new("m.ron"), "(name: \"x\", plans: [])").unwrap_err();
+        assert!(err.to_string().contains("at least one plan"), "{err}");
+        let err = config::parse::<Mission>(
+            Path::new("m.ron"),
+            "(name: \"x\", plans: [[(x: NaN, y: 0.0)]])",
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("plans[0][0].x"), "{err}");
+    }
+}

@@ -1,0 +1,169 @@
+//! The data that travels through Rex's buffers (names as in `specs/rex.ron`).
+
+use serde::{Deserialize, Serialize};
+
+/// A point on the map [m].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point2 {
+    /// x [m].
+    pub x: f64,
+    /// y [m].
+    pub y: f64,
+}
+
+/// A pose on the map: position [m] and heading [rad].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose2 {
+    /// x [m].
+    pub x: f64,
+    /// y [m].
+    pub y: f64,
+    /// Heading [rad].
+    pub phi: f64,
+}
+
+impl Pose2 {
+    /// Whether every component is finite.
+    pub fn is_finite(&self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.phi.is_finite()
+    }
+}
+
+/// A pose measured by the map agent, with the time it describes (it arrives late).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapPose {
+    /// The pose.
+    pub pose: Pose2,
+    /// Simulation time the pose describes [s].
+    pub time: f64,
+}
+
+/// The platform's state estimate (`q~`, `q~ dot`): `q = (X, Y, φ, θ_1..θ_4)` and its
+/// time derivative.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// Generalised coordinates `(X, Y, φ, θ_1, θ_2, θ_3, θ_4)`.
+    pub q: [f64; 7],
+    /// Their rates.
+    pub q_dot: [f64; 7],
+}
+
+impl State {
+    /// The pose part `(X, Y, φ)`.
+    pub fn pose(&self) -> Pose2 {
+        Pose2 {
+            x: self.q[0],
+            y: self.q[1],
+            phi: self.q[2],
+        }
+    }
+
+    /// Whether every component is finite.
+    pub fn is_finite(&self) -> bool {
+        self.q.iter().chain(&self.q_dot).all(|v| v.is_finite())
+    }
+}
+
+/// Wheel torques `(τ_1..τ_4)` [N m], wheels 1 front-left, 2 rear-left, 3 front-right,
+/// 4 rear-right.
+pub type Torques = [f64; 4];
+
+/// A command for the inertial measurement unit (`cmd_E1,1`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ImuCommand {
+    /// Set the integrated heading to `yaw` [rad] (align it with the map).
+    Reset {
+        /// The heading to restart from.
+        yaw: f64,
+    },
+}
+
+/// A reading of the inertial measurement unit (α, α̇ in the paper, planar).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Heading integrated from the gyroscope since the last reset [rad], in (−π, π].
+    pub yaw: f64,
+    /// Yaw rate [rad/s] (with bias and noise).
+    pub yaw_rate: f64,
+    /// Body-frame acceleration `(a_x, a_y)` [m/s²].
+    pub accel: [f64; 2],
+}
+
+/// Normal loads measured by the force sensors between the body and each wheel unit [N].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WheelLoads {
+    /// Load per wheel.
+    pub load: [f64; 4],
+}
+
+/// Wheel encoders: angles and rates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Encoders {
+    /// Angle per wheel [rad], quantised to the encoder's resolution.
+    pub theta: [f64; 4],
+    /// Rate per wheel [rad/s], from the counts over the speed window.
+    pub rate: [f64; 4],
+}
+
+/// The acquisition command of the stereo camera (`cmd_R1,1`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AcquireCommand {
+    /// Sequence number of the requested pair.
+    pub seq: u64,
+}
+
+/// A rectified grayscale stereo pair.
+#[derive(Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StereoPair {
+    /// Sequence number (from the acquisition command).
+    pub seq: u64,
+    /// Simulation time of the exposure [s].
+    pub time: f64,
+    /// Width [px].
+    pub width: u32,
+    /// Height [px].
+    pub height: u32,
+    /// Left image, row-major, 8 bits per pixel.
+    pub left: Vec<u8>,
+    /// Right image.
+    pub right: Vec<u8>,
+}
+
+impl std::fmt::Debug for StereoPair {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "StereoPair {{ seq: {}, time: {:.3}, {}x{} }}",
+            self.seq, self.time, self.width, self.height
+        )
+    }
+}
+
+/// A plan from the ontology agent: points on the map to pass in order.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    /// Plan number.
+    pub id: u32,
+    /// The points.
+    pub points: Vec<Point2>,
+}
+
+/// How a plan ended.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum AckStatus {
+    /// Every fragment was handed over for execution.
+    Done,
+    /// The plan was refused before execution.
+    Refused(String),
+    /// Execution stopped (the platform holds its position).
+    Failed(String),
+}
+
+/// The acknowledgement of a plan (`ack`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ack {
+    /// The plan acknowledged.
+    pub plan: u32,
+    /// How it ended.
+    pub status: AckStatus,
+}

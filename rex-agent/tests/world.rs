@@ -1,0 +1,542 @@
+//! Rex's world inside the framework: the platform E1, the stereo camera R1, the map
+//! agent a3 with its motion capture, the ontology agent a2, all run by the executor
+//! around stand-ins for a1's subsystems (the real ones come with the Rex agent).
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::time::Duration;
+
+use embodied::*;
+use rex_agent::camera::CameraConfig;
+use rex_agent::devices::{
+    CameraInput, CameraOutput, MocapParams, Platform, PlatformInput, PlatformOutput, SharedTruth,
+    StereoCamera,
+};
+use rex_agent::mission::Mission;
+use rex_agent::partners::{MapInput, MapOutput, OntologyInput, OntologyOutput};
+use rex_agent::types::*;
+use rex_agent::world::{self, WorldConfig};
+
+// ---------------------------------------------------------------------------
+// Stand-ins for a1's subsystems.
+
+/// c1: acknowledges each plan 20 iterations after it arrives; keeps the map poses.
+struct StubC1;
+#[derive(Clone, Debug, Default)]
+struct StubC1Memory {
+    pending: Option<(u32, u32)>,
+    plans: Vec<u32>,
+    poses: Vec<(f64, MapPose)>,
+    iteration: u64,
+}
+#[derive(Clone, Debug, Default)]
+struct C1FromC2 {
+    desired_plan: In<Plan>,
+}
+impl Group for C1FromC2 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Clone, Debug, Default)]
+struct C1FromC3 {
+    pose: In<MapPose>,
+}
+impl Group for C1FromC3 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Clone, Debug, Default)]
+struct StubC1Input {
+    c2: C1FromC2,
+    c3: C1FromC3,
+}
+#[derive(Debug, Default)]
+struct C1ToC2 {
+    ack: Out<Ack>,
+}
+impl Group for C1ToC2 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Debug, Default)]
+struct C1ToC3 {
+    q_est: Out<State>,
+}
+impl Group for C1ToC3 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Debug, Default)]
+struct StubC1Output {
+    c2: C1ToC2,
+    c3: C1ToC3,
+}
+impl Subsystem for StubC1 {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = StubC1Memory;
+    type Input = StubC1Input;
+    type Output = StubC1Output;
+}
+const C1_PERIOD: f64 = 0.01;
+
+fn stub_c1() -> Fsm<StubC1> {
+    Fsm::single(Behaviour::while_loop(
+        "serve",
+        Action::<StubC1>::new()
+            .output(
+                |y| &mut y.c2,
+                |m: &StubC1Memory, _: &StubC1Input, y: &mut C1ToC2| {
+                    if let Some((id, 0)) = m.pending {
+                        y.ack.set(Ack {
+                            plan: id,
+                            status: AckStatus::Done,
+                        });
+                    }
+                },
+            )
+            .output(
+                |y| &mut y.c3,
+                |_: &StubC1Memory, _: &StubC1Input, y: &mut C1ToC3| {
+                    y.q_est.set(State::default());
+                },
+            )
+            .memory(|m: &mut StubC1Memory, x: &StubC1Input| {
+                m.pending = match m.pending {
+                    Some((_, 0)) | None => None,
+                    Some((id, n)) => Some((id, n - 1)),
+                };
+                if let Some(plan) = x.c2.desired_plan.fresh() {
+                    m.plans.push(plan.id);
+                    m.pending = Some((plan.id, 20));
+                }
+                if let Some(p) = x.c3.pose.fresh() {
+                    m.poses.push((m.iteration as f64 * C1_PERIOD, *p));
+                }
+                m.iteration += 1;
+            }),
+        "false",
+    ))
+    .unwrap()
+}
+
+/// e11: drives the wheels at 4 rad/s (left) and 8 rad/s (right) with a proportional
+/// speed loop on the encoders; resets the IMU once; keeps the last readings.
+struct StubE11;
+#[derive(Clone, Debug, Default)]
+struct StubE11Memory {
+    iteration: u64,
+    last: Option<(Imu, WheelLoads, Encoders)>,
+}
+#[derive(Clone, Debug, Default)]
+struct E11FromE1 {
+    imu: In<Imu>,
+    forces: In<WheelLoads>,
+    encoders: In<Encoders>,
+}
+impl Group for E11FromE1 {
+    const PEER: NodeKind = NodeKind::RealEffector;
+}
+#[derive(Clone, Debug, Default)]
+struct StubE11Input {
+    e1: E11FromE1,
+}
+#[derive(Debug, Default)]
+#[allow(non_snake_case, reason = "the paper's buffer names")]
+struct E11ToE1 {
+    tau: Out<Torques>,
+    cmd_E11: Out<ImuCommand>,
+}
+impl Group for E11ToE1 {
+    const PEER: NodeKind = NodeKind::RealEffector;
+}
+#[derive(Debug, Default)]
+struct StubE11Output {
+    e1: E11ToE1,
+}
+impl Subsystem for StubE11 {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = StubE11Memory;
+    type Input = StubE11Input;
+    type Output = StubE11Output;
+}
+
+fn stub_e11() -> Fsm<StubE11> {
+    Fsm::single(Behaviour::while_loop(
+        "drive",
+        Action::<StubE11>::new()
+            .output(
+                |y| &mut y.e1,
+                |m: &StubE11Memory, x: &StubE11Input, y: &mut E11ToE1| {
+                    let rate = x.e1.encoders.get().map_or([0.0; 4], |e| e.rate);
+                    let target = [4.0, 4.0, 8.0, 8.0];
+                    y.tau.set(
+                        [0, 1, 2, 3].map(|i| (1.0 * (target[i] - rate[i])).clamp(-10.0, 10.0)),
+                    );
+                    if m.iteration == 5 {
+                        y.cmd_E11.set(ImuCommand::Reset { yaw: 0.0 });
+                    }
+                },
+            )
+            .memory(|m: &mut StubE11Memory, x: &StubE11Input| {
+                if let (Some(i), Some(f), Some(e)) =
+                    (x.e1.imu.get(), x.e1.forces.get(), x.e1.encoders.get())
+                {
+                    m.last = Some((*i, *f, *e));
+                }
+                m.iteration += 1;
+            }),
+        "false",
+    ))
+    .unwrap()
+}
+
+/// r11: asks for a pair every third iteration; notes what it asked and what came.
+struct StubR11;
+#[derive(Clone, Debug, Default)]
+struct StubR11Memory {
+    iteration: u64,
+    asked: Vec<(u64, u64)>,
+    got: Vec<(u64, u64, f64)>,
+    images_differ: bool,
+    previous: Vec<u8>,
+}
+#[derive(Clone, Debug, Default)]
+struct R11FromR1 {
+    img_lr: In<StereoPair>,
+}
+impl Group for R11FromR1 {
+    const PEER: NodeKind = NodeKind::RealReceptor;
+}
+#[derive(Clone, Debug, Default)]
+struct StubR11Input {
+    r1: R11FromR1,
+}
+#[derive(Debug, Default)]
+#[allow(non_snake_case, reason = "the paper's buffer names")]
+struct R11ToR1 {
+    cmd_R11: Out<AcquireCommand>,
+}
+impl Group for R11ToR1 {
+    const PEER: NodeKind = NodeKind::RealReceptor;
+}
+#[derive(Debug, Default)]
+struct StubR11Output {
+    r1: R11ToR1,
+}
+impl Subsystem for StubR11 {
+    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
+    type Memory = StubR11Memory;
+    type Input = StubR11Input;
+    type Output = StubR11Output;
+}
+
+fn stub_r11() -> Fsm<StubR11> {
+    Fsm::single(Behaviour::while_loop(
+        "capture",
+        Action::<StubR11>::new()
+            .output(
+                |y| &mut y.r1,
+                |m: &StubR11Memory, _: &StubR11Input, y: &mut R11ToR1| {
+                    if m.iteration % 3 == 0 {
+                        y.cmd_R11.set(AcquireCommand {
+                            seq: m.iteration / 3,
+                        });
+                    }
+                },
+            )
+            .memory(|m: &mut StubR11Memory, x: &StubR11Input| {
+                if m.iteration % 3 == 0 {
+                    m.asked.push((m.iteration, m.iteration / 3));
+                }
+                if let Some(pair) = x.r1.img_lr.fresh() {
+                    m.got.push((m.iteration, pair.seq, pair.time));
+                    if !m.previous.is_empty() && m.previous != pair.left {
+                        m.images_differ = true;
+                    }
+                    m.previous.clone_from(&pair.left);
+                }
+                m.iteration += 1;
+            }),
+        "false",
+    ))
+    .unwrap()
+}
+
+// ---------------------------------------------------------------------------
+
+struct Handles {
+    c1: SubsystemHandle<StubC1>,
+    e11: SubsystemHandle<StubE11>,
+    r11: SubsystemHandle<StubR11>,
+    c2: SubsystemHandle<rex_agent::partners::Ontology>,
+    map: world::MapAgentHandles,
+    platform: DriverHandle<Platform>,
+    camera: DriverHandle<StereoCamera>,
+}
+
+fn world_config() -> WorldConfig {
+    WorldConfig {
+        camera: CameraConfig {
+            width: 160,
+            height: 120,
+            focal: 100.0,
+            ..CameraConfig::default()
+        },
+        mocap: MocapParams {
+            dropout_rate: 0.03,
+            dropout_length: 0.2,
+            ..MocapParams::default()
+        },
+        ..WorldConfig::shipped().unwrap()
+    }
+}
+
+fn build(config: &WorldConfig) -> (System, Handles) {
+    let truth = SharedTruth::default();
+    let mut sys = SystemBuilder::new();
+    let a1 = sys.agent("a1");
+    let ms = |x: u64| Period::from_millis(x).unwrap();
+    let c1 = sys.subsystem(a1, "c1", ms(10), StubC1Memory::default(), stub_c1());
+    let e11 = sys.subsystem(a1, "e11", ms(50), StubE11Memory::default(), stub_e11());
+    let r11 = sys.subsystem(a1, "r11", ms(20), StubR11Memory::default(), stub_r11());
+    let platform = world::add_platform(&mut sys, a1, config, &truth).unwrap();
+    let camera = world::add_camera(&mut sys, a1, config, &truth).unwrap();
+    let mission = Mission::shipped("square").unwrap();
+    let (_, c2) = world::add_ontology(&mut sys, config, mission).unwrap();
+    let map = world::add_map_agent(&mut sys, config, &truth).unwrap();
+    sys.connect(
+        c2.output(port!(OntologyOutput, c1.desired_plan)),
+        c1.input(port!(StubC1Input, c2.desired_plan)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        c1.output(port!(StubC1Output, c2.ack)),
+        c2.input(port!(OntologyInput, c1.ack)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        map.c3.output(port!(MapOutput, c1.pose)),
+        c1.input(port!(StubC1Input, c3.pose)),
+        Policy::Sample,
+    );
+    sys.connect(
+        c1.output(port!(StubC1Output, c3.q_est)),
+        map.c3.input(port!(MapInput, c1.q_est)),
+        Policy::Sample,
+    );
+    sys.connect(
+        e11.output(port!(StubE11Output, e1.tau)),
+        platform.input(port!(PlatformInput, e11.tau)),
+        Policy::Sample,
+    );
+    sys.connect(
+        e11.output(port!(StubE11Output, e1.cmd_E11)),
+        platform.input(port!(PlatformInput, e11.cmd_E11)),
+        Policy::queue(2),
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.imu)),
+        e11.input(port!(StubE11Input, e1.imu)),
+        Policy::Sample,
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.forces)),
+        e11.input(port!(StubE11Input, e1.forces)),
+        Policy::Sample,
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.encoders)),
+        e11.input(port!(StubE11Input, e1.encoders)),
+        Policy::Sample,
+    );
+    sys.connect(
+        r11.output(port!(StubR11Output, r1.cmd_R11)),
+        camera.input(port!(CameraInput, r11.cmd_R11)),
+        Policy::queue(2),
+    );
+    sys.connect(
+        camera.output(port!(CameraOutput, r11.img_lr)),
+        r11.input(port!(StubR11Input, r1.img_lr)),
+        Policy::Sample,
+    );
+    (
+        sys.build().unwrap(),
+        Handles {
+            c1,
+            e11,
+            r11,
+            c2,
+            map,
+            platform,
+            camera,
+        },
+    )
+}
+
+#[test]
+fn the_world_runs_inside_the_framework() {
+    let config = world_config();
+    let (system, h) = build(&config);
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.run_for(Duration::from_secs(6)).unwrap();
+
+    // The platform moved under e11's torques and its sensors reached e11.
+    let plant = exec.driver(&h.platform).unwrap().plant();
+    let s = plant.state;
+    assert!(
+        s.x.hypot(s.y) > 0.3 && s.phi.abs() > 0.1,
+        "moved and turned: {s:?}"
+    );
+    let (imu, loads, enc) = exec.memory(&h.e11).unwrap().last.unwrap();
+    assert!(
+        imu.yaw_rate > 0.0 && imu.yaw_rate < 2.0,
+        "turning left: gyro {}",
+        imu.yaw_rate
+    );
+    assert!(
+        (loads.load.iter().sum::<f64>() - config.platform.mass * config.platform.gravity).abs()
+            < 20.0
+    );
+    assert!(
+        enc.rate[2] > enc.rate[0] && enc.rate[0] > 0.0,
+        "right wheels faster: {:?}",
+        enc.rate
+    );
+    assert_eq!(
+        exec.driver(&h.platform).unwrap().resets(),
+        1,
+        "the IMU obeyed the reset command"
+    );
+    // The reset aligned the integrated heading with the true one (both start at 0):
+    assert!(
+        (imu.yaw - s.phi).abs() < 0.05,
+        "IMU heading {} vs true {}",
+        imu.yaw,
+        s.phi
+    );
+
+    // Images come only when asked, one camera step later at the earliest.
+    let r = exec.memory(&h.r11).unwrap();
+    assert!(r.got.len() >= 50, "{} pairs", r.got.len());
+    for &(at, seq, time) in &r.got {
+        let &(asked_at, _) = r.asked.iter().find(|(_, s)| *s == seq).expect("asked for");
+        assert!(
+            at > asked_at,
+            "pair {seq} asked at ι={asked_at}, received at ι={at}"
+        );
+        assert!(time > asked_at as f64 * 0.02, "exposed after the command");
+    }
+    let seqs: Vec<u64> = r.got.iter().map(|g| g.1).collect();
+    assert!(
+        seqs.windows(2).all(|w| w[1] == w[0] + 1),
+        "every request answered, in order"
+    );
+    assert!(r.images_differ, "the view changes as the platform moves");
+    assert_eq!(
+        exec.driver(&h.camera).unwrap().frames(),
+        r.asked.len() as u64
+    );
+
+    // The map agent: poses reach c1 late, with dropouts.
+    let c1 = exec.memory(&h.c1).unwrap();
+    assert!(c1.poses.len() > 100);
+    for (arrived, p) in &c1.poses {
+        assert!(
+            p.time <= arrived - config.mocap.latency + 1e-9,
+            "latency: {} at {arrived}",
+            p.time
+        );
+    }
+    let (delivered, dropped) = exec.driver(&h.map.mocap).unwrap().counts();
+    assert!(
+        dropped > 0 && delivered > 100,
+        "{delivered} delivered, {dropped} dropped"
+    );
+    assert!(
+        exec.memory(&h.map.c3).unwrap().estimate.is_some(),
+        "c3 keeps a1's estimate"
+    );
+
+    // The ontology agent sent both plans of the square and finished.
+    assert_eq!(exec.memory(&h.c1).unwrap().plans, vec![1, 2]);
+    assert_eq!(exec.memory(&h.c2).unwrap().acks.len(), 2);
+    assert_eq!(exec.behaviour(&h.c2), Some("done"));
+    assert!(exec.is_halted(h.c2.id()));
+    assert!(exec.report().errors.is_empty());
+}
+
+#[test]
+fn no_command_means_no_new_image() {
+    let config = world_config();
+    let (system, h) = build(&config);
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.run_for(Duration::from_millis(500)).unwrap();
+    let asked = exec.memory(&h.r11).unwrap().asked.len();
+    let got = exec.memory(&h.r11).unwrap().got.len();
+    assert!(
+        got + 1 >= asked && got <= asked,
+        "{asked} asked, {got} received"
+    );
+    // r11 reads the camera's sample link every iteration, but only the iterations
+    // after a request see a new pair.
+    let iterations = exec.memory(&h.r11).unwrap().iteration;
+    assert!(got < iterations as usize / 2);
+}
+
+#[test]
+fn the_world_is_deterministic() {
+    let run = || {
+        let (system, _) = build(&world_config());
+        let mut exec = Executor::with_observer(system, ExecConfig::default(), Recorder::new());
+        exec.run_for(Duration::from_millis(1500)).unwrap();
+        exec.into_observer().into_trace()
+    };
+    let (a, b) = (run(), run());
+    assert!(a.events.len() > 5_000, "{} events", a.events.len());
+    assert_eq!(a.first_difference(&b), None);
+}
+
+#[test]
+fn the_camera_writes_what_it_renders_as_a_kitti_sequence() {
+    use rex_agent::camera::kitti::{Sequence, SequenceWriter};
+    let dir = std::env::temp_dir().join(format!("rex-kitti-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let config = world_config();
+    let (system, h) = build(&config);
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.driver_mut(&h.camera)
+        .unwrap()
+        .record_to(SequenceWriter::create(&dir, &config.camera).unwrap());
+    exec.run_for(Duration::from_millis(600)).unwrap();
+    let frames = exec.driver(&h.camera).unwrap().frames() as usize;
+    let writer = exec.driver_mut(&h.camera).unwrap().take_recorder().unwrap();
+    assert_eq!(writer.finish().unwrap(), frames);
+
+    let seq = Sequence::open(&dir).unwrap();
+    assert_eq!(seq.len(), frames);
+    assert!((seq.focal - config.camera.focal).abs() < 1e-9);
+    assert!((seq.baseline - config.camera.baseline).abs() < 1e-9);
+    let poses = seq.poses.as_ref().unwrap();
+    assert!(
+        (poses[0][0][0] - 1.0).abs() < 1e-12 && poses[0][2][3].abs() < 1e-12,
+        "first pose is the identity"
+    );
+    // The camera moves forward (+z in KITTI's camera frame) as the platform drives.
+    let last = poses.last().unwrap();
+    assert!(last[2][3] > 0.05, "forward motion {:?}", last);
+    let (w, h2, left, right) = seq.frame(frames - 1).unwrap();
+    assert_eq!((w, h2), (config.camera.width, config.camera.height));
+    assert_ne!(left, right);
+
+    // A damaged folder: errors name the file.
+    std::fs::remove_file(dir.join("image_1").join("000001.png")).unwrap();
+    let err = Sequence::open(&dir).unwrap_err().to_string();
+    assert!(
+        err.contains("image_1/000001.png") && err.contains("missing"),
+        "{err}"
+    );
+    std::fs::write(dir.join("calib.txt"), "P0: 1 2 3\n").unwrap();
+    let err = Sequence::open(&dir).unwrap_err().to_string();
+    assert!(err.contains("calib.txt") && err.contains("P0"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
