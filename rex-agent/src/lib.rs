@@ -5,12 +5,17 @@
 //! partner agents `a2` (ontology) and `a3` (map) are built here against the public
 //! `embodied` API only, exactly as a user's crate would be.
 
+pub mod c1;
 pub mod camera;
 pub mod config;
 pub mod devices;
+pub mod e11;
 pub mod mission;
 pub mod model;
 pub mod noise;
 pub mod partners;
+pub mod planner;
+pub mod rex;
+pub mod run;
 pub mod types;
 pub mod world;

@@ -89,10 +89,10 @@ impl Subsystem for Ontology {
     type Output = OntologyOutput;
 }
 
-/// Keep a fresh acknowledgement (run by the behaviour that follows `wait`, in the
-/// activation in which the acknowledgement arrives).
+/// Keep a fresh final acknowledgement (run by the behaviour that follows `wait`, in
+/// the activation in which the acknowledgement arrives).
 fn record(m: &mut OntologyMemory, x: &OntologyInput) {
-    if let Some(ack) = x.c1.ack.fresh() {
+    if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
         m.acks.push(ack.clone());
     }
 }
@@ -108,7 +108,7 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
             x.c1.ack
                 .fresh()
                 .zip(m.last_sent())
-                .is_some_and(|(a, id)| a.plan == id)
+                .is_some_and(|(a, id)| a.plan == id && a.ready())
         })
         .behaviour(Behaviour::while_loop(
             "next_plan",
@@ -184,9 +184,13 @@ impl Group for MocapFromR3 {
 
 /// `r31`'s inputs.
 #[derive(Clone, Debug, Default)]
+#[expect(
+    non_snake_case,
+    reason = "groups are named after their peer component, R3"
+)]
 pub struct MocapReceptorInput {
     /// From `R3`.
-    pub r3: MocapFromR3,
+    pub R3: MocapFromR3,
 }
 
 /// `r31`'s output to `c3`.
@@ -238,13 +242,13 @@ pub fn mocap_receptor_fsm() -> Result<Fsm<MocapReceptor>, FsmBuildError> {
             .output(
                 |y| &mut y.c3,
                 |m: &MocapMemory, x: &MocapReceptorInput, y: &mut MocapToC3| {
-                    if let Some(p) = x.r3.pose.fresh().filter(|p| m.plausible(p)) {
+                    if let Some(p) = x.R3.pose.fresh().filter(|p| m.plausible(p)) {
                         y.pose.set(*p);
                     }
                 },
             )
             .memory(|m: &mut MocapMemory, x: &MocapReceptorInput| {
-                if let Some(p) = x.r3.pose.fresh() {
+                if let Some(p) = x.R3.pose.fresh() {
                     if m.plausible(p) {
                         m.last = Some(*p);
                     } else {

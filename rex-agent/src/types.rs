@@ -148,9 +148,13 @@ pub struct Plan {
     pub points: Vec<Point2>,
 }
 
-/// How a plan ended.
+/// How a plan ended (`ack` in the paper is a flag: [`AckStatus::Received`] is
+/// `ack = false`, sent when a new plan is taken (Algorithm 5); the others are
+/// `ack = true`, ready for a new plan (Algorithm 8), with the outcome).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum AckStatus {
+    /// The plan was taken: not ready for another one yet.
+    Received,
     /// Every fragment was handed over for execution.
     Done,
     /// The plan was refused before execution.
@@ -159,6 +163,9 @@ pub enum AckStatus {
     Failed(String),
 }
 
+/// A rigid transform (`A4x4`): the motion between two stereo pairs, row-major.
+pub type Transform = [[f64; 4]; 4];
+
 /// The acknowledgement of a plan (`ack`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Ack {
@@ -166,4 +173,11 @@ pub struct Ack {
     pub plan: u32,
     /// How it ended.
     pub status: AckStatus,
+}
+
+impl Ack {
+    /// The paper's flag: ready for a new plan.
+    pub fn ready(&self) -> bool {
+        self.status != AckStatus::Received
+    }
 }

@@ -230,7 +230,7 @@ pub fn add_map_agent(
     );
     sys.connect(
         mocap.output(port!(MocapOutput, r31.pose)),
-        r31.input(port!(MocapReceptorInput, r3.pose)),
+        r31.input(port!(MocapReceptorInput, R3.pose)),
         Policy::Sample,
     );
     sys.connect(

@@ -116,6 +116,13 @@ pub struct SlipParams {
     pub mu_l: f64,
 }
 
+impl Default for SlipParams {
+    /// [`SlipParams::NOMINAL`].
+    fn default() -> Self {
+        SlipParams::NOMINAL
+    }
+}
+
 impl SlipParams {
     /// The peers' nominal values (0.03, 0.05, 0.5).
     pub const NOMINAL: SlipParams = SlipParams {

@@ -1,0 +1,576 @@
+//! The control subsystem `c1` of the locomotion agent (the paper's section 3.1).
+//!
+//! Behaviours (Fig. 5): `B1` waits for a plan from `a2`, `B2` executes it, `B3`
+//! acknowledges. The transition subfunctions are the paper's Algorithms 4–8, one Rust
+//! function each, named as in `specs/rex.ron`:
+//!
+//! | function | algorithm | target |
+//! |---|---|---|
+//! | [`cc_1_tp`] | 4: a new plan is processed, the planner initialised | memory |
+//! | [`ct_1_tp`] | 5: a new plan clears `ack` | `c2` |
+//! | [`cc_2_tp`] | 6: the planning process and the fragment list | memory |
+//! | [`ce_2_tp`] | 7: the next fragment to `e11` with `steps` and `notify` | `e11` |
+//! | [`ct_3_tp`] | 8: `ack` | `c2` |
+//! | [`ce_1`], [`ct_q`] | relays: map pose and `A4x4` to `e11`, state estimate to `a3` | `e11`, `c3` |
+//! | [`cc_3`] | clears the plan's flags (needed by the refusal arc `B1 → B3`) | memory |
+//!
+//! Two details the paper leaves open. `ready` comes from `e11`, which runs five times
+//! slower than `c1`; it is an event (sent once per fragment, when `notify` steps are
+//! done, and once at start) latched in memory (`ready_latch`) until a fragment is
+//! handed over, so one `ready` releases exactly one fragment. And a plan that cannot
+//! be executed (empty, non-finite, off the map) is refused: `B1` goes straight to
+//! `B3`, which reports the reason to `a2`.
+
+use std::collections::VecDeque;
+
+use embodied::{
+    Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
+};
+
+use crate::planner::trajgen::{Status, TrajGen};
+use crate::planner::{Fragment, Waypoint, nearest_angle};
+use crate::types::{Ack, AckStatus, MapPose, Plan, State, Transform};
+
+/// The map, for refusing plans that leave it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapBounds {
+    /// Lower x [m].
+    pub x0: f64,
+    /// Lower y [m].
+    pub y0: f64,
+    /// Upper x [m].
+    pub x1: f64,
+    /// Upper y [m].
+    pub y1: f64,
+}
+
+/// Settings of `c1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct C1Params {
+    /// Plan points must lie inside.
+    pub map: MapBounds,
+    /// The most points a plan may have.
+    pub max_points: usize,
+    /// How long before the end of a fragment `e11` reports ready [s].
+    pub notify_lead: f64,
+}
+
+impl Default for C1Params {
+    fn default() -> Self {
+        C1Params {
+            map: MapBounds {
+                x0: -5.5,
+                y0: -5.5,
+                x1: 5.5,
+                y1: 5.5,
+            },
+            max_points: 1000,
+            notify_lead: 1.0,
+        }
+    }
+}
+
+/// `c1`'s internal memory (`^c c_1`).
+#[derive(Clone, Debug)]
+pub struct C1Memory {
+    /// `plan`: the points still to plan towards, with desired orientations.
+    pub plan: VecDeque<Waypoint>,
+    /// `traj`: fragments planned and not yet handed over.
+    pub traj: VecDeque<Fragment>,
+    /// `trajgen`: the trajectory planner.
+    pub trajgen: TrajGen,
+    /// `new`: a new plan was taken.
+    pub new: bool,
+    /// A `ready` event from `e11` not yet answered with a fragment.
+    pub ready_latch: bool,
+    /// The plan being served.
+    pub plan_id: u32,
+    /// Why the plan being served was refused.
+    pub refusal: Option<String>,
+    /// Fragments handed to `e11` for the current plan.
+    pub handed: u32,
+    /// Settings.
+    pub params: C1Params,
+}
+
+impl C1Memory {
+    /// An idle `c1` with this planner.
+    pub fn new(trajgen: TrajGen, params: C1Params) -> C1Memory {
+        C1Memory {
+            plan: VecDeque::new(),
+            traj: VecDeque::new(),
+            trajgen,
+            new: false,
+            ready_latch: false,
+            plan_id: 0,
+            refusal: None,
+            handed: 0,
+            params,
+        }
+    }
+}
+
+/// Inputs from `e11`.
+#[derive(Clone, Debug, Default)]
+pub struct C1FromE11 {
+    /// `q~, q~ dot`.
+    pub q_est: In<State>,
+    /// The ready event.
+    pub ready: In<bool>,
+}
+impl Group for C1FromE11 {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+
+/// Inputs from `r11`.
+#[derive(Clone, Debug, Default)]
+#[expect(non_snake_case, reason = "the paper's buffer names")]
+pub struct C1FromR11 {
+    /// Visual odometry.
+    pub A4x4: In<Transform>,
+}
+impl Group for C1FromR11 {
+    const PEER: NodeKind = NodeKind::VirtualReceptor;
+}
+
+/// Inputs from the ontology agent.
+#[derive(Clone, Debug, Default)]
+pub struct C1FromC2 {
+    /// The plan.
+    pub desired_plan: In<Plan>,
+}
+impl Group for C1FromC2 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+/// Inputs from the map agent.
+#[derive(Clone, Debug, Default)]
+pub struct C1FromC3 {
+    /// The pose on the map.
+    pub pose: In<MapPose>,
+}
+impl Group for C1FromC3 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+/// `c1`'s input buffers.
+#[derive(Clone, Debug, Default)]
+pub struct C1Input {
+    /// From `e11`.
+    pub e11: C1FromE11,
+    /// From `r11`.
+    pub r11: C1FromR11,
+    /// From `c2`.
+    pub c2: C1FromC2,
+    /// From `c3`.
+    pub c3: C1FromC3,
+}
+
+/// Outputs to `e11`.
+#[derive(Debug, Default)]
+#[expect(non_snake_case, reason = "the paper's buffer names")]
+pub struct C1ToE11 {
+    /// Map pose relay.
+    pub pose: Out<MapPose>,
+    /// Visual odometry relay.
+    pub A4x4: Out<Transform>,
+    /// The fragment to execute.
+    pub traj: Out<Fragment>,
+    /// Steps to execute it.
+    pub steps: Out<u32>,
+    /// Step after which to report ready (`notify < steps`).
+    pub notify: Out<u32>,
+}
+impl Group for C1ToE11 {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+
+/// Outputs to `c2`.
+#[derive(Debug, Default)]
+pub struct C1ToC2 {
+    /// The acknowledgement.
+    pub ack: Out<Ack>,
+}
+impl Group for C1ToC2 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+/// Outputs to `c3`.
+#[derive(Debug, Default)]
+pub struct C1ToC3 {
+    /// The state estimate.
+    pub q_est: Out<State>,
+}
+impl Group for C1ToC3 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+
+/// `c1`'s output buffers.
+#[derive(Debug, Default)]
+pub struct C1Output {
+    /// To `e11`.
+    pub e11: C1ToE11,
+    /// To `c2`.
+    pub c2: C1ToC2,
+    /// To `c3`.
+    pub c3: C1ToC3,
+}
+
+/// The control subsystem `c1`.
+pub struct C1;
+
+impl Subsystem for C1 {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = C1Memory;
+    type Input = C1Input;
+    type Output = C1Output;
+}
+
+// ---------------------------------------------------------------------------
+// Auxiliary functions of the paper.
+
+/// `proc(desired_plan)`: check the plan and add desired orientations. Interior points
+/// face along their neighbours (`p_{k+1} − p_{k−1}`), the last one along the last
+/// segment; repeated points take the direction of the nearest distinct ones; a plan
+/// whose points are all equal leaves the heading free.
+pub fn proc(plan: &Plan, params: &C1Params) -> Result<VecDeque<Waypoint>, String> {
+    let pts = &plan.points;
+    if pts.is_empty() {
+        return Err("the plan has no points".into());
+    }
+    if pts.len() > params.max_points {
+        return Err(format!(
+            "the plan has {} points, more than {}",
+            pts.len(),
+            params.max_points
+        ));
+    }
+    let m = &params.map;
+    for (k, p) in pts.iter().enumerate() {
+        if !(p.x.is_finite() && p.y.is_finite()) {
+            return Err(format!("point {k} ({}, {}) is not finite", p.x, p.y));
+        }
+        if p.x < m.x0 || p.x > m.x1 || p.y < m.y0 || p.y > m.y1 {
+            return Err(format!(
+                "point {k} ({:.2}, {:.2}) is off the map [{}, {}] x [{}, {}]",
+                p.x, p.y, m.x0, m.x1, m.y0, m.y1
+            ));
+        }
+    }
+    let direction = |a: usize, b: usize| -> Option<f64> {
+        let (dx, dy) = (pts[b].x - pts[a].x, pts[b].y - pts[a].y);
+        (dx.hypot(dy) > 1e-6).then(|| dy.atan2(dx))
+    };
+    // Look for a distinct point before and after k.
+    let heading = |k: usize| -> Option<f64> {
+        let before = (0..k).rev().find(|&j| direction(j, k).is_some());
+        let after = (k + 1..pts.len()).find(|&j| direction(k, j).is_some());
+        match (before, after) {
+            (Some(b), Some(a)) => direction(b, a).or(direction(b, k)),
+            (Some(b), None) => direction(b, k),
+            (None, Some(a)) => direction(k, a),
+            (None, None) => None,
+        }
+    };
+    let mut out = VecDeque::with_capacity(pts.len());
+    let mut previous: Option<f64> = None;
+    for (k, p) in pts.iter().enumerate() {
+        let phi = heading(k).map(|h| previous.map_or(h, |prev| nearest_angle(h, prev)));
+        if phi.is_some() {
+            previous = phi;
+        }
+        out.push_back(Waypoint {
+            x: p.x,
+            y: p.y,
+            phi,
+        });
+    }
+    Ok(out)
+}
+
+/// `trajToSteps(traj)`: iterations of `e11` to execute a fragment.
+pub fn traj_to_steps(f: &Fragment) -> u32 {
+    (f.steps() as u32).max(1)
+}
+
+/// `trajToNotify(traj)`: the step after which `e11` reports ready, `notify_lead`
+/// seconds before the end, and always `notify < steps`.
+pub fn traj_to_notify(f: &Fragment, params: &C1Params) -> u32 {
+    let steps = traj_to_steps(f);
+    let lead = ((params.notify_lead / f.dt.max(1e-9)).round() as u32).max(1);
+    steps.saturating_sub(lead.min(steps))
+}
+
+/// `ready^i`: the latched event or a fresh one.
+fn ready(m: &C1Memory, x: &C1Input) -> bool {
+    m.ready_latch || x.e11.ready.fresh() == Some(&true)
+}
+
+// ---------------------------------------------------------------------------
+// Transition subfunctions.
+
+/// Algorithm 4 (`c,c f_1,1,tp`): a new plan is processed, the fragment list emptied,
+/// the planner initialised from the state estimate, `new` set.
+pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
+    let Some(desired) = x.c2.desired_plan.fresh() else {
+        latch(m, x, false);
+        return;
+    };
+    m.plan_id = desired.id;
+    m.handed = 0;
+    m.traj.clear();
+    m.new = true;
+    let processed = proc(desired, &m.params).and_then(|plan| match x.e11.q_est.get() {
+        Some(state) if state.is_finite() => Ok((plan, *state)),
+        Some(_) => Err("the state estimate is not finite".into()),
+        None => Err("no state estimate from e11 yet".into()),
+    });
+    match processed {
+        Ok((plan, state)) => {
+            m.plan = plan;
+            m.refusal = None;
+            m.trajgen.init(&state, desired.id);
+        }
+        Err(reason) => {
+            m.plan.clear();
+            m.refusal = Some(reason);
+        }
+    }
+    latch(m, x, false);
+}
+
+/// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false.
+pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+    if let Some(plan) = x.c2.desired_plan.fresh() {
+        y.ack.set(Ack {
+            plan: plan.id,
+            status: AckStatus::Received,
+        });
+    }
+}
+
+/// Keep a `ready` event until a fragment answers it.
+fn latch(m: &mut C1Memory, x: &C1Input, handed: bool) {
+    m.ready_latch = if handed { false } else { ready(m, x) };
+}
+
+/// Algorithm 6 (`c,c f_1,2,tp`): collect planned fragments, drop the one handed over,
+/// start planning towards the next point or stop.
+pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
+    let ready_i = ready(m, x);
+    let gen_ready = m.trajgen.is_ready();
+    let hand_over = ready_i && !m.traj.is_empty();
+    if hand_over {
+        if gen_ready {
+            // listAddLastDelFirst
+            if let Some(f) = m.trajgen.get_traj() {
+                m.traj.push_back(f);
+            }
+        }
+        m.traj.pop_front();
+        m.handed += 1;
+    } else if gen_ready {
+        // listAddLast
+        if let Some(f) = m.trajgen.get_traj() {
+            m.traj.push_back(f);
+        }
+    }
+    if m.new {
+        m.new = false;
+        match m.plan.pop_front() {
+            Some(p) => m.trajgen.start(p),
+            None => m.trajgen.stop(),
+        }
+    } else if gen_ready {
+        match m.plan.pop_front() {
+            None => m.trajgen.stop(),
+            Some(p) => m.trajgen.start(p),
+        }
+    } else {
+        m.trajgen.stat();
+    }
+    latch(m, x, hand_over);
+}
+
+/// Algorithm 7 (`c,e f_1,2,tp`): hand the first fragment of the list to `e11` with
+/// `steps` and `notify`; relay the pose and the visual odometry.
+pub fn ce_2_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
+    if ready(m, x) {
+        if let Some(f) = m.traj.front() {
+            y.traj.set(f.clone());
+            y.steps.set(traj_to_steps(f));
+            y.notify.set(traj_to_notify(f, &m.params));
+        }
+    }
+    ce_1(m, x, y);
+}
+
+/// Algorithm 8 (`c,T f_1,3,tp`): `ack`, with how the plan ended.
+pub fn ct_3_tp(m: &C1Memory, _: &C1Input, y: &mut C1ToC2) {
+    let status = match (&m.refusal, m.trajgen.failed()) {
+        (Some(reason), _) => AckStatus::Refused(reason.clone()),
+        (None, Some(why)) => AckStatus::Failed(why.to_owned()),
+        (None, None) => AckStatus::Done,
+    };
+    y.ack.set(Ack {
+        plan: m.plan_id,
+        status,
+    });
+}
+
+/// `c,c f_1,3`: forget the plan's flags (so that `B1` waits for the next plan).
+pub fn cc_3(m: &mut C1Memory, x: &C1Input) {
+    m.new = false;
+    m.refusal = None;
+    latch(m, x, false);
+}
+
+/// `c,e f_1` (behaviours 1 and 3): relay the map pose and the visual odometry.
+pub fn ce_1(_: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
+    if let Some(p) = x.c3.pose.fresh() {
+        y.pose.set(*p);
+    }
+    if let Some(a) = x.r11.A4x4.fresh() {
+        y.A4x4.set(*a);
+    }
+}
+
+/// Relay the state estimate to the map agent.
+pub fn ct_q(_: &C1Memory, x: &C1Input, y: &mut C1ToC3) {
+    if let Some(q) = x.e11.q_est.fresh() {
+        y.q_est.set(*q);
+    }
+}
+
+/// `c1`'s FSM (Fig. 5, with the refusal arc `B1 → B3`).
+pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
+    Fsm::builder()
+        .predicate("plan_new", |m: &C1Memory, _| m.new)
+        .predicate("plan_valid", |m: &C1Memory, _| m.refusal.is_none())
+        .predicate("plan_sent", |m: &C1Memory, _| {
+            !m.new
+                && m.plan.is_empty()
+                && m.traj.is_empty()
+                && *m.trajgen.status() == Status::Stopped
+        })
+        .predicate("planner_failed", |m: &C1Memory, _| {
+            m.trajgen.failed().is_some()
+        })
+        .behaviour(Behaviour::repeat_loop(
+            "B1",
+            Action::<C1>::new()
+                .output(|y| &mut y.c2, ct_1_tp)
+                .output(|y| &mut y.e11, ce_1)
+                .output(|y| &mut y.c3, ct_q)
+                .memory(cc_1_tp),
+            "plan_new",
+        ))
+        .behaviour(Behaviour::repeat_loop(
+            "B2",
+            Action::<C1>::new()
+                .output(|y| &mut y.e11, ce_2_tp)
+                .output(|y| &mut y.c3, ct_q)
+                .memory(cc_2_tp),
+            "plan_sent || planner_failed",
+        ))
+        .behaviour(Behaviour::repeat_loop(
+            "B3",
+            Action::<C1>::new()
+                .output(|y| &mut y.c2, ct_3_tp)
+                .output(|y| &mut y.e11, ce_1)
+                .output(|y| &mut y.c3, ct_q)
+                .memory(cc_3),
+            "true",
+        ))
+        .initial("B1")
+        .arc("B1", "B2", "plan_valid")
+        .arc("B1", "B3", "!plan_valid")
+        .arc("B2", "B3", "true")
+        .arc("B3", "B1", "true")
+        .build()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::trajgen::Runtime;
+    use crate::planner::{PlannerKind, PlannerSettings};
+    use crate::types::Point2;
+
+    fn pts(p: &[(f64, f64)]) -> Plan {
+        Plan {
+            id: 1,
+            points: p.iter().map(|&(x, y)| Point2 { x, y }).collect(),
+        }
+    }
+
+    #[test]
+    fn proc_adds_orientations_and_refuses_bad_plans() {
+        let params = C1Params::default();
+        let w = proc(&pts(&[(1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]), &params).unwrap();
+        let h: Vec<f64> = w.iter().map(|p| p.phi.unwrap()).collect();
+        assert!(
+            (h[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12,
+            "first along the first segment"
+        );
+        assert!(
+            (h[1] - 3.0 * std::f64::consts::FRAC_PI_4).abs() < 1e-12,
+            "bisector"
+        );
+        assert!(
+            (h[2] - std::f64::consts::PI).abs() < 1e-12,
+            "last along the last segment"
+        );
+        // Repeated and collinear points.
+        let w = proc(
+            &pts(&[(1.0, 0.0), (1.0, 0.0), (2.0, 0.0), (3.0, 0.0)]),
+            &params,
+        )
+        .unwrap();
+        assert!(w.iter().all(|p| p.phi == Some(0.0)), "{w:?}");
+        let w = proc(&pts(&[(1.0, 1.0), (1.0, 1.0)]), &params).unwrap();
+        assert!(w.iter().all(|p| p.phi.is_none()), "all equal: free heading");
+        assert!(proc(&pts(&[]), &params).unwrap_err().contains("no points"));
+        assert!(
+            proc(&pts(&[(f64::NAN, 0.0)]), &params)
+                .unwrap_err()
+                .contains("not finite")
+        );
+        assert!(
+            proc(&pts(&[(0.0, 0.0), (9.0, 0.0)]), &params)
+                .unwrap_err()
+                .contains("off the map")
+        );
+    }
+
+    #[test]
+    fn notify_is_always_before_the_end() {
+        let params = C1Params::default();
+        for n in 1..60usize {
+            let f = Fragment {
+                plan: 1,
+                index: 0,
+                dt: 0.05,
+                states: vec![[0.0; 5]; n + 1],
+            };
+            let (steps, notify) = (traj_to_steps(&f), traj_to_notify(&f, &params));
+            assert_eq!(steps as usize, n);
+            assert!(notify < steps, "{notify} < {steps}");
+            if n > 20 {
+                assert_eq!(notify, steps - 20, "1 s before the end");
+            }
+        }
+    }
+
+    #[test]
+    fn the_fsm_builds() {
+        let fsm = c1_fsm().unwrap();
+        assert_eq!(fsm.len(), 3);
+        let _ = TrajGen::new(
+            PlannerKind::Ecsa,
+            PlannerSettings::default(),
+            Runtime::Inline,
+            1,
+        );
+    }
+}

@@ -1,0 +1,235 @@
+//! Trajectory planners: a fragment of trajectory between two consecutive plan points.
+//!
+//! A planner turns a start configuration and a goal (position, and a desired heading
+//! when there is one) into a time-parameterised reference `(X, Y, φ, v, ω)` sampled
+//! every `dt`, the format the tracker of `e11` follows. Two planners sit behind
+//! [`Planner`]: the endogenous configuration space approach ([`ecsa::Ecsa`], the
+//! paper's) and a smooth polynomial planner ([`poly::Polynomial`]); which one runs is
+//! a configuration value ([`PlannerKind`]), nothing else changes.
+
+pub mod ecsa;
+pub mod poly;
+pub mod trajgen;
+
+use serde::{Deserialize, Serialize};
+
+use crate::model::SlipParams;
+
+/// A configuration to reach: a position, and a heading if it matters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Waypoint {
+    /// x [m].
+    pub x: f64,
+    /// y [m].
+    pub y: f64,
+    /// Desired heading [rad]; `None` leaves it free.
+    pub phi: Option<f64>,
+}
+
+/// A time-parameterised piece of reference trajectory.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Fragment {
+    /// The plan it belongs to.
+    pub plan: u32,
+    /// Its position in the plan (0-based).
+    pub index: u32,
+    /// Sample interval [s].
+    pub dt: f64,
+    /// Reference `(X, Y, φ, v, ω)` at `k · dt`, `k = 0..=n`.
+    pub states: Vec<[f64; 5]>,
+}
+
+impl Fragment {
+    /// Number of sample intervals (the fragment lasts `steps() · dt`).
+    pub fn steps(&self) -> usize {
+        self.states.len().saturating_sub(1)
+    }
+
+    /// The last reference state.
+    pub fn end(&self) -> Option<[f64; 5]> {
+        self.states.last().copied()
+    }
+}
+
+/// Limits and preferences shared by the planners.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlannerSettings {
+    /// Sample interval of fragments [s] (the period of `e11`).
+    pub dt: f64,
+    /// Cruising speed used to choose a fragment's duration [m/s].
+    pub cruise_speed: f64,
+    /// Turn rate used to choose a fragment's duration [rad/s].
+    pub cruise_turn_rate: f64,
+    /// Shortest fragment [s].
+    pub min_duration: f64,
+    /// Speed bound the fragment must respect [m/s].
+    pub speed_max: f64,
+    /// Turn-rate bound the fragment must respect [rad/s].
+    pub turn_rate_max: f64,
+    /// Nominal slip parameters of the kinematic model (the ICR offset matters).
+    pub slip: SlipParams,
+}
+
+impl Default for PlannerSettings {
+    fn default() -> Self {
+        PlannerSettings {
+            dt: 0.05,
+            cruise_speed: 0.4,
+            cruise_turn_rate: 0.8,
+            min_duration: 1.0,
+            speed_max: 1.0,
+            turn_rate_max: 1.8,
+            slip: SlipParams::NOMINAL,
+        }
+    }
+}
+
+impl PlannerSettings {
+    /// A duration for moving from `from` to `to`: long enough for the distance at
+    /// cruising speed and for the turn at the cruising turn rate, a multiple of `dt`.
+    pub fn duration(&self, from: [f64; 3], to: &Waypoint) -> f64 {
+        let d = (to.x - from[0]).hypot(to.y - from[1]);
+        let turn = to.phi.map_or(0.0, |p| (p - from[2]).abs());
+        let t = (d / self.cruise_speed)
+            .max(turn / self.cruise_turn_rate)
+            .max(self.min_duration);
+        (t / self.dt).ceil() * self.dt
+    }
+}
+
+/// Why a fragment could not be planned.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    /// A start or goal that is not finite.
+    #[error("the start or the goal is not a finite configuration")]
+    NotFinite,
+    /// The iteration did not reach the tolerance within its bound.
+    #[error("no convergence in {iterations} iterations (error {error:.2e})")]
+    NoConvergence {
+        /// Iterations spent.
+        iterations: usize,
+        /// Remaining task error.
+        error: f64,
+    },
+    /// The Jacobian stayed singular after the allowed restarts.
+    #[error("singular controls: no progress after {restarts} restarts")]
+    Singular {
+        /// Restarts from perturbed controls.
+        restarts: usize,
+    },
+    /// The planning process (thread) is gone.
+    #[error("the planning process stopped")]
+    ProcessGone,
+    /// The fragment would exceed the speed or turn-rate bounds even when slowed down.
+    #[error("the fragment exceeds the velocity bounds ({what} {value:.2})")]
+    TooFast {
+        /// `speed` or `turn rate`.
+        what: &'static str,
+        /// Peak value.
+        value: f64,
+    },
+}
+
+/// Figures of one planning run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlanStats {
+    /// Newton iterations (0 for non-iterative planners).
+    pub iterations: usize,
+    /// Restarts from perturbed controls.
+    pub restarts: usize,
+    /// Final task error (mixed units: m and rad).
+    pub error: f64,
+}
+
+/// A trajectory planner. Implementations must be deterministic.
+pub trait Planner: Send + 'static {
+    /// Name for reports.
+    fn name(&self) -> &'static str;
+
+    /// Plan from `from = (X, Y, φ)` to `to`; the fragment is sampled every
+    /// `settings.dt` and starts and ends at rest.
+    fn plan(&mut self, from: [f64; 3], to: &Waypoint) -> Result<(Fragment, PlanStats), PlanError>;
+}
+
+/// Which planner to use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PlannerKind {
+    /// The endogenous configuration space approach (the paper's planner).
+    #[default]
+    Ecsa,
+    /// Smooth polynomial paths with quintic time scaling.
+    Polynomial,
+}
+
+impl std::str::FromStr for PlannerKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "ecsa" => Ok(PlannerKind::Ecsa),
+            "polynomial" | "poly" => Ok(PlannerKind::Polynomial),
+            _ => Err(format!("unknown planner `{s}` (ecsa, polynomial)")),
+        }
+    }
+}
+
+impl PlannerKind {
+    /// A planner of this kind.
+    pub fn build(self, settings: PlannerSettings) -> Box<dyn Planner> {
+        match self {
+            PlannerKind::Ecsa => Box::new(ecsa::Ecsa::new(settings)),
+            PlannerKind::Polynomial => Box::new(poly::Polynomial::new(settings)),
+        }
+    }
+}
+
+/// The angle equal to `target` modulo 2π that is closest to `reference`.
+pub fn nearest_angle(target: f64, reference: f64) -> f64 {
+    let tau = std::f64::consts::TAU;
+    target + ((reference - target) / tau).round() * tau
+}
+
+/// The slip-consistent heading of the kinematic model: with the ICR at `x_icr`, the
+/// centre of mass moves at angle `−atan(x_icr ω / v)` to the body axis (notes §1.2).
+pub fn heading_for(path_angle: f64, v: f64, omega: f64, x_icr: f64) -> f64 {
+    if v.abs() < 1e-9 {
+        path_angle
+    } else {
+        path_angle + (x_icr * omega).atan2(v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn angles_unwrap_towards_the_reference() {
+        let a = nearest_angle(-3.0, 3.0);
+        assert!((a - (-3.0 + std::f64::consts::TAU)).abs() < 1e-12);
+        assert_eq!(nearest_angle(0.5, 0.4), 0.5);
+    }
+
+    #[test]
+    fn durations_are_multiples_of_dt() {
+        let s = PlannerSettings::default();
+        let t = s.duration(
+            [0.0; 3],
+            &Waypoint {
+                x: 1.0,
+                y: 0.0,
+                phi: None,
+            },
+        );
+        assert!((t - 2.5).abs() < 1e-9);
+        let t = s.duration(
+            [0.0; 3],
+            &Waypoint {
+                x: 0.0,
+                y: 0.0,
+                phi: Some(3.0),
+            },
+        );
+        assert!((t / s.dt - (t / s.dt).round()).abs() < 1e-9 && t >= 3.0 / 0.8);
+    }
+}

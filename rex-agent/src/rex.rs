@@ -1,0 +1,282 @@
+//! The whole Rex system of the paper's Fig. 3: the locomotion agent a1 (c1, e11 and
+//! the platform E1; r11 and the camera R1 join with visual odometry), the ontology
+//! agent a2 and the map agent a3, linked as in `specs/rex.ron`.
+//!
+//! Periods come from the spec, and a test checks that every link built here is a link
+//! of the spec with the same policy, and that every spec link between deployed
+//! components is built: the spec and the code cannot drift apart.
+
+use std::path::{Path, PathBuf};
+
+use embodied::spec::model::Spec;
+use embodied::{DriverHandle, Period, Policy, SubsystemHandle, System, SystemBuilder, port};
+
+use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, MapBounds, c1_fsm};
+use crate::devices::{Platform, PlatformInput, PlatformOutput, SharedTruth};
+use crate::e11::{E11, E11Input, E11Memory, E11Output, EstimatorKind, TrackerKind, e11_fsm};
+use crate::mission::Mission;
+use crate::partners::{MapInput, MapOutput, Ontology, OntologyInput, OntologyOutput};
+use crate::planner::trajgen::{Runtime, TrajGen};
+use crate::planner::{PlannerKind, PlannerSettings};
+use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
+
+/// Everything that chooses how Rex runs.
+#[derive(Clone, Debug)]
+pub struct RexConfig {
+    /// The simulated world.
+    pub world: WorldConfig,
+    /// The mission of a2.
+    pub mission: Mission,
+    /// The trajectory planner.
+    pub planner: PlannerKind,
+    /// Where the planner runs.
+    pub runtime: Runtime,
+    /// Planning time in c1 iterations.
+    pub planning_latency: u32,
+    /// The tracker of e11.
+    pub tracker: TrackerKind,
+    /// The estimator of e11.
+    pub estimator: EstimatorKind,
+    /// c1's settings.
+    pub c1: C1Params,
+    /// The spec the system follows (periods).
+    pub spec: PathBuf,
+}
+
+impl RexConfig {
+    /// The shipped world, the given mission, ECSA on a thread, the baseline tracker
+    /// and estimator.
+    pub fn new(world: WorldConfig, mission: Mission) -> RexConfig {
+        let room = &world.scene.room;
+        let margin = 0.5;
+        RexConfig {
+            c1: C1Params {
+                map: MapBounds {
+                    x0: room.x0 + margin,
+                    y0: room.y0 + margin,
+                    x1: room.x1 - margin,
+                    y1: room.y1 - margin,
+                },
+                ..C1Params::default()
+            },
+            world,
+            mission,
+            planner: PlannerKind::Ecsa,
+            runtime: Runtime::Thread,
+            planning_latency: 3,
+            tracker: TrackerKind::Backstepping,
+            estimator: EstimatorKind::Ekf,
+            spec: default_spec(),
+        }
+    }
+}
+
+/// `specs/rex.ron` of this workspace.
+pub fn default_spec() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs/rex.ron")
+}
+
+/// Handles to the parts of a built Rex system.
+#[derive(Clone, Copy, Debug)]
+pub struct RexHandles {
+    /// a1's control subsystem.
+    pub c1: SubsystemHandle<C1>,
+    /// a1's virtual effector.
+    pub e11: SubsystemHandle<E11>,
+    /// The platform.
+    pub platform: DriverHandle<Platform>,
+    /// a2's control subsystem.
+    pub c2: SubsystemHandle<Ontology>,
+    /// The map agent.
+    pub map: MapAgentHandles,
+}
+
+/// Why Rex could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum RexError {
+    /// The spec could not be read or is invalid.
+    #[error("specification {path}: {message}")]
+    Spec {
+        /// The spec file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A world part failed.
+    #[error(transparent)]
+    World(#[from] WorldError),
+    /// The system is malformed.
+    #[error(transparent)]
+    Build(#[from] embodied::BuildError),
+    /// An FSM is malformed.
+    #[error(transparent)]
+    Fsm(#[from] embodied::FsmBuildError),
+    /// A period is invalid.
+    #[error(transparent)]
+    Period(#[from] embodied::PeriodError),
+}
+
+/// Load and check the spec; errors carry the rendered findings.
+pub fn load_spec(path: &Path) -> Result<Spec, RexError> {
+    let (spec, report) = embodied::spec::check_file(path).map_err(|e| RexError::Spec {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    match spec {
+        Some(spec) if report.is_ok() => Ok(spec),
+        _ => Err(RexError::Spec {
+            path: path.to_owned(),
+            message: report.short(),
+        }),
+    }
+}
+
+fn period_of(spec: &Spec, name: &str) -> Result<Period, RexError> {
+    let ms = spec
+        .subsystems()
+        .find(|(_, s)| s.name == name)
+        .map(|(_, s)| s.period_ms)
+        .ok_or_else(|| RexError::Spec {
+            path: PathBuf::from("specs/rex.ron"),
+            message: format!("no subsystem `{name}`"),
+        })?;
+    Ok(Period::from_secs_f64(ms * 1e-3)?)
+}
+
+/// Build Rex without visual odometry (the spec's `simulation_without_vo`
+/// deployment): a1 = c1 + e11 + E1, a2, a3.
+pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), RexError> {
+    let spec = load_spec(&config.spec)?;
+    let truth = SharedTruth::default();
+    let mut sys = SystemBuilder::new();
+    let a1 = sys.agent("a1");
+    let e11_period = period_of(&spec, "e11")?;
+    let dt = e11_period.as_secs_f64();
+    let settings = PlannerSettings {
+        dt,
+        speed_max: config.world.platform.speed_max * 0.7,
+        turn_rate_max: config.world.platform.yaw_rate_max * 0.9,
+        ..PlannerSettings::default()
+    };
+    let trajgen = TrajGen::new(
+        config.planner,
+        settings.clone(),
+        config.runtime,
+        config.planning_latency,
+    );
+    let c1 = sys.subsystem(
+        a1,
+        "c1",
+        period_of(&spec, "c1")?,
+        C1Memory::new(trajgen, config.c1),
+        c1_fsm()?,
+    );
+    let p = config.world.platform.clone();
+    let e11_memory = E11Memory::new(
+        config.tracker.build(p.clone()),
+        config.estimator.build(p, settings.slip),
+        dt,
+        settings.slip.x_icr,
+    );
+    let e11 = sys.subsystem(a1, "e11", e11_period, e11_memory, e11_fsm()?);
+    let platform = world::add_platform(&mut sys, a1, &config.world, &truth)?;
+    let (_, c2) = world::add_ontology(&mut sys, &config.world, config.mission.clone())?;
+    let map = world::add_map_agent(&mut sys, &config.world, &truth)?;
+
+    // Between agents.
+    sys.connect(
+        c2.output(port!(OntologyOutput, c1.desired_plan)),
+        c1.input(port!(C1Input, c2.desired_plan)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        c1.output(port!(C1Output, c2.ack)),
+        c2.input(port!(OntologyInput, c1.ack)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        map.c3.output(port!(MapOutput, c1.pose)),
+        c1.input(port!(C1Input, c3.pose)),
+        Policy::Sample,
+    );
+    sys.connect(
+        c1.output(port!(C1Output, c3.q_est)),
+        map.c3.input(port!(MapInput, c1.q_est)),
+        Policy::Sample,
+    );
+    // c1 and e11.
+    sys.connect(
+        c1.output(port!(C1Output, e11.pose)),
+        e11.input(port!(E11Input, c1.pose)),
+        Policy::Sample,
+    );
+    sys.connect(
+        c1.output(port!(C1Output, e11.A4x4)),
+        e11.input(port!(E11Input, c1.A4x4)),
+        Policy::queue(8),
+    );
+    sys.connect(
+        c1.output(port!(C1Output, e11.traj)),
+        e11.input(port!(E11Input, c1.traj)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        c1.output(port!(C1Output, e11.steps)),
+        e11.input(port!(E11Input, c1.steps)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        c1.output(port!(C1Output, e11.notify)),
+        e11.input(port!(E11Input, c1.notify)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        e11.output(port!(E11Output, c1.q_est)),
+        c1.input(port!(C1Input, e11.q_est)),
+        Policy::Sample,
+    );
+    sys.connect(
+        e11.output(port!(E11Output, c1.ready)),
+        c1.input(port!(C1Input, e11.ready)),
+        Policy::Sample,
+    );
+    // e11 and the platform.
+    sys.connect(
+        e11.output(port!(E11Output, E1.tau)),
+        platform.input(port!(PlatformInput, e11.tau)),
+        Policy::Sample,
+    );
+    sys.connect(
+        e11.output(port!(E11Output, E1.cmd_E11)),
+        platform.input(port!(PlatformInput, e11.cmd_E11)),
+        Policy::queue(2),
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.imu)),
+        e11.input(port!(E11Input, E1.imu)),
+        Policy::Sample,
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.forces)),
+        e11.input(port!(E11Input, E1.forces)),
+        Policy::Sample,
+    );
+    sys.connect(
+        platform.output(port!(PlatformOutput, e11.encoders)),
+        e11.input(port!(E11Input, E1.encoders)),
+        Policy::Sample,
+    );
+
+    let system = sys.build()?;
+    Ok((
+        system,
+        RexHandles {
+            c1,
+            e11,
+            platform,
+            c2,
+            map,
+        },
+        truth,
+    ))
+}
