@@ -53,6 +53,9 @@ pub struct C1Params {
     pub max_points: usize,
     /// How long before the end of a fragment `e11` reports ready [s].
     pub notify_lead: f64,
+    /// How many iterations a plan may wait for the first state estimate of `e11`
+    /// before it is refused.
+    pub estimate_wait_max: u32,
 }
 
 impl Default for C1Params {
@@ -66,6 +69,7 @@ impl Default for C1Params {
             },
             max_points: 1000,
             notify_lead: 1.0,
+            estimate_wait_max: 500,
         }
     }
 }
@@ -89,6 +93,12 @@ pub struct C1Memory {
     pub refusal: Option<String>,
     /// Fragments handed to `e11` for the current plan.
     pub handed: u32,
+    /// A plan received before `e11` sent its first state estimate, and the
+    /// iterations it has waited (the planner starts from the estimate).
+    pub pending: Option<(Plan, u32)>,
+    /// Plans replaced by a newer one while waiting in `pending` (never acknowledged;
+    /// `a2` sends one plan at a time, so this stays 0 in Rex).
+    pub superseded: u32,
     /// Settings.
     pub params: C1Params,
 }
@@ -105,6 +115,8 @@ impl C1Memory {
             plan_id: 0,
             refusal: None,
             handed: 0,
+            pending: None,
+            superseded: 0,
             params,
         }
     }
@@ -311,19 +323,32 @@ fn ready(m: &C1Memory, x: &C1Input) -> bool {
 
 /// Algorithm 4 (`c,c f_1,1,tp`): a new plan is processed, the fragment list emptied,
 /// the planner initialised from the state estimate, `new` set.
+///
+/// `isnew(desired_plan)` is read as "a plan was received and not yet taken": a plan
+/// that arrives before `e11`'s first state estimate (at start-up) waits in
+/// `pending` for at most `estimate_wait_max` iterations, then is refused.
 pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
-    let Some(desired) = x.c2.desired_plan.fresh() else {
+    keep_incoming(m, x);
+    let state = x.e11.q_est.get();
+    let Some((desired, waited)) = m.pending.take() else {
         latch(m, x, false);
         return;
     };
+    if state.is_none() && waited < m.params.estimate_wait_max {
+        m.pending = Some((desired, waited + 1));
+        latch(m, x, false);
+        return;
+    }
     m.plan_id = desired.id;
     m.handed = 0;
     m.traj.clear();
     m.new = true;
-    let processed = proc(desired, &m.params).and_then(|plan| match x.e11.q_est.get() {
+    let processed = proc(&desired, &m.params).and_then(|plan| match state {
         Some(state) if state.is_finite() => Ok((plan, *state)),
         Some(_) => Err("the state estimate is not finite".into()),
-        None => Err("no state estimate from e11 yet".into()),
+        None => Err(format!(
+            "no state estimate from e11 after {waited} iterations"
+        )),
     });
     match processed {
         Ok((plan, state)) => {
@@ -349,6 +374,17 @@ pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     }
 }
 
+/// Keep a plan that arrives, whatever the behaviour: `B1` takes it (a plan sent
+/// during `B2` or `B3` is taken after the current one is acknowledged, never lost).
+fn keep_incoming(m: &mut C1Memory, x: &C1Input) {
+    if let Some(desired) = x.c2.desired_plan.fresh() {
+        if m.pending.is_some() {
+            m.superseded += 1;
+        }
+        m.pending = Some((desired.clone(), 0));
+    }
+}
+
 /// Keep a `ready` event until a fragment answers it.
 fn latch(m: &mut C1Memory, x: &C1Input, handed: bool) {
     m.ready_latch = if handed { false } else { ready(m, x) };
@@ -357,6 +393,7 @@ fn latch(m: &mut C1Memory, x: &C1Input, handed: bool) {
 /// Algorithm 6 (`c,c f_1,2,tp`): collect planned fragments, drop the one handed over,
 /// start planning towards the next point or stop.
 pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
+    keep_incoming(m, x);
     let ready_i = ready(m, x);
     let gen_ready = m.trajgen.is_ready();
     let hand_over = ready_i && !m.traj.is_empty();
@@ -420,6 +457,7 @@ pub fn ct_3_tp(m: &C1Memory, _: &C1Input, y: &mut C1ToC2) {
 
 /// `c,c f_1,3`: forget the plan's flags (so that `B1` waits for the next plan).
 pub fn cc_3(m: &mut C1Memory, x: &C1Input) {
+    keep_incoming(m, x);
     m.new = false;
     m.refusal = None;
     latch(m, x, false);

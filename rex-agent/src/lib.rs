@@ -15,6 +15,7 @@ pub mod model;
 pub mod noise;
 pub mod partners;
 pub mod planner;
+pub mod report;
 pub mod rex;
 pub mod run;
 pub mod types;

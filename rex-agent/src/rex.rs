@@ -9,9 +9,13 @@
 use std::path::{Path, PathBuf};
 
 use embodied::spec::model::Spec;
-use embodied::{DriverHandle, Period, Policy, SubsystemHandle, System, SystemBuilder, port};
+use embodied::{
+    DriverHandle, ExecConfig, Period, Policy, SubsystemHandle, System, SystemBuilder, port,
+};
+use serde::{Deserialize, Serialize};
 
 use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, MapBounds, c1_fsm};
+use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::devices::{Platform, PlatformInput, PlatformOutput, SharedTruth};
 use crate::e11::{E11, E11Input, E11Memory, E11Output, EstimatorKind, TrackerKind, e11_fsm};
 use crate::mission::Mission;
@@ -19,6 +23,115 @@ use crate::partners::{MapInput, MapOutput, Ontology, OntologyInput, OntologyOutp
 use crate::planner::trajgen::{Runtime, TrajGen};
 use crate::planner::{PlannerKind, PlannerSettings};
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
+
+/// The choices of a Rex run, as written in a run file (`rex-agent/config/rex.ron`);
+/// each field is also a flag of the main job (`--mission`, `--planner`...).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunSettings {
+    /// A shipped mission (`square`, `figure_eight`, `slalom`) or a mission file.
+    pub mission: String,
+    /// The world file, relative to the run file; `None`: the shipped world.
+    pub world: Option<PathBuf>,
+    /// One surface (by name, from the world's list) for the whole floor, replacing
+    /// the world's default surface and patches; `None`: the world's floor.
+    pub surface: Option<String>,
+    /// The trajectory planner.
+    pub planner: PlannerKind,
+    /// Where the planner runs.
+    pub planning: Runtime,
+    /// Planning time in `c1` iterations (the result is ready this many iterations
+    /// after `trajgenStart`, whatever the wall-clock time).
+    pub planning_latency: u32,
+    /// The tracker of `e11`.
+    pub tracker: TrackerKind,
+    /// The estimator of `e11`.
+    pub estimator: EstimatorKind,
+    /// Longest simulated time [s].
+    pub limit_s: f64,
+}
+
+impl Default for RunSettings {
+    fn default() -> Self {
+        RunSettings {
+            mission: "figure_eight".into(),
+            world: None,
+            surface: None,
+            planner: PlannerKind::Ecsa,
+            planning: Runtime::Thread,
+            planning_latency: 3,
+            tracker: TrackerKind::default(),
+            estimator: EstimatorKind::default(),
+            limit_s: 600.0,
+        }
+    }
+}
+
+impl Validate for RunSettings {
+    fn validate(&self) -> Result<(), Invalid> {
+        config::positive("limit_s", self.limit_s)?;
+        if self.planning_latency == 0 {
+            return Err((
+                "planning_latency".into(),
+                "0".into(),
+                "planning takes at least one iteration of c1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl RunSettings {
+    /// Load a run file.
+    pub fn load(path: &Path) -> Result<RunSettings, ConfigError> {
+        config::load(path)
+    }
+
+    /// The shipped run file (`rex-agent/config/rex.ron`).
+    pub fn shipped() -> Result<RunSettings, ConfigError> {
+        RunSettings::load(&config::config_dir().join("rex.ron"))
+    }
+
+    /// The configuration these settings describe; relative paths are taken from
+    /// `base` (the run file's folder).
+    pub fn resolve(&self, base: &Path) -> Result<RexConfig, ConfigError> {
+        self.validate()
+            .map_err(|(field, value, reason)| ConfigError::Invalid {
+                path: PathBuf::from("<run settings>"),
+                field,
+                value,
+                reason,
+            })?;
+        let mut world = match &self.world {
+            Some(path) => WorldConfig::load(&base.join(path))?,
+            None => WorldConfig::shipped()?,
+        };
+        if let Some(name) = &self.surface {
+            if !world.surfaces.surfaces.iter().any(|s| &s.name == name) {
+                return Err(ConfigError::Invalid {
+                    path: PathBuf::from("<run settings>"),
+                    field: "surface".into(),
+                    value: name.clone(),
+                    reason: "not a surface of the world (its `surfaces` list names them)",
+                });
+            }
+            world.surfaces.default = name.clone();
+            world.surfaces.patches.clear();
+        }
+        let mission = if Mission::SHIPPED.contains(&self.mission.as_str()) {
+            Mission::shipped(&self.mission)?
+        } else {
+            Mission::load(&base.join(&self.mission))?
+        };
+        let mut config = RexConfig::new(world, mission);
+        config.planner = self.planner;
+        config.runtime = self.planning;
+        config.planning_latency = self.planning_latency;
+        config.tracker = self.tracker;
+        config.estimator = self.estimator;
+        Ok(config)
+    }
+}
 
 /// Everything that chooses how Rex runs.
 #[derive(Clone, Debug)]
@@ -41,14 +154,17 @@ pub struct RexConfig {
     pub c1: C1Params,
     /// The spec the system follows (periods).
     pub spec: PathBuf,
+    /// The executor's error policy.
+    pub exec: ExecConfig,
 }
 
 impl RexConfig {
-    /// The shipped world, the given mission, ECSA on a thread, the baseline tracker
-    /// and estimator.
+    /// The world, the mission, ECSA on a thread, the baseline tracker and
+    /// estimator; plans must stay half a metre inside the room's walls.
     pub fn new(world: WorldConfig, mission: Mission) -> RexConfig {
         let room = &world.scene.room;
         let margin = 0.5;
+        let defaults = RunSettings::default();
         RexConfig {
             c1: C1Params {
                 map: MapBounds {
@@ -61,12 +177,13 @@ impl RexConfig {
             },
             world,
             mission,
-            planner: PlannerKind::Ecsa,
-            runtime: Runtime::Thread,
-            planning_latency: 3,
-            tracker: TrackerKind::Backstepping,
-            estimator: EstimatorKind::Ekf,
+            planner: defaults.planner,
+            runtime: defaults.planning,
+            planning_latency: defaults.planning_latency,
+            tracker: defaults.tracker,
+            estimator: defaults.estimator,
             spec: default_spec(),
+            exec: ExecConfig::default(),
         }
     }
 }
@@ -154,8 +271,8 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
     let dt = e11_period.as_secs_f64();
     let settings = PlannerSettings {
         dt,
-        speed_max: config.world.platform.speed_max * 0.7,
-        turn_rate_max: config.world.platform.yaw_rate_max * 0.9,
+        speed_max: config.world.platform.speed_max * 0.6,
+        turn_rate_max: config.world.platform.yaw_rate_max * 0.6,
         ..PlannerSettings::default()
     };
     let trajgen = TrajGen::new(

@@ -1,4 +1,10 @@
 //! Running a Rex mission in the deterministic executor and collecting what happened.
+//!
+//! The executor is stepped one instant at a time. Whenever `e11` runs, a [`Sample`]
+//! pairs the reference it tracks in that iteration with the platform's true pose at
+//! the same instant (the platform integrates at 1 kHz, so before the instant is
+//! executed its state is the state at that instant): the tracking error is measured
+//! without the one-period lag that sampling between runs would add.
 
 use std::time::{Duration, Instant};
 
@@ -7,7 +13,7 @@ use embodied::{ExecConfig, ExecError, Executor, NoObserver, Time};
 use crate::rex::{RexConfig, RexError, RexHandles, build};
 use crate::types::{Ack, AckStatus};
 
-/// One sample of a run, every period of e11.
+/// One sample of a run, at every activation of `e11`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {
     /// Simulation time [s].
@@ -16,14 +22,16 @@ pub struct Sample {
     pub truth: [f64; 3],
     /// Estimated pose.
     pub estimate: [f64; 3],
-    /// Reference `(X, Y, φ, v, ω)`, when e11 follows one.
+    /// Reference `(X, Y, φ, v, ω)`, when `e11` follows one.
     pub reference: Option<[f64; 5]>,
     /// Whether a fragment is being executed (not holding a point).
     pub executing: bool,
     /// Torques commanded.
     pub tau: [f64; 4],
-    /// c1's behaviour (index: 0 = B1, 1 = B2, 2 = B3).
+    /// `c1`'s behaviour (0 = B1, 1 = B2, 2 = B3).
     pub behaviour: u8,
+    /// The fragment being executed: `(plan, index)`.
+    pub fragment: Option<(u32, u32)>,
 }
 
 impl Sample {
@@ -32,6 +40,34 @@ impl Sample {
         self.reference
             .map(|r| (r[0] - self.truth[0]).hypot(r[1] - self.truth[1]))
     }
+
+    /// Error of the estimated position.
+    pub fn estimate_error(&self) -> f64 {
+        (self.estimate[0] - self.truth[0]).hypot(self.estimate[1] - self.truth[1])
+    }
+}
+
+/// Counters gathered at the end of a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counters {
+    /// Fragments received by `e11`.
+    pub fragments_received: u32,
+    /// Fragments executed to their end by `e11`.
+    pub fragments_completed: u32,
+    /// Fragments refused by `e11` (not finite).
+    pub fragments_rejected: u32,
+    /// Measurements rejected by the estimator.
+    pub rejected_measurements: u64,
+    /// Torque commands clamped or rejected by the platform.
+    pub clamped_torques: u64,
+    /// Fragments planned.
+    pub planned: u64,
+    /// Planner iterations, summed.
+    pub planner_iterations: u64,
+    /// Planner failures.
+    pub planner_failures: u64,
+    /// Errors recorded by the executor (`OnError::Continue`).
+    pub executor_errors: u64,
 }
 
 /// What a run produced.
@@ -41,24 +77,21 @@ pub struct Outcome {
     pub mission: String,
     /// Plans in the mission.
     pub plans: usize,
-    /// Acknowledgements received by a2 (with their arrival time).
+    /// Final acknowledgements received by `a2`, with their arrival time [s].
     pub acks: Vec<(f64, Ack)>,
-    /// Samples every e11 period.
+    /// Samples at every activation of `e11`.
     pub samples: Vec<Sample>,
     /// Simulated time [s].
     pub sim_s: f64,
     /// Wall-clock time [s].
     pub wall_s: f64,
-    /// Fragments executed by e11.
-    pub fragments: u32,
-    /// Measurements rejected by the estimator.
-    pub rejected_measurements: u64,
-    /// Torque commands clamped or rejected by the platform.
-    pub clamped_torques: u64,
-    /// Whether the mission ended (every plan acknowledged and the last fragment done).
+    /// Counters.
+    pub counters: Counters,
+    /// Whether the mission ended (every plan acknowledged and the last fragment
+    /// executed) before the time limit.
     pub completed: bool,
-    /// Planner figures: fragments, iterations, failures.
-    pub planner: (u64, u64, u64),
+    /// The names of the planner, tracker and estimator.
+    pub parts: [String; 3],
 }
 
 impl Outcome {
@@ -70,27 +103,41 @@ impl Outcome {
             .count()
     }
 
-    /// RMS of the tracking error over the samples that follow a fragment.
-    pub fn rms(&self) -> f64 {
-        let e: Vec<f64> = self
-            .samples
-            .iter()
-            .filter(|s| s.executing)
-            .filter_map(Sample::error)
-            .collect();
-        if e.is_empty() {
-            return 0.0;
-        }
-        (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
-    }
-
-    /// Largest tracking error while following fragments.
-    pub fn max_error(&self) -> f64 {
+    fn tracking_errors(&self) -> impl Iterator<Item = f64> + '_ {
         self.samples
             .iter()
             .filter(|s| s.executing)
             .filter_map(Sample::error)
-            .fold(0.0, f64::max)
+    }
+
+    /// RMS of the tracking error over the samples that follow a fragment [m].
+    pub fn rms(&self) -> f64 {
+        let (n, sum) = self
+            .tracking_errors()
+            .fold((0usize, 0.0), |(n, s), e| (n + 1, s + e * e));
+        if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+    }
+
+    /// Largest tracking error while following fragments [m].
+    pub fn max_error(&self) -> f64 {
+        self.tracking_errors().fold(0.0, f64::max)
+    }
+
+    /// RMS of the estimator's position error over the whole run [m].
+    pub fn estimate_rms(&self) -> f64 {
+        let n = self.samples.len().max(1) as f64;
+        (self
+            .samples
+            .iter()
+            .map(|s| s.estimate_error().powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt()
+    }
+
+    /// Simulated seconds per wall-clock second.
+    pub fn realtime_factor(&self) -> f64 {
+        self.sim_s / self.wall_s.max(1e-9)
     }
 
     /// The summary line of the main job.
@@ -98,11 +145,11 @@ impl Outcome {
         format!(
             "mission={} plans_acked={}/{} rms_m={:.4} max_m={:.4} realtime_factor={:.1}",
             self.mission,
-            self.acks.len(),
+            self.plans_done(),
             self.plans,
             self.rms(),
             self.max_error(),
-            self.sim_s / self.wall_s.max(1e-9)
+            self.realtime_factor()
         )
     }
 }
@@ -118,35 +165,78 @@ pub enum RunError {
     Exec(#[from] ExecError),
 }
 
+/// What a run reports while it goes.
+#[derive(Clone, Debug)]
+pub enum Progress<'a> {
+    /// `a2` received the final acknowledgement of a plan.
+    Ack {
+        /// Simulation time [s].
+        t: f64,
+        /// The acknowledgement.
+        ack: &'a Ack,
+    },
+    /// Another `every` seconds of simulated time passed.
+    Tick {
+        /// Simulation time [s].
+        t: f64,
+        /// The latest sample.
+        sample: &'a Sample,
+    },
+}
+
 /// Run `config`'s mission until every plan is acknowledged and the platform has
-/// executed the last fragment (or `limit` of simulated time); `progress` sees each
-/// acknowledgement as it arrives.
+/// executed the last fragment, or until `limit` of simulated time; `progress` sees
+/// each acknowledgement as it arrives and a tick every `tick` of simulated time.
 pub fn run_mission(
     config: &RexConfig,
     limit: Duration,
-    mut progress: impl FnMut(f64, &Ack),
+    tick: Duration,
+    mut progress: impl FnMut(Progress<'_>),
 ) -> Result<Outcome, RunError> {
     let (system, h, _truth) = build(config)?;
-    let mut exec: Executor<NoObserver> = Executor::new(system, ExecConfig::default());
-    let wall = Instant::now();
-    let dt = Duration::from_secs_f64(0.05);
-    let end = Time::from_nanos(0).saturating_add(limit);
+    let mut exec: Executor<NoObserver> = Executor::new(system, config.exec.clone());
     let mut out = Outcome {
         mission: config.mission.name.clone(),
         plans: config.mission.plans.len(),
         ..Outcome::default()
     };
-    let mut seen = 0;
-    while exec.now() < end {
-        exec.run_for(dt)?;
-        let t = exec.now().as_secs_f64();
-        sample(&exec, &h, t, &mut out);
-        if let Some(m) = exec.memory(&h.c2) {
-            for ack in &m.acks[seen..] {
-                progress(t, ack);
-                out.acks.push((t, ack.clone()));
+    if let (Some(c1), Some(e11)) = (exec.memory(&h.c1), exec.memory(&h.e11)) {
+        out.parts = [
+            c1.trajgen.kind().name().to_owned(),
+            e11.track.tracker.name().to_owned(),
+            e11.estym.estimator.name().to_owned(),
+        ];
+    }
+    let wall = Instant::now();
+    let end = Time::ZERO.saturating_add(limit);
+    let tick_ns = tick.as_nanos().max(1);
+    let mut next_tick = tick_ns;
+    let mut acks_seen = 0;
+    while let Some(t) = exec.next_instant() {
+        if t >= end {
+            break;
+        }
+        // The platform's state now, before the instant runs: the state at `t`.
+        let truth = exec.driver(&h.platform).map(|p| p.plant().state);
+        let e11_before = exec.iteration(h.e11.id());
+        exec.step()?;
+        if exec.iteration(h.e11.id()) == e11_before {
+            continue;
+        }
+        let ts = t.as_secs_f64();
+        if let Some(s) = sample(&exec, &h, ts, truth.map(|s| [s.x, s.y, s.phi])) {
+            out.samples.push(s);
+            if u128::from(t.as_nanos()) >= next_tick {
+                next_tick += tick_ns;
+                progress(Progress::Tick { t: ts, sample: &s });
             }
-            seen = m.acks.len();
+        }
+        if let Some(m) = exec.memory(&h.c2) {
+            for ack in m.acks.iter().skip(acks_seen) {
+                progress(Progress::Ack { t: ts, ack });
+                out.acks.push((ts, ack.clone()));
+            }
+            acks_seen = m.acks.len();
         }
         let idle = exec
             .memory(&h.e11)
@@ -158,39 +248,53 @@ pub fn run_mission(
     }
     out.wall_s = wall.elapsed().as_secs_f64();
     out.sim_s = exec.now().as_secs_f64();
+    let c = &mut out.counters;
     if let Some(m) = exec.memory(&h.e11) {
-        out.fragments = m.track.completed;
-        out.rejected_measurements = m.estym.estimator.rejected();
+        c.fragments_received = m.track.received;
+        c.fragments_completed = m.track.completed;
+        c.fragments_rejected = m.track.rejected;
+        c.rejected_measurements = m.estym.estimator.rejected();
     }
     if let Some(p) = exec.driver(&h.platform) {
         let s = p.command_stats();
-        out.clamped_torques = s.not_finite + s.out_of_bounds;
+        c.clamped_torques = s.not_finite + s.out_of_bounds;
     }
     if let Some(m) = exec.memory(&h.c1) {
         let t = m.trajgen.totals();
-        out.planner = (t.fragments, t.iterations, t.failures);
+        c.planned = t.fragments;
+        c.planner_iterations = t.iterations;
+        c.planner_failures = t.failures;
     }
+    c.executor_errors = exec.report().error_count;
     Ok(out)
 }
 
-fn sample(exec: &Executor<NoObserver>, h: &RexHandles, t: f64, out: &mut Outcome) {
-    let (Some(p), Some(e11)) = (exec.driver(&h.platform), exec.memory(&h.e11)) else {
-        return;
-    };
-    let s = p.plant().state;
+fn sample(
+    exec: &Executor<NoObserver>,
+    h: &RexHandles,
+    t: f64,
+    truth: Option<[f64; 3]>,
+) -> Option<Sample> {
+    let e11 = exec.memory(&h.e11)?;
     let est = e11.estym.estimate.x;
     let behaviour = match exec.behaviour(&h.c1) {
         Some("B2") => 1,
         Some("B3") => 2,
         _ => 0,
     };
-    out.samples.push(Sample {
+    Some(Sample {
         t,
-        truth: [s.x, s.y, s.phi],
+        truth: truth?,
         estimate: [est[0], est[1], est[2]],
         reference: e11.track.reference,
-        executing: e11.track.running.is_some(),
+        executing: e11.track.following.is_some(),
         tau: e11.tau,
         behaviour,
-    });
+        fragment: e11.track.following,
+    })
+}
+
+/// Default configuration of the executor for Rex runs: stop at the first error.
+pub fn default_exec() -> ExecConfig {
+    ExecConfig::default()
 }

@@ -79,7 +79,7 @@ pub trait Estimator: Send + std::fmt::Debug {
 }
 
 /// Which estimator.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum EstimatorKind {
     /// Extended Kalman filter on the reduced model.
     #[default]

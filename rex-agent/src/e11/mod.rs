@@ -51,6 +51,9 @@ pub struct TrackState {
     pub hold: Option<[f64; 5]>,
     /// The reference of this iteration (for reports).
     pub reference: Option<[f64; 5]>,
+    /// The fragment `(plan, index)` the reference of this iteration comes from
+    /// (`None` when holding a point).
+    pub following: Option<(u32, u32)>,
     /// Fragments received, completed and rejected (non-finite).
     pub received: u32,
     /// Fragments completed.
@@ -108,6 +111,7 @@ impl E11Memory {
                 queue: VecDeque::new(),
                 hold: None,
                 reference: None,
+                following: None,
                 received: 0,
                 completed: 0,
                 rejected: 0,
@@ -263,6 +267,7 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
     };
     let estimate = m.estym.estimator.update(m.dt, &m.tau, &meas);
     m.estym.estimate = estimate;
+    m.track.following = None;
     if !estimate.localised {
         m.tau = [0.0; 4];
         m.track.reference = None;
@@ -273,6 +278,11 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
         m.track.hold = Some([px, py, phi, 0.0, 0.0]);
     }
     m.track.reference = reference(m).map(|r| r.0);
+    m.track.following = m
+        .track
+        .running
+        .as_ref()
+        .map(|r| (r.fragment.plan, r.fragment.index));
     m.tau = match reference(m) {
         Some((r, next)) => m.track.tracker.control(&estimate, &r, &next, m.dt),
         None => [0.0; 4],

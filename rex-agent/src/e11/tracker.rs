@@ -21,7 +21,7 @@ pub trait Tracker: Send + std::fmt::Debug {
 }
 
 /// Which tracker.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum TrackerKind {
     /// Kinematic tracking law with a computed-torque velocity loop.
     #[default]
@@ -62,6 +62,12 @@ pub struct Gains {
     pub kv: f64,
     /// Turn-rate loop gain [1/s].
     pub kw: f64,
+    /// Integral gain of the speed loop [1/s²].
+    pub ki_v: f64,
+    /// Integral gain of the turn-rate loop [1/s²].
+    pub ki_w: f64,
+    /// Bound of each integral term (as an acceleration) [m/s², rad/s²].
+    pub i_max: f64,
 }
 
 impl Default for Gains {
@@ -73,6 +79,9 @@ impl Default for Gains {
             kphi_rest: 2.5,
             kv: 8.0,
             kw: 10.0,
+            ki_v: 10.0,
+            ki_w: 30.0,
+            i_max: 3.0,
         }
     }
 }
@@ -86,13 +95,20 @@ impl Default for Gains {
 /// ```
 ///
 /// and a computed-torque loop inverts the reduced dynamics (§1.3) for the wanted
-/// accelerations `v̇_c + k_v (v_c − v)`, `ω̇_c + k_ω (ω_c − ω)`, giving one torque per
-/// side (the same on the front and rear wheel). Torques are clamped to the bounds.
+/// accelerations `v̇_c + k_v (v_c − v) + k_iv ∫(v_c − v)`, `ω̇_c + k_ω (ω_c − ω) + k_iω ∫(ω_c − ω)`,
+/// giving one torque per side (the same on the front and rear wheel). Torques are
+/// clamped to the bounds. The integral terms take up what the model gets wrong
+/// (above all the lateral friction that resists turning, which depends on the
+/// ground): without them a turn-rate deficit remains, and the kinematic law can only
+/// cancel it with a standing cross-track error `e_y ≈ Δω / (k_y v)`. They are
+/// bounded, and frozen while a torque saturates (anti-windup).
 #[derive(Debug)]
 pub struct Backstepping {
     model: Reduced,
     /// Gains.
     pub gains: Gains,
+    /// Integrals of the speed and turn-rate errors.
+    integral: [f64; 2],
 }
 
 impl Backstepping {
@@ -101,6 +117,7 @@ impl Backstepping {
         Backstepping {
             model: Reduced::new(params),
             gains: Gains::default(),
+            integral: [0.0; 2],
         }
     }
 
@@ -128,9 +145,12 @@ impl Tracker for Backstepping {
         let g = self.gains;
         let p = &self.model.params;
         let (vc, wc) = self.command(e, reference);
+        let (ev, ew) = (vc - e.x[3], wc - e.x[4]);
+        let iv = (g.ki_v * self.integral[0]).clamp(-g.i_max, g.i_max);
+        let iw = (g.ki_w * self.integral[1]).clamp(-g.i_max, g.i_max);
         // Feed-forward: the reference's accelerations; feedback on the velocities.
-        let vdot = (next[3] - reference[3]) / dt + g.kv * (vc - e.x[3]);
-        let wdot = (next[4] - reference[4]) / dt + g.kw * (wc - e.x[4]);
+        let vdot = (next[3] - reference[3]) / dt + g.kv * ev + iv;
+        let wdot = (next[4] - reference[4]) / dt + g.kw * ew + iw;
         // Accelerations with zero torque, then the torques that add what is missing.
         let free = self.model.f(&e.x, &[0.0; 4], &e.p);
         let m_eff = p.effective_mass();
@@ -140,6 +160,11 @@ impl Tracker for Backstepping {
         let sum = (vdot - free[3]) * p.wheel_radius * m_eff / 2.0;
         let diff = (wdot - free[4]) * p.wheel_radius * i_eff / (2.0 * p.half_track);
         let (left, right) = ((sum - diff) / 2.0, (sum + diff) / 2.0);
+        let saturated = left.abs() > p.torque_max || right.abs() > p.torque_max;
+        if !saturated && ev.is_finite() && ew.is_finite() {
+            self.integral[0] += ev * dt;
+            self.integral[1] += ew * dt;
+        }
         let clamp = |t: f64| {
             if t.is_finite() {
                 t.clamp(-p.torque_max, p.torque_max)

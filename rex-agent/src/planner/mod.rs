@@ -174,6 +174,14 @@ impl std::str::FromStr for PlannerKind {
 }
 
 impl PlannerKind {
+    /// The name used in reports and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            PlannerKind::Ecsa => "ecsa",
+            PlannerKind::Polynomial => "polynomial",
+        }
+    }
+
     /// A planner of this kind.
     pub fn build(self, settings: PlannerSettings) -> Box<dyn Planner> {
         match self {

@@ -15,7 +15,7 @@ use super::{Fragment, PlanError, PlanStats, Planner, PlannerKind, PlannerSetting
 use crate::types::State;
 
 /// Where planning runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Runtime {
     /// On a worker thread, concurrently with the execution process.
     #[default]
@@ -147,6 +147,17 @@ impl Clone for TrajGen {
     }
 }
 
+impl std::str::FromStr for Runtime {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "thread" => Ok(Runtime::Thread),
+            "inline" => Ok(Runtime::Inline),
+            _ => Err(format!("unknown planning runtime `{s}` (thread, inline)")),
+        }
+    }
+}
+
 impl TrajGen {
     /// A planner of `kind`; a result is ready `latency` calls of `stat` after `start`.
     pub fn new(
@@ -196,15 +207,28 @@ impl TrajGen {
         &self.settings
     }
 
-    /// `trajgenInit(trajgen, state)`: the next fragment starts from `state`'s pose;
-    /// fragments will carry plan id `plan`.
+    /// `trajgenInit(trajgen, state)`: prepare for plan `plan`.
+    ///
+    /// The first plan starts from `state`'s pose. A later plan starts where the last
+    /// fragment planned ends: because `c1` acknowledges a plan as soon as its last
+    /// fragment is handed over (the paper's early `ack`), the next plan arrives
+    /// while `e11` still executes that fragment, and the platform will be at its end
+    /// (or holding it) when the next plan's first fragment begins. Starting from the
+    /// current state instead would make the platform jump back along the path.
     pub fn init(&mut self, state: &State, plan: u32) {
         self.abandon();
-        let p = state.pose();
-        self.from = [p.x, p.y, p.phi];
+        if self.totals.fragments == 0 {
+            let p = state.pose();
+            self.from = [p.x, p.y, p.phi];
+        }
         self.plan = plan;
         self.index = 0;
         self.status = Status::Idle;
+    }
+
+    /// Where the next fragment starts `(X, Y, φ)`.
+    pub fn from(&self) -> [f64; 3] {
+        self.from
     }
 
     /// Forget a job in flight (its answer is drained when it comes).

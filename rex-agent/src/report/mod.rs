@@ -1,0 +1,319 @@
+//! The report folder of a Rex run: plots as SVG, the samples as CSV, a summary, and
+//! the diagrams of the specification the run followed.
+//!
+//! | file | what |
+//! |---|---|
+//! | `summary.txt` | the summary line, the run's choices, counters, acknowledgements |
+//! | `samples.csv` | every sample (one per iteration of `e11`) |
+//! | `trajectory.svg` | reference, true and estimated paths on the map, with the plan points |
+//! | `tracking_error.svg` | distance between the true position and the reference over time |
+//! | `torques.svg` | the four wheel torques over time |
+//! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
+//! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
+
+pub mod plot;
+
+use std::fmt::Write as _;
+use std::io;
+use std::path::{Path, PathBuf};
+
+use embodied::spec::Spec;
+use embodied::spec::diagram::{self, Format, Kind};
+
+use crate::rex::RexConfig;
+use crate::run::{Outcome, Sample};
+use plot::{Marker, PALETTE, Plot, Row, Series, timeline};
+
+/// Write the report of `outcome` into `dir` (created if needed); returns the files
+/// written.
+pub fn write(
+    dir: &Path,
+    outcome: &Outcome,
+    config: &RexConfig,
+    spec: &Spec,
+) -> io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir.join("diagrams"))?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: String| -> io::Result<()> {
+        let path = dir.join(name);
+        std::fs::write(&path, text)?;
+        files.push(path);
+        Ok(())
+    };
+    put("summary.txt", summary(outcome))?;
+    put("samples.csv", csv(&outcome.samples))?;
+    put("trajectory.svg", trajectory(outcome, config).to_svg())?;
+    put("tracking_error.svg", tracking_error(outcome).to_svg())?;
+    put("torques.svg", torques(outcome).to_svg())?;
+    put("timeline.svg", behaviour_timeline(outcome))?;
+    let diagrams: [(&str, Kind, Option<&str>, Format); 6] = [
+        ("diagrams/fsm_c1.svg", Kind::Fsm, Some("c1"), Format::Svg),
+        (
+            "diagrams/fsm_c1.mmd",
+            Kind::Fsm,
+            Some("c1"),
+            Format::Mermaid,
+        ),
+        ("diagrams/structure.svg", Kind::Structure, None, Format::Svg),
+        (
+            "diagrams/dataflow_c1.svg",
+            Kind::Dataflow,
+            Some("c1"),
+            Format::Svg,
+        ),
+        (
+            "diagrams/dataflow_e11.svg",
+            Kind::Dataflow,
+            Some("e11"),
+            Format::Svg,
+        ),
+        (
+            "diagrams/dataflow_r11.svg",
+            Kind::Dataflow,
+            Some("r11"),
+            Format::Svg,
+        ),
+    ];
+    for (name, kind, subsystem, format) in diagrams {
+        let text = diagram::render(spec, kind, subsystem, format)
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
+        put(name, text)?;
+    }
+    Ok(files)
+}
+
+/// The text of `summary.txt`.
+pub fn summary(o: &Outcome) -> String {
+    let mut s = String::new();
+    let c = &o.counters;
+    let _ = writeln!(s, "{}", o.summary_line());
+    let _ = writeln!(
+        s,
+        "planner={} tracker={} estimator={}",
+        o.parts[0], o.parts[1], o.parts[2]
+    );
+    let _ = writeln!(
+        s,
+        "completed={} sim_s={:.2} wall_s={:.3} estimate_rms_m={:.4}",
+        o.completed,
+        o.sim_s,
+        o.wall_s,
+        o.estimate_rms()
+    );
+    let _ = writeln!(
+        s,
+        "fragments planned={} received={} completed={} rejected={} planner_iterations={} planner_failures={}",
+        c.planned,
+        c.fragments_received,
+        c.fragments_completed,
+        c.fragments_rejected,
+        c.planner_iterations,
+        c.planner_failures
+    );
+    let _ = writeln!(
+        s,
+        "rejected_measurements={} clamped_torques={} executor_errors={}",
+        c.rejected_measurements, c.clamped_torques, c.executor_errors
+    );
+    for (t, ack) in &o.acks {
+        let _ = writeln!(s, "ack t={t:.2} plan={} status={:?}", ack.plan, ack.status);
+    }
+    s
+}
+
+fn csv(samples: &[Sample]) -> String {
+    let mut s = String::from(
+        "t,x,y,phi,x_est,y_est,phi_est,x_ref,y_ref,phi_ref,v_ref,w_ref,error,tau1,tau2,tau3,tau4,behaviour,plan,fragment\n",
+    );
+    for p in samples {
+        let r = p.reference.map_or([f64::NAN; 5], |r| r);
+        let (plan, frag) = p.fragment.map_or((String::new(), String::new()), |(a, b)| {
+            (a.to_string(), b.to_string())
+        });
+        let _ = writeln!(
+            s,
+            "{:.3},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},B{},{plan},{frag}",
+            p.t,
+            p.truth[0],
+            p.truth[1],
+            p.truth[2],
+            p.estimate[0],
+            p.estimate[1],
+            p.estimate[2],
+            r[0],
+            r[1],
+            r[2],
+            r[3],
+            r[4],
+            p.error().unwrap_or(f64::NAN),
+            p.tau[0],
+            p.tau[1],
+            p.tau[2],
+            p.tau[3],
+            p.behaviour + 1
+        );
+    }
+    s
+}
+
+fn trajectory(o: &Outcome, config: &RexConfig) -> Plot {
+    let reference = o
+        .samples
+        .iter()
+        .map(|s| s.fragment.and(s.reference).map(|r| (r[0], r[1])))
+        .collect();
+    let truth = o
+        .samples
+        .iter()
+        .map(|s| Some((s.truth[0], s.truth[1])))
+        .collect();
+    let estimate = o
+        .samples
+        .iter()
+        .map(|s| Some((s.estimate[0], s.estimate[1])))
+        .collect();
+    let mut markers = Vec::new();
+    for (i, plan) in config.mission.plans.iter().enumerate() {
+        for (k, p) in plan.iter().enumerate() {
+            markers.push(Marker {
+                at: (p.x, p.y),
+                label: format!("{}.{}", i + 1, k + 1),
+            });
+        }
+    }
+    Plot {
+        title: format!("{}: paths on the map", o.mission),
+        x_label: "x [m]".into(),
+        y_label: "y [m]".into(),
+        equal_aspect: true,
+        series: vec![
+            Series::new("reference", PALETTE[0], reference).dashed(),
+            Series::new("true", PALETTE[1], truth),
+            Series::new("estimate", PALETTE[2], estimate),
+        ],
+        markers,
+    }
+}
+
+fn tracking_error(o: &Outcome) -> Plot {
+    let err = o
+        .samples
+        .iter()
+        .map(|s| {
+            if s.executing {
+                s.error().map(|e| (s.t, e))
+            } else {
+                None
+            }
+        })
+        .collect();
+    let est = o
+        .samples
+        .iter()
+        .map(|s| Some((s.t, s.estimate_error())))
+        .collect();
+    Plot {
+        title: format!(
+            "{}: tracking error (rms {:.1} mm, max {:.1} mm)",
+            o.mission,
+            o.rms() * 1e3,
+            o.max_error() * 1e3
+        ),
+        x_label: "time [s]".into(),
+        y_label: "error [m]".into(),
+        series: vec![
+            Series::new("|true - reference|", PALETTE[1], err),
+            Series::new("|estimate - true|", PALETTE[2], est).dashed(),
+        ],
+        ..Plot::default()
+    }
+}
+
+fn torques(o: &Outcome) -> Plot {
+    let names = [
+        "tau1 front-left",
+        "tau2 rear-left",
+        "tau3 front-right",
+        "tau4 rear-right",
+    ];
+    Plot {
+        title: format!("{}: wheel torques", o.mission),
+        x_label: "time [s]".into(),
+        y_label: "torque [N m]".into(),
+        series: names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                Series::new(
+                    *n,
+                    PALETTE[i],
+                    o.samples.iter().map(|s| Some((s.t, s.tau[i]))).collect(),
+                )
+            })
+            .collect(),
+        ..Plot::default()
+    }
+}
+
+fn behaviour_timeline(o: &Outcome) -> String {
+    const COLOURS: [&str; 3] = ["#7f7f7f", "#1f77b4", "#2ca02c"];
+    let mut c1 = Row {
+        name: "c1".into(),
+        spans: Vec::new(),
+    };
+    let mut e11 = Row {
+        name: "e11".into(),
+        spans: Vec::new(),
+    };
+    let mut open_b: Option<(f64, u8)> = None;
+    let mut open_f: Option<(f64, Option<(u32, u32)>)> = None;
+    let end = o.samples.last().map_or(0.0, |s| s.t);
+    let frag_label = |f: Option<(u32, u32)>| match f {
+        Some((p, i)) => (format!("{p}.{i}"), PALETTE[(i as usize) % 2 * 3]),
+        None => ("hold".into(), "#bbbbbb"),
+    };
+    for s in &o.samples {
+        match open_b {
+            Some((_, b)) if b == s.behaviour => {}
+            Some((t0, b)) => {
+                c1.spans
+                    .push((t0, s.t, format!("B{}", b + 1), COLOURS[b as usize % 3]));
+                open_b = Some((s.t, s.behaviour));
+            }
+            None => open_b = Some((s.t, s.behaviour)),
+        }
+        match open_f {
+            Some((_, f)) if f == s.fragment => {}
+            Some((t0, f)) => {
+                let (label, colour) = frag_label(f);
+                e11.spans.push((t0, s.t, label, colour));
+                open_f = Some((s.t, s.fragment));
+            }
+            None => open_f = Some((s.t, s.fragment)),
+        }
+    }
+    if let Some((t0, b)) = open_b {
+        c1.spans
+            .push((t0, end, format!("B{}", b + 1), COLOURS[b as usize % 3]));
+    }
+    if let Some((t0, f)) = open_f {
+        let (label, colour) = frag_label(f);
+        e11.spans.push((t0, end, label, colour));
+    }
+    let mut acks = Row {
+        name: "a2".into(),
+        spans: Vec::new(),
+    };
+    for (t, ack) in &o.acks {
+        acks.spans
+            .push((*t, *t + end * 0.004, format!("ack {}", ack.plan), "#d62728"));
+    }
+    timeline(
+        &format!(
+            "{}: behaviours of c1, fragments of e11 (plan.index), acknowledgements",
+            o.mission
+        ),
+        &[c1, e11, acks],
+        end,
+    )
+}
