@@ -140,6 +140,7 @@ pub struct Termination {
     bound: u64,
     cases: u32,
     shown: usize,
+    shrink_iters: u32,
 }
 
 impl Termination {
@@ -149,12 +150,21 @@ impl Termination {
             bound,
             cases: 256,
             shown: 12,
+            shrink_iters: 4096,
         }
     }
 
     /// Number of random cases (default 256).
     pub fn cases(mut self, cases: u32) -> Termination {
         self.cases = cases;
+        self
+    }
+
+    /// How many shrinking steps proptest may take to minimise a counterexample
+    /// (default 4096; proptest's own default, 4 per case, often stops before the
+    /// case is minimal).
+    pub fn shrink_iters(mut self, steps: u32) -> Termination {
+        self.shrink_iters = steps;
         self
     }
 
@@ -241,6 +251,7 @@ impl Termination {
     {
         let mut runner = TestRunner::new(Config {
             cases: self.cases,
+            max_shrink_iters: self.shrink_iters,
             failure_persistence: None,
             ..Config::default()
         });

@@ -75,7 +75,7 @@ impl Default for C1Params {
 }
 
 /// `c1`'s internal memory (`^c c_1`).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct C1Memory {
     /// `plan`: the points still to plan towards, with desired orientations.
     pub plan: VecDeque<Waypoint>,
@@ -101,6 +101,36 @@ pub struct C1Memory {
     pub superseded: u32,
     /// Settings.
     pub params: C1Params,
+}
+
+/// The state of the memory in one line (plan points left, fragments waiting by
+/// `plan.index`, the planner's status and flags), for traces.
+impl std::fmt::Debug for C1Memory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let traj: Vec<String> = self
+            .traj
+            .iter()
+            .map(|t| format!("{}.{}", t.plan, t.index))
+            .collect();
+        write!(
+            f,
+            "{{plan {}: {} points left, traj [{}], trajgen {:?}, new {}, ready {}, handed {}",
+            self.plan_id,
+            self.plan.len(),
+            traj.join(" "),
+            self.trajgen.status(),
+            self.new,
+            self.ready_latch,
+            self.handed
+        )?;
+        if let Some(r) = &self.refusal {
+            write!(f, ", refused: {r}")?;
+        }
+        if let Some((p, waited)) = &self.pending {
+            write!(f, ", pending plan {} ({waited} it.)", p.id)?;
+        }
+        f.write_str("}")
+    }
 }
 
 impl C1Memory {
@@ -609,6 +639,229 @@ mod tests {
             PlannerSettings::default(),
             Runtime::Inline,
             1,
+        );
+    }
+
+    // -----------------------------------------------------------------------
+    // The transition subfunctions, case by case as in Algorithms 4-8.
+
+    fn stamp() -> embodied::Stamp {
+        embodied::Stamp::new(0, embodied::Time::ZERO)
+    }
+
+    fn memory(latency: u32) -> C1Memory {
+        C1Memory::new(
+            TrajGen::new(
+                PlannerKind::Polynomial,
+                PlannerSettings::default(),
+                Runtime::Inline,
+                latency,
+            ),
+            C1Params::default(),
+        )
+    }
+
+    fn state(x: f64, y: f64, phi: f64) -> State {
+        State {
+            q: [x, y, phi, 0.0, 0.0, 0.0, 0.0],
+            q_dot: [0.0; 7],
+        }
+    }
+
+    /// Inputs: a fresh plan (or none), a state estimate (or none), a fresh `ready`.
+    fn input(plan: Option<Plan>, estimate: Option<State>, ready: bool) -> C1Input {
+        let mut x = C1Input::default();
+        if let Some(p) = plan {
+            x.c2.desired_plan.deliver(p, stamp());
+        }
+        if let Some(s) = estimate {
+            x.e11.q_est.deliver(s, stamp());
+            x.e11.q_est.age();
+        }
+        if ready {
+            x.e11.ready.deliver(true, stamp());
+        }
+        x
+    }
+
+    fn fragment(plan: u32, index: u32) -> Fragment {
+        Fragment {
+            plan,
+            index,
+            dt: 0.05,
+            states: vec![[0.0; 5]; 41],
+        }
+    }
+
+    #[test]
+    fn algorithm_4_takes_a_new_plan_and_ignores_old_data() {
+        let mut m = memory(1);
+        m.traj.push_back(fragment(0, 0));
+        let plan = Plan {
+            id: 7,
+            ..pts(&[(1.0, 0.0), (1.0, 1.0)])
+        };
+        // Not new: nothing happens.
+        let mut x = input(Some(plan.clone()), Some(state(0.5, 0.0, 0.0)), false);
+        x.c2.desired_plan.age();
+        cc_1_tp(&mut m, &x);
+        assert!(!m.new && m.plan.is_empty() && m.traj.len() == 1);
+        // isnew(desired_plan): plan <- proc(desired_plan), traj <- {}, trajgenInit, new.
+        cc_1_tp(
+            &mut m,
+            &input(Some(plan), Some(state(0.5, 0.0, 0.0)), false),
+        );
+        assert!(m.new);
+        assert_eq!(m.plan_id, 7);
+        assert_eq!(m.plan.len(), 2);
+        assert!(m.plan.iter().all(|w| w.phi.is_some()), "orientations added");
+        assert!(m.traj.is_empty());
+        assert_eq!(m.trajgen.status(), &Status::Idle);
+        assert_eq!(
+            m.trajgen.from(),
+            [0.5, 0.0, 0.0],
+            "initialised from the state"
+        );
+        assert!(m.refusal.is_none());
+    }
+
+    #[test]
+    fn algorithm_4_waits_for_the_first_estimate_then_refuses() {
+        let mut m = memory(1);
+        m.params.estimate_wait_max = 3;
+        cc_1_tp(&mut m, &input(Some(pts(&[(1.0, 0.0)])), None, false));
+        assert!(!m.new && m.pending.is_some(), "waits for an estimate");
+        // The estimate arrives: the plan is taken.
+        cc_1_tp(&mut m, &input(None, Some(state(0.0, 0.0, 0.0)), false));
+        assert!(m.new && m.refusal.is_none() && m.pending.is_none());
+        // No estimate ever: refused after `estimate_wait_max` iterations.
+        let mut m = memory(1);
+        m.params.estimate_wait_max = 3;
+        cc_1_tp(&mut m, &input(Some(pts(&[(1.0, 0.0)])), None, false));
+        for _ in 0..3 {
+            assert!(!m.new);
+            cc_1_tp(&mut m, &input(None, None, false));
+        }
+        assert!(m.new);
+        assert!(
+            m.refusal
+                .as_deref()
+                .is_some_and(|r| r.contains("no state estimate"))
+        );
+    }
+
+    #[test]
+    fn a_plan_sent_during_execution_waits_for_the_next_b1() {
+        let mut m = memory(1);
+        m.plan.push_back(Waypoint {
+            x: 1.0,
+            y: 0.0,
+            phi: None,
+        });
+        cc_2_tp(&mut m, &input(Some(pts(&[(2.0, 0.0)])), None, false));
+        assert!(m.pending.is_some(), "kept, not lost");
+        cc_1_tp(&mut m, &input(None, Some(state(0.0, 0.0, 0.0)), false));
+        assert!(m.new && m.plan.len() == 1 && m.plan[0].x == 2.0);
+    }
+
+    #[test]
+    fn algorithm_5_clears_ack_on_a_new_plan_only() {
+        let m = memory(1);
+        let mut y = C1ToC2::default();
+        ct_1_tp(&m, &input(None, None, false), &mut y);
+        assert!(!y.ack.is_written());
+        ct_1_tp(&m, &input(Some(pts(&[(1.0, 0.0)])), None, false), &mut y);
+        let ack = y.ack.written().expect("ack written");
+        assert!(!ack.ready(), "ack = false");
+        assert_eq!((ack.plan, &ack.status), (1, &AckStatus::Received));
+    }
+
+    /// c1 with plan `points` taken (Algorithm 4 done).
+    fn taken(points: &[(f64, f64)], latency: u32) -> C1Memory {
+        let mut m = memory(latency);
+        cc_1_tp(
+            &mut m,
+            &input(Some(pts(points)), Some(state(0.0, 0.0, 0.0)), false),
+        );
+        assert!(m.new);
+        m
+    }
+
+    #[test]
+    fn algorithm_6_starts_the_first_point_when_new() {
+        let mut m = taken(&[(1.0, 0.0), (2.0, 0.0)], 2);
+        cc_2_tp(&mut m, &input(None, None, false));
+        // new: new <- false, trajgenStart(first point), plan <- listDelFirst(plan).
+        assert!(!m.new);
+        assert_eq!(m.trajgen.status(), &Status::Planning);
+        assert_eq!(m.plan.len(), 1);
+        assert!(m.traj.is_empty());
+        // Not ready yet: trajgenGetStat.
+        cc_2_tp(&mut m, &input(None, None, false));
+        assert_eq!(m.trajgen.status(), &Status::Planning);
+        cc_2_tp(&mut m, &input(None, None, false));
+        assert!(m.trajgen.is_ready());
+    }
+
+    #[test]
+    fn algorithm_6_collects_fragments_and_starts_the_next_point() {
+        let mut m = taken(&[(1.0, 0.0), (2.0, 0.0)], 1);
+        cc_2_tp(&mut m, &input(None, None, false)); // start point 1
+        cc_2_tp(&mut m, &input(None, None, false)); // stat -> ready
+        assert!(m.trajgen.is_ready());
+        // trajgenIsReady, not ready: listAddLast; plan not empty: start the next point.
+        cc_2_tp(&mut m, &input(None, None, false));
+        assert_eq!(m.traj.iter().map(|f| f.index).collect::<Vec<_>>(), [0]);
+        assert_eq!(m.trajgen.status(), &Status::Planning);
+        assert!(m.plan.is_empty());
+        cc_2_tp(&mut m, &input(None, None, false)); // stat -> ready
+        // ready & traj not empty & trajgenIsReady: listAddLastDelFirst.
+        cc_2_tp(&mut m, &input(None, None, true));
+        assert_eq!(m.traj.iter().map(|f| f.index).collect::<Vec<_>>(), [1]);
+        assert_eq!(m.handed, 1);
+        // trajgenIsReady was true and the plan is empty: trajgenStop.
+        assert_eq!(m.trajgen.status(), &Status::Stopped);
+        // ready & traj not empty & not trajgenIsReady: listDelFirst.
+        cc_2_tp(&mut m, &input(None, None, true));
+        assert!(m.traj.is_empty());
+        assert_eq!(m.handed, 2);
+    }
+
+    #[test]
+    fn algorithm_7_hands_over_the_first_fragment_only_when_ready() {
+        let mut m = memory(1);
+        let mut y = C1ToE11::default();
+        ce_2_tp(&m, &input(None, None, true), &mut y);
+        assert!(!y.traj.is_written(), "ready but nothing to hand over");
+        m.traj.push_back(fragment(1, 0));
+        m.traj.push_back(fragment(1, 1));
+        ce_2_tp(&m, &input(None, None, false), &mut y);
+        assert!(!y.traj.is_written(), "not ready");
+        ce_2_tp(&m, &input(None, None, true), &mut y);
+        assert_eq!(y.traj.written().map(|f| f.index), Some(0));
+        let (steps, notify) = (y.steps.written().copied(), y.notify.written().copied());
+        assert_eq!(steps, Some(40));
+        assert_eq!(notify, Some(20), "1 s before the end at 0.05 s per step");
+        // A ready event latched in memory counts as ready^i.
+        let mut y = C1ToE11::default();
+        m.ready_latch = true;
+        ce_2_tp(&m, &input(None, None, false), &mut y);
+        assert!(y.traj.is_written());
+    }
+
+    #[test]
+    fn algorithm_8_acknowledges_with_the_outcome() {
+        let mut m = taken(&[(1.0, 0.0)], 1);
+        let mut y = C1ToC2::default();
+        ct_3_tp(&m, &input(None, None, false), &mut y);
+        let ack = y.ack.written().cloned().expect("ack");
+        assert!(ack.ready(), "ack = true");
+        assert_eq!(ack.status, AckStatus::Done);
+        m.refusal = Some("off the map".into());
+        ct_3_tp(&m, &input(None, None, false), &mut y);
+        assert_eq!(
+            y.ack.written().map(|a| &a.status),
+            Some(&AckStatus::Refused("off the map".into()))
         );
     }
 }

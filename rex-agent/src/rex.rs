@@ -142,6 +142,8 @@ pub struct RexConfig {
     pub mission: Mission,
     /// The trajectory planner.
     pub planner: PlannerKind,
+    /// The planner's limits and preferences (`dt` is set to the period of `e11`).
+    pub planner_settings: PlannerSettings,
     /// Where the planner runs.
     pub runtime: Runtime,
     /// Planning time in c1 iterations.
@@ -165,7 +167,15 @@ impl RexConfig {
         let room = &world.scene.room;
         let margin = 0.5;
         let defaults = RunSettings::default();
+        // Plan well inside the platform's bounds: turning is what costs torque on a
+        // skid-steer platform, and the tracker needs a margin to correct errors.
+        let planner_settings = PlannerSettings {
+            speed_max: world.platform.speed_max * 0.6,
+            turn_rate_max: world.platform.yaw_rate_max * 0.6,
+            ..PlannerSettings::default()
+        };
         RexConfig {
+            planner_settings,
             c1: C1Params {
                 map: MapBounds {
                     x0: room.x0 + margin,
@@ -271,9 +281,7 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
     let dt = e11_period.as_secs_f64();
     let settings = PlannerSettings {
         dt,
-        speed_max: config.world.platform.speed_max * 0.6,
-        turn_rate_max: config.world.platform.yaw_rate_max * 0.6,
-        ..PlannerSettings::default()
+        ..config.planner_settings.clone()
     };
     let trajgen = TrajGen::new(
         config.planner,

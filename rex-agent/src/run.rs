@@ -8,7 +8,7 @@
 
 use std::time::{Duration, Instant};
 
-use embodied::{ExecConfig, ExecError, Executor, NoObserver, Time};
+use embodied::{ExecError, Executor, NoObserver, Time};
 
 use crate::rex::{RexConfig, RexError, RexHandles, build};
 use crate::types::{Ack, AckStatus};
@@ -194,7 +194,7 @@ pub fn run_mission(
     mut progress: impl FnMut(Progress<'_>),
 ) -> Result<Outcome, RunError> {
     let (system, h, _truth) = build(config)?;
-    let mut exec: Executor<NoObserver> = Executor::new(system, config.exec.clone());
+    let mut exec: Executor<NoObserver> = Executor::new(system, config.exec);
     let mut out = Outcome {
         mission: config.mission.name.clone(),
         plans: config.mission.plans.len(),
@@ -292,9 +292,4 @@ fn sample(
         behaviour,
         fragment: e11.track.following,
     })
-}
-
-/// Default configuration of the executor for Rex runs: stop at the first error.
-pub fn default_exec() -> ExecConfig {
-    ExecConfig::default()
 }

@@ -40,12 +40,29 @@ pub struct MapPose {
 
 /// The platform's state estimate (`q~`, `q~ dot`): `q = (X, Y, φ, θ_1..θ_4)` and its
 /// time derivative.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct State {
     /// Generalised coordinates `(X, Y, φ, θ_1, θ_2, θ_3, θ_4)`.
     pub q: [f64; 7],
     /// Their rates.
     pub q_dot: [f64; 7],
+}
+
+/// `q (X, Y, φ | θ1 θ2 θ3 θ4) q̇ (…)`, three decimals: short enough for traces.
+impl std::fmt::Debug for State {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let part = |f: &mut std::fmt::Formatter<'_>, v: &[f64; 7]| {
+            write!(
+                f,
+                "({:.3}, {:.3}, {:.3} | {:.2} {:.2} {:.2} {:.2})",
+                v[0], v[1], v[2], v[3], v[4], v[5], v[6]
+            )
+        };
+        f.write_str("q ")?;
+        part(f, &self.q)?;
+        f.write_str(" q̇ ")?;
+        part(f, &self.q_dot)
+    }
 }
 
 impl State {
@@ -140,12 +157,27 @@ impl std::fmt::Debug for StereoPair {
 }
 
 /// A plan from the ontology agent: points on the map to pass in order.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// Plan number.
     pub id: u32,
     /// The points.
     pub points: Vec<Point2>,
+}
+
+/// `Plan 3 [(1.00, 0.00), (1.00, 1.00), … 12 points]`: short enough for traces.
+impl std::fmt::Debug for Plan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Plan {} [", self.id)?;
+        for (k, p) in self.points.iter().take(3).enumerate() {
+            let sep = if k > 0 { ", " } else { "" };
+            write!(f, "{sep}({:.2}, {:.2})", p.x, p.y)?;
+        }
+        match self.points.len() {
+            n if n > 3 => write!(f, ", … {n} points]"),
+            _ => f.write_str("]"),
+        }
+    }
 }
 
 /// How a plan ended (`ack` in the paper is a flag: [`AckStatus::Received`] is

@@ -43,7 +43,7 @@ impl Default for WorldPeriods {
     fn default() -> Self {
         WorldPeriods {
             platform_ms: 1.0,
-            camera_ms: 10.0,
+            camera_ms: 20.0,
             mocap_ms: 10.0,
             r31_ms: 10.0,
             c3_ms: 20.0,

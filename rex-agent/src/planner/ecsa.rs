@@ -2,10 +2,11 @@
 //!
 //! The kinematic skid-steer model with the ICR offset `x_0`,
 //! `q̇ = G(q) η`, `q = (X, Y, φ)`, `η = (v, ω)`, is driven by controls from a
-//! truncated series; the end-point map `K(λ) = q(T)` is inverted by the (damped)
-//! Moore–Penrose Jacobian pseudo-inverse, `λ ← λ − γ Jᵀ (J Jᵀ + α I)⁻¹ (K(λ) − q_d)`,
+//! truncated series; the end-point map `K(λ) = q(T)` is inverted by the (damped,
+//! weighted) Jacobian pseudo-inverse, `λ ← λ − γ W Jᵀ (J W Jᵀ + α I)⁻¹ (K(λ) − q_d)`,
 //! with `J` from the variational equation `ξ̇ = A ξ + B P(t)` integrated along the
-//! trajectory (RK4, the same steps as the state).
+//! trajectory (RK4, the same steps as the state). `W` measures each control channel
+//! relative to its bound (`W = I` is the Moore–Penrose inverse of the notes).
 //!
 //! Basis: `b_k(t) = sin(k π t / T)`, `k = 1..M`, for each control channel, a complete
 //! basis of L²(0, T) whose members vanish at both ends, so every fragment starts and
@@ -13,13 +14,15 @@
 //! at 1 (Newton) and is halved while the task error does not decrease; when no step
 //! helps (a singular control), the controls are perturbed and the iteration restarts.
 
+use std::f64::consts::{FRAC_PI_2, PI};
+
 use super::{Fragment, PlanError, PlanStats, Planner, PlannerSettings, Waypoint};
 use crate::noise::Rng;
 
 /// Harmonics per control channel.
 pub const HARMONICS: usize = 3;
-/// Parameters: two channels.
-const S: usize = 2 * HARMONICS;
+/// Parameters `λ`: [`HARMONICS`] per control channel `(v, ω)`.
+pub const PARAMETERS: usize = 2 * HARMONICS;
 
 /// ECSA settings beyond the shared ones.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,7 +62,7 @@ pub struct Ecsa {
 struct Rollout {
     end: [f64; 3],
     /// ∂q(T)/∂λ.
-    jac: [[f64; S]; 3],
+    jac: [[f64; PARAMETERS]; 3],
 }
 
 impl Ecsa {
@@ -76,7 +79,7 @@ impl Ecsa {
         std::array::from_fn(|k| ((k + 1) as f64 * std::f64::consts::PI * t / period).sin())
     }
 
-    fn controls(lambda: &[f64; S], b: &[f64; HARMONICS]) -> (f64, f64) {
+    fn controls(lambda: &[f64; PARAMETERS], b: &[f64; HARMONICS]) -> (f64, f64) {
         let mut v = 0.0;
         let mut w = 0.0;
         for k in 0..HARMONICS {
@@ -91,15 +94,15 @@ impl Ecsa {
     fn rollout(
         &self,
         from: [f64; 3],
-        lambda: &[f64; S],
+        lambda: &[f64; PARAMETERS],
         period: f64,
         steps: usize,
         mut on_sample: impl FnMut(usize, [f64; 3], f64, f64),
     ) -> Rollout {
         let x0 = self.settings.slip.x_icr;
         let h = period / steps as f64;
-        // Combined state: q (3) and ξ (3×S), row-major.
-        type Z = ([f64; 3], [[f64; S]; 3]);
+        // Combined state: q (3) and ξ (3×PARAMETERS), row-major.
+        type Z = ([f64; 3], [[f64; PARAMETERS]; 3]);
         let deriv = |z: &Z, t: f64| -> Z {
             let (q, xi) = z;
             let b = Self::basis(t, period);
@@ -110,8 +113,8 @@ impl Ecsa {
             let a0 = -v * s + x0 * w * c;
             let a1 = v * c + x0 * w * s;
             let g = [[c, x0 * s], [s, -x0 * c], [0.0, 1.0]];
-            let mut dxi = [[0.0; S]; 3];
-            for j in 0..S {
+            let mut dxi = [[0.0; PARAMETERS]; 3];
+            for j in 0..PARAMETERS {
                 let (pv, pw) = if j < HARMONICS {
                     (b[j], 0.0)
                 } else {
@@ -128,13 +131,13 @@ impl Ecsa {
             let mut r = *z;
             for i in 0..3 {
                 r.0[i] += f * k.0[i];
-                for j in 0..S {
+                for j in 0..PARAMETERS {
                     r.1[i][j] += f * k.1[i][j];
                 }
             }
             r
         };
-        let mut z: Z = (from, [[0.0; S]; 3]);
+        let mut z: Z = (from, [[0.0; PARAMETERS]; 3]);
         let b0 = Self::basis(0.0, period);
         let (v0, w0) = Self::controls(lambda, &b0);
         on_sample(0, z.0, v0, w0);
@@ -146,7 +149,7 @@ impl Ecsa {
             let k4 = deriv(&add(&z, &k3, h), t + h);
             for r in 0..3 {
                 z.0[r] += h / 6.0 * (k1.0[r] + 2.0 * k2.0[r] + 2.0 * k3.0[r] + k4.0[r]);
-                for j in 0..S {
+                for j in 0..PARAMETERS {
                     z.1[r][j] +=
                         h / 6.0 * (k1.1[r][j] + 2.0 * k2.1[r][j] + 2.0 * k3.1[r][j] + k4.1[r][j]);
                 }
@@ -168,31 +171,57 @@ impl Ecsa {
         e[..m].iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
-    /// Solve for controls driving `from` to `goal` in `period`.
-    fn solve(
+    /// Solve the task `K(λ) = goal` (the heading counts only `with_heading`) for
+    /// a motion of `period` seconds integrated in `steps` RK4 steps: the Newton
+    /// iteration on the end-point map, with its statistics. The controls `λ` are
+    /// the coefficients of [`HARMONICS`] sine harmonics per channel `(v, ω)`.
+    pub fn solve(
         &mut self,
         from: [f64; 3],
         goal: [f64; 3],
         with_heading: bool,
         period: f64,
         steps: usize,
-    ) -> Result<([f64; S], PlanStats), PlanError> {
+    ) -> Result<([f64; PARAMETERS], PlanStats), PlanError> {
         let e_cfg = self.ecsa.clone();
-        // Initial controls: the straight motion along the current heading and the
-        // turn to the goal heading, with the first harmonic (∫ sin(πt/T) = 2T/π).
+        // The metric of the control space: each channel relative to its bound (a
+        // weighted pseudo-inverse), so that a metre per second and a radian per
+        // second are not priced alike.
+        let wv = self.settings.speed_max.powi(2);
+        let ww = self.settings.turn_rate_max.powi(2);
+        let weights: [f64; PARAMETERS] =
+            std::array::from_fn(|j| if j < HARMONICS { wv } else { ww });
+        // Initial controls, "turn towards the goal, drive, turn to the goal heading":
+        // the first harmonic of v covers the distance (∫ sin(πt/T) = 2T/π), forwards
+        // or backwards, whichever faces the goal with less turning; the first
+        // harmonic of ω makes the net turn, the second (which integrates to zero)
+        // turns the platform towards the goal half-way. A straight-line guess would
+        // be a singular control for goals beside the platform: it moves sideways
+        // only through the ICR offset, and Newton ends on a solution that shuffles
+        // back and forth at absurd speeds.
         let (dx, dy) = (goal[0] - from[0], goal[1] - from[1]);
-        let along = dx * from[2].cos() + dy * from[2].sin();
+        let distance = dx.hypot(dy);
+        let wrap = |a: f64| (a + PI).rem_euclid(2.0 * PI) - PI;
+        let (towards, sign) = if distance > 1e-9 {
+            let rel = wrap(dy.atan2(dx) - from[2]);
+            if rel.abs() <= FRAC_PI_2 {
+                (rel, 1.0)
+            } else {
+                (wrap(rel - PI), -1.0)
+            }
+        } else {
+            (0.0, 0.0)
+        };
         let turn = if with_heading {
             goal[2] - from[2]
-        } else if dx.hypot(dy) > 1e-9 {
-            super::nearest_angle(dy.atan2(dx), from[2]) - from[2]
         } else {
-            0.0
+            towards
         };
-        let k = std::f64::consts::PI / (2.0 * period);
-        let mut lambda = [0.0; S];
-        lambda[0] = k * along;
+        let k = PI / (2.0 * period);
+        let mut lambda = [0.0; PARAMETERS];
+        lambda[0] = k * sign * distance;
         lambda[HARMONICS] = k * turn;
+        lambda[HARMONICS + 1] = (towards - turn / 2.0) * PI / period;
         let mut stats = PlanStats::default();
         let mut r = self.rollout(from, &lambda, period, steps, |_, _, _, _| {});
         let (mut e, m) = Self::error(&r.end, &goal, with_heading);
@@ -204,23 +233,27 @@ impl Ecsa {
             }
             stats.iterations += 1;
             // Δλ = −Jᵀ (J Jᵀ + α I)⁻¹ e over the first m rows.
+            // Weighted: Δλ = −W Jᵀ (J W Jᵀ + α I)⁻¹ e, W = diag(w_j²).
             let mut d = [[0.0; 3]; 3];
             for a in 0..m {
                 for b in 0..m {
-                    d[a][b] = (0..S).map(|j| r.jac[a][j] * r.jac[b][j]).sum::<f64>();
+                    d[a][b] = (0..PARAMETERS)
+                        .map(|j| r.jac[a][j] * r.jac[b][j] * weights[j])
+                        .sum::<f64>();
                 }
                 d[a][a] += e_cfg.damping;
             }
             let y = solve_small(&d, &e, m);
-            let step: [f64; S] = std::array::from_fn(|j| match &y {
-                Some(y) => -(0..m).map(|a| r.jac[a][j] * y[a]).sum::<f64>(),
+            let step: [f64; PARAMETERS] = std::array::from_fn(|j| match &y {
+                Some(y) => -weights[j] * (0..m).map(|a| r.jac[a][j] * y[a]).sum::<f64>(),
                 None => 0.0,
             });
             let mut gamma = 1.0;
             let mut improved = false;
             if y.is_some() {
                 for _ in 0..8 {
-                    let trial: [f64; S] = std::array::from_fn(|j| lambda[j] + gamma * step[j]);
+                    let trial: [f64; PARAMETERS] =
+                        std::array::from_fn(|j| lambda[j] + gamma * step[j]);
                     let rt = self.rollout(from, &trial, period, steps, |_, _, _, _| {});
                     let (et, _) = Self::error(&rt.end, &goal, with_heading);
                     let nt = Self::norm(&et, m);
@@ -314,8 +347,14 @@ impl Planner for Ecsa {
                 ..*to
             },
         );
+        if period > s.max_duration {
+            return Err(PlanError::TooLong {
+                duration: period,
+                max: s.max_duration,
+            });
+        }
         let mut total = PlanStats::default();
-        for _ in 0..4 {
+        for attempt in 0..4 {
             let samples = (period / s.dt).round().max(1.0) as usize;
             // Two RK4 steps per sample interval.
             let steps = 2 * samples;
@@ -332,24 +371,25 @@ impl Planner for Ecsa {
                     states.push([q[0], q[1], q[2], v, w]);
                 }
             });
-            let over = (peak_v / s.speed_max).max(peak_w / s.turn_rate_max);
-            if over <= 1.0 {
-                return Ok((
-                    Fragment {
-                        plan: 0,
-                        index: 0,
-                        dt: s.dt,
-                        states,
-                    },
-                    total,
-                ));
+            match s.retime(period, peak_v, peak_w, attempt)? {
+                None => {
+                    return Ok((
+                        Fragment {
+                            plan: 0,
+                            index: 0,
+                            dt: s.dt,
+                            states,
+                        },
+                        total,
+                    ));
+                }
+                // Too fast: slow down proportionally and plan again.
+                Some(longer) => period = longer,
             }
-            // Too fast: slow down proportionally and plan again.
-            period = ((period * over * 1.1) / s.dt).ceil() * s.dt;
         }
-        Err(PlanError::TooFast {
-            what: "speed or turn rate",
-            value: f64::NAN,
+        Err(PlanError::TooLong {
+            duration: period,
+            max: s.max_duration,
         })
     }
 }
@@ -467,7 +507,7 @@ mod tests {
                     prop_assert!(stats.iterations <= EcsaSettings::default().max_iterations);
                     prop_assert!(f.states.iter().flatten().all(|v| v.is_finite()));
                 }
-                Err(e) => prop_assert!(matches!(e, PlanError::NoConvergence { .. } | PlanError::Singular { .. } | PlanError::TooFast { .. }), "{e}"),
+                Err(e) => prop_assert!(matches!(e, PlanError::NoConvergence { .. } | PlanError::Singular { .. } | PlanError::TooFast { .. } | PlanError::TooLong { .. }), "{e}"),
             }
         }
     }

@@ -27,7 +27,7 @@ pub struct Waypoint {
 }
 
 /// A time-parameterised piece of reference trajectory.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Fragment {
     /// The plan it belongs to.
     pub plan: u32,
@@ -37,6 +37,28 @@ pub struct Fragment {
     pub dt: f64,
     /// Reference `(X, Y, φ, v, ω)` at `k · dt`, `k = 0..=n`.
     pub states: Vec<[f64; 5]>,
+}
+
+/// `Fragment 2.1 (60 × 0.05 s, (1.00, 0.00) -> (1.50, 0.50))`: short enough for traces.
+impl std::fmt::Debug for Fragment {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Fragment {}.{} ({} × {} s",
+            self.plan,
+            self.index,
+            self.steps(),
+            self.dt
+        )?;
+        if let (Some(a), Some(b)) = (self.states.first(), self.states.last()) {
+            write!(
+                f,
+                ", ({:.2}, {:.2}) -> ({:.2}, {:.2})",
+                a[0], a[1], b[0], b[1]
+            )?;
+        }
+        f.write_str(")")
+    }
 }
 
 impl Fragment {
@@ -63,6 +85,9 @@ pub struct PlannerSettings {
     pub cruise_turn_rate: f64,
     /// Shortest fragment [s].
     pub min_duration: f64,
+    /// Longest fragment [s]: a fragment that would need longer to respect the
+    /// velocity bounds is refused ([`PlanError::TooLong`]).
+    pub max_duration: f64,
     /// Speed bound the fragment must respect [m/s].
     pub speed_max: f64,
     /// Turn-rate bound the fragment must respect [rad/s].
@@ -78,6 +103,7 @@ impl Default for PlannerSettings {
             cruise_speed: 0.4,
             cruise_turn_rate: 0.8,
             min_duration: 1.0,
+            max_duration: 60.0,
             speed_max: 1.0,
             turn_rate_max: 1.8,
             slip: SlipParams::NOMINAL,
@@ -86,6 +112,39 @@ impl Default for PlannerSettings {
 }
 
 impl PlannerSettings {
+    /// Check a fragment's peak speed and turn rate against the bounds: `Ok(None)`
+    /// if they hold, `Ok(Some(longer))` with the duration to try next, or an error
+    /// when that would exceed `max_duration` or after `attempt` 4.
+    pub fn retime(
+        &self,
+        period: f64,
+        peak_v: f64,
+        peak_w: f64,
+        attempt: usize,
+    ) -> Result<Option<f64>, PlanError> {
+        let (over_v, over_w) = (peak_v / self.speed_max, peak_w / self.turn_rate_max);
+        let over = over_v.max(over_w);
+        if over <= 1.0 {
+            return Ok(None);
+        }
+        let longer = ((period * over * 1.1) / self.dt).ceil() * self.dt;
+        if longer > self.max_duration {
+            return Err(PlanError::TooLong {
+                duration: longer,
+                max: self.max_duration,
+            });
+        }
+        if attempt >= 3 {
+            let (what, value, bound) = if over_v >= over_w {
+                ("speed", peak_v, self.speed_max)
+            } else {
+                ("turn rate", peak_w, self.turn_rate_max)
+            };
+            return Err(PlanError::TooFast { what, value, bound });
+        }
+        Ok(Some(longer))
+    }
+
     /// A duration for moving from `from` to `to`: long enough for the distance at
     /// cruising speed and for the turn at the cruising turn rate, a multiple of `dt`.
     pub fn duration(&self, from: [f64; 3], to: &Waypoint) -> f64 {
@@ -121,13 +180,27 @@ pub enum PlanError {
     /// The planning process (thread) is gone.
     #[error("the planning process stopped")]
     ProcessGone,
-    /// The fragment would exceed the speed or turn-rate bounds even when slowed down.
-    #[error("the fragment exceeds the velocity bounds ({what} {value:.2})")]
+    /// The fragment still exceeds the speed or turn-rate bounds after being slowed
+    /// down.
+    #[error("the fragment exceeds the velocity bounds ({what} {value:.2}, bound {bound:.2})")]
     TooFast {
         /// `speed` or `turn rate`.
         what: &'static str,
         /// Peak value.
         value: f64,
+        /// The bound.
+        bound: f64,
+    },
+    /// Respecting the velocity bounds would make the fragment longer than
+    /// `max_duration`.
+    #[error(
+        "the fragment would need {duration:.1} s to respect the velocity bounds, more than the {max:.1} s allowed"
+    )]
+    TooLong {
+        /// The duration needed [s].
+        duration: f64,
+        /// `max_duration` [s].
+        max: f64,
     },
 }
 

@@ -60,7 +60,13 @@ impl Planner for Polynomial {
                 ..*to
             },
         );
-        for _ in 0..4 {
+        if period > s.max_duration {
+            return Err(PlanError::TooLong {
+                duration: period,
+                max: s.max_duration,
+            });
+        }
+        for attempt in 0..4 {
             let n = (period / s.dt).round().max(1.0) as usize;
             let mut states = Vec::with_capacity(n + 1);
             let (mut peak_v, mut peak_w) = (0.0f64, 0.0f64);
@@ -122,29 +128,30 @@ impl Planner for Polynomial {
                 peak_v = peak_v.max(states[k][3].abs());
                 peak_w = peak_w.max(w.abs());
             }
-            let over = (peak_v / s.speed_max).max(peak_w / s.turn_rate_max);
-            if over <= 1.0 {
-                let end = states[n];
-                let error = (end[0] - to.x).hypot(end[1] - to.y);
-                return Ok((
-                    Fragment {
-                        plan: 0,
-                        index: 0,
-                        dt: s.dt,
-                        states,
-                    },
-                    PlanStats {
-                        iterations: 0,
-                        restarts: 0,
-                        error,
-                    },
-                ));
+            match s.retime(period, peak_v, peak_w, attempt)? {
+                None => {
+                    let end = states[n];
+                    let error = (end[0] - to.x).hypot(end[1] - to.y);
+                    return Ok((
+                        Fragment {
+                            plan: 0,
+                            index: 0,
+                            dt: s.dt,
+                            states,
+                        },
+                        PlanStats {
+                            iterations: 0,
+                            restarts: 0,
+                            error,
+                        },
+                    ));
+                }
+                Some(longer) => period = longer,
             }
-            period = ((period * over * 1.1) / s.dt).ceil() * s.dt;
         }
-        Err(PlanError::TooFast {
-            what: "speed or turn rate",
-            value: f64::NAN,
+        Err(PlanError::TooLong {
+            duration: period,
+            max: s.max_duration,
         })
     }
 }

@@ -1,0 +1,439 @@
+//! The locomotion agent a1: c1's protocol with e11 and a2 under random plans (with the
+//! termination helper of `embodied::testing`), and whole missions end to end.
+
+#![allow(
+    clippy::unwrap_used,
+    reason = "a failing unwrap is a failing test (helpers included)"
+)]
+
+use std::time::Duration;
+
+use embodied::testing::{Environment, Termination};
+use embodied::{Activated, Fsm, Stamp, Step, Time};
+use proptest::prelude::*;
+
+use rex_agent::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
+use rex_agent::mission::Mission;
+use rex_agent::planner::trajgen::{Runtime, TrajGen};
+use rex_agent::planner::{PlannerKind, PlannerSettings};
+use rex_agent::rex::{RexConfig, build, default_spec, load_spec};
+use rex_agent::run::{Outcome, run_mission};
+use rex_agent::types::{Ack, AckStatus, Plan, Point2, State};
+use rex_agent::world::WorldConfig;
+
+// ---------------------------------------------------------------------------
+// c1 alone, driven by a model of e11 and a2.
+
+fn stamp(iteration: u64) -> Stamp {
+    Stamp::new(iteration, Time::from_nanos(iteration * 10_000_000))
+}
+
+/// What c1 sent to e11: `(plan, index, steps, notify)`.
+type Handed = (u32, u32, u32, u32);
+
+/// e11 and a2 as c1 sees them: a2 sends one plan at the start; e11 has a state
+/// estimate, reports `ready` at start and `delay` iterations of c1 after each
+/// fragment it receives (e11 is slower than c1 and counts `notify` steps).
+#[derive(Clone, Debug)]
+struct E11AndA2 {
+    plan: Plan,
+    delay: u64,
+    ready_at: Option<u64>,
+    handed: Vec<Handed>,
+    acks: Vec<Ack>,
+}
+
+impl E11AndA2 {
+    fn new(plan: Plan, delay: u64) -> Self {
+        E11AndA2 {
+            plan,
+            delay,
+            ready_at: Some(0),
+            handed: Vec::new(),
+            acks: Vec::new(),
+        }
+    }
+}
+
+impl Environment<C1> for E11AndA2 {
+    fn inputs(&mut self, iteration: u64, previous: Option<&C1Output>, x: &mut C1Input) {
+        x.c2.desired_plan.age();
+        x.e11.ready.age();
+        x.e11.q_est.age();
+        x.c3.pose.age();
+        x.r11.A4x4.age();
+        if iteration == 0 {
+            x.c2.desired_plan.deliver(self.plan.clone(), stamp(0));
+            let state = State {
+                q: [0.0; 7],
+                q_dot: [0.0; 7],
+            };
+            x.e11.q_est.deliver(state, stamp(0));
+        }
+        if let Some(y) = previous {
+            if let Some(f) = y.e11.traj.written() {
+                let steps = y.e11.steps.written().copied().unwrap_or(0);
+                let notify = y.e11.notify.written().copied().unwrap_or(u32::MAX);
+                self.handed.push((f.plan, f.index, steps, notify));
+                self.ready_at = Some(iteration + self.delay);
+            }
+            if let Some(a) = y.c2.ack.written() {
+                self.acks.push(a.clone());
+            }
+        }
+        if self.ready_at == Some(iteration) {
+            self.ready_at = None;
+            x.e11.ready.deliver(true, stamp(iteration));
+        }
+    }
+}
+
+fn c1_memory() -> C1Memory {
+    let settings = PlannerSettings {
+        speed_max: 0.9,
+        turn_rate_max: 1.2,
+        ..PlannerSettings::default()
+    };
+    C1Memory::new(
+        TrajGen::new(PlannerKind::Ecsa, settings, Runtime::Inline, 3),
+        C1Params::default(),
+    )
+}
+
+/// Plans of 1..=50 points on the map, with repeated points (the same point twice)
+/// and collinear runs (a point on the line through the previous two).
+fn plans() -> impl Strategy<Value = Plan> {
+    prop::collection::vec((0u8..4, -4.5f64..4.5, -4.5f64..4.5), 1..=50).prop_map(|steps| {
+        let mut points: Vec<Point2> = Vec::new();
+        for (kind, x, y) in steps {
+            let n = points.len();
+            let p = match kind {
+                0 if n >= 1 => points[n - 1],
+                1 if n >= 2 => {
+                    let (a, b) = (points[n - 2], points[n - 1]);
+                    let ahead = Point2 {
+                        x: b.x + 0.5 * (b.x - a.x),
+                        y: b.y + 0.5 * (b.y - a.y),
+                    };
+                    let on_map = ahead.x.abs() <= 5.0 && ahead.y.abs() <= 5.0;
+                    if on_map {
+                        ahead
+                    } else {
+                        Point2 {
+                            x: (a.x + b.x) / 2.0,
+                            y: (a.y + b.y) / 2.0,
+                        }
+                    }
+                }
+                _ => Point2 { x, y },
+            };
+            points.push(p);
+        }
+        Plan { id: 1, points }
+    })
+}
+
+fn environments() -> impl Strategy<Value = E11AndA2> {
+    (plans(), 1u64..40).prop_map(|(plan, delay)| E11AndA2::new(plan, delay))
+}
+
+/// The bound: per point, planning (3 iterations) and e11's ready (< 40), twice over.
+const BOUND: u64 = 50 * 2 * 43 + 20;
+
+#[test]
+fn c1_returns_to_b1_for_any_plan() {
+    let fsm = c1_fsm().unwrap();
+    Termination::within(BOUND)
+        .cases(24)
+        .returns_to(&fsm, "B1", Just(c1_memory()), environments())
+        .unwrap();
+}
+
+/// Drive c1 until it is back in B1; the environment keeps what c1 sent.
+fn drive(fsm: &Fsm<C1>, mut env: E11AndA2) -> Result<E11AndA2, String> {
+    let mut memory = c1_memory();
+    let mut state = fsm.start();
+    let mut input = C1Input::default();
+    let mut previous: Option<C1Output> = None;
+    let b1 = fsm.behaviour_index("B1").ok_or("no B1")?;
+    for iteration in 0..BOUND + 2 {
+        env.inputs(iteration, previous.as_ref(), &mut input);
+        let mut output = C1Output::default();
+        let mut back = false;
+        let r = fsm
+            .activate(&mut state, &mut memory, &input, &mut output, |s| {
+                back |= matches!(s, Step::Entered { to, .. } if *to == b1);
+            })
+            .map_err(|e| e.to_string())?;
+        if back {
+            // The ack of B3 was sent in the previous activation; keep it.
+            env.inputs(iteration + 1, Some(&output), &mut input);
+            return Ok(env);
+        }
+        if let Activated::Halted = r {
+            return Err("halted".into());
+        }
+        previous = Some(output);
+    }
+    Err("did not return to B1".into())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Fragments reach e11 in order, none lost or duplicated, each with
+    /// `notify < steps`; the plan is acknowledged exactly once (ack = true), after a
+    /// first `ack = false` when it was taken.
+    #[test]
+    fn fragments_in_order_and_one_ack_per_plan(env in environments()) {
+        let fsm = c1_fsm().unwrap();
+        let points = env.plan.points.len();
+        let env = drive(&fsm, env).map_err(TestCaseError::fail)?;
+        let finals: Vec<&Ack> = env.acks.iter().filter(|a| a.ready()).collect();
+        prop_assert_eq!(finals.len(), 1, "acks: {:?}", env.acks);
+        prop_assert_eq!(env.acks.first().map(|a| &a.status), Some(&AckStatus::Received));
+        let indices: Vec<u32> = env.handed.iter().map(|h| h.1).collect();
+        let expected: Vec<u32> = (0..indices.len() as u32).collect();
+        prop_assert_eq!(&indices, &expected, "in order, none lost or duplicated");
+        for &(plan, _, steps, notify) in &env.handed {
+            prop_assert_eq!(plan, 1);
+            prop_assert!(notify < steps, "notify {} < steps {}", notify, steps);
+        }
+        match &finals[0].status {
+            AckStatus::Done => prop_assert_eq!(indices.len(), points, "one fragment per point"),
+            AckStatus::Failed(_) => prop_assert!(indices.len() < points),
+            other => prop_assert!(false, "unexpected {:?}", other),
+        }
+    }
+}
+
+#[test]
+fn a_failing_termination_property_is_shrunk_to_a_readable_trace() {
+    // An e11 that never reports ready after the first fragment: c1 waits in B2.
+    #[derive(Clone, Debug)]
+    struct Silent(E11AndA2);
+    impl Environment<C1> for Silent {
+        fn inputs(&mut self, it: u64, prev: Option<&C1Output>, x: &mut C1Input) {
+            self.0.inputs(it, prev, x);
+            self.0.ready_at = None;
+            if it > 0 {
+                x.e11.ready.age();
+            }
+        }
+    }
+    let env = plans().prop_map(|p| Silent(E11AndA2::new(p, 1)));
+    let fsm = c1_fsm().unwrap();
+    let err = Termination::within(300)
+        .cases(8)
+        .returns_to(&fsm, "B1", Just(c1_memory()), env)
+        .unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("did not enter `B1` within 300"), "{text}");
+    // Shrunk to a plan of two points (one fragment is handed over at the start).
+    assert!(text.contains("[(0.00, 0.00), (0.00, 0.00)]"), "{text}");
+    assert!(text.contains("ι=299"), "{text}");
+}
+
+// ---------------------------------------------------------------------------
+// Whole missions.
+
+fn mission(name: &str, plans: Vec<Vec<(f64, f64)>>) -> Mission {
+    Mission {
+        name: name.into(),
+        plans: plans
+            .into_iter()
+            .map(|p| p.into_iter().map(|(x, y)| Point2 { x, y }).collect())
+            .collect(),
+    }
+}
+
+fn run(config: &RexConfig, seconds: u64) -> Outcome {
+    run_mission(
+        config,
+        Duration::from_secs(seconds),
+        Duration::from_secs(3600),
+        |_| {},
+    )
+    .unwrap()
+}
+
+fn short() -> RexConfig {
+    let m = mission(
+        "short",
+        vec![
+            vec![(1.0, 0.0), (1.5, 0.5)],
+            vec![(1.0, 1.0), (0.0, 1.0), (0.0, 0.0)],
+        ],
+    );
+    RexConfig::new(WorldConfig::shipped().unwrap(), m)
+}
+
+#[test]
+fn a_short_mission_is_tracked_within_the_bound() {
+    let out = run(&short(), 120);
+    assert!(out.completed, "{}", out.summary_line());
+    assert_eq!(out.plans_done(), 2, "{:?}", out.acks);
+    assert_eq!(out.acks.len(), 2, "one final ack per plan");
+    assert_eq!(out.counters.fragments_completed, 5);
+    assert_eq!(out.counters.executor_errors, 0);
+    assert!(out.rms() < 0.04, "{}", out.summary_line());
+    assert!(out.max_error() < 0.10, "{}", out.summary_line());
+    // The platform ends at the last point of the last plan.
+    let last = out.samples.last().unwrap();
+    assert!(
+        last.truth[0].hypot(last.truth[1]) < 0.05,
+        "{:?}",
+        last.truth
+    );
+}
+
+#[test]
+fn runs_are_deterministic_with_the_planning_thread() {
+    let mut config = short();
+    config.mission.plans.truncate(1);
+    let a = run(&config, 30);
+    let b = run(&config, 30);
+    assert!(a.completed);
+    assert_eq!(a.samples, b.samples);
+    assert_eq!(a.acks, b.acks);
+    let mut inline = config.clone();
+    inline.runtime = Runtime::Inline;
+    assert_eq!(
+        run(&inline, 30).samples,
+        a.samples,
+        "thread or inline: same run"
+    );
+}
+
+#[test]
+fn bad_plans_are_refused_and_reported_to_a2() {
+    let m = mission(
+        "bad",
+        vec![
+            vec![],
+            vec![(1.0, f64::NAN)],
+            vec![(1.0, 0.0), (40.0, 0.0)],
+            vec![(0.5, 0.0)],
+        ],
+    );
+    let out = run(&RexConfig::new(WorldConfig::shipped().unwrap(), m), 60);
+    assert!(out.completed, "{}", out.summary_line());
+    let status: Vec<&AckStatus> = out.acks.iter().map(|(_, a)| &a.status).collect();
+    assert_eq!(status.len(), 4);
+    let refused =
+        |s: &AckStatus, what: &str| matches!(s, AckStatus::Refused(r) if r.contains(what));
+    assert!(refused(status[0], "no points"), "{:?}", status[0]);
+    assert!(refused(status[1], "not finite"), "{:?}", status[1]);
+    assert!(refused(status[2], "off the map"), "{:?}", status[2]);
+    assert_eq!(status[3], &AckStatus::Done);
+    assert_eq!(
+        out.counters.fragments_completed, 1,
+        "only the good plan moved"
+    );
+}
+
+#[test]
+fn a_planner_failure_holds_position_and_is_reported() {
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        mission("fail", vec![vec![(2.0, 0.0)], vec![(1.0, 0.0)]]),
+    );
+    // A speed bound no fragment can respect: the planner gives up.
+    config.planner_settings.speed_max = 1e-4;
+    let out = run(&config, 30);
+    assert!(out.completed, "{} {:?}", out.summary_line(), out.acks);
+    assert_eq!(out.acks.len(), 2);
+    for (_, ack) in &out.acks {
+        assert!(
+            matches!(&ack.status, AckStatus::Failed(m) if m.contains("more than the 60.0 s allowed")),
+            "{ack:?}"
+        );
+    }
+    assert_eq!(out.counters.planner_failures, 2);
+    assert_eq!(out.counters.fragments_received, 0);
+    let last = out.samples.last().unwrap();
+    assert!(
+        last.truth[0].hypot(last.truth[1]) < 0.02,
+        "held at the start: {:?}",
+        last.truth
+    );
+}
+
+#[test]
+fn the_system_is_the_spec() {
+    // Every link built is a link of specs/rex.ron with the same policy, every link
+    // of the spec between components of the deployment `simulation_without_vo` is
+    // built, and every component has the spec's kind and period.
+    let spec = load_spec(&default_spec()).unwrap();
+    let (system, _, _) = build(&short()).unwrap();
+    let info = system.info();
+    let deployment = spec
+        .deployments
+        .iter()
+        .find(|d| d.name == "simulation_without_vo")
+        .unwrap();
+    let deployed: Vec<&str> = deployment
+        .hosts
+        .iter()
+        .flat_map(|h| {
+            h.processes
+                .iter()
+                .flat_map(|p| p.runs.iter().map(String::as_str))
+        })
+        .collect();
+    let mut names: Vec<&str> = info.nodes.iter().map(|n| n.name.as_str()).collect();
+    names.sort_unstable();
+    let mut expected = deployed.clone();
+    expected.sort_unstable();
+    assert_eq!(names, expected);
+    let policy = |p: &embodied::Policy| match p {
+        embodied::Policy::Sample => embodied::spec::model::Policy::Sample,
+        embodied::Policy::Queue { bound } => embodied::spec::model::Policy::Queue(*bound),
+    };
+    let built: Vec<(String, String, embodied::spec::model::Policy)> = info
+        .links
+        .iter()
+        .map(|l| {
+            (
+                format!("{}.{}", info.nodes[l.from].name, l.from_port),
+                format!("{}.{}", info.nodes[l.to].name, l.to_port),
+                policy(&l.policy),
+            )
+        })
+        .collect();
+    let in_spec: Vec<(String, String, embodied::spec::model::Policy)> = spec
+        .links
+        .iter()
+        .filter(|l| {
+            let node = |s: &str| s.split('.').next().unwrap_or("").to_owned();
+            deployed.contains(&node(&l.from).as_str()) && deployed.contains(&node(&l.to).as_str())
+        })
+        .map(|l| (l.from.clone(), l.to.clone(), l.policy))
+        .collect();
+    for l in &built {
+        assert!(in_spec.contains(l), "built but not in the spec: {l:?}");
+    }
+    for l in &in_spec {
+        assert!(built.contains(l), "in the spec but not built: {l:?}");
+    }
+    for node in &info.nodes {
+        let period_ms = spec
+            .subsystems()
+            .find(|(_, s)| s.name == node.name)
+            .map(|(_, s)| s.period_ms)
+            .or_else(|| {
+                spec.agents
+                    .iter()
+                    .flat_map(|a| &a.devices)
+                    .find(|d| d.name == node.name)
+                    .map(|d| d.period_ms)
+            })
+            .unwrap();
+        assert_eq!(
+            node.period.as_nanos() as f64,
+            period_ms * 1e6,
+            "period of {}",
+            node.name
+        );
+    }
+}
