@@ -74,11 +74,11 @@ impl Default for Gains {
     fn default() -> Self {
         Gains {
             kx: 2.0,
-            ky: 12.0,
+            ky: 40.0,
             kphi: 5.0,
             kphi_rest: 2.5,
             kv: 8.0,
-            kw: 10.0,
+            kw: 15.0,
             ki_v: 10.0,
             ki_w: 30.0,
             i_max: 3.0,
