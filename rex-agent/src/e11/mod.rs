@@ -368,3 +368,98 @@ pub fn e11_fsm() -> Result<Fsm<E11>, FsmBuildError> {
         "false",
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{PlatformParams, SlipParams};
+    use embodied::{Stamp, Time};
+
+    fn fragment(index: u32, x0: f64, n: usize) -> Fragment {
+        Fragment {
+            plan: 1,
+            index,
+            dt: 0.05,
+            states: (0..=n)
+                .map(|k| [x0 + 0.01 * k as f64, 0.0, 0.0, 0.2, 0.0])
+                .collect(),
+        }
+    }
+
+    /// What e11 did at each iteration (ready sent, the fragment whose reference it
+    /// followed), and the fragments it rejected.
+    fn run(
+        deliveries: &[(u64, Fragment, u32, u32)],
+        iterations: u64,
+    ) -> (Vec<(bool, Option<u32>)>, u32) {
+        let params = PlatformParams::peer_default();
+        let mut m = E11Memory::new(
+            TrackerKind::Backstepping.build(params.clone()),
+            EstimatorKind::Ekf.build(params, SlipParams::NOMINAL),
+            0.05,
+            0.03,
+        );
+        let fsm = e11_fsm().unwrap();
+        let mut state = fsm.start();
+        let mut x = E11Input::default();
+        let stamp = Stamp::new(0, Time::ZERO);
+        let mut out = Vec::new();
+        for it in 0..iterations {
+            x.c1.traj.age();
+            x.c1.steps.age();
+            x.c1.notify.age();
+            x.c1.pose.age();
+            if it == 0 {
+                // Localise the estimator at the origin.
+                let pose = MapPose {
+                    pose: crate::types::Pose2::default(),
+                    time: 0.0,
+                };
+                x.c1.pose.deliver(pose, stamp);
+            }
+            for (at, f, steps, notify) in deliveries {
+                if *at == it {
+                    x.c1.traj.deliver(f.clone(), stamp);
+                    x.c1.steps.deliver(*steps, stamp);
+                    x.c1.notify.deliver(*notify, stamp);
+                }
+            }
+            let mut y = E11Output::default();
+            fsm.activate(&mut state, &mut m, &x, &mut y, |_| {})
+                .unwrap();
+            out.push((y.c1.ready.is_written(), m.track.following.map(|(_, i)| i)));
+        }
+        (out, m.track.rejected)
+    }
+
+    #[test]
+    fn fragments_run_steps_iterations_ready_after_notify_then_hold() {
+        let (out, rejected) = run(
+            &[
+                (1, fragment(0, 0.0, 10), 10, 6),
+                (4, fragment(1, 0.1, 4), 4, 2),
+            ],
+            24,
+        );
+        assert_eq!(rejected, 0);
+        let ready: Vec<usize> = (0..out.len()).filter(|&i| out[i].0).collect();
+        let following: Vec<Option<u32>> = out.iter().map(|o| o.1).collect();
+        // Ready once at start, then once per fragment after `notify` iterations of it.
+        // Fragment 0 arrives at 1 and runs 2..=11; fragment 1 arrives early (at 4),
+        // waits, and runs 12..=15; then e11 holds the last point.
+        assert_eq!(ready, [0, 8, 14], "{out:?}");
+        assert_eq!(&following[2..12], &[Some(0); 10]);
+        assert_eq!(&following[12..16], &[Some(1); 4]);
+        assert!(following[16..].iter().all(Option::is_none), "holding");
+        assert_eq!(following[..2], [None, None]);
+    }
+
+    #[test]
+    fn bad_fragments_are_rejected_and_counted() {
+        let mut bad = fragment(0, 0.0, 5);
+        bad.states[3][1] = f64::NAN;
+        let (out, rejected) = run(&[(1, bad, 5, 2)], 10);
+        assert_eq!(rejected, 1);
+        assert!(out.iter().all(|o| o.1.is_none()), "never followed: {out:?}");
+    }
+}
