@@ -10,10 +10,13 @@
 //!   the executor's scheduling is included.
 //! * `fsm_step_ns`: median time of one FSM decision that ends a behaviour: the
 //!   terminal test plus the selection of the one arc that holds among two.
-//! * `allocs_per_cycle`: heap allocations per elementary action in steady state,
-//!   counted by a counting global allocator.
+//! * `allocs_per_cycle`: heap allocations per steady-state cycle, counted by a
+//!   counting global allocator. A cycle is one instant of the executor
+//!   ([`Executor::step`]): both subsystems (same period) read, decide, compute and
+//!   send once, so a cycle holds two elementary actions. Counted over every
+//!   measured instant, after a warm-up that fills the buffers and queues.
 //!
-//! Medians over batches of 20 000 actions; the last line reads
+//! Medians over batches of 20 000 instants (40 000 actions); the last line reads
 //! `action_ns=<..> fsm_step_ns=<..> allocs_per_cycle=<..>`.
 
 use std::alloc::{GlobalAlloc, Layout, System as SystemAlloc};
@@ -234,15 +237,20 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Instants (cycles) per timed batch.
 const BATCH: u64 = 20_000;
+/// Elementary actions per cycle: the two subsystems of [`pair`] share one period.
+const ACTIONS_PER_CYCLE: u64 = 2;
 const BATCHES: usize = 101;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Elementary actions in the executor.
     let mut exec = Executor::new(pair()?, ExecConfig::default());
     exec.run_for(Duration::from_millis(BATCH))?; // warm-up: buffers and queues filled
+    let warm_up = exec.report().instants;
     let mut action_ns = Vec::with_capacity(BATCHES);
     let mut allocations = 0;
+    let mut cycles = 0;
     let mut actions = 0;
     for _ in 0..BATCHES {
         let before = ALLOCATIONS.load(Relaxed);
@@ -252,11 +260,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let elapsed = start.elapsed();
         allocations += ALLOCATIONS.load(Relaxed) - before;
-        actions += 2 * BATCH;
-        action_ns.push(elapsed.as_nanos() as f64 / (2 * BATCH) as f64);
+        cycles += BATCH;
+        actions += ACTIONS_PER_CYCLE * BATCH;
+        action_ns.push(elapsed.as_nanos() as f64 / (ACTIONS_PER_CYCLE * BATCH) as f64);
+    }
+    let executed = exec.report().instants - warm_up;
+    if executed != cycles || exec.report().error_count != 0 {
+        return Err(format!(
+            "expected {cycles} error-free instants, the executor ran {executed} ({} errors)",
+            exec.report().error_count
+        )
+        .into());
     }
     let action = median(action_ns);
-    let allocs = allocations as f64 / actions as f64;
+    // Per cycle (one executor instant), not per action.
+    let allocs = allocations as f64 / cycles as f64;
 
     // FSM decisions.
     let fsm = chooser_fsm()?;
@@ -275,9 +293,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let decision = median(fsm_ns);
 
     println!(
-        "{} actions ({} batches of {BATCH} instants, 2 actions each), {} FSM decisions",
-        actions,
-        BATCHES,
+        "{cycles} cycles = {actions} actions ({BATCHES} batches of {BATCH} instants, \
+         {ACTIONS_PER_CYCLE} actions each), {allocations} allocations in them, {} FSM decisions",
         BATCHES as u64 * BATCH
     );
     println!(

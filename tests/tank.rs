@@ -196,14 +196,47 @@ fn idle_ends_as_soon_as_an_order_arrives() {
     // While-type: the order read at iteration `arrival` (at most 39) is stored by
     // that iteration's action; the test before the next iteration ends the
     // behaviour. 40 is the exact bound: 39 fails (the helper finds arrival = 39).
-    Termination::within(40)
-        .behaviour(
+    let idle = |bound: u64| {
+        // Enough cases that an arrival of 39 (1 in 40) is drawn: a miss is
+        // (39/40)^1024 ≈ 6e-12.
+        Termination::within(bound).cases(1024).behaviour(
             &fsm,
             "idle",
             Just(StationMemory::new(StationParams::default())),
             station_env(any_target(), 0.5..=1.0),
         )
-        .unwrap();
+    };
+    idle(40).unwrap();
+    let msg = idle(39).unwrap_err().to_string();
+    assert!(
+        msg.starts_with(
+            "behaviour `idle` (while-type) did not reach its terminal condition `has_order` within 39 iterations\n"
+        ),
+        "{msg}"
+    );
+    assert!(
+        msg.contains(
+            "environment:    StationEnv { level: 0.0, efficiency: 0.5, flow: 0.0, order: Order { id: 1, level: 0.1 }, arrival: 39 }"
+        ),
+        "shrunk to the simplest environment whose order comes last:\n{msg}"
+    );
+    // 39 actions of `idle` without an order (ι=0..38); the order read at ι=39 is
+    // only in the inputs at the last terminal test, not yet in the memory.
+    let lines: Vec<&str> = msg.lines().collect();
+    let at = |k: u64| {
+        let prefix = format!("  ι={k}: inputs ");
+        lines
+            .iter()
+            .find(|l| l.starts_with(&prefix))
+            .unwrap_or_else(|| panic!("no line for ι={k}:\n{msg}"))
+    };
+    assert!(at(0).contains("order: ∅ } } -> outputs"), "{msg}");
+    assert!(at(38).contains("order: ∅ } } -> outputs"), "{msg}");
+    assert!(
+        at(39).ends_with("order: new Order { id: 1, level: 0.1 } } } -> not ended, bound reached"),
+        "{msg}"
+    );
+    assert!(msg.contains("… 16 iterations not shown …"), "{msg}");
 }
 
 #[test]
@@ -279,4 +312,53 @@ fn a_dead_pump_is_caught_and_shrunk_to_a_readable_trace() {
         "{msg}"
     );
     assert!(msg.contains("iterations not shown"), "{msg}");
+}
+
+#[test]
+fn a_station_that_cannot_come_back_to_idle_is_caught_and_shrunk() {
+    // Valid orders but a pump that may deliver nothing: the FSM can be stuck in
+    // `fill`, so it never comes back to `idle`. The helper must find it, shrink every
+    // parameter of the environment to its simplest failing value and print the
+    // activations.
+    let fsm = station_fsm().unwrap();
+    let err = Termination::within(200)
+        .cases(64)
+        .shown(3)
+        .returns_to(
+            &fsm,
+            "idle",
+            Just(StationMemory::new(StationParams::default())),
+            station_env(0.1f64..=1.9, 0.0..=1.0),
+        )
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("the FSM did not enter `idle` within 200 activations\n"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains(
+            "environment:    StationEnv { level: 0.0, efficiency: 0.0, flow: 0.0, order: Order { id: 1, level: 0.1 }, arrival: 0 }"
+        ),
+        "shrunk to an empty tank, a dead pump, the lowest target, the first iteration:\n{msg}"
+    );
+    // The order read at ι=0 is taken by `idle`, `fill` starts at ι=1 and never ends.
+    let lines: Vec<&str> = msg.lines().collect();
+    let at = |k: u64| {
+        let prefix = format!("  ι={k}: inputs ");
+        lines
+            .iter()
+            .find(|l| l.starts_with(&prefix))
+            .unwrap_or_else(|| panic!("no line for ι={k}:\n{msg}"))
+    };
+    assert!(at(0).contains(" | idle: outputs"), "{msg}");
+    assert!(at(1).contains(" -> fill | fill: outputs"), "{msg}");
+    assert!(at(2).contains(" | fill: outputs"), "{msg}");
+    assert!(at(199).contains(" | fill: outputs"), "{msg}");
+    assert!(msg.contains("… 194 iterations not shown …"), "{msg}");
+    assert_eq!(
+        lines.iter().filter(|l| l.starts_with("  ι=")).count(),
+        6,
+        "3 first and 3 last activations:\n{msg}"
+    );
 }

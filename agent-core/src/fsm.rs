@@ -420,6 +420,15 @@ impl FsmState {
     pub(crate) fn halt(&mut self) {
         self.halted = true;
     }
+
+    /// The state on entering behaviour `node` afresh: no action of it done yet.
+    fn entering(node: usize) -> FsmState {
+        FsmState {
+            node,
+            actions_done: false,
+            halted: false,
+        }
+    }
 }
 
 /// One decision of the FSM (terminal test and, if the behaviour ends, arc selection).
@@ -570,11 +579,14 @@ impl<S: Subsystem> Fsm<S> {
 
     /// The state at the start: in the initial behaviour, no action done yet.
     pub fn start(&self) -> FsmState {
-        FsmState {
-            node: self.initial,
-            actions_done: false,
-            halted: false,
-        }
+        FsmState::entering(self.initial)
+    }
+
+    /// The state on entering behaviour `index` afresh, as when an arc into it is
+    /// followed (`None` for an unknown index). The termination helpers start a
+    /// behaviour this way.
+    pub fn start_at(&self, index: usize) -> Option<FsmState> {
+        (index < self.nodes.len()).then(|| FsmState::entering(index))
     }
 
     /// Number of behaviours.
@@ -657,9 +669,33 @@ impl<S: Subsystem> Fsm<S> {
         format!("-> {} [{}]", self.behaviour_name(a.to), a.text)
     }
 
+    /// Whether the current behaviour ends now: its terminal condition is tested at
+    /// this point (before every iteration for while-type; for repeat-type only once
+    /// an action of it ran) and holds. This is the first half of [`Fsm::step`], the
+    /// same code; it selects no arc and does not move the FSM.
+    #[inline]
+    pub fn ends(&self, state: &FsmState, memory: &S::Memory, input: &S::Input) -> bool {
+        self.ends_with(state, memory, input, &mut Memo::default())
+    }
+
+    #[inline]
+    fn ends_with(
+        &self,
+        state: &FsmState,
+        memory: &S::Memory,
+        input: &S::Input,
+        memo: &mut Memo,
+    ) -> bool {
+        let node = &self.nodes[state.node];
+        !node.never_ends
+            && node.behaviour.kind.tests_terminal(state.actions_done)
+            && self.eval(&node.terminal, memory, input, memo)
+    }
+
     /// One decision: test the current behaviour's terminal condition (before every
-    /// iteration for while-type, after each iteration for repeat-type) and, if it
-    /// holds, select the one arc whose initial condition holds.
+    /// iteration for while-type, after each iteration for repeat-type; see
+    /// [`Fsm::ends`]) and, if it holds, select the one arc whose initial condition
+    /// holds.
     #[inline]
     pub fn step(
         &self,
@@ -668,14 +704,11 @@ impl<S: Subsystem> Fsm<S> {
         input: &S::Input,
     ) -> Result<Step, FsmFault> {
         let from = state.node;
-        let node = &self.nodes[from];
-        if node.never_ends || !node.behaviour.kind.tests_terminal(state.actions_done) {
-            return Ok(Step::Run);
-        }
         let mut memo = Memo::default();
-        if !self.eval(&node.terminal, memory, input, &mut memo) {
+        if !self.ends_with(state, memory, input, &mut memo) {
             return Ok(Step::Run);
         }
+        let node = &self.nodes[from];
         let mut chosen = None;
         let mut count = 0usize;
         for (i, a) in node.arcs.iter().enumerate() {
@@ -687,11 +720,7 @@ impl<S: Subsystem> Fsm<S> {
         match (count, chosen) {
             (1, Some(arc)) => {
                 let to = node.arcs[arc].to;
-                *state = FsmState {
-                    node: to,
-                    actions_done: false,
-                    halted: false,
-                };
+                *state = FsmState::entering(to);
                 Ok(Step::Entered { from, arc, to })
             }
             (0, _) if node.is_final => {
@@ -723,10 +752,13 @@ impl<S: Subsystem> Fsm<S> {
         }
     }
 
-    /// One activation after the inputs were read: FSM decisions until a behaviour goes
-    /// on (at most one transition per behaviour), then that behaviour's elementary
-    /// action. `on_step` sees every transition. This is the code path of the executor
-    /// and of the termination-testing helpers alike.
+    /// One activation after the inputs were read: FSM decisions ([`Fsm::step`]) until
+    /// a behaviour goes on (at most one transition per behaviour), then that
+    /// behaviour's elementary action ([`Fsm::act`]). `on_step` sees every transition.
+    /// This is what the executor runs for a subsystem and what the termination helper
+    /// `testing::Termination::returns_to` runs; `testing::Termination::behaviour`
+    /// calls its two halves instead, [`Fsm::ends`] and [`Fsm::act`], to stay in one
+    /// behaviour.
     pub fn activate(
         &self,
         state: &mut FsmState,
@@ -760,6 +792,24 @@ impl<S: Subsystem> Fsm<S> {
                     return Ok(Activated::Halted);
                 }
             }
+        }
+        self.act(state, memory, input, output)
+    }
+
+    /// One iteration of the current behaviour, without any decision: run its
+    /// elementary action and record that an action of it ran (from now on a
+    /// repeat-type behaviour tests its terminal condition). The second half of
+    /// [`Fsm::activate`], the same code. Nothing runs in a halted FSM.
+    #[inline]
+    pub fn act(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+    ) -> Result<Activated, ActivationError> {
+        if state.halted {
+            return Ok(Activated::Halted);
         }
         let node = &self.nodes[state.node];
         node.behaviour
@@ -861,6 +911,63 @@ mod tests {
         let a = fsm.activate(&mut st, &mut m, &x, &mut y, |_| {}).unwrap();
         assert_eq!(a, Activated::Ran { behaviour: 2 });
         assert_eq!(m, 1, "idle's action does nothing");
+    }
+
+    #[test]
+    fn ends_and_act_are_the_halves_of_activate() {
+        let fsm = builder()
+            .behaviour(Behaviour::while_loop("w", count(), "three"))
+            .behaviour(Behaviour::repeat_loop("r", count(), "three"))
+            .behaviour(Behaviour::while_loop("idle", count(), "false"))
+            .initial("w")
+            .arc("w", "r", "true")
+            .arc("r", "idle", "true")
+            .build()
+            .unwrap();
+        let x = input(false, false);
+        assert_eq!(fsm.start_at(3), None);
+        assert_eq!(fsm.start_at(0), Some(fsm.start()));
+        // While-type: tested before the first action.
+        let w = fsm.start_at(0).unwrap();
+        assert!(fsm.ends(&w, &3, &x));
+        assert!(!fsm.ends(&w, &2, &x));
+        // Repeat-type: not tested before its first action, even if it would hold.
+        let mut r = fsm.start_at(1).unwrap();
+        assert!(!fsm.ends(&r, &3, &x));
+        let mut probe = r;
+        assert_eq!(fsm.step(&mut probe, &3, &x), Ok(Step::Run), "step agrees");
+        let (mut m, mut y) = (3u32, Y::default());
+        assert_eq!(
+            fsm.act(&mut r, &mut m, &x, &mut y).unwrap(),
+            Activated::Ran { behaviour: 1 }
+        );
+        assert_eq!((m, y.e.n.written()), (4, Some(&3)), "the action ran once");
+        assert!(
+            r.actions_done() && r.behaviour() == 1,
+            "act does not decide"
+        );
+        assert!(fsm.ends(&r, &m, &x));
+        let mut probe = r;
+        assert_eq!(
+            fsm.step(&mut probe, &m, &x),
+            Ok(Step::Entered {
+                from: 1,
+                arc: 0,
+                to: 2
+            }),
+            "step agrees"
+        );
+        // A behaviour whose terminal condition is `false` never ends.
+        let mut i = fsm.start_at(2).unwrap();
+        fsm.act(&mut i, &mut m, &x, &mut Y::default()).unwrap();
+        assert!(!fsm.ends(&i, &m, &x));
+        // Nothing runs in a halted FSM.
+        i.halt();
+        assert_eq!(
+            fsm.act(&mut i, &mut m, &x, &mut Y::default()).unwrap(),
+            Activated::Halted
+        );
+        assert_eq!(m, 5);
     }
 
     #[test]

@@ -1,14 +1,18 @@
 //! Termination and liveness properties, checked with proptest on your own subsystems.
 //!
-//! Two properties, both run through the same FSM code path as the executor
-//! ([`Fsm::activate`]):
+//! Two properties, both run by the FSM's own code, the code the executor runs:
 //!
 //! * [`Termination::behaviour`]: a behaviour, started afresh, reaches its terminal
 //!   condition within `bound` iterations, for every initial memory and environment
-//!   drawn from strategies;
+//!   drawn from strategies. Each iteration calls [`Fsm::ends`] (the terminal test
+//!   with its while/repeat timing: the first half of [`Fsm::step`]) and, while the
+//!   behaviour goes on, [`Fsm::act`] (its elementary action: the second half of
+//!   [`Fsm::activate`]). The check stops when the behaviour ends, so no arc is
+//!   selected: faults of arc selection are the business of the next property.
 //! * [`Termination::returns_to`]: the FSM, started at its initial behaviour and driven
 //!   by an environment, enters a designated behaviour within `bound` activations (for
-//!   a behaviour that is also the initial one: leaves it and comes back).
+//!   a behaviour that is also the initial one: leaves it and comes back). Each
+//!   activation is one call of [`Fsm::activate`], exactly as in the executor.
 //!
 //! The environment is a model of everything outside the subsystem: an
 //! [`Environment`] fills the input buffers before each activation and sees the
@@ -56,7 +60,7 @@ use std::fmt::{self, Debug, Write as _};
 use proptest::strategy::Strategy;
 use proptest::test_runner::{Config, TestCaseError, TestError, TestRunner};
 
-use crate::fsm::{Activated, Fsm, Step};
+use crate::fsm::{Activated, ActivationError, Fsm, Step};
 use crate::subsystem::Subsystem;
 
 /// What the rest of the world does to one subsystem's inputs.
@@ -330,41 +334,47 @@ where
     S::Input: Debug,
     S::Output: Debug,
 {
-    let Some(behaviour) = fsm.behaviour(b) else {
+    let (Some(behaviour), Some(mut state)) = (fsm.behaviour(b), fsm.start_at(b)) else {
         return Err(format!("no behaviour #{b}"));
     };
-    let kind = behaviour.kind();
     let mut input = S::Input::default();
     let mut previous: Option<S::Output> = None;
     for iteration in 0..=bound {
         env.inputs(iteration, previous.as_ref(), &mut input);
-        if kind.tests_terminal(iteration > 0) && fsm.terminal_holds(b, &memory, &input) {
+        // The executor's terminal test (`Fsm::step` calls the same `Fsm::ends`).
+        if fsm.ends(&state, &memory, &input) {
             log_line(log, || {
                 format!("ι={iteration}: inputs {input:?} -> terminal condition holds")
             });
             return Ok(());
         }
         if iteration == bound {
+            log_line(log, || {
+                format!("ι={iteration}: inputs {input:?} -> not ended, bound reached")
+            });
             break;
         }
         let mut output = S::Output::default();
-        let result = behaviour.action().compute(&mut memory, &input, &mut output);
+        // The executor's action (`Fsm::activate` ends with the same `Fsm::act`).
+        let result = fsm.act(&mut state, &mut memory, &input, &mut output);
         let mem = memory_text(log, &memory);
         log_line(log, || {
             format!("ι={iteration}: inputs {input:?} -> outputs {output:?}, memory {mem}")
         });
-        if let Err(e) = result {
-            return Err(format!(
-                "the action of behaviour `{}` failed at ι={iteration}: {e}",
-                behaviour.name()
-            ));
+        match result {
+            Ok(_) => previous = Some(output),
+            Err(ActivationError::Action { behaviour, source }) => {
+                return Err(format!(
+                    "the action of behaviour `{behaviour}` failed at ι={iteration}: {source}"
+                ));
+            }
+            Err(e) => return Err(format!("the FSM failed at ι={iteration}: {e}")),
         }
-        previous = Some(output);
     }
     Err(format!(
         "behaviour `{}` ({}-type) did not reach its terminal condition `{}` within {bound} iterations",
         behaviour.name(),
-        kind,
+        behaviour.kind(),
         behaviour.terminal()
     ))
 }
@@ -418,4 +428,69 @@ where
         "the FSM did not enter `{}` within {bound} activations",
         fsm.behaviour_name(target)
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::strategy::Just;
+
+    use super::*;
+    use crate::behaviour::Behaviour;
+    use crate::subsystem::SubsystemKind;
+    use crate::transition::Action;
+
+    struct Counter;
+    impl Subsystem for Counter {
+        const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
+        type Memory = u32;
+        type Input = ();
+        type Output = ();
+    }
+
+    /// `b`: while-type, `r`: repeat-type, both counting and ending when `always`.
+    fn fsm() -> Fsm<Counter> {
+        let count = || Action::<Counter>::new().memory(|n: &mut u32, _: &()| *n += 1);
+        Fsm::builder()
+            .predicate("always", |_, _| true)
+            .behaviour(Behaviour::while_loop("w", count(), "always"))
+            .behaviour(Behaviour::repeat_loop("r", count(), "always"))
+            .initial("w")
+            .arc("w", "r", "true")
+            .arc("r", "w", "true")
+            .build()
+            .unwrap()
+    }
+
+    fn none() -> Just<Script<Counter>> {
+        Just(Script::new(vec![()]))
+    }
+
+    #[test]
+    fn behaviour_uses_the_terminal_test_timing_of_the_fsm() {
+        let fsm = fsm();
+        // While-type: tested before the first iteration, so no action is needed.
+        Termination::within(0)
+            .cases(1)
+            .behaviour(&fsm, "w", Just(0), none())
+            .unwrap();
+        // Repeat-type: the action runs once before the first test.
+        Termination::within(1)
+            .cases(1)
+            .behaviour(&fsm, "r", Just(0), none())
+            .unwrap();
+        let err = Termination::within(0)
+            .cases(1)
+            .behaviour(&fsm, "r", Just(7), none())
+            .unwrap_err();
+        assert_eq!(
+            err.message,
+            "behaviour `r` (repeat-type) did not reach its terminal condition `always` within 0 iterations\n\
+             minimal counterexample (shrunk by proptest):\n  initial memory: 7\n  environment:    Script([()])\n  \
+             ι=0: inputs () -> not ended, bound reached\n"
+        );
+        let err = Termination::within(3)
+            .behaviour(&fsm, "nope", Just(0), none())
+            .unwrap_err();
+        assert_eq!(err.message, "the FSM has no behaviour `nope`");
+    }
 }

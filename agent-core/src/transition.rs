@@ -167,6 +167,98 @@ impl<S: Subsystem> Action<S> {
     /// }
     /// let action = Action::<Ctl>::new().output(|y| &mut y.to_valve, open_valve);
     /// ```
+    ///
+    /// # What the types guarantee, and what they do not
+    ///
+    /// `f` receives the memory as `&S::Memory`, the inputs as `&S::Input` and one
+    /// group as `&mut G`: it cannot write another output group, nor the memory
+    /// (only [`Action::memory`] and [`Action::common`] may). The examples below share
+    /// one subsystem `Ctl` (memory `f64`) whose outputs are two groups,
+    /// `Output { to_e: ToE, to_t: ToT }`: `ToE { flow: Out<f64> }` towards a virtual
+    /// effector and `ToT { ack: Out<bool> }` towards another agent.
+    ///
+    /// **The projection is not checked.** `target` is user code too, and it receives
+    /// the whole output struct, so the type system cannot stop it from writing other
+    /// groups before returning its own. This compiles, and sends an acknowledgement
+    /// from a part that is listed as writing `ToE` only:
+    ///
+    /// ```
+    /// # use agent_core::*;
+    /// # struct Ctl;
+    /// # #[derive(Default)] struct Input { level: In<f64> }
+    /// # #[derive(Default)] struct ToE { flow: Out<f64> }
+    /// # impl Group for ToE { const PEER: NodeKind = NodeKind::VirtualEffector; }
+    /// # #[derive(Default)] struct ToT { ack: Out<bool> }
+    /// # impl Group for ToT { const PEER: NodeKind = NodeKind::Control; }
+    /// # #[derive(Default)] struct Output { to_e: ToE, to_t: ToT }
+    /// # impl Subsystem for Ctl { const KIND: SubsystemKind = SubsystemKind::Control;
+    /// #   type Memory = f64; type Input = Input; type Output = Output; }
+    /// let sneaky = Action::<Ctl>::new().output(
+    ///     |y| {
+    ///         y.to_t.ack.set(true); // not prevented: keep projections to `|y| &mut y.field`
+    ///         &mut y.to_e
+    ///     },
+    ///     |m: &f64, _: &Input, y: &mut ToE| y.flow.set(*m),
+    /// );
+    /// # let mut y = Output::default();
+    /// # sneaky.compute(&mut 0.5, &Input::default(), &mut y).unwrap();
+    /// # assert_eq!(y.to_t.ack.written(), Some(&true));
+    /// ```
+    ///
+    /// Keep every projection a plain field selection, `|y| &mut y.field` (or a path
+    /// of fields), so that each part writes exactly its target. Likewise, a memory
+    /// with interior mutability (`Cell`, `RefCell`, atomics, `Mutex`) can be changed
+    /// through `&S::Memory`: keep such types out of a subsystem's memory.
+    ///
+    /// **`f` cannot write another group.** A part `f_{c,e}` that also writes the
+    /// transmission buffer towards the other agent (`f_{c,T}`'s target) does not
+    /// compile, because `f` only sees `ToE`:
+    ///
+    /// ```compile_fail,E0609
+    /// # use agent_core::*;
+    /// # struct Ctl;
+    /// # #[derive(Default)] struct Input { level: In<f64> }
+    /// # #[derive(Default)] struct ToE { flow: Out<f64> }
+    /// # impl Group for ToE { const PEER: NodeKind = NodeKind::VirtualEffector; }
+    /// # #[derive(Default)] struct ToT { ack: Out<bool> }
+    /// # impl Group for ToT { const PEER: NodeKind = NodeKind::Control; }
+    /// # #[derive(Default)] struct Output { to_e: ToE, to_t: ToT }
+    /// # impl Subsystem for Ctl { const KIND: SubsystemKind = SubsystemKind::Control;
+    /// #   type Memory = f64; type Input = Input; type Output = Output; }
+    /// let action = Action::<Ctl>::new().output(
+    ///     |y| &mut y.to_e,
+    ///     |m: &f64, _: &Input, y: &mut ToE| {
+    ///         y.flow.set(*m);
+    ///         y.to_t.ack.set(true); // error[E0609]: no field `to_t` on type `&mut ToE`
+    ///     },
+    /// );
+    /// ```
+    ///
+    /// **`f` cannot change the memory.** It gets `&Memory`; only the memory and common
+    /// parts get `&mut Memory`:
+    ///
+    /// ```compile_fail,E0594
+    /// # use agent_core::*;
+    /// # struct Ctl;
+    /// # #[derive(Default)] struct Input { level: In<f64> }
+    /// # #[derive(Default)] struct ToE { flow: Out<f64> }
+    /// # impl Group for ToE { const PEER: NodeKind = NodeKind::VirtualEffector; }
+    /// # #[derive(Default)] struct ToT { ack: Out<bool> }
+    /// # impl Group for ToT { const PEER: NodeKind = NodeKind::Control; }
+    /// # #[derive(Default)] struct Output { to_e: ToE, to_t: ToT }
+    /// # impl Subsystem for Ctl { const KIND: SubsystemKind = SubsystemKind::Control;
+    /// #   type Memory = f64; type Input = Input; type Output = Output; }
+    /// let action = Action::<Ctl>::new().output(
+    ///     |y| &mut y.to_e,
+    ///     |m: &f64, _: &Input, y: &mut ToE| {
+    ///         y.flow.set(*m);
+    ///         *m += 1.0; // error[E0594]: cannot assign to `*m`, which is behind a `&` reference
+    ///     },
+    /// );
+    /// ```
+    ///
+    /// Without the marked line, each of these two parts compiles (it is the
+    /// `|m: &f64, _: &Input, y: &mut ToE| y.flow.set(*m)` of the first example).
     pub fn output<G, P, F, R>(mut self, target: P, f: F) -> Self
     where
         G: Group,
