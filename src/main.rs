@@ -25,7 +25,7 @@ enum Command {
         /// Spec files.
         #[arg(required = true)]
         files: Vec<PathBuf>,
-        /// `human`: diagnostics with source excerpts; `short`: one line per finding.
+        /// How to print the findings.
         #[arg(long, value_enum, default_value_t = Style::Human)]
         style: Style,
     },
@@ -39,34 +39,42 @@ enum Command {
         #[arg(long, value_enum)]
         kind: KindArg,
         /// Only this subsystem (for `structure`: only its agent). Default: all.
-        #[arg(long)]
+        #[arg(long, value_name = "NAME")]
         subsystem: Option<String>,
         /// Output format.
         #[arg(long, value_enum, default_value_t = FormatArg::Svg)]
         format: FormatArg,
         /// Write to this file instead of standard output.
-        #[arg(short, long)]
+        #[arg(short, long, value_name = "PATH")]
         output: Option<PathBuf>,
     },
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Style {
+    /// Diagnostics with source excerpts, like rustc.
     Human,
+    /// One `file:line:col: severity[code]: message` line per finding.
     Short,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum KindArg {
+    /// The FSM of each subsystem: behaviours and arcs labelled with their conditions (Fig. 5).
     Fsm,
+    /// The agents: components, buffers and links (Figs. 2 and 4).
     Structure,
+    /// The data flow of each behaviour's transition functions (Figs. 6-8).
     Dataflow,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum FormatArg {
+    /// Graphviz source, for `dot -Tsvg`.
     Dot,
+    /// Mermaid, for Markdown pages (GitHub renders it).
     Mermaid,
+    /// A standalone SVG image, laid out without Graphviz.
     Svg,
 }
 

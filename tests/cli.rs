@@ -120,7 +120,29 @@ fn help_explains_each_command() {
     assert_eq!(code, 0);
     assert!(stdout.contains("check") && stdout.contains("diagram"));
     let (_, stdout, _) = embodied(&["help", "diagram"]);
-    for needle in ["--kind", "--subsystem", "--format", "--output", "Graphviz"] {
+    for needle in [
+        "--kind <KIND>",
+        "--subsystem <NAME>",
+        "--format <FORMAT>",
+        "-o, --output <PATH>",
+        "Graphviz",
+    ] {
         assert!(stdout.contains(needle), "missing {needle}:\n{stdout}");
+    }
+    // Each value of `--kind` and `--format` is listed with a word on what it is.
+    for value in ["fsm", "structure", "dataflow", "dot", "mermaid", "svg"] {
+        let line = stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("- {value}:")))
+            .unwrap_or_else(|| panic!("`{value}` is not explained:\n{stdout}"));
+        let (_, what) = line.split_once(':').unwrap();
+        assert!(what.trim().len() > 10, "`{value}` is not explained: {line}");
+    }
+    let (_, stdout, _) = embodied(&["check", "--help"]);
+    for value in ["human", "short"] {
+        assert!(
+            stdout.contains(&format!("- {value}:")),
+            "`--style {value}` is not explained:\n{stdout}"
+        );
     }
 }

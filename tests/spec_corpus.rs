@@ -1,6 +1,9 @@
 //! The checker on the corpus of invalid specs: every finding code is demonstrated by
-//! a file of `tests/specs/invalid/` named after it, and the rendered diagnostics of
-//! each file are snapshot-tested (`tests/snapshots/`).
+//! a file of `tests/specs/invalid/` named after it, a few more cases have files of
+//! their own ([`EXTRA_CASES`]), and the rendered diagnostics of each file are
+//! snapshot-tested (`tests/snapshots/`). The valid specs of `tests/specs/valid/` check
+//! clean, and the relations of `relations.ron` are shown to be what makes its arc
+//! proofs succeed.
 
 #![allow(
     clippy::unwrap_used,
@@ -8,20 +11,110 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use embodied::spec::{Code, Severity, check_file};
+use embodied::spec::diag::offset_of;
+use embodied::spec::model::Relation;
+use embodied::spec::{Code, Report, Severity, check_file, check_source};
 
 fn corpus() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/specs"))
 }
 
+/// The `.ron` files of `tests/specs/<dir>/`, sorted.
+fn ron_files(dir: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(corpus().join(dir))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "ron"))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Cases beyond the one file per code: (file stem, the code it demonstrates, the text
+/// under the primary span of each finding with that code, in order).
+const EXTRA_CASES: &[(&str, Code, &[&str])] = &[
+    // A misspelt name inside `Exclusive([...])` and inside `Implies(..)`.
+    (
+        "unknown_predicate_in_relation",
+        Code::UnknownPredicate,
+        &["cancelld", "at_gaol"],
+    ),
+    // An undeclared predicate in an arc's condition, `ack` after `acked`.
+    ("unknown_predicate_in_arc", Code::UnknownPredicate, &["ack"]),
+];
+
+/// Every label of every finding covers a non-empty range of whole characters of the
+/// source, starting at a character of a line of the file (not past its end).
+fn assert_labels_point_into_the_file(report: &Report) {
+    let source = &report.source;
+    let lines: Vec<&str> = source.split('\n').collect();
+    for f in &report.findings {
+        assert!(!f.labels.is_empty(), "{f:?}");
+        for label in &f.labels {
+            let span = &label.span;
+            assert!(
+                span.start < span.end && span.end <= source.len(),
+                "{}: label {span:?} of {f:?} is empty or outside the source ({} bytes)",
+                report.file,
+                source.len()
+            );
+            assert!(
+                source.is_char_boundary(span.start) && source.is_char_boundary(span.end),
+                "{}: label {span:?} of {f:?} splits a character",
+                report.file
+            );
+            let (line, col) = report.line_col(span.start);
+            assert!(
+                (1..=lines.len()).contains(&line)
+                    && (1..=lines[line - 1].chars().count()).contains(&col),
+                "{}: label {span:?} of {f:?} starts at {line}:{col}, outside the file",
+                report.file
+            );
+            assert_eq!(offset_of(source, line, col), span.start, "{f:?}");
+            assert!(
+                !source[span.clone()].trim().is_empty(),
+                "{}: label {span:?} of {f:?} covers only blanks",
+                report.file
+            );
+        }
+        assert!(!f.message.is_empty() && !f.help.is_empty(), "{f:?}");
+    }
+}
+
+/// Check `tests/specs/invalid/<name>.ron`, named relative to the repository in the
+/// report so that snapshots do not depend on where the checkout is.
+fn check_invalid(name: &str) -> Report {
+    let path = corpus().join("invalid").join(format!("{name}.ron"));
+    let (_, report) = check_file(&path)
+        .unwrap_or_else(|e| panic!("{}: cannot read the case ({e})", path.display()));
+    Report::new(
+        format!("tests/specs/invalid/{name}.ron"),
+        report.source.clone(),
+        report.findings.clone(),
+    )
+}
+
+fn snapshot(name: &str, report: &Report) {
+    insta::with_settings!({snapshot_path => "snapshots", prepend_module_to_snapshot => false}, {
+        insta::assert_snapshot!(format!("invalid_{name}"), report.render(100));
+    });
+}
+
 #[test]
 fn the_valid_specs_pass() {
-    for path in [
-        corpus().join("valid/minimal.ron"),
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/rex.ron"),
-    ] {
+    let valid = ron_files("valid");
+    for name in ["minimal.ron", "relations.ron"] {
+        assert!(
+            valid.iter().any(|p| p.ends_with(name)),
+            "tests/specs/valid/{name} is missing: {valid:?}"
+        );
+    }
+    for path in valid
+        .into_iter()
+        .chain([Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/rex.ron")])
+    {
         let (spec, report) = check_file(&path).expect("readable");
         assert!(spec.is_some());
         assert!(
@@ -34,19 +127,92 @@ fn the_valid_specs_pass() {
 }
 
 #[test]
+fn relations_are_what_make_the_arc_proofs_succeed() {
+    let text = std::fs::read_to_string(corpus().join("valid/relations.ron")).unwrap();
+    let exclusive = r#"Exclusive(["urgent", "cancelled"]),"#;
+    let implies = r#"Implies("at_goal", "stopped"),"#;
+    let without = |relations: &[&str]| {
+        let mut t = text.clone();
+        for r in relations {
+            assert_eq!(t.matches(r).count(), 1, "{r} is in relations.ron once");
+            t = t.replace(r, "");
+        }
+        check_source("relations.ron", t)
+    };
+
+    // With both relations: clean, and both really are parsed as relations of c1.
+    let (spec, report) = without(&[]);
+    assert!(report.findings.is_empty(), "{}", report.render(100));
+    let c1 = &spec.unwrap().agents[0].subsystems[0];
+    assert_eq!(
+        c1.relations,
+        [
+            Relation::Exclusive(vec!["urgent".into(), "cancelled".into()]),
+            Relation::Implies("at_goal".into(), "stopped".into()),
+        ]
+    );
+
+    let codes = |report: &Report| report.findings.iter().map(|f| f.code).collect::<Vec<_>>();
+    let primary = |report: &Report, k: usize| {
+        let span = report.findings[k].labels[0].span.clone();
+        report.source[span].to_owned()
+    };
+
+    // Without `Exclusive`: an urgent and cancelled order takes two arcs out of `idle`.
+    let (_, report) = without(&[exclusive]);
+    assert_eq!(
+        codes(&report),
+        [Code::ArcsOverlap],
+        "{}",
+        report.render(100)
+    );
+    let overlap = &report.findings[0];
+    assert!(
+        overlap
+            .message
+            .starts_with("arcs `idle -> rush` and `idle -> answer` can hold at once")
+            && overlap.message.contains("urgent=true")
+            && overlap.message.contains("cancelled=true"),
+        "{}",
+        overlap.message
+    );
+    assert_eq!(primary(&report, 0), "cancelled");
+
+    // Without `Implies`: at the goal but not stopped, no arc leaves `rush`.
+    let (_, report) = without(&[implies]);
+    assert_eq!(
+        codes(&report),
+        [Code::ArcsIncomplete],
+        "{}",
+        report.render(100)
+    );
+    let incomplete = &report.findings[0];
+    assert!(
+        incomplete.message.starts_with("when `rush` ends with")
+            && incomplete.message.contains("at_goal=true")
+            && incomplete.message.contains("stopped=false"),
+        "{}",
+        incomplete.message
+    );
+    assert_eq!(primary(&report, 0), "finished", "rush's terminal condition");
+
+    // Without both: both findings, and nothing else.
+    let (_, report) = without(&[exclusive, implies]);
+    let mut both = codes(&report);
+    both.sort();
+    assert_eq!(
+        both,
+        [Code::ArcsOverlap, Code::ArcsIncomplete],
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
 fn every_code_is_demonstrated_and_its_diagnostic_is_stable() {
     for code in Code::ALL {
         let name = code.as_str().trim_start_matches("spec::");
-        let path = corpus().join("invalid").join(format!("{name}.ron"));
-        let (_, report) = check_file(&path).unwrap_or_else(|e| {
-            panic!(
-                "{}: every code needs a demonstration file ({e})",
-                path.display()
-            )
-        });
-        let file = format!("tests/specs/invalid/{name}.ron");
-        let report =
-            embodied::spec::Report::new(file, report.source.clone(), report.findings.clone());
+        let report = check_invalid(name);
         assert!(
             report.findings.iter().any(|f| f.code == *code),
             "{name}.ron does not produce {code}:\n{}",
@@ -56,18 +222,60 @@ fn every_code_is_demonstrated_and_its_diagnostic_is_stable() {
             assert!(!report.is_ok());
         }
         // Every finding points into the file, at a real token.
-        for f in &report.findings {
-            let first = &f.labels[0];
-            assert!(
-                first.span.end <= report.source.len()
-                    && first.span.start < first.span.end.max(first.span.start + 1)
-            );
-            assert!(!f.message.is_empty() && !f.help.is_empty(), "{f:?}");
-        }
-        insta::with_settings!({snapshot_path => "snapshots", prepend_module_to_snapshot => false}, {
-            insta::assert_snapshot!(format!("invalid_{name}"), report.render(100));
-        });
+        assert_labels_point_into_the_file(&report);
+        snapshot(name, &report);
     }
+}
+
+#[test]
+fn extra_cases_point_at_the_offending_name_and_their_diagnostics_are_stable() {
+    for &(name, code, expected) in EXTRA_CASES {
+        let report = check_invalid(name);
+        assert_labels_point_into_the_file(&report);
+        let under: Vec<&str> = report
+            .findings
+            .iter()
+            .filter(|f| f.code == code)
+            .map(|f| &report.source[f.labels[0].span.clone()])
+            .collect();
+        assert_eq!(under, expected, "{name}.ron:\n{}", report.render(100));
+        // ... as a whole name, not a part of a longer one (`ack` of `acked`).
+        let ident = |b: &u8| b.is_ascii_alphanumeric() || *b == b'_';
+        for f in report.findings.iter().filter(|f| f.code == code) {
+            let span = f.labels[0].span.clone();
+            let bytes = report.source.as_bytes();
+            let before = span.start.checked_sub(1).map(|i| &bytes[i]);
+            assert!(
+                !before.is_some_and(ident) && !bytes.get(span.end).is_some_and(ident),
+                "{name}.ron: {span:?} is inside a longer name:\n{}",
+                report.render(100)
+            );
+        }
+        assert!(
+            report.findings.iter().all(|f| f.code == code),
+            "{name}.ron reports only {code}:\n{}",
+            report.render(100)
+        );
+        snapshot(name, &report);
+    }
+}
+
+#[test]
+fn every_invalid_file_is_a_tested_case() {
+    let mut expected: Vec<String> = Code::ALL
+        .iter()
+        .map(|c| c.as_str().trim_start_matches("spec::").to_owned())
+        .chain(EXTRA_CASES.iter().map(|(name, ..)| (*name).to_owned()))
+        .collect();
+    expected.sort();
+    let found: Vec<String> = ron_files("invalid")
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        found, expected,
+        "each file of tests/specs/invalid/ is named after a code or listed in EXTRA_CASES"
+    );
 }
 
 #[test]

@@ -48,10 +48,20 @@ fn one_subsystem_and_its_content() {
     assert!(!fsm.contains("e11"), "only c1");
     let svg = render(&spec, Kind::Fsm, Some("c1"), Format::Svg).unwrap();
     assert!(svg.starts_with("<svg ") && svg.ends_with("</svg>\n"));
+    let c1_arcs = spec
+        .agents
+        .iter()
+        .flat_map(|a| &a.subsystems)
+        .find(|s| s.name == "c1")
+        .unwrap()
+        .fsm
+        .arcs
+        .len();
+    assert_eq!(c1_arcs, 4, "B1 -> B2, B1 -> B3, B2 -> B3, B3 -> B1");
     assert_eq!(
         svg.matches("<path d=").count(),
-        5 + 1,
-        "5 arcs and the start arrow"
+        c1_arcs + 1 + 1,
+        "one path per arc (4), the start arrow, and the arrowhead marker's triangle"
     );
     let structure = render(&spec, Kind::Structure, Some("e11"), Format::Mermaid).unwrap();
     assert!(structure.contains("agent a1") && !structure.contains("agent a2"));

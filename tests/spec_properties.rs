@@ -1,7 +1,17 @@
 //! Properties of the checker: any single mutation of a valid spec (a renamed
 //! reference, a changed type, a removed arc, a duplicated writer) is caught; and no
-//! input, however broken, makes the checker or the diagrams panic (a bounded fuzz run
-//! on every `cargo test`).
+//! input, however broken, makes the loader, the span index, the checker, the report
+//! or the diagrams panic, and every report stays well formed.
+//!
+//! The `never_panic_*` properties are the fuzzer: arbitrary bytes, soups of RON
+//! tokens, and real specs (`specs/rex.ron` and the corpus of `tests/specs/`) damaged at
+//! the byte, token, line and entry level (delete, duplicate, swap, insert punctuation,
+//! copy one name over another). Every `cargo test` runs a short bounded pass;
+//! `.ci/run` runs a longer one:
+//!
+//! ```text
+//! PROPTEST_CASES=10000 cargo test -p embodied --test spec_properties never_panic
+//! ```
 
 #![allow(
     clippy::unwrap_used,
@@ -9,10 +19,17 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::LazyLock;
+
 use embodied::spec::diagram::{Format, Kind, render};
 use embodied::spec::model::Spec;
-use embodied::spec::{Severity, check_source, options};
+use embodied::spec::span::{self, SKind, SNode};
+use embodied::spec::{Report, Severity, check_source, options};
 use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::TestRunner;
 
 fn rex_text() -> String {
     std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/specs/rex.ron"))
@@ -165,36 +182,6 @@ proptest! {
             );
         }
     }
-
-    #[test]
-    fn arbitrary_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..400)) {
-        let text = String::from_utf8_lossy(&bytes).into_owned();
-        let _ = check_source("fuzz.ron", text);
-    }
-
-    #[test]
-    fn damaged_specs_never_panic(
-        edits in prop::collection::vec((any::<usize>(), 0usize..40, prop::sample::select(vec!["", "(", ")", "[", "]", ",", "\"", ":", "x", "Queue(0)", "\"c1\"", "true", "-1.0", "//", "é", "\\"])), 1..6),
-        kind in 0usize..3,
-        format in 0usize..3,
-    ) {
-        let mut text = rex_text();
-        for (at, len, insert) in &edits {
-            let mut start = at % (text.len() + 1);
-            while !text.is_char_boundary(start) { start -= 1; }
-            let mut end = (start + len).min(text.len());
-            while !text.is_char_boundary(end) { end -= 1; }
-            text.replace_range(start..end.max(start), insert);
-        }
-        let (spec, report) = check_source("damaged.ron", text);
-        let _ = report.render(80);
-        let _ = report.short();
-        if let Some(spec) = spec {
-            let kind = [Kind::Fsm, Kind::Structure, Kind::Dataflow][kind];
-            let format = [Format::Dot, Format::Mermaid, Format::Svg][format];
-            let _ = render(&spec, kind, None, format);
-        }
-    }
 }
 
 #[test]
@@ -222,4 +209,609 @@ fn every_mutation_kind_applies_to_rex() {
     ] {
         assert!(apply(&mut rex(), &m).is_some(), "{m:?} does not apply");
     }
+}
+
+// ---------------------------------------------------------------------------
+// The fuzzer.
+
+/// Cases per fuzz property: `PROPTEST_CASES` if set (the bounded fuzz step of
+/// `.ci/run` sets it), else `default` (the short pass of every `cargo test`).
+fn fuzz_config(default: u32) -> ProptestConfig {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default);
+    ProptestConfig {
+        cases,
+        failure_persistence: None,
+        // A failure is shrunk for at most a minute, so that a bounded run still
+        // prints its minimal input.
+        max_shrink_time: 60_000,
+        ..ProptestConfig::default()
+    }
+}
+
+/// The real specs the damage starts from: Rex and every file of the corpus.
+static SEEDS: LazyLock<Vec<(PathBuf, String)>> = LazyLock::new(|| {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut paths = vec![root.join("specs/rex.ron")];
+    for dir in ["tests/specs/valid", "tests/specs/invalid"] {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(root.join(dir))
+            .expect("corpus directory")
+            .map(|e| e.expect("entry").path())
+            .filter(|p| p.extension().is_some_and(|x| x == "ron"))
+            .collect();
+        files.sort();
+        paths.extend(files);
+    }
+    paths
+        .into_iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).expect("readable");
+            (p, text)
+        })
+        .collect()
+});
+
+/// What damage inserts: RON punctuation, pieces of condition syntax, odd numbers and
+/// strings, comment and attribute openers, non-ASCII.
+#[rustfmt::skip]
+const PUNCTUATION: &[&str] = &[
+    "(", ")", "[", "]", "{", "}", ",", ":", "::", "\"", "'", "#", "!", "#![", "r#\"",
+    "\"#", "//", "/*", "*/", "\n", "\\", "\\u{0}", "&&", "||", "!(", "é", "\u{0}",
+    "\u{feff}", "0", "-0.0", "1e999", "NaN", "-inf", "18446744073709551616", "Some(",
+    "None", "()", "[]", "true", "false", "x", "_", "\"\"", "\"c1\"", "\"a.b.c\"",
+    "Queue(0)", "Sample", "Output(\"c1\")", "Exclusive([\"a\"])",
+    "Implies(\"a\", \"a\")",
+];
+
+/// Tokens of RON text as byte ranges (whitespace runs and comments included, so the
+/// tokens tile the text): strings, words (identifiers and numbers), single characters.
+fn tokens(text: &str) -> Vec<Range<usize>> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let start = i;
+        let word = |c: u8| c.is_ascii_alphanumeric() || c == b'_' || c == b'.';
+        if b[i].is_ascii_whitespace() {
+            while i < b.len() && b[i].is_ascii_whitespace() {
+                i += 1;
+            }
+        } else if b[i..].starts_with(b"//") {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+        } else if b[i..].starts_with(b"/*") {
+            i = text[i + 2..].find("*/").map_or(b.len(), |k| i + 2 + k + 2);
+        } else if b[i] == b'"' {
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                i += if b[i] == b'\\' { 2 } else { 1 };
+            }
+            i = (i + 1).min(b.len());
+        } else if word(b[i]) {
+            while i < b.len() && word(b[i]) {
+                i += 1;
+            }
+        } else {
+            i += text[i..].chars().next().map_or(1, char::len_utf8);
+        }
+        while !text.is_char_boundary(i) {
+            i += 1;
+        }
+        out.push(start..i);
+    }
+    out
+}
+
+/// Byte ranges of the lines of `text`, newlines included.
+fn lines(text: &str) -> Vec<Range<usize>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for line in text.split_inclusive('\n') {
+        out.push(start..start + line.len());
+        start += line.len();
+    }
+    out
+}
+
+/// Byte ranges of the entries of `text`'s RON structure, outermost first: list items,
+/// and (if `fields`) struct fields `key: value`. None if the span parser gives up.
+fn entries(text: &str, fields: bool) -> Vec<Range<usize>> {
+    fn walk(node: &SNode, fields: bool, out: &mut Vec<Range<usize>>) {
+        match &node.kind {
+            SKind::Struct { fields: fs, .. } => {
+                for f in fs {
+                    if fields {
+                        out.push(f.key_span.start..f.value.span.end);
+                    }
+                    walk(&f.value, fields, out);
+                }
+            }
+            SKind::List(items) => {
+                for item in items {
+                    out.push(item.span.clone());
+                    walk(item, fields, out);
+                }
+            }
+            SKind::Tuple { items, .. } => {
+                for item in items {
+                    walk(item, fields, out);
+                }
+            }
+            SKind::Map(entries) => {
+                for (_, v) in entries {
+                    walk(v, fields, out);
+                }
+            }
+            SKind::Str { .. } | SKind::Atom => {}
+        }
+    }
+    let mut out = Vec::new();
+    if let Some(root) = span::parse(text) {
+        walk(&root, fields, &mut out);
+    }
+    out
+}
+
+/// The largest character boundary of `text` at or below `i`.
+fn floor(text: &str, i: usize) -> usize {
+    let mut i = i.min(text.len());
+    while !text.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
+}
+
+/// Replace range `a` by the text of `b` and `b` by that of `a` (`a` before `b`, apart).
+fn swap(text: &mut String, a: Range<usize>, b: Range<usize>) {
+    if a.end > b.start {
+        return;
+    }
+    let (ta, tb) = (text[a.clone()].to_owned(), text[b.clone()].to_owned());
+    text.replace_range(b, &ta);
+    text.replace_range(a, &tb);
+}
+
+/// One piece of damage. Indices are taken modulo what there is to pick from, so
+/// every edit applies to any text.
+#[derive(Clone, Debug)]
+enum Damage {
+    /// Delete `len` bytes at `at`.
+    DeleteBytes { at: usize, len: usize },
+    /// Duplicate `len` bytes at `at`.
+    DuplicateBytes { at: usize, len: usize },
+    /// Swap `len` bytes at `at` with `len` bytes at `other`.
+    SwapBytes { at: usize, other: usize, len: usize },
+    /// Insert a piece of punctuation at byte `at`.
+    InsertAtByte { at: usize, what: &'static str },
+    /// Delete a token.
+    DeleteToken(usize),
+    /// Duplicate a token.
+    DuplicateToken(usize),
+    /// Swap two tokens.
+    SwapTokens(usize, usize),
+    /// Replace a token by a copy of another (a name by another name, a string by
+    /// another string: damage that still parses and reaches the checker).
+    CopyToken { to: usize, from: usize },
+    /// Insert a piece of punctuation before a token.
+    InsertBeforeToken { at: usize, what: &'static str },
+    /// Delete a line.
+    DeleteLine(usize),
+    /// Duplicate a line (usually an entry of a list: a second definition or writer).
+    DuplicateLine(usize),
+    /// Swap two lines.
+    SwapLines(usize, usize),
+    /// Delete an entry (list item or struct field) and its comma.
+    DeleteEntry(usize),
+    /// Duplicate a list item (a second definition, arc, link...).
+    DuplicateItem(usize),
+    /// Swap two list items (when neither contains the other): a buffer moves to
+    /// another group, an arc to another FSM...
+    SwapItems(usize, usize),
+}
+
+fn damage() -> impl Strategy<Value = Damage> {
+    let punct = || prop::sample::select(PUNCTUATION);
+    // Weighted towards damage that keeps the text RON, so that much of it gets past
+    // the parser into the checker and the diagrams.
+    prop_oneof![
+        1 => (any::<usize>(), 0usize..64).prop_map(|(at, len)| Damage::DeleteBytes { at, len }),
+        1 => (any::<usize>(), 1usize..64).prop_map(|(at, len)| Damage::DuplicateBytes { at, len }),
+        1 => (any::<usize>(), any::<usize>(), 1usize..32)
+            .prop_map(|(at, other, len)| Damage::SwapBytes { at, other, len }),
+        1 => (any::<usize>(), punct()).prop_map(|(at, what)| Damage::InsertAtByte { at, what }),
+        1 => any::<usize>().prop_map(Damage::DeleteToken),
+        1 => any::<usize>().prop_map(Damage::DuplicateToken),
+        1 => (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Damage::SwapTokens(a, b)),
+        4 => (any::<usize>(), any::<usize>()).prop_map(|(to, from)| Damage::CopyToken { to, from }),
+        1 => (any::<usize>(), punct()).prop_map(|(at, what)| Damage::InsertBeforeToken { at, what }),
+        1 => any::<usize>().prop_map(Damage::DeleteLine),
+        1 => any::<usize>().prop_map(Damage::DuplicateLine),
+        1 => (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Damage::SwapLines(a, b)),
+        3 => any::<usize>().prop_map(Damage::DeleteEntry),
+        3 => any::<usize>().prop_map(Damage::DuplicateItem),
+        3 => (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Damage::SwapItems(a, b)),
+    ]
+}
+
+/// Apply `d` to `text`.
+fn apply_damage(text: &mut String, d: &Damage) {
+    let pick = |v: &[Range<usize>], i: usize| (!v.is_empty()).then(|| v[i % v.len()].clone());
+    let ordered =
+        |a: Range<usize>, b: Range<usize>| if a.start <= b.start { (a, b) } else { (b, a) };
+    match *d {
+        Damage::DeleteBytes { at, len } => {
+            let start = floor(text, at % (text.len() + 1));
+            let end = floor(text, start + len);
+            text.replace_range(start..end, "");
+        }
+        Damage::DuplicateBytes { at, len } => {
+            let start = floor(text, at % (text.len() + 1));
+            let end = floor(text, start + len);
+            let copy = text[start..end].to_owned();
+            text.insert_str(end, &copy);
+        }
+        Damage::SwapBytes { at, other, len } => {
+            let r = |i: usize| {
+                let start = floor(text, i % (text.len() + 1));
+                start..floor(text, start + len)
+            };
+            let (a, b) = ordered(r(at), r(other));
+            swap(text, a, b);
+        }
+        Damage::InsertAtByte { at, what } => {
+            let at = floor(text, at % (text.len() + 1));
+            text.insert_str(at, what);
+        }
+        Damage::DeleteToken(i) => {
+            if let Some(t) = pick(&tokens(text), i) {
+                text.replace_range(t, "");
+            }
+        }
+        Damage::DuplicateToken(i) => {
+            if let Some(t) = pick(&tokens(text), i) {
+                let copy = text[t.clone()].to_owned();
+                text.insert_str(t.end, &copy);
+            }
+        }
+        Damage::SwapTokens(i, j) => {
+            let ts = tokens(text);
+            if let (Some(a), Some(b)) = (pick(&ts, i), pick(&ts, j)) {
+                let (a, b) = ordered(a, b);
+                swap(text, a, b);
+            }
+        }
+        Damage::CopyToken { to, from } => {
+            // Among the tokens of the same first byte (strings for strings, words for
+            // words), so that the result often still parses.
+            let ts = tokens(text);
+            if let Some(t) = pick(&ts, to) {
+                let first = text.as_bytes()[t.start];
+                let alike: Vec<Range<usize>> = ts
+                    .into_iter()
+                    .filter(|u| {
+                        let f = text.as_bytes()[u.start];
+                        f == first || (f.is_ascii_alphanumeric() && first.is_ascii_alphanumeric())
+                    })
+                    .collect();
+                if let Some(u) = pick(&alike, from) {
+                    let copy = text[u].to_owned();
+                    text.replace_range(t, &copy);
+                }
+            }
+        }
+        Damage::InsertBeforeToken { at, what } => {
+            if let Some(t) = pick(&tokens(text), at) {
+                text.insert_str(t.start, what);
+            }
+        }
+        Damage::DeleteLine(i) => {
+            if let Some(l) = pick(&lines(text), i) {
+                text.replace_range(l, "");
+            }
+        }
+        Damage::DuplicateLine(i) => {
+            if let Some(l) = pick(&lines(text), i) {
+                let copy = text[l.clone()].to_owned();
+                text.insert_str(l.start, &copy);
+            }
+        }
+        Damage::DeleteEntry(i) => {
+            if let Some(e) = pick(&entries(text, true), i) {
+                let rest = &text[e.end..];
+                let blank = rest.len() - rest.trim_start().len();
+                let end = if rest.trim_start().starts_with(',') {
+                    e.end + blank + 1
+                } else {
+                    e.end
+                };
+                text.replace_range(e.start..end, "");
+            }
+        }
+        Damage::DuplicateItem(i) => {
+            if let Some(e) = pick(&entries(text, false), i) {
+                let copy = format!("{}, ", &text[e.clone()]);
+                text.insert_str(e.start, &copy);
+            }
+        }
+        Damage::SwapItems(i, j) => {
+            let es = entries(text, false);
+            if let (Some(a), Some(b)) = (pick(&es, i), pick(&es, j)) {
+                let (a, b) = ordered(a, b);
+                swap(text, a, b);
+            }
+        }
+        Damage::SwapLines(i, j) => {
+            let ls = lines(text);
+            if let (Some(a), Some(b)) = (pick(&ls, i), pick(&ls, j)) {
+                let (a, b) = ordered(a, b);
+                // The last line may lack its newline: keep lines apart.
+                let (ta, tb) = (text[a.clone()].to_owned(), text[b.clone()].to_owned());
+                if ta.ends_with('\n') && tb.ends_with('\n') {
+                    swap(text, a, b);
+                }
+            }
+        }
+    }
+}
+
+/// A damaged copy of one of the seeds. Its `Debug` (what proptest prints for a failing
+/// case) names the seed file and the damage, which together give the text.
+#[derive(Clone)]
+struct Damaged {
+    seed: usize,
+    edits: Vec<Damage>,
+    text: String,
+}
+
+impl std::fmt::Debug for Damaged {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Damaged")
+            .field("seed", &SEEDS[self.seed].0)
+            .field("edits", &self.edits)
+            .finish_non_exhaustive()
+    }
+}
+
+fn damaged_spec() -> impl Strategy<Value = Damaged> {
+    // Mostly light damage (which often still loads), sometimes heavy.
+    let edits = prop_oneof![
+        3 => prop::collection::vec(damage(), 1..3),
+        1 => prop::collection::vec(damage(), 3..10),
+    ];
+    (0..SEEDS.len(), edits).prop_map(|(seed, edits)| {
+        let mut text = SEEDS[seed].1.clone();
+        for d in &edits {
+            apply_damage(&mut text, d);
+        }
+        Damaged { seed, edits, text }
+    })
+}
+
+/// RON vocabulary for token soups: punctuation and the schema's own words.
+#[rustfmt::skip]
+const VOCABULARY: &[&str] = &[
+    "(", ")", "[", "]", "{", "}", ",", ":", " ", "\n", "\"", "r#\"", "\"#", "'a'",
+    "b\"", "//", "/*", "*/", "#![enable(implicit_some)]", "\\", "é", "name", "doc",
+    "agents", "subsystems", "devices", "kind", "period_ms", "memory", "inputs",
+    "outputs", "peer", "buffers", "type", "predicates", "reads", "writes", "relations",
+    "functions", "target", "behaviours", "terminal", "fsm", "initial", "arcs", "from",
+    "to", "when", "finals", "links", "policy", "deployments", "hosts", "processes",
+    "runs", "omit", "Control", "VirtualEffector", "VirtualReceptor", "Effector",
+    "Receptor", "While", "Repeat", "Memory", "Common", "Output", "Sample", "Queue",
+    "Exclusive", "Implies", "Some", "None", "true", "false", "\"c1\"", "\"e1\"",
+    "\"a1\"", "\"c1.e1.x\"", "\"p && !q\"", "\"f64\"", "\"\"", "0", "1", "-1", "10.0",
+    "0.0", "1e309", "NaN",
+];
+
+fn token_soup() -> impl Strategy<Value = String> {
+    prop::collection::vec(prop::sample::select(VOCABULARY), 0..300).prop_map(|v| v.concat())
+}
+
+/// The span tree is well nested: children inside their parent, whole characters.
+fn assert_spans_nest(text: &str, node: &SNode, within: &Range<usize>) {
+    let s = &node.span;
+    assert!(
+        within.start <= s.start && s.start <= s.end && s.end <= within.end,
+        "span {s:?} outside {within:?}"
+    );
+    assert!(text.is_char_boundary(s.start) && text.is_char_boundary(s.end));
+    let children: Vec<&SNode> = match &node.kind {
+        SKind::Struct { fields, .. } => {
+            for f in fields {
+                assert!(s.start <= f.key_span.start && f.key_span.end <= s.end);
+                assert_eq!(&text[f.key_span.clone()], f.key);
+            }
+            fields.iter().map(|f| &f.value).collect()
+        }
+        SKind::Tuple { items, .. } | SKind::List(items) => items.iter().collect(),
+        SKind::Map(entries) => entries.iter().flat_map(|(k, v)| [k, v]).collect(),
+        SKind::Str { content, .. } => {
+            assert!(
+                s.start < content.start && content.end < s.end,
+                "{s:?} {content:?}"
+            );
+            Vec::new()
+        }
+        SKind::Atom => Vec::new(),
+    };
+    for c in children {
+        assert_spans_nest(text, c, s);
+    }
+}
+
+/// Load, check, render and draw `text`; panics (failing the property) if anything
+/// panics or a report is malformed. Returns whether the spec loaded.
+fn exercise(text: &str, draw: bool) -> bool {
+    if let Some(root) = span::parse(text) {
+        assert_spans_nest(text, &root, &(0..text.len()));
+    }
+    let (spec, report) = check_source("fuzz.ron", text);
+    assert_report_well_formed(&report);
+    let _ = report.render(80);
+    let _ = report.short();
+    if let (Some(spec), true) = (&spec, draw) {
+        let first = spec
+            .agents
+            .iter()
+            .flat_map(|a| &a.subsystems)
+            .map(|s| s.name.as_str())
+            .next();
+        for kind in [Kind::Fsm, Kind::Structure, Kind::Dataflow] {
+            for format in [Format::Dot, Format::Mermaid, Format::Svg] {
+                let _ = render(spec, kind, None, format);
+            }
+            let _ = render(spec, kind, first, Format::Svg);
+        }
+    }
+    spec.is_some()
+}
+
+/// Findings are sorted, each has a message and a help line, and every label is a
+/// range of whole characters of the source.
+fn assert_report_well_formed(report: &Report) {
+    let offsets: Vec<usize> = report.findings.iter().map(|f| f.offset()).collect();
+    assert!(offsets.windows(2).all(|w| w[0] <= w[1]), "{offsets:?}");
+    for f in &report.findings {
+        assert!(!f.message.is_empty() && !f.help.is_empty(), "{f:?}");
+        for l in &f.labels {
+            let s = &l.span;
+            assert!(
+                s.start <= s.end && s.end <= report.source.len(),
+                "label {s:?} outside the source ({} bytes): {f:?}",
+                report.source.len()
+            );
+            assert!(
+                report.source.is_char_boundary(s.start) && report.source.is_char_boundary(s.end),
+                "label {s:?} splits a character: {f:?}"
+            );
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(fuzz_config(256))]
+
+    #[test]
+    fn never_panic_on_arbitrary_bytes(
+        bytes in prop::collection::vec(any::<u8>(), 0..2000),
+        unicode in "\\PC{0,300}",
+    ) {
+        exercise(&String::from_utf8_lossy(&bytes), true);
+        exercise(&unicode, true);
+    }
+
+    #[test]
+    fn never_panic_on_token_soup(text in token_soup()) {
+        exercise(&text, true);
+    }
+
+    #[test]
+    fn never_panic_on_damaged_specs(damaged in damaged_spec()) {
+        exercise(&damaged.text, true);
+    }
+}
+
+#[test]
+fn the_damaged_specs_reach_the_checker() {
+    // A fuzzer whose damage always breaks the syntax would only test the parser: a
+    // fair share of damaged specs still load, and many of those have findings their
+    // seed does not have (the checker sees the damage).
+    let codes = |text: &str| {
+        let (_, report) = check_source("seed.ron", text);
+        let mut codes: Vec<_> = report.findings.iter().map(|f| f.code).collect();
+        codes.sort();
+        codes.dedup();
+        codes
+    };
+    let seed_codes: Vec<_> = SEEDS.iter().map(|(_, text)| codes(text)).collect();
+    let mut runner = TestRunner::deterministic();
+    let strategy = damaged_spec();
+    let (mut loaded, mut new_findings) = (0, 0);
+    let n = 400;
+    for _ in 0..n {
+        let Damaged { seed, text, .. } = strategy.new_tree(&mut runner).unwrap().current();
+        let (spec, _) = check_source("damaged.ron", text.as_str());
+        if spec.is_some() {
+            loaded += 1;
+            if codes(&text).iter().any(|c| !seed_codes[seed].contains(c)) {
+                new_findings += 1;
+            }
+        }
+    }
+    assert!(loaded * 7 >= n, "only {loaded} of {n} damaged specs load");
+    assert!(
+        new_findings * 10 >= n,
+        "only {new_findings} of {n} damaged specs load with new kinds of findings"
+    );
+    println!("{loaded} of {n} damaged specs load, {new_findings} with new kinds of findings");
+}
+
+#[test]
+fn the_damage_applies_as_described() {
+    let text = "(a: \"x y\", b: [1, 2])\n// c\nz\n";
+    let ts = tokens(text);
+    assert_eq!(
+        ts.iter().map(|r| r.start).collect::<Vec<_>>()[..4],
+        [0, 1, 2, 3]
+    );
+    assert_eq!(
+        ts.iter().map(|r| r.end).max(),
+        Some(text.len()),
+        "tokens tile the text"
+    );
+    assert!(ts.windows(2).all(|w| w[0].end == w[1].start));
+    let token_texts: Vec<&str> = ts.iter().map(|r| &text[r.clone()]).collect();
+    assert!(token_texts.contains(&"\"x y\"") && token_texts.contains(&"// c"));
+    let run = |d: Damage| {
+        let mut t = text.to_owned();
+        apply_damage(&mut t, &d);
+        t
+    };
+    assert_eq!(run(Damage::DeleteToken(4)), "(a: , b: [1, 2])\n// c\nz\n");
+    assert_eq!(
+        run(Damage::DuplicateToken(1)),
+        "(aa: \"x y\", b: [1, 2])\n// c\nz\n"
+    );
+    assert_eq!(
+        run(Damage::SwapTokens(1, 7)),
+        "(b: \"x y\", a: [1, 2])\n// c\nz\n"
+    );
+    assert_eq!(
+        run(Damage::CopyToken { to: 7, from: 0 }),
+        "(a: \"x y\", a: [1, 2])\n// c\nz\n",
+        "a word is replaced by a word"
+    );
+    assert_eq!(
+        run(Damage::SwapLines(0, 2)),
+        "z\n// c\n(a: \"x y\", b: [1, 2])\n"
+    );
+    assert_eq!(
+        run(Damage::DuplicateLine(1)),
+        "(a: \"x y\", b: [1, 2])\n// c\n// c\nz\n"
+    );
+    assert_eq!(run(Damage::DeleteLine(0)), "// c\nz\n");
+    assert_eq!(
+        run(Damage::DeleteBytes { at: 1, len: 3 }),
+        "(\"x y\", b: [1, 2])\n// c\nz\n"
+    );
+    assert_eq!(
+        run(Damage::SwapBytes {
+            at: 1,
+            other: 11,
+            len: 1
+        }),
+        "(b: \"x y\", a: [1, 2])\n// c\nz\n"
+    );
+    assert_eq!(
+        run(Damage::InsertAtByte { at: 0, what: "é" }),
+        "é(a: \"x y\", b: [1, 2])\n// c\nz\n"
+    );
+    // Byte positions in the middle of a character move back to its start.
+    let mut t = "aé".to_owned();
+    apply_damage(&mut t, &Damage::DeleteBytes { at: 2, len: 2 });
+    assert_eq!(t, "a");
+    assert!(SEEDS.len() > 30, "rex and the corpus are seeds");
 }

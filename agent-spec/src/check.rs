@@ -66,6 +66,18 @@ fn is_ident(s: &str) -> bool {
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
+/// Byte offset of the first occurrence of identifier `name` in condition `text` as a
+/// whole identifier (`new` in `plan_new && !new` is at 13, not 5).
+fn find_ident(text: &str, name: &str) -> Option<usize> {
+    let ident = |b: u8| b.is_ascii_alphanumeric() || b == b'_';
+    let bytes = text.as_bytes();
+    text.match_indices(name).map(|(i, _)| i).find(|&i| {
+        let before = i.checked_sub(1).map(|j| bytes[j]);
+        let after = bytes.get(i + name.len()).copied();
+        !before.is_some_and(ident) && !after.is_some_and(ident)
+    })
+}
+
 fn normalize_type(t: &str) -> String {
     t.split_whitespace()
         .collect::<Vec<_>>()
@@ -674,6 +686,15 @@ impl<'a> Checker<'a> {
             Ok(e) => e,
             Err(e) => {
                 let span = match self.node(path) {
+                    // At the end of the condition: point at the closing quote.
+                    Some(n) if e.offset >= text.len() => {
+                        let content = n.content_span();
+                        if content.end < n.span.end {
+                            content.end..content.end + 1
+                        } else {
+                            n.span.clone()
+                        }
+                    }
                     Some(n) => n.sub_span(e.offset..e.offset + e.len.max(1)),
                     None => self.span(path),
                 };
@@ -698,7 +719,7 @@ impl<'a> Checker<'a> {
             }
         });
         for name in &missing {
-            let span = match (self.node(path), text.find(name.as_str())) {
+            let span = match (self.node(path), find_ident(text, name)) {
                 (Some(n), Some(off)) => n.sub_span(off..off + name.len()),
                 _ => self.span(path),
             };
@@ -759,30 +780,47 @@ impl<'a> Checker<'a> {
             );
         };
 
-        // Relations.
+        // Relations. If one names an undeclared predicate (reported here), the arc proof
+        // would miss an assumption and report arcs that the relation may well make
+        // sound: it is skipped, like the proof of arcs whose conditions do not resolve.
         let mut relations = Vec::new();
+        let mut relations_resolve = true;
         for (i, r) in sub.relations.iter().enumerate() {
-            let names: Vec<&String> = match r {
-                Relation::Exclusive(v) => v.iter().collect(),
-                Relation::Implies(a, b) => vec![a, b],
+            // Paths to each name: `Exclusive([a, b, ...])` is a variant holding a list,
+            // `Implies(a, b)` a variant holding two strings.
+            let names: Vec<(&String, Path)> = match r {
+                Relation::Exclusive(v) => v
+                    .iter()
+                    .enumerate()
+                    .map(|(k, n)| (n, at(&[F("relations"), I(i), I(0), I(k)])))
+                    .collect(),
+                Relation::Implies(a, b) => vec![
+                    (a, at(&[F("relations"), I(i), I(0)])),
+                    (b, at(&[F("relations"), I(i), I(1)])),
+                ],
             };
             let mut ok = Vec::new();
-            for (k, n) in names.iter().enumerate() {
+            for (n, path) in &names {
                 match preds.get(n.as_str()) {
                     Some(&p) => {
                         used.insert(p);
                         ok.push(p);
                     }
                     None => {
-                        let span = self.span(&at(&[F("relations"), I(i), I(k)]));
+                        relations_resolve = false;
+                        let mut known: Vec<&str> = preds.keys().copied().collect();
+                        known.sort_unstable();
                         self.push(
                             Finding::new(
                                 Code::UnknownPredicate,
-                                span,
+                                self.span(path),
                                 "not declared",
                                 format!("relation names predicate `{n}`, which is not declared"),
                             )
-                            .help("relations are between predicates declared under `predicates`"),
+                            .help(format!(
+                                "relations are between predicates declared under `predicates`; declared: {}",
+                                list_or_none(&known)
+                            )),
                         );
                     }
                 }
@@ -954,8 +992,8 @@ impl<'a> Checker<'a> {
                 .iter()
                 .filter_map(|(k, c)| c.as_ref().map(|c| (*k, c)))
                 .collect();
-            if conds.len() != arcs[i].len() {
-                continue; // a condition did not resolve; already reported
+            if conds.len() != arcs[i].len() || !relations_resolve {
+                continue; // a condition or relation did not resolve; already reported
             }
             self.prove_arcs(sub, base, i, &base_formulas, &conds);
         }
@@ -1424,6 +1462,16 @@ mod tests {
         assert_eq!(normalize_type("Vec< f64 >"), normalize_type("Vec<f64>"));
         assert_eq!(normalize_type("[f64 ;  4]"), normalize_type("[f64 ; 4]"));
         assert_ne!(normalize_type("Vec<f32>"), normalize_type("Vec<f64>"));
+    }
+
+    #[test]
+    fn undeclared_names_are_found_as_whole_identifiers() {
+        assert_eq!(find_ident("plan_new && !new", "new"), Some(13));
+        assert_eq!(find_ident("new_plan || new", "new"), Some(12));
+        assert_eq!(find_ident("new && plan_new", "new"), Some(0));
+        assert_eq!(find_ident("(a1&&a)", "a"), Some(5));
+        assert_eq!(find_ident("renew || news", "new"), None);
+        assert_eq!(find_ident("é && new", "new"), Some(6));
     }
 
     #[test]

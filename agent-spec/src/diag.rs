@@ -17,8 +17,8 @@ pub enum Severity {
 
 macro_rules! codes {
     ($( $(#[doc = $doc:literal])* $variant:ident = $text:literal, $sev:ident; )*) => {
-        /// The stable code of a finding. `Code::ALL` lists them; the README's
-        /// specification reference explains each.
+        /// The stable code of a finding. `Code::ALL` lists them; the specification
+        /// reference (`docs/spec-reference.md`) explains each.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
         pub enum Code {
             $( $(#[doc = $doc])* $variant, )*

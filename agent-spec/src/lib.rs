@@ -121,6 +121,19 @@ fn struct_name_ending_at(node: &span::SNode, close: usize) -> Option<std::ops::R
     }
 }
 
+/// The character at byte `at` (a character boundary), or the last one if `at` is the
+/// end of the text: a non-empty span for a position, unless the text is empty.
+fn one_char_at(source: &str, at: usize) -> std::ops::Range<usize> {
+    match (
+        source[at..].chars().next(),
+        source[..at].chars().next_back(),
+    ) {
+        (Some(c), _) => at..at + c.len_utf8(),
+        (None, Some(c)) => at - c.len_utf8()..at,
+        (None, None) => at..at,
+    }
+}
+
 fn syntax_finding(source: &str, e: &ron::error::SpannedError) -> Finding {
     use ron::error::Error as E;
     let start = diag::offset_of(source, e.span.start.line, e.span.start.col);
@@ -128,7 +141,7 @@ fn syntax_finding(source: &str, e: &ron::error::SpannedError) -> Finding {
     let mut span = if end > start {
         start..end
     } else {
-        start..(start + 1).min(source.len())
+        one_char_at(source, start)
     };
     if let E::MissingStructField { .. } = &e.code {
         // `ron` points at the struct's closing parenthesis; point at its name instead.
@@ -166,8 +179,26 @@ fn syntax_finding(source: &str, e: &ron::error::SpannedError) -> Finding {
         other => (
             Code::Syntax,
             other.to_string(),
-            "see the specification reference in the README for the schema".to_owned(),
+            "see the specification reference, docs/spec-reference.md, for the schema".to_owned(),
         ),
     };
     Finding::new(code, span, "here", message).help(help)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn syntax_errors_label_a_whole_character() {
+        // At a multi-byte character, at the end of the text, in an empty text.
+        for (text, label) in [("é", "é"), ("(", "("), ("(name: \"x\",\n", "\n")] {
+            let (_, report) = check_source("x.ron", text);
+            let f = &report.findings[0];
+            assert_eq!(f.code, Code::Syntax, "{text:?}: {f:?}");
+            assert_eq!(&text[f.labels[0].span.clone()], label, "{text:?}: {f:?}");
+        }
+        let (_, report) = check_source("x.ron", "");
+        assert_eq!(report.findings[0].labels[0].span, 0..0);
+    }
 }
