@@ -21,10 +21,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // The platform alone.
     let mut platform = Platform::new(
-        config.plant(),
+        config.plant()?,
         config.sensors.clone(),
         SharedTruth::default(),
-    );
+    )?;
     let dt = 1e-3;
     let seconds = 120.0;
     let steps = (seconds / dt) as usize;
@@ -56,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     // Rendering.
-    let renderer = Renderer::new(config.camera.clone(), config.scene.clone());
+    let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
     let (mut left, mut right) = (Vec::new(), Vec::new());
     let mut times = Vec::new();
     for k in 0..60 {

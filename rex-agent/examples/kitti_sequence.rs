@@ -13,6 +13,7 @@ use std::process::ExitCode;
 
 use rex_agent::camera::Renderer;
 use rex_agent::camera::kitti::SequenceWriter;
+use rex_agent::config;
 use rex_agent::world::WorldConfig;
 
 fn main() -> ExitCode {
@@ -52,6 +53,8 @@ fn run() -> Result<usize, Box<dyn std::error::Error>> {
             other => return Err(format!("unexpected argument {other:?}").into()),
         }
     }
+    // The options may have made the configuration invalid (`--width 0`).
+    config::check("command line", &config)?;
     let out = out.ok_or("missing OUT_DIR")?;
     let pose_at: Box<dyn Fn(f64) -> [f64; 3]> = match path.as_str() {
         // The figure eight of the missions, 40 s per lap.
@@ -65,7 +68,7 @@ fn run() -> Result<usize, Box<dyn std::error::Error>> {
         "turn" => Box::new(|t: f64| [0.0, 0.0, 0.3 * t]),
         other => return Err(format!("unknown path {other:?}").into()),
     };
-    let renderer = Renderer::new(config.camera.clone(), config.scene.clone());
+    let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
     let mut writer = SequenceWriter::create(&out, &config.camera)?;
     let (mut left, mut right) = (Vec::new(), Vec::new());
     for k in 0..frames {

@@ -107,6 +107,19 @@ pub fn parse<T: DeserializeOwned + Validate>(path: &Path, text: &str) -> Result<
     Ok(value)
 }
 
+/// Validate a value that was not read from a file (built in code, or changed by
+/// command-line options): errors name `what` (in angle brackets) in place of a file.
+pub fn check<T: Validate + ?Sized>(what: &str, value: &T) -> Result<(), ConfigError> {
+    value
+        .validate()
+        .map_err(|(field, value, reason)| ConfigError::Invalid {
+            path: PathBuf::from(format!("<{what}>")),
+            field,
+            value,
+            reason,
+        })
+}
+
 /// Read, parse and validate a RON file.
 pub fn load<T: DeserializeOwned + Validate>(path: &Path) -> Result<T, ConfigError> {
     let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::camera::Renderer;
 use crate::camera::kitti::SequenceWriter;
-use crate::config::{Invalid, Validate, non_negative, positive};
+use crate::config::{self, ConfigError, Invalid, Validate, non_negative, positive};
 use crate::model::{CommandStats, FullState, Plant};
 use crate::noise::Rng;
 use crate::types::{
@@ -172,6 +172,7 @@ pub struct Platform {
     last_command: Option<(Torques, f64)>,
     timeouts: u64,
     resets: u64,
+    rejected_resets: u64,
 }
 
 fn wrap(a: f64) -> f64 {
@@ -184,10 +185,15 @@ fn wrap(a: f64) -> f64 {
 }
 
 impl Platform {
-    /// The platform `plant` with sensors `params`, publishing to `truth`.
-    pub fn new(plant: Plant, params: SensorParams, truth: SharedTruth) -> Platform {
+    /// The platform `plant` with sensors `params` (validated), publishing to `truth`.
+    pub fn new(
+        plant: Plant,
+        params: SensorParams,
+        truth: SharedTruth,
+    ) -> Result<Platform, ConfigError> {
+        config::check("sensors", &params)?;
         let rng = Rng::stream(params.seed, "platform");
-        Platform {
+        Ok(Platform {
             yaw: plant.state.phi,
             bias: params.gyro_bias,
             plant,
@@ -199,7 +205,8 @@ impl Platform {
             last_command: None,
             timeouts: 0,
             resets: 0,
-        }
+            rejected_resets: 0,
+        })
     }
 
     /// The plant (ground truth).
@@ -207,9 +214,16 @@ impl Platform {
         &self.plant
     }
 
-    /// Torque commands that were NaN or out of bounds so far.
+    /// Torque commands that were NaN or out of bounds so far: each command from
+    /// `e11` is checked and counted once, when it arrives (see [`Plant::clean`]).
     pub fn command_stats(&self) -> CommandStats {
         self.plant.command_stats()
+    }
+
+    /// The torque command in force: the last one received, cleaned (NaN torques
+    /// zeroed, the others clamped to `±torque_max`), and when it arrived [s].
+    pub fn command(&self) -> Option<(Torques, f64)> {
+        self.last_command
     }
 
     /// Steps run with zero torque because the last command was too old.
@@ -222,10 +236,17 @@ impl Platform {
         self.resets
     }
 
-    /// Advance the plant by `dt` with `command` (limited as the motors do) and
-    /// sample the sensors.
+    /// IMU resets ignored because their heading was NaN or infinite.
+    pub fn rejected_resets(&self) -> u64 {
+        self.rejected_resets
+    }
+
+    /// Advance the plant by `dt` with `command` (as the motors deliver it at the
+    /// current wheel speeds, [`Plant::available`]; the command is not counted here:
+    /// the driver cleans and counts each command once when it arrives) and sample
+    /// the sensors.
     pub fn advance(&mut self, command: Torques, dt: f64) -> (Imu, WheelLoads, Encoders) {
-        let tau = self.plant.limit(command);
+        let tau = self.plant.available(command);
         self.plant.step(tau, dt);
         let s = self.plant.state;
         let p = &self.params;
@@ -281,13 +302,17 @@ impl Driver for Platform {
     ) -> Result<(), DriverError> {
         let dt = cx.period.as_secs_f64();
         let now = cx.now.as_secs_f64();
+        // A new command is checked (and a bad one counted) once, when it arrives;
+        // the cleaned command stays in force until the next one or the timeout.
         if let Some(&tau) = x.e11.tau.fresh() {
-            self.last_command = Some((tau, now));
+            self.last_command = Some((self.plant.clean(tau), now));
         }
         if let Some(ImuCommand::Reset { yaw }) = x.e11.cmd_E11.fresh().copied() {
             if yaw.is_finite() {
                 self.yaw = yaw;
                 self.resets += 1;
+            } else {
+                self.rejected_resets += 1;
             }
         }
         let command = match self.last_command {
@@ -427,14 +452,14 @@ impl Driver for StereoCamera {
             self.renderer
                 .render_pair(body, &mut pair.left, &mut pair.right);
             if let Some(w) = &mut self.recorder {
-                let pose = self.renderer.camera.left_pose(body);
+                let pose = self.renderer.camera().left_pose(body);
                 w.push(truth.time, &pose, &pair.left, &pair.right)
                     .map_err(|e| DriverError::new(format!("recording the KITTI sequence: {e}")))?;
             }
             pair.seq = cmd.seq;
             pair.time = truth.time;
-            pair.width = self.renderer.camera.width;
-            pair.height = self.renderer.camera.height;
+            pair.width = self.renderer.camera().width;
+            pair.height = self.renderer.camera().height;
             self.has_pending = true;
             self.frames += 1;
         }
@@ -520,12 +545,14 @@ pub struct MotionCapture {
     silent_until: f64,
     delivered: u64,
     dropped: u64,
+    last: Option<(f64, MapPose)>,
 }
 
 impl MotionCapture {
-    /// A motion-capture system observing `truth`.
-    pub fn new(params: MocapParams, truth: SharedTruth) -> MotionCapture {
-        MotionCapture {
+    /// A motion-capture system (`params` validated) observing `truth`.
+    pub fn new(params: MocapParams, truth: SharedTruth) -> Result<MotionCapture, ConfigError> {
+        config::check("mocap", &params)?;
+        Ok(MotionCapture {
             rng: Rng::stream(params.seed, "mocap"),
             params,
             truth,
@@ -533,12 +560,18 @@ impl MotionCapture {
             silent_until: f64::NEG_INFINITY,
             delivered: 0,
             dropped: 0,
-        }
+            last: None,
+        })
     }
 
     /// Poses delivered and samples lost to dropouts.
     pub fn counts(&self) -> (u64, u64) {
         (self.delivered, self.dropped)
+    }
+
+    /// The last pose delivered, with the time it was sent [s].
+    pub fn last_delivered(&self) -> Option<(f64, MapPose)> {
+        self.last
     }
 }
 
@@ -583,7 +616,9 @@ impl Driver for MotionCapture {
             y: pose.y + self.rng.gauss(p.position_noise),
             phi: wrap(pose.phi + self.rng.gauss(p.heading_noise)),
         };
-        y.r31.pose.set(MapPose { pose: noisy, time });
+        let sent = MapPose { pose: noisy, time };
+        y.r31.pose.set(sent);
+        self.last = Some((now, sent));
         self.delivered += 1;
         Ok(())
     }
@@ -593,14 +628,140 @@ impl Driver for MotionCapture {
 mod tests {
     use super::*;
     use crate::model::{PlatformParams, SurfaceMap};
+    use embodied::{Period, Stamp, Time};
 
     fn platform(params: SensorParams) -> Platform {
         let plant = Plant::new(
             PlatformParams::peer_default(),
             SurfaceMap::concrete(),
             [0.0; 3],
+        )
+        .unwrap();
+        Platform::new(plant, params, SharedTruth::default()).unwrap()
+    }
+
+    /// Step `driver` at 1 kHz from `*k`, with `tau` and `cmd` delivered as new in
+    /// the first of `steps` steps (and aged in the others); returns the last IMU
+    /// reading.
+    fn drive(
+        p: &mut Platform,
+        k: &mut u64,
+        tau: Option<Torques>,
+        cmd: Option<ImuCommand>,
+        steps: u64,
+    ) -> Imu {
+        let mut x = PlatformInput::default();
+        let mut y = PlatformOutput::default();
+        for n in 0..steps {
+            let stamp = Stamp::new(*k, Time::from_nanos(*k * 1_000_000));
+            match tau {
+                Some(t) if n == 0 => x.e11.tau.deliver(t, stamp),
+                _ => x.e11.tau.age(),
+            }
+            match cmd {
+                Some(c) if n == 0 => x.e11.cmd_E11.deliver(c, stamp),
+                _ => x.e11.cmd_E11.age(),
+            }
+            let cx = DriverContext {
+                now: Time::from_nanos(*k * 1_000_000),
+                iteration: *k,
+                period: Period::from_millis(1).unwrap(),
+            };
+            p.step(cx, &x, &mut y).unwrap();
+            *k += 1;
+        }
+        *y.e11.imu.written().unwrap()
+    }
+
+    #[test]
+    fn a_bad_command_is_cleaned_and_counted_once_however_long_it_stays_in_force() {
+        let mut p = platform(SensorParams::default());
+        let mut k = 0;
+        // A good command, then one NaN command held for 50 plant steps (e11's period).
+        drive(&mut p, &mut k, Some([1.0; 4]), None, 50);
+        assert_eq!(p.command_stats(), CommandStats::default());
+        drive(&mut p, &mut k, Some([f64::NAN, 1.0, 1.0, 1.0]), None, 50);
+        assert_eq!(
+            p.command_stats(),
+            CommandStats {
+                not_finite: 1,
+                out_of_bounds: 0
+            }
         );
-        Platform::new(plant, params, SharedTruth::default())
+        assert_eq!(p.command().unwrap().0, [0.0, 1.0, 1.0, 1.0], "NaN -> 0");
+        assert!(p.plant().state.theta_dot.iter().all(|w| w.is_finite()));
+        // One out-of-bounds command: counted once, and clamped.
+        drive(&mut p, &mut k, Some([25.0, -30.0, 2.0, 10.0]), None, 50);
+        assert_eq!(
+            p.command_stats(),
+            CommandStats {
+                not_finite: 1,
+                out_of_bounds: 1
+            }
+        );
+        assert_eq!(p.command().unwrap().0, [10.0, -10.0, 2.0, 10.0]);
+        assert_eq!(p.command().unwrap().1, 0.1, "arrived at 100 ms");
+        // Good commands afterwards count nothing.
+        for _ in 0..3 {
+            drive(&mut p, &mut k, Some([2.0; 4]), None, 50);
+        }
+        assert_eq!(
+            p.command_stats(),
+            CommandStats {
+                not_finite: 1,
+                out_of_bounds: 1
+            }
+        );
+        assert_eq!(p.timeouts(), 0);
+    }
+
+    #[test]
+    fn a_reset_to_a_non_finite_heading_is_rejected_and_counted() {
+        let mut p = platform(SensorParams {
+            gyro_bias: 0.5,
+            gyro_noise: 0.0,
+            gyro_bias_walk: 0.0,
+            ..SensorParams::default()
+        });
+        let mut k = 0;
+        let imu = drive(&mut p, &mut k, None, None, 100);
+        assert!(imu.yaw > 0.04, "drifted: {}", imu.yaw);
+        let reset = |yaw| Some(ImuCommand::Reset { yaw });
+        let imu = drive(&mut p, &mut k, None, reset(f64::NAN), 20);
+        assert_eq!((p.resets(), p.rejected_resets()), (0, 1));
+        assert!(imu.yaw > 0.05 && imu.yaw.is_finite(), "kept: {}", imu.yaw);
+        drive(&mut p, &mut k, None, reset(f64::INFINITY), 20);
+        drive(&mut p, &mut k, None, reset(f64::NEG_INFINITY), 20);
+        assert_eq!((p.resets(), p.rejected_resets()), (0, 3));
+        let imu = drive(&mut p, &mut k, None, reset(-1.0), 1);
+        assert_eq!((p.resets(), p.rejected_resets()), (1, 3));
+        assert!(
+            (imu.yaw - (-1.0 + 0.5e-3)).abs() < 1e-9,
+            "reset: {}",
+            imu.yaw
+        );
+    }
+
+    #[test]
+    fn invalid_sensor_or_mocap_parameters_are_errors() {
+        let plant = Plant::new(
+            PlatformParams::peer_default(),
+            SurfaceMap::concrete(),
+            [0.0; 3],
+        )
+        .unwrap();
+        let bad = SensorParams {
+            speed_window: 0,
+            ..SensorParams::default()
+        };
+        let err = Platform::new(plant, bad, SharedTruth::default()).unwrap_err();
+        assert!(err.to_string().contains("<sensors>: speed_window"), "{err}");
+        let bad = MocapParams {
+            dropout_rate: f64::NAN,
+            ..MocapParams::default()
+        };
+        let err = MotionCapture::new(bad, SharedTruth::default()).unwrap_err();
+        assert!(err.to_string().contains("<mocap>: dropout_rate"), "{err}");
     }
 
     #[test]

@@ -132,8 +132,9 @@ impl WorldConfig {
         WorldConfig::load(&config::config_dir().join("world.ron"))
     }
 
-    /// The simulated platform at the start pose.
-    pub fn plant(&self) -> Plant {
+    /// The simulated platform at the start pose (an error if the platform, the
+    /// ground or the pose is invalid).
+    pub fn plant(&self) -> Result<Plant, ConfigError> {
         Plant::new(
             self.platform.clone(),
             self.surfaces.clone(),
@@ -146,25 +147,26 @@ fn ms(v: f64) -> Result<Period, PeriodError> {
     Period::from_secs_f64(v * 1e-3)
 }
 
-/// Add the platform E1 to agent `a1`.
+/// Add the platform E1 to agent `a1` (an error if its configuration is invalid).
 pub fn add_platform(
     sys: &mut SystemBuilder,
     a1: AgentId,
     config: &WorldConfig,
     truth: &SharedTruth,
-) -> Result<DriverHandle<Platform>, PeriodError> {
-    let platform = Platform::new(config.plant(), config.sensors.clone(), truth.clone());
+) -> Result<DriverHandle<Platform>, WorldError> {
+    let platform = Platform::new(config.plant()?, config.sensors.clone(), truth.clone())?;
     Ok(sys.driver(a1, "E1", ms(config.periods.platform_ms)?, platform))
 }
 
-/// Add the stereo camera R1 to agent `a1`.
+/// Add the stereo camera R1 to agent `a1` (an error if the camera or the scene is
+/// invalid).
 pub fn add_camera(
     sys: &mut SystemBuilder,
     a1: AgentId,
     config: &WorldConfig,
     truth: &SharedTruth,
-) -> Result<DriverHandle<StereoCamera>, PeriodError> {
-    let renderer = Renderer::new(config.camera.clone(), config.scene.clone());
+) -> Result<DriverHandle<StereoCamera>, WorldError> {
+    let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
     Ok(sys.driver(
         a1,
         "R1",
@@ -226,7 +228,7 @@ pub fn add_map_agent(
         a3,
         "R3",
         ms(p.mocap_ms)?,
-        MotionCapture::new(config.mocap.clone(), truth.clone()),
+        MotionCapture::new(config.mocap.clone(), truth.clone())?,
     );
     sys.connect(
         mocap.output(port!(MocapOutput, r31.pose)),
@@ -255,6 +257,9 @@ pub enum WorldError {
     /// An FSM is malformed (a bug in this crate).
     #[error(transparent)]
     Fsm(#[from] embodied::FsmBuildError),
+    /// A configuration value is invalid.
+    #[error(transparent)]
+    Invalid(#[from] ConfigError),
 }
 
 #[cfg(test)]
@@ -275,5 +280,31 @@ mod tests {
         let text = ron::to_string(&bad).unwrap();
         let err = config::parse::<WorldConfig>(Path::new("w.ron"), &text).unwrap_err();
         assert!(err.to_string().contains("mu_lat"), "{err}");
+    }
+
+    #[test]
+    fn a_world_built_in_code_is_validated_when_its_devices_are_added() {
+        let truth = SharedTruth::default();
+        let mut config = WorldConfig::default();
+        config.camera.width = 0;
+        config
+            .surfaces
+            .surfaces
+            .push(config.surfaces.surfaces[0].clone());
+        let mut sys = SystemBuilder::new();
+        let a1 = sys.agent("a1");
+        let err = add_camera(&mut sys, a1, &config, &truth).unwrap_err();
+        assert!(
+            err.to_string().contains("<camera>: width x height = 0x480"),
+            "{err}"
+        );
+        let err = add_platform(&mut sys, a1, &config, &truth).unwrap_err();
+        assert!(
+            err.to_string().contains("<surfaces>: surfaces[1].name"),
+            "{err}"
+        );
+        config.mocap.latency = -1.0;
+        let err = add_map_agent(&mut sys, &config, &truth).unwrap_err();
+        assert!(err.to_string().contains("<mocap>: latency = -1"), "{err}");
     }
 }

@@ -24,14 +24,34 @@ use rex_agent::world::{self, WorldConfig};
 // ---------------------------------------------------------------------------
 // Stand-ins for a1's subsystems.
 
-/// c1: acknowledges each plan 20 iterations after it arrives; keeps the map poses.
+/// c1: acknowledges each plan as `Received` (not ready) in the iteration it
+/// arrives, and as `Done` (ready) 20 iterations later; notes when the plans came
+/// and which acknowledgements it sent; keeps the map poses.
 struct StubC1;
 #[derive(Clone, Debug, Default)]
 struct StubC1Memory {
     pending: Option<(u32, u32)>,
-    plans: Vec<u32>,
+    /// Plan ids with their arrival time [s].
+    plans: Vec<(f64, u32)>,
+    /// Acknowledgements sent, with the time [s].
+    acks: Vec<(f64, Ack)>,
     poses: Vec<(f64, MapPose)>,
     iteration: u64,
+}
+
+/// The acknowledgement `c1` sends in this iteration.
+fn stub_c1_ack(m: &StubC1Memory, x: &StubC1Input) -> Option<Ack> {
+    match (m.pending, x.c2.desired_plan.fresh()) {
+        (Some((id, 0)), _) => Some(Ack {
+            plan: id,
+            status: AckStatus::Done,
+        }),
+        (_, Some(plan)) => Some(Ack {
+            plan: plan.id,
+            status: AckStatus::Received,
+        }),
+        _ => None,
+    }
 }
 #[derive(Clone, Debug, Default)]
 struct C1FromC2 {
@@ -85,12 +105,9 @@ fn stub_c1() -> Fsm<StubC1> {
         Action::<StubC1>::new()
             .output(
                 |y| &mut y.c2,
-                |m: &StubC1Memory, _: &StubC1Input, y: &mut C1ToC2| {
-                    if let Some((id, 0)) = m.pending {
-                        y.ack.set(Ack {
-                            plan: id,
-                            status: AckStatus::Done,
-                        });
+                |m: &StubC1Memory, x: &StubC1Input, y: &mut C1ToC2| {
+                    if let Some(ack) = stub_c1_ack(m, x) {
+                        y.ack.set(ack);
                     }
                 },
             )
@@ -101,16 +118,20 @@ fn stub_c1() -> Fsm<StubC1> {
                 },
             )
             .memory(|m: &mut StubC1Memory, x: &StubC1Input| {
+                let now = m.iteration as f64 * C1_PERIOD;
+                if let Some(ack) = stub_c1_ack(m, x) {
+                    m.acks.push((now, ack));
+                }
                 m.pending = match m.pending {
                     Some((_, 0)) | None => None,
                     Some((id, n)) => Some((id, n - 1)),
                 };
                 if let Some(plan) = x.c2.desired_plan.fresh() {
-                    m.plans.push(plan.id);
+                    m.plans.push((now, plan.id));
                     m.pending = Some((plan.id, 20));
                 }
                 if let Some(p) = x.c3.pose.fresh() {
-                    m.poses.push((m.iteration as f64 * C1_PERIOD, *p));
+                    m.poses.push((now, *p));
                 }
                 m.iteration += 1;
             }),
@@ -120,12 +141,24 @@ fn stub_c1() -> Fsm<StubC1> {
 }
 
 /// e11: drives the wheels at 4 rad/s (left) and 8 rad/s (right) with a proportional
-/// speed loop on the encoders; resets the IMU once; keeps the last readings.
+/// speed loop on the encoders; resets the IMU once; sends the scripted bad commands;
+/// keeps the last readings.
 struct StubE11;
 #[derive(Clone, Debug, Default)]
 struct StubE11Memory {
     iteration: u64,
     last: Option<(Imu, WheelLoads, Encoders)>,
+    /// Bad commands to send instead, by iteration.
+    faults: Vec<(u64, Fault)>,
+}
+
+/// A bad command from the stand-in `e11`.
+#[derive(Clone, Copy, Debug)]
+enum Fault {
+    /// These torques instead of the speed loop's.
+    Torques(Torques),
+    /// An IMU reset to this heading.
+    Reset(f64),
 }
 #[derive(Clone, Debug, Default)]
 struct E11FromE1 {
@@ -175,6 +208,12 @@ fn stub_e11() -> Fsm<StubE11> {
                     if m.iteration == 5 {
                         y.cmd_E11.set(ImuCommand::Reset { yaw: 0.0 });
                     }
+                    for &(_, fault) in m.faults.iter().filter(|f| f.0 == m.iteration) {
+                        match fault {
+                            Fault::Torques(tau) => y.tau.set(tau),
+                            Fault::Reset(yaw) => y.cmd_E11.set(ImuCommand::Reset { yaw }),
+                        }
+                    }
                 },
             )
             .memory(|m: &mut StubE11Memory, x: &StubE11Input| {
@@ -190,15 +229,38 @@ fn stub_e11() -> Fsm<StubE11> {
     .unwrap()
 }
 
-/// r11: asks for a pair every third iteration; notes what it asked and what came.
+/// r11: asks for a pair every `every` iterations up to iteration `last_ask`; notes
+/// what it asked and what came.
 struct StubR11;
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 struct StubR11Memory {
     iteration: u64,
+    every: u64,
+    last_ask: u64,
+    /// (iteration, seq) of each request.
     asked: Vec<(u64, u64)>,
+    /// (iteration, seq, exposure time) of each fresh pair.
     got: Vec<(u64, u64, f64)>,
     images_differ: bool,
     previous: Vec<u8>,
+}
+
+impl StubR11Memory {
+    fn new(every: u64, last_ask: u64) -> Self {
+        StubR11Memory {
+            iteration: 0,
+            every,
+            last_ask,
+            asked: Vec::new(),
+            got: Vec::new(),
+            images_differ: false,
+            previous: Vec::new(),
+        }
+    }
+
+    fn asks(&self) -> bool {
+        self.iteration % self.every == 0 && self.iteration <= self.last_ask
+    }
 }
 #[derive(Clone, Debug, Default)]
 struct R11FromR1 {
@@ -237,16 +299,16 @@ fn stub_r11() -> Fsm<StubR11> {
             .output(
                 |y| &mut y.r1,
                 |m: &StubR11Memory, _: &StubR11Input, y: &mut R11ToR1| {
-                    if m.iteration % 3 == 0 {
+                    if m.asks() {
                         y.cmd_R11.set(AcquireCommand {
-                            seq: m.iteration / 3,
+                            seq: m.iteration / m.every,
                         });
                     }
                 },
             )
             .memory(|m: &mut StubR11Memory, x: &StubR11Input| {
-                if m.iteration % 3 == 0 {
-                    m.asked.push((m.iteration, m.iteration / 3));
+                if m.asks() {
+                    m.asked.push((m.iteration, m.iteration / m.every));
                 }
                 if let Some(pair) = x.r1.img_lr.fresh() {
                     m.got.push((m.iteration, pair.seq, pair.time));
@@ -291,18 +353,43 @@ fn world_config() -> WorldConfig {
     }
 }
 
+/// What the stand-ins do, beyond their defaults.
+struct Stubs {
+    /// r11's period [ms] and memory (what it asks for).
+    r11_ms: u64,
+    r11: StubR11Memory,
+    /// e11's memory (its bad commands).
+    e11: StubE11Memory,
+    /// a2's mission.
+    mission: Mission,
+}
+
+impl Default for Stubs {
+    fn default() -> Self {
+        Stubs {
+            r11_ms: 20,
+            r11: StubR11Memory::new(3, u64::MAX),
+            e11: StubE11Memory::default(),
+            mission: Mission::shipped("square").unwrap(),
+        }
+    }
+}
+
 fn build(config: &WorldConfig) -> (System, Handles) {
+    build_with(config, Stubs::default())
+}
+
+fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     let truth = SharedTruth::default();
     let mut sys = SystemBuilder::new();
     let a1 = sys.agent("a1");
     let ms = |x: u64| Period::from_millis(x).unwrap();
     let c1 = sys.subsystem(a1, "c1", ms(10), StubC1Memory::default(), stub_c1());
-    let e11 = sys.subsystem(a1, "e11", ms(50), StubE11Memory::default(), stub_e11());
-    let r11 = sys.subsystem(a1, "r11", ms(20), StubR11Memory::default(), stub_r11());
+    let e11 = sys.subsystem(a1, "e11", ms(50), stubs.e11, stub_e11());
+    let r11 = sys.subsystem(a1, "r11", ms(stubs.r11_ms), stubs.r11, stub_r11());
     let platform = world::add_platform(&mut sys, a1, config, &truth).unwrap();
     let camera = world::add_camera(&mut sys, a1, config, &truth).unwrap();
-    let mission = Mission::shipped("square").unwrap();
-    let (_, c2) = world::add_ontology(&mut sys, config, mission).unwrap();
+    let (_, c2) = world::add_ontology(&mut sys, config, stubs.mission).unwrap();
     let map = world::add_map_agent(&mut sys, config, &truth).unwrap();
     sys.connect(
         c2.output(port!(OntologyOutput, c1.desired_plan)),
@@ -378,7 +465,19 @@ fn the_world_runs_inside_the_framework() {
     let config = world_config();
     let (system, h) = build(&config);
     let mut exec = Executor::new(system, ExecConfig::default());
-    exec.run_for(Duration::from_secs(6)).unwrap();
+    // Instant by instant, to see each pose the motion capture sends when it sends it.
+    let end = Time::from_nanos(6_000_000_000);
+    let mut mocap_sent = 0;
+    let mut mocap_ages = Vec::new();
+    while exec.next_instant().is_some_and(|t| t < end) {
+        exec.step().unwrap();
+        let mocap = exec.driver(&h.map.mocap).unwrap();
+        if mocap.counts().0 > mocap_sent {
+            mocap_sent = mocap.counts().0;
+            let (sent_at, pose) = mocap.last_delivered().unwrap();
+            mocap_ages.push(sent_at - pose.time);
+        }
+    }
 
     // The platform moved under e11's torques and its sensors reached e11.
     let plant = exec.driver(&h.platform).unwrap().plant();
@@ -447,7 +546,20 @@ fn the_world_runs_inside_the_framework() {
             p.time
         );
     }
+    // When the motion capture sends a pose it is between `latency` and `latency`
+    // plus one of its periods (and the platform's 1 ms step) old.
+    let mocap_period = config.periods.mocap_ms * 1e-3;
+    assert!(mocap_ages.len() > 100, "{} poses", mocap_ages.len());
+    for &age in &mocap_ages {
+        assert!(
+            age >= config.mocap.latency - 1e-9
+                && age <= config.mocap.latency + mocap_period + 1e-3 + 1e-9,
+            "a pose {age} s old when sent (latency {} s, period {mocap_period} s)",
+            config.mocap.latency
+        );
+    }
     let (delivered, dropped) = exec.driver(&h.map.mocap).unwrap().counts();
+    assert_eq!(delivered as usize, mocap_ages.len());
     assert!(
         dropped > 0 && delivered > 100,
         "{delivered} delivered, {dropped} dropped"
@@ -458,7 +570,8 @@ fn the_world_runs_inside_the_framework() {
     );
 
     // The ontology agent sent both plans of the square and finished.
-    assert_eq!(exec.memory(&h.c1).unwrap().plans, vec![1, 2]);
+    let ids: Vec<u32> = c1.plans.iter().map(|p| p.1).collect();
+    assert_eq!(ids, vec![1, 2]);
     assert_eq!(exec.memory(&h.c2).unwrap().acks.len(), 2);
     assert_eq!(exec.behaviour(&h.c2), Some("done"));
     assert!(exec.is_halted(h.c2.id()));
@@ -467,20 +580,180 @@ fn the_world_runs_inside_the_framework() {
 
 #[test]
 fn no_command_means_no_new_image() {
+    // r11 runs four times as often as the camera and asks for a pair every 40 ms
+    // until 400 ms, then stops asking; the run goes on to 1 s.
     let config = world_config();
-    let (system, h) = build(&config);
-    let mut exec = Executor::new(system, ExecConfig::default());
-    exec.run_for(Duration::from_millis(500)).unwrap();
-    let asked = exec.memory(&h.r11).unwrap().asked.len();
-    let got = exec.memory(&h.r11).unwrap().got.len();
-    assert!(
-        got + 1 >= asked && got <= asked,
-        "{asked} asked, {got} received"
+    let (r11_ms, every, last_ask) = (5u64, 8u64, 80u64);
+    let (system, h) = build_with(
+        &config,
+        Stubs {
+            r11_ms,
+            r11: StubR11Memory::new(every, last_ask),
+            ..Stubs::default()
+        },
     );
-    // r11 reads the camera's sample link every iteration, but only the iterations
-    // after a request see a new pair.
-    let iterations = exec.memory(&h.r11).unwrap().iteration;
-    assert!(got < iterations as usize / 2);
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.run_for(Duration::from_millis(1000)).unwrap();
+    let r = exec.memory(&h.r11).unwrap();
+    let camera_period = config.periods.camera_ms * 1e-3;
+    let platform_step = config.periods.platform_ms * 1e-3;
+    let r11_period = r11_ms as f64 * 1e-3;
+    assert_eq!(r.asked.len() as u64, last_ask / every + 1);
+    assert_eq!(r.iteration, 200, "r11 kept running after it stopped asking");
+
+    // Every request answered once, in order, and nothing else: the camera rendered
+    // exactly the pairs asked for and r11 saw exactly those as new.
+    let asked: Vec<u64> = r.asked.iter().map(|a| a.1).collect();
+    let got: Vec<u64> = r.got.iter().map(|g| g.1).collect();
+    assert_eq!(got, asked);
+    assert_eq!(exec.driver(&h.camera).unwrap().frames(), asked.len() as u64);
+    // After the last request only the pairs still on their way when it was made
+    // arrive (the last one among them), then nothing for the remaining 0.5 s.
+    let on_the_way: Vec<u64> = r
+        .asked
+        .iter()
+        .filter(|a| !r.got.iter().any(|g| g.1 == a.1 && g.0 <= last_ask))
+        .map(|a| a.1)
+        .collect();
+    let after: Vec<u64> = r
+        .got
+        .iter()
+        .filter(|g| g.0 > last_ask)
+        .map(|g| g.1)
+        .collect();
+    assert_eq!(after, on_the_way);
+    assert_eq!(after.last(), Some(&(last_ask / every)));
+    let last_arrival = r.got.last().unwrap().0 as f64 * r11_period;
+    assert!(
+        last_arrival < 0.5,
+        "the last pair came soon after it was asked for, at {last_arrival} s"
+    );
+    assert!(!exec.input(&h.r11).unwrap().r1.img_lr.is_new());
+
+    // A pair is exposed after it is asked for and delivered at the camera's next
+    // step at the earliest: r11 (reading every 5 ms) sees it more than one camera
+    // period after the exposure.
+    for &(at, seq, time) in &r.got {
+        let (asked_at, _) = r.asked[seq as usize];
+        let (asked_t, got_t) = (asked_at as f64 * r11_period, at as f64 * r11_period);
+        // The exposure shows the platform after the step of that instant.
+        let exposed = time - platform_step;
+        assert!(
+            exposed > asked_t - 1e-9,
+            "pair {seq} exposed at {exposed} s, asked for at {asked_t} s"
+        );
+        assert!(
+            got_t > exposed + camera_period + 1e-9,
+            "pair {seq} exposed at {exposed} s, received at {got_t} s: not a camera period later"
+        );
+        assert!(
+            got_t <= asked_t + 3.0 * camera_period + 1e-9,
+            "pair {seq} asked for at {asked_t} s came late, at {got_t} s"
+        );
+    }
+}
+
+#[test]
+fn a_bad_command_is_counted_once_and_a_bad_reset_is_rejected() {
+    // e11 (50 ms) sends one NaN torque command at 0.5 s, a NaN IMU reset at 0.75 s
+    // and one out-of-bounds command at 1 s; the platform steps at 1 ms, so each bad
+    // torque command is in force for 50 plant steps.
+    let config = world_config();
+    let (system, h) = build_with(
+        &config,
+        Stubs {
+            e11: StubE11Memory {
+                faults: vec![
+                    (10, Fault::Torques([f64::NAN, 1.0, 1.0, 1.0])),
+                    (15, Fault::Reset(f64::NAN)),
+                    (20, Fault::Torques([40.0, 0.0, 0.0, -40.0])),
+                ],
+                ..StubE11Memory::default()
+            },
+            ..Stubs::default()
+        },
+    );
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.run_for(Duration::from_millis(540)).unwrap();
+    let p = exec.driver(&h.platform).unwrap();
+    assert_eq!(p.command_stats().not_finite, 1);
+    let (tau, at) = p.command().unwrap();
+    assert_eq!(tau, [0.0, 1.0, 1.0, 1.0], "the NaN torque is zero");
+    assert!((0.5..0.502).contains(&at), "arrived at {at}");
+
+    exec.run_for(Duration::from_millis(500)).unwrap();
+    let p = exec.driver(&h.platform).unwrap();
+    assert_eq!(p.command_stats().out_of_bounds, 1);
+    let (tau, at) = p.command().unwrap();
+    assert_eq!(tau, [10.0, 0.0, 0.0, -10.0], "clamped to the torque bound");
+    assert!((1.0..1.002).contains(&at), "arrived at {at}");
+
+    exec.run_for(Duration::from_millis(1000)).unwrap();
+    let p = exec.driver(&h.platform).unwrap();
+    assert_eq!(
+        p.command_stats(),
+        rex_agent::model::CommandStats {
+            not_finite: 1,
+            out_of_bounds: 1
+        },
+        "one count per bad command, however many steps it was in force"
+    );
+    assert_eq!(p.rejected_resets(), 1, "the NaN reset");
+    assert_eq!(p.resets(), 1, "the good reset at iteration 5");
+    assert!(p.plant().state.x.is_finite() && p.plant().state.omega.is_finite());
+    assert_eq!(p.plant().integration_stats().singular, 0);
+    assert!(exec.report().errors.is_empty());
+}
+
+#[test]
+fn the_ontology_sends_the_next_plan_only_after_the_final_ack() {
+    // Four plans; c1 answers each with `Received` (not ready) at once and `Done`
+    // (ready) 200 ms later, two of c2's periods: a2 must wait for `Done`.
+    let config = world_config();
+    let point = |x: f64, y: f64| Point2 { x, y };
+    let mission = Mission {
+        name: "four".into(),
+        plans: (0..4)
+            .map(|k| vec![point(f64::from(k), 0.0), point(f64::from(k), 1.0)])
+            .collect(),
+    };
+    let (system, h) = build_with(
+        &config,
+        Stubs {
+            mission,
+            ..Stubs::default()
+        },
+    );
+    let mut exec = Executor::new(system, ExecConfig::default());
+    exec.run_for(Duration::from_secs(4)).unwrap();
+    let c1 = exec.memory(&h.c1).unwrap();
+    let ids: Vec<u32> = c1.plans.iter().map(|p| p.1).collect();
+    assert_eq!(ids, vec![1, 2, 3, 4], "every plan once, in order");
+    let sent = |plan: u32, ready: bool| {
+        c1.acks
+            .iter()
+            .find(|(_, a)| a.plan == plan && a.ready() == ready)
+            .map(|(t, _)| *t)
+    };
+    for pair in c1.plans.windows(2) {
+        let ((_, k), (next_at, next)) = (pair[0], pair[1]);
+        let (received, done) = (sent(k, false), sent(k, true));
+        assert!(
+            done.is_some_and(|done| next_at > done),
+            "plan {next} reached c1 at {next_at} s, before the final ack of plan {k} \
+             (sent at {done:?} s; `Received` at {received:?} s)"
+        );
+        let (received, done) = (received.unwrap(), done.unwrap());
+        assert!(
+            done - received > 2.0 * config.periods.c2_ms * 1e-3 - 1e-9,
+            "c2 had time to (wrongly) act on `Received`"
+        );
+    }
+    // c2 kept the final acks only, and finished.
+    let c2 = exec.memory(&h.c2).unwrap();
+    let kept: Vec<(u32, bool)> = c2.acks.iter().map(|a| (a.plan, a.ready())).collect();
+    assert_eq!(kept, vec![(1, true), (2, true), (3, true), (4, true)]);
+    assert_eq!(exec.behaviour(&h.c2), Some("done"));
 }
 
 #[test]

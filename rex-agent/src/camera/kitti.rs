@@ -6,11 +6,30 @@
 //! ```text
 //! SEQ/image_0/000000.png   left images (8-bit grayscale)
 //! SEQ/image_1/000000.png   right images
-//! SEQ/calib.txt            P0: and P1: 3×4 projection matrices (P1 has −f·b)
+//! SEQ/calib.txt            P0:..P3: 3×4 projection matrices, Tr: a 3×4 transform
 //! SEQ/times.txt            one timestamp [s] per frame
 //! SEQ/poses.txt            ground truth: the left camera's pose in the first
 //!                          camera's frame, 3×4 row-major, one line per frame
 //! ```
+//!
+//! `calib.txt` has the five lines of a KITTI odometry sequence, so KITTI tools
+//! (`pykitti.odometry`, evaluation scripts) read it:
+//!
+//! * `P0:` the left camera, `[f 0 c_u 0; 0 f c_v 0; 0 0 1 0]`, and `P1:` the right
+//!   one, the same with `−f·b` in the last column; the principal point `(c_u, c_v)`
+//!   is `((w − 1)/2, (h − 1)/2)`, with pixel centres at integer coordinates as in
+//!   KITTI and OpenCV (see [`CameraConfig::principal_point`]), which is where the
+//!   renderer puts them.
+//! * `P2:` and `P3:` are copies of `P0:` and `P1:`. KITTI's colour cameras 2 and 3
+//!   have their own lines; the simulated rig has no colour camera, so tools that
+//!   expect them get the grayscale pair again (there are no `image_2/`, `image_3/`).
+//! * `Tr:` maps the platform's body frame (x forward, y left, z up, origin at the
+//!   centre of mass on the floor) to the left camera's frame. In KITTI it maps the
+//!   Velodyne frame, which has the same axes, to camera 0; there is no laser scanner
+//!   here, the body frame takes its place.
+//!
+//! The reader needs `P0:` and `P1:` only (files with just those two lines, as this
+//! writer produced before, still open), and reads `Tr:` when it is there.
 //!
 //! KITTI keeps ground truth in `poses/NN.txt` beside `sequences/NN/`; the reader
 //! looks for `SEQ/poses.txt` and then `SEQ/../../poses/NN.txt`.
@@ -20,6 +39,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::{CameraConfig, CameraPose};
+use crate::config::{self, ConfigError};
 
 /// A problem with a sequence folder, naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -40,6 +60,9 @@ pub enum KittiError {
         /// What is wrong.
         message: String,
     },
+    /// The camera to write a sequence for is invalid.
+    #[error(transparent)]
+    Camera(#[from] ConfigError),
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> KittiError + '_ {
@@ -105,7 +128,12 @@ pub fn write_png(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<()
         .map_err(|e| format_err(path, e.to_string()))
 }
 
-/// Read an 8-bit grayscale PNG (RGB images are converted to luma).
+/// The largest image [`read_png`] accepts: 16384 pixels in each direction.
+pub const MAX_PNG_SIDE: u32 = 16_384;
+
+/// Read an 8-bit grayscale PNG (RGB images are converted to luma). An image larger
+/// than [`MAX_PNG_SIDE`] in either direction (a damaged or crafted header) is an
+/// error before anything is allocated for it.
 pub fn read_png(path: &Path) -> Result<(u32, u32, Vec<u8>), KittiError> {
     let file = File::open(path).map_err(io(path))?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
@@ -113,35 +141,78 @@ pub fn read_png(path: &Path) -> Result<(u32, u32, Vec<u8>), KittiError> {
     let mut reader = decoder
         .read_info()
         .map_err(|e| format_err(path, format!("not a PNG image: {e}")))?;
-    let mut buf = vec![0; reader.output_buffer_size()];
+    let (w, h) = reader.info().size();
+    if w == 0 || h == 0 || w > MAX_PNG_SIDE || h > MAX_PNG_SIDE {
+        return Err(format_err(
+            path,
+            format!(
+                "the header says {w}x{h} pixels; images must be 1 to {MAX_PNG_SIDE} pixels in each direction"
+            ),
+        ));
+    }
+    // At most 4 bytes per pixel after the transformations (RGBA, 8 bits), so the
+    // buffer is at most 1 GiB; still, compute in usize with checked arithmetic.
+    let n = (w as usize)
+        .checked_mul(h as usize)
+        .ok_or_else(|| format_err(path, format!("{w}x{h} pixels overflow")))?;
+    let (color, _) = reader.output_color_type();
+    let channels = color.samples();
+    let size = n
+        .checked_mul(channels)
+        .filter(|&size| size == reader.output_buffer_size())
+        .ok_or_else(|| {
+            format_err(
+                path,
+                format!("{w}x{h} pixels of {color:?}: unexpected buffer size"),
+            )
+        })?;
+    let mut buf = vec![0; size];
     let info = reader
         .next_frame(&mut buf)
         .map_err(|e| format_err(path, format!("cannot decode: {e}")))?;
-    let (w, h) = (info.width, info.height);
-    let n = (w * h) as usize;
-    let gray = match info.color_type {
-        png::ColorType::Grayscale => buf[..n].to_vec(),
-        png::ColorType::GrayscaleAlpha => buf[..2 * n].chunks_exact(2).map(|p| p[0]).collect(),
-        png::ColorType::Rgb => buf[..3 * n]
-            .chunks_exact(3)
-            .map(|p| {
-                ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2])) >> 8) as u8
-            })
-            .collect(),
-        png::ColorType::Rgba => buf[..4 * n]
-            .chunks_exact(4)
-            .map(|p| {
-                ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2])) >> 8) as u8
-            })
-            .collect(),
+    if (info.width, info.height) != (w, h) || info.color_type != color {
+        return Err(format_err(
+            path,
+            format!(
+                "the frame is {}x{} {:?}, the header {w}x{h} {color:?}",
+                info.width, info.height, info.color_type
+            ),
+        ));
+    }
+    let luma = |p: &[u8]| {
+        ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2])) >> 8) as u8
+    };
+    let gray = match color {
+        png::ColorType::Grayscale => buf,
+        png::ColorType::GrayscaleAlpha => buf.chunks_exact(2).map(|p| p[0]).collect(),
+        png::ColorType::Rgb => buf.chunks_exact(3).map(luma).collect(),
+        png::ColorType::Rgba => buf.chunks_exact(4).map(luma).collect(),
         png::ColorType::Indexed => return Err(format_err(path, "indexed PNGs are not supported")),
     };
     Ok((w, h, gray))
 }
 
-fn write_pose(out: &mut impl Write, p: &Pose34) -> std::io::Result<()> {
+fn matrix_text(p: &Pose34) -> String {
     let v: Vec<String> = p.iter().flatten().map(|x| format!("{x:e}")).collect();
-    writeln!(out, "{}", v.join(" "))
+    v.join(" ")
+}
+
+fn write_pose(out: &mut impl Write, p: &Pose34) -> std::io::Result<()> {
+    writeln!(out, "{}", matrix_text(p))
+}
+
+/// The contents of `calib.txt` for `camera` (see the module docs).
+pub fn calib_text(camera: &CameraConfig) -> String {
+    let (cu, cv) = camera.principal_point();
+    let f = camera.focal;
+    let p = |tx: f64| matrix_text(&[[f, 0.0, cu, tx], [0.0, f, cv, 0.0], [0.0, 0.0, 1.0, 0.0]]);
+    let (p0, p1) = (p(0.0), p(-f * camera.baseline));
+    // Camera to body is the left camera's pose with the platform at the origin.
+    let tr = invert(&camera.left_pose([0.0; 3]).matrix());
+    format!(
+        "P0: {p0}\nP1: {p1}\nP2: {p0}\nP3: {p1}\nTr: {}\n",
+        matrix_text(&tr)
+    )
 }
 
 /// Writes frames of the simulated stereo camera as a KITTI sequence.
@@ -155,21 +226,16 @@ pub struct SequenceWriter {
 }
 
 impl SequenceWriter {
-    /// Create the folder (and `image_0`, `image_1`), write `calib.txt`.
+    /// Create the folder (and `image_0`, `image_1`), write `calib.txt` (see the
+    /// module docs). The camera is validated first.
     pub fn create(dir: &Path, camera: &CameraConfig) -> Result<SequenceWriter, KittiError> {
+        config::check("camera", camera)?;
         for sub in ["image_0", "image_1"] {
             let d = dir.join(sub);
             fs::create_dir_all(&d).map_err(io(&d))?;
         }
-        let (cu, cv) = camera.principal_point();
-        let f = camera.focal;
         let calib = dir.join("calib.txt");
-        let p = |tx: f64| format!("{f:e} 0 {cu:e} {tx:e} 0 {f:e} {cv:e} 0 0 0 1 0");
-        fs::write(
-            &calib,
-            format!("P0: {}\nP1: {}\n", p(0.0), p(-f * camera.baseline)),
-        )
-        .map_err(io(&calib))?;
+        fs::write(&calib, calib_text(camera)).map_err(io(&calib))?;
         let open = |name: &str| -> Result<BufWriter<File>, KittiError> {
             let path = dir.join(name);
             File::create(&path).map(BufWriter::new).map_err(io(&path))
@@ -227,6 +293,8 @@ pub struct Sequence {
     pub principal: (f64, f64),
     /// Baseline [m].
     pub baseline: f64,
+    /// `Tr:` of `calib.txt`, if there is one: body (Velodyne in KITTI) to left camera.
+    pub body_to_camera: Option<Pose34>,
     /// Timestamps [s].
     pub times: Vec<f64>,
     /// Ground-truth poses, if present.
@@ -272,6 +340,20 @@ impl Sequence {
             ));
         }
         let baseline = -p1[3] / p1[0];
+        let body_to_camera = match matrices.get("Tr") {
+            None => None,
+            Some(v) if v.len() == 12 => Some([
+                [v[0], v[1], v[2], v[3]],
+                [v[4], v[5], v[6], v[7]],
+                [v[8], v[9], v[10], v[11]],
+            ]),
+            Some(v) => {
+                return Err(format_err(
+                    &calib_path,
+                    format!("`Tr:` has {} numbers, expected 12", v.len()),
+                ));
+            }
+        };
         let times_path = dir.join("times.txt");
         let times_text = fs::read_to_string(&times_path).map_err(io(&times_path))?;
         let times = times_text
@@ -344,6 +426,7 @@ impl Sequence {
             focal,
             principal: (p0[2], p0[6]),
             baseline,
+            body_to_camera,
             times,
             poses,
         })
@@ -379,6 +462,295 @@ impl Sequence {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::{Obstacle, Renderer, Room, SceneConfig};
+    use std::collections::HashMap;
+
+    fn temp_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("rex-kitti-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// The `KEY: 12 numbers` lines of a calib.txt, as 3×4 matrices.
+    fn calib_matrices(path: &Path) -> HashMap<String, Pose34> {
+        fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(|line| {
+                let (key, rest) = line.split_once(':').unwrap();
+                let v: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|t| t.parse().unwrap())
+                    .collect();
+                assert_eq!(v.len(), 12, "{line}");
+                (
+                    key.to_owned(),
+                    [0, 1, 2].map(|i| [0, 1, 2, 3].map(|j| v[4 * i + j])),
+                )
+            })
+            .collect()
+    }
+
+    fn apply(t: &Pose34, p: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|i| (0..3).map(|j| t[i][j] * p[j]).sum::<f64>() + t[i][3])
+    }
+
+    fn project(p: &Pose34, x: [f64; 3]) -> (f64, f64) {
+        let h = [0, 1, 2].map(|i| (0..3).map(|j| p[i][j] * x[j]).sum::<f64>() + p[i][3]);
+        (h[0] / h[2], h[1] / h[2])
+    }
+
+    #[test]
+    fn calib_txt_has_the_lines_kitti_tools_read() {
+        let dir = temp_dir("lines");
+        let camera = CameraConfig::default();
+        SequenceWriter::create(&dir, &camera)
+            .unwrap()
+            .finish()
+            .unwrap();
+        let text = fs::read_to_string(dir.join("calib.txt")).unwrap();
+        let keys: Vec<&str> = text.lines().filter_map(|l| l.split(':').next()).collect();
+        assert_eq!(keys, ["P0", "P1", "P2", "P3", "Tr"]);
+        let m = calib_matrices(&dir.join("calib.txt"));
+        assert_eq!(m["P2"], m["P0"], "no colour camera: P2 repeats P0");
+        assert_eq!(m["P3"], m["P1"], "and P3 repeats P1");
+        assert_eq!(
+            m["P0"],
+            [
+                [400.0, 0.0, 319.5, 0.0],
+                [0.0, 400.0, 239.5, 0.0],
+                [0.0, 0.0, 1.0, 0.0]
+            ],
+            "principal point ((w - 1)/2, (h - 1)/2)"
+        );
+        assert!((m["P1"][0][3] + 400.0 * 0.3).abs() < 1e-9);
+        // Tr maps the body frame to the left camera: the camera centre (0.2 m ahead,
+        // 0.5 m up) goes to the origin, the body's forward axis to the optical axis
+        // pitched 0.1 rad down (+z forward, +y down).
+        let tr = m["Tr"];
+        let c = apply(&tr, [camera.mount_forward, 0.0, camera.mount_height]);
+        assert!(c.iter().all(|x| x.abs() < 1e-12), "{c:?}");
+        let ahead = apply(&tr, [camera.mount_forward + 1.0, 0.0, camera.mount_height]);
+        assert!(
+            (ahead[2] - 0.1f64.cos()).abs() < 1e-12 && (ahead[1] + 0.1f64.sin()).abs() < 1e-12,
+            "forward is up in the image of a camera looking down: {ahead:?}"
+        );
+        let left = apply(&tr, [camera.mount_forward, 1.0, camera.mount_height]);
+        assert!((left[0] + 1.0).abs() < 1e-12, "body y (left) is camera -x");
+        let seq = Sequence::open(&dir).unwrap();
+        assert_eq!(seq.body_to_camera, Some(tr));
+        assert_eq!(seq.principal, (319.5, 239.5));
+
+        // A calib.txt with P0 and P1 only (older sequences) still opens.
+        let old: String = text.lines().take(2).map(|l| format!("{l}\n")).collect();
+        fs::write(dir.join("calib.txt"), old).unwrap();
+        let seq = Sequence::open(&dir).unwrap();
+        assert_eq!(seq.body_to_camera, None);
+        assert!((seq.baseline - 0.3).abs() < 1e-12);
+        fs::write(dir.join("calib.txt"), format!("{text}Tr: 1 2 3\n")).unwrap();
+        let err = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(err.contains("calib.txt") && err.contains("Tr"), "{err}");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_point_projected_with_calib_txt_is_on_that_pixel_of_the_rendered_images() {
+        // A long room with a low ceiling, which renders as one flat grey level, and a
+        // box in front of the camera. The top-left corner of the box's front face,
+        // as the camera sees it, is a known 3D point: left of it and above it is the
+        // ceiling, right of it and below it the textured box. Pixel centres are at
+        // integer coordinates, so the pixels whose centres lie on the ceiling side
+        // of the projected edges show the ceiling and the others show the box.
+        let ceiling = 196u8; // the renderer's ceiling level
+        let camera = CameraConfig {
+            pitch: 0.0,
+            ..CameraConfig::default()
+        };
+        let scene = SceneConfig {
+            room: Room {
+                x0: -2.0,
+                y0: -10.0,
+                x1: 40.0,
+                y1: 10.0,
+                height: 1.0,
+            },
+            obstacles: vec![Obstacle {
+                x0: 3.0,
+                y0: -1.0,
+                x1: 4.0,
+                y1: 0.48,
+                height: 0.77,
+            }],
+            texture_seed: 5,
+        };
+        let corner = [3.0, 0.48, 0.77];
+        let renderer = Renderer::new(camera.clone(), scene).unwrap();
+        // Frames a little apart, so that the corner falls at various sub-pixel
+        // positions.
+        let bodies: Vec<[f64; 3]> = (0..12)
+            .map(|k| [0.013 * k as f64, 0.0017 * k as f64, 0.0])
+            .collect();
+        let dir = temp_dir("pixel");
+        let mut writer = SequenceWriter::create(&dir, &camera).unwrap();
+        let (mut left, mut right) = (Vec::new(), Vec::new());
+        for (k, body) in bodies.iter().enumerate() {
+            renderer.render_pair(*body, &mut left, &mut right);
+            writer
+                .push(k as f64 * 0.1, &camera.left_pose(*body), &left, &right)
+                .unwrap();
+        }
+        writer.finish().unwrap();
+
+        // Everything from the files: the projection matrices, the poses, the images.
+        let calib = calib_matrices(&dir.join("calib.txt"));
+        let seq = Sequence::open(&dir).unwrap();
+        let poses = seq.poses.clone().unwrap();
+        // The corner in the first camera's frame (the frame of poses.txt).
+        let in_first = camera.left_pose(bodies[0]).to_camera(corner);
+        let w = camera.width as usize;
+        // Counts of checked edges by which half of a pixel they fall in.
+        let mut halves = [[0usize; 2]; 2];
+        for (k, pose) in poses.iter().enumerate() {
+            let (_, _, l, r) = seq.frame(k).unwrap();
+            let x = apply(&invert(pose), in_first);
+            for (p, image) in [(calib["P0"], &l), (calib["P1"], &r)] {
+                let (u, v) = project(&p, x);
+                let at = |i: usize, j: usize| image[j * w + i];
+                let (iu, jv) = (u.ceil() as usize, v.ceil() as usize);
+                // The vertical edge: pixel iu − 1 (centre < u) sees the ceiling,
+                // pixel iu (centre > u) the box, on rows below the corner.
+                let fu = u - u.floor();
+                if (0.08..=0.92).contains(&fu) {
+                    halves[0][usize::from(fu > 0.5)] += 1;
+                    let rows = jv + 1..jv + 25;
+                    for j in rows.clone() {
+                        assert_eq!(
+                            at(iu - 1, j),
+                            ceiling,
+                            "frame {k}: u = {u:.3}, pixel ({}, {j}) is left of the edge",
+                            iu - 1
+                        );
+                    }
+                    let on_box = rows.clone().filter(|&j| at(iu, j) != ceiling).count();
+                    assert!(
+                        on_box * 10 >= rows.len() * 9,
+                        "frame {k}: u = {u:.3}, column {iu} should show the box"
+                    );
+                }
+                // The horizontal edge: row jv − 1 (centre < v) sees the ceiling, row
+                // jv the box, in the columns right of the corner.
+                let fv = v - v.floor();
+                if (0.08..=0.92).contains(&fv) {
+                    halves[1][usize::from(fv > 0.5)] += 1;
+                    let columns = iu + 1..iu + 60;
+                    for i in columns.clone() {
+                        assert_eq!(
+                            at(i, jv - 1),
+                            ceiling,
+                            "frame {k}: v = {v:.3}, pixel ({i}, {}) is above the edge",
+                            jv - 1
+                        );
+                    }
+                    let on_box = columns.clone().filter(|&i| at(i, jv) != ceiling).count();
+                    assert!(
+                        on_box * 10 >= columns.len() * 9,
+                        "frame {k}: v = {v:.3}, row {jv} should show the box"
+                    );
+                }
+            }
+        }
+        // The edges fell on both halves of pixels, so a half-pixel error in either
+        // direction would have shown.
+        assert!(
+            halves.iter().flatten().all(|&n| n >= 3),
+            "sub-pixel positions checked (u: <½, >½; v: <½, >½): {halves:?}"
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A PNG file with a header (IHDR) of `width × height` 8-bit gray, an image data
+    /// chunk (IDAT) holding an empty zlib stream, and IEND.
+    fn png_header_only(width: u32, height: u32) -> Vec<u8> {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut crc = !0u32;
+            for &b in bytes {
+                crc ^= u32::from(b);
+                for _ in 0..8 {
+                    crc = if crc & 1 == 1 {
+                        (crc >> 1) ^ 0xEDB8_8320
+                    } else {
+                        crc >> 1
+                    };
+                }
+            }
+            !crc
+        }
+        fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+            out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+            let start = out.len();
+            out.extend_from_slice(kind);
+            out.extend_from_slice(data);
+            let crc = crc32(&out[start..]);
+            out.extend_from_slice(&crc.to_be_bytes());
+        }
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut ihdr = Vec::new();
+        ihdr.extend_from_slice(&width.to_be_bytes());
+        ihdr.extend_from_slice(&height.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8 bits, gray, deflate, no filter, no interlace
+        chunk(&mut out, b"IHDR", &ihdr);
+        chunk(
+            &mut out,
+            b"IDAT",
+            &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
+        );
+        chunk(&mut out, b"IEND", &[]);
+        out
+    }
+
+    #[test]
+    fn crafted_png_headers_are_errors_not_panics_or_huge_allocations() {
+        let dir = temp_dir("png");
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("crafted.png");
+        // w·h overflows u32 (65536² = 2³², 100000² > 2³²), or is merely too large.
+        for (w, h) in [
+            (65_536, 65_536),
+            (100_000, 100_000),
+            (70_000, 70_000),
+            (16_385, 1),
+            (1, 16_385),
+        ] {
+            fs::write(&path, png_header_only(w, h)).unwrap();
+            let err = read_png(&path).unwrap_err().to_string();
+            assert!(
+                err.contains("crafted.png")
+                    && err.contains(&format!("{w}x{h}"))
+                    && err.contains("16384"),
+                "{w}x{h}: {err}"
+            );
+        }
+        // Wider than the decoder's own limits: its error, naming the file.
+        fs::write(&path, png_header_only(2_000_000_000, 3)).unwrap();
+        let err = read_png(&path).unwrap_err().to_string();
+        assert!(err.contains("crafted.png"), "{err}");
+        // A plausible size but no image data: a decoding error.
+        fs::write(&path, png_header_only(640, 480)).unwrap();
+        let err = read_png(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("crafted.png") && err.contains("cannot decode"),
+            "{err}"
+        );
+        // Not a PNG at all.
+        fs::write(&path, b"P5 640 480 255\n").unwrap();
+        let err = read_png(&path).unwrap_err().to_string();
+        assert!(err.contains("not a PNG"), "{err}");
+        // A real one round-trips.
+        let data: Vec<u8> = (0..=255u8).cycle().take(37 * 11).collect();
+        write_png(&path, 37, 11, &data).unwrap();
+        assert_eq!(read_png(&path).unwrap(), (37, 11, data));
+        fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn transforms_invert() {

@@ -5,6 +5,13 @@
 //! camera is the reference; the right one is `baseline` metres along its x axis, with
 //! the same orientation and intrinsics, so a point at depth `Z` has disparity
 //! `f · b / Z` exactly.
+//!
+//! Pixel coordinates follow KITTI and OpenCV: the centre of pixel `(i, j)` (column
+//! `i`, row `j`, from the top left) is at `(u, v) = (i, j)`, so the pixel covers
+//! `[i − ½, i + ½] × [j − ½, j + ½]` and the image centre, the principal point, is at
+//! `((w − 1)/2, (h − 1)/2)`. The renderer casts one ray through each pixel centre,
+//! and `calib.txt` holds the same principal point, so a point projected with the
+//! written matrices lands on the pixel that shows it.
 
 pub mod kitti;
 pub mod render;
@@ -113,9 +120,13 @@ impl CameraPose {
 }
 
 impl CameraConfig {
-    /// Principal point `(c_u, c_v)` [px]: the image centre.
+    /// Principal point `(c_u, c_v)` [px]: the image centre, `((w − 1)/2, (h − 1)/2)`
+    /// with pixel centres at integer coordinates (KITTI and OpenCV convention).
     pub fn principal_point(&self) -> (f64, f64) {
-        (f64::from(self.width) / 2.0, f64::from(self.height) / 2.0)
+        (
+            (f64::from(self.width) - 1.0) / 2.0,
+            (f64::from(self.height) - 1.0) / 2.0,
+        )
     }
 
     /// Pose of the left camera when the platform is at `(x, y, φ)`.
@@ -153,7 +164,8 @@ impl CameraConfig {
         }
     }
 
-    /// Pixel `(u, v)` and depth of world point `p` seen from `pose`, if in front.
+    /// Pixel coordinates `(u, v)` (pixel centres at integers) and depth of world
+    /// point `p` seen from `pose`, if in front.
     pub fn project(&self, pose: &CameraPose, p: [f64; 3]) -> Option<(f64, f64, f64)> {
         let c = pose.to_camera(p);
         if c[2] <= 1e-9 {
@@ -208,6 +220,25 @@ mod tests {
             .is_none(),
             "behind"
         );
+    }
+
+    #[test]
+    fn the_principal_point_is_the_centre_of_the_pixel_grid() {
+        let cam = CameraConfig::default();
+        assert_eq!(cam.principal_point(), (319.5, 239.5));
+        // The optical axis passes through the image centre: between pixels 319 and
+        // 320 of 640 (centres at 0..=639).
+        let pose = cam.left_pose([0.0; 3]);
+        let ahead = pose.to_world_dir([0.0, 0.0, 1.0]);
+        let p = [0, 1, 2].map(|i| pose.center[i] + 3.0 * ahead[i]);
+        let (u, v, _) = cam.project(&pose, p).unwrap();
+        assert!((u - 319.5).abs() < 1e-9 && (v - 239.5).abs() < 1e-9);
+        let odd = CameraConfig {
+            width: 33,
+            height: 17,
+            ..CameraConfig::default()
+        };
+        assert_eq!(odd.principal_point(), (16.0, 8.0), "the middle pixel");
     }
 
     #[test]

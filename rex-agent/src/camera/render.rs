@@ -1,12 +1,14 @@
 //! Ray casting of the scene into grayscale images.
 //!
-//! One ray per pixel centre, in `f32`: the floor and the ceiling are planes, the walls
+//! One ray per pixel centre (pixel `(i, j)` at `(u, v) = (i, j)`, see the
+//! [module docs](super) for the convention), in `f32`: the floor and the ceiling are planes, the walls
 //! the inside of an axis-aligned box, the obstacles axis-aligned boxes tested only
 //! where their projected bounding rectangle covers the pixel. Ray directions are
 //! stepped incrementally along each row. Textures are sampled bilinearly.
 
 use super::scene::{SceneConfig, Textures};
 use super::{CameraConfig, CameraPose};
+use crate::config::{self, ConfigError};
 
 /// What a ray hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,13 +40,13 @@ pub struct Hit {
     pub surface: Surface,
 }
 
-/// Renders the scene for a camera configuration.
+/// Renders the scene for a camera configuration (both validated on construction and
+/// read-only afterwards, so rendering cannot meet a zero-sized image or a NaN focal
+/// length).
 #[derive(Clone, Debug)]
 pub struct Renderer {
-    /// The camera.
-    pub camera: CameraConfig,
-    /// The scene.
-    pub scene: SceneConfig,
+    camera: CameraConfig,
+    scene: SceneConfig,
     textures: Textures,
     boxes: Vec<[f32; 5]>,
     /// `(x0, y0, x1, y1, height)` of the room.
@@ -61,8 +63,12 @@ fn axpy(a: f32, x: V3, y: V3) -> V3 {
 }
 
 impl Renderer {
-    /// A renderer; textures are generated from the scene's seed.
-    pub fn new(camera: CameraConfig, scene: SceneConfig) -> Renderer {
+    /// A renderer; textures are generated from the scene's seed. The camera and the
+    /// scene are validated: an invalid one (width 0, focal length ≤ 0 or NaN, an
+    /// empty room...) is an error naming the field.
+    pub fn new(camera: CameraConfig, scene: SceneConfig) -> Result<Renderer, ConfigError> {
+        config::check("camera", &camera)?;
+        config::check("scene", &scene)?;
         let textures = Textures::generate(scene.texture_seed);
         let boxes = scene
             .obstacles
@@ -85,19 +91,29 @@ impl Renderer {
             r.y1 as f32,
             r.height as f32,
         ];
-        Renderer {
+        Ok(Renderer {
             camera,
             scene,
             textures,
             boxes,
             room,
-        }
+        })
+    }
+
+    /// The camera.
+    pub fn camera(&self) -> &CameraConfig {
+        &self.camera
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &SceneConfig {
+        &self.scene
     }
 
     /// Render both images of the pair for the platform at `(x, y, φ)` into `left` and
     /// `right` (resized to `width · height`; their storage is reused).
     pub fn render_pair(&self, body: [f64; 3], left: &mut Vec<u8>, right: &mut Vec<u8>) {
-        let n = (self.camera.width * self.camera.height) as usize;
+        let n = self.camera.width as usize * self.camera.height as usize;
         left.resize(n, 0);
         right.resize(n, 0);
         self.render(&self.camera.left_pose(body), left);
@@ -105,7 +121,7 @@ impl Renderer {
     }
 
     /// The first surface hit by the ray through pixel `(u, v)` (continuous pixel
-    /// coordinates; pixel centres are at `+0.5`).
+    /// coordinates; pixel centres are at integers, as in [`CameraConfig::project`]).
     pub fn cast(&self, pose: &CameraPose, u: f64, v: f64) -> Option<Hit> {
         let (cu, cv) = self.camera.principal_point();
         let d = pose.to_world_dir([u - cu, v - cv, self.camera.focal]);
@@ -294,8 +310,9 @@ impl Renderer {
                     .filter(|(_, r)| r.2 <= vi && vi <= r.3)
                     .map(|(i, r)| (i, r.0, r.1)),
             );
-            let dv = (v as f64 + 0.5 - cv) as f32;
-            let mut d = axpy(f, r2, axpy(dv, r1, axpy((0.5 - cu) as f32, r0, [0.0; 3])));
+            // The ray through the centre of pixel (0, v), at (u, v) = (0, v).
+            let dv = (v as f64 - cv) as f32;
+            let mut d = axpy(f, r2, axpy(dv, r1, axpy(-cu as f32, r0, [0.0; 3])));
             // Distance to the floor or the ceiling along this row's rays.
             let (tz, plane) = if d[2] < -1e-6 {
                 (-c[2] / d[2], Surface::Floor)
@@ -342,7 +359,7 @@ mod tests {
     use crate::camera::scene::Room;
 
     fn renderer() -> Renderer {
-        Renderer::new(CameraConfig::default(), SceneConfig::default_room())
+        Renderer::new(CameraConfig::default(), SceneConfig::default_room()).unwrap()
     }
 
     #[test]
@@ -384,7 +401,7 @@ mod tests {
             pitch: 0.0,
             ..CameraConfig::default()
         };
-        let r = Renderer::new(camera.clone(), scene);
+        let r = Renderer::new(camera.clone(), scene).unwrap();
         let (mut left, mut right) = (Vec::new(), Vec::new());
         r.render_pair([0.0, 0.0, 0.0], &mut left, &mut right);
         let z = 4.0 - camera.mount_forward;
@@ -413,6 +430,67 @@ mod tests {
             s
         });
         assert_eq!(row_shift, Some(0), "rectified: matches lie on the same row");
+    }
+
+    #[test]
+    fn invalid_cameras_and_scenes_are_errors_not_panics() {
+        let scene = SceneConfig::default_room;
+        for (camera, field) in [
+            (
+                CameraConfig {
+                    width: 0,
+                    ..CameraConfig::default()
+                },
+                "width x height = 0x480",
+            ),
+            (
+                CameraConfig {
+                    height: 100_000,
+                    ..CameraConfig::default()
+                },
+                "width x height = 640x100000",
+            ),
+            (
+                CameraConfig {
+                    focal: 0.0,
+                    ..CameraConfig::default()
+                },
+                "focal = 0",
+            ),
+            (
+                CameraConfig {
+                    focal: -400.0,
+                    ..CameraConfig::default()
+                },
+                "focal = -400",
+            ),
+            (
+                CameraConfig {
+                    focal: f64::NAN,
+                    ..CameraConfig::default()
+                },
+                "focal = NaN",
+            ),
+            (
+                CameraConfig {
+                    baseline: f64::INFINITY,
+                    ..CameraConfig::default()
+                },
+                "baseline = inf",
+            ),
+        ] {
+            let err = Renderer::new(camera, scene()).unwrap_err().to_string();
+            assert!(
+                err.starts_with("<camera>: ") && err.contains(field),
+                "{err}"
+            );
+        }
+        let mut bad = scene();
+        bad.room.x1 = f64::NAN;
+        let err = Renderer::new(CameraConfig::default(), bad)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("<scene>: room.x1 = NaN"), "{err}");
     }
 
     #[test]

@@ -16,16 +16,42 @@
 //! The wheel-spin mode is stiff: its eigenvalue is about `−r² μ_x N (2/π) k_s / J_w`,
 //! −10³ s⁻¹ for the 40 kg platform and −4·10³ s⁻¹ for a Jackal-like one, so explicit
 //! RK4 at 1 kHz would be at or past its stability limit. The velocity vector
-//! `w = (v_x, v_y, ω, θ̇_1..θ̇_4)` is therefore advanced by the **linearly implicit
-//! (Rosenbrock) Euler** method: `(M − h ∂G/∂w) Δw = h G(w)` with the analytic 7×7
-//! Jacobian of the friction and Coriolis terms. It is L-stable for any stiffness (a
-//! test runs it with a wheel inertia 100 times smaller and a near-Coulomb friction
-//! sign). Angles and positions are then advanced with the new velocities (the pose
-//! with the mid-step heading). Normal loads include the longitudinal and lateral load
-//! transfer of the previous step's accelerations (what the force sensors measure).
+//! `w = (v_x, v_y, ω, θ̇_1..θ̇_4)` is therefore advanced by the **backward (implicit)
+//! Euler** method, `M (w − w_n) − h G(w) = 0`, solved for `w` by **damped Newton
+//! iterations** with the analytic 7×7 Jacobian `∂G/∂w` of the friction and Coriolis
+//! terms: each iteration solves `(M − h ∂G/∂w) Δw = −F(w)` and halves the update
+//! while the residual `F` does not decrease (taking 1/64 of it at worst); at most 12
+//! iterations, stopping once the residual is below 10⁻¹⁰. The first undamped update
+//! from `w_n` is the linearly implicit (Rosenbrock) Euler step; further iterations
+//! are needed when a friction force crosses the steep part of its sign function
+//! within the step. Backward Euler is L-stable for any stiffness (a test runs it with a
+//! wheel inertia 100 times smaller and a near-Coulomb friction sign). Angles and
+//! positions are then advanced with the new velocities (the pose with the mid-step
+//! heading). Normal loads include the longitudinal and lateral load transfer of the
+//! previous step's accelerations (what the force sensors measure).
+//!
+//! When the Newton system cannot be solved (singular or not finite, which only a
+//! non-finite state causes in practice) the iterations stop and the step keeps the
+//! last iterate: the velocities of the previous step if it happens in the first
+//! iteration (they are frozen for that step). Such steps are counted in
+//! [`IntegrationStats::singular`], and steps that end after the last iteration with
+//! the residual still above the tolerance in [`IntegrationStats::unconverged`]; both
+//! are read with [`Plant::integration_stats`].
 
 use super::params::{PlatformParams, SurfaceMap};
 use super::reduced::{sg, sg_prime};
+use crate::config::{self, ConfigError, Invalid, Validate, finite};
+
+/// A start pose `(x, y, φ)`, checked for finite values.
+struct StartPose([f64; 3]);
+
+impl Validate for StartPose {
+    fn validate(&self) -> Result<(), Invalid> {
+        finite("x", self.0[0])?;
+        finite("y", self.0[1])?;
+        finite("phi", self.0[2])
+    }
+}
 
 /// State of the full model.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -48,13 +74,26 @@ pub struct FullState {
     pub theta_dot: [f64; 4],
 }
 
-/// What the plant did with a torque command.
+/// What the plant did with the torque commands it was given ([`Plant::clean`]).
+/// Each counts commands, not wheels: a command with several bad torques counts once
+/// in each kind it has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CommandStats {
-    /// Torques that were NaN or infinite (replaced by zero).
+    /// Commands with a NaN or infinite torque (that torque replaced by zero).
     pub not_finite: u64,
-    /// Torques outside `±torque_max` (clamped).
+    /// Commands with a finite torque outside `±torque_max` (that torque clamped).
     pub out_of_bounds: u64,
+}
+
+/// How the implicit integration went (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IntegrationStats {
+    /// Steps whose Newton system could not be solved: they kept the last iterate
+    /// (the previous velocities if it failed in the first iteration).
+    pub singular: u64,
+    /// Steps that used every Newton iteration and still had a residual above the
+    /// tolerance (the last iterate is used).
+    pub unconverged: u64,
 }
 
 /// The simulated platform.
@@ -70,13 +109,23 @@ pub struct Plant {
     /// Body-frame acceleration `(a_x, a_y)` of the last step [m/s²].
     accel: [f64; 2],
     stats: CommandStats,
+    integration: IntegrationStats,
 }
 
 impl Plant {
-    /// A plant at rest at `(x, y, φ)`.
-    pub fn new(params: PlatformParams, surfaces: SurfaceMap, pose: [f64; 3]) -> Plant {
+    /// A plant at rest at `(x, y, φ)`; the parameters, the ground and the pose are
+    /// validated (a negative mass, a map without surfaces or with two surfaces of
+    /// the same name, a NaN pose... are errors).
+    pub fn new(
+        params: PlatformParams,
+        surfaces: SurfaceMap,
+        pose: [f64; 3],
+    ) -> Result<Plant, ConfigError> {
+        config::check("platform", &params)?;
+        config::check("surfaces", &surfaces)?;
+        config::check("start pose", &StartPose(pose))?;
         let n_static = params.static_loads();
-        Plant {
+        Ok(Plant {
             d: params.contacts(),
             n_static,
             loads: n_static,
@@ -90,7 +139,8 @@ impl Plant {
             },
             accel: [0.0; 2],
             stats: CommandStats::default(),
-        }
+            integration: IntegrationStats::default(),
+        })
     }
 
     /// The platform parameters.
@@ -113,26 +163,49 @@ impl Plant {
         self.accel
     }
 
-    /// How many commanded torques were rejected or clamped so far.
+    /// How many torque commands were rejected or clamped so far ([`Plant::clean`]).
     pub fn command_stats(&self) -> CommandStats {
         self.stats
     }
 
-    /// The torques the motors can deliver for a command: a NaN or infinite torque
-    /// becomes zero, a torque beyond `±torque_max` is clamped (both counted), and a
-    /// torque driving a wheel is further limited by the motor curve, falling linearly
-    /// to zero at `wheel_speed_max` (braking torque is not limited by speed).
-    pub fn limit(&mut self, command: [f64; 4]) -> [f64; 4] {
+    /// Steps whose implicit solve failed or did not converge so far.
+    pub fn integration_stats(&self) -> IntegrationStats {
+        self.integration
+    }
+
+    /// Check a new torque command, once when it arrives: a NaN or infinite torque
+    /// becomes zero, a torque beyond `±torque_max` is clamped, and the command is
+    /// counted in [`CommandStats`] (once per kind of fault, however many wheels have
+    /// it). The motors then deliver [`Plant::available`] of the cleaned command at
+    /// every step.
+    pub fn clean(&mut self, command: [f64; 4]) -> [f64; 4] {
+        let max = self.params.torque_max;
+        let not_finite = command.iter().any(|c| !c.is_finite());
+        let out_of_bounds = command.iter().any(|c| c.is_finite() && c.abs() > max);
+        self.stats.not_finite += u64::from(not_finite);
+        self.stats.out_of_bounds += u64::from(out_of_bounds);
+        command.map(|c| {
+            if c.is_finite() {
+                c.clamp(-max, max)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// The torques the motors deliver for a (cleaned) command at the current wheel
+    /// speeds: a torque driving a wheel is limited by the motor curve, falling
+    /// linearly from `torque_max` to zero at `wheel_speed_max` (braking torque is not
+    /// limited by speed). Nothing is counted; a torque that is still NaN or beyond
+    /// the bounds (a command that did not go through [`Plant::clean`]) gives zero or
+    /// is clamped, so the plant never integrates one.
+    pub fn available(&self, command: [f64; 4]) -> [f64; 4] {
         let p = &self.params;
         let mut tau = [0.0; 4];
         for i in 0..4 {
             let c = command[i];
             if !c.is_finite() {
-                self.stats.not_finite += 1;
                 continue;
-            }
-            if c.abs() > p.torque_max {
-                self.stats.out_of_bounds += 1;
             }
             let w = self.state.theta_dot[i];
             let available = if c * w > 0.0 {
@@ -143,6 +216,13 @@ impl Plant {
             tau[i] = c.clamp(-available, available);
         }
         tau
+    }
+
+    /// [`Plant::clean`] then [`Plant::available`]: for a command applied for one
+    /// step only (it is counted at each call).
+    pub fn limit(&mut self, command: [f64; 4]) -> [f64; 4] {
+        let clean = self.clean(command);
+        self.available(clean)
     }
 
     /// Advance by `h` seconds with wheel torques `tau` (already limited).
@@ -165,17 +245,19 @@ impl Plant {
         let mut mu = [[0.0; 3]; 4];
         for i in 0..4 {
             let [dx, dy] = self.d[i];
-            let surface = self
+            // A validated map always has a surface; no ground means no friction.
+            mu[i] = self
                 .surfaces
-                .at(s.x + cos * dx - sin * dy, s.y + sin * dx + cos * dy);
-            mu[i] = [surface.mu_long, surface.mu_lat, surface.rolling];
+                .at(s.x + cos * dx - sin * dy, s.y + sin * dx + cos * dy)
+                .map_or([0.0; 3], |g| [g.mu_long, g.mu_lat, g.rolling]);
         }
         // Backward Euler on the velocities, w = (vx, vy, ω, θ̇1..4):
         //   M (w − w_n) − h G(w) = 0,
         // solved by Newton's method with the analytic Jacobian, damped by halving
         // the step while the residual does not decrease. The first iteration is the
         // linearly implicit (Rosenbrock) Euler step; more are needed only when a
-        // friction force crosses its steep region within the step.
+        // friction force crosses its steep region within the step. A singular system
+        // stops the iterations with the last iterate (counted; see the module docs).
         let m = [
             p.mass,
             p.mass,
@@ -215,6 +297,8 @@ impl Plant {
         let (g0, mut jac) = forces.eval(&w);
         let mut f = residual(&w, &g0);
         let mut fnorm = norm(&f);
+        // Whether the iterations ended before the last one (converged, or singular).
+        let mut ended = false;
         for _ in 0..MAX_NEWTON {
             let mut a = [[0.0; 7]; 7];
             let mut rhs = [0.0; 7];
@@ -225,7 +309,11 @@ impl Plant {
                 a[row][row] += m[row];
                 rhs[row] = -f[row];
             }
-            let Some(dw) = solve7(a, rhs) else { break };
+            let Some(dw) = solve7(a, rhs) else {
+                self.integration.singular += 1;
+                ended = true;
+                break;
+            };
             let mut lambda = 1.0;
             loop {
                 let mut trial = w;
@@ -245,8 +333,12 @@ impl Plant {
                 lambda *= 0.5;
             }
             if fnorm < NEWTON_TOL {
+                ended = true;
                 break;
             }
+        }
+        if !ended {
+            self.integration.unconverged += 1;
         }
         let delta: [f64; 7] = std::array::from_fn(|i| w[i] - w_n[i]);
         let mut next = s;
@@ -392,6 +484,7 @@ mod tests {
             SurfaceMap::concrete(),
             [0.0, 0.0, 0.0],
         )
+        .unwrap()
     }
 
     fn run(p: &mut Plant, tau: [f64; 4], seconds: f64, h: f64) {
@@ -495,7 +588,7 @@ mod tests {
             sign_smoothing: 500.0,
             ..PlatformParams::peer_default()
         };
-        let mut p = Plant::new(params, SurfaceMap::concrete(), [0.0; 3]);
+        let mut p = Plant::new(params, SurfaceMap::concrete(), [0.0; 3]).unwrap();
         run(&mut p, [5.0, 5.0, 6.0, 6.0], 2.0, 1e-3);
         let s = p.state;
         let all = [s.x, s.y, s.vx, s.vy, s.omega];
@@ -538,7 +631,7 @@ mod tests {
             rolling: 0.01,
         });
         map.default = "ice".into();
-        let mut ice = Plant::new(PlatformParams::peer_default(), map, [0.0; 3]);
+        let mut ice = Plant::new(PlatformParams::peer_default(), map, [0.0; 3]).unwrap();
         let mut concrete = plant();
         run(&mut ice, [4.0; 4], 1.0, 1e-3);
         run(&mut concrete, [4.0; 4], 1.0, 1e-3);
@@ -553,24 +646,105 @@ mod tests {
     }
 
     #[test]
-    fn bad_commands_are_clamped_and_counted() {
+    fn bad_commands_are_clamped_and_counted_once_per_command() {
         let mut p = plant();
-        let t = p.limit([f64::NAN, 100.0, -100.0, 1.0]);
+        let t = p.clean([f64::NAN, 100.0, -100.0, 1.0]);
         assert_eq!(t, [0.0, 10.0, -10.0, 1.0]);
         assert_eq!(
             p.command_stats(),
             CommandStats {
                 not_finite: 1,
-                out_of_bounds: 2
-            }
+                out_of_bounds: 1
+            },
+            "one command with a NaN and two torques beyond the bounds"
         );
+        assert_eq!(p.clean([f64::INFINITY; 4]), [0.0; 4]);
+        assert_eq!(p.clean([f64::NEG_INFINITY, 0.0, 0.0, 0.0]), [0.0; 4]);
+        assert_eq!(p.clean([10.0, -10.0, 0.0, 3.0]), [10.0, -10.0, 0.0, 3.0]);
+        assert_eq!(
+            p.command_stats(),
+            CommandStats {
+                not_finite: 3,
+                out_of_bounds: 1
+            },
+            "infinities are not finite; ±torque_max is within bounds"
+        );
+        // The motor curve applies at every step and counts nothing.
         p.state.theta_dot = [30.0; 4];
         assert_eq!(
-            p.limit([5.0; 4]),
+            p.available([5.0; 4]),
             [0.0; 4],
             "no drive torque at the no-load speed"
         );
-        assert_eq!(p.limit([-5.0; 4]), [-5.0; 4], "braking is not limited");
+        assert_eq!(p.available([-5.0; 4]), [-5.0; 4], "braking is not limited");
+        p.state.theta_dot = [15.0; 4];
+        assert_eq!(
+            p.available([8.0, -8.0, f64::NAN, 50.0]),
+            [5.0, -8.0, 0.0, 5.0]
+        );
+        assert_eq!(
+            p.command_stats().not_finite,
+            3,
+            "available() counts nothing"
+        );
+        assert_eq!(p.command_stats().out_of_bounds, 1);
+        assert_eq!(p.limit([f64::NAN; 4]), [0.0; 4]);
+        assert_eq!(
+            p.command_stats().not_finite,
+            4,
+            "limit() cleans, and counts"
+        );
+    }
+
+    #[test]
+    fn invalid_parameters_ground_or_pose_are_errors() {
+        let bad = PlatformParams {
+            mass: -1.0,
+            ..PlatformParams::peer_default()
+        };
+        let err = Plant::new(bad, SurfaceMap::concrete(), [0.0; 3]).unwrap_err();
+        assert!(err.to_string().contains("<platform>: mass = -1"), "{err}");
+        let empty = SurfaceMap {
+            surfaces: Vec::new(),
+            ..SurfaceMap::concrete()
+        };
+        let err = Plant::new(PlatformParams::peer_default(), empty, [0.0; 3]).unwrap_err();
+        assert!(err.to_string().contains("<surfaces>: surfaces"), "{err}");
+        let mut twice = SurfaceMap::concrete();
+        twice.surfaces.push(twice.surfaces[0].clone());
+        let err = Plant::new(PlatformParams::peer_default(), twice, [0.0; 3]).unwrap_err();
+        assert!(err.to_string().contains("surfaces[1].name"), "{err}");
+        let err = Plant::new(
+            PlatformParams::peer_default(),
+            SurfaceMap::concrete(),
+            [0.0, f64::NAN, 0.0],
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("<start pose>: y = NaN"), "{err}");
+    }
+
+    #[test]
+    fn a_failed_newton_solve_is_counted() {
+        // A normal run: every step converges.
+        let mut p = plant();
+        run(&mut p, [3.0, 3.0, 6.0, 6.0], 2.0, 1e-3);
+        assert_eq!(p.integration_stats(), IntegrationStats::default());
+        // A NaN velocity makes the Newton system unsolvable: the step keeps the
+        // velocities it started with, and is counted.
+        p.state.vy = f64::NAN;
+        let before = p.state;
+        p.step([1.0; 4], 1e-3);
+        assert_eq!(
+            p.integration_stats(),
+            IntegrationStats {
+                singular: 1,
+                unconverged: 0
+            }
+        );
+        assert_eq!(p.state.vx, before.vx, "frozen");
+        assert_eq!(p.state.theta_dot, before.theta_dot, "frozen");
+        p.step([1.0; 4], 1e-3);
+        assert_eq!(p.integration_stats().singular, 2);
     }
 
     #[test]

@@ -5,6 +5,6 @@ pub mod full;
 pub mod params;
 pub mod reduced;
 
-pub use full::{CommandStats, FullState, Plant};
+pub use full::{CommandStats, FullState, IntegrationStats, Plant};
 pub use params::{Patch, PlatformParams, Region, SlipParams, Surface, SurfaceMap};
-pub use reduced::{Reduced, State5, Torques};
+pub use reduced::{Jacobians, Reduced, State5, Torques};

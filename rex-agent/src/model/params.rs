@@ -245,13 +245,16 @@ impl SurfaceMap {
         })
     }
 
-    /// The index of the surface at `(x, y)`.
-    pub fn index_at(&self, x: f64, y: f64) -> usize {
+    /// The index of the surface at `(x, y)`: the surface of the last patch containing
+    /// the point, else the default. A name that is not among the surfaces (a map that
+    /// did not pass [`Validate`]) falls back to the first surface; `None` only for a
+    /// map without surfaces.
+    pub fn index_at(&self, x: f64, y: f64) -> Option<usize> {
         let index = |name: &str| {
             self.surfaces
                 .iter()
                 .position(|s| s.name == name)
-                .unwrap_or(0)
+                .or_else(|| (!self.surfaces.is_empty()).then_some(0))
         };
         self.patches
             .iter()
@@ -260,11 +263,10 @@ impl SurfaceMap {
             .map_or_else(|| index(&self.default), |p| index(&p.surface))
     }
 
-    /// The surface at `(x, y)`.
-    pub fn at(&self, x: f64, y: f64) -> &Surface {
-        &self.surfaces[self
-            .index_at(x, y)
-            .min(self.surfaces.len().saturating_sub(1))]
+    /// The surface at `(x, y)` (`None` only for a map without surfaces, which
+    /// [`Validate`] rejects).
+    pub fn at(&self, x: f64, y: f64) -> Option<&Surface> {
+        self.index_at(x, y).and_then(|i| self.surfaces.get(i))
     }
 }
 
@@ -277,8 +279,15 @@ impl Validate for SurfaceMap {
                 "must list at least one surface",
             ));
         }
-        for s in &self.surfaces {
+        for (i, s) in self.surfaces.iter().enumerate() {
             s.validate()?;
+            if self.surfaces[..i].iter().any(|t| t.name == s.name) {
+                return Err((
+                    format!("surfaces[{i}].name"),
+                    s.name.clone(),
+                    "must differ from the names of the other surfaces",
+                ));
+            }
         }
         let known = |name: &str| self.surfaces.iter().any(|s| s.name == name);
         if !known(&self.default) {
@@ -365,11 +374,43 @@ mod tests {
                 r: 0.5,
             },
         });
-        assert_eq!(map.at(0.0, 0.0).name, "concrete");
-        assert_eq!(map.at(1.2, 0.1).name, "ice");
+        assert_eq!(map.at(0.0, 0.0).unwrap().name, "concrete");
+        assert_eq!(map.at(1.2, 0.1).unwrap().name, "ice");
         assert!(map.validate().is_ok());
         map.patches[0].surface = "lava".into();
         assert_eq!(map.validate().unwrap_err().0, "patches[0].surface");
+    }
+
+    #[test]
+    fn empty_maps_and_duplicate_names_are_rejected_and_do_not_panic() {
+        let empty = SurfaceMap {
+            surfaces: Vec::new(),
+            default: "concrete".into(),
+            patches: Vec::new(),
+        };
+        assert_eq!(empty.validate().unwrap_err().0, "surfaces");
+        assert_eq!(empty.index_at(0.0, 0.0), None);
+        assert_eq!(empty.at(0.0, 0.0), None);
+
+        let mut twice = SurfaceMap::concrete();
+        twice.surfaces.push(Surface {
+            name: "concrete".into(),
+            mu_long: 0.1,
+            mu_lat: 0.1,
+            rolling: 0.0,
+        });
+        let (field, value, _) = twice.validate().unwrap_err();
+        assert_eq!(
+            (field.as_str(), value.as_str()),
+            ("surfaces[1].name", "concrete")
+        );
+        // The same from a file: the error names the field.
+        let text = ron::to_string(&twice).unwrap();
+        let err = parse::<SurfaceMap>(Path::new("s.ron"), &text).unwrap_err();
+        assert!(
+            err.to_string().contains("surfaces[1].name = concrete"),
+            "{err}"
+        );
     }
 
     #[test]
