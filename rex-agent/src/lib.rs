@@ -12,6 +12,7 @@ pub mod devices;
 pub mod e11;
 pub mod mission;
 pub mod model;
+pub mod mpc;
 pub mod noise;
 pub mod partners;
 pub mod planner;
