@@ -46,10 +46,10 @@ struct Cli {
     /// Where the planner runs: `thread` (a concurrent planning process) or `inline`.
     #[arg(long, value_name = "WHERE")]
     planning: Option<Runtime>,
-    /// Tracker of e11: `backstepping`.
+    /// Tracker of e11: `nmpc` (the paper's) or `backstepping`.
     #[arg(long, value_name = "NAME")]
     tracker: Option<TrackerKind>,
-    /// State estimator of e11: `ekf`.
+    /// State estimator of e11: `mhe` (the paper's) or `ekf`.
     #[arg(long, value_name = "NAME")]
     estimator: Option<EstimatorKind>,
     /// Longest simulated time, in seconds.
@@ -64,6 +64,15 @@ struct Cli {
     /// Print only the summary.
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// Write to standard output; if it is closed (`rex | head`), stop quietly instead of
+/// panicking.
+fn emit(text: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    if std::io::stdout().lock().write_fmt(text).is_err() {
+        std::process::exit(0);
+    }
 }
 
 fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
@@ -140,17 +149,21 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
             ),
         },
     )?;
-    print!("{}", report::summary(&outcome));
+    emit(format_args!("{}", report::summary(&outcome)));
     if !cli.no_report {
         let dir = cli.out.join(&outcome.mission);
         let files = report::write(&dir, &outcome, &config, &spec)?;
-        println!("report: {} ({} files)", dir.display(), files.len());
+        emit(format_args!(
+            "report: {} ({} files)\n",
+            dir.display(),
+            files.len()
+        ));
     }
     if !outcome.completed {
-        println!(
-            "the mission did not complete within {} s of simulated time",
+        emit(format_args!(
+            "the mission did not complete within {} s of simulated time\n",
             s.limit_s
-        );
+        ));
     }
     Ok(outcome)
 }
@@ -189,7 +202,7 @@ fn main() -> ExitCode {
     }
     // The figures, one line per mission; the last line is the last mission's.
     for line in &lines {
-        println!("{line}");
+        emit(format_args!("{line}\n"));
     }
     if ok {
         ExitCode::SUCCESS

@@ -60,8 +60,8 @@ impl Default for RunSettings {
             planner: PlannerKind::Ecsa,
             planning: Runtime::Thread,
             planning_latency: 3,
-            tracker: TrackerKind::default(),
-            estimator: EstimatorKind::default(),
+            tracker: TrackerKind::Nmpc,
+            estimator: EstimatorKind::Mhe,
             limit_s: 600.0,
         }
     }
@@ -241,6 +241,12 @@ pub enum RexError {
     /// A period is invalid.
     #[error(transparent)]
     Period(#[from] embodied::PeriodError),
+    /// The NMPC's settings are invalid.
+    #[error(transparent)]
+    Nmpc(#[from] crate::mpc::NmpcError),
+    /// The MHE's settings are invalid.
+    #[error(transparent)]
+    Mhe(#[from] crate::mpc::MheError),
 }
 
 /// Load and check the spec; errors carry the rendered findings.
@@ -298,8 +304,8 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
     );
     let p = config.world.platform.clone();
     let e11_memory = E11Memory::new(
-        config.tracker.build(p.clone()),
-        config.estimator.build(p, settings.slip),
+        config.tracker.build(p.clone(), dt)?,
+        config.estimator.build(p, settings.slip, dt)?,
         dt,
         settings.slip.x_icr,
     );

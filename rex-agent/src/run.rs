@@ -68,6 +68,10 @@ pub struct Counters {
     pub planner_failures: u64,
     /// Errors recorded by the executor (`OnError::Continue`).
     pub executor_errors: u64,
+    /// Motion-capture samples delivered and lost to dropouts.
+    pub mocap: (u64, u64),
+    /// What the tracker reports (solves, failures, fallbacks...).
+    pub tracker: crate::e11::tracker::TrackerReport,
 }
 
 /// What a run produced.
@@ -254,6 +258,7 @@ pub fn run_mission(
         c.fragments_completed = m.track.completed;
         c.fragments_rejected = m.track.rejected;
         c.rejected_measurements = m.estym.estimator.rejected();
+        c.tracker = m.track.tracker.report();
     }
     if let Some(p) = exec.driver(&h.platform) {
         let s = p.command_stats();
@@ -266,6 +271,9 @@ pub fn run_mission(
         c.planner_failures = t.failures;
     }
     c.executor_errors = exec.report().error_count;
+    if let Some(m) = exec.driver(&h.map.mocap) {
+        c.mocap = m.counts();
+    }
     Ok(out)
 }
 

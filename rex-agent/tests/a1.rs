@@ -440,3 +440,43 @@ fn the_system_is_the_spec() {
         );
     }
 }
+
+#[test]
+fn the_baseline_pair_runs_the_same_mission() {
+    // Tracker and estimator are a configuration value; nothing else changes.
+    let mut config = short();
+    config.tracker = rex_agent::e11::TrackerKind::Backstepping;
+    config.estimator = rex_agent::e11::EstimatorKind::Ekf;
+    let out = run(&config, 120);
+    assert!(out.completed, "{}", out.summary_line());
+    assert_eq!(out.plans_done(), 2);
+    assert_eq!(
+        out.parts[1..],
+        ["backstepping".to_owned(), "ekf".to_owned()]
+    );
+    assert!(out.rms() < 0.05, "{}", out.summary_line());
+}
+
+#[test]
+fn nmpc_and_mhe_ride_out_motion_capture_dropouts_of_seconds() {
+    let mut config = short();
+    // Dropouts of 3 s, starting often: the MHE bridges them on encoders and gyro.
+    config.world.mocap.dropout_length = 3.0;
+    config.world.mocap.dropout_rate = 0.02;
+    let out = run(&config, 120);
+    assert!(out.completed, "{}", out.summary_line());
+    assert_eq!(out.plans_done(), 2);
+    assert_eq!(out.parts[1..], ["nmpc".to_owned(), "mhe".to_owned()]);
+    assert_eq!(out.counters.tracker.failures, 0);
+    let (delivered, dropped) = out.counters.mocap;
+    assert!(
+        dropped > delivered / 2,
+        "dropouts happened: {delivered} delivered, {dropped} dropped"
+    );
+    assert!(out.rms() < 0.08, "{}", out.summary_line());
+    assert!(
+        out.estimate_rms() < 0.05,
+        "estimate rms {}",
+        out.estimate_rms()
+    );
+}

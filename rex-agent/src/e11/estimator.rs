@@ -4,6 +4,7 @@
 use std::collections::VecDeque;
 
 use crate::model::{PlatformParams, Reduced, SlipParams, Torques};
+use crate::mpc::{Mhe, MheError, MheSettings, Sample, TimedPose};
 use crate::types::{Encoders, Imu, MapPose, State, Transform, WheelLoads};
 
 /// What the estimator believes.
@@ -84,6 +85,8 @@ pub enum EstimatorKind {
     /// Extended Kalman filter on the reduced model.
     #[default]
     Ekf,
+    /// Moving-horizon estimation of the state and the slip parameters (the paper's).
+    Mhe,
 }
 
 impl std::str::FromStr for EstimatorKind {
@@ -91,17 +94,25 @@ impl std::str::FromStr for EstimatorKind {
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "ekf" => Ok(EstimatorKind::Ekf),
-            _ => Err(format!("unknown estimator `{s}` (ekf)")),
+            "mhe" => Ok(EstimatorKind::Mhe),
+            _ => Err(format!("unknown estimator `{s}` (ekf, mhe)")),
         }
     }
 }
 
 impl EstimatorKind {
-    /// An estimator of this kind.
-    pub fn build(self, params: PlatformParams, p: SlipParams) -> Box<dyn Estimator> {
-        match self {
+    /// An estimator of this kind for the platform `params` (nominal slip `p`), run
+    /// every `dt` seconds.
+    pub fn build(
+        self,
+        params: PlatformParams,
+        p: SlipParams,
+        dt: f64,
+    ) -> Result<Box<dyn Estimator>, MheError> {
+        Ok(match self {
             EstimatorKind::Ekf => Box::new(Ekf::new(params, p)),
-        }
+            EstimatorKind::Mhe => Box::new(MheEstimator::new(params, p, dt)?),
+        })
     }
 }
 
@@ -329,6 +340,93 @@ impl Estimator for Ekf {
 
     fn rejected(&self) -> u64 {
         self.rejected
+    }
+}
+
+/// The MHE of [`crate::mpc::mhe`] as e1,1's estimator. Every iteration of e1,1 is a
+/// sample: the encoder rates, the gyroscope rate, the IMU heading once it is
+/// aligned with the map, the wheel loads, and the map pose when one arrives
+/// (attached to the time it describes: the map agent's poses are late). It
+/// estimates the slip parameters `(x_0, μ_s, μ_l)` with the state; the NMPC uses
+/// them.
+#[derive(Debug)]
+pub struct MheEstimator {
+    mhe: Mhe,
+    theta: [f64; 4],
+    theta_dot: [f64; 4],
+}
+
+impl MheEstimator {
+    /// Settings for Rex: the peer's weights, with noise levels for what the
+    /// simulated platform does that the reduced model does not (longitudinal wheel
+    /// slip shows in the encoder rates; the gyroscope drifts, so its integrated
+    /// heading is weak), and a slower random walk of the parameters (the peer's
+    /// arrival cost lets them move 0.05 per sample, which suits a 10 s lap but
+    /// makes the NMPC's model jitter over a long mission).
+    pub fn settings(p: SlipParams, dt: f64) -> MheSettings {
+        MheSettings {
+            dt,
+            p_prior: p.to_array(),
+            sigma_w: [0.003, 0.003, 0.003, 0.03, 0.05],
+            sigma_encoder: 0.3,
+            sigma_heading: 0.05,
+            sigma_load: 5.0,
+            sigma_p: [0.002, 0.002, 0.01],
+            ..MheSettings::default()
+        }
+    }
+
+    /// An estimator for the platform `params`, starting from the slip `p`.
+    pub fn new(params: PlatformParams, p: SlipParams, dt: f64) -> Result<MheEstimator, MheError> {
+        Ok(MheEstimator {
+            mhe: Mhe::new(Reduced::new(params), Self::settings(p, dt))?,
+            theta: [0.0; 4],
+            theta_dot: [0.0; 4],
+        })
+    }
+
+    /// The estimator.
+    pub fn mhe(&self) -> &Mhe {
+        &self.mhe
+    }
+}
+
+impl Estimator for MheEstimator {
+    fn name(&self) -> &'static str {
+        "mhe"
+    }
+
+    fn update(&mut self, _dt: f64, tau: &Torques, m: &Measurements) -> Estimate {
+        if let Some(e) = m
+            .encoders
+            .filter(|e| e.theta.iter().chain(&e.rate).all(|v| v.is_finite()))
+        {
+            self.theta = e.theta;
+            self.theta_dot = e.rate;
+        }
+        let sample = Sample {
+            pose: m.map_pose.map(|p| TimedPose {
+                time: p.time,
+                pose: [p.pose.x, p.pose.y, p.pose.phi],
+            }),
+            motion: None,
+            gyro: m.imu.map(|i| i.yaw_rate),
+            heading: m.imu.filter(|_| m.imu_aligned).map(|i| i.yaw),
+            encoders: m.encoders.map(|e| e.rate),
+            loads: m.loads.map(|l| l.load),
+        };
+        let e = self.mhe.update(m.now, tau, &sample);
+        Estimate {
+            x: e.x,
+            p: e.p,
+            theta: self.theta,
+            theta_dot: self.theta_dot,
+            localised: e.localised,
+        }
+    }
+
+    fn rejected(&self) -> u64 {
+        self.mhe.stats().rejected
     }
 }
 

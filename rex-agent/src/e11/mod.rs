@@ -51,6 +51,8 @@ pub struct TrackState {
     pub hold: Option<[f64; 5]>,
     /// The reference of this iteration (for reports).
     pub reference: Option<[f64; 5]>,
+    /// The reference over the tracker's horizon (reused every iteration).
+    pub horizon: Vec<[f64; 5]>,
     /// The fragment `(plan, index)` the reference of this iteration comes from
     /// (`None` when holding a point).
     pub following: Option<(u32, u32)>,
@@ -111,6 +113,7 @@ impl E11Memory {
                 queue: VecDeque::new(),
                 hold: None,
                 reference: None,
+                horizon: Vec::new(),
                 following: None,
                 received: 0,
                 completed: 0,
@@ -242,16 +245,35 @@ fn reset_imu(m: &E11Memory, x: &E11Input) -> Option<f64> {
         .map(|p| p.pose.phi)
 }
 
-/// The reference sample `k` of a fragment and the next one.
-fn reference(m: &E11Memory) -> Option<([f64; 5], [f64; 5])> {
-    match &m.track.running {
-        Some(r) => {
-            let s = &r.fragment.states;
-            let k = r.k.min(s.len().saturating_sub(1));
-            Some((s[k], s[(k + 1).min(s.len() - 1)]))
+/// Fill `track.horizon` with the reference of the next `tracker.horizon() + 1`
+/// samples: the running fragment from its current sample, then the fragments
+/// queued after it, then the last point held at rest. `false` if there is nothing
+/// to follow (no fragment and no point to hold).
+fn fill_horizon(t: &mut TrackState) -> bool {
+    let len = t.tracker.horizon() + 1;
+    t.horizon.clear();
+    if let Some(r) = &t.running {
+        let k = r.k.min(r.fragment.states.len().saturating_sub(1));
+        t.horizon.extend(r.fragment.states[k..].iter().take(len));
+        // The next fragments start where the previous one ends: skip their first sample.
+        for (f, _, _) in &t.queue {
+            if t.horizon.len() >= len {
+                break;
+            }
+            let room = len - t.horizon.len();
+            t.horizon.extend(f.states.iter().skip(1).take(room));
         }
-        None => m.track.hold.map(|h| (h, h)),
     }
+    let rest = t
+        .horizon
+        .last()
+        .map(|e| [e[0], e[1], e[2], 0.0, 0.0])
+        .or(t.hold);
+    let Some(rest) = rest else {
+        return false;
+    };
+    t.horizon.resize(len, rest);
+    true
 }
 
 /// `ee_estimate_track` (common part): estimate, then the torques.
@@ -277,16 +299,18 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
         let [px, py, phi, _, _] = estimate.x;
         m.track.hold = Some([px, py, phi, 0.0, 0.0]);
     }
-    m.track.reference = reference(m).map(|r| r.0);
     m.track.following = m
         .track
         .running
         .as_ref()
         .map(|r| (r.fragment.plan, r.fragment.index));
-    m.tau = match reference(m) {
-        Some((r, next)) => m.track.tracker.control(&estimate, &r, &next, m.dt),
-        None => [0.0; 4],
-    };
+    if fill_horizon(&mut m.track) {
+        m.track.reference = m.track.horizon.first().copied();
+        m.tau = m.track.tracker.control(&estimate, &m.track.horizon, m.dt);
+    } else {
+        m.track.reference = None;
+        m.tau = [0.0; 4];
+    }
 }
 
 /// `eE`: torques and the IMU reset to the platform.
@@ -394,8 +418,12 @@ mod tests {
     ) -> (Vec<(bool, Option<u32>)>, u32) {
         let params = PlatformParams::peer_default();
         let mut m = E11Memory::new(
-            TrackerKind::Backstepping.build(params.clone()),
-            EstimatorKind::Ekf.build(params, SlipParams::NOMINAL),
+            TrackerKind::Backstepping
+                .build(params.clone(), 0.05)
+                .unwrap(),
+            EstimatorKind::Ekf
+                .build(params, SlipParams::NOMINAL, 0.05)
+                .unwrap(),
             0.05,
             0.03,
         );

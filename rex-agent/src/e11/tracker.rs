@@ -1,23 +1,46 @@
-//! Trajectory trackers for `e11`, behind [`Tracker`]: the baseline here; the NMPC of
-//! the paper slots in the same way.
+//! Trajectory trackers for `e11`, behind [`Tracker`]: a baseline (Kanayama's law over
+//! a computed-torque loop) and the paper's NMPC ([`NmpcTracker`]).
 
 use super::estimator::Estimate;
 use crate::model::{PlatformParams, Reduced, Torques};
+use crate::mpc::{Nmpc, NmpcError, NmpcSettings};
 
 /// A trajectory tracker: wheel torques from the estimate and the reference.
 pub trait Tracker: Send + std::fmt::Debug {
     /// Name for reports.
     fn name(&self) -> &'static str;
 
-    /// Torques that make the platform follow `reference = (X, Y, φ, v, ω)`, with
-    /// `next` the reference one period `dt` later (for feed-forward).
-    fn control(
-        &mut self,
-        estimate: &Estimate,
-        reference: &[f64; 5],
-        next: &[f64; 5],
-        dt: f64,
-    ) -> Torques;
+    /// How many samples of reference beyond the current one the tracker looks at
+    /// (a predictive controller's horizon); e1,1 hands it `horizon() + 1` samples.
+    fn horizon(&self) -> usize {
+        1
+    }
+
+    /// Torques that make the platform follow the reference `(X, Y, φ, v, ω)`:
+    /// `reference[k]` is the reference `k · dt` from now (`horizon() + 1` samples).
+    fn control(&mut self, estimate: &Estimate, reference: &[[f64; 5]], dt: f64) -> Torques;
+
+    /// Counters for reports (solver failures, fallbacks...).
+    fn report(&self) -> TrackerReport {
+        TrackerReport::default()
+    }
+}
+
+/// What a tracker reports about its work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackerReport {
+    /// Optimisation problems solved.
+    pub solves: u64,
+    /// Of which by Clarabel (constraints active).
+    pub clarabel: u64,
+    /// Failed solves.
+    pub failures: u64,
+    /// Samples on the shifted previous solution.
+    pub fallbacks: u64,
+    /// Samples braking to a stop.
+    pub safe_stops: u64,
+    /// Samples whose inputs were refused (a non-finite estimate or reference).
+    pub refused: u64,
 }
 
 /// Which tracker.
@@ -26,6 +49,8 @@ pub enum TrackerKind {
     /// Kinematic tracking law with a computed-torque velocity loop.
     #[default]
     Backstepping,
+    /// Nonlinear model predictive control (the paper's).
+    Nmpc,
 }
 
 impl std::str::FromStr for TrackerKind {
@@ -33,16 +58,103 @@ impl std::str::FromStr for TrackerKind {
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "backstepping" | "baseline" => Ok(TrackerKind::Backstepping),
-            _ => Err(format!("unknown tracker `{s}` (backstepping)")),
+            "nmpc" => Ok(TrackerKind::Nmpc),
+            _ => Err(format!("unknown tracker `{s}` (backstepping, nmpc)")),
         }
     }
 }
 
 impl TrackerKind {
-    /// A tracker of this kind.
-    pub fn build(self, params: PlatformParams) -> Box<dyn Tracker> {
-        match self {
+    /// A tracker of this kind for the platform `params`, run every `dt` seconds.
+    pub fn build(self, params: PlatformParams, dt: f64) -> Result<Box<dyn Tracker>, NmpcError> {
+        Ok(match self {
             TrackerKind::Backstepping => Box::new(Backstepping::new(params)),
+            TrackerKind::Nmpc => Box::new(NmpcTracker::new(params, dt)?),
+        })
+    }
+}
+
+/// The NMPC of [`crate::mpc::nmpc`] as e1,1's tracker: the reduced model with the
+/// slip parameters of the estimate (the MHE's, or the nominal ones), the bounds of
+/// the platform, one real-time iteration per sample. A refused input (a
+/// non-finite estimate or reference) keeps the last torques for the fallback steps
+/// the NMPC allows, then brakes.
+#[derive(Debug)]
+pub struct NmpcTracker {
+    nmpc: Nmpc,
+    last: Torques,
+    refused: u64,
+    refused_in_a_row: usize,
+}
+
+impl NmpcTracker {
+    /// An NMPC for the platform `params` with the peers' weights and horizon, at
+    /// interval `dt`.
+    pub fn new(params: PlatformParams, dt: f64) -> Result<NmpcTracker, NmpcError> {
+        let settings = NmpcSettings {
+            dt,
+            torque_max: params.torque_max,
+            speed_max: params.speed_max,
+            yaw_rate_max: params.yaw_rate_max,
+            ..NmpcSettings::default()
+        };
+        Ok(NmpcTracker {
+            nmpc: Nmpc::new(Reduced::new(params), settings)?,
+            last: [0.0; 4],
+            refused: 0,
+            refused_in_a_row: 0,
+        })
+    }
+
+    /// The controller.
+    pub fn nmpc(&self) -> &Nmpc {
+        &self.nmpc
+    }
+}
+
+impl Tracker for NmpcTracker {
+    fn name(&self) -> &'static str {
+        "nmpc"
+    }
+
+    fn horizon(&self) -> usize {
+        self.nmpc.settings().horizon
+    }
+
+    fn control(&mut self, e: &Estimate, reference: &[[f64; 5]], _dt: f64) -> Torques {
+        // The estimate's heading, unwrapped next to the reference's.
+        let mut x = e.x;
+        if let Some(r) = reference.first() {
+            x[2] = crate::planner::nearest_angle(x[2], r[2]);
+        }
+        match self.nmpc.control(&x, reference, &e.p) {
+            Ok(c) => {
+                self.refused_in_a_row = 0;
+                self.last = c.torques;
+                c.torques
+            }
+            Err(_) => {
+                // Inputs the NMPC refuses: hold the last torques briefly, then stop.
+                self.refused += 1;
+                self.refused_in_a_row += 1;
+                if self.refused_in_a_row > self.nmpc.settings().fallback_steps {
+                    self.nmpc.reset();
+                    self.last = [0.0; 4];
+                }
+                self.last
+            }
+        }
+    }
+
+    fn report(&self) -> TrackerReport {
+        let s = self.nmpc.stats();
+        TrackerReport {
+            solves: s.qps,
+            clarabel: s.clarabel,
+            failures: s.failures,
+            fallbacks: s.fallbacks,
+            safe_stops: s.safe_stops,
+            refused: self.refused,
         }
     }
 }
@@ -141,7 +253,11 @@ impl Tracker for Backstepping {
         "backstepping"
     }
 
-    fn control(&mut self, e: &Estimate, reference: &[f64; 5], next: &[f64; 5], dt: f64) -> Torques {
+    fn control(&mut self, e: &Estimate, horizon: &[[f64; 5]], dt: f64) -> Torques {
+        let Some(reference) = horizon.first() else {
+            return [0.0; 4];
+        };
+        let next = horizon.get(1).unwrap_or(reference);
         let g = self.gains;
         let p = &self.model.params;
         let (vc, wc) = self.command(e, reference);
@@ -197,7 +313,7 @@ mod tests {
                 p,
                 ..Estimate::default()
             };
-            let tau = t.control(&e, &reference(k), &reference(k + 1), dt);
+            let tau = t.control(&e, &[reference(k), reference(k + 1)], dt);
             x = model.rk4(&x, &tau, &p, dt, 4);
         }
         let r = reference(200);

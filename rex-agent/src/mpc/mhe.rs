@@ -156,8 +156,7 @@ impl MheSettings {
             return bad("dt, standard deviations, gate and tolerances must be positive");
         }
         let non_negative = |v: f64| v.is_finite() && v >= 0.0;
-        if !(non_negative(self.sigma_load) && non_negative(self.drift_rate))
-        {
+        if !(non_negative(self.sigma_load) && non_negative(self.drift_rate)) {
             return bad("sigma_load and drift_rate must be finite and non-negative");
         }
         for i in 0..NP {

@@ -123,7 +123,10 @@ mod tests {
     /// Golden values of notes §1.6: `x_d(0)` and `x_d(1.25 s)` (written as printed
     /// there, not as constants).
     #[test]
-    #[expect(clippy::approx_constant, reason = "the golden values as the notes print them")]
+    #[expect(
+        clippy::approx_constant,
+        reason = "the golden values as the notes print them"
+    )]
     fn reference_golden_values() {
         let r = reference_run(26);
         let golden = [

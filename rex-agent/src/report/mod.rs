@@ -112,9 +112,17 @@ pub fn summary(o: &Outcome) -> String {
     );
     let _ = writeln!(
         s,
-        "rejected_measurements={} clamped_torques={} executor_errors={}",
-        c.rejected_measurements, c.clamped_torques, c.executor_errors
+        "rejected_measurements={} clamped_torques={} executor_errors={} mocap_delivered={} mocap_dropped={}",
+        c.rejected_measurements, c.clamped_torques, c.executor_errors, c.mocap.0, c.mocap.1
     );
+    let t = &c.tracker;
+    if t.solves > 0 || t.refused > 0 {
+        let _ = writeln!(
+            s,
+            "tracker_qps={} by_clarabel={} failures={} fallbacks={} safe_stops={} refused={}",
+            t.solves, t.clarabel, t.failures, t.fallbacks, t.safe_stops, t.refused
+        );
+    }
     for (t, ack) in &o.acks {
         let _ = writeln!(s, "ack t={t:.2} plan={} status={:?}", ack.plan, ack.status);
     }
