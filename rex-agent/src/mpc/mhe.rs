@@ -123,7 +123,7 @@ impl Default for MheSettings {
             iterations: 1,
             start_iterations: 3,
             qp: QpStrategy::Structured,
-            qp_tolerance: 1e-8,
+            qp_tolerance: 1e-6,
         }
     }
 }
@@ -893,6 +893,9 @@ fn clarabel_settings(tol: f64) -> Result<DefaultSettings<f64>, MheError> {
         .tol_gap_abs(tol)
         .tol_gap_rel(tol)
         .tol_feas(tol)
+        // As for the NMPC: a small, well-scaled QP (see `nmpc`).
+        .equilibrate_enable(false)
+        .iterative_refinement_enable(false)
         .build()
         .map_err(|e| MheError::Solve(format!("Clarabel settings: {e}")))
 }
