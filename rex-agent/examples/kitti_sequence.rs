@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use rex_agent::camera::Renderer;
-use rex_agent::camera::kitti::SequenceWriter;
+use rex_agent::camera::kitti::{ScriptedPath, write_scripted};
 use rex_agent::config;
 use rex_agent::world::WorldConfig;
 
@@ -56,26 +56,7 @@ fn run() -> Result<usize, Box<dyn std::error::Error>> {
     // The options may have made the configuration invalid (`--width 0`).
     config::check("command line", &config)?;
     let out = out.ok_or("missing OUT_DIR")?;
-    let pose_at: Box<dyn Fn(f64) -> [f64; 3]> = match path.as_str() {
-        // The figure eight of the missions, 40 s per lap.
-        "figure_eight" => Box::new(|t: f64| {
-            let w = std::f64::consts::TAU / 40.0;
-            let (x, y) = (2.0 * (w * t).sin(), (2.0 * w * t).sin());
-            let (dx, dy) = (2.0 * w * (w * t).cos(), 2.0 * w * (2.0 * w * t).cos());
-            [x, y, dy.atan2(dx)]
-        }),
-        "straight" => Box::new(|t: f64| [-3.0 + 0.3 * t, 0.5, 0.0]),
-        "turn" => Box::new(|t: f64| [0.0, 0.0, 0.3 * t]),
-        other => return Err(format!("unknown path {other:?}").into()),
-    };
+    let path: ScriptedPath = path.parse()?;
     let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
-    let mut writer = SequenceWriter::create(&out, &config.camera)?;
-    let (mut left, mut right) = (Vec::new(), Vec::new());
-    for k in 0..frames {
-        let t = k as f64 * 0.1;
-        let body = pose_at(t);
-        renderer.render_pair(body, &mut left, &mut right);
-        writer.push(t, &config.camera.left_pose(body), &left, &right)?;
-    }
-    Ok(writer.finish()?)
+    Ok(write_scripted(&out, &renderer, path, frames)?)
 }

@@ -55,6 +55,10 @@ struct Cli {
     /// Longest simulated time, in seconds.
     #[arg(long, value_name = "SECONDS")]
     limit: Option<f64>,
+    /// Run without the virtual receptor r11 and the camera (no visual odometry:
+    /// the spec's deployment `simulation_without_vo`).
+    #[arg(long)]
+    no_vo: bool,
     /// Report folder; one sub-folder per mission.
     #[arg(long, value_name = "DIR", default_value = "target/rex-report")]
     out: PathBuf,
@@ -98,6 +102,9 @@ fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
     s.tracker = cli.tracker.unwrap_or(s.tracker);
     s.estimator = cli.estimator.unwrap_or(s.estimator);
     s.limit_s = cli.limit.unwrap_or(s.limit_s);
+    if cli.no_vo {
+        s.visual_odometry = false;
+    }
     Ok((s, base))
 }
 
@@ -112,13 +119,14 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
     let spec = load_spec(&config.spec)?;
     if !cli.quiet {
         eprintln!(
-            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}",
+            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
             config.mission.name,
             config.mission.plans.len(),
             config.planner.name(),
             config.tracker,
             config.estimator,
-            config.runtime
+            config.runtime,
+            if config.visual_odometry { "on" } else { "off" }
         );
     }
     let quiet = cli.quiet;

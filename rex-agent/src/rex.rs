@@ -16,12 +16,16 @@ use serde::{Deserialize, Serialize};
 
 use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, MapBounds, c1_fsm};
 use crate::config::{self, ConfigError, Invalid, Validate};
-use crate::devices::{Platform, PlatformInput, PlatformOutput, SharedTruth};
+use crate::devices::{
+    CameraInput, CameraOutput, Platform, PlatformInput, PlatformOutput, SharedTruth, StereoCamera,
+};
 use crate::e11::{E11, E11Input, E11Memory, E11Output, EstimatorKind, TrackerKind, e11_fsm};
 use crate::mission::Mission;
 use crate::partners::{MapInput, MapOutput, Ontology, OntologyInput, OntologyOutput};
 use crate::planner::trajgen::{Runtime, TrajGen};
 use crate::planner::{PlannerKind, PlannerSettings};
+use crate::r11::{Odometry, R11, R11Input, R11Memory, R11Output, r11_fsm};
+use crate::vo::{Calibration, VoSettings};
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
 /// The choices of a Rex run, as written in a run file (`rex-agent/config/rex.ron`);
@@ -49,6 +53,8 @@ pub struct RunSettings {
     pub estimator: EstimatorKind,
     /// Longest simulated time [s].
     pub limit_s: f64,
+    /// Run the virtual receptor r11 (stereo visual odometry on the camera R1).
+    pub visual_odometry: bool,
 }
 
 impl Default for RunSettings {
@@ -63,6 +69,7 @@ impl Default for RunSettings {
             tracker: TrackerKind::Nmpc,
             estimator: EstimatorKind::Mhe,
             limit_s: 600.0,
+            visual_odometry: true,
         }
     }
 }
@@ -129,6 +136,7 @@ impl RunSettings {
         config.planning_latency = self.planning_latency;
         config.tracker = self.tracker;
         config.estimator = self.estimator;
+        config.visual_odometry = self.visual_odometry;
         Ok(config)
     }
 }
@@ -158,6 +166,11 @@ pub struct RexConfig {
     pub spec: PathBuf,
     /// The executor's error policy.
     pub exec: ExecConfig,
+    /// Whether a1 has its virtual receptor r11 (visual odometry) and the camera R1:
+    /// the spec's deployment `simulation`, else `simulation_without_vo`.
+    pub visual_odometry: bool,
+    /// r11 commands a stereo pair every this many of its steps.
+    pub acquire_every: u32,
 }
 
 impl RexConfig {
@@ -194,6 +207,8 @@ impl RexConfig {
             estimator: defaults.estimator,
             spec: default_spec(),
             exec: ExecConfig::default(),
+            visual_odometry: defaults.visual_odometry,
+            acquire_every: 5,
         }
     }
 }
@@ -216,6 +231,8 @@ pub struct RexHandles {
     pub c2: SubsystemHandle<Ontology>,
     /// The map agent.
     pub map: MapAgentHandles,
+    /// a1's virtual receptor and the camera, when visual odometry runs.
+    pub vision: Option<(SubsystemHandle<R11>, DriverHandle<StereoCamera>)>,
 }
 
 /// Why Rex could not be built.
@@ -276,8 +293,8 @@ fn period_of(spec: &Spec, name: &str) -> Result<Period, RexError> {
     Ok(Period::from_secs_f64(ms * 1e-3)?)
 }
 
-/// Build Rex without visual odometry (the spec's `simulation_without_vo`
-/// deployment): a1 = c1 + e11 + E1, a2, a3.
+/// Build Rex: a1 = c1 + e11 + E1 (+ r11 and R1 with visual odometry), a2, a3, as
+/// the spec's deployment `simulation` (or `simulation_without_vo`) says.
 pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), RexError> {
     let spec = load_spec(&config.spec)?;
     let truth = SharedTruth::default();
@@ -398,6 +415,51 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         Policy::Sample,
     );
 
+    // r11, the camera and c1 (the spec's `simulation` deployment).
+    let vision = if config.visual_odometry {
+        let camera_config = &config.world.camera;
+        let (cu, cv) = camera_config.principal_point();
+        let calib = Calibration {
+            f: camera_config.focal,
+            cu,
+            cv,
+            baseline: camera_config.baseline,
+        };
+        let odom =
+            Odometry::new(calib, camera_config.mount(), VoSettings::default()).map_err(|e| {
+                RexError::Spec {
+                    path: config.spec.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        let r11 = sys.subsystem(
+            a1,
+            "r11",
+            period_of(&spec, "r11")?,
+            R11Memory::new(odom, config.acquire_every),
+            r11_fsm()?,
+        );
+        let camera = world::add_camera(&mut sys, a1, &config.world, &truth)?;
+        sys.connect(
+            r11.output(port!(R11Output, R1.cmd_R11)),
+            camera.input(port!(CameraInput, r11.cmd_R11)),
+            Policy::queue(2),
+        );
+        sys.connect(
+            camera.output(port!(CameraOutput, r11.img_lr)),
+            r11.input(port!(R11Input, R1.img_lr)),
+            Policy::Sample,
+        );
+        sys.connect(
+            r11.output(port!(R11Output, c1.A4x4)),
+            c1.input(port!(C1Input, r11.A4x4)),
+            Policy::queue(8),
+        );
+        Some((r11, camera))
+    } else {
+        None
+    };
+
     let system = sys.build()?;
     Ok((
         system,
@@ -407,6 +469,7 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
             platform,
             c2,
             map,
+            vision,
         },
         truth,
     ))

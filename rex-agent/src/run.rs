@@ -70,6 +70,8 @@ pub struct Counters {
     pub executor_errors: u64,
     /// Motion-capture samples delivered and lost to dropouts.
     pub mocap: (u64, u64),
+    /// Visual odometry: stereo pairs processed, motions sent, pairs without one.
+    pub vo: (u64, u64, u64),
     /// What the tracker reports (solves, failures, fallbacks...).
     pub tracker: crate::e11::tracker::TrackerReport,
 }
@@ -273,6 +275,10 @@ pub fn run_mission(
     c.executor_errors = exec.report().error_count;
     if let Some(m) = exec.driver(&h.map.mocap) {
         c.mocap = m.counts();
+    }
+    if let Some(m) = h.vision.and_then(|(r11, _)| exec.memory(&r11)) {
+        let s = m.odom.vo().stats();
+        c.vo = (m.odom.pairs, s.motions, m.odom.no_estimates);
     }
     Ok(out)
 }

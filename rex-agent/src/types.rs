@@ -195,8 +195,34 @@ pub enum AckStatus {
     Failed(String),
 }
 
-/// A rigid transform (`A4x4`): the motion between two stereo pairs, row-major.
-pub type Transform = [[f64; 4]; 4];
+/// `A4x4`: the motion of the platform between two stereo pairs, measured by the
+/// visual odometry: `matrix` is the pose of the platform at time `to` in its own
+/// frame at time `from` (x forward, y left, z up; row-major), so a platform driving
+/// straight ahead has a positive `matrix[0][3]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// The homogeneous transform.
+    pub matrix: [[f64; 4]; 4],
+    /// Time of the earlier pair [s].
+    pub from: f64,
+    /// Time of the later pair [s].
+    pub to: f64,
+}
+
+impl Transform {
+    /// The planar part `(dx, dy, dφ)`.
+    pub fn planar(&self) -> [f64; 3] {
+        let m = &self.matrix;
+        [m[0][3], m[1][3], m[1][0].atan2(m[0][0])]
+    }
+
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.matrix.iter().flatten().all(|v| v.is_finite())
+            && self.from.is_finite()
+            && self.to.is_finite()
+    }
+}
 
 /// The acknowledgement of a plan (`ack`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -281,6 +281,11 @@ fn a_short_mission_is_tracked_within_the_bound() {
     // where the kinematic tracking law has no authority over the cross-track error.
     assert!(out.rms() < 0.05, "{}", out.summary_line());
     assert!(out.max_error() < 0.10, "{}", out.summary_line());
+    // Visual odometry ran on every pair the camera took, each after the first
+    // gave a motion.
+    let (pairs, motions, none) = out.counters.vo;
+    assert!(pairs > 50, "{pairs} pairs");
+    assert_eq!((motions, none), (pairs - 1, 0));
     // The platform ends at the last point of the last plan.
     let last = out.samples.last().unwrap();
     assert!(
@@ -365,88 +370,96 @@ fn a_planner_failure_holds_position_and_is_reported() {
 #[test]
 fn the_system_is_the_spec() {
     // Every link built is a link of specs/rex.ron with the same policy, every link
-    // of the spec between components of the deployment `simulation_without_vo` is
-    // built, and every component has the spec's kind and period.
+    // of the spec between components of the deployment is built, and every
+    // component has the spec's period: with visual odometry the deployment
+    // `simulation`, without it `simulation_without_vo`.
     let spec = load_spec(&default_spec()).unwrap();
-    let (system, _, _) = build(&short()).unwrap();
-    let info = system.info();
-    let deployment = spec
-        .deployments
-        .iter()
-        .find(|d| d.name == "simulation_without_vo")
-        .unwrap();
-    let deployed: Vec<&str> = deployment
-        .hosts
-        .iter()
-        .flat_map(|h| {
-            h.processes
-                .iter()
-                .flat_map(|p| p.runs.iter().map(String::as_str))
-        })
-        .collect();
-    let mut names: Vec<&str> = info.nodes.iter().map(|n| n.name.as_str()).collect();
-    names.sort_unstable();
-    let mut expected = deployed.clone();
-    expected.sort_unstable();
-    assert_eq!(names, expected);
-    let policy = |p: &embodied::Policy| match p {
-        embodied::Policy::Sample => embodied::spec::model::Policy::Sample,
-        embodied::Policy::Queue { bound } => embodied::spec::model::Policy::Queue(*bound),
-    };
-    let built: Vec<(String, String, embodied::spec::model::Policy)> = info
-        .links
-        .iter()
-        .map(|l| {
-            (
-                format!("{}.{}", info.nodes[l.from].name, l.from_port),
-                format!("{}.{}", info.nodes[l.to].name, l.to_port),
-                policy(&l.policy),
-            )
-        })
-        .collect();
-    let in_spec: Vec<(String, String, embodied::spec::model::Policy)> = spec
-        .links
-        .iter()
-        .filter(|l| {
-            let node = |s: &str| s.split('.').next().unwrap_or("").to_owned();
-            deployed.contains(&node(&l.from).as_str()) && deployed.contains(&node(&l.to).as_str())
-        })
-        .map(|l| (l.from.clone(), l.to.clone(), l.policy))
-        .collect();
-    for l in &built {
-        assert!(in_spec.contains(l), "built but not in the spec: {l:?}");
-    }
-    for l in &in_spec {
-        assert!(built.contains(l), "in the spec but not built: {l:?}");
-    }
-    for node in &info.nodes {
-        let period_ms = spec
-            .subsystems()
-            .find(|(_, s)| s.name == node.name)
-            .map(|(_, s)| s.period_ms)
-            .or_else(|| {
-                spec.agents
-                    .iter()
-                    .flat_map(|a| &a.devices)
-                    .find(|d| d.name == node.name)
-                    .map(|d| d.period_ms)
-            })
+    for (vo, deployment) in [(true, "simulation"), (false, "simulation_without_vo")] {
+        let mut config = short();
+        config.visual_odometry = vo;
+        let (system, _, _) = build(&config).unwrap();
+        let info = system.info();
+        let deployment = spec
+            .deployments
+            .iter()
+            .find(|d| d.name == deployment)
             .unwrap();
-        assert_eq!(
-            node.period.as_nanos() as f64,
-            period_ms * 1e6,
-            "period of {}",
-            node.name
-        );
+        let deployed: Vec<&str> = deployment
+            .hosts
+            .iter()
+            .flat_map(|h| {
+                h.processes
+                    .iter()
+                    .flat_map(|p| p.runs.iter().map(String::as_str))
+            })
+            .collect();
+        let mut names: Vec<&str> = info.nodes.iter().map(|n| n.name.as_str()).collect();
+        names.sort_unstable();
+        let mut expected = deployed.clone();
+        expected.sort_unstable();
+        assert_eq!(names, expected);
+        let policy = |p: &embodied::Policy| match p {
+            embodied::Policy::Sample => embodied::spec::model::Policy::Sample,
+            embodied::Policy::Queue { bound } => embodied::spec::model::Policy::Queue(*bound),
+        };
+        let built: Vec<(String, String, embodied::spec::model::Policy)> = info
+            .links
+            .iter()
+            .map(|l| {
+                (
+                    format!("{}.{}", info.nodes[l.from].name, l.from_port),
+                    format!("{}.{}", info.nodes[l.to].name, l.to_port),
+                    policy(&l.policy),
+                )
+            })
+            .collect();
+        let node = |s: &str| s.split('.').next().unwrap_or("").to_owned();
+        let in_spec: Vec<(String, String, embodied::spec::model::Policy)> = spec
+            .links
+            .iter()
+            .filter(|l| {
+                deployed.contains(&node(&l.from).as_str())
+                    && deployed.contains(&node(&l.to).as_str())
+            })
+            .map(|l| (l.from.clone(), l.to.clone(), l.policy))
+            .collect();
+        for l in &built {
+            assert!(in_spec.contains(l), "built but not in the spec: {l:?}");
+        }
+        for l in &in_spec {
+            assert!(built.contains(l), "in the spec but not built: {l:?}");
+        }
+        for n in &info.nodes {
+            let period_ms = spec
+                .subsystems()
+                .find(|(_, s)| s.name == n.name)
+                .map(|(_, s)| s.period_ms)
+                .or_else(|| {
+                    spec.agents
+                        .iter()
+                        .flat_map(|a| &a.devices)
+                        .find(|d| d.name == n.name)
+                        .map(|d| d.period_ms)
+                })
+                .unwrap();
+            assert_eq!(
+                n.period.as_nanos() as f64,
+                period_ms * 1e6,
+                "period of {}",
+                n.name
+            );
+        }
     }
 }
 
 #[test]
 fn the_baseline_pair_runs_the_same_mission() {
-    // Tracker and estimator are a configuration value; nothing else changes.
+    // Tracker and estimator are a configuration value; nothing else changes. And
+    // a1 without its virtual receptor (the spec's `simulation_without_vo`).
     let mut config = short();
     config.tracker = rex_agent::e11::TrackerKind::Backstepping;
     config.estimator = rex_agent::e11::EstimatorKind::Ekf;
+    config.visual_odometry = false;
     let out = run(&config, 120);
     assert!(out.completed, "{}", out.summary_line());
     assert_eq!(out.plans_done(), 2);

@@ -282,6 +282,68 @@ impl SequenceWriter {
     }
 }
 
+/// Scripted paths of the platform through the room, for sequences of the camera
+/// alone (10 frames per second in [`write_scripted`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScriptedPath {
+    /// The figure eight of the missions (2 m × 1 m lobes), 40 s per lap.
+    FigureEight,
+    /// Straight ahead at 0.3 m/s.
+    Straight,
+    /// Turning in place at 0.3 rad/s.
+    Turn,
+}
+
+impl std::str::FromStr for ScriptedPath {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "figure_eight" => Ok(ScriptedPath::FigureEight),
+            "straight" => Ok(ScriptedPath::Straight),
+            "turn" => Ok(ScriptedPath::Turn),
+            other => Err(format!(
+                "unknown path `{other}` (figure_eight, straight, turn)"
+            )),
+        }
+    }
+}
+
+impl ScriptedPath {
+    /// The platform's pose `(x, y, φ)` at `t` seconds.
+    pub fn pose(self, t: f64) -> [f64; 3] {
+        match self {
+            ScriptedPath::FigureEight => {
+                let w = std::f64::consts::TAU / 40.0;
+                let (x, y) = (2.0 * (w * t).sin(), (2.0 * w * t).sin());
+                let (dx, dy) = (2.0 * w * (w * t).cos(), 2.0 * w * (2.0 * w * t).cos());
+                [x, y, dy.atan2(dx)]
+            }
+            ScriptedPath::Straight => [-3.0 + 0.3 * t, 0.5, 0.0],
+            ScriptedPath::Turn => [0.0, 0.0, 0.3 * t],
+        }
+    }
+}
+
+/// Render `frames` stereo pairs along `path` (10 per second) and write them as a
+/// KITTI sequence in `dir`, with the true poses; returns the frames written.
+pub fn write_scripted(
+    dir: &Path,
+    renderer: &super::Renderer,
+    path: ScriptedPath,
+    frames: usize,
+) -> Result<usize, KittiError> {
+    let camera = renderer.camera();
+    let mut writer = SequenceWriter::create(dir, camera)?;
+    let (mut left, mut right) = (Vec::new(), Vec::new());
+    for k in 0..frames {
+        let t = k as f64 * 0.1;
+        let body = path.pose(t);
+        renderer.render_pair(body, &mut left, &mut right);
+        writer.push(t, &camera.left_pose(body), &left, &right)?;
+    }
+    writer.finish()
+}
+
 /// A KITTI sequence on disk.
 #[derive(Clone, Debug)]
 pub struct Sequence {

@@ -129,6 +129,20 @@ impl CameraConfig {
         )
     }
 
+    /// The pose of the left camera in the platform's frame (x forward, y left, z up;
+    /// the camera's axes x right, y down, z forward) as a 4 × 4 transform: camera
+    /// coordinates to platform coordinates.
+    pub fn mount(&self) -> [[f64; 4]; 4] {
+        let p = self.left_pose([0.0, 0.0, 0.0]);
+        let r = &p.rotation;
+        [
+            [r[0][0], r[0][1], r[0][2], p.center[0]],
+            [r[1][0], r[1][1], r[1][2], p.center[1]],
+            [r[2][0], r[2][1], r[2][2], p.center[2]],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    }
+
     /// Pose of the left camera when the platform is at `(x, y, φ)`.
     pub fn left_pose(&self, body: [f64; 3]) -> CameraPose {
         let [x, y, phi] = body;

@@ -4,7 +4,7 @@
 use std::collections::VecDeque;
 
 use crate::model::{PlatformParams, Reduced, SlipParams, Torques};
-use crate::mpc::{Mhe, MheError, MheSettings, Sample, TimedPose};
+use crate::mpc::{Mhe, MheError, MheSettings, Motion, Sample, TimedPose};
 use crate::types::{Encoders, Imu, MapPose, State, Transform, WheelLoads};
 
 /// What the estimator believes.
@@ -345,8 +345,9 @@ impl Estimator for Ekf {
 
 /// The MHE of [`crate::mpc::mhe`] as e1,1's estimator. Every iteration of e1,1 is a
 /// sample: the encoder rates, the gyroscope rate, the IMU heading once it is
-/// aligned with the map, the wheel loads, and the map pose when one arrives
-/// (attached to the time it describes: the map agent's poses are late). It
+/// aligned with the map, the wheel loads, the map pose when one arrives (attached to
+/// the time it describes: the map agent's poses are late), and the visual
+/// odometry's motion between two pairs (`A4x4`, relayed by c1). It
 /// estimates the slip parameters `(x_0, μ_s, μ_l)` with the state; the NMPC uses
 /// them.
 #[derive(Debug)]
@@ -409,7 +410,11 @@ impl Estimator for MheEstimator {
                 time: p.time,
                 pose: [p.pose.x, p.pose.y, p.pose.phi],
             }),
-            motion: None,
+            motion: m.transform.filter(Transform::is_finite).map(|t| Motion {
+                from: t.from,
+                to: t.to,
+                delta: t.planar(),
+            }),
             gyro: m.imu.map(|i| i.yaw_rate),
             heading: m.imu.filter(|_| m.imu_aligned).map(|i| i.yaw),
             encoders: m.encoders.map(|e| e.rate),

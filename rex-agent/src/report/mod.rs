@@ -115,6 +115,13 @@ pub fn summary(o: &Outcome) -> String {
         "rejected_measurements={} clamped_torques={} executor_errors={} mocap_delivered={} mocap_dropped={}",
         c.rejected_measurements, c.clamped_torques, c.executor_errors, c.mocap.0, c.mocap.1
     );
+    if c.vo.0 > 0 {
+        let _ = writeln!(
+            s,
+            "vo_pairs={} vo_motions={} vo_no_estimate={}",
+            c.vo.0, c.vo.1, c.vo.2
+        );
+    }
     let t = &c.tracker;
     if t.solves > 0 || t.refused > 0 {
         let _ = writeln!(

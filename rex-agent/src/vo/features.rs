@@ -1,0 +1,463 @@
+//! Features of a grey image (StereoScan, notes `vo.md` §1.1–1.2): a blob and a
+//! corner filter response, non-maximum suppression in blocks (Neubeck & Van Gool),
+//! four classes (blob min/max, corner min/max), and a 32-byte descriptor of
+//! gradient samples around each feature, compared by the sum of absolute
+//! differences.
+
+/// Bytes of a matching descriptor.
+pub const DESCRIPTOR: usize = 32;
+
+/// A grey image, row-major, one byte per pixel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Gray {
+    /// Width [px].
+    pub w: usize,
+    /// Height [px].
+    pub h: usize,
+    /// Pixels.
+    pub data: Vec<u8>,
+}
+
+impl Gray {
+    /// The pixel at `(u, v)`.
+    #[inline]
+    pub fn at(&self, u: usize, v: usize) -> u8 {
+        self.data[v * self.w + u]
+    }
+
+    /// Resize to `w × h` (keeping the allocation when it is large enough).
+    pub fn reshape(&mut self, w: usize, h: usize) {
+        self.w = w;
+        self.h = h;
+        self.data.resize(w * h, 0);
+    }
+
+    /// Half resolution by 2 × 2 averaging into `out`.
+    pub fn half_into(&self, out: &mut Gray) {
+        let (w, h) = (self.w / 2, self.h / 2);
+        out.reshape(w, h);
+        for v in 0..h {
+            let (r0, r1) = (2 * v * self.w, (2 * v + 1) * self.w);
+            let row = &mut out.data[v * w..(v + 1) * w];
+            for (u, o) in row.iter_mut().enumerate() {
+                let s = u16::from(self.data[r0 + 2 * u])
+                    + u16::from(self.data[r0 + 2 * u + 1])
+                    + u16::from(self.data[r1 + 2 * u])
+                    + u16::from(self.data[r1 + 2 * u + 1]);
+                *o = ((s + 2) / 4) as u8;
+            }
+        }
+    }
+}
+
+/// Horizontal and vertical gradients of an image, one byte each (5 × 5 Sobel,
+/// divided by 128, offset by 128, saturated); 128 (no gradient) on the 2-pixel
+/// border.
+#[derive(Clone, Debug, Default)]
+pub struct Gradients {
+    /// Width [px].
+    pub w: usize,
+    /// Height [px].
+    pub h: usize,
+    /// `∂/∂u`.
+    pub du: Vec<u8>,
+    /// `∂/∂v`.
+    pub dv: Vec<u8>,
+    /// Scratch rows of the separable filter.
+    tmp_d: Vec<i32>,
+    tmp_s: Vec<i32>,
+}
+
+impl Gradients {
+    /// Compute the gradients of `img`.
+    pub fn compute(&mut self, img: &Gray) {
+        let (w, h) = (img.w, img.h);
+        self.w = w;
+        self.h = h;
+        self.du.clear();
+        self.du.resize(w * h, 128);
+        self.dv.clear();
+        self.dv.resize(w * h, 128);
+        if w < 5 || h < 5 {
+            return;
+        }
+        // Horizontal pass: derivative (1, 2, 0, −2, −1) and smoothing (1, 4, 6, 4, 1).
+        self.tmp_d.clear();
+        self.tmp_d.resize(w * h, 0);
+        self.tmp_s.clear();
+        self.tmp_s.resize(w * h, 0);
+        for v in 0..h {
+            let row = &img.data[v * w..(v + 1) * w];
+            for u in 2..w - 2 {
+                let p = |k: usize| i32::from(row[u + k - 2]);
+                self.tmp_d[v * w + u] = p(0) + 2 * p(1) - 2 * p(3) - p(4);
+                self.tmp_s[v * w + u] = p(0) + 4 * p(1) + 6 * p(2) + 4 * p(3) + p(4);
+            }
+        }
+        // Vertical pass: smoothing of the horizontal derivative, derivative of the
+        // horizontal smoothing.
+        let sat = |x: i32| ((x >> 7) + 128).clamp(0, 255) as u8;
+        for v in 2..h - 2 {
+            for u in 2..w - 2 {
+                let d = |k: usize| self.tmp_d[(v + k - 2) * w + u];
+                let s = |k: usize| self.tmp_s[(v + k - 2) * w + u];
+                let du = d(0) + 4 * d(1) + 6 * d(2) + 4 * d(3) + d(4);
+                let dv = s(0) + 2 * s(1) - 2 * s(3) - s(4);
+                self.du[v * w + u] = sat(du);
+                self.dv[v * w + u] = sat(dv);
+            }
+        }
+    }
+
+    /// The 32-byte matching descriptor at `(u, v)`: `du` and `dv` at 16 positions of
+    /// the 11 × 11 window (needs a margin of 5 pixels).
+    #[inline]
+    pub fn descriptor(&self, u: usize, v: usize) -> [u8; DESCRIPTOR] {
+        const OFFSETS: [(i32, i32); 16] = [
+            (-3, -1),
+            (-1, -1),
+            (1, -1),
+            (3, -1),
+            (-3, 1),
+            (-1, 1),
+            (1, 1),
+            (3, 1),
+            (-1, -5),
+            (1, -5),
+            (-1, 5),
+            (1, 5),
+            (-5, -3),
+            (5, -3),
+            (-5, 3),
+            (5, 3),
+        ];
+        let mut d = [0u8; DESCRIPTOR];
+        for (k, (dx, dy)) in OFFSETS.iter().enumerate() {
+            let i = (v as i32 + dy) as usize * self.w + (u as i32 + dx) as usize;
+            d[2 * k] = self.du[i];
+            d[2 * k + 1] = self.dv[i];
+        }
+        d
+    }
+
+    /// The 16-byte refinement descriptor at `(u, v)` (5 × 5 neighbourhood; needs a
+    /// margin of 2 pixels): 12 `du` and 4 `dv` samples.
+    #[inline]
+    pub fn refine_descriptor(&self, u: i32, v: i32) -> [u8; 16] {
+        const DU: [(i32, i32); 12] = [
+            (0, 0),
+            (0, 0),
+            (0, -1),
+            (0, 1),
+            (0, -2),
+            (0, 2),
+            (-1, 0),
+            (1, 0),
+            (-2, -1),
+            (-2, 1),
+            (2, -1),
+            (2, 1),
+        ];
+        const DV: [(i32, i32); 4] = [(0, -1), (0, 1), (-1, 0), (1, 0)];
+        let mut d = [0u8; 16];
+        let idx = |dx: i32, dy: i32| ((v + dy) * self.w as i32 + u + dx) as usize;
+        for (k, (dx, dy)) in DU.iter().enumerate() {
+            d[k] = self.du[idx(*dx, *dy)];
+        }
+        for (k, (dx, dy)) in DV.iter().enumerate() {
+            d[12 + k] = self.dv[idx(*dx, *dy)];
+        }
+        d
+    }
+}
+
+/// Sum of absolute differences of two byte arrays.
+#[inline]
+pub fn sad<const N: usize>(a: &[u8; N], b: &[u8; N]) -> u32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| u32::from(x.abs_diff(*y)))
+        .sum()
+}
+
+/// The classes of features: matching only compares features of the same class.
+pub const CLASSES: usize = 4;
+
+/// Features of one image at one NMS scale, struct of arrays.
+#[derive(Clone, Debug, Default)]
+pub struct Features {
+    /// Column [px, matching resolution].
+    pub u: Vec<i32>,
+    /// Row.
+    pub v: Vec<i32>,
+    /// Class: 0 blob minimum, 1 blob maximum, 2 corner minimum, 3 corner maximum.
+    pub class: Vec<u8>,
+    /// Descriptors.
+    pub desc: Vec<[u8; DESCRIPTOR]>,
+}
+
+impl Features {
+    /// Number of features.
+    pub fn len(&self) -> usize {
+        self.u.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.u.is_empty()
+    }
+
+    fn clear(&mut self) {
+        self.u.clear();
+        self.v.clear();
+        self.class.clear();
+        self.desc.clear();
+    }
+}
+
+/// The blob and corner responses of an image (computed through an integral image).
+#[derive(Clone, Debug, Default)]
+pub struct Responses {
+    w: usize,
+    h: usize,
+    integral: Vec<i32>,
+    /// Blob response: centre-surround (`−Σ5×5 + 2·Σ3×3 + 7·centre`).
+    pub blob: Vec<i32>,
+    /// Corner (checkerboard) response: the diagonal 2 × 2 quadrants of the 5 × 5
+    /// window against the anti-diagonal ones.
+    pub corner: Vec<i32>,
+}
+
+impl Responses {
+    /// Compute both responses of `img` (zero on the 2-pixel border).
+    pub fn compute(&mut self, img: &Gray) {
+        let (w, h) = (img.w, img.h);
+        self.w = w;
+        self.h = h;
+        let iw = w + 1;
+        self.integral.clear();
+        self.integral.resize(iw * (h + 1), 0);
+        for v in 0..h {
+            let mut row = 0i32;
+            for u in 0..w {
+                row += i32::from(img.data[v * w + u]);
+                self.integral[(v + 1) * iw + u + 1] = self.integral[v * iw + u + 1] + row;
+            }
+        }
+        self.blob.clear();
+        self.blob.resize(w * h, 0);
+        self.corner.clear();
+        self.corner.resize(w * h, 0);
+        if w < 5 || h < 5 {
+            return;
+        }
+        let ii = &self.integral;
+        // Σ over columns u0..=u1, rows v0..=v1.
+        let sum = |u0: usize, v0: usize, u1: usize, v1: usize| {
+            ii[(v1 + 1) * iw + u1 + 1] - ii[v0 * iw + u1 + 1] - ii[(v1 + 1) * iw + u0]
+                + ii[v0 * iw + u0]
+        };
+        for v in 2..h - 2 {
+            for u in 2..w - 2 {
+                let c = i32::from(img.data[v * w + u]);
+                self.blob[v * w + u] =
+                    -sum(u - 2, v - 2, u + 2, v + 2) + 2 * sum(u - 1, v - 1, u + 1, v + 1) + 7 * c;
+                self.corner[v * w + u] = -sum(u - 2, v - 2, u - 1, v - 1)
+                    + sum(u + 1, v - 2, u + 2, v - 1)
+                    + sum(u - 2, v + 1, u - 1, v + 2)
+                    - sum(u + 1, v + 1, u + 2, v + 2);
+            }
+        }
+    }
+
+    /// Non-maximum and non-minimum suppression in blocks of `(n+1) × (n+1)`: in each
+    /// block the extreme responses of each filter are candidates, kept if nothing in
+    /// their `(2n+1) × (2n+1)` neighbourhood is more extreme and their magnitude
+    /// reaches `tau`. Features closer than `margin` to the border are skipped.
+    /// Appends to `out` with descriptors from `grad`.
+    pub fn suppress(
+        &self,
+        n: usize,
+        tau: i32,
+        margin: usize,
+        grad: &Gradients,
+        out: &mut Features,
+    ) {
+        out.clear();
+        let (w, h) = (self.w, self.h);
+        if w <= 2 * (n + margin) || h <= 2 * (n + margin) {
+            return;
+        }
+        let step = n + 1;
+        let (lo_u, hi_u) = (margin, w - margin); // valid: lo ≤ u < hi
+        let (lo_v, hi_v) = (margin, h - margin);
+        let mut i = n + margin;
+        while i + n < hi_u {
+            let mut j = n + margin;
+            while j + n < hi_v {
+                // Extremes in the block [i, i+n] × [j, j+n].
+                let (bu1, bv1) = ((i + n).min(hi_u - 1), (j + n).min(hi_v - 1));
+                let mut cand = [(i, j, self.blob[j * w + i]); 4];
+                cand[2].2 = self.corner[j * w + i];
+                cand[3].2 = cand[2].2;
+                for v in j..=bv1 {
+                    for u in i..=bu1 {
+                        let b = self.blob[v * w + u];
+                        let c = self.corner[v * w + u];
+                        if b < cand[0].2 {
+                            cand[0] = (u, v, b);
+                        }
+                        if b > cand[1].2 {
+                            cand[1] = (u, v, b);
+                        }
+                        if c < cand[2].2 {
+                            cand[2] = (u, v, c);
+                        }
+                        if c > cand[3].2 {
+                            cand[3] = (u, v, c);
+                        }
+                    }
+                }
+                for (class, &(u, v, val)) in cand.iter().enumerate() {
+                    let is_max = class % 2 == 1;
+                    if (is_max && val < tau) || (!is_max && val > -tau) {
+                        continue;
+                    }
+                    let map = if class < 2 { &self.blob } else { &self.corner };
+                    if self.is_extreme(
+                        map,
+                        u,
+                        v,
+                        val,
+                        is_max,
+                        n,
+                        (i, j, bu1, bv1),
+                        (lo_u, lo_v, hi_u, hi_v),
+                    ) {
+                        out.u.push(u as i32);
+                        out.v.push(v as i32);
+                        out.class.push(class as u8);
+                        out.desc.push(grad.descriptor(u, v));
+                    }
+                }
+                j += step;
+            }
+            i += step;
+        }
+    }
+
+    /// Whether nothing in the neighbourhood of `(u, v)` outside its own block is
+    /// strictly more extreme.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn is_extreme(
+        &self,
+        map: &[i32],
+        u: usize,
+        v: usize,
+        val: i32,
+        is_max: bool,
+        n: usize,
+        block: (usize, usize, usize, usize),
+        valid: (usize, usize, usize, usize),
+    ) -> bool {
+        let w = self.w;
+        let u0 = u.saturating_sub(n).max(valid.0);
+        let v0 = v.saturating_sub(n).max(valid.1);
+        let u1 = (u + n).min(valid.2 - 1);
+        let v1 = (v + n).min(valid.3 - 1);
+        for vv in v0..=v1 {
+            for uu in u0..=u1 {
+                if uu >= block.0 && uu <= block.2 && vv >= block.1 && vv <= block.3 {
+                    continue;
+                }
+                let x = map[vv * w + uu];
+                if (is_max && x > val) || (!is_max && x < val) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: usize, h: usize, f: impl Fn(usize, usize) -> u8) -> Gray {
+        Gray {
+            w,
+            h,
+            data: (0..w * h).map(|i| f(i % w, i / w)).collect(),
+        }
+    }
+
+    #[test]
+    fn a_bright_dot_is_a_blob_maximum_and_a_checker_a_corner() {
+        // A bright 3 × 3 dot at (20, 20) on black; a checkerboard corner at (40, 20).
+        let img = image(64, 48, |u, v| {
+            if (19..=21).contains(&u) && (19..=21).contains(&v) {
+                200
+            } else if (35..45).contains(&u) && (15..25).contains(&v) {
+                if (u < 40) == (v < 20) { 0 } else { 180 }
+            } else {
+                0
+            }
+        });
+        let mut r = Responses::default();
+        r.compute(&img);
+        let mut g = Gradients::default();
+        g.compute(&img);
+        let mut f = Features::default();
+        r.suppress(3, 50, 6, &g, &mut f);
+        let find = |class: u8, u: i32, v: i32| {
+            (0..f.len())
+                .any(|k| f.class[k] == class && (f.u[k] - u).abs() <= 1 && (f.v[k] - v).abs() <= 1)
+        };
+        assert!(find(1, 20, 20), "blob maximum at the dot: {f:?}");
+        assert!(
+            find(2, 40, 20) || find(3, 40, 20) || find(2, 39, 19) || find(3, 39, 19),
+            "a corner at the checker: {:?}",
+            (0..f.len())
+                .map(|k| (f.u[k], f.v[k], f.class[k]))
+                .collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn a_flat_image_has_no_features_and_no_gradient() {
+        let img = image(64, 48, |_, _| 117);
+        let (mut r, mut g, mut f) = (
+            Responses::default(),
+            Gradients::default(),
+            Features::default(),
+        );
+        r.compute(&img);
+        g.compute(&img);
+        r.suppress(3, 50, 6, &g, &mut f);
+        assert!(f.is_empty());
+        assert!(g.du.iter().chain(&g.dv).all(|&x| x == 128));
+    }
+
+    #[test]
+    fn gradients_point_along_the_intensity_change() {
+        // Intensity grows to the right: du moves away from 128, dv stays.
+        let img = image(32, 32, |u, _| (u * 8) as u8);
+        let mut g = Gradients::default();
+        g.compute(&img);
+        let (du, dv) = (g.du[16 * 32 + 16], g.dv[16 * 32 + 16]);
+        assert_ne!(du, 128);
+        assert_eq!(dv, 128);
+        // Halving keeps the mean.
+        let mut half = Gray::default();
+        img.half_into(&mut half);
+        assert_eq!((half.w, half.h), (16, 16));
+        assert_eq!(half.at(3, 7), 52, "(48 + 56 + 48 + 56 + 2) / 4");
+    }
+
+    #[test]
+    fn sad_counts_byte_differences() {
+        assert_eq!(sad(&[1u8, 200, 3], &[4u8, 100, 3]), 103);
+    }
+}

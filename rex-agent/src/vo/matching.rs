@@ -1,0 +1,485 @@
+//! Circular matching of the four images (notes `vo.md` §1.3–1.7): previous left →
+//! previous right (stereo) → current right (time) → current left (stereo) → previous
+//! left (time), accepted only if the loop closes on the feature it started from.
+//! A sparse pass gives the displacements to expect in each part of the image; the
+//! dense pass searches only there. Matches are refined at full resolution and
+//! bucketed.
+
+use super::features::{CLASSES, DESCRIPTOR, Features, Gradients, sad};
+use crate::noise::Rng;
+
+/// Features indexed by class and by square bins of their position.
+#[derive(Clone, Debug, Default)]
+pub struct Bins {
+    size: i32,
+    cols: i32,
+    rows: i32,
+    /// For (class, bin): the range `start[c]..start[c+1]` of `items`.
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Bins {
+    /// Index `f` over an image of `w × h` pixels in bins of `size`.
+    pub fn build(&mut self, f: &Features, w: usize, h: usize, size: usize) {
+        self.size = size.max(1) as i32;
+        self.cols = (w as i32 + self.size - 1) / self.size;
+        self.rows = (h as i32 + self.size - 1) / self.size;
+        let cells = CLASSES * (self.cols * self.rows) as usize;
+        self.start.clear();
+        self.start.resize(cells + 1, 0);
+        let cell = |k: usize| -> usize {
+            let (bu, bv) = (f.u[k] / self.size, f.v[k] / self.size);
+            usize::from(f.class[k]) * (self.cols * self.rows) as usize
+                + (bv * self.cols + bu) as usize
+        };
+        for k in 0..f.len() {
+            self.start[cell(k) + 1] += 1;
+        }
+        for c in 0..cells {
+            self.start[c + 1] += self.start[c];
+        }
+        self.items.clear();
+        self.items.resize(f.len(), 0);
+        let mut fill = self.start.clone();
+        for k in 0..f.len() {
+            let c = cell(k);
+            self.items[fill[c] as usize] = k as u32;
+            fill[c] += 1;
+        }
+    }
+
+    /// The feature of `class` in `[u0, u1] × [v0, v1]` whose descriptor is closest
+    /// to `d` (sum of absolute differences).
+    #[inline]
+    fn best(
+        &self,
+        f: &Features,
+        class: u8,
+        d: &[u8; DESCRIPTOR],
+        (u0, u1, v0, v1): (i32, i32, i32, i32),
+    ) -> Option<usize> {
+        if u1 < u0 || v1 < v0 {
+            return None;
+        }
+        let base = usize::from(class) * (self.cols * self.rows) as usize;
+        let (bu0, bu1) = ((u0 / self.size).max(0), (u1 / self.size).min(self.cols - 1));
+        let (bv0, bv1) = ((v0 / self.size).max(0), (v1 / self.size).min(self.rows - 1));
+        let mut best: Option<(u32, usize)> = None;
+        for bv in bv0..=bv1 {
+            for bu in bu0..=bu1 {
+                let c = base + (bv * self.cols + bu) as usize;
+                for &k in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
+                    let k = k as usize;
+                    let (u, v) = (f.u[k], f.v[k]);
+                    if u < u0 || u > u1 || v < v0 || v > v1 {
+                        continue;
+                    }
+                    let cost = sad(d, &f.desc[k]);
+                    if best.is_none_or(|(b, _)| cost < b) {
+                        best = Some((cost, k));
+                    }
+                }
+            }
+        }
+        best.map(|(_, k)| k)
+    }
+}
+
+/// The features of one image at one scale, with their index.
+#[derive(Clone, Debug, Default)]
+pub struct Indexed {
+    /// The features.
+    pub features: Features,
+    /// Their bins.
+    pub bins: Bins,
+}
+
+/// Search settings of one pass.
+#[derive(Clone, Copy, Debug)]
+pub struct Search {
+    /// Half-width of the temporal search window [px, matching resolution].
+    pub radius: i32,
+    /// Row tolerance of the stereo legs [px].
+    pub row_tolerance: i32,
+}
+
+/// The four legs of the circle.
+const LEGS: usize = 4;
+
+/// Expected displacements `[du_lo, du_hi, dv_lo, dv_hi]` per leg and bin, from a
+/// sparse pass.
+#[derive(Clone, Debug, Default)]
+pub struct Ranges {
+    size: i32,
+    cols: i32,
+    rows: i32,
+    /// Per leg, per bin: `[du_lo, du_hi, dv_lo, dv_hi]`, or `None` without data.
+    data: Vec<Option<[i32; 4]>>,
+    /// After spreading to neighbours and widening.
+    ranges: Vec<Option<[i32; 4]>>,
+}
+
+impl Ranges {
+    /// Ranges from `quads` (positions of the four images, matching resolution).
+    pub fn from_quads(
+        quads: &[[(i32, i32); 4]],
+        w: usize,
+        h: usize,
+        size: usize,
+        min_width: i32,
+    ) -> Ranges {
+        let size = size.max(1) as i32;
+        let (cols, rows) = ((w as i32 + size - 1) / size, (h as i32 + size - 1) / size);
+        let n = (cols * rows) as usize;
+        let mut r = Ranges {
+            size,
+            cols,
+            rows,
+            data: vec![None; LEGS * n],
+            ranges: vec![None; LEGS * n],
+        };
+        for q in quads {
+            for leg in 0..LEGS {
+                let (s, t) = (q[leg], q[(leg + 1) % LEGS]);
+                let (du, dv) = (t.0 - s.0, t.1 - s.1);
+                let b = r.bin(leg, s.0, s.1);
+                let e = r.data[b].get_or_insert([du, du, dv, dv]);
+                *e = [e[0].min(du), e[1].max(du), e[2].min(dv), e[3].max(dv)];
+            }
+        }
+        for leg in 0..LEGS {
+            for bv in 0..rows {
+                for bu in 0..cols {
+                    let mut acc: Option<[i32; 4]> = None;
+                    for nv in (bv - 1).max(0)..=(bv + 1).min(rows - 1) {
+                        for nu in (bu - 1).max(0)..=(bu + 1).min(cols - 1) {
+                            if let Some(d) = r.data[leg * n + (nv * cols + nu) as usize] {
+                                let a = acc.get_or_insert(d);
+                                *a = [
+                                    a[0].min(d[0]),
+                                    a[1].max(d[1]),
+                                    a[2].min(d[2]),
+                                    a[3].max(d[3]),
+                                ];
+                            }
+                        }
+                    }
+                    r.ranges[leg * n + (bv * cols + bu) as usize] = acc.map(|mut a| {
+                        for k in [0, 2] {
+                            let width = a[k + 1] - a[k];
+                            if width < min_width {
+                                let grow = (min_width - width + 1) / 2;
+                                a[k] -= grow;
+                                a[k + 1] += grow;
+                            }
+                        }
+                        a
+                    });
+                }
+            }
+        }
+        r
+    }
+
+    fn bin(&self, leg: usize, u: i32, v: i32) -> usize {
+        let bu = (u / self.size).clamp(0, self.cols - 1);
+        let bv = (v / self.size).clamp(0, self.rows - 1);
+        leg * (self.cols * self.rows) as usize + (bv * self.cols + bu) as usize
+    }
+
+    fn get(&self, leg: usize, u: i32, v: i32) -> Option<[i32; 4]> {
+        self.ranges[self.bin(leg, u, v)]
+    }
+}
+
+/// The four images' features of one scale: previous left, previous right, current
+/// right, current left (the order of the circle).
+pub struct Circle<'a> {
+    /// `[prev_left, prev_right, curr_right, curr_left]`.
+    pub images: [&'a Indexed; 4],
+}
+
+impl Circle<'_> {
+    /// The window to search for the next image of `leg` from position `(u, v)`.
+    fn window(
+        &self,
+        leg: usize,
+        u: i32,
+        v: i32,
+        s: &Search,
+        ranges: Option<&Ranges>,
+    ) -> (i32, i32, i32, i32) {
+        let r = s.radius;
+        let range = ranges.and_then(|rs| rs.get(leg, u, v));
+        match leg {
+            // Stereo: same row (± tolerance), the right image to the left.
+            0 => {
+                let (lo, hi) = range.map_or((-r, 0), |g| (g[0].max(-r), g[1].min(0)));
+                (u + lo, u + hi, v - s.row_tolerance, v + s.row_tolerance)
+            }
+            2 => {
+                let (lo, hi) = range.map_or((0, r), |g| (g[0].max(0), g[1].min(r)));
+                (u + lo, u + hi, v - s.row_tolerance, v + s.row_tolerance)
+            }
+            // Time.
+            _ => match range {
+                Some(g) => (u + g[0], u + g[1], v + g[2], v + g[3]),
+                None => (u - r, u + r, v - r, v + r),
+            },
+        }
+    }
+
+    /// Every closed circle: indices of the feature in each image.
+    pub fn matches(&self, s: &Search, ranges: Option<&Ranges>, out: &mut Vec<[usize; 4]>) {
+        out.clear();
+        let start = &self.images[0].features;
+        'next: for i in 0..start.len() {
+            let class = start.class[i];
+            let mut k = [i, 0, 0, 0];
+            let mut at = i;
+            for leg in 0..LEGS {
+                let from = &self.images[leg].features;
+                let to = self.images[(leg + 1) % LEGS];
+                let window = self.window(leg, from.u[at], from.v[at], s, ranges);
+                let Some(next) = to.bins.best(&to.features, class, &from.desc[at], window) else {
+                    continue 'next;
+                };
+                if leg < 3 {
+                    k[leg + 1] = next;
+                }
+                at = next;
+            }
+            if at == i {
+                out.push(k);
+            }
+        }
+    }
+
+    /// Positions of a circle's features, matching resolution.
+    pub fn positions(&self, k: &[usize; 4]) -> [(i32, i32); 4] {
+        std::array::from_fn(|m| {
+            (
+                self.images[m].features.u[k[m]],
+                self.images[m].features.v[k[m]],
+            )
+        })
+    }
+}
+
+/// How matches are refined at full resolution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Refinement {
+    /// Keep the matching positions (scaled to full resolution).
+    None,
+    /// The best integer offset within ±2 px.
+    Pixel,
+    /// A parabola fitted to the costs around the best offset of a ±3 px grid.
+    Subpixel,
+    /// [`Refinement::Subpixel`], then Lucas–Kanade alignment of the intensities.
+    Photometric,
+}
+
+/// The `(2r+1)²` patch of `img` around `(u, v)`, bilinearly interpolated (one
+/// fractional offset for the whole patch, so the weights are computed once), into
+/// `out`; `false` if the patch (with a 1-pixel rim) leaves the image.
+#[inline]
+fn patch(img: &super::features::Gray, u: f64, v: f64, r: i32, out: &mut [f64]) -> bool {
+    let (u0, v0) = (u.floor(), v.floor());
+    let (a, b) = (u - u0, v - v0);
+    let (i, j) = (u0 as i64 - i64::from(r), v0 as i64 - i64::from(r));
+    let side = 2 * r as i64 + 1;
+    if i < 1 || j < 1 || i + side + 1 >= img.w as i64 || j + side + 1 >= img.h as i64 {
+        return false;
+    }
+    let (w00, w10, w01, w11) = ((1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b);
+    let w = img.w;
+    let mut k = 0;
+    for y in 0..side as usize {
+        let row0 = (j as usize + y) * w + i as usize;
+        let row1 = row0 + w;
+        for x in 0..side as usize {
+            out[k] = w00 * f64::from(img.data[row0 + x])
+                + w10 * f64::from(img.data[row0 + x + 1])
+                + w01 * f64::from(img.data[row1 + x])
+                + w11 * f64::from(img.data[row1 + x + 1]);
+            k += 1;
+        }
+    }
+    true
+}
+
+/// Align a `(2r+1)²` patch of `target` at `p` with the patch of `template` at `t`
+/// (translation only, inverse compositional Lucas–Kanade on mean-subtracted
+/// intensities, `r ≤ 5`); `None` if it does not converge, leaves the image or moves
+/// more than a pixel and a half.
+pub fn lucas_kanade(
+    template: &super::features::Gray,
+    t: (f64, f64),
+    target: &super::features::Gray,
+    p: (f64, f64),
+    r: i32,
+) -> Option<(f64, f64)> {
+    let side = (2 * r + 1) as usize;
+    let n = side * side;
+    // The template with a 1-pixel rim for its central differences.
+    let big = side + 2;
+    let mut tb = [0.0f64; 169];
+    if !(1..=5).contains(&r) || !patch(template, t.0, t.1, r + 1, &mut tb[..big * big]) {
+        return None;
+    }
+    let (mut tv, mut gx, mut gy) = ([0.0f64; 121], [0.0f64; 121], [0.0f64; 121]);
+    for y in 0..side {
+        for x in 0..side {
+            let (k, c) = (y * side + x, (y + 1) * big + x + 1);
+            tv[k] = tb[c];
+            gx[k] = 0.5 * (tb[c + 1] - tb[c - 1]);
+            gy[k] = 0.5 * (tb[c + big] - tb[c - big]);
+        }
+    }
+    let mean_t = tv[..n].iter().sum::<f64>() / n as f64;
+    let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
+    for k in 0..n {
+        h00 += gx[k] * gx[k];
+        h01 += gx[k] * gy[k];
+        h11 += gy[k] * gy[k];
+    }
+    let det = h00 * h11 - h01 * h01;
+    // A flat or one-dimensional patch (an edge) cannot be aligned; NaN neither.
+    if det.is_nan() || det <= 1e-9 * (h00 + h11).powi(2).max(1e-12) {
+        return None;
+    }
+    let mut q = p;
+    let mut iv = [0.0f64; 121];
+    for _ in 0..10 {
+        if !patch(target, q.0, q.1, r, &mut iv[..n]) {
+            return None;
+        }
+        let mean_i = iv[..n].iter().sum::<f64>() / n as f64;
+        let (mut b0, mut b1) = (0.0, 0.0);
+        for k in 0..n {
+            let e = (iv[k] - mean_i) - (tv[k] - mean_t);
+            b0 += gx[k] * e;
+            b1 += gy[k] * e;
+        }
+        let (du, dv) = ((h11 * b0 - h01 * b1) / det, (-h01 * b0 + h00 * b1) / det);
+        q = (q.0 - du, q.1 - dv);
+        if !(q.0.is_finite() && q.1.is_finite())
+            || (q.0 - p.0).abs() > 1.5
+            || (q.1 - p.1).abs() > 1.5
+        {
+            return None;
+        }
+        if du.abs() < 1e-3 && dv.abs() < 1e-3 {
+            return Some(q);
+        }
+    }
+    None
+}
+
+/// Refine the positions in the previous left, previous right and current right
+/// images relative to the current left one (full resolution, gradients `grads` in
+/// the circle's order). `None` drops the match.
+pub fn refine(
+    p: [(f64, f64); 4],
+    grads: [&Gradients; 4],
+    mode: Refinement,
+) -> Option<[(f64, f64); 4]> {
+    if mode == Refinement::None {
+        return Some(p);
+    }
+    let g = grads[3];
+    let (cu, cv) = (p[3].0 as i32, p[3].1 as i32);
+    let reach = if mode == Refinement::Pixel { 2 } else { 3 };
+    let inside = |gr: &Gradients, u: i32, v: i32| {
+        u - reach - 2 >= 0
+            && v - reach - 2 >= 0
+            && u + reach + 2 < gr.w as i32
+            && v + reach + 2 < gr.h as i32
+    };
+    if !inside(g, cu, cv) {
+        return None;
+    }
+    let target = g.refine_descriptor(cu, cv);
+    let mut out = p;
+    for m in 0..3 {
+        let gr = grads[m];
+        let (u, v) = (p[m].0.round() as i32, p[m].1.round() as i32);
+        if !inside(gr, u, v) {
+            return None;
+        }
+        let cost =
+            |dx: i32, dy: i32| f64::from(sad(&target, &gr.refine_descriptor(u + dx, v + dy)));
+        let mut best = (f64::INFINITY, 0, 0);
+        for dy in -reach..=reach {
+            for dx in -reach..=reach {
+                let c = cost(dx, dy);
+                if c < best.0 {
+                    best = (c, dx, dy);
+                }
+            }
+        }
+        let (_, bx, by) = best;
+        if mode == Refinement::Pixel {
+            out[m] = (f64::from(u + bx), f64::from(v + by));
+            continue;
+        }
+        if bx.abs() == reach || by.abs() == reach {
+            return None;
+        }
+        // c(x, y) = a x² + b y² + c xy + d x + e y + g over the 3 × 3 costs.
+        let c = |x: i32, y: i32| cost(bx + x, by + y);
+        let col = |x: i32| c(x, -1) + c(x, 0) + c(x, 1);
+        let row = |y: i32| c(-1, y) + c(0, y) + c(1, y);
+        let d = (col(1) - col(-1)) / 6.0;
+        let e = (row(1) - row(-1)) / 6.0;
+        let a = (col(1) + col(-1) - 2.0 * col(0)) / 6.0;
+        let b = (row(1) + row(-1) - 2.0 * row(0)) / 6.0;
+        let cxy = (c(1, 1) - c(1, -1) - c(-1, 1) + c(-1, -1)) / 4.0;
+        let det = 4.0 * a * b - cxy * cxy;
+        if !(a > 0.0 && det > 0.0) {
+            return None;
+        }
+        // [2a c; c 2b] [x; y] = −[d; e]
+        let x = (-d * 2.0 * b + cxy * e) / det;
+        let y = (-2.0 * a * e + cxy * d) / det;
+        if !(x.abs() < 1.0 && y.abs() < 1.0) {
+            return None;
+        }
+        out[m] = (f64::from(u + bx) + x, f64::from(v + by) + y);
+    }
+    Some(out)
+}
+
+/// Align the previous left, previous right and current right positions of a match
+/// with the current left one by [`lucas_kanade`] (9 × 9 patches); `None` drops it.
+pub fn photometric(
+    p: [(f64, f64); 4],
+    images: [&super::features::Gray; 4],
+) -> Option<[(f64, f64); 4]> {
+    let mut out = p;
+    for m in 0..3 {
+        out[m] = lucas_kanade(images[3], p[3], images[m], p[m], 4)?;
+    }
+    Some(out)
+}
+
+/// Keep at most `per_bucket` matches per `size × size` bucket of the current left
+/// positions (full resolution), chosen by a seeded shuffle.
+pub fn bucket(matches: &mut Vec<[(f64, f64); 4]>, size: f64, per_bucket: usize, rng: &mut Rng) {
+    // Shuffle (Fisher–Yates), then keep the first ones of each bucket.
+    for i in (1..matches.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        matches.swap(i, j);
+    }
+    let mut counts: std::collections::HashMap<(i64, i64), usize> = std::collections::HashMap::new();
+    matches.retain(|m| {
+        let key = (
+            (m[3].0 / size).floor() as i64,
+            (m[3].1 / size).floor() as i64,
+        );
+        let c = counts.entry(key).or_insert(0);
+        *c += 1;
+        *c <= per_bucket
+    });
+}
