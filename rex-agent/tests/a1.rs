@@ -467,6 +467,7 @@ fn the_baseline_pair_runs_the_same_mission() {
         out.parts[1..],
         ["backstepping".to_owned(), "ekf".to_owned()]
     );
+    assert_eq!(out.counters.vo, (0, 0, 0), "no visual odometry");
     assert!(out.rms() < 0.05, "{}", out.summary_line());
 }
 
