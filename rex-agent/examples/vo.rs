@@ -16,14 +16,12 @@
 //! is the processing of a pair (PNG decoding excluded), one core. `--settings` reads
 //! [`VoSettings`] from a RON file (fields left out keep their defaults).
 
+use rex_agent::camera::kitti::Sequence;
+use rex_agent::vo::metric::evaluate;
+use rex_agent::vo::{VoSettings, median, run_sequence};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
-
-use rex_agent::camera::kitti::{Pose34, Sequence, compose, invert};
-use rex_agent::vo::metric::evaluate;
-use rex_agent::vo::{Calibration, StereoOdometry, VoSettings};
 
 struct Args {
     seq: PathBuf,
@@ -67,25 +65,10 @@ fn parse() -> Result<Args, String> {
     Ok(a)
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v[v.len() / 2]
-    }
-}
-
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let a = parse()?;
     let seq = Sequence::open(&a.seq)?;
     let n = a.frames.map_or(seq.len(), |f| f.min(seq.len()));
-    let calib = Calibration {
-        f: seq.focal,
-        cu: seq.principal.0,
-        cv: seq.principal.1,
-        baseline: seq.baseline,
-    };
     let settings: VoSettings = match &a.settings {
         Some(path) => {
             let text =
@@ -94,59 +77,29 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
         None => VoSettings::default(),
     };
-    let mut vo = StereoOdometry::new(calib, settings)?;
-    let identity: Pose34 = [
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0, 0.0],
-    ];
-    let mut pose = identity;
-    let mut last: Option<Pose34> = None;
-    let mut poses = Vec::with_capacity(n);
-    let mut ms = Vec::with_capacity(n);
-    let mut size = (0, 0);
-    for k in 0..n {
-        let (w, h, left, right) = seq.frame(k)?;
-        size = (w, h);
-        let t = Instant::now();
-        let r = vo.process(&left, &right, w as usize, h as usize);
-        ms.push(t.elapsed().as_secs_f64() * 1e3);
-        let motion = match r {
-            Ok(Some(m)) => {
-                let tr: Pose34 = [m.tr[0], m.tr[1], m.tr[2]];
-                last = Some(tr);
-                Some(tr)
-            }
-            Ok(None) => None,
-            // No estimate: the previous motion again (constant velocity).
-            Err(_) => last,
-        };
-        if let Some(tr) = motion {
-            pose = compose(&pose, &invert(&tr));
-        }
-        poses.push(pose);
-    }
+    let mut run = run_sequence(&seq, settings, n)?;
+    let poses = &run.poses;
     let out = a.out.clone().unwrap_or_else(|| a.seq.join("vo_poses.txt"));
     let mut file = std::io::BufWriter::new(
         std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?,
     );
-    for p in &poses {
+    for p in poses {
         let row: Vec<String> = p.iter().flatten().map(|v| format!("{v:.12e}")).collect();
         writeln!(file, "{}", row.join(" "))?;
     }
     file.flush()?;
-    let stats = vo.stats();
+    let stats = run.stats;
     println!(
         "frames={n} size={}x{} motions={} failures={} poses={}",
-        size.0,
-        size.1,
+        run.size.0,
+        run.size.1,
         stats.motions,
         stats.failures,
         out.display()
     );
     let (mut t_err, mut r_err) = (f64::NAN, f64::NAN);
     if let Some(gt) = &seq.poses {
-        let d = evaluate(&gt[..n], &poses, a.lengths.as_deref(), 10)?;
+        let d = evaluate(&gt[..n], poses, a.lengths.as_deref(), 10)?;
         let lengths: Vec<String> = d.lengths.iter().map(|l| format!("{l}")).collect();
         println!(
             "kitti metric over lengths {} m ({} segments), ground-truth path {:.1} m",
@@ -159,7 +112,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!(
         "vo ms_per_frame={:.1} t_err_pct={t_err:.3} r_err_deg_per_m={r_err:.5}",
-        median(&mut ms)
+        median(&mut run.ms)
     );
     Ok(())
 }

@@ -465,6 +465,81 @@ impl StereoOdometry {
     }
 }
 
+/// What [`run_sequence`] produced.
+#[derive(Clone, Debug)]
+pub struct SequenceRun {
+    /// Estimated pose of each left camera in the frame of the first (KITTI's).
+    pub poses: Vec<crate::camera::kitti::Pose34>,
+    /// Processing time of each pair [ms] (reading the images excluded).
+    pub ms: Vec<f64>,
+    /// The odometry's counters.
+    pub stats: VoStats,
+    /// Image size.
+    pub size: (u32, u32),
+}
+
+/// Run the odometry over the first `frames` pairs of a KITTI sequence. A pair
+/// without an estimate repeats the previous motion (constant velocity, as the peer
+/// does) and is counted in `stats.failures`.
+pub fn run_sequence(
+    seq: &crate::camera::kitti::Sequence,
+    settings: VoSettings,
+    frames: usize,
+) -> Result<SequenceRun, Box<dyn std::error::Error>> {
+    use crate::camera::kitti::{Pose34, compose, invert};
+    let calib = Calibration {
+        f: seq.focal,
+        cu: seq.principal.0,
+        cv: seq.principal.1,
+        baseline: seq.baseline,
+    };
+    let mut vo = StereoOdometry::new(calib, settings)?;
+    let n = frames.min(seq.len());
+    let mut pose: Pose34 = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ];
+    let mut last: Option<Pose34> = None;
+    let mut out = SequenceRun {
+        poses: Vec::with_capacity(n),
+        ms: Vec::with_capacity(n),
+        stats: VoStats::default(),
+        size: (0, 0),
+    };
+    for k in 0..n {
+        let (w, h, left, right) = seq.frame(k)?;
+        out.size = (w, h);
+        let t = std::time::Instant::now();
+        let r = vo.process(&left, &right, w as usize, h as usize);
+        out.ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let motion = match r {
+            Ok(Some(m)) => {
+                last = Some([m.tr[0], m.tr[1], m.tr[2]]);
+                last
+            }
+            Ok(None) => None,
+            Err(_) => last,
+        };
+        if let Some(tr) = motion {
+            pose = compose(&pose, &invert(&tr));
+        }
+        out.poses.push(pose);
+    }
+    out.stats = vo.stats();
+    Ok(out)
+}
+
+/// The median of `v` (sorted in place); NaN when empty.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v[v.len() / 2]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
