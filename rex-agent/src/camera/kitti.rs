@@ -616,6 +616,54 @@ mod tests {
     }
 
     #[test]
+    fn mismatched_ground_truth_and_image_sizes_are_errors_naming_the_file() {
+        let dir = temp_dir("mismatch");
+        let camera = CameraConfig {
+            width: 64,
+            height: 48,
+            ..CameraConfig::default()
+        };
+        let mut w = SequenceWriter::create(&dir, &camera).unwrap();
+        let img = vec![7u8; 64 * 48];
+        for k in 0..2 {
+            w.push(
+                k as f64 * 0.1,
+                &camera.left_pose([0.1 * k as f64, 0.0, 0.0]),
+                &img,
+                &img,
+            )
+            .unwrap();
+        }
+        w.finish().unwrap();
+        assert_eq!(Sequence::open(&dir).unwrap().len(), 2);
+        // Two frames, one pose.
+        let poses = fs::read_to_string(dir.join("poses.txt")).unwrap();
+        let first: String = poses.lines().take(1).map(|l| format!("{l}\n")).collect();
+        fs::write(dir.join("poses.txt"), first).unwrap();
+        let err = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(
+            err.contains("poses.txt") && err.contains("1 poses for 2 frames"),
+            "{err}"
+        );
+        fs::write(dir.join("poses.txt"), poses).unwrap();
+        // A right image of another size.
+        write_png(
+            &dir.join("image_1").join("000001.png"),
+            32,
+            48,
+            &[0u8; 32 * 48],
+        )
+        .unwrap();
+        let seq = Sequence::open(&dir).unwrap();
+        let err = seq.frame(1).unwrap_err().to_string();
+        assert!(
+            err.contains("image_1/000001.png") && err.contains("32x48"),
+            "{err}"
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn a_point_projected_with_calib_txt_is_on_that_pixel_of_the_rendered_images() {
         // A long room with a low ceiling, which renders as one flat grey level, and a
         // box in front of the camera. The top-left corner of the box's front face,
