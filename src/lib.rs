@@ -8,5 +8,8 @@
 
 pub use agent_core::*;
 
+/// The derives and the `fsm!` and `agent!` macros (the `agent-macros` crate).
+pub use agent_macros::{Buffers, Group, Memory, Subsystem, agent, fsm};
+
 /// RON specifications: schema, checker, diagrams (the `agent-spec` crate).
 pub use agent_spec as spec;

@@ -12,10 +12,10 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fmt;
 
-use crate::behaviour::Behaviour;
+use crate::behaviour::{Behaviour, BehaviourKind};
 use crate::expr::{Expr, ExprError};
 use crate::subsystem::Subsystem;
-use crate::transition::ActionError;
+use crate::transition::{ActionError, Part};
 
 type PredicateFn<S> =
     Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
@@ -37,6 +37,57 @@ impl<S: Subsystem> Predicate<S> {
     pub fn holds(&self, memory: &S::Memory, input: &S::Input) -> bool {
         (self.f)(memory, input)
     }
+}
+
+/// A fact about predicates that the FSM's arcs rely on: the arc proof of the spec
+/// checker (and of the `fsm!` macro) assumes it. The runtime does not: an arc choice
+/// that a false relation makes ambiguous is still caught as an [`FsmFault`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Relation {
+    /// At most one of these predicates holds at a time.
+    Exclusive(Vec<Cow<'static, str>>),
+    /// If the first holds, so does the second.
+    Implies(Cow<'static, str>, Cow<'static, str>),
+}
+
+impl Relation {
+    /// The predicates it names.
+    pub fn names(&self) -> Vec<&str> {
+        match self {
+            Relation::Exclusive(v) => v.iter().map(|n| n.as_ref()).collect(),
+            Relation::Implies(a, b) => vec![a.as_ref(), b.as_ref()],
+        }
+    }
+}
+
+/// The description of one behaviour, for specs and diagrams.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BehaviourShape {
+    /// Its name.
+    pub name: String,
+    /// While or repeat.
+    pub kind: BehaviourKind,
+    /// The terminal condition as written.
+    pub terminal: String,
+    /// The parts of its elementary action, in evaluation order.
+    pub parts: Vec<Part>,
+}
+
+/// The description of an FSM: what a spec says of it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FsmShape {
+    /// Predicate names, in declaration order.
+    pub predicates: Vec<String>,
+    /// Declared relations between predicates.
+    pub relations: Vec<Relation>,
+    /// The behaviours, by index.
+    pub behaviours: Vec<BehaviourShape>,
+    /// The initial behaviour.
+    pub initial: String,
+    /// The arcs as `(from, to, condition)`, in declaration order.
+    pub arcs: Vec<(String, String, String)>,
+    /// The final behaviours.
+    pub finals: Vec<String>,
 }
 
 /// An arc of the FSM.
@@ -145,6 +196,7 @@ impl fmt::Display for FsmBuildError {
 /// Builds an [`Fsm`]; [`FsmBuilder::build`] checks it and reports every problem at once.
 pub struct FsmBuilder<S: Subsystem> {
     predicates: Vec<Predicate<S>>,
+    relations: Vec<Relation>,
     behaviours: Vec<Behaviour<S>>,
     arcs: Vec<(Cow<'static, str>, Cow<'static, str>, Cow<'static, str>)>,
     initial: Option<Cow<'static, str>>,
@@ -155,6 +207,7 @@ impl<S: Subsystem> Default for FsmBuilder<S> {
     fn default() -> Self {
         FsmBuilder {
             predicates: Vec::new(),
+            relations: Vec::new(),
             behaviours: Vec::new(),
             arcs: Vec::new(),
             initial: None,
@@ -178,6 +231,28 @@ impl<S: Subsystem> FsmBuilder<S> {
             name: name.into(),
             f: Box::new(f),
         });
+        self
+    }
+
+    /// Declare that at most one of `predicates` holds at a time (an assumption of
+    /// the arc proof, exported into specs; see [`Relation`]).
+    pub fn exclusive<N: Into<Cow<'static, str>>>(
+        mut self,
+        predicates: impl IntoIterator<Item = N>,
+    ) -> Self {
+        self.relations.push(Relation::Exclusive(
+            predicates.into_iter().map(Into::into).collect(),
+        ));
+        self
+    }
+
+    /// Declare that predicate `a` implies predicate `b` (see [`Relation`]).
+    pub fn implies(
+        mut self,
+        a: impl Into<Cow<'static, str>>,
+        b: impl Into<Cow<'static, str>>,
+    ) -> Self {
+        self.relations.push(Relation::Implies(a.into(), b.into()));
         self
     }
 
@@ -232,6 +307,16 @@ impl<S: Subsystem> FsmBuilder<S> {
         for (i, p) in self.predicates.iter().enumerate() {
             if preds.insert(&p.name, i).is_some() {
                 problems.push(FsmProblem::DuplicatePredicate(p.name.to_string()));
+            }
+        }
+        for r in &self.relations {
+            for name in r.names() {
+                if !preds.contains_key(name) {
+                    problems.push(FsmProblem::UnknownPredicate {
+                        place: "a relation".into(),
+                        name: name.to_owned(),
+                    });
+                }
             }
         }
         let terminals: Vec<Option<Expr<usize>>> = self
@@ -351,6 +436,7 @@ impl<S: Subsystem> FsmBuilder<S> {
             .collect();
         Ok(Fsm {
             predicates: self.predicates,
+            relations: self.relations,
             nodes,
             initial,
         })
@@ -550,6 +636,7 @@ impl Memo {
 /// The FSM of one subsystem: behaviours, predicates, arcs and the initial behaviour.
 pub struct Fsm<S: Subsystem> {
     predicates: Vec<Predicate<S>>,
+    relations: Vec<Relation>,
     nodes: Vec<Node<S>>,
     initial: usize,
 }
@@ -645,6 +732,50 @@ impl<S: Subsystem> Fsm<S> {
     /// The declared predicates.
     pub fn predicates(&self) -> &[Predicate<S>] {
         &self.predicates
+    }
+
+    /// The declared relations between predicates.
+    pub fn relations(&self) -> &[Relation] {
+        &self.relations
+    }
+
+    /// What a spec says of this FSM: predicates, relations, behaviours with their
+    /// parts, the initial behaviour, arcs and finals. The system builder records it,
+    /// and `agent-spec` exports it.
+    pub fn describe(&self) -> FsmShape {
+        FsmShape {
+            predicates: self.predicates.iter().map(|p| p.name.to_string()).collect(),
+            relations: self.relations.clone(),
+            behaviours: self
+                .nodes
+                .iter()
+                .map(|n| BehaviourShape {
+                    name: n.behaviour.name.to_string(),
+                    kind: n.behaviour.kind,
+                    terminal: n.behaviour.terminal.to_string(),
+                    parts: n.behaviour.action.describe(),
+                })
+                .collect(),
+            initial: self.behaviour_name(self.initial).to_owned(),
+            arcs: self
+                .nodes
+                .iter()
+                .flat_map(|n| n.arcs.iter())
+                .map(|a| {
+                    (
+                        self.behaviour_name(a.from).to_owned(),
+                        self.behaviour_name(a.to).to_owned(),
+                        a.text.to_string(),
+                    )
+                })
+                .collect(),
+            finals: self
+                .nodes
+                .iter()
+                .filter(|n| n.is_final)
+                .map(|n| n.behaviour.name.to_string())
+                .collect(),
+        }
     }
 
     #[inline]

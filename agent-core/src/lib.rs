@@ -24,6 +24,7 @@
 
 pub mod behaviour;
 pub mod buffer;
+pub mod describe;
 pub mod executor;
 pub mod expr;
 pub mod fsm;
@@ -39,11 +40,12 @@ pub mod transition;
 
 pub use behaviour::{Behaviour, BehaviourKind};
 pub use buffer::{BufferError, Group, In, NodeKind, Out, Payload};
+pub use describe::{Buffers, Direction, Field, Fields, Fresh, GroupShape, Shape};
 pub use executor::{ExecConfig, ExecError, Executor, FsmError, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
-    Activated, ActivationError, Arc, Fsm, FsmBuildError, FsmBuilder, FsmFault, FsmProblem,
-    FsmState, Predicate, Step,
+    Activated, ActivationError, Arc, BehaviourShape, Fsm, FsmBuildError, FsmBuilder, FsmFault,
+    FsmProblem, FsmShape, FsmState, Predicate, Relation, Step,
 };
 pub use link::{Access, LinkError, LinkId, LinkStats, Policy, Port};
 pub use subsystem::{DeviceKind, Driver, DriverContext, DriverError, Subsystem, SubsystemKind};
@@ -56,7 +58,7 @@ pub use trace::{
     ActionEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder, SystemInfo,
     Trace, TraceEvent, TransferEvent, TransitionEvent,
 };
-pub use transition::{Action, ActionError, Outcome, PartTarget};
+pub use transition::{Action, ActionError, Outcome, Part, PartTarget};
 
 /// Items used by macro-generated code. Not part of the public API.
 #[doc(hidden)]

@@ -3,6 +3,7 @@
 use std::fmt;
 
 use crate::buffer::NodeKind;
+use crate::describe::Shape;
 use crate::time::{Period, Time};
 
 /// The kinds of subsystem a user implements with behaviours and an FSM.
@@ -69,6 +70,13 @@ pub trait Subsystem: Sized + 'static {
     type Input: Default + Send + 'static;
     /// The output buffers `_y c`.
     type Output: Default + Send + 'static;
+
+    /// The names and types of the memory fields and buffers, for spec export and
+    /// checks; `None` if they are not described. `#[derive(Subsystem)]` writes it;
+    /// by hand, with described types: `Some(Shape::of_subsystem::<Self>())`.
+    fn shape() -> Option<Shape> {
+        None
+    }
 }
 
 /// Timing of one driver step.
@@ -115,6 +123,13 @@ pub trait Driver: Send + 'static {
     type Input: Default + Send + 'static;
     /// Readings sent to virtual effectors or receptors (`_y E`).
     type Output: Default + Send + 'static;
+
+    /// The names and types of the buffers, for spec export and checks; `None` if
+    /// they are not described. With `#[derive(Buffers)]` on the input and output
+    /// structs: `Some(Shape::of_driver::<Self>())`.
+    fn shape() -> Option<Shape> {
+        None
+    }
 
     /// Advance the device by one period: act on `input`, write readings to `output`.
     fn step(

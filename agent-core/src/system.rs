@@ -292,6 +292,8 @@ impl SystemBuilder {
             behaviours: (0..fsm.len())
                 .map(|i| fsm.behaviour_name(i).to_owned())
                 .collect(),
+            shape: S::shape(),
+            fsm: Some(fsm.describe()),
         };
         let node = Box::new(Instance::new(info.clone(), memory, fsm));
         SubsystemHandle {
@@ -314,6 +316,8 @@ impl SystemBuilder {
             agent: self.agent_name(agent),
             period,
             behaviours: Vec::new(),
+            shape: D::shape(),
+            fsm: None,
         };
         let node = Box::new(DriverCore::new(info.clone(), driver));
         DriverHandle {

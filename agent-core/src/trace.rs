@@ -10,8 +10,9 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::buffer::{NodeKind, Payload};
+use crate::describe::Shape;
 use crate::executor::ExecError;
-use crate::fsm::Step;
+use crate::fsm::{FsmShape, Step};
 use crate::link::Policy;
 use crate::time::{Period, Stamp, Time};
 
@@ -57,6 +58,14 @@ pub struct NodeInfo {
     pub period: Period,
     /// Names of its behaviours, by index (empty for drivers).
     pub behaviours: Vec<String>,
+    /// Its memory and buffers, if its types describe them ([`Subsystem::shape`],
+    /// [`Driver::shape`]).
+    ///
+    /// [`Subsystem::shape`]: crate::Subsystem::shape
+    /// [`Driver::shape`]: crate::Driver::shape
+    pub shape: Option<Shape>,
+    /// Its FSM as a spec describes it (`None` for drivers).
+    pub fsm: Option<FsmShape>,
 }
 
 /// Static description of one link.

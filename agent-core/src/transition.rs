@@ -95,7 +95,23 @@ struct OutputPart<S: Subsystem> {
     target: TypeId,
     target_name: &'static str,
     peer: NodeKind,
+    field: Option<&'static str>,
+    name: Option<Cow<'static, str>>,
     f: OutputFn<S>,
+}
+
+struct MemoryPart<S: Subsystem> {
+    name: Option<Cow<'static, str>>,
+    f: MemoryFn<S>,
+}
+
+/// Which part [`Action::named`] names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Last {
+    None,
+    Common,
+    Output,
+    Memory,
 }
 
 /// Description of one part of a transition function, for specs and diagrams.
@@ -109,17 +125,31 @@ pub enum PartTarget {
         group: &'static str,
         /// Kind of the component the group is connected to.
         peer: NodeKind,
+        /// The field of the output struct that holds the group, when known (the
+        /// `fsm!` macro records it; by hand the projection closure hides it).
+        field: Option<&'static str>,
     },
     /// Computes the next memory (evaluated last).
     Memory,
 }
 
+/// One part of an action as described for specs and diagrams: its name, if it was
+/// given one ([`Action::named`]), and what it writes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Part {
+    /// The transition function's name (`stop_pump`), if known.
+    pub name: Option<Cow<'static, str>>,
+    /// What it writes.
+    pub target: PartTarget,
+}
+
 /// An elementary action `A_{j,m}(f_{j,m})`: the decomposed transition function of one
 /// behaviour. The executor supplies the rest of Algorithm 1 (send, wait, read).
 pub struct Action<S: Subsystem> {
-    common: Option<MemoryFn<S>>,
+    common: Option<MemoryPart<S>>,
     outputs: Vec<OutputPart<S>>,
-    memory: Option<MemoryFn<S>>,
+    memory: Option<MemoryPart<S>>,
+    last: Last,
     defects: Vec<String>,
 }
 
@@ -129,6 +159,7 @@ impl<S: Subsystem> Default for Action<S> {
             common: None,
             outputs: Vec::new(),
             memory: None,
+            last: Last::None,
             defects: Vec::new(),
         }
     }
@@ -277,8 +308,11 @@ impl<S: Subsystem> Action<S> {
             target: id,
             target_name,
             peer: G::PEER,
+            field: None,
+            name: None,
             f: Box::new(move |m, x, y| f(m, x, target(y)).into_result()),
         });
+        self.last = Last::Output;
         self
     }
 
@@ -292,7 +326,11 @@ impl<S: Subsystem> Action<S> {
         if self.memory.is_some() {
             self.defects.push("the memory part is set twice".to_owned());
         }
-        self.memory = Some(Box::new(move |m, x| f(m, x).into_result()));
+        self.memory = Some(MemoryPart {
+            name: None,
+            f: Box::new(move |m, x| f(m, x).into_result()),
+        });
+        self.last = Last::Memory;
         self
     }
 
@@ -306,7 +344,49 @@ impl<S: Subsystem> Action<S> {
         if self.common.is_some() {
             self.defects.push("the common part is set twice".to_owned());
         }
-        self.common = Some(Box::new(move |m, x| f(m, x).into_result()));
+        self.common = Some(MemoryPart {
+            name: None,
+            f: Box::new(move |m, x| f(m, x).into_result()),
+        });
+        self.last = Last::Common;
+        self
+    }
+
+    /// Name the part added last, as the transition function is named in a spec
+    /// (`.output(|y| &mut y.pump, stop_pump).named("stop_pump")`). Names are only
+    /// descriptions: they appear in exported specs and diagrams.
+    pub fn named(mut self, name: impl Into<Cow<'static, str>>) -> Self {
+        let name = Some(name.into());
+        match self.last {
+            Last::None => self
+                .defects
+                .push("`named` is called before any part was added".to_owned()),
+            Last::Common => {
+                if let Some(p) = &mut self.common {
+                    p.name = name;
+                }
+            }
+            Last::Memory => {
+                if let Some(p) = &mut self.memory {
+                    p.name = name;
+                }
+            }
+            Last::Output => {
+                if let Some(p) = self.outputs.last_mut() {
+                    p.name = name;
+                }
+            }
+        }
+        self
+    }
+
+    /// Record the output field written by the output part added last (the `fsm!`
+    /// macro calls it with the field it projects to).
+    #[doc(hidden)]
+    pub fn __at_field(mut self, field: &'static str) -> Self {
+        if let (Last::Output, Some(p)) = (self.last, self.outputs.last_mut()) {
+            p.field = Some(field);
+        }
         self
     }
 
@@ -320,29 +400,44 @@ impl<S: Subsystem> Action<S> {
         output: &mut S::Output,
     ) -> Result<(), ActionError> {
         if let Some(c) = &self.common {
-            c(memory, input)?;
+            (c.f)(memory, input)?;
         }
         for part in &self.outputs {
             (part.f)(memory, input, output)?;
         }
         if let Some(m) = &self.memory {
-            m(memory, input)?;
+            (m.f)(memory, input)?;
         }
         Ok(())
     }
 
-    /// The parts of this action, in evaluation order.
+    /// The targets of the parts of this action, in evaluation order.
     pub fn parts(&self) -> Vec<PartTarget> {
+        self.describe().into_iter().map(|p| p.target).collect()
+    }
+
+    /// The parts of this action with their names, in evaluation order.
+    pub fn describe(&self) -> Vec<Part> {
         let mut v = Vec::new();
-        if self.common.is_some() {
-            v.push(PartTarget::Common);
+        if let Some(c) = &self.common {
+            v.push(Part {
+                name: c.name.clone(),
+                target: PartTarget::Common,
+            });
         }
-        v.extend(self.outputs.iter().map(|p| PartTarget::Output {
-            group: p.target_name,
-            peer: p.peer,
+        v.extend(self.outputs.iter().map(|p| Part {
+            name: p.name.clone(),
+            target: PartTarget::Output {
+                group: p.target_name,
+                peer: p.peer,
+                field: p.field,
+            },
         }));
-        if self.memory.is_some() {
-            v.push(PartTarget::Memory);
+        if let Some(m) = &self.memory {
+            v.push(Part {
+                name: m.name.clone(),
+                target: PartTarget::Memory,
+            });
         }
         v
     }
@@ -468,7 +563,8 @@ mod tests {
             vec![
                 PartTarget::Output {
                     group: "ToT",
-                    peer: NodeKind::Control
+                    peer: NodeKind::Control,
+                    field: None,
                 };
                 2
             ]

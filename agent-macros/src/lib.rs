@@ -1,5 +1,142 @@
-//! Procedural macros for embodied-agents.
+//! Procedural macros for embodied-agents. Use them through the `embodied` crate,
+//! which re-exports them next to the traits they implement (as `serde` does with
+//! `serde_derive`); the generated code names `::embodied`.
 //!
-//! This crate will hold the derives for buffer and memory structs, the behaviour and
-//! FSM DSL, and the code generated from RON specifications. It only parses, checks
-//! and generates code; every semantic lives in `agent-core`.
+//! * Derives that describe buffers and memory, so that the runtime and the spec tools
+//!   know every field's name, type and freshness: [`Group`](derive@Group),
+//!   [`Buffers`](derive@Buffers), [`Memory`](derive@Memory),
+//!   [`Subsystem`](derive@Subsystem).
+//! * [`fsm!`]: behaviours and their FSM in the paper's notation, checked at compile
+//!   time by the spec checker.
+//! * [`agent!`]: the types and one trait per subsystem generated from a RON spec,
+//!   checked at compile time.
+//!
+//! The crate only parses, checks and generates; every semantic lives in
+//! `agent-core`, every rule in `agent-spec`. Each macro is a pipeline of stages
+//! (parse, check, generate) written over `proc_macro2` so that each stage is unit
+//! tested on token input.
+
+mod agent;
+mod derive;
+mod fsm;
+mod synth;
+mod util;
+
+use proc_macro::TokenStream;
+
+/// Describe a group of buffers connected to one peer, and implement `Group`.
+///
+/// Every field is an `In<T>` or every field an `Out<T>`; the attribute names the kind
+/// of component at the other end (`Control`, `VirtualEffector`, `VirtualReceptor`,
+/// `RealEffector`, `RealReceptor`):
+///
+/// ```ignore
+/// #[derive(Debug, Default, Group)]
+/// #[group(peer = VirtualEffector)]
+/// struct ToValve { flow: Out<f64> }
+/// ```
+///
+/// Implements `Group` (the peer kind), `Fields` (each buffer's name and payload type)
+/// and `Buffers` (the group's shape and the freshness of its buffers).
+#[proc_macro_derive(Group, attributes(group))]
+pub fn derive_group(input: TokenStream) -> TokenStream {
+    let input = syn::parse_macro_input!(input as syn::DeriveInput);
+    derive::parse_group(input)
+        .map(|m| derive::generate_group(&m))
+        .unwrap_or_else(syn::Error::into_compile_error)
+        .into()
+}
+
+/// Describe an input or output struct: a subsystem's struct of `#[derive(Group)]`
+/// groups, or a driver's struct of `In<T>` (or `Out<T>`) buffers.
+///
+/// Implements `Buffers`: the groups with their field names, peers, buffers and
+/// types, and `fresh()`, the freshness of every buffer as one bit set.
+#[proc_macro_derive(Buffers)]
+pub fn derive_buffers(input: TokenStream) -> TokenStream {
+    let input = syn::parse_macro_input!(input as syn::DeriveInput);
+    derive::parse_buffers(input)
+        .map(|m| derive::generate_buffers(&m))
+        .unwrap_or_else(syn::Error::into_compile_error)
+        .into()
+}
+
+/// Describe a memory struct: implements `Fields` with each field's name and type.
+#[proc_macro_derive(Memory)]
+pub fn derive_memory(input: TokenStream) -> TokenStream {
+    let input = syn::parse_macro_input!(input as syn::DeriveInput);
+    derive::parse_memory(input)
+        .map(|m| derive::generate_memory(&m))
+        .unwrap_or_else(syn::Error::into_compile_error)
+        .into()
+}
+
+/// Implement `Subsystem` on a marker type, with its shape:
+///
+/// ```ignore
+/// #[derive(Subsystem)]
+/// #[subsystem(kind = Control, memory = StationMemory, input = StationInput, output = StationOutput)]
+/// struct Station;
+/// ```
+///
+/// The memory must derive `Memory` and the input and output structs `Buffers`.
+#[proc_macro_derive(Subsystem, attributes(subsystem))]
+pub fn derive_subsystem(input: TokenStream) -> TokenStream {
+    let input = syn::parse_macro_input!(input as syn::DeriveInput);
+    derive::parse_subsystem(input)
+        .map(|m| derive::generate_subsystem(&m))
+        .unwrap_or_else(syn::Error::into_compile_error)
+        .into()
+}
+
+/// Behaviours and the FSM of one subsystem, in the paper's notation. Evaluates to
+/// `Result<Fsm<S>, FsmBuildError>`: exactly the `FsmBuilder` chain one would write
+/// by hand, so the FSM runs with no cost added by the macro.
+///
+/// ```ignore
+/// let fsm = fsm! {
+///     subsystem Station;
+///     predicates {
+///         has_order: |m: &StationMemory, _| m.order.is_some(),
+///         order_valid,                       // a function `order_valid` in scope
+///     }
+///     // B(f, f^τ): kind, name, terminal condition, the parts of f by target.
+///     while idle until has_order { pump <- stop_pump, memory <- take_order }
+///     repeat fill until reached { pump <- fill_flow }
+///     initial idle;
+///     idle -> fill when order_valid;       // arcs with initial conditions
+///     idle -> report when !order_valid;
+///     fill -> settle;                      // `when true`
+///     final done;
+/// }?;
+/// ```
+///
+/// A part `target <- function` writes `memory`, `common`, or the output group in
+/// field `target`; the function is a path or a closure. At compile time the FSM goes
+/// through the spec checker: unknown or duplicate names, unreachable behaviours,
+/// behaviours without a way out, finals with arcs, conditions that do not parse, and
+/// arcs that may overlap or leave a gap (with the predicate values that show it) are
+/// compile errors on the tokens concerned. `relations { exclusive(a, b), a => b }`
+/// states what the arc proof may assume.
+#[proc_macro]
+pub fn fsm(input: TokenStream) -> TokenStream {
+    fsm::expand(input.into()).into()
+}
+
+/// Types and traits generated from a RON spec, checked at compile time.
+///
+/// ```ignore
+/// embodied::agent!(spec = "specs/tank.ron", agent = "station");
+/// ```
+///
+/// The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`). A spec
+/// the checker rejects is a compile error per finding, `file:line:col: error[code]:
+/// message`. For each subsystem `c1` of the agent, a module `c1` holds the marker
+/// type `C1`, `Memory`, the groups (`FromE1`, `ToE1`...), `Input`, `Output`, a trait
+/// `Functions` with one method per transition function and predicate of the spec,
+/// and `fsm::<T: Functions>()` building the spec's FSM over the implementation. For
+/// each device `E1`, a module `E1` holds its `Input` and `Output` buffers.
+#[proc_macro]
+pub fn agent(input: TokenStream) -> TokenStream {
+    agent::expand(input.into()).into()
+}

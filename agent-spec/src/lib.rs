@@ -19,6 +19,7 @@
 pub mod check;
 pub mod diag;
 pub mod diagram;
+pub mod export;
 mod logic;
 pub mod model;
 pub mod span;

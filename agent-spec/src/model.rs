@@ -28,10 +28,10 @@ pub struct Spec {
     /// The agents.
     pub agents: Vec<Agent>,
     /// Links from output buffers to input buffers.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub links: Vec<Link>,
     /// Ways to place the components on hosts and processes.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub deployments: Vec<Deployment>,
 }
 
@@ -48,7 +48,7 @@ pub struct Agent {
     /// Control subsystem, virtual effectors and virtual receptors.
     pub subsystems: Vec<Subsystem>,
     /// Real effectors and receptors.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub devices: Vec<Device>,
 }
 
@@ -77,22 +77,22 @@ pub struct Subsystem {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub doc: Option<String>,
     /// Internal memory `^c c`.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub memory: Vec<Buffer>,
     /// Input buffers `_x c`, grouped by peer.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inputs: Vec<Group>,
     /// Output buffers `_y c`, grouped by peer.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outputs: Vec<Group>,
     /// Named predicates: the atoms of conditions.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub predicates: Vec<Predicate>,
     /// Declared relations between predicates, used by the arc proof.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub relations: Vec<Relation>,
     /// Transition functions, each writing one target.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub functions: Vec<Function>,
     /// Behaviours: the nodes of the FSM.
     pub behaviours: Vec<Behaviour>,
@@ -131,7 +131,7 @@ pub struct Predicate {
     /// Name, used in conditions.
     pub name: String,
     /// Buffers it looks at (for the data-flow diagrams).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub reads: Vec<String>,
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -167,10 +167,10 @@ pub struct Function {
     /// Its target.
     pub target: Target,
     /// Buffers it reads: memory names, input names, or `group.name`.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub reads: Vec<String>,
     /// Buffers it writes, all in its target.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub writes: Vec<String>,
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -195,7 +195,7 @@ pub struct Behaviour {
     /// While or repeat.
     pub kind: BehaviourKind,
     /// The transition functions of its elementary action.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub functions: Vec<String>,
     /// The terminal condition (`"false"`: never ends).
     pub terminal: String,
@@ -212,10 +212,10 @@ pub struct Fsm {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub initial: Option<String>,
     /// Arcs with initial conditions.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub arcs: Vec<Arc>,
     /// Behaviours after which the subsystem halts.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub finals: Vec<String>,
 }
 
@@ -254,10 +254,10 @@ pub struct Device {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub doc: Option<String>,
     /// Commands, grouped by peer.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inputs: Vec<Group>,
     /// Readings, grouped by peer.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outputs: Vec<Group>,
 }
 
@@ -293,7 +293,7 @@ pub struct Deployment {
     /// Hosts.
     pub hosts: Vec<Host>,
     /// Components deliberately not deployed.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub omit: Vec<String>,
 }
 

@@ -148,12 +148,12 @@ pub struct Pump {
     pub rejected: u64,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct PumpInput {
     pub duty: In<f64>,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct PumpOutput {
     pub flow: Out<f64>,
 }
@@ -162,6 +162,10 @@ impl Driver for Pump {
     const KIND: DeviceKind = DeviceKind::Effector;
     type Input = PumpInput;
     type Output = PumpOutput;
+
+    fn shape() -> Option<Shape> {
+        Some(Shape::of_driver::<Self>())
+    }
 
     fn step(
         &mut self,
@@ -204,7 +208,7 @@ pub struct Gauge {
     pub noise: Noise,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct GaugeOutput {
     pub level: Out<f64>,
 }
@@ -213,6 +217,10 @@ impl Driver for Gauge {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
     type Output = GaugeOutput;
+
+    fn shape() -> Option<Shape> {
+        Some(Shape::of_driver::<Self>())
+    }
 
     fn step(&mut self, _: DriverContext, _: &(), y: &mut GaugeOutput) -> Result<(), DriverError> {
         let tank = *self

@@ -3,12 +3,14 @@
 //!
 //! ```text
 //! cargo run --release --example tank -- [--levels 1.2,0.4,nan,1.8] [--seed N] [--trace FILE]
+//! cargo run --example tank -- --spec     # the spec of the macro-built twin, as RON
 //! ```
 //!
 //! The last line is `orders_acked=<n>/<n> refused=<n> max_level_error_m=<...>
 //! sim_s=<...> realtime_factor=<...>`.
 
 mod agent;
+mod twin;
 
 use std::error::Error;
 use std::process::ExitCode;
@@ -21,6 +23,7 @@ struct Args {
     mission: Vec<Order>,
     seed: u64,
     trace: Option<String>,
+    spec: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -28,6 +31,7 @@ fn parse_args() -> Result<Args, String> {
         mission: default_mission(),
         seed: 7,
         trace: None,
+        spec: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -50,10 +54,12 @@ fn parse_args() -> Result<Args, String> {
                 args.seed = v.parse().map_err(|e| format!("bad seed {v:?}: {e}"))?;
             }
             "--trace" => args.trace = Some(value()?),
+            "--spec" => args.spec = true,
             "-h" | "--help" => {
                 println!(
-                    "usage: tank [--levels L1,L2,...] [--seed N] [--trace FILE]\n\
-                     Runs the filling station until every order is acknowledged."
+                    "usage: tank [--levels L1,L2,...] [--seed N] [--trace FILE] | --spec\n\
+                     Runs the filling station until every order is acknowledged.\n\
+                     --spec prints the spec exported from the twin written with the macros."
                 );
                 std::process::exit(0);
             }
@@ -75,6 +81,12 @@ fn main() -> ExitCode {
 
 fn run() -> Result<(), Box<dyn Error>> {
     let args = parse_args()?;
+    if args.spec {
+        let (system, _) = twin::build(args.mission, 0.2, args.seed)?;
+        let spec = embodied::spec::export::spec_of("tank", system.info())?;
+        print!("{}", embodied::spec::export::to_ron(&spec)?);
+        return Ok(());
+    }
     let (system, plant) = build(args.mission.clone(), 0.2, args.seed)?;
     println!(
         "tank filling station: {} orders, tank at 0.20 m, seed {}",

@@ -1,0 +1,735 @@
+//! `agent!`: Rust types and traits generated from a RON spec.
+//!
+//! Stages, each tested on token input or spec text:
+//!
+//! 1. [`parse`]: the arguments `spec = "path", agent = "name"`;
+//! 2. [`load`]: read the file, run the spec checker (every error finding becomes a
+//!    compile error `file:line:col: error[code]: message`) and find the agent;
+//! 3. [`generate`]: one module per component with its types, and for a subsystem the
+//!    trait of its transition functions and predicates and the FSM over them.
+
+use std::path::{Path, PathBuf};
+
+use agent_spec::model::{self, Spec};
+use agent_spec::span::Seg;
+use agent_spec::{Loaded, Severity};
+use proc_macro2::{Span, TokenStream};
+use quote::{format_ident, quote};
+use syn::parse::{Parse, ParseStream};
+use syn::{Ident, LitStr, Token};
+
+use crate::util::runtime;
+
+/// The arguments.
+pub(crate) struct AgentArgs {
+    pub(crate) spec: LitStr,
+    pub(crate) agent: LitStr,
+    /// Extra derives for the generated memory structs (`Debug` and `Clone` always).
+    pub(crate) memory_derive: Vec<syn::Path>,
+}
+
+mod kw {
+    syn::custom_keyword!(spec);
+    syn::custom_keyword!(agent);
+    syn::custom_keyword!(memory_derive);
+}
+
+impl Parse for AgentArgs {
+    fn parse(input: ParseStream<'_>) -> syn::Result<Self> {
+        let (mut spec, mut agent, mut memory_derive) = (None, None, Vec::new());
+        while !input.is_empty() {
+            let look = input.lookahead1();
+            if look.peek(kw::spec) {
+                input.parse::<kw::spec>()?;
+                input.parse::<Token![=]>()?;
+                spec = Some(input.parse()?);
+            } else if look.peek(kw::agent) {
+                input.parse::<kw::agent>()?;
+                input.parse::<Token![=]>()?;
+                agent = Some(input.parse()?);
+            } else if look.peek(kw::memory_derive) {
+                input.parse::<kw::memory_derive>()?;
+                input.parse::<Token![=]>()?;
+                let content;
+                syn::bracketed!(content in input);
+                memory_derive.extend(
+                    syn::punctuated::Punctuated::<syn::Path, Token![,]>::parse_terminated(
+                        &content,
+                    )?,
+                );
+            } else {
+                return Err(look.error());
+            }
+            if !input.is_empty() {
+                input.parse::<Token![,]>()?;
+            }
+        }
+        let missing = |what: &str| {
+            syn::Error::new(
+                Span::call_site(),
+                format!(
+                    "`agent!` needs `{what}`: `agent!(spec = \"specs/my.ron\", agent = \"a1\")`"
+                ),
+            )
+        };
+        Ok(AgentArgs {
+            spec: spec.ok_or_else(|| missing("spec = \"<file>\""))?,
+            agent: agent.ok_or_else(|| missing("agent = \"<name>\""))?,
+            memory_derive,
+        })
+    }
+}
+
+/// Parse stage.
+pub(crate) fn parse(tokens: TokenStream) -> syn::Result<AgentArgs> {
+    syn::parse2(tokens)
+}
+
+/// Where the spec file is: relative to `CARGO_MANIFEST_DIR`.
+fn resolve(path: &str) -> PathBuf {
+    let p = Path::new(path);
+    if p.is_absolute() {
+        return p.to_owned();
+    }
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map_or_else(|| p.to_owned(), |dir| Path::new(&dir).join(p))
+}
+
+/// A checked spec and the agent to generate.
+pub(crate) struct Found {
+    pub(crate) loaded: Loaded,
+    pub(crate) agent: usize,
+}
+
+/// Load stage: `text` is the spec file's content, `file` its name as written.
+pub(crate) fn load(file: &LitStr, text: String, agent: &LitStr) -> syn::Result<Found> {
+    let name = file.value();
+    let loaded = match agent_spec::load(name.clone(), text) {
+        Ok(l) => l,
+        Err(report) => return Err(findings_error(file, &report)),
+    };
+    let report = agent_spec::check(&loaded);
+    if report.errors() > 0 {
+        return Err(findings_error(file, &report));
+    }
+    let wanted = agent.value();
+    let Some(index) = loaded.spec.agents.iter().position(|a| a.name == wanted) else {
+        let names: Vec<&str> = loaded.spec.agents.iter().map(|a| a.name.as_str()).collect();
+        return Err(syn::Error::new(
+            agent.span(),
+            format!(
+                "{name} has no agent `{wanted}`; its agents: {}",
+                names.join(", ")
+            ),
+        ));
+    };
+    Ok(Found {
+        loaded,
+        agent: index,
+    })
+}
+
+/// One compile error per error finding, `file:line:col: error[code]: message`.
+fn findings_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
+    let mut all: Option<syn::Error> = None;
+    for f in report
+        .findings
+        .iter()
+        .filter(|f| f.severity() == Severity::Error)
+    {
+        let (l, c) = report.line_col(f.offset());
+        let mut message = format!("{}:{l}:{c}: error[{}]: {}", report.file, f.code, f.message);
+        if !f.help.is_empty() {
+            message.push_str(&format!("\nhelp: {}", f.help));
+        }
+        let e = syn::Error::new(file.span(), message);
+        match &mut all {
+            Some(a) => a.combine(e),
+            None => all = Some(e),
+        }
+    }
+    all.unwrap_or_else(|| syn::Error::new(file.span(), "the spec has errors"))
+}
+
+/// A Rust identifier for a spec name (raw if it is a keyword).
+fn ident(name: &str) -> Ident {
+    syn::parse_str::<Ident>(name).unwrap_or_else(|_| Ident::new_raw(name, Span::call_site()))
+}
+
+/// `pump_control` -> `PumpControl`, `e11` -> `E11`.
+pub(crate) fn camel(name: &str) -> String {
+    name.split('_')
+        .filter(|p| !p.is_empty())
+        .map(|p| {
+            let mut c = p.chars();
+            c.next()
+                .map(|f| f.to_uppercase().chain(c).collect::<String>())
+                .unwrap_or_default()
+        })
+        .collect()
+}
+
+/// The component kinds of the spec, by name.
+fn peer_kind(spec: &Spec, name: &str) -> &'static str {
+    for a in &spec.agents {
+        if let Some(s) = a.subsystems.iter().find(|s| s.name == name) {
+            return match s.kind {
+                model::SubsystemKind::Control => "Control",
+                model::SubsystemKind::VirtualEffector => "VirtualEffector",
+                model::SubsystemKind::VirtualReceptor => "VirtualReceptor",
+            };
+        }
+        if let Some(d) = a.devices.iter().find(|d| d.name == name) {
+            return match d.kind {
+                model::DeviceKind::Effector => "RealEffector",
+                model::DeviceKind::Receptor => "RealReceptor",
+            };
+        }
+    }
+    // Unreachable for a spec the checker accepted (unknown peers are errors).
+    "Control"
+}
+
+/// Location text of a path in the spec: `file:line:col`.
+fn location(found: &Found, path: &[Seg<'_>]) -> String {
+    let offset = found
+        .loaded
+        .index
+        .as_ref()
+        .and_then(|i| i.at(path))
+        .map_or(0, |n| n.content_span().start);
+    let (l, c) = agent_spec::diag::line_col(&found.loaded.source, offset);
+    format!("{}:{l}:{c}", found.loaded.file)
+}
+
+/// A spec type string as a Rust type, or an error naming where it is.
+fn rust_type(
+    found: &Found,
+    file: &LitStr,
+    ty: &str,
+    path: &[Seg<'_>],
+    what: &str,
+) -> syn::Result<syn::Type> {
+    syn::parse_str::<syn::Type>(ty).map_err(|e| {
+        syn::Error::new(
+            file.span(),
+            format!(
+                "{}: the type `{ty}` of {what} is not a Rust type: {e}",
+                location(found, path)
+            ),
+        )
+    })
+}
+
+fn doc_attr(doc: Option<&String>, extra: &str) -> TokenStream {
+    let mut text = doc.map_or_else(String::new, |d| format!(" {d}\n\n"));
+    if !extra.starts_with(' ') {
+        text.push(' ');
+    }
+    text.push_str(extra);
+    quote!(#[doc = #text])
+}
+
+/// The groups of one direction of a component: struct definitions and the
+/// input or output struct holding them.
+#[allow(clippy::too_many_arguments)]
+fn groups(
+    found: &Found,
+    file: &LitStr,
+    groups: &[model::Group],
+    base: &[Seg<'_>],
+    field: &'static str,
+    input: bool,
+) -> syn::Result<TokenStream> {
+    let rt = runtime();
+    let spec = &found.loaded.spec;
+    let mut defs = Vec::new();
+    let mut members = Vec::new();
+    for (g, group) in groups.iter().enumerate() {
+        let gname = format_ident!(
+            "{}{}",
+            if input { "From" } else { "To" },
+            camel(&group.peer)
+        );
+        let peer = format_ident!("{}", peer_kind(spec, &group.peer));
+        let mut fields = Vec::new();
+        for (b, buffer) in group.buffers.iter().enumerate() {
+            let path: Vec<Seg<'_>> = base
+                .iter()
+                .copied()
+                .chain([
+                    Seg::Field(field),
+                    Seg::Item(g),
+                    Seg::Field("buffers"),
+                    Seg::Item(b),
+                    Seg::Field("type"),
+                ])
+                .collect();
+            let ty = rust_type(
+                found,
+                file,
+                &buffer.ty,
+                &path,
+                &format!("buffer `{}.{}`", group.peer, buffer.name),
+            )?;
+            let name = ident(&buffer.name);
+            let doc = doc_attr(buffer.doc.as_ref(), &format!("Spec type: `{}`.", buffer.ty));
+            fields.push(if input {
+                quote!(#doc pub #name: #rt::In<#ty>)
+            } else {
+                quote!(#doc pub #name: #rt::Out<#ty>)
+            });
+        }
+        let derives = if input {
+            quote!(#[derive(Debug, Default, Clone, #rt::Group)])
+        } else {
+            quote!(#[derive(Debug, Default, #rt::Group)])
+        };
+        let doc = format!(
+            " The buffers {} `{}`.",
+            if input { "received from" } else { "sent to" },
+            group.peer
+        );
+        defs.push(quote! {
+            #[doc = #doc]
+            #derives
+            #[group(peer = #peer)]
+            #[allow(non_snake_case)]
+            pub struct #gname { #(#fields),* }
+        });
+        let member = ident(&group.peer);
+        members.push(quote!(pub #member: #gname));
+    }
+    let (sname, derives, doc) = if input {
+        (
+            format_ident!("Input"),
+            quote!(#[derive(Debug, Default, Clone, #rt::Buffers)]),
+            " The input buffers, one group per peer.",
+        )
+    } else {
+        (
+            format_ident!("Output"),
+            quote!(#[derive(Debug, Default, #rt::Buffers)]),
+            " The output buffers, one group per peer.",
+        )
+    };
+    Ok(quote! {
+        #(#defs)*
+        #[doc = #doc]
+        #derives
+        #[allow(non_snake_case)]
+        pub struct #sname { #(#members),* }
+    })
+}
+
+fn subsystem(
+    found: &Found,
+    args: &AgentArgs,
+    s: usize,
+    sub: &model::Subsystem,
+) -> syn::Result<TokenStream> {
+    let rt = runtime();
+    let file = &args.spec;
+    let base = [
+        Seg::Field("agents"),
+        Seg::Item(found.agent),
+        Seg::Field("subsystems"),
+        Seg::Item(s),
+    ];
+    let module = ident(&sub.name);
+    let marker = format_ident!("{}", camel(&sub.name));
+    let kind = format_ident!(
+        "{}",
+        match sub.kind {
+            model::SubsystemKind::Control => "Control",
+            model::SubsystemKind::VirtualEffector => "VirtualEffector",
+            model::SubsystemKind::VirtualReceptor => "VirtualReceptor",
+        }
+    );
+    let mut memory = Vec::new();
+    for (k, m) in sub.memory.iter().enumerate() {
+        let path: Vec<Seg<'_>> = base
+            .iter()
+            .copied()
+            .chain([Seg::Field("memory"), Seg::Item(k), Seg::Field("type")])
+            .collect();
+        let ty = rust_type(found, file, &m.ty, &path, &format!("memory `{}`", m.name))?;
+        let name = ident(&m.name);
+        let doc = doc_attr(m.doc.as_ref(), &format!("Spec type: `{}`.", m.ty));
+        memory.push(quote!(#doc pub #name: #ty));
+    }
+    let inputs = groups(found, file, &sub.inputs, &base, "inputs", true)?;
+    let outputs = groups(found, file, &sub.outputs, &base, "outputs", false)?;
+    let extra = &args.memory_derive;
+
+    // The trait: one method per function and predicate.
+    let mut methods = Vec::new();
+    let mut seen: Vec<&str> = Vec::new();
+    for (k, f) in sub.functions.iter().enumerate() {
+        seen.push(&f.name);
+        let name = ident(&f.name);
+        let at = location(
+            found,
+            &[
+                &base[..],
+                &[Seg::Field("functions"), Seg::Item(k), Seg::Field("name")],
+            ]
+            .concat(),
+        );
+        let reads = if f.reads.is_empty() {
+            String::new()
+        } else {
+            format!(" Reads {}.", f.reads.join(", "))
+        };
+        let doc = doc_attr(
+            f.doc.as_ref(),
+            &format!(" Transition function `{}` ({at}).{reads}", f.name),
+        );
+        methods.push(match &f.target {
+            model::Target::Memory | model::Target::Common => quote! {
+                #doc
+                fn #name(memory: &mut Memory, input: &Input) -> ::core::result::Result<(), #rt::ActionError>;
+            },
+            model::Target::Output(peer) => {
+                let group = format_ident!("To{}", camel(peer));
+                quote! {
+                    #doc
+                    fn #name(memory: &Memory, input: &Input, output: &mut #group) -> ::core::result::Result<(), #rt::ActionError>;
+                }
+            }
+        });
+    }
+    for (k, p) in sub.predicates.iter().enumerate() {
+        let name = ident(&p.name);
+        if seen.contains(&p.name.as_str()) {
+            return Err(syn::Error::new(
+                file.span(),
+                format!(
+                    "{}: `{}` is both a function and a predicate of `{}`; the generated trait needs distinct names",
+                    location(
+                        found,
+                        &[
+                            &base[..],
+                            &[Seg::Field("predicates"), Seg::Item(k), Seg::Field("name")]
+                        ]
+                        .concat()
+                    ),
+                    p.name,
+                    sub.name
+                ),
+            ));
+        }
+        let at = location(
+            found,
+            &[
+                &base[..],
+                &[Seg::Field("predicates"), Seg::Item(k), Seg::Field("name")],
+            ]
+            .concat(),
+        );
+        let doc = doc_attr(p.doc.as_ref(), &format!(" Predicate `{}` ({at}).", p.name));
+        methods.push(quote! {
+            #doc
+            fn #name(memory: &Memory, input: &Input) -> bool;
+        });
+    }
+
+    // The FSM over an implementation `F`.
+    let predicates = sub.predicates.iter().map(|p| {
+        let (n, f) = (&p.name, ident(&p.name));
+        quote!(.predicate(#n, F::#f))
+    });
+    let relations = sub.relations.iter().map(|r| match r {
+        model::Relation::Exclusive(v) => quote!(.exclusive([#(#v),*])),
+        model::Relation::Implies(a, b) => quote!(.implies(#a, #b)),
+    });
+    let behaviours = sub.behaviours.iter().map(|b| {
+        let name = &b.name;
+        let kind = match b.kind {
+            model::BehaviourKind::While => quote!(#rt::BehaviourKind::While),
+            model::BehaviourKind::Repeat => quote!(#rt::BehaviourKind::Repeat),
+        };
+        let parts = b.functions.iter().filter_map(|fname| {
+            let f = sub.functions.iter().find(|f| &f.name == fname)?;
+            let id = ident(fname);
+            Some(match &f.target {
+                model::Target::Memory => quote!(.memory(F::#id).named(#fname)),
+                model::Target::Common => quote!(.common(F::#id).named(#fname)),
+                model::Target::Output(peer) => {
+                    let field = ident(peer);
+                    quote!(.output(|y| &mut y.#field, F::#id).named(#fname).__at_field(#peer))
+                }
+            })
+        });
+        let terminal = &b.terminal;
+        quote! {
+            .behaviour(#rt::Behaviour::new(
+                #name,
+                #kind,
+                #rt::Action::<#marker>::new() #(#parts)*,
+                #terminal,
+            ))
+        }
+    });
+    let initial = sub.fsm.initial.as_ref().map(|i| quote!(.initial(#i)));
+    let arcs = sub.fsm.arcs.iter().map(|a| {
+        let (f, t, w) = (&a.from, &a.to, &a.when);
+        quote!(.arc(#f, #t, #w))
+    });
+    let finals = sub.fsm.finals.iter().map(|f| quote!(.final_behaviour(#f)));
+
+    let name = &sub.name;
+    let period = sub.period_ms;
+    let spec_file = &found.loaded.file;
+    let module_doc = doc_attr(
+        sub.doc.as_ref(),
+        &format!(" Subsystem `{name}` of `{spec_file}`, generated by `agent!`."),
+    );
+    let marker_doc = format!(" The subsystem `{name}` (implements `Subsystem`).");
+    let trait_doc = format!(
+        " The transition functions and predicates of `{name}`, as the spec names them. Implement it on a type of yours and build the FSM with [`fsm`]."
+    );
+    Ok(quote! {
+        #module_doc
+        #[allow(non_snake_case, dead_code, clippy::module_name_repetitions)]
+        pub mod #module {
+            #[allow(unused_imports)]
+            use super::*;
+
+            /// The component's name in the spec.
+            pub const NAME: &str = #name;
+            /// Its period in the spec [ms].
+            pub const PERIOD_MS: f64 = #period;
+
+            /// The internal memory.
+            #[derive(Debug, Clone, #rt::Memory #(, #extra)*)]
+            pub struct Memory { #(#memory),* }
+
+            #inputs
+            #outputs
+
+            #[doc = #marker_doc]
+            #[derive(Debug, Clone, Copy, Default, #rt::Subsystem)]
+            #[subsystem(kind = #kind, memory = Memory, input = Input, output = Output)]
+            pub struct #marker;
+
+            #[doc = #trait_doc]
+            pub trait Functions: 'static {
+                #(#methods)*
+            }
+
+            /// The spec's FSM of this subsystem, over the functions of `F`.
+            pub fn fsm<F: Functions>() -> ::core::result::Result<#rt::Fsm<#marker>, #rt::FsmBuildError> {
+                #rt::FsmBuilder::<#marker>::new()
+                    #(#predicates)*
+                    #(#relations)*
+                    #(#behaviours)*
+                    #initial
+                    #(#arcs)*
+                    #(#finals)*
+                    .build()
+            }
+        }
+    })
+}
+
+fn device(found: &Found, file: &LitStr, d: usize, dev: &model::Device) -> syn::Result<TokenStream> {
+    let base = [
+        Seg::Field("agents"),
+        Seg::Item(found.agent),
+        Seg::Field("devices"),
+        Seg::Item(d),
+    ];
+    let module = ident(&dev.name);
+    let inputs = groups(found, file, &dev.inputs, &base, "inputs", true)?;
+    let outputs = groups(found, file, &dev.outputs, &base, "outputs", false)?;
+    let name = &dev.name;
+    let period = dev.period_ms;
+    let doc = doc_attr(
+        dev.doc.as_ref(),
+        &format!(
+            " Device `{name}` of `{}`, generated by `agent!`: its buffers. Implement `Driver` on your own type with these as `Input` and `Output`.",
+            found.loaded.file
+        ),
+    );
+    Ok(quote! {
+        #doc
+        #[allow(non_snake_case, dead_code)]
+        pub mod #module {
+            #[allow(unused_imports)]
+            use super::*;
+
+            /// The component's name in the spec.
+            pub const NAME: &str = #name;
+            /// Its period in the spec [ms].
+            pub const PERIOD_MS: f64 = #period;
+
+            #inputs
+            #outputs
+        }
+    })
+}
+
+/// Generate stage.
+pub(crate) fn generate(
+    found: &Found,
+    args: &AgentArgs,
+    tracked: Option<&Path>,
+) -> syn::Result<TokenStream> {
+    let agent = &found.loaded.spec.agents[found.agent];
+    let mut items = Vec::new();
+    for (s, sub) in agent.subsystems.iter().enumerate() {
+        items.push(subsystem(found, args, s, sub)?);
+    }
+    for (d, dev) in agent.devices.iter().enumerate() {
+        items.push(device(found, &args.spec, d, dev)?);
+    }
+    // Rebuild when the spec changes.
+    let track = tracked.and_then(Path::to_str).map(|p| {
+        quote!(
+            const _: &[u8] = ::core::include_bytes!(#p);
+        )
+    });
+    Ok(quote! {
+        #track
+        #(#items)*
+    })
+}
+
+/// The whole macro.
+pub(crate) fn expand(tokens: TokenStream) -> TokenStream {
+    let result = parse(tokens).and_then(|args| {
+        let path = resolve(&args.spec.value());
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            syn::Error::new(
+                args.spec.span(),
+                format!(
+                    "cannot read the spec `{}` ({e}); the path is relative to the crate's Cargo.toml",
+                    path.display()
+                ),
+            )
+        })?;
+        let found = load(&args.spec, text, &args.agent)?;
+        generate(&found, &args, Some(&path))
+    });
+    result.unwrap_or_else(syn::Error::into_compile_error)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPEC: &str = r#"(
+    name: "t",
+    agents: [(
+        name: "a",
+        subsystems: [
+            (
+                name: "c1", kind: Control, period_ms: 10.0,
+                memory: [(name: "count", type: "u32")],
+                inputs: [(peer: "e1", buffers: [(name: "done", type: "bool")])],
+                outputs: [(peer: "e1", buffers: [(name: "go", type: "Option<u32>")])],
+                predicates: [(name: "finished", reads: ["done"])],
+                functions: [
+                    (name: "ce", target: Output("e1"), writes: ["go"]),
+                    (name: "cc", target: Memory, writes: ["count"]),
+                ],
+                behaviours: [
+                    (name: "run", kind: Repeat, functions: ["ce", "cc"], terminal: "finished"),
+                    (name: "rest", kind: While, terminal: "false"),
+                ],
+                fsm: (initial: "run", arcs: [(from: "run", to: "rest", when: "true")]),
+            ),
+            (
+                name: "e1", kind: VirtualEffector, period_ms: 10.0,
+                inputs: [(peer: "c1", buffers: [(name: "go", type: "Option<u32>")])],
+                outputs: [(peer: "c1", buffers: [(name: "done", type: "bool")])],
+                functions: [(name: "ec", target: Output("c1"), writes: ["done"])],
+                behaviours: [(name: "serve", kind: While, functions: ["ec"], terminal: "false")],
+                fsm: (initial: "serve"),
+            ),
+        ],
+    )],
+    links: [
+        (from: "c1.e1.go", to: "e1.c1.go"),
+        (from: "e1.c1.done", to: "c1.e1.done"),
+    ],
+)"#;
+
+    fn args(tokens: TokenStream) -> AgentArgs {
+        parse(tokens).expect("valid arguments")
+    }
+
+    #[test]
+    fn arguments_are_named_and_required() {
+        let a = args(quote!(
+            spec = "s.ron",
+            agent = "a1",
+            memory_derive = [Default]
+        ));
+        assert_eq!(a.spec.value(), "s.ron");
+        assert_eq!(a.memory_derive.len(), 1);
+        let e = parse(quote!(spec = "s.ron")).err().expect("no agent");
+        assert!(
+            e.to_string().contains("agent = \\\"<name>\\\"")
+                || e.to_string().contains("agent = \"<name>\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_spec_becomes_modules_traits_and_fsms() {
+        let a = args(quote!(spec = "t.ron", agent = "a"));
+        let found = load(&a.spec, SPEC.into(), &a.agent).expect("a valid spec");
+        let code = generate(&found, &a, None).expect("generates").to_string();
+        for needle in [
+            "pub mod c1",
+            "pub struct C1",
+            "pub struct Memory { # [doc = \" Spec type: `u32`.\"] pub count : u32 }",
+            "pub struct FromE1",
+            "pub go : :: embodied :: Out < Option < u32 > >",
+            "# [group (peer = VirtualEffector)]",
+            "fn ce (memory : & Memory , input : & Input , output : & mut ToE1)",
+            "fn cc (memory : & mut Memory , input : & Input)",
+            "fn finished (memory : & Memory , input : & Input) -> bool",
+            ". output (| y | & mut y . e1 , F :: ce) . named (\"ce\") . __at_field (\"e1\")",
+            ". arc (\"run\" , \"rest\" , \"true\")",
+            "pub mod e1",
+        ] {
+            assert!(code.contains(needle), "`{needle}` not in {code}");
+        }
+    }
+
+    #[test]
+    fn checker_errors_name_file_line_and_column() {
+        let a = args(quote!(spec = "t.ron", agent = "a"));
+        let broken = SPEC.replace("terminal: \"finished\"", "terminal: \"finishd\"");
+        let e = load(&a.spec, broken, &a.agent)
+            .err()
+            .expect("unknown predicate");
+        let text = e.to_string();
+        assert!(text.starts_with("t.ron:17:85:"), "{text}");
+        assert!(text.contains("error[spec::unknown_predicate]"), "{text}");
+        let e = load(&a.spec, SPEC.into(), &syn::parse_quote!("a9"))
+            .err()
+            .expect("no agent");
+        assert!(e.to_string().contains("its agents: a"), "{e}");
+    }
+
+    #[test]
+    fn unparsable_types_point_into_the_spec() {
+        let a = args(quote!(spec = "t.ron", agent = "a"));
+        let found = load(&a.spec, SPEC.replace("\"u32\"", "\"Vec<u32\""), &a.agent)
+            .expect("the checker does not parse types");
+        let e = generate(&found, &a, None).expect_err("bad type");
+        assert!(e.to_string().contains("t.ron:8:"), "{e}");
+        assert!(e.to_string().contains("memory `count`"), "{e}");
+    }
+
+    #[test]
+    fn names() {
+        assert_eq!(camel("pump_control"), "PumpControl");
+        assert_eq!(camel("e11"), "E11");
+        assert_eq!(ident("type").to_string(), "r#type");
+    }
+}

@@ -1,0 +1,406 @@
+//! The other direction: the spec of a system built in Rust.
+//!
+//! A system assembled with `SystemBuilder` from described components (the derives
+//! of the macros crate, or `Subsystem::shape`/`Driver::shape` by hand) knows
+//! everything a spec says: agents, components with their kinds and periods, memory
+//! fields and buffers with their types, predicates, relations, behaviours with their
+//! parts and terminal conditions, arcs and finals, links with their policies.
+//! [`spec_of`] writes it as a [`Spec`], [`to_ron`] as text, so the checker and the
+//! diagrams work for agents written without a RON file:
+//!
+//! ```text
+//! let spec = embodied::spec::export::spec_of("tank", system.info())?;
+//! std::fs::write("specs/tank.ron", embodied::spec::export::to_ron(&spec)?)?;
+//! ```
+//!
+//! What the types do not say is left out: which buffers a function or predicate
+//! reads and which buffers of its target a function writes (`reads` and `writes`
+//! are empty; the types let a part read all of the memory and inputs and write all
+//! of its target). Add them by hand for the data-flow diagrams.
+//! The peer a group is connected to is the component its links go to.
+
+use std::collections::HashMap;
+
+use agent_core::{
+    BehaviourKind, GroupShape, LinkInfo, NodeInfo, NodeKind, PartTarget, Policy,
+    Relation as CoreRelation, Shape, SystemInfo,
+};
+
+use crate::model::{
+    self, Agent, Behaviour, Buffer, Device, DeviceKind, Fsm, Function, Group, Link, Predicate,
+    Relation, Spec, Subsystem, SubsystemKind, Target,
+};
+
+/// Why a system cannot be written as a spec.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ExportError {
+    /// A component's types do not describe its memory and buffers.
+    #[error(
+        "`{0}` does not describe its buffers: derive `Subsystem` (with `Memory`, `Buffers` and `Group` on its types), or implement `Driver::shape` as `Some(Shape::of_driver::<Self>())`"
+    )]
+    Undescribed(String),
+    /// A group of buffers has no link, so its peer is unknown.
+    #[error("group `{group}` of `{node}` is not linked to anything, so its peer cannot be named")]
+    Unlinked {
+        /// The component.
+        node: String,
+        /// The group (`field` or `field.buffer` for a driver's buffer).
+        group: String,
+    },
+    /// The buffers of one group are linked to different components.
+    #[error(
+        "the buffers of group `{group}` of `{node}` are linked to several components ({peers})"
+    )]
+    SeveralPeers {
+        /// The component.
+        node: String,
+        /// The group.
+        group: String,
+        /// The components, comma-separated.
+        peers: String,
+    },
+    /// An output part whose group could not be identified.
+    #[error(
+        "behaviour `{behaviour}` of `{node}` writes group type `{group}`, which is not exactly one output group; name the field with the `fsm!` macro"
+    )]
+    UnknownTarget {
+        /// The component.
+        node: String,
+        /// The behaviour.
+        behaviour: String,
+        /// The group's type name.
+        group: String,
+    },
+    /// The text could not be written.
+    #[error("cannot write the spec as RON: {0}")]
+    Ron(String),
+}
+
+/// The peer of each group: the component at the other end of its links.
+struct Peers<'a> {
+    info: &'a SystemInfo,
+}
+
+impl Peers<'_> {
+    fn links_of(&self, node: usize, input: bool) -> impl Iterator<Item = &LinkInfo> + '_ {
+        self.info
+            .links
+            .iter()
+            .filter(move |l| if input { l.to == node } else { l.from == node })
+    }
+
+    /// The other end of link `l` seen from `node`.
+    fn other(&self, l: &LinkInfo, input: bool) -> &str {
+        let n = if input { l.from } else { l.to };
+        self.info.nodes.get(n).map_or("?", |n| n.name.as_str())
+    }
+
+    /// The one peer of the links whose port satisfies `port`.
+    fn peer_of(
+        &self,
+        node: usize,
+        input: bool,
+        group: &str,
+        port: impl Fn(&str) -> bool,
+    ) -> Result<String, ExportError> {
+        let name = &self.info.nodes[node].name;
+        let mut peers: Vec<&str> = self
+            .links_of(node, input)
+            .filter(|l| port(if input { l.to_port } else { l.from_port }))
+            .map(|l| self.other(l, input))
+            .collect();
+        peers.sort_unstable();
+        peers.dedup();
+        match peers[..] {
+            [one] => Ok(one.to_owned()),
+            [] => Err(ExportError::Unlinked {
+                node: name.clone(),
+                group: group.to_owned(),
+            }),
+            _ => Err(ExportError::SeveralPeers {
+                node: name.clone(),
+                group: group.to_owned(),
+                peers: peers.join(", "),
+            }),
+        }
+    }
+
+    /// The spec groups of one direction of node `node`.
+    fn groups(
+        &self,
+        node: usize,
+        shapes: &[GroupShape],
+        input: bool,
+    ) -> Result<Vec<Group>, ExportError> {
+        let mut out: Vec<Group> = Vec::new();
+        for g in shapes {
+            if g.name.is_empty() {
+                // A driver's flat buffers: grouped by the peer each is linked to.
+                for b in g.buffers {
+                    let peer = self.peer_of(node, input, b.name, |p| p == b.name)?;
+                    let buffer = Buffer {
+                        name: b.name.to_owned(),
+                        ty: b.ty.to_owned(),
+                        doc: None,
+                    };
+                    match out.iter_mut().find(|x| x.peer == peer) {
+                        Some(x) => x.buffers.push(buffer),
+                        None => out.push(Group {
+                            peer,
+                            buffers: vec![buffer],
+                        }),
+                    }
+                }
+            } else {
+                let prefix = format!("{}.", g.name);
+                let peer = self.peer_of(node, input, g.name, |p| p.starts_with(&prefix))?;
+                out.push(Group {
+                    peer,
+                    buffers: g
+                        .buffers
+                        .iter()
+                        .map(|b| Buffer {
+                            name: b.name.to_owned(),
+                            ty: b.ty.to_owned(),
+                            doc: None,
+                        })
+                        .collect(),
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// `a::b::Name` -> `Name` (generic types are left whole).
+fn last_segment(ty: &str) -> &str {
+    if ty.contains('<') {
+        return ty;
+    }
+    ty.rsplit("::").next().unwrap_or(ty)
+}
+
+fn subsystem(
+    peers: &Peers<'_>,
+    index: usize,
+    node: &NodeInfo,
+    shape: &Shape,
+) -> Result<Subsystem, ExportError> {
+    let kind = match node.kind {
+        NodeKind::Control => SubsystemKind::Control,
+        NodeKind::VirtualEffector => SubsystemKind::VirtualEffector,
+        _ => SubsystemKind::VirtualReceptor,
+    };
+    let memory: Vec<Buffer> = shape
+        .memory
+        .unwrap_or(&[])
+        .iter()
+        .map(|f| Buffer {
+            name: f.name.to_owned(),
+            ty: f.ty.to_owned(),
+            doc: None,
+        })
+        .collect();
+    let inputs = peers.groups(index, shape.inputs, true)?;
+    let outputs = peers.groups(index, shape.outputs, false)?;
+    let Some(fsm) = &node.fsm else {
+        return Err(ExportError::Undescribed(node.name.clone()));
+    };
+    let mut functions: Vec<Function> = Vec::new();
+    let mut behaviours = Vec::new();
+    for b in &fsm.behaviours {
+        let mut names = Vec::new();
+        for part in &b.parts {
+            let (target, suffix) = match &part.target {
+                PartTarget::Common => (Target::Common, "common".to_owned()),
+                PartTarget::Memory => (Target::Memory, "memory".to_owned()),
+                PartTarget::Output { group, field, .. } => {
+                    let candidates: Vec<(usize, &GroupShape)> = shape
+                        .outputs
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, g)| match field {
+                            Some(f) => g.name == *f,
+                            None => last_segment(g.ty) == last_segment(group),
+                        })
+                        .collect();
+                    let [(k, g)] = candidates[..] else {
+                        return Err(ExportError::UnknownTarget {
+                            node: node.name.clone(),
+                            behaviour: b.name.clone(),
+                            group: (*group).to_owned(),
+                        });
+                    };
+                    let peer = outputs.get(k).map(|o| o.peer.clone()).unwrap_or_default();
+                    (Target::Output(peer), g.name.to_owned())
+                }
+            };
+            let name = part
+                .name
+                .as_ref()
+                .map_or_else(|| format!("{}_{suffix}", b.name), |n| n.to_string());
+            match functions.iter().find(|f| f.name == name) {
+                Some(f) if f.target == target => {}
+                Some(_) => {
+                    // One name, two targets: a spec function has one target.
+                    let renamed = format!("{name}_{suffix}");
+                    if !functions.iter().any(|f| f.name == renamed) {
+                        functions.push(Function {
+                            name: renamed.clone(),
+                            target,
+                            reads: Vec::new(),
+                            writes: Vec::new(),
+                            doc: None,
+                        });
+                    }
+                    names.push(renamed);
+                    continue;
+                }
+                None => functions.push(Function {
+                    name: name.clone(),
+                    target,
+                    reads: Vec::new(),
+                    writes: Vec::new(),
+                    doc: None,
+                }),
+            }
+            names.push(name);
+        }
+        behaviours.push(Behaviour {
+            name: b.name.clone(),
+            kind: match b.kind {
+                BehaviourKind::While => model::BehaviourKind::While,
+                BehaviourKind::Repeat => model::BehaviourKind::Repeat,
+            },
+            functions: names,
+            terminal: b.terminal.clone(),
+            doc: None,
+        });
+    }
+    Ok(Subsystem {
+        name: node.name.clone(),
+        kind,
+        period_ms: node.period.as_secs_f64() * 1e3,
+        doc: None,
+        memory,
+        inputs,
+        outputs,
+        predicates: fsm
+            .predicates
+            .iter()
+            .map(|p| Predicate {
+                name: p.clone(),
+                reads: Vec::new(),
+                doc: None,
+            })
+            .collect(),
+        relations: fsm
+            .relations
+            .iter()
+            .map(|r| match r {
+                CoreRelation::Exclusive(v) => {
+                    Relation::Exclusive(v.iter().map(ToString::to_string).collect())
+                }
+                CoreRelation::Implies(a, b) => Relation::Implies(a.to_string(), b.to_string()),
+            })
+            .collect(),
+        functions,
+        behaviours,
+        fsm: Fsm {
+            initial: Some(fsm.initial.clone()),
+            arcs: fsm
+                .arcs
+                .iter()
+                .map(|(from, to, when)| model::Arc {
+                    from: from.clone(),
+                    to: to.clone(),
+                    when: when.clone(),
+                })
+                .collect(),
+            finals: fsm.finals.clone(),
+        },
+    })
+}
+
+/// The spec of a built system, named `name`.
+pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
+    let peers = Peers { info };
+    let mut agents: Vec<Agent> = info
+        .agents
+        .iter()
+        .map(|a| Agent {
+            name: a.clone(),
+            doc: None,
+            subsystems: Vec::new(),
+            devices: Vec::new(),
+        })
+        .collect();
+    let agent_index: HashMap<&str, usize> = info
+        .agents
+        .iter()
+        .enumerate()
+        .map(|(i, a)| (a.as_str(), i))
+        .collect();
+    for (i, node) in info.nodes.iter().enumerate() {
+        let Some(shape) = &node.shape else {
+            return Err(ExportError::Undescribed(node.name.clone()));
+        };
+        let Some(&a) = agent_index.get(node.agent.as_str()) else {
+            continue;
+        };
+        match node.kind {
+            NodeKind::RealEffector | NodeKind::RealReceptor => agents[a].devices.push(Device {
+                name: node.name.clone(),
+                kind: if node.kind == NodeKind::RealEffector {
+                    DeviceKind::Effector
+                } else {
+                    DeviceKind::Receptor
+                },
+                period_ms: node.period.as_secs_f64() * 1e3,
+                doc: None,
+                inputs: peers.groups(i, shape.inputs, true)?,
+                outputs: peers.groups(i, shape.outputs, false)?,
+            }),
+            _ => agents[a]
+                .subsystems
+                .push(subsystem(&peers, i, node, shape)?),
+        }
+    }
+    let node = |n: usize| info.nodes.get(n).map_or("?", |x| x.name.as_str());
+    let links = info
+        .links
+        .iter()
+        .map(|l| {
+            let buffer = |port: &str| port.rsplit('.').next().unwrap_or(port).to_owned();
+            Link {
+                from: format!("{}.{}.{}", node(l.from), node(l.to), buffer(l.from_port)),
+                to: format!("{}.{}.{}", node(l.to), node(l.from), buffer(l.to_port)),
+                policy: match l.policy {
+                    Policy::Sample => model::Policy::Sample,
+                    Policy::Queue { bound } => model::Policy::Queue(bound),
+                },
+            }
+        })
+        .collect();
+    Ok(Spec {
+        name: name.to_owned(),
+        doc: None,
+        agents,
+        links,
+        deployments: Vec::new(),
+    })
+}
+
+/// The spec as RON text in the layout of hand-written specs.
+pub fn to_ron(spec: &Spec) -> Result<String, ExportError> {
+    let config = ron::ser::PrettyConfig::new()
+        .struct_names(false)
+        .indentor("    ".to_owned())
+        .separate_tuple_members(false)
+        .compact_arrays(false)
+        .depth_limit(6);
+    ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .to_string_pretty(spec, config)
+        .map_err(|e| ExportError::Ron(e.to_string()))
+}
