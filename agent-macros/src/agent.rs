@@ -85,14 +85,24 @@ pub(crate) fn parse(tokens: TokenStream) -> syn::Result<AgentArgs> {
     syn::parse2(tokens)
 }
 
-/// Where the spec file is: relative to `CARGO_MANIFEST_DIR`.
-fn resolve(path: &str) -> PathBuf {
+/// Where the spec file is: relative to `CARGO_MANIFEST_DIR` (like copper-rs), or,
+/// if there is no such file, to the directory of the file invoking the macro (like
+/// `include_str!`). `invoker` is that file, when the compiler says.
+fn resolve(path: &str, invoker: Option<PathBuf>) -> PathBuf {
     let p = Path::new(path);
     if p.is_absolute() {
         return p.to_owned();
     }
-    std::env::var_os("CARGO_MANIFEST_DIR")
-        .map_or_else(|| p.to_owned(), |dir| Path::new(&dir).join(p))
+    let from_manifest = std::env::var_os("CARGO_MANIFEST_DIR").map(|dir| Path::new(&dir).join(p));
+    if let Some(f) = from_manifest.as_ref().filter(|f| f.exists()) {
+        return f.clone();
+    }
+    let beside = invoker
+        .as_deref()
+        .and_then(Path::parent)
+        .map(|dir| dir.join(p))
+        .filter(|f| f.exists());
+    beside.or(from_manifest).unwrap_or_else(|| p.to_owned())
 }
 
 /// A checked spec and the agent to generate.
@@ -298,7 +308,12 @@ fn groups(
             pub struct #gname { #(#fields),* }
         });
         let member = ident(&group.peer);
-        members.push(quote!(pub #member: #gname));
+        let member_doc = format!(
+            " The group {} `{}`.",
+            if input { "from" } else { "to" },
+            group.peer
+        );
+        members.push(quote!(#[doc = #member_doc] pub #member: #gname));
     }
     let (sname, derives, doc) = if input {
         (
@@ -597,14 +612,14 @@ pub(crate) fn generate(
 }
 
 /// The whole macro.
-pub(crate) fn expand(tokens: TokenStream) -> TokenStream {
+pub(crate) fn expand(tokens: TokenStream, invoker: Option<PathBuf>) -> TokenStream {
     let result = parse(tokens).and_then(|args| {
-        let path = resolve(&args.spec.value());
+        let path = resolve(&args.spec.value(), invoker);
         let text = std::fs::read_to_string(&path).map_err(|e| {
             syn::Error::new(
                 args.spec.span(),
                 format!(
-                    "cannot read the spec `{}` ({e}); the path is relative to the crate's Cargo.toml",
+                    "cannot read the spec `{}` ({e}); the path is relative to the crate's Cargo.toml or to the file invoking `agent!`",
                     path.display()
                 ),
             )

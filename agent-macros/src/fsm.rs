@@ -643,16 +643,32 @@ mod tests {
             predicates { a, b }
             while x until a { }
             while y until false { }
-            while x until b { }
             initial x;
             x -> y when a;
             x -> z when c;
         })
         .expect("parses");
-        let e = all_messages(check(&d).expect_err("several problems"));
-        for needle in ["`x` is defined twice", "behaviour `z`", "predicate `c`"] {
+        let e = check(&d).expect_err("unknown names");
+        let spans: Vec<String> = e.clone().into_iter().map(|e| e.to_string()).collect();
+        let e = all_messages(e);
+        for needle in ["behaviour `z`", "predicate `c`"] {
             assert!(e.contains(needle), "`{needle}` not in {e}");
         }
+        assert!(spans.len() >= 2, "{spans:?}");
+        // Two behaviours of one name: only that is reported, the rest would be
+        // about either of them.
+        let d = parse(quote! {
+            subsystem S;
+            predicates { a }
+            while x until a { }
+            while x until false { }
+            initial x;
+            x -> x;
+        })
+        .expect("parses");
+        let e = all_messages(check(&d).expect_err("duplicate"));
+        assert!(e.contains("`x` is defined twice"), "{e}");
+        assert_eq!(e.matches("[spec::").count(), 1, "{e}");
     }
 
     #[test]

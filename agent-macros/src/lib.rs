@@ -129,7 +129,8 @@ pub fn fsm(input: TokenStream) -> TokenStream {
 /// embodied::agent!(spec = "specs/tank.ron", agent = "station");
 /// ```
 ///
-/// The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`). A spec
+/// The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`), or else
+/// to the directory of the file that invokes the macro. A spec
 /// the checker rejects is a compile error per finding, `file:line:col: error[code]:
 /// message`. For each subsystem `c1` of the agent, a module `c1` holds the marker
 /// type `C1`, `Memory`, the groups (`FromE1`, `ToE1`...), `Input`, `Output`, a trait
@@ -138,5 +139,6 @@ pub fn fsm(input: TokenStream) -> TokenStream {
 /// each device `E1`, a module `E1` holds its `Input` and `Output` buffers.
 #[proc_macro]
 pub fn agent(input: TokenStream) -> TokenStream {
-    agent::expand(input.into()).into()
+    let invoker = proc_macro::Span::call_site().local_file();
+    agent::expand(input.into(), invoker).into()
 }

@@ -366,7 +366,16 @@ pub(crate) fn check(fsm: &SynthFsm, subsystem: TokenStream) -> syn::Result<()> {
     let text = write_spec(fsm, &subsystem_name(&subsystem));
     let (_, report) = agent_spec::check_source("fsm!", text.s.clone());
     let mut errors: Option<syn::Error> = None;
+    // With two behaviours (or predicates) of one name, findings that refer to the
+    // name are about one of them at random: report only the duplicates.
+    let duplicates = report
+        .findings
+        .iter()
+        .any(|f| f.code == Code::DuplicateName);
     for f in &report.findings {
+        if duplicates && f.code != Code::DuplicateName {
+            continue;
+        }
         let parse_failed = f.code == Code::Syntax || f.code == Code::UnknownField;
         if !(FSM_CODES.contains(&f.code) || parse_failed)
             || f.severity() != agent_spec::Severity::Error
