@@ -58,7 +58,7 @@ fn counter_fsm() -> Fsm<Counter> {
             .output(
                 |y| &mut y.e,
                 |m: &CounterMemory, _: &CounterIn, y: &mut CountToE| {
-                    if m.n % m.every == 0 {
+                    if m.n.is_multiple_of(m.every) {
                         y.count.set(m.n);
                     }
                 },

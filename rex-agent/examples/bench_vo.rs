@@ -37,10 +37,10 @@ fn sequence(
     focal: f64,
     frames: usize,
 ) -> Result<Sequence, Box<dyn std::error::Error>> {
-    if let Ok(seq) = Sequence::open(dir) {
-        if seq.len() == frames {
-            return Ok(seq);
-        }
+    if let Ok(seq) = Sequence::open(dir)
+        && seq.len() == frames
+    {
+        return Ok(seq);
     }
     let mut world = WorldConfig::shipped()?;
     world.camera.width = width;

@@ -462,12 +462,12 @@ pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
 /// Algorithm 7 (`c,e f_1,2,tp`): hand the first fragment of the list to `e11` with
 /// `steps` and `notify`; relay the pose and the visual odometry.
 pub fn ce_2_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
-    if ready(m, x) {
-        if let Some(f) = m.traj.front() {
-            y.traj.set(f.clone());
-            y.steps.set(traj_to_steps(f));
-            y.notify.set(traj_to_notify(f, &m.params));
-        }
+    if ready(m, x)
+        && let Some(f) = m.traj.front()
+    {
+        y.traj.set(f.clone());
+        y.steps.set(traj_to_steps(f));
+        y.notify.set(traj_to_notify(f, &m.params));
     }
     ce_1(m, x, y);
 }

@@ -259,7 +259,7 @@ impl StubR11Memory {
     }
 
     fn asks(&self) -> bool {
-        self.iteration % self.every == 0 && self.iteration <= self.last_ask
+        self.iteration.is_multiple_of(self.every) && self.iteration <= self.last_ask
     }
 }
 #[derive(Clone, Debug, Default)]

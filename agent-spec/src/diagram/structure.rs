@@ -104,11 +104,11 @@ fn arrange(spec: &Spec, agents: &[usize]) -> Vec<usize> {
     for l in &spec.links {
         let f = l.from.split('.').next().and_then(agent_of);
         let t = l.to.split('.').next().and_then(agent_of);
-        if let (Some(f), Some(t)) = (f, t) {
-            if f != t {
-                degree[f] += 1;
-                degree[t] += 1;
-            }
+        if let (Some(f), Some(t)) = (f, t)
+            && f != t
+        {
+            degree[f] += 1;
+            degree[t] += 1;
         }
     }
     let mut by_degree = agents.to_vec();

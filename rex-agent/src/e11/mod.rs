@@ -369,13 +369,13 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
             m.track.rejected += 1;
         }
     }
-    if m.track.running.is_none() {
-        if let Some((fragment, steps, notify)) = m.track.queue.pop_front() {
-            m.step = steps;
-            m.notify = notify;
-            m.reported = false;
-            m.track.running = Some(Running { fragment, k: 0 });
-        }
+    if m.track.running.is_none()
+        && let Some((fragment, steps, notify)) = m.track.queue.pop_front()
+    {
+        m.step = steps;
+        m.notify = notify;
+        m.reported = false;
+        m.track.running = Some(Running { fragment, k: 0 });
     }
     m.iteration += 1;
 }

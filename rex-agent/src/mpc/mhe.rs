@@ -508,16 +508,16 @@ impl Mhe {
                 self.stats.rejected += 1;
             }
         }
-        if let Some(l) = m.loads {
-            if self.s.sigma_load > 0.0 {
-                let weight = self.model.params.mass * self.model.params.gravity;
-                if l.iter()
-                    .all(|v| v.is_finite() && *v >= -0.1 * weight && *v <= weight)
-                {
-                    self.window[n].loads = Some(l);
-                } else {
-                    self.stats.rejected += 1;
-                }
+        if let Some(l) = m.loads
+            && self.s.sigma_load > 0.0
+        {
+            let weight = self.model.params.mass * self.model.params.gravity;
+            if l.iter()
+                .all(|v| v.is_finite() && *v >= -0.1 * weight && *v <= weight)
+            {
+                self.window[n].loads = Some(l);
+            } else {
+                self.stats.rejected += 1;
             }
         }
         if let Some(p) = m.pose {

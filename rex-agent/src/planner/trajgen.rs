@@ -233,11 +233,12 @@ impl TrajGen {
 
     /// Forget a job in flight (its answer is drained when it comes).
     fn abandon(&mut self) {
-        if self.status == Status::Planning && self.answer.is_none() {
-            if let Some(w) = &self.worker {
-                // Keep the worker's queue in step: wait for the stale answer.
-                let _ = w.answers.recv();
-            }
+        if self.status == Status::Planning
+            && self.answer.is_none()
+            && let Some(w) = &self.worker
+        {
+            // Keep the worker's queue in step: wait for the stale answer.
+            let _ = w.answers.recv();
         }
         self.job = None;
         self.answer = None;
