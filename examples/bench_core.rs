@@ -16,8 +16,15 @@
 //!   send once, so a cycle holds two elementary actions. Counted over every
 //!   measured instant, after a warm-up that fills the buffers and queues.
 //!
+//! * The same three figures for the same pair and chooser written with the macros
+//!   (`#[derive(Group, Buffers, Memory, Subsystem)]` and `fsm!`), measured in
+//!   alternating batches with the hand-written ones, and the ratio macro/hand:
+//!   `macro_action_ns=<..> macro_fsm_step_ns=<..> macro_allocs_per_cycle=<..>
+//!   macro_over_hand_action=<..> macro_over_hand_fsm_step=<..>`. The macros add no
+//!   dispatch or allocation: the ratios are 1 within the noise.
+//!
 //! Medians over batches of 20 000 instants (40 000 actions); the last line reads
-//! `action_ns=<..> fsm_step_ns=<..> allocs_per_cycle=<..>`.
+//! `action_ns=<..> fsm_step_ns=<..> allocs_per_cycle=<..>` (hand-written).
 
 use std::alloc::{GlobalAlloc, Layout, System as SystemAlloc};
 use std::hint::black_box;
@@ -232,6 +239,163 @@ fn chooser_fsm() -> Result<Fsm<Chooser>, FsmBuildError> {
         .build()
 }
 
+// ---------------------------------------------------------------------------
+// The same pair and chooser, written with the macros.
+
+mod with_macros {
+    use embodied::*;
+
+    use super::Pose;
+
+    macro_rules! group {
+        ($name:ident, $peer:ident, $kind:ident) => {
+            #[derive(Debug, Default, Group)]
+            #[group(peer = $peer)]
+            pub(super) struct $name {
+                pub(super) a: $kind<f64>,
+                pub(super) b: $kind<Pose>,
+                pub(super) c: $kind<u64>,
+            }
+        };
+    }
+    group!(CtoE, VirtualEffector, Out);
+    group!(CfromE, VirtualEffector, In);
+    group!(EtoC, Control, Out);
+    group!(EfromC, Control, In);
+
+    #[derive(Debug, Default, Buffers)]
+    pub(super) struct COut {
+        pub(super) e: CtoE,
+    }
+    #[derive(Debug, Default, Buffers)]
+    pub(super) struct CIn {
+        pub(super) e: CfromE,
+    }
+    #[derive(Debug, Default, Buffers)]
+    pub(super) struct EOut {
+        pub(super) c: EtoC,
+    }
+    #[derive(Debug, Default, Buffers)]
+    pub(super) struct EIn {
+        pub(super) c: EfromC,
+    }
+
+    #[derive(Debug, Default, Memory)]
+    pub(super) struct Count {
+        n: u64,
+    }
+
+    #[derive(Subsystem)]
+    #[subsystem(kind = Control, memory = Count, input = CIn, output = COut)]
+    pub(super) struct Ctl;
+
+    #[derive(Subsystem)]
+    #[subsystem(kind = VirtualEffector, memory = Count, input = EIn, output = EOut)]
+    pub(super) struct Eff;
+
+    fn command(m: &Count, x: &CIn, y: &mut CtoE) {
+        let a = x.e.a.get().copied().unwrap_or(0.0);
+        let p = x.e.b.get().copied().unwrap_or_default();
+        y.a.set(a + 1.0);
+        y.b.set(Pose {
+            x: p.x + 0.5,
+            y: p.y,
+            phi: a,
+        });
+        y.c.set(m.n);
+    }
+
+    fn count_parity(m: &mut Count, x: &CIn) {
+        m.n += x.e.c.get().copied().unwrap_or(1) & 1;
+    }
+
+    fn answer(m: &Count, x: &EIn, y: &mut EtoC) {
+        y.a.set(x.c.a.get().copied().unwrap_or(0.0) * 0.5);
+        y.b.set(x.c.b.get().copied().unwrap_or_default());
+        y.c.set(m.n + 1);
+    }
+
+    fn tick(m: &mut Count, _: &EIn) {
+        m.n += 1;
+    }
+
+    pub(super) fn pair() -> Result<System, Box<dyn std::error::Error>> {
+        let period = Period::from_millis(1)?;
+        let mut b = SystemBuilder::new();
+        let a = b.agent("bench");
+        let ctl = fsm! {
+            subsystem Ctl;
+            while run until false { e <- command, memory <- count_parity }
+            initial run;
+        }?;
+        let eff = fsm! {
+            subsystem Eff;
+            while run until false { c <- answer, memory <- tick }
+            initial run;
+        }?;
+        let c = b.subsystem(a, "c", period, Count::default(), ctl);
+        let e = b.subsystem(a, "e", period, Count::default(), eff);
+        let queue = Policy::queue(4);
+        b.connect(
+            c.output(port!(COut, e.a)),
+            e.input(port!(EIn, c.a)),
+            Policy::Sample,
+        );
+        b.connect(
+            c.output(port!(COut, e.b)),
+            e.input(port!(EIn, c.b)),
+            Policy::Sample,
+        );
+        b.connect(c.output(port!(COut, e.c)), e.input(port!(EIn, c.c)), queue);
+        b.connect(
+            e.output(port!(EOut, c.a)),
+            c.input(port!(CIn, e.a)),
+            Policy::Sample,
+        );
+        b.connect(
+            e.output(port!(EOut, c.b)),
+            c.input(port!(CIn, e.b)),
+            Policy::Sample,
+        );
+        b.connect(e.output(port!(EOut, c.c)), c.input(port!(CIn, e.c)), queue);
+        Ok(b.build()?)
+    }
+
+    #[derive(Debug, Default, Memory)]
+    pub(super) struct Tick {
+        pub(super) n: u64,
+    }
+
+    #[derive(Subsystem)]
+    #[subsystem(kind = Control, memory = Tick, input = (), output = ())]
+    pub(super) struct Chooser;
+
+    fn done(m: &Tick, _: &()) -> bool {
+        m.n < u64::MAX
+    }
+
+    fn odd(m: &Tick, _: &()) -> bool {
+        m.n & 1 == 1
+    }
+
+    pub(super) fn chooser_fsm() -> Result<Fsm<Chooser>, FsmBuildError> {
+        fsm! {
+            subsystem Chooser;
+            predicates { done, odd }
+            while a until done { }
+            while b until done { }
+            while c until done { }
+            initial a;
+            a -> b when odd;
+            a -> c when !odd;
+            b -> c when odd;
+            b -> a when !odd;
+            c -> a when odd;
+            c -> b when !odd;
+        }
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -243,59 +407,123 @@ const BATCH: u64 = 20_000;
 const ACTIONS_PER_CYCLE: u64 = 2;
 const BATCHES: usize = 101;
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // Elementary actions in the executor.
-    let mut exec = Executor::new(pair()?, ExecConfig::default());
-    exec.run_for(Duration::from_millis(BATCH))?; // warm-up: buffers and queues filled
-    let warm_up = exec.report().instants;
-    let mut action_ns = Vec::with_capacity(BATCHES);
-    let mut allocations = 0;
-    let mut cycles = 0;
-    let mut actions = 0;
-    for _ in 0..BATCHES {
+/// Elementary actions of one executor, batch by batch.
+struct ActionBench {
+    exec: Executor,
+    warm_up: u64,
+    action_ns: Vec<f64>,
+    allocations: u64,
+    cycles: u64,
+}
+
+impl ActionBench {
+    fn new(system: System) -> Result<ActionBench, ExecError> {
+        let mut exec = Executor::new(system, ExecConfig::default());
+        exec.run_for(Duration::from_millis(BATCH))?; // warm-up: buffers and queues filled
+        let warm_up = exec.report().instants;
+        Ok(ActionBench {
+            exec,
+            warm_up,
+            action_ns: Vec::with_capacity(BATCHES),
+            allocations: 0,
+            cycles: 0,
+        })
+    }
+
+    fn batch(&mut self) -> Result<(), ExecError> {
         let before = ALLOCATIONS.load(Relaxed);
         let start = Instant::now();
         for _ in 0..BATCH {
-            exec.step()?;
+            self.exec.step()?;
         }
         let elapsed = start.elapsed();
-        allocations += ALLOCATIONS.load(Relaxed) - before;
-        cycles += BATCH;
-        actions += ACTIONS_PER_CYCLE * BATCH;
-        action_ns.push(elapsed.as_nanos() as f64 / (ACTIONS_PER_CYCLE * BATCH) as f64);
+        self.allocations += ALLOCATIONS.load(Relaxed) - before;
+        self.cycles += BATCH;
+        self.action_ns
+            .push(elapsed.as_nanos() as f64 / (ACTIONS_PER_CYCLE * BATCH) as f64);
+        Ok(())
     }
-    let executed = exec.report().instants - warm_up;
-    if executed != cycles || exec.report().error_count != 0 {
-        return Err(format!(
-            "expected {cycles} error-free instants, the executor ran {executed} ({} errors)",
-            exec.report().error_count
-        )
-        .into());
-    }
-    let action = median(action_ns);
-    // Per cycle (one executor instant), not per action.
-    let allocs = allocations as f64 / cycles as f64;
 
-    // FSM decisions.
-    let fsm = chooser_fsm()?;
-    let mut state = fsm.start();
-    let mut fsm_ns = Vec::with_capacity(BATCHES);
-    let mut m = 0u64;
-    for _ in 0..BATCHES {
-        let start = Instant::now();
-        for _ in 0..BATCH {
-            m = m.wrapping_add(1);
-            let step = fsm.step(&mut state, black_box(&m), &())?;
-            black_box(step);
+    /// Median ns per action and allocations per cycle, after checking that every
+    /// measured instant ran without error.
+    fn result(self) -> Result<(f64, f64, u64), Box<dyn std::error::Error>> {
+        let report = self.exec.report();
+        let executed = report.instants - self.warm_up;
+        if executed != self.cycles || report.error_count != 0 {
+            return Err(format!(
+                "expected {} error-free instants, the executor ran {executed} ({} errors)",
+                self.cycles, report.error_count
+            )
+            .into());
         }
-        fsm_ns.push(start.elapsed().as_nanos() as f64 / BATCH as f64);
+        Ok((
+            median(self.action_ns),
+            self.allocations as f64 / self.cycles as f64,
+            self.allocations,
+        ))
     }
-    let decision = median(fsm_ns);
+}
+
+/// One batch of FSM decisions that each end a behaviour: ns per decision.
+fn fsm_batch<S: Subsystem<Input = ()>>(
+    fsm: &Fsm<S>,
+    state: &mut FsmState,
+    memory: &mut S::Memory,
+    bump: fn(&mut S::Memory),
+) -> Result<f64, FsmFault> {
+    let start = Instant::now();
+    for _ in 0..BATCH {
+        bump(memory);
+        let step = fsm.step(state, black_box(&*memory), &())?;
+        black_box(step);
+    }
+    Ok(start.elapsed().as_nanos() as f64 / BATCH as f64)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // Elementary actions in the executor: hand-written and macro-built pairs in
+    // alternating batches, so that both see the same machine state.
+    let mut hand = ActionBench::new(pair()?)?;
+    let mut macros = ActionBench::new(with_macros::pair()?)?;
+    for _ in 0..BATCHES {
+        hand.batch()?;
+        macros.batch()?;
+    }
+    let cycles = hand.cycles;
+    let actions = ACTIONS_PER_CYCLE * cycles;
+    let (action, allocs, allocations) = hand.result()?;
+    let (macro_action, macro_allocs, _) = macros.result()?;
+
+    // FSM decisions, alternating likewise.
+    let (fsm, macro_fsm) = (chooser_fsm()?, with_macros::chooser_fsm()?);
+    let (mut state, mut macro_state) = (fsm.start(), macro_fsm.start());
+    let (mut m, mut macro_m) = (0u64, with_macros::Tick::default());
+    let (mut fsm_ns, mut macro_fsm_ns) = (Vec::new(), Vec::new());
+    for _ in 0..BATCHES {
+        fsm_ns.push(fsm_batch(&fsm, &mut state, &mut m, |m| {
+            *m = m.wrapping_add(1)
+        })?);
+        macro_fsm_ns.push(fsm_batch(
+            &macro_fsm,
+            &mut macro_state,
+            &mut macro_m,
+            |m| m.n = m.n.wrapping_add(1),
+        )?);
+    }
+    let (decision, macro_decision) = (median(fsm_ns), median(macro_fsm_ns));
 
     println!(
-        "{cycles} cycles = {actions} actions ({BATCHES} batches of {BATCH} instants, \
-         {ACTIONS_PER_CYCLE} actions each), {allocations} allocations in them, {} FSM decisions",
+        "{cycles} cycles = {actions} actions per pair ({BATCHES} batches of {BATCH} instants, \
+         {ACTIONS_PER_CYCLE} actions each), {allocations} allocations in them (hand-written), \
+         {} FSM decisions each",
         BATCHES as u64 * BATCH
+    );
+    println!(
+        "macro_action_ns={macro_action:.1} macro_fsm_step_ns={macro_decision:.1} \
+         macro_allocs_per_cycle={macro_allocs} macro_over_hand_action={:.3} \
+         macro_over_hand_fsm_step={:.3}",
+        macro_action / action,
+        macro_decision / decision
     );
     println!(
         "against the targets: action {:.2}x of 50 ns, FSM step {:.2}x of 20 ns (below 1 is better)",

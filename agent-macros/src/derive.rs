@@ -95,8 +95,9 @@ const PEERS: [&str; 5] = [
     "RealReceptor",
 ];
 
-/// Read `#[name(key = Value)]` attributes into `(key, value ident)` pairs.
-fn attr_pairs(input: &DeriveInput, name: &str) -> syn::Result<Vec<(Ident, syn::Path)>> {
+/// Read `#[name(key = Value)]` attributes into `(key, value)` pairs; a value is a
+/// type (`StationMemory`, `()`, `Vec<u8>`) or a kind (`Control`).
+fn attr_pairs(input: &DeriveInput, name: &str) -> syn::Result<Vec<(Ident, Type)>> {
     let mut pairs = Vec::new();
     for attr in input.attrs.iter().filter(|a| a.path().is_ident(name)) {
         attr.parse_nested_meta(|meta| {
@@ -105,12 +106,20 @@ fn attr_pairs(input: &DeriveInput, name: &str) -> syn::Result<Vec<(Ident, syn::P
                 .get_ident()
                 .cloned()
                 .ok_or_else(|| meta.error("expected `key = value`"))?;
-            let value: syn::Path = meta.value()?.parse()?;
+            let value: Type = meta.value()?.parse()?;
             pairs.push((key, value));
             Ok(())
         })?;
     }
     Ok(pairs)
+}
+
+/// `Control` written as a type: its identifier.
+fn single_ident(ty: &Type) -> Option<Ident> {
+    match ty {
+        Type::Path(p) if p.qself.is_none() => p.path.get_ident().cloned(),
+        _ => None,
+    }
 }
 
 // ---------------------------------------------------------------------------
@@ -137,8 +146,7 @@ pub(crate) fn parse_group(input: DeriveInput) -> syn::Result<GroupModel> {
                 format!("unknown key `{key}`: `#[group(peer = <kind>)]` has only `peer`"),
             ));
         }
-        let ident = value.get_ident().cloned();
-        match ident {
+        match single_ident(&value) {
             Some(i) if PEERS.contains(&i.to_string().as_str()) => peer = Some(i),
             _ => {
                 return Err(syn::Error::new_spanned(
@@ -419,9 +427,9 @@ pub(crate) fn generate_memory(m: &MemoryModel) -> TokenStream {
 pub(crate) struct SubsystemModel {
     pub(crate) input: DeriveInput,
     pub(crate) kind: Ident,
-    pub(crate) memory: syn::Path,
-    pub(crate) inputs: syn::Path,
-    pub(crate) outputs: syn::Path,
+    pub(crate) memory: Type,
+    pub(crate) inputs: Type,
+    pub(crate) outputs: Type,
 }
 
 const KINDS: [&str; 3] = ["Control", "VirtualEffector", "VirtualReceptor"];
@@ -430,8 +438,8 @@ pub(crate) fn parse_subsystem(input: DeriveInput) -> syn::Result<SubsystemModel>
     let (mut kind, mut memory, mut inputs, mut outputs) = (None, None, None, None);
     for (key, value) in attr_pairs(&input, "subsystem")? {
         match key.to_string().as_str() {
-            "kind" => match value.get_ident() {
-                Some(i) if KINDS.contains(&i.to_string().as_str()) => kind = Some(i.clone()),
+            "kind" => match single_ident(&value) {
+                Some(i) if KINDS.contains(&i.to_string().as_str()) => kind = Some(i),
                 _ => {
                     return Err(syn::Error::new_spanned(
                         value,
