@@ -146,3 +146,89 @@ fn help_explains_each_command() {
         );
     }
 }
+
+/// `embodied new` makes a crate that compiles and whose tests run, from Rex's spec
+/// (three agents, devices, links between agents).
+#[test]
+fn new_scaffolds_a_crate_that_compiles_and_passes_its_tests() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scaffold-rex");
+    let _ = std::fs::remove_dir_all(&dir);
+    let target = dir.to_str().unwrap();
+    let (code, stdout, stderr) = embodied(&[
+        "new",
+        "rex-app",
+        "--spec",
+        "specs/rex.ron",
+        "--path",
+        target,
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("created"), "{stdout}");
+    for f in [
+        "Cargo.toml",
+        "README.md",
+        "spec.ron",
+        "src/logic/c1.rs",
+        "src/devices.rs",
+        "tests/properties.rs",
+    ] {
+        assert!(dir.join(f).exists(), "{f} is made");
+    }
+    // The same dependency versions as this workspace, so that the build is offline.
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.lock"),
+        dir.join("Cargo.lock"),
+    )
+    .unwrap();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .args(["test", "--offline", "--quiet"])
+        .current_dir(&dir)
+        .env(
+            "CARGO_TARGET_DIR",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/target/scaffold"),
+        )
+        .output()
+        .expect("cargo runs");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("8 passed; 0 failed; 7 ignored"),
+        "structure, run and six action properties pass; seven termination properties wait: {stdout}"
+    );
+    assert!(
+        !stderr.contains("warning"),
+        "the crate builds without warnings: {stderr}"
+    );
+
+    // Not over an existing crate, not from a broken spec, not with a bad name.
+    let (code, _, stderr) = embodied(&[
+        "new",
+        "rex-app",
+        "--spec",
+        "specs/rex.ron",
+        "--path",
+        target,
+    ]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("not empty"), "{stderr}");
+    let (code, _, stderr) = embodied(&[
+        "new",
+        "x",
+        "--spec",
+        "tests/specs/invalid/arcs_overlap.ron",
+        "--path",
+        target,
+    ]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("spec::arcs_overlap") && stderr.contains("no crate was made"),
+        "{stderr}"
+    );
+    let (code, _, stderr) = embodied(&["new", "Rex App", "--spec", "specs/rex.ron"]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("not a valid crate name"), "{stderr}");
+}

@@ -11,7 +11,6 @@ mod twin;
 use std::time::Duration;
 
 use embodied::spec::export::{spec_of, to_ron};
-use embodied::spec::model::Spec;
 use embodied::*;
 
 const HORIZON: Time = Time::from_nanos(600_000_000_000);
@@ -81,43 +80,10 @@ fn the_twin_exports_specs_tank_ron() {
     assert!(report.is_ok(), "{}", report.short());
     let committed = committed.expect("parses");
     assert_eq!(
-        without_docs(committed),
-        without_docs(exported),
+        committed.structure(),
+        exported.structure(),
         "specs/tank.ron differs from the twin's export; the export is:\n{text}"
     );
-}
-
-/// The spec without what a person adds: docs, `reads`, `writes`, deployments.
-fn without_docs(mut spec: Spec) -> Spec {
-    spec.doc = None;
-    spec.deployments.clear();
-    for a in &mut spec.agents {
-        a.doc = None;
-        for s in &mut a.subsystems {
-            s.doc = None;
-            s.memory.iter_mut().for_each(|m| m.doc = None);
-            for g in s.inputs.iter_mut().chain(&mut s.outputs) {
-                g.buffers.iter_mut().for_each(|b| b.doc = None);
-            }
-            s.predicates.iter_mut().for_each(|p| {
-                p.doc = None;
-                p.reads.clear();
-            });
-            s.functions.iter_mut().for_each(|f| {
-                f.doc = None;
-                f.reads.clear();
-                f.writes.clear();
-            });
-            s.behaviours.iter_mut().for_each(|b| b.doc = None);
-        }
-        for d in &mut a.devices {
-            d.doc = None;
-            for g in d.inputs.iter_mut().chain(&mut d.outputs) {
-                g.buffers.iter_mut().for_each(|b| b.doc = None);
-            }
-        }
-    }
-    spec
 }
 
 #[test]

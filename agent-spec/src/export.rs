@@ -404,3 +404,25 @@ pub fn to_ron(spec: &Spec) -> Result<String, ExportError> {
         .to_string_pretty(spec, config)
         .map_err(|e| ExportError::Ron(e.to_string()))
 }
+
+/// Where two specs differ, for a person: the first line of their RON texts that
+/// differs, with the lines before it, or `None` if they are equal. Compare
+/// [`Spec::structure`]s to ignore docs, reads, writes and deployments.
+pub fn difference(expected: &Spec, actual: &Spec) -> Option<String> {
+    if expected == actual {
+        return None;
+    }
+    let text = |s: &Spec| to_ron(s).unwrap_or_else(|_| format!("{s:#?}"));
+    let (a, b) = (text(expected), text(actual));
+    let (la, lb): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
+    let i = (0..la.len().max(lb.len()))
+        .find(|&i| la.get(i) != lb.get(i))
+        .unwrap_or(0);
+    let context = la[i.saturating_sub(4)..i.min(la.len())].join("\n");
+    Some(format!(
+        "the specs differ at line {}:\n{context}\n- expected: {}\n+ actual:   {}",
+        i + 1,
+        la.get(i).map_or("(end)", |l| l.trim()),
+        lb.get(i).map_or("(end)", |l| l.trim()),
+    ))
+}

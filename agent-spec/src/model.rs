@@ -329,6 +329,54 @@ impl Spec {
     pub fn subsystem(&self, name: &str) -> Option<&Subsystem> {
         self.subsystems().map(|(_, s)| s).find(|s| s.name == name)
     }
+
+    /// The structure without what a person writes for people and what code cannot
+    /// tell: docs, the `reads` and `writes` of functions and predicates, and
+    /// deployments; and without orders that mean nothing: functions and predicates
+    /// are sorted by name, and so are the functions of each behaviour (their
+    /// evaluation order is fixed by their targets: common, outputs, memory). Two
+    /// specs with the same structure describe the same system; the spec exported
+    /// from code ([`crate::export`]) has only this much.
+    pub fn structure(&self) -> Spec {
+        let mut spec = self.clone();
+        spec.doc = None;
+        spec.deployments.clear();
+        let clear_groups = |groups: &mut Vec<Group>| {
+            for g in groups {
+                g.buffers.iter_mut().for_each(|b| b.doc = None);
+            }
+        };
+        for a in &mut spec.agents {
+            a.doc = None;
+            for s in &mut a.subsystems {
+                s.doc = None;
+                s.memory.iter_mut().for_each(|m| m.doc = None);
+                clear_groups(&mut s.inputs);
+                clear_groups(&mut s.outputs);
+                for p in &mut s.predicates {
+                    p.doc = None;
+                    p.reads.clear();
+                }
+                for f in &mut s.functions {
+                    f.doc = None;
+                    f.reads.clear();
+                    f.writes.clear();
+                }
+                s.functions.sort_by(|a, b| a.name.cmp(&b.name));
+                s.predicates.sort_by(|a, b| a.name.cmp(&b.name));
+                for b in &mut s.behaviours {
+                    b.doc = None;
+                    b.functions.sort();
+                }
+            }
+            for d in &mut a.devices {
+                d.doc = None;
+                clear_groups(&mut d.inputs);
+                clear_groups(&mut d.outputs);
+            }
+        }
+        spec
+    }
 }
 
 impl Subsystem {
