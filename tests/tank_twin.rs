@@ -146,3 +146,37 @@ fn fsm_parts_carry_their_function_names() {
     assert_eq!(names, ["acknowledge", "stop_pump", "forget_order"]);
     assert_eq!(shape.relations.len(), 1);
 }
+
+#[test]
+fn a_group_without_links_has_no_peer_to_export() {
+    // The station and the operator alone: the station's groups towards its filter and
+    // pump controller are linked to nothing.
+    let mut sys = SystemBuilder::new();
+    let (station_agent, operator_agent) = (sys.agent("station"), sys.agent("operator"));
+    let period = Period::from_millis(50).expect("a period");
+    let station = sys.subsystem(
+        station_agent,
+        "c1",
+        period,
+        twin::StationMemory::new(agent::StationParams::default()),
+        twin::station_fsm().expect("builds"),
+    );
+    let operator = sys.subsystem(
+        operator_agent,
+        "c2",
+        period,
+        twin::OperatorMemory::default(),
+        twin::operator_fsm().expect("builds"),
+    );
+    sys.connect(
+        operator.output(port!(twin::OperatorOutput, station.order)),
+        station.input(port!(twin::StationInput, operator.order)),
+        Policy::queue(4),
+    );
+    let system = sys.build().expect("an incomplete system still builds");
+    let e = spec_of("partial", system.info()).expect_err("unlinked groups");
+    assert_eq!(
+        e.to_string(),
+        "group `filter` of `c1` is not linked to anything, so its peer cannot be named"
+    );
+}

@@ -962,7 +962,7 @@ mod tests {
     use super::*;
     use crate::buffer::{In, NodeKind, Out};
     use crate::subsystem::SubsystemKind;
-    use crate::transition::Action;
+    use crate::transition::{Action, PartTarget};
     use crate::{Group, Stamp, Time};
 
     struct S;
@@ -1000,6 +1000,70 @@ mod tests {
             .predicate("go", |_, x: &X| x.go.get() == Some(&true))
             .predicate("stop", |_, x: &X| x.stop.get() == Some(&true))
             .predicate("three", |m: &u32, _| *m >= 3)
+    }
+
+    #[test]
+    fn the_description_names_parts_relations_arcs_and_finals() {
+        let fsm = builder()
+            .exclusive(["go", "stop"])
+            .implies("three", "go")
+            .behaviour(Behaviour::repeat_loop(
+                "run",
+                count().named("tick").__at_field("e"),
+                "three",
+            ))
+            .behaviour(Behaviour::while_loop("rest", Action::new(), "false"))
+            .initial("run")
+            .arc("run", "rest", "true")
+            .build()
+            .expect("a valid FSM");
+        let d = fsm.describe();
+        assert_eq!(d.predicates, ["go", "stop", "three"]);
+        assert_eq!(d.relations.len(), 2);
+        assert_eq!(d.relations[1].names(), ["three", "go"]);
+        assert_eq!(d.initial, "run");
+        assert_eq!(d.arcs, [("run".into(), "rest".into(), "true".into())]);
+        assert!(d.finals.is_empty());
+        let parts = &d.behaviours[0].parts;
+        // `named` names the part added last (the output of `count`); the memory
+        // part stays unnamed. Outputs come before the memory part, as they run.
+        let names: Vec<_> = parts.iter().map(|p| p.name.as_deref()).collect();
+        assert_eq!(names, [Some("tick"), None]);
+        assert!(matches!(
+            parts[0].target,
+            PartTarget::Output {
+                field: Some("e"),
+                ..
+            }
+        ));
+        assert_eq!(d.behaviours[1].kind, BehaviourKind::While);
+    }
+
+    #[test]
+    fn relations_must_name_declared_predicates() {
+        let err = builder()
+            .exclusive(["go", "gone"])
+            .behaviour(Behaviour::while_loop("rest", Action::new(), "false"))
+            .initial("rest")
+            .build()
+            .expect_err("unknown predicate");
+        assert_eq!(
+            err.problems,
+            [FsmProblem::UnknownPredicate {
+                place: "a relation".into(),
+                name: "gone".into()
+            }]
+        );
+        let err = Fsm::<S>::builder()
+            .behaviour(Behaviour::while_loop(
+                "rest",
+                Action::new().named("x"),
+                "false",
+            ))
+            .initial("rest")
+            .build()
+            .expect_err("named before any part");
+        assert!(matches!(&err.problems[0], FsmProblem::Action { .. }));
     }
 
     fn input(go: bool, stop: bool) -> X {
