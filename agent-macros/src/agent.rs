@@ -18,6 +18,7 @@ use quote::{format_ident, quote};
 use syn::parse::{Parse, ParseStream};
 use syn::{Ident, LitStr, Token};
 
+use crate::chain::{self, Chain};
 use crate::util::runtime;
 
 /// The arguments.
@@ -161,23 +162,20 @@ fn findings_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
     all.unwrap_or_else(|| syn::Error::new(file.span(), "the spec has errors"))
 }
 
-/// A Rust identifier for a spec name (raw if it is a keyword).
+/// Names that are identifiers in a spec but can be no Rust identifier, not even raw.
+const UNUSABLE: [&str; 5] = ["self", "Self", "super", "crate", "_"];
+
+/// A Rust identifier for a spec name (raw if it is a keyword). [`generate`] refuses
+/// the names in [`UNUSABLE`] first.
 fn ident(name: &str) -> Ident {
-    syn::parse_str::<Ident>(name).unwrap_or_else(|_| Ident::new_raw(name, Span::call_site()))
+    if agent_spec::names::KEYWORDS.contains(&name) {
+        Ident::new_raw(name, Span::call_site())
+    } else {
+        Ident::new(name, Span::call_site())
+    }
 }
 
-/// `pump_control` -> `PumpControl`, `e11` -> `E11`.
-pub(crate) fn camel(name: &str) -> String {
-    name.split('_')
-        .filter(|p| !p.is_empty())
-        .map(|p| {
-            let mut c = p.chars();
-            c.next()
-                .map(|f| f.to_uppercase().chain(c).collect::<String>())
-                .unwrap_or_default()
-        })
-        .collect()
-}
+use agent_spec::names::type_name as camel;
 
 /// The component kinds of the spec, by name.
 fn peer_kind(spec: &Spec, name: &str) -> &'static str {
@@ -450,48 +448,60 @@ fn subsystem(
     }
 
     // The FSM over an implementation `F`.
-    let predicates = sub.predicates.iter().map(|p| {
-        let (n, f) = (&p.name, ident(&p.name));
-        quote!(.predicate(#n, F::#f))
-    });
-    let relations = sub.relations.iter().map(|r| match r {
-        model::Relation::Exclusive(v) => quote!(.exclusive([#(#v),*])),
-        model::Relation::Implies(a, b) => quote!(.implies(#a, #b)),
-    });
-    let behaviours = sub.behaviours.iter().map(|b| {
-        let name = &b.name;
-        let kind = match b.kind {
-            model::BehaviourKind::While => quote!(#rt::BehaviourKind::While),
-            model::BehaviourKind::Repeat => quote!(#rt::BehaviourKind::Repeat),
-        };
-        let parts = b.functions.iter().filter_map(|fname| {
-            let f = sub.functions.iter().find(|f| &f.name == fname)?;
-            let id = ident(fname);
-            Some(match &f.target {
-                model::Target::Memory => quote!(.memory(F::#id).named(#fname)),
-                model::Target::Common => quote!(.common(F::#id).named(#fname)),
-                model::Target::Output(peer) => {
-                    let field = ident(peer);
-                    quote!(.output(|y| &mut y.#field, F::#id).named(#fname).__at_field(#peer))
-                }
+    let fsm = Chain {
+        subsystem: quote!(#marker),
+        predicates: sub
+            .predicates
+            .iter()
+            .map(|p| {
+                let f = ident(&p.name);
+                (p.name.clone(), quote!(F::#f))
             })
-        });
-        let terminal = &b.terminal;
-        quote! {
-            .behaviour(#rt::Behaviour::new(
-                #name,
-                #kind,
-                #rt::Action::<#marker>::new() #(#parts)*,
-                #terminal,
-            ))
-        }
-    });
-    let initial = sub.fsm.initial.as_ref().map(|i| quote!(.initial(#i)));
-    let arcs = sub.fsm.arcs.iter().map(|a| {
-        let (f, t, w) = (&a.from, &a.to, &a.when);
-        quote!(.arc(#f, #t, #w))
-    });
-    let finals = sub.fsm.finals.iter().map(|f| quote!(.final_behaviour(#f)));
+            .collect(),
+        relations: sub
+            .relations
+            .iter()
+            .map(|r| match r {
+                model::Relation::Exclusive(v) => chain::Relation::Exclusive(v.clone()),
+                model::Relation::Implies(a, b) => chain::Relation::Implies(a.clone(), b.clone()),
+            })
+            .collect(),
+        behaviours: sub
+            .behaviours
+            .iter()
+            .map(|b| chain::Behaviour {
+                name: b.name.clone(),
+                repeat: b.kind == model::BehaviourKind::Repeat,
+                terminal: b.terminal.clone(),
+                parts: b
+                    .functions
+                    .iter()
+                    .filter_map(|name| {
+                        let f = sub.functions.iter().find(|f| &f.name == name)?;
+                        let id = ident(name);
+                        Some(chain::Part {
+                            name: name.clone(),
+                            target: match &f.target {
+                                model::Target::Memory => chain::Target::Memory,
+                                model::Target::Common => chain::Target::Common,
+                                model::Target::Output(peer) => chain::Target::Output(ident(peer)),
+                            },
+                            function: quote!(F::#id),
+                        })
+                    })
+                    .collect(),
+            })
+            .collect(),
+        initial: sub.fsm.initial.clone(),
+        arcs: sub
+            .fsm
+            .arcs
+            .iter()
+            .map(|a| (a.from.clone(), a.to.clone(), a.when.clone()))
+            .collect(),
+        finals: sub.fsm.finals.clone(),
+    }
+    .generate();
 
     let name = &sub.name;
     let period = sub.period_ms;
@@ -535,14 +545,7 @@ fn subsystem(
 
             /// The spec's FSM of this subsystem, over the functions of `F`.
             pub fn fsm<F: Functions>() -> ::core::result::Result<#rt::Fsm<#marker>, #rt::FsmBuildError> {
-                #rt::FsmBuilder::<#marker>::new()
-                    #(#predicates)*
-                    #(#relations)*
-                    #(#behaviours)*
-                    #initial
-                    #(#arcs)*
-                    #(#finals)*
-                    .build()
+                #fsm
             }
         }
     })
@@ -585,6 +588,30 @@ fn device(found: &Found, file: &LitStr, d: usize, dev: &model::Device) -> syn::R
     })
 }
 
+/// A name of the agent that Rust cannot take as an identifier, if any.
+fn unusable_name(agent: &model::Agent) -> Option<&str> {
+    fn groups(g: &[model::Group]) -> impl Iterator<Item = &str> {
+        g.iter().flat_map(|g| {
+            std::iter::once(g.peer.as_str()).chain(g.buffers.iter().map(|b| b.name.as_str()))
+        })
+    }
+    let mut names: Vec<&str> = Vec::new();
+    for s in &agent.subsystems {
+        names.push(&s.name);
+        names.extend(s.memory.iter().map(|m| m.name.as_str()));
+        names.extend(groups(&s.inputs));
+        names.extend(groups(&s.outputs));
+        names.extend(s.functions.iter().map(|f| f.name.as_str()));
+        names.extend(s.predicates.iter().map(|p| p.name.as_str()));
+    }
+    for d in &agent.devices {
+        names.push(&d.name);
+        names.extend(groups(&d.inputs));
+        names.extend(groups(&d.outputs));
+    }
+    names.into_iter().find(|n| UNUSABLE.contains(n))
+}
+
 /// Generate stage.
 pub(crate) fn generate(
     found: &Found,
@@ -592,6 +619,15 @@ pub(crate) fn generate(
     tracked: Option<&Path>,
 ) -> syn::Result<TokenStream> {
     let agent = &found.loaded.spec.agents[found.agent];
+    if let Some(name) = unusable_name(agent) {
+        return Err(syn::Error::new(
+            args.spec.span(),
+            format!(
+                "{}: the name `{name}` in agent `{}` cannot be a Rust identifier; rename it in the spec",
+                found.loaded.file, agent.name
+            ),
+        ));
+    }
     let mut items = Vec::new();
     for (s, sub) in agent.subsystems.iter().enumerate() {
         items.push(subsystem(found, args, s, sub)?);
@@ -707,7 +743,7 @@ mod tests {
             "fn ce (memory : & Memory , input : & Input , output : & mut ToE1)",
             "fn cc (memory : & mut Memory , input : & Input)",
             "fn finished (memory : & Memory , input : & Input) -> bool",
-            ". output (| y | & mut y . e1 , F :: ce) . named (\"ce\") . __at_field (\"e1\")",
+            ". output (| __y | & mut __y . e1 , F :: ce) . named (\"ce\") . __at_field (\"e1\")",
             ". arc (\"run\" , \"rest\" , \"true\")",
             "pub mod e1",
         ] {
@@ -742,9 +778,13 @@ mod tests {
     }
 
     #[test]
-    fn names() {
-        assert_eq!(camel("pump_control"), "PumpControl");
-        assert_eq!(camel("e11"), "E11");
+    fn keywords_become_raw_identifiers_and_self_is_refused() {
         assert_eq!(ident("type").to_string(), "r#type");
+        assert_eq!(ident("A4x4").to_string(), "A4x4");
+        let a = args(quote!(spec = "t.ron", agent = "a"));
+        let found = load(&a.spec, SPEC.replace("\"count\"", "\"self\""), &a.agent)
+            .expect("the checker takes `self` as a name");
+        let e = generate(&found, &a, None).expect_err("not an identifier");
+        assert!(e.to_string().contains("`self`"), "{e}");
     }
 }

@@ -26,12 +26,12 @@
 use std::collections::HashMap;
 
 use proc_macro2::{Span, TokenStream, TokenTree};
-use quote::{ToTokens, format_ident, quote, quote_spanned};
+use quote::{ToTokens, quote};
 use syn::parse::{Parse, ParseStream};
 use syn::punctuated::Punctuated;
-use syn::spanned::Spanned;
 use syn::{Expr, Ident, Token, braced, parenthesized};
 
+use crate::chain::{self, Chain};
 use crate::synth::{self, Cond, SynthFsm};
 use crate::util::runtime;
 
@@ -455,82 +455,71 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
 /// Generate stage: the `FsmBuilder` chain, evaluating to
 /// `Result<Fsm<S>, FsmBuildError>`.
 pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
-    let rt = runtime();
-    let s = &d.subsystem;
     let names = part_names(d);
-    let predicates = d.predicates.iter().map(|p| {
-        let n = p.name.to_string();
-        let f = p
-            .function
-            .as_ref()
-            .map_or_else(|| p.name.to_token_stream(), ToTokens::to_token_stream);
-        quote_spanned!(f.span()=> .predicate(#n, #f))
-    });
-    let relations = d.relations.iter().map(|r| match r {
-        RelationDecl::Exclusive(v) => {
-            let v = v.iter().map(Ident::to_string);
-            quote!(.exclusive([#(#v),*]))
-        }
-        RelationDecl::Implies(a, b) => {
-            let (a, b) = (a.to_string(), b.to_string());
-            quote!(.implies(#a, #b))
-        }
-    });
-    let behaviours = d.behaviours.iter().zip(&names).map(|(b, names)| {
-        let name = b.name.to_string();
-        let kind = match b.kind {
-            Kind::While => quote!(#rt::BehaviourKind::While),
-            Kind::Repeat => quote!(#rt::BehaviourKind::Repeat),
-        };
-        let terminal = b.terminal.text();
-        let parts = b.parts.iter().zip(names).map(|(p, n)| {
-            let f = &p.function;
-            match &p.target {
-                TargetDecl::Memory(_) => quote!(.memory(#f).named(#n)),
-                TargetDecl::Common(_) => quote!(.common(#f).named(#n)),
-                TargetDecl::Output(field) => {
-                    let y = format_ident!("__y", span = field.span());
-                    let fs = field.to_string();
-                    let projection = quote_spanned!(field.span()=> |#y| &mut #y.#field);
-                    quote!(.output(#projection, #f).named(#n).__at_field(#fs))
+    Chain {
+        subsystem: d.subsystem.to_token_stream(),
+        predicates: d
+            .predicates
+            .iter()
+            .map(|p| {
+                let f = p
+                    .function
+                    .as_ref()
+                    .map_or_else(|| p.name.to_token_stream(), ToTokens::to_token_stream);
+                (p.name.to_string(), f)
+            })
+            .collect(),
+        relations: d
+            .relations
+            .iter()
+            .map(|r| match r {
+                RelationDecl::Exclusive(v) => {
+                    chain::Relation::Exclusive(v.iter().map(Ident::to_string).collect())
                 }
-            }
-        });
-        quote! {
-            .behaviour(#rt::Behaviour::new(
-                #name,
-                #kind,
-                #rt::Action::<#s>::new() #(#parts)*,
-                #terminal,
-            ))
-        }
-    });
-    let initial = d.initial.as_ref().map(|i| {
-        let i = i.to_string();
-        quote!(.initial(#i))
-    });
-    let arcs = d.arcs.iter().map(|a| {
-        let (from, to) = (a.from.to_string(), a.to.to_string());
-        let when = a
-            .when
-            .as_ref()
-            .map_or_else(|| "true".to_owned(), Cond::text);
-        quote!(.arc(#from, #to, #when))
-    });
-    let finals = d.finals.iter().map(|f| {
-        let f = f.to_string();
-        quote!(.final_behaviour(#f))
-    });
-    quote! {
-        #rt::FsmBuilder::<#s>::new()
-            #(#predicates)*
-            #(#relations)*
-            #(#behaviours)*
-            #initial
-            #(#arcs)*
-            #(#finals)*
-            .build()
+                RelationDecl::Implies(a, b) => {
+                    chain::Relation::Implies(a.to_string(), b.to_string())
+                }
+            })
+            .collect(),
+        behaviours: d
+            .behaviours
+            .iter()
+            .zip(&names)
+            .map(|(b, names)| chain::Behaviour {
+                name: b.name.to_string(),
+                repeat: b.kind == Kind::Repeat,
+                terminal: b.terminal.text(),
+                parts: b
+                    .parts
+                    .iter()
+                    .zip(names)
+                    .map(|(p, n)| chain::Part {
+                        name: n.clone(),
+                        target: match &p.target {
+                            TargetDecl::Memory(_) => chain::Target::Memory,
+                            TargetDecl::Common(_) => chain::Target::Common,
+                            TargetDecl::Output(f) => chain::Target::Output(f.clone()),
+                        },
+                        function: p.function.to_token_stream(),
+                    })
+                    .collect(),
+            })
+            .collect(),
+        initial: d.initial.as_ref().map(Ident::to_string),
+        arcs: d
+            .arcs
+            .iter()
+            .map(|a| {
+                let when = a
+                    .when
+                    .as_ref()
+                    .map_or_else(|| "true".to_owned(), Cond::text);
+                (a.from.to_string(), a.to.to_string(), when)
+            })
+            .collect(),
+        finals: d.finals.iter().map(Ident::to_string).collect(),
     }
+    .generate()
 }
 
 /// The whole macro.

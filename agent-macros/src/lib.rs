@@ -17,6 +17,7 @@
 //! tested on token input.
 
 mod agent;
+mod chain;
 mod derive;
 mod fsm;
 mod synth;

@@ -22,6 +22,7 @@ pub mod diagram;
 pub mod export;
 mod logic;
 pub mod model;
+pub mod names;
 pub mod scaffold;
 pub mod span;
 

@@ -16,6 +16,7 @@ use std::path::PathBuf;
 
 use crate::Report;
 use crate::model::{DeviceKind, Spec, Target};
+use crate::names::{KEYWORDS, rust_ident as id, type_name as camel};
 
 /// Where the new crate finds `embodied`.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -63,36 +64,6 @@ const KNOWN: &[&str] = &[
     "i128", "isize", "f32", "f64", "String", "Option", "Vec", "VecDeque", "HashMap", "HashSet",
     "BTreeMap", "BTreeSet", "Box", "Result",
 ];
-
-const KEYWORDS: &[&str] = &[
-    "as", "break", "const", "continue", "crate", "else", "enum", "extern", "false", "fn", "for",
-    "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub", "ref", "return",
-    "self", "Self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use", "where",
-    "while", "async", "await", "dyn", "abstract", "become", "box", "do", "final", "macro",
-    "override", "priv", "typeof", "unsized", "virtual", "yield", "try", "gen",
-];
-
-/// A spec name as a Rust identifier.
-fn id(name: &str) -> String {
-    if KEYWORDS.contains(&name) {
-        format!("r#{name}")
-    } else {
-        name.to_owned()
-    }
-}
-
-/// `pump_control` -> `PumpControl`, `e11` -> `E11` (as `agent!` names markers).
-fn camel(name: &str) -> String {
-    name.split('_')
-        .filter(|p| !p.is_empty())
-        .map(|p| {
-            let mut c = p.chars();
-            c.next()
-                .map(|f| f.to_uppercase().chain(c).collect::<String>())
-                .unwrap_or_default()
-        })
-        .collect()
-}
 
 /// The type names in a spec type that need a placeholder: identifiers that are not
 /// standard, not part of a path (`nalgebra::Vector3` is the user's to import) and
