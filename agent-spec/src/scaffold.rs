@@ -98,11 +98,13 @@ fn unknown_types(ty: &str, out: &mut BTreeSet<String>) {
     }
 }
 
+/// The spec's doc text as doc comment lines, then an empty one before what follows.
 fn doc_lines(out: &mut String, indent: &str, text: Option<&String>) {
     if let Some(t) = text {
         for line in t.lines() {
             let _ = writeln!(out, "{indent}/// {line}");
         }
+        let _ = writeln!(out, "{indent}///");
     }
 }
 
