@@ -147,6 +147,31 @@ fn help_explains_each_command() {
     }
 }
 
+/// `cargo test` in a crate made by `embodied new`, offline, with the same dependency
+/// versions as this workspace and a target directory shared by such crates.
+fn cargo_test(dir: &std::path::Path) -> (bool, String, String) {
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.lock"),
+        dir.join("Cargo.lock"),
+    )
+    .unwrap();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .args(["test", "--offline", "--quiet"])
+        .current_dir(dir)
+        .env(
+            "CARGO_TARGET_DIR",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/target/scaffold"),
+        )
+        .output()
+        .expect("cargo runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// `embodied new` makes a crate that compiles and whose tests run, from Rex's spec
 /// (three agents, devices, links between agents).
 #[test]
@@ -174,27 +199,8 @@ fn new_scaffolds_a_crate_that_compiles_and_passes_its_tests() {
     ] {
         assert!(dir.join(f).exists(), "{f} is made");
     }
-    // The same dependency versions as this workspace, so that the build is offline.
-    std::fs::copy(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.lock"),
-        dir.join("Cargo.lock"),
-    )
-    .unwrap();
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        .args(["test", "--offline", "--quiet"])
-        .current_dir(&dir)
-        .env(
-            "CARGO_TARGET_DIR",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/target/scaffold"),
-        )
-        .output()
-        .expect("cargo runs");
-    let (stdout, stderr) = (
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr),
-    );
-    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let (ok, stdout, stderr) = cargo_test(&dir);
+    assert!(ok, "{stdout}\n{stderr}");
     assert!(
         stdout.contains("8 passed; 0 failed; 7 ignored"),
         "structure, run and six action properties pass; seven termination properties wait: {stdout}"
@@ -228,7 +234,73 @@ fn new_scaffolds_a_crate_that_compiles_and_passes_its_tests() {
         stderr.contains("spec::arcs_overlap") && stderr.contains("no crate was made"),
         "{stderr}"
     );
-    let (code, _, stderr) = embodied(&["new", "Rex App", "--spec", "specs/rex.ron"]);
+    for bad in ["Rex App", "serde", "type"] {
+        let (code, _, stderr) = embodied(&["new", bad, "--spec", "specs/rex.ron"]);
+        assert_eq!(code, 1, "{bad}");
+        assert!(stderr.contains("not a valid crate name"), "{stderr}");
+    }
+}
+
+/// The smallest system: one agent, one control subsystem without buffers, no
+/// devices, no links; a memory field and a function named by Rust keywords, and a
+/// period (9 ms) that is no round number of seconds. The crate still builds without
+/// a warning and its spec test passes.
+#[test]
+fn new_handles_a_system_without_devices_links_or_buffers() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scaffold-solo");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("solo.ron");
+    std::fs::write(
+        &spec,
+        r#"(
+    name: "counter",
+    agents: [(
+        name: "solo",
+        doc: "One subsystem.\nIt counts.",
+        subsystems: [(
+            name: "c1", kind: Control, period_ms: 9.0,
+            memory: [(name: "type", type: "u32")],
+            predicates: [(name: "done", reads: ["type"])],
+            functions: [(name: "move", target: Memory, reads: ["type"], writes: ["type"])],
+            behaviours: [
+                (name: "count", kind: Repeat, functions: ["move"], terminal: "done"),
+                (name: "rest", kind: While, terminal: "false"),
+            ],
+            fsm: (initial: "count", arcs: [(from: "count", to: "rest", when: "true")]),
+        )],
+    )],
+)"#,
+    )
+    .unwrap();
+    let crate_dir = dir.join("app");
+    let (code, _, stderr) = embodied(&[
+        "new",
+        "solo-app",
+        "--spec",
+        spec.to_str().unwrap(),
+        "--path",
+        crate_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let (ok, stdout, stderr) = cargo_test(&crate_dir);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("3 passed; 0 failed; 1 ignored"), "{stdout}");
+    assert!(!stderr.contains("warning"), "no warning: {stderr}");
+    // An agent named like one of the crate's modules is refused.
+    let clash = dir.join("clash.ron");
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("\"solo\"", "\"system\"");
+    std::fs::write(&clash, text).unwrap();
+    let (code, _, stderr) = embodied(&[
+        "new",
+        "clash",
+        "--spec",
+        clash.to_str().unwrap(),
+        "--path",
+        dir.join("clash").to_str().unwrap(),
+    ]);
     assert_eq!(code, 1);
-    assert!(stderr.contains("not a valid crate name"), "{stderr}");
+    assert!(stderr.contains("crate's module `system`"), "{stderr}");
 }

@@ -148,9 +148,10 @@ fn fsm_parts_carry_their_function_names() {
 }
 
 #[test]
-fn a_group_without_links_has_no_peer_to_export() {
+fn a_group_without_links_is_exported_under_its_field_name() {
     // The station and the operator alone: the station's groups towards its filter and
-    // pump controller are linked to nothing.
+    // pump controller are linked to nothing, so the export names their peers by the
+    // fields (`filter`, `pump`) and the checker says these are no components.
     let mut sys = SystemBuilder::new();
     let (station_agent, operator_agent) = (sys.agent("station"), sys.agent("operator"));
     let period = Period::from_millis(50).expect("a period");
@@ -174,9 +175,14 @@ fn a_group_without_links_has_no_peer_to_export() {
         Policy::queue(4),
     );
     let system = sys.build().expect("an incomplete system still builds");
-    let e = spec_of("partial", system.info()).expect_err("unlinked groups");
-    assert_eq!(
-        e.to_string(),
-        "group `filter` of `c1` is not linked to anything, so its peer cannot be named"
+    let spec = spec_of("partial", system.info()).expect("exports");
+    let c1 = spec.subsystem("c1").expect("c1");
+    let peers: Vec<&str> = c1.inputs.iter().map(|g| g.peer.as_str()).collect();
+    assert_eq!(peers, ["filter", "pump", "c2"]);
+    let (_, report) = embodied::spec::check_source("partial", to_ron(&spec).expect("writes"));
+    assert!(
+        report.short().contains("spec::unknown_component"),
+        "{}",
+        report.short()
     );
 }

@@ -42,6 +42,11 @@ pub trait Fields {
     const FIELDS: &'static [Field];
 }
 
+/// A subsystem without memory.
+impl Fields for () {
+    const FIELDS: &'static [Field] = &[];
+}
+
 /// Whether a buffer is an input or an output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Direction {

@@ -84,7 +84,9 @@ pub struct FsmShape {
     pub behaviours: Vec<BehaviourShape>,
     /// The initial behaviour.
     pub initial: String,
-    /// The arcs as `(from, to, condition)`, in declaration order.
+    /// The arcs as `(from, to, condition)`, grouped by source behaviour (in the
+    /// order of the behaviours), in declaration order within each: the order that
+    /// numbers them in traces.
     pub arcs: Vec<(String, String, String)>,
     /// The final behaviours.
     pub finals: Vec<String>,

@@ -588,8 +588,8 @@ fn device(found: &Found, file: &LitStr, d: usize, dev: &model::Device) -> syn::R
     })
 }
 
-/// A name of the agent that Rust cannot take as an identifier, if any.
-fn unusable_name(agent: &model::Agent) -> Option<&str> {
+/// Why a name of the agent cannot become Rust code, if one cannot.
+fn unusable_name(agent: &model::Agent) -> Option<String> {
     fn groups(g: &[model::Group]) -> impl Iterator<Item = &str> {
         g.iter().flat_map(|g| {
             std::iter::once(g.peer.as_str()).chain(g.buffers.iter().map(|b| b.name.as_str()))
@@ -609,8 +609,33 @@ fn unusable_name(agent: &model::Agent) -> Option<&str> {
         names.extend(groups(&d.inputs));
         names.extend(groups(&d.outputs));
     }
-    names.into_iter().find(|n| UNUSABLE.contains(n))
+    if let Some(n) = names.into_iter().find(|n| UNUSABLE.contains(n)) {
+        return Some(format!("the name `{n}` cannot be a Rust identifier"));
+    }
+    // Components become type names (`c1` -> `C1`), beside the module's own types.
+    let components = agent
+        .subsystems
+        .iter()
+        .map(|s| &s.name)
+        .chain(agent.devices.iter().map(|d| &d.name));
+    for c in components {
+        let t = camel(c);
+        if !agent_spec::names::has_type_name(c) {
+            return Some(format!(
+                "the component name `{c}` makes no Rust type name (`{t}`)"
+            ));
+        }
+        if MODULE_TYPES.contains(&t.as_str()) {
+            return Some(format!(
+                "the component name `{c}` makes the type name `{t}`, which its module already has"
+            ));
+        }
+    }
+    None
 }
+
+/// The types every generated module has: a component named after one is refused.
+const MODULE_TYPES: [&str; 4] = ["Memory", "Input", "Output", "Functions"];
 
 /// Generate stage.
 pub(crate) fn generate(
@@ -619,11 +644,11 @@ pub(crate) fn generate(
     tracked: Option<&Path>,
 ) -> syn::Result<TokenStream> {
     let agent = &found.loaded.spec.agents[found.agent];
-    if let Some(name) = unusable_name(agent) {
+    if let Some(why) = unusable_name(agent) {
         return Err(syn::Error::new(
             args.spec.span(),
             format!(
-                "{}: the name `{name}` in agent `{}` cannot be a Rust identifier; rename it in the spec",
+                "{}: in agent `{}`, {why}; rename it in the spec",
                 found.loaded.file, agent.name
             ),
         ));
@@ -786,5 +811,11 @@ mod tests {
             .expect("the checker takes `self` as a name");
         let e = generate(&found, &a, None).expect_err("not an identifier");
         assert!(e.to_string().contains("`self`"), "{e}");
+        for (name, why) in [("__", "no Rust type name"), ("memory", "already has")] {
+            let spec = SPEC.replace("e1", name);
+            let found = load(&a.spec, spec, &a.agent).expect("valid names for the checker");
+            let e = generate(&found, &a, None).expect_err("no type for it");
+            assert!(e.to_string().contains(why), "{e}");
+        }
     }
 }

@@ -3,6 +3,7 @@
 
 use proc_macro2::{Ident, TokenStream};
 use quote::{quote, quote_spanned};
+use syn::ext::IdentExt;
 
 use crate::util::runtime;
 
@@ -76,7 +77,7 @@ impl Chain {
                     Target::Common => quote!(.common(#f).named(#n)),
                     Target::Output(field) => {
                         let y = Ident::new("__y", field.span());
-                        let fs = field.to_string();
+                        let fs = field.unraw().to_string();
                         let projection = quote_spanned!(field.span()=> |#y| &mut #y.#field);
                         quote!(.output(#projection, #f).named(#n).__at_field(#fs))
                     }

@@ -7,6 +7,7 @@
 
 use proc_macro2::{Span, TokenStream};
 use quote::{ToTokens, quote, quote_spanned};
+use syn::ext::IdentExt;
 use syn::spanned::Spanned;
 use syn::{Data, DeriveInput, Fields, GenericArgument, Ident, PathArguments, Type};
 
@@ -200,7 +201,7 @@ pub(crate) fn generate_group(m: &GroupModel) -> TokenStream {
     let (impl_g, ty_g, where_g) = m.input.generics.split_for_impl();
     let peer = &m.peer;
     let fields = m.buffers.iter().map(|(ident, ty)| {
-        let n = ident.to_string();
+        let n = ident.unraw().to_string();
         let t = type_text(ty);
         quote!(#rt::Field { name: #n, ty: #t })
     });
@@ -307,7 +308,7 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             let name = &input.ident;
             let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
             let shapes = groups.iter().map(|g| {
-                let (field, ty) = (g.ident.to_string(), &g.ty);
+                let (field, ty) = (g.ident.unraw().to_string(), &g.ty);
                 let ty_text = type_text(ty);
                 quote_spanned! {ty.span()=>
                     #rt::GroupShape {
@@ -324,24 +325,22 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             let mut fresh = Vec::new();
             for g in groups {
                 let (ident, ty) = (&g.ident, &g.ty);
-                fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0 << (#offset)));
+                // `checked_shl`: an empty group may start at bit 128.
+                fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
                 offset = quote!(#offset + <#ty as #rt::Fields>::FIELDS.len());
             }
-            // A generic struct cannot name its parameters in a `const` item.
-            let guard = input.generics.params.is_empty().then(|| {
-                quote! {
-                    const _: () = ::core::assert!(
-                        #offset <= #rt::describe::MAX_BUFFERS,
-                        "an input or output struct has at most 128 buffers"
-                    );
-                }
-            });
+            // An inline `const` block may use the struct's generic parameters.
             quote! {
                 impl #impl_g #rt::Buffers for #name #ty_g #where_g {
                     const GROUPS: &'static [#rt::GroupShape] = &[#(#shapes),*];
                     #[inline]
                     fn fresh(&self) -> #rt::Fresh {
-                        #guard
+                        const {
+                            ::core::assert!(
+                                #offset <= #rt::describe::MAX_BUFFERS,
+                                "an input or output struct has at most 128 buffers"
+                            )
+                        };
                         #rt::Fresh(0 #(#fresh)*)
                     }
                 }
@@ -355,7 +354,7 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             let name = &input.ident;
             let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
             let fields = buffers.iter().map(|(ident, ty)| {
-                let (n, t) = (ident.to_string(), type_text(ty));
+                let (n, t) = (ident.unraw().to_string(), type_text(ty));
                 quote!(#rt::Field { name: #n, ty: #t })
             });
             let fresh = buffers.iter().enumerate().map(|(k, (ident, _))| {
@@ -410,7 +409,7 @@ pub(crate) fn generate_memory(m: &MemoryModel) -> TokenStream {
     let name = &m.input.ident;
     let (impl_g, ty_g, where_g) = m.input.generics.split_for_impl();
     let fields = m.fields.iter().map(|f| {
-        let (n, t) = (f.ident.to_string(), type_text(&f.ty));
+        let (n, t) = (f.ident.unraw().to_string(), type_text(&f.ty));
         quote!(#rt::Field { name: #n, ty: #t })
     });
     quote! {

@@ -27,6 +27,7 @@ use std::collections::HashMap;
 
 use proc_macro2::{Span, TokenStream, TokenTree};
 use quote::{ToTokens, quote};
+use syn::ext::IdentExt;
 use syn::parse::{Parse, ParseStream};
 use syn::punctuated::Punctuated;
 use syn::{Expr, Ident, Token, braced, parenthesized};
@@ -324,13 +325,18 @@ pub(crate) fn parse(tokens: TokenStream) -> syn::Result<FsmDecl> {
     syn::parse2(tokens)
 }
 
+/// An identifier as a name in specs and at run time: `r#type` is `type`.
+pub(crate) fn name(ident: &Ident) -> String {
+    ident.unraw().to_string()
+}
+
 /// The name of a part in specs: the function's name for a path, otherwise
 /// `<behaviour>_<target>`.
 fn base_name(b: &BehaviourDecl, p: &PartDecl) -> String {
     if let Expr::Path(path) = &p.function
         && let Some(last) = path.path.segments.last()
     {
-        return last.ident.to_string();
+        return name(&last.ident);
     }
     format!("{}_{}", b.name, p.target.ident())
 }
@@ -340,7 +346,7 @@ fn target_key(t: &TargetDecl) -> String {
     match t {
         TargetDecl::Memory(_) => "memory".into(),
         TargetDecl::Common(_) => "common".into(),
-        TargetDecl::Output(f) => f.to_string(),
+        TargetDecl::Output(f) => name(f),
     }
 }
 
@@ -381,20 +387,18 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
         predicates: d
             .predicates
             .iter()
-            .map(|p| (p.name.to_string(), p.name.to_token_stream()))
+            .map(|p| (name(&p.name), p.name.to_token_stream()))
             .collect(),
         relations: d
             .relations
             .iter()
             .map(|r| match r {
                 RelationDecl::Exclusive(v) => synth::Relation::Exclusive(
-                    v.iter()
-                        .map(|i| (i.to_string(), i.to_token_stream()))
-                        .collect(),
+                    v.iter().map(|i| (name(i), i.to_token_stream())).collect(),
                 ),
                 RelationDecl::Implies(a, b) => synth::Relation::Implies(
-                    (a.to_string(), a.to_token_stream()),
-                    (b.to_string(), b.to_token_stream()),
+                    (name(a), a.to_token_stream()),
+                    (name(b), b.to_token_stream()),
                 ),
             })
             .collect(),
@@ -403,7 +407,7 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
             .iter()
             .zip(&names)
             .map(|(b, names)| synth::Behaviour {
-                name: (b.name.to_string(), b.name.to_token_stream()),
+                name: (name(&b.name), b.name.to_token_stream()),
                 repeat: b.kind == Kind::Repeat,
                 terminal: b.terminal.clone(),
                 parts: b
@@ -415,7 +419,7 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
                         target: match &p.target {
                             TargetDecl::Memory(_) => synth::Target::Memory,
                             TargetDecl::Common(_) => synth::Target::Common,
-                            TargetDecl::Output(f) => synth::Target::Output(f.to_string()),
+                            TargetDecl::Output(f) => synth::Target::Output(name(f)),
                         },
                         tokens: {
                             let t = p.target.ident();
@@ -426,16 +430,13 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
                     .collect(),
             })
             .collect(),
-        initial: d
-            .initial
-            .as_ref()
-            .map(|i| (i.to_string(), i.to_token_stream())),
+        initial: d.initial.as_ref().map(|i| (name(i), i.to_token_stream())),
         arcs: d
             .arcs
             .iter()
             .map(|a| synth::Arc {
-                from: (a.from.to_string(), a.from.to_token_stream()),
-                to: (a.to.to_string(), a.to.to_token_stream()),
+                from: (name(&a.from), a.from.to_token_stream()),
+                to: (name(&a.to), a.to.to_token_stream()),
                 when: a.when.clone(),
                 tokens: {
                     let (f, t) = (&a.from, &a.to);
@@ -446,7 +447,7 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
         finals: d
             .finals
             .iter()
-            .map(|i| (i.to_string(), i.to_token_stream()))
+            .map(|i| (name(i), i.to_token_stream()))
             .collect(),
     };
     synth::check(&fsm, d.subsystem.to_token_stream())
@@ -466,7 +467,7 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
                     .function
                     .as_ref()
                     .map_or_else(|| p.name.to_token_stream(), ToTokens::to_token_stream);
-                (p.name.to_string(), f)
+                (name(&p.name), f)
             })
             .collect(),
         relations: d
@@ -474,11 +475,9 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
             .iter()
             .map(|r| match r {
                 RelationDecl::Exclusive(v) => {
-                    chain::Relation::Exclusive(v.iter().map(Ident::to_string).collect())
+                    chain::Relation::Exclusive(v.iter().map(name).collect())
                 }
-                RelationDecl::Implies(a, b) => {
-                    chain::Relation::Implies(a.to_string(), b.to_string())
-                }
+                RelationDecl::Implies(a, b) => chain::Relation::Implies(name(a), name(b)),
             })
             .collect(),
         behaviours: d
@@ -486,7 +485,7 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
             .iter()
             .zip(&names)
             .map(|(b, names)| chain::Behaviour {
-                name: b.name.to_string(),
+                name: name(&b.name),
                 repeat: b.kind == Kind::Repeat,
                 terminal: b.terminal.text(),
                 parts: b
@@ -505,7 +504,7 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
                     .collect(),
             })
             .collect(),
-        initial: d.initial.as_ref().map(Ident::to_string),
+        initial: d.initial.as_ref().map(name),
         arcs: d
             .arcs
             .iter()
@@ -514,10 +513,10 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
                     .when
                     .as_ref()
                     .map_or_else(|| "true".to_owned(), Cond::text);
-                (a.from.to_string(), a.to.to_string(), when)
+                (name(&a.from), name(&a.to), when)
             })
             .collect(),
-        finals: d.finals.iter().map(Ident::to_string).collect(),
+        finals: d.finals.iter().map(name).collect(),
     }
     .generate()
 }

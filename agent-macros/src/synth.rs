@@ -16,6 +16,7 @@ use std::ops::Range;
 use agent_spec::{Code, Finding};
 use proc_macro2::{TokenStream, TokenTree};
 use quote::ToTokens;
+use syn::ext::IdentExt;
 
 /// A condition written in the DSL: its tokens, its text, and where each predicate
 /// name sits in the text.
@@ -58,7 +59,7 @@ impl Cond {
                 TokenTree::Ident(i) => {
                     self.gap();
                     let start = self.text.len();
-                    self.text.push_str(&i.to_string());
+                    self.text.push_str(&i.unraw().to_string());
                     self.idents
                         .push((start..self.text.len(), i.to_token_stream()));
                     joint = false;
@@ -179,13 +180,19 @@ impl Text {
         self.marks.push((start..self.s.len(), c.tokens.clone()));
     }
 
-    /// The tokens of the innermost mark holding byte `at`.
-    fn tokens_at(&self, at: usize) -> Option<&TokenStream> {
-        self.marks
-            .iter()
-            .filter(|(r, _)| r.start <= at && at < r.end)
-            .min_by_key(|(r, _)| r.end - r.start)
-            .map(|(_, t)| t)
+    /// The tokens of the innermost mark holding the whole of `span` (or, if none
+    /// does, its first byte).
+    fn tokens_at(&self, span: &Range<usize>) -> Option<&TokenStream> {
+        let innermost = |holds: &dyn Fn(&Range<usize>) -> bool| {
+            self.marks
+                .iter()
+                .filter(|(r, _)| holds(r))
+                .min_by_key(|(r, _)| r.end - r.start)
+                .map(|(_, t)| t)
+        };
+        let end = span.end.max(span.start + 1);
+        innermost(&|r| r.start <= span.start && end <= r.end)
+            .or_else(|| innermost(&|r| r.start <= span.start && span.start < r.end))
     }
 }
 
@@ -238,6 +245,7 @@ fn dsl_help(f: &Finding) -> String {
 fn subsystem_name(ty: &TokenStream) -> String {
     ty.clone()
         .into_iter()
+        .take_while(|t| !matches!(t, TokenTree::Punct(p) if p.as_char() == '<'))
         .filter_map(|t| match t {
             TokenTree::Ident(i) => Some(i.to_string()),
             _ => None,
@@ -395,7 +403,8 @@ pub(crate) fn check(fsm: &SynthFsm, subsystem: TokenStream) -> syn::Result<()> {
                 format!("{} [{}]\nhelp: {help}", f.message, f.code)
             }
         };
-        let e = match text.tokens_at(f.offset()) {
+        let primary = f.labels.first().map_or(0..0, |l| l.span.clone());
+        let e = match text.tokens_at(&primary) {
             Some(tokens) if !tokens.is_empty() => syn::Error::new_spanned(tokens, message),
             _ => syn::Error::new_spanned(&subsystem, message),
         };
@@ -456,8 +465,24 @@ mod tests {
         );
         let at = text.s.find("\"stop\"").expect("written");
         assert_eq!(
-            text.tokens_at(at + 1).map(ToString::to_string).as_deref(),
+            text.tokens_at(&(at + 1..at + 5))
+                .map(ToString::to_string)
+                .as_deref(),
             Some("pump <- stop")
+        );
+        // A label over a whole condition maps to the condition, not its first word.
+        let c = Cond::new(quote!(a && b));
+        let mut t = Text::default();
+        t.cond(&c);
+        assert_eq!(
+            t.tokens_at(&(0..t.s.len()))
+                .map(ToString::to_string)
+                .as_deref(),
+            Some("a && b")
+        );
+        assert_eq!(
+            t.tokens_at(&(1..2)).map(ToString::to_string).as_deref(),
+            Some("a")
         );
         check(&fsm, quote!(S)).expect("a sound FSM");
     }

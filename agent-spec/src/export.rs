@@ -17,7 +17,9 @@
 //! reads and which buffers of its target a function writes (`reads` and `writes`
 //! are empty; the types let a part read all of the memory and inputs and write all
 //! of its target). Add them by hand for the data-flow diagrams.
-//! The peer a group is connected to is the component its links go to.
+//! The peer a group is connected to is the component its links go to; a group linked
+//! to nothing is named by its field (as `agent!` names fields after peers), and the
+//! checker then says whether that is a component.
 
 use std::collections::HashMap;
 
@@ -39,12 +41,12 @@ pub enum ExportError {
         "`{0}` does not describe its buffers: derive `Subsystem` (with `Memory`, `Buffers` and `Group` on its types), or implement `Driver::shape` as `Some(Shape::of_driver::<Self>())`"
     )]
     Undescribed(String),
-    /// A group of buffers has no link, so its peer is unknown.
-    #[error("group `{group}` of `{node}` is not linked to anything, so its peer cannot be named")]
+    /// A driver's buffer has no link, so the peer of its group is unknown.
+    #[error("buffer `{group}` of `{node}` is not linked to anything, so its peer cannot be named")]
     Unlinked {
         /// The component.
         node: String,
-        /// The group (`field` or `field.buffer` for a driver's buffer).
+        /// The buffer.
         group: String,
     },
     /// The buffers of one group are linked to different components.
@@ -106,7 +108,7 @@ impl Peers<'_> {
         let name = &self.info.nodes[node].name;
         let mut peers: Vec<&str> = self
             .links_of(node, input)
-            .filter(|l| port(if input { l.to_port } else { l.from_port }))
+            .filter(|l| port(&unraw(if input { l.to_port } else { l.from_port })))
             .map(|l| self.other(l, input))
             .collect();
         peers.sort_unstable();
@@ -153,7 +155,12 @@ impl Peers<'_> {
                 }
             } else {
                 let prefix = format!("{}.", g.name);
-                let peer = self.peer_of(node, input, g.name, |p| p.starts_with(&prefix))?;
+                // A group linked to nothing (an output nobody reads is only a warning of
+                // the checker) is named by its field: `agent!` names fields after peers.
+                let peer = match self.peer_of(node, input, g.name, |p| p.starts_with(&prefix)) {
+                    Err(ExportError::Unlinked { .. }) => g.name.to_owned(),
+                    other => other?,
+                };
                 out.push(Group {
                     peer,
                     buffers: g
@@ -170,6 +177,20 @@ impl Peers<'_> {
         }
         Ok(out)
     }
+}
+
+/// A period in milliseconds as a spec writes it: `9 ms` is `9.0`, exactly.
+fn millis(p: agent_core::Period) -> f64 {
+    p.as_nanos() as f64 / 1e6
+}
+
+/// A port path as the field names are: `r#type.x` -> `type.x` (`port!` keeps the
+/// raw identifiers it is given; descriptions and specs do not).
+fn unraw(port: &str) -> String {
+    port.split('.')
+        .map(|s| s.strip_prefix("r#").unwrap_or(s))
+        .collect::<Vec<_>>()
+        .join(".")
 }
 
 /// `a::b::Name` -> `Name` (generic types are left whole).
@@ -280,7 +301,7 @@ fn subsystem(
     Ok(Subsystem {
         name: node.name.clone(),
         kind,
-        period_ms: node.period.as_secs_f64() * 1e3,
+        period_ms: millis(node.period),
         doc: None,
         memory,
         inputs,
@@ -356,7 +377,7 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
                 } else {
                     DeviceKind::Receptor
                 },
-                period_ms: node.period.as_secs_f64() * 1e3,
+                period_ms: millis(node.period),
                 doc: None,
                 inputs: peers.groups(i, shape.inputs, true)?,
                 outputs: peers.groups(i, shape.outputs, false)?,
@@ -371,7 +392,10 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
         .links
         .iter()
         .map(|l| {
-            let buffer = |port: &str| port.rsplit('.').next().unwrap_or(port).to_owned();
+            let buffer = |port: &str| {
+                let port = unraw(port);
+                port.rsplit('.').next().unwrap_or(&port).to_owned()
+            };
             Link {
                 from: format!("{}.{}.{}", node(l.from), node(l.to), buffer(l.from_port)),
                 to: format!("{}.{}.{}", node(l.to), node(l.from), buffer(l.to_port)),

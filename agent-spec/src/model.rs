@@ -332,11 +332,13 @@ impl Spec {
 
     /// The structure without what a person writes for people and what code cannot
     /// tell: docs, the `reads` and `writes` of functions and predicates, and
-    /// deployments; and without orders that mean nothing: functions and predicates
-    /// are sorted by name, and so are the functions of each behaviour (their
-    /// evaluation order is fixed by their targets: common, outputs, memory). Two
-    /// specs with the same structure describe the same system; the spec exported
-    /// from code ([`crate::export`]) has only this much.
+    /// deployments; without functions no behaviour uses (dead entries, a warning of
+    /// the checker, that an FSM built from the spec does not hold); and without
+    /// orders that mean nothing: functions and predicates are sorted by name, and so
+    /// are the functions of each behaviour (their evaluation order is fixed by their
+    /// targets: common, outputs, memory) and the arcs (exactly one holds when a
+    /// behaviour ends). Two specs with the same structure describe the same system;
+    /// the spec exported from code ([`crate::export`]) has only this much.
     pub fn structure(&self) -> Spec {
         let mut spec = self.clone();
         spec.doc = None;
@@ -362,7 +364,16 @@ impl Spec {
                     f.reads.clear();
                     f.writes.clear();
                 }
+                let used: Vec<String> = s
+                    .behaviours
+                    .iter()
+                    .flat_map(|b| b.functions.iter().cloned())
+                    .collect();
+                s.functions.retain(|f| used.contains(&f.name));
                 s.functions.sort_by(|a, b| a.name.cmp(&b.name));
+                s.fsm
+                    .arcs
+                    .sort_by(|a, b| (&a.from, &a.to, &a.when).cmp(&(&b.from, &b.to, &b.when)));
                 s.predicates.sort_by(|a, b| a.name.cmp(&b.name));
                 for b in &mut s.behaviours {
                     b.doc = None;

@@ -34,6 +34,14 @@ pub fn type_name(name: &str) -> String {
         .collect()
 }
 
+/// Whether [`type_name`] makes a Rust type name of `name` (`__` and `_1` do not).
+pub fn has_type_name(name: &str) -> bool {
+    type_name(name)
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -45,5 +53,6 @@ mod tests {
         assert_eq!(type_name("E1"), "E1");
         assert_eq!(rust_ident("type"), "r#type");
         assert_eq!(rust_ident("A4x4"), "A4x4");
+        assert!(has_type_name("c1") && !has_type_name("__") && !has_type_name("_1"));
     }
 }

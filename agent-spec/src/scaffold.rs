@@ -10,7 +10,7 @@
 //! elementary action panics whatever inputs are new, and (ignored until the
 //! functions and an environment model are written) that each behaviour terminates.
 
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -53,22 +53,86 @@ pub enum ScaffoldError {
         "`{0}` is not a valid crate name: use lowercase letters, digits, `_` and `-`, starting with a letter"
     )]
     Name(String),
+    /// An agent's name is one of the crate's own modules.
+    #[error(
+        "agent `{0}` would share its name with the crate's module `{0}`; rename the agent in the spec"
+    )]
+    AgentName(String),
     /// The spec has errors (the report says which).
     #[error("the spec has {} error(s); `embodied check` shows them", .0.errors())]
     Spec(Box<Report>),
 }
 
-/// Standard types a spec may name without a placeholder.
-const KNOWN: &[&str] = &[
-    "bool", "char", "str", "u8", "u16", "u32", "u64", "u128", "usize", "i8", "i16", "i32", "i64",
-    "i128", "isize", "f32", "f64", "String", "Option", "Vec", "VecDeque", "HashMap", "HashSet",
-    "BTreeMap", "BTreeSet", "Box", "Result",
+/// Names a new crate cannot take: its dependencies' and the standard library's.
+const TAKEN_CRATE_NAMES: &[&str] = &[
+    "embodied", "serde", "proptest", "std", "core", "alloc", "test",
 ];
 
-/// The type names in a spec type that need a placeholder: identifiers that are not
-/// standard, not part of a path (`nalgebra::Vector3` is the user's to import) and
-/// not lifetimes.
-fn unknown_types(ty: &str, out: &mut BTreeSet<String>) {
+/// The crate's own modules, which agents' modules stand beside.
+const CRATE_MODULES: &[&str] = &["devices", "logic", "system", "types"];
+
+/// Standard types a spec may name without a placeholder.
+const KNOWN: &[&str] = &[
+    "bool",
+    "char",
+    "str",
+    "u8",
+    "u16",
+    "u32",
+    "u64",
+    "u128",
+    "usize",
+    "i8",
+    "i16",
+    "i32",
+    "i64",
+    "i128",
+    "isize",
+    "f32",
+    "f64",
+    "String",
+    "Option",
+    "Vec",
+    "VecDeque",
+    "HashMap",
+    "HashSet",
+    "BTreeMap",
+    "BTreeSet",
+    "BinaryHeap",
+    "Box",
+    "Result",
+    "Arc",
+    "Rc",
+    "Cow",
+    "Duration",
+];
+
+/// The number of type arguments in the `<...>` that starts `rest`, if it starts one.
+fn arity(rest: &str) -> usize {
+    if !rest.starts_with('<') {
+        return 0;
+    }
+    let (mut depth, mut commas) = (0i32, 0usize);
+    for c in rest.chars() {
+        match c {
+            '<' | '(' | '[' => depth += 1,
+            '>' | ')' | ']' => {
+                depth -= 1;
+                if depth == 0 {
+                    break;
+                }
+            }
+            ',' if depth == 1 => commas += 1,
+            _ => {}
+        }
+    }
+    commas + 1
+}
+
+/// The type names in a spec type that need a placeholder, with their number of type
+/// arguments: identifiers that are not standard, not part of a path
+/// (`nalgebra::Vector3` is the user's to import) and not lifetimes.
+fn unknown_types(ty: &str, out: &mut BTreeMap<String, usize>) {
     let bytes = ty.as_bytes();
     let mut i = 0;
     while i < bytes.len() {
@@ -90,10 +154,22 @@ fn unknown_types(ty: &str, out: &mut BTreeSet<String>) {
                 || KNOWN.contains(&word)
                 || KEYWORDS.contains(&word))
             {
-                out.insert(word.to_owned());
+                let n = arity(ty[i..].trim_start());
+                let known = out.entry(word.to_owned()).or_insert(n);
+                *known = (*known).max(n);
             }
         } else {
             i += 1;
+        }
+    }
+}
+
+/// The spec's doc text as inner doc lines (`//!`), after an empty one.
+fn inner_doc(out: &mut String, text: Option<&String>) {
+    if let Some(t) = text {
+        let _ = writeln!(out, "//!");
+        for line in t.lines() {
+            let _ = writeln!(out, "//! {line}");
         }
     }
 }
@@ -115,7 +191,9 @@ pub fn scaffold(file: &str, source: &str, options: &Options) -> Result<Vec<File>
         && name
             .chars()
             .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_' || c == '-');
-    if !valid_name {
+    let lib = name.replace('-', "_");
+    if !valid_name || KEYWORDS.contains(&lib.as_str()) || TAKEN_CRATE_NAMES.contains(&lib.as_str())
+    {
         return Err(ScaffoldError::Name(name.clone()));
     }
     let (spec, report) = crate::check_source(file, source);
@@ -123,7 +201,13 @@ pub fn scaffold(file: &str, source: &str, options: &Options) -> Result<Vec<File>
         Some(s) if report.is_ok() => s,
         _ => return Err(ScaffoldError::Spec(Box::new(report))),
     };
-    let lib = name.replace('-', "_");
+    if let Some(a) = spec
+        .agents
+        .iter()
+        .find(|a| CRATE_MODULES.contains(&a.name.as_str()))
+    {
+        return Err(ScaffoldError::AgentName(a.name.clone()));
+    }
     let files = vec![
         File {
             path: "Cargo.toml".into(),
@@ -204,9 +288,7 @@ fn lib_rs(file: &str, spec: &Spec) -> String {
         "//! `{}`: generated by `embodied new` from `{file}` (copied to `spec.ron`).",
         spec.name
     );
-    if let Some(d) = &spec.doc {
-        let _ = writeln!(s, "//!\n//! {d}");
-    }
+    inner_doc(&mut s, spec.doc.as_ref());
     s.push_str(
         "//!\n//! The types, buffers and FSMs come from the spec through `embodied::agent!`: edit\n\
          //! `spec.ron` and the code follows (a function the spec adds is a compile error\n\
@@ -227,7 +309,7 @@ fn lib_rs(file: &str, spec: &Spec) -> String {
 }
 
 fn types_rs(spec: &Spec) -> String {
-    let mut unknown = BTreeSet::new();
+    let mut unknown = BTreeMap::new();
     for a in &spec.agents {
         for s in &a.subsystems {
             for m in &s.memory {
@@ -252,15 +334,25 @@ fn types_rs(spec: &Spec) -> String {
          //! replace it with the real definition (or a `pub use` of it). Buffer payloads\n\
          //! must be `Clone + Debug + Serialize + Deserialize + Send`; memory types\n\
          //! `Clone + Debug + Default` (the generated memory derives them).\n\n\
-         #[allow(unused_imports)]\npub use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};\n",
+         #[allow(unused_imports)]\n\
+         pub use std::{\n    borrow::Cow,\n    collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap, HashSet, VecDeque},\n    rc::Rc,\n    sync::Arc,\n    time::Duration,\n};\n",
     );
-    for t in &unknown {
+    for (t, n) in &unknown {
+        let derive = "#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]";
         let _ = write!(
             s,
-            "\n/// Placeholder for the spec's type `{t}`: replace it with yours.\n\
-             #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]\n\
-             pub struct {t};\n"
+            "\n/// Placeholder for the spec's type `{t}`: replace it with yours.\n{derive}\n"
         );
+        if *n == 0 {
+            let _ = writeln!(s, "pub struct {t};");
+        } else {
+            let params: Vec<String> = (0..*n).map(|k| format!("T{k}")).collect();
+            let _ = writeln!(
+                s,
+                "pub struct {t}<{p}>(std::marker::PhantomData<({p},)>);",
+                p = params.join(", ")
+            );
+        }
     }
     s
 }
@@ -282,12 +374,13 @@ fn logic_file(agent: &str, sub: &crate::model::Subsystem) -> String {
          //! names. Each stub writes nothing (a predicate is false); replace the bodies.\n",
         name = sub.name
     );
-    if let Some(d) = &sub.doc {
-        let _ = writeln!(s, "//!\n//! {d}");
+    inner_doc(&mut s, sub.doc.as_ref());
+    if !sub.functions.is_empty() {
+        s.push_str("\nuse embodied::ActionError;\n");
     }
     let _ = write!(
         s,
-        "\nuse embodied::ActionError;\n\n#[allow(unused_imports)]\nuse {path}::*;\n\n\
+        "\n#[allow(unused_imports)]\nuse {path}::*;\n\n\
          /// The behaviour of `{}`: the spec's functions over its memory and buffers.\n\
          #[derive(Debug)]\npub struct Logic;\n\nimpl Functions for Logic {{\n",
         sub.name
@@ -337,9 +430,11 @@ fn logic_file(agent: &str, sub: &crate::model::Subsystem) -> String {
 fn devices_rs(spec: &Spec) -> String {
     let mut s = String::from(
         "//! The real effectors and receptors: stub drivers that read nothing and write\n\
-         //! nothing. Replace each with the driver of your hardware or simulator.\n\n\
-         use embodied::{DeviceKind, Driver, DriverContext, DriverError, Shape};\n",
+         //! nothing. Replace each with the driver of your hardware or simulator.\n",
     );
+    if spec.agents.iter().any(|a| !a.devices.is_empty()) {
+        s.push_str("\nuse embodied::{DeviceKind, Driver, DriverContext, DriverError, Shape};\n");
+    }
     for a in &spec.agents {
         for d in &a.devices {
             let _ = writeln!(s);
@@ -365,12 +460,28 @@ fn devices_rs(spec: &Spec) -> String {
 }
 
 fn system_rs(spec: &Spec) -> String {
-    let mut s = String::from(
+    let devices = spec.agents.iter().any(|a| !a.devices.is_empty());
+    let mut imports = vec![
+        "Period",
+        "PeriodError",
+        "SubsystemHandle",
+        "System",
+        "SystemBuilder",
+    ];
+    if devices {
+        imports.push("DriverHandle");
+    }
+    if !spec.links.is_empty() {
+        imports.extend(["Policy", "port"]);
+    }
+    imports.sort_unstable();
+    let mut s = format!(
         "//! The whole system of the spec: every component with its period and initial\n\
          //! memory (`Default`; set your own here), every link with its policy.\n\n\
-         use embodied::{DriverHandle, Period, PeriodError, Policy, SubsystemHandle, System, SystemBuilder, port};\n\n\
+         use embodied::{{{}}};\n\n\
          /// Handles to every component, for reading memories and statistics.\n\
-         #[allow(non_snake_case)]\npub struct Handles {\n",
+         #[allow(non_snake_case)]\npub struct Handles {{\n",
+        imports.join(", ")
     );
     let mut kinds = Vec::new();
     for a in &spec.agents {
@@ -412,14 +523,13 @@ fn system_rs(spec: &Spec) -> String {
         if *device {
             let _ = writeln!(
                 s,
-                "    let {v} = sys.driver(agent_{agent}, \"{comp}\", period({m}::PERIOD_MS)?, crate::devices::{c}Driver);",
-                v = id(comp),
+                "    let node_{comp} = sys.driver(agent_{agent}, \"{comp}\", period({m}::PERIOD_MS)?, crate::devices::{c}Driver);",
                 c = camel(comp)
             );
         } else {
             let _ = writeln!(
                 s,
-                "    let {v} = sys.subsystem(\n        agent_{agent},\n        \"{comp}\",\n        period({m}::PERIOD_MS)?,\n        {m}::Memory::default(),\n        {m}::fsm::<crate::logic::{v}::Logic>()?,\n    );",
+                "    let node_{comp} = sys.subsystem(\n        agent_{agent},\n        \"{comp}\",\n        period({m}::PERIOD_MS)?,\n        {m}::Memory::default(),\n        {m}::fsm::<crate::logic::{v}::Logic>()?,\n    );",
                 v = id(comp)
             );
         }
@@ -441,18 +551,19 @@ fn system_rs(spec: &Spec) -> String {
         };
         let _ = writeln!(
             s,
-            "    sys.connect(\n        {}.output(port!({}::Output, {}.{})),\n        {}.input(port!({}::Input, {}.{})),\n        {policy},\n    );",
-            id(fc),
+            "    sys.connect(\n        node_{fc}.output(port!({}::Output, {}.{})),\n        node_{tc}.input(port!({}::Input, {}.{})),\n        {policy},\n    );",
             module_of(fc),
             id(fg),
             id(fb),
-            id(tc),
             module_of(tc),
             id(tg),
             id(tb)
         );
     }
-    let names: Vec<String> = kinds.iter().map(|(_, c, _)| id(c)).collect();
+    let names: Vec<String> = kinds
+        .iter()
+        .map(|(_, c, _)| format!("{}: node_{c}", id(c)))
+        .collect();
     let _ = writeln!(
         s,
         "    let handles = Handles {{ {} }};\n    Ok((sys.build()?, handles))\n}}",
@@ -468,15 +579,31 @@ fn split3(endpoint: &str) -> Option<(&str, &str, &str)> {
 }
 
 fn properties_rs(lib: &str, spec: &Spec) -> String {
+    let terminating = spec
+        .subsystems()
+        .any(|(_, s)| s.behaviours.iter().any(|b| b.terminal.trim() != "false"));
+    let inputs = spec
+        .subsystems()
+        .any(|(_, s)| s.inputs.iter().any(|g| !g.buffers.is_empty()));
+    let testing = if terminating {
+        "use embodied::testing::{Script, Termination};\n"
+    } else {
+        ""
+    };
+    let stamp = if inputs {
+        "\n/// The stamp of every value the tests deliver.\nfn stamp() -> Stamp {\n    Stamp::new(0, Time::ZERO)\n}\n"
+    } else {
+        ""
+    };
     let mut s = format!(
-        r#"//! Tests generated by `embodied new` from the spec. The first three run as
-//! generated; the termination properties wait (`#[ignore]`) until the functions and a
-//! model of each subsystem's environment are written.
+        r#"//! Tests generated by `embodied new` from the spec: the structure, a run, and one
+//! property per subsystem (no elementary action panics) run as generated; the
+//! termination properties wait (`#[ignore]`) until the functions and a model of each
+//! subsystem's environment are written.
 
 use std::time::Duration;
 
-use embodied::testing::{{Script, Termination}};
-use embodied::*;
+{testing}use embodied::*;
 use proptest::prelude::*;
 
 /// The system built from the code has the structure of `spec.ron`: components,
@@ -502,11 +629,7 @@ fn the_system_runs() {{
     let mut exec = Executor::new(system, ExecConfig::default());
     exec.run_for(Duration::from_secs(1)).expect("no error");
 }}
-
-fn stamp() -> Stamp {{
-    Stamp::new(0, Time::ZERO)
-}}
-"#,
+{stamp}"#,
         name = spec.name
     );
     for (agent, sub) in spec.subsystems() {
@@ -639,7 +762,7 @@ mod tests {
 
     #[test]
     fn unknown_types_skip_standard_paths_and_lifetimes() {
-        let mut out = BTreeSet::new();
+        let mut out = BTreeMap::new();
         for t in [
             "Option<MapPose>",
             "Vec<(u8, Plan)>",
@@ -647,11 +770,16 @@ mod tests {
             "nalgebra::Vector3<f64>",
             "HashMap<String, Ack>",
             "&'static str",
+            "Grid<(u8, u8), Cell<f64>>",
+            "Arc<Duration>",
         ] {
             unknown_types(t, &mut out);
         }
+        assert_eq!(out.get("Grid"), Some(&2));
+        assert_eq!(out.get("Cell"), Some(&1));
+        out.retain(|_, n| *n == 0);
         assert_eq!(
-            out.into_iter().collect::<Vec<_>>(),
+            out.into_keys().collect::<Vec<_>>(),
             ["Ack", "MapPose", "Plan"]
         );
     }
