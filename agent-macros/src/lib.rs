@@ -38,7 +38,8 @@ use proc_macro::TokenStream;
 /// ```
 ///
 /// Implements `Group` (the peer kind), `Fields` (each buffer's name and payload type)
-/// and `Buffers` (the group's shape and the freshness of its buffers).
+/// and `Buffers` (the group's shape and the freshness of its buffers). A group
+/// without buffers is described as an input group.
 #[proc_macro_derive(Group, attributes(group))]
 pub fn derive_group(input: TokenStream) -> TokenStream {
     let input = syn::parse_macro_input!(input as syn::DeriveInput);
@@ -113,7 +114,9 @@ pub fn derive_subsystem(input: TokenStream) -> TokenStream {
 /// ```
 ///
 /// A part `target <- function` writes `memory`, `common`, or the output group in
-/// field `target`; the function is a path or a closure. At compile time the FSM goes
+/// field `target` (a field named `memory` or `common` is written `r#memory <- f`);
+/// the function is a path or a closure, named in specs after its path (a closure
+/// after its behaviour and target: `fill_memory`). At compile time the FSM goes
 /// through the spec checker: unknown or duplicate names, unreachable behaviours,
 /// behaviours without a way out, finals with arcs, conditions that do not parse, and
 /// arcs that may overlap or leave a gap (with the predicate values that show it) are
