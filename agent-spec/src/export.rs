@@ -450,3 +450,36 @@ pub fn difference(expected: &Spec, actual: &Spec) -> Option<String> {
         lb.get(i).map_or("(end)", |l| l.trim()),
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_difference_is_shown_at_its_line() {
+        let source = include_str!("../../specs/tank.ron");
+        let (spec, report) = crate::check_source("tank.ron", source);
+        assert!(report.is_ok(), "{}", report.short());
+        let spec = spec.expect("parses").structure();
+        assert_eq!(difference(&spec, &spec), None);
+        let mut other = spec.clone();
+        other.agents[0].subsystems[1].period_ms = 9.0;
+        let d = difference(&spec, &other).expect("they differ");
+        assert!(d.contains("- expected: period_ms: 10.0,"), "{d}");
+        assert!(d.contains("+ actual:   period_ms: 9.0,"), "{d}");
+        assert!(
+            d.contains("name: \"e1\""),
+            "the lines before it show where: {d}"
+        );
+    }
+
+    #[test]
+    fn ports_and_periods_are_written_as_specs_write_them() {
+        assert_eq!(unraw("r#type.r#in"), "type.in");
+        assert_eq!(unraw("pump.flow"), "pump.flow");
+        for ms in [1, 9, 11, 13, 45, 1000] {
+            let p = agent_core::Period::from_millis(ms).expect("a period");
+            assert_eq!(millis(p), ms as f64);
+        }
+    }
+}
