@@ -56,8 +56,8 @@ pub struct Counters {
     pub fragments_completed: u32,
     /// Fragments refused by `e11` (not finite).
     pub fragments_rejected: u32,
-    /// Measurements rejected by the estimator.
-    pub rejected_measurements: u64,
+    /// What the estimator rejected, and its relocalisations.
+    pub estimator: crate::e11::estimator::EstimatorHealth,
     /// Torque commands clamped or rejected by the platform.
     pub clamped_torques: u64,
     /// Fragments planned.
@@ -259,7 +259,7 @@ pub fn run_mission(
         c.fragments_received = m.track.received;
         c.fragments_completed = m.track.completed;
         c.fragments_rejected = m.track.rejected;
-        c.rejected_measurements = m.estym.estimator.rejected();
+        c.estimator = m.estym.estimator.health();
         c.tracker = m.track.tracker.report();
     }
     if let Some(p) = exec.driver(&h.platform) {

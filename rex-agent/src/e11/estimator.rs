@@ -69,14 +69,28 @@ pub struct Measurements {
     pub now: f64,
 }
 
+/// How an estimator has coped with its measurements: what it threw away, and how
+/// often it had to start again from the map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EstimatorHealth {
+    /// Measurements rejected (non-finite, implausible, or failing the gate).
+    pub rejected: u64,
+    /// Of those, map poses failing the gate: the estimate disagreed with the
+    /// trusted sensor.
+    pub rejected_poses: u64,
+    /// Times the estimate disagreed with the map poses for longer than the
+    /// estimator's patience and was restarted from the latest pose.
+    pub relocalisations: u64,
+}
+
 /// A state estimator.
 pub trait Estimator: Send + std::fmt::Debug {
     /// Name for reports.
     fn name(&self) -> &'static str;
     /// Advance by `dt` under the torques applied, `tau`, and fuse the measurements.
     fn update(&mut self, dt: f64, tau: &Torques, m: &Measurements) -> Estimate;
-    /// Measurements rejected so far (non-finite, or failing the gate).
-    fn rejected(&self) -> u64;
+    /// What was rejected so far, and the relocalisations.
+    fn health(&self) -> EstimatorHealth;
 }
 
 /// Which estimator.
@@ -129,10 +143,16 @@ pub struct EkfNoise {
     pub encoder_speed: f64,
     /// Gyroscope rate [rad/s].
     pub gyro: f64,
-    /// IMU heading after alignment [rad].
+    /// IMU heading reading [rad] (about its offset from the map heading).
     pub imu_heading: f64,
+    /// Random walk of the IMU heading's offset from the map heading [rad/√s]: the
+    /// IMU integrates a biased gyroscope.
+    pub imu_offset_walk: f64,
     /// Gate: innovations beyond this many standard deviations are rejected.
     pub gate: f64,
+    /// Map poses gated out for this long [s] restart the estimate from the latest
+    /// one (a relocalisation).
+    pub relocalise_after: f64,
 }
 
 impl Default for EkfNoise {
@@ -143,29 +163,55 @@ impl Default for EkfNoise {
             map_heading: 0.02,
             encoder_speed: 0.05,
             gyro: 0.03,
-            imu_heading: 0.08,
+            imu_heading: 0.01,
+            imu_offset_walk: 0.02,
             gate: 6.0,
+            relocalise_after: 1.0,
         }
     }
 }
 
+/// Indices of the EKF's state.
+const X: usize = 0;
+const Y: usize = 1;
+const PHI: usize = 2;
+const V: usize = 3;
+const W: usize = 4;
+/// The IMU heading's offset from the map heading.
+const B: usize = 5;
+
+type V6 = nalgebra::SVector<f64, 6>;
+type M6 = nalgebra::SMatrix<f64, 6, 6>;
+
 /// An extended Kalman filter on the reduced skid-steer model (notes §1.3) with the
-/// applied torques as inputs. It fuses the speed from the encoders, the gyroscope
-/// rate, the IMU heading once aligned with the map, and the map pose, which arrives
-/// late: it is compared with the estimate of the time it describes (kept for a
-/// second) and the correction applied now. Non-finite measurements and innovations
-/// beyond the gate are rejected and counted. It does not estimate the slip
-/// parameters (the nominal ones are used) and does not use the visual odometry.
+/// applied torques as inputs, and a sixth state: the offset `b` of the IMU heading
+/// from the map heading. The IMU integrates a biased gyroscope, so its heading
+/// drifts away from the map's (0.4 rad in a minute on Rex's simulated IMU); read
+/// as `φ + b`, it keeps what it knows (how the heading changes) without pulling
+/// the estimate off the map.
+///
+/// It fuses the speed from the encoders, the gyroscope rate, the IMU heading, and
+/// the map pose, which arrives late: it is compared with the estimate of the time
+/// it describes (kept for a second) and the correction applied now. Non-finite
+/// measurements and innovations beyond the gate are rejected and counted; map
+/// poses gated out for `relocalise_after` seconds mean the estimate is wrong, not
+/// the map: the position and heading restart from the latest pose. It does not
+/// estimate the slip parameters (the nominal ones are used) and does not use the
+/// visual odometry.
 #[derive(Debug)]
 pub struct Ekf {
     model: Reduced,
     p_nominal: SlipParams,
-    x: [f64; 5],
-    cov: [[f64; 5]; 5],
+    x: V6,
+    cov: M6,
     noise: EkfNoise,
-    history: VecDeque<(f64, [f64; 5])>,
+    history: VecDeque<(f64, V6)>,
     localised: bool,
-    rejected: u64,
+    /// Whether `b` has been initialised from an IMU heading.
+    offset_known: bool,
+    /// When the current run of gated-out map poses began.
+    rejecting_since: Option<f64>,
+    health: EstimatorHealth,
     theta: [f64; 4],
     theta_dot: [f64; 4],
 }
@@ -173,89 +219,157 @@ pub struct Ekf {
 impl Ekf {
     /// A filter for the platform `params` with nominal slip `p`, knowing nothing yet.
     pub fn new(params: PlatformParams, p: SlipParams) -> Ekf {
-        let mut cov = [[0.0; 5]; 5];
-        for (i, s) in [100.0, 100.0, 10.0, 1.0, 1.0].into_iter().enumerate() {
-            cov[i][i] = s;
-        }
+        Ekf::with_noise(params, p, EkfNoise::default())
+    }
+
+    /// The same with other noise settings.
+    pub fn with_noise(params: PlatformParams, p: SlipParams, noise: EkfNoise) -> Ekf {
         Ekf {
             model: Reduced::new(params),
             p_nominal: p,
-            x: [0.0; 5],
-            cov,
-            noise: EkfNoise::default(),
+            x: V6::zeros(),
+            cov: M6::from_diagonal(&V6::new(100.0, 100.0, 10.0, 1.0, 1.0, 10.0)),
+            noise,
             history: VecDeque::with_capacity(64),
             localised: false,
-            rejected: 0,
+            offset_known: false,
+            rejecting_since: None,
+            health: EstimatorHealth::default(),
             theta: [0.0; 4],
             theta_dot: [0.0; 4],
         }
     }
 
-    /// Scalar measurement update `z = x[i] + noise(σ)`, angle-aware for the heading.
-    /// Returns false if gated out.
-    fn update_scalar(&mut self, i: usize, innovation: f64, sigma: f64, gate: bool) -> bool {
+    /// The state `(X, Y, φ, v, ω, b)`.
+    pub fn state(&self) -> [f64; 6] {
+        self.x.into()
+    }
+
+    /// Measurement update `z = h x + noise(σ)` with the innovation `z − h x` given
+    /// (angle-aware where it must be); `false` if gated out.
+    fn correct(&mut self, h: &V6, innovation: f64, sigma: f64, gate: bool) -> bool {
         if !innovation.is_finite() {
-            self.rejected += 1;
+            self.health.rejected += 1;
             return false;
         }
-        let s = self.cov[i][i] + sigma * sigma;
+        let ph = self.cov * h;
+        let s = h.dot(&ph) + sigma * sigma;
         if gate && innovation * innovation > self.noise.gate * self.noise.gate * s {
-            self.rejected += 1;
+            self.health.rejected += 1;
             return false;
         }
-        let k: [f64; 5] = std::array::from_fn(|r| self.cov[r][i] / s);
-        for r in 0..5 {
-            self.x[r] += k[r] * innovation;
-        }
-        let row = self.cov[i];
-        for r in 0..5 {
-            for c in 0..5 {
-                self.cov[r][c] -= k[r] * row[c];
-            }
-        }
+        let k = ph / s;
+        self.x += k * innovation;
+        // Joseph form: stays symmetric and positive.
+        let i_kh = M6::identity() - k * h.transpose();
+        self.cov = i_kh * self.cov * i_kh.transpose() + k * k.transpose() * (sigma * sigma);
         true
     }
 
     fn predict(&mut self, dt: f64, tau: &Torques) {
-        let f = |x: &[f64; 5]| self.model.rk4(x, tau, &self.p_nominal, dt, 2);
-        let x1 = f(&self.x);
-        // Jacobian by central differences (5 states).
-        let mut a = [[0.0; 5]; 5];
-        for j in 0..5 {
-            let h = 1e-6 * (1.0 + self.x[j].abs());
-            let (mut xp, mut xm) = (self.x, self.x);
-            xp[j] += h;
-            xm[j] -= h;
-            let (fp, fm) = (f(&xp), f(&xm));
-            for i in 0..5 {
-                a[i][j] = (fp[i] - fm[i]) / (2.0 * h);
+        let x5: [f64; 5] = std::array::from_fn(|i| self.x[i]);
+        let (next, j) = self
+            .model
+            .rk4_sensitivities(&x5, tau, &self.p_nominal, dt, 2);
+        let mut f = M6::identity();
+        for r in 0..5 {
+            for c in 0..5 {
+                f[(r, c)] = j.x[r][c];
             }
         }
-        let mut ap = [[0.0; 5]; 5];
-        for i in 0..5 {
-            for j in 0..5 {
-                ap[i][j] = (0..5).map(|k| a[i][k] * self.cov[k][j]).sum();
+        let n = &self.noise;
+        let q = V6::new(
+            n.process[0],
+            n.process[1],
+            n.process[2],
+            n.process[3],
+            n.process[4],
+            n.imu_offset_walk,
+        )
+        .map(|d| d * d * dt);
+        if next.iter().all(|v| v.is_finite()) && f.iter().all(|v| v.is_finite()) {
+            for (i, v) in next.into_iter().enumerate() {
+                self.x[i] = v;
+            }
+            self.cov = f * self.cov * f.transpose();
+        }
+        self.cov += M6::from_diagonal(&q);
+    }
+
+    /// Position and heading from a map pose: exact for those three, uncorrelated
+    /// with the rest; the IMU offset is learned again from the next IMU heading.
+    fn adopt(&mut self, pose: [f64; 3]) {
+        self.x[X] = pose[0];
+        self.x[Y] = pose[1];
+        self.x[PHI] = pose[2];
+        for i in [X, Y, PHI, B] {
+            self.cov.row_mut(i).fill(0.0);
+            self.cov.column_mut(i).fill(0.0);
+        }
+        let n = self.noise;
+        self.cov[(X, X)] = n.map_position.powi(2);
+        self.cov[(Y, Y)] = n.map_position.powi(2);
+        self.cov[(PHI, PHI)] = n.map_heading.powi(2);
+        self.cov[(B, B)] = 10.0;
+        self.offset_known = false;
+        self.history.clear();
+        self.rejecting_since = None;
+    }
+
+    fn map_pose(&mut self, pose: &MapPose, now: f64) {
+        if !(pose.pose.is_finite() && pose.time.is_finite()) {
+            self.health.rejected += 1;
+            return;
+        }
+        // The estimate at the time the pose describes (or the oldest kept).
+        let past = self
+            .history
+            .iter()
+            .rev()
+            .find(|(t, _)| *t <= pose.time + 1e-9)
+            .map_or(self.x, |(_, x)| *x);
+        let inn = [
+            pose.pose.x - past[X],
+            pose.pose.y - past[Y],
+            wrap(pose.pose.phi - past[PHI]),
+        ];
+        if !self.localised {
+            // The first pose: adopt it.
+            self.adopt([pose.pose.x, pose.pose.y, pose.pose.phi]);
+            self.localised = true;
+            return;
+        }
+        let n = self.noise;
+        let mut accepted = 0;
+        for (i, sigma) in [
+            (X, n.map_position),
+            (Y, n.map_position),
+            (PHI, n.map_heading),
+        ] {
+            let before = self.health.rejected;
+            if self.correct(&V6::ith(i, 1.0), inn[i], sigma, true) {
+                accepted += 1;
+            } else if self.health.rejected > before {
+                self.health.rejected_poses += 1;
             }
         }
-        for i in 0..5 {
-            for j in 0..5 {
-                self.cov[i][j] = (0..5).map(|k| ap[i][k] * a[j][k]).sum();
-            }
-            self.cov[i][i] += self.noise.process[i].powi(2) * dt;
+        if accepted == 3 {
+            self.rejecting_since = None;
+            return;
         }
-        if x1.iter().all(|v| v.is_finite()) {
-            self.x = x1;
+        let since = *self.rejecting_since.get_or_insert(now);
+        if now - since >= n.relocalise_after {
+            // The pose moved to now by the estimate's own motion since its time.
+            let moved = [self.x[X] + inn[0], self.x[Y] + inn[1], self.x[PHI] + inn[2]];
+            self.adopt(moved);
+            self.health.relocalisations += 1;
         }
     }
 }
 
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w <= -std::f64::consts::PI {
-        w + std::f64::consts::TAU
-    } else {
-        w
-    }
+/// An angle in (−π, π].
+pub fn wrap(a: f64) -> f64 {
+    crate::mpc::mhe::wrap(a)
 }
 
 impl Estimator for Ekf {
@@ -271,58 +385,34 @@ impl Estimator for Ekf {
                 self.theta = e.theta;
                 self.theta_dot = e.rate;
                 let v = self.model.params.wheel_radius * e.rate.iter().sum::<f64>() / 4.0;
-                let inn = v - self.x[3];
-                self.update_scalar(3, inn, n.encoder_speed, true);
+                let inn = v - self.x[V];
+                self.correct(&V6::ith(V, 1.0), inn, n.encoder_speed, true);
             } else {
-                self.rejected += 1;
+                self.health.rejected += 1;
             }
         }
         if let Some(imu) = m.imu {
-            let inn = imu.yaw_rate - self.x[4];
-            self.update_scalar(4, inn, n.gyro, true);
-            if m.imu_aligned && self.localised {
-                let inn = wrap(imu.yaw - self.x[2]);
-                self.update_scalar(2, inn, n.imu_heading, true);
+            let inn = imu.yaw_rate - self.x[W];
+            self.correct(&V6::ith(W, 1.0), inn, n.gyro, true);
+            if m.imu_aligned && self.localised && imu.yaw.is_finite() {
+                if self.offset_known {
+                    let inn = wrap(imu.yaw - self.x[PHI] - self.x[B]);
+                    let h = V6::ith(PHI, 1.0) + V6::ith(B, 1.0);
+                    self.correct(&h, inn, n.imu_heading, true);
+                } else {
+                    // The offset is whatever it is now; its uncertainty is the heading's.
+                    self.x[B] = wrap(imu.yaw - self.x[PHI]);
+                    self.cov.row_mut(B).fill(0.0);
+                    self.cov.column_mut(B).fill(0.0);
+                    self.cov[(B, B)] = self.cov[(PHI, PHI)] + n.imu_heading.powi(2);
+                    self.cov[(B, PHI)] = -self.cov[(PHI, PHI)];
+                    self.cov[(PHI, B)] = -self.cov[(PHI, PHI)];
+                    self.offset_known = true;
+                }
             }
         }
         if let Some(pose) = m.map_pose {
-            if pose.pose.is_finite() && pose.time.is_finite() {
-                // The estimate at the time the pose describes (or the oldest kept).
-                let past = self
-                    .history
-                    .iter()
-                    .rev()
-                    .find(|(t, _)| *t <= pose.time + 1e-9)
-                    .map_or(self.x, |(_, x)| *x);
-                let inn = [
-                    pose.pose.x - past[0],
-                    pose.pose.y - past[1],
-                    wrap(pose.pose.phi - past[2]),
-                ];
-                if !self.localised {
-                    // The first pose: adopt it.
-                    self.x[0] = pose.pose.x;
-                    self.x[1] = pose.pose.y;
-                    self.x[2] = pose.pose.phi;
-                    for i in 0..3 {
-                        for j in 0..5 {
-                            self.cov[i][j] = 0.0;
-                            self.cov[j][i] = 0.0;
-                        }
-                    }
-                    self.cov[0][0] = n.map_position.powi(2);
-                    self.cov[1][1] = n.map_position.powi(2);
-                    self.cov[2][2] = n.map_heading.powi(2);
-                    self.localised = true;
-                    self.history.clear();
-                } else {
-                    self.update_scalar(0, inn[0], n.map_position, true);
-                    self.update_scalar(1, inn[1], n.map_position, true);
-                    self.update_scalar(2, inn[2], n.map_heading, true);
-                }
-            } else {
-                self.rejected += 1;
-            }
+            self.map_pose(&pose, m.now);
         }
         self.history.push_back((m.now, self.x));
         while self.history.len() > 1 && self.history.front().is_some_and(|(t, _)| *t < m.now - 1.0)
@@ -330,7 +420,7 @@ impl Estimator for Ekf {
             self.history.pop_front();
         }
         Estimate {
-            x: self.x,
+            x: std::array::from_fn(|i| self.x[i]),
             p: self.p_nominal,
             theta: self.theta,
             theta_dot: self.theta_dot,
@@ -338,8 +428,8 @@ impl Estimator for Ekf {
         }
     }
 
-    fn rejected(&self) -> u64 {
-        self.rejected
+    fn health(&self) -> EstimatorHealth {
+        self.health
     }
 }
 
@@ -360,8 +450,9 @@ pub struct MheEstimator {
 impl MheEstimator {
     /// Settings for Rex: the peer's weights, with noise levels for what the
     /// simulated platform does that the reduced model does not (longitudinal wheel
-    /// slip shows in the encoder rates; the gyroscope drifts, so its integrated
-    /// heading is weak), and a slower random walk of the parameters (the peer's
+    /// slip shows in the encoder rates), the IMU heading's increments (its
+    /// absolute value drifts with the gyroscope's bias), and a slower random walk
+    /// of the parameters (the peer's
     /// arrival cost lets them move 0.05 per sample, which suits a 10 s lap but
     /// makes the NMPC's model jitter over a long mission).
     pub fn settings(p: SlipParams, dt: f64) -> MheSettings {
@@ -370,7 +461,7 @@ impl MheEstimator {
             p_prior: p.to_array(),
             sigma_w: [0.003, 0.003, 0.003, 0.03, 0.05],
             sigma_encoder: 0.3,
-            sigma_heading: 0.05,
+            sigma_heading_step: 0.002,
             sigma_load: 5.0,
             sigma_p: [0.002, 0.002, 0.01],
             ..MheSettings::default()
@@ -430,15 +521,125 @@ impl Estimator for MheEstimator {
         }
     }
 
-    fn rejected(&self) -> u64 {
-        self.mhe.stats().rejected
+    fn health(&self) -> EstimatorHealth {
+        let s = self.mhe.stats();
+        EstimatorHealth {
+            rejected: s.rejected,
+            rejected_poses: s.rejected_poses,
+            relocalisations: s.relocalisations,
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mpc::peer::{self, DT, MheData, N_SIM};
     use crate::types::Pose2;
+
+    /// Run the EKF over the peer's data set (poses, gyro, encoders, and an IMU
+    /// heading `φ + offset(k)`); `edit` may change each sample. Returns the
+    /// position errors from 1 s on and the filter.
+    fn run_peer(
+        d: &MheData,
+        offset: impl Fn(usize) -> f64,
+        edit: impl Fn(usize, &mut Measurements),
+    ) -> (Vec<f64>, Ekf) {
+        let mut ekf = Ekf::new(peer::model().params, SlipParams::NOMINAL);
+        let mut err = Vec::new();
+        for k in 0..=N_SIM {
+            let y = d.ys[k];
+            let t = k as f64 * DT;
+            let mut m = Measurements {
+                encoders: Some(Encoders {
+                    theta: [0.0; 4],
+                    rate: [y[4], y[5], y[6], y[7]],
+                }),
+                imu: Some(Imu {
+                    yaw: wrap(d.xs[k][2] + offset(k)),
+                    yaw_rate: y[3],
+                    accel: [0.0; 2],
+                }),
+                map_pose: Some(MapPose {
+                    pose: Pose2 {
+                        x: y[0],
+                        y: y[1],
+                        phi: wrap(y[2]),
+                    },
+                    time: t,
+                }),
+                imu_aligned: true,
+                now: t,
+                ..Measurements::default()
+            };
+            edit(k, &mut m);
+            let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
+            let e = ekf.update(DT, &u, &m);
+            if k >= 20 {
+                err.push((e.x[0] - d.xs[k][0]).hypot(e.x[1] - d.xs[k][1]));
+            }
+        }
+        (err, ekf)
+    }
+
+    fn max(e: &[f64]) -> f64 {
+        e.iter().fold(0.0, |m, v| m.max(*v))
+    }
+
+    /// The IMU heading drifts away from the map's (0.5 rad, growing by 0.02 rad/s):
+    /// the filter follows the offset and the map. Taken as the map heading (as
+    /// before the offset state), it pulled the estimate until the poses were gated
+    /// out for good.
+    #[test]
+    fn a_drifting_imu_heading_does_not_pull_the_estimate() {
+        let d = peer::mhe_data(1).unwrap();
+        // The peer's plant slips unlike the nominal model the EKF predicts with:
+        // compare with the same filter not reading the IMU heading at all.
+        let (without, _) = run_peer(&d, |_| 0.0, |_, m| m.imu_aligned = false);
+        let (err, ekf) = run_peer(&d, |k| 0.5 + 0.02 * k as f64 * DT, |_, _| {});
+        let x = ekf.state();
+        assert!(
+            max(&err) < 1.2 * max(&without),
+            "position error {} vs {} without the IMU heading",
+            max(&err),
+            max(&without)
+        );
+        assert!(wrap(x[PHI] - d.xs[N_SIM][2]).abs() < 0.03, "{x:?}");
+        let offset = 0.5 + 0.02 * N_SIM as f64 * DT;
+        assert!(
+            wrap(x[B] - offset).abs() < 0.03,
+            "offset {} vs {offset}",
+            x[B]
+        );
+        assert_eq!(ekf.health().relocalisations, 0);
+    }
+
+    /// Poses that contradict the estimate for longer than `relocalise_after` (a
+    /// robot carried away, or an estimate gone wrong) are believed again.
+    #[test]
+    fn an_estimate_the_poses_contradict_for_long_is_relocalised() {
+        let d = peer::mhe_data(1).unwrap();
+        let (_, ekf) = run_peer(
+            &d,
+            |_| 0.3,
+            |k, m| {
+                if k >= 100
+                    && let Some(p) = &mut m.map_pose
+                {
+                    p.pose.x += 1.5;
+                }
+            },
+        );
+        let h = ekf.health();
+        assert_eq!(h.relocalisations, 1, "{h:?}");
+        assert!((20..=23).contains(&h.rejected_poses), "{h:?}");
+        // As good as the filter that was never contradicted, within a centimetre.
+        let (plain, _) = run_peer(&d, |_| 0.3, |_, _| {});
+        let x = ekf.state();
+        let e = (x[X] - d.xs[N_SIM][0] - 1.5).hypot(x[Y] - d.xs[N_SIM][1]);
+        let last = plain.last().copied().unwrap_or(0.0);
+        assert!(e < last + 0.01, "{e} vs {last}");
+    }
 
     #[test]
     fn localises_on_the_first_pose_and_rejects_garbage() {
@@ -461,7 +662,7 @@ mod tests {
             },
         );
         assert!(e.localised && (e.x[0] - 1.0).abs() < 1e-9 && (e.x[2] - 0.5).abs() < 1e-9);
-        let before = ekf.rejected();
+        let before = ekf.health().rejected;
         ekf.update(
             0.05,
             &[0.0; 4],
@@ -481,10 +682,10 @@ mod tests {
             },
         );
         assert_eq!(
-            ekf.rejected(),
+            ekf.health().rejected,
             before + 2,
             "NaN and a 49 m jump are rejected"
         );
-        assert!((ekf.x[0] - 1.0).abs() < 0.01);
+        assert!((ekf.state()[0] - 1.0).abs() < 0.01);
     }
 }

@@ -17,7 +17,13 @@
 //!   velocity over the stages between them as relative motions of consecutive
 //!   stages (which keeps the normal equations block-tridiagonal); unlike a pose
 //!   composed onto the estimate, it adds no absolute evidence it does not have;
-//! * gyroscope rate `ω`, IMU heading `φ` (once aligned with the map);
+//! * gyroscope rate `ω`;
+//! * IMU heading, through its increments between consecutive stages only: the IMU
+//!   integrates its gyroscope, bias included, so its heading drifts away from the
+//!   map's without bound (0.4 rad in a minute on Rex's simulated IMU). Taken as an
+//!   absolute heading it pulled the estimate off the motion-capture poses until they
+//!   were gated out for good; its increments are the integrated gyro over the
+//!   interval, which the drift leaves intact;
 //! * encoder rates `θ̇_i = (v − d_iy ω) / r`;
 //! * wheel loads (force sensors): static loads plus the load transfer of the
 //!   accelerations the model predicts.
@@ -25,6 +31,9 @@
 //! Exteroceptive measurements (poses) are gated: an innovation beyond
 //! `gate · σ` (widened by `drift_rate` per second without an accepted pose) is
 //! rejected; any non-finite or implausible measurement is rejected. All are counted.
+//! An estimate that disagrees with the map poses for `relocalise_after` seconds is
+//! wrong, not the poses: the window restarts from the latest pose (a relocalisation,
+//! counted in [`MheStats::relocalisations`]), keeping the slip parameters.
 //!
 //! **Solution.** Gauss–Newton with exact sensitivities, one iteration per sample
 //! (real-time iteration; more at start). The normal equations are block-tridiagonal
@@ -79,8 +88,9 @@ pub struct MheSettings {
     pub sigma_phi: f64,
     /// Gyroscope noise [rad/s].
     pub sigma_gyro: f64,
-    /// IMU heading noise [rad].
-    pub sigma_heading: f64,
+    /// Noise of the IMU heading's increment between two consecutive stages [rad]
+    /// (its absolute value is not used: it drifts with the gyroscope's bias).
+    pub sigma_heading_step: f64,
     /// Encoder rate noise [rad/s].
     pub sigma_encoder: f64,
     /// Force sensor noise [N] (0 leaves the loads out).
@@ -97,6 +107,9 @@ pub struct MheSettings {
     pub gate: f64,
     /// Widening of the pose gate per second without an accepted pose [m/s].
     pub drift_rate: f64,
+    /// Poses rejected by the gate for this long [s] restart the window from the
+    /// latest one (a relocalisation).
+    pub relocalise_after: f64,
     /// Gauss–Newton iterations per sample (1: real-time iteration).
     pub iterations: usize,
     /// Iterations while the window fills.
@@ -122,7 +135,7 @@ impl Default for MheSettings {
             sigma_pos: 0.02,
             sigma_phi: 0.01,
             sigma_gyro: 0.01,
-            sigma_heading: 0.02,
+            sigma_heading_step: 0.002,
             sigma_encoder: 0.05,
             sigma_load: 0.0,
             sigma_vo_step: 0.001,
@@ -131,6 +144,7 @@ impl Default for MheSettings {
             max_yaw_rate: 2.0,
             gate: 6.0,
             drift_rate: 0.2,
+            relocalise_after: 1.0,
             iterations: 1,
             start_iterations: 3,
             qp: QpStrategy::Structured,
@@ -151,13 +165,14 @@ impl MheSettings {
             self.sigma_pos,
             self.sigma_phi,
             self.sigma_gyro,
-            self.sigma_heading,
+            self.sigma_heading_step,
             self.sigma_encoder,
             self.sigma_vo_step,
             self.sigma_vo_turn,
             self.max_speed,
             self.max_yaw_rate,
             self.gate,
+            self.relocalise_after,
             self.qp_tolerance,
         ];
         let mut positive = self
@@ -224,7 +239,7 @@ pub struct Sample {
     pub motion: Option<Motion>,
     /// Gyroscope yaw rate [rad/s].
     pub gyro: Option<f64>,
-    /// IMU heading [rad], only once aligned with the map.
+    /// IMU heading [rad]: only its change from the previous sample's is used.
     pub heading: Option<f64>,
     /// Encoder rates [rad/s].
     pub encoders: Option<[f64; 4]>,
@@ -243,6 +258,11 @@ pub struct MheStats {
     pub clarabel: u64,
     /// Measurements rejected (not finite, implausible, or gated out).
     pub rejected: u64,
+    /// Of those, map poses gated out.
+    pub rejected_poses: u64,
+    /// Restarts of the window from a map pose after `relocalise_after` seconds of
+    /// rejected poses.
+    pub relocalisations: u64,
     /// Samples before the first pose (nothing to anchor the estimate).
     pub waiting: u64,
     /// Failed steps (the previous estimate was propagated instead).
@@ -301,6 +321,8 @@ pub struct Mhe {
     x_bar: State5,
     p_bar: [f64; NP],
     last_pose_time: Option<f64>,
+    /// When the current run of gated-out poses began (`None` after an accepted one).
+    rejecting_since: Option<f64>,
     blocks: Vec<Blocks>,
     hpp: Mat<NP, NP>,
     gp: [f64; NP],
@@ -327,6 +349,7 @@ impl Mhe {
             x_bar: [0.0; NX],
             p_bar: settings.p_prior,
             last_pose_time: None,
+            rejecting_since: None,
             blocks: vec![Blocks::default(); n + 1],
             hpp: Mat::zero(),
             gp: [0.0; NP],
@@ -495,7 +518,17 @@ impl Mhe {
             }
         }
         if let Some(h) = m.heading {
-            if h.is_finite() {
+            // A jump no turn makes (a reset of the IMU between the samples, or
+            // garbage) breaks the chain of increments.
+            let previous = n.checked_sub(1).and_then(|i| {
+                self.window[i]
+                    .heading
+                    .map(|h0| (h0, now - self.window[i].t))
+            });
+            let plausible = previous.is_none_or(|(h0, dt)| {
+                wrap(h - h0).abs() <= 3.0 * self.s.max_yaw_rate * dt.abs() + 0.05
+            });
+            if h.is_finite() && plausible {
                 self.window[n].heading = Some(h);
             } else {
                 self.stats.rejected += 1;
@@ -582,11 +615,40 @@ impl Mhe {
         let heading_gate = self.s.gate * sigma[1] + 0.5 * self.s.drift_rate * since;
         if (pose[0] - x[0]).hypot(pose[1] - x[1]) > radius || dphi.abs() > heading_gate {
             self.stats.rejected += 1;
+            self.stats.rejected_poses += 1;
+            let since = *self.rejecting_since.get_or_insert(time);
+            if now - since >= self.s.relocalise_after {
+                let t = self.window[i].t;
+                self.relocalise(t, [pose[0], pose[1], x[2] + dphi], now);
+            }
             return;
         }
+        self.rejecting_since = None;
         self.window[i].pose = Some([pose[0], pose[1], x[2] + dphi]);
         self.window[i].pose_sigma = sigma;
         self.last_pose_time = Some(self.last_pose_time.map_or(time, |t| t.max(time)));
+    }
+
+    /// Restart the window from a map pose that describes the time `t`: the newest
+    /// stage keeps its measurements and velocities, takes the pose moved to its
+    /// instant, and becomes the whole window (the arrival cost anchors on it).
+    fn relocalise(&mut self, t: f64, pose: [f64; 3], now: f64) {
+        let Some(last) = self.window.back().copied() else {
+            return;
+        };
+        let x = self.shifted(&[pose[0], pose[1], pose[2], last.x[3], last.x[4]], now - t);
+        self.window.clear();
+        self.window.push_back(Stage {
+            x,
+            pose: None,
+            rel: None,
+            ..last
+        });
+        self.x_bar = x;
+        self.p_bar = self.p;
+        self.last_pose_time = Some(t);
+        self.rejecting_since = None;
+        self.stats.relocalisations += 1;
     }
 
     /// One Gauss–Newton step on the whole window.
@@ -675,10 +737,6 @@ impl Mhe {
             if let Some(g) = st.gyro {
                 scalar(&unit(4), &no_p, st.x[4] - g, s.sigma_gyro);
             }
-
-            if let Some(h) = st.heading {
-                scalar(&unit(2), &no_p, wrap(st.x[2] - h), s.sigma_heading);
-            }
             if let Some(e) = st.encoders {
                 let r = wheel_r;
                 for k in 0..4 {
@@ -740,6 +798,19 @@ impl Mhe {
                     }
                 }
             }
+        }
+        // IMU heading: r = (φ_{i+1} − φ_i) − (h_{i+1} − h_i), the integrated gyro.
+        let w = 1.0 / s.sigma_heading_step.powi(2);
+        for i in 0..n {
+            let (Some(h0), Some(h1)) = (self.window[i].heading, self.window[i + 1].heading) else {
+                continue;
+            };
+            let r = (self.window[i + 1].x[2] - self.window[i].x[2]) - wrap(h1 - h0);
+            self.blocks[i].d.0[2][2] += w;
+            self.blocks[i + 1].d.0[2][2] += w;
+            self.blocks[i].o.0[2][2] -= w;
+            self.blocks[i].g[2] -= w * r;
+            self.blocks[i + 1].g[2] += w * r;
         }
         // Dynamics: r = x_{i+1} − F(x_i, u_i, p), weights 1/σ_w².
         for i in 0..n {
@@ -1487,6 +1558,87 @@ mod tests {
         });
         m.update(0.1, &[0.0; 4], &s0);
         assert_eq!(m.stats().rejected, 2);
+    }
+
+    /// An IMU heading that drifts away from the map's (an offset of 0.5 rad growing
+    /// by 0.02 rad/s, as an integrated gyroscope with a bias does) must not pull
+    /// the estimate: only its increments count. Taken as an absolute heading (the
+    /// cause of Rex's long-mission divergence) it pulled the heading estimate by
+    /// about a tenth of the offset, and gated the poses out once it grew.
+    #[test]
+    fn a_drifting_imu_heading_does_not_pull_the_estimate() {
+        let d = data();
+        let offset = |k: usize| 0.5 + 0.02 * k as f64 * DT;
+        // Half of the poses lost: the IMU matters more.
+        let (without, _) = run(MheSettings::default(), &d, |k, s| {
+            if k % 2 == 1 {
+                s.pose = None;
+            }
+        });
+        let (err, mhe) = run(MheSettings::default(), &d, |k, s| {
+            s.heading = Some(wrap(d.xs[k][2] + offset(k)));
+            if k % 2 == 1 {
+                s.pose = None;
+            }
+        });
+        let phi_err = wrap(mhe.estimate().x[2] - d.xs[N_SIM][2]).abs();
+        assert!(phi_err < 0.02, "heading error {phi_err}");
+        assert!(
+            rms(&err) < 1.1 * rms(&without),
+            "position rms {} vs {} without the IMU heading",
+            rms(&err),
+            rms(&without)
+        );
+        assert_eq!(mhe.stats().rejected, 0, "{:?}", mhe.stats());
+    }
+
+    /// The increments are what the IMU heading knows: with them the estimate rides
+    /// out a dropout better than with the gyroscope's samples alone.
+    #[test]
+    fn imu_heading_increments_narrow_the_drift_of_a_dropout() {
+        let d = data();
+        let drop = |k: usize| (60..120).contains(&k);
+        let (without, _) = run(MheSettings::default(), &d, |k, s| {
+            if drop(k) {
+                s.pose = None;
+            }
+        });
+        let (with, mhe) = run(MheSettings::default(), &d, |k, s| {
+            // Offset from the map heading, and exact increments.
+            s.heading = Some(wrap(d.xs[k][2] + 1.0));
+            if drop(k) {
+                s.pose = None;
+            }
+        });
+        let gap = |e: &[f64]| rms(&e[60 - 20..120 - 20]);
+        assert!(
+            gap(&with) < gap(&without),
+            "{} vs {}",
+            gap(&with),
+            gap(&without)
+        );
+        assert_eq!(mhe.stats().rejected, 0);
+    }
+
+    /// A robot carried 1.5 m away (or an estimate gone wrong): the poses are gated
+    /// out, and after `relocalise_after` seconds the window restarts from them.
+    #[test]
+    fn an_estimate_the_poses_contradict_for_long_is_relocalised() {
+        let d = data();
+        let kidnap = |k: usize| if k >= 100 { 1.5 } else { 0.0 };
+        let (_, mhe) = run(MheSettings::default(), &d, |k, s| {
+            if let Some(p) = &mut s.pose {
+                p.pose[0] += kidnap(k);
+            }
+        });
+        let stats = mhe.stats();
+        assert_eq!(stats.relocalisations, 1, "{stats:?}");
+        // Rejected for one second (20 samples), then believed again.
+        assert!((19..=22).contains(&stats.rejected_poses), "{stats:?}");
+        let x = mhe.estimate().x;
+        let truth = d.xs[N_SIM];
+        let e = (x[0] - truth[0] - 1.5).hypot(x[1] - truth[1]);
+        assert!(e < 0.03, "{e}");
     }
 
     #[test]

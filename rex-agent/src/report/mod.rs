@@ -112,8 +112,14 @@ pub fn summary(o: &Outcome) -> String {
     );
     let _ = writeln!(
         s,
-        "rejected_measurements={} clamped_torques={} executor_errors={} mocap_delivered={} mocap_dropped={}",
-        c.rejected_measurements, c.clamped_torques, c.executor_errors, c.mocap.0, c.mocap.1
+        "rejected_measurements={} rejected_poses={} relocalisations={} clamped_torques={} executor_errors={} mocap_delivered={} mocap_dropped={}",
+        c.estimator.rejected,
+        c.estimator.rejected_poses,
+        c.estimator.relocalisations,
+        c.clamped_torques,
+        c.executor_errors,
+        c.mocap.0,
+        c.mocap.1
     );
     if c.vo.0 > 0 {
         let _ = writeln!(
