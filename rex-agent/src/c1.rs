@@ -12,14 +12,25 @@
 //! | [`ce_2_tp`] | 7: the next fragment to `e11` with `steps` and `notify` | `e11` |
 //! | [`ct_3_tp`] | 8: `ack` | `c2` |
 //! | [`ce_1`], [`ct_q`] | relays: map pose and `A4x4` to `e11`, state estimate to `a3` | `e11`, `c3` |
+//! | [`ct_2`] | relays `e11`'s plan outcomes to `a2` during `B2` (also done by `ct_1_tp`, `ct_3_tp`) | `c2` |
 //! | [`cc_3`] | clears the plan's flags (needed by the refusal arc `B1 → B3`) | memory |
+//!
+//! **Outcomes.** `Done` is the paper's early acknowledgement: the last fragment was
+//! handed over. Whether the platform then reached the plan's end, or was stopped,
+//! `e11` measures and reports (`outcome`), and every behaviour of `c1` relays it to
+//! `a2` with its target-`c2` function. A stop during `B2` ends the behaviour
+//! (`stopped`): the plan is acknowledged `Failed` with the stop's reason. Fragments
+//! carry the stop count `c1` knows (`epoch`) so that `e11` refuses those handed
+//! over before `c1` heard of a stop, and the plan after a stop is planned from the
+//! state estimate, not from where the last plan should have ended.
 //!
 //! Two details the paper leaves open. `ready` comes from `e11`, which runs five times
 //! slower than `c1`; it is an event (sent once per fragment, when `notify` steps are
 //! done, and once at start) latched in memory (`ready_latch`) until a fragment is
 //! handed over, so one `ready` releases exactly one fragment. And a plan that cannot
-//! be executed (empty, non-finite, off the map) is refused: `B1` goes straight to
-//! `B3`, which reports the reason to `a2`.
+//! be executed (empty, non-finite, off the map or too close to an obstacle) is
+//! refused: `B1` goes straight to `B3`, which reports the reason to `a2`; a planned
+//! fragment that leaves the free space fails the plan like a planner failure.
 
 use std::collections::VecDeque;
 
@@ -27,46 +38,31 @@ use embodied::{
     Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
 };
 
+use crate::map::Map;
 use crate::planner::trajgen::{Status, TrajGen};
 use crate::planner::{Fragment, Waypoint, nearest_angle};
-use crate::types::{Ack, AckStatus, MapPose, Plan, State, Transform};
-
-/// The map, for refusing plans that leave it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MapBounds {
-    /// Lower x [m].
-    pub x0: f64,
-    /// Lower y [m].
-    pub y0: f64,
-    /// Upper x [m].
-    pub x1: f64,
-    /// Upper y [m].
-    pub y1: f64,
-}
+use crate::types::{Ack, AckStatus, Execution, MapPose, Plan, PlanOutcome, State, Transform};
 
 /// Settings of `c1`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct C1Params {
-    /// Plan points must lie inside.
-    pub map: MapBounds,
+    /// Plan points and planned fragments must lie in its free space (its clearance:
+    /// the platform's footprint and a margin).
+    pub map: Map,
     /// The most points a plan may have.
     pub max_points: usize,
     /// How long before the end of a fragment `e11` reports ready [s].
     pub notify_lead: f64,
     /// How many iterations a plan may wait for the first state estimate of `e11`
-    /// before it is refused.
+    /// before it is refused (or, after a stop, for the platform to come to rest
+    /// before it is planned from wherever it is).
     pub estimate_wait_max: u32,
 }
 
 impl Default for C1Params {
     fn default() -> Self {
         C1Params {
-            map: MapBounds {
-                x0: -5.5,
-                y0: -5.5,
-                x1: 5.5,
-                y1: 5.5,
-            },
+            map: Map::default(),
             max_points: 1000,
             notify_lead: 1.0,
             estimate_wait_max: 500,
@@ -99,6 +95,14 @@ pub struct C1Memory {
     /// Plans replaced by a newer one while waiting in `pending` (never acknowledged;
     /// `a2` sends one plan at a time, so this stays 0 in Rex).
     pub superseded: u32,
+    /// `e11`'s stop count when the plan being served was taken.
+    pub plan_epoch: u32,
+    /// Why the plan being served failed after planning began (a fragment that
+    /// leaves the free space).
+    pub failure: Option<String>,
+    /// The next plan starts from the state estimate (the last one did not end
+    /// where it was planned to).
+    pub restart: bool,
     /// Settings.
     pub params: C1Params,
 }
@@ -147,6 +151,9 @@ impl C1Memory {
             handed: 0,
             pending: None,
             superseded: 0,
+            plan_epoch: 0,
+            failure: None,
+            restart: false,
             params,
         }
     }
@@ -159,6 +166,8 @@ pub struct C1FromE11 {
     pub q_est: In<State>,
     /// The ready event.
     pub ready: In<bool>,
+    /// How a plan's execution ended.
+    pub outcome: In<PlanOutcome>,
 }
 impl Group for C1FromE11 {
     const PEER: NodeKind = NodeKind::VirtualEffector;
@@ -232,6 +241,8 @@ impl Group for C1ToE11 {
 pub struct C1ToC2 {
     /// The acknowledgement.
     pub ack: Out<Ack>,
+    /// How a plan's execution ended (relayed from `e11`).
+    pub outcome: Out<PlanOutcome>,
 }
 impl Group for C1ToC2 {
     const PEER: NodeKind = NodeKind::Control;
@@ -287,16 +298,12 @@ pub fn proc(plan: &Plan, params: &C1Params) -> Result<VecDeque<Waypoint>, String
             params.max_points
         ));
     }
-    let m = &params.map;
     for (k, p) in pts.iter().enumerate() {
         if !(p.x.is_finite() && p.y.is_finite()) {
             return Err(format!("point {k} ({}, {}) is not finite", p.x, p.y));
         }
-        if p.x < m.x0 || p.x > m.x1 || p.y < m.y0 || p.y > m.y1 {
-            return Err(format!(
-                "point {k} ({:.2}, {:.2}) is off the map [{}, {}] x [{}, {}]",
-                p.x, p.y, m.x0, m.x1, m.y0, m.y1
-            ));
+        if let Err(why) = params.map.explain(p.x, p.y) {
+            return Err(format!("point {k} is off the map: {why}"));
         }
     }
     let direction = |a: usize, b: usize| -> Option<f64> {
@@ -348,6 +355,44 @@ fn ready(m: &C1Memory, x: &C1Input) -> bool {
     m.ready_latch || x.e11.ready.fresh() == Some(&true)
 }
 
+/// Whether the platform stands still (after a stop it may still be braking).
+fn at_rest(s: &State) -> bool {
+    s.q_dot[0].hypot(s.q_dot[1]) < 0.02 && s.q_dot[2].abs() < 0.05
+}
+
+/// `e11`'s stop count as `c1` knows it (from its latest outcome).
+fn epoch(x: &C1Input) -> u32 {
+    x.e11.outcome.get().map_or(0, |o| o.epoch)
+}
+
+/// `e11` stopped the platform since the plan being served was taken: why.
+fn stopped(m: &C1Memory, x: &C1Input) -> Option<String> {
+    let o = x.e11.outcome.get().filter(|o| o.epoch > m.plan_epoch)?;
+    Some(match &o.result {
+        Execution::Stopped(why) => format!("e11 stopped the platform: {why}"),
+        other => format!("e11 stopped the platform ({other})"),
+    })
+}
+
+/// Why a planned fragment cannot be executed: a sample outside the free space.
+fn blocked(f: &Fragment, params: &C1Params) -> Option<String> {
+    f.states.iter().find_map(|s| {
+        params.map.explain(s[0], s[1]).err().map(|why| {
+            format!(
+                "fragment {} of plan {} leaves the free space: {why}",
+                f.index, f.plan
+            )
+        })
+    })
+}
+
+/// Relay a plan outcome from `e11` to `a2`.
+fn relay_outcome(x: &C1Input, y: &mut C1ToC2) {
+    if let Some(o) = x.e11.outcome.fresh() {
+        y.outcome.set(o.clone());
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Transition subfunctions.
 
@@ -364,7 +409,14 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
         latch(m, x, false);
         return;
     };
-    if state.is_none() && waited < m.params.estimate_wait_max {
+    // A stop since the last plan was taken: the platform is not where that plan
+    // was to end; the next one starts from the estimate, once the platform has
+    // come to rest.
+    if epoch(x) > m.plan_epoch {
+        m.restart = true;
+    }
+    let settling = m.restart && state.is_some_and(|s| !at_rest(s));
+    if (state.is_none() || settling) && waited < m.params.estimate_wait_max {
         m.pending = Some((desired, waited + 1));
         latch(m, x, false);
         return;
@@ -373,6 +425,8 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
     m.handed = 0;
     m.traj.clear();
     m.new = true;
+    m.plan_epoch = epoch(x);
+    m.failure = None;
     let processed = proc(&desired, &m.params).and_then(|plan| match state {
         Some(state) if state.is_finite() => Ok((plan, *state)),
         Some(_) => Err("the state estimate is not finite".into()),
@@ -385,6 +439,9 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
             m.plan = plan;
             m.refusal = None;
             m.trajgen.init(&state, desired.id);
+            if std::mem::take(&mut m.restart) {
+                m.trajgen.restart_from(&state);
+            }
         }
         Err(reason) => {
             m.plan.clear();
@@ -394,7 +451,8 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
     latch(m, x, false);
 }
 
-/// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false.
+/// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false; plan outcomes
+/// are relayed.
 pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     if let Some(plan) = x.c2.desired_plan.fresh() {
         y.ack.set(Ack {
@@ -402,6 +460,12 @@ pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
             status: AckStatus::Received,
         });
     }
+    relay_outcome(x, y);
+}
+
+/// `c,T f_1,2`: relay plan outcomes during `B2`.
+pub fn ct_2(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+    relay_outcome(x, y);
 }
 
 /// Keep a plan that arrives, whatever the behaviour: `B1` takes it (a plan sent
@@ -429,18 +493,12 @@ pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
     let hand_over = ready_i && !m.traj.is_empty();
     if hand_over {
         if gen_ready {
-            // listAddLastDelFirst
-            if let Some(f) = m.trajgen.get_traj() {
-                m.traj.push_back(f);
-            }
+            collect(m);
         }
         m.traj.pop_front();
         m.handed += 1;
     } else if gen_ready {
-        // listAddLast
-        if let Some(f) = m.trajgen.get_traj() {
-            m.traj.push_back(f);
-        }
+        collect(m);
     }
     if m.new {
         m.new = false;
@@ -459,37 +517,74 @@ pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
     latch(m, x, hand_over);
 }
 
+/// `listAddLast` (also of `listAddLastDelFirst`): the planned fragment joins the
+/// list; one that leaves the free space fails the plan instead.
+fn collect(m: &mut C1Memory) {
+    if let Some(f) = m.trajgen.get_traj() {
+        match blocked(&f, &m.params) {
+            None => m.traj.push_back(f),
+            Some(why) => m.failure = Some(why),
+        }
+    }
+}
+
 /// Algorithm 7 (`c,e f_1,2,tp`): hand the first fragment of the list to `e11` with
 /// `steps` and `notify`; relay the pose and the visual odometry.
 pub fn ce_2_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
     if ready(m, x)
         && let Some(f) = m.traj.front()
     {
-        y.traj.set(f.clone());
+        // The last one: nothing more planned, or to plan.
+        let last = !m.new
+            && m.plan.is_empty()
+            && m.traj.len() == 1
+            && *m.trajgen.status() == Status::Stopped;
+        y.traj.set(Fragment {
+            last,
+            epoch: epoch(x),
+            ..f.clone()
+        });
         y.steps.set(traj_to_steps(f));
         y.notify.set(traj_to_notify(f, &m.params));
     }
     ce_1(m, x, y);
 }
 
-/// Algorithm 8 (`c,T f_1,3,tp`): `ack`, with how the plan ended.
-pub fn ct_3_tp(m: &C1Memory, _: &C1Input, y: &mut C1ToC2) {
-    let status = match (&m.refusal, m.trajgen.failed()) {
+/// Why the plan being served failed, if it did (planner, a fragment leaving the
+/// free space, a stop of `e11`).
+fn failed(m: &C1Memory, x: &C1Input) -> Option<String> {
+    m.trajgen
+        .failed()
+        .map(str::to_owned)
+        .or_else(|| m.failure.clone())
+        .or_else(|| stopped(m, x))
+}
+
+/// Algorithm 8 (`c,T f_1,3,tp`): `ack`, with how the plan ended; plan outcomes are
+/// relayed.
+pub fn ct_3_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+    let status = match (&m.refusal, failed(m, x)) {
         (Some(reason), _) => AckStatus::Refused(reason.clone()),
-        (None, Some(why)) => AckStatus::Failed(why.to_owned()),
+        (None, Some(why)) => AckStatus::Failed(why),
         (None, None) => AckStatus::Done,
     };
     y.ack.set(Ack {
         plan: m.plan_id,
         status,
     });
+    relay_outcome(x, y);
 }
 
-/// `c,c f_1,3`: forget the plan's flags (so that `B1` waits for the next plan).
+/// `c,c f_1,3`: forget the plan's flags (so that `B1` waits for the next plan);
+/// after a failure the next plan starts from the state estimate.
 pub fn cc_3(m: &mut C1Memory, x: &C1Input) {
     keep_incoming(m, x);
+    if m.refusal.is_none() && failed(m, x).is_some() {
+        m.restart = true;
+    }
     m.new = false;
     m.refusal = None;
+    m.failure = None;
     latch(m, x, false);
 }
 
@@ -522,7 +617,10 @@ pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
                 && *m.trajgen.status() == Status::Stopped
         })
         .predicate("planner_failed", |m: &C1Memory, _| {
-            m.trajgen.failed().is_some()
+            m.trajgen.failed().is_some() || m.failure.is_some()
+        })
+        .predicate("stopped", |m: &C1Memory, x: &C1Input| {
+            stopped(m, x).is_some()
         })
         .behaviour(Behaviour::repeat_loop(
             "B1",
@@ -537,9 +635,10 @@ pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
             "B2",
             Action::<C1>::new()
                 .output(|y| &mut y.e11, ce_2_tp)
+                .output(|y| &mut y.c2, ct_2)
                 .output(|y| &mut y.c3, ct_q)
                 .memory(cc_2_tp),
-            "plan_sent || planner_failed",
+            "plan_sent || planner_failed || stopped",
         ))
         .behaviour(Behaviour::repeat_loop(
             "B3",
@@ -620,6 +719,7 @@ mod tests {
                 index: 0,
                 dt: 0.05,
                 states: vec![[0.0; 5]; n + 1],
+                ..Fragment::default()
             };
             let (steps, notify) = (traj_to_steps(&f), traj_to_notify(&f, &params));
             assert_eq!(steps as usize, n);
@@ -690,6 +790,7 @@ mod tests {
             index,
             dt: 0.05,
             states: vec![[0.0; 5]; 41],
+            ..Fragment::default()
         }
     }
 
@@ -862,6 +963,171 @@ mod tests {
         assert_eq!(
             y.ack.written().map(|a| &a.status),
             Some(&AckStatus::Refused("off the map".into()))
+        );
+    }
+
+    // -----------------------------------------------------------------------
+    // Outcomes, stops and the free space.
+
+    /// The FSM over a sequence of inputs; returns what went to `e11` and `c2`.
+    fn activate(
+        fsm: &Fsm<C1>,
+        fsm_state: &mut embodied::FsmState,
+        m: &mut C1Memory,
+        x: &C1Input,
+    ) -> (Option<Fragment>, Option<Ack>, Option<PlanOutcome>) {
+        let mut y = C1Output::default();
+        fsm.activate(fsm_state, m, x, &mut y, |_| {}).unwrap();
+        (
+            y.e11.traj.written().cloned(),
+            y.c2.ack.written().cloned(),
+            y.c2.outcome.written().cloned(),
+        )
+    }
+
+    fn outcome(plan: u32, epoch: u32, result: Execution) -> PlanOutcome {
+        PlanOutcome {
+            plan,
+            epoch,
+            result,
+        }
+    }
+
+    #[test]
+    fn a_stop_fails_the_plan_and_the_next_one_starts_at_rest_from_the_estimate() {
+        let fsm = c1_fsm().unwrap();
+        let mut st = fsm.start();
+        let mut m = memory(1);
+        let plan = pts(&[(1.0, 0.0), (2.0, 0.0), (3.0, 0.0)]);
+        let mut x = input(Some(plan), Some(state(0.0, 0.0, 0.0)), true);
+        // Plan 1 taken; its first fragment handed over with e11's epoch (0) and
+        // not marked last.
+        let mut handed = Vec::new();
+        for _ in 0..6 {
+            let (f, _, _) = activate(&fsm, &mut st, &mut m, &x);
+            handed.extend(f);
+            x.c2.desired_plan.age();
+            x.e11.ready.age();
+        }
+        assert_eq!(handed.len(), 1, "{handed:?}");
+        assert_eq!((handed[0].epoch, handed[0].last), (0, false));
+        // e11 stops the platform: B2 ends, plan 1 fails with the reason, and the
+        // stop is relayed to a2.
+        let why = "the platform is 0.31 m from its reference (at most 0.30 m)";
+        x.e11
+            .outcome
+            .deliver(outcome(1, 1, Execution::Stopped(why.into())), stamp());
+        let (_, ack, relayed) = activate(&fsm, &mut st, &mut m, &x);
+        let ack = ack.expect("an ack");
+        assert!(
+            matches!(&ack.status, AckStatus::Failed(w) if w.contains(why)),
+            "{ack:?}"
+        );
+        assert_eq!(relayed.map(|o| o.plan), Some(1));
+        assert!(m.restart);
+        x.e11.outcome.age();
+        activate(&fsm, &mut st, &mut m, &x);
+        assert_eq!(fsm.behaviour_name(st.behaviour()), "B1");
+        // Plan 2 arrives while the platform still brakes: it waits, then starts
+        // from where the platform came to rest, with the new epoch.
+        let mut moving = state(1.4, 0.1, 0.2);
+        moving.q_dot[0] = 0.3;
+        x.c2.desired_plan.deliver(
+            Plan {
+                id: 2,
+                ..pts(&[(2.0, 0.2)])
+            },
+            stamp(),
+        );
+        x.e11.q_est.deliver(moving, stamp());
+        activate(&fsm, &mut st, &mut m, &x);
+        x.c2.desired_plan.age();
+        assert!(m.pending.is_some() && !m.new, "waits for rest");
+        x.e11.q_est.deliver(state(1.5, 0.1, 0.2), stamp());
+        x.e11.ready.deliver(true, stamp());
+        let mut second = Vec::new();
+        for _ in 0..8 {
+            let (f, _, _) = activate(&fsm, &mut st, &mut m, &x);
+            second.extend(f);
+            x.e11.ready.age();
+        }
+        assert_eq!(second.len(), 1, "{second:?}");
+        let start = second[0].states[0];
+        assert!(
+            (start[0] - 1.5).abs() < 1e-9 && (start[1] - 0.1).abs() < 1e-9,
+            "{start:?}"
+        );
+        assert_eq!(
+            (second[0].plan, second[0].epoch, second[0].last),
+            (2, 1, true)
+        );
+    }
+
+    #[test]
+    fn a_planned_fragment_that_leaves_the_free_space_fails_the_plan() {
+        let fsm = c1_fsm().unwrap();
+        let mut st = fsm.start();
+        let mut m = memory(1);
+        // A box at (0, 1): both points clear it, the path between them does not.
+        m.params.map.obstacles.push(crate::map::Rect {
+            x0: -0.2,
+            y0: 0.9,
+            x1: 0.2,
+            y1: 1.1,
+        });
+        let plan = pts(&[(0.0, 0.0), (0.0, 2.0)]);
+        let mut x = input(
+            Some(plan),
+            Some(state(0.0, 0.0, std::f64::consts::FRAC_PI_2)),
+            true,
+        );
+        let mut acks = Vec::new();
+        let mut handed = 0;
+        for _ in 0..10 {
+            let (f, a, _) = activate(&fsm, &mut st, &mut m, &x);
+            handed += usize::from(f.is_some());
+            acks.extend(a.filter(Ack::ready));
+            x.c2.desired_plan.age();
+            x.e11.ready.age();
+        }
+        assert_eq!(acks.len(), 1, "{acks:?}");
+        assert!(
+            matches!(&acks[0].status, AckStatus::Failed(w)
+                if w.contains("fragment 1 of plan 1 leaves the free space") && w.contains("obstacle 1")),
+            "{acks:?}"
+        );
+        assert_eq!(handed, 1, "only the fragment before it");
+    }
+
+    #[test]
+    fn outcomes_are_relayed_in_every_behaviour() {
+        let fsm = c1_fsm().unwrap();
+        let mut st = fsm.start();
+        let mut m = memory(1);
+        let mut x = input(None, Some(state(0.0, 0.0, 0.0)), false);
+        // B1.
+        x.e11
+            .outcome
+            .deliver(outcome(4, 0, Execution::Reached { error_m: 0.01 }), stamp());
+        let (_, _, relayed) = activate(&fsm, &mut st, &mut m, &x);
+        assert_eq!(relayed.map(|o| o.plan), Some(4));
+        // B2, with a plan being planned.
+        x.c2.desired_plan
+            .deliver(pts(&[(1.0, 0.0), (2.0, 0.0)]), stamp());
+        x.e11.outcome.age();
+        activate(&fsm, &mut st, &mut m, &x);
+        x.c2.desired_plan.age();
+        activate(&fsm, &mut st, &mut m, &x);
+        assert_eq!(fsm.behaviour_name(st.behaviour()), "B2");
+        x.e11
+            .outcome
+            .deliver(outcome(5, 0, Execution::Missed { error_m: 0.2 }), stamp());
+        let (_, _, relayed) = activate(&fsm, &mut st, &mut m, &x);
+        assert_eq!(relayed.map(|o| o.plan), Some(5));
+        assert_eq!(
+            fsm.behaviour_name(st.behaviour()),
+            "B2",
+            "a miss is no stop"
         );
     }
 }

@@ -214,6 +214,13 @@ impl Platform {
         &self.plant
     }
 
+    /// The plant, to disturb it: a push, a collision, a kidnapping (what the
+    /// platform's model does not know happens to robots; tests of the safety
+    /// monitor use it). The sensors and the shared truth follow at the next step.
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
+    }
+
     /// Torque commands that were NaN or out of bounds so far: each command from
     /// `e11` is checked and counted once, when it arrives (see [`Plant::clean`]).
     pub fn command_stats(&self) -> CommandStats {

@@ -173,6 +173,13 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
             s.limit_s
         ));
     }
+    let failed = outcome.plans - outcome.plans_achieved();
+    if failed > 0 {
+        emit(format_args!(
+            "{failed} of {} plans not achieved (see the plan lines above)\n",
+            outcome.plans
+        ));
+    }
     Ok(outcome)
 }
 
@@ -199,7 +206,7 @@ fn main() -> ExitCode {
         };
         match run_one(&cli, &s, &base) {
             Ok(outcome) => {
-                ok &= outcome.completed && outcome.plans_done() == outcome.plans;
+                ok &= outcome.succeeded();
                 lines.push(outcome.summary_line());
             }
             Err(e) => {

@@ -2,7 +2,9 @@
 //! the framework:
 //!
 //! * `a2`, the ontology agent: its control subsystem `c2` sends the plans of a
-//!   mission one by one, each after the previous one was acknowledged;
+//!   mission one by one, each after the previous one was acknowledged (`Done`, the
+//!   paper's early acknowledgement, or a refusal or failure), keeps how each plan's
+//!   execution ended (`outcome`), and ends when every plan sent has ended;
 //! * `a3`, the map agent: the motion-capture system `R3` (a real receptor), its
 //!   virtual receptor `r31` that rejects implausible poses, and the control subsystem
 //!   `c3` that sends the pose on the map to `a1` and keeps `a1`'s state estimate.
@@ -13,7 +15,7 @@ use embodied::{
 };
 
 use crate::mission::Mission;
-use crate::types::{Ack, MapPose, Plan, State};
+use crate::types::{Ack, AckStatus, MapPose, Plan, PlanOutcome, State};
 
 // ---------------------------------------------------------------------------
 // a2: the ontology agent
@@ -30,6 +32,8 @@ pub struct OntologyMemory {
     pub next: usize,
     /// The acknowledgements received, in order.
     pub acks: Vec<Ack>,
+    /// How the execution of plans ended, in the order reported.
+    pub outcomes: Vec<PlanOutcome>,
 }
 
 impl OntologyMemory {
@@ -39,7 +43,20 @@ impl OntologyMemory {
             mission,
             next: 0,
             acks: Vec::new(),
+            outcomes: Vec::new(),
         }
+    }
+
+    /// Whether every plan sent has ended: refused, failed, or its execution
+    /// reported.
+    pub fn settled(&self) -> bool {
+        let sent = self.next as u32;
+        (1..=sent).all(|id| {
+            self.outcomes.iter().any(|o| o.plan == id)
+                || self.acks.iter().any(|a| {
+                    a.plan == id && matches!(a.status, AckStatus::Refused(_) | AckStatus::Failed(_))
+                })
+        })
     }
 
     /// The id of the last plan sent.
@@ -53,6 +70,8 @@ impl OntologyMemory {
 pub struct OntologyFromC1 {
     /// The acknowledgement of a plan.
     pub ack: In<Ack>,
+    /// How a plan's execution ended.
+    pub outcome: In<PlanOutcome>,
 }
 impl Group for OntologyFromC1 {
     const PEER: NodeKind = NodeKind::Control;
@@ -89,16 +108,20 @@ impl Subsystem for Ontology {
     type Output = OntologyOutput;
 }
 
-/// Keep a fresh final acknowledgement (run by the behaviour that follows `wait`, in
-/// the activation in which the acknowledgement arrives).
+/// Keep a fresh final acknowledgement and a fresh outcome (every acting behaviour
+/// runs it, so none is lost).
 fn record(m: &mut OntologyMemory, x: &OntologyInput) {
     if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
         m.acks.push(ack.clone());
     }
+    if let Some(o) = x.c1.outcome.fresh() {
+        m.outcomes.push(o.clone());
+    }
 }
 
 /// The FSM of `c2` (as in `specs/rex.ron`): `next_plan` decides, `send` sends one
-/// plan, `wait` waits for its acknowledgement, `done` is final.
+/// plan, `wait` waits for its acknowledgement, `settle` waits for every plan's
+/// outcome after the last one is sent, `done` is final.
 pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
     Fsm::builder()
         .predicate("more", |m: &OntologyMemory, _| {
@@ -135,10 +158,16 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                 }),
             "true",
         ))
+        .predicate("settled", |m: &OntologyMemory, _| m.settled())
         .behaviour(Behaviour::while_loop(
             "wait",
-            Action::<Ontology>::new(),
+            Action::<Ontology>::new().memory(record),
             "acked",
+        ))
+        .behaviour(Behaviour::while_loop(
+            "settle",
+            Action::<Ontology>::new().memory(record),
+            "settled",
         ))
         .behaviour(Behaviour::repeat_loop(
             "done",
@@ -147,9 +176,10 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
         ))
         .initial("next_plan")
         .arc("next_plan", "send", "more")
-        .arc("next_plan", "done", "!more")
+        .arc("next_plan", "settle", "!more")
         .arc("send", "wait", "true")
         .arc("wait", "next_plan", "true")
+        .arc("settle", "done", "true")
         .final_behaviour("done")
         .build()
 }
@@ -158,11 +188,13 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
 // a3: the map agent
 
 /// The virtual receptor `r31` of the map agent: passes on plausible motion-capture
-/// poses, rejects and counts the others (non-finite, or a jump no robot makes).
+/// poses, rejects and counts the others (non-finite, or a jump no robot makes). A
+/// jump that the next poses confirm (`confirm` in a row, consistent with each
+/// other) is believed: the robot was moved, the measurement was not wrong.
 pub struct MocapReceptor;
 
 /// `r31`'s memory.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct MocapMemory {
     /// The last pose passed on.
     pub last: Option<MapPose>,
@@ -170,6 +202,22 @@ pub struct MocapMemory {
     pub rejected: u64,
     /// Largest plausible speed [m/s]: a faster jump is rejected.
     pub max_speed: f64,
+    /// The latest pose rejected as a jump, and how many consistent ones in a row.
+    pub candidate: Option<(MapPose, u32)>,
+    /// A jump confirmed by this many consistent poses in a row is passed on.
+    pub confirm: u32,
+}
+
+impl Default for MocapMemory {
+    fn default() -> Self {
+        MocapMemory {
+            last: None,
+            rejected: 0,
+            max_speed: 0.0,
+            candidate: None,
+            confirm: 3,
+        }
+    }
 }
 
 /// `r31`'s input from `R3`.
@@ -218,18 +266,41 @@ impl Subsystem for MocapReceptor {
 }
 
 impl MocapMemory {
+    /// Whether `p` follows `from` as a robot can move.
+    fn follows(&self, from: &MapPose, p: &MapPose) -> bool {
+        let d = (p.pose.x - from.pose.x).hypot(p.pose.y - from.pose.y);
+        p.time > from.time && d <= self.max_speed * (p.time - from.time) + 0.05
+    }
+
+    /// Whether `p` is consistent with the run of rejected poses before it.
+    fn continues_jump(&self, p: &MapPose) -> Option<u32> {
+        self.candidate
+            .filter(|(c, _)| self.follows(c, p))
+            .map(|(_, n)| n + 1)
+    }
+
     fn plausible(&self, p: &MapPose) -> bool {
         if !(p.pose.is_finite() && p.time.is_finite()) {
             return false;
         }
-        match self.last {
-            Some(last) if p.time > last.time => {
-                let d =
-                    ((p.pose.x - last.pose.x).powi(2) + (p.pose.y - last.pose.y).powi(2)).sqrt();
-                d <= self.max_speed * (p.time - last.time) + 0.05
+        match &self.last {
+            Some(last) => {
+                self.follows(last, p) || self.continues_jump(p).is_some_and(|n| n >= self.confirm)
             }
-            Some(_) => false,
             None => true,
+        }
+    }
+
+    /// Keep what `p` teaches (run after `plausible` decided what to pass on).
+    fn learn(&mut self, p: &MapPose) {
+        if self.plausible(p) {
+            self.last = Some(*p);
+            self.candidate = None;
+        } else {
+            self.rejected += 1;
+            if p.pose.is_finite() && p.time.is_finite() {
+                self.candidate = Some((*p, self.continues_jump(p).unwrap_or(1)));
+            }
         }
     }
 }
@@ -249,11 +320,7 @@ pub fn mocap_receptor_fsm() -> Result<Fsm<MocapReceptor>, FsmBuildError> {
             )
             .memory(|m: &mut MocapMemory, x: &MocapReceptorInput| {
                 if let Some(p) = x.R3.pose.fresh() {
-                    if m.plausible(p) {
-                        m.last = Some(*p);
-                    } else {
-                        m.rejected += 1;
-                    }
+                    m.learn(p);
                 }
             }),
         "false",
@@ -356,16 +423,18 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::{AckStatus, Point2, Pose2};
+    use crate::types::{AckStatus, Execution, Point2, Pose2};
     use embodied::testing::{Environment, Termination};
     use embodied::{Stamp, Time};
     use proptest::prelude::*;
 
-    /// A `c1` that acknowledges each plan `delay` activations of `c2` after it was sent.
+    /// A `c1` that acknowledges each plan `delay` activations of `c2` after it was
+    /// sent (the early `Done`), and reports it reached `delay` activations later.
     #[derive(Clone, Debug)]
     struct Acker {
         delay: u64,
         pending: Option<(u32, u64)>,
+        executing: Vec<(u32, u64)>,
     }
 
     impl Environment<Ontology> for Acker {
@@ -383,8 +452,24 @@ mod tests {
                         Stamp::new(k, Time::ZERO),
                     );
                     self.pending = None;
+                    self.executing.push((id, k + self.delay));
                 }
                 _ => x.c1.ack.age(),
+            }
+            // One outcome per activation at most (a queue link delivers one).
+            match self.executing.first() {
+                Some(&(id, due)) if due <= k => {
+                    x.c1.outcome.deliver(
+                        PlanOutcome {
+                            plan: id,
+                            epoch: 0,
+                            result: Execution::Reached { error_m: 0.01 },
+                        },
+                        Stamp::new(k, Time::ZERO),
+                    );
+                    self.executing.remove(0);
+                }
+                _ => x.c1.outcome.age(),
             }
         }
     }
@@ -415,8 +500,10 @@ mod tests {
         let env = (0u64..10).prop_map(|delay| Acker {
             delay,
             pending: None,
+            executing: Vec::new(),
         });
-        Termination::within(6 * 13 + 2)
+        // ... and the outcome of the last one, `delay` activations after its ack.
+        Termination::within(6 * 13 + 2 + 12)
             .cases(64)
             .returns_to(&fsm, "done", memory, env)
             .unwrap();
@@ -442,5 +529,37 @@ mod tests {
         assert!(!m.plausible(&at(5.0, 0.1)), "50 m/s");
         assert!(!m.plausible(&at(f64::NAN, 0.2)));
         assert!(!m.plausible(&at(0.0, -1.0)), "older than the last");
+    }
+
+    #[test]
+    fn a_jump_the_next_poses_confirm_is_believed() {
+        // A robot carried 4 m away: the first poses there are rejected, the third
+        // in a row that agree with each other is passed on; a lone outlier is not.
+        let mut m = MocapMemory {
+            max_speed: 2.0,
+            ..MocapMemory::default()
+        };
+        let at = |x: f64, time: f64| MapPose {
+            pose: Pose2 {
+                x,
+                y: 0.0,
+                phi: 0.0,
+            },
+            time,
+        };
+        m.learn(&at(0.0, 0.0));
+        m.learn(&at(9.0, 0.01));
+        assert!(m.plausible(&at(0.01, 0.02)), "a lone outlier");
+        m.learn(&at(0.01, 0.02));
+        let passed: Vec<bool> = (3..8)
+            .map(|k| {
+                let p = at(4.0 + 0.001 * f64::from(k), 0.01 * f64::from(k));
+                let pass = m.plausible(&p);
+                m.learn(&p);
+                pass
+            })
+            .collect();
+        assert_eq!(passed, [false, false, true, true, true]);
+        assert_eq!(m.rejected, 3);
     }
 }

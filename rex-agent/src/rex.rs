@@ -14,12 +14,15 @@ use embodied::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, MapBounds, c1_fsm};
+use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
 use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::devices::{
     CameraInput, CameraOutput, Platform, PlatformInput, PlatformOutput, SharedTruth, StereoCamera,
 };
-use crate::e11::{E11, E11Input, E11Memory, E11Output, EstimatorKind, TrackerKind, e11_fsm};
+use crate::e11::{
+    E11, E11Input, E11Memory, E11Output, EstimatorKind, Safety, TrackerKind, e11_fsm,
+};
+use crate::map::Map;
 use crate::mission::Mission;
 use crate::partners::{MapInput, MapOutput, Ontology, OntologyInput, OntologyOutput};
 use crate::planner::trajgen::{Runtime, TrajGen};
@@ -55,6 +58,85 @@ pub struct RunSettings {
     pub limit_s: f64,
     /// Run the virtual receptor r11 (stereo visual odometry on the camera R1).
     pub visual_odometry: bool,
+    /// The limits a1 keeps and the run is judged by.
+    pub limits: Limits,
+}
+
+/// The limits a1 keeps, and by which the run judges each plan (a section of the
+/// run file). a1 measures with its own estimate; the run with the simulation's
+/// truth.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Limits {
+    /// How close the platform's centre may come to a wall or an obstacle [m]: its
+    /// footprint. `e11` stops the platform closer; the run fails a plan during
+    /// which the true pose came closer.
+    pub clearance_m: f64,
+    /// Plan points and planned fragments keep this much more [m].
+    pub plan_margin_m: f64,
+    /// `e11` stops the platform when its estimate is farther than this from the
+    /// reference [m]; the run fails a plan whose true tracking error exceeded it.
+    pub tracking_m: f64,
+    /// A plan's last point is reached within this distance [m].
+    pub final_m: f64,
+    /// How long `e11` waits, holding a plan's last point, for the platform to
+    /// come within `final_m` [s].
+    pub settle_s: f64,
+    /// `e11` stops the platform when braking at this deceleration [m/s²] would end
+    /// outside the free space.
+    pub brake_decel: f64,
+    /// The run fails a plan during which the estimate was farther than this from
+    /// the true position while the motion capture delivered [m].
+    pub estimate_m: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            clearance_m: 0.45,
+            plan_margin_m: 0.1,
+            tracking_m: 0.3,
+            final_m: 0.1,
+            settle_s: 3.0,
+            brake_decel: 1.0,
+            estimate_m: 0.1,
+        }
+    }
+}
+
+impl Validate for Limits {
+    fn validate(&self) -> Result<(), Invalid> {
+        config::positive("limits.clearance_m", self.clearance_m)?;
+        config::non_negative("limits.plan_margin_m", self.plan_margin_m)?;
+        config::positive("limits.tracking_m", self.tracking_m)?;
+        config::positive("limits.final_m", self.final_m)?;
+        config::non_negative("limits.settle_s", self.settle_s)?;
+        config::positive("limits.brake_decel", self.brake_decel)?;
+        config::positive("limits.estimate_m", self.estimate_m)
+    }
+}
+
+impl Limits {
+    /// The free space of `world` with the clearance `e11` keeps.
+    pub fn safety_map(&self, world: &WorldConfig) -> Map {
+        Map::of_scene(&world.scene, self.clearance_m)
+    }
+
+    /// The free space of `world` with the clearance plans keep.
+    pub fn plan_map(&self, world: &WorldConfig) -> Map {
+        Map::of_scene(&world.scene, self.clearance_m + self.plan_margin_m)
+    }
+
+    /// `e11`'s safety settings in `world`.
+    pub fn safety(&self, world: &WorldConfig) -> Safety {
+        Safety {
+            map: self.safety_map(world),
+            max_tracking_error: self.tracking_m,
+            final_tolerance: self.final_m,
+            settle: self.settle_s,
+            brake_decel: self.brake_decel,
+        }
+    }
 }
 
 impl Default for RunSettings {
@@ -70,6 +152,7 @@ impl Default for RunSettings {
             estimator: EstimatorKind::Mhe,
             limit_s: 600.0,
             visual_odometry: true,
+            limits: Limits::default(),
         }
     }
 }
@@ -77,6 +160,7 @@ impl Default for RunSettings {
 impl Validate for RunSettings {
     fn validate(&self) -> Result<(), Invalid> {
         config::positive("limit_s", self.limit_s)?;
+        self.limits.validate()?;
         if self.planning_latency == 0 {
             return Err((
                 "planning_latency".into(),
@@ -137,6 +221,7 @@ impl RunSettings {
         config.tracker = self.tracker;
         config.estimator = self.estimator;
         config.visual_odometry = self.visual_odometry;
+        config.limits = self.limits.clone();
         Ok(config)
     }
 }
@@ -171,14 +256,15 @@ pub struct RexConfig {
     pub visual_odometry: bool,
     /// r11 commands a stereo pair every this many of its steps.
     pub acquire_every: u32,
+    /// The limits a1 keeps (c1's map is made from them and the world's scene
+    /// when the system is built).
+    pub limits: Limits,
 }
 
 impl RexConfig {
-    /// The world, the mission, ECSA on a thread, the baseline tracker and
-    /// estimator; plans must stay half a metre inside the room's walls.
+    /// The world, the mission, and the run settings' defaults (ECSA on a thread,
+    /// NMPC and MHE, the default limits).
     pub fn new(world: WorldConfig, mission: Mission) -> RexConfig {
-        let room = &world.scene.room;
-        let margin = 0.5;
         let defaults = RunSettings::default();
         // Plan well inside the platform's bounds: turning is what costs torque on a
         // skid-steer platform, and the tracker needs a margin to correct errors.
@@ -189,15 +275,7 @@ impl RexConfig {
         };
         RexConfig {
             planner_settings,
-            c1: C1Params {
-                map: MapBounds {
-                    x0: room.x0 + margin,
-                    y0: room.y0 + margin,
-                    x1: room.x1 - margin,
-                    y1: room.y1 - margin,
-                },
-                ..C1Params::default()
-            },
+            c1: C1Params::default(),
             world,
             mission,
             planner: defaults.planner,
@@ -209,6 +287,7 @@ impl RexConfig {
             exec: ExecConfig::default(),
             visual_odometry: defaults.visual_odometry,
             acquire_every: 5,
+            limits: defaults.limits,
         }
     }
 }
@@ -316,7 +395,13 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         a1,
         "c1",
         period_of(&spec, "c1")?,
-        C1Memory::new(trajgen, config.c1),
+        C1Memory::new(
+            trajgen,
+            C1Params {
+                map: config.limits.plan_map(&config.world),
+                ..config.c1.clone()
+            },
+        ),
         c1_fsm()?,
     );
     let p = config.world.platform.clone();
@@ -325,7 +410,8 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         config.estimator.build(p, settings.slip, dt)?,
         dt,
         settings.slip.x_icr,
-    );
+    )
+    .with_safety(config.limits.safety(&config.world));
     let e11 = sys.subsystem(a1, "e11", e11_period, e11_memory, e11_fsm()?);
     let platform = world::add_platform(&mut sys, a1, &config.world, &truth)?;
     let (_, c2) = world::add_ontology(&mut sys, &config.world, config.mission.clone())?;
@@ -346,6 +432,11 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         map.c3.output(port!(MapOutput, c1.pose)),
         c1.input(port!(C1Input, c3.pose)),
         Policy::Sample,
+    );
+    sys.connect(
+        c1.output(port!(C1Output, c2.outcome)),
+        c2.input(port!(OntologyInput, c1.outcome)),
+        Policy::queue(8),
     );
     sys.connect(
         c1.output(port!(C1Output, c3.q_est)),
@@ -387,6 +478,11 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         e11.output(port!(E11Output, c1.ready)),
         c1.input(port!(C1Input, e11.ready)),
         Policy::Sample,
+    );
+    sys.connect(
+        e11.output(port!(E11Output, c1.outcome)),
+        c1.input(port!(C1Input, e11.outcome)),
+        Policy::queue(8),
     );
     // e11 and the platform.
     sys.connect(

@@ -10,8 +10,9 @@ use std::time::{Duration, Instant};
 
 use embodied::{ExecError, Executor, NoObserver, Time};
 
+use crate::judge::{self, PlanReport, Verdict};
 use crate::rex::{RexConfig, RexError, RexHandles, build};
-use crate::types::{Ack, AckStatus};
+use crate::types::{Ack, AckStatus, PlanOutcome};
 
 /// One sample of a run, at every activation of `e11`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -32,6 +33,9 @@ pub struct Sample {
     pub behaviour: u8,
     /// The fragment being executed: `(plan, index)`.
     pub fragment: Option<(u32, u32)>,
+    /// How long the motion capture has been delivering poses without a gap [s]
+    /// (0 during a dropout).
+    pub mocap_for: f64,
 }
 
 impl Sample {
@@ -45,10 +49,16 @@ impl Sample {
     pub fn estimate_error(&self) -> f64 {
         (self.estimate[0] - self.truth[0]).hypot(self.estimate[1] - self.truth[1])
     }
+
+    /// Whether the motion capture has been delivering for the last second: the
+    /// estimate can be held to it (after a dropout it needs a moment to converge).
+    pub fn with_mocap(&self) -> bool {
+        self.mocap_for >= 1.0
+    }
 }
 
 /// Counters gathered at the end of a run.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Counters {
     /// Fragments received by `e11`.
     pub fragments_received: u32,
@@ -56,6 +66,12 @@ pub struct Counters {
     pub fragments_completed: u32,
     /// Fragments refused by `e11` (not finite).
     pub fragments_rejected: u32,
+    /// Fragments refused by `e11` because they were handed over before a stop.
+    pub fragments_stale: u32,
+    /// Stops of the platform by `e11`'s safety monitor, with their time [s].
+    pub stops: Vec<(f64, String)>,
+    /// Command timeouts of the platform's watchdog (steps at zero torque).
+    pub watchdog_steps: u64,
     /// What the estimator rejected, and its relocalisations.
     pub estimator: crate::e11::estimator::EstimatorHealth,
     /// Torque commands clamped or rejected by the platform.
@@ -85,6 +101,10 @@ pub struct Outcome {
     pub plans: usize,
     /// Final acknowledgements received by `a2`, with their arrival time [s].
     pub acks: Vec<(f64, Ack)>,
+    /// Plan outcomes reported by `e11`, with the time it reported them [s].
+    pub outcomes: Vec<(f64, PlanOutcome)>,
+    /// Each plan of the mission, judged against the simulation's truth.
+    pub reports: Vec<PlanReport>,
     /// Samples at every activation of `e11`.
     pub samples: Vec<Sample>,
     /// Simulated time [s].
@@ -93,20 +113,44 @@ pub struct Outcome {
     pub wall_s: f64,
     /// Counters.
     pub counters: Counters,
-    /// Whether the mission ended (every plan acknowledged and the last fragment
-    /// executed) before the time limit.
+    /// Whether the mission ended (every plan sent, its outcome reported to `a2`,
+    /// the last fragment executed) before the time limit.
     pub completed: bool,
     /// The names of the planner, tracker and estimator.
     pub parts: [String; 3],
 }
 
 impl Outcome {
-    /// Plans acknowledged as done.
+    /// Plans acknowledged as done (the paper's early acknowledgement: every
+    /// fragment handed over).
     pub fn plans_done(&self) -> usize {
         self.acks
             .iter()
             .filter(|(_, a)| a.status == AckStatus::Done)
             .count()
+    }
+
+    /// Plans achieved: acknowledged, reported reached by `e11`, and confirmed by
+    /// the simulation's truth (end point, tracking error, estimate, clearance).
+    pub fn plans_achieved(&self) -> usize {
+        self.reports
+            .iter()
+            .filter(|r| r.verdict == Verdict::Achieved)
+            .count()
+    }
+
+    /// Plans `e11` reported reached whose end point the platform did not in truth
+    /// reach (a success reported that was not achieved).
+    pub fn false_done(&self) -> usize {
+        self.reports
+            .iter()
+            .filter(|r| matches!(r.verdict, Verdict::FalseSuccess(_)))
+            .count()
+    }
+
+    /// Whether the run succeeded: it completed and achieved every plan.
+    pub fn succeeded(&self) -> bool {
+        self.completed && self.plans_achieved() == self.plans
     }
 
     fn tracking_errors(&self) -> impl Iterator<Item = f64> + '_ {
@@ -146,12 +190,12 @@ impl Outcome {
         self.sim_s / self.wall_s.max(1e-9)
     }
 
-    /// The summary line of the main job.
+    /// The summary line of the main job (`plans_acked`: the plans achieved).
     pub fn summary_line(&self) -> String {
         format!(
             "mission={} plans_acked={}/{} rms_m={:.4} max_m={:.4} realtime_factor={:.1}",
             self.mission,
-            self.plans_done(),
+            self.plans_achieved(),
             self.plans,
             self.rms(),
             self.max_error(),
@@ -218,6 +262,7 @@ pub fn run_mission(
     let tick_ns = tick.as_nanos().max(1);
     let mut next_tick = tick_ns;
     let mut acks_seen = 0;
+    let mut mocap_since: Option<f64> = None;
     while let Some(t) = exec.next_instant() {
         if t >= end {
             break;
@@ -230,7 +275,21 @@ pub fn run_mission(
             continue;
         }
         let ts = t.as_secs_f64();
-        if let Some(s) = sample(&exec, &h, ts, truth.map(|s| [s.x, s.y, s.phi])) {
+        if let Some(o) = exec.memory(&h.e11).and_then(|m| m.event.clone()) {
+            out.outcomes.push((ts, o));
+        }
+        // Poses come every 10 ms; a gap of 50 ms is a dropout.
+        let delivering = exec
+            .driver(&h.map.mocap)
+            .and_then(|m| m.last_delivered())
+            .is_some_and(|(at, _)| at >= ts - 0.05);
+        mocap_since = if delivering {
+            mocap_since.or(Some(ts))
+        } else {
+            None
+        };
+        if let Some(mut s) = sample(&exec, &h, ts, truth.map(|s| [s.x, s.y, s.phi])) {
+            s.mocap_for = mocap_since.map_or(0.0, |since| ts - since);
             out.samples.push(s);
             if u128::from(t.as_nanos()) >= next_tick {
                 next_tick += tick_ns;
@@ -244,9 +303,12 @@ pub fn run_mission(
             }
             acks_seen = m.acks.len();
         }
-        let idle = exec
-            .memory(&h.e11)
-            .is_some_and(|m| m.track.running.is_none() && m.track.queue.is_empty());
+        let idle = exec.memory(&h.e11).is_some_and(|m| {
+            m.track.running.is_none()
+                && m.track.queue.is_empty()
+                && m.arrival.is_none()
+                && m.outbox.is_empty()
+        });
         if exec.is_halted(h.c2.id()) && idle {
             out.completed = true;
             break;
@@ -259,12 +321,15 @@ pub fn run_mission(
         c.fragments_received = m.track.received;
         c.fragments_completed = m.track.completed;
         c.fragments_rejected = m.track.rejected;
+        c.fragments_stale = m.track.stale;
+        c.stops = m.stops.clone();
         c.estimator = m.estym.estimator.health();
         c.tracker = m.track.tracker.report();
     }
     if let Some(p) = exec.driver(&h.platform) {
         let s = p.command_stats();
         c.clamped_torques = s.not_finite + s.out_of_bounds;
+        c.watchdog_steps = p.timeouts();
     }
     if let Some(m) = exec.memory(&h.c1) {
         let t = m.trajgen.totals();
@@ -280,6 +345,8 @@ pub fn run_mission(
         let s = m.odom.vo().stats();
         c.vo = (m.odom.pairs, s.motions, m.odom.no_estimates);
     }
+    let sent = exec.memory(&h.c2).map_or(0, |m| m.next);
+    out.reports = judge::judge(&out, config, sent);
     Ok(out)
 }
 
@@ -305,5 +372,6 @@ fn sample(
         tau: e11.tau,
         behaviour,
         fragment: e11.track.following,
+        mocap_for: 0.0,
     })
 }

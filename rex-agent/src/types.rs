@@ -1,5 +1,7 @@
 //! The data that travels through Rex's buffers (names as in `specs/rex.ron`).
 
+use std::fmt;
+
 use serde::{Deserialize, Serialize};
 
 /// A point on the map [m].
@@ -180,19 +182,77 @@ impl std::fmt::Debug for Plan {
     }
 }
 
-/// How a plan ended (`ack` in the paper is a flag: [`AckStatus::Received`] is
+/// How `c1` answers a plan (`ack` in the paper is a flag: [`AckStatus::Received`] is
 /// `ack = false`, sent when a new plan is taken (Algorithm 5); the others are
-/// `ack = true`, ready for a new plan (Algorithm 8), with the outcome).
+/// `ack = true`, ready for a new plan (Algorithm 8)).
+///
+/// `Done` is the paper's early acknowledgement: every fragment was handed over, the
+/// platform is still executing the last ones. It does not say the plan was
+/// achieved: that comes later, as the plan's [`PlanOutcome`] (`outcome`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum AckStatus {
     /// The plan was taken: not ready for another one yet.
     Received,
-    /// Every fragment was handed over for execution.
+    /// Every fragment was handed over for execution (its outcome follows).
     Done,
     /// The plan was refused before execution.
     Refused(String),
-    /// Execution stopped (the platform holds its position).
+    /// Planning or execution stopped (the platform holds its position).
     Failed(String),
+}
+
+/// How the execution of a plan ended, as `e11` measured it (`outcome`, sent by
+/// `e11` to `c1` and relayed to `a2`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanOutcome {
+    /// The plan.
+    pub plan: u32,
+    /// `e11`'s stop count when it sent this (fragments handed over with an older
+    /// one are stale and refused; see `Fragment::epoch`).
+    pub epoch: u32,
+    /// What happened.
+    pub result: Execution,
+}
+
+/// The end of a plan's execution.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Execution {
+    /// The platform reached the plan's last point, `error_m` from it (estimated).
+    Reached {
+        /// Distance to the last point [m].
+        error_m: f64,
+    },
+    /// The last fragment ended, but the platform did not come within the
+    /// tolerance of its end point.
+    Missed {
+        /// Distance to the last point when `e11` gave up waiting [m].
+        error_m: f64,
+    },
+    /// `e11` stopped the platform (it left the free space, headed out of it, or
+    /// strayed too far from its reference): the platform brakes and holds, and
+    /// the fragments queued are dropped.
+    Stopped(String),
+}
+
+impl PlanOutcome {
+    /// Whether the plan was achieved.
+    pub fn reached(&self) -> bool {
+        matches!(self.result, Execution::Reached { .. })
+    }
+}
+
+impl fmt::Display for Execution {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Execution::Reached { error_m } => {
+                write!(f, "reached its last point ({error_m:.3} m from it)")
+            }
+            Execution::Missed { error_m } => {
+                write!(f, "missed its last point by {error_m:.3} m")
+            }
+            Execution::Stopped(why) => write!(f, "stopped: {why}"),
+        }
+    }
 }
 
 /// `A4x4`: the motion of the platform between two stereo pairs, measured by the

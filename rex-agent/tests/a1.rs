@@ -13,6 +13,7 @@ use embodied::{Activated, Fsm, Stamp, Step, Time};
 use proptest::prelude::*;
 
 use rex_agent::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
+use rex_agent::judge::Verdict;
 use rex_agent::mission::Mission;
 use rex_agent::planner::trajgen::{Runtime, TrajGen};
 use rex_agent::planner::{PlannerKind, PlannerSettings};
@@ -493,4 +494,130 @@ fn nmpc_and_mhe_ride_out_motion_capture_dropouts_of_seconds() {
         "estimate rms {}",
         out.estimate_rms()
     );
+}
+
+// ---------------------------------------------------------------------------
+// Outcomes: no success reported that was not achieved.
+
+#[test]
+fn a_platform_that_cannot_move_fails_its_plans_with_the_reason() {
+    // A 1e30 kg platform never moves: before, both plans were acknowledged `Done`
+    // and the run succeeded. e11 stops it (its reference runs away), every plan
+    // fails with the reason, and the run does not succeed.
+    let mut config = short();
+    config.world.platform.mass = 1e30;
+    config.visual_odometry = false;
+    let out = run(&config, 60);
+    assert!(out.completed, "{}", out.summary_line());
+    assert!(!out.succeeded());
+    assert_eq!(out.plans_achieved(), 0, "{:#?}", out.reports);
+    assert_eq!(out.false_done(), 0);
+    for r in &out.reports {
+        assert!(
+            matches!(&r.verdict, Verdict::Failed(why) if why.contains("stopped")),
+            "{r}"
+        );
+    }
+    assert!(!out.counters.stops.is_empty());
+    assert!(
+        out.summary_line().contains("plans_acked=0/2"),
+        "{}",
+        out.summary_line()
+    );
+}
+
+#[test]
+fn on_ice_no_plan_is_reported_achieved_that_was_not() {
+    // On ice the trackers cannot follow the plans: the plans end as failures (or
+    // achievements the truth confirms), never as unconfirmed successes.
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("figure_eight").unwrap(),
+    );
+    config.world.surfaces.default = "ice".into();
+    config.world.surfaces.patches.clear();
+    config.visual_odometry = false;
+    let out = run(&config, 300);
+    assert!(out.completed, "{}", out.summary_line());
+    assert_eq!(out.false_done(), 0, "{:#?}", out.reports);
+    for r in &out.reports {
+        assert!(
+            matches!(r.verdict, Verdict::Achieved | Verdict::Failed(_)),
+            "{r}"
+        );
+    }
+    // A failure is reported as such, with the truth measured beside it.
+    for r in out
+        .reports
+        .iter()
+        .filter(|r| r.verdict != Verdict::Achieved)
+    {
+        assert!(r.ack.is_some() || r.outcome.is_some(), "{r}");
+    }
+}
+
+#[test]
+fn a_platform_pushed_out_of_the_free_space_is_stopped_and_its_plan_failed() {
+    // Four seconds into the square, something pushes the platform to 0.35 m from
+    // the wall at x = 6 m (e11 keeps 0.45 m): e11 stops it as soon as the motion
+    // capture shows it there, plan 1 fails with the reason, and the next plan,
+    // which would start from there, is refused by c1's map.
+    let mut config = short();
+    config.visual_odometry = false;
+    let (system, h, _) = build(&config).unwrap();
+    let mut exec = embodied::Executor::new(system, config.exec);
+    exec.run_for(Duration::from_secs(4)).unwrap();
+    let p = exec.driver_mut(&h.platform).unwrap().plant_mut();
+    p.state.x = 5.65;
+    p.state.y = 0.0;
+    exec.run_for(Duration::from_secs(20)).unwrap();
+    let e11 = exec.memory(&h.e11).unwrap();
+    let (at, why) = e11.stops.first().cloned().expect("a stop");
+    assert!(at < 4.5, "stopped at {at} s");
+    assert!(why.contains("not 0.45 m inside the room"), "{why}");
+    let c2 = exec.memory(&h.c2).unwrap();
+    let failed = |plan: u32| {
+        c2.acks
+            .iter()
+            .any(|a| a.plan == plan && matches!(a.status, AckStatus::Failed(_)))
+            || c2.outcomes.iter().any(|o| o.plan == plan && !o.reached())
+    };
+    assert!(failed(1), "{:?} {:?}", c2.acks, c2.outcomes);
+    assert!(failed(2), "{:?} {:?}", c2.acks, c2.outcomes);
+    // The platform did not drive on into the wall.
+    let x = exec.driver(&h.platform).unwrap().plant().state.x;
+    assert!(x < 5.8, "x = {x}");
+}
+
+#[test]
+fn the_main_job_exits_non_zero_and_names_the_failed_plans() {
+    let dir = std::env::temp_dir().join(format!("rex-exit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let world = dir.join("heavy.ron");
+    let shipped = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/world.ron"),
+    )
+    .unwrap();
+    std::fs::write(&world, shipped.replace("mass: 40.0,", "mass: 1e30,")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rex"))
+        .args([
+            "--mission",
+            "square",
+            "--no-vo",
+            "--quiet",
+            "--no-report",
+            "--world",
+        ])
+        .arg(&world)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("plan 1: FAILED: e11 stopped the platform"),
+        "{text}"
+    );
+    assert!(text.contains("2 of 2 plans not achieved"), "{text}");
+    assert!(text.contains("mission=square plans_acked=0/2"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
 }

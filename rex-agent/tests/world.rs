@@ -25,8 +25,9 @@ use rex_agent::world::{self, WorldConfig};
 // Stand-ins for a1's subsystems.
 
 /// c1: acknowledges each plan as `Received` (not ready) in the iteration it
-/// arrives, and as `Done` (ready) 20 iterations later; notes when the plans came
-/// and which acknowledgements it sent; keeps the map poses.
+/// arrives, and as `Done` (ready) 20 iterations later, with the outcome `Reached`;
+/// notes when the plans came and which acknowledgements it sent; keeps the map
+/// poses.
 struct StubC1;
 #[derive(Clone, Debug, Default)]
 struct StubC1Memory {
@@ -75,6 +76,7 @@ struct StubC1Input {
 #[derive(Debug, Default)]
 struct C1ToC2 {
     ack: Out<Ack>,
+    outcome: Out<PlanOutcome>,
 }
 impl Group for C1ToC2 {
     const PEER: NodeKind = NodeKind::Control;
@@ -107,6 +109,13 @@ fn stub_c1() -> Fsm<StubC1> {
                 |y| &mut y.c2,
                 |m: &StubC1Memory, x: &StubC1Input, y: &mut C1ToC2| {
                     if let Some(ack) = stub_c1_ack(m, x) {
+                        if ack.status == AckStatus::Done {
+                            y.outcome.set(PlanOutcome {
+                                plan: ack.plan,
+                                epoch: 0,
+                                result: Execution::Reached { error_m: 0.0 },
+                            });
+                        }
                         y.ack.set(ack);
                     }
                 },
@@ -399,6 +408,11 @@ fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     sys.connect(
         c1.output(port!(StubC1Output, c2.ack)),
         c2.input(port!(OntologyInput, c1.ack)),
+        Policy::queue(4),
+    );
+    sys.connect(
+        c1.output(port!(StubC1Output, c2.outcome)),
+        c2.input(port!(OntologyInput, c1.outcome)),
         Policy::queue(4),
     );
     sys.connect(

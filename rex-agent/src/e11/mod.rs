@@ -8,16 +8,29 @@
 //!   the tracker computes the torques for the current reference point;
 //! * `eE` (to E1): the torques, and the IMU reset that aligns its heading with the
 //!   map when the first map pose arrives;
-//! * `ec` (to c1): the state estimate, and `ready` once at start and once per
-//!   fragment after `notify` iterations;
+//! * `ec` (to c1): the state estimate, `ready` once at start and once per
+//!   fragment after `notify` iterations, and each plan's `outcome`;
 //! * `ee_steps` (memory): counts `step` and `notify` down, queues fragments that
 //!   arrive before the current one ends (because `notify < steps`), and holds the
 //!   last point when no fragment follows.
+//!
+//! **Safety and outcomes.** While it executes a fragment, `e11` stops the
+//! platform (brakes to the current estimated pose, drops the fragments queued,
+//! reports `Execution::Stopped` with the reason, and `ready`) when the estimate or
+//! the latest map pose leaves the free space of the map, when braking from the
+//! current speed would end outside it, or when the estimate is farther than
+//! `max_tracking_error` from the reference. Each stop starts a new *epoch*: `c1`
+//! stamps the fragments it hands over with the epoch it knows, so fragments it
+//! sent before it heard of the stop are refused, never executed. When a plan's
+//! last fragment ends, `e11` reports whether the platform reached its end point
+//! (within `final_tolerance`, waiting up to `settle` seconds while holding it):
+//! the early acknowledgement `Done` of `c1` says that the plan was handed over,
+//! this says whether it was achieved.
 
 pub mod estimator;
 pub mod tracker;
 
-use std::collections::VecDeque;
+use std::collections::{BTreeSet, VecDeque};
 
 use embodied::{
     Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
@@ -26,8 +39,52 @@ use embodied::{
 pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
 pub use tracker::{Tracker, TrackerKind};
 
+use crate::map::Map;
 use crate::planner::Fragment;
-use crate::types::{Encoders, Imu, ImuCommand, MapPose, State, Torques, Transform, WheelLoads};
+use crate::types::{
+    Encoders, Execution, Imu, ImuCommand, MapPose, PlanOutcome, State, Torques, Transform,
+    WheelLoads,
+};
+
+/// How `e11` keeps the platform safe and judges the end of a plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Safety {
+    /// The free space (its clearance: the platform's footprint).
+    pub map: Map,
+    /// The largest distance between the estimate and the reference [m]; beyond
+    /// it `e11` stops the platform.
+    pub max_tracking_error: f64,
+    /// A plan's last point is reached within this distance [m].
+    pub final_tolerance: f64,
+    /// How long `e11` waits, holding the last point, for the platform to come
+    /// within the tolerance [s].
+    pub settle: f64,
+    /// The deceleration the platform is assumed to brake with [m/s²].
+    pub brake_decel: f64,
+}
+
+impl Default for Safety {
+    fn default() -> Self {
+        Safety {
+            map: Map::default(),
+            max_tracking_error: 0.3,
+            final_tolerance: 0.1,
+            settle: 3.0,
+            brake_decel: 1.0,
+        }
+    }
+}
+
+/// A plan whose last fragment ended: is the platform at its end point?
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arrival {
+    /// The plan.
+    pub plan: u32,
+    /// Its last point.
+    pub end: [f64; 2],
+    /// When the last fragment ended [s].
+    pub since: f64,
+}
 
 /// A fragment being executed.
 #[derive(Clone, Debug)]
@@ -62,6 +119,8 @@ pub struct TrackState {
     pub completed: u32,
     /// Fragments rejected.
     pub rejected: u32,
+    /// Fragments refused because they were handed over before a stop.
+    pub stale: u32,
 }
 
 /// The estimation side of the memory (`estym`).
@@ -96,6 +155,22 @@ pub struct E11Memory {
     pub imu_reset_at: Option<u64>,
     /// ICR offset used to report velocities.
     pub x_icr: f64,
+    /// Limits of the safety monitor and the tolerance of arrivals.
+    pub safety: Safety,
+    /// Stops so far (see the module's documentation).
+    pub epoch: u32,
+    /// The plan whose end point is being waited for.
+    pub arrival: Option<Arrival>,
+    /// Plan outcomes not yet reported (one goes out per iteration).
+    pub outbox: VecDeque<PlanOutcome>,
+    /// Plans whose outcome was reported or queued.
+    pub concluded: BTreeSet<u32>,
+    /// The plan outcome reported in this iteration.
+    pub event: Option<PlanOutcome>,
+    /// Whether the platform was stopped in this iteration.
+    pub stopped_now: bool,
+    /// Why each stop happened, with its time [s].
+    pub stops: Vec<(f64, String)>,
 }
 
 impl E11Memory {
@@ -118,6 +193,7 @@ impl E11Memory {
                 received: 0,
                 completed: 0,
                 rejected: 0,
+                stale: 0,
             },
             estym: EstimState {
                 estimator,
@@ -131,6 +207,36 @@ impl E11Memory {
             dt,
             imu_reset_at: None,
             x_icr,
+            safety: Safety::default(),
+            epoch: 0,
+            arrival: None,
+            outbox: VecDeque::new(),
+            concluded: BTreeSet::new(),
+            event: None,
+            stopped_now: false,
+            stops: Vec::new(),
+        }
+    }
+
+    /// The same with these safety limits.
+    pub fn with_safety(mut self, safety: Safety) -> E11Memory {
+        self.safety = safety;
+        self
+    }
+
+    /// Simulation time of this iteration [s].
+    fn now(&self) -> f64 {
+        self.iteration as f64 * self.dt
+    }
+
+    /// Queue the outcome of `plan`, once per plan.
+    fn conclude(&mut self, plan: u32, result: Execution) {
+        if self.concluded.insert(plan) {
+            self.outbox.push_back(PlanOutcome {
+                plan,
+                epoch: self.epoch,
+                result,
+            });
         }
     }
 }
@@ -188,6 +294,8 @@ pub struct E11ToC1 {
     pub q_est: Out<State>,
     /// Ready event.
     pub ready: Out<bool>,
+    /// How a plan's execution ended.
+    pub outcome: Out<PlanOutcome>,
 }
 impl Group for E11ToC1 {
     const PEER: NodeKind = NodeKind::Control;
@@ -229,9 +337,84 @@ impl Subsystem for E11 {
     type Output = E11Output;
 }
 
-/// Whether `ready` goes out in this iteration.
+/// Whether `ready` goes out in this iteration: at start, `notify` iterations into
+/// each fragment, and when a stop leaves `e11` idle.
 fn report_ready(m: &E11Memory) -> bool {
-    m.iteration == 0 || (m.track.running.is_some() && m.notify == 0 && !m.reported)
+    m.iteration == 0 || (m.track.running.is_some() && m.notify == 0 && !m.reported) || m.stopped_now
+}
+
+/// Why the platform must stop now, if it must: checked while a fragment runs.
+fn hazard(m: &E11Memory, x: &E11Input, e: &Estimate) -> Option<String> {
+    let running = m.track.running.as_ref()?;
+    let s = &m.safety;
+    let [px, py, phi, v, _] = e.x;
+    if let Err(why) = s.map.explain(px, py) {
+        return Some(format!("the estimated position {why}"));
+    }
+    if let Some(p) = x.c1.pose.fresh().filter(|p| p.pose.is_finite())
+        && let Err(why) = s.map.explain(p.pose.x, p.pose.y)
+    {
+        return Some(format!("motion capture puts the platform at {why}"));
+    }
+    if v.abs() > 0.05 {
+        // Where braking from this speed along the heading ends.
+        let d = v * v.abs() / (2.0 * s.brake_decel);
+        let (bx, by) = (px + d * phi.cos(), py + d * phi.sin());
+        if let Err(why) = s.map.explain(bx, by) {
+            return Some(format!(
+                "heading out of the free space at {v:.2} m/s: braking would end at {why}"
+            ));
+        }
+    }
+    let states = &running.fragment.states;
+    let r = states.get(running.k.min(states.len().saturating_sub(1)))?;
+    let error = (px - r[0]).hypot(py - r[1]);
+    (error > s.max_tracking_error).then(|| {
+        format!(
+            "the platform is {error:.2} m from its reference (at most {:.2} m)",
+            s.max_tracking_error
+        )
+    })
+}
+
+/// Stop: brake to the estimated pose and hold it, drop every fragment, start a new
+/// epoch, report why for every plan whose fragments ran or waited.
+fn stop(m: &mut E11Memory, e: &Estimate, reason: String) {
+    let mut plans: Vec<u32> = m.track.running.iter().map(|r| r.fragment.plan).collect();
+    plans.extend(m.track.queue.iter().map(|(f, _, _)| f.plan));
+    plans.dedup();
+    m.epoch += 1;
+    m.track.running = None;
+    m.track.queue.clear();
+    m.arrival = None;
+    m.step = 0;
+    m.notify = 0;
+    m.stopped_now = true;
+    let [px, py, phi, _, _] = e.x;
+    m.track.hold = Some([px, py, phi, 0.0, 0.0]);
+    m.stops.push((m.now(), reason.clone()));
+    for plan in plans {
+        m.conclude(plan, Execution::Stopped(reason.clone()));
+    }
+}
+
+/// The end of a plan: reached when the estimate comes within the tolerance of its
+/// last point; missed if it does not within `settle` seconds, or when the next
+/// plan's fragments take over first.
+fn judge_arrival(m: &mut E11Memory, e: &Estimate) {
+    let Some(a) = m.arrival else {
+        return;
+    };
+    let error = (e.x[0] - a.end[0]).hypot(e.x[1] - a.end[1]);
+    let result = if error <= m.safety.final_tolerance {
+        Execution::Reached { error_m: error }
+    } else if m.track.running.is_some() || m.now() - a.since >= m.safety.settle {
+        Execution::Missed { error_m: error }
+    } else {
+        return;
+    };
+    m.arrival = None;
+    m.conclude(a.plan, result);
 }
 
 /// Whether the IMU reset goes out in this iteration: with the first map pose.
@@ -290,7 +473,9 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
     let estimate = m.estym.estimator.update(m.dt, &m.tau, &meas);
     m.estym.estimate = estimate;
     m.track.following = None;
+    m.stopped_now = false;
     if !estimate.localised {
+        m.event = m.outbox.pop_front();
         m.tau = [0.0; 4];
         m.track.reference = None;
         return;
@@ -299,6 +484,11 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
         let [px, py, phi, _, _] = estimate.x;
         m.track.hold = Some([px, py, phi, 0.0, 0.0]);
     }
+    match hazard(m, x, &estimate) {
+        Some(reason) => stop(m, &estimate, reason),
+        None => judge_arrival(m, &estimate),
+    }
+    m.event = m.outbox.pop_front();
     m.track.following = m
         .track
         .running
@@ -321,13 +511,16 @@ pub fn ee_to_platform(m: &E11Memory, x: &E11Input, y: &mut E11ToE1) {
     }
 }
 
-/// `ec`: the state estimate and the ready event to `c1`.
+/// `ec`: the state estimate, the ready event and plan outcomes to `c1`.
 pub fn ec(m: &E11Memory, _: &E11Input, y: &mut E11ToC1) {
     if m.estym.estimate.localised {
         y.q_est.set(m.estym.estimate.to_state(m.x_icr));
     }
     if report_ready(m) {
         y.ready.set(true);
+    }
+    if let Some(o) = &m.event {
+        y.outcome.set(o.clone());
     }
 }
 
@@ -348,14 +541,32 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
         m.step = m.step.saturating_sub(1);
         m.notify = m.notify.saturating_sub(1);
         if m.step == 0 {
-            m.track.hold = r.fragment.end().map(|e| [e[0], e[1], e[2], 0.0, 0.0]);
+            let end = r.fragment.end();
+            m.track.hold = end.map(|e| [e[0], e[1], e[2], 0.0, 0.0]);
+            if r.fragment.last
+                && let Some(e) = end
+            {
+                m.arrival = Some(Arrival {
+                    plan: r.fragment.plan,
+                    end: [e[0], e[1]],
+                    since: m.iteration as f64 * m.dt,
+                });
+            }
             m.track.running = None;
             m.track.completed += 1;
         }
     }
     if let Some(f) = x.c1.traj.fresh() {
         m.track.received += 1;
-        if valid(f) {
+        if f.epoch < m.epoch {
+            // Handed over before c1 heard of the last stop: its plan ended there.
+            m.track.stale += 1;
+            let why = format!(
+                "fragment {} was handed over before c1 heard of stop {}",
+                f.index, m.epoch
+            );
+            m.conclude(f.plan, Execution::Stopped(why));
+        } else if valid(f) {
             // `steps` and `notify` travel with the fragment; keep `notify < steps`.
             let steps =
                 x.c1.steps
@@ -367,6 +578,8 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
             m.track.queue.push_back((f.clone(), steps, notify));
         } else {
             m.track.rejected += 1;
+            let why = format!("fragment {} is empty or not finite", f.index);
+            m.conclude(f.plan, Execution::Stopped(why));
         }
     }
     if m.track.running.is_none()
@@ -407,6 +620,7 @@ mod tests {
             states: (0..=n)
                 .map(|k| [x0 + 0.01 * k as f64, 0.0, 0.0, 0.2, 0.0])
                 .collect(),
+            ..Fragment::default()
         }
     }
 
@@ -458,6 +672,215 @@ mod tests {
             out.push((y.c1.ready.is_written(), m.track.following.map(|(_, i)| i)));
         }
         (out, m.track.rejected)
+    }
+
+    /// What `e11` sent in each iteration: `ready`, and the outcome.
+    type Sent = Vec<(bool, Option<PlanOutcome>)>;
+
+    /// e11 with the baseline pair and default safety limits, fed a map pose at
+    /// `pose(iteration)` every iteration (the estimate follows it) and the
+    /// fragments `(iteration, fragment)` (steps from the fragment, notify 2).
+    fn drive(
+        deliveries: &[(u64, Fragment)],
+        pose: impl Fn(u64) -> (f64, f64),
+        iterations: u64,
+    ) -> (Sent, E11Memory) {
+        let params = PlatformParams::peer_default();
+        let mut m = E11Memory::new(
+            TrackerKind::Backstepping
+                .build(params.clone(), 0.05)
+                .unwrap(),
+            EstimatorKind::Ekf
+                .build(params, SlipParams::NOMINAL, 0.05)
+                .unwrap(),
+            0.05,
+            0.03,
+        );
+        let fsm = e11_fsm().unwrap();
+        let mut state = fsm.start();
+        let mut x = E11Input::default();
+        let mut sent = Vec::new();
+        for it in 0..iterations {
+            let stamp = Stamp::new(it, Time::from_nanos(it * 50_000_000));
+            x.c1.traj.age();
+            x.c1.steps.age();
+            x.c1.notify.age();
+            let (px, py) = pose(it);
+            let p = MapPose {
+                pose: crate::types::Pose2 {
+                    x: px,
+                    y: py,
+                    phi: 0.0,
+                },
+                time: it as f64 * 0.05,
+            };
+            x.c1.pose.deliver(p, stamp);
+            for (at, f) in deliveries {
+                if *at == it {
+                    x.c1.traj.deliver(f.clone(), stamp);
+                    x.c1.steps.deliver(f.steps() as u32, stamp);
+                    x.c1.notify.deliver(2, stamp);
+                }
+            }
+            let mut y = E11Output::default();
+            fsm.activate(&mut state, &mut m, &x, &mut y, |_| {})
+                .unwrap();
+            sent.push((y.c1.ready.is_written(), y.c1.outcome.written().cloned()));
+        }
+        (sent, m)
+    }
+
+    fn outcomes(sent: &Sent) -> Vec<(usize, PlanOutcome)> {
+        sent.iter()
+            .enumerate()
+            .filter_map(|(i, (_, o))| o.clone().map(|o| (i, o)))
+            .collect()
+    }
+
+    fn last(mut f: Fragment) -> Fragment {
+        f.last = true;
+        f
+    }
+
+    #[test]
+    fn a_plan_whose_end_the_platform_reaches_is_reported_reached() {
+        // 10 steps from 0 to 0.1 m, running at iterations 2..=11; the platform
+        // follows the reference.
+        let follow = |it: u64| (0.01 * it.saturating_sub(2).min(10) as f64, 0.0);
+        let (sent, m) = drive(&[(1, last(fragment(0, 0.0, 10)))], follow, 20);
+        let o = outcomes(&sent);
+        assert_eq!(o.len(), 1, "{o:?}");
+        let (at, o) = &o[0];
+        assert_eq!(*at, 12, "the iteration after the last fragment ended");
+        assert_eq!(o.plan, 1);
+        assert!(
+            matches!(o.result, Execution::Reached { error_m } if error_m < 0.02),
+            "{o:?}"
+        );
+        assert!(m.stops.is_empty());
+    }
+
+    #[test]
+    fn a_plan_whose_end_the_platform_does_not_reach_is_reported_missed() {
+        // 20 steps to 0.2 m; the platform does not move (the error stays under the
+        // 0.3 m limit): after the last fragment, e11 holds and waits 3 s.
+        let (sent, m) = drive(&[(1, last(fragment(0, 0.0, 20)))], |_| (0.0, 0.0), 100);
+        let o = outcomes(&sent);
+        assert_eq!(o.len(), 1, "{o:?}");
+        let (at, o) = &o[0];
+        // The last fragment runs at iterations 2..=21.
+        assert_eq!(*at, 21 + 60, "3 s after the end");
+        assert!(
+            matches!(o.result, Execution::Missed { error_m } if (error_m - 0.2).abs() < 0.03),
+            "{o:?}"
+        );
+        assert!(m.stops.is_empty(), "a miss is not a stop");
+        // An intermediate fragment's end is not judged.
+        let (sent, _) = drive(&[(1, fragment(0, 0.0, 20))], |_| (0.0, 0.0), 100);
+        assert!(outcomes(&sent).is_empty());
+    }
+
+    #[test]
+    fn a_platform_far_from_its_reference_is_stopped_and_stale_fragments_refused() {
+        // 40 steps to 0.4 m; the platform does not move: at 0.3 m of error e11 stops,
+        // reports why and `ready`, drops the queued fragment of plan 2. A fragment
+        // c1 handed over before it heard of the stop (epoch 0) is refused; one
+        // stamped with the new epoch runs.
+        let mut queued = fragment(0, 0.0, 10);
+        queued.plan = 2;
+        let mut stale = fragment(1, 0.0, 10);
+        stale.plan = 3;
+        let mut fresh = stale.clone();
+        fresh.plan = 4;
+        fresh.epoch = 1;
+        let (sent, m) = drive(
+            &[
+                (1, fragment(0, 0.0, 40)),
+                (3, last(queued)),
+                (40, stale),
+                (45, fresh),
+            ],
+            |_| (0.0, 0.0),
+            50,
+        );
+        let o = outcomes(&sent);
+        assert!(o.len() >= 3, "{o:?}");
+        let (at, first) = &o[0];
+        // The reference passes 0.3 m at iteration 32; the estimate, predicted with
+        // the torques between poses, lags the poses a little.
+        assert!((32..=38).contains(at), "stopped at {at}");
+        assert!(sent[*at].0, "ready goes out with the stop");
+        assert_eq!((first.plan, first.epoch), (1, 1));
+        assert!(
+            matches!(&first.result, Execution::Stopped(why) if why.contains("from its reference")),
+            "{first:?}"
+        );
+        assert_eq!(o[1].1.plan, 2, "the queued plan ended too: {o:?}");
+        assert!(matches!(o[1].1.result, Execution::Stopped(_)));
+        assert_eq!(o[2].1.plan, 3, "the stale fragment's plan: {o:?}");
+        assert!(
+            matches!(&o[2].1.result, Execution::Stopped(why) if why.contains("before c1 heard of stop 1")),
+            "{o:?}"
+        );
+        assert_eq!((m.epoch, m.track.stale), (1, 1));
+        assert_eq!(m.track.running.as_ref().map(|r| r.fragment.plan), Some(4));
+        assert_eq!(m.stops.len(), 1);
+    }
+
+    #[test]
+    fn a_map_pose_outside_the_free_space_stops_the_platform() {
+        // The default map: a 12 m room, 0.5 m of clearance. The motion capture puts
+        // the platform at x = 5.7 m while it drives.
+        let (sent, m) = drive(
+            &[(1, fragment(0, 5.3, 40))],
+            |it| (if it < 10 { 5.3 } else { 5.7 }, 0.0),
+            20,
+        );
+        let o = outcomes(&sent);
+        assert_eq!(o.len(), 1, "{o:?}");
+        assert_eq!(o[0].0, 10);
+        assert!(
+            matches!(&o[0].1.result, Execution::Stopped(why)
+                if why.contains("motion capture puts the platform at (5.70, 0.00)")),
+            "{o:?}"
+        );
+        assert!(m.track.running.is_none() && m.track.queue.is_empty());
+    }
+
+    #[test]
+    fn braking_that_would_end_outside_the_free_space_stops_the_platform() {
+        let params = PlatformParams::peer_default();
+        let mut m = E11Memory::new(
+            TrackerKind::Backstepping
+                .build(params.clone(), 0.05)
+                .unwrap(),
+            EstimatorKind::Ekf
+                .build(params, SlipParams::NOMINAL, 0.05)
+                .unwrap(),
+            0.05,
+            0.03,
+        );
+        m.track.running = Some(Running {
+            fragment: fragment(0, 5.0, 10),
+            k: 0,
+        });
+        let x = E11Input::default();
+        let at = |v: f64, phi: f64| Estimate {
+            x: [5.0, 0.0, phi, v, 0.0],
+            localised: true,
+            ..Estimate::default()
+        };
+        // 1 m/s² of braking: from 1.5 m/s, 1.125 m to a stop, past the 5.5 m line.
+        let why = hazard(&m, &x, &at(1.5, 0.0)).unwrap();
+        assert!(
+            why.contains("heading out of the free space at 1.50 m/s"),
+            "{why}"
+        );
+        // Slower, or away from the wall: free to go.
+        assert_eq!(hazard(&m, &x, &at(0.3, 0.0)), None);
+        assert_eq!(hazard(&m, &x, &at(1.5, std::f64::consts::PI)), None);
+        // Reversing towards the wall.
+        assert!(hazard(&m, &x, &at(-1.5, std::f64::consts::PI)).is_some());
     }
 
     #[test]

@@ -487,15 +487,19 @@ impl Mhe {
                 self.model.params.wheel_radius * e.iter().sum::<f64>() / 4.0
             });
         let [x, y, phi] = pose.pose;
-        self.x_bar = [x, y, phi, v, w];
+        // The pose describes an earlier time (it is late): moved to now, it is
+        // the first stage's measurement.
+        self.x_bar = self.shifted(&[x, y, phi, v, w], t - pose.time);
         self.p_bar = self.p;
         self.window.push_back(Stage {
             t,
             x: self.x_bar,
+            pose: Some([self.x_bar[0], self.x_bar[1], self.x_bar[2]]),
+            pose_sigma: [self.s.sigma_pos, self.s.sigma_phi],
             ..Stage::default()
         });
         self.last_pose_time = Some(pose.time);
-        self.attach(m);
+        self.attach(&Sample { pose: None, ..*m });
         for _ in 0..self.s.start_iterations.max(1) {
             if self.gauss_newton().is_err() {
                 self.stats.failures += 1;
@@ -557,8 +561,14 @@ impl Mhe {
             let sigma = [self.s.sigma_pos, self.s.sigma_phi];
             self.attach_pose(p.time, p.pose, sigma, now);
         }
-        if let Some(mo) = m.motion {
-            // Visual odometry measures a relative motion: the average velocity
+        let first = self.window.front().map_or(now, |s| s.t);
+        let filling = self.window.len() <= self.s.horizon;
+        if let Some(mo) = m
+            .motion
+            .filter(|mo| !(filling && mo.from < first - 0.5 * self.s.dt))
+        {
+            // (A motion that began before a window still filling is of no use,
+            // and nothing wrong.) Visual odometry measures a relative motion: the average velocity
             // over the interval, attached to the stage nearest its middle. (Composed
             // onto the estimate at `from` as a pose, it would repeat the estimate's
             // own error as if it were new evidence.)
@@ -597,6 +607,12 @@ impl Mhe {
     }
 
     fn attach_pose(&mut self, time: f64, pose: [f64; 3], sigma: [f64; 2], now: f64) {
+        let first = self.window.front().map_or(now, |s| s.t);
+        if time < first - 0.5 * self.s.dt && self.window.len() <= self.s.horizon {
+            // Older than a window that is still filling: the first stage was
+            // anchored on a newer pose.
+            return;
+        }
         let Some(i) = self
             .nearest(time)
             .filter(|_| pose.iter().all(|v| v.is_finite()))

@@ -379,6 +379,7 @@ impl Planner for Ecsa {
                             index: 0,
                             dt: s.dt,
                             states,
+                            ..Fragment::default()
                         },
                         total,
                     ));

@@ -37,6 +37,11 @@ pub struct Fragment {
     pub dt: f64,
     /// Reference `(X, Y, φ, v, ω)` at `k · dt`, `k = 0..=n`.
     pub states: Vec<[f64; 5]>,
+    /// Whether it is the plan's last fragment (set by `c1` when it hands it over).
+    pub last: bool,
+    /// The stop count of `e11` that `c1` knew when it handed it over: `e11` refuses
+    /// fragments older than its last stop.
+    pub epoch: u32,
 }
 
 /// `Fragment 2.1 (60 × 0.05 s, (1.00, 0.00) -> (1.50, 0.50))`: short enough for traces.

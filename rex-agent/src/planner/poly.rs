@@ -138,6 +138,7 @@ impl Planner for Polynomial {
                             index: 0,
                             dt: s.dt,
                             states,
+                            ..Fragment::default()
                         },
                         PlanStats {
                             iterations: 0,

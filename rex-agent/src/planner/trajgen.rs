@@ -226,6 +226,14 @@ impl TrajGen {
         self.status = Status::Idle;
     }
 
+    /// Plan the next fragment from `state`'s pose instead of the end of the last
+    /// fragment planned: after a plan that did not end where it was planned to
+    /// (stopped, failed), the platform is not there.
+    pub fn restart_from(&mut self, state: &State) {
+        let p = state.pose();
+        self.from = [p.x, p.y, p.phi];
+    }
+
     /// Where the next fragment starts `(X, Y, φ)`.
     pub fn from(&self) -> [f64; 3] {
         self.from

@@ -102,11 +102,12 @@ pub fn summary(o: &Outcome) -> String {
     );
     let _ = writeln!(
         s,
-        "fragments planned={} received={} completed={} rejected={} planner_iterations={} planner_failures={}",
+        "fragments planned={} received={} completed={} rejected={} stale={} planner_iterations={} planner_failures={}",
         c.planned,
         c.fragments_received,
         c.fragments_completed,
         c.fragments_rejected,
+        c.fragments_stale,
         c.planner_iterations,
         c.planner_failures
     );
@@ -136,10 +137,74 @@ pub fn summary(o: &Outcome) -> String {
             t.solves, t.clarabel, t.failures, t.fallbacks, t.safe_stops, t.refused
         );
     }
+    let _ = writeln!(s, "faults: {}", faults(o));
+    for r in &o.reports {
+        let _ = writeln!(s, "{r}");
+    }
     for (t, ack) in &o.acks {
         let _ = writeln!(s, "ack t={t:.2} plan={} status={:?}", ack.plan, ack.status);
     }
+    for (t, out) in &o.outcomes {
+        let _ = writeln!(s, "outcome t={t:.2} plan={} {}", out.plan, out.result);
+    }
     s
+}
+
+/// Everything that went wrong on the way, whether or not a plan failed of it:
+/// `none` or a list.
+pub fn faults(o: &Outcome) -> String {
+    let c = &o.counters;
+    let e = &c.estimator;
+    let t = &c.tracker;
+    let mut list = Vec::new();
+    if e.rejected > 0 || e.relocalisations > 0 {
+        list.push(format!(
+            "the estimator rejected {} measurements ({} map poses) and relocalised {} times",
+            e.rejected, e.rejected_poses, e.relocalisations
+        ));
+    }
+    for (at, why) in &c.stops {
+        list.push(format!("e11 stopped the platform at {at:.2} s: {why}"));
+    }
+    let counts = [
+        (
+            c.fragments_stale,
+            "fragments refused as handed over before a stop",
+        ),
+        (
+            c.fragments_rejected,
+            "fragments refused as empty or not finite",
+        ),
+        (c.planner_failures as u32, "planner failures"),
+    ];
+    for (n, what) in counts {
+        if n > 0 {
+            list.push(format!("{n} {what}"));
+        }
+    }
+    let counts = [
+        (
+            c.clamped_torques,
+            "torque commands clamped or zeroed by the platform",
+        ),
+        (
+            c.watchdog_steps,
+            "platform steps at zero torque (command watchdog)",
+        ),
+        (c.executor_errors, "executor errors"),
+        (t.failures, "tracker solves failed"),
+        (t.safe_stops, "tracker samples braking after failed solves"),
+    ];
+    for (n, what) in counts {
+        if n > 0 {
+            list.push(format!("{n} {what}"));
+        }
+    }
+    if list.is_empty() {
+        "none".into()
+    } else {
+        list.join("; ")
+    }
 }
 
 fn csv(samples: &[Sample]) -> String {
