@@ -202,8 +202,8 @@ fn new_scaffolds_a_crate_that_compiles_and_passes_its_tests() {
     let (ok, stdout, stderr) = cargo_test(&dir);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(
-        stdout.contains("8 passed; 0 failed; 7 ignored"),
-        "structure, run and six action properties pass; seven termination properties wait: {stdout}"
+        stdout.contains("8 passed; 0 failed; 8 ignored"),
+        "structure, run and six action properties pass; eight termination properties wait: {stdout}"
     );
     assert!(
         !stderr.contains("warning"),

@@ -41,7 +41,7 @@ fn one_subsystem_and_its_content() {
         r#""c1/B1" -> "c1/B2" [label="plan_valid"];"#,
         r#""c1/B2" -> "c1/B3" [label="true"];"#,
         r#""c1/B3" -> "c1/B1" [label="true"];"#,
-        r#"label="B2\nrepeat until plan_sent || planner_failed""#,
+        r#"label="B2\nrepeat until plan_sent || planner_failed || stopped""#,
     ] {
         assert!(fsm.contains(needle), "missing {needle} in\n{fsm}");
     }
