@@ -118,8 +118,14 @@ fn main() -> ExitCode {
 
 fn new(name: &str, spec: &Path, path: Option<PathBuf>, embodied: Option<PathBuf>) -> ExitCode {
     use embodied::spec::scaffold::{Dependency, Options, ScaffoldError, scaffold};
-    let source = match std::fs::read_to_string(spec) {
-        Ok(s) => s,
+    let source = match std::fs::read(spec) {
+        Ok(bytes) => match embodied::spec::decode(&spec.display().to_string(), bytes) {
+            Ok(text) => text,
+            Err(report) => {
+                eprint!("{}", report.render(100));
+                return ExitCode::FAILURE;
+            }
+        },
         Err(e) => {
             eprintln!("error: cannot read {}: {e}", spec.display());
             return ExitCode::FAILURE;
@@ -230,7 +236,8 @@ fn draw(
     format: FormatArg,
     output: Option<&std::path::Path>,
 ) -> ExitCode {
-    let (spec, report) = match embodied::spec::check_file(file) {
+    // Drawing needs the structure, not the arc proof (`check` does that).
+    let (spec, report) = match embodied::spec::check_file_structure(file) {
         Ok(x) => x,
         Err(e) => {
             eprintln!("error: cannot read {}: {e}", file.display());

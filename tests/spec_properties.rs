@@ -240,6 +240,9 @@ static SEEDS: LazyLock<Vec<(PathBuf, String)>> = LazyLock::new(|| {
             .expect("corpus directory")
             .map(|e| e.expect("entry").path())
             .filter(|p| p.extension().is_some_and(|x| x == "ron"))
+            // The case that spends the whole proof budget (a pigeonhole): damaged,
+            // it would spend it again in thousands of cases.
+            .filter(|p| !p.ends_with("proof_budget.ron"))
             .collect();
         files.sort();
         paths.extend(files);
@@ -247,7 +250,8 @@ static SEEDS: LazyLock<Vec<(PathBuf, String)>> = LazyLock::new(|| {
     paths
         .into_iter()
         .map(|p| {
-            let text = std::fs::read_to_string(&p).expect("readable");
+            // `encoding.ron` is not UTF-8 on purpose: damage its lossy text.
+            let text = String::from_utf8_lossy(&std::fs::read(&p).expect("readable")).into_owned();
             (p, text)
         })
         .collect()

@@ -13,8 +13,15 @@
 //! atom  := "true" | "false" | IDENT | "(" or ")"
 //! IDENT := [A-Za-z_][A-Za-z0-9_]*
 //! ```
+//!
+//! `(` and `!` nest at most [`MAX_DEPTH`] deep: the parser, the evaluation and
+//! every walk over an expression recurse, and a condition of 20,000 nested
+//! parentheses would overflow the stack. Deeper is a syntax error, never a crash.
 
 use std::fmt;
+
+/// How deeply `(` and `!` may nest in a condition.
+pub const MAX_DEPTH: usize = 64;
 
 /// A Boolean expression whose atoms are `A` (names when parsed, indices once resolved).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -32,8 +39,10 @@ pub enum Expr<A = String> {
 }
 
 /// A syntax error in an expression, with the byte offset where it was found.
+/// Displayed with the condition (at most 60 characters of it on either side of
+/// the offset).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{message} at byte {offset} of `{source_text}`")]
+#[error("{message} at byte {offset} of `{}`", excerpt(source_text, *offset))]
 pub struct ExprError {
     /// Byte offset into the expression text.
     pub offset: usize,
@@ -43,6 +52,26 @@ pub struct ExprError {
     pub message: String,
     /// The whole expression text.
     pub source_text: String,
+}
+
+/// Up to 60 characters of `text` on either side of byte `at`, with `…` where cut.
+fn excerpt(text: &str, at: usize) -> String {
+    let at = (0..=at.min(text.len()))
+        .rev()
+        .find(|&i| text.is_char_boundary(i))
+        .unwrap_or(0);
+    let before: Vec<char> = text[..at].chars().rev().take(61).collect();
+    let after: Vec<char> = text[at..].chars().take(61).collect();
+    let mut out = String::new();
+    if before.len() > 60 {
+        out.push('…');
+    }
+    out.extend(before.iter().take(60).rev());
+    out.extend(after.iter().take(60));
+    if after.len() > 60 {
+        out.push('…');
+    }
+    out
 }
 
 impl Expr<String> {
@@ -59,6 +88,7 @@ impl Expr<String> {
             text,
             bytes: text.as_bytes(),
             pos: 0,
+            depth: 0,
         };
         p.skip_ws();
         let e = p.or()?;
@@ -154,6 +184,8 @@ struct Parser<'a> {
     text: &'a str,
     bytes: &'a [u8],
     pos: usize,
+    /// `(` and `!` open around the current position.
+    depth: usize,
 }
 
 impl Parser<'_> {
@@ -221,11 +253,25 @@ impl Parser<'_> {
         })
     }
 
+    /// One level deeper (a `(` or a `!` at the current position).
+    fn deeper(&mut self) -> Result<(), ExprError> {
+        if self.depth >= MAX_DEPTH {
+            return Err(self.error(&format!(
+                "`(` and `!` nest more than {MAX_DEPTH} levels deep here"
+            )));
+        }
+        self.depth += 1;
+        Ok(())
+    }
+
     fn unary(&mut self) -> Result<Expr, ExprError> {
         self.skip_ws();
         if self.bytes.get(self.pos) == Some(&b'!') {
+            self.deeper()?;
             self.pos += 1;
-            return Ok(Expr::Not(Box::new(self.unary()?)));
+            let e = Expr::Not(Box::new(self.unary()?));
+            self.depth -= 1;
+            return Ok(e);
         }
         self.atom()
     }
@@ -234,11 +280,13 @@ impl Parser<'_> {
         self.skip_ws();
         match self.bytes.get(self.pos) {
             Some(b'(') => {
+                self.deeper()?;
                 self.pos += 1;
                 let e = self.or()?;
                 if !self.eat(")") {
                     return Err(self.error("expected `)`"));
                 }
+                self.depth -= 1;
                 Ok(e)
             }
             Some(b) if b.is_ascii_alphabetic() || *b == b'_' => {
@@ -324,6 +372,28 @@ mod tests {
         let e = Expr::parse("a & b").unwrap_err();
         assert_eq!(e.offset, 2);
         assert!(Expr::parse("ä").is_err());
+    }
+
+    #[test]
+    fn nesting_is_bounded_not_a_stack_overflow() {
+        let deep = |n: usize| format!("{}a{}", "(".repeat(n), ")".repeat(n));
+        assert!(Expr::parse(&deep(MAX_DEPTH)).is_ok());
+        for text in [
+            deep(MAX_DEPTH + 1),
+            deep(20_000),
+            format!("{}a", "!".repeat(50_000)),
+        ] {
+            let e = Expr::parse(&text).unwrap_err();
+            assert!(
+                e.message.contains("nest more than 64 levels"),
+                "{}",
+                e.message
+            );
+            assert_eq!(e.offset, MAX_DEPTH, "at the first level too many");
+        }
+        // Long flat chains are fine: they do not nest.
+        let flat = vec!["a"; 100_000].join(" && ");
+        assert!(Expr::parse(&flat).is_ok());
     }
 
     #[test]

@@ -29,6 +29,7 @@ pub mod executor;
 pub mod expr;
 pub mod fsm;
 pub mod link;
+pub mod names;
 mod node;
 pub mod subsystem;
 pub mod system;

@@ -117,6 +117,16 @@ pub enum BuildProblem {
     /// Two agents have the same name.
     #[error("agent `{0}` is declared twice")]
     DuplicateAgent(String),
+    /// A name that is not valid ([`crate::names::check`]).
+    #[error("{what} name `{name}` {problem}")]
+    InvalidName {
+        /// `agent`, `subsystem` or `driver`.
+        what: &'static str,
+        /// The name.
+        name: String,
+        /// Why.
+        problem: crate::names::NameProblem,
+    },
     /// Two nodes have the same name.
     #[error("`{0}` is declared twice (subsystem and driver names are unique in a system)")]
     DuplicateNode(String),
@@ -248,6 +258,13 @@ impl SystemBuilder {
     /// Declare an agent.
     pub fn agent(&mut self, name: impl Into<String>) -> AgentId {
         let name = name.into();
+        if let Err(problem) = crate::names::check(&name) {
+            self.problems.push(BuildProblem::InvalidName {
+                what: "agent",
+                name: name.clone(),
+                problem,
+            });
+        }
         if self.info.agents.contains(&name) {
             self.problems
                 .push(BuildProblem::DuplicateAgent(name.clone()));
@@ -258,6 +275,16 @@ impl SystemBuilder {
 
     fn add_node(&mut self, agent: AgentId, info: NodeInfo, node: Box<dyn NodeSeed>) -> usize {
         let index = self.nodes.len();
+        if let Err(problem) = crate::names::check(&info.name) {
+            self.problems.push(BuildProblem::InvalidName {
+                what: match info.kind {
+                    NodeKind::RealEffector | NodeKind::RealReceptor => "driver",
+                    _ => "subsystem",
+                },
+                name: info.name.clone(),
+                problem,
+            });
+        }
         if self.names.insert(info.name.clone(), index).is_some() {
             self.problems
                 .push(BuildProblem::DuplicateNode(info.name.clone()));

@@ -68,15 +68,18 @@ pub struct Period(NonZeroU64);
 /// Why a [`Period`] could not be made.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum PeriodError {
-    /// The period was zero (or rounded to zero nanoseconds).
+    /// The period was zero.
     #[error("a period must be positive, got zero")]
     Zero,
-    /// A frequency or duration in seconds that is not a positive finite number.
+    /// A frequency or duration that is not a positive finite number.
     #[error("a period needs a positive finite number, got {0}")]
     NotPositive(f64),
-    /// The period does not fit in 64-bit nanoseconds (about 584 years).
-    #[error("a period of {0:?} is too long")]
-    TooLong(Duration),
+    /// A positive period that rounds to zero nanoseconds.
+    #[error("a period of {0} s rounds to 0 ns (periods are whole nanoseconds)")]
+    BelowResolution(f64),
+    /// The period does not fit in 64-bit nanoseconds (about 584 years) [s].
+    #[error("a period of {0} s is too long (at most 2^64 ns, about 584 years)")]
+    TooLong(f64),
 }
 
 impl Period {
@@ -110,14 +113,34 @@ impl Period {
         }
         let nanos = (secs * 1e9).round();
         if nanos >= u64::MAX as f64 {
-            return Err(PeriodError::TooLong(Duration::from_secs_f64(secs)));
+            return Err(PeriodError::TooLong(secs));
         }
-        Self::from_nanos(nanos as u64)
+        Self::from_nanos(nanos as u64).map_err(|_| PeriodError::BelowResolution(secs))
+    }
+
+    /// A period of `ms` milliseconds, as specs write them, rounded to the
+    /// nanosecond. The spec checker, the generated code and the runtime all use
+    /// this rule, so a period the checker accepts is one the runtime can run.
+    ///
+    /// ```
+    /// use agent_core::{Period, PeriodError};
+    /// assert_eq!(Period::from_millis_f64(9.0)?.as_nanos(), 9_000_000);
+    /// assert_eq!(Period::from_millis_f64(1e-7), Err(PeriodError::BelowResolution(1e-10)));
+    /// assert!(matches!(Period::from_millis_f64(1e308), Err(PeriodError::TooLong(_))));
+    /// assert_eq!(Period::from_millis_f64(-1.0), Err(PeriodError::NotPositive(-1.0)));
+    /// # Ok::<(), PeriodError>(())
+    /// ```
+    pub fn from_millis_f64(ms: f64) -> Result<Period, PeriodError> {
+        if !(ms.is_finite() && ms > 0.0) {
+            return Err(PeriodError::NotPositive(ms));
+        }
+        Self::from_secs_f64(ms * 1e-3)
     }
 
     /// A period equal to `d`.
     pub fn from_duration(d: Duration) -> Result<Period, PeriodError> {
-        let nanos = u64::try_from(d.as_nanos()).map_err(|_| PeriodError::TooLong(d))?;
+        let nanos =
+            u64::try_from(d.as_nanos()).map_err(|_| PeriodError::TooLong(d.as_secs_f64()))?;
         Self::from_nanos(nanos)
     }
 
@@ -190,7 +213,14 @@ mod tests {
             Err(PeriodError::NotPositive(_))
         ));
         // 0.1 ns rounds to zero nanoseconds.
-        assert_eq!(Period::from_secs_f64(1e-10), Err(PeriodError::Zero));
+        assert_eq!(
+            Period::from_secs_f64(1e-10),
+            Err(PeriodError::BelowResolution(1e-10))
+        );
+        assert!(matches!(
+            Period::from_secs_f64(1e300),
+            Err(PeriodError::TooLong(_))
+        ));
     }
 
     #[test]

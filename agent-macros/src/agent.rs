@@ -162,11 +162,9 @@ fn findings_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
     all.unwrap_or_else(|| syn::Error::new(file.span(), "the spec has errors"))
 }
 
-/// Names that are identifiers in a spec but can be no Rust identifier, not even raw.
-const UNUSABLE: [&str; 5] = ["self", "Self", "super", "crate", "_"];
-
-/// A Rust identifier for a spec name (raw if it is a keyword). [`generate`] refuses
-/// the names in [`UNUSABLE`] first.
+/// A Rust identifier for a spec name (raw if it is a keyword). The checker refuses
+/// the names that can be no identifier (`agent_spec::names::check`), and
+/// [`generate`] again, first.
 fn ident(name: &str) -> Ident {
     if agent_spec::names::KEYWORDS.contains(&name) {
         Ident::new_raw(name, Span::call_site())
@@ -609,33 +607,25 @@ fn unusable_name(agent: &model::Agent) -> Option<String> {
         names.extend(groups(&d.inputs));
         names.extend(groups(&d.outputs));
     }
-    if let Some(n) = names.into_iter().find(|n| UNUSABLE.contains(n)) {
-        return Some(format!("the name `{n}` cannot be a Rust identifier"));
+    // The checker's rules (it ran first; this keeps the generator safe alone).
+    if let Some((n, p)) = names
+        .into_iter()
+        .find_map(|n| agent_spec::names::check(n).err().map(|p| (n, p)))
+    {
+        return Some(format!("the name `{n}` {p}"));
     }
-    // Components become type names (`c1` -> `C1`), beside the module's own types.
     let components = agent
         .subsystems
         .iter()
         .map(|s| &s.name)
         .chain(agent.devices.iter().map(|d| &d.name));
     for c in components {
-        let t = camel(c);
-        if !agent_spec::names::has_type_name(c) {
-            return Some(format!(
-                "the component name `{c}` makes no Rust type name (`{t}`)"
-            ));
-        }
-        if MODULE_TYPES.contains(&t.as_str()) {
-            return Some(format!(
-                "the component name `{c}` makes the type name `{t}`, which its module already has"
-            ));
+        if let Some(why) = agent_spec::names::component_problem(c) {
+            return Some(format!("the component name `{c}` {why}"));
         }
     }
     None
 }
-
-/// The types every generated module has: a component named after one is refused.
-const MODULE_TYPES: [&str; 4] = ["Memory", "Input", "Output", "Functions"];
 
 /// Generate stage.
 pub(crate) fn generate(
@@ -676,7 +666,7 @@ pub(crate) fn generate(
 pub(crate) fn expand(tokens: TokenStream, invoker: Option<PathBuf>) -> TokenStream {
     let result = parse(tokens).and_then(|args| {
         let path = resolve(&args.spec.value(), invoker);
-        let text = std::fs::read_to_string(&path).map_err(|e| {
+        let bytes = std::fs::read(&path).map_err(|e| {
             syn::Error::new(
                 args.spec.span(),
                 format!(
@@ -685,6 +675,8 @@ pub(crate) fn expand(tokens: TokenStream, invoker: Option<PathBuf>) -> TokenStre
                 ),
             )
         })?;
+        let text = agent_spec::decode(&args.spec.value(), bytes)
+            .map_err(|report| findings_error(&args.spec, &report))?;
         let found = load(&args.spec, text, &args.agent)?;
         generate(&found, &args, Some(&path))
     });

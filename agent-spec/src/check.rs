@@ -7,13 +7,10 @@ use agent_core::{Expr, NodeKind, structure_violation};
 use petgraph::graph::{DiGraph, NodeIndex};
 use petgraph::visit::Dfs;
 
-use crate::diag::{Code, Finding};
-use crate::logic::{Sat, solve};
+use crate::diag::{Code, Finding, abbreviate};
 use crate::model::{DeviceKind, Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
+use crate::proof::{self, Budget, Question, Undecided, Witness};
 use crate::span::{SNode, Seg};
-
-/// Steps the arc proof may take per question before giving up.
-const PROOF_BUDGET: u64 = 200_000;
 
 /// A path into the spec, for spans.
 type Path = Vec<Seg<'static>>;
@@ -41,6 +38,26 @@ pub(crate) struct Checker<'a> {
     index: Option<&'a SNode>,
     findings: Vec<Finding>,
     comps: HashMap<&'a str, Comp<'a>>,
+    /// Whether to prove the arcs (diagrams need the structure only).
+    prove: bool,
+    budget: Budget,
+    /// The lists of names that help lines offer, made once per collection (a
+    /// spec with many findings about one long list would otherwise rebuild it for
+    /// each: quadratic).
+    lists: HashMap<(usize, Hint), std::rc::Rc<str>>,
+    components_list: Option<std::rc::Rc<str>>,
+}
+
+/// Which list of names a help line offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Hint {
+    Functions,
+    Predicates,
+    Behaviours,
+    Readable,
+    InputGroups,
+    OutputGroups,
+    Buffers,
 }
 
 pub(crate) fn kind_of_subsystem(k: SubsystemKind) -> NodeKind {
@@ -58,24 +75,26 @@ pub(crate) fn kind_of_device(k: DeviceKind) -> NodeKind {
     }
 }
 
-fn is_ident(s: &str) -> bool {
-    let mut chars = s.chars();
-    chars
-        .next()
-        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
-}
-
-/// Byte offset of the first occurrence of identifier `name` in condition `text` as a
-/// whole identifier (`new` in `plan_new && !new` is at 13, not 5).
-fn find_ident(text: &str, name: &str) -> Option<usize> {
+/// The byte offset of the first occurrence of each identifier in condition `text`
+/// as a whole identifier (`new` in `plan_new && !new` is at 13, not 5), in one
+/// pass over the text.
+fn ident_offsets(text: &str) -> HashMap<&str, usize> {
     let ident = |b: u8| b.is_ascii_alphanumeric() || b == b'_';
     let bytes = text.as_bytes();
-    text.match_indices(name).map(|(i, _)| i).find(|&i| {
-        let before = i.checked_sub(1).map(|j| bytes[j]);
-        let after = bytes.get(i + name.len()).copied();
-        !before.is_some_and(ident) && !after.is_some_and(ident)
-    })
+    let mut out = HashMap::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        if ident(bytes[i]) {
+            let start = i;
+            while i < bytes.len() && ident(bytes[i]) {
+                i += 1;
+            }
+            out.entry(&text[start..i]).or_insert(start);
+        } else {
+            i += 1;
+        }
+    }
+    out
 }
 
 fn normalize_type(t: &str) -> String {
@@ -95,7 +114,37 @@ impl<'a> Checker<'a> {
             index,
             findings: Vec::new(),
             comps: HashMap::new(),
+            prove: true,
+            budget: Budget::new(),
+            lists: HashMap::new(),
+            components_list: None,
         }
+    }
+
+    /// The help list `hint` of the collection at `at` (its address: the spec
+    /// outlives the checker), made by `names` the first time.
+    fn list<T>(
+        &mut self,
+        at: &[T],
+        hint: Hint,
+        names: impl FnOnce() -> Vec<String>,
+    ) -> std::rc::Rc<str> {
+        let key = (at.as_ptr() as usize, hint);
+        if let Some(l) = self.lists.get(&key) {
+            return std::rc::Rc::clone(l);
+        }
+        let names = names();
+        let l: std::rc::Rc<str> =
+            list_or_none(&names.iter().map(String::as_str).collect::<Vec<_>>()).into();
+        self.lists.insert(key, std::rc::Rc::clone(&l));
+        l
+    }
+
+    /// Leave out the arc proof (and the findings that need it: overlapping and
+    /// incomplete arcs, terminal conditions that never hold).
+    pub(crate) fn without_proof(mut self) -> Self {
+        self.prove = false;
+        self
     }
 
     pub(crate) fn run(mut self) -> Vec<Finding> {
@@ -137,16 +186,30 @@ impl<'a> Checker<'a> {
         self.findings.push(f);
     }
 
+    /// The rules of a valid name (agent-core's, which the runtime and the code
+    /// generators apply too); components have the rules of type names as well.
     fn name_rules(&mut self, name: &str, path: &[Seg<'static>], what: &str) {
-        if !is_ident(name) {
+        let component = matches!(what, "subsystem" | "device" | "component");
+        let problem = if component {
+            crate::names::component_problem(name)
+        } else {
+            crate::names::check(name).err().map(|p| p.to_string())
+        };
+        if let Some(problem) = problem {
+            let label = match crate::names::check(name) {
+                Err(crate::names::NameProblem::Empty) => "empty",
+                Err(crate::names::NameProblem::NotIdentifier) => "not an identifier",
+                Err(crate::names::NameProblem::Unusable) => "not usable",
+                Ok(()) => "not a type name",
+            };
             self.push(
                 Finding::new(
                     Code::InvalidName,
                     self.span(path),
-                    "not an identifier",
-                    format!("{what} name `{name}` is not an identifier"),
+                    label,
+                    format!("{what} name `{}` {problem}", abbreviate(name, 60)),
                 )
-                .help("names are letters, digits and `_`, not starting with a digit (they become Rust identifiers)"),
+                .help("names are letters, digits and `_`, not starting with a digit (they become Rust identifiers; `self`, `Self`, `super`, `crate` and `_` cannot)"),
             );
         }
     }
@@ -179,6 +242,9 @@ impl<'a> Checker<'a> {
 
     fn components(&mut self) {
         let spec = self.spec;
+        // The system's name becomes a crate name (`embodied new`) and a key of the
+        // network transport: the same rule.
+        self.name_rules(&spec.name, &[F("name")], "system");
         self.unique(
             "agent",
             spec.agents
@@ -263,16 +329,18 @@ impl<'a> Checker<'a> {
         }
     }
 
+    /// The runtime's rule ([`agent_core::Period::from_millis_f64`]): positive,
+    /// finite, at least a nanosecond, at most 2^64 ns.
     fn period(&mut self, ms: f64, path: &[Seg<'static>]) {
-        if !(ms.is_finite() && ms > 0.0) {
+        if let Err(e) = agent_core::Period::from_millis_f64(ms) {
             self.push(
                 Finding::new(
                     Code::Period,
                     self.span(path),
-                    "not a positive period",
-                    format!("period {ms} ms is not a positive finite number"),
+                    "not a period",
+                    format!("period {ms} ms: {e}"),
                 )
-                .help("a subsystem or device runs every `period_ms` milliseconds; use a value above 0"),
+                .help("a subsystem or device runs every `period_ms` milliseconds: a positive number from 0.000001 (1 ns)"),
             );
         }
     }
@@ -348,10 +416,15 @@ impl<'a> Checker<'a> {
         }
     }
 
-    fn known_components(&self) -> String {
+    fn known_components(&mut self) -> std::rc::Rc<str> {
+        if let Some(l) = &self.components_list {
+            return std::rc::Rc::clone(l);
+        }
         let mut v: Vec<&str> = self.comps.keys().copied().collect();
         v.sort_unstable();
-        v.join(", ")
+        let l: std::rc::Rc<str> = list_or_none(&v).into();
+        self.components_list = Some(std::rc::Rc::clone(&l));
+        l
     }
 
     // -----------------------------------------------------------------------
@@ -424,8 +497,9 @@ impl<'a> Checker<'a> {
                 let fp = join(&bpath, &[F("functions"), I(k)]);
                 match sub.functions.iter().position(|f| &f.name == fname) {
                     None => {
-                        let known: Vec<&str> =
-                            sub.functions.iter().map(|f| f.name.as_str()).collect();
+                        let known = self.list(&sub.functions, Hint::Functions, || {
+                            sub.functions.iter().map(|f| f.name.clone()).collect()
+                        });
                         self.push(
                             Finding::new(
                                 Code::UnknownFunction,
@@ -433,7 +507,7 @@ impl<'a> Checker<'a> {
                                 "not defined",
                                 format!("behaviour `{}` uses function `{fname}`, which `{}` does not define", b.name, sub.name),
                             )
-                            .help(format!("define it under `functions`; defined: {}", list_or_none(&known))),
+                            .help(format!("define it under `functions`; defined: {known}")),
                         );
                     }
                     Some(fi) => {
@@ -462,6 +536,7 @@ impl<'a> Checker<'a> {
                 }
             }
             let t = self.condition(
+                sub,
                 &b.terminal,
                 &pred_index,
                 &join(&bpath, &[F("terminal")]),
@@ -511,7 +586,9 @@ impl<'a> Checker<'a> {
             match sub.inputs.iter().find(|g| g.peer == group) {
                 Some(g) if g.buffers.iter().any(|b| b.name == name) => {}
                 Some(g) => {
-                    let known: Vec<&str> = g.buffers.iter().map(|b| b.name.as_str()).collect();
+                    let known = self.list(&g.buffers, Hint::Buffers, || {
+                        g.buffers.iter().map(|b| b.name.clone()).collect()
+                    });
                     self.push(
                         Finding::new(
                             Code::UnknownBuffer,
@@ -519,11 +596,13 @@ impl<'a> Checker<'a> {
                             "no such input",
                             format!("`{}` has no input buffer `{name}` from `{group}`", sub.name),
                         )
-                        .help(format!("inputs from `{group}`: {}", list_or_none(&known))),
+                        .help(format!("inputs from `{group}`: {known}")),
                     );
                 }
                 None => {
-                    let known: Vec<&str> = sub.inputs.iter().map(|g| g.peer.as_str()).collect();
+                    let known = self.list(&sub.inputs, Hint::InputGroups, || {
+                        sub.inputs.iter().map(|g| g.peer.clone()).collect()
+                    });
                     self.push(
                         Finding::new(
                             Code::UnknownBuffer,
@@ -531,7 +610,7 @@ impl<'a> Checker<'a> {
                             "no such input group",
                             format!("`{}` has no inputs from `{group}`", sub.name),
                         )
-                        .help(format!("input groups: {}", list_or_none(&known))),
+                        .help(format!("input groups: {known}")),
                     );
                 }
             }
@@ -549,13 +628,16 @@ impl<'a> Checker<'a> {
         match groups.len() {
             1 => {}
             0 => {
-                let mut known: Vec<String> = sub.memory.iter().map(|b| b.name.clone()).collect();
-                known.extend(sub.inputs.iter().flat_map(|g| {
-                    g.buffers
-                        .iter()
-                        .map(move |b| format!("{}.{}", g.peer, b.name))
-                }));
-                let known: Vec<&str> = known.iter().map(String::as_str).collect();
+                let known = self.list(&sub.memory, Hint::Readable, || {
+                    let mut known: Vec<String> =
+                        sub.memory.iter().map(|b| b.name.clone()).collect();
+                    known.extend(sub.inputs.iter().flat_map(|g| {
+                        g.buffers
+                            .iter()
+                            .map(move |b| format!("{}.{}", g.peer, b.name))
+                    }));
+                    known
+                });
                 self.push(
                     Finding::new(
                         Code::UnknownBuffer,
@@ -563,7 +645,7 @@ impl<'a> Checker<'a> {
                         "no such buffer",
                         format!("`{}` has no memory or input buffer `{r}`", sub.name),
                     )
-                    .help(format!("readable buffers: {}", list_or_none(&known))),
+                    .help(format!("readable buffers: {known}")),
                 );
             }
             _ => self.push(
@@ -593,7 +675,9 @@ impl<'a> Checker<'a> {
             Target::Output(peer) => match sub.outputs.iter().find(|g| &g.peer == peer) {
                 Some(g) => Some(g),
                 None => {
-                    let known: Vec<&str> = sub.outputs.iter().map(|g| g.peer.as_str()).collect();
+                    let known = self.list(&sub.outputs, Hint::OutputGroups, || {
+                        sub.outputs.iter().map(|g| g.peer.clone()).collect()
+                    });
                     self.push(
                         Finding::new(
                             Code::UnknownTarget,
@@ -601,7 +685,7 @@ impl<'a> Checker<'a> {
                             "no such output group",
                             format!("function `{}` targets the outputs towards `{peer}`, which `{}` does not have", f.name, sub.name),
                         )
-                        .help(format!("targets: Memory, Common, or Output(peer) with peer among: {}", list_or_none(&known))),
+                        .help(format!("targets: Memory, Common, or Output(peer) with peer among: {known}")),
                     );
                     return;
                 }
@@ -641,6 +725,14 @@ impl<'a> Checker<'a> {
                     .help("a transition function writes only its target (the paper's decomposition by target); split it into one function per target"),
                 );
             } else {
+                let known = match target_group {
+                    Some(g) => self.list(&g.buffers, Hint::Buffers, || {
+                        g.buffers.iter().map(|b| b.name.clone()).collect()
+                    }),
+                    None => self.list(&sub.memory, Hint::Buffers, || {
+                        sub.memory.iter().map(|b| b.name.clone()).collect()
+                    }),
+                };
                 self.push(
                     Finding::new(
                         Code::UnknownBuffer,
@@ -651,24 +743,7 @@ impl<'a> Checker<'a> {
                             f.name, sub.name
                         ),
                     )
-                    .help(format!(
-                        "buffers of {}: {}",
-                        target_text(&f.target),
-                        match target_group {
-                            Some(g) => list_or_none(
-                                &g.buffers
-                                    .iter()
-                                    .map(|b| b.name.as_str())
-                                    .collect::<Vec<_>>()
-                            ),
-                            None => list_or_none(
-                                &sub.memory
-                                    .iter()
-                                    .map(|b| b.name.as_str())
-                                    .collect::<Vec<_>>()
-                            ),
-                        }
-                    )),
+                    .help(format!("buffers of {}: {known}", target_text(&f.target))),
                 );
             }
         }
@@ -677,6 +752,7 @@ impl<'a> Checker<'a> {
     /// Parse and resolve a condition; report syntax errors and unknown predicates.
     fn condition(
         &mut self,
+        sub: &Subsystem,
         text: &str,
         preds: &HashMap<&str, usize>,
         path: &[Seg<'static>],
@@ -699,43 +775,50 @@ impl<'a> Checker<'a> {
                     None => self.span(path),
                 };
                 self.push(
-                    Finding::new(Code::ConditionSyntax, span, e.message.clone(), format!("condition `{text}` does not parse"))
+                    Finding::new(Code::ConditionSyntax, span, e.message.clone(), format!("condition `{}` does not parse", abbreviate(text, 80)))
                         .help("conditions are predicate names with `!`, `&&`, `||`, parentheses, `true` and `false`"),
                 );
                 return None;
             }
         };
         let mut missing = Vec::new();
+        let mut seen = HashSet::new();
         let resolved = parsed.try_map(&mut |name: &String| match preds.get(name.as_str()) {
             Some(&i) => {
                 used.insert(i);
                 Ok::<usize, ()>(i)
             }
             None => {
-                if !missing.contains(name) {
+                if seen.insert(name.clone()) {
                     missing.push(name.clone());
                 }
                 Ok(0)
             }
         });
+        let offsets = if missing.is_empty() {
+            HashMap::new()
+        } else {
+            ident_offsets(text)
+        };
         for name in &missing {
-            let span = match (self.node(path), find_ident(text, name)) {
-                (Some(n), Some(off)) => n.sub_span(off..off + name.len()),
+            let span = match (self.node(path), offsets.get(name.as_str())) {
+                (Some(n), Some(&off)) => n.sub_span(off..off + name.len()),
                 _ => self.span(path),
             };
-            let mut known: Vec<&str> = preds.keys().copied().collect();
-            known.sort_unstable();
+            let known = self.list(&sub.predicates, Hint::Predicates, || {
+                sorted(sub.predicates.iter().map(|p| p.name.clone()))
+            });
             self.push(
                 Finding::new(
                     Code::UnknownPredicate,
                     span,
                     "not declared",
-                    format!("condition `{text}` uses predicate `{name}`, which is not declared"),
+                    format!(
+                        "condition `{}` uses predicate `{name}`, which is not declared",
+                        abbreviate(text, 80)
+                    ),
                 )
-                .help(format!(
-                    "declare it under `predicates`; declared: {}",
-                    list_or_none(&known)
-                )),
+                .help(format!("declare it under `predicates`; declared: {known}")),
             );
         }
         resolved.ok().filter(|_| missing.is_empty())
@@ -756,16 +839,10 @@ impl<'a> Checker<'a> {
             .enumerate()
             .map(|(i, b)| (b.name.as_str(), i))
             .collect();
-        let known_behaviours = || {
-            list_or_none(
-                &sub.behaviours
-                    .iter()
-                    .map(|b| b.name.as_str())
-                    .collect::<Vec<_>>(),
-            )
-        };
         let unknown = |this: &mut Self, name: &str, path: Path, place: &str| {
-            let known = known_behaviours();
+            let known = this.list(&sub.behaviours, Hint::Behaviours, || {
+                sub.behaviours.iter().map(|b| b.name.clone()).collect()
+            });
             this.push(
                 Finding::new(
                     Code::UnknownBehaviour,
@@ -808,8 +885,9 @@ impl<'a> Checker<'a> {
                     }
                     None => {
                         relations_resolve = false;
-                        let mut known: Vec<&str> = preds.keys().copied().collect();
-                        known.sort_unstable();
+                        let known = self.list(&sub.predicates, Hint::Predicates, || {
+                            sorted(sub.predicates.iter().map(|p| p.name.clone()))
+                        });
                         self.push(
                             Finding::new(
                                 Code::UnknownPredicate,
@@ -818,8 +896,7 @@ impl<'a> Checker<'a> {
                                 format!("relation names predicate `{n}`, which is not declared"),
                             )
                             .help(format!(
-                                "relations are between predicates declared under `predicates`; declared: {}",
-                                list_or_none(&known)
+                                "relations are between predicates declared under `predicates`; declared: {known}"
                             )),
                         );
                     }
@@ -890,7 +967,7 @@ impl<'a> Checker<'a> {
             if to.is_none() {
                 unknown(self, &arc.to, join(&apath, &[F("to")]), "an arc");
             }
-            let cond = self.condition(&arc.when, preds, &join(&apath, &[F("when")]), used);
+            let cond = self.condition(sub, &arc.when, preds, &join(&apath, &[F("when")]), used);
             if let (Some(f), Some(t)) = (from, to) {
                 graph.add_edge(nodes[f], nodes[t], k);
                 arcs[f].push((k, cond));
@@ -952,15 +1029,35 @@ impl<'a> Checker<'a> {
             let Some(terminal) = &terminals[i] else {
                 continue;
             };
-            let mut base_formulas = relations.clone();
-            base_formulas.push(terminal.clone());
-            let can_end = match solve(&base_formulas, sub.predicates.len(), PROOF_BUDGET) {
-                Sat::No => false,
-                Sat::Yes(_) | Sat::Unknown => true,
+            if !self.prove {
+                continue;
+            }
+            let conds: Vec<(usize, &Expr<usize>)> = arcs[i]
+                .iter()
+                .filter_map(|(k, c)| c.as_ref().map(|c| (*k, c)))
+                .collect();
+            // Arcs are proven when each condition and relation resolved (the others
+            // were reported), and the behaviour is not final.
+            let prove_arcs = !arcs[i].is_empty()
+                && conds.len() == arcs[i].len()
+                && relations_resolve
+                && !finals[i];
+            let mut assumed: Vec<&Expr<usize>> = relations.iter().collect();
+            assumed.push(terminal);
+            let question = Question {
+                predicates: sub.predicates.len(),
+                assumed,
+                arcs: if prove_arcs {
+                    conds.iter().map(|(_, c)| *c).collect()
+                } else {
+                    Vec::new()
+                },
             };
+            let answer = proof::answer(&question, &mut self.budget);
+            let can_end = answer.can_end.unwrap_or(true);
             let tpath = at(&[F("behaviours"), I(i), F("terminal")]);
             let runs_forever = literal_false && arcs[i].is_empty();
-            if !can_end && !runs_forever {
+            if answer.can_end == Some(false) && !runs_forever {
                 self.push(
                     Finding::new(
                         Code::TerminalNever,
@@ -978,102 +1075,93 @@ impl<'a> Checker<'a> {
                             Code::NoWayOut,
                             name_span,
                             "no outgoing arc",
-                            format!("behaviour `{}` can end (terminal `{}`) but has no outgoing arc and is not final", b.name, b.terminal),
+                            format!("behaviour `{}` can end (terminal `{}`) but has no outgoing arc and is not final", b.name, abbreviate(&b.terminal, 80)),
                         )
                         .help("add an arc from it, declare it in `fsm.finals`, or make its terminal condition `false`"),
                     );
                 }
                 continue;
             }
-            if !can_end || finals[i] {
-                continue;
+            if prove_arcs {
+                self.arc_findings(sub, base, i, &conds, &answer);
             }
-            let conds: Vec<(usize, &Expr<usize>)> = arcs[i]
-                .iter()
-                .filter_map(|(k, c)| c.as_ref().map(|c| (*k, c)))
-                .collect();
-            if conds.len() != arcs[i].len() || !relations_resolve {
-                continue; // a condition or relation did not resolve; already reported
-            }
-            self.prove_arcs(sub, base, i, &base_formulas, &conds);
         }
     }
 
-    /// Mutual exclusion and coverage of the arcs leaving behaviour `b`, assuming its
-    /// terminal condition and the relations.
-    fn prove_arcs(
+    /// The findings of the arc proof for behaviour `b`: arcs that can hold at once,
+    /// a case no arc covers (each with the assignment), questions the budget left
+    /// undecided.
+    fn arc_findings(
         &mut self,
         sub: &Subsystem,
         base: &[Seg<'static>],
         b: usize,
-        base_formulas: &[Expr<usize>],
         conds: &[(usize, &Expr<usize>)],
+        answer: &proof::Answer,
     ) {
-        let n = sub.predicates.len();
         let arc_span =
             |this: &Self, k: usize| this.span(&join(base, &[F("fsm"), F("arcs"), I(k), F("when")]));
         let bname = &sub.behaviours[b].name;
-        let terminal = &sub.behaviours[b].terminal;
-        for x in 0..conds.len() {
-            for y in x + 1..conds.len() {
-                let mut fs = base_formulas.to_vec();
-                fs.push(conds[x].1.clone());
-                fs.push(conds[y].1.clone());
-                match solve(&fs, n, PROOF_BUDGET) {
-                    Sat::No => {}
-                    Sat::Yes(a) => {
-                        let (ax, ay) = (&sub.fsm.arcs[conds[x].0], &sub.fsm.arcs[conds[y].0]);
-                        let assignment = render_assignment(sub, &fs, &a);
-                        self.push(
-                            Finding::new(
-                                Code::ArcsOverlap,
-                                arc_span(self, conds[y].0),
-                                format!("holds when {assignment}"),
-                                format!(
-                                    "arcs `{bname} -> {}` and `{bname} -> {}` can hold at once (when {assignment}, with terminal `{terminal}`)",
-                                    ax.to, ay.to
-                                ),
-                            )
-                            .label(arc_span(self, conds[x].0), "this one holds too")
-                            .help("when a behaviour ends exactly one arc must hold: strengthen a condition, or declare the predicates `Exclusive` under `relations` if they cannot hold together"),
-                        );
-                    }
-                    Sat::Unknown => self.unproven(sub, base, b),
-                }
-            }
-        }
-        let mut fs = base_formulas.to_vec();
-        fs.extend(conds.iter().map(|(_, c)| Expr::Not(Box::new((*c).clone()))));
-        match solve(&fs, n, PROOF_BUDGET) {
-            Sat::No => {}
-            Sat::Yes(a) => {
-                let assignment = render_assignment(sub, &fs, &a);
-                let mut f = Finding::new(
-                    Code::ArcsIncomplete,
-                    self.span(&join(base, &[F("behaviours"), I(b), F("terminal")])),
-                    format!("ends when {assignment}"),
-                    format!("when `{bname}` ends with {assignment}, none of its arcs holds"),
+        let terminal = abbreviate(&sub.behaviours[b].terminal, 80);
+        let used = |w: &Witness| render_assignment(sub, w);
+        for (x, y, w) in &answer.overlaps {
+            let (ax, ay) = (&sub.fsm.arcs[conds[*x].0], &sub.fsm.arcs[conds[*y].0]);
+            let assignment = used(w);
+            self.push(
+                Finding::new(
+                    Code::ArcsOverlap,
+                    arc_span(self, conds[*y].0),
+                    format!("holds when {assignment}"),
+                    format!(
+                        "arcs `{bname} -> {}` and `{bname} -> {}` can hold at once (when {assignment}, with terminal `{terminal}`)",
+                        ax.to, ay.to
+                    ),
                 )
-                .help("add an arc for this case (the arcs' conditions must cover every case in which the terminal condition holds), or declare relations that rule it out");
-                for (k, _) in conds {
-                    f = f.label(arc_span(self, *k), "does not hold");
-                }
-                self.push(f);
-            }
-            Sat::Unknown => self.unproven(sub, base, b),
+                .label(arc_span(self, conds[*x].0), "this one holds too")
+                .help("when a behaviour ends exactly one arc must hold: strengthen a condition, or declare the predicates `Exclusive` under `relations` if they cannot hold together"),
+            );
         }
-    }
-
-    fn unproven(&mut self, sub: &Subsystem, base: &[Seg<'static>], b: usize) {
-        self.push(
-            Finding::new(
+        if let Some(w) = &answer.gap {
+            let assignment = used(w);
+            let mut f = Finding::new(
                 Code::ArcsIncomplete,
-                self.span(&join(base, &[F("behaviours"), I(b), F("name")])),
-                "too many predicates to decide",
-                format!("the arcs of `{}` could not be proven exclusive and complete within the search budget", sub.behaviours[b].name),
+                self.span(&join(base, &[F("behaviours"), I(b), F("terminal")])),
+                format!("ends when {assignment}"),
+                format!("when `{bname}` ends with {assignment}, none of its arcs holds"),
             )
-            .help("simplify the conditions or split the behaviour"),
-        );
+            .help("add an arc for this case (the arcs' conditions must cover every case in which the terminal condition holds), or declare relations that rule it out");
+            for (k, _) in conds {
+                f = f.label(arc_span(self, *k), "does not hold");
+            }
+            self.push(f);
+        }
+        if let Some(first) = answer.undecided.first() {
+            let what = match *first {
+                Undecided::CanEnd => format!("whether `{bname}` can end at all"),
+                Undecided::Overlap(x, y) => format!(
+                    "whether arcs `{bname} -> {}` and `{bname} -> {}` can hold at once",
+                    sub.fsm.arcs[conds[x].0].to, sub.fsm.arcs[conds[y].0].to
+                ),
+                Undecided::Gap => format!("whether some case ending `{bname}` holds no arc"),
+            };
+            let more = answer.undecided.len() - 1;
+            self.push(
+                Finding::new(
+                    Code::ProofBudget,
+                    self.span(&join(base, &[F("behaviours"), I(b), F("name")])),
+                    "not proven",
+                    format!(
+                        "the proof's budget ran out before deciding {what}{}: the arcs of `{bname}` are neither proven nor refuted",
+                        if more > 0 { format!(" ({more} more questions undecided)") } else { String::new() }
+                    ),
+                )
+                .help(format!(
+                    "the SAT solver may spend {} conflicts per question and {} per check; simplify the conditions, declare relations, or split the behaviour (at run time the one-arc rule is still enforced)",
+                    Budget::PER_QUESTION,
+                    Budget::TOTAL
+                )),
+            );
+        }
     }
 
     // -----------------------------------------------------------------------
@@ -1420,31 +1508,31 @@ fn target_text(t: &Target) -> String {
     }
 }
 
+/// The first [`LIST_MAX`] of `names`, and how many there are in all.
 fn list_or_none(names: &[&str]) -> String {
-    if names.is_empty() {
-        "(none)".into()
-    } else {
-        names.join(", ")
+    match names.len() {
+        0 => "(none)".into(),
+        n if n > LIST_MAX => format!("{}, … ({n} in all)", names[..LIST_MAX].join(", ")),
+        _ => names.join(", "),
     }
 }
 
-/// `a=true, b=false` over the predicates that appear in `formulas`, by name.
-fn render_assignment(sub: &Subsystem, formulas: &[Expr<usize>], a: &[Option<bool>]) -> String {
-    let mut atoms = Vec::new();
-    for f in formulas {
-        f.for_each_atom(&mut |i: &usize| atoms.push(*i));
-    }
-    atoms.sort_unstable();
-    atoms.dedup();
-    let parts: Vec<String> = atoms
-        .into_iter()
-        .filter_map(|i| {
-            Some(format!(
-                "{}={}",
-                sub.predicates.get(i)?.name,
-                a.get(i).copied().flatten()?
-            ))
-        })
+fn sorted(names: impl Iterator<Item = String>) -> Vec<String> {
+    let mut v: Vec<String> = names.collect();
+    v.sort_unstable();
+    v
+}
+
+/// How many names a help line lists.
+const LIST_MAX: usize = 12;
+
+/// `a=true, b=false`: the predicates a witness fixes, by name, in the order of
+/// their declaration.
+fn render_assignment(sub: &Subsystem, w: &Witness) -> String {
+    let parts: Vec<String> = w
+        .iter()
+        .enumerate()
+        .filter_map(|(i, v)| Some(format!("{}={}", sub.predicates.get(i)?.name, (*v)?)))
         .collect();
     if parts.is_empty() {
         "any predicate values".into()
@@ -1466,16 +1554,18 @@ mod tests {
 
     #[test]
     fn undeclared_names_are_found_as_whole_identifiers() {
-        assert_eq!(find_ident("plan_new && !new", "new"), Some(13));
-        assert_eq!(find_ident("new_plan || new", "new"), Some(12));
-        assert_eq!(find_ident("new && plan_new", "new"), Some(0));
-        assert_eq!(find_ident("(a1&&a)", "a"), Some(5));
-        assert_eq!(find_ident("renew || news", "new"), None);
-        assert_eq!(find_ident("é && new", "new"), Some(6));
+        let find = |text: &str, name: &str| ident_offsets(text).get(name).copied();
+        assert_eq!(find("plan_new && !new", "new"), Some(13));
+        assert_eq!(find("new_plan || new", "new"), Some(12));
+        assert_eq!(find("new && plan_new", "new"), Some(0));
+        assert_eq!(find("(a1&&a)", "a"), Some(5));
+        assert_eq!(find("renew || news", "new"), None);
+        assert_eq!(find("é && new", "new"), Some(6));
     }
 
     #[test]
     fn identifiers() {
+        use crate::names::is_identifier as is_ident;
         assert!(is_ident("A4x4") && is_ident("_x") && is_ident("q_est"));
         assert!(!is_ident("4x") && !is_ident("a-b") && !is_ident(""));
     }

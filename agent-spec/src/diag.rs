@@ -2,9 +2,14 @@
 //! rendered like rustc/miette diagnostics.
 
 use std::fmt;
+use std::fmt::Write as _;
 use std::ops::Range;
+use std::sync::Arc;
 
-use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic, NamedSource};
+use miette::{
+    GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic, MietteError,
+    MietteSpanContents, SourceCode, SourceSpan, SpanContents,
+};
 
 /// How bad a finding is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -109,6 +114,10 @@ codes! {
     ArcsOverlap = "spec::arcs_overlap", Error;
     /// When a behaviour ends, possibly no arc holds (with a counterexample).
     ArcsIncomplete = "spec::arcs_incomplete", Error;
+    /// The arc proof's budget ran out: the arcs of a behaviour are neither proven nor refuted.
+    ProofBudget = "spec::proof_budget", Warning;
+    /// The file is not UTF-8 text.
+    Encoding = "spec::encoding", Error;
     /// A terminal condition that can never hold.
     TerminalNever = "spec::terminal_never", Warning;
     /// A function no behaviour uses.
@@ -159,18 +168,18 @@ impl Finding {
     ) -> Self {
         Finding {
             code,
-            message: message.into(),
+            message: cap(message.into()),
             help: String::new(),
             labels: vec![Label {
                 span,
-                text: label.into(),
+                text: cap(label.into()),
             }],
         }
     }
 
     /// Set the help line.
     pub fn help(mut self, help: impl Into<String>) -> Self {
-        self.help = help.into();
+        self.help = cap(help.into());
         self
     }
 
@@ -178,7 +187,7 @@ impl Finding {
     pub fn label(mut self, span: Range<usize>, text: impl Into<String>) -> Self {
         self.labels.push(Label {
             span,
-            text: text.into(),
+            text: cap(text.into()),
         });
         self
     }
@@ -246,13 +255,35 @@ impl Report {
         line_col(&self.source, offset)
     }
 
-    /// Render every finding like rustc/miette, without colours, at `width` columns.
+    /// Render the findings like rustc/miette, without colours, at `width` columns:
+    /// each with its code, message, the lines around its labels, and help. The
+    /// first [`Report::RENDER_MAX`] findings are drawn; a line counts the others
+    /// (`short` lists them all). A label on a line longer than [`LONG_LINE`] bytes
+    /// is shown in an excerpt of that line instead. The cost is linear in the
+    /// number of findings and in the size of the text.
     pub fn render(&self, width: usize) -> String {
         let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor())
             .with_width(width)
             .with_links(false);
+        let index = Arc::new(LineIndex::new(&self.source));
+        let source = Indexed {
+            name: Arc::from(self.file.as_str()),
+            text: Arc::from(self.source.as_str()),
+            index: Arc::clone(&index),
+        };
+        let mut cursor = Cursor::new(&self.source, &index);
         let mut out = String::new();
-        for f in &self.findings {
+        for f in self.findings.iter().take(Self::RENDER_MAX) {
+            let (line, col) = cursor.at(f.offset());
+            let long = f.labels.iter().any(|l| {
+                let (start, len) = clamp(&l.span, self.source.len());
+                (index.line_of(start)..=index.line_of(start + len))
+                    .any(|k| index.line_len(k) > LONG_LINE)
+            });
+            if long {
+                self.render_plain(&mut out, f, &index, (line, col));
+                continue;
+            }
             let labels = f.labels.iter().enumerate().map(|(i, l)| {
                 let span = clamp(&l.span, self.source.len());
                 let text = (!l.text.is_empty()).then(|| l.text.clone());
@@ -272,34 +303,234 @@ impl Report {
             if !f.help.is_empty() {
                 d = d.with_help(f.help.clone());
             }
-            let report = miette::Report::new(d)
-                .with_source_code(NamedSource::new(&self.file, self.source.clone()));
+            let report = miette::Report::new(d).with_source_code(source.clone());
             if handler.render_report(&mut out, report.as_ref()).is_err() {
-                let (l, c) = self.line_col(f.offset());
-                out.push_str(&format!(
-                    "{}:{l}:{c}: {}: {}\n",
-                    self.file, f.code, f.message
-                ));
+                self.render_plain(&mut out, f, &index, (line, col));
             }
+        }
+        let more = self.findings.len().saturating_sub(Self::RENDER_MAX);
+        if more > 0 {
+            let _ = writeln!(
+                out,
+                "... and {more} more findings (`--style short` lists every finding, one line each)"
+            );
         }
         out
     }
 
+    /// At most this many findings are drawn by [`Report::render`].
+    pub const RENDER_MAX: usize = 1000;
+
+    /// A finding without miette: the header, an excerpt of the primary label's line
+    /// around it with a caret line, and the help.
+    fn render_plain(&self, out: &mut String, f: &Finding, index: &LineIndex, at: (usize, usize)) {
+        let sev = match f.severity() {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        };
+        let _ = writeln!(out, "{}\n\n  × {}", f.code, f.message);
+        let _ = writeln!(out, "  at {}:{}:{} ({sev})", self.file, at.0, at.1);
+        if let Some(l) = f.labels.first() {
+            let (start, len) = clamp(&l.span, self.source.len());
+            let line = index.line_of(start);
+            let (ls, le) = (index.line_start(line), index.line_end(line));
+            let text = &self.source[ls..le];
+            let rel = start - ls;
+            let from = floor_char(text, rel.saturating_sub(EXCERPT));
+            let to = floor_char(text, (rel + len.max(1) + EXCERPT).min(text.len()));
+            let excerpt = text[from..to].trim_end_matches(['\n', '\r']);
+            let lead = if from > 0 { "…" } else { "" };
+            let tail = if to < text.len() { "…" } else { "" };
+            let pad = lead.chars().count() + text[from..rel].chars().count();
+            let width = text[rel..floor_char(text, (rel + len).min(text.len()))]
+                .chars()
+                .count()
+                .clamp(1, EXCERPT);
+            let _ = writeln!(out, "   │ {lead}{excerpt}{tail}");
+            let _ = writeln!(
+                out,
+                "   │ {}{} {}",
+                " ".repeat(pad),
+                "^".repeat(width),
+                l.text
+            );
+        }
+        if !f.help.is_empty() {
+            let _ = writeln!(out, "  help: {}", f.help);
+        }
+        out.push('\n');
+    }
+
     /// One line per finding: `file:line:col: severity[code]: message`.
     pub fn short(&self) -> String {
+        let index = LineIndex::new(&self.source);
+        let mut cursor = Cursor::new(&self.source, &index);
         let mut out = String::new();
         for f in &self.findings {
-            let (l, c) = self.line_col(f.offset());
+            let (l, c) = cursor.at(f.offset());
             let sev = match f.severity() {
                 Severity::Error => "error",
                 Severity::Warning => "warning",
             };
-            out.push_str(&format!(
-                "{}:{l}:{c}: {sev}[{}]: {}\n",
+            let _ = writeln!(
+                out,
+                "{}:{l}:{c}: {sev}[{}]: {}",
                 self.file, f.code, f.message
-            ));
+            );
         }
         out
+    }
+}
+
+/// Lines longer than this many bytes are not handed to miette (it formats columns
+/// with widths, which panic past 65,535): their findings show an excerpt.
+pub const LONG_LINE: usize = 4096;
+
+/// Bytes of context on either side of a label in an excerpt.
+const EXCERPT: usize = 60;
+
+/// `at` moved back to a character boundary of `text`.
+fn floor_char(text: &str, mut at: usize) -> usize {
+    at = at.min(text.len());
+    while !text.is_char_boundary(at) {
+        at -= 1;
+    }
+    at
+}
+
+/// The byte offsets at which the lines of a text start.
+#[derive(Debug)]
+struct LineIndex {
+    starts: Vec<usize>,
+    len: usize,
+}
+
+impl LineIndex {
+    fn new(text: &str) -> LineIndex {
+        let mut starts = vec![0];
+        starts.extend(
+            text.bytes()
+                .enumerate()
+                .filter(|(_, b)| *b == b'\n')
+                .map(|(i, _)| i + 1),
+        );
+        LineIndex {
+            starts,
+            len: text.len(),
+        }
+    }
+
+    /// 0-based line of byte `offset`.
+    fn line_of(&self, offset: usize) -> usize {
+        self.starts
+            .partition_point(|&s| s <= offset.min(self.len))
+            .saturating_sub(1)
+    }
+
+    fn line_start(&self, line: usize) -> usize {
+        self.starts.get(line).copied().unwrap_or(self.len)
+    }
+
+    /// End of `line`, its newline included.
+    fn line_end(&self, line: usize) -> usize {
+        self.starts.get(line + 1).copied().unwrap_or(self.len)
+    }
+
+    fn line_len(&self, line: usize) -> usize {
+        self.line_end(line) - self.line_start(line)
+    }
+}
+
+/// `line:col` of increasing offsets in time linear in the text: the column is
+/// counted on from the previous offset when it is on the same line.
+struct Cursor<'a> {
+    text: &'a str,
+    index: &'a LineIndex,
+    /// Last offset asked, its line and column (1-based).
+    at: Option<(usize, usize, usize)>,
+}
+
+impl<'a> Cursor<'a> {
+    fn new(text: &'a str, index: &'a LineIndex) -> Cursor<'a> {
+        Cursor {
+            text,
+            index,
+            at: None,
+        }
+    }
+
+    fn at(&mut self, offset: usize) -> (usize, usize) {
+        let offset = floor_char(self.text, offset);
+        let line = self.index.line_of(offset);
+        let (from, col) = match self.at {
+            Some((off, l, c)) if l == line + 1 && off <= offset => (off, c),
+            _ => (self.index.line_start(line), 1),
+        };
+        let col = col + self.text[from..offset].chars().count();
+        self.at = Some((offset, line + 1, col));
+        (line + 1, col)
+    }
+}
+
+/// A file as miette's source: the lines around a span are found with the line
+/// index, not by scanning the file from its start (miette's own way, which made
+/// rendering quadratic in the number of findings).
+#[derive(Clone, Debug)]
+struct Indexed {
+    name: Arc<str>,
+    text: Arc<str>,
+    index: Arc<LineIndex>,
+}
+
+impl SourceCode for Indexed {
+    fn read_span<'a>(
+        &'a self,
+        span: &SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn SpanContents<'a> + 'a>, MietteError> {
+        // The lines miette would return, cut out, read by miette, and put back.
+        let (start, end) = (span.offset(), span.offset() + span.len());
+        let first = self
+            .index
+            .line_of(start)
+            .saturating_sub(context_lines_before);
+        let last = self.index.line_of(end.saturating_sub(1).max(start)) + context_lines_after + 1;
+        let (from, to) = (self.index.line_start(first), self.index.line_end(last));
+        let window = self.text.get(from..to).ok_or(MietteError::OutOfBounds)?;
+        let local = SourceSpan::new(start.saturating_sub(from).into(), span.len());
+        let inner = window.read_span(&local, context_lines_before, context_lines_after)?;
+        Ok(Box::new(MietteSpanContents::new_named(
+            self.name.to_string(),
+            inner.data(),
+            SourceSpan::new((inner.span().offset() + from).into(), inner.span().len()),
+            inner.line() + first,
+            inner.column(),
+            inner.line_count() + first,
+        )))
+    }
+}
+
+/// Messages, help lines and labels quote the spec (conditions, names, lists of
+/// names): at most this many characters of each are kept, so that a hostile
+/// spec cannot make its report larger than a bounded multiple of its findings.
+pub const TEXT_MAX: usize = 1000;
+
+fn cap(mut text: String) -> String {
+    if let Some((cut, _)) = text.char_indices().nth(TEXT_MAX) {
+        let dropped = text[cut..].chars().count();
+        text.truncate(cut);
+        text.push_str(&format!("… ({dropped} more characters)"));
+    }
+    text
+}
+
+/// `text` cut to `max` characters, with `…` where cut: for quoting conditions
+/// and the like in messages.
+pub fn abbreviate(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(max) {
+        Some((cut, _)) => format!("{}…", &text[..cut]).into(),
+        None => text.into(),
     }
 }
 
@@ -311,10 +542,7 @@ fn clamp(span: &Range<usize>, len: usize) -> (usize, usize) {
 
 /// `line:col` (1-based, columns in characters) of byte `offset` of `text`.
 pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let mut offset = offset.min(text.len());
-    while !text.is_char_boundary(offset) {
-        offset -= 1;
-    }
+    let offset = floor_char(text, offset);
     let before = &text[..offset];
     let line = before.matches('\n').count() + 1;
     let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

@@ -20,9 +20,9 @@ pub mod check;
 pub mod diag;
 pub mod diagram;
 pub mod export;
-mod logic;
 pub mod model;
 pub mod names;
+mod proof;
 pub mod scaffold;
 pub mod span;
 
@@ -45,9 +45,13 @@ pub struct Loaded {
 }
 
 /// Parse `source` (named `file` in diagnostics). Syntax and schema errors come back
-/// as a report with one finding.
+/// as a report with one finding. A UTF-8 byte-order mark at the start is skipped
+/// (editors on Windows write one).
 pub fn load(file: impl Into<String>, source: impl Into<String>) -> Result<Loaded, Report> {
-    let (file, source) = (file.into(), source.into());
+    let (file, mut source) = (file.into(), source.into());
+    if source.starts_with('\u{feff}') {
+        source.drain(..'\u{feff}'.len_utf8());
+    }
     match options().from_str::<Spec>(&source) {
         Ok(spec) => {
             let index = span::parse(&source);
@@ -88,10 +92,65 @@ pub fn check(loaded: &Loaded) -> Report {
     Report::new(loaded.file.clone(), loaded.source.clone(), findings)
 }
 
+/// Check a loaded spec without the arc proof: names, types, wiring, FSM graphs
+/// (what drawing a diagram needs, at a cost linear in the spec).
+pub fn check_structure(loaded: &Loaded) -> Report {
+    let findings = check::Checker::new(&loaded.spec, loaded.index.as_ref())
+        .without_proof()
+        .run();
+    Report::new(loaded.file.clone(), loaded.source.clone(), findings)
+}
+
 /// Read, load and check a file.
 pub fn check_file(path: &Path) -> std::io::Result<(Option<Spec>, Report)> {
-    let source = std::fs::read_to_string(path)?;
-    Ok(check_source(path.display().to_string(), source))
+    read_and_check(path, check)
+}
+
+/// Read, load and check a file without the arc proof ([`check_structure`]).
+pub fn check_file_structure(path: &Path) -> std::io::Result<(Option<Spec>, Report)> {
+    read_and_check(path, check_structure)
+}
+
+fn read_and_check(
+    path: &Path,
+    check: fn(&Loaded) -> Report,
+) -> std::io::Result<(Option<Spec>, Report)> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path)?;
+    let source = match decode(&file, bytes) {
+        Ok(source) => source,
+        Err(report) => return Ok((None, report)),
+    };
+    Ok(match load(file, source) {
+        Ok(loaded) => {
+            let report = check(&loaded);
+            (Some(loaded.spec), report)
+        }
+        Err(report) => (None, report),
+    })
+}
+
+/// The text of a spec file's bytes, or a report whose finding points at the first
+/// byte that is not UTF-8 (`spec::encoding`).
+pub fn decode(file: &str, bytes: Vec<u8>) -> Result<String, Report> {
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok(text),
+        Err(e) => {
+            let at = e.utf8_error().valid_up_to();
+            let bad = e.as_bytes().get(at).copied().unwrap_or(0);
+            // The lossy text has the same prefix: the replacement character is at `at`.
+            let text = String::from_utf8_lossy(e.as_bytes()).into_owned();
+            let (line, col) = diag::line_col(&text, at);
+            let finding = Finding::new(
+                Code::Encoding,
+                one_char_at(&text, at),
+                format!("byte 0x{bad:02x}"),
+                format!("the file is not UTF-8 text: byte 0x{bad:02x} at {line}:{col} does not belong to a UTF-8 character"),
+            )
+            .help("specs are UTF-8 text; save the file as UTF-8");
+            Err(Report::new(file, text, vec![finding]))
+        }
+    }
 }
 
 /// The span of the `name` field (or the opening) of the innermost struct whose

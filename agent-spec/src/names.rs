@@ -1,15 +1,10 @@
-//! How spec names become Rust names, shared by `agent!` (which generates the code)
-//! and `embodied new` (which writes code that uses it), so that both agree.
+//! How spec names become Rust names, shared by the checker, `agent!` (which
+//! generates the code) and `embodied new` (which writes code that uses it), so
+//! that all three agree on what is valid. The rule for any name is agent-core's
+//! ([`check`], which the runtime applies too); component names have one more, as
+//! they become type names ([`component_problem`]).
 
-/// Rust's keywords, strict and reserved: a spec name among them becomes a raw
-/// identifier (`r#type`).
-pub const KEYWORDS: &[&str] = &[
-    "as", "break", "const", "continue", "crate", "else", "enum", "extern", "false", "fn", "for",
-    "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub", "ref", "return",
-    "self", "Self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use", "where",
-    "while", "async", "await", "dyn", "abstract", "become", "box", "do", "final", "macro",
-    "override", "priv", "typeof", "unsized", "virtual", "yield", "try", "gen",
-];
+pub use agent_core::names::{KEYWORDS, NameProblem, UNUSABLE, check, is_identifier};
 
 /// A spec name as Rust source: the name itself, or `r#name` for a keyword.
 pub fn rust_ident(name: &str) -> String {
@@ -42,6 +37,29 @@ pub fn has_type_name(name: &str) -> bool {
         .is_some_and(|c| c.is_ascii_alphabetic())
 }
 
+/// The types every module `agent!` generates has: a component named after one
+/// would clash with it.
+pub const MODULE_TYPES: [&str; 4] = ["Memory", "Input", "Output", "Functions"];
+
+/// Why `name` cannot name a component (a subsystem or device), if it cannot:
+/// beyond [`check`], its type name (`c1` -> `C1`) must be a Rust type name, and
+/// not one of the types of its module.
+pub fn component_problem(name: &str) -> Option<String> {
+    if let Err(p) = check(name) {
+        return Some(p.to_string());
+    }
+    let t = type_name(name);
+    if !has_type_name(name) {
+        return Some(format!("makes no Rust type name (`{t}`)"));
+    }
+    if MODULE_TYPES.contains(&t.as_str()) {
+        return Some(format!(
+            "makes the type name `{t}`, which the module `agent!` generates for it already has"
+        ));
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -54,5 +72,9 @@ mod tests {
         assert_eq!(rust_ident("type"), "r#type");
         assert_eq!(rust_ident("A4x4"), "A4x4");
         assert!(has_type_name("c1") && !has_type_name("__") && !has_type_name("_1"));
+        assert_eq!(component_problem("c1"), None);
+        for bad in ["__", "_1", "memory", "input", "self", ""] {
+            assert!(component_problem(bad).is_some(), "{bad}");
+        }
     }
 }

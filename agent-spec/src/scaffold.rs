@@ -512,7 +512,7 @@ fn system_rs(spec: &Spec) -> String {
         }
     }
     s.push_str(
-        "}\n\n/// A period in milliseconds, as the spec gives it.\nfn period(ms: f64) -> Result<Period, PeriodError> {\n    Period::from_nanos((ms * 1e6).round() as u64)\n}\n\n\
+        "}\n\n/// A period in milliseconds, as the spec gives it (the checker's rule).\nfn period(ms: f64) -> Result<Period, PeriodError> {\n    Period::from_millis_f64(ms)\n}\n\n\
          /// Build the system of the spec.\n#[allow(non_snake_case)]\npub fn build() -> Result<(System, Handles), Box<dyn std::error::Error + Send + Sync>> {\n    let mut sys = SystemBuilder::new();\n",
     );
     for a in &spec.agents {

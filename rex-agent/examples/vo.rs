@@ -97,6 +97,18 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         stats.failures,
         out.display()
     );
+    if let Some((k, why)) = run.failures.first() {
+        eprintln!(
+            "vo: {} pairs without an estimate; the first, frame {k}: {why}",
+            run.failures.len()
+        );
+    }
+    if stats.motions == 0 && n > 1 {
+        return Err(format!(
+            "no pair of the {n} gave a motion: there is nothing to evaluate (see the reason above)"
+        )
+        .into());
+    }
     let (mut t_err, mut r_err) = (f64::NAN, f64::NAN);
     if let Some(gt) = &seq.poses {
         let d = evaluate(&gt[..n], poses, a.lengths.as_deref(), 10)?;

@@ -39,6 +39,17 @@ pub enum ConfigError {
         /// What it must be.
         reason: &'static str,
     },
+    /// A value that does not fit another part of the configuration (a plan's
+    /// point inside an obstacle of the world).
+    #[error("{path}: {field} {reason}")]
+    Mismatch {
+        /// The file.
+        path: PathBuf,
+        /// Which field.
+        field: String,
+        /// Why, with the values.
+        reason: String,
+    },
 }
 
 /// Something that can check its own values.
@@ -73,6 +84,19 @@ pub fn non_negative(field: &str, x: f64) -> Result<(), Invalid> {
             x.to_string(),
             "must be a finite number >= 0",
         ))
+    }
+}
+
+/// Require a period the runtime can run ([`embodied::Period::from_millis_f64`]): a
+/// positive number of milliseconds, from 1 ns to 2^64 ns.
+pub fn period_ms(field: &str, ms: f64) -> Result<(), Invalid> {
+    match embodied::Period::from_millis_f64(ms) {
+        Ok(_) => Ok(()),
+        Err(_) => Err((
+            field.to_owned(),
+            ms.to_string(),
+            "must be a period in milliseconds: positive, at least 0.000001 (1 ns), at most 584 years",
+        )),
     }
 }
 

@@ -8,11 +8,12 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use embodied::spec::Spec;
 use rex_agent::e11::{EstimatorKind, TrackerKind};
 use rex_agent::mission::Mission;
 use rex_agent::planner::PlannerKind;
 use rex_agent::planner::trajgen::Runtime;
-use rex_agent::rex::{RunSettings, load_spec};
+use rex_agent::rex::{RexConfig, RunSettings, load_spec};
 use rex_agent::run::{Outcome, Progress, run_mission};
 use rex_agent::{config, report};
 
@@ -23,6 +24,11 @@ use rex_agent::{config, report};
 /// map agent a3 supplies poses from motion capture. Every choice below can also be
 /// written in a run file (`--config`, default `rex-agent/config/rex.ron`); a flag
 /// overrides the file.
+///
+/// Exit status: 0 when every plan was achieved (acknowledged, reported reached by
+/// a1, and confirmed by the simulation's truth); 1 when a plan failed or the
+/// mission did not complete (the summary names each plan and how it ended); 2
+/// when the command line or a configuration file is invalid (nothing runs).
 #[derive(Parser, Debug)]
 #[command(name = "rex", version)]
 struct Cli {
@@ -52,8 +58,8 @@ struct Cli {
     /// State estimator of e11: `mhe` (the paper's) or `ekf`.
     #[arg(long, value_name = "NAME")]
     estimator: Option<EstimatorKind>,
-    /// Longest simulated time, in seconds.
-    #[arg(long, value_name = "SECONDS")]
+    /// Longest simulated time, in seconds (positive, at most 10,000,000).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     limit: Option<f64>,
     /// Run without the virtual receptor r11 and the camera (no visual odometry:
     /// the spec's deployment `simulation_without_vo`).
@@ -79,6 +85,21 @@ fn emit(text: std::fmt::Arguments<'_>) {
     }
 }
 
+/// Whether a report folder can be made at `dir`: it is (or can be created as) a
+/// folder, and a file can be written in it.
+fn writable(dir: &Path) -> std::io::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            "exists and is not a folder",
+        ));
+    }
+    std::fs::create_dir_all(dir)?;
+    let probe = dir.join(".rex-write-test");
+    std::fs::write(&probe, b"")?;
+    std::fs::remove_file(&probe)
+}
+
 fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
     let (mut s, base) = match &cli.config {
         Some(path) => (
@@ -102,13 +123,29 @@ fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
     s.tracker = cli.tracker.unwrap_or(s.tracker);
     s.estimator = cli.estimator.unwrap_or(s.estimator);
     s.limit_s = cli.limit.unwrap_or(s.limit_s);
+    if let Some(limit) = cli.limit
+        && !(limit.is_finite() && limit > 0.0 && limit <= 1e7)
+    {
+        return Err(config::ConfigError::Invalid {
+            path: PathBuf::from("--limit"),
+            field: "SECONDS".into(),
+            value: limit.to_string(),
+            reason: "must be a positive number of seconds, at most 10,000,000",
+        });
+    }
     if cli.no_vo {
         s.visual_odometry = false;
     }
     Ok((s, base))
 }
 
-fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn std::error::Error>> {
+/// The configuration of one mission, checked: the run's settings, the world,
+/// the mission, the spec.
+fn prepare(
+    cli: &Cli,
+    s: &RunSettings,
+    base: &Path,
+) -> Result<(RexConfig, Spec, Duration), Box<dyn std::error::Error>> {
     // A mission file named on the command line is relative to the current folder.
     let base = if cli.mission.is_some() && !Mission::SHIPPED.contains(&s.mission.as_str()) {
         std::env::current_dir()?
@@ -117,6 +154,17 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
     };
     let config = s.resolve(&base)?;
     let spec = load_spec(&config.spec)?;
+    let limit = Duration::try_from_secs_f64(s.limit_s)
+        .map_err(|e| format!("limit_s = {}: {e}", s.limit_s))?;
+    Ok((config, spec, limit))
+}
+
+fn run_one(
+    cli: &Cli,
+    config: &RexConfig,
+    spec: &Spec,
+    limit: Duration,
+) -> Result<Outcome, Box<dyn std::error::Error>> {
     if !cli.quiet {
         eprintln!(
             "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
@@ -130,37 +178,32 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
         );
     }
     let quiet = cli.quiet;
-    let outcome = run_mission(
-        &config,
-        Duration::from_secs_f64(s.limit_s),
-        Duration::from_secs(5),
-        |p| match p {
-            _ if quiet => {}
-            Progress::Ack { t, ack } => {
-                eprintln!(
-                    "[{t:7.2} s] plan {} acknowledged: {:?}",
-                    ack.plan, ack.status
-                )
-            }
-            Progress::Tick { t, sample } => eprintln!(
-                "[{t:7.2} s] c1 in B{}, e11 {}, tracking error {}",
-                sample.behaviour + 1,
-                sample
-                    .fragment
-                    .map_or("holding".to_owned(), |(p, i)| format!(
-                        "on fragment {p}.{i}"
-                    )),
-                sample
-                    .error()
-                    .filter(|_| sample.executing)
-                    .map_or("-".to_owned(), |e| format!("{:.1} mm", e * 1e3)),
-            ),
-        },
-    )?;
+    let outcome = run_mission(config, limit, Duration::from_secs(5), |p| match p {
+        _ if quiet => {}
+        Progress::Ack { t, ack } => {
+            eprintln!(
+                "[{t:7.2} s] plan {} acknowledged: {:?}",
+                ack.plan, ack.status
+            )
+        }
+        Progress::Tick { t, sample } => eprintln!(
+            "[{t:7.2} s] c1 in B{}, e11 {}, tracking error {}",
+            sample.behaviour + 1,
+            sample
+                .fragment
+                .map_or("holding".to_owned(), |(p, i)| format!(
+                    "on fragment {p}.{i}"
+                )),
+            sample
+                .error()
+                .filter(|_| sample.executing)
+                .map_or("-".to_owned(), |e| format!("{:.1} mm", e * 1e3)),
+        ),
+    })?;
     emit(format_args!("{}", report::summary(&outcome)));
     if !cli.no_report {
         let dir = cli.out.join(&outcome.mission);
-        let files = report::write(&dir, &outcome, &config, &spec)?;
+        let files = report::write(&dir, &outcome, config, spec)?;
         emit(format_args!(
             "report: {} ({} files)\n",
             dir.display(),
@@ -170,7 +213,7 @@ fn run_one(cli: &Cli, s: &RunSettings, base: &Path) -> Result<Outcome, Box<dyn s
     if !outcome.completed {
         emit(format_args!(
             "the mission did not complete within {} s of simulated time\n",
-            s.limit_s
+            limit.as_secs_f64()
         ));
     }
     let failed = outcome.plans - outcome.plans_achieved();
@@ -197,14 +240,32 @@ fn main() -> ExitCode {
     } else {
         vec![settings.mission.clone()]
     };
-    let mut lines = Vec::new();
-    let mut ok = true;
+    // The report folder is checked before the simulation, not after it.
+    if !cli.no_report
+        && let Err(e) = writable(&cli.out)
+    {
+        eprintln!("rex: --out {}: {e}", cli.out.display());
+        return ExitCode::from(2);
+    }
+    // Every mission's configuration is checked before anything runs (exit 2).
+    let mut prepared = Vec::new();
     for mission in missions {
         let s = RunSettings {
             mission,
             ..settings.clone()
         };
-        match run_one(&cli, &s, &base) {
+        match prepare(&cli, &s, &base) {
+            Ok(p) => prepared.push(p),
+            Err(e) => {
+                eprintln!("rex: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
+    let mut lines = Vec::new();
+    let mut ok = true;
+    for (config, spec, limit) in &prepared {
+        match run_one(&cli, config, spec, *limit) {
             Ok(outcome) => {
                 ok &= outcome.succeeded();
                 lines.push(outcome.summary_line());

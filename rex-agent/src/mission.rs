@@ -29,6 +29,14 @@ pub struct Mission {
 
 impl Validate for Mission {
     fn validate(&self) -> Result<(), Invalid> {
+        // The name names the report's folder: an identifier, never a path.
+        if embodied::names::check(&self.name).is_err() {
+            return Err((
+                "name".into(),
+                format!("{:?}", self.name),
+                "must be an identifier (letters, digits and `_`): it names the report's folder",
+            ));
+        }
         if self.plans.is_empty() {
             return Err((
                 "plans".into(),
@@ -93,5 +101,21 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.to_string().contains("plans[0][0].x"), "{err}");
+        // A third coordinate is refused, not ignored.
+        let err = config::parse::<Mission>(
+            Path::new("m.ron"),
+            "(name: \"x\", plans: [[(x: 1.0, y: 0.0, z: 2.0)]])",
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string().contains("m.ron:1:") && err.to_string().contains("`z`"),
+            "{err}"
+        );
+        // The name becomes a folder of the report: no paths.
+        for name in ["../x", "/tmp/x", "", "a/b", "."] {
+            let text = format!("(name: {name:?}, plans: [[(x: 1.0, y: 0.0)]])");
+            let err = config::parse::<Mission>(Path::new("m.ron"), &text).unwrap_err();
+            assert!(err.to_string().contains("m.ron: name = "), "{name}: {err}");
+        }
     }
 }

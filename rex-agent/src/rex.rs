@@ -159,7 +159,13 @@ impl Default for RunSettings {
 
 impl Validate for RunSettings {
     fn validate(&self) -> Result<(), Invalid> {
-        config::positive("limit_s", self.limit_s)?;
+        if !(self.limit_s.is_finite() && self.limit_s > 0.0 && self.limit_s <= 1e7) {
+            return Err((
+                "limit_s".into(),
+                self.limit_s.to_string(),
+                "must be a positive number of seconds, at most 10,000,000",
+            ));
+        }
         self.limits.validate()?;
         if self.planning_latency == 0 {
             return Err((
@@ -209,11 +215,29 @@ impl RunSettings {
             world.surfaces.default = name.clone();
             world.surfaces.patches.clear();
         }
-        let mission = if Mission::SHIPPED.contains(&self.mission.as_str()) {
-            Mission::shipped(&self.mission)?
+        let (mission, mission_path) = if Mission::SHIPPED.contains(&self.mission.as_str()) {
+            (
+                Mission::shipped(&self.mission)?,
+                config::missions_dir().join(format!("{}.ron", self.mission)),
+            )
         } else {
-            Mission::load(&base.join(&self.mission))?
+            let path = base.join(&self.mission);
+            (Mission::load(&path)?, path)
         };
+        // Every point of every plan in the free space a1 plans in: otherwise c1
+        // would refuse the plan at run time; say so before.
+        let map = self.limits.plan_map(&world);
+        for (i, plan) in mission.plans.iter().enumerate() {
+            for (k, p) in plan.iter().enumerate() {
+                if let Err(why) = map.explain(p.x, p.y) {
+                    return Err(ConfigError::Mismatch {
+                        path: mission_path,
+                        field: format!("plans[{i}][{k}]"),
+                        reason: format!("is off the world's free space: {why}"),
+                    });
+                }
+            }
+        }
         let mut config = RexConfig::new(world, mission);
         config.planner = self.planner;
         config.runtime = self.planning;
@@ -369,7 +393,7 @@ fn period_of(spec: &Spec, name: &str) -> Result<Period, RexError> {
             path: PathBuf::from("specs/rex.ron"),
             message: format!("no subsystem `{name}`"),
         })?;
-    Ok(Period::from_secs_f64(ms * 1e-3)?)
+    Ok(Period::from_millis_f64(ms)?)
 }
 
 /// Build Rex: a1 = c1 + e11 + E1 (+ r11 and R1 with visual odometry), a2, a3, as

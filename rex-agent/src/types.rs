@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 /// A point on the map [m].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Point2 {
     /// x [m].
     pub x: f64,

@@ -9,7 +9,7 @@ use embodied::{
 use serde::{Deserialize, Serialize};
 
 use crate::camera::{CameraConfig, Renderer, SceneConfig};
-use crate::config::{self, ConfigError, Invalid, Validate, finite, positive};
+use crate::config::{self, ConfigError, Invalid, Validate, finite};
 use crate::devices::{
     MocapOutput, MocapParams, MotionCapture, Platform, SensorParams, SharedTruth, StereoCamera,
 };
@@ -115,7 +115,7 @@ impl Validate for WorldConfig {
             ("periods.c3_ms", p.c3_ms),
             ("periods.c2_ms", p.c2_ms),
         ] {
-            positive(f, v)?;
+            config::period_ms(f, v)?;
         }
         Ok(())
     }
@@ -144,7 +144,7 @@ impl WorldConfig {
 }
 
 fn ms(v: f64) -> Result<Period, PeriodError> {
-    Period::from_secs_f64(v * 1e-3)
+    Period::from_millis_f64(v)
 }
 
 /// Add the platform E1 to agent `a1` (an error if its configuration is invalid).

@@ -361,6 +361,18 @@ pub struct Sequence {
     pub times: Vec<f64>,
     /// Ground-truth poses, if present.
     pub poses: Option<Vec<Pose34>>,
+    /// Size of the images (of the first left image) [px].
+    pub size: (u32, u32),
+}
+
+/// The size of a PNG image, from its header.
+fn png_size(path: &Path) -> Result<(u32, u32), KittiError> {
+    let file = File::open(path).map_err(io(path))?;
+    let decoder = png::Decoder::new(std::io::BufReader::new(file));
+    let reader = decoder
+        .read_info()
+        .map_err(|e| format_err(path, format!("not a PNG image: {e}")))?;
+    Ok(reader.info().size())
 }
 
 fn parse_numbers(path: &Path, line_no: usize, text: &str) -> Result<Vec<f64>, KittiError> {
@@ -431,6 +443,25 @@ impl Sequence {
                 })
             })
             .collect::<Result<Vec<f64>, _>>()?;
+        // Times are finite and increase (a pair's motion is over its interval).
+        for (k, t) in times.iter().enumerate() {
+            if !t.is_finite() {
+                return Err(format_err(
+                    &times_path,
+                    format!("frame {k}: the time {t} is not a finite number"),
+                ));
+            }
+            if k > 0 && *t <= times[k - 1] {
+                return Err(format_err(
+                    &times_path,
+                    format!(
+                        "frame {k}: the time {t} does not come after frame {}'s, {}",
+                        k - 1,
+                        times[k - 1]
+                    ),
+                ));
+            }
+        }
         for k in 0..times.len() {
             for cam in ["image_0", "image_1"] {
                 let p = dir.join(cam).join(format!("{k:06}.png"));
@@ -483,6 +514,11 @@ impl Sequence {
             }
             poses = Some(list);
         }
+        let size = if times.is_empty() {
+            (0, 0)
+        } else {
+            png_size(&dir.join("image_0").join("000000.png"))?
+        };
         Ok(Sequence {
             dir: dir.to_owned(),
             focal,
@@ -491,6 +527,7 @@ impl Sequence {
             body_to_camera,
             times,
             poses,
+            size,
         })
     }
 
@@ -511,11 +548,18 @@ impl Sequence {
         let rp = self.dir.join("image_1").join(&name);
         let (w, h, left) = read_png(&lp)?;
         let (w2, h2, right) = read_png(&rp)?;
-        if (w, h) != (w2, h2) {
-            return Err(format_err(
-                &rp,
-                format!("{w2}x{h2}, but the left image is {w}x{h}"),
-            ));
+        // Each image against the sequence's size: the one that differs is named.
+        let (sw, sh) = self.size;
+        for (path, size) in [(&lp, (w, h)), (&rp, (w2, h2))] {
+            if size != self.size {
+                return Err(format_err(
+                    path,
+                    format!(
+                        "{}x{}, but the sequence's images are {sw}x{sh} (image_0/000000.png)",
+                        size.0, size.1
+                    ),
+                ));
+            }
         }
         Ok((w, h, left, right))
     }
@@ -660,6 +704,34 @@ mod tests {
             err.contains("image_1/000001.png") && err.contains("32x48"),
             "{err}"
         );
+        // A left image of another size: the left one is named, not the right.
+        write_png(&dir.join("image_1").join("000001.png"), 64, 48, &img).unwrap();
+        write_png(
+            &dir.join("image_0").join("000001.png"),
+            32,
+            48,
+            &[0u8; 32 * 48],
+        )
+        .unwrap();
+        let err = seq.frame(1).unwrap_err().to_string();
+        assert!(
+            err.contains("image_0/000001.png")
+                && err.contains("32x48, but the sequence's images are 64x48"),
+            "{err}"
+        );
+        // Times that are not finite, or do not increase.
+        for (times, want) in [
+            ("0.0\nNaN\n", "frame 1: the time NaN is not a finite number"),
+            ("0.0\ninf\n", "frame 1: the time inf is not a finite number"),
+            (
+                "0.5\n0.1\n",
+                "frame 1: the time 0.1 does not come after frame 0's, 0.5",
+            ),
+        ] {
+            fs::write(dir.join("times.txt"), times).unwrap();
+            let err = Sequence::open(&dir).unwrap_err().to_string();
+            assert!(err.contains("times.txt") && err.contains(want), "{err}");
+        }
         fs::remove_dir_all(&dir).unwrap();
     }
 

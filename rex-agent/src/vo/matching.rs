@@ -95,6 +95,39 @@ pub struct Indexed {
     pub bins: Bins,
 }
 
+/// Disparity signs of stereo matches found along the rows in both directions:
+/// `(negative, positive)` counts of matches more than a pixel off zero, over at
+/// most `samples` features of `left` spread through the image. A rectified pair
+/// has the right image's features to the left (positive disparity); swapped
+/// images, mostly negative ones.
+pub fn disparity_signs(
+    left: &Indexed,
+    right: &Indexed,
+    radius: i32,
+    row_tolerance: i32,
+    samples: usize,
+) -> (usize, usize) {
+    let f = &left.features;
+    let step = (f.len() / samples.max(1)).max(1);
+    let (mut negative, mut positive) = (0, 0);
+    for i in (0..f.len()).step_by(step) {
+        let (u, v) = (f.u[i], f.v[i]);
+        let window = (u - radius, u + radius, v - row_tolerance, v + row_tolerance);
+        if let Some(k) = right
+            .bins
+            .best(&right.features, f.class[i], &f.desc[i], window)
+        {
+            let d = u - right.features.u[k];
+            if d > 1 {
+                positive += 1;
+            } else if d < -1 {
+                negative += 1;
+            }
+        }
+    }
+    (negative, positive)
+}
+
 /// Search settings of one pass.
 #[derive(Clone, Copy, Debug)]
 pub struct Search {

@@ -41,6 +41,9 @@ pub enum MetricError {
         /// Estimated poses.
         est: usize,
     },
+    /// A segment length that is not a length.
+    #[error("segment length {0} m: lengths are finite, at least {MIN_LENGTH} m")]
+    BadLength(f64),
     /// No segment fits.
     #[error("no segment of the lengths {lengths:?} m fits in a {path:.1} m path")]
     NoSegment {
@@ -50,6 +53,10 @@ pub enum MetricError {
         path: f64,
     },
 }
+
+/// The shortest segment length [m] (shorter ones measure noise, and divide by
+/// almost nothing).
+pub const MIN_LENGTH: f64 = 0.1;
 
 /// The segment lengths for a path of `path` metres.
 pub fn auto_lengths(path: f64) -> Vec<f64> {
@@ -93,6 +100,12 @@ pub fn evaluate(
     let dist = distances(gt);
     let path = dist.last().copied().unwrap_or(0.0);
     let lengths: Vec<f64> = lengths.map_or_else(|| auto_lengths(path), <[f64]>::to_vec);
+    if let Some(&bad) = lengths
+        .iter()
+        .find(|l| !(l.is_finite() && **l >= MIN_LENGTH))
+    {
+        return Err(MetricError::BadLength(bad));
+    }
     let (mut t_sum, mut r_sum, mut n) = (0.0, 0.0, 0usize);
     let mut reached: Vec<f64> = Vec::new();
     for f in (0..gt.len()).step_by(step.max(1)) {
@@ -205,5 +218,15 @@ mod tests {
             evaluate(&gt, &gt, Some(&[100.0]), 10),
             Err(MetricError::NoSegment { .. })
         ));
+        // Lengths that are not lengths: before, `--lengths 0` gave infinite errors.
+        for bad in [0.0, -1.0, 1e-9, f64::NAN, f64::INFINITY] {
+            assert!(
+                matches!(
+                    evaluate(&gt, &gt, Some(&[0.5, bad]), 10),
+                    Err(MetricError::BadLength(_))
+                ),
+                "{bad}"
+            );
+        }
     }
 }

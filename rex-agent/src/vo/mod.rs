@@ -128,6 +128,18 @@ pub enum NoEstimate {
     /// The previous pair was unusable: nothing to match against.
     #[error("no usable previous pair to match against")]
     NoReference,
+    /// Most stereo matches have a negative disparity: the left and right images
+    /// look swapped (or the camera is not rectified as calibrated).
+    #[error(
+        "{negative} of {} stereo matches have negative disparity (the right image's feature to the right of the left's): are the left and right images swapped?",
+        negative + positive
+    )]
+    SwappedStereo {
+        /// Matches with negative disparity.
+        negative: usize,
+        /// Matches with positive disparity.
+        positive: usize,
+    },
     /// The motion could not be estimated from the matches.
     #[error(transparent)]
     Egomotion(#[from] EgomotionError),
@@ -314,6 +326,19 @@ impl StereoOdometry {
                 needed,
             });
         }
+        // A swapped pair would be matched in the wrong direction only, giving wrong
+        // motions without a word: look along the rows both ways first.
+        let scale = if self.s.half_resolution { 2 } else { 1 };
+        let (negative, positive) = matching::disparity_signs(
+            &self.curr.left.dense,
+            &self.curr.right.dense,
+            (self.s.match_radius / scale).max(1),
+            self.s.match_disp_tolerance,
+            200,
+        );
+        if negative >= 20 && negative > 2 * positive {
+            return Err(NoEstimate::SwappedStereo { negative, positive });
+        }
         self.curr.usable = true;
         if !self.prev.usable {
             let first = !self.had_usable;
@@ -476,6 +501,8 @@ pub struct SequenceRun {
     pub stats: VoStats,
     /// Image size.
     pub size: (u32, u32),
+    /// The pairs without an estimate: frame and why.
+    pub failures: Vec<(usize, NoEstimate)>,
 }
 
 /// Run the odometry over the first `frames` pairs of a KITTI sequence. A pair
@@ -506,6 +533,7 @@ pub fn run_sequence(
         ms: Vec::with_capacity(n),
         stats: VoStats::default(),
         size: (0, 0),
+        failures: Vec::new(),
     };
     for k in 0..n {
         let (w, h, left, right) = seq.frame(k)?;
@@ -519,7 +547,10 @@ pub fn run_sequence(
                 last
             }
             Ok(None) => None,
-            Err(_) => last,
+            Err(e) => {
+                out.failures.push((k, e));
+                last
+            }
         };
         if let Some(tr) = motion {
             pose = compose(&pose, &invert(&tr));
@@ -591,6 +622,26 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    #[test]
+    fn a_swapped_pair_is_said_to_be_swapped() {
+        // Before: the right image taken for the left gave motions, 77 % off, without
+        // a word.
+        let c = camera();
+        let renderer = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
+        let (w, h) = (c.width as usize, c.height as usize);
+        let mut vo = StereoOdometry::new(calibration(&c), VoSettings::default()).unwrap();
+        let (mut l, mut r) = (Vec::new(), Vec::new());
+        renderer.render_pair([0.0, 0.3, 0.2], &mut l, &mut r);
+        let e = vo.process(&r, &l, w, h).unwrap_err();
+        assert!(matches!(e, NoEstimate::SwappedStereo { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .contains("are the left and right images swapped?")
+        );
+        // The right way round, the same pair is fine.
+        assert_eq!(vo.process(&l, &r, w, h), Ok(None));
     }
 
     #[test]

@@ -1,0 +1,148 @@
+//! The `rex` command line against bad input: each is refused before anything
+//! runs, with the file, field or flag named, and exit status 2.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn rex(args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rex"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.code(), text)
+}
+
+struct Dir(PathBuf);
+
+impl Dir {
+    fn new(name: &str) -> Dir {
+        let d = std::env::temp_dir().join(format!("rex-cli-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        Dir(d)
+    }
+
+    fn file(&self, name: &str, text: &str) -> String {
+        let p = self.0.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    }
+}
+
+impl Drop for Dir {
+    fn drop(&mut self) {
+        std::fs::remove_dir_all(&self.0).ok();
+    }
+}
+
+fn shipped_world() -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/world.ron")).unwrap()
+}
+
+#[test]
+fn absurd_or_negative_limits_are_refused() {
+    // Before: `--limit 1e20` panicked converting to a duration; `--limit -1` was
+    // read as a flag.
+    for limit in ["1e20", "-1", "0", "NaN"] {
+        let (code, text) = rex(&[
+            "--mission",
+            "square",
+            "--no-vo",
+            "--quiet",
+            "--limit",
+            limit,
+        ]);
+        assert_eq!(code, Some(2), "{limit}: {text}");
+        assert!(
+            text.contains("--limit") && text.contains("must be a positive number of seconds"),
+            "{limit}: {text}"
+        );
+    }
+    let d = Dir::new("limit");
+    let run = d.file("run.ron", "(limit_s: 1e30)");
+    let (code, text) = rex(&["--config", &run, "--quiet", "--no-vo"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains("limit_s = 1000000000000000000000000000000"),
+        "{text}"
+    );
+}
+
+#[test]
+fn an_unusable_report_folder_is_refused_before_the_simulation() {
+    // Before: `Not a directory (os error 20)`, after the whole simulation.
+    let d = Dir::new("out");
+    let file = d.file("not_a_folder", "");
+    let (code, text) = rex(&["--mission", "square", "--no-vo", "--out", &file]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains(&format!("--out {file}: exists and is not a folder")),
+        "{text}"
+    );
+    assert!(!text.contains("c1 in B"), "nothing ran: {text}");
+}
+
+#[test]
+fn bad_configuration_values_name_their_file_and_field() {
+    let d = Dir::new("config");
+    // A period that rounds to zero nanoseconds. Before: `a period must be
+    // positive, got zero`, naming neither file nor field.
+    let world = d.file(
+        "world.ron",
+        &shipped_world().replace("platform_ms: 1.0,", "platform_ms: 1e-7,"),
+    );
+    let (code, text) = rex(&["--world", &world, "--quiet", "--no-vo"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains(&format!(
+            "{world}: periods.platform_ms = 0.0000001 is invalid"
+        )),
+        "{text}"
+    );
+    // A third coordinate, silently ignored before.
+    let m = d.file(
+        "z.ron",
+        r#"(name: "z", plans: [[(x: 1.0, y: 0.0, z: 2.0)]])"#,
+    );
+    let (code, text) = rex(&["--mission", &m, "--quiet", "--no-vo"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains(&format!("{m}:1:")) && text.contains("`z`"),
+        "{text}"
+    );
+    // A name that would put the report outside `--out`, or into `--out` itself.
+    for name in ["../x", "/tmp/x", ""] {
+        let m = d.file(
+            "n.ron",
+            &format!("(name: {name:?}, plans: [[(x: 1.0, y: 0.0)]])"),
+        );
+        let (code, text) = rex(&["--mission", &m, "--quiet", "--no-vo"]);
+        assert_eq!(code, Some(2), "{name}: {text}");
+        assert!(
+            text.contains(&format!("{m}: name = {name:?} is invalid")),
+            "{text}"
+        );
+    }
+    // A target inside a pillar of the shipped world.
+    let m = d.file(
+        "o.ron",
+        r#"(name: "o", plans: [[(x: 1.0, y: 0.0), (x: 4.3, y: 4.3)]])"#,
+    );
+    let (code, text) = rex(&["--mission", &m, "--quiet", "--no-vo"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains(&format!("{m}: plans[0][1] is off the world's free space"))
+            && text.contains("obstacle 4"),
+        "{text}"
+    );
+}
