@@ -297,3 +297,79 @@ fn diagrams_do_not_run_the_proof() {
     let (_, full) = embodied::spec::check_file(path).unwrap();
     assert_eq!(codes(&full), [Code::ProofBudget]);
 }
+
+#[test]
+fn the_checker_refuses_every_name_and_period_the_code_generators_and_the_runtime_refuse() {
+    // Before: `check` and `new` accepted `self`, `Self`, `super`, `crate`, `_`, an
+    // empty or NUL-holding system name, which `agent!` refused; periods of 1e-7 ms
+    // (0 ns, a `PeriodError` at run time) and 1e308 ms (saturated) passed.
+    let base = minimal();
+    for name in ["self", "Self", "super", "crate", "_"] {
+        let text = base.replace(
+            r#"(name: "count", type: "u32")"#,
+            &format!(r#"(name: "{name}", type: "u32")"#),
+        );
+        let (_, report) = check_source("names.ron", text);
+        assert!(
+            codes(&report).contains(&Code::InvalidName),
+            "{name}: {}",
+            report.short()
+        );
+        assert!(
+            embodied::names::check(name).is_err(),
+            "the runtime's rule agrees"
+        );
+    }
+    for system in ["", "a\0b", "two words"] {
+        let text = base.replace(r#"name: "mini","#, &format!("name: {system:?},"));
+        let (_, report) = check_source("system.ron", text);
+        assert!(
+            report
+                .short()
+                .contains("error[spec::invalid_name]: system name"),
+            "{system:?}: {}",
+            report.short()
+        );
+    }
+    // A component whose type name would clash with its generated module's types.
+    let text = base.replace(r#"name: "e1","#, r#"name: "memory","#);
+    let (_, report) = check_source("component.ron", text);
+    assert!(
+        report
+            .short()
+            .contains("component name `memory` makes the type name `Memory`"),
+        "{}",
+        report.short()
+    );
+    for ms in ["1e-7", "1e308", "0.0", "-5.0"] {
+        let text = base.replace("period_ms: 10.0,", &format!("period_ms: {ms},"));
+        let (_, report) = check_source("period.ron", text);
+        assert!(
+            codes(&report).contains(&Code::Period),
+            "{ms}: {}",
+            report.short()
+        );
+        let runtime = embodied::Period::from_millis_f64(ms.parse().unwrap());
+        assert!(runtime.is_err(), "the runtime's rule agrees: {ms}");
+    }
+    let text = base.replace("period_ms: 10.0,", "period_ms: 0.000001,");
+    let (_, report) = check_source("period.ron", text);
+    assert!(!codes(&report).contains(&Code::Period), "1 ns is a period");
+}
+
+#[test]
+fn embodied_new_refuses_what_the_checker_refuses() {
+    use embodied::spec::scaffold::{Dependency, Options, ScaffoldError, scaffold};
+    let text = minimal().replace(
+        r#"(name: "count", type: "u32")"#,
+        r#"(name: "self", type: "u32")"#,
+    );
+    let options = Options {
+        name: "app".into(),
+        embodied: Dependency::Version("0.1.0".into()),
+    };
+    assert!(matches!(
+        scaffold("names.ron", &text, &options),
+        Err(ScaffoldError::Spec(_))
+    ));
+}

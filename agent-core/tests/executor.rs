@@ -815,3 +815,21 @@ fn handles_from_another_builder_are_refused() {
         "{err}"
     );
 }
+
+#[test]
+fn the_system_builder_refuses_names_the_spec_checker_refuses() {
+    let mut sys = SystemBuilder::new();
+    let a = sys.agent("self");
+    let _ = sys.agent("a b");
+    let _ = a;
+    let err = sys.build().unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("agent name `self` can be no Rust identifier"),
+        "{text}"
+    );
+    assert!(
+        text.contains("agent name `a b` is not an identifier"),
+        "{text}"
+    );
+}
