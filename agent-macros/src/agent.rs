@@ -798,16 +798,23 @@ mod tests {
     fn keywords_become_raw_identifiers_and_self_is_refused() {
         assert_eq!(ident("type").to_string(), "r#type");
         assert_eq!(ident("A4x4").to_string(), "A4x4");
+        // The checker refuses what can be no Rust code (one rule, agent-core's and
+        // agent-spec's names), so `agent!` reports its finding.
         let a = args(quote!(spec = "t.ron", agent = "a"));
-        let found = load(&a.spec, SPEC.replace("\"count\"", "\"self\""), &a.agent)
-            .expect("the checker takes `self` as a name");
-        let e = generate(&found, &a, None).expect_err("not an identifier");
+        let e = load(&a.spec, SPEC.replace("\"count\"", "\"self\""), &a.agent)
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains("error[spec::invalid_name]"), "{e}");
         assert!(e.to_string().contains("`self`"), "{e}");
         for (name, why) in [("__", "no Rust type name"), ("memory", "already has")] {
             let spec = SPEC.replace("e1", name);
-            let found = load(&a.spec, spec, &a.agent).expect("valid names for the checker");
-            let e = generate(&found, &a, None).expect_err("no type for it");
+            let e = load(&a.spec, spec, &a.agent).err().expect("refused");
             assert!(e.to_string().contains(why), "{e}");
         }
+        // And the generator refuses them on its own (a spec it did not check).
+        let mut found = load(&a.spec, SPEC.into(), &a.agent).expect("valid");
+        found.loaded.spec.agents[0].subsystems[0].memory[0].name = "self".into();
+        let e = generate(&found, &a, None).expect_err("not an identifier");
+        assert!(e.to_string().contains("`self`"), "{e}");
     }
 }
