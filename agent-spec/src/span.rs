@@ -441,9 +441,9 @@ impl P<'_> {
                 self.i += 1;
                 break;
             }
-            let key_start = self.i;
             let key = self.ident()?;
-            let key_span = key_start..self.i;
+            // The name itself (`eads` of `r#eads`): what `key` holds.
+            let key_span = self.i - key.len()..self.i;
             self.ws();
             if self.peek()? != b':' {
                 return None;
@@ -472,6 +472,19 @@ impl P<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_raw_field_name_spans_its_name() {
+        // Found by the fuzzer: `#` inserted into `reads` made `r#eads`, whose key
+        // span covered the `r#` while the key did not.
+        let text = "(r#eads: 1)";
+        let root = parse(text).unwrap();
+        let SKind::Struct { fields, .. } = &root.kind else {
+            panic!("{root:?}")
+        };
+        assert_eq!(fields[0].key, "eads");
+        assert_eq!(&text[fields[0].key_span.clone()], "eads");
+    }
 
     #[test]
     fn spans_of_nested_values() {
