@@ -85,6 +85,18 @@ impl fmt::Display for NodeKind {
 pub trait Group: Send + 'static {
     /// The kind of component at the other end of every buffer in this group.
     const PEER: NodeKind;
+
+    /// The buffer `buffer` of this group, reached from a struct `B` through
+    /// `group` (the field `group_name`), for links made by name. `#[derive(Group)]`
+    /// writes it; a hand-written group has no buffers found by name.
+    fn buffer_port<B: Send + 'static>(
+        group_name: &'static str,
+        group: fn(&mut B) -> &mut Self,
+        buffer: &str,
+    ) -> Option<crate::link::BufferPort> {
+        let _ = (group_name, group, buffer);
+        None
+    }
 }
 
 /// An error reading a buffer.

@@ -20,6 +20,7 @@
 use std::fmt;
 
 use crate::buffer::{In, NodeKind, Out};
+use crate::link::BufferPort;
 
 /// A memory field or a buffer: its name and its Rust type as written in the source.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -155,6 +156,46 @@ pub trait Buffers {
     /// Which buffers are fresh now (inputs: new in this iteration; outputs: written
     /// in this iteration), in the order of [`Buffers::GROUPS`].
     fn fresh(&self) -> Fresh;
+
+    /// The buffer at `path` (`group.buffer`, or `buffer` in a driver's flat struct),
+    /// for links made by name (from a spec). `#[derive(Buffers)]` writes it; the
+    /// default finds nothing.
+    fn port(path: &str) -> Option<BufferPort>
+    where
+        Self: Sized,
+    {
+        let _ = path;
+        None
+    }
+}
+
+/// How a component's buffers are found by name: the lookups of its input and
+/// output structs. [`Subsystem::ports`](crate::Subsystem::ports) and
+/// [`Driver::ports`](crate::Driver::ports) return it; the system builder uses it
+/// to make links by name.
+#[derive(Clone, Copy)]
+pub struct PortTable {
+    /// Finds an input buffer.
+    pub inputs: fn(&str) -> Option<BufferPort>,
+    /// Finds an output buffer.
+    pub outputs: fn(&str) -> Option<BufferPort>,
+}
+
+impl fmt::Debug for PortTable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("PortTable")
+    }
+}
+
+impl PortTable {
+    /// The lookups of input struct `I` and output struct `O`:
+    /// `fn ports() -> Option<PortTable> { Some(PortTable::of::<Self::Input, Self::Output>()) }`.
+    pub fn of<I: Buffers, O: Buffers>() -> PortTable {
+        PortTable {
+            inputs: I::port,
+            outputs: O::port,
+        }
+    }
 }
 
 impl Buffers for () {

@@ -41,14 +41,14 @@ pub mod transition;
 
 pub use behaviour::{Behaviour, BehaviourKind};
 pub use buffer::{BufferError, Group, In, NodeKind, Out, Payload};
-pub use describe::{Buffers, Direction, Field, Fields, Fresh, GroupShape, Shape};
+pub use describe::{Buffers, Direction, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use executor::{ExecConfig, ExecError, Executor, FsmError, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
     Activated, ActivationError, Arc, BehaviourShape, Fsm, FsmBuildError, FsmBuilder, FsmFault,
     FsmProblem, FsmShape, FsmState, Predicate, Relation, Step,
 };
-pub use link::{Access, LinkError, LinkId, LinkStats, Policy, Port};
+pub use link::{Access, BufferPort, LinkError, LinkId, LinkStats, Policy, Port};
 pub use subsystem::{DeviceKind, Driver, DriverContext, DriverError, Subsystem, SubsystemKind};
 pub use system::{
     AgentId, BuildError, BuildProblem, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System,

@@ -3,7 +3,7 @@
 use std::fmt;
 
 use crate::buffer::NodeKind;
-use crate::describe::Shape;
+use crate::describe::{PortTable, Shape};
 use crate::time::{Period, Time};
 
 /// The kinds of subsystem a user implements with behaviours and an FSM.
@@ -77,6 +77,13 @@ pub trait Subsystem: Sized + 'static {
     fn shape() -> Option<Shape> {
         None
     }
+
+    /// How its buffers are found by name, for links made from a spec
+    /// ([`SystemBuilder::connect_named`](crate::SystemBuilder::connect_named)).
+    /// `#[derive(Subsystem)]` returns `Some(PortTable::of::<Input, Output>())`.
+    fn ports() -> Option<PortTable> {
+        None
+    }
 }
 
 /// Timing of one driver step.
@@ -128,6 +135,13 @@ pub trait Driver: Send + 'static {
     /// they are not described. With `#[derive(Buffers)]` on the input and output
     /// structs: `Some(Shape::of_driver::<Self>())`.
     fn shape() -> Option<Shape> {
+        None
+    }
+
+    /// How its buffers are found by name, for links made from a spec:
+    /// `fn ports() -> Option<PortTable> { Some(PortTable::of::<Self::Input, Self::Output>()) }`
+    /// with `#[derive(Buffers)]` on the input and output structs.
+    fn ports() -> Option<PortTable> {
         None
     }
 

@@ -18,11 +18,9 @@ use std::fmt;
 use std::marker::PhantomData;
 
 use crate::buffer::{In, NodeKind, Out, Payload};
+use crate::describe::PortTable;
 use crate::fsm::Fsm;
-use crate::link::{
-    Access, ChannelPlan, InPlan, LinkId, OutPlan, Policy, Port, TypedInPlan, TypedOutPlan,
-    channel_plan,
-};
+use crate::link::{Access, BufferPort, ChannelPlan, InPlan, LinkId, OutPlan, Policy, Port};
 use crate::node::{DriverCore, Instance, NodeSeed};
 use crate::subsystem::{Driver, Subsystem};
 use crate::time::Period;
@@ -181,6 +179,48 @@ pub enum BuildProblem {
     /// A queue of capacity zero.
     #[error("link `{0}` is a queue of capacity 0; a queue holds at least one value")]
     ZeroQueueBound(String),
+    /// A link by name to a component that was not added.
+    #[error("link `{link}`: no component `{node}` in this system")]
+    UnknownNode {
+        /// The link.
+        link: String,
+        /// The missing component.
+        node: String,
+    },
+    /// A link by name to a component whose buffers cannot be found by name.
+    #[error(
+        "link `{link}`: the buffers of `{node}` cannot be found by name: derive `Subsystem` (or implement `Driver::ports` as `Some(PortTable::of::<Self::Input, Self::Output>())`) with `#[derive(Buffers)]` and `#[derive(Group)]` on its buffer structs"
+    )]
+    NoPorts {
+        /// The link.
+        link: String,
+        /// The component.
+        node: String,
+    },
+    /// A link by name to a buffer the component does not have.
+    #[error("link `{link}`: `{node}` has no {direction} buffer `{buffer}`{known}")]
+    UnknownBuffer {
+        /// The link.
+        link: String,
+        /// The component.
+        node: String,
+        /// `input` or `output`.
+        direction: &'static str,
+        /// The buffer's path.
+        buffer: String,
+        /// The buffers it has, as `" (it has: a.b, c.d)"`, or empty.
+        known: String,
+    },
+    /// A link between buffers of different payload types.
+    #[error("link `{link}` joins an output of type `{from}` to an input of type `{to}`")]
+    TypeMismatch {
+        /// The link.
+        link: String,
+        /// The output's payload type.
+        from: &'static str,
+        /// The input's payload type.
+        to: &'static str,
+    },
 }
 
 /// Every problem found in a system's composition.
@@ -237,6 +277,7 @@ pub struct SystemBuilder {
     ins: Vec<(usize, Box<dyn InPlan>)>,
     fed: HashMap<(usize, &'static str), usize>,
     channels: Vec<Box<dyn ChannelPlan>>,
+    ports: Vec<Option<PortTable>>,
     problems: Vec<BuildProblem>,
 }
 
@@ -273,7 +314,13 @@ impl SystemBuilder {
         AgentId(self.info.agents.len() - 1)
     }
 
-    fn add_node(&mut self, agent: AgentId, info: NodeInfo, node: Box<dyn NodeSeed>) -> usize {
+    fn add_node(
+        &mut self,
+        agent: AgentId,
+        info: NodeInfo,
+        node: Box<dyn NodeSeed>,
+        ports: Option<PortTable>,
+    ) -> usize {
         let index = self.nodes.len();
         if let Err(problem) = crate::names::check(&info.name) {
             self.problems.push(BuildProblem::InvalidName {
@@ -298,6 +345,7 @@ impl SystemBuilder {
         self.info.nodes.push(info);
         self.nodes.push(node);
         self.node_agent.push(agent.0);
+        self.ports.push(ports);
         index
     }
 
@@ -324,7 +372,7 @@ impl SystemBuilder {
         };
         let node = Box::new(Instance::new(info.clone(), memory, fsm));
         SubsystemHandle {
-            node: self.add_node(agent, info, node),
+            node: self.add_node(agent, info, node, S::ports()),
             _s: PhantomData,
         }
     }
@@ -348,7 +396,7 @@ impl SystemBuilder {
         };
         let node = Box::new(DriverCore::new(info.clone(), driver));
         DriverHandle {
-            node: self.add_node(agent, info, node),
+            node: self.add_node(agent, info, node, D::ports()),
             _d: PhantomData,
         }
     }
@@ -378,96 +426,204 @@ impl SystemBuilder {
         AO: Access<O, Out<T>>,
         AI: Access<I, In<T>>,
     {
-        let link = self.info.links.len();
+        let buffer_types = |n: usize| self.nodes.get(n).map(|node| node.buffer_types());
+        let src_ok = buffer_types(src.node).is_some_and(|(_, o)| o == TypeId::of::<O>());
+        let dst_ok = buffer_types(dst.node).is_some_and(|(i, _)| i == TypeId::of::<I>());
+        if !(src_ok && dst_ok) {
+            let name = self.link_name(src.node, src.port.name(), dst.node, dst.port.name());
+            self.problems.push(BuildProblem::ForeignHandle(format!(
+                "a handle used in link `{name}`"
+            )));
+        }
+        self.link(
+            src.node,
+            BufferPort::output(src.port),
+            dst.node,
+            BufferPort::input(dst.port),
+            policy,
+        )
+    }
+
+    /// The component called `name`, if it was added.
+    pub fn node(&self, name: &str) -> Option<NodeId> {
+        self.names.get(name).map(|&n| NodeId(n))
+    }
+
+    /// The agent called `name`, if it was declared.
+    pub fn agent_id(&self, name: &str) -> Option<AgentId> {
+        self.info.agents.iter().position(|a| a == name).map(AgentId)
+    }
+
+    /// Link the output buffer at path `src_buffer` (`e11.q_est`) of component `src`
+    /// to the input buffer at `dst_buffer` of `dst`, found by name, with `policy`:
+    /// how links are made from a spec. The components must describe their ports
+    /// ([`Subsystem::ports`], [`Driver::ports`]: the derives do); a missing
+    /// component or buffer and different payload types are [`BuildProblem`]s,
+    /// reported by [`SystemBuilder::build`] with the others. Returns `None` when
+    /// the link could not be made.
+    pub fn connect_named(
+        &mut self,
+        src: &str,
+        src_buffer: &str,
+        dst: &str,
+        dst_buffer: &str,
+        policy: Policy,
+    ) -> Option<LinkId> {
+        let link = format!("{src}.{src_buffer} -> {dst}.{dst_buffer}");
+        let mut end = |node: &str, buffer: &str, output: bool| -> Option<(usize, BufferPort)> {
+            let Some(&n) = self.names.get(node) else {
+                self.problems.push(BuildProblem::UnknownNode {
+                    link: link.clone(),
+                    node: node.to_owned(),
+                });
+                return None;
+            };
+            let Some(table) = self.ports[n] else {
+                self.problems.push(BuildProblem::NoPorts {
+                    link: link.clone(),
+                    node: node.to_owned(),
+                });
+                return None;
+            };
+            let lookup = if output { table.outputs } else { table.inputs };
+            match lookup(buffer) {
+                Some(port) => Some((n, port)),
+                None => {
+                    let shape = self.info.nodes[n].shape;
+                    let groups =
+                        shape.map_or(&[][..], |s| if output { s.outputs } else { s.inputs });
+                    let names: Vec<String> = groups
+                        .iter()
+                        .flat_map(|g| {
+                            g.buffers.iter().map(move |b| {
+                                if g.name.is_empty() {
+                                    b.name.to_owned()
+                                } else {
+                                    format!("{}.{}", g.name, b.name)
+                                }
+                            })
+                        })
+                        .collect();
+                    self.problems.push(BuildProblem::UnknownBuffer {
+                        link: link.clone(),
+                        node: node.to_owned(),
+                        direction: if output { "output" } else { "input" },
+                        buffer: buffer.to_owned(),
+                        known: if names.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" (it has: {})", names.join(", "))
+                        },
+                    });
+                    None
+                }
+            }
+        };
+        let from = end(src, src_buffer, true);
+        let to = end(dst, dst_buffer, false);
+        let ((s, out), (d, inp)) = (from?, to?);
+        if out.payload() != inp.payload() {
+            self.problems.push(BuildProblem::TypeMismatch {
+                link,
+                from: out.payload_name(),
+                to: inp.payload_name(),
+            });
+            return None;
+        }
+        Some(self.link(s, out, d, inp, policy))
+    }
+
+    fn link_name(&self, src: usize, src_port: &str, dst: usize, dst_port: &str) -> String {
         let node_name = |n: usize| {
             self.info
                 .nodes
                 .get(n)
                 .map_or_else(|| format!("<node #{n}>"), |i| i.name.clone())
         };
-        let (src_name, dst_name) = (node_name(src.node), node_name(dst.node));
-        let name = format!(
-            "{src_name}.{} -> {dst_name}.{}",
-            src.port.name(),
-            dst.port.name()
-        );
-        let buffer_types = |n: usize| self.nodes.get(n).map(|node| node.buffer_types());
-        let src_ok = buffer_types(src.node).is_some_and(|(_, o)| o == TypeId::of::<O>());
-        let dst_ok = buffer_types(dst.node).is_some_and(|(i, _)| i == TypeId::of::<I>());
-        if !(src_ok && dst_ok) {
-            self.problems.push(BuildProblem::ForeignHandle(format!(
-                "a handle used in link `{name}`"
-            )));
-        } else {
-            self.check_link(&name, &src, &dst, policy);
+        format!(
+            "{}.{src_port} -> {}.{dst_port}",
+            node_name(src),
+            node_name(dst)
+        )
+    }
+
+    /// The one way a link is made: both ends as [`BufferPort`]s of the same payload
+    /// type (checked by the callers).
+    fn link(
+        &mut self,
+        src: usize,
+        out: BufferPort,
+        dst: usize,
+        inp: BufferPort,
+        policy: Policy,
+    ) -> LinkId {
+        let link = self.info.links.len();
+        let name = self.link_name(src, out.name(), dst, inp.name());
+        let dst_name = self
+            .info
+            .nodes
+            .get(dst)
+            .map_or_else(|| format!("<node #{dst}>"), |i| i.name.clone());
+        if src < self.info.nodes.len() && dst < self.info.nodes.len() {
+            self.check_link(&name, src, &out, dst, &inp, policy);
         }
-        let dst_key = (dst.node, dst.port.name());
+        let dst_key = (dst, inp.name());
         if let Some(&first) = self.fed.get(&dst_key) {
             self.problems.push(BuildProblem::InputFedTwice {
-                input: format!("{dst_name}.{}", dst.port.name()),
+                input: format!("{dst_name}.{}", inp.name()),
                 first: self.info.links[first].name.clone(),
                 second: name.clone(),
             });
         } else {
             self.fed.insert(dst_key, link);
         }
-        let src_key = (src.node, src.port.name());
+        let src_key = (src, out.name());
         match self.out_index.get(&src_key) {
             Some(&i) => self.outs[i].1.add_link(link),
             None => {
-                self.out_index.insert(src_key, self.outs.len());
-                self.outs.push((
-                    src.node,
-                    Box::new(TypedOutPlan {
-                        port: src.port,
-                        links: vec![link],
-                    }),
-                ));
+                if let Some(plan) = out.out_plan(link) {
+                    self.out_index.insert(src_key, self.outs.len());
+                    self.outs.push((src, plan));
+                }
             }
         }
-        self.ins.push((
-            dst.node,
-            Box::new(TypedInPlan {
-                port: dst.port,
-                link,
-                name: Cow::Owned(format!("{dst_name}.{}", dst.port.name())),
-            }),
-        ));
+        if let Some(plan) = inp.in_plan(link, Cow::Owned(format!("{dst_name}.{}", inp.name()))) {
+            self.ins.push((dst, plan));
+        }
         // A zero bound was reported above; the channel gets capacity 1 so that the
         // executor never sees an impossible queue.
         let safe_policy = match policy {
             Policy::Queue { bound: 0 } => Policy::queue(1),
             p => p,
         };
-        self.channels.push(channel_plan::<T>(safe_policy));
+        self.channels.push(out.channel(safe_policy));
         self.info.links.push(LinkInfo {
             name,
-            from: src.node,
-            from_port: src.port.name(),
-            to: dst.node,
-            to_port: dst.port.name(),
+            from: src,
+            from_port: out.name(),
+            to: dst,
+            to_port: inp.name(),
             policy,
-            payload: std::any::type_name::<T>(),
+            payload: out.payload_name(),
         });
         LinkId(link)
     }
 
-    fn check_link<O, I, T, AO, AI>(
+    fn check_link(
         &mut self,
         name: &str,
-        src: &Source<O, T, AO>,
-        dst: &Sink<I, T, AI>,
+        src: usize,
+        out: &BufferPort,
+        dst: usize,
+        inp: &BufferPort,
         policy: Policy,
-    ) where
-        AO: Access<O, Out<T>>,
-        AI: Access<I, In<T>>,
-    {
+    ) {
         if policy == Policy::queue(0) {
             self.problems
                 .push(BuildProblem::ZeroQueueBound(name.to_owned()));
         }
-        let (s, d) = (&self.info.nodes[src.node], &self.info.nodes[dst.node]);
-        let same_agent = self.node_agent[src.node] == self.node_agent[dst.node];
+        let (s, d) = (&self.info.nodes[src], &self.info.nodes[dst]);
+        let same_agent = self.node_agent[src] == self.node_agent[dst];
         if let Some(reason) = structure_violation(s.kind, d.kind, same_agent) {
             self.problems.push(BuildProblem::Structure {
                 link: name.to_owned(),
@@ -475,8 +631,8 @@ impl SystemBuilder {
             });
         }
         for (port, declared, actual) in [
-            (src.port.name(), src.port.peer(), d.kind),
-            (dst.port.name(), dst.port.peer(), s.kind),
+            (out.name(), out.peer(), d.kind),
+            (inp.name(), inp.peer(), s.kind),
         ] {
             if let Some(declared) = declared.filter(|k| *k != actual) {
                 self.problems.push(BuildProblem::PeerMismatch {

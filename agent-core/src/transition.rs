@@ -309,7 +309,7 @@ impl<S: Subsystem> Action<S> {
             target_name,
             peer: G::PEER,
             field: None,
-            name: None,
+            name: fn_name::<F>(),
             f: Box::new(move |m, x, y| f(m, x, target(y)).into_result()),
         });
         self.last = Last::Output;
@@ -327,7 +327,7 @@ impl<S: Subsystem> Action<S> {
             self.defects.push("the memory part is set twice".to_owned());
         }
         self.memory = Some(MemoryPart {
-            name: None,
+            name: fn_name::<F>(),
             f: Box::new(move |m, x| f(m, x).into_result()),
         });
         self.last = Last::Memory;
@@ -345,7 +345,7 @@ impl<S: Subsystem> Action<S> {
             self.defects.push("the common part is set twice".to_owned());
         }
         self.common = Some(MemoryPart {
-            name: None,
+            name: fn_name::<F>(),
             f: Box::new(move |m, x| f(m, x).into_result()),
         });
         self.last = Last::Common;
@@ -446,6 +446,18 @@ impl<S: Subsystem> Action<S> {
     pub(crate) fn defects(&self) -> &[String] {
         &self.defects
     }
+}
+
+/// The name of a function item, as a spec names a transition function: the last
+/// segment of its path (`rex_agent::c1::cT_1_tp` is `cT_1_tp`). A closure has no
+/// name of its own (`None`: it is named after its behaviour and target, or by
+/// [`Action::named`]).
+fn fn_name<F>() -> Option<Cow<'static, str>> {
+    let path = std::any::type_name::<F>();
+    if path.contains('{') || path.contains('<') || path.contains('(') {
+        return None;
+    }
+    path.rsplit("::").next().map(Cow::Borrowed)
 }
 
 /// `a::b::Name<c::D>` -> `Name<D>`.

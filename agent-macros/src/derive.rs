@@ -214,10 +214,38 @@ pub(crate) fn generate_group(m: &GroupModel) -> TokenStream {
     let too_many = count > rt_max_buffers();
     let guard = too_many
         .then(|| quote_spanned!(name.span()=> compile_error!("a group has at most 128 buffers");));
+    // Buffers found by name (links made from a spec); a generic group keeps the
+    // default (none), since its payloads need not be `Payload` for every parameter.
+    let lookup = m.input.generics.params.is_empty().then(|| {
+        let maker = match m.dir {
+            Dir::In => quote!(in_group),
+            Dir::Out => quote!(out_group),
+        };
+        let arms = m.buffers.iter().map(|(ident, _)| {
+            let n = ident.unraw().to_string();
+            quote!(#n => ::core::option::Option::Some(
+                #rt::BufferPort::#maker(group_name, group, #n, |g: &mut Self| &mut g.#ident)
+            ))
+        });
+        quote! {
+            fn buffer_port<B: ::core::marker::Send + 'static>(
+                group_name: &'static str,
+                group: fn(&mut B) -> &mut Self,
+                buffer: &str,
+            ) -> ::core::option::Option<#rt::BufferPort> {
+                let _ = (group_name, group);
+                match buffer {
+                    #(#arms,)*
+                    _ => ::core::option::Option::None,
+                }
+            }
+        }
+    });
     quote! {
         #guard
         impl #impl_g #rt::Group for #name #ty_g #where_g {
             const PEER: #rt::NodeKind = #rt::NodeKind::#peer;
+            #lookup
         }
         impl #impl_g #rt::Fields for #name #ty_g #where_g {
             const FIELDS: &'static [#rt::Field] = &[#(#fields),*];
@@ -329,9 +357,26 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
                 fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
                 offset = quote!(#offset + <#ty as #rt::Fields>::FIELDS.len());
             }
+            let lookup = input.generics.params.is_empty().then(|| {
+                let arms = groups.iter().map(|g| {
+                    let (ident, ty) = (&g.ident, &g.ty);
+                    let n = ident.unraw().to_string();
+                    quote!(#n => <#ty as #rt::Group>::buffer_port::<Self>(#n, |s: &mut Self| &mut s.#ident, buffer))
+                });
+                quote! {
+                    fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
+                        let (group, buffer) = path.split_once('.')?;
+                        match group {
+                            #(#arms,)*
+                            _ => ::core::option::Option::None,
+                        }
+                    }
+                }
+            });
             // An inline `const` block may use the struct's generic parameters.
             quote! {
                 impl #impl_g #rt::Buffers for #name #ty_g #where_g {
+                    #lookup
                     const GROUPS: &'static [#rt::GroupShape] = &[#(#shapes),*];
                     #[inline]
                     fn fresh(&self) -> #rt::Fresh {
@@ -360,13 +405,34 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             let fresh = buffers.iter().enumerate().map(|(k, (ident, _))| {
                 quote!(| (#rt::describe::Buffer::is_fresh(&self.#ident) as u128) << #k)
             });
-            let dir = dir.tokens(&rt);
             let guard = (buffers.len() > rt_max_buffers()).then(|| {
                 quote_spanned!(name.span()=> compile_error!("a struct of buffers has at most 128 buffers");)
             });
+            let lookup = input.generics.params.is_empty().then(|| {
+                let maker = match dir {
+                    Dir::In => quote!(input),
+                    Dir::Out => quote!(output),
+                };
+                let arms = buffers.iter().map(|(ident, _)| {
+                    let n = ident.unraw().to_string();
+                    quote!(#n => ::core::option::Option::Some(#rt::BufferPort::#maker(
+                        #rt::Port::new(#n, |s: &mut Self| &mut s.#ident, ::core::option::Option::None)
+                    )))
+                });
+                quote! {
+                    fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
+                        match path {
+                            #(#arms,)*
+                            _ => ::core::option::Option::None,
+                        }
+                    }
+                }
+            });
+            let dir = dir.tokens(&rt);
             quote! {
                 #guard
                 impl #impl_g #rt::Buffers for #name #ty_g #where_g {
+                    #lookup
                     const GROUPS: &'static [#rt::GroupShape] = &[#rt::GroupShape {
                         name: "",
                         peer: ::core::option::Option::None,
@@ -489,6 +555,9 @@ pub(crate) fn generate_subsystem(m: &SubsystemModel) -> TokenStream {
             type Output = #outputs;
             fn shape() -> ::core::option::Option<#rt::Shape> {
                 ::core::option::Option::Some(#rt::Shape::of_subsystem::<Self>())
+            }
+            fn ports() -> ::core::option::Option<#rt::PortTable> {
+                ::core::option::Option::Some(#rt::PortTable::of::<#inputs, #outputs>())
             }
         }
     }

@@ -17,6 +17,7 @@
 //! there is one parser.
 
 pub mod check;
+pub mod deploy;
 pub mod diag;
 pub mod diagram;
 pub mod export;
@@ -28,6 +29,7 @@ pub mod span;
 
 use std::path::Path;
 
+pub use deploy::{Assembly, AssemblyError, wire};
 pub use diag::{Code, Finding, Label, Report, Severity};
 pub use model::Spec;
 

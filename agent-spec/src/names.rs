@@ -78,3 +78,38 @@ mod tests {
         }
     }
 }
+
+/// The name among `known` closest to `name`, if one is close enough to be a typo
+/// (Jaro-Winkler similarity of at least 0.8, or the same name but for case): for
+/// "did you mean" hints.
+pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    known
+        .into_iter()
+        .filter(|k| *k != name)
+        .map(|k| {
+            let score = if k.eq_ignore_ascii_case(name) {
+                1.0
+            } else {
+                strsim::jaro_winkler(name, k)
+            };
+            (score, k)
+        })
+        .filter(|(score, _)| *score >= 0.8)
+        .max_by(|a, b| a.0.total_cmp(&b.0).then_with(|| b.1.cmp(a.1)))
+        .map(|(_, k)| k)
+}
+
+#[cfg(test)]
+mod did_you_mean_tests {
+    use super::did_you_mean;
+
+    #[test]
+    fn a_typo_finds_its_name_and_nonsense_finds_none() {
+        let known = ["c1", "e11", "r11", "E1", "desired_plan", "q_est"];
+        assert_eq!(did_you_mean("desired_plans", known), Some("desired_plan"));
+        assert_eq!(did_you_mean("e1", known), Some("E1"));
+        assert_eq!(did_you_mean("qest", known), Some("q_est"));
+        assert_eq!(did_you_mean("zzzz", known), None);
+        assert_eq!(did_you_mean("c1", known), None, "not itself");
+    }
+}

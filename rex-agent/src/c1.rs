@@ -7,12 +7,12 @@
 //! | function | algorithm | target |
 //! |---|---|---|
 //! | [`cc_1_tp`] | 4: a new plan is processed, the planner initialised | memory |
-//! | [`ct_1_tp`] | 5: a new plan clears `ack` | `c2` |
+//! | [`cT_1_tp`] | 5: a new plan clears `ack` | `c2` |
 //! | [`cc_2_tp`] | 6: the planning process and the fragment list | memory |
 //! | [`ce_2_tp`] | 7: the next fragment to `e11` with `steps` and `notify` | `e11` |
-//! | [`ct_3_tp`] | 8: `ack` | `c2` |
-//! | [`ce_1`], [`ct_q`] | relays: map pose and `A4x4` to `e11`, state estimate to `a3` | `e11`, `c3` |
-//! | [`ct_2`] | relays `e11`'s plan outcomes to `a2` during `B2` (also done by `ct_1_tp`, `ct_3_tp`) | `c2` |
+//! | [`cT_3_tp`] | 8: `ack` | `c2` |
+//! | [`ce_1`], [`cT_q`] | relays: map pose and `A4x4` to `e11`, state estimate to `a3` | `e11`, `c3` |
+//! | [`cT_2`] | relays `e11`'s plan outcomes to `a2` during `B2` (also done by `cT_1_tp`, `cT_3_tp`) | `c2` |
 //! | [`cc_3`] | clears the plan's flags (needed by the refusal arc `B1 → B3`) | memory |
 //!
 //! **Outcomes.** `Done` is the paper's early acknowledgement: the last fragment was
@@ -34,9 +34,7 @@
 
 use std::collections::VecDeque;
 
-use embodied::{
-    Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
-};
+use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
 use crate::map::Map;
 use crate::planner::trajgen::{Status, TrajGen};
@@ -71,7 +69,7 @@ impl Default for C1Params {
 }
 
 /// `c1`'s internal memory (`^c c_1`).
-#[derive(Clone)]
+#[derive(Clone, Memory)]
 pub struct C1Memory {
     /// `plan`: the points still to plan towards, with desired orientations.
     pub plan: VecDeque<Waypoint>,
@@ -160,7 +158,8 @@ impl C1Memory {
 }
 
 /// Inputs from `e11`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = VirtualEffector)]
 pub struct C1FromE11 {
     /// `q~, q~ dot`.
     pub q_est: In<State>,
@@ -169,43 +168,34 @@ pub struct C1FromE11 {
     /// How a plan's execution ended.
     pub outcome: In<PlanOutcome>,
 }
-impl Group for C1FromE11 {
-    const PEER: NodeKind = NodeKind::VirtualEffector;
-}
 
 /// Inputs from `r11`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = VirtualReceptor)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct C1FromR11 {
     /// Visual odometry.
     pub A4x4: In<Transform>,
 }
-impl Group for C1FromR11 {
-    const PEER: NodeKind = NodeKind::VirtualReceptor;
-}
 
 /// Inputs from the ontology agent.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct C1FromC2 {
     /// The plan.
     pub desired_plan: In<Plan>,
 }
-impl Group for C1FromC2 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// Inputs from the map agent.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct C1FromC3 {
     /// The pose on the map.
     pub pose: In<MapPose>,
 }
-impl Group for C1FromC3 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c1`'s input buffers.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 pub struct C1Input {
     /// From `e11`.
     pub e11: C1FromE11,
@@ -218,7 +208,8 @@ pub struct C1Input {
 }
 
 /// Outputs to `e11`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualEffector)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct C1ToE11 {
     /// Map pose relay.
@@ -232,34 +223,27 @@ pub struct C1ToE11 {
     /// Step after which to report ready (`notify < steps`).
     pub notify: Out<u32>,
 }
-impl Group for C1ToE11 {
-    const PEER: NodeKind = NodeKind::VirtualEffector;
-}
 
 /// Outputs to `c2`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct C1ToC2 {
     /// The acknowledgement.
     pub ack: Out<Ack>,
     /// How a plan's execution ended (relayed from `e11`).
     pub outcome: Out<PlanOutcome>,
 }
-impl Group for C1ToC2 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// Outputs to `c3`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct C1ToC3 {
     /// The state estimate.
     pub q_est: Out<State>,
 }
-impl Group for C1ToC3 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c1`'s output buffers.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct C1Output {
     /// To `e11`.
     pub e11: C1ToE11,
@@ -270,14 +254,9 @@ pub struct C1Output {
 }
 
 /// The control subsystem `c1`.
+#[derive(Subsystem)]
+#[subsystem(kind = Control, memory = C1Memory, input = C1Input, output = C1Output)]
 pub struct C1;
-
-impl Subsystem for C1 {
-    const KIND: SubsystemKind = SubsystemKind::Control;
-    type Memory = C1Memory;
-    type Input = C1Input;
-    type Output = C1Output;
-}
 
 // ---------------------------------------------------------------------------
 // Auxiliary functions of the paper.
@@ -453,7 +432,11 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
 
 /// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false; plan outcomes
 /// are relayed.
-pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is the transmission buffer T"
+)]
+pub fn cT_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     if let Some(plan) = x.c2.desired_plan.fresh() {
         y.ack.set(Ack {
             plan: plan.id,
@@ -464,7 +447,11 @@ pub fn ct_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
 }
 
 /// `c,T f_1,2`: relay plan outcomes during `B2`.
-pub fn ct_2(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is the transmission buffer T"
+)]
+pub fn cT_2(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     relay_outcome(x, y);
 }
 
@@ -562,7 +549,11 @@ fn failed(m: &C1Memory, x: &C1Input) -> Option<String> {
 
 /// Algorithm 8 (`c,T f_1,3,tp`): `ack`, with how the plan ended; plan outcomes are
 /// relayed.
-pub fn ct_3_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is the transmission buffer T"
+)]
+pub fn cT_3_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     let status = match (&m.refusal, failed(m, x)) {
         (Some(reason), _) => AckStatus::Refused(reason.clone()),
         (None, Some(why)) => AckStatus::Failed(why),
@@ -599,7 +590,11 @@ pub fn ce_1(_: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
 }
 
 /// Relay the state estimate to the map agent.
-pub fn ct_q(_: &C1Memory, x: &C1Input, y: &mut C1ToC3) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is the transmission buffer T"
+)]
+pub fn cT_q(_: &C1Memory, x: &C1Input, y: &mut C1ToC3) {
     if let Some(q) = x.e11.q_est.fresh() {
         y.q_est.set(*q);
     }
@@ -625,9 +620,9 @@ pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
         .behaviour(Behaviour::repeat_loop(
             "B1",
             Action::<C1>::new()
-                .output(|y| &mut y.c2, ct_1_tp)
+                .output(|y| &mut y.c2, cT_1_tp)
                 .output(|y| &mut y.e11, ce_1)
-                .output(|y| &mut y.c3, ct_q)
+                .output(|y| &mut y.c3, cT_q)
                 .memory(cc_1_tp),
             "plan_new",
         ))
@@ -635,17 +630,17 @@ pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
             "B2",
             Action::<C1>::new()
                 .output(|y| &mut y.e11, ce_2_tp)
-                .output(|y| &mut y.c2, ct_2)
-                .output(|y| &mut y.c3, ct_q)
+                .output(|y| &mut y.c2, cT_2)
+                .output(|y| &mut y.c3, cT_q)
                 .memory(cc_2_tp),
             "plan_sent || planner_failed || stopped",
         ))
         .behaviour(Behaviour::repeat_loop(
             "B3",
             Action::<C1>::new()
-                .output(|y| &mut y.c2, ct_3_tp)
+                .output(|y| &mut y.c2, cT_3_tp)
                 .output(|y| &mut y.e11, ce_1)
-                .output(|y| &mut y.c3, ct_q)
+                .output(|y| &mut y.c3, cT_q)
                 .memory(cc_3),
             "true",
         ))
@@ -869,9 +864,9 @@ mod tests {
     fn algorithm_5_clears_ack_on_a_new_plan_only() {
         let m = memory(1);
         let mut y = C1ToC2::default();
-        ct_1_tp(&m, &input(None, None, false), &mut y);
+        cT_1_tp(&m, &input(None, None, false), &mut y);
         assert!(!y.ack.is_written());
-        ct_1_tp(&m, &input(Some(pts(&[(1.0, 0.0)])), None, false), &mut y);
+        cT_1_tp(&m, &input(Some(pts(&[(1.0, 0.0)])), None, false), &mut y);
         let ack = y.ack.written().expect("ack written");
         assert!(!ack.ready(), "ack = false");
         assert_eq!((ack.plan, &ack.status), (1, &AckStatus::Received));
@@ -954,12 +949,12 @@ mod tests {
     fn algorithm_8_acknowledges_with_the_outcome() {
         let mut m = taken(&[(1.0, 0.0)], 1);
         let mut y = C1ToC2::default();
-        ct_3_tp(&m, &input(None, None, false), &mut y);
+        cT_3_tp(&m, &input(None, None, false), &mut y);
         let ack = y.ack.written().cloned().expect("ack");
         assert!(ack.ready(), "ack = true");
         assert_eq!(ack.status, AckStatus::Done);
         m.refusal = Some("off the map".into());
-        ct_3_tp(&m, &input(None, None, false), &mut y);
+        cT_3_tp(&m, &input(None, None, false), &mut y);
         assert_eq!(
             y.ack.written().map(|a| &a.status),
             Some(&AckStatus::Refused("off the map".into()))

@@ -10,7 +10,9 @@
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
-use embodied::{DeviceKind, Driver, DriverContext, DriverError, Group, In, NodeKind, Out};
+use embodied::{
+    Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out, PortTable, Shape,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Renderer;
@@ -118,7 +120,8 @@ impl Validate for SensorParams {
 }
 
 /// Commands from the virtual effector `e11` to the platform.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualEffector)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct PlatformFromE11 {
     /// Wheel torques (`τ`).
@@ -126,19 +129,17 @@ pub struct PlatformFromE11 {
     /// IMU reset (`cmd_E1,1`).
     pub cmd_E11: In<ImuCommand>,
 }
-impl Group for PlatformFromE11 {
-    const PEER: NodeKind = NodeKind::VirtualEffector;
-}
 
 /// The platform's inputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct PlatformInput {
     /// From `e11`.
     pub e11: PlatformFromE11,
 }
 
 /// Readings for `e11`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualEffector)]
 pub struct PlatformToE11 {
     /// Inertial measurement unit.
     pub imu: Out<Imu>,
@@ -147,12 +148,9 @@ pub struct PlatformToE11 {
     /// Wheel encoders.
     pub encoders: Out<Encoders>,
 }
-impl Group for PlatformToE11 {
-    const PEER: NodeKind = NodeKind::VirtualEffector;
-}
 
 /// The platform's outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct PlatformOutput {
     /// To `e11`.
     pub e11: PlatformToE11,
@@ -301,6 +299,14 @@ impl Driver for Platform {
     type Input = PlatformInput;
     type Output = PlatformOutput;
 
+    fn shape() -> Option<Shape> {
+        Some(Shape::of_driver::<Self>())
+    }
+
+    fn ports() -> Option<PortTable> {
+        Some(PortTable::of::<Self::Input, Self::Output>())
+    }
+
     fn step(
         &mut self,
         cx: DriverContext,
@@ -346,35 +352,31 @@ impl Driver for Platform {
 // R1: the stereo camera
 
 /// The acquisition command from `r11`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualReceptor)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct CameraFromR11 {
     /// `cmd_R1,1`.
     pub cmd_R11: In<AcquireCommand>,
 }
-impl Group for CameraFromR11 {
-    const PEER: NodeKind = NodeKind::VirtualReceptor;
-}
 
 /// The camera's inputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct CameraInput {
     /// From `r11`.
     pub r11: CameraFromR11,
 }
 
 /// Images for `r11`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualReceptor)]
 pub struct CameraToR11 {
     /// The stereo pair (`img_lr`).
     pub img_lr: Out<StereoPair>,
 }
-impl Group for CameraToR11 {
-    const PEER: NodeKind = NodeKind::VirtualReceptor;
-}
 
 /// The camera's outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct CameraOutput {
     /// To `r11`.
     pub r11: CameraToR11,
@@ -439,6 +441,14 @@ impl Driver for StereoCamera {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = CameraInput;
     type Output = CameraOutput;
+
+    fn shape() -> Option<Shape> {
+        Some(Shape::of_driver::<Self>())
+    }
+
+    fn ports() -> Option<PortTable> {
+        Some(PortTable::of::<Self::Input, Self::Output>())
+    }
 
     fn step(
         &mut self,
@@ -525,17 +535,15 @@ impl Validate for MocapParams {
 }
 
 /// Poses for the map agent's virtual receptor `r31`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualReceptor)]
 pub struct MocapToR31 {
     /// The measured pose and the time it describes.
     pub pose: Out<MapPose>,
 }
-impl Group for MocapToR31 {
-    const PEER: NodeKind = NodeKind::VirtualReceptor;
-}
 
 /// The motion capture's outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct MocapOutput {
     /// To `r31`.
     pub r31: MocapToR31,
@@ -586,6 +594,14 @@ impl Driver for MotionCapture {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
     type Output = MocapOutput;
+
+    fn shape() -> Option<Shape> {
+        Some(Shape::of_driver::<Self>())
+    }
+
+    fn ports() -> Option<PortTable> {
+        Some(PortTable::of::<Self::Input, Self::Output>())
+    }
 
     fn step(&mut self, cx: DriverContext, _: &(), y: &mut MocapOutput) -> Result<(), DriverError> {
         let truth = self.truth.get()?;

@@ -42,6 +42,10 @@ struct Cli {
     /// World file (platform, surfaces, sensors, camera, room, motion capture).
     #[arg(long, value_name = "FILE")]
     world: Option<PathBuf>,
+    /// The spec Rex is built from (default: `specs/rex.ron`): its components,
+    /// periods and links; checked before anything runs.
+    #[arg(long, value_name = "FILE")]
+    spec: Option<PathBuf>,
     /// One surface for the whole floor: a name from the world's `surfaces`
     /// (shipped: concrete, grass, ice).
     #[arg(long, value_name = "NAME")]
@@ -114,6 +118,9 @@ fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
     if let Some(w) = &cli.world {
         // A world given on the command line is relative to the current folder.
         s.world = Some(std::path::absolute(w).unwrap_or_else(|_| w.clone()));
+    }
+    if let Some(spec) = &cli.spec {
+        s.spec = Some(std::path::absolute(spec).unwrap_or_else(|_| spec.clone()));
     }
     if cli.surface.is_some() {
         s.surface = cli.surface.clone();

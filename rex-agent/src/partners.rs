@@ -10,8 +10,7 @@
 //!   `c3` that sends the pose on the map to `a1` and keeps `a1`'s state estimate.
 
 use embodied::{
-    Action, ActionError, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem,
-    SubsystemKind,
+    Action, ActionError, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem,
 };
 
 use crate::mission::Mission;
@@ -21,10 +20,12 @@ use crate::types::{Ack, AckStatus, MapPose, Plan, PlanOutcome, State};
 // a2: the ontology agent
 
 /// The control subsystem `c2` of the ontology agent.
+#[derive(Subsystem)]
+#[subsystem(kind = Control, memory = OntologyMemory, input = OntologyInput, output = OntologyOutput)]
 pub struct Ontology;
 
 /// `c2`'s memory.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Memory)]
 pub struct OntologyMemory {
     /// The plans to send.
     pub mission: Mission,
@@ -66,46 +67,35 @@ impl OntologyMemory {
 }
 
 /// `c2`'s inputs from `c1`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct OntologyFromC1 {
     /// The acknowledgement of a plan.
     pub ack: In<Ack>,
     /// How a plan's execution ended.
     pub outcome: In<PlanOutcome>,
 }
-impl Group for OntologyFromC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c2`'s inputs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 pub struct OntologyInput {
     /// From `c1`.
     pub c1: OntologyFromC1,
 }
 
 /// `c2`'s outputs to `c1`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct OntologyToC1 {
     /// The plan.
     pub desired_plan: Out<Plan>,
 }
-impl Group for OntologyToC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c2`'s outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct OntologyOutput {
     /// To `c1`.
     pub c1: OntologyToC1,
-}
-
-impl Subsystem for Ontology {
-    const KIND: SubsystemKind = SubsystemKind::Control;
-    type Memory = OntologyMemory;
-    type Input = OntologyInput;
-    type Output = OntologyOutput;
 }
 
 /// Keep a fresh final acknowledgement and a fresh outcome (every acting behaviour
@@ -152,10 +142,12 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                         Ok::<(), ActionError>(())
                     },
                 )
+                .named("send_plan")
                 .memory(|m: &mut OntologyMemory, x: &OntologyInput| {
                     record(m, x);
                     m.next += 1;
-                }),
+                })
+                .named("advance"),
             "true",
         ))
         .predicate("settled", |m: &OntologyMemory, _| m.settled())
@@ -191,10 +183,12 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
 /// poses, rejects and counts the others (non-finite, or a jump no robot makes). A
 /// jump that the next poses confirm (`confirm` in a row, consistent with each
 /// other) is believed: the robot was moved, the measurement was not wrong.
+#[derive(Subsystem)]
+#[subsystem(kind = VirtualReceptor, memory = MocapMemory, input = MocapReceptorInput, output = MocapReceptorOutput)]
 pub struct MocapReceptor;
 
 /// `r31`'s memory.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Memory)]
 pub struct MocapMemory {
     /// The last pose passed on.
     pub last: Option<MapPose>,
@@ -221,17 +215,15 @@ impl Default for MocapMemory {
 }
 
 /// `r31`'s input from `R3`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = RealReceptor)]
 pub struct MocapFromR3 {
     /// A measured pose.
     pub pose: In<MapPose>,
 }
-impl Group for MocapFromR3 {
-    const PEER: NodeKind = NodeKind::RealReceptor;
-}
 
 /// `r31`'s inputs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 #[expect(
     non_snake_case,
     reason = "groups are named after their peer component, R3"
@@ -242,27 +234,18 @@ pub struct MocapReceptorInput {
 }
 
 /// `r31`'s output to `c3`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct MocapToC3 {
     /// A plausible pose.
     pub pose: Out<MapPose>,
 }
-impl Group for MocapToC3 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `r31`'s outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct MocapReceptorOutput {
     /// To `c3`.
     pub c3: MocapToC3,
-}
-
-impl Subsystem for MocapReceptor {
-    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
-    type Memory = MocapMemory;
-    type Input = MocapReceptorInput;
-    type Output = MocapReceptorOutput;
 }
 
 impl MocapMemory {
@@ -318,20 +301,24 @@ pub fn mocap_receptor_fsm() -> Result<Fsm<MocapReceptor>, FsmBuildError> {
                     }
                 },
             )
+            .named("pass")
             .memory(|m: &mut MocapMemory, x: &MocapReceptorInput| {
                 if let Some(p) = x.R3.pose.fresh() {
                     m.learn(p);
                 }
-            }),
+            })
+            .named("check"),
         "false",
     ))
 }
 
 /// The control subsystem `c3` of the map agent.
+#[derive(Subsystem)]
+#[subsystem(kind = Control, memory = MapMemory, input = MapInput, output = MapOutput)]
 pub struct MapAgent;
 
 /// `c3`'s memory.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Memory)]
 pub struct MapMemory {
     /// The last pose sent to `a1`.
     pub pose: Option<MapPose>,
@@ -342,27 +329,23 @@ pub struct MapMemory {
 }
 
 /// `c3`'s inputs from `r31`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = VirtualReceptor)]
 pub struct MapFromR31 {
     /// A plausible pose.
     pub pose: In<MapPose>,
 }
-impl Group for MapFromR31 {
-    const PEER: NodeKind = NodeKind::VirtualReceptor;
-}
 
 /// `c3`'s inputs from `c1`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct MapFromC1 {
     /// `a1`'s state estimate.
     pub q_est: In<State>,
 }
-impl Group for MapFromC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c3`'s inputs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 pub struct MapInput {
     /// From `r31`.
     pub r31: MapFromR31,
@@ -371,27 +354,18 @@ pub struct MapInput {
 }
 
 /// `c3`'s outputs to `c1`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct MapToC1 {
     /// The robot's pose on the map.
     pub pose: Out<MapPose>,
 }
-impl Group for MapToC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// `c3`'s outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 pub struct MapOutput {
     /// To `c1`.
     pub c1: MapToC1,
-}
-
-impl Subsystem for MapAgent {
-    const KIND: SubsystemKind = SubsystemKind::Control;
-    type Memory = MapMemory;
-    type Input = MapInput;
-    type Output = MapOutput;
 }
 
 /// The FSM of `c3`: one behaviour that never ends.
@@ -407,6 +381,7 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
                     }
                 },
             )
+            .named("send_pose")
             .memory(|m: &mut MapMemory, x: &MapInput| {
                 if let Some(p) = x.r31.pose.fresh() {
                     m.pose = Some(*p);
@@ -415,7 +390,8 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
                 if let Some(q) = x.c1.q_est.fresh().filter(|q| q.is_finite()) {
                     m.estimate = Some(*q);
                 }
-            }),
+            })
+            .named("keep"),
         "false",
     ))
 }

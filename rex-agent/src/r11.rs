@@ -16,9 +16,7 @@
 //! the odometry cannot use (blank, textureless, too few matches, no RANSAC
 //! consensus) sends nothing and is counted; the next usable pair starts again.
 
-use embodied::{
-    Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
-};
+use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
 use crate::camera::kitti::{Pose34, compose, invert};
 use crate::types::{AcquireCommand, StereoPair, Transform};
@@ -100,7 +98,7 @@ impl Odometry {
 }
 
 /// `r11`'s memory.
-#[derive(Debug)]
+#[derive(Debug, Memory)]
 pub struct R11Memory {
     /// `k`: steps to the next acquisition.
     pub k: u32,
@@ -125,17 +123,15 @@ impl R11Memory {
 }
 
 /// Inputs from the camera.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = RealReceptor)]
 pub struct R11FromR1 {
     /// The stereo pair.
     pub img_lr: In<StereoPair>,
 }
-impl Group for R11FromR1 {
-    const PEER: NodeKind = NodeKind::RealReceptor;
-}
 
 /// `r11`'s inputs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 #[expect(
     non_snake_case,
     reason = "groups are named after their peer component, R1"
@@ -146,29 +142,25 @@ pub struct R11Input {
 }
 
 /// Outputs to `c1`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct R11ToC1 {
     /// The motion between the last two pairs.
     pub A4x4: Out<Transform>,
 }
-impl Group for R11ToC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// Outputs to the camera.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = RealReceptor)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct R11ToR1 {
     /// The acquisition command.
     pub cmd_R11: Out<AcquireCommand>,
 }
-impl Group for R11ToR1 {
-    const PEER: NodeKind = NodeKind::RealReceptor;
-}
 
 /// `r11`'s outputs.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 #[expect(
     non_snake_case,
     reason = "groups are named after their peer component, R1"
@@ -181,14 +173,9 @@ pub struct R11Output {
 }
 
 /// The virtual receptor `r11`.
+#[derive(Subsystem)]
+#[subsystem(kind = VirtualReceptor, memory = R11Memory, input = R11Input, output = R11Output)]
 pub struct R11;
-
-impl Subsystem for R11 {
-    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
-    type Memory = R11Memory;
-    type Input = R11Input;
-    type Output = R11Output;
-}
 
 /// `rr_vo` (common part): visual odometry on a new pair.
 pub fn rr_vo(m: &mut R11Memory, x: &R11Input) {
@@ -206,7 +193,11 @@ pub fn rc(m: &R11Memory, _: &R11Input, y: &mut R11ToC1) {
 }
 
 /// `rR`: the acquisition command every `every` steps.
-pub fn rr_capture(m: &R11Memory, _: &R11Input, y: &mut R11ToR1) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is a real device"
+)]
+pub fn rR(m: &R11Memory, _: &R11Input, y: &mut R11ToR1) {
     if m.k == 0 {
         y.cmd_R11.set(AcquireCommand { seq: m.seq });
     }
@@ -229,7 +220,7 @@ pub fn r11_fsm() -> Result<Fsm<R11>, FsmBuildError> {
         Action::<R11>::new()
             .common(rr_vo)
             .output(|y| &mut y.c1, rc)
-            .output(|y| &mut y.R1, rr_capture)
+            .output(|y| &mut y.R1, rR)
             .memory(rr_k),
         "false",
     ))

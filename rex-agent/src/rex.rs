@@ -9,25 +9,20 @@
 use std::path::{Path, PathBuf};
 
 use embodied::spec::model::Spec;
-use embodied::{
-    DriverHandle, ExecConfig, Period, Policy, SubsystemHandle, System, SystemBuilder, port,
-};
+use embodied::spec::{Assembly, AssemblyError};
+use embodied::{DriverHandle, ExecConfig, SubsystemHandle, System};
 use serde::{Deserialize, Serialize};
 
-use crate::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
+use crate::c1::{C1, C1Memory, C1Params, c1_fsm};
 use crate::config::{self, ConfigError, Invalid, Validate};
-use crate::devices::{
-    CameraInput, CameraOutput, Platform, PlatformInput, PlatformOutput, SharedTruth, StereoCamera,
-};
-use crate::e11::{
-    E11, E11Input, E11Memory, E11Output, EstimatorKind, Safety, TrackerKind, e11_fsm,
-};
+use crate::devices::{Platform, SharedTruth, StereoCamera};
+use crate::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
 use crate::map::Map;
 use crate::mission::Mission;
-use crate::partners::{MapInput, MapOutput, Ontology, OntologyInput, OntologyOutput};
+use crate::partners::Ontology;
 use crate::planner::trajgen::{Runtime, TrajGen};
 use crate::planner::{PlannerKind, PlannerSettings};
-use crate::r11::{Odometry, R11, R11Input, R11Memory, R11Output, r11_fsm};
+use crate::r11::{Odometry, R11, R11Memory, r11_fsm};
 use crate::vo::{Calibration, VoSettings};
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
@@ -40,6 +35,9 @@ pub struct RunSettings {
     pub mission: String,
     /// The world file, relative to the run file; `None`: the shipped world.
     pub world: Option<PathBuf>,
+    /// The spec Rex is built from, relative to the run file; `None`:
+    /// `specs/rex.ron`.
+    pub spec: Option<PathBuf>,
     /// One surface (by name, from the world's list) for the whole floor, replacing
     /// the world's default surface and patches; `None`: the world's floor.
     pub surface: Option<String>,
@@ -144,6 +142,7 @@ impl Default for RunSettings {
         RunSettings {
             mission: "figure_eight".into(),
             world: None,
+            spec: None,
             surface: None,
             planner: PlannerKind::Ecsa,
             planning: Runtime::Thread,
@@ -246,6 +245,9 @@ impl RunSettings {
         config.estimator = self.estimator;
         config.visual_odometry = self.visual_odometry;
         config.limits = self.limits.clone();
+        if let Some(spec) = &self.spec {
+            config.spec = base.join(spec);
+        }
         Ok(config)
     }
 }
@@ -352,9 +354,9 @@ pub enum RexError {
     /// A world part failed.
     #[error(transparent)]
     World(#[from] WorldError),
-    /// The system is malformed.
+    /// The system does not follow the spec.
     #[error(transparent)]
-    Build(#[from] embodied::BuildError),
+    Assembly(#[from] AssemblyError),
     /// An FSM is malformed.
     #[error(transparent)]
     Fsm(#[from] embodied::FsmBuildError),
@@ -384,27 +386,34 @@ pub fn load_spec(path: &Path) -> Result<Spec, RexError> {
     }
 }
 
-fn period_of(spec: &Spec, name: &str) -> Result<Period, RexError> {
-    let ms = spec
-        .subsystems()
-        .find(|(_, s)| s.name == name)
-        .map(|(_, s)| s.period_ms)
-        .ok_or_else(|| RexError::Spec {
-            path: PathBuf::from("specs/rex.ron"),
-            message: format!("no subsystem `{name}`"),
-        })?;
-    Ok(Period::from_millis_f64(ms)?)
+/// The spec's deployment that `config` runs: `simulation`, or
+/// `simulation_without_vo` without visual odometry.
+pub fn deployment(config: &RexConfig) -> &'static str {
+    if config.visual_odometry {
+        "simulation"
+    } else {
+        "simulation_without_vo"
+    }
 }
 
-/// Build Rex: a1 = c1 + e11 + E1 (+ r11 and R1 with visual odometry), a2, a3, as
-/// the spec's deployment `simulation` (or `simulation_without_vo`) says.
+/// Build Rex as the spec's deployment `simulation` (or `simulation_without_vo`)
+/// says: a1 = c1 + e11 + E1 (+ r11 and R1 with visual odometry), a2, a3, each in
+/// its agent with its period, linked by the spec's links. Only what a spec cannot
+/// hold is written here: the initial memories, the FSMs' functions, the drivers.
 pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), RexError> {
+    build_deployment(config, deployment(config))
+}
+
+/// Build Rex as deployment `name` of the spec says, in one process: the components
+/// it runs (visual odometry if it runs r11), linked by the spec's links.
+pub fn build_deployment(
+    config: &RexConfig,
+    name: &str,
+) -> Result<(System, RexHandles, SharedTruth), RexError> {
     let spec = load_spec(&config.spec)?;
+    let mut rex = Assembly::new(&spec, name)?;
     let truth = SharedTruth::default();
-    let mut sys = SystemBuilder::new();
-    let a1 = sys.agent("a1");
-    let e11_period = period_of(&spec, "e11")?;
-    let dt = e11_period.as_secs_f64();
+    let dt = rex.period("e11")?.as_secs_f64();
     let settings = PlannerSettings {
         dt,
         ..config.planner_settings.clone()
@@ -415,19 +424,14 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         config.runtime,
         config.planning_latency,
     );
-    let c1 = sys.subsystem(
-        a1,
-        "c1",
-        period_of(&spec, "c1")?,
-        C1Memory::new(
-            trajgen,
-            C1Params {
-                map: config.limits.plan_map(&config.world),
-                ..config.c1.clone()
-            },
-        ),
-        c1_fsm()?,
+    let c1_memory = C1Memory::new(
+        trajgen,
+        C1Params {
+            map: config.limits.plan_map(&config.world),
+            ..config.c1.clone()
+        },
     );
+    let c1 = rex.subsystem("c1", c1_memory, c1_fsm()?)?;
     let p = config.world.platform.clone();
     let e11_memory = E11Memory::new(
         config.tracker.build(p.clone(), dt)?,
@@ -436,107 +440,11 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
         settings.slip.x_icr,
     )
     .with_safety(config.limits.safety(&config.world));
-    let e11 = sys.subsystem(a1, "e11", e11_period, e11_memory, e11_fsm()?);
-    let platform = world::add_platform(&mut sys, a1, &config.world, &truth)?;
-    let (_, c2) = world::add_ontology(&mut sys, &config.world, config.mission.clone())?;
-    let map = world::add_map_agent(&mut sys, &config.world, &truth)?;
-
-    // Between agents.
-    sys.connect(
-        c2.output(port!(OntologyOutput, c1.desired_plan)),
-        c1.input(port!(C1Input, c2.desired_plan)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        c1.output(port!(C1Output, c2.ack)),
-        c2.input(port!(OntologyInput, c1.ack)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        map.c3.output(port!(MapOutput, c1.pose)),
-        c1.input(port!(C1Input, c3.pose)),
-        Policy::Sample,
-    );
-    sys.connect(
-        c1.output(port!(C1Output, c2.outcome)),
-        c2.input(port!(OntologyInput, c1.outcome)),
-        Policy::queue(8),
-    );
-    sys.connect(
-        c1.output(port!(C1Output, c3.q_est)),
-        map.c3.input(port!(MapInput, c1.q_est)),
-        Policy::Sample,
-    );
-    // c1 and e11.
-    sys.connect(
-        c1.output(port!(C1Output, e11.pose)),
-        e11.input(port!(E11Input, c1.pose)),
-        Policy::Sample,
-    );
-    sys.connect(
-        c1.output(port!(C1Output, e11.A4x4)),
-        e11.input(port!(E11Input, c1.A4x4)),
-        Policy::queue(8),
-    );
-    sys.connect(
-        c1.output(port!(C1Output, e11.traj)),
-        e11.input(port!(E11Input, c1.traj)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        c1.output(port!(C1Output, e11.steps)),
-        e11.input(port!(E11Input, c1.steps)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        c1.output(port!(C1Output, e11.notify)),
-        e11.input(port!(E11Input, c1.notify)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        e11.output(port!(E11Output, c1.q_est)),
-        c1.input(port!(C1Input, e11.q_est)),
-        Policy::Sample,
-    );
-    sys.connect(
-        e11.output(port!(E11Output, c1.ready)),
-        c1.input(port!(C1Input, e11.ready)),
-        Policy::Sample,
-    );
-    sys.connect(
-        e11.output(port!(E11Output, c1.outcome)),
-        c1.input(port!(C1Input, e11.outcome)),
-        Policy::queue(8),
-    );
-    // e11 and the platform.
-    sys.connect(
-        e11.output(port!(E11Output, E1.tau)),
-        platform.input(port!(PlatformInput, e11.tau)),
-        Policy::Sample,
-    );
-    sys.connect(
-        e11.output(port!(E11Output, E1.cmd_E11)),
-        platform.input(port!(PlatformInput, e11.cmd_E11)),
-        Policy::queue(2),
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.imu)),
-        e11.input(port!(E11Input, E1.imu)),
-        Policy::Sample,
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.forces)),
-        e11.input(port!(E11Input, E1.forces)),
-        Policy::Sample,
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.encoders)),
-        e11.input(port!(E11Input, E1.encoders)),
-        Policy::Sample,
-    );
-
-    // r11, the camera and c1 (the spec's `simulation` deployment).
-    let vision = if config.visual_odometry {
+    let e11 = rex.subsystem("e11", e11_memory, e11_fsm()?)?;
+    let platform = world::add_platform(&mut rex, &config.world, &truth)?;
+    let c2 = world::add_ontology(&mut rex, config.mission.clone())?;
+    let map = world::add_map_agent(&mut rex, &config.world, &truth)?;
+    let vision = if rex.runs("r11") {
         let camera_config = &config.world.camera;
         let (cu, cv) = camera_config.principal_point();
         let calib = Calibration {
@@ -552,35 +460,17 @@ pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), Re
                     message: e.to_string(),
                 }
             })?;
-        let r11 = sys.subsystem(
-            a1,
+        let r11 = rex.subsystem(
             "r11",
-            period_of(&spec, "r11")?,
             R11Memory::new(odom, config.acquire_every),
             r11_fsm()?,
-        );
-        let camera = world::add_camera(&mut sys, a1, &config.world, &truth)?;
-        sys.connect(
-            r11.output(port!(R11Output, R1.cmd_R11)),
-            camera.input(port!(CameraInput, r11.cmd_R11)),
-            Policy::queue(2),
-        );
-        sys.connect(
-            camera.output(port!(CameraOutput, r11.img_lr)),
-            r11.input(port!(R11Input, R1.img_lr)),
-            Policy::Sample,
-        );
-        sys.connect(
-            r11.output(port!(R11Output, c1.A4x4)),
-            c1.input(port!(C1Input, r11.A4x4)),
-            Policy::queue(8),
-        );
+        )?;
+        let camera = world::add_camera(&mut rex, &config.world, &truth)?;
         Some((r11, camera))
     } else {
         None
     };
-
-    let system = sys.build()?;
+    let system = rex.build()?;
     Ok((
         system,
         RexHandles {

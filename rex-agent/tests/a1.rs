@@ -17,7 +17,7 @@ use rex_agent::judge::Verdict;
 use rex_agent::mission::Mission;
 use rex_agent::planner::trajgen::{Runtime, TrajGen};
 use rex_agent::planner::{PlannerKind, PlannerSettings};
-use rex_agent::rex::{RexConfig, build, default_spec, load_spec};
+use rex_agent::rex::{RexConfig, build};
 use rex_agent::run::{Outcome, run_mission};
 use rex_agent::types::{Ack, AckStatus, Plan, Point2, State};
 use rex_agent::world::WorldConfig;
@@ -366,91 +366,6 @@ fn a_planner_failure_holds_position_and_is_reported() {
         "held at the start: {:?}",
         last.truth
     );
-}
-
-#[test]
-fn the_system_is_the_spec() {
-    // Every link built is a link of specs/rex.ron with the same policy, every link
-    // of the spec between components of the deployment is built, and every
-    // component has the spec's period: with visual odometry the deployment
-    // `simulation`, without it `simulation_without_vo`.
-    let spec = load_spec(&default_spec()).unwrap();
-    for (vo, deployment) in [(true, "simulation"), (false, "simulation_without_vo")] {
-        let mut config = short();
-        config.visual_odometry = vo;
-        let (system, _, _) = build(&config).unwrap();
-        let info = system.info();
-        let deployment = spec
-            .deployments
-            .iter()
-            .find(|d| d.name == deployment)
-            .unwrap();
-        let deployed: Vec<&str> = deployment
-            .hosts
-            .iter()
-            .flat_map(|h| {
-                h.processes
-                    .iter()
-                    .flat_map(|p| p.runs.iter().map(String::as_str))
-            })
-            .collect();
-        let mut names: Vec<&str> = info.nodes.iter().map(|n| n.name.as_str()).collect();
-        names.sort_unstable();
-        let mut expected = deployed.clone();
-        expected.sort_unstable();
-        assert_eq!(names, expected);
-        let policy = |p: &embodied::Policy| match p {
-            embodied::Policy::Sample => embodied::spec::model::Policy::Sample,
-            embodied::Policy::Queue { bound } => embodied::spec::model::Policy::Queue(*bound),
-        };
-        let built: Vec<(String, String, embodied::spec::model::Policy)> = info
-            .links
-            .iter()
-            .map(|l| {
-                (
-                    format!("{}.{}", info.nodes[l.from].name, l.from_port),
-                    format!("{}.{}", info.nodes[l.to].name, l.to_port),
-                    policy(&l.policy),
-                )
-            })
-            .collect();
-        let node = |s: &str| s.split('.').next().unwrap_or("").to_owned();
-        let in_spec: Vec<(String, String, embodied::spec::model::Policy)> = spec
-            .links
-            .iter()
-            .filter(|l| {
-                deployed.contains(&node(&l.from).as_str())
-                    && deployed.contains(&node(&l.to).as_str())
-            })
-            .map(|l| (l.from.clone(), l.to.clone(), l.policy))
-            .collect();
-        for l in &built {
-            assert!(in_spec.contains(l), "built but not in the spec: {l:?}");
-        }
-        for l in &in_spec {
-            assert!(built.contains(l), "in the spec but not built: {l:?}");
-        }
-        for n in &info.nodes {
-            let period_ms = spec
-                .subsystems()
-                .find(|(_, s)| s.name == n.name)
-                .map(|(_, s)| s.period_ms)
-                .or_else(|| {
-                    spec.agents
-                        .iter()
-                        .flat_map(|a| &a.devices)
-                        .find(|d| d.name == n.name)
-                        .map(|d| d.period_ms)
-                })
-                .unwrap();
-            assert_eq!(
-                n.period.as_nanos() as f64,
-                period_ms * 1e6,
-                "period of {}",
-                n.name
-            );
-        }
-    }
 }
 
 #[test]

@@ -12,12 +12,12 @@ use std::time::Duration;
 
 use embodied::*;
 use rex_agent::camera::CameraConfig;
-use rex_agent::devices::{
-    CameraInput, CameraOutput, MocapParams, Platform, PlatformInput, PlatformOutput, SharedTruth,
-    StereoCamera,
-};
+use rex_agent::devices::{MocapParams, Platform, SharedTruth, StereoCamera};
 use rex_agent::mission::Mission;
-use rex_agent::partners::{MapInput, MapOutput, OntologyInput, OntologyOutput};
+// The stand-ins have a1's real buffers: the spec's links reach them by name.
+use rex_agent::c1::{C1Input as StubC1Input, C1Output as StubC1Output, C1ToC2, C1ToC3};
+use rex_agent::e11::{E11Input as StubE11Input, E11Output as StubE11Output, E11ToE1};
+use rex_agent::r11::{R11Input as StubR11Input, R11Output as StubR11Output, R11ToR1};
 use rex_agent::types::*;
 use rex_agent::world::{self, WorldConfig};
 
@@ -28,8 +28,10 @@ use rex_agent::world::{self, WorldConfig};
 /// arrives, and as `Done` (ready) 20 iterations later, with the outcome `Reached`;
 /// notes when the plans came and which acknowledgements it sent; keeps the map
 /// poses.
+#[derive(Subsystem)]
+#[subsystem(kind = Control, memory = StubC1Memory, input = StubC1Input, output = StubC1Output)]
 struct StubC1;
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Memory)]
 struct StubC1Memory {
     pending: Option<(u32, u32)>,
     /// Plan ids with their arrival time [s].
@@ -53,51 +55,6 @@ fn stub_c1_ack(m: &StubC1Memory, x: &StubC1Input) -> Option<Ack> {
         }),
         _ => None,
     }
-}
-#[derive(Clone, Debug, Default)]
-struct C1FromC2 {
-    desired_plan: In<Plan>,
-}
-impl Group for C1FromC2 {
-    const PEER: NodeKind = NodeKind::Control;
-}
-#[derive(Clone, Debug, Default)]
-struct C1FromC3 {
-    pose: In<MapPose>,
-}
-impl Group for C1FromC3 {
-    const PEER: NodeKind = NodeKind::Control;
-}
-#[derive(Clone, Debug, Default)]
-struct StubC1Input {
-    c2: C1FromC2,
-    c3: C1FromC3,
-}
-#[derive(Debug, Default)]
-struct C1ToC2 {
-    ack: Out<Ack>,
-    outcome: Out<PlanOutcome>,
-}
-impl Group for C1ToC2 {
-    const PEER: NodeKind = NodeKind::Control;
-}
-#[derive(Debug, Default)]
-struct C1ToC3 {
-    q_est: Out<State>,
-}
-impl Group for C1ToC3 {
-    const PEER: NodeKind = NodeKind::Control;
-}
-#[derive(Debug, Default)]
-struct StubC1Output {
-    c2: C1ToC2,
-    c3: C1ToC3,
-}
-impl Subsystem for StubC1 {
-    const KIND: SubsystemKind = SubsystemKind::Control;
-    type Memory = StubC1Memory;
-    type Input = StubC1Input;
-    type Output = StubC1Output;
 }
 const C1_PERIOD: f64 = 0.01;
 
@@ -152,8 +109,10 @@ fn stub_c1() -> Fsm<StubC1> {
 /// e11: drives the wheels at 4 rad/s (left) and 8 rad/s (right) with a proportional
 /// speed loop on the encoders; resets the IMU once; sends the scripted bad commands;
 /// keeps the last readings.
+#[derive(Subsystem)]
+#[subsystem(kind = VirtualEffector, memory = StubE11Memory, input = StubE11Input, output = StubE11Output)]
 struct StubE11;
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Memory)]
 struct StubE11Memory {
     iteration: u64,
     last: Option<(Imu, WheelLoads, Encoders)>,
@@ -169,47 +128,15 @@ enum Fault {
     /// An IMU reset to this heading.
     Reset(f64),
 }
-#[derive(Clone, Debug, Default)]
-struct E11FromE1 {
-    imu: In<Imu>,
-    forces: In<WheelLoads>,
-    encoders: In<Encoders>,
-}
-impl Group for E11FromE1 {
-    const PEER: NodeKind = NodeKind::RealEffector;
-}
-#[derive(Clone, Debug, Default)]
-struct StubE11Input {
-    e1: E11FromE1,
-}
-#[derive(Debug, Default)]
-#[allow(non_snake_case, reason = "the paper's buffer names")]
-struct E11ToE1 {
-    tau: Out<Torques>,
-    cmd_E11: Out<ImuCommand>,
-}
-impl Group for E11ToE1 {
-    const PEER: NodeKind = NodeKind::RealEffector;
-}
-#[derive(Debug, Default)]
-struct StubE11Output {
-    e1: E11ToE1,
-}
-impl Subsystem for StubE11 {
-    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
-    type Memory = StubE11Memory;
-    type Input = StubE11Input;
-    type Output = StubE11Output;
-}
 
 fn stub_e11() -> Fsm<StubE11> {
     Fsm::single(Behaviour::while_loop(
         "drive",
         Action::<StubE11>::new()
             .output(
-                |y| &mut y.e1,
+                |y| &mut y.E1,
                 |m: &StubE11Memory, x: &StubE11Input, y: &mut E11ToE1| {
-                    let rate = x.e1.encoders.get().map_or([0.0; 4], |e| e.rate);
+                    let rate = x.E1.encoders.get().map_or([0.0; 4], |e| e.rate);
                     let target = [4.0, 4.0, 8.0, 8.0];
                     y.tau.set(
                         [0, 1, 2, 3].map(|i| (1.0 * (target[i] - rate[i])).clamp(-10.0, 10.0)),
@@ -227,7 +154,7 @@ fn stub_e11() -> Fsm<StubE11> {
             )
             .memory(|m: &mut StubE11Memory, x: &StubE11Input| {
                 if let (Some(i), Some(f), Some(e)) =
-                    (x.e1.imu.get(), x.e1.forces.get(), x.e1.encoders.get())
+                    (x.E1.imu.get(), x.E1.forces.get(), x.E1.encoders.get())
                 {
                     m.last = Some((*i, *f, *e));
                 }
@@ -240,8 +167,10 @@ fn stub_e11() -> Fsm<StubE11> {
 
 /// r11: asks for a pair every `every` iterations up to iteration `last_ask`; notes
 /// what it asked and what came.
+#[derive(Subsystem)]
+#[subsystem(kind = VirtualReceptor, memory = StubR11Memory, input = StubR11Input, output = StubR11Output)]
 struct StubR11;
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Memory)]
 struct StubR11Memory {
     iteration: u64,
     every: u64,
@@ -271,42 +200,13 @@ impl StubR11Memory {
         self.iteration.is_multiple_of(self.every) && self.iteration <= self.last_ask
     }
 }
-#[derive(Clone, Debug, Default)]
-struct R11FromR1 {
-    img_lr: In<StereoPair>,
-}
-impl Group for R11FromR1 {
-    const PEER: NodeKind = NodeKind::RealReceptor;
-}
-#[derive(Clone, Debug, Default)]
-struct StubR11Input {
-    r1: R11FromR1,
-}
-#[derive(Debug, Default)]
-#[allow(non_snake_case, reason = "the paper's buffer names")]
-struct R11ToR1 {
-    cmd_R11: Out<AcquireCommand>,
-}
-impl Group for R11ToR1 {
-    const PEER: NodeKind = NodeKind::RealReceptor;
-}
-#[derive(Debug, Default)]
-struct StubR11Output {
-    r1: R11ToR1,
-}
-impl Subsystem for StubR11 {
-    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
-    type Memory = StubR11Memory;
-    type Input = StubR11Input;
-    type Output = StubR11Output;
-}
 
 fn stub_r11() -> Fsm<StubR11> {
     Fsm::single(Behaviour::while_loop(
         "capture",
         Action::<StubR11>::new()
             .output(
-                |y| &mut y.r1,
+                |y| &mut y.R1,
                 |m: &StubR11Memory, _: &StubR11Input, y: &mut R11ToR1| {
                     if m.asks() {
                         y.cmd_R11.set(AcquireCommand {
@@ -319,7 +219,7 @@ fn stub_r11() -> Fsm<StubR11> {
                 if m.asks() {
                     m.asked.push((m.iteration, m.iteration / m.every));
                 }
-                if let Some(pair) = x.r1.img_lr.fresh() {
+                if let Some(pair) = x.R1.img_lr.fresh() {
                     m.got.push((m.iteration, pair.seq, pair.time));
                     if !m.previous.is_empty() && m.previous != pair.left {
                         m.images_differ = true;
@@ -384,84 +284,36 @@ impl Default for Stubs {
     }
 }
 
+/// The period of component `name` in `specs/rex.ron` [s].
+fn spec_period(name: &str) -> f64 {
+    let spec = rex_agent::rex::load_spec(&rex_agent::rex::default_spec()).unwrap();
+    spec::Assembly::all(&spec)
+        .period(name)
+        .unwrap()
+        .as_secs_f64()
+}
+
 fn build(config: &WorldConfig) -> (System, Handles) {
     build_with(config, Stubs::default())
 }
 
 fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     let truth = SharedTruth::default();
-    let mut sys = SystemBuilder::new();
-    let a1 = sys.agent("a1");
-    let ms = |x: u64| Period::from_millis(x).unwrap();
-    let c1 = sys.subsystem(a1, "c1", ms(10), StubC1Memory::default(), stub_c1());
-    let e11 = sys.subsystem(a1, "e11", ms(50), stubs.e11, stub_e11());
-    let r11 = sys.subsystem(a1, "r11", ms(stubs.r11_ms), stubs.r11, stub_r11());
-    let platform = world::add_platform(&mut sys, a1, config, &truth).unwrap();
-    let camera = world::add_camera(&mut sys, a1, config, &truth).unwrap();
-    let (_, c2) = world::add_ontology(&mut sys, config, stubs.mission).unwrap();
+    let spec = rex_agent::rex::load_spec(&rex_agent::rex::default_spec()).unwrap();
+    let mut sys = spec::Assembly::new(&spec, "simulation").unwrap();
+    sys.set_period("r11", Period::from_millis(stubs.r11_ms).unwrap())
+        .unwrap();
+    let c1 = sys
+        .subsystem("c1", StubC1Memory::default(), stub_c1())
+        .unwrap();
+    let e11 = sys.subsystem("e11", stubs.e11, stub_e11()).unwrap();
+    let r11 = sys.subsystem("r11", stubs.r11, stub_r11()).unwrap();
+    let platform = world::add_platform(&mut sys, config, &truth).unwrap();
+    let camera = world::add_camera(&mut sys, config, &truth).unwrap();
+    let c2 = world::add_ontology(&mut sys, stubs.mission).unwrap();
     let map = world::add_map_agent(&mut sys, config, &truth).unwrap();
-    sys.connect(
-        c2.output(port!(OntologyOutput, c1.desired_plan)),
-        c1.input(port!(StubC1Input, c2.desired_plan)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        c1.output(port!(StubC1Output, c2.ack)),
-        c2.input(port!(OntologyInput, c1.ack)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        c1.output(port!(StubC1Output, c2.outcome)),
-        c2.input(port!(OntologyInput, c1.outcome)),
-        Policy::queue(4),
-    );
-    sys.connect(
-        map.c3.output(port!(MapOutput, c1.pose)),
-        c1.input(port!(StubC1Input, c3.pose)),
-        Policy::Sample,
-    );
-    sys.connect(
-        c1.output(port!(StubC1Output, c3.q_est)),
-        map.c3.input(port!(MapInput, c1.q_est)),
-        Policy::Sample,
-    );
-    sys.connect(
-        e11.output(port!(StubE11Output, e1.tau)),
-        platform.input(port!(PlatformInput, e11.tau)),
-        Policy::Sample,
-    );
-    sys.connect(
-        e11.output(port!(StubE11Output, e1.cmd_E11)),
-        platform.input(port!(PlatformInput, e11.cmd_E11)),
-        Policy::queue(2),
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.imu)),
-        e11.input(port!(StubE11Input, e1.imu)),
-        Policy::Sample,
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.forces)),
-        e11.input(port!(StubE11Input, e1.forces)),
-        Policy::Sample,
-    );
-    sys.connect(
-        platform.output(port!(PlatformOutput, e11.encoders)),
-        e11.input(port!(StubE11Input, e1.encoders)),
-        Policy::Sample,
-    );
-    sys.connect(
-        r11.output(port!(StubR11Output, r1.cmd_R11)),
-        camera.input(port!(CameraInput, r11.cmd_R11)),
-        Policy::queue(2),
-    );
-    sys.connect(
-        camera.output(port!(CameraOutput, r11.img_lr)),
-        r11.input(port!(StubR11Input, r1.img_lr)),
-        Policy::Sample,
-    );
     (
-        sys.build().unwrap(),
+        sys.build().unwrap_or_else(|e| panic!("{e}")),
         Handles {
             c1,
             e11,
@@ -562,7 +414,7 @@ fn the_world_runs_inside_the_framework() {
     }
     // When the motion capture sends a pose it is between `latency` and `latency`
     // plus one of its periods (and the platform's 1 ms step) old.
-    let mocap_period = config.periods.mocap_ms * 1e-3;
+    let mocap_period = spec_period("R3");
     assert!(mocap_ages.len() > 100, "{} poses", mocap_ages.len());
     for &age in &mocap_ages {
         assert!(
@@ -609,8 +461,8 @@ fn no_command_means_no_new_image() {
     let mut exec = Executor::new(system, ExecConfig::default());
     exec.run_for(Duration::from_millis(1000)).unwrap();
     let r = exec.memory(&h.r11).unwrap();
-    let camera_period = config.periods.camera_ms * 1e-3;
-    let platform_step = config.periods.platform_ms * 1e-3;
+    let camera_period = spec_period("R1");
+    let platform_step = spec_period("E1");
     let r11_period = r11_ms as f64 * 1e-3;
     assert_eq!(r.asked.len() as u64, last_ask / every + 1);
     assert_eq!(r.iteration, 200, "r11 kept running after it stopped asking");
@@ -642,7 +494,7 @@ fn no_command_means_no_new_image() {
         last_arrival < 0.5,
         "the last pair came soon after it was asked for, at {last_arrival} s"
     );
-    assert!(!exec.input(&h.r11).unwrap().r1.img_lr.is_new());
+    assert!(!exec.input(&h.r11).unwrap().R1.img_lr.is_new());
 
     // A pair is exposed after it is asked for and delivered at the camera's next
     // step at the earliest: r11 (reading every 5 ms) sees it more than one camera
@@ -759,7 +611,7 @@ fn the_ontology_sends_the_next_plan_only_after_the_final_ack() {
         );
         let (received, done) = (received.unwrap(), done.unwrap());
         assert!(
-            done - received > 2.0 * config.periods.c2_ms * 1e-3 - 1e-9,
+            done - received > 2.0 * spec_period("c2") - 1e-9,
             "c2 had time to (wrongly) act on `Received`"
         );
     }

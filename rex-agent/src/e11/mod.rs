@@ -32,9 +32,7 @@ pub mod tracker;
 
 use std::collections::{BTreeSet, VecDeque};
 
-use embodied::{
-    Action, Behaviour, Fsm, FsmBuildError, Group, In, NodeKind, Out, Subsystem, SubsystemKind,
-};
+use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
 pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
 pub use tracker::{Tracker, TrackerKind};
@@ -133,7 +131,7 @@ pub struct EstimState {
 }
 
 /// `e11`'s internal memory.
-#[derive(Debug)]
+#[derive(Debug, Memory)]
 pub struct E11Memory {
     /// `track`.
     pub track: TrackState,
@@ -242,7 +240,8 @@ impl E11Memory {
 }
 
 /// Inputs from `c1`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = Control)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct E11FromC1 {
     /// Map pose.
@@ -256,12 +255,10 @@ pub struct E11FromC1 {
     /// Its notify step.
     pub notify: In<u32>,
 }
-impl Group for E11FromC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// Inputs from the platform.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Group)]
+#[group(peer = RealEffector)]
 pub struct E11FromE1 {
     /// IMU.
     pub imu: In<Imu>,
@@ -270,12 +267,9 @@ pub struct E11FromE1 {
     /// Encoders.
     pub encoders: In<Encoders>,
 }
-impl Group for E11FromE1 {
-    const PEER: NodeKind = NodeKind::RealEffector;
-}
 
 /// `e11`'s input buffers (group names are the peers' names, as in the spec).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Buffers)]
 #[expect(
     non_snake_case,
     reason = "groups are named after their peer component, E1"
@@ -288,7 +282,8 @@ pub struct E11Input {
 }
 
 /// Outputs to `c1`.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = Control)]
 pub struct E11ToC1 {
     /// State estimate.
     pub q_est: Out<State>,
@@ -297,12 +292,10 @@ pub struct E11ToC1 {
     /// How a plan's execution ended.
     pub outcome: Out<PlanOutcome>,
 }
-impl Group for E11ToC1 {
-    const PEER: NodeKind = NodeKind::Control;
-}
 
 /// Outputs to the platform.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Group)]
+#[group(peer = RealEffector)]
 #[expect(non_snake_case, reason = "the paper's buffer names")]
 pub struct E11ToE1 {
     /// Torques.
@@ -310,12 +303,9 @@ pub struct E11ToE1 {
     /// IMU reset.
     pub cmd_E11: Out<ImuCommand>,
 }
-impl Group for E11ToE1 {
-    const PEER: NodeKind = NodeKind::RealEffector;
-}
 
 /// `e11`'s output buffers.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Buffers)]
 #[expect(
     non_snake_case,
     reason = "groups are named after their peer component, E1"
@@ -328,14 +318,9 @@ pub struct E11Output {
 }
 
 /// The virtual effector `e11`.
+#[derive(Subsystem)]
+#[subsystem(kind = VirtualEffector, memory = E11Memory, input = E11Input, output = E11Output)]
 pub struct E11;
-
-impl Subsystem for E11 {
-    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
-    type Memory = E11Memory;
-    type Input = E11Input;
-    type Output = E11Output;
-}
 
 /// Whether `ready` goes out in this iteration: at start, `notify` iterations into
 /// each fragment, and when a stop leaves `e11` idle.
@@ -504,7 +489,11 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
 }
 
 /// `eE`: torques and the IMU reset to the platform.
-pub fn ee_to_platform(m: &E11Memory, x: &E11Input, y: &mut E11ToE1) {
+#[expect(
+    non_snake_case,
+    reason = "the paper's name: the target is a real device"
+)]
+pub fn eE(m: &E11Memory, x: &E11Input, y: &mut E11ToE1) {
     y.tau.set(m.tau);
     if let Some(yaw) = reset_imu(m, x) {
         y.cmd_E11.set(ImuCommand::Reset { yaw });
@@ -599,7 +588,7 @@ pub fn e11_fsm() -> Result<Fsm<E11>, FsmBuildError> {
         "track",
         Action::<E11>::new()
             .common(ee_estimate_track)
-            .output(|y| &mut y.E1, ee_to_platform)
+            .output(|y| &mut y.E1, eE)
             .output(|y| &mut y.c1, ec)
             .memory(ee_steps),
         "false",

@@ -1,0 +1,388 @@
+//! From a spec to a system: the components of one deployment, each in the agent,
+//! with the kind and the period the spec gives it, linked as the spec's links say.
+//!
+//! The spec is the one place where the structure is written. Code supplies what a
+//! spec cannot hold, the memory's initial values, the FSM's functions and the
+//! drivers, and an [`Assembly`] puts them where the spec says:
+//!
+//! ```text
+//! let spec = embodied::spec::load_checked("specs/rex.ron")?;
+//! let mut rex = Assembly::new(&spec, "simulation")?;
+//! let c1 = rex.subsystem::<C1>("c1", memory, c1_fsm()?)?;   // agent a1, 10 ms, as in the spec
+//! let e1 = rex.driver("E1", platform)?;
+//! if rex.runs("r11") { /* the deployment runs visual odometry */ }
+//! let system = rex.build()?;                                 // every link of the spec
+//! ```
+//!
+//! A component the spec does not declare, one of another kind, one the deployment
+//! does not run, a deployed component that was not added, and a link whose buffer
+//! the code does not have (or has with another type) are errors that name it: the
+//! spec and the code cannot drift apart silently. [`wire`] links the components of
+//! a [`SystemBuilder`] assembled by hand.
+
+use std::collections::HashMap;
+
+use agent_core::{
+    AgentId, BuildError, Driver, DriverHandle, Fsm, Period, PeriodError, Policy, Subsystem,
+    SubsystemHandle, System, SystemBuilder,
+};
+
+use crate::model::{self, Deployment, Spec};
+
+/// Why a system could not be assembled from a spec.
+#[derive(Debug, thiserror::Error)]
+pub enum AssemblyError {
+    /// The spec has no such deployment.
+    #[error("spec `{spec}` has no deployment `{name}` (it has: {known})")]
+    UnknownDeployment {
+        /// The spec's name.
+        spec: String,
+        /// The deployment asked for.
+        name: String,
+        /// The deployments it has.
+        known: String,
+    },
+    /// The spec declares no such component.
+    #[error("spec `{spec}` declares no component `{name}`{hint}")]
+    NotInSpec {
+        /// The spec's name.
+        spec: String,
+        /// The component.
+        name: String,
+        /// `; did you mean ...?`, or empty.
+        hint: String,
+    },
+    /// The deployment does not run the component.
+    #[error(
+        "deployment `{deployment}` does not run `{name}` (it runs: {runs}); ask `Assembly::runs` first"
+    )]
+    NotDeployed {
+        /// The deployment.
+        deployment: String,
+        /// The component.
+        name: String,
+        /// What it runs.
+        runs: String,
+    },
+    /// The code's component is not of the kind the spec declares.
+    #[error("`{name}` is a {spec} in the spec, but `{ty}` is a {code}")]
+    Kind {
+        /// The component.
+        name: String,
+        /// The kind in the spec.
+        spec: agent_core::NodeKind,
+        /// The Rust type.
+        ty: &'static str,
+        /// Its kind.
+        code: agent_core::NodeKind,
+    },
+    /// A component added twice.
+    #[error("`{0}` is added twice")]
+    Twice(String),
+    /// The spec's period cannot run.
+    #[error("the period of `{name}` in the spec: {source}")]
+    Period {
+        /// The component.
+        name: String,
+        /// Why.
+        #[source]
+        source: PeriodError,
+    },
+    /// Components missing, links that could not be made, or a malformed system.
+    #[error("the system does not follow the spec:{}", list(.problems))]
+    Build {
+        /// Every problem, one per line.
+        problems: Vec<String>,
+    },
+}
+
+fn list(problems: &[String]) -> String {
+    problems.iter().map(|p| format!("\n  - {p}")).collect()
+}
+
+/// `comp.group.buffer` of a spec link as `(comp, group.buffer)`.
+fn split_end(end: &str) -> Option<(&str, &str)> {
+    let (component, path) = end.split_once('.')?;
+    Some((component, path))
+}
+
+fn policy(p: model::Policy) -> Policy {
+    match p {
+        model::Policy::Sample => Policy::Sample,
+        model::Policy::Queue(bound) => Policy::queue(bound),
+    }
+}
+
+/// Link the components of `builder` as the links of `spec` say: every link whose
+/// two ends are components of `builder` is made (by name, checked against the
+/// buffers' types); links to components `builder` does not have are left out.
+/// Returns how many links were made; problems are [`SystemBuilder::build`]'s.
+pub fn wire(builder: &mut SystemBuilder, spec: &Spec) -> usize {
+    let mut made = 0;
+    for link in &spec.links {
+        let (Some((src, out)), Some((dst, inp))) = (split_end(&link.from), split_end(&link.to))
+        else {
+            continue; // the checker refuses such a spec
+        };
+        if builder.node(src).is_none() || builder.node(dst).is_none() {
+            continue;
+        }
+        if builder
+            .connect_named(src, out, dst, inp, policy(link.policy))
+            .is_some()
+        {
+            made += 1;
+        }
+    }
+    made
+}
+
+/// What a component of the spec is.
+#[derive(Clone, Copy)]
+struct Declared<'s> {
+    agent: &'s str,
+    kind: agent_core::NodeKind,
+    period_ms: f64,
+}
+
+/// A system being assembled as a spec's deployment says. See the [module](self).
+pub struct Assembly<'s> {
+    spec: &'s Spec,
+    deployment: Option<&'s Deployment>,
+    declared: HashMap<&'s str, Declared<'s>>,
+    runs: Vec<&'s str>,
+    builder: SystemBuilder,
+    agents: HashMap<&'s str, AgentId>,
+    periods: HashMap<String, Period>,
+}
+
+impl std::fmt::Debug for Assembly<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Assembly")
+            .field("spec", &self.spec.name)
+            .field("deployment", &self.deployment.map(|d| &d.name))
+            .field("runs", &self.runs)
+            .finish()
+    }
+}
+
+impl<'s> Assembly<'s> {
+    /// The components that deployment `name` of `spec` runs (on any host and in any
+    /// process).
+    pub fn new(spec: &'s Spec, name: &str) -> Result<Assembly<'s>, AssemblyError> {
+        let Some(deployment) = spec.deployments.iter().find(|d| d.name == name) else {
+            return Err(AssemblyError::UnknownDeployment {
+                spec: spec.name.clone(),
+                name: name.to_owned(),
+                known: spec
+                    .deployments
+                    .iter()
+                    .map(|d| d.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        };
+        let runs = deployment
+            .hosts
+            .iter()
+            .flat_map(|h| &h.processes)
+            .flat_map(|p| &p.runs)
+            .map(String::as_str)
+            .collect();
+        Ok(Assembly::with(spec, Some(deployment), runs))
+    }
+
+    /// Every component of `spec` (a spec without deployments).
+    pub fn all(spec: &'s Spec) -> Assembly<'s> {
+        let runs = spec
+            .agents
+            .iter()
+            .flat_map(|a| {
+                a.subsystems
+                    .iter()
+                    .map(|s| s.name.as_str())
+                    .chain(a.devices.iter().map(|d| d.name.as_str()))
+            })
+            .collect();
+        Assembly::with(spec, None, runs)
+    }
+
+    fn with(spec: &'s Spec, deployment: Option<&'s Deployment>, runs: Vec<&'s str>) -> Self {
+        let mut declared = HashMap::new();
+        for a in &spec.agents {
+            for s in &a.subsystems {
+                let kind = match s.kind {
+                    model::SubsystemKind::Control => agent_core::NodeKind::Control,
+                    model::SubsystemKind::VirtualEffector => agent_core::NodeKind::VirtualEffector,
+                    model::SubsystemKind::VirtualReceptor => agent_core::NodeKind::VirtualReceptor,
+                };
+                declared.insert(
+                    s.name.as_str(),
+                    Declared {
+                        agent: &a.name,
+                        kind,
+                        period_ms: s.period_ms,
+                    },
+                );
+            }
+            for d in &a.devices {
+                let kind = match d.kind {
+                    model::DeviceKind::Effector => agent_core::NodeKind::RealEffector,
+                    model::DeviceKind::Receptor => agent_core::NodeKind::RealReceptor,
+                };
+                declared.insert(
+                    d.name.as_str(),
+                    Declared {
+                        agent: &a.name,
+                        kind,
+                        period_ms: d.period_ms,
+                    },
+                );
+            }
+        }
+        Assembly {
+            spec,
+            deployment,
+            declared,
+            runs,
+            builder: SystemBuilder::new(),
+            agents: HashMap::new(),
+            periods: HashMap::new(),
+        }
+    }
+
+    /// Whether the deployment runs component `name`.
+    pub fn runs(&self, name: &str) -> bool {
+        self.runs.contains(&name)
+    }
+
+    /// The components the deployment runs, in the order the spec's deployment
+    /// lists them.
+    pub fn components(&self) -> &[&'s str] {
+        &self.runs
+    }
+
+    /// The spec.
+    pub fn spec(&self) -> &'s Spec {
+        self.spec
+    }
+
+    /// Run component `name` every `period` instead of the spec's period: for test
+    /// harnesses that vary a rate. The built system then differs from the spec in
+    /// that period (its exported structure says so).
+    pub fn set_period(&mut self, name: &str, period: Period) -> Result<(), AssemblyError> {
+        self.declared(name)?;
+        self.periods.insert(name.to_owned(), period);
+        Ok(())
+    }
+
+    /// The period component `name` runs at: the spec's, unless
+    /// [`Assembly::set_period`] changed it.
+    pub fn period(&self, name: &str) -> Result<Period, AssemblyError> {
+        let declared = self.declared(name)?;
+        if let Some(&period) = self.periods.get(name) {
+            return Ok(period);
+        }
+        Period::from_millis_f64(declared.period_ms).map_err(|source| AssemblyError::Period {
+            name: name.to_owned(),
+            source,
+        })
+    }
+
+    fn declared(&self, name: &str) -> Result<Declared<'s>, AssemblyError> {
+        self.declared
+            .get(name)
+            .copied()
+            .ok_or_else(|| AssemblyError::NotInSpec {
+                spec: self.spec.name.clone(),
+                name: name.to_owned(),
+                hint: crate::names::did_you_mean(name, self.declared.keys().copied())
+                    .map_or_else(String::new, |m| format!("; did you mean `{m}`?")),
+            })
+    }
+
+    /// Where component `name` goes: its agent and period, after checking that the
+    /// spec declares it with `kind` and the deployment runs it.
+    fn place(
+        &mut self,
+        name: &str,
+        kind: agent_core::NodeKind,
+        ty: &'static str,
+    ) -> Result<(AgentId, Period), AssemblyError> {
+        let declared = self.declared(name)?;
+        if declared.kind != kind {
+            return Err(AssemblyError::Kind {
+                name: name.to_owned(),
+                spec: declared.kind,
+                ty,
+                code: kind,
+            });
+        }
+        if !self.runs(name) {
+            return Err(AssemblyError::NotDeployed {
+                deployment: self.deployment.map_or_else(String::new, |d| d.name.clone()),
+                name: name.to_owned(),
+                runs: self.runs.join(", "),
+            });
+        }
+        if self.builder.node(name).is_some() {
+            return Err(AssemblyError::Twice(name.to_owned()));
+        }
+        let period = self.period(name)?;
+        let builder = &mut self.builder;
+        let agent = *self
+            .agents
+            .entry(declared.agent)
+            .or_insert_with(|| builder.agent(declared.agent));
+        Ok((agent, period))
+    }
+
+    /// Add subsystem `name` with its initial memory and FSM, in the agent and with
+    /// the period of the spec.
+    pub fn subsystem<S: Subsystem>(
+        &mut self,
+        name: &str,
+        memory: S::Memory,
+        fsm: Fsm<S>,
+    ) -> Result<SubsystemHandle<S>, AssemblyError> {
+        let (agent, period) = self.place(name, S::KIND.into(), std::any::type_name::<S>())?;
+        Ok(self.builder.subsystem(agent, name, period, memory, fsm))
+    }
+
+    /// Add driver `name` (a real effector or receptor), in the agent and with the
+    /// period of the spec.
+    pub fn driver<D: Driver>(
+        &mut self,
+        name: &str,
+        driver: D,
+    ) -> Result<DriverHandle<D>, AssemblyError> {
+        let (agent, period) = self.place(name, D::KIND.into(), std::any::type_name::<D>())?;
+        Ok(self.builder.driver(agent, name, period, driver))
+    }
+
+    /// Link the components as the spec says and build the system: every component
+    /// the deployment runs must have been added, and every link between them is made.
+    pub fn build(mut self) -> Result<System, AssemblyError> {
+        let mut problems: Vec<String> = self
+            .runs
+            .iter()
+            .filter(|name| self.builder.node(name).is_none())
+            .map(|name| {
+                format!(
+                    "`{name}` is run by the deployment{} but was not added",
+                    self.deployment
+                        .map_or_else(String::new, |d| format!(" `{}`", d.name))
+                )
+            })
+            .collect();
+        wire(&mut self.builder, self.spec);
+        match self.builder.build() {
+            Ok(system) if problems.is_empty() => Ok(system),
+            Ok(_) => Err(AssemblyError::Build { problems }),
+            Err(BuildError { problems: more }) => {
+                problems.extend(more.iter().map(ToString::to_string));
+                Err(AssemblyError::Build { problems })
+            }
+        }
+    }
+}
