@@ -182,13 +182,7 @@ impl<'s> Assembly<'s> {
                     .join(", "),
             });
         };
-        let runs = deployment
-            .hosts
-            .iter()
-            .flat_map(|h| &h.processes)
-            .flat_map(|p| &p.runs)
-            .map(String::as_str)
-            .collect();
+        let runs = deployment.runs().collect();
         Ok(Assembly::with(spec, Some(deployment), runs))
     }
 

@@ -390,6 +390,17 @@ impl Spec {
     }
 }
 
+impl Deployment {
+    /// The components it runs, on every host and in every process, in order.
+    pub fn runs(&self) -> impl Iterator<Item = &str> {
+        self.hosts
+            .iter()
+            .flat_map(|h| &h.processes)
+            .flat_map(|p| &p.runs)
+            .map(String::as_str)
+    }
+}
+
 impl Subsystem {
     /// The function called `name`.
     pub fn function(&self, name: &str) -> Option<&Function> {

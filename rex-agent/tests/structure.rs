@@ -28,13 +28,7 @@ use rex_agent::world::WorldConfig;
 /// links that reach them, without deployments.
 fn deployed(spec: &Spec, name: &str) -> Spec {
     let deployment = spec.deployments.iter().find(|d| d.name == name).unwrap();
-    let runs: Vec<&str> = deployment
-        .hosts
-        .iter()
-        .flat_map(|h| &h.processes)
-        .flat_map(|p| &p.runs)
-        .map(String::as_str)
-        .collect();
+    let runs: Vec<&str> = deployment.runs().collect();
     let mut out = spec.clone();
     for a in &mut out.agents {
         a.subsystems.retain(|s| runs.contains(&s.name.as_str()));
