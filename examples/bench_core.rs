@@ -470,7 +470,7 @@ fn fsm_batch<S: Subsystem<Input = ()>>(
     state: &mut FsmState,
     memory: &mut S::Memory,
     bump: fn(&mut S::Memory),
-) -> Result<f64, FsmFault> {
+) -> Result<f64, FsmError> {
     let start = Instant::now();
     for _ in 0..BATCH {
         bump(memory);

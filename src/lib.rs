@@ -11,5 +11,12 @@ pub use agent_core::*;
 /// The derives and the `fsm!` and `agent!` macros (the `agent-macros` crate).
 pub use agent_macros::{Buffers, Group, Memory, Subsystem, agent, fsm};
 
+/// What writing and running an agent needs, in one import: agent-core's
+/// [`prelude`](agent_core::prelude), the derives and the `fsm!` and `agent!` macros.
+pub mod prelude {
+    pub use agent_core::prelude::*;
+    pub use agent_macros::{Buffers, Group, Memory, Subsystem, agent, fsm};
+}
+
 /// RON specifications: schema, checker, diagrams (the `agent-spec` crate).
 pub use agent_spec as spec;

@@ -4,40 +4,9 @@
 use std::borrow::Cow;
 use std::fmt;
 
+use crate::kinds::BehaviourKind;
 use crate::subsystem::Subsystem;
 use crate::transition::Action;
-
-/// The two behaviour patterns of the paper.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BehaviourKind {
-    /// Algorithm 2: `while f^τ = false do A`. The terminal condition is tested before
-    /// every iteration, including the first, so the action may run zero times.
-    While,
-    /// Algorithm 3: `repeat A until f^τ = true`. The action runs at least once; the
-    /// condition is tested after each iteration (on the inputs read at its end).
-    Repeat,
-}
-
-impl fmt::Display for BehaviourKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            BehaviourKind::While => "while",
-            BehaviourKind::Repeat => "repeat",
-        })
-    }
-}
-
-impl BehaviourKind {
-    /// Whether the terminal condition is tested now: always for `While`; for
-    /// `Repeat` only once at least one action of this activation of the behaviour ran.
-    #[inline]
-    pub fn tests_terminal(self, actions_done: bool) -> bool {
-        match self {
-            BehaviourKind::While => true,
-            BehaviourKind::Repeat => actions_done,
-        }
-    }
-}
 
 /// A behaviour `B_{j,m}(f_{j,m}, f^τ_{j,m})`: a named loop of one elementary action
 /// with a terminal condition.

@@ -15,6 +15,8 @@ use std::fmt;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
+use crate::error::BufferError;
+use crate::kinds::NodeKind;
 use crate::time::Stamp;
 
 /// What may travel through a buffer.
@@ -25,46 +27,6 @@ use crate::time::Stamp;
 pub trait Payload: Clone + fmt::Debug + Serialize + DeserializeOwned + Send + 'static {}
 
 impl<T> Payload for T where T: Clone + fmt::Debug + Serialize + DeserializeOwned + Send + 'static {}
-
-/// The five kinds of components of an embodied agent.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum NodeKind {
-    /// Control subsystem `c_j`.
-    Control,
-    /// Virtual effector `e_{j,n}`.
-    VirtualEffector,
-    /// Virtual receptor `r_{j,k}`.
-    VirtualReceptor,
-    /// Real effector `E_j` (hardware or simulator driver).
-    RealEffector,
-    /// Real receptor `R_j` (hardware or simulator driver).
-    RealReceptor,
-}
-
-impl NodeKind {
-    /// The paper's symbol for the kind: `c`, `e`, `r`, `E` or `R`.
-    pub const fn symbol(self) -> &'static str {
-        match self {
-            NodeKind::Control => "c",
-            NodeKind::VirtualEffector => "e",
-            NodeKind::VirtualReceptor => "r",
-            NodeKind::RealEffector => "E",
-            NodeKind::RealReceptor => "R",
-        }
-    }
-}
-
-impl fmt::Display for NodeKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            NodeKind::Control => "control subsystem",
-            NodeKind::VirtualEffector => "virtual effector",
-            NodeKind::VirtualReceptor => "virtual receptor",
-            NodeKind::RealEffector => "real effector",
-            NodeKind::RealReceptor => "real receptor",
-        })
-    }
-}
 
 /// A group of buffers connected to one peer: the paper's leading superscript.
 ///
@@ -97,17 +59,6 @@ pub trait Group: Send + 'static {
         let _ = (group_name, group, buffer);
         None
     }
-}
-
-/// An error reading a buffer.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum BufferError {
-    /// The input buffer has never received a value, but the behaviour needs one.
-    #[error("input buffer `{buffer}` has not received any data yet")]
-    NoData {
-        /// Name of the buffer (as given to the link that feeds it).
-        buffer: Cow<'static, str>,
-    },
 }
 
 /// An input buffer: the latest value received, whether it is new, and its stamp.

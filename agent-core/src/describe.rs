@@ -19,7 +19,8 @@
 
 use std::fmt;
 
-use crate::buffer::{In, NodeKind, Out};
+use crate::buffer::{In, Out};
+use crate::kinds::NodeKind;
 use crate::link::BufferPort;
 
 /// A memory field or a buffer: its name and its Rust type as written in the source.

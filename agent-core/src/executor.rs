@@ -27,72 +27,13 @@
 
 use std::time::Duration;
 
-use crate::fsm::FsmFault;
-use crate::link::{Channels, LinkCx, LinkError, LinkId, LinkStats};
-use crate::node::{DriverCore, Instance, Local, LocalNode, NodeStep};
-use crate::subsystem::{Driver, DriverError, Subsystem};
+use crate::error::ExecError;
+use crate::link::{Channels, LinkCx, LinkId, LinkStats};
+use crate::node::{DriverCore, InProcess, LocalNode, NodeStep, SubsystemCore};
+use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
 use crate::trace::{NoObserver, Observer, SystemInfo};
-use crate::transition::ActionError;
-
-/// A subsystem's FSM violated its contract at run time.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("subsystem `{subsystem}`, iteration {iteration} at {time}: {fault}")]
-pub struct FsmError {
-    /// The subsystem.
-    pub subsystem: String,
-    /// Its iteration when the decision failed.
-    pub iteration: u64,
-    /// Virtual time.
-    pub time: Time,
-    /// What went wrong (which behaviour, which arcs, the predicate values).
-    pub fault: FsmFault,
-}
-
-/// An error during a run.
-#[derive(Debug, thiserror::Error)]
-pub enum ExecError {
-    /// An FSM found no arc or several arcs, or looped without acting.
-    #[error(transparent)]
-    Fsm(#[from] FsmError),
-    /// A transition function failed; nothing it wrote was sent.
-    #[error(
-        "subsystem `{subsystem}`, behaviour `{behaviour}`, iteration {iteration} at {time}: {source}"
-    )]
-    Action {
-        /// The subsystem.
-        subsystem: String,
-        /// The behaviour whose action failed.
-        behaviour: String,
-        /// The iteration.
-        iteration: u64,
-        /// Virtual time.
-        time: Time,
-        /// The error.
-        #[source]
-        source: ActionError,
-    },
-    /// A link refused a value (a full queue).
-    #[error(transparent)]
-    Link(#[from] LinkError),
-    /// A driver failed; nothing it wrote was sent.
-    #[error("driver `{driver}`, iteration {iteration} at {time}: {source}")]
-    Driver {
-        /// The driver.
-        driver: String,
-        /// Its iteration.
-        iteration: u64,
-        /// Virtual time.
-        time: Time,
-        /// The error.
-        #[source]
-        source: DriverError,
-    },
-    /// The executor stopped on an earlier error (with [`OnError::Stop`]).
-    #[error("the executor stopped after an error; build a new executor to run again")]
-    Stopped,
-}
 
 /// What the executor does when a node reports an error.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -325,7 +266,7 @@ impl<O: Observer> Executor<O> {
                 Err(e)
             }
             OnError::Continue => {
-                if matches!(e, ExecError::Fsm(_)) {
+                if matches!(&e, ExecError::Fsm { error, .. } if error.is_contract_violation()) {
                     self.nodes[i].halt();
                     self.next[i] = u64::MAX;
                 } else {
@@ -360,10 +301,10 @@ impl<O: Observer> Executor<O> {
         self.run_until(self.now.saturating_add(duration))
     }
 
-    fn instance<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&Instance<S>> {
+    fn instance<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&SubsystemCore<S>> {
         let node = self.nodes.get(h.id().index())?;
         node.as_any()
-            .downcast_ref::<Local<Instance<S>>>()
+            .downcast_ref::<InProcess<SubsystemCore<S>>>()
             .map(|l| &l.core)
     }
 
@@ -397,7 +338,7 @@ impl<O: Observer> Executor<O> {
     pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
         let node = self.nodes.get(h.id().index())?;
         node.as_any()
-            .downcast_ref::<Local<DriverCore<D>>>()
+            .downcast_ref::<InProcess<DriverCore<D>>>()
             .map(|d| &d.core.driver)
     }
 
@@ -405,7 +346,7 @@ impl<O: Observer> Executor<O> {
     pub fn driver_mut<D: Driver>(&mut self, h: &DriverHandle<D>) -> Option<&mut D> {
         let node = self.nodes.get_mut(h.id().index())?;
         node.as_any_mut()
-            .downcast_mut::<Local<DriverCore<D>>>()
+            .downcast_mut::<InProcess<DriverCore<D>>>()
             .map(|d| &mut d.core.driver)
     }
 

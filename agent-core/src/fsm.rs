@@ -3,7 +3,7 @@
 //!
 //! When the current behaviour's terminal condition holds, exactly one outgoing arc's
 //! initial condition must hold; the FSM follows it and the target behaviour starts in
-//! the same activation. No arc or several arcs holding is an [`FsmFault`], returned
+//! the same activation. No arc or several arcs holding is an [`FsmError`], returned
 //! with the predicate values that caused it: never a panic and never a silent choice.
 //! Conditions are Boolean [`Expr`]essions over named predicates, each predicate
 //! evaluated at most once per decision.
@@ -12,10 +12,12 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fmt;
 
-use crate::behaviour::{Behaviour, BehaviourKind};
-use crate::expr::{Expr, ExprError};
+use crate::behaviour::Behaviour;
+use crate::error::{FsmBuildError, FsmError, FsmProblem};
+use crate::expr::Expr;
+use crate::kinds::BehaviourKind;
 use crate::subsystem::Subsystem;
-use crate::transition::{ActionError, Part};
+use crate::transition::Part;
 
 type PredicateFn<S> =
     Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
@@ -41,8 +43,10 @@ impl<S: Subsystem> Predicate<S> {
 
 /// A fact about predicates that the FSM's arcs rely on: the arc proof of the spec
 /// checker (and of the `fsm!` macro) assumes it. The runtime does not: an arc choice
-/// that a false relation makes ambiguous is still caught as an [`FsmFault`].
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// that a false relation makes ambiguous is still caught as an [`FsmError`].
+///
+/// In a spec (RON): `Exclusive(["a", "b"])`, `Implies("a", "b")`.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Relation {
     /// At most one of these predicates holds at a time.
     Exclusive(Vec<Cow<'static, str>>),
@@ -94,7 +98,7 @@ pub struct FsmShape {
 
 /// An arc of the FSM.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Arc {
+pub struct FsmArc {
     /// Index of the source behaviour.
     pub from: usize,
     /// Index of the target behaviour.
@@ -110,89 +114,8 @@ struct Node<S: Subsystem> {
     terminal: Expr<usize>,
     /// The terminal condition is the constant `false`: the behaviour never ends.
     never_ends: bool,
-    arcs: Vec<Arc>,
+    arcs: Vec<FsmArc>,
     is_final: bool,
-}
-
-/// A problem found while building an FSM.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum FsmProblem {
-    /// The FSM has no behaviour.
-    #[error("the FSM has no behaviour")]
-    Empty,
-    /// Two behaviours have the same name.
-    #[error("behaviour `{0}` is defined twice")]
-    DuplicateBehaviour(String),
-    /// Two predicates have the same name.
-    #[error("predicate `{0}` is defined twice")]
-    DuplicatePredicate(String),
-    /// No initial behaviour was named.
-    #[error("no initial behaviour: call `initial(name)`")]
-    NoInitial,
-    /// An arc, the initial node or a final declaration names an unknown behaviour.
-    #[error("{place} names behaviour `{name}`, which is not defined")]
-    UnknownBehaviour {
-        /// Where the name appears.
-        place: String,
-        /// The unknown name.
-        name: String,
-    },
-    /// A condition does not parse.
-    #[error("{place}: {error}")]
-    Syntax {
-        /// Which condition.
-        place: String,
-        /// The syntax error.
-        error: ExprError,
-    },
-    /// A condition names an undeclared predicate.
-    #[error("{place} uses predicate `{name}`, which is not declared")]
-    UnknownPredicate {
-        /// Which condition.
-        place: String,
-        /// The unknown predicate.
-        name: String,
-    },
-    /// A behaviour cannot be reached from the initial behaviour.
-    #[error("behaviour `{0}` cannot be reached from the initial behaviour")]
-    Unreachable(String),
-    /// A behaviour can end but has no outgoing arc and is not declared final.
-    #[error(
-        "behaviour `{0}` can end (its terminal condition is not `false`) but has no outgoing arc; add an arc or declare it final"
-    )]
-    NoWayOut(String),
-    /// A behaviour declared final also has outgoing arcs.
-    #[error("behaviour `{0}` is declared final but has outgoing arcs")]
-    FinalWithArcs(String),
-    /// The action of a behaviour is malformed (for instance two parts write one target).
-    #[error("behaviour `{behaviour}`: {message}")]
-    Action {
-        /// The behaviour.
-        behaviour: String,
-        /// What is wrong with its action.
-        message: String,
-    },
-}
-
-/// Every problem found while building an FSM.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub struct FsmBuildError {
-    /// The problems, in the order found.
-    pub problems: Vec<FsmProblem>,
-}
-
-impl fmt::Display for FsmBuildError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "the FSM is malformed ({} problem", self.problems.len())?;
-        if self.problems.len() != 1 {
-            f.write_str("s")?;
-        }
-        f.write_str("):")?;
-        for p in &self.problems {
-            write!(f, "\n  - {p}")?;
-        }
-        Ok(())
-    }
 }
 
 /// Builds an [`Fsm`]; [`FsmBuilder::build`] checks it and reports every problem at once.
@@ -333,7 +256,7 @@ impl<S: Subsystem> FsmBuilder<S> {
                 )
             })
             .collect();
-        let mut arcs: Vec<Vec<Arc>> = self.behaviours.iter().map(|_| Vec::new()).collect();
+        let mut arcs: Vec<Vec<FsmArc>> = self.behaviours.iter().map(|_| Vec::new()).collect();
         for (from, to, cond) in &self.arcs {
             let place = format!("arc `{from}` -> `{to}`");
             let f = index.get(from.as_ref()).copied();
@@ -353,7 +276,7 @@ impl<S: Subsystem> FsmBuilder<S> {
                 cond,
             );
             if let (Some(f), Some(t), Some(condition)) = (f, t, condition) {
-                arcs[f].push(Arc {
+                arcs[f].push(FsmArc {
                     from: f,
                     to: t,
                     condition,
@@ -537,48 +460,6 @@ pub enum Step {
     Finished,
 }
 
-/// A run-time violation of the FSM's contract.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum FsmFault {
-    /// The behaviour ended but no outgoing arc's initial condition holds.
-    #[error(
-        "behaviour `{behaviour}` ended but none of its arcs holds ({arcs}); predicates: {assignment}"
-    )]
-    NoArcHolds {
-        /// The behaviour that ended.
-        behaviour: String,
-        /// Its arcs, as `-> target [condition]`.
-        arcs: String,
-        /// The value of every predicate at that moment.
-        assignment: String,
-    },
-    /// The behaviour ended and several arcs' initial conditions hold.
-    #[error(
-        "behaviour `{behaviour}` ended and {count} arcs hold at once ({held}); predicates: {assignment}"
-    )]
-    SeveralArcsHold {
-        /// The behaviour that ended.
-        behaviour: String,
-        /// How many arcs hold.
-        count: usize,
-        /// The arcs that hold, as `-> target [condition]`.
-        held: String,
-        /// The value of every predicate at that moment.
-        assignment: String,
-    },
-    /// Behaviours keep ending and starting without any action: a cycle of
-    /// while-behaviours whose terminal conditions hold at once.
-    #[error("livelock: {transitions} transitions without an action, from `{from}` through {path}")]
-    Livelock {
-        /// The behaviour the activation started in.
-        from: String,
-        /// Transitions made.
-        transitions: usize,
-        /// The behaviours entered, in order.
-        path: String,
-    },
-}
-
 /// What one activation of a subsystem did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Activated {
@@ -589,23 +470,6 @@ pub enum Activated {
     },
     /// The FSM is halted (it ended in a final behaviour); nothing ran.
     Halted,
-}
-
-/// Why an activation failed.
-#[derive(Debug, thiserror::Error)]
-pub enum ActivationError {
-    /// The FSM's contract was violated.
-    #[error(transparent)]
-    Fsm(#[from] FsmFault),
-    /// The action of the current behaviour failed.
-    #[error("the action of behaviour `{behaviour}` failed: {source}")]
-    Action {
-        /// The behaviour.
-        behaviour: String,
-        /// The error.
-        #[source]
-        source: ActionError,
-    },
 }
 
 /// Memo of predicate values within one decision (up to 64 predicates are cached;
@@ -709,7 +573,7 @@ impl<S: Subsystem> Fsm<S> {
     }
 
     /// The arcs leaving behaviour `index`.
-    pub fn arcs(&self, index: usize) -> &[Arc] {
+    pub fn arcs(&self, index: usize) -> &[FsmArc] {
         self.nodes.get(index).map_or(&[], |n| &n.arcs)
     }
 
@@ -798,7 +662,7 @@ impl<S: Subsystem> Fsm<S> {
         }
     }
 
-    fn arc_label(&self, a: &Arc) -> String {
+    fn arc_label(&self, a: &FsmArc) -> String {
         format!("-> {} [{}]", self.behaviour_name(a.to), a.text)
     }
 
@@ -835,7 +699,7 @@ impl<S: Subsystem> Fsm<S> {
         state: &mut FsmState,
         memory: &S::Memory,
         input: &S::Input,
-    ) -> Result<Step, FsmFault> {
+    ) -> Result<Step, FsmError> {
         let from = state.node;
         let mut memo = Memo::default();
         if !self.ends_with(state, memory, input, &mut memo) {
@@ -860,7 +724,7 @@ impl<S: Subsystem> Fsm<S> {
                 state.halted = true;
                 Ok(Step::Finished)
             }
-            (0, _) => Err(FsmFault::NoArcHolds {
+            (0, _) => Err(FsmError::NoArcHolds {
                 behaviour: node.behaviour.name.to_string(),
                 arcs: node
                     .arcs
@@ -870,7 +734,7 @@ impl<S: Subsystem> Fsm<S> {
                     .join(", "),
                 assignment: self.assignment(memory, input),
             }),
-            _ => Err(FsmFault::SeveralArcsHold {
+            _ => Err(FsmError::SeveralArcsHold {
                 behaviour: node.behaviour.name.to_string(),
                 count,
                 held: node
@@ -899,7 +763,7 @@ impl<S: Subsystem> Fsm<S> {
         input: &S::Input,
         output: &mut S::Output,
         mut on_step: impl FnMut(&Step),
-    ) -> Result<Activated, ActivationError> {
+    ) -> Result<Activated, FsmError> {
         if state.halted {
             return Ok(Activated::Halted);
         }
@@ -912,7 +776,7 @@ impl<S: Subsystem> Fsm<S> {
                     on_step(&step);
                     transitions += 1;
                     if transitions >= self.nodes.len() {
-                        return Err(FsmFault::Livelock {
+                        return Err(FsmError::Livelock {
                             from: self.behaviour_name(start).to_owned(),
                             transitions,
                             path: format!("… -> `{}`", self.behaviour_name(state.node)),
@@ -940,7 +804,7 @@ impl<S: Subsystem> Fsm<S> {
         memory: &mut S::Memory,
         input: &S::Input,
         output: &mut S::Output,
-    ) -> Result<Activated, ActivationError> {
+    ) -> Result<Activated, FsmError> {
         if state.halted {
             return Ok(Activated::Halted);
         }
@@ -948,7 +812,7 @@ impl<S: Subsystem> Fsm<S> {
         node.behaviour
             .action
             .compute(memory, input, output)
-            .map_err(|source| ActivationError::Action {
+            .map_err(|source| FsmError::Action {
                 behaviour: node.behaviour.name.to_string(),
                 source,
             })?;
@@ -962,8 +826,8 @@ impl<S: Subsystem> Fsm<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::buffer::{In, NodeKind, Out};
-    use crate::subsystem::SubsystemKind;
+    use crate::buffer::{In, Out};
+    use crate::kinds::{NodeKind, SubsystemKind};
     use crate::transition::{Action, PartTarget};
     use crate::{Group, Stamp, Time};
 
@@ -1132,7 +996,10 @@ mod tests {
         let mut r = fsm.start_at(1).unwrap();
         assert!(!fsm.ends(&r, &3, &x));
         let mut probe = r;
-        assert_eq!(fsm.step(&mut probe, &3, &x), Ok(Step::Run), "step agrees");
+        assert!(
+            matches!(fsm.step(&mut probe, &3, &x), Ok(Step::Run)),
+            "step agrees"
+        );
         let (mut m, mut y) = (3u32, Y::default());
         assert_eq!(
             fsm.act(&mut r, &mut m, &x, &mut y).unwrap(),
@@ -1145,13 +1012,15 @@ mod tests {
         );
         assert!(fsm.ends(&r, &m, &x));
         let mut probe = r;
-        assert_eq!(
-            fsm.step(&mut probe, &m, &x),
-            Ok(Step::Entered {
-                from: 1,
-                arc: 0,
-                to: 2
-            }),
+        assert!(
+            matches!(
+                fsm.step(&mut probe, &m, &x),
+                Ok(Step::Entered {
+                    from: 1,
+                    arc: 0,
+                    to: 2
+                })
+            ),
             "step agrees"
         );
         // A behaviour whose terminal condition is `false` never ends.
@@ -1201,11 +1070,11 @@ mod tests {
                 |_| {},
             )
             .unwrap_err();
-        let ActivationError::Fsm(FsmFault::NoArcHolds {
+        let FsmError::NoArcHolds {
             behaviour,
             arcs,
             assignment,
-        }) = err
+        } = err
         else {
             panic!("expected NoArcHolds, got {err:?}");
         };
@@ -1222,7 +1091,7 @@ mod tests {
                 |_| {},
             )
             .unwrap_err();
-        let ActivationError::Fsm(FsmFault::SeveralArcsHold { count, held, .. }) = err else {
+        let FsmError::SeveralArcsHold { count, held, .. } = err else {
             panic!("expected SeveralArcsHold, got {err:?}");
         };
         assert_eq!((count, held.as_str()), (2, "-> b [go], -> c [stop]"));
@@ -1261,10 +1130,7 @@ mod tests {
             )
             .unwrap_err();
         assert!(
-            matches!(
-                err,
-                ActivationError::Fsm(FsmFault::Livelock { transitions: 2, .. })
-            ),
+            matches!(err, FsmError::Livelock { transitions: 2, .. }),
             "{err:?}"
         );
     }

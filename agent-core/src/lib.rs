@@ -25,9 +25,11 @@
 pub mod behaviour;
 pub mod buffer;
 pub mod describe;
+pub mod error;
 pub mod executor;
 pub mod expr;
 pub mod fsm;
+pub mod kinds;
 pub mod link;
 pub mod names;
 mod node;
@@ -39,32 +41,56 @@ pub mod time;
 pub mod trace;
 pub mod transition;
 
-pub use behaviour::{Behaviour, BehaviourKind};
-pub use buffer::{BufferError, Group, In, NodeKind, Out, Payload};
+pub use behaviour::Behaviour;
+pub use buffer::{Group, In, Out, Payload};
 pub use describe::{Buffers, Direction, Field, Fields, Fresh, GroupShape, PortTable, Shape};
-pub use executor::{ExecConfig, ExecError, Executor, FsmError, OnError, RunReport};
+pub use error::{
+    ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,
+    FsmError, FsmProblem, LinkError,
+};
+pub use executor::{ExecConfig, Executor, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
-    Activated, ActivationError, Arc, BehaviourShape, Fsm, FsmBuildError, FsmBuilder, FsmFault,
-    FsmProblem, FsmShape, FsmState, Predicate, Relation, Step,
+    Activated, BehaviourShape, Fsm, FsmArc, FsmBuilder, FsmShape, FsmState, Predicate, Relation,
+    Step,
 };
-pub use link::{Access, BufferPort, LinkError, LinkId, LinkStats, Policy, Port};
-pub use subsystem::{DeviceKind, Driver, DriverContext, DriverError, Subsystem, SubsystemKind};
+pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
+pub use link::{Access, BufferPort, LinkId, LinkStats, Port};
+pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
-    AgentId, BuildError, BuildProblem, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System,
-    SystemBuilder, structure_violation,
+    AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,
+    structure_violation,
 };
 pub use time::{Period, PeriodError, Stamp, Time};
 pub use trace::{
     ActionEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder, SystemInfo,
     Trace, TraceEvent, TransferEvent, TransitionEvent,
 };
-pub use transition::{Action, ActionError, Outcome, Part, PartTarget};
+pub use transition::{Action, Outcome, Part, PartTarget};
+
+/// What writing and running an agent needs, in one import:
+/// `use agent_core::prelude::*;` (or `use embodied::prelude::*;`, which adds the
+/// derives and the `fsm!` and `agent!` macros).
+///
+/// The prelude holds the formalism's types (subsystems, drivers, buffers, actions,
+/// behaviours, FSMs, the kinds and link policies), the builder and executor of a
+/// system, time, and the errors user code returns. Tracing, description and
+/// introspection types stay in their modules.
+pub mod prelude {
+    pub use crate::port;
+    pub use crate::{
+        Action, ActionError, Behaviour, BehaviourKind, Buffers, DeviceKind, Driver, DriverContext,
+        DriverError, DriverHandle, ExecConfig, ExecError, Executor, Fsm, FsmBuilder, Group, In,
+        NodeKind, OnError, Out, Payload, Period, Policy, PortTable, Shape, Stamp, Subsystem,
+        SubsystemHandle, SubsystemKind, System, SystemBuilder, Time,
+    };
+}
 
 /// Items used by macro-generated code. Not part of the public API.
 #[doc(hidden)]
 pub mod __private {
-    use crate::buffer::{Group, NodeKind};
+    use crate::buffer::Group;
+    use crate::kinds::NodeKind;
 
     /// The peer kind of the group a projection returns (the projection is never called).
     pub fn peer_of<B, G: Group>(_projection: fn(&mut B) -> &mut G) -> NodeKind {

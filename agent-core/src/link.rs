@@ -21,37 +21,11 @@ use std::fmt;
 use std::marker::PhantomData;
 use std::rc::Rc;
 
-use crate::buffer::{In, NodeKind, Out, Payload};
+use crate::buffer::{In, Out, Payload};
+use crate::error::LinkError;
+use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, TransferEvent};
-
-/// How a link delivers values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Policy {
-    /// Latest value wins.
-    Sample,
-    /// Lossless FIFO holding at most `bound` values.
-    Queue {
-        /// Capacity of the queue (at least 1).
-        bound: usize,
-    },
-}
-
-impl Policy {
-    /// A queue of capacity `bound`.
-    pub const fn queue(bound: usize) -> Policy {
-        Policy::Queue { bound }
-    }
-}
-
-impl fmt::Display for Policy {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Policy::Sample => f.write_str("sample"),
-            Policy::Queue { bound } => write!(f, "queue({bound})"),
-        }
-    }
-}
 
 /// Identifies a link of a system (its index in declaration order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -77,25 +51,6 @@ pub struct LinkStats {
     pub overflowed: u64,
     /// Queue policy: the largest number of values waiting at once.
     pub max_pending: usize,
-}
-
-/// A transfer that could not be made.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum LinkError {
-    /// A value was sent into a full queue: the value was not delivered.
-    #[error(
-        "queue link `{link}` is full ({bound} values waiting): the value sent by iteration {iteration} at {time} was refused"
-    )]
-    QueueOverflow {
-        /// The link's name.
-        link: String,
-        /// Its capacity.
-        bound: usize,
-        /// Iteration of the sender.
-        iteration: u64,
-        /// Virtual time of the send.
-        time: Time,
-    },
 }
 
 /// How a [`Port`] reaches its field: a projection from the buffer struct `B` to the

@@ -3,12 +3,12 @@
 //! A [`System`](crate::System) holds every node as a [`NodeSeed`]: its buffers, memory
 //! and FSM (or device), `Send`, without any transport. An executor turns each seed
 //! into its own runtime node by adding the ports of its transport; the deterministic
-//! executor makes a [`Local`] node whose ports share single-threaded channels.
+//! executor makes a [`InProcess`] node whose ports share single-threaded channels.
 
 use std::any::{Any, TypeId};
 
-use crate::executor::{ExecError, FsmError};
-use crate::fsm::{Activated, ActivationError, Fsm, FsmState};
+use crate::error::ExecError;
+use crate::fsm::{Activated, Fsm, FsmState};
 use crate::link::{InPort, LinkCx, OutPort};
 use crate::subsystem::{Driver, DriverContext, Subsystem};
 use crate::time::{Stamp, Time};
@@ -55,7 +55,7 @@ pub(crate) trait LocalNode {
 }
 
 /// What every node has, whatever the transport: buffers and a way to compute.
-pub(crate) trait Core: Send + Sized + 'static {
+pub(crate) trait NodeCore: Send + Sized + 'static {
     type Input: 'static;
     type Output: 'static;
     fn input(&mut self) -> &mut Self::Input;
@@ -73,13 +73,13 @@ pub(crate) trait Core: Send + Sized + 'static {
     fn iteration(&self) -> u64;
 }
 
-impl<C: Core> NodeSeed for C {
+impl<C: NodeCore> NodeSeed for C {
     fn buffer_types(&self) -> (TypeId, TypeId) {
         (TypeId::of::<C::Input>(), TypeId::of::<C::Output>())
     }
 
     fn into_local(self: Box<Self>) -> Box<dyn LocalNode> {
-        Box::new(Local {
+        Box::new(InProcess {
             core: *self,
             ins: Vec::new(),
             outs: Vec::new(),
@@ -88,13 +88,13 @@ impl<C: Core> NodeSeed for C {
 }
 
 /// A node with the ports of the in-process executor.
-pub(crate) struct Local<C: Core> {
+pub(crate) struct InProcess<C: NodeCore> {
     pub(crate) core: C,
     ins: Vec<Box<dyn InPort<C::Input>>>,
     outs: Vec<Box<dyn OutPort<C::Output>>>,
 }
 
-impl<C: Core> LocalNode for Local<C> {
+impl<C: NodeCore> LocalNode for InProcess<C> {
     fn install_out(&mut self, port: Box<dyn Any>) -> bool {
         match port.downcast::<Box<dyn OutPort<C::Output>>>() {
             Ok(p) => {
@@ -178,7 +178,7 @@ impl<C: Core> LocalNode for Local<C> {
 }
 
 /// A subsystem: its buffers, memory and FSM.
-pub(crate) struct Instance<S: Subsystem> {
+pub(crate) struct SubsystemCore<S: Subsystem> {
     pub(crate) info: NodeInfo,
     pub(crate) memory: S::Memory,
     pub(crate) input: S::Input,
@@ -188,9 +188,9 @@ pub(crate) struct Instance<S: Subsystem> {
     pub(crate) iteration: u64,
 }
 
-impl<S: Subsystem> Instance<S> {
+impl<S: Subsystem> SubsystemCore<S> {
     pub(crate) fn new(info: NodeInfo, memory: S::Memory, fsm: Fsm<S>) -> Self {
-        Instance {
+        SubsystemCore {
             info,
             memory,
             input: S::Input::default(),
@@ -202,7 +202,7 @@ impl<S: Subsystem> Instance<S> {
     }
 }
 
-impl<S: Subsystem> Core for Instance<S> {
+impl<S: Subsystem> NodeCore for SubsystemCore<S> {
     type Input = S::Input;
     type Output = S::Output;
 
@@ -253,21 +253,12 @@ impl<S: Subsystem> Core for Instance<S> {
                 Ok(Some(Stamp::new(iteration, now)))
             }
             Ok(Activated::Halted) => Ok(None),
-            Err(ActivationError::Fsm(fault)) => Err(Box::new(ExecError::Fsm(FsmError {
+            Err(error) => Err(Box::new(ExecError::Fsm {
                 subsystem: self.info.name.clone(),
                 iteration,
                 time: now,
-                fault,
-            }))),
-            Err(ActivationError::Action { behaviour, source }) => {
-                Err(Box::new(ExecError::Action {
-                    subsystem: self.info.name.clone(),
-                    behaviour,
-                    iteration,
-                    time: now,
-                    source,
-                }))
-            }
+                error,
+            })),
         }
     }
 
@@ -307,7 +298,7 @@ impl<D: Driver> DriverCore<D> {
     }
 }
 
-impl<D: Driver> Core for DriverCore<D> {
+impl<D: Driver> NodeCore for DriverCore<D> {
     type Input = D::Input;
     type Output = D::Output;
 

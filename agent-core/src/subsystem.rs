@@ -1,51 +1,9 @@
 //! Subsystems (`c`, `e`, `r`) and drivers of real effectors and receptors (`E`, `R`).
 
-use std::fmt;
-
-use crate::buffer::NodeKind;
 use crate::describe::{PortTable, Shape};
+use crate::error::DriverError;
+use crate::kinds::{DeviceKind, SubsystemKind};
 use crate::time::{Period, Time};
-
-/// The kinds of subsystem a user implements with behaviours and an FSM.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SubsystemKind {
-    /// Control subsystem `c_j`: coordinates the agent and talks to other agents.
-    Control,
-    /// Virtual effector `e_{j,n}`: turns the control subsystem's commands into
-    /// commands for the real effectors.
-    VirtualEffector,
-    /// Virtual receptor `r_{j,k}`: turns real receptor readings into concepts the
-    /// control subsystem uses.
-    VirtualReceptor,
-}
-
-impl From<SubsystemKind> for NodeKind {
-    fn from(k: SubsystemKind) -> NodeKind {
-        match k {
-            SubsystemKind::Control => NodeKind::Control,
-            SubsystemKind::VirtualEffector => NodeKind::VirtualEffector,
-            SubsystemKind::VirtualReceptor => NodeKind::VirtualReceptor,
-        }
-    }
-}
-
-/// The kinds of real devices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum DeviceKind {
-    /// Real effector `E_j` (motors, valves, a simulated platform).
-    Effector,
-    /// Real receptor `R_j` (cameras, gauges, a simulated sensor).
-    Receptor,
-}
-
-impl From<DeviceKind> for NodeKind {
-    fn from(k: DeviceKind) -> NodeKind {
-        match k {
-            DeviceKind::Effector => NodeKind::RealEffector,
-            DeviceKind::Receptor => NodeKind::RealReceptor,
-        }
-    }
-}
 
 /// The types that make up one subsystem: its kind, internal memory, input buffers
 /// and output buffers.
@@ -95,27 +53,6 @@ pub struct DriverContext {
     pub iteration: u64,
     /// The driver's period (the time until its next step).
     pub period: Period,
-}
-
-/// A failure of a real device, reported by its driver.
-#[derive(Debug, thiserror::Error)]
-#[error("{message}")]
-pub struct DriverError {
-    /// What went wrong, for a person.
-    pub message: String,
-    /// The underlying error, if any.
-    #[source]
-    pub source: Option<Box<dyn std::error::Error + Send + Sync>>,
-}
-
-impl DriverError {
-    /// A driver error with a message.
-    pub fn new(message: impl fmt::Display) -> DriverError {
-        DriverError {
-            message: message.to_string(),
-            source: None,
-        }
-    }
 }
 
 /// A real effector or receptor: hardware, or a simulator standing in for it.

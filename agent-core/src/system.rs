@@ -17,11 +17,13 @@ use std::collections::HashMap;
 use std::fmt;
 use std::marker::PhantomData;
 
-use crate::buffer::{In, NodeKind, Out, Payload};
+use crate::buffer::{In, Out, Payload};
 use crate::describe::PortTable;
+use crate::error::{BuildError, BuildProblem};
 use crate::fsm::Fsm;
-use crate::link::{Access, BufferPort, ChannelPlan, InPlan, LinkId, OutPlan, Policy, Port};
-use crate::node::{DriverCore, Instance, NodeSeed};
+use crate::kinds::{NodeKind, Policy};
+use crate::link::{Access, BufferPort, ChannelPlan, InPlan, LinkId, OutPlan, Port};
+use crate::node::{DriverCore, NodeSeed, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
 use crate::time::Period;
 use crate::trace::{LinkInfo, NodeInfo, SystemInfo};
@@ -107,137 +109,6 @@ pub struct Source<O, T, A> {
 pub struct Sink<I, T, A> {
     node: usize,
     port: Port<I, In<T>, A>,
-}
-
-/// A problem in a system's composition.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum BuildProblem {
-    /// Two agents have the same name.
-    #[error("agent `{0}` is declared twice")]
-    DuplicateAgent(String),
-    /// A name that is not valid ([`crate::names::check`]).
-    #[error("{what} name `{name}` {problem}")]
-    InvalidName {
-        /// `agent`, `subsystem` or `driver`.
-        what: &'static str,
-        /// The name.
-        name: String,
-        /// Why.
-        problem: crate::names::NameProblem,
-    },
-    /// Two nodes have the same name.
-    #[error("`{0}` is declared twice (subsystem and driver names are unique in a system)")]
-    DuplicateNode(String),
-    /// An id or handle from another builder.
-    #[error("{0} does not belong to this system builder")]
-    ForeignHandle(String),
-    /// An agent without a control subsystem.
-    #[error("agent `{0}` has no control subsystem")]
-    NoControl(String),
-    /// An agent with several control subsystems.
-    #[error("agent `{agent}` has {count} control subsystems ({names}); an agent has exactly one")]
-    SeveralControls {
-        /// The agent.
-        agent: String,
-        /// How many.
-        count: usize,
-        /// Their names.
-        names: String,
-    },
-    /// A link that breaks the agent structure.
-    #[error("link `{link}` breaks the agent structure: {reason}")]
-    Structure {
-        /// The link.
-        link: String,
-        /// Which rule.
-        reason: String,
-    },
-    /// A buffer group declares a peer kind that does not match the linked node.
-    #[error(
-        "link `{link}`: port `{port}` belongs to a group connected to a {declared}, but the other end is a {actual}"
-    )]
-    PeerMismatch {
-        /// The link.
-        link: String,
-        /// The port whose group disagrees.
-        port: String,
-        /// The group's declared peer.
-        declared: NodeKind,
-        /// The kind at the other end.
-        actual: NodeKind,
-    },
-    /// An input buffer fed by two outputs.
-    #[error("input `{input}` is fed by two outputs: `{first}` and `{second}`")]
-    InputFedTwice {
-        /// The input buffer.
-        input: String,
-        /// The first link.
-        first: String,
-        /// The second link.
-        second: String,
-    },
-    /// A queue of capacity zero.
-    #[error("link `{0}` is a queue of capacity 0; a queue holds at least one value")]
-    ZeroQueueBound(String),
-    /// A link by name to a component that was not added.
-    #[error("link `{link}`: no component `{node}` in this system")]
-    UnknownNode {
-        /// The link.
-        link: String,
-        /// The missing component.
-        node: String,
-    },
-    /// A link by name to a component whose buffers cannot be found by name.
-    #[error(
-        "link `{link}`: the buffers of `{node}` cannot be found by name: derive `Subsystem` (or implement `Driver::ports` as `Some(PortTable::of::<Self::Input, Self::Output>())`) with `#[derive(Buffers)]` and `#[derive(Group)]` on its buffer structs"
-    )]
-    NoPorts {
-        /// The link.
-        link: String,
-        /// The component.
-        node: String,
-    },
-    /// A link by name to a buffer the component does not have.
-    #[error("link `{link}`: `{node}` has no {direction} buffer `{buffer}`{known}")]
-    UnknownBuffer {
-        /// The link.
-        link: String,
-        /// The component.
-        node: String,
-        /// `input` or `output`.
-        direction: &'static str,
-        /// The buffer's path.
-        buffer: String,
-        /// The buffers it has, as `" (it has: a.b, c.d)"`, or empty.
-        known: String,
-    },
-    /// A link between buffers of different payload types.
-    #[error("link `{link}` joins an output of type `{from}` to an input of type `{to}`")]
-    TypeMismatch {
-        /// The link.
-        link: String,
-        /// The output's payload type.
-        from: &'static str,
-        /// The input's payload type.
-        to: &'static str,
-    },
-}
-
-/// Every problem found in a system's composition.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub struct BuildError {
-    /// The problems, in the order found.
-    pub problems: Vec<BuildProblem>,
-}
-
-impl fmt::Display for BuildError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "the system is malformed:")?;
-        for p in &self.problems {
-            write!(f, "\n  - {p}")?;
-        }
-        Ok(())
-    }
 }
 
 /// A checked system, ready for an executor.
@@ -370,7 +241,7 @@ impl SystemBuilder {
             shape: S::shape(),
             fsm: Some(fsm.describe()),
         };
-        let node = Box::new(Instance::new(info.clone(), memory, fsm));
+        let node = Box::new(SubsystemCore::new(info.clone(), memory, fsm));
         SubsystemHandle {
             node: self.add_node(agent, info, node, S::ports()),
             _s: PhantomData,

@@ -60,7 +60,8 @@ use std::fmt::{self, Debug, Write as _};
 use proptest::strategy::Strategy;
 use proptest::test_runner::{Config, TestCaseError, TestError, TestRunner};
 
-use crate::fsm::{Activated, ActivationError, Fsm, Step};
+use crate::error::FsmError;
+use crate::fsm::{Activated, Fsm, Step};
 use crate::subsystem::Subsystem;
 
 /// What the rest of the world does to one subsystem's inputs.
@@ -363,7 +364,7 @@ where
         });
         match result {
             Ok(_) => previous = Some(output),
-            Err(ActivationError::Action { behaviour, source }) => {
+            Err(FsmError::Action { behaviour, source }) => {
                 return Err(format!(
                     "the action of behaviour `{behaviour}` failed at ι={iteration}: {source}"
                 ));
@@ -436,7 +437,7 @@ mod tests {
 
     use super::*;
     use crate::behaviour::Behaviour;
-    use crate::subsystem::SubsystemKind;
+    use crate::kinds::SubsystemKind;
     use crate::transition::Action;
 
     struct Counter;

@@ -9,11 +9,11 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::buffer::{NodeKind, Payload};
+use crate::buffer::Payload;
 use crate::describe::Shape;
-use crate::executor::ExecError;
+use crate::error::ExecError;
 use crate::fsm::{FsmShape, Step};
-use crate::link::Policy;
+use crate::kinds::{NodeKind, Policy};
 use crate::time::{Period, Stamp, Time};
 
 /// A value in a buffer, seen through the observer without knowing its type.

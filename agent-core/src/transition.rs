@@ -24,35 +24,10 @@ use std::any::TypeId;
 use std::borrow::Cow;
 use std::fmt;
 
-use crate::buffer::{BufferError, Group, NodeKind};
+use crate::buffer::Group;
+use crate::error::ActionError;
+use crate::kinds::NodeKind;
 use crate::subsystem::Subsystem;
-
-/// Why an elementary action could not complete.
-#[derive(Debug, thiserror::Error)]
-pub enum ActionError {
-    /// A buffer the action needs holds no data.
-    #[error(transparent)]
-    Buffer(#[from] BufferError),
-    /// The transition function refused to compute (bad data, solver failure...).
-    #[error("{0}")]
-    Failed(Cow<'static, str>),
-    /// Any other error raised by user code.
-    #[error(transparent)]
-    Other(Box<dyn std::error::Error + Send + Sync>),
-}
-
-impl ActionError {
-    /// An error with a message.
-    pub fn failed(message: impl Into<Cow<'static, str>>) -> ActionError {
-        ActionError::Failed(message.into())
-    }
-}
-
-impl From<Box<dyn std::error::Error + Send + Sync>> for ActionError {
-    fn from(e: Box<dyn std::error::Error + Send + Sync>) -> Self {
-        ActionError::Other(e)
-    }
-}
 
 /// What a transition function may return: `()` when it cannot fail, or
 /// `Result<(), E>` for any `E` convertible into [`ActionError`].
@@ -474,7 +449,7 @@ pub(crate) fn short_type_name<T: ?Sized>() -> &'static str {
 mod tests {
     use super::*;
     use crate::buffer::{In, Out};
-    use crate::subsystem::SubsystemKind;
+    use crate::kinds::SubsystemKind;
 
     struct S;
     #[derive(Default)]
@@ -558,7 +533,7 @@ mod tests {
             .unwrap_err();
         assert!(matches!(
             err,
-            ActionError::Buffer(BufferError::NoData { .. })
+            ActionError::Buffer(crate::BufferError::NoData { .. })
         ));
         assert!(mem.is_empty(), "the memory part did not run");
     }

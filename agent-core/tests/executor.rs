@@ -320,12 +320,15 @@ fn reading_a_buffer_that_never_received_data_is_an_action_error() {
     let mut x = Executor::new(p.system, ExecConfig::default());
     let err = x.run_until(t_ms(100)).unwrap_err();
     match &err {
-        ExecError::Action {
+        ExecError::Fsm {
             subsystem,
-            behaviour,
             iteration,
             time,
-            source: ActionError::Buffer(BufferError::NoData { buffer }),
+            error:
+                FsmError::Action {
+                    behaviour,
+                    source: ActionError::Buffer(BufferError::NoData { buffer }),
+                },
         } => {
             assert_eq!((subsystem.as_str(), behaviour.as_str()), ("e", "record"));
             assert_eq!((*iteration, *time), (0, Time::ZERO));
@@ -335,7 +338,7 @@ fn reading_a_buffer_that_never_received_data_is_an_action_error() {
     }
     assert_eq!(
         err.to_string(),
-        "subsystem `e`, behaviour `record`, iteration 0 at 0.000000 s: input buffer `e.c.count` has not received any data yet"
+        "subsystem `e`, iteration 0 at 0.000000 s: the action of behaviour `record` failed: input buffer `e.c.count` has not received any data yet"
     );
 }
 
@@ -425,12 +428,12 @@ fn no_arc_holding_is_an_error_with_the_predicate_values() {
     let (system, _, _) = chooser_system(&[("left", "big"), ("right", "big && odd")]);
     let mut x = Executor::new(system, ExecConfig::default());
     let err = x.run_until(t_ms(100)).unwrap_err();
-    let ExecError::Fsm(FsmError {
+    let ExecError::Fsm {
         subsystem,
         iteration,
         time,
-        fault,
-    }) = &err
+        error,
+    } = &err
     else {
         panic!("expected an FSM error, got {err:?}");
     };
@@ -438,13 +441,21 @@ fn no_arc_holding_is_an_error_with_the_predicate_values() {
         (subsystem.as_str(), *iteration, *time),
         ("chooser", 3, t_ms(30))
     );
+    let FsmError::NoArcHolds {
+        behaviour,
+        arcs,
+        assignment,
+    } = error
+    else {
+        panic!("expected no arc holding, got {error:?}");
+    };
     assert_eq!(
-        fault,
-        &FsmFault::NoArcHolds {
-            behaviour: "work".into(),
-            arcs: "-> left [big], -> right [big && odd]".into(),
-            assignment: "three=true, odd=true, big=false".into(),
-        }
+        (behaviour.as_str(), arcs.as_str(), assignment.as_str()),
+        (
+            "work",
+            "-> left [big], -> right [big && odd]",
+            "three=true, odd=true, big=false"
+        )
     );
 }
 
@@ -453,11 +464,11 @@ fn several_arcs_holding_is_an_error_never_a_silent_choice() {
     let (system, _, _) = chooser_system(&[("left", "three"), ("right", "odd")]);
     let mut x = Executor::new(system, ExecConfig::default());
     let err = x.run_until(t_ms(100)).unwrap_err();
-    let ExecError::Fsm(FsmError { fault, .. }) = &err else {
+    let ExecError::Fsm { error, .. } = &err else {
         panic!("expected an FSM error, got {err:?}");
     };
-    let FsmFault::SeveralArcsHold { count, held, .. } = fault else {
-        panic!("expected several arcs, got {fault:?}");
+    let FsmError::SeveralArcsHold { count, held, .. } = error else {
+        panic!("expected several arcs, got {error:?}");
     };
     assert_eq!(
         (*count, held.as_str()),
@@ -475,7 +486,7 @@ fn a_failed_fsm_halts_its_subsystem_and_the_rest_continues() {
     assert_eq!(x.iteration(chooser.id()), Some(3));
     assert_eq!(x.iteration(other.id()), Some(10), "the other agent ran on");
     assert_eq!(x.report().errors.len(), 1);
-    assert!(matches!(x.report().errors[0], ExecError::Fsm(_)));
+    assert!(matches!(x.report().errors[0], ExecError::Fsm { .. }));
     let errors: Vec<_> = x
         .observer()
         .trace()

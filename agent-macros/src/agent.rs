@@ -175,21 +175,27 @@ fn ident(name: &str) -> Ident {
 
 use agent_spec::names::type_name as camel;
 
+/// The name of a kind's variant in generated code (`NodeKind::VirtualEffector`,
+/// and the same name in `SubsystemKind`).
+fn node_kind_name(kind: agent_core::NodeKind) -> &'static str {
+    use agent_core::NodeKind as K;
+    match kind {
+        K::Control => "Control",
+        K::VirtualEffector => "VirtualEffector",
+        K::VirtualReceptor => "VirtualReceptor",
+        K::RealEffector => "RealEffector",
+        K::RealReceptor => "RealReceptor",
+    }
+}
+
 /// The component kinds of the spec, by name.
 fn peer_kind(spec: &Spec, name: &str) -> &'static str {
     for a in &spec.agents {
         if let Some(s) = a.subsystems.iter().find(|s| s.name == name) {
-            return match s.kind {
-                model::SubsystemKind::Control => "Control",
-                model::SubsystemKind::VirtualEffector => "VirtualEffector",
-                model::SubsystemKind::VirtualReceptor => "VirtualReceptor",
-            };
+            return node_kind_name(s.kind.into());
         }
         if let Some(d) = a.devices.iter().find(|d| d.name == name) {
-            return match d.kind {
-                model::DeviceKind::Effector => "RealEffector",
-                model::DeviceKind::Receptor => "RealReceptor",
-            };
+            return node_kind_name(d.kind.into());
         }
     }
     // Unreachable for a spec the checker accepted (unknown peers are errors).
@@ -349,14 +355,7 @@ fn subsystem(
     ];
     let module = ident(&sub.name);
     let marker = format_ident!("{}", camel(&sub.name));
-    let kind = format_ident!(
-        "{}",
-        match sub.kind {
-            model::SubsystemKind::Control => "Control",
-            model::SubsystemKind::VirtualEffector => "VirtualEffector",
-            model::SubsystemKind::VirtualReceptor => "VirtualReceptor",
-        }
-    );
+    let kind = format_ident!("{}", node_kind_name(sub.kind.into()));
     let mut memory = Vec::new();
     for (k, m) in sub.memory.iter().enumerate() {
         let path: Vec<Seg<'_>> = base
@@ -456,14 +455,7 @@ fn subsystem(
                 (p.name.clone(), quote!(F::#f))
             })
             .collect(),
-        relations: sub
-            .relations
-            .iter()
-            .map(|r| match r {
-                model::Relation::Exclusive(v) => chain::Relation::Exclusive(v.clone()),
-                model::Relation::Implies(a, b) => chain::Relation::Implies(a.clone(), b.clone()),
-            })
-            .collect(),
+        relations: sub.relations.clone(),
         behaviours: sub
             .behaviours
             .iter()

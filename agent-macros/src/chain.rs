@@ -5,6 +5,8 @@ use proc_macro2::{Ident, TokenStream};
 use quote::{quote, quote_spanned};
 use syn::ext::IdentExt;
 
+use agent_core::Relation;
+
 use crate::util::runtime;
 
 /// What a part writes.
@@ -28,12 +30,6 @@ pub(crate) struct Behaviour {
     pub(crate) repeat: bool,
     pub(crate) terminal: String,
     pub(crate) parts: Vec<Part>,
-}
-
-/// A relation between predicates.
-pub(crate) enum Relation {
-    Exclusive(Vec<String>),
-    Implies(String, String),
 }
 
 /// A whole FSM over subsystem type `subsystem`.
@@ -60,8 +56,14 @@ impl Chain {
             .iter()
             .map(|(n, f)| quote!(.predicate(#n, #f)));
         let relations = self.relations.iter().map(|r| match r {
-            Relation::Exclusive(v) => quote!(.exclusive([#(#v),*])),
-            Relation::Implies(a, b) => quote!(.implies(#a, #b)),
+            Relation::Exclusive(v) => {
+                let v = v.iter().map(|n| n.as_ref());
+                quote!(.exclusive([#(#v),*]))
+            }
+            Relation::Implies(a, b) => {
+                let (a, b) = (a.as_ref(), b.as_ref());
+                quote!(.implies(#a, #b))
+            }
         });
         let behaviours = self.behaviours.iter().map(|b| {
             let name = &b.name;

@@ -32,6 +32,8 @@ use syn::parse::{Parse, ParseStream};
 use syn::punctuated::Punctuated;
 use syn::{Expr, Ident, Token, braced, parenthesized};
 
+use agent_core::Relation;
+
 use crate::chain::{self, Chain};
 use crate::synth::{self, Cond, SynthFsm};
 use crate::util::runtime;
@@ -475,9 +477,9 @@ pub(crate) fn generate(d: &FsmDecl) -> TokenStream {
             .iter()
             .map(|r| match r {
                 RelationDecl::Exclusive(v) => {
-                    chain::Relation::Exclusive(v.iter().map(name).collect())
+                    Relation::Exclusive(v.iter().map(|n| name(n).into()).collect())
                 }
-                RelationDecl::Implies(a, b) => chain::Relation::Implies(name(a), name(b)),
+                RelationDecl::Implies(a, b) => Relation::Implies(name(a).into(), name(b).into()),
             })
             .collect(),
         behaviours: d

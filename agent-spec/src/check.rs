@@ -8,7 +8,7 @@ use petgraph::graph::{DiGraph, NodeIndex};
 use petgraph::visit::Dfs;
 
 use crate::diag::{Code, Finding, abbreviate};
-use crate::model::{DeviceKind, Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
+use crate::model::{Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
 use crate::proof::{self, Budget, Question, Undecided, Witness};
 use crate::span::{SNode, Seg};
 
@@ -58,21 +58,6 @@ enum Hint {
     InputGroups,
     OutputGroups,
     Buffers,
-}
-
-pub(crate) fn kind_of_subsystem(k: SubsystemKind) -> NodeKind {
-    match k {
-        SubsystemKind::Control => NodeKind::Control,
-        SubsystemKind::VirtualEffector => NodeKind::VirtualEffector,
-        SubsystemKind::VirtualReceptor => NodeKind::VirtualReceptor,
-    }
-}
-
-pub(crate) fn kind_of_device(k: DeviceKind) -> NodeKind {
-    match k {
-        DeviceKind::Effector => NodeKind::RealEffector,
-        DeviceKind::Receptor => NodeKind::RealReceptor,
-    }
 }
 
 /// The byte offset of the first occurrence of each identifier in condition `text`
@@ -259,7 +244,7 @@ impl<'a> Checker<'a> {
                 all.push(Comp {
                     name: &sub.name,
                     agent: a,
-                    kind: kind_of_subsystem(sub.kind),
+                    kind: sub.kind.into(),
                     path,
                     inputs: &sub.inputs,
                     outputs: &sub.outputs,
@@ -269,7 +254,7 @@ impl<'a> Checker<'a> {
                 all.push(Comp {
                     name: &dev.name,
                     agent: a,
-                    kind: kind_of_device(dev.kind),
+                    kind: dev.kind.into(),
                     path: vec![F("agents"), I(a), F("devices"), I(d)],
                     inputs: &dev.inputs,
                     outputs: &dev.outputs,
@@ -865,7 +850,7 @@ impl<'a> Checker<'a> {
         for (i, r) in sub.relations.iter().enumerate() {
             // Paths to each name: `Exclusive([a, b, ...])` is a variant holding a list,
             // `Implies(a, b)` a variant holding two strings.
-            let names: Vec<(&String, Path)> = match r {
+            let names: Vec<(&std::borrow::Cow<'static, str>, Path)> = match r {
                 Relation::Exclusive(v) => v
                     .iter()
                     .enumerate()
@@ -878,7 +863,7 @@ impl<'a> Checker<'a> {
             };
             let mut ok = Vec::new();
             for (n, path) in &names {
-                match preds.get(n.as_str()) {
+                match preds.get(n.as_ref()) {
                     Some(&p) => {
                         used.insert(p);
                         ok.push(p);
@@ -1212,7 +1197,7 @@ impl<'a> Checker<'a> {
                     self.endpoint_error(e, text, &join(&lpath, &[F(field)]), outputs);
                 }
             }
-            if let Policy::Queue(0) = link.policy {
+            if let Policy::Queue { bound: 0 } = link.policy {
                 self.push(
                     Finding::new(
                         Code::QueueBound,

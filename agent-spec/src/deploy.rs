@@ -23,11 +23,11 @@
 use std::collections::HashMap;
 
 use agent_core::{
-    AgentId, BuildError, Driver, DriverHandle, Fsm, Period, PeriodError, Policy, Subsystem,
+    AgentId, BuildError, Driver, DriverHandle, Fsm, Period, PeriodError, Subsystem,
     SubsystemHandle, System, SystemBuilder,
 };
 
-use crate::model::{self, Deployment, Spec};
+use crate::model::{Deployment, Spec};
 
 /// Why a system could not be assembled from a spec.
 #[derive(Debug, thiserror::Error)]
@@ -106,13 +106,6 @@ fn split_end(end: &str) -> Option<(&str, &str)> {
     Some((component, path))
 }
 
-fn policy(p: model::Policy) -> Policy {
-    match p {
-        model::Policy::Sample => Policy::Sample,
-        model::Policy::Queue(bound) => Policy::queue(bound),
-    }
-}
-
 /// Link the components of `builder` as the links of `spec` say: every link whose
 /// two ends are components of `builder` is made (by name, checked against the
 /// buffers' types); links to components `builder` does not have are left out.
@@ -128,7 +121,7 @@ pub fn wire(builder: &mut SystemBuilder, spec: &Spec) -> usize {
             continue;
         }
         if builder
-            .connect_named(src, out, dst, inp, policy(link.policy))
+            .connect_named(src, out, dst, inp, link.policy)
             .is_some()
         {
             made += 1;
@@ -205,11 +198,7 @@ impl<'s> Assembly<'s> {
         let mut declared = HashMap::new();
         for a in &spec.agents {
             for s in &a.subsystems {
-                let kind = match s.kind {
-                    model::SubsystemKind::Control => agent_core::NodeKind::Control,
-                    model::SubsystemKind::VirtualEffector => agent_core::NodeKind::VirtualEffector,
-                    model::SubsystemKind::VirtualReceptor => agent_core::NodeKind::VirtualReceptor,
-                };
+                let kind = s.kind.into();
                 declared.insert(
                     s.name.as_str(),
                     Declared {
@@ -220,10 +209,7 @@ impl<'s> Assembly<'s> {
                 );
             }
             for d in &a.devices {
-                let kind = match d.kind {
-                    model::DeviceKind::Effector => agent_core::NodeKind::RealEffector,
-                    model::DeviceKind::Receptor => agent_core::NodeKind::RealReceptor,
-                };
+                let kind = d.kind.into();
                 declared.insert(
                     d.name.as_str(),
                     Declared {

@@ -23,14 +23,11 @@
 
 use std::collections::HashMap;
 
-use agent_core::{
-    BehaviourKind, GroupShape, LinkInfo, NodeInfo, NodeKind, PartTarget, Policy,
-    Relation as CoreRelation, Shape, SystemInfo,
-};
+use agent_core::{GroupShape, LinkInfo, NodeInfo, NodeKind, PartTarget, Shape, SystemInfo};
 
 use crate::model::{
     self, Agent, Behaviour, Buffer, Device, DeviceKind, Fsm, Function, Group, Link, Predicate,
-    Relation, Spec, Subsystem, SubsystemKind, Target,
+    Spec, Subsystem, SubsystemKind, Target,
 };
 
 /// Why a system cannot be written as a spec.
@@ -289,10 +286,7 @@ fn subsystem(
         }
         behaviours.push(Behaviour {
             name: b.name.clone(),
-            kind: match b.kind {
-                BehaviourKind::While => model::BehaviourKind::While,
-                BehaviourKind::Repeat => model::BehaviourKind::Repeat,
-            },
+            kind: b.kind,
             functions: names,
             terminal: b.terminal.clone(),
             doc: None,
@@ -315,16 +309,7 @@ fn subsystem(
                 doc: None,
             })
             .collect(),
-        relations: fsm
-            .relations
-            .iter()
-            .map(|r| match r {
-                CoreRelation::Exclusive(v) => {
-                    Relation::Exclusive(v.iter().map(ToString::to_string).collect())
-                }
-                CoreRelation::Implies(a, b) => Relation::Implies(a.to_string(), b.to_string()),
-            })
-            .collect(),
+        relations: fsm.relations.clone(),
         functions,
         behaviours,
         fsm: Fsm {
@@ -399,10 +384,7 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
             Link {
                 from: format!("{}.{}.{}", node(l.from), node(l.to), buffer(l.from_port)),
                 to: format!("{}.{}.{}", node(l.to), node(l.from), buffer(l.to_port)),
-                policy: match l.policy {
-                    Policy::Sample => model::Policy::Sample,
-                    Policy::Queue { bound } => model::Policy::Queue(bound),
-                },
+                policy: l.policy,
             }
         })
         .collect();

@@ -16,6 +16,11 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The formalism's vocabulary, shared with the runtime (`agent-core`): the kinds of
+/// subsystems, devices and behaviours, link policies (`Sample`, `Queue(8)`) and the
+/// relations between predicates that the arc proof assumes.
+pub use agent_core::{BehaviourKind, DeviceKind, Policy, Relation, SubsystemKind};
+
 /// A multi-agent system.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -50,17 +55,6 @@ pub struct Agent {
     /// Real effectors and receptors.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub devices: Vec<Device>,
-}
-
-/// The three kinds of subsystem.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum SubsystemKind {
-    /// `c`
-    Control,
-    /// `e`
-    VirtualEffector,
-    /// `r`
-    VirtualReceptor,
 }
 
 /// A subsystem: buffers, predicates, transition functions, behaviours and its FSM.
@@ -138,15 +132,6 @@ pub struct Predicate {
     pub doc: Option<String>,
 }
 
-/// A fact about predicates that the arc proof may assume.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum Relation {
-    /// At most one of these predicates holds at a time.
-    Exclusive(Vec<String>),
-    /// If the first holds, so does the second.
-    Implies(String, String),
-}
-
 /// What a transition function writes.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Target {
@@ -175,15 +160,6 @@ pub struct Function {
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub doc: Option<String>,
-}
-
-/// While-type (Algorithm 2) or repeat-type (Algorithm 3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum BehaviourKind {
-    /// Test before each iteration.
-    While,
-    /// Test after each iteration.
-    Repeat,
 }
 
 /// A behaviour: an elementary action repeated until a terminal condition.
@@ -231,15 +207,6 @@ pub struct Arc {
     pub when: String,
 }
 
-/// Real effector or receptor.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum DeviceKind {
-    /// `E`
-    Effector,
-    /// `R`
-    Receptor,
-}
-
 /// A real effector or receptor.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -259,16 +226,6 @@ pub struct Device {
     /// Readings, grouped by peer.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outputs: Vec<Group>,
-}
-
-/// How a link delivers values.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum Policy {
-    /// Latest value wins.
-    #[default]
-    Sample,
-    /// Lossless bounded FIFO.
-    Queue(usize),
 }
 
 /// A link from an output buffer to an input buffer.

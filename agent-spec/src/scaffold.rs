@@ -547,7 +547,7 @@ fn system_rs(spec: &Spec) -> String {
         };
         let policy = match l.policy {
             crate::model::Policy::Sample => "Policy::Sample".to_owned(),
-            crate::model::Policy::Queue(n) => format!("Policy::queue({n})"),
+            crate::model::Policy::Queue { bound } => format!("Policy::queue({bound})"),
         };
         let _ = writeln!(
             s,

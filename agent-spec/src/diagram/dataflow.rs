@@ -133,11 +133,7 @@ fn function_label(sub: &Subsystem, name: &str) -> String {
 }
 
 fn kind_letter(sub: &Subsystem) -> &'static str {
-    match sub.kind {
-        crate::model::SubsystemKind::Control => "c",
-        crate::model::SubsystemKind::VirtualEffector => "e",
-        crate::model::SubsystemKind::VirtualReceptor => "r",
-    }
+    agent_core::NodeKind::from(sub.kind).symbol()
 }
 
 pub(crate) fn render(spec: &Spec, subs: &[&Subsystem], format: Format) -> String {
@@ -303,10 +299,7 @@ fn draw(spec: &Spec, subs: &[&Subsystem]) -> String {
             let lay = layered(boxes, layers, &edges, MARGIN + PAD, top);
             let frame_w = lay.width.max(svg::text_w(&flow.behaviour.name) + 200.0) + 2.0 * PAD;
             let frame_h = lay.height + (top - y) + PAD;
-            let kind = match flow.behaviour.kind {
-                crate::model::BehaviourKind::While => "while",
-                crate::model::BehaviourKind::Repeat => "repeat",
-            };
+            let kind = flow.behaviour.kind.to_string();
             doc.frame(
                 MARGIN,
                 y,
