@@ -17,9 +17,9 @@
 
 use std::time::Instant;
 
-use rex_agent::mpc::QpStrategy;
-use rex_agent::mpc::mhe::{Mhe, MheSettings, Sample, TimedPose};
-use rex_agent::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
+use rex_agent::algorithms::mpc::QpStrategy;
+use rex_agent::algorithms::mpc::mhe::{Mhe, MheSettings, Sample, TimedPose};
+use rex_agent::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
 struct Run {
     median_ms: f64,

@@ -19,9 +19,9 @@
 
 use std::time::Instant;
 
-use rex_agent::model::SlipParams;
-use rex_agent::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
-use rex_agent::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
+use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
+use rex_agent::algorithms::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
+use rex_agent::world::model::SlipParams;
 
 #[derive(Clone, Debug, Default)]
 struct Run {

@@ -21,11 +21,11 @@
 
 use std::time::Instant;
 
-use rex_agent::c1::{C1Params, proc};
+use rex_agent::a1::c1::{C1Params, proc};
+use rex_agent::a1::payload::Plan;
+use rex_agent::algorithms::planner::ecsa::Ecsa;
+use rex_agent::algorithms::planner::{Planner, PlannerSettings, Waypoint};
 use rex_agent::mission::Mission;
-use rex_agent::planner::ecsa::Ecsa;
-use rex_agent::planner::{Planner, PlannerSettings, Waypoint};
-use rex_agent::types::Plan;
 
 const REPEAT: usize = 30;
 

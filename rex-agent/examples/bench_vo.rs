@@ -17,11 +17,11 @@
 
 use std::path::{Path, PathBuf};
 
-use rex_agent::camera::Renderer;
-use rex_agent::camera::kitti::{ScriptedPath, Sequence, write_scripted};
-use rex_agent::vo::metric::evaluate;
-use rex_agent::vo::{VoSettings, median, run_sequence};
+use rex_agent::algorithms::vo::metric::evaluate;
+use rex_agent::algorithms::vo::{VoSettings, median};
 use rex_agent::world::WorldConfig;
+use rex_agent::world::camera::Renderer;
+use rex_agent::world::camera::kitti::{ScriptedPath, Sequence, run_sequence, write_scripted};
 
 struct Figures {
     ms: f64,

@@ -12,9 +12,9 @@
 
 use std::time::Instant;
 
-use rex_agent::camera::Renderer;
-use rex_agent::devices::{Platform, SharedTruth};
 use rex_agent::world::WorldConfig;
+use rex_agent::world::camera::Renderer;
+use rex_agent::world::devices::{Platform, SharedTruth};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let config = WorldConfig::shipped()?;

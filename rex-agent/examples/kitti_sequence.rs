@@ -11,10 +11,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use rex_agent::camera::Renderer;
-use rex_agent::camera::kitti::{ScriptedPath, write_scripted};
 use rex_agent::config;
 use rex_agent::world::WorldConfig;
+use rex_agent::world::camera::Renderer;
+use rex_agent::world::camera::kitti::{ScriptedPath, write_scripted};
 
 fn main() -> ExitCode {
     match run() {

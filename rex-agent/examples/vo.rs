@@ -16,9 +16,9 @@
 //! is the processing of a pair (PNG decoding excluded), one core. `--settings` reads
 //! [`VoSettings`] from a RON file (fields left out keep their defaults).
 
-use rex_agent::camera::kitti::Sequence;
-use rex_agent::vo::metric::evaluate;
-use rex_agent::vo::{VoSettings, median, run_sequence};
+use rex_agent::algorithms::vo::metric::evaluate;
+use rex_agent::algorithms::vo::{VoSettings, median};
+use rex_agent::world::camera::kitti::{Sequence, run_sequence};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -1,28 +1,27 @@
 //! Rex, the skid-steer mobile platform of Janiak & Zieliński, as an embodied agent.
 //!
-//! The locomotion agent `a1` (control subsystem `c1`, virtual effector `e1,1`, virtual
-//! receptor `r1,1`), its simulated world (platform `E1`, stereo camera `R1`) and its
-//! partner agents `a2` (ontology) and `a3` (map) are built here against the public
-//! `embodied` API only, exactly as a user's crate would be.
+//! The folders follow the paper's Fig. 2/3:
+//!
+//! * [`a1`], the locomotion agent: its control subsystem `c1`, virtual effector
+//!   `e1,1` and virtual receptor `r1,1`, the payloads of their buffers, the map they
+//!   check plans and poses against, and the system built from `specs/rex.ron`;
+//! * [`world`], the simulated world: the platform model, the real effector `E1` and
+//!   receptors `R1` (stereo camera) and `R3` (motion capture) as drivers, the
+//!   rendered scene, and the partner agents `a2` (ontology) and `a3` (map);
+//! * [`algorithms`], what a1 computes with: model predictive control and
+//!   moving-horizon estimation, trajectory planners, stereo visual odometry. They
+//!   know nothing of the framework;
+//! * [`report`], the verdict on a run and its report folder; [`config`],
+//!   [`mission`], [`run`] and [`soak`], the glue of the `rex` binary and examples.
+//!
+//! Everything is written against the public `embodied` API only, exactly as a
+//! user's crate would be.
 
-pub mod c1;
-pub mod camera;
+pub mod a1;
+pub mod algorithms;
 pub mod config;
-pub mod devices;
-pub mod e11;
-pub mod judge;
-pub mod map;
 pub mod mission;
-pub mod model;
-pub mod mpc;
-pub mod noise;
-pub mod partners;
-pub mod planner;
-pub mod r11;
 pub mod report;
-pub mod rex;
 pub mod run;
 pub mod soak;
-pub mod types;
-pub mod vo;
 pub mod world;

@@ -9,11 +9,11 @@ use std::time::Duration;
 
 use clap::Parser;
 use embodied::spec::Spec;
-use rex_agent::e11::{EstimatorKind, TrackerKind};
+use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
+use rex_agent::a1::{RexConfig, RunSettings, load_spec};
+use rex_agent::algorithms::planner::PlannerKind;
+use rex_agent::algorithms::planner::trajgen::Runtime;
 use rex_agent::mission::Mission;
-use rex_agent::planner::PlannerKind;
-use rex_agent::planner::trajgen::Runtime;
-use rex_agent::rex::{RexConfig, RunSettings, load_spec};
 use rex_agent::run::{Outcome, Progress, run_mission};
 use rex_agent::{config, report};
 

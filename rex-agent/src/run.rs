@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 
 use embodied::{ExecError, Executor, NoObserver, Time};
 
-use crate::judge::{self, PlanReport, Verdict};
-use crate::rex::{RexConfig, RexError, RexHandles, build};
-use crate::types::{Ack, AckStatus, PlanOutcome};
+use crate::a1::payload::{Ack, AckStatus, PlanOutcome};
+use crate::a1::{RexConfig, RexError, RexHandles, build};
+use crate::report::judge::{self, PlanReport, Verdict};
 
 /// One sample of a run, at every activation of `e11`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -73,7 +73,7 @@ pub struct Counters {
     /// Command timeouts of the platform's watchdog (steps at zero torque).
     pub watchdog_steps: u64,
     /// What the estimator rejected, and its relocalisations.
-    pub estimator: crate::e11::estimator::EstimatorHealth,
+    pub estimator: crate::a1::e11::estimator::EstimatorHealth,
     /// Torque commands clamped or rejected by the platform.
     pub clamped_torques: u64,
     /// Fragments planned.
@@ -89,7 +89,7 @@ pub struct Counters {
     /// Visual odometry: stereo pairs processed, motions sent, pairs without one.
     pub vo: (u64, u64, u64),
     /// What the tracker reports (solves, failures, fallbacks...).
-    pub tracker: crate::e11::tracker::TrackerReport,
+    pub tracker: crate::a1::e11::tracker::TrackerReport,
 }
 
 /// What a run produced.

@@ -4,13 +4,14 @@
 
 use std::time::Duration;
 
-use crate::e11::{EstimatorKind, TrackerKind};
-use crate::map::Map;
+use crate::a1::RexConfig;
+use crate::a1::e11::{EstimatorKind, TrackerKind};
+use crate::a1::map::Map;
+use crate::a1::payload::Point2;
+use crate::algorithms::geometry::wrap;
+use crate::algorithms::rng::Rng;
 use crate::mission::Mission;
-use crate::noise::Rng;
-use crate::rex::RexConfig;
 use crate::run::{RunError, Sample, run_mission};
-use crate::types::Point2;
 use crate::world::WorldConfig;
 
 /// One way of running Rex through a soak.
@@ -87,7 +88,7 @@ pub fn patrol(world: &WorldConfig, minutes: f64, seed: u64) -> Mission {
             let y = map.room.y0 + rng.uniform() * (map.room.y1 - map.room.y0);
             let d = (x - at.x).hypot(y - at.y);
             let towards = (y - at.y).atan2(x - at.x);
-            let turn = heading.map_or(0.0, |h| crate::mpc::mhe::wrap(towards - h).abs());
+            let turn = heading.map_or(0.0, |h| wrap(towards - h).abs());
             // Cornered (every way within 100° is blocked): turn back.
             let max_turn = if tries > 1000 { 180.0 } else { 100.0 };
             if map.check(x, y).is_ok()
@@ -147,7 +148,7 @@ pub fn run_case(
     camera_scale: f64,
 ) -> Result<SoakResult, RunError> {
     let mut world = WorldConfig::shipped()
-        .map_err(|e| RunError::Build(crate::rex::RexError::World(e.into())))?;
+        .map_err(|e| RunError::Build(crate::a1::RexError::World(e.into())))?;
     // The camera's resolution changes; its calibration follows from it.
     world.surfaces.default = "concrete".into();
     world.surfaces.patches.clear();

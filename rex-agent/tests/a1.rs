@@ -12,14 +12,14 @@ use embodied::testing::{Environment, Termination};
 use embodied::{Activated, Fsm, Stamp, Step, Time};
 use proptest::prelude::*;
 
-use rex_agent::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
-use rex_agent::judge::Verdict;
+use rex_agent::a1::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
+use rex_agent::a1::payload::{Ack, AckStatus, Plan, Point2, State};
+use rex_agent::a1::{RexConfig, build};
+use rex_agent::algorithms::planner::trajgen::{Runtime, TrajGen};
+use rex_agent::algorithms::planner::{PlannerKind, PlannerSettings};
 use rex_agent::mission::Mission;
-use rex_agent::planner::trajgen::{Runtime, TrajGen};
-use rex_agent::planner::{PlannerKind, PlannerSettings};
-use rex_agent::rex::{RexConfig, build};
+use rex_agent::report::judge::Verdict;
 use rex_agent::run::{Outcome, run_mission};
-use rex_agent::types::{Ack, AckStatus, Plan, Point2, State};
 use rex_agent::world::WorldConfig;
 
 // ---------------------------------------------------------------------------
@@ -373,8 +373,8 @@ fn the_baseline_pair_runs_the_same_mission() {
     // Tracker and estimator are a configuration value; nothing else changes. And
     // a1 without its virtual receptor (the spec's `simulation_without_vo`).
     let mut config = short();
-    config.tracker = rex_agent::e11::TrackerKind::Backstepping;
-    config.estimator = rex_agent::e11::EstimatorKind::Ekf;
+    config.tracker = rex_agent::a1::e11::TrackerKind::Backstepping;
+    config.estimator = rex_agent::a1::e11::EstimatorKind::Ekf;
     config.visual_odometry = false;
     let out = run(&config, 120);
     assert!(out.completed, "{}", out.summary_line());

@@ -8,7 +8,7 @@
 
 #![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
 
-use rex_agent::e11::{EstimatorKind, TrackerKind};
+use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
 use rex_agent::soak::{SoakCase, SoakResult, run_case};
 
 const MINUTES: f64 = 10.0;

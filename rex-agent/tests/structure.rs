@@ -20,8 +20,8 @@
 
 use embodied::spec::export::{difference, spec_of, to_ron};
 use embodied::spec::model::Spec;
+use rex_agent::a1::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::mission::Mission;
-use rex_agent::rex::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::world::WorldConfig;
 
 /// `spec` as deployment `name` runs it: without the omitted components and the

@@ -11,14 +11,14 @@
 use std::time::Duration;
 
 use embodied::*;
-use rex_agent::camera::CameraConfig;
-use rex_agent::devices::{MocapParams, Platform, SharedTruth, StereoCamera};
 use rex_agent::mission::Mission;
+use rex_agent::world::camera::CameraConfig;
+use rex_agent::world::devices::{MocapParams, Platform, SharedTruth, StereoCamera};
 // The stand-ins have a1's real buffers: the spec's links reach them by name.
-use rex_agent::c1::{C1Input as StubC1Input, C1Output as StubC1Output, C1ToC2, C1ToC3};
-use rex_agent::e11::{E11Input as StubE11Input, E11Output as StubE11Output, E11ToE1};
-use rex_agent::r11::{R11Input as StubR11Input, R11Output as StubR11Output, R11ToR1};
-use rex_agent::types::*;
+use rex_agent::a1::c1::{C1Input as StubC1Input, C1Output as StubC1Output, C1ToC2, C1ToC3};
+use rex_agent::a1::e11::{E11Input as StubE11Input, E11Output as StubE11Output, E11ToE1};
+use rex_agent::a1::payload::*;
+use rex_agent::a1::r11::{R11Input as StubR11Input, R11Output as StubR11Output, R11ToR1};
 use rex_agent::world::{self, WorldConfig};
 
 // ---------------------------------------------------------------------------
@@ -239,7 +239,7 @@ struct Handles {
     c1: SubsystemHandle<StubC1>,
     e11: SubsystemHandle<StubE11>,
     r11: SubsystemHandle<StubR11>,
-    c2: SubsystemHandle<rex_agent::partners::Ontology>,
+    c2: SubsystemHandle<rex_agent::world::partners::Ontology>,
     map: world::MapAgentHandles,
     platform: DriverHandle<Platform>,
     camera: DriverHandle<StereoCamera>,
@@ -286,7 +286,7 @@ impl Default for Stubs {
 
 /// The period of component `name` in `specs/rex.ron` [s].
 fn spec_period(name: &str) -> f64 {
-    let spec = rex_agent::rex::load_spec(&rex_agent::rex::default_spec()).unwrap();
+    let spec = rex_agent::a1::load_spec(&rex_agent::a1::default_spec()).unwrap();
     spec::Assembly::all(&spec)
         .period(name)
         .unwrap()
@@ -299,7 +299,7 @@ fn build(config: &WorldConfig) -> (System, Handles) {
 
 fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     let truth = SharedTruth::default();
-    let spec = rex_agent::rex::load_spec(&rex_agent::rex::default_spec()).unwrap();
+    let spec = rex_agent::a1::load_spec(&rex_agent::a1::default_spec()).unwrap();
     let mut sys = spec::Assembly::new(&spec, "simulation").unwrap();
     sys.set_period("r11", Period::from_millis(stubs.r11_ms).unwrap())
         .unwrap();
@@ -558,7 +558,7 @@ fn a_bad_command_is_counted_once_and_a_bad_reset_is_rejected() {
     let p = exec.driver(&h.platform).unwrap();
     assert_eq!(
         p.command_stats(),
-        rex_agent::model::CommandStats {
+        rex_agent::world::model::CommandStats {
             not_finite: 1,
             out_of_bounds: 1
         },
@@ -637,7 +637,7 @@ fn the_world_is_deterministic() {
 
 #[test]
 fn the_camera_writes_what_it_renders_as_a_kitti_sequence() {
-    use rex_agent::camera::kitti::{Sequence, SequenceWriter};
+    use rex_agent::world::camera::kitti::{Sequence, SequenceWriter};
     let dir = std::env::temp_dir().join(format!("rex-kitti-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let config = world_config();

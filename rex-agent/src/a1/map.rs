@@ -5,7 +5,7 @@
 
 use std::fmt;
 
-use crate::camera::SceneConfig;
+use crate::world::camera::SceneConfig;
 
 /// An axis-aligned rectangle `[x0, x1] × [y0, y1]` [m].
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -84,9 +84,8 @@ impl State {
     }
 }
 
-/// Wheel torques `(τ_1..τ_4)` [N m], wheels 1 front-left, 2 rear-left, 3 front-right,
-/// 4 rear-right.
-pub type Torques = [f64; 4];
+/// Wheel torques (`tau`, e1,1 to E1): the platform model's [`Torques`].
+pub use crate::world::model::Torques;
 
 /// A command for the inertial measurement unit (`cmd_E1,1`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -18,9 +18,9 @@
 
 use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
-use crate::camera::kitti::{Pose34, compose, invert};
-use crate::types::{AcquireCommand, StereoPair, Transform};
-use crate::vo::{Calibration, NoEstimate, StereoOdometry, VoError, VoSettings};
+use crate::a1::payload::{AcquireCommand, StereoPair, Transform};
+use crate::algorithms::geometry::{Pose34, compose, invert};
+use crate::algorithms::vo::{Calibration, NoEstimate, StereoOdometry, VoError, VoSettings};
 
 /// The odometry state (`odom`).
 #[derive(Debug)]
@@ -229,7 +229,7 @@ pub fn r11_fsm() -> Result<Fsm<R11>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{CameraConfig, Renderer, SceneConfig};
+    use crate::world::camera::{CameraConfig, Renderer, SceneConfig};
 
     fn odometry(c: &CameraConfig) -> Odometry {
         let (cu, cv) = c.principal_point();

@@ -13,17 +13,17 @@ use embodied::spec::{Assembly, AssemblyError};
 use embodied::{DriverHandle, ExecConfig, SubsystemHandle, System};
 use serde::{Deserialize, Serialize};
 
-use crate::c1::{C1, C1Memory, C1Params, c1_fsm};
+use crate::a1::c1::{C1, C1Memory, C1Params, c1_fsm};
+use crate::a1::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
+use crate::a1::map::Map;
+use crate::a1::r11::{Odometry, R11, R11Memory, r11_fsm};
+use crate::algorithms::planner::trajgen::{Runtime, TrajGen};
+use crate::algorithms::planner::{PlannerKind, PlannerSettings};
+use crate::algorithms::vo::{Calibration, VoSettings};
 use crate::config::{self, ConfigError, Invalid, Validate};
-use crate::devices::{Platform, SharedTruth, StereoCamera};
-use crate::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
-use crate::map::Map;
 use crate::mission::Mission;
-use crate::partners::Ontology;
-use crate::planner::trajgen::{Runtime, TrajGen};
-use crate::planner::{PlannerKind, PlannerSettings};
-use crate::r11::{Odometry, R11, R11Memory, r11_fsm};
-use crate::vo::{Calibration, VoSettings};
+use crate::world::devices::{Platform, SharedTruth, StereoCamera};
+use crate::world::partners::Ontology;
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
 /// The choices of a Rex run, as written in a run file (`rex-agent/config/rex.ron`);
@@ -365,10 +365,10 @@ pub enum RexError {
     Period(#[from] embodied::PeriodError),
     /// The NMPC's settings are invalid.
     #[error(transparent)]
-    Nmpc(#[from] crate::mpc::NmpcError),
+    Nmpc(#[from] crate::algorithms::mpc::NmpcError),
     /// The MHE's settings are invalid.
     #[error(transparent)]
-    Mhe(#[from] crate::mpc::MheError),
+    Mhe(#[from] crate::algorithms::mpc::MheError),
 }
 
 /// Load and check the spec; errors carry the rendered findings.

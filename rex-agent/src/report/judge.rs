@@ -11,9 +11,9 @@
 
 use std::fmt;
 
-use crate::rex::RexConfig;
+use crate::a1::RexConfig;
+use crate::a1::payload::{AckStatus, Execution};
 use crate::run::Outcome;
-use crate::types::{AckStatus, Execution};
 
 /// How a plan went.
 #[derive(Clone, Debug, PartialEq)]

@@ -11,6 +11,7 @@
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
 //! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
 
+pub mod judge;
 pub mod plot;
 
 use std::fmt::Write as _;
@@ -20,7 +21,7 @@ use std::path::{Path, PathBuf};
 use embodied::spec::Spec;
 use embodied::spec::diagram::{self, Format, Kind};
 
-use crate::rex::RexConfig;
+use crate::a1::RexConfig;
 use crate::run::{Outcome, Sample};
 use plot::{Marker, PALETTE, Plot, Row, Series, timeline};
 

@@ -1,5 +1,19 @@
 //! Rex's simulated world, configured from RON (`rex-agent/config/world.ron`), and the
 //! functions that add its devices and the partner agents to a system.
+//!
+//! * [`model`]: the skid-steer platform: parameters and surfaces, the reduced model
+//!   (for a1's controllers and estimators) and the full model (the plant);
+//! * [`devices`]: the real effector `E1` (the platform) and receptors `R1` (stereo
+//!   camera) and `R3` (motion capture), as framework drivers;
+//! * [`camera`]: the stereo rig, the room it sees, the ray-cast renderer, KITTI
+//!   sequences on disk;
+//! * [`partners`]: the partner agents `a2` (ontology: the mission's plans) and `a3`
+//!   (map: poses from the motion capture).
+
+pub mod camera;
+pub mod devices;
+pub mod model;
+pub mod partners;
 
 use std::path::Path;
 
@@ -7,18 +21,16 @@ use embodied::spec::{Assembly, AssemblyError};
 use embodied::{DriverHandle, SubsystemHandle};
 use serde::{Deserialize, Serialize};
 
-use crate::camera::{CameraConfig, Renderer, SceneConfig};
+use crate::a1::payload::Pose2;
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
-use crate::devices::{
-    MocapParams, MotionCapture, Platform, SensorParams, SharedTruth, StereoCamera,
-};
 use crate::mission::Mission;
-use crate::model::{Plant, PlatformParams, SurfaceMap};
-use crate::partners::{
+use camera::{CameraConfig, Renderer, SceneConfig};
+use devices::{MocapParams, MotionCapture, Platform, SensorParams, SharedTruth, StereoCamera};
+use model::{Plant, PlatformParams, SurfaceMap};
+use partners::{
     MapAgent, MapMemory, MocapMemory, MocapReceptor, Ontology, OntologyMemory, map_fsm,
     mocap_receptor_fsm, ontology_fsm,
 };
-use crate::types::Pose2;
 
 /// Everything about the simulated world.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -198,7 +210,7 @@ mod tests {
             .surfaces
             .surfaces
             .push(config.surfaces.surfaces[0].clone());
-        let spec = crate::rex::load_spec(&crate::rex::default_spec()).unwrap();
+        let spec = crate::a1::load_spec(&crate::a1::default_spec()).unwrap();
         let mut rex = Assembly::new(&spec, "simulation").unwrap();
         let err = add_camera(&mut rex, &config, &truth).unwrap_err();
         assert!(

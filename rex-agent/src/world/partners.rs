@@ -13,8 +13,8 @@ use embodied::{
     Action, ActionError, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem,
 };
 
+use crate::a1::payload::{Ack, AckStatus, MapPose, Plan, PlanOutcome, State};
 use crate::mission::Mission;
-use crate::types::{Ack, AckStatus, MapPose, Plan, PlanOutcome, State};
 
 // ---------------------------------------------------------------------------
 // a2: the ontology agent
@@ -399,7 +399,7 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::{AckStatus, Execution, Point2, Pose2};
+    use crate::a1::payload::{AckStatus, Execution, Point2, Pose2};
     use embodied::testing::{Environment, Termination};
     use embodied::{Stamp, Time};
     use proptest::prelude::*;

@@ -36,10 +36,10 @@ use std::collections::VecDeque;
 
 use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
-use crate::map::Map;
-use crate::planner::trajgen::{Status, TrajGen};
-use crate::planner::{Fragment, Waypoint, nearest_angle};
-use crate::types::{Ack, AckStatus, Execution, MapPose, Plan, PlanOutcome, State, Transform};
+use crate::a1::map::Map;
+use crate::a1::payload::{Ack, AckStatus, Execution, MapPose, Plan, PlanOutcome, State, Transform};
+use crate::algorithms::planner::trajgen::{Status, TrajGen};
+use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
 
 /// Settings of `c1`.
 #[derive(Clone, Debug, PartialEq)]
@@ -417,9 +417,11 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
         Ok((plan, state)) => {
             m.plan = plan;
             m.refusal = None;
-            m.trajgen.init(&state, desired.id);
+            let p = state.pose();
+            let pose = [p.x, p.y, p.phi];
+            m.trajgen.init(pose, desired.id);
             if std::mem::take(&mut m.restart) {
-                m.trajgen.restart_from(&state);
+                m.trajgen.restart_from(pose);
             }
         }
         Err(reason) => {
@@ -655,9 +657,9 @@ pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::planner::trajgen::Runtime;
-    use crate::planner::{PlannerKind, PlannerSettings};
-    use crate::types::Point2;
+    use crate::a1::payload::Point2;
+    use crate::algorithms::planner::trajgen::Runtime;
+    use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 
     fn pts(p: &[(f64, f64)]) -> Plan {
         Plan {
@@ -1064,7 +1066,7 @@ mod tests {
         let mut st = fsm.start();
         let mut m = memory(1);
         // A box at (0, 1): both points clear it, the path between them does not.
-        m.params.map.obstacles.push(crate::map::Rect {
+        m.params.map.obstacles.push(crate::a1::map::Rect {
             x0: -0.2,
             y0: 0.9,
             x1: 0.2,

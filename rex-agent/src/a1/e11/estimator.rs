@@ -3,9 +3,10 @@
 
 use std::collections::VecDeque;
 
-use crate::model::{PlatformParams, Reduced, SlipParams, Torques};
-use crate::mpc::{Mhe, MheError, MheSettings, Motion, Sample, TimedPose};
-use crate::types::{Encoders, Imu, MapPose, State, Transform, WheelLoads};
+use crate::a1::payload::{Encoders, Imu, MapPose, State, Transform, WheelLoads};
+use crate::algorithms::geometry::wrap;
+use crate::algorithms::mpc::{Mhe, MheError, MheSettings, Motion, Sample, TimedPose};
+use crate::world::model::{PlatformParams, Reduced, SlipParams, Torques};
 
 /// What the estimator believes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -367,11 +368,6 @@ impl Ekf {
     }
 }
 
-/// An angle in (−π, π].
-pub fn wrap(a: f64) -> f64 {
-    crate::mpc::mhe::wrap(a)
-}
-
 impl Estimator for Ekf {
     fn name(&self) -> &'static str {
         "ekf"
@@ -433,7 +429,7 @@ impl Estimator for Ekf {
     }
 }
 
-/// The MHE of [`crate::mpc::mhe`] as e1,1's estimator. Every iteration of e1,1 is a
+/// The MHE of [`crate::algorithms::mpc::mhe`] as e1,1's estimator. Every iteration of e1,1 is a
 /// sample: the encoder rates, the gyroscope rate, the IMU heading once it is
 /// aligned with the map, the wheel loads, the map pose when one arrives (attached to
 /// the time it describes: the map agent's poses are late), and the visual
@@ -534,8 +530,8 @@ impl Estimator for MheEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mpc::peer::{self, DT, MheData, N_SIM};
-    use crate::types::Pose2;
+    use crate::a1::payload::Pose2;
+    use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM};
 
     /// Run the EKF over the peer's data set (poses, gyro, encoders, and an IMU
     /// heading `φ + offset(k)`); `edit` may change each sample. Returns the

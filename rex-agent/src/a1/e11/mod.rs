@@ -37,12 +37,12 @@ use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory
 pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
 pub use tracker::{Tracker, TrackerKind};
 
-use crate::map::Map;
-use crate::planner::Fragment;
-use crate::types::{
+use crate::a1::map::Map;
+use crate::a1::payload::{
     Encoders, Execution, Imu, ImuCommand, MapPose, PlanOutcome, State, Torques, Transform,
     WheelLoads,
 };
+use crate::algorithms::planner::Fragment;
 
 /// How `e11` keeps the platform safe and judges the end of a plan.
 #[derive(Clone, Debug, PartialEq)]
@@ -598,7 +598,7 @@ pub fn e11_fsm() -> Result<Fsm<E11>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{PlatformParams, SlipParams};
+    use crate::world::model::{PlatformParams, SlipParams};
     use embodied::{Stamp, Time};
 
     fn fragment(index: u32, x0: f64, n: usize) -> Fragment {
@@ -643,7 +643,7 @@ mod tests {
             if it == 0 {
                 // Localise the estimator at the origin.
                 let pose = MapPose {
-                    pose: crate::types::Pose2::default(),
+                    pose: crate::a1::payload::Pose2::default(),
                     time: 0.0,
                 };
                 x.c1.pose.deliver(pose, stamp);
@@ -696,7 +696,7 @@ mod tests {
             x.c1.notify.age();
             let (px, py) = pose(it);
             let p = MapPose {
-                pose: crate::types::Pose2 {
+                pose: crate::a1::payload::Pose2 {
                     x: px,
                     y: py,
                     phi: 0.0,

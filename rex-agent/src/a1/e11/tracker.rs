@@ -2,8 +2,8 @@
 //! a computed-torque loop) and the paper's NMPC ([`NmpcTracker`]).
 
 use super::estimator::Estimate;
-use crate::model::{PlatformParams, Reduced, Torques};
-use crate::mpc::{Nmpc, NmpcError, NmpcSettings};
+use crate::algorithms::mpc::{Nmpc, NmpcError, NmpcSettings};
+use crate::world::model::{PlatformParams, Reduced, Torques};
 
 /// A trajectory tracker: wheel torques from the estimate and the reference.
 pub trait Tracker: Send + std::fmt::Debug {
@@ -74,7 +74,7 @@ impl TrackerKind {
     }
 }
 
-/// The NMPC of [`crate::mpc::nmpc`] as e1,1's tracker: the reduced model with the
+/// The NMPC of [`crate::algorithms::mpc::nmpc`] as e1,1's tracker: the reduced model with the
 /// slip parameters of the estimate (the MHE's, or the nominal ones), the bounds of
 /// the platform, one real-time iteration per sample. A refused input (a
 /// non-finite estimate or reference) keeps the last torques for the fallback steps
@@ -125,7 +125,7 @@ impl Tracker for NmpcTracker {
         // The estimate's heading, unwrapped next to the reference's.
         let mut x = e.x;
         if let Some(r) = reference.first() {
-            x[2] = crate::planner::nearest_angle(x[2], r[2]);
+            x[2] = crate::algorithms::planner::nearest_angle(x[2], r[2]);
         }
         match self.nmpc.control(&x, reference, &e.p) {
             Ok(c) => {
@@ -300,7 +300,7 @@ impl Tracker for Backstepping {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::SlipParams;
+    use crate::world::model::SlipParams;
 
     #[test]
     fn drives_the_reduced_model_onto_a_reference_forwards_and_backwards() {

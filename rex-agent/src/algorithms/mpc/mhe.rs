@@ -54,7 +54,8 @@ use serde::{Deserialize, Serialize};
 use super::linalg::{Mat, cholesky, cholesky_solve};
 use super::nmpc::QpStrategy;
 use super::sparse::Pattern;
-use crate::model::{Jacobians, Reduced, SlipParams, State5, Torques};
+use crate::algorithms::geometry::wrap;
+use crate::world::model::{Jacobians, Reduced, SlipParams, State5, Torques};
 
 const NX: usize = 5;
 const NP: usize = 3;
@@ -1329,20 +1330,10 @@ fn slip(p: &[f64; NP]) -> SlipParams {
     }
 }
 
-/// An angle in (−π, π].
-pub fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w <= -std::f64::consts::PI {
-        w + std::f64::consts::TAU
-    } else {
-        w
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
+    use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
     fn data() -> MheData {
         peer::mhe_data(1).unwrap()

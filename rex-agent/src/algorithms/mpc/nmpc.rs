@@ -51,7 +51,7 @@ use serde::{Deserialize, Serialize};
 
 use super::linalg::{Mat, cholesky, cholesky_solve};
 use super::sparse::Pattern;
-use crate::model::{Reduced, SlipParams, State5, Torques};
+use crate::world::model::{Reduced, SlipParams, State5, Torques};
 
 const NX: usize = 5;
 const NU: usize = 4;
@@ -883,7 +883,7 @@ impl ClarabelQp {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
+    use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
 
     /// The peers' closed loop for `steps` samples; the true positions and the
     /// statuses.

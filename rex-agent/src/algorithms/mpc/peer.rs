@@ -5,8 +5,8 @@
 //! interval), the start offset, the measurement noise levels.
 
 use super::nmpc::{Nmpc, NmpcError, NmpcSettings};
-use crate::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
-use crate::noise::Rng;
+use crate::algorithms::rng::Rng;
+use crate::world::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
 
 /// Interval [s] (`DT`).
 pub const DT: f64 = 0.05;
@@ -48,7 +48,7 @@ pub fn reference_run(n: usize) -> Vec<State5> {
     let mut out: Vec<State5> = (0..n).map(|k| reference(k as f64 * DT)).collect();
     for k in 1..out.len() {
         let prev = out[k - 1][2];
-        out[k][2] = crate::planner::nearest_angle(out[k][2], prev);
+        out[k][2] = crate::algorithms::planner::nearest_angle(out[k][2], prev);
     }
     out
 }

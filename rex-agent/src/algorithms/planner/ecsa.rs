@@ -17,7 +17,7 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use super::{Fragment, PlanError, PlanStats, Planner, PlannerSettings, Waypoint};
-use crate::noise::Rng;
+use crate::algorithms::rng::Rng;
 
 /// Harmonics per control channel.
 pub const HARMONICS: usize = 3;
@@ -429,7 +429,7 @@ mod tests {
                 (end[0] - x).hypot(end[1] - y) < 1e-3,
                 "{end:?} vs ({x}, {y})"
             );
-            assert!((end[2] - crate::planner::nearest_angle(phi, 0.0)).abs() < 1e-3);
+            assert!((end[2] - crate::algorithms::planner::nearest_angle(phi, 0.0)).abs() < 1e-3);
             assert!(stats.iterations <= 30, "{stats:?}");
             assert!(
                 f.states[0][3].abs() < 1e-12 && end[3].abs() < 1e-9,
@@ -503,7 +503,7 @@ mod tests {
                     let end = f.end().unwrap();
                     prop_assert!((end[0] - gx).hypot(end[1] - gy) < 1e-3, "{:?} {:?}", end, stats);
                     if let Some(p) = gphi {
-                        prop_assert!((end[2] - crate::planner::nearest_angle(p, phi0)).abs() < 1e-3);
+                        prop_assert!((end[2] - crate::algorithms::planner::nearest_angle(p, phi0)).abs() < 1e-3);
                     }
                     prop_assert!(stats.iterations <= EcsaSettings::default().max_iterations);
                     prop_assert!(f.states.iter().flatten().all(|v| v.is_finite()));

@@ -13,7 +13,7 @@ pub mod trajgen;
 
 use serde::{Deserialize, Serialize};
 
-use crate::model::SlipParams;
+use crate::world::model::SlipParams;
 
 /// A configuration to reach: a position, and a heading if it matters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -12,7 +12,6 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 
 use super::{Fragment, PlanError, PlanStats, Planner, PlannerKind, PlannerSettings, Waypoint};
-use crate::types::State;
 
 /// Where planning runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -207,31 +206,30 @@ impl TrajGen {
         &self.settings
     }
 
-    /// `trajgenInit(trajgen, state)`: prepare for plan `plan`.
+    /// `trajgenInit(trajgen, state)`: prepare for plan `plan`; `pose` is the
+    /// platform's `(X, Y, φ)` in the state (c1 passes its state estimate's).
     ///
-    /// The first plan starts from `state`'s pose. A later plan starts where the last
+    /// The first plan starts from `pose`. A later plan starts where the last
     /// fragment planned ends: because `c1` acknowledges a plan as soon as its last
     /// fragment is handed over (the paper's early `ack`), the next plan arrives
     /// while `e11` still executes that fragment, and the platform will be at its end
     /// (or holding it) when the next plan's first fragment begins. Starting from the
     /// current state instead would make the platform jump back along the path.
-    pub fn init(&mut self, state: &State, plan: u32) {
+    pub fn init(&mut self, pose: [f64; 3], plan: u32) {
         self.abandon();
         if self.totals.fragments == 0 {
-            let p = state.pose();
-            self.from = [p.x, p.y, p.phi];
+            self.from = pose;
         }
         self.plan = plan;
         self.index = 0;
         self.status = Status::Idle;
     }
 
-    /// Plan the next fragment from `state`'s pose instead of the end of the last
+    /// Plan the next fragment from `pose` `(X, Y, φ)` instead of the end of the last
     /// fragment planned: after a plan that did not end where it was planned to
     /// (stopped, failed), the platform is not there.
-    pub fn restart_from(&mut self, state: &State) {
-        let p = state.pose();
-        self.from = [p.x, p.y, p.phi];
+    pub fn restart_from(&mut self, pose: [f64; 3]) {
+        self.from = pose;
     }
 
     /// Where the next fragment starts `(X, Y, φ)`.
@@ -351,16 +349,9 @@ impl TrajGen {
 mod tests {
     use super::*;
 
-    fn state_at(x: f64, y: f64, phi: f64) -> State {
-        State {
-            q: [x, y, phi, 0.0, 0.0, 0.0, 0.0],
-            q_dot: [0.0; 7],
-        }
-    }
-
     fn run(runtime: Runtime) -> Vec<Fragment> {
         let mut t = TrajGen::new(PlannerKind::Ecsa, PlannerSettings::default(), runtime, 3);
-        t.init(&state_at(0.0, 0.0, 0.0), 7);
+        t.init([0.0, 0.0, 0.0], 7);
         let mut out = Vec::new();
         for p in [(1.0, 0.0), (1.0, 1.0)] {
             t.start(Waypoint {
@@ -401,7 +392,7 @@ mod tests {
             Runtime::Inline,
             1,
         );
-        t.init(&state_at(0.0, 0.0, 0.0), 1);
+        t.init([0.0, 0.0, 0.0], 1);
         t.start(Waypoint {
             x: f64::INFINITY,
             y: 0.0,

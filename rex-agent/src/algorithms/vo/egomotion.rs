@@ -3,7 +3,7 @@
 //! in the current pair over `θ = (r_x, r_y, r_z, t_x, t_y, t_z)`
 //! (`p_curr = R_x R_y R_z p_prev + t`), inside RANSAC on 3-point samples.
 
-use crate::noise::Rng;
+use crate::algorithms::rng::Rng;
 
 /// Rectified stereo intrinsics.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -6,7 +6,7 @@
 //! bucketed.
 
 use super::features::{CLASSES, DESCRIPTOR, Features, Gradients, sad};
-use crate::noise::Rng;
+use crate::algorithms::rng::Rng;
 
 /// Features indexed by class and by square bins of their position.
 #[derive(Clone, Debug, Default)]

@@ -39,6 +39,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::{CameraConfig, CameraPose};
+use crate::algorithms::geometry::{IDENTITY, Pose34, compose, invert};
+use crate::algorithms::vo::{Calibration, NoEstimate, StereoOdometry, VoSettings, VoStats};
 use crate::config::{self, ConfigError};
 
 /// A problem with a sequence folder, naming the file.
@@ -78,40 +80,6 @@ fn format_err(path: &Path, message: impl Into<String>) -> KittiError {
         message: message.into(),
     }
 }
-
-/// A 4×4 rigid transform as its top 3×4 rows.
-pub type Pose34 = [[f64; 4]; 3];
-
-/// `a · b` for rigid transforms.
-pub fn compose(a: &Pose34, b: &Pose34) -> Pose34 {
-    let mut r = [[0.0; 4]; 3];
-    for i in 0..3 {
-        for j in 0..4 {
-            r[i][j] =
-                (0..3).map(|k| a[i][k] * b[k][j]).sum::<f64>() + if j == 3 { a[i][3] } else { 0.0 };
-        }
-    }
-    r
-}
-
-/// The inverse of a rigid transform.
-pub fn invert(a: &Pose34) -> Pose34 {
-    let mut r = [[0.0; 4]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = a[j][i];
-        }
-        r[i][3] = -(0..3).map(|k| a[k][i] * a[k][3]).sum::<f64>();
-    }
-    r
-}
-
-/// The identity transform.
-pub const IDENTITY: Pose34 = [
-    [1.0, 0.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0, 0.0],
-    [0.0, 0.0, 1.0, 0.0],
-];
 
 /// Write a grayscale PNG.
 pub fn write_png(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<(), KittiError> {
@@ -565,10 +533,76 @@ impl Sequence {
     }
 }
 
+/// What [`run_sequence`] produced.
+#[derive(Clone, Debug)]
+pub struct SequenceRun {
+    /// Estimated pose of each left camera in the frame of the first (KITTI's).
+    pub poses: Vec<Pose34>,
+    /// Processing time of each pair [ms] (reading the images excluded).
+    pub ms: Vec<f64>,
+    /// The odometry's counters.
+    pub stats: VoStats,
+    /// Image size.
+    pub size: (u32, u32),
+    /// The pairs without an estimate: frame and why.
+    pub failures: Vec<(usize, NoEstimate)>,
+}
+
+/// Run the odometry over the first `frames` pairs of a KITTI sequence. A pair
+/// without an estimate repeats the previous motion (constant velocity, as the peer
+/// does) and is counted in `stats.failures`.
+pub fn run_sequence(
+    seq: &Sequence,
+    settings: VoSettings,
+    frames: usize,
+) -> Result<SequenceRun, Box<dyn std::error::Error>> {
+    let calib = Calibration {
+        f: seq.focal,
+        cu: seq.principal.0,
+        cv: seq.principal.1,
+        baseline: seq.baseline,
+    };
+    let mut vo = StereoOdometry::new(calib, settings)?;
+    let n = frames.min(seq.len());
+    let mut pose = IDENTITY;
+    let mut last: Option<Pose34> = None;
+    let mut out = SequenceRun {
+        poses: Vec::with_capacity(n),
+        ms: Vec::with_capacity(n),
+        stats: VoStats::default(),
+        size: (0, 0),
+        failures: Vec::new(),
+    };
+    for k in 0..n {
+        let (w, h, left, right) = seq.frame(k)?;
+        out.size = (w, h);
+        let t = std::time::Instant::now();
+        let r = vo.process(&left, &right, w as usize, h as usize);
+        out.ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let motion = match r {
+            Ok(Some(m)) => {
+                last = Some([m.tr[0], m.tr[1], m.tr[2]]);
+                last
+            }
+            Ok(None) => None,
+            Err(e) => {
+                out.failures.push((k, e));
+                last
+            }
+        };
+        if let Some(tr) = motion {
+            pose = compose(&pose, &invert(&tr));
+        }
+        out.poses.push(pose);
+    }
+    out.stats = vo.stats();
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Obstacle, Renderer, Room, SceneConfig};
+    use crate::world::camera::{Obstacle, Renderer, Room, SceneConfig};
     use std::collections::HashMap;
 
     fn temp_dir(name: &str) -> PathBuf {

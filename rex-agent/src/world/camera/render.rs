@@ -356,7 +356,7 @@ impl Renderer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::scene::Room;
+    use crate::world::camera::scene::Room;
 
     fn renderer() -> Renderer {
         Renderer::new(CameraConfig::default(), SceneConfig::default_room()).unwrap()

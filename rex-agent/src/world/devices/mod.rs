@@ -15,14 +15,15 @@ use embodied::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::camera::Renderer;
-use crate::camera::kitti::SequenceWriter;
-use crate::config::{self, ConfigError, Invalid, Validate, non_negative, positive};
-use crate::model::{CommandStats, FullState, Plant};
-use crate::noise::Rng;
-use crate::types::{
+use crate::a1::payload::{
     AcquireCommand, Encoders, Imu, ImuCommand, MapPose, Pose2, StereoPair, Torques, WheelLoads,
 };
+use crate::algorithms::geometry::wrap;
+use crate::algorithms::rng::Rng;
+use crate::config::{self, ConfigError, Invalid, Validate, non_negative, positive};
+use crate::world::camera::Renderer;
+use crate::world::camera::kitti::SequenceWriter;
+use crate::world::model::{CommandStats, FullState, Plant};
 
 /// What the simulation knows and the agents must estimate.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -171,15 +172,6 @@ pub struct Platform {
     timeouts: u64,
     resets: u64,
     rejected_resets: u64,
-}
-
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w <= -std::f64::consts::PI {
-        w + std::f64::consts::TAU
-    } else {
-        w
-    }
 }
 
 impl Platform {
@@ -650,7 +642,7 @@ impl Driver for MotionCapture {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{PlatformParams, SurfaceMap};
+    use crate::world::model::{PlatformParams, SurfaceMap};
     use embodied::{Period, Stamp, Time};
 
     fn platform(params: SensorParams) -> Platform {
@@ -846,27 +838,5 @@ mod tests {
         };
         assert_eq!(run(5), run(5));
         assert_ne!(run(5), run(6));
-    }
-
-    #[test]
-    fn wrap_keeps_angles_in_range() {
-        for a in [
-            -10.0,
-            -std::f64::consts::PI,
-            0.0,
-            3.0,
-            std::f64::consts::PI,
-            7.0,
-        ] {
-            let w = wrap(a);
-            assert!(
-                w > -std::f64::consts::PI && w <= std::f64::consts::PI,
-                "{a} -> {w}"
-            );
-            assert!(
-                ((w - a) / std::f64::consts::TAU).fract().abs() < 1e-9
-                    || ((w - a) / std::f64::consts::TAU).fract().abs() > 1.0 - 1e-9
-            );
-        }
     }
 }

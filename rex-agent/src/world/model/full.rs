@@ -472,7 +472,7 @@ fn solve7(mut a: [[f64; 7]; 7], mut b: [f64; 7]) -> Option<[f64; 7]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::params::Surface;
+    use crate::world::model::params::Surface;
 
     fn p_half_track() -> f64 {
         PlatformParams::peer_default().half_track
