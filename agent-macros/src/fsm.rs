@@ -436,7 +436,7 @@ pub(crate) fn check(d: &FsmDecl) -> syn::Result<()> {
         arcs: d
             .arcs
             .iter()
-            .map(|a| synth::Arc {
+            .map(|a| synth::FsmArc {
                 from: (name(&a.from), a.from.to_token_stream()),
                 to: (name(&a.to), a.to.to_token_stream()),
                 when: a.when.clone(),

@@ -126,7 +126,7 @@ pub(crate) struct Behaviour {
     pub(crate) parts: Vec<Part>,
 }
 
-pub(crate) struct Arc {
+pub(crate) struct FsmArc {
     pub(crate) from: Named,
     pub(crate) to: Named,
     pub(crate) when: Option<Cond>,
@@ -139,7 +139,7 @@ pub(crate) struct SynthFsm {
     pub(crate) relations: Vec<Relation>,
     pub(crate) behaviours: Vec<Behaviour>,
     pub(crate) initial: Option<Named>,
-    pub(crate) arcs: Vec<Arc>,
+    pub(crate) arcs: Vec<FsmArc>,
     pub(crate) finals: Vec<Named>,
 }
 
@@ -449,7 +449,7 @@ mod tests {
                 }],
             }],
             initial: Some(("idle".into(), quote!(idle))),
-            arcs: vec![Arc {
+            arcs: vec![FsmArc {
                 from: ("idle".into(), quote!(idle)),
                 to: ("idle".into(), quote!(idle)),
                 when: None,

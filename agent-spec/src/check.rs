@@ -3,9 +3,8 @@
 use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 
+use agent_core::fsm::rules::{self, Place, ShapeProblem};
 use agent_core::{Expr, NodeKind, structure_violation};
-use petgraph::graph::{DiGraph, NodeIndex};
-use petgraph::visit::Dfs;
 
 use crate::diag::{Code, Finding, abbreviate};
 use crate::model::{Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
@@ -766,20 +765,12 @@ impl<'a> Checker<'a> {
                 return None;
             }
         };
-        let mut missing = Vec::new();
-        let mut seen = HashSet::new();
-        let resolved = parsed.try_map(&mut |name: &String| match preds.get(name.as_str()) {
-            Some(&i) => {
-                used.insert(i);
-                Ok::<usize, ()>(i)
-            }
-            None => {
-                if seen.insert(name.clone()) {
-                    missing.push(name.clone());
-                }
-                Ok(0)
-            }
+        let resolved = rules::resolve_condition(&parsed, |name| {
+            let i = preds.get(name).copied();
+            used.extend(i);
+            i
         });
+        let missing = resolved.as_ref().err().cloned().unwrap_or_default();
         let offsets = if missing.is_empty() {
             HashMap::new()
         } else {
@@ -806,7 +797,7 @@ impl<'a> Checker<'a> {
                 .help(format!("declare it under `predicates`; declared: {known}")),
             );
         }
-        resolved.ok().filter(|_| missing.is_empty())
+        resolved.ok()
     }
 
     fn fsm(
@@ -818,12 +809,6 @@ impl<'a> Checker<'a> {
         used: &mut HashSet<usize>,
     ) {
         let at = |rest: &[Seg<'static>]| join(base, rest);
-        let behaviour: HashMap<&str, usize> = sub
-            .behaviours
-            .iter()
-            .enumerate()
-            .map(|(i, b)| (b.name.as_str(), i))
-            .collect();
         let unknown = |this: &mut Self, name: &str, path: Path, place: &str| {
             let known = this.list(&sub.behaviours, Hint::Behaviours, || {
                 sub.behaviours.iter().map(|b| b.name.clone()).collect()
@@ -907,10 +892,22 @@ impl<'a> Checker<'a> {
             }
         }
 
-        // Initial behaviour.
-        let initial = match &sub.fsm.initial {
-            None => {
-                self.push(
+        // The shape rules (agent-core's, shared with `FsmBuilder`), with spans.
+        let graph = rules::Graph {
+            behaviours: sub.behaviours.iter().map(|b| b.name.as_str()).collect(),
+            initial: sub.fsm.initial.as_deref(),
+            arcs: sub
+                .fsm
+                .arcs
+                .iter()
+                .map(|a| (a.from.as_str(), a.to.as_str()))
+                .collect(),
+            finals: sub.fsm.finals.iter().map(String::as_str).collect(),
+        };
+        let (shape, broken) = graph.check();
+        for problem in broken {
+            match problem {
+                ShapeProblem::NoInitial => self.push(
                     Finding::new(
                         Code::NoInitial,
                         self.key_span(&at(&[F("fsm")])),
@@ -918,99 +915,61 @@ impl<'a> Checker<'a> {
                         format!("the FSM of `{}` has no initial behaviour", sub.name),
                     )
                     .help("add `initial: \"<behaviour>\"` to `fsm`"),
-                );
-                None
-            }
-            Some(name) => {
-                let i = behaviour.get(name.as_str()).copied();
-                if i.is_none() {
-                    unknown(
-                        self,
-                        name,
-                        at(&[F("fsm"), F("initial")]),
-                        "the initial declaration",
-                    );
-                }
-                i
-            }
-        };
-
-        // Arcs.
-        let mut graph: DiGraph<usize, usize> = DiGraph::new();
-        let nodes: Vec<NodeIndex> = (0..sub.behaviours.len())
-            .map(|i| graph.add_node(i))
-            .collect();
-        let mut arcs: Vec<Vec<(usize, Option<Expr<usize>>)>> =
-            vec![Vec::new(); sub.behaviours.len()];
-        for (k, arc) in sub.fsm.arcs.iter().enumerate() {
-            let apath = at(&[F("fsm"), F("arcs"), I(k)]);
-            let from = behaviour.get(arc.from.as_str()).copied();
-            let to = behaviour.get(arc.to.as_str()).copied();
-            if from.is_none() {
-                unknown(self, &arc.from, join(&apath, &[F("from")]), "an arc");
-            }
-            if to.is_none() {
-                unknown(self, &arc.to, join(&apath, &[F("to")]), "an arc");
-            }
-            let cond = self.condition(sub, &arc.when, preds, &join(&apath, &[F("when")]), used);
-            if let (Some(f), Some(t)) = (from, to) {
-                graph.add_edge(nodes[f], nodes[t], k);
-                arcs[f].push((k, cond));
-            }
-        }
-        let mut finals = vec![false; sub.behaviours.len()];
-        for (k, name) in sub.fsm.finals.iter().enumerate() {
-            match behaviour.get(name.as_str()) {
-                Some(&i) => finals[i] = true,
-                None => unknown(
-                    self,
-                    name,
-                    at(&[F("fsm"), F("finals"), I(k)]),
-                    "a final declaration",
                 ),
-            }
-        }
-
-        // Reachability.
-        if let Some(start) = initial {
-            let mut reached = vec![false; sub.behaviours.len()];
-            let mut dfs = Dfs::new(&graph, nodes[start]);
-            while let Some(n) = dfs.next(&graph) {
-                reached[graph[n]] = true;
-            }
-            for (i, b) in sub.behaviours.iter().enumerate() {
-                if !reached[i] {
+                ShapeProblem::UnknownBehaviour { place, name } => {
+                    let (path, what) = match place {
+                        Place::Initial => (at(&[F("fsm"), F("initial")]), "the initial declaration"),
+                        Place::ArcFrom(k) => (at(&[F("fsm"), F("arcs"), I(k), F("from")]), "an arc"),
+                        Place::ArcTo(k) => (at(&[F("fsm"), F("arcs"), I(k), F("to")]), "an arc"),
+                        Place::Final(k) => (at(&[F("fsm"), F("finals"), I(k)]), "a final declaration"),
+                    };
+                    unknown(self, &name, path, what);
+                }
+                ShapeProblem::Unreachable(i) => {
+                    let start = shape.initial.map_or("", |s| sub.behaviours[s].name.as_str());
                     self.push(
                         Finding::new(
                             Code::Unreachable,
                             self.span(&at(&[F("behaviours"), I(i), F("name")])),
                             "unreachable",
                             format!(
-                                "behaviour `{}` of `{}` cannot be reached from `{}`",
-                                b.name, sub.name, sub.behaviours[start].name
+                                "behaviour `{}` of `{}` cannot be reached from `{start}`",
+                                sub.behaviours[i].name, sub.name
                             ),
                         )
                         .help("add an arc into it, or remove it"),
                     );
                 }
+                ShapeProblem::FinalWithArcs(i) => self.push(
+                    Finding::new(
+                        Code::FinalWithArcs,
+                        self.span(&at(&[F("behaviours"), I(i), F("name")])),
+                        "declared final",
+                        format!(
+                            "behaviour `{}` is declared final but has outgoing arcs",
+                            sub.behaviours[i].name
+                        ),
+                    )
+                    .help("a final behaviour halts the subsystem when it ends; remove the arcs or the final declaration"),
+                ),
             }
         }
+        // The arcs' conditions, for the proof.
+        let mut arcs: Vec<Vec<(usize, Option<Expr<usize>>)>> =
+            vec![Vec::new(); sub.behaviours.len()];
+        for (k, arc) in sub.fsm.arcs.iter().enumerate() {
+            let apath = at(&[F("fsm"), F("arcs"), I(k)]);
+            let cond = self.condition(sub, &arc.when, preds, &join(&apath, &[F("when")]), used);
+            if let Some((f, _)) = shape.arcs[k] {
+                arcs[f].push((k, cond));
+            }
+        }
+        let finals = &shape.finals;
 
         // Ways out and the arc proof.
         for (i, b) in sub.behaviours.iter().enumerate() {
             let name_span = self.span(&at(&[F("behaviours"), I(i), F("name")]));
             let literal_false = b.terminal.trim() == "false";
-            if finals[i] && !arcs[i].is_empty() {
-                self.push(
-                    Finding::new(
-                        Code::FinalWithArcs,
-                        name_span.clone(),
-                        "declared final",
-                        format!("behaviour `{}` is declared final but has outgoing arcs", b.name),
-                    )
-                    .help("a final behaviour halts the subsystem when it ends; remove the arcs or the final declaration"),
-                );
-            }
             let Some(terminal) = &terminals[i] else {
                 continue;
             };
@@ -1054,7 +1013,7 @@ impl<'a> Checker<'a> {
                 );
             }
             if arcs[i].is_empty() {
-                if can_end && !finals[i] {
+                if shape.lacks_way_out(i, can_end) {
                     self.push(
                         Finding::new(
                             Code::NoWayOut,

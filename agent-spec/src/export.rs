@@ -317,7 +317,7 @@ fn subsystem(
             arcs: fsm
                 .arcs
                 .iter()
-                .map(|(from, to, when)| model::Arc {
+                .map(|(from, to, when)| model::FsmArc {
                     from: from.clone(),
                     to: to.clone(),
                     when: when.clone(),

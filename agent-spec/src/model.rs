@@ -189,7 +189,7 @@ pub struct Fsm {
     pub initial: Option<String>,
     /// Arcs with initial conditions.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub arcs: Vec<Arc>,
+    pub arcs: Vec<FsmArc>,
     /// Behaviours after which the subsystem halts.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub finals: Vec<String>,
@@ -198,7 +198,7 @@ pub struct Fsm {
 /// An arc of an FSM.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Arc {
+pub struct FsmArc {
     /// Source behaviour.
     pub from: String,
     /// Target behaviour.

@@ -1,0 +1,276 @@
+//! [`FsmBuilder`]: an FSM declared piece by piece, checked as a whole (the shape
+//! rules of [`rules`](super::rules), conditions resolved, actions well formed).
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use super::rules::{self, Place, ShapeProblem};
+use super::{Fsm, FsmArc, Node, Predicate, Relation};
+use crate::behaviour::Behaviour;
+use crate::error::{FsmBuildError, FsmProblem};
+use crate::expr::Expr;
+use crate::subsystem::Subsystem;
+
+/// Builds an [`Fsm`]; [`FsmBuilder::build`] checks it and reports every problem at once.
+pub struct FsmBuilder<S: Subsystem> {
+    predicates: Vec<Predicate<S>>,
+    relations: Vec<Relation>,
+    behaviours: Vec<Behaviour<S>>,
+    arcs: Vec<(Cow<'static, str>, Cow<'static, str>, Cow<'static, str>)>,
+    initial: Option<Cow<'static, str>>,
+    finals: Vec<Cow<'static, str>>,
+}
+
+impl<S: Subsystem> Default for FsmBuilder<S> {
+    fn default() -> Self {
+        FsmBuilder {
+            predicates: Vec::new(),
+            relations: Vec::new(),
+            behaviours: Vec::new(),
+            arcs: Vec::new(),
+            initial: None,
+            finals: Vec::new(),
+        }
+    }
+}
+
+impl<S: Subsystem> FsmBuilder<S> {
+    /// An empty builder.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Declare a named predicate usable in conditions.
+    pub fn predicate<F>(mut self, name: impl Into<Cow<'static, str>>, f: F) -> Self
+    where
+        F: Fn(&S::Memory, &S::Input) -> bool + Send + 'static,
+    {
+        self.predicates.push(Predicate {
+            name: name.into(),
+            f: Box::new(f),
+        });
+        self
+    }
+
+    /// Declare that at most one of `predicates` holds at a time (an assumption of
+    /// the arc proof, exported into specs; see [`Relation`]).
+    pub fn exclusive<N: Into<Cow<'static, str>>>(
+        mut self,
+        predicates: impl IntoIterator<Item = N>,
+    ) -> Self {
+        self.relations.push(Relation::Exclusive(
+            predicates.into_iter().map(Into::into).collect(),
+        ));
+        self
+    }
+
+    /// Declare that predicate `a` implies predicate `b` (see [`Relation`]).
+    pub fn implies(
+        mut self,
+        a: impl Into<Cow<'static, str>>,
+        b: impl Into<Cow<'static, str>>,
+    ) -> Self {
+        self.relations.push(Relation::Implies(a.into(), b.into()));
+        self
+    }
+
+    /// Add a behaviour (a node).
+    pub fn behaviour(mut self, behaviour: Behaviour<S>) -> Self {
+        self.behaviours.push(behaviour);
+        self
+    }
+
+    /// Name the initial behaviour.
+    pub fn initial(mut self, name: impl Into<Cow<'static, str>>) -> Self {
+        self.initial = Some(name.into());
+        self
+    }
+
+    /// Add an arc `from -> to` labelled with an initial condition.
+    pub fn arc(
+        mut self,
+        from: impl Into<Cow<'static, str>>,
+        to: impl Into<Cow<'static, str>>,
+        condition: impl Into<Cow<'static, str>>,
+    ) -> Self {
+        self.arcs.push((from.into(), to.into(), condition.into()));
+        self
+    }
+
+    /// Declare a behaviour final: when it ends, the subsystem halts.
+    pub fn final_behaviour(mut self, name: impl Into<Cow<'static, str>>) -> Self {
+        self.finals.push(name.into());
+        self
+    }
+
+    /// Check the FSM and build it.
+    pub fn build(self) -> Result<Fsm<S>, FsmBuildError> {
+        let mut problems = Vec::new();
+        if self.behaviours.is_empty() {
+            problems.push(FsmProblem::Empty);
+        }
+        let mut index: HashMap<&str, usize> = HashMap::new();
+        for (i, b) in self.behaviours.iter().enumerate() {
+            if index.insert(&b.name, i).is_some() {
+                problems.push(FsmProblem::DuplicateBehaviour(b.name.to_string()));
+            }
+            for d in b.action.defects() {
+                problems.push(FsmProblem::Action {
+                    behaviour: b.name.to_string(),
+                    message: d.clone(),
+                });
+            }
+        }
+        let mut preds: HashMap<&str, usize> = HashMap::new();
+        for (i, p) in self.predicates.iter().enumerate() {
+            if preds.insert(&p.name, i).is_some() {
+                problems.push(FsmProblem::DuplicatePredicate(p.name.to_string()));
+            }
+        }
+        for r in &self.relations {
+            for name in r.names() {
+                if !preds.contains_key(name) {
+                    problems.push(FsmProblem::UnknownPredicate {
+                        place: "a relation".into(),
+                        name: name.to_owned(),
+                    });
+                }
+            }
+        }
+        let terminals: Vec<Option<Expr<usize>>> = self
+            .behaviours
+            .iter()
+            .map(|b| {
+                resolve(
+                    &preds,
+                    &mut problems,
+                    format!("terminal condition of `{}`", b.name),
+                    &b.terminal,
+                )
+            })
+            .collect();
+        let conditions: Vec<Option<Expr<usize>>> = self
+            .arcs
+            .iter()
+            .map(|(from, to, cond)| {
+                let place = format!("initial condition of arc `{from}` -> `{to}`");
+                resolve(&preds, &mut problems, place, cond)
+            })
+            .collect();
+
+        // The shape rules, shared with the spec checker.
+        let graph = rules::Graph {
+            behaviours: self.behaviours.iter().map(|b| b.name.as_ref()).collect(),
+            initial: self.initial.as_deref(),
+            arcs: self
+                .arcs
+                .iter()
+                .map(|(f, t, _)| (f.as_ref(), t.as_ref()))
+                .collect(),
+            finals: self.finals.iter().map(AsRef::as_ref).collect(),
+        };
+        let (shape, broken) = graph.check();
+        for p in broken {
+            problems.push(match p {
+                ShapeProblem::NoInitial => FsmProblem::NoInitial,
+                ShapeProblem::UnknownBehaviour { place, name } => FsmProblem::UnknownBehaviour {
+                    place: match place {
+                        Place::Initial => "the initial declaration".to_owned(),
+                        Place::ArcFrom(k) | Place::ArcTo(k) => {
+                            let (from, to, _) = &self.arcs[k];
+                            format!("arc `{from}` -> `{to}`")
+                        }
+                        Place::Final(_) => "a final declaration".to_owned(),
+                    },
+                    name,
+                },
+                ShapeProblem::Unreachable(b) => {
+                    FsmProblem::Unreachable(self.behaviours[b].name.to_string())
+                }
+                ShapeProblem::FinalWithArcs(b) => {
+                    FsmProblem::FinalWithArcs(self.behaviours[b].name.to_string())
+                }
+            });
+        }
+        for (b, behaviour) in self.behaviours.iter().enumerate() {
+            let never_ends = terminals[b].as_ref().is_some_and(Expr::is_const_false);
+            if shape.lacks_way_out(b, !never_ends) {
+                problems.push(FsmProblem::NoWayOut(behaviour.name.to_string()));
+            }
+        }
+        if !problems.is_empty() {
+            return Err(FsmBuildError { problems });
+        }
+        let (Some(initial), Some(terminals), Some(conditions)) = (
+            shape.initial,
+            terminals.into_iter().collect::<Option<Vec<_>>>(),
+            conditions.into_iter().collect::<Option<Vec<_>>>(),
+        ) else {
+            // Unreachable: every `None` above recorded a problem.
+            return Err(FsmBuildError { problems });
+        };
+        let mut arcs: Vec<Vec<FsmArc>> = self.behaviours.iter().map(|_| Vec::new()).collect();
+        for (((_, _, text), condition), ends) in
+            self.arcs.into_iter().zip(conditions).zip(shape.arcs)
+        {
+            if let Some((from, to)) = ends {
+                arcs[from].push(FsmArc {
+                    from,
+                    to,
+                    condition,
+                    text,
+                });
+            }
+        }
+        let nodes = self
+            .behaviours
+            .into_iter()
+            .zip(terminals)
+            .zip(arcs)
+            .zip(shape.finals)
+            .map(|(((behaviour, terminal), arcs), is_final)| Node {
+                behaviour,
+                never_ends: terminal.is_const_false(),
+                terminal,
+                arcs,
+                is_final,
+            })
+            .collect();
+        Ok(Fsm {
+            predicates: self.predicates,
+            relations: self.relations,
+            nodes,
+            initial,
+        })
+    }
+}
+
+/// Parse `text` and resolve its predicate names, recording problems.
+fn resolve(
+    preds: &HashMap<&str, usize>,
+    problems: &mut Vec<FsmProblem>,
+    place: String,
+    text: &str,
+) -> Option<Expr<usize>> {
+    let parsed = match Expr::parse(text) {
+        Ok(e) => e,
+        Err(error) => {
+            problems.push(FsmProblem::Syntax { place, error });
+            return None;
+        }
+    };
+    match rules::resolve_condition(&parsed, |name| preds.get(name).copied()) {
+        Ok(e) => Some(e),
+        Err(unknown) => {
+            problems.extend(
+                unknown
+                    .into_iter()
+                    .map(|name| FsmProblem::UnknownPredicate {
+                        place: place.clone(),
+                        name,
+                    }),
+            );
+            None
+        }
+    }
+}

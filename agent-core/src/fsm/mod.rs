@@ -1,0 +1,544 @@
+//! The finite state machine of one subsystem: nodes are behaviours, arcs carry
+//! initial conditions.
+//!
+//! When the current behaviour's terminal condition holds, exactly one outgoing arc's
+//! initial condition must hold; the FSM follows it and the target behaviour starts in
+//! the same activation. No arc or several arcs holding is an [`FsmError`], returned
+//! with the predicate values that caused it: never a panic and never a silent choice.
+//! Conditions are Boolean [`Expr`]essions over named predicates, each predicate
+//! evaluated at most once per decision.
+
+use std::borrow::Cow;
+use std::fmt;
+
+use crate::behaviour::Behaviour;
+use crate::error::{FsmBuildError, FsmError};
+use crate::expr::Expr;
+use crate::kinds::BehaviourKind;
+use crate::subsystem::Subsystem;
+use crate::transition::Part;
+
+mod builder;
+pub mod rules;
+
+pub use builder::FsmBuilder;
+
+type PredicateFn<S> =
+    Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
+
+/// A named predicate over memory and inputs: the atoms of initial and terminal
+/// conditions (`f^σ`, `f^τ`).
+pub struct Predicate<S: Subsystem> {
+    name: Cow<'static, str>,
+    f: PredicateFn<S>,
+}
+
+impl<S: Subsystem> Predicate<S> {
+    /// The predicate's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Evaluate it.
+    pub fn holds(&self, memory: &S::Memory, input: &S::Input) -> bool {
+        (self.f)(memory, input)
+    }
+}
+
+/// A fact about predicates that the FSM's arcs rely on: the arc proof of the spec
+/// checker (and of the `fsm!` macro) assumes it. The runtime does not: an arc choice
+/// that a false relation makes ambiguous is still caught as an [`FsmError`].
+///
+/// In a spec (RON): `Exclusive(["a", "b"])`, `Implies("a", "b")`.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Relation {
+    /// At most one of these predicates holds at a time.
+    Exclusive(Vec<Cow<'static, str>>),
+    /// If the first holds, so does the second.
+    Implies(Cow<'static, str>, Cow<'static, str>),
+}
+
+impl Relation {
+    /// The predicates it names.
+    pub fn names(&self) -> Vec<&str> {
+        match self {
+            Relation::Exclusive(v) => v.iter().map(|n| n.as_ref()).collect(),
+            Relation::Implies(a, b) => vec![a.as_ref(), b.as_ref()],
+        }
+    }
+}
+
+/// The description of one behaviour, for specs and diagrams.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BehaviourShape {
+    /// Its name.
+    pub name: String,
+    /// While or repeat.
+    pub kind: BehaviourKind,
+    /// The terminal condition as written.
+    pub terminal: String,
+    /// The parts of its elementary action, in evaluation order.
+    pub parts: Vec<Part>,
+}
+
+/// The description of an FSM: what a spec says of it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FsmShape {
+    /// Predicate names, in declaration order.
+    pub predicates: Vec<String>,
+    /// Declared relations between predicates.
+    pub relations: Vec<Relation>,
+    /// The behaviours, by index.
+    pub behaviours: Vec<BehaviourShape>,
+    /// The initial behaviour.
+    pub initial: String,
+    /// The arcs as `(from, to, condition)`, grouped by source behaviour (in the
+    /// order of the behaviours), in declaration order within each: the order that
+    /// numbers them in traces.
+    pub arcs: Vec<(String, String, String)>,
+    /// The final behaviours.
+    pub finals: Vec<String>,
+}
+
+/// An arc of the FSM.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FsmArc {
+    /// Index of the source behaviour.
+    pub from: usize,
+    /// Index of the target behaviour.
+    pub to: usize,
+    /// The initial condition, resolved to predicate indices.
+    pub condition: Expr<usize>,
+    /// The initial condition as written.
+    pub text: Cow<'static, str>,
+}
+
+struct Node<S: Subsystem> {
+    behaviour: Behaviour<S>,
+    terminal: Expr<usize>,
+    /// The terminal condition is the constant `false`: the behaviour never ends.
+    never_ends: bool,
+    arcs: Vec<FsmArc>,
+    is_final: bool,
+}
+
+/// Where an FSM is: its current behaviour and whether an action of it already ran.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct FsmState {
+    node: usize,
+    actions_done: bool,
+    halted: bool,
+}
+
+impl FsmState {
+    /// Index of the current behaviour.
+    pub fn behaviour(&self) -> usize {
+        self.node
+    }
+
+    /// Whether the FSM ended in a final behaviour (or was halted by the executor).
+    pub fn is_halted(&self) -> bool {
+        self.halted
+    }
+
+    /// Whether at least one action of the current behaviour has run.
+    pub fn actions_done(&self) -> bool {
+        self.actions_done
+    }
+
+    pub(crate) fn halt(&mut self) {
+        self.halted = true;
+    }
+
+    /// The state on entering behaviour `node` afresh: no action of it done yet.
+    fn entering(node: usize) -> FsmState {
+        FsmState {
+            node,
+            actions_done: false,
+            halted: false,
+        }
+    }
+}
+
+/// One decision of the FSM (terminal test and, if the behaviour ends, arc selection).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// The current behaviour goes on: run its action.
+    Run,
+    /// The behaviour ended and the FSM followed arc number `arc` of `from` to `to`.
+    Entered {
+        /// Behaviour that ended.
+        from: usize,
+        /// Index of the arc among `from`'s outgoing arcs.
+        arc: usize,
+        /// Behaviour entered.
+        to: usize,
+    },
+    /// A final behaviour ended: the subsystem halts.
+    Finished,
+}
+
+/// What one activation of a subsystem did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Activated {
+    /// The action of behaviour `behaviour` ran.
+    Ran {
+        /// Index of the behaviour whose action ran.
+        behaviour: usize,
+    },
+    /// The FSM is halted (it ended in a final behaviour); nothing ran.
+    Halted,
+}
+
+/// Memo of predicate values within one decision (up to 64 predicates are cached;
+/// more are evaluated on each use).
+#[derive(Default)]
+struct Memo {
+    known: u64,
+    value: u64,
+}
+
+impl Memo {
+    #[inline]
+    fn get(&mut self, i: usize, f: impl FnOnce() -> bool) -> bool {
+        if i >= 64 {
+            return f();
+        }
+        let bit = 1u64 << i;
+        if self.known & bit != 0 {
+            return self.value & bit != 0;
+        }
+        let v = f();
+        self.known |= bit;
+        if v {
+            self.value |= bit;
+        }
+        v
+    }
+}
+
+/// The FSM of one subsystem: behaviours, predicates, arcs and the initial behaviour.
+pub struct Fsm<S: Subsystem> {
+    predicates: Vec<Predicate<S>>,
+    relations: Vec<Relation>,
+    nodes: Vec<Node<S>>,
+    initial: usize,
+}
+
+impl<S: Subsystem> fmt::Debug for Fsm<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Fsm")
+            .field("behaviours", &self.nodes.len())
+            .field("predicates", &self.predicates.len())
+            .field("initial", &self.behaviour_name(self.initial))
+            .finish()
+    }
+}
+
+impl<S: Subsystem> Fsm<S> {
+    /// Start building an FSM.
+    pub fn builder() -> FsmBuilder<S> {
+        FsmBuilder::new()
+    }
+
+    /// An FSM of one behaviour that never ends (typical of virtual effectors and
+    /// receptors). Its terminal condition must be `false`.
+    pub fn single(behaviour: Behaviour<S>) -> Result<Fsm<S>, FsmBuildError> {
+        let name = behaviour.name.clone();
+        FsmBuilder::new().behaviour(behaviour).initial(name).build()
+    }
+
+    /// The state at the start: in the initial behaviour, no action done yet.
+    pub fn start(&self) -> FsmState {
+        FsmState::entering(self.initial)
+    }
+
+    /// The state on entering behaviour `index` afresh, as when an arc into it is
+    /// followed (`None` for an unknown index). The termination helpers start a
+    /// behaviour this way.
+    pub fn start_at(&self, index: usize) -> Option<FsmState> {
+        (index < self.nodes.len()).then(|| FsmState::entering(index))
+    }
+
+    /// Number of behaviours.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether the FSM has no behaviour (never true for a built FSM).
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Index of the initial behaviour.
+    pub fn initial(&self) -> usize {
+        self.initial
+    }
+
+    /// The behaviour at `index`.
+    pub fn behaviour(&self, index: usize) -> Option<&Behaviour<S>> {
+        self.nodes.get(index).map(|n| &n.behaviour)
+    }
+
+    /// The name of the behaviour at `index` (`"?"` if out of range).
+    pub fn behaviour_name(&self, index: usize) -> &str {
+        self.nodes.get(index).map_or("?", |n| &n.behaviour.name)
+    }
+
+    /// The index of the behaviour called `name`.
+    pub fn behaviour_index(&self, name: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.behaviour.name == name)
+    }
+
+    /// The arcs leaving behaviour `index`.
+    pub fn arcs(&self, index: usize) -> &[FsmArc] {
+        self.nodes.get(index).map_or(&[], |n| &n.arcs)
+    }
+
+    /// The resolved terminal condition of behaviour `index`.
+    pub fn terminal(&self, index: usize) -> Option<&Expr<usize>> {
+        self.nodes.get(index).map(|n| &n.terminal)
+    }
+
+    /// Whether the terminal condition of behaviour `index` holds (false for an
+    /// unknown index).
+    pub fn terminal_holds(&self, index: usize, memory: &S::Memory, input: &S::Input) -> bool {
+        self.nodes
+            .get(index)
+            .is_some_and(|n| self.eval(&n.terminal, memory, input, &mut Memo::default()))
+    }
+
+    /// Whether behaviour `index` is declared final.
+    pub fn is_final(&self, index: usize) -> bool {
+        self.nodes.get(index).is_some_and(|n| n.is_final)
+    }
+
+    /// The declared predicates.
+    pub fn predicates(&self) -> &[Predicate<S>] {
+        &self.predicates
+    }
+
+    /// The declared relations between predicates.
+    pub fn relations(&self) -> &[Relation] {
+        &self.relations
+    }
+
+    /// What a spec says of this FSM: predicates, relations, behaviours with their
+    /// parts, the initial behaviour, arcs and finals. The system builder records it,
+    /// and `agent-spec` exports it.
+    pub fn describe(&self) -> FsmShape {
+        FsmShape {
+            predicates: self.predicates.iter().map(|p| p.name.to_string()).collect(),
+            relations: self.relations.clone(),
+            behaviours: self
+                .nodes
+                .iter()
+                .map(|n| BehaviourShape {
+                    name: n.behaviour.name.to_string(),
+                    kind: n.behaviour.kind,
+                    terminal: n.behaviour.terminal.to_string(),
+                    parts: n.behaviour.action.describe(),
+                })
+                .collect(),
+            initial: self.behaviour_name(self.initial).to_owned(),
+            arcs: self
+                .nodes
+                .iter()
+                .flat_map(|n| n.arcs.iter())
+                .map(|a| {
+                    (
+                        self.behaviour_name(a.from).to_owned(),
+                        self.behaviour_name(a.to).to_owned(),
+                        a.text.to_string(),
+                    )
+                })
+                .collect(),
+            finals: self
+                .nodes
+                .iter()
+                .filter(|n| n.is_final)
+                .map(|n| n.behaviour.name.to_string())
+                .collect(),
+        }
+    }
+
+    #[inline]
+    fn eval(&self, e: &Expr<usize>, m: &S::Memory, x: &S::Input, memo: &mut Memo) -> bool {
+        e.eval(&mut |&i: &usize| memo.get(i, || self.predicates[i].holds(m, x)))
+    }
+
+    fn assignment(&self, m: &S::Memory, x: &S::Input) -> String {
+        let parts: Vec<String> = self
+            .predicates
+            .iter()
+            .map(|p| format!("{}={}", p.name, p.holds(m, x)))
+            .collect();
+        if parts.is_empty() {
+            "none declared".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+
+    fn arc_label(&self, a: &FsmArc) -> String {
+        format!("-> {} [{}]", self.behaviour_name(a.to), a.text)
+    }
+
+    /// Whether the current behaviour ends now: its terminal condition is tested at
+    /// this point (before every iteration for while-type; for repeat-type only once
+    /// an action of it ran) and holds. This is the first half of [`Fsm::step`], the
+    /// same code; it selects no arc and does not move the FSM.
+    #[inline]
+    pub fn ends(&self, state: &FsmState, memory: &S::Memory, input: &S::Input) -> bool {
+        self.ends_with(state, memory, input, &mut Memo::default())
+    }
+
+    #[inline]
+    fn ends_with(
+        &self,
+        state: &FsmState,
+        memory: &S::Memory,
+        input: &S::Input,
+        memo: &mut Memo,
+    ) -> bool {
+        let node = &self.nodes[state.node];
+        !node.never_ends
+            && node.behaviour.kind.tests_terminal(state.actions_done)
+            && self.eval(&node.terminal, memory, input, memo)
+    }
+
+    /// One decision: test the current behaviour's terminal condition (before every
+    /// iteration for while-type, after each iteration for repeat-type; see
+    /// [`Fsm::ends`]) and, if it holds, select the one arc whose initial condition
+    /// holds.
+    #[inline]
+    pub fn step(
+        &self,
+        state: &mut FsmState,
+        memory: &S::Memory,
+        input: &S::Input,
+    ) -> Result<Step, FsmError> {
+        let from = state.node;
+        let mut memo = Memo::default();
+        if !self.ends_with(state, memory, input, &mut memo) {
+            return Ok(Step::Run);
+        }
+        let node = &self.nodes[from];
+        let mut chosen = None;
+        let mut count = 0usize;
+        for (i, a) in node.arcs.iter().enumerate() {
+            if self.eval(&a.condition, memory, input, &mut memo) {
+                count += 1;
+                chosen.get_or_insert(i);
+            }
+        }
+        match (count, chosen) {
+            (1, Some(arc)) => {
+                let to = node.arcs[arc].to;
+                *state = FsmState::entering(to);
+                Ok(Step::Entered { from, arc, to })
+            }
+            (0, _) if node.is_final => {
+                state.halted = true;
+                Ok(Step::Finished)
+            }
+            (0, _) => Err(FsmError::NoArcHolds {
+                behaviour: node.behaviour.name.to_string(),
+                arcs: node
+                    .arcs
+                    .iter()
+                    .map(|a| self.arc_label(a))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                assignment: self.assignment(memory, input),
+            }),
+            _ => Err(FsmError::SeveralArcsHold {
+                behaviour: node.behaviour.name.to_string(),
+                count,
+                held: node
+                    .arcs
+                    .iter()
+                    .filter(|a| self.eval(&a.condition, memory, input, &mut Memo::default()))
+                    .map(|a| self.arc_label(a))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                assignment: self.assignment(memory, input),
+            }),
+        }
+    }
+
+    /// One activation after the inputs were read: FSM decisions ([`Fsm::step`]) until
+    /// a behaviour goes on (at most one transition per behaviour), then that
+    /// behaviour's elementary action ([`Fsm::act`]). `on_step` sees every transition.
+    /// This is what the executor runs for a subsystem and what the termination helper
+    /// `testing::Termination::returns_to` runs; `testing::Termination::behaviour`
+    /// calls its two halves instead, [`Fsm::ends`] and [`Fsm::act`], to stay in one
+    /// behaviour.
+    pub fn activate(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+        mut on_step: impl FnMut(&Step),
+    ) -> Result<Activated, FsmError> {
+        if state.halted {
+            return Ok(Activated::Halted);
+        }
+        let start = state.node;
+        let mut transitions = 0;
+        loop {
+            match self.step(state, memory, input)? {
+                Step::Run => break,
+                step @ Step::Entered { .. } => {
+                    on_step(&step);
+                    transitions += 1;
+                    if transitions >= self.nodes.len() {
+                        return Err(FsmError::Livelock {
+                            from: self.behaviour_name(start).to_owned(),
+                            transitions,
+                            path: format!("… -> `{}`", self.behaviour_name(state.node)),
+                        });
+                    }
+                }
+                Step::Finished => {
+                    on_step(&Step::Finished);
+                    return Ok(Activated::Halted);
+                }
+            }
+        }
+        self.act(state, memory, input, output)
+    }
+
+    /// One iteration of the current behaviour, without any decision: run its
+    /// elementary action and record that an action of it ran (from now on a
+    /// repeat-type behaviour tests its terminal condition). The second half of
+    /// [`Fsm::activate`], the same code. Nothing runs in a halted FSM.
+    #[inline]
+    pub fn act(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+    ) -> Result<Activated, FsmError> {
+        if state.halted {
+            return Ok(Activated::Halted);
+        }
+        let node = &self.nodes[state.node];
+        node.behaviour
+            .action
+            .compute(memory, input, output)
+            .map_err(|source| FsmError::Action {
+                behaviour: node.behaviour.name.to_string(),
+                source,
+            })?;
+        state.actions_done = true;
+        Ok(Activated::Ran {
+            behaviour: state.node,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;
