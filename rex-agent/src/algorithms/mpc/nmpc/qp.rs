@@ -1,0 +1,377 @@
+//! The QP of one SQP iteration of the NMPC: the linearisation of every stage, the
+//! equality-constrained QP by a backward Riccati recursion and a forward sweep (the
+//! structured solution, kept when it satisfies every bound), and the full sparse QP
+//! by Clarabel when it does not (see the module docs of `nmpc`).
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+
+use super::{NU, NX, Nmpc, NmpcError, NmpcSettings, QpStrategy};
+use crate::algorithms::mpc::linalg::{Mat, cholesky, cholesky_solve};
+use crate::algorithms::mpc::sparse::Pattern;
+use crate::world::model::State5;
+
+impl Nmpc {
+    /// Linearise every stage and run the backward Riccati recursion.
+    pub(super) fn linearise(&mut self) {
+        for k in 0..self.s.horizon {
+            let (next, j) = self.model.rk4_sensitivities(
+                &self.xs[k],
+                &self.us[k],
+                &self.p,
+                self.s.dt,
+                self.s.rk4_steps,
+            );
+            let st = &mut self.stages[k];
+            st.a = Mat(j.x);
+            st.b = Mat(j.u);
+            st.d = std::array::from_fn(|i| next[i] - self.xs[k + 1][i]);
+        }
+    }
+
+    /// Gradient of the cost at stage `k` (`2 Q (x_k − x_d,k)`, `Q_N` at the end).
+    fn gradient_x(&self, k: usize) -> [f64; NX] {
+        let w = if k == self.s.horizon {
+            &self.s.q_terminal
+        } else {
+            &self.s.q
+        };
+        std::array::from_fn(|i| 2.0 * w[i] * (self.xs[k][i] - self.reference[k][i]))
+    }
+
+    /// Backward Riccati recursion of the equality-constrained QP; stores the gains.
+    fn riccati(&mut self) -> Result<(), NmpcError> {
+        let n = self.s.horizon;
+        let mut p = Mat::<NX, NX>::diag(self.s.q_terminal.map(|w| 2.0 * w));
+        let mut pv = self.gradient_x(n);
+        for k in (0..n).rev() {
+            let st = self.stages[k];
+            let pa = p.mul(&st.a);
+            let pb = p.mul(&st.b);
+            let h: [f64; NX] = std::array::from_fn(|i| p.row_dot(i, &st.d) + pv[i]);
+            let mut huu = st.b.tmul(&pb);
+            for i in 0..NU {
+                huu.0[i][i] += 2.0 * self.s.r[i];
+            }
+            let hux = st.b.tmul(&pa);
+            let hu: [f64; NU] =
+                std::array::from_fn(|i| 2.0 * self.s.r[i] * self.us[k][i] + st.b.col_dot(i, &h));
+            let l = cholesky(&huu).ok_or_else(|| {
+                NmpcError::Qp(format!(
+                    "Riccati: the Hessian of stage {k} is not positive definite"
+                ))
+            })?;
+            // K = −Huu⁻¹ Hux, k = −Huu⁻¹ hu.
+            let mut kmat = Mat::<NU, NX>::zero();
+            for c in 0..NX {
+                let col = cholesky_solve(&l, &std::array::from_fn(|r| hux.0[r][c]));
+                for r in 0..NU {
+                    kmat.0[r][c] = -col[r];
+                }
+            }
+            let kff = cholesky_solve(&l, &hu).map(|v| -v);
+            self.stages[k].gain = kmat;
+            self.stages[k].ff = kff;
+            if k > 0 {
+                // P ← 2Q + Aᵀ P A + Huxᵀ K,  p ← q + Aᵀ h + Huxᵀ k.
+                let mut next = st.a.tmul(&pa).add(&hux.tmul(&kmat));
+                for i in 0..NX {
+                    next.0[i][i] += 2.0 * self.s.q[i];
+                }
+                p = next.symmetrised();
+                let q = self.gradient_x(k);
+                pv = std::array::from_fn(|i| q[i] + st.a.col_dot(i, &h) + hux.col_dot(i, &kff));
+            }
+        }
+        Ok(())
+    }
+
+    /// Solve the QP at the current linearisation with `Δx_0 = x̂ − x_0`, apply the
+    /// step; returns the largest step component.
+    pub(super) fn qp_step(&mut self, x_hat: &State5) -> Result<f64, NmpcError> {
+        let dx0: [f64; NX] = std::array::from_fn(|i| x_hat[i] - self.xs[0][i]);
+        self.last_clarabel = true;
+        if self.s.qp == QpStrategy::Structured {
+            self.riccati()?;
+            if self.forward(&dx0) {
+                self.last_clarabel = false;
+                self.stats.qps += 1;
+                self.stats.structured += 1;
+                return Ok(self.apply_structured());
+            }
+        }
+        self.clarabel_step(&dx0)
+    }
+
+    /// Forward sweep of the Riccati solution into `du`, `dx`; whether it is finite
+    /// and satisfies every bound (then it solves the whole QP).
+    fn forward(&mut self, dx0: &[f64; NX]) -> bool {
+        let n = self.s.horizon;
+        let (tau, vmax, wmax) = (self.s.torque_max, self.s.speed_max, self.s.yaw_rate_max);
+        let tol = 1e-9;
+        self.dx[0] = *dx0;
+        let mut ok = dx0.iter().all(|v| v.is_finite());
+        for k in 0..n {
+            let st = &self.stages[k];
+            let dx = self.dx[k];
+            let du: [f64; NU] = std::array::from_fn(|i| st.gain.row_dot(i, &dx) + st.ff[i]);
+            let next: [f64; NX] =
+                std::array::from_fn(|i| st.a.row_dot(i, &dx) + st.b.row_dot(i, &du) + st.d[i]);
+            ok &= (0..NU).all(|i| (self.us[k][i] + du[i]).abs() <= tau + tol);
+            let x = &self.xs[k + 1];
+            ok &= (x[3] + next[3]).abs() <= vmax + tol && (x[4] + next[4]).abs() <= wmax + tol;
+            ok &= du.iter().chain(&next).all(|v| v.is_finite());
+            self.du[k] = du;
+            self.dx[k + 1] = next;
+        }
+        ok
+    }
+
+    /// Apply the structured step; returns its largest component.
+    fn apply_structured(&mut self) -> f64 {
+        let mut step = 0.0f64;
+        for (u, du) in self.us.iter_mut().zip(&self.du) {
+            for i in 0..NU {
+                u[i] += du[i];
+                step = step.max(du[i].abs());
+            }
+        }
+        for (x, dx) in self.xs.iter_mut().zip(&self.dx) {
+            for i in 0..NX {
+                x[i] += dx[i];
+                step = step.max(dx[i].abs());
+            }
+        }
+        step
+    }
+
+    fn clarabel_step(&mut self, dx0: &[f64; NX]) -> Result<f64, NmpcError> {
+        let n = self.s.horizon;
+        if self.qp.is_none() {
+            self.qp = Some(ClarabelQp::new(&self.s)?);
+        }
+        let data = self.qp_data(dx0);
+        let Some(qp) = self.qp.as_mut() else {
+            return Err(NmpcError::Qp("no QP solver".into()));
+        };
+        let (dw, iterations) = qp.solve(&data)?;
+        self.stats.qps += 1;
+        self.stats.clarabel += 1;
+        self.stats.clarabel_iterations += u64::from(iterations);
+        let mut step = 0.0f64;
+        for i in 0..NX {
+            self.xs[0][i] += dx0[i];
+            step = step.max(dx0[i].abs());
+        }
+        for k in 0..n {
+            for i in 0..NU {
+                let d = dw[k * (NU + NX) + i];
+                self.us[k][i] += d;
+                step = step.max(d.abs());
+            }
+            for i in 0..NX {
+                let d = dw[k * (NU + NX) + NU + i];
+                self.xs[k + 1][i] += d;
+                step = step.max(d.abs());
+            }
+        }
+        Ok(step)
+    }
+
+    /// The QP's `q`, `A` values (declaration order of [`ClarabelQp`]) and `b`.
+    fn qp_data(&self, dx0: &[f64; NX]) -> QpData {
+        let n = self.s.horizon;
+        let nz = NU + NX;
+        let mut q = vec![0.0; n * nz];
+        let mut a = Vec::with_capacity(n * (NX + NX * NX + NX * NU) + 2 * n * nz);
+        let mut b = Vec::with_capacity(n * NX + 2 * n * (NU + 2));
+        for k in 0..n {
+            for i in 0..NU {
+                q[k * nz + i] = 2.0 * self.s.r[i] * self.us[k][i];
+            }
+            let g = self.gradient_x(k + 1);
+            q[k * nz + NU..(k + 1) * nz].copy_from_slice(&g);
+        }
+        // Equalities, block k: Δx_{k+1} − A_k Δx_k − B_k Δu_k = d_k (+ A_0 Δx_0).
+        for k in 0..n {
+            let st = &self.stages[k];
+            for i in 0..NX {
+                a.push(1.0);
+                for c in 0..NU {
+                    a.push(-st.b.0[i][c]);
+                }
+                if k > 0 {
+                    for c in 0..NX {
+                        a.push(-st.a.0[i][c]);
+                    }
+                }
+            }
+            for i in 0..NX {
+                let extra = if k == 0 { st.a.row_dot(i, dx0) } else { 0.0 };
+                b.push(st.d[i] + extra);
+            }
+        }
+        // Bounds: ±Δu ≤ τ_max ∓ u, ±Δv ≤ v_max ∓ v, ±Δω ≤ ω_max ∓ ω.
+        for k in 0..n {
+            for i in 0..NU {
+                a.push(1.0);
+                b.push(self.s.torque_max - self.us[k][i]);
+                a.push(-1.0);
+                b.push(self.s.torque_max + self.us[k][i]);
+            }
+            let x = &self.xs[k + 1];
+            for (i, bound) in [(3, self.s.speed_max), (4, self.s.yaw_rate_max)] {
+                a.push(1.0);
+                b.push(bound - x[i]);
+                a.push(-1.0);
+                b.push(bound + x[i]);
+            }
+        }
+        QpData { q, a, b }
+    }
+}
+
+/// The values of one QP in the fixed layout of [`ClarabelQp`].
+struct QpData {
+    q: Vec<f64>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+}
+
+/// Clarabel on the sparse multiple-shooting QP, built once. Variables per stage k:
+/// `Δu_k` (4) then `Δx_{k+1}` (5); rows: 5 equalities per stage, then per stage
+/// 8 torque-bound rows and 4 velocity-bound rows.
+pub(super) struct ClarabelQp {
+    solver: DefaultSolver<f64>,
+    a_pattern: Pattern,
+    a_values: Vec<f64>,
+}
+
+impl std::fmt::Debug for ClarabelQp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ClarabelQp({} nonzeros in A)", self.a_pattern.nnz())
+    }
+}
+
+impl ClarabelQp {
+    fn new(s: &NmpcSettings) -> Result<ClarabelQp, NmpcError> {
+        let n = s.horizon;
+        let nz = NU + NX;
+        let nv = n * nz;
+        let n_eq = n * NX;
+        let n_ineq = n * (2 * NU + 4);
+        // P: the constant Gauss–Newton Hessian, diagonal.
+        let mut p_pattern = Pattern::new(nv, nv);
+        let mut p_values = Vec::with_capacity(nv);
+        for k in 0..n {
+            for i in 0..NU {
+                p_pattern.push(k * nz + i, k * nz + i);
+                p_values.push(2.0 * s.r[i]);
+            }
+            let w = if k + 1 == n { &s.q_terminal } else { &s.q };
+            for i in 0..NX {
+                p_pattern.push(k * nz + NU + i, k * nz + NU + i);
+                p_values.push(2.0 * w[i]);
+            }
+        }
+        p_pattern.compile();
+        // A, in the order `qp_data` fills it.
+        let mut a = Pattern::new(n_eq + n_ineq, nv);
+        for k in 0..n {
+            for i in 0..NX {
+                let row = k * NX + i;
+                a.push(row, k * nz + NU + i);
+                for c in 0..NU {
+                    a.push(row, k * nz + c);
+                }
+                if k > 0 {
+                    for c in 0..NX {
+                        a.push(row, (k - 1) * nz + NU + c);
+                    }
+                }
+            }
+        }
+        let mut row = n_eq;
+        for k in 0..n {
+            for i in 0..NU {
+                a.push(row, k * nz + i);
+                a.push(row + 1, k * nz + i);
+                row += 2;
+            }
+            for i in [3, 4] {
+                a.push(row, k * nz + NU + i);
+                a.push(row + 1, k * nz + NU + i);
+                row += 2;
+            }
+        }
+        a.compile();
+        let a_values = vec![0.0; a.len()];
+        let settings: DefaultSettings<f64> = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .presolve_enable(false)
+            .max_iter(s.qp_max_iterations)
+            .tol_gap_abs(s.qp_tolerance)
+            .tol_gap_rel(s.qp_tolerance)
+            .tol_feas(s.qp_tolerance)
+            .equilibrate_enable(s.qp_equilibrate)
+            .iterative_refinement_enable(s.qp_iterative_refinement)
+            .build()
+            .map_err(|e| NmpcError::Qp(format!("Clarabel settings: {e}")))?;
+        let cones = [
+            SupportedConeT::ZeroConeT(n_eq),
+            SupportedConeT::NonnegativeConeT(n_ineq),
+        ];
+        // Placeholder values with the final sparsity (explicit zeros are kept).
+        let a_csc: CscMatrix<f64> = a.csc(&a_values);
+        let solver = DefaultSolver::new(
+            &p_pattern.csc(&p_values),
+            &vec![0.0; nv],
+            &a_csc,
+            &vec![1.0; n_eq + n_ineq],
+            &cones,
+            settings,
+        )
+        .map_err(|e| NmpcError::Qp(format!("Clarabel setup: {e}")))?;
+        Ok(ClarabelQp {
+            solver,
+            a_pattern: a,
+            a_values: vec![0.0; a_csc.nzval.len()],
+        })
+    }
+
+    /// Update the data in place and solve; the step `Δw` and the iterations.
+    fn solve(&mut self, data: &QpData) -> Result<(Vec<f64>, u32), NmpcError> {
+        if data
+            .q
+            .iter()
+            .chain(&data.a)
+            .chain(&data.b)
+            .any(|v| !v.is_finite())
+        {
+            return Err(NmpcError::NotFinite("QP data"));
+        }
+        self.a_pattern.scatter(&data.a, &mut self.a_values);
+        let update = |e: clarabel::solver::DataUpdateError| {
+            NmpcError::Qp(format!("Clarabel data update: {e}"))
+        };
+        self.solver.update_q(&data.q).map_err(update)?;
+        self.solver.update_A(&self.a_values).map_err(update)?;
+        self.solver.update_b(&data.b).map_err(update)?;
+        self.solver.solve();
+        let sol = &self.solver.solution;
+        match sol.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {
+                if sol.x.iter().all(|v| v.is_finite()) {
+                    Ok((sol.x.clone(), sol.iterations))
+                } else {
+                    Err(NmpcError::Qp(
+                        "Clarabel returned a non-finite solution".into(),
+                    ))
+                }
+            }
+            other => Err(NmpcError::Qp(format!("Clarabel: {other:?}"))),
+        }
+    }
+}

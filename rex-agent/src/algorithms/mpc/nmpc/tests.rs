@@ -1,0 +1,178 @@
+//! Unit tests of the NMPC: the peer's figure eight, structured and Clarabel QPs alike, converged SQP on the dynamics and bounds, fallbacks and braking, bad input.
+
+use super::*;
+use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
+
+/// The peers' closed loop for `steps` samples; the true positions and the
+/// statuses.
+fn closed_loop(settings: NmpcSettings, steps: usize) -> (Vec<State5>, Vec<Status>, NmpcStats) {
+    let model = peer::model();
+    let n = settings.horizon;
+    let r = peer::reference_run(N_SIM + n + 1);
+    let mut nmpc = Nmpc::new(model.clone(), settings).unwrap();
+    let p = SlipParams::NOMINAL;
+    let mut x = r[0];
+    for i in 0..5 {
+        x[i] += INIT_OFFSET[i];
+    }
+    let (mut xs, mut status) = (vec![x], Vec::new());
+    for k in 0..steps {
+        let c = nmpc.control(&x, &r[k..=k + n], &p).unwrap();
+        status.push(c.status);
+        x = model.rk4(&x, &c.torques, &p, DT, PLANT_RK4_STEPS);
+        xs.push(x);
+    }
+    (xs, status, nmpc.stats())
+}
+
+#[test]
+fn tracks_the_figure_eight_like_the_peer() {
+    let (xs, _, stats) = closed_loop(NmpcSettings::default(), N_SIM);
+    let r = peer::reference_run(N_SIM + 1);
+    let err: Vec<f64> = xs
+        .iter()
+        .zip(&r)
+        .map(|(x, r)| (x[0] - r[0]).hypot(x[1] - r[1]))
+        .collect();
+    let rms = |e: &[f64]| (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt();
+    // The peer: rms 0.0296 m over the lap, 0.0016 m after 2 s.
+    assert!((rms(&err) - 0.0296).abs() < 0.0005, "rms {}", rms(&err));
+    assert!(rms(&err[40..]) < 0.002, "steady rms {}", rms(&err[40..]));
+    assert_eq!(stats.failures, 0);
+    assert!(stats.structured > 0 && stats.clarabel > 0, "{stats:?}");
+}
+
+#[test]
+fn structured_and_clarabel_qps_give_the_same_closed_loop() {
+    let steps = 60;
+    let (a, sa, _) = closed_loop(NmpcSettings::default(), steps);
+    let clarabel = NmpcSettings {
+        qp: QpStrategy::Clarabel,
+        ..NmpcSettings::default()
+    };
+    let (b, _, stats) = closed_loop(clarabel, steps);
+    assert_eq!(stats.structured, 0);
+    for (x, y) in a.iter().zip(&b) {
+        for i in 0..5 {
+            assert!((x[i] - y[i]).abs() < 1e-6, "{x:?} vs {y:?}");
+        }
+    }
+    assert!(sa.contains(&Status::Solved { clarabel: false }));
+    assert!(sa.contains(&Status::Solved { clarabel: true }));
+}
+
+#[test]
+fn converged_sqp_satisfies_the_dynamics_and_the_bounds() {
+    let model = peer::model();
+    let s = NmpcSettings::default();
+    let r = peer::reference_run(s.horizon + 1);
+    let mut nmpc = Nmpc::new(model.clone(), s.clone()).unwrap();
+    let mut x0 = r[0];
+    x0[0] += 0.3;
+    let p = SlipParams::NOMINAL;
+    let iterations = nmpc.solve(&x0, &r, &p).unwrap();
+    assert!(iterations < s.sqp_max_iterations, "{iterations} iterations");
+    let (xs, us) = (nmpc.predicted(), nmpc.torques());
+    assert_eq!(xs[0], x0);
+    for k in 0..s.horizon {
+        let next = model.rk4(&xs[k], &us[k], &p, s.dt, s.rk4_steps);
+        for i in 0..5 {
+            assert!((next[i] - xs[k + 1][i]).abs() < 1e-7, "defect at stage {k}");
+        }
+        assert!(us[k].iter().all(|u| u.abs() <= s.torque_max + 1e-6));
+        assert!(xs[k + 1][4].abs() <= s.yaw_rate_max + 1e-6);
+    }
+    // 30 cm off: the torques saturate at the start.
+    assert!(
+        us[0].iter().any(|u| (u.abs() - s.torque_max).abs() < 1e-6),
+        "{:?}",
+        us[0]
+    );
+}
+
+#[test]
+fn qp_failures_fall_back_then_brake() {
+    // Clarabel cannot finish in one iteration: every QP fails.
+    let settings = NmpcSettings {
+        qp: QpStrategy::Clarabel,
+        qp_max_iterations: 1,
+        fallback_steps: 3,
+        ..NmpcSettings::default()
+    };
+    let model = peer::model();
+    let r = peer::reference_run(40);
+    let mut nmpc = Nmpc::new(model, settings).unwrap();
+    let p = SlipParams::NOMINAL;
+    let moving = [0.0, 0.0, 0.0, 0.6, 0.5];
+    let mut kinds = Vec::new();
+    for k in 0..6 {
+        let c = nmpc.control(&moving, &r[k..=k + 20], &p).unwrap();
+        kinds.push(match &c.status {
+            Status::Solved { .. } => "solved",
+            Status::Fallback { reason } => {
+                assert!(reason.contains("MaxIterations"), "{reason}");
+                "fallback"
+            }
+            Status::SafeStop { .. } => {
+                // Braking: forward speed and turn are opposed.
+                let (left, right) = (c.torques[0], c.torques[2]);
+                assert!(left + right < 0.0 && right - left < 0.0, "{:?}", c.torques);
+                "stop"
+            }
+        });
+    }
+    assert_eq!(
+        kinds,
+        ["fallback", "fallback", "fallback", "stop", "stop", "stop"]
+    );
+    let stats = nmpc.stats();
+    assert_eq!(
+        (stats.failures, stats.fallbacks, stats.safe_stops),
+        (6, 3, 3)
+    );
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let mut nmpc = Nmpc::new(peer::model(), NmpcSettings::default()).unwrap();
+    let r = peer::reference_run(21);
+    let p = SlipParams::NOMINAL;
+    let nan = [f64::NAN, 0.0, 0.0, 0.0, 0.0];
+    assert_eq!(
+        nmpc.control(&nan, &r, &p),
+        Err(NmpcError::NotFinite("state estimate"))
+    );
+    assert!(matches!(
+        nmpc.control(&r[0], &r[..5], &p),
+        Err(NmpcError::ShortReference { got: 5, need: 21 })
+    ));
+    let bad_p = SlipParams {
+        mu_l: f64::INFINITY,
+        ..p
+    };
+    assert!(nmpc.control(&r[0], &r, &bad_p).is_err());
+    assert_eq!(nmpc.feedback(&r[0]), Err(NmpcError::NotPrepared));
+    for bad in [
+        NmpcSettings {
+            horizon: 0,
+            ..NmpcSettings::default()
+        },
+        NmpcSettings {
+            r: [0.0; 4],
+            ..NmpcSettings::default()
+        },
+        NmpcSettings {
+            dt: f64::NAN,
+            ..NmpcSettings::default()
+        },
+        NmpcSettings {
+            q: [-1.0; 5],
+            ..NmpcSettings::default()
+        },
+    ] {
+        assert!(matches!(
+            Nmpc::new(peer::model(), bad),
+            Err(NmpcError::Settings(_))
+        ));
+    }
+}
