@@ -1,0 +1,319 @@
+//! Links between buffers and deployments of components.
+
+use super::*;
+
+impl<'a> Checker<'a> {
+    /// Find `comp.group.buffer`: (component, group peer, buffer type) on `outputs` or
+    /// inputs.
+    pub(super) fn endpoint(
+        &self,
+        text: &str,
+        outputs: bool,
+    ) -> Result<(&'a str, &'a str, &'a str), EndpointError> {
+        let parts: Vec<&str> = text.split('.').collect();
+        let [comp, group, buffer] = parts[..] else {
+            return Err(EndpointError::Form);
+        };
+        let Some(c) = self.comps.get(comp) else {
+            return Err(EndpointError::Component(comp.to_owned()));
+        };
+        let find = |groups: &'a [Group]| {
+            groups
+                .iter()
+                .find(|g| g.peer == group)
+                .and_then(|g| g.buffers.iter().find(|b| b.name == buffer).map(|b| (g, b)))
+        };
+        match find(if outputs { c.outputs } else { c.inputs }) {
+            Some((g, b)) => Ok((c.name, g.peer.as_str(), b.ty.as_str())),
+            None if find(if outputs { c.inputs } else { c.outputs }).is_some() => {
+                Err(EndpointError::Direction)
+            }
+            None => Err(EndpointError::Buffer),
+        }
+    }
+
+    pub(super) fn links(&mut self) {
+        let spec = self.spec;
+        let mut writers: HashMap<(String, String, String), Vec<usize>> = HashMap::new();
+        let mut read_outputs: HashSet<(String, String, String)> = HashSet::new();
+        for (k, link) in spec.links.iter().enumerate() {
+            let lpath = vec![F("links"), I(k)];
+            let from = self.endpoint(&link.from, true);
+            let to = self.endpoint(&link.to, false);
+            for (res, text, field, outputs) in [
+                (&from, &link.from, "from", true),
+                (&to, &link.to, "to", false),
+            ] {
+                if let Err(e) = res {
+                    self.endpoint_error(e, text, &join(&lpath, &[F(field)]), outputs);
+                }
+            }
+            if let Policy::Queue { bound: 0 } = link.policy {
+                self.push(
+                    Finding::new(
+                        Code::QueueBound,
+                        self.span(&join(&lpath, &[F("policy")])),
+                        "capacity 0",
+                        format!(
+                            "link `{} -> {}` is a queue of capacity 0",
+                            link.from, link.to
+                        ),
+                    )
+                    .help("a queue holds at least one value; use Queue(n) with n >= 1, or Sample"),
+                );
+            }
+            if let Ok((c, g, _)) = &from {
+                read_outputs.insert((c.to_string(), g.to_string(), last(&link.from)));
+            }
+            let (Ok((fc, fg, fty)), Ok((tc, tg, tty))) = (from, to) else {
+                continue;
+            };
+            writers
+                .entry((tc.to_owned(), tg.to_owned(), last(&link.to)))
+                .or_default()
+                .push(k);
+            if fg != tc || tg != fc {
+                self.push(
+                    Finding::new(
+                        Code::PeerMismatch,
+                        self.span(&join(&lpath, &[F("to")])),
+                        format!("a buffer of `{tc}` for peer `{tg}`"),
+                        format!("link `{} -> {}` joins groups that do not name each other: `{fc}`'s group is for `{fg}`, `{tc}`'s group is for `{tg}`", link.from, link.to),
+                    )
+                    .label(self.span(&join(&lpath, &[F("from")])), format!("a buffer of `{fc}` for peer `{fg}`"))
+                    .help(format!("link `{fc}.{tc}.<buffer>` to `{tc}.{fc}.<buffer>`")),
+                );
+            }
+            let (sc, dc) = (&self.comps[fc], &self.comps[tc]);
+            if let Some(reason) = structure_violation(sc.kind, dc.kind, sc.agent == dc.agent) {
+                self.push(
+                    Finding::new(
+                        Code::Structure,
+                        self.span(&lpath),
+                        format!("{} -> {}", sc.kind, dc.kind),
+                        format!("link `{} -> {}` breaks the agent structure: {reason}", link.from, link.to),
+                    )
+                    .help("see Fig. 2 of the paper: c talks to its e, r and other agents' c; e to its E; r to its R"),
+                );
+            }
+            if normalize_type(fty) != normalize_type(tty) {
+                self.push(
+                    Finding::new(
+                        Code::TypeMismatch,
+                        self.span(&join(&lpath, &[F("to")])),
+                        format!("`{tty}`"),
+                        format!("link `{} -> {}` joins a `{fty}` output to a `{tty}` input", link.from, link.to),
+                    )
+                    .label(self.span(&join(&lpath, &[F("from")])), format!("`{fty}`"))
+                    .help("both ends of a link carry the same type; change one of the buffer declarations"),
+                );
+            }
+        }
+        // Inputs: exactly one writer. Outputs: somebody reads.
+        let mut comps: Vec<&Comp<'a>> = self.comps.values().collect();
+        comps.sort_by_key(|c| c.path.clone().into_iter().map(seg_key).collect::<Vec<_>>());
+        let mut found = Vec::new();
+        for c in comps {
+            for (side, groups, outgoing) in
+                [("inputs", c.inputs, false), ("outputs", c.outputs, true)]
+            {
+                for (g, group) in groups.iter().enumerate() {
+                    for (b, buffer) in group.buffers.iter().enumerate() {
+                        let key = (c.name.to_owned(), group.peer.clone(), buffer.name.clone());
+                        let bpath = join(&c.path, &[F(side), I(g), F("buffers"), I(b), F("name")]);
+                        let dotted = format!("{}.{}.{}", c.name, group.peer, buffer.name);
+                        if outgoing {
+                            if !read_outputs.contains(&key) {
+                                found.push(
+                                    Finding::new(Code::UnreadOutput, self.span(&bpath), "read by nobody", format!("output `{dotted}` is linked to no input"))
+                                        .help(format!("link it: `(from: \"{dotted}\", to: \"{}.{}.{}\")`, or remove it", group.peer, c.name, buffer.name)),
+                                );
+                            }
+                            continue;
+                        }
+                        match writers.get(&key).map(Vec::as_slice) {
+                            None | Some([]) => found.push(
+                                Finding::new(Code::UnfedInput, self.span(&bpath), "fed by no output", format!("input `{dotted}` is fed by no output"))
+                                    .help(format!("link an output to it: `(from: \"{}.{}.{}\", to: \"{dotted}\")`", group.peer, c.name, buffer.name)),
+                            ),
+                            Some([_]) => {}
+                            Some(ks) => {
+                                let mut f = Finding::new(
+                                    Code::MultipleWriters,
+                                    self.span(&bpath),
+                                    format!("fed by {} outputs", ks.len()),
+                                    format!("input `{dotted}` is fed by {} outputs", ks.len()),
+                                )
+                                .help("an input buffer has exactly one writer; remove all links to it but one");
+                                for &k in ks {
+                                    f = f.label(self.span(&[F("links"), I(k), F("from")]), "writes it");
+                                }
+                                found.push(f);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.findings.extend(found);
+    }
+
+    pub(super) fn endpoint_error(
+        &mut self,
+        e: &EndpointError,
+        text: &str,
+        path: &[Seg<'static>],
+        outputs: bool,
+    ) {
+        let side = if outputs { "an output" } else { "an input" };
+        let f = match e {
+            EndpointError::Form => Finding::new(
+                Code::UnknownBuffer,
+                self.span(path),
+                "not `component.group.buffer`",
+                format!("link end `{text}` is not of the form `component.group.buffer`"),
+            )
+            .help("name the component, the group's peer and the buffer, e.g. `c1.e11.traj`"),
+            EndpointError::Component(c) => {
+                let known = self.known_components();
+                Finding::new(
+                    Code::UnknownComponent,
+                    self.span(path),
+                    "no such component",
+                    format!("link end `{text}` names component `{c}`, which does not exist"),
+                )
+                .help(format!("components: {known}"))
+            }
+            EndpointError::Direction => Finding::new(
+                Code::LinkDirection,
+                self.span(path),
+                format!("not {side}"),
+                format!(
+                    "link end `{text}` must be {side}, but it is {}",
+                    if outputs { "an input" } else { "an output" }
+                ),
+            )
+            .help("a link goes from an output buffer (`from`) to an input buffer (`to`)"),
+            EndpointError::Buffer => Finding::new(
+                Code::UnknownBuffer,
+                self.span(path),
+                "no such buffer",
+                format!(
+                    "link end `{text}` names no {} buffer",
+                    if outputs { "output" } else { "input" }
+                ),
+            )
+            .help("check the group (the peer's name) and the buffer's name"),
+        };
+        self.push(f);
+    }
+
+    // -----------------------------------------------------------------------
+    // Deployments
+
+    pub(super) fn deployments(&mut self) {
+        let spec = self.spec;
+        self.unique(
+            "deployment",
+            spec.deployments
+                .iter()
+                .enumerate()
+                .map(|(d, x)| (x.name.as_str(), vec![F("deployments"), I(d), F("name")]))
+                .collect::<Vec<_>>(),
+        );
+        let mut all: Vec<&str> = self.comps.keys().copied().collect();
+        all.sort_unstable();
+        for (d, dep) in spec.deployments.iter().enumerate() {
+            let dpath = vec![F("deployments"), I(d)];
+            self.unique(
+                "host",
+                dep.hosts
+                    .iter()
+                    .enumerate()
+                    .map(|(h, x)| {
+                        (
+                            x.name.as_str(),
+                            join(&dpath, &[F("hosts"), I(h), F("name")]),
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            self.unique(
+                "process",
+                dep.hosts
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(h, host)| {
+                        let dpath = dpath.clone();
+                        host.processes.iter().enumerate().map(move |(p, x)| {
+                            (
+                                x.name.as_str(),
+                                join(&dpath, &[F("hosts"), I(h), F("processes"), I(p), F("name")]),
+                            )
+                        })
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let mut placed: HashMap<&str, Path> = HashMap::new();
+            let mut place = |this: &mut Self, name: &'a str, path: Path, what: &str| {
+                if !this.comps.contains_key(name) {
+                    let known = this.known_components();
+                    this.push(
+                        Finding::new(
+                            Code::UnknownComponent,
+                            this.span(&path),
+                            "no such component",
+                            format!(
+                                "deployment `{}` {what} `{name}`, which is not a component",
+                                dep.name
+                            ),
+                        )
+                        .help(format!("components: {known}")),
+                    );
+                    return;
+                }
+                if let Some(first) = placed.get(name) {
+                    let first = this.span(first);
+                    this.push(
+                        Finding::new(
+                            Code::DeployTwice,
+                            this.span(&path),
+                            "placed again",
+                            format!("deployment `{}` places `{name}` twice", dep.name),
+                        )
+                        .label(first, "first placed here")
+                        .help("a component runs in exactly one process, or is omitted"),
+                    );
+                } else {
+                    placed.insert(name, path);
+                }
+            };
+            for (h, host) in dep.hosts.iter().enumerate() {
+                for (p, proc_) in host.processes.iter().enumerate() {
+                    for (k, name) in proc_.runs.iter().enumerate() {
+                        place(
+                            self,
+                            name,
+                            join(
+                                &dpath,
+                                &[F("hosts"), I(h), F("processes"), I(p), F("runs"), I(k)],
+                            ),
+                            "runs",
+                        );
+                    }
+                }
+            }
+            for (k, name) in dep.omit.iter().enumerate() {
+                place(self, name, join(&dpath, &[F("omit"), I(k)]), "omits");
+            }
+            for name in &all {
+                if !placed.contains_key(name) {
+                    self.push(
+                        Finding::new(Code::DeployMissing, self.span(&join(&dpath, &[F("name")])), format!("`{name}` is not placed"), format!("deployment `{}` neither runs nor omits `{name}`", dep.name))
+                            .help(format!("add `{name}` to a process's `runs`, or to `omit` if this deployment goes without it")),
+                    );
+                }
+            }
+        }
+    }
+}
