@@ -149,21 +149,7 @@ impl Plot {
         let (w, h) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
         let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * w;
         let py = |y: f64| TOP + h - (y - y0) / (y1 - y0) * h;
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(
-            s,
-            r#"<rect width="{WIDTH}" height="{HEIGHT}" fill="white"/>"#
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{}</text>"#,
-            LEFT + w / 2.0,
-            escape(&self.title)
-        );
+        let mut s = svg_start(HEIGHT, LEFT + w / 2.0, &self.title);
         // Grid and ticks.
         for t in ticks(x0, x1, 8) {
             let x = px(t);
@@ -270,6 +256,26 @@ impl Plot {
     }
 }
 
+/// The start of an SVG document `height` tall: the root element, a white
+/// background, and `title` centred on `title_x`.
+fn svg_start(height: f64, title_x: f64, title: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(
+        s,
+        r#"<rect width="{WIDTH}" height="{height}" fill="white"/>"#
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{title_x}" y="22" font-size="15" text-anchor="middle">{}</text>"#,
+        escape(title)
+    );
+    s
+}
+
 /// One row of a timeline: labelled intervals `[t0, t1)` with a colour.
 #[derive(Clone, Debug)]
 pub struct Row {
@@ -285,21 +291,7 @@ pub fn timeline(title: &str, rows: &[Row], t_end: f64) -> String {
     let row_h = 34.0;
     let height = TOP + rows.len() as f64 * (row_h + 10.0) + BOTTOM;
     let px = |t: f64| LEFT + 30.0 + t / t_end.max(1e-9) * (w - 30.0);
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(
-        s,
-        r#"<rect width="{WIDTH}" height="{height}" fill="white"/>"#
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{}</text>"#,
-        WIDTH / 2.0,
-        escape(title)
-    );
+    let mut s = svg_start(height, WIDTH / 2.0, title);
     for (i, row) in rows.iter().enumerate() {
         let y = TOP + i as f64 * (row_h + 10.0);
         let _ = writeln!(

@@ -485,19 +485,23 @@ mod tests {
             .unwrap();
     }
 
-    #[test]
-    fn implausible_poses_are_rejected() {
-        let mut m = MocapMemory {
-            max_speed: 2.0,
-            ..MocapMemory::default()
-        };
-        let at = |x: f64, time: f64| MapPose {
+    /// A pose at `(x, 0, 0)` describing `time`.
+    fn at(x: f64, time: f64) -> MapPose {
+        MapPose {
             pose: Pose2 {
                 x,
                 y: 0.0,
                 phi: 0.0,
             },
             time,
+        }
+    }
+
+    #[test]
+    fn implausible_poses_are_rejected() {
+        let mut m = MocapMemory {
+            max_speed: 2.0,
+            ..MocapMemory::default()
         };
         assert!(m.plausible(&at(0.0, 0.0)));
         m.last = Some(at(0.0, 0.0));
@@ -514,14 +518,6 @@ mod tests {
         let mut m = MocapMemory {
             max_speed: 2.0,
             ..MocapMemory::default()
-        };
-        let at = |x: f64, time: f64| MapPose {
-            pose: Pose2 {
-                x,
-                y: 0.0,
-                phi: 0.0,
-            },
-            time,
         };
         m.learn(&at(0.0, 0.0));
         m.learn(&at(9.0, 0.01));

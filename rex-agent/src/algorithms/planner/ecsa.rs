@@ -330,13 +330,7 @@ impl Planner for Ecsa {
     }
 
     fn plan(&mut self, from: [f64; 3], to: &Waypoint) -> Result<(Fragment, PlanStats), PlanError> {
-        let finite = from.iter().all(|v| v.is_finite())
-            && to.x.is_finite()
-            && to.y.is_finite()
-            && to.phi.is_none_or(f64::is_finite);
-        if !finite {
-            return Err(PlanError::NotFinite);
-        }
+        super::check_finite(&from, to)?;
         let s = self.settings.clone();
         let goal_phi = to.phi.map(|p| super::nearest_angle(p, from[2]));
         let goal = [to.x, to.y, goal_phi.unwrap_or(0.0)];

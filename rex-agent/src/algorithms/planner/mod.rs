@@ -275,6 +275,19 @@ pub fn nearest_angle(target: f64, reference: f64) -> f64 {
     target + ((reference - target) / tau).round() * tau
 }
 
+/// [`PlanError::NotFinite`] unless the start and the goal are finite numbers.
+fn check_finite(from: &[f64; 3], to: &Waypoint) -> Result<(), PlanError> {
+    let finite = from.iter().all(|v| v.is_finite())
+        && to.x.is_finite()
+        && to.y.is_finite()
+        && to.phi.is_none_or(f64::is_finite);
+    if finite {
+        Ok(())
+    } else {
+        Err(PlanError::NotFinite)
+    }
+}
+
 /// The slip-consistent heading of the kinematic model: with the ICR at `x_icr`, the
 /// centre of mass moves at angle `−atan(x_icr ω / v)` to the body axis (notes §1.2).
 pub fn heading_for(path_angle: f64, v: f64, omega: f64, x_icr: f64) -> f64 {

@@ -38,13 +38,7 @@ impl Planner for Polynomial {
     }
 
     fn plan(&mut self, from: [f64; 3], to: &Waypoint) -> Result<(Fragment, PlanStats), PlanError> {
-        let finite = from.iter().all(|v| v.is_finite())
-            && to.x.is_finite()
-            && to.y.is_finite()
-            && to.phi.is_none_or(f64::is_finite);
-        if !finite {
-            return Err(PlanError::NotFinite);
-        }
+        super::check_finite(&from, to)?;
         let s = &self.settings;
         let (dx, dy) = (to.x - from[0], to.y - from[1]);
         let dist = dx.hypot(dy);
