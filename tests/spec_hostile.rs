@@ -373,3 +373,85 @@ fn embodied_new_refuses_what_the_checker_refuses() {
         Err(ScaffoldError::Spec(_))
     ));
 }
+
+#[test]
+fn an_unfed_input_is_offered_an_output_that_exists() {
+    // c2 sends its order under another name, and nobody links it: the help names
+    // c2's output of the same type, not a `c2.c1.order` that does not exist.
+    let source = minimal()
+        .replace(
+            r#"outputs: [(peer: "c1", buffers: [(name: "order", type: "f64")])],"#,
+            r#"outputs: [(peer: "c1", buffers: [(name: "command", type: "f64")])],"#,
+        )
+        .replace(
+            r#"functions: [(name: "send", target: Output("c1"), writes: ["order"])],"#,
+            r#"functions: [(name: "send", target: Output("c1"), writes: ["command"])],"#,
+        )
+        .replace(
+            r#"        (from: "c2.c1.order", to: "c1.c2.order", policy: Queue(2)),"#,
+            "",
+        );
+    let (_, report) = check_source("unfed.ron", source);
+    let unfed = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::UnfedInput)
+        .expect("c1.c2.order is unfed");
+    assert!(
+        unfed
+            .help
+            .contains(r#"(from: "c2.c1.command", to: "c1.c2.order")"#),
+        "{}",
+        unfed.help
+    );
+    // Without any output of that type towards c2 (c1 sends `ack` as a `u8`), the
+    // help says what to add.
+    let source = minimal()
+        .replace(
+            r#"(name: "ack", type: "bool")]),"#,
+            r#"(name: "ack", type: "u8")]),"#,
+        )
+        .replace(
+            r#"        (from: "c1.c2.ack", to: "c2.c1.ack", policy: Queue(2)),"#,
+            "",
+        );
+    let (_, report) = check_source("unfed.ron", source);
+    let unfed = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::UnfedInput)
+        .expect("c2.c1.ack is unfed");
+    assert!(
+        unfed
+            .help
+            .contains(r#"add `(name: "ack", ty: "bool")` to its outputs towards `c2`"#),
+        "{}",
+        unfed.help
+    );
+}
+
+#[test]
+fn unknown_names_get_a_did_you_mean() {
+    let source = minimal().replace(
+        r#"(from: "idle", to: "move", when: "true"),"#,
+        r#"(from: "idle", to: "mvoe", when: "true"),"#,
+    );
+    let (_, report) = check_source("typo.ron", source);
+    let f = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::UnknownBehaviour)
+        .expect("mvoe is unknown");
+    assert!(f.help.starts_with("did you mean `move`?"), "{}", f.help);
+    let source = minimal().replace(
+        r#"(from: "c1.e1.speed", to: "e1.c1.speed"),"#,
+        r#"(from: "c11.e1.speed", to: "e1.c1.speed"),"#,
+    );
+    let (_, report) = check_source("typo.ron", source);
+    let f = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::UnknownComponent)
+        .expect("c11 is unknown");
+    assert!(f.help.starts_with("did you mean `c1`?"), "{}", f.help);
+}

@@ -203,6 +203,7 @@ impl<'a> Checker<'a> {
                 match self.comps.get(group.peer.as_str()) {
                     None => {
                         let known = self.known_components();
+                        let guess = self.guess_component(&group.peer);
                         self.push(
                             Finding::new(
                                 Code::UnknownComponent,
@@ -210,7 +211,7 @@ impl<'a> Checker<'a> {
                                 "no such component",
                                 format!("group peer `{}` of `{name}` is not a component of the system", group.peer),
                             )
-                            .help(format!("a group names the component at the other end of its buffers; components: {known}")),
+                            .help(format!("{guess}a group names the component at the other end of its buffers; components: {known}")),
                         );
                     }
                     Some(peer) => {

@@ -16,6 +16,7 @@ impl<'a> Checker<'a> {
             let known = this.list(&sub.behaviours, Hint::Behaviours, || {
                 sub.behaviours.iter().map(|b| b.name.clone()).collect()
             });
+            let guess = this.guess(name, sub.behaviours.iter().map(|b| b.name.as_str()));
             this.push(
                 Finding::new(
                     Code::UnknownBehaviour,
@@ -26,7 +27,7 @@ impl<'a> Checker<'a> {
                         sub.name
                     ),
                 )
-                .help(format!("behaviours: {known}")),
+                .help(format!("{guess}behaviours: {known}")),
             );
         };
 
@@ -61,6 +62,7 @@ impl<'a> Checker<'a> {
                         let known = self.list(&sub.predicates, Hint::Predicates, || {
                             sorted(sub.predicates.iter().map(|p| p.name.clone()))
                         });
+                        let guess = self.guess(n, sub.predicates.iter().map(|p| p.name.as_str()));
                         self.push(
                             Finding::new(
                                 Code::UnknownPredicate,
@@ -69,7 +71,7 @@ impl<'a> Checker<'a> {
                                 format!("relation names predicate `{n}`, which is not declared"),
                             )
                             .help(format!(
-                                "relations are between predicates declared under `predicates`; declared: {known}"
+                                "{guess}relations are between predicates declared under `predicates`; declared: {known}"
                             )),
                         );
                     }

@@ -7,7 +7,7 @@ use agent_core::fsm::rules::{self, Place, ShapeProblem};
 use agent_core::{Expr, NodeKind, structure_violation};
 
 use crate::diag::{Code, Finding, abbreviate};
-use crate::model::{Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
+use crate::model::{Buffer, Group, Policy, Relation, Spec, Subsystem, SubsystemKind, Target};
 use crate::proof::{self, Budget, Question, Undecided, Witness};
 use crate::span::{SNode, Seg};
 
@@ -50,6 +50,9 @@ pub(crate) struct Checker<'a> {
     /// each: quadratic).
     lists: HashMap<(usize, Hint), std::rc::Rc<str>>,
     components_list: Option<std::rc::Rc<str>>,
+    /// Name comparisons left for "did you mean" hints: a spec with very many
+    /// unknown names among very many known ones stays linear.
+    guesses_left: usize,
 }
 
 /// Which list of names a help line offers.
@@ -107,6 +110,7 @@ impl<'a> Checker<'a> {
             budget: Budget::new(),
             lists: HashMap::new(),
             components_list: None,
+            guesses_left: GUESS_BUDGET,
         }
     }
 
@@ -171,6 +175,25 @@ impl<'a> Checker<'a> {
         self.index?.at(path)
     }
 
+    /// `"did you mean `x`? "` when a known name is close to `name` (a typo), else
+    /// empty; within the checker's budget of comparisons.
+    fn guess<'n>(&mut self, name: &str, known: impl IntoIterator<Item = &'n str>) -> String {
+        let known: Vec<&str> = known.into_iter().collect();
+        if known.len() > self.guesses_left {
+            return String::new();
+        }
+        self.guesses_left -= known.len();
+        crate::names::did_you_mean(name, known)
+            .map(|k| format!("did you mean `{k}`? "))
+            .unwrap_or_default()
+    }
+
+    /// [`Checker::guess`] among the components.
+    fn guess_component(&mut self, name: &str) -> String {
+        let known: Vec<&'a str> = self.comps.keys().copied().collect();
+        self.guess(name, known)
+    }
+
     fn push(&mut self, f: Finding) {
         self.findings.push(f);
     }
@@ -219,6 +242,9 @@ fn sorted(names: impl Iterator<Item = String>) -> Vec<String> {
 
 /// How many names a help line lists.
 const LIST_MAX: usize = 12;
+
+/// How many name comparisons "did you mean" hints may cost in one check.
+const GUESS_BUDGET: usize = 1_000_000;
 
 /// `a=true, b=false`: the predicates a witness fixes, by name, in the order of
 /// their declaration.

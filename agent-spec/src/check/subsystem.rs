@@ -73,6 +73,7 @@ impl<'a> Checker<'a> {
                         let known = self.list(&sub.functions, Hint::Functions, || {
                             sub.functions.iter().map(|f| f.name.clone()).collect()
                         });
+                        let guess = self.guess(fname, sub.functions.iter().map(|f| f.name.as_str()));
                         self.push(
                             Finding::new(
                                 Code::UnknownFunction,
@@ -80,7 +81,7 @@ impl<'a> Checker<'a> {
                                 "not defined",
                                 format!("behaviour `{}` uses function `{fname}`, which `{}` does not define", b.name, sub.name),
                             )
-                            .help(format!("define it under `functions`; defined: {known}")),
+                            .help(format!("{guess}define it under `functions`; defined: {known}")),
                         );
                     }
                     Some(fi) => {
@@ -162,6 +163,7 @@ impl<'a> Checker<'a> {
                     let known = self.list(&g.buffers, Hint::Buffers, || {
                         g.buffers.iter().map(|b| b.name.clone()).collect()
                     });
+                    let guess = self.guess(name, g.buffers.iter().map(|b| b.name.as_str()));
                     self.push(
                         Finding::new(
                             Code::UnknownBuffer,
@@ -169,13 +171,14 @@ impl<'a> Checker<'a> {
                             "no such input",
                             format!("`{}` has no input buffer `{name}` from `{group}`", sub.name),
                         )
-                        .help(format!("inputs from `{group}`: {known}")),
+                        .help(format!("{guess}inputs from `{group}`: {known}")),
                     );
                 }
                 None => {
                     let known = self.list(&sub.inputs, Hint::InputGroups, || {
                         sub.inputs.iter().map(|g| g.peer.clone()).collect()
                     });
+                    let guess = self.guess(group, sub.inputs.iter().map(|g| g.peer.as_str()));
                     self.push(
                         Finding::new(
                             Code::UnknownBuffer,
@@ -183,7 +186,7 @@ impl<'a> Checker<'a> {
                             "no such input group",
                             format!("`{}` has no inputs from `{group}`", sub.name),
                         )
-                        .help(format!("input groups: {known}")),
+                        .help(format!("{guess}input groups: {known}")),
                     );
                 }
             }
@@ -211,6 +214,14 @@ impl<'a> Checker<'a> {
                     }));
                     known
                 });
+                let guess = self.guess(
+                    r,
+                    sub.memory.iter().map(|b| b.name.as_str()).chain(
+                        sub.inputs
+                            .iter()
+                            .flat_map(|g| g.buffers.iter().map(|b| b.name.as_str())),
+                    ),
+                );
                 self.push(
                     Finding::new(
                         Code::UnknownBuffer,
@@ -218,7 +229,7 @@ impl<'a> Checker<'a> {
                         "no such buffer",
                         format!("`{}` has no memory or input buffer `{r}`", sub.name),
                     )
-                    .help(format!("readable buffers: {known}")),
+                    .help(format!("{guess}readable buffers: {known}")),
                 );
             }
             _ => self.push(
@@ -373,6 +384,7 @@ impl<'a> Checker<'a> {
             let known = self.list(&sub.predicates, Hint::Predicates, || {
                 sorted(sub.predicates.iter().map(|p| p.name.clone()))
             });
+            let guess = self.guess(name, sub.predicates.iter().map(|p| p.name.as_str()));
             self.push(
                 Finding::new(
                     Code::UnknownPredicate,
@@ -383,7 +395,7 @@ impl<'a> Checker<'a> {
                         abbreviate(text, 80)
                     ),
                 )
-                .help(format!("declare it under `predicates`; declared: {known}")),
+                .help(format!("{guess}declare it under `predicates`; declared: {known}")),
             );
         }
         resolved.ok()

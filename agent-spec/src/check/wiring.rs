@@ -134,7 +134,7 @@ impl<'a> Checker<'a> {
                         match writers.get(&key).map(Vec::as_slice) {
                             None | Some([]) => found.push(
                                 Finding::new(Code::UnfedInput, self.span(&bpath), "fed by no output", format!("input `{dotted}` is fed by no output"))
-                                    .help(format!("link an output to it: `(from: \"{}.{}.{}\", to: \"{dotted}\")`", group.peer, c.name, buffer.name)),
+                                    .help(self.feeding_help(c.name, group, buffer, &dotted, &read_outputs)),
                             ),
                             Some([_]) => {}
                             Some(ks) => {
@@ -176,13 +176,14 @@ impl<'a> Checker<'a> {
             .help("name the component, the group's peer and the buffer, e.g. `c1.e11.traj`"),
             EndpointError::Component(c) => {
                 let known = self.known_components();
+                let guess = self.guess_component(&c);
                 Finding::new(
                     Code::UnknownComponent,
                     self.span(path),
                     "no such component",
                     format!("link end `{text}` names component `{c}`, which does not exist"),
                 )
-                .help(format!("components: {known}"))
+                .help(format!("{guess}components: {known}"))
             }
             EndpointError::Direction => Finding::new(
                 Code::LinkDirection,
@@ -194,16 +195,31 @@ impl<'a> Checker<'a> {
                 ),
             )
             .help("a link goes from an output buffer (`from`) to an input buffer (`to`)"),
-            EndpointError::Buffer => Finding::new(
-                Code::UnknownBuffer,
-                self.span(path),
-                "no such buffer",
-                format!(
-                    "link end `{text}` names no {} buffer",
-                    if outputs { "output" } else { "input" }
-                ),
-            )
-            .help("check the group (the peer's name) and the buffer's name"),
+            EndpointError::Buffer => {
+                // `component.group.buffer`: the buffers it has on that side.
+                let (component, rest) = text.split_once('.').unwrap_or((text, ""));
+                let groups = self
+                    .comps
+                    .get(component)
+                    .map_or(&[][..], |c| if outputs { c.outputs } else { c.inputs });
+                let have: Vec<String> = groups
+                    .iter()
+                    .flat_map(|g| g.buffers.iter().map(move |b| format!("{}.{}", g.peer, b.name)))
+                    .collect();
+                let guess = self.guess(rest, have.iter().map(String::as_str));
+                Finding::new(
+                    Code::UnknownBuffer,
+                    self.span(path),
+                    "no such buffer",
+                    format!(
+                        "link end `{text}` names no {} buffer",
+                        if outputs { "output" } else { "input" }
+                    ),
+                )
+                .help(format!(
+                    "{guess}check the group (the peer's name) and the buffer's name"
+                ))
+            }
         };
         self.push(f);
     }
@@ -258,6 +274,7 @@ impl<'a> Checker<'a> {
             let mut place = |this: &mut Self, name: &'a str, path: Path, what: &str| {
                 if !this.comps.contains_key(name) {
                     let known = this.known_components();
+                    let guess = this.guess_component(name);
                     this.push(
                         Finding::new(
                             Code::UnknownComponent,
@@ -268,7 +285,7 @@ impl<'a> Checker<'a> {
                                 dep.name
                             ),
                         )
-                        .help(format!("components: {known}")),
+                        .help(format!("{guess}components: {known}")),
                     );
                     return;
                 }
@@ -314,6 +331,50 @@ impl<'a> Checker<'a> {
                     );
                 }
             }
+        }
+    }
+
+    /// What really feeds input `dotted` (buffer `buffer` of `component`'s group
+    /// `group`): an existing output of the peer towards `component` (one not linked
+    /// yet, of the same type, the same name first), or else the output to add.
+    pub(super) fn feeding_help(
+        &self,
+        component: &str,
+        group: &Group,
+        buffer: &Buffer,
+        dotted: &str,
+        read_outputs: &HashSet<(String, String, String)>,
+    ) -> String {
+        let peer = group.peer.as_str();
+        let Some(p) = self.comps.get(peer) else {
+            return format!("the group's peer `{peer}` is not a component; fix the peer first");
+        };
+        let Some(towards) = p.outputs.iter().find(|g| g.peer == component) else {
+            return format!(
+                "`{peer}` has no outputs towards `{component}`: add `(peer: \"{component}\", buffers: [(name: \"{}\", ty: \"{}\")])` to its `outputs`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
+                buffer.name, buffer.ty, buffer.name
+            );
+        };
+        let same_type = |b: &&Buffer| normalize_type(&b.ty) == normalize_type(&buffer.ty);
+        let mut candidates: Vec<&Buffer> = towards.buffers.iter().filter(same_type).collect();
+        // Unlinked outputs first, then the one of the same name.
+        candidates.sort_by_key(|b| {
+            let linked = read_outputs.contains(&(
+                peer.to_owned(),
+                component.to_owned(),
+                b.name.clone(),
+            ));
+            (linked, b.name != buffer.name)
+        });
+        match candidates.first() {
+            Some(b) => format!(
+                "link an output of the same type to it: `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
+                b.name
+            ),
+            None => format!(
+                "`{peer}` sends `{component}` no `{}`: add `(name: \"{}\", ty: \"{}\")` to its outputs towards `{component}`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
+                buffer.ty, buffer.name, buffer.ty, buffer.name
+            ),
         }
     }
 }
