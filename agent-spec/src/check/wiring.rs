@@ -176,7 +176,7 @@ impl<'a> Checker<'a> {
             .help("name the component, the group's peer and the buffer, e.g. `c1.e11.traj`"),
             EndpointError::Component(c) => {
                 let known = self.known_components();
-                let guess = self.guess_component(&c);
+                let guess = self.guess_component(c);
                 Finding::new(
                     Code::UnknownComponent,
                     self.span(path),
