@@ -30,7 +30,9 @@ fn rust_files(dir: &Path) -> Vec<PathBuf> {
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         for entry in fs::read_dir(&d).unwrap_or_else(|e| panic!("{}: {e}", d.display())) {
-            let path = entry.unwrap().path();
+            let path = entry
+                .unwrap_or_else(|e| panic!("{}: {e}", d.display()))
+                .path();
             if path.is_dir() {
                 stack.push(path);
             } else if path.extension().is_some_and(|e| e == "rs") {
@@ -74,7 +76,9 @@ fn code_of(text: &str) -> (String, Vec<usize>) {
 /// The depth of the module a file under `src/algorithms` defines: `algorithms` is 1,
 /// `algorithms::mpc` 2 (`mpc/mod.rs`), `algorithms::mpc::linalg` 3, ...
 fn module_depth(file: &Path) -> usize {
-    let rel = file.strip_prefix(src()).unwrap();
+    let rel = file
+        .strip_prefix(src())
+        .unwrap_or_else(|_| panic!("{} is not under src/", file.display()));
     let parts = rel.components().count();
     if rel.file_name().is_some_and(|n| n == "mod.rs") {
         parts - 1
