@@ -1,5 +1,5 @@
 //! The spec is the structure of Rex: for every deployment of `specs/rex.ron`, the
-//! spec exported from the system `rex::build_deployment` builds equals the spec's
+//! spec exported from the system `a1::build_deployment` builds equals the spec's
 //! own, restricted to the components the deployment runs: agents, components,
 //! kinds, periods, memory, groups, buffers and their types, predicates, functions
 //! and their targets, behaviours with their kinds, functions and terminal

@@ -1,4 +1,6 @@
-//! Seeded, reproducible noise for the simulated sensors.
+//! Seeded, reproducible random numbers: RANSAC and bucketing in the visual odometry,
+//! ECSA's perturbations at a singular control, the simulated sensors' noise, the
+//! soak's patrols.
 
 /// xoshiro256++ seeded through SplitMix64: fast, good statistical quality, and the
 /// same sequence on every platform for a given seed.
