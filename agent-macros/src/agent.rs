@@ -110,19 +110,24 @@ fn resolve(path: &str, invoker: Option<PathBuf>) -> PathBuf {
 pub(crate) struct Found {
     pub(crate) loaded: Loaded,
     pub(crate) agent: usize,
+    /// The checker's errors that belong to this agent ([`owner`]), one compile
+    /// error each; `None` if it has none.
+    pub(crate) errors: Option<syn::Error>,
 }
 
 /// Load stage: `text` is the spec file's content, `file` its name as written.
+///
+/// An error only when nothing can be generated (the file does not parse, the agent
+/// does not exist). The checker's findings come back in [`Found::errors`], those of
+/// this agent only: each `agent!` call reports its own agent's findings, so that a
+/// finding is reported once, and the code is still generated, so that no cascade
+/// of "cannot find" errors follows.
 pub(crate) fn load(file: &LitStr, text: String, agent: &LitStr) -> syn::Result<Found> {
     let name = file.value();
     let loaded = match agent_spec::load(name.clone(), text) {
         Ok(l) => l,
-        Err(report) => return Err(findings_error(file, &report)),
+        Err(report) => return Err(report_error(file, &report)),
     };
-    let report = agent_spec::check(&loaded);
-    if report.errors() > 0 {
-        return Err(findings_error(file, &report));
-    }
     let wanted = agent.value();
     let Some(index) = loaded.spec.agents.iter().position(|a| a.name == wanted) else {
         let names: Vec<&str> = loaded.spec.agents.iter().map(|a| a.name.as_str()).collect();
@@ -134,19 +139,68 @@ pub(crate) fn load(file: &LitStr, text: String, agent: &LitStr) -> syn::Result<F
             ),
         ));
     };
+    let report = agent_spec::check(&loaded);
+    let errors = findings_error(file, &report, |offset| owner(&loaded, offset) == index);
     Ok(Found {
         loaded,
         agent: index,
+        errors,
     })
 }
 
-/// One compile error per error finding, `file:line:col: error[code]: message`.
-fn findings_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
+/// The agent a finding at `offset` belongs to: the agent whose entry holds it; for
+/// a link, the agent of the component it leaves (or enters, if that one is
+/// unknown); for anything else (deployments, the system's name), the agent of the
+/// component named at `offset`, or else the spec's first agent.
+fn owner(loaded: &Loaded, offset: usize) -> usize {
+    let spec = &loaded.spec;
+    let Some(root) = loaded.index.as_ref() else {
+        return 0;
+    };
+    let inside = |path: &[Seg<'_>]| root.at(path).is_some_and(|n| n.span.contains(&offset));
+    if let Some(a) = (0..spec.agents.len()).find(|&a| inside(&[Seg::Field("agents"), Seg::Item(a)])) {
+        return a;
+    }
+    let agent_of = |component: &str| {
+        spec.agents.iter().position(|a| {
+            a.subsystems.iter().any(|s| s.name == component)
+                || a.devices.iter().any(|d| d.name == component)
+        })
+    };
+    let of_end = |end: &str| end.split('.').next().and_then(agent_of);
+    if let Some(l) = (0..spec.links.len()).find(|&k| inside(&[Seg::Field("links"), Seg::Item(k)])) {
+        let link = &spec.links[l];
+        return of_end(&link.from).or_else(|| of_end(&link.to)).unwrap_or(0);
+    }
+    let word: String = loaded
+        .source
+        .get(offset..)
+        .unwrap_or_default()
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    agent_of(&word).unwrap_or(0)
+}
+
+/// Every error finding of `report`, one compile error each,
+/// `file:line:col: error[code]: message`.
+fn report_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
+    findings_error(file, report, |_| true)
+        .unwrap_or_else(|| syn::Error::new(file.span(), "the spec has errors"))
+}
+
+/// One compile error per error finding at an offset that `keep` accepts,
+/// `file:line:col: error[code]: message`; `None` if there is none.
+fn findings_error(
+    file: &LitStr,
+    report: &agent_spec::Report,
+    keep: impl Fn(usize) -> bool,
+) -> Option<syn::Error> {
     let mut all: Option<syn::Error> = None;
     for f in report
         .findings
         .iter()
-        .filter(|f| f.severity() == Severity::Error)
+        .filter(|f| f.severity() == Severity::Error && keep(f.offset()))
     {
         let (l, c) = report.line_col(f.offset());
         let mut message = format!("{}:{l}:{c}: error[{}]: {}", report.file, f.code, f.message);
@@ -159,7 +213,7 @@ fn findings_error(file: &LitStr, report: &agent_spec::Report) -> syn::Error {
             None => all = Some(e),
         }
     }
-    all.unwrap_or_else(|| syn::Error::new(file.span(), "the spec has errors"))
+    all
 }
 
 /// A Rust identifier for a spec name (raw if it is a keyword). The checker refuses
@@ -668,9 +722,22 @@ pub(crate) fn expand(tokens: TokenStream, invoker: Option<PathBuf>) -> TokenStre
             )
         })?;
         let text = agent_spec::decode(&args.spec.value(), bytes)
-            .map_err(|report| findings_error(&args.spec, &report))?;
+            .map_err(|report| report_error(&args.spec, &report))?;
         let found = load(&args.spec, text, &args.agent)?;
-        generate(&found, &args, Some(&path))
+        let items = generate(&found, &args, Some(&path));
+        match (found.errors, items) {
+            (None, items) => items,
+            // The findings, and the items they concern (generated as well as the
+            // broken spec allows), so that code using them compiles on.
+            (Some(errors), Ok(items)) => {
+                let errors = errors.into_compile_error();
+                Ok(quote!(#errors #items))
+            }
+            (Some(mut errors), Err(e)) => {
+                errors.combine(e);
+                Err(errors)
+            }
+        }
     });
     result.unwrap_or_else(syn::Error::into_compile_error)
 }
@@ -765,7 +832,8 @@ mod tests {
         let a = args(quote!(spec = "t.ron", agent = "a"));
         let broken = SPEC.replace("terminal: \"finished\"", "terminal: \"finishd\"");
         let e = load(&a.spec, broken, &a.agent)
-            .err()
+            .expect("loads")
+            .errors
             .expect("unknown predicate");
         let text = e.to_string();
         assert!(text.starts_with("t.ron:17:85:"), "{text}");
@@ -794,13 +862,17 @@ mod tests {
         // agent-spec's names), so `agent!` reports its finding.
         let a = args(quote!(spec = "t.ron", agent = "a"));
         let e = load(&a.spec, SPEC.replace("\"count\"", "\"self\""), &a.agent)
-            .err()
+            .expect("loads")
+            .errors
             .expect("refused");
         assert!(e.to_string().contains("error[spec::invalid_name]"), "{e}");
         assert!(e.to_string().contains("`self`"), "{e}");
         for (name, why) in [("__", "no Rust type name"), ("memory", "already has")] {
             let spec = SPEC.replace("e1", name);
-            let e = load(&a.spec, spec, &a.agent).err().expect("refused");
+            let e = load(&a.spec, spec, &a.agent)
+                .expect("loads")
+                .errors
+                .expect("refused");
             assert!(e.to_string().contains(why), "{e}");
         }
         // And the generator refuses them on its own (a spec it did not check).
@@ -808,5 +880,40 @@ mod tests {
         found.loaded.spec.agents[0].subsystems[0].memory[0].name = "self".into();
         let e = generate(&found, &a, None).expect_err("not an identifier");
         assert!(e.to_string().contains("`self`"), "{e}");
+    }
+
+    #[test]
+    fn each_finding_is_reported_once_by_the_agent_it_belongs_to() {
+        const MINI: &str = include_str!("../../tests/specs/valid/minimal.ron");
+        let (a1, a2) = (syn::parse_quote!("a1"), syn::parse_quote!("a2"));
+        let file: LitStr = syn::parse_quote!("mini.ron");
+        let errors = |text: &str, agent: &LitStr| {
+            load(&file, text.to_owned(), agent)
+                .expect("loads")
+                .errors
+                .map(|e| e.into_iter().map(|e| e.to_string()).collect::<Vec<_>>())
+                .unwrap_or_default()
+        };
+        // In a2's subsystem: a2's finding only.
+        let typo = MINI.replace("terminal: \"acked\"", "terminal: \"ackd\"");
+        assert!(errors(&typo, &a1).is_empty());
+        let of_a2 = errors(&typo, &a2);
+        assert_eq!(of_a2.len(), 1, "{of_a2:?}");
+        assert!(of_a2[0].contains("spec::unknown_predicate"), "{of_a2:?}");
+        // A link belongs to the agent it leaves: c2 -> c1 is a2's.
+        let link = MINI.replace(
+            "(from: \"c2.c1.order\", to: \"c1.c2.order\", policy: Queue(2))",
+            "(from: \"c2.c1.order\", to: \"c1.c2.order\", policy: Queue(0))",
+        );
+        assert!(errors(&link, &a1).is_empty());
+        assert!(errors(&link, &a2)[0].contains("spec::queue_bound"));
+        // A deployment that does not place c2 is a2's too (the name is at the
+        // finding); the code of both agents is still generated.
+        let unplaced = MINI.replace("runs: [\"c1\", \"e1\", \"E1\", \"c2\"]", "runs: [\"c1\", \"e1\", \"E1\"]");
+        let both = errors(&unplaced, &a1).len() + errors(&unplaced, &a2).len();
+        assert_eq!(both, 1, "reported once");
+        let a = args(quote!(spec = "mini.ron", agent = "a2"));
+        let found = load(&a.spec, typo, &a.agent).expect("loads");
+        assert!(generate(&found, &a, None).is_ok(), "items despite the finding");
     }
 }

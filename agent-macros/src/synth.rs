@@ -412,6 +412,24 @@ pub(crate) fn check(fsm: &SynthFsm, subsystem: TokenStream) -> syn::Result<()> {
             Some(all) => all.combine(e),
             None => errors = Some(e),
         }
+        // The other place of a two-place finding (the other overlapping arc, the
+        // first definition): stable proc macros have no secondary spans, so it gets
+        // its own short error. (The arcs that `arcs_incomplete` lists are context,
+        // not a second fault.)
+        if !matches!(f.code, Code::ArcsOverlap | Code::DuplicateName) {
+            continue;
+        }
+        for label in f.labels.iter().skip(1) {
+            if let Some(tokens) = text.tokens_at(&label.span).filter(|t| !t.is_empty()) {
+                let e = syn::Error::new_spanned(
+                    tokens,
+                    format!("{} (see the error above) [{}]", label.text, f.code),
+                );
+                if let Some(all) = &mut errors {
+                    all.combine(e);
+                }
+            }
+        }
     }
     errors.map_or(Ok(()), Err)
 }
