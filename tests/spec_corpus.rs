@@ -291,19 +291,38 @@ fn short_style_names_file_line_and_column() {
 
 #[test]
 fn findings_are_sorted_and_reported_all_at_once() {
-    // A file with many problems: they all come out, in file order.
+    // A file with many problems: they all come out, root causes first, each part in
+    // file order. The misspelt peer `e2` (a root cause) leaves c1's input from it
+    // unfed and e1's `done` unread (consequences, listed after every root cause).
     let text = std::fs::read_to_string(corpus().join("valid/minimal.ron"))
         .unwrap()
         .replace("period_ms: 10.0,", "period_ms: 0.0,")
         .replace(r#"terminal: "got_order""#, r#"terminal: "got_ordre""#)
-        .replace(r#"policy: Queue(2)),"#, r#"policy: Queue(0)),"#);
+        .replace(r#"policy: Queue(2)),"#, r#"policy: Queue(0)),"#)
+        .replace(
+            r#"(peer: "e1", buffers: [(name: "done", type: "bool")]),"#,
+            r#"(peer: "e2", buffers: [(name: "done", type: "bool")]),"#,
+        );
     let (_, report) = embodied::spec::check_source("many.ron", text);
     let codes: Vec<Code> = report.findings.iter().map(|f| f.code).collect();
-    for c in [Code::Period, Code::UnknownPredicate, Code::QueueBound] {
+    for c in [
+        Code::Period,
+        Code::UnknownPredicate,
+        Code::QueueBound,
+        Code::UnknownComponent,
+    ] {
         assert!(codes.contains(&c), "{codes:?}");
     }
-    let offsets: Vec<usize> = report.findings.iter().map(|f| f.offset()).collect();
-    assert!(offsets.windows(2).all(|w| w[0] <= w[1]), "{offsets:?}");
+    assert!(
+        codes.iter().any(|c| !c.is_root_cause()),
+        "the misspelt peer has consequences: {codes:?}"
+    );
+    let keys: Vec<(bool, usize)> = report
+        .findings
+        .iter()
+        .map(|f| (!f.code.is_root_cause(), f.offset()))
+        .collect();
+    assert!(keys.windows(2).all(|w| w[0] <= w[1]), "{keys:?}");
 }
 
 #[test]

@@ -158,7 +158,8 @@ fn owner(loaded: &Loaded, offset: usize) -> usize {
         return 0;
     };
     let inside = |path: &[Seg<'_>]| root.at(path).is_some_and(|n| n.span.contains(&offset));
-    if let Some(a) = (0..spec.agents.len()).find(|&a| inside(&[Seg::Field("agents"), Seg::Item(a)])) {
+    if let Some(a) = (0..spec.agents.len()).find(|&a| inside(&[Seg::Field("agents"), Seg::Item(a)]))
+    {
         return a;
     }
     let agent_of = |component: &str| {
@@ -909,11 +910,17 @@ mod tests {
         assert!(errors(&link, &a2)[0].contains("spec::queue_bound"));
         // A deployment that does not place c2 is a2's too (the name is at the
         // finding); the code of both agents is still generated.
-        let unplaced = MINI.replace("runs: [\"c1\", \"e1\", \"E1\", \"c2\"]", "runs: [\"c1\", \"e1\", \"E1\"]");
+        let unplaced = MINI.replace(
+            "runs: [\"c1\", \"e1\", \"E1\", \"c2\"]",
+            "runs: [\"c1\", \"e1\", \"E1\"]",
+        );
         let both = errors(&unplaced, &a1).len() + errors(&unplaced, &a2).len();
         assert_eq!(both, 1, "reported once");
         let a = args(quote!(spec = "mini.ron", agent = "a2"));
         let found = load(&a.spec, typo, &a.agent).expect("loads");
-        assert!(generate(&found, &a, None).is_ok(), "items despite the finding");
+        assert!(
+            generate(&found, &a, None).is_ok(),
+            "items despite the finding"
+        );
     }
 }

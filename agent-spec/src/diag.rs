@@ -130,6 +130,36 @@ codes! {
     DeployMissing = "spec::deploy_missing", Error;
 }
 
+impl Code {
+    /// Whether a finding of this code is a root cause: something wrong where it is
+    /// written (the syntax, a name, a reference to something that does not exist, a
+    /// bad value). The other findings are about the whole (the wiring, the FSM
+    /// graph, the proofs, deployments), and a root cause often causes some of them:
+    /// a misspelt peer leaves inputs unfed. Reports list root causes first.
+    pub const fn is_root_cause(self) -> bool {
+        matches!(
+            self,
+            Code::Syntax
+                | Code::UnknownField
+                | Code::MissingField
+                | Code::Encoding
+                | Code::InvalidName
+                | Code::DuplicateName
+                | Code::UnknownComponent
+                | Code::UnknownBuffer
+                | Code::AmbiguousBuffer
+                | Code::UnknownFunction
+                | Code::UnknownBehaviour
+                | Code::UnknownPredicate
+                | Code::UnknownTarget
+                | Code::ConditionSyntax
+                | Code::Period
+                | Code::QueueBound
+                | Code::LinkDirection
+        )
+    }
+}
+
 impl fmt::Display for Code {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
@@ -210,19 +240,21 @@ pub struct Report {
     pub file: String,
     /// Its text.
     pub source: String,
-    /// Findings, sorted by position then code.
+    /// Findings: root causes first ([`Code::is_root_cause`]), then the findings
+    /// they may cause, each part sorted by position then code.
     pub findings: Vec<Finding>,
 }
 
 impl Report {
-    /// A report, sorting the findings.
+    /// A report, sorting the findings (root causes first, then by position).
     pub fn new(
         file: impl Into<String>,
         source: impl Into<String>,
         mut findings: Vec<Finding>,
     ) -> Self {
         findings.sort_by(|a, b| {
-            (a.offset(), a.code, &a.message).cmp(&(b.offset(), b.code, &b.message))
+            let key = |f: &Finding| (!f.code.is_root_cause(), f.offset(), f.code);
+            key(a).cmp(&key(b)).then_with(|| a.message.cmp(&b.message))
         });
         findings.dedup();
         Report {

@@ -73,7 +73,8 @@ impl<'a> Checker<'a> {
                         let known = self.list(&sub.functions, Hint::Functions, || {
                             sub.functions.iter().map(|f| f.name.clone()).collect()
                         });
-                        let guess = self.guess(fname, sub.functions.iter().map(|f| f.name.as_str()));
+                        let guess =
+                            self.guess(fname, sub.functions.iter().map(|f| f.name.as_str()));
                         self.push(
                             Finding::new(
                                 Code::UnknownFunction,
@@ -395,7 +396,9 @@ impl<'a> Checker<'a> {
                         abbreviate(text, 80)
                     ),
                 )
-                .help(format!("{guess}declare it under `predicates`; declared: {known}")),
+                .help(format!(
+                    "{guess}declare it under `predicates`; declared: {known}"
+                )),
             );
         }
         resolved.ok()

@@ -133,8 +133,19 @@ impl<'a> Checker<'a> {
                         }
                         match writers.get(&key).map(Vec::as_slice) {
                             None | Some([]) => found.push(
-                                Finding::new(Code::UnfedInput, self.span(&bpath), "fed by no output", format!("input `{dotted}` is fed by no output"))
-                                    .help(self.feeding_help(c.name, group, buffer, &dotted, &read_outputs)),
+                                Finding::new(
+                                    Code::UnfedInput,
+                                    self.span(&bpath),
+                                    "fed by no output",
+                                    format!("input `{dotted}` is fed by no output"),
+                                )
+                                .help(self.feeding_help(
+                                    c.name,
+                                    group,
+                                    buffer,
+                                    &dotted,
+                                    &read_outputs,
+                                )),
                             ),
                             Some([_]) => {}
                             Some(ks) => {
@@ -146,7 +157,10 @@ impl<'a> Checker<'a> {
                                 )
                                 .help("an input buffer has exactly one writer; remove all links to it but one");
                                 for &k in ks {
-                                    f = f.label(self.span(&[F("links"), I(k), F("from")]), "writes it");
+                                    f = f.label(
+                                        self.span(&[F("links"), I(k), F("from")]),
+                                        "writes it",
+                                    );
                                 }
                                 found.push(f);
                             }
@@ -204,7 +218,11 @@ impl<'a> Checker<'a> {
                     .map_or(&[][..], |c| if outputs { c.outputs } else { c.inputs });
                 let have: Vec<String> = groups
                     .iter()
-                    .flat_map(|g| g.buffers.iter().map(move |b| format!("{}.{}", g.peer, b.name)))
+                    .flat_map(|g| {
+                        g.buffers
+                            .iter()
+                            .map(move |b| format!("{}.{}", g.peer, b.name))
+                    })
                     .collect();
                 let guess = self.guess(rest, have.iter().map(String::as_str));
                 Finding::new(
@@ -359,11 +377,8 @@ impl<'a> Checker<'a> {
         let mut candidates: Vec<&Buffer> = towards.buffers.iter().filter(same_type).collect();
         // Unlinked outputs first, then the one of the same name.
         candidates.sort_by_key(|b| {
-            let linked = read_outputs.contains(&(
-                peer.to_owned(),
-                component.to_owned(),
-                b.name.clone(),
-            ));
+            let linked =
+                read_outputs.contains(&(peer.to_owned(), component.to_owned(), b.name.clone()));
             (linked, b.name != buffer.name)
         });
         match candidates.first() {
