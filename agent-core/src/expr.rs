@@ -138,6 +138,17 @@ impl<A> Expr<A> {
     pub fn is_const_false(&self) -> bool {
         matches!(self, Expr::Const(false))
     }
+
+    /// The negation, without a double negation: `!e` for most `e`, but `x` for
+    /// `!x` and `false` for `true` (how a while-behaviour's terminal condition
+    /// reads as the condition it runs while).
+    pub fn negated(self) -> Expr<A> {
+        match self {
+            Expr::Not(inner) => *inner,
+            Expr::Const(b) => Expr::Const(!b),
+            e => Expr::Not(Box::new(e)),
+        }
+    }
 }
 
 impl<A: fmt::Display> Expr<A> {
@@ -316,6 +327,19 @@ mod tests {
 
     fn p(s: &str) -> Expr {
         Expr::parse(s).unwrap()
+    }
+
+    #[test]
+    fn negation_reads_without_double_negation() {
+        for (s, negated) in [
+            ("blocked", "!blocked"),
+            ("!blocked", "blocked"),
+            ("!(a && b)", "a && b"),
+            ("a || b", "!(a || b)"),
+            ("true", "false"),
+        ] {
+            assert_eq!(p(s).negated().to_string(), negated, "negation of {s}");
+        }
     }
 
     #[test]

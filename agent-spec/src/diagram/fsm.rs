@@ -43,8 +43,14 @@ impl<'a> View<'a> {
         let detail = match (b.kind, b.terminal.trim()) {
             (BehaviourKind::Repeat, "false") => "repeat forever".to_owned(),
             (BehaviourKind::While, "false") => "while: forever".to_owned(),
+            // Ends before its first action: the FSM passes through it.
+            (BehaviourKind::While, "true") => "while: never".to_owned(),
             (BehaviourKind::Repeat, t) => format!("repeat until {t}"),
-            (BehaviourKind::While, t) => format!("while !({t})"),
+            // Algorithm 2 runs while the terminal condition does not hold.
+            (BehaviourKind::While, t) => match agent_core::Expr::parse(t) {
+                Ok(e) => format!("while {}", e.negated()),
+                Err(_) => format!("while !({t})"),
+            },
         };
         (b.name.clone(), detail)
     }
