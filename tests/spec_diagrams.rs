@@ -63,10 +63,13 @@ fn one_subsystem_and_its_content() {
         c1_arcs + 1 + 1,
         "one path per arc (4), the start arrow, and the arrowhead marker's triangle"
     );
+    // The structure shows each link's policy when it is a queue.
     let structure = render(&spec, Kind::Structure, Some("e11"), Format::Mermaid).unwrap();
     assert!(structure.contains("agent a1") && !structure.contains("agent a2"));
     assert!(
-        structure.contains(r#"n_c1 -->|"pose, A4x4, traj, steps, notify"| n_e11"#),
+        structure.contains(
+            r#"n_c1 -->|"pose, A4x4 (queue 8), traj (queue 4), steps (queue 4), notify (queue 4)"| n_e11"#
+        ),
         "{structure}"
     );
     let err = render(&spec, Kind::Fsm, Some("c9"), Format::Svg).unwrap_err();

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use super::svg::{Align, Boxed, LINE_H, LabelAt, MARGIN, PAD, Svg, text_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
-use crate::model::{Agent, DeviceKind, Group, Spec, SubsystemKind};
+use crate::model::{Agent, DeviceKind, Group, Policy, Spec, SubsystemKind};
 
 /// One component as drawn.
 struct Comp<'a> {
@@ -68,7 +68,8 @@ fn components<'a>(spec: &'a Spec, agents: &[usize]) -> Vec<Comp<'a>> {
     out
 }
 
-/// Links aggregated per ordered pair of components: (from, to, buffer names).
+/// Links aggregated per ordered pair of components: (from, to, buffer names, each
+/// with its policy if it is a queue).
 fn bundles(spec: &Spec, comps: &[Comp<'_>]) -> Vec<(usize, usize, String)> {
     let mut out: Vec<(usize, usize, Vec<String>)> = Vec::new();
     for l in &spec.links {
@@ -81,7 +82,12 @@ fn bundles(spec: &Spec, comps: &[Comp<'_>]) -> Vec<(usize, usize, String)> {
         ) else {
             continue;
         };
-        let buffer = l.from.rsplit('.').next().unwrap_or_default().to_owned();
+        // A sample link (the default) shows the buffer; a queue also its bound.
+        let name = l.from.rsplit('.').next().unwrap_or_default();
+        let buffer = match l.policy {
+            Policy::Sample => name.to_owned(),
+            Policy::Queue { bound } => format!("{name} (queue {bound})"),
+        };
         match out.iter_mut().find(|(a, b, _)| *a == fi && *b == ti) {
             Some((_, _, names)) => names.push(buffer),
             None => out.push((fi, ti, vec![buffer])),
