@@ -18,7 +18,7 @@
 use std::time::Instant;
 
 use rex_agent::algorithms::mpc::QpStrategy;
-use rex_agent::algorithms::mpc::mhe::{Mhe, MheSettings, Sample, TimedPose};
+use rex_agent::algorithms::mpc::mhe::{Mhe, MheSettings};
 use rex_agent::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
 struct Run {
@@ -48,15 +48,7 @@ fn run(d: &MheData, qp: QpStrategy) -> Result<Run, Box<dyn std::error::Error>> {
     let (mut times, mut err, mut meas) = (Vec::new(), Vec::new(), Vec::new());
     for k in 0..=N_SIM {
         let y = d.ys[k];
-        let s = Sample {
-            pose: Some(TimedPose {
-                time: k as f64 * DT,
-                pose: [y[0], y[1], y[2]],
-            }),
-            gyro: Some(y[3]),
-            encoders: Some([y[4], y[5], y[6], y[7]]),
-            ..Sample::default()
-        };
+        let s = d.sample(k);
         let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
         let t = Instant::now();
         let e = mhe.update(k as f64 * DT, &u, &s);

@@ -10,21 +10,11 @@ fn camera() -> CameraConfig {
     CameraConfig::default()
 }
 
-fn calibration(c: &CameraConfig) -> Calibration {
-    let (cu, cv) = c.principal_point();
-    Calibration {
-        f: c.focal,
-        cu,
-        cv,
-        baseline: c.baseline,
-    }
-}
-
 #[test]
 fn blank_saturated_and_tiny_pairs_give_no_estimate() {
     let c = camera();
     let (w, h) = (c.width as usize, c.height as usize);
-    let mut vo = StereoOdometry::new(calibration(&c), VoSettings::default()).unwrap();
+    let mut vo = StereoOdometry::new(c.calibration(), VoSettings::default()).unwrap();
     for level in [0u8, 255, 128] {
         let img = vec![level; w * h];
         let r = vo.process(&img, &img, w, h);
@@ -46,7 +36,7 @@ fn blank_saturated_and_tiny_pairs_give_no_estimate() {
         StereoOdometry::new(
             Calibration {
                 f: 0.0,
-                ..calibration(&c)
+                ..c.calibration()
             },
             VoSettings::default()
         )
@@ -61,7 +51,7 @@ fn a_swapped_pair_is_said_to_be_swapped() {
     let c = camera();
     let renderer = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
     let (w, h) = (c.width as usize, c.height as usize);
-    let mut vo = StereoOdometry::new(calibration(&c), VoSettings::default()).unwrap();
+    let mut vo = StereoOdometry::new(c.calibration(), VoSettings::default()).unwrap();
     let (mut l, mut r) = (Vec::new(), Vec::new());
     renderer.render_pair([0.0, 0.3, 0.2], &mut l, &mut r);
     let e = vo.process(&r, &l, w, h).unwrap_err();
@@ -80,7 +70,7 @@ fn a_rendered_motion_is_recovered_and_a_blank_pair_is_bridged() {
     let c = camera();
     let renderer = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
     let (w, h) = (c.width as usize, c.height as usize);
-    let mut vo = StereoOdometry::new(calibration(&c), VoSettings::default()).unwrap();
+    let mut vo = StereoOdometry::new(c.calibration(), VoSettings::default()).unwrap();
     let pose = |x: f64, phi: f64| [x, 0.3, phi];
     let pair = |p: [f64; 3]| {
         let (mut l, mut r) = (Vec::new(), Vec::new());

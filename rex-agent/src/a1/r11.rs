@@ -232,14 +232,7 @@ mod tests {
     use crate::world::camera::{CameraConfig, Renderer, SceneConfig};
 
     fn odometry(c: &CameraConfig) -> Odometry {
-        let (cu, cv) = c.principal_point();
-        let calib = Calibration {
-            f: c.focal,
-            cu,
-            cv,
-            baseline: c.baseline,
-        };
-        Odometry::new(calib, c.mount(), VoSettings::default()).unwrap()
+        Odometry::new(c.calibration(), c.mount(), VoSettings::default()).unwrap()
     }
 
     fn pair(r: &Renderer, body: [f64; 3], seq: u64, time: f64) -> StereoPair {

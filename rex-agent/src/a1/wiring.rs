@@ -19,7 +19,7 @@ use crate::a1::map::Map;
 use crate::a1::r11::{Odometry, R11, R11Memory, r11_fsm};
 use crate::algorithms::planner::trajgen::{Runtime, TrajGen};
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
-use crate::algorithms::vo::{Calibration, VoSettings};
+use crate::algorithms::vo::VoSettings;
 use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::mission::Mission;
 use crate::world::devices::{Platform, SharedTruth, StereoCamera};
@@ -446,20 +446,15 @@ pub fn build_deployment(
     let map = world::add_map_agent(&mut rex, &config.world, &truth)?;
     let vision = if rex.runs("r11") {
         let camera_config = &config.world.camera;
-        let (cu, cv) = camera_config.principal_point();
-        let calib = Calibration {
-            f: camera_config.focal,
-            cu,
-            cv,
-            baseline: camera_config.baseline,
-        };
-        let odom =
-            Odometry::new(calib, camera_config.mount(), VoSettings::default()).map_err(|e| {
-                RexError::Spec {
-                    path: config.spec.clone(),
-                    message: e.to_string(),
-                }
-            })?;
+        let odom = Odometry::new(
+            camera_config.calibration(),
+            camera_config.mount(),
+            VoSettings::default(),
+        )
+        .map_err(|e| RexError::Spec {
+            path: config.spec.clone(),
+            message: e.to_string(),
+        })?;
         let r11 = rex.subsystem(
             "r11",
             R11Memory::new(odom, config.acquire_every),

@@ -4,6 +4,7 @@
 //! notes §1.2), the closed loop (plant = the same model with 10 RK4 steps per
 //! interval), the start offset, the measurement noise levels.
 
+use super::mhe::{Sample, TimedPose};
 use super::nmpc::{Nmpc, NmpcError, NmpcSettings};
 use crate::algorithms::rng::Rng;
 use crate::world::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
@@ -79,6 +80,22 @@ pub struct MheData {
     pub us: Vec<Torques>,
     /// Noisy measurements `(X, Y, φ, ω, θ̇_1..4)`.
     pub ys: Vec<[f64; 8]>,
+}
+
+impl MheData {
+    /// The MHE's sample at `k`: the pose (at `k · DT`), the gyro and the encoders.
+    pub fn sample(&self, k: usize) -> Sample {
+        let y = self.ys[k];
+        Sample {
+            pose: Some(TimedPose {
+                time: k as f64 * DT,
+                pose: [y[0], y[1], y[2]],
+            }),
+            gyro: Some(y[3]),
+            encoders: Some([y[4], y[5], y[6], y[7]]),
+            ..Sample::default()
+        }
+    }
 }
 
 /// The peer's data set: the plant with [`P_TRUE_MHE`] driven around the figure

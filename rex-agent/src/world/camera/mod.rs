@@ -19,6 +19,7 @@ pub mod scene;
 
 use serde::{Deserialize, Serialize};
 
+use crate::algorithms::vo::Calibration;
 use crate::config::{Invalid, Validate, finite, non_negative, positive};
 
 pub use render::Renderer;
@@ -127,6 +128,18 @@ impl CameraConfig {
             (f64::from(self.width) - 1.0) / 2.0,
             (f64::from(self.height) - 1.0) / 2.0,
         )
+    }
+
+    /// The calibration the visual odometry needs: focal length, principal point,
+    /// baseline.
+    pub fn calibration(&self) -> Calibration {
+        let (cu, cv) = self.principal_point();
+        Calibration {
+            f: self.focal,
+            cu,
+            cv,
+            baseline: self.baseline,
+        }
     }
 
     /// The pose of the left camera in the platform's frame (x forward, y left, z up;

@@ -1,24 +1,12 @@
-//! Unit tests of the MHE: the peer's problem, structured and Clarabel solutions alike, dropouts, garbage, late poses, parameter bounds, visual odometry and IMU heading increments, relocalisation.
+//! Unit tests of the MHE: the peer's problem, structured and Clarabel solutions alike,
+//! dropouts, garbage, late poses, parameter bounds, visual odometry and IMU heading
+//! increments, relocalisation.
 
 use super::*;
 use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
 fn data() -> MheData {
     peer::mhe_data(1).unwrap()
-}
-
-/// A sample of the peer's data set: pose, gyro and encoders at `k`.
-fn sample(d: &MheData, k: usize) -> Sample {
-    let y = d.ys[k];
-    Sample {
-        pose: Some(TimedPose {
-            time: k as f64 * DT,
-            pose: [y[0], y[1], y[2]],
-        }),
-        gyro: Some(y[3]),
-        encoders: Some([y[4], y[5], y[6], y[7]]),
-        ..Sample::default()
-    }
 }
 
 /// Run the MHE over the data set; `edit` may change each sample. Returns the
@@ -28,7 +16,7 @@ fn run(settings: MheSettings, d: &MheData, edit: impl Fn(usize, &mut Sample)) ->
     let mut mhe = Mhe::new(peer::model(), settings).unwrap();
     let mut err = Vec::new();
     for k in 0..=N_SIM {
-        let mut s = sample(d, k);
+        let mut s = d.sample(k);
         edit(k, &mut s);
         let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
         let e = mhe.update(k as f64 * DT, &u, &s);
@@ -214,7 +202,7 @@ fn visual_odometry_narrows_the_drift_of_a_dropout() {
     assert_eq!(mhe.stats().rejected, 0);
     // A motion with a non-finite part or an absurd speed is rejected.
     let mut m = Mhe::new(peer::model(), MheSettings::default()).unwrap();
-    let mut s0 = sample(&d, 0);
+    let mut s0 = d.sample(0);
     m.update(0.0, &[0.0; 4], &s0);
     s0.motion = Some(Motion {
         from: 0.0,

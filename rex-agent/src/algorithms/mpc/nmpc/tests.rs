@@ -1,4 +1,5 @@
-//! Unit tests of the NMPC: the peer's figure eight, structured and Clarabel QPs alike, converged SQP on the dynamics and bounds, fallbacks and braking, bad input.
+//! Unit tests of the NMPC: the peer's figure eight, structured and Clarabel QPs alike,
+//! converged SQP on the dynamics and bounds, fallbacks and braking, bad input.
 
 use super::*;
 use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};

@@ -1,4 +1,5 @@
-//! Unit tests of `kitti`: calib.txt read by KITTI tools, sequences written and read back, damaged files and PNG headers.
+//! Unit tests of `kitti`: calib.txt read by KITTI tools, sequences written and read
+//! back, damaged files and PNG headers.
 
 use super::*;
 use crate::world::camera::{Obstacle, Renderer, Room, SceneConfig};
