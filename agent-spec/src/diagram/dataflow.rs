@@ -2,6 +2,7 @@
 
 use std::fmt::Write as _;
 
+use super::geometry::Scene;
 use super::svg::{self, Boxed, LINE_H, MARGIN, PAD, Svg, layered, route};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Behaviour, Spec, Subsystem, Target};
@@ -140,7 +141,7 @@ pub(crate) fn render(spec: &Spec, subs: &[&Subsystem], format: Format) -> String
     match format {
         Format::Dot => dot(spec, subs),
         Format::Mermaid => mermaid(subs),
-        Format::Svg => draw(spec, subs),
+        Format::Svg => draw(spec, subs).0,
     }
 }
 
@@ -251,7 +252,8 @@ fn mermaid(subs: &[&Subsystem]) -> String {
     out
 }
 
-fn draw(spec: &Spec, subs: &[&Subsystem]) -> String {
+/// The SVG, and what it placed.
+pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
     let mut doc = Svg::new();
     let mut y = MARGIN;
     let mut width: f64 = 0.0;
@@ -300,19 +302,20 @@ fn draw(spec: &Spec, subs: &[&Subsystem]) -> String {
             let frame_w = lay.width.max(svg::text_w(&flow.behaviour.name) + 200.0) + 2.0 * PAD;
             let frame_h = lay.height + (top - y) + PAD;
             let kind = flow.behaviour.kind.to_string();
-            doc.frame(
+            let f = doc.frame(
                 MARGIN,
                 y,
                 frame_w,
                 frame_h,
                 &format!("{} — behaviour {} ({kind})", sub.name, flow.behaviour.name),
             );
+            let first = doc.next_box();
             for b in &lay.boxes {
-                doc.boxed(b);
+                doc.boxed(b, Some(f));
             }
             for &(a, b) in &edges {
                 let (d, _) = route(&lay.boxes[a], &lay.boxes[b], 0, MARGIN + frame_w);
-                doc.edge(&d, None);
+                doc.edge(&d, None, (Some(first + a), Some(first + b)), Some(f));
             }
             width = width.max(frame_w + 2.0 * MARGIN);
             y += frame_h + MARGIN;

@@ -3,6 +3,7 @@
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 
+use super::geometry::{Path, Point, Scene};
 use super::svg::{Boxed, LINE_H, MARGIN, PAD, Svg, layered, route};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{BehaviourKind, Spec, Subsystem, SubsystemKind};
@@ -100,7 +101,7 @@ pub(crate) fn render(spec: &Spec, subs: &[&Subsystem], format: Format) -> String
     match format {
         Format::Dot => dot(spec, &views),
         Format::Mermaid => mermaid(&views),
-        Format::Svg => draw(spec, &views),
+        Format::Svg => draw(spec, subs).0,
     }
 }
 
@@ -215,7 +216,9 @@ fn mermaid(views: &[View<'_>]) -> String {
     out
 }
 
-fn draw(spec: &Spec, views: &[View<'_>]) -> String {
+/// The SVG, and what it placed.
+pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
+    let views: Vec<View<'_>> = subs.iter().map(|s| View::new(s)).collect();
     let mut doc = Svg::new();
     let mut y = MARGIN;
     let mut width: f64 = 0.0;
@@ -256,26 +259,34 @@ fn draw(spec: &Spec, views: &[View<'_>]) -> String {
         }
         let frame_h = lay.height + (top - y) + PAD + MARGIN / 2.0;
         let frame_w = extent - MARGIN + PAD;
-        doc.frame(
+        let f = doc.frame(
             MARGIN,
             y,
             frame_w,
             frame_h,
             &format!("{} — FSM of the {}", v.sub.name, kind_name(v.sub.kind)),
         );
+        let first = doc.next_box();
         if let Some(i) = v.initial {
             let b = &lay.boxes[i];
             doc.dot(b.cx(), b.y - 20.0, 5.0);
             doc.edge(
-                &format!("M{:.1},{:.1} L{:.1},{:.1}", b.cx(), b.y - 15.0, b.cx(), b.y),
+                &Path::line(Point::new(b.cx(), b.y - 15.0), Point::new(b.cx(), b.y)),
                 None,
+                (None, Some(first + i)),
+                Some(f),
             );
         }
         for b in &lay.boxes {
-            doc.boxed(b);
+            doc.boxed(b, Some(f));
         }
-        for (d, at, when) in &routes {
-            doc.edge(d, Some((when, at)));
+        for ((d, at, when), &(a, b, _)) in routes.iter().zip(&v.arcs) {
+            doc.edge(
+                d,
+                Some((when, at)),
+                (Some(first + a), Some(first + b)),
+                Some(f),
+            );
         }
         width = width.max(frame_w + 2.0 * MARGIN);
         y += frame_h + MARGIN;

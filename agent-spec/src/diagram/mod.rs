@@ -12,6 +12,8 @@
 
 mod dataflow;
 mod fsm;
+#[doc(hidden)]
+pub mod geometry;
 mod structure;
 mod svg;
 
@@ -133,19 +135,34 @@ pub fn render(
     Ok(match kind {
         Kind::Fsm => fsm::render(spec, &subs, format),
         Kind::Dataflow => dataflow::render(spec, &subs, format),
-        Kind::Structure => {
-            let agents: Vec<usize> = spec
-                .agents
-                .iter()
-                .enumerate()
-                .filter(|(_, a)| {
-                    subsystem.is_none_or(|name| a.subsystems.iter().any(|s| s.name == name))
-                })
-                .map(|(i, _)| i)
-                .collect();
-            structure::render(spec, &agents, format)
-        }
+        Kind::Structure => structure::render(spec, &agents_of(spec, subsystem), format),
     })
+}
+
+/// The SVG that [`render`] draws with [`Format::Svg`], and the geometry of what it
+/// placed, for tests of the layout.
+#[doc(hidden)]
+pub fn render_svg_scene(
+    spec: &Spec,
+    kind: Kind,
+    subsystem: Option<&str>,
+) -> Result<(String, geometry::Scene), DiagramError> {
+    let subs = select(spec, subsystem)?;
+    Ok(match kind {
+        Kind::Fsm => fsm::draw(spec, &subs),
+        Kind::Dataflow => dataflow::draw(spec, &subs),
+        Kind::Structure => structure::draw_agents(spec, &agents_of(spec, subsystem)),
+    })
+}
+
+/// The agents a structure diagram shows: all, or the one that holds `subsystem`.
+fn agents_of(spec: &Spec, subsystem: Option<&str>) -> Vec<usize> {
+    spec.agents
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| subsystem.is_none_or(|name| a.subsystems.iter().any(|s| s.name == name)))
+        .map(|(i, _)| i)
+        .collect()
 }
 
 fn select<'a>(spec: &'a Spec, name: Option<&str>) -> Result<Vec<&'a Subsystem>, DiagramError> {

@@ -2,6 +2,7 @@
 
 use std::fmt::Write as _;
 
+use super::geometry::{Path, Point, Scene};
 use super::svg::{Align, Boxed, LINE_H, LabelAt, MARGIN, PAD, Svg, text_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Agent, DeviceKind, Group, Policy, Spec, SubsystemKind};
@@ -137,7 +138,7 @@ pub(crate) fn render(spec: &Spec, agents: &[usize], format: Format) -> String {
     match format {
         Format::Dot => dot(spec, agents, &comps, &links),
         Format::Mermaid => mermaid(spec, agents, &comps, &links),
-        Format::Svg => draw(spec, agents, &comps, &links),
+        Format::Svg => draw(spec, agents, &comps, &links).0,
     }
 }
 
@@ -218,7 +219,8 @@ fn mermaid(
 
 /// Anchor points and label position of a link between two boxes; `side` separates
 /// the two directions of a pair.
-fn connect(a: &Boxed, b: &Boxed, side: f64) -> (String, LabelAt) {
+fn connect(a: &Boxed, b: &Boxed, side: f64) -> (Path, LabelAt) {
+    let p = Point::new;
     let (dx, dy) = (b.cx() - a.cx(), b.cy() - a.cy());
     let vertical =
         dy.abs() > 1.0 && (dy.abs() - (a.h + b.h) / 2.0) > (dx.abs() - (a.w + b.w) / 2.0);
@@ -239,10 +241,10 @@ fn connect(a: &Boxed, b: &Boxed, side: f64) -> (String, LabelAt) {
     };
     let d = if vertical {
         let my = (y1 + y2) / 2.0;
-        format!("M{x1:.1},{y1:.1} C{x1:.1},{my:.1} {x2:.1},{my:.1} {x2:.1},{y2:.1}")
+        Path::cubic(p(x1, y1), p(x1, my), p(x2, my), p(x2, y2))
     } else {
         let mx = (x1 + x2) / 2.0;
-        format!("M{x1:.1},{y1:.1} C{mx:.1},{y1:.1} {mx:.1},{y2:.1} {x2:.1},{y2:.1}")
+        Path::cubic(p(x1, y1), p(mx, y1), p(mx, y2), p(x2, y2))
     };
     let align = match (vertical, side) {
         (true, s) if s > 0.0 => Align::Start,
@@ -257,12 +259,20 @@ fn connect(a: &Boxed, b: &Boxed, side: f64) -> (String, LabelAt) {
     (d, at)
 }
 
+/// The SVG of the agents (indices into `spec.agents`), and what it placed.
+pub(crate) fn draw_agents(spec: &Spec, agents: &[usize]) -> (String, Scene) {
+    let agents = &arrange(spec, agents)[..];
+    let comps = components(spec, agents);
+    let links = bundles(spec, &comps);
+    draw(spec, agents, &comps, &links)
+}
+
 fn draw(
     spec: &Spec,
     agents: &[usize],
     comps: &[Comp<'_>],
     links: &[(usize, usize, String)],
-) -> String {
+) -> (String, Scene) {
     const ROW_GAP: f64 = 90.0;
     const COL_GAP: f64 = 60.0;
     const AGENT_GAP: f64 = 120.0;
@@ -322,12 +332,21 @@ fn draw(
         height = height.max(frame_h);
         x += inner_w + 2.0 * PAD + AGENT_GAP;
     }
-    for (fx, fw, fh, title) in &frames {
-        doc.frame(*fx, MARGIN, *fw, height.max(*fh), title);
-    }
-    for b in &boxes {
-        doc.boxed(b);
-    }
+    let frame_ids: Vec<usize> = frames
+        .iter()
+        .map(|(fx, fw, fh, title)| doc.frame(*fx, MARGIN, *fw, height.max(*fh), title))
+        .collect();
+    let ids: Vec<usize> = boxes
+        .iter()
+        .zip(comps)
+        .map(|(b, c)| {
+            let f = agents
+                .iter()
+                .position(|&a| a == c.agent)
+                .map(|k| frame_ids[k]);
+            doc.boxed(b, f)
+        })
+        .collect();
     let mut extent = x - AGENT_GAP;
     for (a, b, label) in links {
         let reverse = links.iter().any(|(p, q, _)| p == b && q == a);
@@ -340,7 +359,7 @@ fn draw(
         };
         let (d, at) = connect(&boxes[*a], &boxes[*b], side);
         extent = extent.max(at.right(label));
-        doc.edge(&d, Some((label, &at)));
+        doc.edge(&d, Some((label, &at)), (Some(ids[*a]), Some(ids[*b])), None);
     }
     doc.finish(
         extent + MARGIN,

@@ -5,6 +5,8 @@
 
 use std::fmt::Write as _;
 
+use super::geometry::{self, Owner, Path, Point, Rect, Scene};
+
 /// Font size of labels [px].
 pub(crate) const FONT: f64 = 12.0;
 /// Width of one character of the monospace font at [`FONT`] [px].
@@ -49,6 +51,16 @@ pub(crate) fn text_w(s: &str) -> f64 {
     s.chars().count() as f64 * CHAR_W
 }
 
+/// Height of the glyphs above the baseline [px].
+pub(crate) const ASCENT: f64 = 0.8 * FONT;
+/// Depth of the glyphs below the baseline [px].
+pub(crate) const DESCENT: f64 = 0.25 * FONT;
+
+/// The extent of a line of text whose baseline starts at `(x, y)`.
+pub(crate) fn text_rect(x: f64, y: f64, s: &str) -> Rect {
+    Rect::new(x, y - ASCENT, text_w(s), ASCENT + DESCENT)
+}
+
 /// A box with lines of text; the first line is the title.
 #[derive(Clone, Debug)]
 pub(crate) struct Boxed {
@@ -90,16 +102,41 @@ impl Boxed {
 /// An SVG document under construction.
 pub(crate) struct Svg {
     body: String,
+    scene: Scene,
 }
 
 impl Svg {
     pub(crate) fn new() -> Svg {
         Svg {
             body: String::new(),
+            scene: Scene::default(),
         }
     }
 
-    pub(crate) fn finish(self, w: f64, h: f64, title: &str) -> String {
+    fn text(&mut self, x: f64, y: f64, attrs: &str, text: &str, owner: Owner) {
+        let _ = writeln!(
+            self.body,
+            r#"<text x="{x:.1}" y="{y:.1}"{attrs}>{}</text>"#,
+            esc(text)
+        );
+        self.scene.labels.push(geometry::Label {
+            text: text.to_owned(),
+            at: Point::new(x, y),
+            rect: text_rect(x, y, text),
+            owner,
+        });
+    }
+
+    /// The document and what it placed.
+    pub(crate) fn finish(self, w: f64, h: f64, title: &str) -> (String, Scene) {
+        let text = self.finish_text(w, h, title);
+        let mut scene = self.scene;
+        scene.width = w;
+        scene.height = h;
+        (text, scene)
+    }
+
+    fn finish_text(&self, w: f64, h: f64, title: &str) -> String {
         let mut out = String::new();
         let _ = writeln!(
             out,
@@ -119,21 +156,33 @@ impl Svg {
         out
     }
 
-    pub(crate) fn frame(&mut self, x: f64, y: f64, w: f64, h: f64, title: &str) {
+    /// The scene index the next box will have.
+    pub(crate) fn next_box(&self) -> usize {
+        self.scene.boxes.len()
+    }
+
+    /// A dashed frame with a title; returns its index in the scene.
+    pub(crate) fn frame(&mut self, x: f64, y: f64, w: f64, h: f64, title: &str) -> usize {
         let _ = writeln!(
             self.body,
             r#"<rect x="{x:.1}" y="{y:.1}" width="{w:.1}" height="{h:.1}" rx="6.0" fill="{FRAME_FILL}" stroke="{INK}" stroke-dasharray="4 3"/>"#
         );
-        let _ = writeln!(
-            self.body,
-            r#"<text x="{:.1}" y="{:.1}" fill="{INK}" font-weight="bold">{}</text>"#,
-            x + PAD,
-            y + LINE_H,
-            esc(title)
-        );
+        let i = self.scene.frames.len();
+        self.scene.frames.push(geometry::Frame {
+            rect: Rect::new(x, y, w, h),
+        });
+        let attrs = format!(r#" fill="{INK}" font-weight="bold""#);
+        self.text(x + PAD, y + LINE_H, &attrs, title, Owner::Frame(i));
+        i
     }
 
-    pub(crate) fn boxed(&mut self, b: &Boxed) {
+    /// A box in `frame`; returns its index in the scene.
+    pub(crate) fn boxed(&mut self, b: &Boxed, frame: Option<usize>) -> usize {
+        let id = self.scene.boxes.len();
+        self.scene.boxes.push(geometry::BoxShape {
+            rect: Rect::new(b.x, b.y, b.w, b.h),
+            frame,
+        });
         let rx: f64 = if b.rounded { 8.0 } else { 0.0 };
         let _ = writeln!(
             self.body,
@@ -153,14 +202,16 @@ impl Svg {
         }
         for (i, line) in b.lines.iter().enumerate() {
             let weight = if i == 0 { r#" font-weight="bold""# } else { "" };
-            let _ = writeln!(
-                self.body,
-                r#"<text x="{:.1}" y="{:.1}" fill="{INK}"{weight}>{}</text>"#,
+            let attrs = format!(r#" fill="{INK}"{weight}"#);
+            self.text(
                 b.x + PAD,
                 b.y + PAD + (i as f64 + 0.8) * LINE_H,
-                esc(line)
+                &attrs,
+                line,
+                Owner::Box(id),
             );
         }
+        id
     }
 
     pub(crate) fn dot(&mut self, x: f64, y: f64, r: f64) {
@@ -170,12 +221,28 @@ impl Svg {
         );
     }
 
-    /// A path with an arrow head, and an optional label.
-    pub(crate) fn edge(&mut self, d: &str, label: Option<(&str, &LabelAt)>) {
+    /// A path with an arrow head, from box `from` to box `to` (scene indices), and an
+    /// optional label.
+    pub(crate) fn edge(
+        &mut self,
+        path: &Path,
+        label: Option<(&str, &LabelAt)>,
+        ends: (Option<usize>, Option<usize>),
+        frame: Option<usize>,
+    ) {
         let _ = writeln!(
             self.body,
-            r#"<path d="{d}" fill="none" stroke="{EDGE}" marker-end="url(#arrow)"/>"#
+            r#"<path d="{}" fill="none" stroke="{EDGE}" marker-end="url(#arrow)"/>"#,
+            path.to_d()
         );
+        let id = self.scene.edges.len();
+        self.scene.edges.push(geometry::Edge {
+            path: path.clone(),
+            from: ends.0,
+            to: ends.1,
+            label: None,
+            frame,
+        });
         if let Some((text, at)) = label.filter(|(t, _)| !t.is_empty()) {
             let w = text_w(text) + 6.0;
             let left = match at.align {
@@ -189,13 +256,19 @@ impl Svg {
                 at.y - LINE_H / 2.0 - 1.0,
                 LINE_H
             );
-            let _ = writeln!(
-                self.body,
-                r#"<text x="{:.1}" y="{:.1}" fill="{EDGE}">{}</text>"#,
+            let back = Rect::new(left, at.y - LINE_H / 2.0 - 1.0, w, LINE_H);
+            let attrs = format!(r#" fill="{EDGE}""#);
+            self.text(
                 left + 3.0,
                 at.y + FONT / 2.0 - 2.0,
-                esc(text)
+                &attrs,
+                text,
+                Owner::Edge(id),
             );
+            let n = self.scene.labels.len() - 1;
+            let l = &mut self.scene.labels[n];
+            l.rect = l.rect.union(&back);
+            self.scene.edges[id].label = Some(n);
         }
     }
 }
@@ -316,21 +389,17 @@ impl LabelAt {
 /// The path of an edge from box `a` to box `b` in a top-down layered drawing, with
 /// the place of its label. `k` separates parallel edges; `right` is the x coordinate
 /// right of every box, where edges that go up or stay in their layer run.
-pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (String, LabelAt) {
+pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (Path, LabelAt) {
+    let p = Point::new;
     let off = k as f64 * 12.0;
     if std::ptr::eq(a, b) || (a.x == b.x && a.y == b.y) {
         // A self-loop on the right side.
         let (x, y) = (a.x + a.w, a.cy());
-        let d = format!(
-            "M{:.1},{:.1} C{:.1},{:.1} {:.1},{:.1} {:.1},{:.1}",
-            x,
-            y - 6.0,
-            x + 40.0 + off,
-            y - 30.0,
-            x + 40.0 + off,
-            y + 30.0,
-            x,
-            y + 6.0
+        let d = Path::cubic(
+            p(x, y - 6.0),
+            p(x + 40.0 + off, y - 30.0),
+            p(x + 40.0 + off, y + 30.0),
+            p(x, y + 6.0),
         );
         return (
             d,
@@ -346,7 +415,7 @@ pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (String, Labe
         let (x1, y1) = (a.cx() + off / 2.0, a.y + a.h);
         let (x2, y2) = (b.cx() + off, b.y);
         let my = (y1 + y2) / 2.0;
-        let d = format!("M{x1:.1},{y1:.1} C{x1:.1},{my:.1} {x2:.1},{my:.1} {x2:.1},{y2:.1}");
+        let d = Path::cubic(p(x1, y1), p(x1, my), p(x2, my), p(x2, y2));
         return (
             d,
             LabelAt {
@@ -366,7 +435,7 @@ pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (String, Labe
         };
         let (y1, y2) = (a.cy() + off, b.cy() + off);
         let mx = (x1 + x2) / 2.0;
-        let d = format!("M{x1:.1},{y1:.1} C{mx:.1},{y1:.1} {mx:.1},{y2:.1} {x2:.1},{y2:.1}");
+        let d = Path::cubic(p(x1, y1), p(mx, y1), p(mx, y2), p(x2, y2));
         return (
             d,
             LabelAt {
@@ -380,7 +449,7 @@ pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (String, Labe
     let lane = right + 30.0 + off;
     let (x1, y1) = (a.x + a.w, a.cy() + 4.0);
     let (x2, y2) = (b.x + b.w, b.cy() - 4.0);
-    let d = format!("M{x1:.1},{y1:.1} C{lane:.1},{y1:.1} {lane:.1},{y2:.1} {x2:.1},{y2:.1}");
+    let d = Path::cubic(p(x1, y1), p(lane, y1), p(lane, y2), p(x2, y2));
     (
         d,
         LabelAt {
