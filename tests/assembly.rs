@@ -159,7 +159,7 @@ impl Driver for Echo {
     fn ports() -> Option<PortTable> {
         Some(PortTable::of::<Self::Input, Self::Output>())
     }
-    fn step(&mut self, _: DriverContext, x: &EIn, y: &mut EOut) -> Result<(), DriverError> {
+    fn step(&mut self, _: DriverContext<'_>, x: &EIn, y: &mut EOut) -> Result<(), DriverError> {
         if let Some(v) = x.e.cmd.fresh() {
             self.got.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             y.e.reading.set(*v);

@@ -346,6 +346,9 @@ pub enum BuildProblem {
         /// The buffers it has, as `" (it has: a.b, c.d)"`, or empty.
         known: String,
     },
+    /// `SystemBuilder::environment` was called twice.
+    #[error("the system has two environments; a system has one (make it a struct of both)")]
+    SeveralEnvironments,
     /// A link between buffers of different payload types.
     #[error("link `{link}` joins an output of type `{from}` to an input of type `{to}`")]
     TypeMismatch {

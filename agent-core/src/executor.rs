@@ -25,9 +25,11 @@
 //!
 //! [`SystemBuilder`]: crate::SystemBuilder
 
+use std::any::Any;
 use std::time::Duration;
 
 use crate::error::ExecError;
+use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
 use crate::node::{DriverCore, InProcess, LocalNode, NodeStep, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
@@ -96,6 +98,10 @@ pub struct Executor<O: Observer = NoObserver> {
     nodes: Vec<Box<dyn LocalNode>>,
     periods: Vec<u64>,
     next: Vec<u64>,
+    /// The order of the nodes within an instant (real receptors last).
+    order: Vec<usize>,
+    /// The system's environment, which drivers reach through their context.
+    environment: Option<Box<dyn Any + Send>>,
     channels: Channels,
     now: Time,
     config: ExecConfig,
@@ -131,6 +137,7 @@ impl<O: Observer> Executor<O> {
             outs,
             ins,
             channels,
+            environment,
         } = system;
         let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
         let channels = Channels { typed, stats };
@@ -153,12 +160,19 @@ impl<O: Observer> Executor<O> {
         }
         let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
         let n = nodes.len();
+        // Within an instant: every component in declaration order, then the real
+        // receptors, so that they sense what the effectors did in that instant.
+        let (mut order, receptors): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
+        order.extend(receptors);
         Executor {
             channels,
             info,
             nodes,
             periods,
             next: vec![0; n],
+            order,
+            environment,
             now: Time::ZERO,
             config,
             observer,
@@ -227,19 +241,22 @@ impl<O: Observer> Executor<O> {
         let mut cx = LinkCx {
             observer: observe.then_some(&mut self.observer as &mut dyn Observer),
             links: &self.info.links,
+            environment: None,
         };
         for (node, next) in self.nodes.iter_mut().zip(&self.next) {
             if *next == tn {
                 node.read(&mut cx);
             }
         }
-        for i in 0..self.nodes.len() {
+        for k in 0..self.order.len() {
+            let i = self.order[k];
             if self.next[i] != tn {
                 continue;
             }
             let mut cx = LinkCx {
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
                 links: &self.info.links,
+                environment: self.environment.as_deref_mut(),
             };
             match self.nodes[i].step(t, i, &mut cx) {
                 Ok(NodeStep::Ran) => self.next[i] = tn.saturating_add(self.periods[i]),
@@ -332,6 +349,19 @@ impl<O: Observer> Executor<O> {
     /// Whether a node has halted (final behaviour, or an FSM error under `Continue`).
     pub fn is_halted(&self, node: crate::NodeId) -> bool {
         self.nodes.get(node.index()).is_some_and(|n| n.is_halted())
+    }
+
+    /// The system's environment ([`SystemBuilder::environment`]), if it has one of
+    /// type `W`: what the simulated world is, for a report or a test.
+    ///
+    /// [`SystemBuilder::environment`]: crate::SystemBuilder::environment
+    pub fn environment<W: Any>(&self) -> Option<&W> {
+        self.environment.as_deref()?.downcast_ref()
+    }
+
+    /// The system's environment, mutably (to disturb the world between instants).
+    pub fn environment_mut<W: Any>(&mut self) -> Option<&mut W> {
+        self.environment.as_deref_mut()?.downcast_mut()
     }
 
     /// A driver's device.

@@ -469,6 +469,8 @@ impl Channels {
 pub(crate) struct LinkCx<'a> {
     pub(crate) observer: Option<&'a mut dyn Observer>,
     pub(crate) links: &'a [LinkInfo],
+    /// The system's environment, for drivers.
+    pub(crate) environment: Option<&'a mut (dyn std::any::Any + Send)>,
 }
 
 // ---------------------------------------------------------------------------

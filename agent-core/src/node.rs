@@ -320,11 +320,12 @@ impl<D: Driver> NodeCore for DriverCore<D> {
             return Ok(None);
         }
         let iteration = self.iteration;
-        let ctx = DriverContext {
+        let ctx = DriverContext::of_step(
             now,
             iteration,
-            period: self.info.period,
-        };
+            self.info.period,
+            cx.environment.as_deref_mut(),
+        );
         self.driver
             .step(ctx, &self.input, &mut self.output)
             .map_err(|source| {

@@ -1,5 +1,8 @@
 //! Subsystems (`c`, `e`, `r`) and drivers of real effectors and receptors (`E`, `R`).
 
+use std::any::Any;
+use std::fmt;
+
 use crate::describe::{PortTable, Shape};
 use crate::error::DriverError;
 use crate::kinds::{DeviceKind, SubsystemKind};
@@ -44,15 +47,88 @@ pub trait Subsystem: Sized + 'static {
     }
 }
 
-/// Timing of one driver step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DriverContext {
+/// What a driver step knows: its timing, and the system's environment.
+pub struct DriverContext<'a> {
     /// Virtual time of this step.
     pub now: Time,
     /// The driver's own iteration counter.
     pub iteration: u64,
     /// The driver's period (the time until its next step).
     pub period: Period,
+    environment: Option<&'a mut (dyn Any + Send)>,
+}
+
+impl fmt::Debug for DriverContext<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("DriverContext")
+            .field("now", &self.now)
+            .field("iteration", &self.iteration)
+            .field("period", &self.period)
+            .field("environment", &self.environment.is_some())
+            .finish()
+    }
+}
+
+impl DriverContext<'static> {
+    /// The context of a step at `now`, without an environment (for testing a
+    /// driver alone; the executor makes the contexts of a run).
+    pub fn new(now: Time, iteration: u64, period: Period) -> Self {
+        DriverContext {
+            now,
+            iteration,
+            period,
+            environment: None,
+        }
+    }
+}
+
+impl<'a> DriverContext<'a> {
+    /// The executor's context of a step.
+    pub(crate) fn of_step(
+        now: Time,
+        iteration: u64,
+        period: Period,
+        environment: Option<&'a mut (dyn Any + Send)>,
+    ) -> Self {
+        DriverContext {
+            now,
+            iteration,
+            period,
+            environment,
+        }
+    }
+
+    /// The same context, reaching `environment`.
+    pub fn with_environment<W: Any + Send>(self, environment: &'a mut W) -> DriverContext<'a> {
+        DriverContext {
+            environment: Some(environment),
+            ..self
+        }
+    }
+
+    /// The system's environment ([`SystemBuilder::environment`]): the world that
+    /// real effectors act on and real receptors sense. Within an instant, the
+    /// executor steps the real receptors after every other component, so a
+    /// receptor senses what the effectors did in that instant, whatever the order
+    /// in which the components were added.
+    ///
+    /// An error if the system has no environment, or one of another type.
+    ///
+    /// [`SystemBuilder::environment`]: crate::SystemBuilder::environment
+    pub fn environment<W: Any>(&mut self) -> Result<&mut W, DriverError> {
+        let Some(env) = self.environment.as_deref_mut() else {
+            return Err(DriverError::new(format!(
+                "this driver needs an environment of type `{}`, and the system has none: add it with `SystemBuilder::environment`",
+                std::any::type_name::<W>()
+            )));
+        };
+        env.downcast_mut::<W>().ok_or_else(|| {
+            DriverError::new(format!(
+                "this driver needs an environment of type `{}`, and the system's is of another type",
+                std::any::type_name::<W>()
+            ))
+        })
+    }
 }
 
 /// A real effector or receptor: hardware, or a simulator standing in for it.
@@ -85,7 +161,7 @@ pub trait Driver: Send + 'static {
     /// Advance the device by one period: act on `input`, write readings to `output`.
     fn step(
         &mut self,
-        ctx: DriverContext,
+        ctx: DriverContext<'_>,
         input: &Self::Input,
         output: &mut Self::Output,
     ) -> Result<(), DriverError>;

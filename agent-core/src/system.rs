@@ -11,7 +11,7 @@
 //! * agents talk only through their control subsystems (transmission buffers `T`);
 //! * every input buffer is fed by at most one output.
 
-use std::any::TypeId;
+use std::any::{Any, TypeId};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fmt;
@@ -121,6 +121,7 @@ pub struct System {
     pub(crate) outs: Vec<(usize, Box<dyn OutPlan>)>,
     pub(crate) ins: Vec<(usize, Box<dyn InPlan>)>,
     pub(crate) channels: Vec<Box<dyn ChannelPlan>>,
+    pub(crate) environment: Option<Box<dyn Any + Send>>,
 }
 
 impl fmt::Debug for System {
@@ -149,6 +150,7 @@ pub struct SystemBuilder {
     fed: HashMap<(usize, &'static str), usize>,
     channels: Vec<Box<dyn ChannelPlan>>,
     ports: Vec<Option<PortTable>>,
+    environment: Option<Box<dyn Any + Send>>,
     problems: Vec<BuildProblem>,
 }
 
@@ -165,6 +167,21 @@ impl SystemBuilder {
     /// An empty system.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Give the system an environment: the world that real effectors act on and
+    /// real receptors sense (a simulated plant, a scene). Drivers reach it with
+    /// [`DriverContext::environment`](crate::DriverContext::environment); nothing
+    /// else does, so components still talk only through buffers. Within an
+    /// instant the executor steps real receptors after every other component: a
+    /// receptor senses what the effectors did in that instant, whatever the
+    /// declaration order. A second environment is a [`BuildProblem`].
+    pub fn environment<W: Any + Send>(&mut self, world: W) -> &mut Self {
+        if self.environment.is_some() {
+            self.problems.push(BuildProblem::SeveralEnvironments);
+        }
+        self.environment = Some(Box::new(world));
+        self
     }
 
     /// Declare an agent.
@@ -548,6 +565,7 @@ impl SystemBuilder {
             outs: self.outs,
             ins: self.ins,
             channels: self.channels,
+            environment: self.environment,
         })
     }
 }

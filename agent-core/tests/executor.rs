@@ -541,7 +541,7 @@ impl Driver for Flaky {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
     type Output = FlakyOut;
-    fn step(&mut self, cx: DriverContext, _: &(), y: &mut FlakyOut) -> Result<(), DriverError> {
+    fn step(&mut self, cx: DriverContext<'_>, _: &(), y: &mut FlakyOut) -> Result<(), DriverError> {
         y.value.set(cx.iteration);
         if cx.iteration == self.fail_at && !self.failed {
             self.failed = true;

@@ -247,6 +247,13 @@ impl<'s> Assembly<'s> {
         self.spec
     }
 
+    /// Give the system its environment, the world its devices act on and sense
+    /// ([`SystemBuilder::environment`]).
+    pub fn environment<W: std::any::Any + Send>(&mut self, world: W) -> &mut Self {
+        self.builder.environment(world);
+        self
+    }
+
     /// Run component `name` every `period` instead of the spec's period: for test
     /// harnesses that vary a rate. The built system then differs from the spec in
     /// that period (its exported structure says so).

@@ -169,7 +169,7 @@ impl Driver for Pump {
 
     fn step(
         &mut self,
-        cx: DriverContext,
+        cx: DriverContext<'_>,
         x: &PumpInput,
         y: &mut PumpOutput,
     ) -> Result<(), DriverError> {
@@ -222,7 +222,12 @@ impl Driver for Gauge {
         Some(Shape::of_driver::<Self>())
     }
 
-    fn step(&mut self, _: DriverContext, _: &(), y: &mut GaugeOutput) -> Result<(), DriverError> {
+    fn step(
+        &mut self,
+        _: DriverContext<'_>,
+        _: &(),
+        y: &mut GaugeOutput,
+    ) -> Result<(), DriverError> {
         let tank = *self
             .world
             .lock()

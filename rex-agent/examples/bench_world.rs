@@ -14,17 +14,13 @@ use std::time::Instant;
 
 use rex_agent::world::WorldConfig;
 use rex_agent::world::camera::Renderer;
-use rex_agent::world::devices::{Platform, SharedTruth};
+use rex_agent::world::devices::Platform;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let config = WorldConfig::shipped()?;
 
     // The platform alone.
-    let mut platform = Platform::new(
-        config.plant()?,
-        config.sensors.clone(),
-        SharedTruth::default(),
-    )?;
+    let mut platform = Platform::new(config.plant()?, config.sensors.clone())?;
     let dt = 1e-3;
     let seconds = 120.0;
     let steps = (seconds / dt) as usize;

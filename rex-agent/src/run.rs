@@ -243,7 +243,7 @@ pub fn run_mission(
     tick: Duration,
     mut progress: impl FnMut(Progress<'_>),
 ) -> Result<Outcome, RunError> {
-    let (system, h, _truth) = build(config)?;
+    let (system, h) = build(config)?;
     let mut exec: Executor<NoObserver> = Executor::new(system, config.exec);
     let mut out = Outcome {
         mission: config.mission.name.clone(),

@@ -479,7 +479,7 @@ fn a_platform_pushed_out_of_the_free_space_is_stopped_and_its_plan_failed() {
     // which would start from there, is refused by c1's map.
     let mut config = short();
     config.visual_odometry = false;
-    let (system, h, _) = build(&config).unwrap();
+    let (system, h) = build(&config).unwrap();
     let mut exec = embodied::Executor::new(system, config.exec);
     exec.run_for(Duration::from_secs(4)).unwrap();
     let p = exec.driver_mut(&h.platform).unwrap().plant_mut();

@@ -50,7 +50,7 @@ fn config() -> RexConfig {
 }
 
 fn built(config: &RexConfig, deployment: &str) -> Spec {
-    let (system, _, _) = build_deployment(config, deployment)
+    let (system, _) = build_deployment(config, deployment)
         .unwrap_or_else(|e| panic!("deployment `{deployment}`: {e}"));
     spec_of("rex", system.info()).unwrap().structure()
 }
@@ -156,7 +156,7 @@ fn every_deployment_builds_the_structure_of_the_spec() {
     let spec = load_spec(&default_spec()).unwrap();
     assert!(spec.deployments.len() >= 3, "paper, simulation, without VO");
     for deployment in &spec.deployments {
-        let (system, _, _) = build_deployment(&config(), &deployment.name)
+        let (system, _) = build_deployment(&config(), &deployment.name)
             .unwrap_or_else(|e| panic!("deployment `{}`: {e}", deployment.name));
         let built = spec_of(&spec.name, system.info()).unwrap().structure();
         let expected = deployed(&spec, &deployment.name).structure();

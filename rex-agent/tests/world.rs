@@ -13,7 +13,7 @@ use std::time::Duration;
 use embodied::*;
 use rex_agent::mission::Mission;
 use rex_agent::world::camera::CameraConfig;
-use rex_agent::world::devices::{MocapParams, Platform, SharedTruth, StereoCamera};
+use rex_agent::world::devices::{MocapParams, Platform, StereoCamera};
 // The stand-ins have a1's real buffers: the spec's links reach them by name.
 use rex_agent::a1::c1::{C1Input as StubC1Input, C1Output as StubC1Output, C1ToC2, C1ToC3};
 use rex_agent::a1::e11::{E11Input as StubE11Input, E11Output as StubE11Output, E11ToE1};
@@ -298,7 +298,6 @@ fn build(config: &WorldConfig) -> (System, Handles) {
 }
 
 fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
-    let truth = SharedTruth::default();
     let spec = rex_agent::a1::load_spec(&rex_agent::a1::default_spec()).unwrap();
     let mut sys = spec::Assembly::new(&spec, "simulation").unwrap();
     sys.set_period("r11", Period::from_millis(stubs.r11_ms).unwrap())
@@ -308,10 +307,11 @@ fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
         .unwrap();
     let e11 = sys.subsystem("e11", stubs.e11, stub_e11()).unwrap();
     let r11 = sys.subsystem("r11", stubs.r11, stub_r11()).unwrap();
-    let platform = world::add_platform(&mut sys, config, &truth).unwrap();
-    let camera = world::add_camera(&mut sys, config, &truth).unwrap();
+    world::add_environment(&mut sys);
+    let platform = world::add_platform(&mut sys, config).unwrap();
+    let camera = world::add_camera(&mut sys, config).unwrap();
     let c2 = world::add_ontology(&mut sys, stubs.mission).unwrap();
-    let map = world::add_map_agent(&mut sys, config, &truth).unwrap();
+    let map = world::add_map_agent(&mut sys, config).unwrap();
     (
         sys.build().unwrap_or_else(|e| panic!("{e}")),
         Handles {

@@ -22,7 +22,7 @@ use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 use crate::algorithms::vo::VoSettings;
 use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::mission::Mission;
-use crate::world::devices::{Platform, SharedTruth, StereoCamera};
+use crate::world::devices::{Platform, StereoCamera};
 use crate::world::partners::Ontology;
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
@@ -400,19 +400,16 @@ pub fn deployment(config: &RexConfig) -> &'static str {
 /// says: a1 = c1 + e11 + E1 (+ r11 and R1 with visual odometry), a2, a3, each in
 /// its agent with its period, linked by the spec's links. Only what a spec cannot
 /// hold is written here: the initial memories, the FSMs' functions, the drivers.
-pub fn build(config: &RexConfig) -> Result<(System, RexHandles, SharedTruth), RexError> {
+pub fn build(config: &RexConfig) -> Result<(System, RexHandles), RexError> {
     build_deployment(config, deployment(config))
 }
 
 /// Build Rex as deployment `name` of the spec says, in one process: the components
 /// it runs (visual odometry if it runs r11), linked by the spec's links.
-pub fn build_deployment(
-    config: &RexConfig,
-    name: &str,
-) -> Result<(System, RexHandles, SharedTruth), RexError> {
+pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHandles), RexError> {
     let spec = load_spec(&config.spec)?;
     let mut rex = Assembly::new(&spec, name)?;
-    let truth = SharedTruth::default();
+    world::add_environment(&mut rex);
     let dt = rex.period("e11")?.as_secs_f64();
     let settings = PlannerSettings {
         dt,
@@ -441,9 +438,9 @@ pub fn build_deployment(
     )
     .with_safety(config.limits.safety(&config.world));
     let e11 = rex.subsystem("e11", e11_memory, e11_fsm()?)?;
-    let platform = world::add_platform(&mut rex, &config.world, &truth)?;
+    let platform = world::add_platform(&mut rex, &config.world)?;
     let c2 = world::add_ontology(&mut rex, config.mission.clone())?;
-    let map = world::add_map_agent(&mut rex, &config.world, &truth)?;
+    let map = world::add_map_agent(&mut rex, &config.world)?;
     let vision = if rex.runs("r11") {
         let camera_config = &config.world.camera;
         let odom = Odometry::new(
@@ -460,7 +457,7 @@ pub fn build_deployment(
             R11Memory::new(odom, config.acquire_every),
             r11_fsm()?,
         )?;
-        let camera = world::add_camera(&mut rex, &config.world, &truth)?;
+        let camera = world::add_camera(&mut rex, &config.world)?;
         Some((r11, camera))
     } else {
         None
@@ -476,6 +473,5 @@ pub fn build_deployment(
             map,
             vision,
         },
-        truth,
     ))
 }

@@ -25,7 +25,7 @@ use crate::a1::payload::Pose2;
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
 use crate::mission::Mission;
 use camera::{CameraConfig, Renderer, SceneConfig};
-use devices::{MocapParams, MotionCapture, Platform, SensorParams, SharedTruth, StereoCamera};
+use devices::{MocapParams, MotionCapture, Platform, SensorParams, StereoCamera, Truth};
 use model::{Plant, PlatformParams, SurfaceMap};
 use partners::{
     MapAgent, MapMemory, MocapMemory, MocapReceptor, Ontology, OntologyMemory, map_fsm,
@@ -108,13 +108,18 @@ impl WorldConfig {
     }
 }
 
+/// Give the system the simulated world, the environment its devices act on and
+/// sense: the platform writes the [`Truth`], the camera and the motion capture read it.
+pub fn add_environment(rex: &mut Assembly<'_>) {
+    rex.environment(Truth::default());
+}
+
 /// Add the platform E1 (an error if its configuration is invalid).
 pub fn add_platform(
     rex: &mut Assembly<'_>,
     config: &WorldConfig,
-    truth: &SharedTruth,
 ) -> Result<DriverHandle<Platform>, WorldError> {
-    let platform = Platform::new(config.plant()?, config.sensors.clone(), truth.clone())?;
+    let platform = Platform::new(config.plant()?, config.sensors.clone())?;
     Ok(rex.driver("E1", platform)?)
 }
 
@@ -122,10 +127,9 @@ pub fn add_platform(
 pub fn add_camera(
     rex: &mut Assembly<'_>,
     config: &WorldConfig,
-    truth: &SharedTruth,
 ) -> Result<DriverHandle<StereoCamera>, WorldError> {
     let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
-    Ok(rex.driver("R1", StereoCamera::new(renderer, truth.clone()))?)
+    Ok(rex.driver("R1", StereoCamera::new(renderer))?)
 }
 
 /// Add the ontology agent's `c2` with `mission`.
@@ -151,9 +155,8 @@ pub struct MapAgentHandles {
 pub fn add_map_agent(
     rex: &mut Assembly<'_>,
     config: &WorldConfig,
-    truth: &SharedTruth,
 ) -> Result<MapAgentHandles, WorldError> {
-    let mocap = MotionCapture::new(config.mocap.clone(), truth.clone())?;
+    let mocap = MotionCapture::new(config.mocap.clone())?;
     let c3 = rex.subsystem("c3", MapMemory::default(), map_fsm()?)?;
     let r31 = rex.subsystem(
         "r31",
@@ -203,7 +206,6 @@ mod tests {
 
     #[test]
     fn a_world_built_in_code_is_validated_when_its_devices_are_added() {
-        let truth = SharedTruth::default();
         let mut config = WorldConfig::default();
         config.camera.width = 0;
         config
@@ -212,18 +214,18 @@ mod tests {
             .push(config.surfaces.surfaces[0].clone());
         let spec = crate::a1::load_spec(&crate::a1::default_spec()).unwrap();
         let mut rex = Assembly::new(&spec, "simulation").unwrap();
-        let err = add_camera(&mut rex, &config, &truth).unwrap_err();
+        let err = add_camera(&mut rex, &config).unwrap_err();
         assert!(
             err.to_string().contains("<camera>: width x height = 0x480"),
             "{err}"
         );
-        let err = add_platform(&mut rex, &config, &truth).unwrap_err();
+        let err = add_platform(&mut rex, &config).unwrap_err();
         assert!(
             err.to_string().contains("<surfaces>: surfaces[1].name"),
             "{err}"
         );
         config.mocap.latency = -1.0;
-        let err = add_map_agent(&mut rex, &config, &truth).unwrap_err();
+        let err = add_map_agent(&mut rex, &config).unwrap_err();
         assert!(err.to_string().contains("<mocap>: latency = -1"), "{err}");
     }
 }

@@ -8,7 +8,7 @@ use embodied::{
 };
 use serde::{Deserialize, Serialize};
 
-use super::SharedTruth;
+use super::Truth;
 use crate::a1::payload::{MapPose, Pose2};
 use crate::algorithms::geometry::wrap;
 use crate::algorithms::rng::Rng;
@@ -81,7 +81,6 @@ pub struct MocapOutput {
 #[derive(Debug)]
 pub struct MotionCapture {
     params: MocapParams,
-    truth: SharedTruth,
     rng: Rng,
     history: VecDeque<(f64, Pose2)>,
     silent_until: f64,
@@ -91,13 +90,13 @@ pub struct MotionCapture {
 }
 
 impl MotionCapture {
-    /// A motion-capture system (`params` validated) observing `truth`.
-    pub fn new(params: MocapParams, truth: SharedTruth) -> Result<MotionCapture, ConfigError> {
+    /// A motion-capture system (`params` validated) observing the system's
+    /// environment, [`Truth`].
+    pub fn new(params: MocapParams) -> Result<MotionCapture, ConfigError> {
         config::check("mocap", &params)?;
         Ok(MotionCapture {
             rng: Rng::stream(params.seed, "mocap"),
             params,
-            truth,
             history: VecDeque::with_capacity(256),
             silent_until: f64::NEG_INFINITY,
             delivered: 0,
@@ -130,8 +129,13 @@ impl Driver for MotionCapture {
         Some(PortTable::of::<Self::Input, Self::Output>())
     }
 
-    fn step(&mut self, cx: DriverContext, _: &(), y: &mut MocapOutput) -> Result<(), DriverError> {
-        let truth = self.truth.get()?;
+    fn step(
+        &mut self,
+        mut cx: DriverContext<'_>,
+        _: &(),
+        y: &mut MocapOutput,
+    ) -> Result<(), DriverError> {
+        let truth = *cx.environment::<Truth>()?;
         let now = cx.now.as_secs_f64();
         let s = truth.state;
         self.history.push_back((

@@ -7,7 +7,7 @@ use embodied::{
 };
 use serde::{Deserialize, Serialize};
 
-use super::{SharedTruth, Truth};
+use super::Truth;
 use crate::a1::payload::{Encoders, Imu, ImuCommand, Torques, WheelLoads};
 use crate::algorithms::geometry::wrap;
 use crate::algorithms::rng::Rng;
@@ -118,7 +118,6 @@ pub struct PlatformOutput {
 pub struct Platform {
     plant: Plant,
     params: SensorParams,
-    truth: SharedTruth,
     rng: Rng,
     counts: [[i64; 4]; 64],
     samples: u64,
@@ -132,12 +131,9 @@ pub struct Platform {
 }
 
 impl Platform {
-    /// The platform `plant` with sensors `params` (validated), publishing to `truth`.
-    pub fn new(
-        plant: Plant,
-        params: SensorParams,
-        truth: SharedTruth,
-    ) -> Result<Platform, ConfigError> {
+    /// The platform `plant` with sensors `params` (validated). It writes the
+    /// system's environment, [`Truth`], every step.
+    pub fn new(plant: Plant, params: SensorParams) -> Result<Platform, ConfigError> {
         config::check("sensors", &params)?;
         let rng = Rng::stream(params.seed, "platform");
         Ok(Platform {
@@ -145,7 +141,6 @@ impl Platform {
             bias: params.gyro_bias,
             plant,
             params,
-            truth,
             rng,
             counts: [[0; 4]; 64],
             samples: 0,
@@ -258,7 +253,7 @@ impl Driver for Platform {
 
     fn step(
         &mut self,
-        cx: DriverContext,
+        mut cx: DriverContext<'_>,
         x: &PlatformInput,
         y: &mut PlatformOutput,
     ) -> Result<(), DriverError> {
@@ -286,10 +281,10 @@ impl Driver for Platform {
             None => [0.0; 4],
         };
         let (imu, forces, encoders) = self.advance(command, dt);
-        self.truth.set(Truth {
+        *cx.environment::<Truth>()? = Truth {
             time: now + dt,
             state: self.plant.state,
-        })?;
+        };
         y.e11.imu.set(imu);
         y.e11.forces.set(forces);
         y.e11.encoders.set(encoders);

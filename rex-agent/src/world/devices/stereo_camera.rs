@@ -6,7 +6,7 @@ use embodied::{
     Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out, PortTable, Shape,
 };
 
-use super::SharedTruth;
+use super::Truth;
 use crate::a1::payload::{AcquireCommand, StereoPair};
 use crate::world::camera::Renderer;
 use crate::world::camera::kitti::SequenceWriter;
@@ -47,7 +47,6 @@ pub struct CameraOutput {
 /// the same step, as the paper says). Without a command it sends nothing.
 pub struct StereoCamera {
     renderer: Renderer,
-    truth: SharedTruth,
     pending: StereoPair,
     has_pending: bool,
     frames: u64,
@@ -64,11 +63,11 @@ impl std::fmt::Debug for StereoCamera {
 }
 
 impl StereoCamera {
-    /// A camera rendering with `renderer`, looking from the pose in `truth`.
-    pub fn new(renderer: Renderer, truth: SharedTruth) -> StereoCamera {
+    /// A camera rendering with `renderer`, looking from the pose in the system's
+    /// environment, [`Truth`].
+    pub fn new(renderer: Renderer) -> StereoCamera {
         StereoCamera {
             renderer,
-            truth,
             pending: StereoPair::default(),
             has_pending: false,
             frames: 0,
@@ -112,7 +111,7 @@ impl Driver for StereoCamera {
 
     fn step(
         &mut self,
-        _: DriverContext,
+        mut cx: DriverContext<'_>,
         x: &CameraInput,
         y: &mut CameraOutput,
     ) -> Result<(), DriverError> {
@@ -122,7 +121,7 @@ impl Driver for StereoCamera {
             self.has_pending = false;
         }
         if let Some(cmd) = x.r11.cmd_R11.fresh() {
-            let truth = self.truth.get()?;
+            let truth = *cx.environment::<Truth>()?;
             let s = truth.state;
             let pair = &mut self.pending;
             let body = [s.x, s.y, s.phi];

@@ -14,7 +14,7 @@ fn platform(params: SensorParams) -> Platform {
         [0.0; 3],
     )
     .unwrap();
-    Platform::new(plant, params, SharedTruth::default()).unwrap()
+    Platform::new(plant, params).unwrap()
 }
 
 /// Step `driver` at 1 kHz from `*k`, with `tau` and `cmd` delivered as new in
@@ -39,12 +39,19 @@ fn drive(
             Some(c) if n == 0 => x.e11.cmd_E11.deliver(c, stamp),
             _ => x.e11.cmd_E11.age(),
         }
-        let cx = DriverContext {
-            now: Time::from_nanos(*k * 1_000_000),
-            iteration: *k,
-            period: Period::from_millis(1).unwrap(),
-        };
+        let mut truth = Truth::default();
+        let cx = DriverContext::new(
+            Time::from_nanos(*k * 1_000_000),
+            *k,
+            Period::from_millis(1).unwrap(),
+        )
+        .with_environment(&mut truth);
         p.step(cx, &x, &mut y).unwrap();
+        assert_eq!(
+            truth.state,
+            p.plant().state,
+            "the platform writes the world"
+        );
         *k += 1;
     }
     *y.e11.imu.written().unwrap()
@@ -131,13 +138,13 @@ fn invalid_sensor_or_mocap_parameters_are_errors() {
         speed_window: 0,
         ..SensorParams::default()
     };
-    let err = Platform::new(plant, bad, SharedTruth::default()).unwrap_err();
+    let err = Platform::new(plant, bad).unwrap_err();
     assert!(err.to_string().contains("<sensors>: speed_window"), "{err}");
     let bad = MocapParams {
         dropout_rate: f64::NAN,
         ..MocapParams::default()
     };
-    let err = MotionCapture::new(bad, SharedTruth::default()).unwrap_err();
+    let err = MotionCapture::new(bad).unwrap_err();
     assert!(err.to_string().contains("<mocap>: dropout_rate"), "{err}");
 }
 
