@@ -658,7 +658,13 @@ mod tests {
         .expect("parses");
         let e = all_messages(check(&d).expect_err("duplicate"));
         assert!(e.contains("`x` is defined twice"), "{e}");
-        assert_eq!(e.matches("[spec::").count(), 1, "{e}");
+        // One finding, marked at both definitions (a second error on the first).
+        assert!(
+            e.contains("first defined here (see the error above)"),
+            "{e}"
+        );
+        assert_eq!(e.matches("[spec::duplicate_name]").count(), 2, "{e}");
+        assert_eq!(e.matches("[spec::").count(), 2, "nothing else: {e}");
     }
 
     #[test]
@@ -674,7 +680,20 @@ mod tests {
             x -> z when b;
         })
         .expect("parses");
-        let e = all_messages(check(&d).expect_err("overlap and gap"));
+        let errors = check(&d).expect_err("overlap and gap");
+        // The overlap is marked on both arcs: the error on one, a second on the other.
+        let on: Vec<(String, String)> = errors
+            .clone()
+            .into_iter()
+            .map(|e| (e.to_string(), format!("{:?}", e.span())))
+            .collect();
+        let overlap: Vec<&(String, String)> = on
+            .iter()
+            .filter(|(m, _)| m.contains("[spec::arcs_overlap]"))
+            .collect();
+        assert_eq!(overlap.len(), 2, "{on:?}");
+        assert!(overlap[1].0.contains("this one holds too"), "{on:?}");
+        let e = all_messages(errors);
         assert!(e.contains("can hold at once"), "{e}");
         assert!(e.contains("none of its arcs holds"), "{e}");
         let d = parse(quote! {
