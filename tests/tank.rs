@@ -63,7 +63,7 @@ fn mission_is_completed_and_bad_order_refused() {
         }
     }
     assert!(matches!(acks[1], Ack::Refused { .. }) && matches!(acks[2], Ack::Refused { .. }));
-    let true_level = plant.world.lock().unwrap().level;
+    let true_level = exec.environment::<Tank>().expect("the tank").level;
     assert!(
         (true_level - 0.5).abs() < 0.03,
         "tank ends at {true_level} m"

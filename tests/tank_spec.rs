@@ -110,9 +110,9 @@ impl c1::Functions for Station {
 /// The twin with the generated `c1`.
 fn build(mission: Vec<Order>, seed: u64) -> (System, SubsystemHandle<twin::Operator>) {
     let params = agent::TankParams::default();
-    let world = agent::world(params, 0.2);
     let period = |ms: f64| Period::from_millis(ms as u64).expect("a valid period");
     let mut sys = SystemBuilder::new();
+    sys.environment(agent::world(params, 0.2));
     let station_agent = sys.agent("station");
     let operator_agent = sys.agent("operator");
     let memory = c1::Memory {
@@ -144,17 +144,13 @@ fn build(mission: Vec<Order>, seed: u64) -> (System, SubsystemHandle<twin::Opera
         station_agent,
         "E1",
         period(E1::PERIOD_MS),
-        Pump {
-            world: world.clone(),
-            rejected: 0,
-        },
+        Pump { rejected: 0 },
     );
     let gauge = sys.driver(
         station_agent,
         "R1",
         period(R1::PERIOD_MS),
         Gauge {
-            world,
             noise: Noise::new(seed),
         },
     );

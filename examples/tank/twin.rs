@@ -18,7 +18,7 @@ use embodied::*;
 
 use crate::agent::{
     Ack, FILTER_ALPHA, Gauge, GaugeOutput, Noise, Order, Pump, PumpInput, PumpOutput, SetupError,
-    StationParams, TankParams, World, world,
+    StationParams, TankParams, world,
 };
 
 // ---------------------------------------------------------------------------
@@ -428,7 +428,6 @@ pub fn operator_fsm() -> Result<Fsm<Operator>, FsmBuildError> {
 pub struct Plant {
     pub station: SubsystemHandle<Station>,
     pub operator: SubsystemHandle<Operator>,
-    pub world: World,
 }
 
 pub fn build(
@@ -437,8 +436,8 @@ pub fn build(
     seed: u64,
 ) -> Result<(System, Plant), SetupError> {
     let params = TankParams::default();
-    let world = world(params, initial_level);
     let mut sys = SystemBuilder::new();
+    sys.environment(world(params, initial_level));
     let station_agent = sys.agent("station");
     let operator_agent = sys.agent("operator");
     let ms = Period::from_millis;
@@ -467,21 +466,12 @@ pub fn build(
         FilterMemory::default(),
         filter_fsm()?,
     );
-    let pump = sys.driver(
-        station_agent,
-        "E1",
-        ms(1)?,
-        Pump {
-            world: world.clone(),
-            rejected: 0,
-        },
-    );
+    let pump = sys.driver(station_agent, "E1", ms(1)?, Pump { rejected: 0 });
     let gauge = sys.driver(
         station_agent,
         "R1",
         ms(10)?,
         Gauge {
-            world: world.clone(),
             noise: Noise::new(seed),
         },
     );
@@ -536,12 +526,5 @@ pub fn build(
         station.input(port!(StationInput, filter.level)),
         sample,
     );
-    Ok((
-        sys.build()?,
-        Plant {
-            station,
-            operator,
-            world,
-        },
-    ))
+    Ok((sys.build()?, Plant { station, operator }))
 }
