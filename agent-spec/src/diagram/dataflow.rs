@@ -3,7 +3,8 @@
 use std::fmt::Write as _;
 
 use super::geometry::Scene;
-use super::svg::{self, Boxed, LINE_H, MARGIN, PAD, Svg, layered, route};
+use super::layout::{Graph, SlotKind, Spacing};
+use super::svg::{self, Boxed, LINE_H, MARGIN, PAD, Svg};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Behaviour, Spec, Subsystem, Target};
 
@@ -254,11 +255,21 @@ fn mermaid(subs: &[&Subsystem]) -> String {
 
 /// The SVG, and what it placed.
 pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
+    let spacing = Spacing {
+        node_gap: 30.0,
+        gap: 10.0,
+        group_gap: 40.0,
+        rank_gap: 60.0,
+    };
     let mut doc = Svg::new();
     let mut y = MARGIN;
     let mut width: f64 = 0.0;
     for sub in subs {
         for flow in flows(sub) {
+            let title = format!(
+                "{} — behaviour {} ({})",
+                sub.name, flow.behaviour.name, flow.behaviour.kind
+            );
             let top = y + LINE_H + 2.0 * PAD;
             let nr = flow.reads.len();
             let nf = flow.functions.len();
@@ -285,37 +296,45 @@ pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
             for b in boxes.iter_mut().take(nr) {
                 b.rounded = false;
             }
-            let layers = if nf == 0 {
-                vec![(0..boxes.len()).collect::<Vec<_>>()]
-            } else {
-                vec![
-                    (0..nr).collect::<Vec<_>>(),
-                    (nr..nr + nf).collect(),
-                    (nr + nf..boxes.len()).collect(),
-                ]
+            // Reads, functions, writes: one rank each (without functions, the note).
+            let rank_of = |i: usize| {
+                if nf == 0 || i < nr {
+                    0
+                } else if i < nr + nf {
+                    usize::from(nr > 0)
+                } else {
+                    1 + usize::from(nr > 0)
+                }
             };
+            let mut g = Graph::default();
+            let slots: Vec<usize> = boxes
+                .iter()
+                .enumerate()
+                .map(|(i, b)| g.slot(SlotKind::Node, rank_of(i), 0, (b.w, b.h), b.w))
+                .collect();
             let mut edges: Vec<(usize, usize)> =
                 flow.read_edges.iter().map(|&(b, f)| (b, nr + f)).collect();
             edges.extend(flow.write_edges.iter().map(|&(f, b)| (nr + f, nr + nf + b)));
-            let layers: Vec<Vec<usize>> = layers.into_iter().filter(|l| !l.is_empty()).collect();
-            let lay = layered(boxes, layers, &edges, MARGIN + PAD, top);
-            let frame_w = lay.width.max(svg::text_w(&flow.behaviour.name) + 200.0) + 2.0 * PAD;
-            let frame_h = lay.height + (top - y) + PAD;
-            let kind = flow.behaviour.kind.to_string();
-            let f = doc.frame(
-                MARGIN,
-                y,
-                frame_w,
-                frame_h,
-                &format!("{} — behaviour {} ({kind})", sub.name, flow.behaviour.name),
-            );
+            let chains: Vec<usize> = edges
+                .iter()
+                .map(|&(a, b)| g.chain(vec![slots[a], slots[b]], None))
+                .collect();
+            g.place(MARGIN + PAD, top, spacing);
+            for (b, &i) in boxes.iter_mut().zip(&slots) {
+                b.x = g.slots[i].x;
+                b.y = g.slots[i].y;
+            }
+            let right = g.right().max(MARGIN + PAD + svg::text_w(&title)) + PAD;
+            let frame_w = right - MARGIN;
+            let frame_h = g.bottom().max(top) + PAD - y;
+            let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
             let first = doc.next_box();
-            for b in &lay.boxes {
+            for b in &boxes {
                 doc.boxed(b, Some(f));
             }
-            for &(a, b) in &edges {
-                let (d, _) = route(&lay.boxes[a], &lay.boxes[b], 0, MARGIN + frame_w);
-                doc.edge(&d, None, (Some(first + a), Some(first + b)), Some(f));
+            for (&(a, b), &c) in edges.iter().zip(&chains) {
+                let path = g.route(c, None);
+                doc.edge(&path, None, (Some(first + a), Some(first + b)), Some(f));
             }
             width = width.max(frame_w + 2.0 * MARGIN);
             y += frame_h + MARGIN;

@@ -1,10 +1,10 @@
 //! The FSM of a subsystem (Fig. 5).
 
-use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 use super::geometry::{Path, Point, Scene};
-use super::svg::{Boxed, LINE_H, MARGIN, PAD, Svg, layered, route};
+use super::layout::{Graph, SlotKind, Spacing};
+use super::svg::{Boxed, LABEL_H, LINE_H, LabelAt, MARGIN, PAD, Svg, label_w, text_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{BehaviourKind, Spec, Subsystem, SubsystemKind};
 
@@ -54,37 +54,6 @@ impl<'a> View<'a> {
             },
         };
         (b.name.clone(), detail)
-    }
-
-    /// Layers by breadth-first distance from the initial behaviour; behaviours not
-    /// reached go in a last layer.
-    fn layers(&self) -> Vec<Vec<usize>> {
-        let n = self.sub.behaviours.len();
-        let mut depth = vec![usize::MAX; n];
-        let mut queue = VecDeque::new();
-        if let Some(s) = self.initial {
-            depth[s] = 0;
-            queue.push_back(s);
-        }
-        while let Some(i) = queue.pop_front() {
-            for &(a, b, _) in &self.arcs {
-                if a == i && depth[b] == usize::MAX {
-                    depth[b] = depth[i] + 1;
-                    queue.push_back(b);
-                }
-            }
-        }
-        let max = depth
-            .iter()
-            .filter(|d| **d != usize::MAX)
-            .max()
-            .map_or(0, |m| m + 1);
-        let mut layers = vec![Vec::new(); max + 1];
-        for (i, d) in depth.iter().enumerate() {
-            layers[if *d == usize::MAX { max } else { *d }].push(i);
-        }
-        layers.retain(|l| !l.is_empty());
-        layers
     }
 }
 
@@ -216,59 +185,165 @@ fn mermaid(views: &[View<'_>]) -> String {
     out
 }
 
+/// Self-loops are drawn as small loops on the right side of their box, one under
+/// the other, each with its label to its right.
+const EAR_TOP: f64 = 5.0;
+/// Vertical distance between two self-loops of a box.
+const EAR_PITCH: f64 = 18.0;
+/// Height of a self-loop.
+const EAR_H: f64 = 12.0;
+/// How far right of its box a self-loop's label starts.
+const EAR_LABEL: f64 = 19.0;
+
+/// The layers of the FSM as a layered drawing: arcs that close a cycle (found by a
+/// depth-first search from the initial behaviour, arcs in declaration order) point
+/// up, every other arc points down, and each behaviour is one layer below the
+/// lowest behaviour with an arc down to it.
+fn layers(v: &View<'_>) -> Vec<usize> {
+    let n = v.sub.behaviours.len();
+    // 0: not seen, 1: on the stack, 2: done
+    let mut state = vec![0u8; n];
+    let mut back = vec![false; v.arcs.len()];
+    let roots: Vec<usize> = v.initial.into_iter().chain(0..n).collect();
+    for root in roots {
+        if state[root] != 0 {
+            continue;
+        }
+        // Iterative DFS: (node, next arc index to look at).
+        let mut stack = vec![(root, 0usize)];
+        state[root] = 1;
+        while let Some(&mut (i, ref mut k)) = stack.last_mut() {
+            if *k >= v.arcs.len() {
+                state[i] = 2;
+                stack.pop();
+                continue;
+            }
+            let arc = *k;
+            *k += 1;
+            let (a, b, _) = v.arcs[arc];
+            if a != i || a == b {
+                continue;
+            }
+            match state[b] {
+                0 => {
+                    state[b] = 1;
+                    stack.push((b, 0));
+                }
+                1 => back[arc] = true,
+                _ => {}
+            }
+        }
+    }
+    // Arcs into the initial behaviour point up too: it heads the drawing, under its
+    // start dot. (No cycle remains: nothing points down into it.)
+    for (k, &(a, b, _)) in v.arcs.iter().enumerate() {
+        if Some(b) == v.initial && a != b {
+            back[k] = true;
+        }
+    }
+    // Longest path over the arcs that point down (a DAG).
+    let mut layer = vec![0usize; n];
+    for _ in 0..n {
+        let mut changed = false;
+        for (k, &(a, b, _)) in v.arcs.iter().enumerate() {
+            if a == b {
+                continue;
+            }
+            let (u, w) = if back[k] { (b, a) } else { (a, b) };
+            if layer[w] < layer[u] + 1 {
+                layer[w] = layer[u] + 1;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    layer
+}
+
 /// The SVG, and what it placed.
 pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
     let views: Vec<View<'_>> = subs.iter().map(|s| View::new(s)).collect();
+    let spacing = Spacing {
+        node_gap: 40.0,
+        gap: 10.0,
+        group_gap: 40.0,
+        rank_gap: 24.0,
+    };
     let mut doc = Svg::new();
     let mut y = MARGIN;
     let mut width: f64 = 0.0;
-    for v in views {
-        let top = y + LINE_H + PAD + 24.0; // room for the frame title and the start dot
-        let boxes: Vec<Boxed> = (0..v.sub.behaviours.len())
-            .map(|i| {
-                let (name, detail) = v.node_text(i);
-                let mut b = Boxed::new(vec![name, detail]);
-                b.double = v.finals[i];
-                b
-            })
-            .collect();
-        let edges: Vec<(usize, usize)> = v.arcs.iter().map(|&(a, b, _)| (a, b)).collect();
-        let lay = layered(boxes, v.layers(), &edges, MARGIN + PAD, top);
-        let right = lay.boxes.iter().map(|b| b.x + b.w).fold(MARGIN, f64::max);
-        let mut extent: f64 = right;
-        let mut routes = Vec::new();
-        for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
-            let parallel = v.arcs[..k]
+    for v in &views {
+        let title = format!("{} — FSM of the {}", v.sub.name, kind_name(v.sub.kind));
+        // Room for the title, then for the start dot.
+        let top = y + LINE_H + 3.0 + 30.0;
+        let layer = layers(v);
+        let n = v.sub.behaviours.len();
+        let mut g = Graph::default();
+        let mut boxes = Vec::with_capacity(n);
+        let mut slot_of = Vec::with_capacity(n);
+        for i in 0..n {
+            let (name, detail) = v.node_text(i);
+            let mut b = Boxed::new(vec![name, detail]);
+            b.double = v.finals[i];
+            let loops: Vec<&str> = v
+                .arcs
                 .iter()
-                .filter(|x| x.0 == a && x.1 == b || x.0 == b && x.1 == a)
-                .count();
-            let up = lay.boxes[b].y <= lay.boxes[a].y + lay.boxes[a].h;
-            let lane_k = if up || a == b {
-                v.arcs[..k]
-                    .iter()
-                    .filter(|&&(x, y, _)| lay.boxes[y].y <= lay.boxes[x].y + lay.boxes[x].h)
-                    .count()
-            } else {
-                parallel
-            };
-            let (d, at) = route(&lay.boxes[a], &lay.boxes[b], lane_k.max(parallel), right);
-            extent = extent
-                .max(at.right(when))
-                .max(right + 30.0 + 12.0 * lane_k as f64);
-            routes.push((d, at, when));
+                .filter(|&&(a, c, _)| a == i && c == i)
+                .map(|a| a.2)
+                .collect();
+            let mut extra = 0.0;
+            if !loops.is_empty() {
+                b.h = b.h.max(EAR_TOP + EAR_PITCH * loops.len() as f64 + 2.0);
+                extra = EAR_LABEL + loops.iter().map(|w| label_w(w)).fold(0.0, f64::max) + 2.0;
+            }
+            slot_of.push(g.slot(SlotKind::Node, 2 * layer[i], 0, (b.w + extra, b.h), b.w));
+            boxes.push(b);
         }
-        let frame_h = lay.height + (top - y) + PAD + MARGIN / 2.0;
-        let frame_w = extent - MARGIN + PAD;
-        let f = doc.frame(
-            MARGIN,
-            y,
-            frame_w,
-            frame_h,
-            &format!("{} — FSM of the {}", v.sub.name, kind_name(v.sub.kind)),
-        );
+        let mut chain_of = vec![None; v.arcs.len()];
+        for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
+            if a == b {
+                continue;
+            }
+            let (ra, rb) = (2 * layer[a], 2 * layer[b]);
+            let between: Vec<usize> = if rb > ra {
+                (ra + 1..rb).collect()
+            } else {
+                (rb + 1..ra).rev().collect()
+            };
+            // The label goes in the odd rank nearest the middle (nearer the source
+            // on a tie).
+            let mid = (ra + rb) as f64 / 2.0;
+            let label_rank = between
+                .iter()
+                .copied()
+                .filter(|r| r % 2 == 1)
+                .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+            let mut slots = vec![slot_of[a]];
+            for r in between {
+                slots.push(if Some(r) == label_rank && !when.is_empty() {
+                    let w = label_w(when);
+                    g.slot(SlotKind::Label, r, 0, (w + 2.0, LABEL_H), w)
+                } else {
+                    g.slot(SlotKind::Dummy, r, 0, (0.0, 0.0), 0.0)
+                });
+            }
+            slots.push(slot_of[b]);
+            chain_of[k] = Some(g.chain(slots, None));
+        }
+        g.place(MARGIN + PAD, top, spacing);
+        for (b, &i) in boxes.iter_mut().zip(&slot_of) {
+            b.x = g.slots[i].x;
+            b.y = g.slots[i].y;
+        }
+        let right = g.right().max(MARGIN + PAD + text_w(&title)) + PAD;
+        let frame_w = right - MARGIN;
+        let frame_h = g.bottom().max(top) + PAD - y;
+        let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
         let first = doc.next_box();
         if let Some(i) = v.initial {
-            let b = &lay.boxes[i];
+            let b = &boxes[i];
             doc.dot(b.cx(), b.y - 20.0, 5.0);
             doc.edge(
                 &Path::line(Point::new(b.cx(), b.y - 15.0), Point::new(b.cx(), b.y)),
@@ -277,16 +352,37 @@ pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
                 Some(f),
             );
         }
-        for b in &lay.boxes {
+        for b in &boxes {
             doc.boxed(b, Some(f));
         }
-        for ((d, at, when), &(a, b, _)) in routes.iter().zip(&v.arcs) {
-            doc.edge(
-                d,
-                Some((when, at)),
-                (Some(first + a), Some(first + b)),
-                Some(f),
-            );
+        let mut ears = vec![0usize; n];
+        for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
+            let ends = (Some(first + a), Some(first + b));
+            match chain_of[k] {
+                Some(c) => {
+                    let at = g.label_at(c);
+                    let path = g.route(c, None);
+                    doc.edge(&path, at.as_ref().map(|at| (when, at)), ends, Some(f));
+                }
+                None => {
+                    // A self-loop.
+                    let bx = &boxes[a];
+                    let (x, y0) = (bx.x + bx.w, bx.y + EAR_TOP + EAR_PITCH * ears[a] as f64);
+                    ears[a] += 1;
+                    let p = Point::new;
+                    let path = Path::cubic(
+                        p(x, y0),
+                        p(x + 22.0, y0 - 2.0),
+                        p(x + 22.0, y0 + EAR_H + 2.0),
+                        p(x, y0 + EAR_H),
+                    );
+                    let at = LabelAt {
+                        x: x + EAR_LABEL,
+                        y: y0 + EAR_H / 2.0,
+                    };
+                    doc.edge(&path, Some((when, &at)), ends, Some(f));
+                }
+            }
         }
         width = width.max(frame_w + 2.0 * MARGIN);
         y += frame_h + MARGIN;

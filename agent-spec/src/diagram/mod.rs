@@ -14,6 +14,7 @@ mod dataflow;
 mod fsm;
 #[doc(hidden)]
 pub mod geometry;
+mod layout;
 mod structure;
 mod svg;
 

@@ -2,8 +2,9 @@
 
 use std::fmt::Write as _;
 
-use super::geometry::{Path, Point, Scene};
-use super::svg::{Align, Boxed, LINE_H, LabelAt, MARGIN, PAD, Svg, text_w};
+use super::geometry::Scene;
+use super::layout::{Graph, SlotKind, Spacing, TURN_DEPTH};
+use super::svg::{Boxed, LABEL_H, LINE_H, LabelAt, MARGIN, PAD, Svg, label_w, text_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Agent, DeviceKind, Group, Policy, Spec, SubsystemKind};
 
@@ -217,48 +218,6 @@ fn mermaid(
     out
 }
 
-/// Anchor points and label position of a link between two boxes; `side` separates
-/// the two directions of a pair.
-fn connect(a: &Boxed, b: &Boxed, side: f64) -> (Path, LabelAt) {
-    let p = Point::new;
-    let (dx, dy) = (b.cx() - a.cx(), b.cy() - a.cy());
-    let vertical =
-        dy.abs() > 1.0 && (dy.abs() - (a.h + b.h) / 2.0) > (dx.abs() - (a.w + b.w) / 2.0);
-    let (x1, y1, x2, y2) = if vertical {
-        let (y1, y2) = if dy > 0.0 {
-            (a.y + a.h, b.y)
-        } else {
-            (a.y, b.y + b.h)
-        };
-        (a.cx() + side, y1, b.cx() + side, y2)
-    } else {
-        let (x1, x2) = if dx > 0.0 {
-            (a.x + a.w, b.x)
-        } else {
-            (a.x, b.x + b.w)
-        };
-        (x1, a.cy() + side, x2, b.cy() + side)
-    };
-    let d = if vertical {
-        let my = (y1 + y2) / 2.0;
-        Path::cubic(p(x1, y1), p(x1, my), p(x2, my), p(x2, y2))
-    } else {
-        let mx = (x1 + x2) / 2.0;
-        Path::cubic(p(x1, y1), p(mx, y1), p(mx, y2), p(x2, y2))
-    };
-    let align = match (vertical, side) {
-        (true, s) if s > 0.0 => Align::Start,
-        (true, s) if s < 0.0 => Align::End,
-        _ => Align::Middle,
-    };
-    let at = LabelAt {
-        x: (x1 + x2) / 2.0 + if vertical { side * 0.5 } else { 0.0 },
-        y: (y1 + y2) / 2.0 + if vertical { 0.0 } else { side * 1.4 },
-        align,
-    };
-    (d, at)
-}
-
 /// The SVG of the agents (indices into `spec.agents`), and what it placed.
 pub(crate) fn draw_agents(spec: &Spec, agents: &[usize]) -> (String, Scene) {
     let agents = &arrange(spec, agents)[..];
@@ -267,15 +226,124 @@ pub(crate) fn draw_agents(spec: &Spec, agents: &[usize]) -> (String, Scene) {
     draw(spec, agents, &comps, &links)
 }
 
+/// Distance between two arches over the agents.
+const TRACK_PITCH: f64 = LABEL_H + 6.0;
+
+/// A link between agents that are not neighbours, drawn over the top of the frames.
+struct Arch {
+    chain: usize,
+    /// x of its two vertical runs (source side, target side).
+    xa: f64,
+    xb: f64,
+    /// Width of its label.
+    w: f64,
+    /// Its track (0: nearest the frames) and the left end of its label, once chosen.
+    track: usize,
+    label_x: f64,
+}
+
+/// Choose a track and a label position for each arch: the label lies on its arch,
+/// clear of the other arches' labels and of the vertical runs of the arches above
+/// it; the vertical runs of an arch stay clear of the labels below it.
+fn assign_tracks(arches: &mut [Arch]) {
+    let mut order: Vec<usize> = (0..arches.len()).collect();
+    order.sort_by(|&i, &j| {
+        let span = |a: &Arch| (a.xa - a.xb).abs();
+        span(&arches[i]).total_cmp(&span(&arches[j]))
+    });
+    let mut placed: Vec<usize> = Vec::new();
+    for i in order {
+        let (lo, hi) = (
+            arches[i].xa.min(arches[i].xb),
+            arches[i].xa.max(arches[i].xb),
+        );
+        let w = arches[i].w;
+        // Candidate label positions along the run, left first.
+        let mut xs = vec![lo + 10.0];
+        let mut x = lo + 18.0;
+        while x + w <= hi - 10.0 {
+            xs.push(x);
+            x += 8.0;
+        }
+        let hits = |x: f64, l: f64, w: f64| x > l - 3.0 && x < l + w + 3.0;
+        // Prefer places that no other arch's vertical run could cross, whatever its
+        // track.
+        let free: Vec<f64> = xs
+            .iter()
+            .copied()
+            .filter(|&lx| {
+                arches
+                    .iter()
+                    .enumerate()
+                    .all(|(j, o)| j == i || (!hits(o.xa, lx, w) && !hits(o.xb, lx, w)))
+            })
+            .collect();
+        if !free.is_empty() {
+            xs = free;
+        }
+        let mut chosen = None;
+        'tracks: for t in 0..=placed.len() {
+            // My runs must not cross the labels of arches below.
+            for &j in &placed {
+                let o = &arches[j];
+                if o.track < t && (hits(lo, o.label_x, o.w) || hits(hi, o.label_x, o.w)) {
+                    continue 'tracks;
+                }
+            }
+            for &lx in &xs {
+                let (l, r) = (lo.min(lx), hi.max(lx + w));
+                let clear = placed.iter().all(|&j| {
+                    let o = &arches[j];
+                    let (ol, or) = (
+                        o.xa.min(o.xb).min(o.label_x),
+                        o.xa.max(o.xb).max(o.label_x + o.w),
+                    );
+                    if o.track == t {
+                        r + 6.0 < ol || or + 6.0 < l
+                    } else if o.track > t {
+                        !hits(o.xa, lx, w) && !hits(o.xb, lx, w)
+                    } else {
+                        true
+                    }
+                });
+                if clear {
+                    chosen = Some((t, lx));
+                    break 'tracks;
+                }
+            }
+        }
+        let (t, lx) = chosen.unwrap_or((placed.len(), xs[0]));
+        arches[i].track = t;
+        arches[i].label_x = lx;
+        placed.push(i);
+    }
+}
+
 fn draw(
     spec: &Spec,
     agents: &[usize],
     comps: &[Comp<'_>],
     links: &[(usize, usize, String)],
 ) -> (String, Scene) {
-    const ROW_GAP: f64 = 90.0;
-    const COL_GAP: f64 = 60.0;
-    const AGENT_GAP: f64 = 120.0;
+    let spacing = Spacing {
+        node_gap: 40.0,
+        gap: 12.0,
+        group_gap: 2.0 * PAD + 24.0,
+        rank_gap: 26.0,
+    };
+    // Ranks: 0 the agents' titles, then each row of components (control; virtual
+    // effectors and receptors; devices) followed by a rank for labels. Groups: 2k
+    // the agent in column k, 2k + 1 the space between it and the next.
+    let col = |c: &Comp<'_>| agents.iter().position(|&a| a == c.agent).unwrap_or(0);
+    let rank_of = |c: &Comp<'_>| 1 + 2 * c.row;
+    let mut g = Graph::default();
+    let titles: Vec<String> = agents
+        .iter()
+        .map(|&a| format!("agent {}", spec.agents[a].name))
+        .collect();
+    for (k, t) in titles.iter().enumerate() {
+        g.slot(SlotKind::Title, 0, 2 * k, (text_w(t), LINE_H + 1.0), 0.0);
+    }
     let mut boxes: Vec<Boxed> = comps
         .iter()
         .map(|c| {
@@ -284,86 +352,153 @@ fn draw(
             b
         })
         .collect();
-    let mut doc = Svg::new();
-    let mut x = MARGIN;
-    let mut frames = Vec::new();
-    let mut height: f64 = 0.0;
-    for &a in agents {
-        let members: Vec<usize> = (0..comps.len()).filter(|&i| comps[i].agent == a).collect();
-        let rows: Vec<Vec<usize>> = (0..3)
-            .map(|r| {
-                members
+    let slot_of: Vec<usize> = comps
+        .iter()
+        .zip(&boxes)
+        .map(|(c, b)| g.slot(SlotKind::Node, rank_of(c), 2 * col(c), (b.w, b.h), b.w))
+        .collect();
+    let label_slot = |g: &mut Graph, rank: usize, group: usize, text: &str| {
+        let w = label_w(text);
+        g.slot(SlotKind::Label, rank, group, (w + 2.0, LABEL_H), w)
+    };
+    let mut chains = Vec::with_capacity(links.len());
+    let mut arches: Vec<Arch> = Vec::new();
+    for (a, b, label) in links {
+        let (ca, cb) = (col(&comps[*a]), col(&comps[*b]));
+        let (ra, rb) = (rank_of(&comps[*a]), rank_of(&comps[*b]));
+        let mut slots = vec![slot_of[*a]];
+        let mut arch = None;
+        if ca.abs_diff(cb) <= 1 {
+            let group = if ca == cb { 2 * ca } else { 2 * ca.min(cb) + 1 };
+            if ra == rb {
+                let w = label_w(label);
+                slots.push(g.slot(
+                    SlotKind::Turn,
+                    ra + 1,
+                    group,
+                    (w + 4.0, TURN_DEPTH + 1.0 + LABEL_H),
+                    w,
+                ));
+            } else {
+                let between: Vec<usize> = if rb > ra {
+                    (ra + 1..rb).collect()
+                } else {
+                    (rb + 1..ra).rev().collect()
+                };
+                let mid = (ra + rb) as f64 / 2.0;
+                let label_rank = between
                     .iter()
                     .copied()
-                    .filter(|&i| comps[i].row == r)
-                    .collect()
-            })
-            .collect();
-        let row_w: Vec<f64> = rows
-            .iter()
-            .map(|r| {
-                r.iter().map(|&i| boxes[i].w).sum::<f64>()
-                    + COL_GAP * r.len().saturating_sub(1) as f64
-            })
-            .collect();
-        let title_w = text_w(&format!("agent {}", spec.agents[a].name)) + 2.0 * PAD;
-        let inner_w = row_w.iter().copied().fold(title_w, f64::max);
-        let mut y = MARGIN + LINE_H + 2.0 * PAD;
-        for (r, row) in rows.iter().enumerate() {
-            if row.is_empty() {
-                continue;
+                    .filter(|r| r % 2 == 0)
+                    .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+                for r in between {
+                    slots.push(if Some(r) == label_rank {
+                        label_slot(&mut g, r, group, label)
+                    } else {
+                        g.slot(SlotKind::Dummy, r, group, (0.0, 0.0), 0.0)
+                    });
+                }
             }
-            let h = row.iter().map(|&i| boxes[i].h).fold(0.0, f64::max);
-            let mut bx = x + PAD + (inner_w - row_w[r]) / 2.0;
-            for &i in row {
-                boxes[i].x = bx;
-                boxes[i].y = y;
-                bx += boxes[i].w + COL_GAP;
+        } else {
+            // Up to the titles' rank in the source's agent, over the top, and down in
+            // the target's.
+            for r in (0..ra).rev() {
+                slots.push(g.slot(SlotKind::Dummy, r, 2 * ca, (0.0, 0.0), 0.0));
             }
-            y += h + ROW_GAP;
+            arch = Some(slots.len() - 1);
+            for r in 0..rb {
+                slots.push(g.slot(SlotKind::Dummy, r, 2 * cb, (0.0, 0.0), 0.0));
+            }
         }
-        let frame_h = y - ROW_GAP + PAD - MARGIN;
-        frames.push((
-            x,
-            inner_w + 2.0 * PAD,
-            frame_h,
-            format!("agent {}", spec.agents[a].name),
-        ));
-        height = height.max(frame_h);
-        x += inner_w + 2.0 * PAD + AGENT_GAP;
+        slots.push(slot_of[*b]);
+        let c = g.chain(slots, arch);
+        if let Some(k) = arch {
+            arches.push(Arch {
+                chain: c,
+                xa: 0.0,
+                xb: 0.0,
+                w: label_w(label),
+                track: 0,
+                label_x: 0.0,
+            });
+            let _ = k;
+        }
+        chains.push(c);
     }
-    let frame_ids: Vec<usize> = frames
+    g.place(MARGIN + PAD, 0.0, spacing);
+    // The arches over the frames.
+    for arch in &mut arches {
+        let k = g.chains[arch.chain].arch.unwrap_or(0);
+        arch.xa = g.run_at(arch.chain, k);
+        arch.xb = g.run_at(arch.chain, k + 1);
+    }
+    assign_tracks(&mut arches);
+    let frame_top = g.bands.first().map_or(0.0, |b| b.0) - 4.0;
+    let track_y = |t: usize| frame_top - 14.0 - TRACK_PITCH * t as f64;
+    let highest = arches
         .iter()
-        .map(|(fx, fw, fh, title)| doc.frame(*fx, MARGIN, *fw, height.max(*fh), title))
+        .map(|a| track_y(a.track) - LABEL_H - 2.0)
+        .fold(frame_top, f64::min);
+    let dy = MARGIN - highest;
+    g.shift_y(dy);
+    let frame_top = frame_top + dy;
+    let bottom = g.bottom() + PAD;
+    for (b, &i) in boxes.iter_mut().zip(&slot_of) {
+        b.x = g.slots[i].x;
+        b.y = g.slots[i].y;
+    }
+    let mut doc = Svg::new();
+    let mut extent: f64 = 0.0;
+    let frame_ids: Vec<usize> = titles
+        .iter()
+        .enumerate()
+        .map(|(k, title)| {
+            let members = g.slots.iter().filter(|s| s.group == 2 * k);
+            let (l, r) = members.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, r), s| {
+                (l.min(s.x), r.max(s.x + s.w))
+            });
+            extent = extent.max(r + PAD);
+            doc.frame(
+                l - PAD,
+                frame_top,
+                r - l + 2.0 * PAD,
+                bottom - frame_top,
+                title,
+            )
+        })
         .collect();
     let ids: Vec<usize> = boxes
         .iter()
         .zip(comps)
-        .map(|(b, c)| {
-            let f = agents
-                .iter()
-                .position(|&a| a == c.agent)
-                .map(|k| frame_ids[k]);
-            doc.boxed(b, f)
-        })
+        .map(|(b, c)| doc.boxed(b, Some(frame_ids[col(c)])))
         .collect();
-    let mut extent = x - AGENT_GAP;
-    for (a, b, label) in links {
-        let reverse = links.iter().any(|(p, q, _)| p == b && q == a);
-        let side = if !reverse {
-            0.0
-        } else if a < b {
-            -9.0
-        } else {
-            9.0
+    for ((a, b, label), &c) in links.iter().zip(&chains) {
+        let arch = arches.iter().find(|x| x.chain == c);
+        let (path, at) = match arch {
+            Some(x) => {
+                let y = track_y(x.track) + dy;
+                let at = LabelAt {
+                    x: x.label_x,
+                    y: y - LABEL_H / 2.0 - 1.0,
+                };
+                (g.route(c, Some(y)), Some(at))
+            }
+            None => (g.route(c, None), g.label_at(c)),
         };
-        let (d, at) = connect(&boxes[*a], &boxes[*b], side);
-        extent = extent.max(at.right(label));
-        doc.edge(&d, Some((label, &at)), (Some(ids[*a]), Some(ids[*b])), None);
+        if let Some(at) = &at {
+            extent = extent.max(at.right(label));
+        }
+        extent = extent.max(g.right());
+        doc.edge(
+            &path,
+            at.as_ref().map(|at| (label.as_str(), at)),
+            (Some(ids[*a]), Some(ids[*b])),
+            None,
+        );
     }
     doc.finish(
         extent + MARGIN,
-        height + 2.0 * MARGIN,
+        bottom + MARGIN,
         &format!("{} — structure", spec.name),
     )
 }

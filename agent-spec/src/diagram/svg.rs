@@ -15,10 +15,6 @@ pub(crate) const CHAR_W: f64 = 7.3;
 pub(crate) const LINE_H: f64 = 15.0;
 /// Padding inside boxes [px].
 pub(crate) const PAD: f64 = 8.0;
-/// Vertical gap between layers [px].
-pub(crate) const LAYER_GAP: f64 = 70.0;
-/// Horizontal gap between boxes of a layer [px].
-pub(crate) const NODE_GAP: f64 = 40.0;
 /// Margin around a drawing [px].
 pub(crate) const MARGIN: f64 = 20.0;
 /// Stroke and text colour.
@@ -49,6 +45,14 @@ pub(crate) fn esc(s: &str) -> String {
 /// Width of a text line [px].
 pub(crate) fn text_w(s: &str) -> f64 {
     s.chars().count() as f64 * CHAR_W
+}
+
+/// Height of an edge label (its white background) [px].
+pub(crate) const LABEL_H: f64 = 16.0;
+
+/// Width of an edge label of `s` (its white background) [px].
+pub(crate) fn label_w(s: &str) -> f64 {
+    text_w(s) + 6.0
 }
 
 /// Height of the glyphs above the baseline [px].
@@ -92,10 +96,6 @@ impl Boxed {
 
     pub(crate) fn cx(&self) -> f64 {
         self.x + self.w / 2.0
-    }
-
-    pub(crate) fn cy(&self) -> f64 {
-        self.y + self.h / 2.0
     }
 }
 
@@ -244,27 +244,16 @@ impl Svg {
             frame,
         });
         if let Some((text, at)) = label.filter(|(t, _)| !t.is_empty()) {
-            let w = text_w(text) + 6.0;
-            let left = match at.align {
-                Align::Start => at.x,
-                Align::Middle => at.x - w / 2.0,
-                Align::End => at.x - w,
-            };
+            let w = label_w(text);
+            let left = at.x;
             let _ = writeln!(
                 self.body,
-                r#"<rect x="{left:.1}" y="{:.1}" width="{w:.1}" height="{:.1}" fill="white" fill-opacity="0.85"/>"#,
-                at.y - LINE_H / 2.0 - 1.0,
-                LINE_H
+                r#"<rect x="{left:.1}" y="{:.1}" width="{w:.1}" height="{LABEL_H:.1}" fill="white" fill-opacity="0.85"/>"#,
+                at.y - LABEL_H / 2.0,
             );
-            let back = Rect::new(left, at.y - LINE_H / 2.0 - 1.0, w, LINE_H);
+            let back = Rect::new(left, at.y - LABEL_H / 2.0, w, LABEL_H);
             let attrs = format!(r#" fill="{EDGE}""#);
-            self.text(
-                left + 3.0,
-                at.y + FONT / 2.0 - 2.0,
-                &attrs,
-                text,
-                Owner::Edge(id),
-            );
+            self.text(left + 3.0, at.y + 4.0, &attrs, text, Owner::Edge(id));
             let n = self.scene.labels.len() - 1;
             let l = &mut self.scene.labels[n];
             l.rect = l.rect.union(&back);
@@ -273,189 +262,17 @@ impl Svg {
     }
 }
 
-/// A layered layout: nodes in horizontal layers, top to bottom.
-pub(crate) struct Layered {
-    pub(crate) boxes: Vec<Boxed>,
-    pub(crate) width: f64,
-    pub(crate) height: f64,
-}
-
-/// Place `boxes` in the given `layers` (node indices per layer, top first), ordering
-/// each layer by the barycentre of its neighbours in the layer above (`edges` are
-/// `(from, to)` pairs). Coordinates start at `(x0, y0)`.
-pub(crate) fn layered(
-    mut boxes: Vec<Boxed>,
-    mut layers: Vec<Vec<usize>>,
-    edges: &[(usize, usize)],
-    x0: f64,
-    y0: f64,
-) -> Layered {
-    let n = boxes.len();
-    let mut pos = vec![0.0f64; n];
-    for layer in &layers {
-        for (k, &i) in layer.iter().enumerate() {
-            pos[i] = k as f64;
-        }
-    }
-    for _ in 0..4 {
-        for l in 1..layers.len() {
-            let above: Vec<usize> = layers[l - 1].clone();
-            let mut keyed: Vec<(f64, usize)> = layers[l]
-                .iter()
-                .map(|&i| {
-                    let ns: Vec<f64> = edges
-                        .iter()
-                        .filter_map(|&(a, b)| {
-                            if b == i && above.contains(&a) {
-                                Some(pos[a])
-                            } else if a == i && above.contains(&b) {
-                                Some(pos[b])
-                            } else {
-                                None
-                            }
-                        })
-                        .collect();
-                    let bary = if ns.is_empty() {
-                        pos[i]
-                    } else {
-                        ns.iter().sum::<f64>() / ns.len() as f64
-                    };
-                    (bary, i)
-                })
-                .collect();
-            keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            layers[l] = keyed.into_iter().map(|(_, i)| i).collect();
-            for (k, &i) in layers[l].iter().enumerate() {
-                pos[i] = k as f64;
-            }
-        }
-    }
-    let widths: Vec<f64> = layers
-        .iter()
-        .map(|l| {
-            l.iter().map(|&i| boxes[i].w).sum::<f64>() + NODE_GAP * l.len().saturating_sub(1) as f64
-        })
-        .collect();
-    let width = widths.iter().copied().fold(0.0, f64::max);
-    let mut y = y0;
-    for (l, layer) in layers.iter().enumerate() {
-        let mut x = x0 + (width - widths[l]) / 2.0;
-        let h = layer.iter().map(|&i| boxes[i].h).fold(0.0, f64::max);
-        for &i in layer {
-            boxes[i].x = x;
-            boxes[i].y = y + (h - boxes[i].h) / 2.0;
-            x += boxes[i].w + NODE_GAP;
-        }
-        y += h + LAYER_GAP;
-    }
-    Layered {
-        boxes,
-        width,
-        height: (y - LAYER_GAP - y0).max(0.0),
-    }
-}
-
-/// How a label sits on its anchor point.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Align {
-    /// The anchor is the label's left end.
-    Start,
-    /// The anchor is the label's centre.
-    Middle,
-    /// The anchor is the label's right end.
-    End,
-}
-
-/// Where an edge label goes.
+/// Where an edge label goes: the left end of its white background, and the middle
+/// of its height.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct LabelAt {
     pub(crate) x: f64,
     pub(crate) y: f64,
-    pub(crate) align: Align,
 }
 
 impl LabelAt {
     /// The right end of a label of `text` placed here.
     pub(crate) fn right(&self, text: &str) -> f64 {
-        let w = text_w(text) + 6.0;
-        match self.align {
-            Align::Start => self.x + w,
-            Align::Middle => self.x + w / 2.0,
-            Align::End => self.x,
-        }
+        self.x + label_w(text)
     }
-}
-
-/// The path of an edge from box `a` to box `b` in a top-down layered drawing, with
-/// the place of its label. `k` separates parallel edges; `right` is the x coordinate
-/// right of every box, where edges that go up or stay in their layer run.
-pub(crate) fn route(a: &Boxed, b: &Boxed, k: usize, right: f64) -> (Path, LabelAt) {
-    let p = Point::new;
-    let off = k as f64 * 12.0;
-    if std::ptr::eq(a, b) || (a.x == b.x && a.y == b.y) {
-        // A self-loop on the right side.
-        let (x, y) = (a.x + a.w, a.cy());
-        let d = Path::cubic(
-            p(x, y - 6.0),
-            p(x + 40.0 + off, y - 30.0),
-            p(x + 40.0 + off, y + 30.0),
-            p(x, y + 6.0),
-        );
-        return (
-            d,
-            LabelAt {
-                x: x + 36.0 + off,
-                y,
-                align: Align::Start,
-            },
-        );
-    }
-    if b.y > a.y + a.h {
-        // Downwards: bottom of a to top of b.
-        let (x1, y1) = (a.cx() + off / 2.0, a.y + a.h);
-        let (x2, y2) = (b.cx() + off, b.y);
-        let my = (y1 + y2) / 2.0;
-        let d = Path::cubic(p(x1, y1), p(x1, my), p(x2, my), p(x2, y2));
-        return (
-            d,
-            LabelAt {
-                x: (x1 + x2) / 2.0,
-                y: my,
-                align: Align::Middle,
-            },
-        );
-    }
-    let same_layer = b.y < a.y + a.h && a.y < b.y + b.h;
-    if same_layer && (b.x > a.x + a.w || a.x > b.x + b.w) {
-        // Sideways to a neighbour: side to side.
-        let (x1, x2) = if b.x > a.x {
-            (a.x + a.w, b.x)
-        } else {
-            (a.x, b.x + b.w)
-        };
-        let (y1, y2) = (a.cy() + off, b.cy() + off);
-        let mx = (x1 + x2) / 2.0;
-        let d = Path::cubic(p(x1, y1), p(mx, y1), p(mx, y2), p(x2, y2));
-        return (
-            d,
-            LabelAt {
-                x: mx,
-                y: (y1 + y2) / 2.0 - LINE_H / 2.0 - 2.0,
-                align: Align::Middle,
-            },
-        );
-    }
-    // Upwards: out of a's right side, along the lane, into b's right side.
-    let lane = right + 30.0 + off;
-    let (x1, y1) = (a.x + a.w, a.cy() + 4.0);
-    let (x2, y2) = (b.x + b.w, b.cy() - 4.0);
-    let d = Path::cubic(p(x1, y1), p(lane, y1), p(lane, y2), p(x2, y2));
-    (
-        d,
-        LabelAt {
-            x: lane - 8.0,
-            y: (y1 + y2) / 2.0,
-            align: Align::Start,
-        },
-    )
 }
