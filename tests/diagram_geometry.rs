@@ -1,0 +1,923 @@
+//! The geometry of the SVG diagrams: no text label overlaps another label or a box
+//! it does not belong to, no edge passes through a box, every edge label touches its
+//! edge, titles fit in their frames, for every spec in the repo (every diagram kind,
+//! for every selection the CLI offers) and for random FSMs and systems.
+//!
+//! The geometry is what the renderer placed, recorded as it writes the SVG
+//! ([`render_svg_scene`]); [`assert_scene_is_the_svg`] checks that the recording is
+//! what the SVG draws (every `<text>`, `<path>`, box and frame, at the same
+//! coordinates), so the rules below judge the picture a user sees. Text extents are
+//! estimated like the renderer does: 7.3 px per character of the 12 px monospace font,
+//! 9.6 px above the baseline and 3 px below.
+//!
+//! Rules and tolerances (px): labels may overlap by less than 0.5 (rounding); a label
+//! keeps 2 clear of a frame's border (inside or outside it); paths are sampled every
+//! 2 or less, and a sample may not lie more than 0.5 inside a box, a foreign frame or
+//! another edge's label; an edge label must come within 4 of its edge, and no other
+//! edge may come nearer to it than its own.
+//!
+//! A fixed sample of 100 random FSMs and 100 random systems runs on every `cargo
+//! test` (its counts are logged with `--nocapture`), and the random properties 64
+//! more cases each; for a longer pass:
+//!
+//! ```text
+//! PROPTEST_CASES=2000 cargo test -p embodied --test diagram_geometry
+//! ```
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use embodied::spec::check_file;
+use embodied::spec::diagram::geometry::{Owner, Point, Rect, Scene};
+use embodied::spec::diagram::{Kind, render_svg_scene};
+use embodied::spec::model::{
+    Agent, Behaviour, BehaviourKind, Buffer, Device, DeviceKind, Fsm, FsmArc, Function, Group,
+    Link, Policy, Spec, Subsystem, SubsystemKind, Target,
+};
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::{Config, TestRunner};
+
+/// Overlaps thinner than this are rounding (numbers are written with one decimal).
+const TOL: f64 = 0.5;
+/// A label touches its edge when some point of the edge is this close to it.
+const TOUCH: f64 = 4.0;
+/// Labels keep out of this band on either side of a frame's border.
+const BORDER: f64 = 2.0;
+/// Paths are sampled at most this far apart.
+const STEP: f64 = 2.0;
+
+/// The rules, in the order they are reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Rule {
+    /// (a) Two labels overlap.
+    LabelOverLabel,
+    /// (b) A label overlaps a box it does not belong to, or leaves its own box.
+    LabelOverBox,
+    /// (b) A label lies on a frame's border, or in a frame it does not belong to,
+    /// or outside the frame it belongs to.
+    LabelOverFrame,
+    /// (c) An edge passes through a box (its own ends' included: it may touch them).
+    EdgeThroughBox,
+    /// (c) An edge passes through a frame that holds neither of its ends, or leaves
+    /// the frame that holds both.
+    EdgeThroughFrame,
+    /// (c') An edge passes through a label other than its own.
+    EdgeThroughLabel,
+    /// (d) An edge label does not touch its edge.
+    LabelOffEdge,
+    /// (d') Another edge comes nearer to an edge label than its own.
+    LabelNearerOtherEdge,
+    /// (e) A frame's title does not fit in the frame.
+    TitleOutsideFrame,
+    /// Something lies outside the canvas.
+    OutsideCanvas,
+}
+
+#[derive(Clone, Debug)]
+struct Violation {
+    rule: Rule,
+    what: String,
+}
+
+impl fmt::Display for Violation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:?}: {}", self.rule, self.what)
+    }
+}
+
+fn show(r: &Rect) -> String {
+    format!("[{:.1},{:.1} {:.1}x{:.1}]", r.x, r.y, r.w, r.h)
+}
+
+/// Every rule broken by the scene.
+fn violations(s: &Scene) -> Vec<Violation> {
+    let mut out = Vec::new();
+    let mut v = |rule, what: String| out.push(Violation { rule, what });
+    let label = |i: usize| format!("label {:?} {}", s.labels[i].text, show(&s.labels[i].rect));
+    let edge_name = |e: usize| {
+        let ed = &s.edges[e];
+        match ed.label {
+            Some(l) => format!("edge {e} ({:?})", s.labels[l].text),
+            None => format!("edge {e} (box {:?} -> box {:?})", ed.from, ed.to),
+        }
+    };
+    // The frames of an edge's ends.
+    let end_frames = |e: usize| -> Vec<usize> {
+        let ed = &s.edges[e];
+        let mut fs: Vec<usize> = [ed.from, ed.to]
+            .into_iter()
+            .flatten()
+            .filter_map(|b| s.boxes[b].frame)
+            .collect();
+        fs.dedup();
+        fs
+    };
+    // Whether all the (drawn) ends of edge `e` are in frame `f`.
+    let inside_frame = |e: usize, f: usize| {
+        let ed = &s.edges[e];
+        [ed.from, ed.to]
+            .into_iter()
+            .flatten()
+            .all(|b| s.boxes[b].frame == Some(f))
+    };
+    let canvas = Rect::new(0.0, 0.0, s.width, s.height).inflate(TOL);
+    let samples: Vec<Vec<Point>> = s.edges.iter().map(|e| e.path.sample(STEP)).collect();
+
+    // (a) labels over labels
+    for i in 0..s.labels.len() {
+        for j in i + 1..s.labels.len() {
+            if s.labels[i].rect.inflate(-TOL).overlaps(&s.labels[j].rect) {
+                v(
+                    Rule::LabelOverLabel,
+                    format!("{} overlaps {}", label(i), label(j)),
+                );
+            }
+        }
+    }
+    for (i, l) in s.labels.iter().enumerate() {
+        let r = l.rect.inflate(-TOL);
+        if !canvas.contains(&l.rect) {
+            v(Rule::OutsideCanvas, label(i));
+        }
+        // (b) labels over boxes
+        for (b, bx) in s.boxes.iter().enumerate() {
+            if l.owner == Owner::Box(b) {
+                if !bx.rect.contains(&r) {
+                    v(
+                        Rule::LabelOverBox,
+                        format!("{} leaves its box {}", label(i), show(&bx.rect)),
+                    );
+                }
+            } else if r.overlaps(&bx.rect) {
+                v(
+                    Rule::LabelOverBox,
+                    format!("{} overlaps box {b} {}", label(i), show(&bx.rect)),
+                );
+            }
+        }
+        // (b, e) labels and frames
+        for (f, fr) in s.frames.iter().enumerate() {
+            let inner = fr.rect.inflate(-BORDER);
+            let inside = inner.contains(&l.rect);
+            let outside = !fr.rect.inflate(BORDER).overlaps(&l.rect);
+            // Must the label be inside (Some(true)), outside (Some(false)), either?
+            let belongs = match l.owner {
+                Owner::Frame(g) => Some(g == f),
+                Owner::Box(b) => Some(s.boxes[b].frame == Some(f)),
+                Owner::Edge(e) if inside_frame(e, f) => Some(true),
+                Owner::Edge(e) if end_frames(e).contains(&f) => None,
+                Owner::Edge(_) => Some(false),
+            };
+            let ok = match belongs {
+                Some(true) => inside,
+                Some(false) => outside,
+                None => inside || outside,
+            };
+            if !ok {
+                let rule = if l.owner == Owner::Frame(f) {
+                    Rule::TitleOutsideFrame
+                } else {
+                    Rule::LabelOverFrame
+                };
+                let how = match belongs {
+                    Some(true) => "is not inside",
+                    Some(false) => "is not outside",
+                    None => "lies on the border of",
+                };
+                v(
+                    rule,
+                    format!("{} {how} frame {f} {}", label(i), show(&fr.rect)),
+                );
+            }
+        }
+    }
+    for (e, ed) in s.edges.iter().enumerate() {
+        let pts = &samples[e];
+        // (c) edges through boxes
+        for (b, bx) in s.boxes.iter().enumerate() {
+            let inner = bx.rect.inflate(-TOL);
+            if let Some(p) = pts.iter().find(|p| inner.has_inside(**p)) {
+                v(
+                    Rule::EdgeThroughBox,
+                    format!(
+                        "{} passes through box {b} {} at ({:.1},{:.1})",
+                        edge_name(e),
+                        show(&bx.rect),
+                        p.x,
+                        p.y
+                    ),
+                );
+            }
+        }
+        let ends = end_frames(e);
+        for (f, fr) in s.frames.iter().enumerate() {
+            let bad = if !ends.contains(&f) {
+                let inner = fr.rect.inflate(-TOL);
+                pts.iter().find(|p| inner.has_inside(**p))
+            } else if inside_frame(e, f) {
+                let outer = fr.rect.inflate(TOL);
+                pts.iter().find(|p| outer.distance(**p) > 0.0)
+            } else {
+                None
+            };
+            if let Some(p) = bad {
+                v(
+                    Rule::EdgeThroughFrame,
+                    format!(
+                        "{} crosses frame {f} {} at ({:.1},{:.1})",
+                        edge_name(e),
+                        show(&fr.rect),
+                        p.x,
+                        p.y
+                    ),
+                );
+            }
+        }
+        if let Some(p) = pts.iter().find(|p| canvas.distance(**p) > 0.0) {
+            v(
+                Rule::OutsideCanvas,
+                format!("{} at ({:.1},{:.1})", edge_name(e), p.x, p.y),
+            );
+        }
+        // (c') edges through other labels (box lines are covered by (c))
+        for (i, l) in s.labels.iter().enumerate() {
+            if matches!(l.owner, Owner::Box(_)) || l.owner == Owner::Edge(e) {
+                continue;
+            }
+            let inner = l.rect.inflate(-TOL);
+            if pts.iter().any(|p| inner.has_inside(*p)) {
+                v(
+                    Rule::EdgeThroughLabel,
+                    format!("{} passes through {}", edge_name(e), label(i)),
+                );
+            }
+        }
+        // (d) the label on its edge
+        if let Some(i) = ed.label {
+            let r = &s.labels[i].rect;
+            let dist = |e: usize| {
+                samples[e]
+                    .iter()
+                    .map(|p| r.distance(*p))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let own = dist(e);
+            if own > TOUCH {
+                v(
+                    Rule::LabelOffEdge,
+                    format!("{} is {own:.1} px from its edge", label(i)),
+                );
+            }
+            for o in (0..s.edges.len()).filter(|&o| o != e) {
+                let d = dist(o);
+                if d + TOL < own {
+                    v(
+                        Rule::LabelNearerOtherEdge,
+                        format!(
+                            "{} is {d:.1} px from {}, {own:.1} px from its own",
+                            label(i),
+                            edge_name(o)
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The recorded scene is what the SVG draws: the same texts at the same places, the
+/// same paths, boxes and frames.
+fn assert_scene_is_the_svg(svg: &str, s: &Scene) {
+    fn attr<'a>(line: &'a str, name: &str) -> Option<&'a str> {
+        let key = format!(" {name}=\"");
+        let start = line.find(&key)? + key.len();
+        let len = line[start..].find('"')?;
+        Some(&line[start..start + len])
+    }
+    fn unesc(s: &str) -> String {
+        s.replace("&lt;", "<")
+            .replace("&gt;", ">")
+            .replace("&quot;", "\"")
+            .replace("&#39;", "'")
+            .replace("&amp;", "&")
+    }
+    let f = |x: f64| format!("{x:.1}");
+    let rect = |r: &Rect| format!("{} {} {} {}", f(r.x), f(r.y), f(r.w), f(r.h));
+    let (mut texts, mut paths, mut boxes, mut frames) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for line in svg.lines() {
+        if line.starts_with("<text ") {
+            let body = &line[line.find('>').unwrap() + 1..line.rfind("</text>").unwrap()];
+            texts.push(format!(
+                "{} {} {}",
+                attr(line, "x").unwrap(),
+                attr(line, "y").unwrap(),
+                unesc(body)
+            ));
+        } else if line.starts_with("<path ") && attr(line, "fill") == Some("none") {
+            paths.push(attr(line, "d").unwrap().to_owned());
+        } else if line.starts_with("<rect ") && attr(line, "stroke").is_some() {
+            let r = ["x", "y", "width", "height"].map(|a| attr(line, a).unwrap());
+            let r = r.join(" ");
+            if attr(line, "stroke-dasharray").is_some() {
+                frames.push(r);
+            } else if attr(line, "fill") != Some("none") {
+                boxes.push(r);
+            }
+        }
+    }
+    let mut want_texts: Vec<String> = s
+        .labels
+        .iter()
+        .map(|l| format!("{} {} {}", f(l.at.x), f(l.at.y), l.text))
+        .collect();
+    let mut want_paths: Vec<String> = s.edges.iter().map(|e| e.path.to_d()).collect();
+    let want_boxes: Vec<String> = s.boxes.iter().map(|b| rect(&b.rect)).collect();
+    let want_frames: Vec<String> = s.frames.iter().map(|b| rect(&b.rect)).collect();
+    for v in [&mut texts, &mut paths, &mut want_texts, &mut want_paths] {
+        v.sort();
+    }
+    assert_eq!(texts, want_texts, "the labels recorded are the SVG's");
+    assert_eq!(paths, want_paths, "the paths recorded are the SVG's");
+    assert_eq!(boxes, want_boxes, "the boxes recorded are the SVG's");
+    assert_eq!(frames, want_frames, "the frames recorded are the SVG's");
+    assert!(
+        svg.starts_with(&format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}""#,
+            f(s.width),
+            f(s.height)
+        )),
+        "the canvas recorded is the SVG's"
+    );
+}
+
+/// Every diagram the CLI can draw of `spec` as SVG: each kind, for the whole spec
+/// and for each `--subsystem`.
+fn diagrams(spec: &Spec) -> Vec<(Kind, Option<String>)> {
+    let mut selections = vec![None];
+    selections.extend(
+        spec.agents
+            .iter()
+            .flat_map(|a| &a.subsystems)
+            .map(|s| Some(s.name.clone())),
+    );
+    [Kind::Fsm, Kind::Structure, Kind::Dataflow]
+        .into_iter()
+        .flat_map(|k| selections.iter().map(move |s| (k, s.clone())))
+        .collect()
+}
+
+/// The violations of every diagram of `spec`, by kind, each described with the
+/// diagram it is in.
+fn check_spec(spec: &Spec, name: &str) -> BTreeMap<String, Vec<String>> {
+    let mut out: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for (kind, sub) in diagrams(spec) {
+        let (svg, scene) = render_svg_scene(spec, kind, sub.as_deref()).unwrap();
+        assert_scene_is_the_svg(&svg, &scene);
+        let found = violations(&scene);
+        let entry = out.entry(kind.to_string()).or_default();
+        entry.extend(
+            found
+                .into_iter()
+                .map(|v| format!("{name} {kind} {}: {v}", sub.as_deref().unwrap_or("(all)"))),
+        );
+    }
+    out
+}
+
+fn repo_specs() -> Vec<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for dir in ["specs", "tests/specs/valid"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "ron") {
+                files.push(path);
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+/// A count of violations per kind and rule, for the log.
+fn summary(found: &BTreeMap<String, Vec<String>>) -> String {
+    let mut out = String::new();
+    for (kind, list) in found {
+        let mut per_rule: BTreeMap<&str, usize> = BTreeMap::new();
+        for v in list {
+            let rule = v.split(": ").nth(1).unwrap_or("?");
+            *per_rule.entry(rule).or_default() += 1;
+        }
+        out.push_str(&format!("{kind}: {} {per_rule:?}\n", list.len()));
+    }
+    out
+}
+
+#[test]
+fn the_repo_specs_draw_cleanly() {
+    let files = repo_specs();
+    assert!(files.len() >= 4, "{files:?}");
+    let mut all: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for path in &files {
+        let (spec, report) = check_file(path).unwrap();
+        let spec = spec.unwrap_or_else(|| panic!("{}: {}", path.display(), report.render(100)));
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        for (kind, list) in check_spec(&spec, &name) {
+            all.entry(kind).or_default().extend(list);
+        }
+    }
+    eprintln!("repo specs, violations per kind:\n{}", summary(&all));
+    let list: Vec<&String> = all.values().flatten().collect();
+    assert!(
+        list.is_empty(),
+        "{} violations:\n{}",
+        list.len(),
+        list.iter()
+            .take(40)
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+}
+
+// ---------------------------------------------------------------- random specs
+
+fn ident(prefix: &'static str) -> impl Strategy<Value = String> {
+    "[a-z][a-z0-9_]{0,14}".prop_map(move |s| format!("{prefix}{s}"))
+}
+
+/// A condition: short (`true`, `p`, `!p`) or long (up to six atoms joined by `&&`
+/// and `||`).
+fn condition() -> impl Strategy<Value = String> {
+    let atom = ("!?", "[a-z][a-z_]{0,15}").prop_map(|(n, a)| format!("{n}{a}"));
+    prop_oneof![
+        Just("true".to_owned()),
+        atom.clone(),
+        prop::collection::vec((atom, any::<bool>()), 2..7).prop_map(|atoms| {
+            let mut s = String::new();
+            for (k, (a, and)) in atoms.iter().enumerate() {
+                if k > 0 {
+                    s.push_str(if *and { " && " } else { " || " });
+                }
+                s.push_str(a);
+            }
+            s
+        }),
+    ]
+}
+
+fn behaviour_kind() -> impl Strategy<Value = BehaviourKind> {
+    prop_oneof![Just(BehaviourKind::Repeat), Just(BehaviourKind::While)]
+}
+
+fn subsystem(name: String, kind: SubsystemKind, behaviours: Vec<Behaviour>, fsm: Fsm) -> Subsystem {
+    Subsystem {
+        name,
+        kind,
+        period_ms: 10.0,
+        doc: None,
+        memory: Vec::new(),
+        inputs: Vec::new(),
+        outputs: Vec::new(),
+        predicates: Vec::new(),
+        relations: Vec::new(),
+        functions: Vec::new(),
+        behaviours,
+        fsm,
+    }
+}
+
+/// One subsystem with a random FSM: 1 to 8 behaviours, up to 2n + 2 arcs between
+/// any two of them (self-loops and parallel arcs included), short and long
+/// conditions, a random initial behaviour (sometimes none) and random finals.
+fn random_fsm_subsystem(k: usize) -> impl Strategy<Value = Subsystem> {
+    (1usize..=8)
+        .prop_flat_map(move |n| {
+            (
+                prop::collection::vec((ident("b"), behaviour_kind(), condition()), n),
+                prop::collection::vec((0..n, 0..n, condition()), 0..=2 * n + 2),
+                prop::option::weighted(0.9, 0..n),
+                prop::collection::vec(any::<bool>(), n),
+                ident("s"),
+            )
+        })
+        .prop_map(move |(bs, arcs, initial, finals, name)| {
+            let names: Vec<String> = bs
+                .iter()
+                .enumerate()
+                .map(|(i, (n, _, _))| format!("{n}{i}"))
+                .collect();
+            let behaviours = bs
+                .into_iter()
+                .zip(&names)
+                .map(|((_, kind, terminal), name)| Behaviour {
+                    name: name.clone(),
+                    kind,
+                    functions: Vec::new(),
+                    terminal,
+                    doc: None,
+                })
+                .collect();
+            let fsm = Fsm {
+                initial: initial.map(|i| names[i].clone()),
+                arcs: arcs
+                    .into_iter()
+                    .map(|(a, b, when)| FsmArc {
+                        from: names[a].clone(),
+                        to: names[b].clone(),
+                        when,
+                    })
+                    .collect(),
+                finals: names
+                    .iter()
+                    .zip(finals)
+                    .filter(|(_, f)| *f)
+                    .map(|(n, _)| n.clone())
+                    .collect(),
+            };
+            subsystem(
+                format!("{name}{k}"),
+                SubsystemKind::Control,
+                behaviours,
+                fsm,
+            )
+        })
+}
+
+/// A spec of one agent with one to three random FSMs.
+fn random_fsms() -> impl Strategy<Value = Spec> {
+    prop::collection::vec(0usize..1, 1..=3)
+        .prop_flat_map(|v| {
+            v.iter()
+                .enumerate()
+                .map(|(k, _)| random_fsm_subsystem(k))
+                .collect::<Vec<_>>()
+        })
+        .prop_map(|subsystems| Spec {
+            name: "random".to_owned(),
+            doc: None,
+            agents: vec![Agent {
+                name: "a".to_owned(),
+                doc: None,
+                subsystems,
+                devices: Vec::new(),
+            }],
+            links: Vec::new(),
+            deployments: Vec::new(),
+        })
+}
+
+/// The plan of a random agent: its subsystems (kind 0..3, name) and devices
+/// (effector?, name).
+type AgentPlan = (Vec<(u8, String)>, Vec<(bool, String)>);
+
+/// The plan of a random system: indices are taken modulo what they select from.
+#[derive(Clone, Debug)]
+struct SystemPlan {
+    agents: Vec<AgentPlan>,
+    /// Links: (from component, to component, buffer name, queue bound).
+    links: Vec<(usize, usize, String, Option<usize>)>,
+    /// Memory buffers: (subsystem, name).
+    memory: Vec<(usize, String)>,
+    /// Functions: (subsystem, reads, target: 0 memory, 1 common, else an output
+    /// group, writes).
+    functions: Vec<(usize, Vec<usize>, usize, Vec<usize>)>,
+    /// Behaviours: (subsystem, functions, terminal).
+    behaviours: Vec<(usize, Vec<usize>, String)>,
+}
+
+fn system_plan() -> impl Strategy<Value = SystemPlan> {
+    let sub = (0u8..3, ident(""));
+    let dev = (any::<bool>(), ident(""));
+    let agent = (
+        prop::collection::vec(sub, 1..=3),
+        prop::collection::vec(dev, 0..=2),
+    );
+    let idx = || 0usize..64;
+    (
+        prop::collection::vec(agent, 1..=4),
+        prop::collection::vec(
+            (
+                idx(),
+                idx(),
+                "[a-z][a-z0-9_]{0,12}",
+                prop::option::weighted(0.3, 1usize..16),
+            ),
+            0..=10,
+        ),
+        prop::collection::vec((idx(), ident("")), 0..=6),
+        prop::collection::vec(
+            (
+                idx(),
+                prop::collection::vec(idx(), 0..=4),
+                idx(),
+                prop::collection::vec(idx(), 0..=3),
+            ),
+            0..=8,
+        ),
+        prop::collection::vec(
+            (idx(), prop::collection::vec(idx(), 0..=3), condition()),
+            0..=6,
+        ),
+    )
+        .prop_map(
+            |(agents, links, memory, functions, behaviours)| SystemPlan {
+                agents,
+                links,
+                memory,
+                functions,
+                behaviours,
+            },
+        )
+}
+
+fn buffer(name: &str) -> Buffer {
+    Buffer {
+        name: name.to_owned(),
+        ty: "f64".to_owned(),
+        doc: None,
+    }
+}
+
+/// Add `buf` to the group towards `peer` (made if missing).
+fn add_to_group(groups: &mut Vec<Group>, peer: &str, buf: &str) {
+    match groups.iter_mut().find(|g| g.peer == peer) {
+        Some(g) => {
+            if !g.buffers.iter().any(|b| b.name == buf) {
+                g.buffers.push(buffer(buf));
+            }
+        }
+        None => groups.push(Group {
+            peer: peer.to_owned(),
+            buffers: vec![buffer(buf)],
+        }),
+    }
+}
+
+/// Build the spec a plan describes. It need not pass the checker: the diagrams draw
+/// whatever resolves.
+fn build_system(plan: &SystemPlan) -> Spec {
+    let kinds = [
+        SubsystemKind::Control,
+        SubsystemKind::VirtualEffector,
+        SubsystemKind::VirtualReceptor,
+    ];
+    let mut agents: Vec<Agent> = Vec::new();
+    let mut comps: Vec<(usize, Option<usize>, Option<usize>, String)> = Vec::new();
+    for (a, (subs, devs)) in plan.agents.iter().enumerate() {
+        let mut agent = Agent {
+            name: format!("a{a}"),
+            doc: None,
+            subsystems: Vec::new(),
+            devices: Vec::new(),
+        };
+        for (k, (kind, name)) in subs.iter().enumerate() {
+            let name = format!("{}{name}{a}{k}", ["c", "e", "r"][*kind as usize]);
+            comps.push((a, Some(agent.subsystems.len()), None, name.clone()));
+            let behaviours = vec![Behaviour {
+                name: "idle".to_owned(),
+                kind: BehaviourKind::While,
+                functions: Vec::new(),
+                terminal: "false".to_owned(),
+                doc: None,
+            }];
+            let fsm = Fsm {
+                initial: Some("idle".to_owned()),
+                arcs: Vec::new(),
+                finals: Vec::new(),
+            };
+            agent
+                .subsystems
+                .push(subsystem(name, kinds[*kind as usize], behaviours, fsm));
+        }
+        for (k, (effector, name)) in devs.iter().enumerate() {
+            let name = format!("{}{name}{a}{k}", if *effector { "E" } else { "R" });
+            comps.push((a, None, Some(agent.devices.len()), name.clone()));
+            agent.devices.push(Device {
+                name,
+                kind: if *effector {
+                    DeviceKind::Effector
+                } else {
+                    DeviceKind::Receptor
+                },
+                period_ms: 1.0,
+                doc: None,
+                inputs: Vec::new(),
+                outputs: Vec::new(),
+            });
+        }
+        agents.push(agent);
+    }
+    let mut links = Vec::new();
+    for (f, t, buf, queue) in &plan.links {
+        let (f, t) = (f % comps.len(), t % comps.len());
+        if f == t {
+            continue;
+        }
+        let (fname, tname) = (comps[f].3.clone(), comps[t].3.clone());
+        for (me, peer, out) in [(f, &tname, true), (t, &fname, false)] {
+            let (a, s, d) = (comps[me].0, comps[me].1, comps[me].2);
+            let groups = match (s, d, out) {
+                (Some(s), _, true) => &mut agents[a].subsystems[s].outputs,
+                (Some(s), _, false) => &mut agents[a].subsystems[s].inputs,
+                (_, Some(d), true) => &mut agents[a].devices[d].outputs,
+                (_, Some(d), false) => &mut agents[a].devices[d].inputs,
+                _ => unreachable!(),
+            };
+            add_to_group(groups, peer, buf);
+        }
+        links.push(Link {
+            from: format!("{fname}.{tname}.{buf}"),
+            to: format!("{tname}.{fname}.{buf}"),
+            policy: queue.map_or(Policy::Sample, |bound| Policy::Queue { bound }),
+        });
+    }
+    let mut subs: Vec<&mut Subsystem> = agents
+        .iter_mut()
+        .flat_map(|a| a.subsystems.iter_mut())
+        .collect();
+    let n = subs.len();
+    for (s, name) in &plan.memory {
+        let sub = &mut subs[s % n];
+        if !sub.memory.iter().any(|b| &b.name == name) {
+            sub.memory.push(buffer(name));
+        }
+    }
+    for (k, (s, reads, target, writes)) in plan.functions.iter().enumerate() {
+        let sub = &mut subs[s % n];
+        let readable: Vec<String> = sub
+            .memory
+            .iter()
+            .map(|b| b.name.clone())
+            .chain(
+                sub.inputs
+                    .iter()
+                    .flat_map(|g| g.buffers.iter().map(|b| format!("{}.{}", g.peer, b.name))),
+            )
+            .collect();
+        let pick = |list: &[String], idx: &[usize]| -> Vec<String> {
+            let mut out: Vec<String> = Vec::new();
+            if !list.is_empty() {
+                for i in idx {
+                    let x = &list[i % list.len()];
+                    if !out.contains(x) {
+                        out.push(x.clone());
+                    }
+                }
+            }
+            out
+        };
+        let (target, writable) = match target % (2 + sub.outputs.len()) {
+            0 => (
+                Target::Memory,
+                sub.memory.iter().map(|b| b.name.clone()).collect(),
+            ),
+            1 => (
+                Target::Common,
+                sub.memory.iter().map(|b| b.name.clone()).collect(),
+            ),
+            g => {
+                let g = &sub.outputs[g - 2];
+                (
+                    Target::Output(g.peer.clone()),
+                    g.buffers.iter().map(|b| b.name.clone()).collect::<Vec<_>>(),
+                )
+            }
+        };
+        sub.functions.push(Function {
+            name: format!("f{k}"),
+            target,
+            reads: pick(&readable, reads),
+            writes: pick(&writable, writes),
+            doc: None,
+        });
+    }
+    for (k, (s, fs, terminal)) in plan.behaviours.iter().enumerate() {
+        let sub = &mut subs[s % n];
+        let names: Vec<String> = sub.functions.iter().map(|f| f.name.clone()).collect();
+        let mut functions: Vec<String> = Vec::new();
+        if !names.is_empty() {
+            for i in fs {
+                let x = &names[i % names.len()];
+                if !functions.contains(x) {
+                    functions.push(x.clone());
+                }
+            }
+        }
+        let name = format!("b{k}");
+        sub.fsm.arcs.push(FsmArc {
+            from: "idle".to_owned(),
+            to: name.clone(),
+            when: terminal.clone(),
+        });
+        sub.behaviours.push(Behaviour {
+            name,
+            kind: BehaviourKind::Repeat,
+            functions,
+            terminal: terminal.clone(),
+            doc: None,
+        });
+    }
+    Spec {
+        name: "system".to_owned(),
+        doc: None,
+        agents,
+        links,
+        deployments: Vec::new(),
+    }
+}
+
+fn config(default: u32) -> Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default);
+    Config {
+        cases,
+        failure_persistence: None,
+        ..Config::default()
+    }
+}
+
+/// The first violation of any diagram of `spec`, as a test failure.
+fn clean(spec: &Spec) -> Result<(), TestCaseError> {
+    let found = check_spec(spec, &spec.name);
+    let list: Vec<&String> = found.values().flatten().collect();
+    if list.is_empty() {
+        Ok(())
+    } else {
+        let ron = embodied::spec::options()
+            .to_string_pretty(spec, ron::ser::PrettyConfig::default())
+            .unwrap_or_default();
+        Err(TestCaseError::fail(format!(
+            "{} violations, first: {}\n{}",
+            list.len(),
+            list[0],
+            ron
+        )))
+    }
+}
+
+proptest! {
+    #![proptest_config(config(64))]
+
+    #[test]
+    fn random_fsms_draw_cleanly(spec in random_fsms()) {
+        clean(&spec)?;
+    }
+
+    #[test]
+    fn random_systems_draw_cleanly(plan in system_plan()) {
+        clean(&build_system(&plan))?;
+    }
+}
+
+/// How many of `cases` random specs (a fixed seed) break a rule, per diagram kind,
+/// and the violations per rule: the numbers to compare between layouts.
+fn census<S: Strategy>(
+    strategy: S,
+    build: impl Fn(&S::Value) -> Spec,
+    cases: usize,
+) -> (String, usize) {
+    let mut runner = TestRunner::deterministic();
+    let mut specs_with: BTreeMap<String, usize> = BTreeMap::new();
+    let mut total: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for _ in 0..cases {
+        let value = strategy.new_tree(&mut runner).unwrap().current();
+        let spec = build(&value);
+        for (kind, list) in check_spec(&spec, "random") {
+            if !list.is_empty() {
+                *specs_with.entry(kind.clone()).or_default() += 1;
+            }
+            total.entry(kind).or_default().extend(list);
+        }
+    }
+    let n = total.values().map(Vec::len).sum();
+    (
+        format!(
+            "specs with a violation per kind (of {cases}): {specs_with:?}\n{}",
+            summary(&total)
+        ),
+        n,
+    )
+}
+
+/// The same 100 random FSMs and 100 random systems on every run: a fixed sample
+/// whose counts the log shows (`--nocapture`), and which must stay clean.
+#[test]
+fn a_fixed_sample_of_random_specs_draws_cleanly() {
+    let (fsms, a) = census(random_fsms(), Clone::clone, 100);
+    let (systems, b) = census(system_plan(), build_system, 100);
+    eprintln!("random FSMs: {fsms}\nrandom systems: {systems}");
+    assert_eq!(a + b, 0, "random FSMs: {fsms}\nrandom systems: {systems}");
+}
