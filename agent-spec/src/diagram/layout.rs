@@ -327,29 +327,42 @@ impl Graph {
     /// Step 2: x of every slot.
     fn assign_x(&mut self, ranks: &[Vec<usize>], nbrs: &[Vec<usize>], x0: f64, sp: Spacing) {
         let sep = |a: &Slot, b: &Slot| {
-            if a.group != b.group {
-                sp.group_gap
-            } else if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
+            if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
                 sp.node_gap
             } else {
                 sp.gap
             }
         };
-        // Packed to the left to start with.
+        // Each group packed to the left to start with (the groups are put side by
+        // side at the end).
         for r in ranks {
             let mut x = x0;
             for (k, &i) in r.iter().enumerate() {
                 if k > 0 {
-                    x += sep(&self.slots[r[k - 1]], &self.slots[i]);
+                    let p = &self.slots[r[k - 1]];
+                    if p.group == self.slots[i].group {
+                        x += sep(p, &self.slots[i]);
+                    } else {
+                        x = x0;
+                    }
                 }
                 self.slots[i].x = x;
                 x += self.slots[i].w;
             }
         }
+        // Straight runs through dummies matter most. Each group is laid out on its
+        // own (joins across groups are left out), then the groups side by side.
         let weight = |a: &Slot, b: &Slot| match (a.kind, b.kind) {
             (SlotKind::Node, SlotKind::Node) => 1.0,
             (SlotKind::Node, _) | (_, SlotKind::Node) => 2.0,
             _ => 8.0,
+        };
+        let group_left = |slots: &[Slot], g: usize| {
+            slots
+                .iter()
+                .filter(|t| t.group == g && t.kind != SlotKind::Title)
+                .map(|t| t.x)
+                .fold(f64::INFINITY, f64::min)
         };
         let n_ranks = ranks.len();
         for sweep in 0..16 {
@@ -369,7 +382,7 @@ impl Graph {
                 for &i in row {
                     let s = &self.slots[i];
                     let (mut sum, mut wsum) = (0.0, 0.0);
-                    for &j in &nbrs[i] {
+                    for &j in nbrs[i].iter().filter(|&&j| self.slots[j].group == s.group) {
                         let t = &self.slots[j];
                         let w = weight(s, t);
                         sum += w * (t.x + t.anchor());
@@ -378,44 +391,50 @@ impl Graph {
                     if wsum > 0.0 {
                         target.push(sum / wsum - s.anchor());
                         wts.push(wsum);
-                    } else if s.kind == SlotKind::Title {
-                        // A title heads its group.
-                        let left = self
-                            .slots
-                            .iter()
-                            .filter(|t| t.group == s.group && t.kind != SlotKind::Title)
-                            .map(|t| t.x)
-                            .fold(f64::INFINITY, f64::min);
-                        target.push(if left.is_finite() { left } else { s.x });
-                        wts.push(1.0);
                     } else {
-                        // Unjoined: next to its left neighbour.
+                        // Unjoined: next to its left neighbour in the group, else at the
+                        // group's left (a title heads its group).
                         let k = target.len();
-                        let x = if k > 0 {
-                            let p = &self.slots[row[k - 1]];
-                            p.x + p.w + sep(p, s)
-                        } else {
-                            s.x
+                        let left = group_left(&self.slots, s.group);
+                        let x = match k.checked_sub(1).map(|p| &self.slots[row[p]]) {
+                            Some(p) if p.group == s.group && s.kind != SlotKind::Title => {
+                                p.x + p.w + sep(p, s)
+                            }
+                            _ if left.is_finite() => left,
+                            _ => s.x,
                         };
                         target.push(x);
-                        wts.push(0.01);
+                        wts.push(if s.kind == SlotKind::Title { 1.0 } else { 0.01 });
                     }
                 }
-                // Offsets that turn the separations into x_k <= x_k+1.
-                let mut off = vec![0.0; row.len()];
-                for k in 1..row.len() {
-                    let (a, b) = (&self.slots[row[k - 1]], &self.slots[row[k]]);
-                    off[k] = off[k - 1] + a.w + sep(a, b);
-                }
-                let t: Vec<f64> = target.iter().zip(&off).map(|(t, o)| t - o).collect();
-                let y = isotonic(&t, &wts);
-                for (k, &i) in row.iter().enumerate() {
-                    self.slots[i].x = y[k] + off[k];
+                // Each group's part of the rank on its own: offsets turn the
+                // separations into x_k <= x_k+1.
+                let mut start = 0;
+                while start < row.len() {
+                    let g = self.slots[row[start]].group;
+                    let end = (start..row.len())
+                        .find(|&k| self.slots[row[k]].group != g)
+                        .unwrap_or(row.len());
+                    let part = &row[start..end];
+                    let mut off = vec![0.0; part.len()];
+                    for k in 1..part.len() {
+                        let (a, b) = (&self.slots[part[k - 1]], &self.slots[part[k]]);
+                        off[k] = off[k - 1] + a.w + sep(a, b);
+                    }
+                    let t: Vec<f64> = target[start..end]
+                        .iter()
+                        .zip(&off)
+                        .map(|(t, o)| t - o)
+                        .collect();
+                    let y = isotonic(&t, &wts[start..end]);
+                    for (k, &i) in part.iter().enumerate() {
+                        self.slots[i].x = y[k] + off[k];
+                    }
+                    start = end;
                 }
             }
         }
-        // Keep groups apart: shift each group (and all after it) right of the ones
-        // before.
+        // The groups side by side, each `group_gap` right of the one before.
         let max_group = self.slots.iter().map(|s| s.group).max().unwrap_or(0);
         let mut right_of_prev: Option<f64> = None;
         for g in 0..=max_group {
@@ -431,10 +450,8 @@ impl Graph {
                 .fold(f64::INFINITY, f64::min);
             if let Some(prev) = right_of_prev {
                 let shift = prev + sp.group_gap - left;
-                if shift > 0.0 {
-                    for s in self.slots.iter_mut().filter(|s| s.group >= g) {
-                        s.x += shift;
-                    }
+                for s in self.slots.iter_mut().filter(|s| s.group == g) {
+                    s.x += shift;
                 }
             }
             right_of_prev = Some(
