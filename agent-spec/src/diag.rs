@@ -1,11 +1,14 @@
 //! Findings: stable codes, messages, help lines and labelled spans into the RON file,
-//! rendered like rustc/miette diagnostics.
+//! rendered like rustc diagnostics: drawn by miette with the `render` feature (the
+//! CLI's), as plain excerpts without it.
 
 use std::fmt;
 use std::fmt::Write as _;
 use std::ops::Range;
+#[cfg(feature = "render")]
 use std::sync::Arc;
 
+#[cfg(feature = "render")]
 use miette::{
     GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic, MietteError,
     MietteSpanContents, SourceCode, SourceSpan, SpanContents,
@@ -293,7 +296,38 @@ impl Report {
     /// (`short` lists them all). A label on a line longer than [`LONG_LINE`] bytes
     /// is shown in an excerpt of that line instead. The cost is linear in the
     /// number of findings and in the size of the text.
+    ///
+    /// Without the `render` feature (miette), every finding is shown as such an
+    /// excerpt: the header, the primary label's line with a caret line, the help.
     pub fn render(&self, width: usize) -> String {
+        #[cfg(feature = "render")]
+        let out = self.render_miette(width);
+        #[cfg(not(feature = "render"))]
+        let out = {
+            let _ = width;
+            let index = LineIndex::new(&self.source);
+            let mut cursor = Cursor::new(&self.source, &index);
+            let mut out = String::new();
+            for f in self.findings.iter().take(Self::RENDER_MAX) {
+                let at = cursor.at(f.offset());
+                self.render_plain(&mut out, f, &index, at);
+            }
+            out
+        };
+        let mut out = out;
+        let more = self.findings.len().saturating_sub(Self::RENDER_MAX);
+        if more > 0 {
+            let _ = writeln!(
+                out,
+                "... and {more} more findings (`--style short` lists every finding, one line each)"
+            );
+        }
+        out
+    }
+
+    /// The first [`Report::RENDER_MAX`] findings drawn by miette.
+    #[cfg(feature = "render")]
+    fn render_miette(&self, width: usize) -> String {
         let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor())
             .with_width(width)
             .with_links(false);
@@ -339,13 +373,6 @@ impl Report {
             if handler.render_report(&mut out, report.as_ref()).is_err() {
                 self.render_plain(&mut out, f, &index, (line, col));
             }
-        }
-        let more = self.findings.len().saturating_sub(Self::RENDER_MAX);
-        if more > 0 {
-            let _ = writeln!(
-                out,
-                "... and {more} more findings (`--style short` lists every finding, one line each)"
-            );
         }
         out
     }
@@ -468,6 +495,7 @@ impl LineIndex {
         self.starts.get(line + 1).copied().unwrap_or(self.len)
     }
 
+    #[cfg(feature = "render")]
     fn line_len(&self, line: usize) -> usize {
         self.line_end(line) - self.line_start(line)
     }
@@ -507,6 +535,7 @@ impl<'a> Cursor<'a> {
 /// A file as miette's source: the lines around a span are found with the line
 /// index, not by scanning the file from its start (miette's own way, which made
 /// rendering quadratic in the number of findings).
+#[cfg(feature = "render")]
 #[derive(Clone, Debug)]
 struct Indexed {
     name: Arc<str>,
@@ -514,6 +543,7 @@ struct Indexed {
     index: Arc<LineIndex>,
 }
 
+#[cfg(feature = "render")]
 impl SourceCode for Indexed {
     fn read_span<'a>(
         &'a self,
