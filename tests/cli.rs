@@ -1,4 +1,9 @@
-//! The `embodied` binary as a user runs it: exit statuses, output, files written.
+//! The `embodied` binary as a user runs it: exit statuses, output, files written,
+//! and the crates `embodied new` makes: their files (snapshots), then built,
+//! tested, linted and run as their user would.
+//!
+//! The binary needs the `cli` feature, and so does this test (`Cargo.toml`):
+//! `cargo test --features cli --test cli`.
 
 #![allow(
     clippy::unwrap_used,
@@ -6,6 +11,7 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn embodied(args: &[&str]) -> (i32, String, String) {
@@ -147,17 +153,62 @@ fn help_explains_each_command() {
     }
 }
 
-/// `cargo test` in a crate made by `embodied new`, offline, with the same dependency
-/// versions as this workspace and a target directory shared by such crates.
-fn cargo_test(dir: &std::path::Path) -> (bool, String, String) {
-    std::fs::copy(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.lock"),
-        dir.join("Cargo.lock"),
+// ---------------------------------------------------------------------------
+// `embodied new`
+
+/// A fresh directory for a test's crate.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The files under `dir`, as sorted paths relative to it with `/` between folders.
+fn files_under(dir: &Path) -> Vec<String> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                walk(root, &path, out);
+            } else {
+                let relative = path.strip_prefix(root).unwrap();
+                let parts: Vec<_> = relative.iter().map(|p| p.to_string_lossy()).collect();
+                out.push(parts.join("/"));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out.sort();
+    out
+}
+
+/// The `--config` that builds a new crate against this checkout instead of
+/// crates.io, as its README says.
+fn patch() -> String {
+    format!(
+        "patch.crates-io.embodied.path={:?}",
+        env!("CARGO_MANIFEST_DIR")
     )
-    .unwrap();
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        .args(["test", "--offline", "--quiet"])
+}
+
+/// `cargo SUBCOMMAND ARGS` in a crate made by `embodied new`: offline, with the
+/// dependency versions of this workspace (its `Cargo.lock`), `embodied` patched with
+/// this checkout (by `--config`, unless the crate's own `.cargo/config.toml` does
+/// it), and one target directory shared by such crates, so that their dependencies
+/// are built once.
+fn cargo(dir: &Path, subcommand: &str, args: &[&str]) -> (bool, String, String) {
+    let lock = dir.join("Cargo.lock");
+    if !lock.exists() {
+        std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.lock"), lock).unwrap();
+    }
+    let mut command = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    command.arg(subcommand).arg("--offline");
+    if !dir.join(".cargo/config.toml").exists() {
+        command.args(["--config", &patch()]);
+    }
+    let out = command
+        .args(args)
         .current_dir(dir)
         .env(
             "CARGO_TARGET_DIR",
@@ -172,83 +223,170 @@ fn cargo_test(dir: &std::path::Path) -> (bool, String, String) {
     )
 }
 
-/// `embodied new` makes a crate that compiles and whose tests run, from Rex's spec
-/// (three agents, devices, links between agents).
+/// `cargo fmt --check` in a crate made by `embodied new`: the generated code is
+/// formatted as rustfmt would (for the specs of these tests).
+fn formatted(dir: &Path) -> (bool, String) {
+    let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args(["fmt", "--check"])
+        .current_dir(dir)
+        .output()
+        .expect("cargo fmt runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    )
+}
+
+/// The files `embodied new` writes for the small spec of the corpus and for the
+/// tank, file by file (`tests/snapshots/new_*`). The crate depends on `embodied` by
+/// version, and `spec.ron` is the spec as given.
 #[test]
-fn new_scaffolds_a_crate_that_compiles_and_passes_its_tests() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scaffold-rex");
-    let _ = std::fs::remove_dir_all(&dir);
-    let target = dir.to_str().unwrap();
+fn new_writes_the_files_of_a_spec() {
+    for (spec, name, subsystems) in [
+        (
+            "tests/specs/valid/minimal.ron",
+            "mini-app",
+            &["c1", "c2", "e1"][..],
+        ),
+        ("specs/tank.ron", "my-tank", &["c1", "c2", "e1", "r1"][..]),
+    ] {
+        let dir = scratch(&format!("snapshot-{name}"));
+        let (code, stdout, stderr) =
+            embodied(&["new", name, "--spec", spec, "--path", dir.to_str().unwrap()]);
+        assert_eq!(code, 0, "{stderr}");
+        assert!(
+            stdout.contains(&format!("from {spec}")) && stdout.contains("cargo run"),
+            "{stdout}"
+        );
+        let mut expected = vec![
+            ".gitignore",
+            "Cargo.toml",
+            "README.md",
+            "spec.ron",
+            "src/devices.rs",
+            "src/lib.rs",
+            "src/logic.rs",
+            "src/main.rs",
+            "src/system.rs",
+            "src/types.rs",
+            "tests/properties/main.rs",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+        for s in subsystems {
+            expected.push(format!("src/logic/{s}.rs"));
+            expected.push(format!("tests/properties/{s}.rs"));
+        }
+        expected.sort();
+        let files = files_under(&dir);
+        assert_eq!(files, expected);
+        let source = std::fs::read_to_string(spec).unwrap();
+        for path in &files {
+            let text = std::fs::read_to_string(dir.join(path)).unwrap();
+            if path == "spec.ron" {
+                assert_eq!(text, source, "the spec as given");
+                continue;
+            }
+            let snapshot = format!("new_{name}__{}", path.replace(['/', '.'], "_"));
+            insta::with_settings!({snapshot_path => "snapshots", prepend_module_to_snapshot => false}, {
+                insta::assert_snapshot!(snapshot, text);
+            });
+        }
+        let manifest = std::fs::read_to_string(dir.join("Cargo.toml")).unwrap();
+        assert!(manifest.contains("\nembodied = \"0.1\"\n"), "{manifest}");
+    }
+}
+
+/// `embodied new` makes a crate from Rex's spec (three agents, devices, links
+/// between agents) that its user can work in at once: a driver given a field
+/// compiles (drivers are made with `Default`), its tests pass (the termination
+/// tests too: on stubs, they say what they could not check), it is clean under
+/// `cargo clippy --all-targets -- -D warnings`, `cargo run` runs the system and
+/// prints its FSM transitions, and it compiles neither clap nor miette. Its code is
+/// formatted as rustfmt would.
+#[test]
+fn new_makes_a_crate_that_builds_runs_and_passes_clippy() {
+    let dir = scratch("new-rex");
     let (code, stdout, stderr) = embodied(&[
         "new",
         "rex-app",
         "--spec",
         "specs/rex.ron",
         "--path",
-        target,
+        dir.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{stderr}");
     assert!(stdout.contains("created"), "{stdout}");
-    for f in [
-        "Cargo.toml",
-        "README.md",
-        "spec.ron",
-        "src/logic/c1.rs",
-        "src/devices.rs",
-        "tests/properties.rs",
-    ] {
-        assert!(dir.join(f).exists(), "{f} is made");
-    }
-    let (ok, stdout, stderr) = cargo_test(&dir);
+    assert!(!dir.join(".cargo").exists(), "no patch unless asked");
+
+    // The user gives a driver state.
+    let devices = std::fs::read_to_string(dir.join("src/devices.rs")).unwrap();
+    let (before, after) = devices.split_at(devices.find("impl Driver for E1Driver").unwrap());
+    let before = before.replace(
+        "pub struct E1Driver {}",
+        "pub struct E1Driver {\n    /// Steps taken.\n    pub steps: u64,\n}",
+    );
+    let after = after.replacen(
+        "let _ = (context, input, output);",
+        "let _ = (context, input, output);\n        self.steps += 1;",
+        1,
+    );
+    let edited = before + &after;
+    assert!(edited.contains("pub steps: u64") && edited.contains("self.steps += 1;"));
+    std::fs::write(dir.join("src/devices.rs"), edited).unwrap();
+
+    let (ok, stdout, stderr) = cargo(&dir, "test", &["--quiet"]);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(
-        stdout.contains("8 passed; 0 failed; 8 ignored"),
-        "structure, run and six action properties pass; eight termination properties wait: {stdout}"
+        stdout.contains("16 passed; 0 failed; 0 ignored"),
+        "structure, run, six action properties and eight termination properties: {stdout}"
     );
     assert!(
         !stderr.contains("warning"),
         "the crate builds without warnings: {stderr}"
     );
 
-    // Not over an existing crate, not from a broken spec, not with a bad name.
-    let (code, _, stderr) = embodied(&[
-        "new",
-        "rex-app",
-        "--spec",
-        "specs/rex.ron",
-        "--path",
-        target,
-    ]);
-    assert_eq!(code, 1);
-    assert!(stderr.contains("not empty"), "{stderr}");
-    let (code, _, stderr) = embodied(&[
-        "new",
-        "x",
-        "--spec",
-        "tests/specs/invalid/arcs_overlap.ron",
-        "--path",
-        target,
-    ]);
-    assert_eq!(code, 1);
+    let (ok, stdout, stderr) = cargo(&dir, "clippy", &["--all-targets", "--", "-D", "warnings"]);
+    assert!(ok, "clippy: {stdout}\n{stderr}");
+    let (ok, diff) = formatted(&dir);
+    assert!(ok, "rustfmt: {diff}");
+
+    let (ok, stdout, stderr) = cargo(&dir, "run", &["--quiet", "--", "3"]);
+    assert!(ok, "{stdout}\n{stderr}");
     assert!(
-        stderr.contains("spec::arcs_overlap") && stderr.contains("no crate was made"),
+        stdout.contains("t=0.000000 s c2: next_plan -> settle (arc 1, when !more)\n"),
+        "every transition is printed: {stdout}"
+    );
+    assert!(
+        stdout.ends_with("ran 3.000000 s of virtual time: 1 transitions\n"),
+        "{stdout}"
+    );
+    let (ok, _, stderr) = cargo(&dir, "run", &["--quiet", "--", "soon"]);
+    assert!(
+        !ok && stderr.contains("usage: rex-app [SECONDS]"),
         "{stderr}"
     );
-    for bad in ["Rex App", "serde", "type"] {
-        let (code, _, stderr) = embodied(&["new", bad, "--spec", "specs/rex.ron"]);
-        assert_eq!(code, 1, "{bad}");
-        assert!(stderr.contains("not a valid crate name"), "{stderr}");
+
+    let (ok, stdout, stderr) = cargo(&dir, "tree", &["-e", "normal", "--prefix", "none"]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.contains("embodied v0.1.0"), "{stdout}");
+    for cli_only in ["clap", "miette"] {
+        assert!(
+            !stdout.lines().any(|l| l.starts_with(cli_only)),
+            "{cli_only} is the CLI's, not the user's: {stdout}"
+        );
     }
 }
 
 /// The smallest system: one agent, one control subsystem without buffers, no
 /// devices, no links; a memory field and a function named by Rust keywords, and a
-/// period (9 ms) that is no round number of seconds. The crate still builds without
-/// a warning and its spec test passes.
+/// period (9 ms) that is no round number of seconds. Made with `--embodied-path`,
+/// the crate builds against this checkout through its own `.cargo/config.toml`,
+/// without a warning, and its tests pass.
 #[test]
 fn new_handles_a_system_without_devices_links_or_buffers() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scaffold-solo");
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = scratch("new-solo");
     std::fs::create_dir_all(&dir).unwrap();
     let spec = dir.join("solo.ron");
     std::fs::write(
@@ -281,12 +419,31 @@ fn new_handles_a_system_without_devices_links_or_buffers() {
         spec.to_str().unwrap(),
         "--path",
         crate_dir.to_str().unwrap(),
+        "--embodied-path",
+        ".",
     ]);
     assert_eq!(code, 0, "{stderr}");
-    let (ok, stdout, stderr) = cargo_test(&crate_dir);
+    let config = std::fs::read_to_string(crate_dir.join(".cargo/config.toml")).unwrap();
+    assert!(
+        config.contains(&format!(
+            "[patch.crates-io]\nembodied = {{ path = {:?} }}\n",
+            env!("CARGO_MANIFEST_DIR")
+        )),
+        "an absolute path: {config}"
+    );
+    let (ok, stdout, stderr) = cargo(&crate_dir, "test", &["--quiet"]);
     assert!(ok, "{stdout}\n{stderr}");
-    assert!(stdout.contains("3 passed; 0 failed; 1 ignored"), "{stdout}");
+    assert!(stdout.contains("4 passed; 0 failed; 0 ignored"), "{stdout}");
     assert!(!stderr.contains("warning"), "no warning: {stderr}");
+    let (ok, stdout, stderr) = cargo(
+        &crate_dir,
+        "clippy",
+        &["--all-targets", "--", "-D", "warnings"],
+    );
+    assert!(ok, "clippy: {stdout}\n{stderr}");
+    let (ok, diff) = formatted(&crate_dir);
+    assert!(ok, "rustfmt: {diff}");
+
     // An agent named like one of the crate's modules is refused.
     let clash = dir.join("clash.ron");
     let text = std::fs::read_to_string(&spec)
@@ -303,4 +460,77 @@ fn new_handles_a_system_without_devices_links_or_buffers() {
     ]);
     assert_eq!(code, 1);
     assert!(stderr.contains("crate's module `system`"), "{stderr}");
+    assert!(!dir.join("clash").exists(), "nothing is written");
+}
+
+/// What `embodied new` refuses, with a message and status 1, writing nothing: a
+/// directory that is not empty, a file where the directory should be, a spec that
+/// cannot be read or has errors, a bad crate name, a checkout that is not one.
+#[test]
+fn new_refuses_bad_input_with_a_message() {
+    let dir = scratch("new-refused");
+    std::fs::create_dir_all(dir.join("full")).unwrap();
+    std::fs::write(dir.join("full/keep.txt"), "mine").unwrap();
+    std::fs::write(dir.join("a-file"), "mine").unwrap();
+    let at = |name: &str| dir.join(name).to_str().unwrap().to_owned();
+    let new = |name: &str, spec: &str, path: &str, more: &[&str]| {
+        let mut args = vec!["new", name, "--spec", spec, "--path", path];
+        args.extend(more);
+        embodied(&args)
+    };
+    let cases: [(_, &str); 8] = [
+        (
+            new("app", "specs/rex.ron", &at("full"), &[]),
+            "full exists and is not empty; choose another --path",
+        ),
+        (
+            new("app", "specs/rex.ron", &at("a-file"), &[]),
+            "a-file exists and is not a directory",
+        ),
+        (
+            new("app", "no/such.ron", &at("x"), &[]),
+            "error: cannot read no/such.ron",
+        ),
+        (
+            new("app", "tests/specs/invalid/arcs_overlap.ron", &at("x"), &[]),
+            "error: tests/specs/invalid/arcs_overlap.ron has errors; no crate was made",
+        ),
+        (
+            new("Rex App", "specs/rex.ron", &at("x"), &[]),
+            "`Rex App` is not a valid crate name",
+        ),
+        (
+            new("serde", "specs/rex.ron", &at("x"), &[]),
+            "`serde` is not a valid crate name",
+        ),
+        (
+            new(
+                "app",
+                "specs/rex.ron",
+                &at("x"),
+                &["--embodied-path", "specs"],
+            ),
+            "error: --embodied-path specs: cannot read specs/Cargo.toml",
+        ),
+        (
+            new(
+                "app",
+                "specs/rex.ron",
+                &at("x"),
+                &["--embodied-path", "rex-agent"],
+            ),
+            "rex-agent/Cargo.toml is not the manifest of the `embodied` package",
+        ),
+    ];
+    for ((code, _, stderr), message) in cases {
+        assert_eq!(code, 1, "{message}: {stderr}");
+        assert!(stderr.contains(message), "{message}: {stderr}");
+    }
+    let (_, _, stderr) = new("app", "tests/specs/invalid/arcs_overlap.ron", &at("x"), &[]);
+    assert!(
+        stderr.contains("spec::arcs_overlap"),
+        "the report: {stderr}"
+    );
+    assert!(!dir.join("x").exists(), "nothing is written");
+    assert_eq!(files_under(&dir), ["a-file", "full/keep.txt"]);
 }

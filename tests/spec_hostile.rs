@@ -358,23 +358,6 @@ fn the_checker_refuses_every_name_and_period_the_code_generators_and_the_runtime
 }
 
 #[test]
-fn embodied_new_refuses_what_the_checker_refuses() {
-    use embodied::spec::scaffold::{Dependency, Options, ScaffoldError, scaffold};
-    let text = minimal().replace(
-        r#"(name: "count", type: "u32")"#,
-        r#"(name: "self", type: "u32")"#,
-    );
-    let options = Options {
-        name: "app".into(),
-        embodied: Dependency::Version("0.1.0".into()),
-    };
-    assert!(matches!(
-        scaffold("names.ron", &text, &options),
-        Err(ScaffoldError::Spec(_))
-    ));
-}
-
-#[test]
 fn an_unfed_input_is_offered_an_output_that_exists() {
     // c2 sends its order under another name, and nobody links it: the help names
     // c2's output of the same type, not a `c2.c1.order` that does not exist.

@@ -24,7 +24,6 @@ pub mod export;
 pub mod model;
 pub mod names;
 mod proof;
-pub mod scaffold;
 pub mod span;
 
 use std::path::Path;

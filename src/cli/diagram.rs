@@ -1,0 +1,57 @@
+//! `embodied diagram`: the FSMs, the structure or the data flow of a spec, as DOT,
+//! Mermaid or SVG.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use embodied::spec::diagram::{self, Format, Kind};
+
+/// Draws `kind` of `file` (only `subsystem`, if given) in `format`, to `output` or
+/// standard output.
+pub(crate) fn run(
+    file: &Path,
+    kind: Kind,
+    subsystem: Option<&str>,
+    format: Format,
+    output: Option<&Path>,
+) -> ExitCode {
+    // Drawing needs the structure, not the arc proof (`check` does that).
+    let (spec, report) = match embodied::spec::check_file_structure(file) {
+        Ok(x) => x,
+        Err(e) => {
+            eprintln!("error: cannot read {}: {e}", file.display());
+            return ExitCode::FAILURE;
+        }
+    };
+    let Some(spec) = spec else {
+        eprint!("{}", report.render(super::width()));
+        return ExitCode::FAILURE;
+    };
+    if !report.is_ok() {
+        eprint!("{}", report.render(super::width()));
+        eprintln!(
+            "warning: {} has errors; the diagram leaves out what does not resolve",
+            file.display()
+        );
+    }
+    let text = match diagram::render(&spec, kind, subsystem, format) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match output {
+        None => {
+            print!("{text}");
+            ExitCode::SUCCESS
+        }
+        Some(path) => match std::fs::write(path, text) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("error: cannot write {}: {e}", path.display());
+                ExitCode::FAILURE
+            }
+        },
+    }
+}

@@ -1,0 +1,15 @@
+//! The commands of the `embodied` binary, one module each: [`check`] runs the
+//! checker over spec files, [`diagram`] draws a spec, [`new`] makes an agent crate
+//! from a spec. `src/main.rs` parses the command line (clap) and calls them.
+
+pub(crate) mod check;
+pub(crate) mod diagram;
+pub(crate) mod new;
+
+/// The width at which reports are drawn: `$COLUMNS`, or 100.
+pub(crate) fn width() -> usize {
+    std::env::var("COLUMNS")
+        .ok()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(100)
+}
