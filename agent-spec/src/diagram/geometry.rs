@@ -5,7 +5,7 @@
 
 use std::fmt::Write as _;
 
-/// A point [px].
+/// A point (px).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Point {
     /// Rightwards.
@@ -21,7 +21,7 @@ impl Point {
     }
 }
 
-/// An axis-aligned rectangle [px].
+/// An axis-aligned rectangle (px).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rect {
     /// Left.
