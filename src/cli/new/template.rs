@@ -29,7 +29,7 @@ macro_rules! template {
     };
 }
 
-/// The new crate's files.
+// The new crate's files.
 pub(super) const CARGO_TOML: Template = template!("Cargo.toml.tmpl");
 pub(super) const CARGO_CONFIG: Template = template!("cargo-config.toml.tmpl");
 pub(super) const GITIGNORE: Template = template!("gitignore.tmpl");
@@ -44,7 +44,7 @@ pub(super) const SYSTEM: Template = template!("src/system.rs.tmpl");
 pub(super) const TESTS: Template = template!("tests/properties/main.rs.tmpl");
 pub(super) const TESTS_SUBSYSTEM: Template = template!("tests/properties/subsystem.rs.tmpl");
 
-/// Pieces of files.
+/// Pieces of files, repeated or chosen by the spec.
 pub(super) mod parts {
     use super::Template;
 
