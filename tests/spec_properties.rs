@@ -673,11 +673,16 @@ fn exercise(text: &str, draw: bool) -> bool {
     spec.is_some()
 }
 
-/// Findings are sorted, each has a message and a help line, and every label is a
-/// range of whole characters of the source.
+/// Findings are sorted (root causes first, each part by position), each has a
+/// message and a help line, and every label is a range of whole characters of the
+/// source.
 fn assert_report_well_formed(report: &Report) {
-    let offsets: Vec<usize> = report.findings.iter().map(|f| f.offset()).collect();
-    assert!(offsets.windows(2).all(|w| w[0] <= w[1]), "{offsets:?}");
+    let keys: Vec<(bool, usize)> = report
+        .findings
+        .iter()
+        .map(|f| (!f.code.is_root_cause(), f.offset()))
+        .collect();
+    assert!(keys.windows(2).all(|w| w[0] <= w[1]), "{keys:?}");
     for f in &report.findings {
         assert!(!f.message.is_empty() && !f.help.is_empty(), "{f:?}");
         for l in &f.labels {
