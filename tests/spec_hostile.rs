@@ -407,7 +407,7 @@ fn an_unfed_input_is_offered_an_output_that_exists() {
     assert!(
         unfed
             .help
-            .contains(r#"add `(name: "ack", ty: "bool")` to its outputs towards `c2`"#),
+            .contains(r#"add `(name: "ack", type: "bool")` to its outputs towards `c2`"#),
         "{}",
         unfed.help
     );

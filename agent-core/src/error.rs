@@ -392,8 +392,7 @@ pub enum ExecError {
         /// Virtual time.
         time: Time,
         /// What went wrong (which behaviour, which arcs, the predicate values, or the
-        /// action's error).
-        #[source]
+        /// action's error). Written into this error's message, so not its `source`.
         error: FsmError,
     },
     /// A link refused a value (a full queue).

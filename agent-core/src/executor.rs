@@ -5,7 +5,8 @@
 //! Every node (subsystem or driver) has a period and is activated at
 //! `0, period, 2·period, …` of virtual time. The executor jumps from one activation
 //! instant to the next. At an instant `t`, with `D` the nodes due at `t` in
-//! declaration order (the order they were added to the [`SystemBuilder`]):
+//! declaration order (the order they were added to the [`SystemBuilder`]), the real
+//! receptors moved after all the others:
 //!
 //! 1. every node of `D` **reads** its input buffers from its links (the last line of
 //!    Algorithm 1: `y → x`, which ends the wait of the previous action);
@@ -18,12 +19,14 @@
 //!
 //! Because all reads of an instant happen before any send of that instant, a value
 //! sent at `t` is received at the receiver's first activation strictly after `t`, so
-//! the result does not depend on the order within `D`; that order only fixes the
-//! order of trace events (and of side effects outside the buffers, such as drivers
-//! sharing a simulated world). Everything is integer arithmetic on nanoseconds, so
+//! the result does not depend on the order within `D` as far as buffers go; that
+//! order fixes the order of trace events, and what drivers see of the system's
+//! environment ([`SystemBuilder::environment`]): real receptors step last, so they
+//! sense what the effectors did in the same instant. Everything is integer arithmetic on nanoseconds, so
 //! the same system with the same inputs gives a bit-identical [`Trace`](crate::Trace).
 //!
 //! [`SystemBuilder`]: crate::SystemBuilder
+//! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
 
 use std::any::Any;
 use std::time::Duration;
@@ -31,7 +34,7 @@ use std::time::Duration;
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
-use crate::node::{DriverCore, InProcess, LocalNode, NodeStep, SubsystemCore};
+use crate::node::{DriverCore, InProcess, InProcessNode, NodeStep, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -44,8 +47,10 @@ pub enum OnError {
     #[default]
     Stop,
     /// Record the error in the [`RunReport`] (and tell the observer) and go on:
-    /// a subsystem whose FSM failed is halted; a failed action or driver step sent
-    /// nothing and is retried at the next period; a value refused by a full queue is
+    /// a subsystem whose FSM contract is violated
+    /// ([`FsmError::is_contract_violation`](crate::FsmError::is_contract_violation):
+    /// no arc, several arcs, a livelock) is halted; a failed action or driver step
+    /// sent nothing and is retried at the next period; a value refused by a full queue is
     /// counted in the link's statistics.
     Continue,
 }
@@ -95,7 +100,7 @@ pub struct RunReport {
 /// without locks. Move the [`System`] to another thread and build the executor there.)
 pub struct Executor<O: Observer = NoObserver> {
     info: SystemInfo,
-    nodes: Vec<Box<dyn LocalNode>>,
+    nodes: Vec<Box<dyn InProcessNode>>,
     periods: Vec<u64>,
     next: Vec<u64>,
     /// The order of the nodes within an instant (real receptors last).
@@ -141,8 +146,8 @@ impl<O: Observer> Executor<O> {
         } = system;
         let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
         let channels = Channels { typed, stats };
-        let mut nodes: Vec<Box<dyn LocalNode>> =
-            nodes.into_iter().map(|n| n.into_local()).collect();
+        let mut nodes: Vec<Box<dyn InProcessNode>> =
+            nodes.into_iter().map(|n| n.into_in_process()).collect();
         // Handles were checked against the nodes' buffer types when the links were
         // declared, and every plan's channel was made from the same payload type, so
         // installation cannot fail.
@@ -318,7 +323,7 @@ impl<O: Observer> Executor<O> {
         self.run_until(self.now.saturating_add(duration))
     }
 
-    fn instance<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&SubsystemCore<S>> {
+    fn subsystem_core<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&SubsystemCore<S>> {
         let node = self.nodes.get(h.id().index())?;
         node.as_any()
             .downcast_ref::<InProcess<SubsystemCore<S>>>()
@@ -327,17 +332,17 @@ impl<O: Observer> Executor<O> {
 
     /// The memory of a subsystem.
     pub fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
-        self.instance(h).map(|i| &i.memory)
+        self.subsystem_core(h).map(|i| &i.memory)
     }
 
     /// The input buffers of a subsystem, as read at its last activation.
     pub fn input<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Input> {
-        self.instance(h).map(|i| &i.input)
+        self.subsystem_core(h).map(|i| &i.input)
     }
 
     /// The name of the behaviour a subsystem is in.
     pub fn behaviour<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&str> {
-        self.instance(h)
+        self.subsystem_core(h)
             .map(|i| i.fsm.behaviour_name(i.state.behaviour()))
     }
 

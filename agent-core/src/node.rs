@@ -28,11 +28,11 @@ pub(crate) trait NodeSeed: Send {
     /// `TypeId` of the input and output buffer structs, to check handles.
     fn buffer_types(&self) -> (TypeId, TypeId);
     /// The node for the in-process executor.
-    fn into_local(self: Box<Self>) -> Box<dyn LocalNode>;
+    fn into_in_process(self: Box<Self>) -> Box<dyn InProcessNode>;
 }
 
 /// A node of the in-process executor.
-pub(crate) trait LocalNode {
+pub(crate) trait InProcessNode {
     /// Install an erased `Box<dyn OutPort<Output>>`; false if the type does not match.
     fn install_out(&mut self, port: Box<dyn Any>) -> bool;
     /// Install an erased `Box<dyn InPort<Input>>`; false if the type does not match.
@@ -78,7 +78,7 @@ impl<C: NodeCore> NodeSeed for C {
         (TypeId::of::<C::Input>(), TypeId::of::<C::Output>())
     }
 
-    fn into_local(self: Box<Self>) -> Box<dyn LocalNode> {
+    fn into_in_process(self: Box<Self>) -> Box<dyn InProcessNode> {
         Box::new(InProcess {
             core: *self,
             ins: Vec::new(),
@@ -94,7 +94,7 @@ pub(crate) struct InProcess<C: NodeCore> {
     outs: Vec<Box<dyn OutPort<C::Output>>>,
 }
 
-impl<C: NodeCore> LocalNode for InProcess<C> {
+impl<C: NodeCore> InProcessNode for InProcess<C> {
     fn install_out(&mut self, port: Box<dyn Any>) -> bool {
         match port.downcast::<Box<dyn OutPort<C::Output>>>() {
             Ok(p) => {

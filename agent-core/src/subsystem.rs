@@ -112,7 +112,9 @@ impl<'a> DriverContext<'a> {
     /// receptor senses what the effectors did in that instant, whatever the order
     /// in which the components were added.
     ///
-    /// An error if the system has no environment, or one of another type.
+    /// An error if the system has no environment, or one of another type. The
+    /// reference borrows the context: read `now`, `iteration` and `period` first
+    /// (they are `Copy`).
     ///
     /// [`SystemBuilder::environment`]: crate::SystemBuilder::environment
     pub fn environment<W: Any>(&mut self) -> Result<&mut W, DriverError> {

@@ -33,7 +33,8 @@ use crate::trace::{LinkInfo, NodeInfo, SystemInfo};
 pub struct AgentId(usize);
 
 /// Identifies a node (subsystem or driver): its index in declaration order, which is
-/// also the executor's stepping order.
+/// also the executor's stepping order within an instant, but for real receptors,
+/// which step last.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct NodeId(pub(crate) usize);
 

@@ -92,7 +92,8 @@ pub struct LinkInfo {
 pub struct SystemInfo {
     /// Agent names, in declaration order.
     pub agents: Vec<String>,
-    /// Nodes, in declaration order (the executor's stepping order).
+    /// Nodes, in declaration order (the executor's stepping order within an
+    /// instant, real receptors last).
     pub nodes: Vec<NodeInfo>,
     /// Links, in declaration order.
     pub links: Vec<LinkInfo>,

@@ -641,6 +641,24 @@ mod tests {
         assert_eq!(line_col(text, 100), (3, 2));
     }
 
+    /// Without miette (the default of a user's crate), a report is drawn as plain
+    /// excerpts: the code and message, the line with a caret under the label, the
+    /// help. (`.ci/run` runs agent-spec's unit tests without the feature.)
+    #[cfg(not(feature = "render"))]
+    #[test]
+    fn without_miette_findings_are_plain_excerpts() {
+        let source = "(\n  name: \"x\",\n  bad: 1,\n)\n";
+        let at = source.find("bad").unwrap_or(0);
+        let finding = Finding::new(Code::UnknownField, at..at + 3, "not a field", "no field `bad`")
+            .help("remove it");
+        let text = Report::new("x.ron", source, vec![finding]).render(80);
+        assert!(text.contains("spec::unknown_field"), "{text}");
+        assert!(text.contains("no field `bad`"), "{text}");
+        assert!(text.contains("bad: 1,"), "{text}");
+        assert!(text.contains('^'), "{text}");
+        assert!(text.contains("remove it"), "{text}");
+    }
+
     #[test]
     fn codes_are_stable_and_documented() {
         for c in Code::ALL {

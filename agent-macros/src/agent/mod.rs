@@ -111,7 +111,8 @@ pub(crate) struct Found {
     pub(crate) loaded: Loaded,
     pub(crate) agent: usize,
     /// The checker's errors that belong to this agent ([`owner`]), one compile
-    /// error each; `None` if it has none.
+    /// error each, and one line for the errors of the other agents; `None` if the
+    /// spec has no error.
     pub(crate) errors: Option<syn::Error>,
 }
 
@@ -140,7 +141,31 @@ pub(crate) fn load(file: &LitStr, text: String, agent: &LitStr) -> syn::Result<F
         ));
     };
     let report = agent_spec::check(&loaded);
-    let errors = findings_error(file, &report, |offset| owner(&loaded, offset) == index);
+    let mut errors = findings_error(file, &report, |offset| owner(&loaded, offset) == index);
+    // The errors of other agents are reported by their `agent!`, which this crate
+    // may not invoke: one line here, so that a broken spec never compiles.
+    let elsewhere: Vec<&agent_spec::Finding> = report
+        .findings
+        .iter()
+        .filter(|f| f.severity() == Severity::Error && owner(&loaded, f.offset()) != index)
+        .collect();
+    if let Some(first) = elsewhere.first() {
+        let (l, c) = report.line_col(first.offset());
+        let e = syn::Error::new(
+            file.span(),
+            format!(
+                "{name} has {} error{} outside agent `{wanted}` (the first: {name}:{l}:{c}: error[{}]: {}); `agent!` reports them for their agent, and `embodied check {name}` lists them all",
+                elsewhere.len(),
+                if elsewhere.len() == 1 { "" } else { "s" },
+                first.code,
+                first.message
+            ),
+        );
+        match &mut errors {
+            Some(all) => all.combine(e),
+            None => errors = Some(e),
+        }
+    }
     Ok(Found {
         loaded,
         agent: index,
@@ -253,7 +278,8 @@ fn peer_kind(spec: &Spec, name: &str) -> &'static str {
             return node_kind_name(d.kind.into());
         }
     }
-    // Unreachable for a spec the checker accepted (unknown peers are errors).
+    // Only for a spec the checker rejected (unknown peers are errors, reported):
+    // the items are still generated, so that no cascade follows.
     "Control"
 }
 
@@ -647,6 +673,10 @@ fn unusable_name(agent: &model::Agent) -> Option<String> {
         names.extend(groups(&s.inputs));
         names.extend(groups(&s.outputs));
         names.extend(s.functions.iter().map(|f| f.name.as_str()));
+        names.extend(s.functions.iter().filter_map(|f| match &f.target {
+            model::Target::Output(peer) => Some(peer.as_str()),
+            _ => None,
+        }));
         names.extend(s.predicates.iter().map(|p| p.name.as_str()));
     }
     for d in &agent.devices {

@@ -205,7 +205,8 @@ impl<'a> Checker<'a> {
         match groups.len() {
             1 => {}
             0 => {
-                let known = self.list(&sub.memory, Hint::Readable, || {
+                // Keyed on the subsystem: the list mixes its memory and its inputs.
+                let known = self.list(std::slice::from_ref(sub), Hint::Readable, || {
                     let mut known: Vec<String> =
                         sub.memory.iter().map(|b| b.name.clone()).collect();
                     known.extend(sub.inputs.iter().flat_map(|g| {

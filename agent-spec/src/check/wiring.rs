@@ -369,7 +369,7 @@ impl<'a> Checker<'a> {
         };
         let Some(towards) = p.outputs.iter().find(|g| g.peer == component) else {
             return format!(
-                "`{peer}` has no outputs towards `{component}`: add `(peer: \"{component}\", buffers: [(name: \"{}\", ty: \"{}\")])` to its `outputs`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
+                "`{peer}` has no outputs towards `{component}`: add `(peer: \"{component}\", buffers: [(name: \"{}\", type: \"{}\")])` to its `outputs`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
                 buffer.name, buffer.ty, buffer.name
             );
         };
@@ -387,7 +387,7 @@ impl<'a> Checker<'a> {
                 b.name
             ),
             None => format!(
-                "`{peer}` sends `{component}` no `{}`: add `(name: \"{}\", ty: \"{}\")` to its outputs towards `{component}`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
+                "`{peer}` sends `{component}` no `{}`: add `(name: \"{}\", type: \"{}\")` to its outputs towards `{component}`, then link `(from: \"{peer}.{component}.{}\", to: \"{dotted}\")`",
                 buffer.ty, buffer.name, buffer.ty, buffer.name
             ),
         }

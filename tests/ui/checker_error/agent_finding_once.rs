@@ -1,5 +1,7 @@
-// The spec's one error is in agent a2: a2's `agent!` reports it once, a1's reports
-// nothing, and the code using the generated modules raises no further error.
+// The spec's one error is in agent a2: a2's `agent!` reports it in full, a1's says
+// in one line that there is an error elsewhere (so that a crate generating only a1
+// does not compile a broken spec), and the code using the generated modules raises
+// no further error.
 mod a1 {
     embodied::agent!(spec = "mini_typo.ron", agent = "a1");
 }
