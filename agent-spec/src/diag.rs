@@ -649,8 +649,13 @@ mod tests {
     fn without_miette_findings_are_plain_excerpts() {
         let source = "(\n  name: \"x\",\n  bad: 1,\n)\n";
         let at = source.find("bad").unwrap_or(0);
-        let finding = Finding::new(Code::UnknownField, at..at + 3, "not a field", "no field `bad`")
-            .help("remove it");
+        let finding = Finding::new(
+            Code::UnknownField,
+            at..at + 3,
+            "not a field",
+            "no field `bad`",
+        )
+        .help("remove it");
         let text = Report::new("x.ron", source, vec![finding]).render(80);
         assert!(text.contains("spec::unknown_field"), "{text}");
         assert!(text.contains("no field `bad`"), "{text}");
