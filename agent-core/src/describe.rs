@@ -65,13 +65,24 @@ pub trait Buffer {
     /// `isnew(buf)` for an input (a value arrived with the last read); for an output,
     /// whether the current iteration wrote it.
     fn is_fresh(&self) -> bool;
+
+    /// For an input: whether a transition function read it since the last call
+    /// (which clears the mark); always false for an output. What an audit of reads
+    /// observes ([`ExecConfig::audit`](crate::ExecConfig::audit)).
+    fn take_read(&self) -> bool {
+        false
+    }
 }
 
 impl<T> Buffer for In<T> {
     const DIRECTION: Direction = Direction::In;
     #[inline]
     fn is_fresh(&self) -> bool {
-        self.is_new()
+        self.peek_new()
+    }
+    #[inline]
+    fn take_read(&self) -> bool {
+        In::take_read(self)
     }
 }
 
@@ -157,6 +168,13 @@ pub trait Buffers {
     /// Which buffers are fresh now (inputs: new in this iteration; outputs: written
     /// in this iteration), in the order of [`Buffers::GROUPS`].
     fn fresh(&self) -> Fresh;
+
+    /// Which buffers a transition function read since the last call (inputs only),
+    /// in the order of [`Buffers::GROUPS`]; clears the marks. `#[derive(Buffers)]`
+    /// writes it; the default sees nothing.
+    fn take_reads(&self) -> Fresh {
+        Fresh(0)
+    }
 
     /// The buffer at `path` (`group.buffer`, or `buffer` in a driver's flat struct),
     /// for links made by name (from a spec). `#[derive(Buffers)]` writes it; the

@@ -34,7 +34,7 @@ use std::time::Duration;
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
-use crate::node::{DriverCore, InProcess, InProcessNode, NodeStep, SubsystemCore};
+use crate::node::{Audited, DriverCore, InProcess, InProcessNode, NodeStep, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -63,6 +63,15 @@ pub struct ExecConfig {
     /// With [`OnError::Continue`], how many errors the report keeps (the rest are
     /// counted in [`RunReport::error_count`]).
     pub max_recorded_errors: usize,
+    /// Observe every transition function: which inputs it reads and which outputs
+    /// it writes, reported part by part to the observer
+    /// ([`Observer::audit`](crate::Observer::audit)), for checking the code
+    /// against a spec's `reads` and `writes`. Off by default. Reads are observed
+    /// only with the `audit` feature of agent-core (`embodied`'s `audit`), which
+    /// makes input buffers record them; without it they come back empty. An
+    /// audited subsystem is a node of its own type, so the unaudited hot path
+    /// pays nothing for it.
+    pub audit: bool,
 }
 
 impl Default for ExecConfig {
@@ -70,6 +79,7 @@ impl Default for ExecConfig {
         ExecConfig {
             on_error: OnError::Stop,
             max_recorded_errors: 1000,
+            audit: false,
         }
     }
 }
@@ -146,8 +156,10 @@ impl<O: Observer> Executor<O> {
         } = system;
         let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
         let channels = Channels { typed, stats };
-        let mut nodes: Vec<Box<dyn InProcessNode>> =
-            nodes.into_iter().map(|n| n.into_in_process()).collect();
+        let mut nodes: Vec<Box<dyn InProcessNode>> = nodes
+            .into_iter()
+            .map(|n| n.into_in_process(config.audit))
+            .collect();
         // Handles were checked against the nodes' buffer types when the links were
         // declared, and every plan's channel was made from the same payload type, so
         // installation cannot fail.
@@ -325,9 +337,13 @@ impl<O: Observer> Executor<O> {
 
     fn subsystem_core<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&SubsystemCore<S>> {
         let node = self.nodes.get(h.id().index())?;
-        node.as_any()
-            .downcast_ref::<InProcess<SubsystemCore<S>>>()
+        let any = node.as_any();
+        any.downcast_ref::<InProcess<SubsystemCore<S>>>()
             .map(|l| &l.core)
+            .or_else(|| {
+                any.downcast_ref::<InProcess<Audited<SubsystemCore<S>>>>()
+                    .map(|l| &l.core.0)
+            })
     }
 
     /// The memory of a subsystem.

@@ -63,8 +63,8 @@ pub use system::{
 };
 pub use time::{Period, PeriodError, Stamp, Time};
 pub use trace::{
-    ActionEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder, SystemInfo,
-    Trace, TraceEvent, TransferEvent, TransitionEvent,
+    ActionEvent, AuditEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder,
+    SystemInfo, Trace, TraceEvent, TransferEvent, TransitionEvent,
 };
 pub use transition::{Action, Outcome, Part, PartTarget};
 

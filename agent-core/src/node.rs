@@ -7,12 +7,13 @@
 
 use std::any::{Any, TypeId};
 
+use crate::describe::Fresh;
 use crate::error::ExecError;
 use crate::fsm::{Activated, Fsm, FsmState};
 use crate::link::{InPort, LinkCx, OutPort};
 use crate::subsystem::{Driver, DriverContext, Subsystem};
 use crate::time::{Stamp, Time};
-use crate::trace::{ActionEvent, NodeInfo, TransitionEvent};
+use crate::trace::{ActionEvent, AuditEvent, NodeInfo, TransitionEvent};
 
 /// What one activation of a node did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,8 +28,9 @@ pub(crate) enum NodeStep {
 pub(crate) trait NodeSeed: Send {
     /// `TypeId` of the input and output buffer structs, to check handles.
     fn buffer_types(&self) -> (TypeId, TypeId);
-    /// The node for the in-process executor.
-    fn into_in_process(self: Box<Self>) -> Box<dyn InProcessNode>;
+    /// The node for the in-process executor; its activations audited
+    /// (`ExecConfig::audit`) if `audit`.
+    fn into_in_process(self: Box<Self>, audit: bool) -> Box<dyn InProcessNode>;
 }
 
 /// A node of the in-process executor.
@@ -68,6 +70,19 @@ pub(crate) trait NodeCore: Send + Sized + 'static {
         index: usize,
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>>;
+    /// Whether [`NodeCore::compute_audited`] observes anything (a subsystem's
+    /// transition functions); a driver has nothing to audit.
+    const AUDITED: bool = false;
+    /// [`NodeCore::compute`], telling the observer what each transition function
+    /// read and wrote (`ExecConfig::audit`).
+    fn compute_audited(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
+        self.compute(now, index, cx)
+    }
     fn halt(&mut self);
     fn is_halted(&self) -> bool;
     fn iteration(&self) -> u64;
@@ -78,12 +93,52 @@ impl<C: NodeCore> NodeSeed for C {
         (TypeId::of::<C::Input>(), TypeId::of::<C::Output>())
     }
 
-    fn into_in_process(self: Box<Self>) -> Box<dyn InProcessNode> {
-        Box::new(InProcess {
-            core: *self,
-            ins: Vec::new(),
-            outs: Vec::new(),
-        })
+    fn into_in_process(self: Box<Self>, audit: bool) -> Box<dyn InProcessNode> {
+        if audit && C::AUDITED {
+            // A type of its own: the unaudited node's hot path knows nothing of it.
+            Box::new(InProcess {
+                core: Audited(*self),
+                ins: Vec::new(),
+                outs: Vec::new(),
+            })
+        } else {
+            Box::new(InProcess {
+                core: *self,
+                ins: Vec::new(),
+                outs: Vec::new(),
+            })
+        }
+    }
+}
+
+/// A node core whose activations are audited (`ExecConfig::audit`).
+pub(crate) struct Audited<C>(pub(crate) C);
+
+impl<C: NodeCore> NodeCore for Audited<C> {
+    type Input = C::Input;
+    type Output = C::Output;
+    fn input(&mut self) -> &mut C::Input {
+        self.0.input()
+    }
+    fn output(&mut self) -> &mut C::Output {
+        self.0.output()
+    }
+    fn compute(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
+        self.0.compute_audited(now, index, cx)
+    }
+    fn halt(&mut self) {
+        self.0.halt();
+    }
+    fn is_halted(&self) -> bool {
+        self.0.is_halted()
+    }
+    fn iteration(&self) -> u64 {
+        self.0.iteration()
     }
 }
 
@@ -242,6 +297,69 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
         match result {
             Ok(Activated::Ran { behaviour }) => {
                 if let Some(o) = cx.observer.as_deref_mut() {
+                    o.action(&ActionEvent {
+                        time: now,
+                        node: index,
+                        iteration,
+                        behaviour: Some(behaviour),
+                    });
+                }
+                self.iteration += 1;
+                Ok(Some(Stamp::new(iteration, now)))
+            }
+            Ok(Activated::Halted) => Ok(None),
+            Err(error) => Err(Box::new(ExecError::Fsm {
+                subsystem: self.info.name.clone(),
+                iteration,
+                time: now,
+                error,
+            })),
+        }
+    }
+
+    const AUDITED: bool = true;
+
+    #[cold]
+    #[inline(never)]
+    fn compute_audited(
+        &mut self,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
+        let iteration = self.iteration;
+        let observer = &mut cx.observer;
+        let mut seen: Vec<(usize, Fresh, Fresh)> = Vec::new();
+        let result = self.fsm.activate_audited(
+            &mut self.state,
+            &mut self.memory,
+            &self.input,
+            &mut self.output,
+            |step| {
+                if let Some(o) = observer.as_deref_mut() {
+                    o.transition(&TransitionEvent {
+                        time: now,
+                        node: index,
+                        iteration,
+                        step: *step,
+                    });
+                }
+            },
+            &mut |part, reads, writes| seen.push((part, reads, writes)),
+        );
+        match result {
+            Ok(Activated::Ran { behaviour }) => {
+                if let Some(o) = cx.observer.as_deref_mut() {
+                    for (part, reads, writes) in seen {
+                        o.audit(&AuditEvent {
+                            time: now,
+                            node: index,
+                            behaviour,
+                            part,
+                            reads,
+                            writes,
+                        });
+                    }
                     o.action(&ActionEvent {
                         time: now,
                         node: index,

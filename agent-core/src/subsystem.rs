@@ -3,7 +3,7 @@
 use std::any::Any;
 use std::fmt;
 
-use crate::describe::{PortTable, Shape};
+use crate::describe::{Fresh, PortTable, Shape};
 use crate::error::DriverError;
 use crate::kinds::{DeviceKind, SubsystemKind};
 use crate::time::{Period, Time};
@@ -44,6 +44,16 @@ pub trait Subsystem: Sized + 'static {
     /// `#[derive(Subsystem)]` returns `Some(PortTable::of::<Input, Output>())`.
     fn ports() -> Option<PortTable> {
         None
+    }
+
+    /// What an audit observes ([`ExecConfig::audit`](crate::ExecConfig::audit)):
+    /// the inputs read since the last call (clearing the marks) and the outputs
+    /// written in the current iteration, in the order of the buffers' [`Shape`].
+    /// `#[derive(Subsystem)]` writes it from the derives of the buffer structs; the
+    /// default observes nothing.
+    fn audit(input: &Self::Input, output: &Self::Output) -> (Fresh, Fresh) {
+        let _ = (input, output);
+        (Fresh(0), Fresh(0))
     }
 }
 

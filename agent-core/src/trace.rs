@@ -10,7 +10,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::buffer::Payload;
-use crate::describe::Shape;
+use crate::describe::{Fresh, Shape};
 use crate::error::ExecError;
 use crate::fsm::{FsmShape, Step};
 use crate::kinds::{NodeKind, Policy};
@@ -125,6 +125,24 @@ pub struct ActionEvent {
     pub behaviour: Option<usize>,
 }
 
+/// What one part of an elementary action (one transition function) read and
+/// wrote, observed with [`ExecConfig::audit`](crate::ExecConfig::audit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AuditEvent {
+    /// Virtual time.
+    pub time: Time,
+    /// Node index.
+    pub node: usize,
+    /// The behaviour whose action ran.
+    pub behaviour: usize,
+    /// The part, in the order of the behaviour's `BehaviourShape::parts`.
+    pub part: usize,
+    /// The inputs it read, in the order of the node's `Shape::inputs`.
+    pub reads: Fresh,
+    /// The outputs it wrote, in the order of the node's `Shape::outputs`.
+    pub writes: Fresh,
+}
+
 /// A value sent into a link.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TransferEvent {
@@ -147,6 +165,10 @@ pub trait Observer: Send {
     fn transition(&mut self, _event: &TransitionEvent) {}
     /// An elementary action or a driver step ran.
     fn action(&mut self, _event: &ActionEvent) {}
+    /// One transition function of an action read and wrote these buffers (only
+    /// with [`ExecConfig::audit`](crate::ExecConfig::audit); before the action's
+    /// [`Observer::action`]).
+    fn audit(&mut self, _event: &AuditEvent) {}
     /// A value was sent into a link.
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// An error occurred (whether the run stops or continues).

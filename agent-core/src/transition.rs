@@ -25,6 +25,7 @@ use std::borrow::Cow;
 use std::fmt;
 
 use crate::buffer::Group;
+use crate::describe::Fresh;
 use crate::error::ActionError;
 use crate::kinds::NodeKind;
 use crate::subsystem::Subsystem;
@@ -382,6 +383,44 @@ impl<S: Subsystem> Action<S> {
         }
         if let Some(m) = &self.memory {
             (m.f)(memory, input)?;
+        }
+        Ok(())
+    }
+
+    /// [`Action::compute`], observed part by part: before each part the marks of
+    /// the inputs read are cleared, after it `seen(k, reads, writes)` gets the
+    /// index `k` of the part (the order of [`Action::describe`]), the inputs it
+    /// read and the outputs it wrote ([`Subsystem::audit`]; memory is not
+    /// observed). What `ExecConfig::audit` runs.
+    pub fn compute_audited(
+        &self,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+        seen: &mut dyn FnMut(usize, Fresh, Fresh),
+    ) -> Result<(), ActionError> {
+        let mut k = 0;
+        let mut written = S::audit(input, output).1;
+        let mut observe = |k: &mut usize, output: &S::Output| {
+            let (reads, now) = S::audit(input, output);
+            seen(*k, reads, Fresh(now.0 & !written.0));
+            written = now;
+            *k += 1;
+        };
+        if let Some(c) = &self.common {
+            let _ = S::audit(input, output);
+            (c.f)(memory, input)?;
+            observe(&mut k, output);
+        }
+        for part in &self.outputs {
+            let _ = S::audit(input, output);
+            (part.f)(memory, input, output)?;
+            observe(&mut k, output);
+        }
+        if let Some(m) = &self.memory {
+            let _ = S::audit(input, output);
+            (m.f)(memory, input)?;
+            observe(&mut k, output);
         }
         Ok(())
     }

@@ -208,6 +208,9 @@ pub(crate) fn generate_group(m: &GroupModel) -> TokenStream {
     let fresh = m.buffers.iter().enumerate().map(
         |(k, (ident, _))| quote!(| (#rt::describe::Buffer::is_fresh(&self.#ident) as u128) << #k),
     );
+    let reads = m.buffers.iter().enumerate().map(
+        |(k, (ident, _))| quote!(| (#rt::describe::Buffer::take_read(&self.#ident) as u128) << #k),
+    );
     let dir = m.dir.tokens(&rt);
     let ty_name = name.to_string();
     let count = m.buffers.len();
@@ -261,6 +264,9 @@ pub(crate) fn generate_group(m: &GroupModel) -> TokenStream {
             #[inline]
             fn fresh(&self) -> #rt::Fresh {
                 #rt::Fresh(0 #(#fresh)*)
+            }
+            fn take_reads(&self) -> #rt::Fresh {
+                #rt::Fresh(0 #(#reads)*)
             }
         }
     }
@@ -351,10 +357,12 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             // Bit offset of each group: the buffers of the groups before it.
             let mut offset = quote!(0usize);
             let mut fresh = Vec::new();
+            let mut reads = Vec::new();
             for g in groups {
                 let (ident, ty) = (&g.ident, &g.ty);
                 // `checked_shl`: an empty group may start at bit 128.
                 fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
+                reads.push(quote!(| #rt::Buffers::take_reads(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
                 offset = quote!(#offset + <#ty as #rt::Fields>::FIELDS.len());
             }
             let lookup = input.generics.params.is_empty().then(|| {
@@ -388,6 +396,9 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
                         };
                         #rt::Fresh(0 #(#fresh)*)
                     }
+                    fn take_reads(&self) -> #rt::Fresh {
+                        #rt::Fresh(0 #(#reads)*)
+                    }
                 }
             }
         }
@@ -404,6 +415,9 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
             });
             let fresh = buffers.iter().enumerate().map(|(k, (ident, _))| {
                 quote!(| (#rt::describe::Buffer::is_fresh(&self.#ident) as u128) << #k)
+            });
+            let reads = buffers.iter().enumerate().map(|(k, (ident, _))| {
+                quote!(| (#rt::describe::Buffer::take_read(&self.#ident) as u128) << #k)
             });
             let guard = (buffers.len() > rt_max_buffers()).then(|| {
                 quote_spanned!(name.span()=> compile_error!("a struct of buffers has at most 128 buffers");)
@@ -443,6 +457,9 @@ pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
                     #[inline]
                     fn fresh(&self) -> #rt::Fresh {
                         #rt::Fresh(0 #(#fresh)*)
+                    }
+                    fn take_reads(&self) -> #rt::Fresh {
+                        #rt::Fresh(0 #(#reads)*)
                     }
                 }
             }
@@ -558,6 +575,9 @@ pub(crate) fn generate_subsystem(m: &SubsystemModel) -> TokenStream {
             }
             fn ports() -> ::core::option::Option<#rt::PortTable> {
                 ::core::option::Option::Some(#rt::PortTable::of::<#inputs, #outputs>())
+            }
+            fn audit(input: &#inputs, output: &#outputs) -> (#rt::Fresh, #rt::Fresh) {
+                (#rt::Buffers::take_reads(input), #rt::Buffers::fresh(output))
             }
         }
     }

@@ -4,6 +4,8 @@
 //! kinds, periods, memory, groups, buffers and their types, predicates, functions
 //! and their targets, behaviours with their kinds, functions and terminal
 //! conditions, FSM arcs with their conditions, finals, links with their policies.
+//! (The functions' reads and writes of buffers are what the code does, not what it
+//! states: `tests/audit.rs` observes them.)
 //!
 //! And the structure is reviewed: `tests/structure/<deployment>.ron` holds the
 //! structure each deployment built last time it was accepted. A change of the spec

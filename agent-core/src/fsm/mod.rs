@@ -12,6 +12,7 @@ use std::borrow::Cow;
 use std::fmt;
 
 use crate::behaviour::Behaviour;
+use crate::describe::Fresh;
 use crate::error::{FsmBuildError, FsmError};
 use crate::expr::Expr;
 use crate::kinds::BehaviourKind;
@@ -480,7 +481,47 @@ impl<S: Subsystem> Fsm<S> {
         memory: &mut S::Memory,
         input: &S::Input,
         output: &mut S::Output,
+        on_step: impl FnMut(&Step),
+    ) -> Result<Activated, FsmError> {
+        self.activate_by(state, memory, input, output, on_step, |action, m, x, y| {
+            action.compute(m, x, y)
+        })
+    }
+
+    /// [`Fsm::activate`] with the action observed part by part
+    /// ([`Action::compute_audited`](crate::Action::compute_audited)): `seen(part,
+    /// reads, writes)` after each part of the action that runs.
+    pub fn activate_audited(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+        on_step: impl FnMut(&Step),
+        seen: &mut dyn FnMut(usize, Fresh, Fresh),
+    ) -> Result<Activated, FsmError> {
+        self.activate_by(state, memory, input, output, on_step, |action, m, x, y| {
+            action.compute_audited(m, x, y, seen)
+        })
+    }
+
+    /// The decisions of an activation, then `compute` runs the action of the
+    /// behaviour that goes on: one body for [`Fsm::activate`] (the executor's hot
+    /// path, so always inlined) and [`Fsm::activate_audited`].
+    #[inline(always)]
+    fn activate_by(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
         mut on_step: impl FnMut(&Step),
+        compute: impl FnOnce(
+            &crate::Action<S>,
+            &mut S::Memory,
+            &S::Input,
+            &mut S::Output,
+        ) -> Result<(), crate::ActionError>,
     ) -> Result<Activated, FsmError> {
         if state.halted {
             return Ok(Activated::Halted);
@@ -494,11 +535,7 @@ impl<S: Subsystem> Fsm<S> {
                     on_step(&step);
                     transitions += 1;
                     if transitions >= self.nodes.len() {
-                        return Err(FsmError::Livelock {
-                            from: self.behaviour_name(start).to_owned(),
-                            transitions,
-                            path: format!("… -> `{}`", self.behaviour_name(state.node)),
-                        });
+                        return Err(self.livelock(start, transitions, state));
                     }
                 }
                 Step::Finished => {
@@ -507,7 +544,27 @@ impl<S: Subsystem> Fsm<S> {
                 }
             }
         }
-        self.act(state, memory, input, output)
+        let node = &self.nodes[state.node];
+        compute(&node.behaviour.action, memory, input, output).map_err(|source| {
+            FsmError::Action {
+                behaviour: node.behaviour.name.to_string(),
+                source,
+            }
+        })?;
+        state.actions_done = true;
+        Ok(Activated::Ran {
+            behaviour: state.node,
+        })
+    }
+
+    /// The livelock error: `transitions` without an action, from `start`.
+    #[cold]
+    fn livelock(&self, start: usize, transitions: usize, state: &FsmState) -> FsmError {
+        FsmError::Livelock {
+            from: self.behaviour_name(start).to_owned(),
+            transitions,
+            path: format!("… -> `{}`", self.behaviour_name(state.node)),
+        }
     }
 
     /// One iteration of the current behaviour, without any decision: run its
