@@ -8,7 +8,7 @@
 use std::any::{Any, TypeId};
 
 use crate::describe::Fresh;
-use crate::error::ExecError;
+use crate::error::{ExecError, FsmError};
 use crate::fsm::{Activated, Fsm, FsmState};
 use crate::link::{InPort, LinkCx, OutPort};
 use crate::subsystem::{Driver, DriverContext, Subsystem};
@@ -255,6 +255,52 @@ impl<S: Subsystem> SubsystemCore<S> {
             iteration: 0,
         }
     }
+
+    /// The end of an activation: what each part read and wrote (`seen`, when
+    /// audited), the action event and the next iteration; or the error with where
+    /// and when it happened.
+    #[inline(always)]
+    fn finish(
+        &mut self,
+        result: Result<Activated, FsmError>,
+        now: Time,
+        index: usize,
+        cx: &mut LinkCx<'_>,
+        seen: &[(usize, Fresh, Fresh)],
+    ) -> Result<Option<Stamp>, Box<ExecError>> {
+        let iteration = self.iteration;
+        match result {
+            Ok(Activated::Ran { behaviour }) => {
+                if let Some(o) = cx.observer.as_deref_mut() {
+                    for &(part, reads, writes) in seen {
+                        o.audit(&AuditEvent {
+                            time: now,
+                            node: index,
+                            behaviour,
+                            part,
+                            reads,
+                            writes,
+                        });
+                    }
+                    o.action(&ActionEvent {
+                        time: now,
+                        node: index,
+                        iteration,
+                        behaviour: Some(behaviour),
+                    });
+                }
+                self.iteration += 1;
+                Ok(Some(Stamp::new(iteration, now)))
+            }
+            Ok(Activated::Halted) => Ok(None),
+            Err(error) => Err(Box::new(ExecError::Fsm {
+                subsystem: self.info.name.clone(),
+                iteration,
+                time: now,
+                error,
+            })),
+        }
+    }
 }
 
 impl<S: Subsystem> NodeCore for SubsystemCore<S> {
@@ -294,27 +340,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
                 }
             },
         );
-        match result {
-            Ok(Activated::Ran { behaviour }) => {
-                if let Some(o) = cx.observer.as_deref_mut() {
-                    o.action(&ActionEvent {
-                        time: now,
-                        node: index,
-                        iteration,
-                        behaviour: Some(behaviour),
-                    });
-                }
-                self.iteration += 1;
-                Ok(Some(Stamp::new(iteration, now)))
-            }
-            Ok(Activated::Halted) => Ok(None),
-            Err(error) => Err(Box::new(ExecError::Fsm {
-                subsystem: self.info.name.clone(),
-                iteration,
-                time: now,
-                error,
-            })),
-        }
+        self.finish(result, now, index, cx, &[])
     }
 
     const AUDITED: bool = true;
@@ -347,37 +373,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
             },
             &mut |part, reads, writes| seen.push((part, reads, writes)),
         );
-        match result {
-            Ok(Activated::Ran { behaviour }) => {
-                if let Some(o) = cx.observer.as_deref_mut() {
-                    for (part, reads, writes) in seen {
-                        o.audit(&AuditEvent {
-                            time: now,
-                            node: index,
-                            behaviour,
-                            part,
-                            reads,
-                            writes,
-                        });
-                    }
-                    o.action(&ActionEvent {
-                        time: now,
-                        node: index,
-                        iteration,
-                        behaviour: Some(behaviour),
-                    });
-                }
-                self.iteration += 1;
-                Ok(Some(Stamp::new(iteration, now)))
-            }
-            Ok(Activated::Halted) => Ok(None),
-            Err(error) => Err(Box::new(ExecError::Fsm {
-                subsystem: self.info.name.clone(),
-                iteration,
-                time: now,
-                error,
-            })),
-        }
+        self.finish(result, now, index, cx, &seen)
     }
 
     fn halt(&mut self) {

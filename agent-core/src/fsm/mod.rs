@@ -544,6 +544,26 @@ impl<S: Subsystem> Fsm<S> {
                 }
             }
         }
+        self.run_action(state, memory, input, output, compute)
+    }
+
+    /// The action of the current behaviour (not halted), by `compute`, and the
+    /// record that an action of it ran: the end of [`Fsm::activate`] and of
+    /// [`Fsm::act`].
+    #[inline(always)]
+    fn run_action(
+        &self,
+        state: &mut FsmState,
+        memory: &mut S::Memory,
+        input: &S::Input,
+        output: &mut S::Output,
+        compute: impl FnOnce(
+            &crate::Action<S>,
+            &mut S::Memory,
+            &S::Input,
+            &mut S::Output,
+        ) -> Result<(), crate::ActionError>,
+    ) -> Result<Activated, FsmError> {
         let node = &self.nodes[state.node];
         compute(&node.behaviour.action, memory, input, output).map_err(|source| {
             FsmError::Action {
@@ -582,17 +602,8 @@ impl<S: Subsystem> Fsm<S> {
         if state.halted {
             return Ok(Activated::Halted);
         }
-        let node = &self.nodes[state.node];
-        node.behaviour
-            .action
-            .compute(memory, input, output)
-            .map_err(|source| FsmError::Action {
-                behaviour: node.behaviour.name.to_string(),
-                source,
-            })?;
-        state.actions_done = true;
-        Ok(Activated::Ran {
-            behaviour: state.node,
+        self.run_action(state, memory, input, output, |action, m, x, y| {
+            action.compute(m, x, y)
         })
     }
 }
