@@ -9,6 +9,7 @@
 //! is a struct implementing [`Group`]; a transition function that writes towards one
 //! target receives `&mut` to that group only, so it cannot write anywhere else.
 
+use std::any::{Any, TypeId};
 use std::borrow::Cow;
 #[cfg(feature = "audit")]
 use std::cell::Cell;
@@ -57,9 +58,72 @@ pub trait Group: Send + 'static {
         group_name: &'static str,
         group: fn(&mut B) -> &mut Self,
         buffer: &str,
-    ) -> Option<crate::link::BufferPort> {
+    ) -> Option<BufferPort> {
         let _ = (group_name, group, buffer);
         None
+    }
+}
+
+/// Whether a buffer is an input or an output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// An [`In`] buffer.
+    In,
+    /// An [`Out`] buffer.
+    Out,
+}
+
+/// One buffer of a component, found by its name (`e11.q_est`) rather than through
+/// its type: what a link made from a spec needs. The derives write the lookup
+/// ([`Buffers::port`](crate::Buffers::port)) with the constructors of the link
+/// layer ([`BufferPort::input`], [`BufferPort::output`], [`BufferPort::in_group`],
+/// [`BufferPort::out_group`]); the system builder checks that both ends carry the
+/// same payload type and makes the same typed link plan as
+/// [`SystemBuilder::connect`](crate::SystemBuilder::connect) does.
+pub struct BufferPort {
+    pub(crate) name: &'static str,
+    pub(crate) peer: Option<NodeKind>,
+    pub(crate) direction: Direction,
+    pub(crate) payload: TypeId,
+    pub(crate) payload_name: &'static str,
+    /// The link layer's typed plan makers, erased: buffers and their descriptions
+    /// name this type without depending on links.
+    pub(crate) plans: Box<dyn Any>,
+}
+
+impl fmt::Debug for BufferPort {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "BufferPort({} {:?}: {})",
+            self.name, self.direction, self.payload_name
+        )
+    }
+}
+
+impl BufferPort {
+    /// The buffer's path (`e11.q_est`).
+    pub fn name(&self) -> &'static str {
+        self.name
+    }
+
+    /// The peer kind declared by its group, if any.
+    pub fn peer(&self) -> Option<NodeKind> {
+        self.peer
+    }
+
+    /// Input or output.
+    pub fn direction(&self) -> Direction {
+        self.direction
+    }
+
+    /// The payload's Rust type name.
+    pub fn payload_name(&self) -> &'static str {
+        self.payload_name
+    }
+
+    pub(crate) fn payload(&self) -> TypeId {
+        self.payload
     }
 }
 

@@ -19,9 +19,8 @@
 
 use std::fmt;
 
-use crate::buffer::{In, Out};
+use crate::buffer::{BufferPort, Direction, In, Out};
 use crate::kinds::NodeKind;
-use crate::link::BufferPort;
 
 /// A memory field or a buffer: its name and its Rust type as written in the source.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -49,14 +48,6 @@ impl Fields for () {
     const FIELDS: &'static [Field] = &[];
 }
 
-/// Whether a buffer is an input or an output.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Direction {
-    /// An [`In`] buffer.
-    In,
-    /// An [`Out`] buffer.
-    Out,
-}
 
 /// [`In`] and [`Out`]: the two kinds of buffer field.
 pub trait Buffer {
@@ -244,38 +235,6 @@ pub struct Shape {
     pub inputs: &'static [GroupShape],
     /// The output groups.
     pub outputs: &'static [GroupShape],
-}
-
-impl Shape {
-    /// The shape of a subsystem whose memory, inputs and outputs are described.
-    pub const fn of_subsystem<S>() -> Shape
-    where
-        S: crate::Subsystem,
-        S::Memory: Fields,
-        S::Input: Buffers,
-        S::Output: Buffers,
-    {
-        Shape {
-            memory: Some(<S::Memory as Fields>::FIELDS),
-            inputs: <S::Input as Buffers>::GROUPS,
-            outputs: <S::Output as Buffers>::GROUPS,
-        }
-    }
-
-    /// The shape of a driver whose inputs and outputs are described:
-    /// `fn shape() -> Option<Shape> { Some(Shape::of_driver::<Self>()) }`.
-    pub const fn of_driver<D>() -> Shape
-    where
-        D: crate::Driver,
-        D::Input: Buffers,
-        D::Output: Buffers,
-    {
-        Shape {
-            memory: None,
-            inputs: <D::Input as Buffers>::GROUPS,
-            outputs: <D::Output as Buffers>::GROUPS,
-        }
-    }
 }
 
 #[cfg(test)]

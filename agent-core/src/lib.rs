@@ -42,8 +42,8 @@ pub mod trace;
 pub mod transition;
 
 pub use behaviour::Behaviour;
-pub use buffer::{Group, In, Out, Payload};
-pub use describe::{Buffers, Direction, Field, Fields, Fresh, GroupShape, PortTable, Shape};
+pub use buffer::{BufferPort, Direction, Group, In, Out, Payload};
+pub use describe::{Buffers, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use error::{
     ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,
     FsmError, FsmProblem, LinkError,
@@ -55,7 +55,7 @@ pub use fsm::{
     Step,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
-pub use link::{Access, BufferPort, LinkId, LinkStats, Port};
+pub use link::{Access, LinkId, LinkStats, Port};
 pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
     AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,

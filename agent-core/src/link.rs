@@ -21,7 +21,7 @@ use std::fmt;
 use std::marker::PhantomData;
 use std::rc::Rc;
 
-use crate::buffer::{In, Out, Payload};
+use crate::buffer::{BufferPort, Direction, In, Out, Payload};
 use crate::error::LinkError;
 use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
@@ -151,17 +151,9 @@ macro_rules! port {
 // ---------------------------------------------------------------------------
 // Buffers found by name (links made from a spec)
 
-/// One buffer of a component, found by its name (`e11.q_est`) rather than through
-/// its type: what a link made from a spec needs. The derives write the lookup
-/// ([`Buffers::port`](crate::Buffers::port)); the system builder checks that both
-/// ends carry the same payload type and makes the same typed link plan as
-/// [`SystemBuilder::connect`](crate::SystemBuilder::connect) does.
-pub struct BufferPort {
-    name: &'static str,
-    peer: Option<NodeKind>,
-    direction: crate::describe::Direction,
-    payload: TypeId,
-    payload_name: &'static str,
+/// What the link layer keeps in a [`BufferPort`]: how to make the link's channel
+/// and the typed plan of this end.
+struct PlanMakers {
     channel: fn(Policy) -> Box<dyn ChannelPlan>,
     plan: PlanMaker,
 }
@@ -171,16 +163,8 @@ enum PlanMaker {
     In(Box<dyn Fn(usize, Cow<'static, str>) -> Box<dyn InPlan>>),
 }
 
-impl fmt::Debug for BufferPort {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "BufferPort({} {:?}: {})",
-            self.name, self.direction, self.payload_name
-        )
-    }
-}
-
+/// The link layer's constructors of [`BufferPort`] (defined with the buffers, so
+/// that describing buffers does not depend on links).
 impl BufferPort {
     /// The output buffer `port` of struct `O`.
     pub fn output<O, T, A>(port: Port<O, Out<T>, A>) -> BufferPort
@@ -192,16 +176,18 @@ impl BufferPort {
         BufferPort {
             name: port.name,
             peer: port.peer,
-            direction: crate::describe::Direction::Out,
+            direction: Direction::Out,
             payload: TypeId::of::<T>(),
             payload_name: std::any::type_name::<T>(),
-            channel: channel_plan::<T>,
-            plan: PlanMaker::Out(Box::new(move |link| {
-                Box::new(TypedOutPlan {
-                    port,
-                    links: vec![link],
-                })
-            })),
+            plans: Box::new(PlanMakers {
+                channel: channel_plan::<T>,
+                plan: PlanMaker::Out(Box::new(move |link| {
+                    Box::new(TypedOutPlan {
+                        port,
+                        links: vec![link],
+                    })
+                })),
+            }),
         }
     }
 
@@ -215,13 +201,15 @@ impl BufferPort {
         BufferPort {
             name: port.name,
             peer: port.peer,
-            direction: crate::describe::Direction::In,
+            direction: Direction::In,
             payload: TypeId::of::<T>(),
             payload_name: std::any::type_name::<T>(),
-            channel: channel_plan::<T>,
-            plan: PlanMaker::In(Box::new(move |link, name| {
-                Box::new(TypedInPlan { port, link, name })
-            })),
+            plans: Box::new(PlanMakers {
+                channel: channel_plan::<T>,
+                plan: PlanMaker::In(Box::new(move |link, name| {
+                    Box::new(TypedInPlan { port, link, name })
+                })),
+            }),
         }
     }
 
@@ -264,43 +252,25 @@ impl BufferPort {
         ))
     }
 
-    /// The buffer's path (`e11.q_est`).
-    pub fn name(&self) -> &'static str {
-        self.name
+    fn makers(&self) -> Option<&PlanMakers> {
+        self.plans.downcast_ref()
     }
 
-    /// The peer kind declared by its group, if any.
-    pub fn peer(&self) -> Option<NodeKind> {
-        self.peer
-    }
-
-    /// Input or output.
-    pub fn direction(&self) -> crate::describe::Direction {
-        self.direction
-    }
-
-    /// The payload's Rust type name.
-    pub fn payload_name(&self) -> &'static str {
-        self.payload_name
-    }
-
-    pub(crate) fn payload(&self) -> TypeId {
-        self.payload
-    }
-
-    pub(crate) fn channel(&self, policy: Policy) -> Box<dyn ChannelPlan> {
-        (self.channel)(policy)
+    /// The channel of a link from this buffer (`None` only for a port not made
+    /// by these constructors, which cannot be).
+    pub(crate) fn channel(&self, policy: Policy) -> Option<Box<dyn ChannelPlan>> {
+        Some((self.makers()?.channel)(policy))
     }
 
     pub(crate) fn out_plan(&self, link: usize) -> Option<Box<dyn OutPlan>> {
-        match &self.plan {
+        match &self.makers()?.plan {
             PlanMaker::Out(make) => Some(make(link)),
             PlanMaker::In(_) => None,
         }
     }
 
     pub(crate) fn in_plan(&self, link: usize, name: Cow<'static, str>) -> Option<Box<dyn InPlan>> {
-        match &self.plan {
+        match &self.makers()?.plan {
             PlanMaker::In(make) => Some(make(link, name)),
             PlanMaker::Out(_) => None,
         }

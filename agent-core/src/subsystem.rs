@@ -3,7 +3,7 @@
 use std::any::Any;
 use std::fmt;
 
-use crate::describe::{Fresh, PortTable, Shape};
+use crate::describe::{Buffers, Fields, Fresh, PortTable, Shape};
 use crate::error::DriverError;
 use crate::kinds::{DeviceKind, SubsystemKind};
 use crate::time::{Period, Time};
@@ -177,4 +177,38 @@ pub trait Driver: Send + 'static {
         input: &Self::Input,
         output: &mut Self::Output,
     ) -> Result<(), DriverError>;
+}
+
+// Defined here rather than with `Shape`, so that descriptions do not depend on the
+// component traits.
+impl Shape {
+    /// The shape of a subsystem whose memory, inputs and outputs are described.
+    pub const fn of_subsystem<S>() -> Shape
+    where
+        S: Subsystem,
+        S::Memory: Fields,
+        S::Input: Buffers,
+        S::Output: Buffers,
+    {
+        Shape {
+            memory: Some(<S::Memory as Fields>::FIELDS),
+            inputs: <S::Input as Buffers>::GROUPS,
+            outputs: <S::Output as Buffers>::GROUPS,
+        }
+    }
+
+    /// The shape of a driver whose inputs and outputs are described:
+    /// `fn shape() -> Option<Shape> { Some(Shape::of_driver::<Self>()) }`.
+    pub const fn of_driver<D>() -> Shape
+    where
+        D: Driver,
+        D::Input: Buffers,
+        D::Output: Buffers,
+    {
+        Shape {
+            memory: None,
+            inputs: <D::Input as Buffers>::GROUPS,
+            outputs: <D::Output as Buffers>::GROUPS,
+        }
+    }
 }

@@ -22,7 +22,8 @@ use crate::describe::PortTable;
 use crate::error::{BuildError, BuildProblem};
 use crate::fsm::Fsm;
 use crate::kinds::{NodeKind, Policy};
-use crate::link::{Access, BufferPort, ChannelPlan, InPlan, LinkId, OutPlan, Port};
+use crate::buffer::BufferPort;
+use crate::link::{Access, ChannelPlan, InPlan, LinkId, OutPlan, Port};
 use crate::node::{DriverCore, NodeSeed, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
 use crate::time::Period;
@@ -448,6 +449,21 @@ impl SystemBuilder {
     ) -> LinkId {
         let link = self.info.links.len();
         let name = self.link_name(src, out.name(), dst, inp.name());
+        // A zero bound is reported below; the channel gets capacity 1 so that the
+        // executor never sees an impossible queue.
+        let safe_policy = match policy {
+            Policy::Queue { bound: 0 } => Policy::queue(1),
+            p => p,
+        };
+        // Only the link layer's constructors make `BufferPort`s, and they always
+        // carry their plans; a port without them makes no link and fails the build.
+        let Some(channel) = out.channel(safe_policy) else {
+            self.problems.push(BuildProblem::Structure {
+                link: name,
+                reason: format!("`{}` carries no link plan", out.name()),
+            });
+            return LinkId(link);
+        };
         let dst_name = self
             .info
             .nodes
@@ -479,13 +495,7 @@ impl SystemBuilder {
         if let Some(plan) = inp.in_plan(link, Cow::Owned(format!("{dst_name}.{}", inp.name()))) {
             self.ins.push((dst, plan));
         }
-        // A zero bound was reported above; the channel gets capacity 1 so that the
-        // executor never sees an impossible queue.
-        let safe_policy = match policy {
-            Policy::Queue { bound: 0 } => Policy::queue(1),
-            p => p,
-        };
-        self.channels.push(out.channel(safe_policy));
+        self.channels.push(channel);
         self.info.links.push(LinkInfo {
             name,
             from: src,
