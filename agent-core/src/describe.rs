@@ -48,7 +48,6 @@ impl Fields for () {
     const FIELDS: &'static [Field] = &[];
 }
 
-
 /// [`In`] and [`Out`]: the two kinds of buffer field.
 pub trait Buffer {
     /// Input or output.

@@ -33,6 +33,7 @@ pub mod kinds;
 pub mod link;
 pub mod names;
 mod node;
+pub mod realtime;
 pub mod subsystem;
 pub mod system;
 #[cfg(feature = "testing")]
@@ -56,6 +57,7 @@ pub use fsm::{
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
 pub use link::{Access, LinkId, LinkStats, Port};
+pub use realtime::{Finished, RealTime, RtConfig, RtError, RtReport, Running, StopHandle};
 pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
     AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,

@@ -54,6 +54,9 @@ pub(crate) trait InProcessNode {
     fn iteration(&self) -> u64;
     fn as_any(&self) -> &dyn Any;
     fn as_any_mut(&mut self) -> &mut dyn Any;
+    /// The node's core (buffers, memory and FSM, or the device) without its
+    /// ports: what a thread of the real-time executor hands back when it ends.
+    fn into_core(self: Box<Self>) -> Box<dyn Any + Send>;
 }
 
 /// What every node has, whatever the transport: buffers and a way to compute.
@@ -229,6 +232,10 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
 
     fn as_any_mut(&mut self) -> &mut dyn Any {
         self
+    }
+
+    fn into_core(self: Box<Self>) -> Box<dyn Any + Send> {
+        Box::new(self.core)
     }
 }
 

@@ -17,12 +17,12 @@ use std::collections::HashMap;
 use std::fmt;
 use std::marker::PhantomData;
 
+use crate::buffer::BufferPort;
 use crate::buffer::{In, Out, Payload};
 use crate::describe::PortTable;
 use crate::error::{BuildError, BuildProblem};
 use crate::fsm::Fsm;
 use crate::kinds::{NodeKind, Policy};
-use crate::buffer::BufferPort;
 use crate::link::{Access, ChannelPlan, InPlan, LinkId, OutPlan, Port};
 use crate::node::{DriverCore, NodeSeed, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};

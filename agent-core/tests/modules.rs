@@ -101,7 +101,11 @@ fn root_items(lib: &str) -> BTreeMap<String, String> {
 }
 
 /// The modules a file's code names.
-fn uses(code: &str, modules: &BTreeSet<String>, items: &BTreeMap<String, String>) -> BTreeSet<String> {
+fn uses(
+    code: &str,
+    modules: &BTreeSet<String>,
+    items: &BTreeMap<String, String>,
+) -> BTreeSet<String> {
     let mut found = BTreeSet::new();
     let mut rest = code;
     while let Some(i) = rest.find("crate::") {
@@ -211,10 +215,10 @@ fn find_circle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>
     }
     let mut marks = BTreeMap::new();
     for m in graph.keys() {
-        if marks.get(m.as_str()).copied().unwrap_or(Mark::New) == Mark::New {
-            if let Some(c) = visit(m, graph, &mut marks, &mut Vec::new()) {
-                return Some(c);
-            }
+        if marks.get(m.as_str()).copied().unwrap_or(Mark::New) == Mark::New
+            && let Some(c) = visit(m, graph, &mut marks, &mut Vec::new())
+        {
+            return Some(c);
         }
     }
     None
@@ -257,7 +261,9 @@ fn the_reader_finds_a_circle_and_paths_through_the_root() {
     assert_eq!(items.get("Gamma").map(String::as_str), Some("c"));
     let modules: BTreeSet<String> = ["a", "c"].map(String::from).into();
     let found = uses(
-        &code("use crate::{Gamma, a::X};\n// crate::zzz\nfn f() -> crate::Alpha { $crate::c::y() }"),
+        &code(
+            "use crate::{Gamma, a::X};\n// crate::zzz\nfn f() -> crate::Alpha { $crate::c::y() }",
+        ),
         &modules,
         &items,
     );

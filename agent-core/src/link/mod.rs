@@ -27,6 +27,12 @@ use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, TransferEvent};
 
+pub(crate) mod thread;
+
+/// The halves of links between threads, by link index: each thread of the
+/// real-time executor gets those of its own nodes' ports.
+pub(crate) type ThreadHalves = Vec<Option<Box<dyn Any + Send>>>;
+
 /// Identifies a link of a system (its index in declaration order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct LinkId(pub(crate) usize);
@@ -565,6 +571,9 @@ pub(crate) trait OutPlan: Send {
     fn add_link(&mut self, link: usize);
     /// A `Box<dyn OutPort<O>>` for the in-process executor, erased as `Any`.
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
+    /// A `Box<dyn OutPort<O>>` over links between threads, erased as `Any`; takes
+    /// the sending halves of its links out of `txs`.
+    fn threaded(&self, txs: &mut ThreadHalves) -> Option<Box<dyn Any>>;
 }
 
 pub(crate) struct TypedOutPlan<O, T, A> {
@@ -593,12 +602,30 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
         });
         Some(Box::new(port))
     }
+    fn threaded(&self, txs: &mut ThreadHalves) -> Option<Box<dyn Any>> {
+        let links = self
+            .links
+            .iter()
+            .map(|&l| {
+                let tx = txs.get_mut(l)?.take()?;
+                Some((l, *tx.downcast::<thread::ThreadTx<T>>().ok()?))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let port: Box<dyn OutPort<O>> = Box::new(thread::ThreadOut {
+            port: self.port,
+            links,
+        });
+        Some(Box::new(port))
+    }
 }
 
 /// The typed receiving half of a link.
 pub(crate) trait InPlan: Send {
     /// A `Box<dyn InPort<I>>` for the in-process executor, erased as `Any`.
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
+    /// A `Box<dyn InPort<I>>` over a link between threads, erased as `Any`; takes
+    /// the receiving half of its link out of `rxs`.
+    fn threaded(&self, rxs: &mut ThreadHalves) -> Option<Box<dyn Any>>;
 }
 
 pub(crate) struct TypedInPlan<I, T, A> {
@@ -616,11 +643,29 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
         });
         Some(Box::new(port))
     }
+    fn threaded(&self, rxs: &mut ThreadHalves) -> Option<Box<dyn Any>> {
+        let rx = rxs.get_mut(self.link)?.take()?;
+        let port: Box<dyn InPort<I>> = Box::new(thread::ThreadIn {
+            port: self.port,
+            rx: *rx.downcast::<thread::ThreadRx<T>>().ok()?,
+            name: self.name.clone(),
+        });
+        Some(Box::new(port))
+    }
 }
 
 /// Makes the in-process channel of one link.
 pub(crate) trait ChannelPlan: Send {
     fn local(&self) -> (Box<dyn Any>, Rc<RefCell<dyn AnyChannel>>);
+    /// The two halves of a link between threads (a `ThreadTx<T>` and a
+    /// `ThreadRx<T>`, erased) and its counters.
+    fn threaded(
+        &self,
+    ) -> (
+        Box<dyn Any + Send>,
+        Box<dyn Any + Send>,
+        std::sync::Arc<thread::SharedStats>,
+    );
 }
 
 struct TypedChannelPlan<T> {
@@ -633,6 +678,16 @@ impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
         let shared: Shared<T> = Rc::new(RefCell::new(Channel::new(self.policy)));
         let stats: Rc<RefCell<dyn AnyChannel>> = shared.clone();
         (Box::new(shared), stats)
+    }
+    fn threaded(
+        &self,
+    ) -> (
+        Box<dyn Any + Send>,
+        Box<dyn Any + Send>,
+        std::sync::Arc<thread::SharedStats>,
+    ) {
+        let (tx, rx, stats) = thread::channel::<T>(self.policy);
+        (Box::new(tx), Box::new(rx), stats)
     }
 }
 

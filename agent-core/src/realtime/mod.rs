@@ -1,0 +1,696 @@
+//! The real-time executor: the same [`System`] as the deterministic [`Executor`]
+//! runs, unchanged, on threads against the wall clock.
+//!
+//! # Threads
+//!
+//! Every subsystem runs on a thread of its own. Drivers that share the system's
+//! environment ([`SystemBuilder::environment`]) run together on one thread, the
+//! world's, in the deterministic order (real receptors last in an instant), since
+//! the environment is theirs alone; without an environment each driver has its own
+//! thread.
+//!
+//! # Timing
+//!
+//! Each thread runs its nodes' instants `k·period` on absolute deadlines of one
+//! clock shared by every thread (`clock_nanosleep(TIMER_ABSTIME)` on Linux), so a
+//! late wake-up or a long activation never shifts later deadlines; an activation
+//! that ends after the node's next deadline is an overrun, and the next one starts
+//! at once. Nodes see the nominal instant as their time (`k·period`, as in the
+//! deterministic executor). With [`RtConfig::realtime`] each thread asks for
+//! `SCHED_FIFO` priority, higher for shorter periods (rate-monotonic), and the
+//! process locks its memory (`mlockall`); what the OS refuses is reported in
+//! [`RtReport`] and the run goes on without it.
+//!
+//! # Links
+//!
+//! Links between threads keep their policy without locks: a sample link is a
+//! wait-free triple buffer (latest value; values overwritten before they were
+//! read are counted), a queue link a wait-free bounded ring allocated once (a value
+//! refused by a full ring is an error, as in-process). Values move rather than
+//! copy, so `Copy` payloads never allocate after the start.
+//!
+//! # Watching a run
+//!
+//! Threads own their nodes, so the program watches through probes
+//! ([`RealTime::probe`], [`RealTime::probe_environment`]): a function called on the
+//! node's thread after each activation, whose results arrive on a bounded channel
+//! (results that find it full are counted in [`RtReport::probe_dropped`], never
+//! blocking the node). [`Running::stop`] ends the run; [`Running::join`] returns
+//! every node, the environment and the report ([`Finished`]).
+//!
+//! [`Executor`]: crate::Executor
+//! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
+
+mod clock;
+mod timing;
+mod worker;
+
+use std::any::Any;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::error::ExecError;
+use crate::executor::ExecConfig;
+use crate::kinds::NodeKind;
+use crate::link::thread::SharedStats;
+use crate::link::{LinkId, LinkStats, ThreadHalves};
+use crate::node::{Audited, DriverCore, SubsystemCore};
+use crate::subsystem::{Driver, Subsystem};
+use crate::system::{DriverHandle, SubsystemHandle, System};
+use crate::time::Time;
+use crate::trace::SystemInfo;
+
+pub use timing::{NodeTiming, Spread};
+
+/// Settings of the real-time executor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RtConfig {
+    /// Error policy, audit, as for the deterministic executor.
+    pub exec: ExecConfig,
+    /// Ask for `SCHED_FIFO` priority: the highest, given to the nodes of the
+    /// shortest period; each longer period one lower (never below 1). `None`:
+    /// ordinary threads.
+    pub priority: Option<u8>,
+    /// Lock the process's memory (`mlockall`) for the run.
+    pub lock_memory: bool,
+    /// Time given to the threads to start before instant zero.
+    pub lead: Duration,
+    /// Capacity of each probe's channel.
+    pub probe_capacity: usize,
+}
+
+impl Default for RtConfig {
+    /// Ordinary threads on absolute deadlines, no memory locking.
+    fn default() -> Self {
+        RtConfig {
+            exec: ExecConfig::default(),
+            priority: None,
+            lock_memory: false,
+            lead: Duration::from_millis(20),
+            probe_capacity: 4096,
+        }
+    }
+}
+
+impl RtConfig {
+    /// As on a robot: `SCHED_FIFO` priorities from 80 down, memory locked.
+    pub fn realtime() -> Self {
+        RtConfig {
+            priority: Some(80),
+            lock_memory: true,
+            ..RtConfig::default()
+        }
+    }
+}
+
+/// What the OS granted one thread.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ThreadReport {
+    /// The thread's name (a subsystem's name, or `world`).
+    pub name: String,
+    /// The FIFO priority asked for, if any.
+    pub priority_asked: Option<u8>,
+    /// Why it was refused, if it was.
+    pub priority_refused: Option<String>,
+}
+
+/// What a real-time run measured.
+#[derive(Debug, Default)]
+pub struct RtReport {
+    /// Each node's timing, in declaration order.
+    pub nodes: Vec<NodeTiming>,
+    /// Each thread and its priority.
+    pub threads: Vec<ThreadReport>,
+    /// `Some(Ok)`: memory was locked; `Some(Err(why))`: refused; `None`: not asked.
+    pub memory_locked: Option<Result<(), String>>,
+    /// Errors met (all of them under `OnError::Stop`, the first ones under
+    /// `Continue`).
+    pub errors: Vec<ExecError>,
+    /// All errors met.
+    pub error_count: u64,
+    /// Probe results that found their channel full.
+    pub probe_dropped: u64,
+    /// Wall-clock time from instant zero to the end.
+    pub wall: Duration,
+    /// The last instant executed.
+    pub last_instant: Time,
+}
+
+impl RtReport {
+    /// Whether every thread got the real-time priority it asked for (false when
+    /// none was asked).
+    pub fn rt_priority(&self) -> bool {
+        !self.threads.is_empty()
+            && self
+                .threads
+                .iter()
+                .all(|t| t.priority_asked.is_some() && t.priority_refused.is_none())
+    }
+
+    /// The timing of the node named `name`.
+    pub fn node(&self, name: &str) -> Option<&NodeTiming> {
+        self.nodes.iter().find(|n| n.name == name)
+    }
+}
+
+impl fmt::Display for RtReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{:<14} {:<10} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8}",
+            "node",
+            "thread",
+            "period_us",
+            "runs",
+            "jit_p50",
+            "jit_p99",
+            "jit_max",
+            "cpu_p50",
+            "cpu_p99",
+            "cpu_max",
+            "overruns"
+        )?;
+        for n in &self.nodes {
+            writeln!(
+                f,
+                "{:<14} {:<10} {:>9} {:>8} {} {} {:>8}",
+                n.name,
+                n.thread,
+                n.period.as_nanos() / 1000,
+                n.activations,
+                n.jitter,
+                n.compute,
+                n.overruns
+            )?;
+        }
+        for t in &self.threads {
+            match (&t.priority_asked, &t.priority_refused) {
+                (None, _) => writeln!(f, "thread {}: ordinary priority", t.name)?,
+                (Some(p), None) => writeln!(f, "thread {}: SCHED_FIFO {p}", t.name)?,
+                (Some(_), Some(why)) => {
+                    writeln!(f, "thread {}: ordinary priority (fallback: {why})", t.name)?
+                }
+            }
+        }
+        match &self.memory_locked {
+            Some(Ok(())) => writeln!(f, "memory locked")?,
+            Some(Err(why)) => writeln!(f, "memory not locked (fallback: {why})")?,
+            None => {}
+        }
+        if self.probe_dropped > 0 {
+            writeln!(f, "probe results dropped: {}", self.probe_dropped)?;
+        }
+        write!(
+            f,
+            "errors: {}; wall {:.3} s to instant {}",
+            self.error_count,
+            self.wall.as_secs_f64(),
+            self.last_instant
+        )
+    }
+}
+
+/// A system prepared for a real-time run: add probes, then [`RealTime::start`].
+pub struct RealTime {
+    system: System,
+    config: RtConfig,
+    probes: Vec<(Option<usize>, worker::Probe)>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl fmt::Debug for RealTime {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("RealTime")
+            .field("nodes", &self.system.info.nodes.len())
+            .field("config", &self.config)
+            .finish()
+    }
+}
+
+/// Stops a running real-time system (from any thread, a signal handler's flag
+/// watcher, or a probe's consumer).
+#[derive(Clone, Debug)]
+pub struct StopHandle(Arc<AtomicBool>);
+
+impl StopHandle {
+    /// Ask every thread to end after its current instant.
+    pub fn stop(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether a stop was asked (or an error stopped the run).
+    pub fn is_stopped(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// Why a real-time run could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RtError {
+    /// The OS refused a thread.
+    #[error("cannot start thread `{thread}`: {source}")]
+    Spawn {
+        /// The thread's name.
+        thread: String,
+        /// The OS's reason.
+        source: std::io::Error,
+    },
+    /// A thread panicked (a bug in a node; its nodes are lost).
+    #[error("thread `{0}` panicked")]
+    Panicked(String),
+}
+
+fn send_or_count<M>(tx: &SyncSender<M>, m: M, dropped: &AtomicU64) {
+    if let Err(TrySendError::Full(_)) = tx.try_send(m) {
+        dropped.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+impl RealTime {
+    /// Prepare `system` for a real-time run.
+    pub fn new(system: System, config: RtConfig) -> Self {
+        RealTime {
+            system,
+            config,
+            probes: Vec::new(),
+            dropped: Arc::new(AtomicU64::new(0)),
+        }
+    }
+
+    /// Names, kinds, periods and links.
+    pub fn info(&self) -> &SystemInfo {
+        &self.system.info
+    }
+
+    /// Watch subsystem `h`: after each of its activations, on its thread, `f` sees
+    /// the instant, its memory and its inputs; what it returns arrives on the
+    /// receiver.
+    pub fn probe<S, M, F>(&mut self, h: &SubsystemHandle<S>, mut f: F) -> Receiver<M>
+    where
+        S: Subsystem,
+        M: Send + 'static,
+        F: FnMut(Time, &S::Memory, &S::Input) -> Option<M> + Send + 'static,
+    {
+        let (tx, rx) = sync_channel(self.config.probe_capacity);
+        let dropped = self.dropped.clone();
+        let node = h.id().index();
+        let probe = worker::Probe::Node(
+            node,
+            Box::new(move |t, any: &dyn Any| {
+                if let Some(core) = subsystem_core::<S>(any)
+                    && let Some(m) = f(t, &core.memory, &core.input)
+                {
+                    send_or_count(&tx, m, &dropped);
+                }
+            }),
+        );
+        self.probes.push((Some(node), probe));
+        rx
+    }
+
+    /// Watch the environment (of type `W`): after each instant of the world's
+    /// thread, `f` sees the instant and the environment.
+    pub fn probe_environment<W, M, F>(&mut self, mut f: F) -> Receiver<M>
+    where
+        W: Any,
+        M: Send + 'static,
+        F: FnMut(Time, &W) -> Option<M> + Send + 'static,
+    {
+        let (tx, rx) = sync_channel(self.config.probe_capacity);
+        let dropped = self.dropped.clone();
+        let probe = worker::Probe::Environment(Box::new(move |t, any: &dyn Any| {
+            if let Some(w) = any.downcast_ref::<W>()
+                && let Some(m) = f(t, w)
+            {
+                send_or_count(&tx, m, &dropped);
+            }
+        }));
+        self.probes.push((None, probe));
+        rx
+    }
+
+    /// Start the threads and run for at most `limit` (until stopped, or until
+    /// every node halted, if that comes first).
+    pub fn start(self, limit: Duration) -> Result<Running, RtError> {
+        let RealTime {
+            system,
+            config,
+            probes,
+            dropped,
+        } = self;
+        let System {
+            info,
+            nodes,
+            outs,
+            ins,
+            channels,
+            environment,
+        } = system;
+        let n = nodes.len();
+        // Threads: one per subsystem; the drivers together if they share an
+        // environment, else one each.
+        let has_env = environment.is_some();
+        let mut thread_of = vec![0usize; n];
+        let mut names: Vec<String> = Vec::new();
+        let mut world = None;
+        for (i, node) in info.nodes.iter().enumerate() {
+            let is_driver = matches!(node.kind, NodeKind::RealEffector | NodeKind::RealReceptor);
+            thread_of[i] = if is_driver && has_env {
+                *world.get_or_insert_with(|| {
+                    names.push("world".to_owned());
+                    names.len() - 1
+                })
+            } else {
+                names.push(node.name.clone());
+                names.len() - 1
+            };
+        }
+        let threads = names.len();
+        // Rate-monotonic priorities: the shortest period of a thread ranks it.
+        let mut shortest = vec![u64::MAX; threads];
+        for (i, node) in info.nodes.iter().enumerate() {
+            let s = &mut shortest[thread_of[i]];
+            *s = (*s).min(node.period.as_nanos());
+        }
+        let mut distinct: Vec<u64> = shortest.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let priority_of = |th: usize| {
+            config.priority.map(|top| {
+                let rank = distinct
+                    .iter()
+                    .position(|p| *p == shortest[th])
+                    .unwrap_or(0);
+                let rank = u8::try_from(rank).unwrap_or(u8::MAX);
+                top.saturating_sub(rank).max(1)
+            })
+        };
+        // Link halves, to the threads of their ends.
+        let mut txs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
+        let mut rxs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
+        let mut stats: Vec<Arc<SharedStats>> = Vec::with_capacity(channels.len());
+        for (l, plan) in channels.iter().enumerate() {
+            let (tx, rx, s) = plan.threaded();
+            let link = &info.links[l];
+            txs[thread_of[link.from]][l] = Some(tx);
+            rxs[thread_of[link.to]][l] = Some(rx);
+            stats.push(s);
+        }
+        let mut works: Vec<worker::Work> = names
+            .iter()
+            .enumerate()
+            .map(|(th, name)| worker::Work {
+                name: name.clone(),
+                nodes: Vec::new(),
+                seeds: Vec::new(),
+                outs: Vec::new(),
+                ins: Vec::new(),
+                txs: std::mem::take(&mut txs[th]),
+                rxs: std::mem::take(&mut rxs[th]),
+                environment: None,
+                priority: priority_of(th),
+                probes: Vec::new(),
+            })
+            .collect();
+        // Nodes in stepping order: declaration order, real receptors last.
+        let mut seeds: Vec<Option<Box<dyn crate::node::NodeSeed>>> =
+            nodes.into_iter().map(Some).collect();
+        let (mut order, receptors): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
+        order.extend(receptors);
+        for i in order {
+            if let Some(seed) = seeds[i].take() {
+                let w = &mut works[thread_of[i]];
+                w.nodes.push(i);
+                w.seeds.push(seed);
+            }
+        }
+        for (node, plan) in outs {
+            works[thread_of[node]].outs.push((node, plan));
+        }
+        for (node, plan) in ins {
+            works[thread_of[node]].ins.push((node, plan));
+        }
+        if let Some(w) = world {
+            works[w].environment = environment;
+        }
+        for (node, probe) in probes {
+            let th = match node {
+                Some(i) => thread_of[i],
+                None => world.unwrap_or(0),
+            };
+            if let Some(w) = works.get_mut(th) {
+                w.probes.push(probe);
+            }
+        }
+        let memory_locked = config.lock_memory.then(clock::lock_memory);
+        let stop = Arc::new(AtomicBool::new(false));
+        let clock = clock::Clock::starting_in(config.lead);
+        let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
+        let shared = Arc::new(worker::Shared {
+            info: info.clone(),
+            clock,
+            stop: stop.clone(),
+            end,
+            config: config.exec,
+            errors: AtomicU64::new(0),
+        });
+        let mut handles = Vec::with_capacity(works.len());
+        for work in works {
+            let name = work.name.clone();
+            let shared = shared.clone();
+            let spawned = std::thread::Builder::new()
+                .name(format!("rt-{name}"))
+                .spawn(move || worker::run(work, &shared));
+            match spawned {
+                Ok(h) => handles.push((name, h)),
+                Err(source) => {
+                    stop.store(true, Ordering::Relaxed);
+                    for (_, h) in handles {
+                        let _ = h.join();
+                    }
+                    if memory_locked.is_some() {
+                        clock::unlock_memory();
+                    }
+                    return Err(RtError::Spawn {
+                        thread: name,
+                        source,
+                    });
+                }
+            }
+        }
+        Ok(Running {
+            info,
+            handles,
+            stop: StopHandle(stop),
+            shared,
+            stats,
+            dropped,
+            memory_locked,
+            started: Instant::now(),
+            lead: config.lead,
+        })
+    }
+}
+
+fn empty(n: usize) -> ThreadHalves {
+    (0..n).map(|_| None).collect()
+}
+
+fn subsystem_core<S: Subsystem>(any: &dyn Any) -> Option<&SubsystemCore<S>> {
+    use crate::node::InProcess;
+    any.downcast_ref::<InProcess<SubsystemCore<S>>>()
+        .map(|l| &l.core)
+        .or_else(|| {
+            any.downcast_ref::<InProcess<Audited<SubsystemCore<S>>>>()
+                .map(|l| &l.core.0)
+        })
+        .or_else(|| any.downcast_ref::<SubsystemCore<S>>())
+        .or_else(|| {
+            any.downcast_ref::<Audited<SubsystemCore<S>>>()
+                .map(|a| &a.0)
+        })
+}
+
+/// A real-time run in progress.
+pub struct Running {
+    info: SystemInfo,
+    handles: Vec<(String, JoinHandle<worker::Done>)>,
+    stop: StopHandle,
+    shared: Arc<worker::Shared>,
+    stats: Vec<Arc<SharedStats>>,
+    dropped: Arc<AtomicU64>,
+    memory_locked: Option<Result<(), String>>,
+    started: Instant,
+    lead: Duration,
+}
+
+impl fmt::Debug for Running {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Running")
+            .field("threads", &self.handles.len())
+            .finish()
+    }
+}
+
+impl Running {
+    /// A handle that stops the run.
+    pub fn stop_handle(&self) -> StopHandle {
+        self.stop.clone()
+    }
+
+    /// Ask every thread to end after its current instant.
+    pub fn stop(&self) {
+        self.stop.stop();
+    }
+
+    /// Whether every thread has ended (limit reached, stopped, or every node
+    /// halted).
+    pub fn is_finished(&self) -> bool {
+        self.handles.iter().all(|(_, h)| h.is_finished())
+    }
+
+    /// Errors met so far.
+    pub fn error_count(&self) -> u64 {
+        self.shared.errors.load(Ordering::Relaxed)
+    }
+
+    /// Counters of a link, while the run goes on.
+    pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
+        self.stats.get(link.index()).map(|s| s.snapshot())
+    }
+
+    /// Names, kinds, periods and links.
+    pub fn info(&self) -> &SystemInfo {
+        &self.info
+    }
+
+    /// Wait for every thread to end (stop first to end early).
+    pub fn join(self) -> Result<Finished, RtError> {
+        let mut cores: BTreeMap<usize, Box<dyn Any + Send>> = BTreeMap::new();
+        let mut environment = None;
+        let mut report = RtReport {
+            memory_locked: self.memory_locked.clone(),
+            ..RtReport::default()
+        };
+        let mut timings = Vec::new();
+        let mut panicked = None;
+        for (name, h) in self.handles {
+            match h.join() {
+                Ok(done) => {
+                    cores.extend(done.cores);
+                    if done.environment.is_some() {
+                        environment = done.environment;
+                    }
+                    timings.extend(done.timings);
+                    report.errors.extend(done.errors);
+                    report.last_instant = report.last_instant.max(done.last);
+                    report.threads.push(ThreadReport {
+                        name: done.name,
+                        priority_asked: done.priority.as_ref().map(|(p, _)| *p),
+                        priority_refused: done.priority.and_then(|(_, r)| r.err()),
+                    });
+                }
+                Err(_) => {
+                    panicked.get_or_insert(name);
+                }
+            }
+        }
+        if self.memory_locked.as_ref().is_some_and(Result::is_ok) {
+            clock::unlock_memory();
+        }
+        if let Some(name) = panicked {
+            return Err(RtError::Panicked(name));
+        }
+        timings.sort_by_key(|(g, _)| *g);
+        report.nodes = timings.into_iter().map(|(_, t)| t).collect();
+        report.error_count = self.shared.errors.load(Ordering::Relaxed);
+        report.probe_dropped = self.dropped.load(Ordering::Relaxed);
+        report.wall = self.started.elapsed().saturating_sub(self.lead);
+        Ok(Finished {
+            info: self.info,
+            cores,
+            environment,
+            links: self.stats.iter().map(|s| s.snapshot()).collect(),
+            report,
+        })
+    }
+}
+
+/// A real-time run that ended: its nodes, environment, links and report.
+pub struct Finished {
+    info: SystemInfo,
+    cores: BTreeMap<usize, Box<dyn Any + Send>>,
+    environment: Option<Box<dyn Any + Send>>,
+    links: Vec<LinkStats>,
+    report: RtReport,
+}
+
+impl fmt::Debug for Finished {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Finished")
+            .field("report", &self.report)
+            .finish()
+    }
+}
+
+impl Finished {
+    /// What the run measured.
+    pub fn report(&self) -> &RtReport {
+        &self.report
+    }
+
+    /// Names, kinds, periods and links.
+    pub fn info(&self) -> &SystemInfo {
+        &self.info
+    }
+
+    fn core(&self, node: usize) -> Option<&dyn Any> {
+        self.cores.get(&node).map(|c| &**c as &dyn Any)
+    }
+
+    /// The memory of a subsystem at the end.
+    pub fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
+        subsystem_core::<S>(self.core(h.id().index())?).map(|c| &c.memory)
+    }
+
+    /// The name of the behaviour a subsystem ended in.
+    pub fn behaviour<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&str> {
+        subsystem_core::<S>(self.core(h.id().index())?)
+            .map(|c| c.fsm.behaviour_name(c.state.behaviour()))
+    }
+
+    /// Whether a subsystem ended halted (final behaviour, or an FSM error).
+    pub fn is_halted<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> bool {
+        self.core(h.id().index())
+            .and_then(subsystem_core::<S>)
+            .is_some_and(|c| c.state.is_halted())
+    }
+
+    /// A driver's device at the end.
+    pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
+        self.core(h.id().index())?
+            .downcast_ref::<DriverCore<D>>()
+            .map(|c| &c.driver)
+    }
+
+    /// The system's environment at the end.
+    pub fn environment<W: Any>(&self) -> Option<&W> {
+        self.environment.as_deref()?.downcast_ref()
+    }
+
+    /// The number of activations a node executed.
+    pub fn activations(&self, node: crate::NodeId) -> Option<u64> {
+        self.report.nodes.get(node.index()).map(|t| t.activations)
+    }
+
+    /// Counters of a link.
+    pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
+        self.links.get(link.index()).copied()
+    }
+}

@@ -1,0 +1,128 @@
+//! What the real-time executor measures of each node: wake-up jitter, compute
+//! time, overruns. Recorded into fixed histograms (`hdrhistogram`, 2 significant
+//! digits, allocated when the thread starts), so measuring allocates nothing per
+//! period.
+
+use std::fmt;
+use std::time::Duration;
+
+use hdrhistogram::Histogram;
+
+use crate::time::Period;
+
+/// Percentiles of a duration over a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Spread {
+    /// Median.
+    pub p50: Duration,
+    /// 99th percentile.
+    pub p99: Duration,
+    /// Largest.
+    pub max: Duration,
+}
+
+impl fmt::Display for Spread {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let us = |d: Duration| d.as_secs_f64() * 1e6;
+        write!(
+            f,
+            "{:>9.1} {:>9.1} {:>9.1}",
+            us(self.p50),
+            us(self.p99),
+            us(self.max)
+        )
+    }
+}
+
+/// How one node kept its period.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NodeTiming {
+    /// The node's name.
+    pub name: String,
+    /// The thread it ran on.
+    pub thread: String,
+    /// Its period.
+    pub period: Period,
+    /// Activations executed.
+    pub activations: u64,
+    /// How late it woke after each deadline.
+    pub jitter: Spread,
+    /// How long each activation took (read, decision, action, send).
+    pub compute: Spread,
+    /// Activations that ended after the node's next deadline.
+    pub overruns: u64,
+}
+
+/// Histograms of one node, filled by its thread.
+pub(crate) struct Recorder {
+    jitter: Option<Histogram<u64>>,
+    compute: Option<Histogram<u64>>,
+    pub(crate) activations: u64,
+    pub(crate) overruns: u64,
+}
+
+/// Durations recorded are clamped to this (one minute), the histograms' range.
+const RANGE_NS: u64 = 60_000_000_000;
+
+impl Recorder {
+    pub(crate) fn new() -> Recorder {
+        let make = || Histogram::<u64>::new_with_bounds(1, RANGE_NS, 2).ok();
+        Recorder {
+            jitter: make(),
+            compute: make(),
+            activations: 0,
+            overruns: 0,
+        }
+    }
+
+    #[inline]
+    pub(crate) fn record(&mut self, jitter_ns: u64, compute_ns: u64) {
+        self.activations += 1;
+        if let Some(h) = &mut self.jitter {
+            h.saturating_record(jitter_ns.clamp(1, RANGE_NS));
+        }
+        if let Some(h) = &mut self.compute {
+            h.saturating_record(compute_ns.clamp(1, RANGE_NS));
+        }
+    }
+
+    pub(crate) fn finish(&self, name: String, thread: String, period: Period) -> NodeTiming {
+        let spread = |h: &Option<Histogram<u64>>| match h {
+            Some(h) if !h.is_empty() => Spread {
+                p50: Duration::from_nanos(h.value_at_quantile(0.5)),
+                p99: Duration::from_nanos(h.value_at_quantile(0.99)),
+                max: Duration::from_nanos(h.max()),
+            },
+            _ => Spread::default(),
+        };
+        NodeTiming {
+            name,
+            thread,
+            period,
+            activations: self.activations,
+            jitter: spread(&self.jitter),
+            compute: spread(&self.compute),
+            overruns: self.overruns,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_come_from_what_was_recorded() {
+        let mut r = Recorder::new();
+        for i in 1..=100u64 {
+            r.record(i * 1000, 5000);
+        }
+        let t = r.finish("n".into(), "t".into(), Period::from_millis(1).unwrap());
+        assert_eq!(t.activations, 100);
+        let near = |d: Duration, us: f64| (d.as_secs_f64() * 1e6 - us).abs() <= us * 0.02;
+        assert!(near(t.jitter.p50, 50.0), "{:?}", t.jitter);
+        assert!(near(t.jitter.p99, 99.0), "{:?}", t.jitter);
+        assert!(near(t.jitter.max, 100.0), "{:?}", t.jitter);
+        assert!(near(t.compute.max, 5.0), "{:?}", t.compute);
+    }
+}

@@ -1,0 +1,225 @@
+//! One thread of the real-time executor: its nodes, built on the thread with the
+//! ports of links between threads, run on absolute deadlines.
+//!
+//! Within a thread an instant runs as in the deterministic executor: the nodes due
+//! read, then step in order (real receptors last), each sending right after its
+//! step. Between threads, instants line up on the common clock; which thread
+//! reaches an instant first is up to the scheduler, as on a real robot.
+
+use std::any::Any;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use crate::error::ExecError;
+use crate::executor::{ExecConfig, OnError};
+use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves};
+use crate::node::{InProcessNode, NodeSeed, NodeStep};
+use crate::time::Time;
+use crate::trace::SystemInfo;
+
+use super::clock::{self, Clock};
+use super::timing::{NodeTiming, Recorder};
+
+/// A probe: called on the node's thread after each of its activations, with the
+/// node (or, for `Probe::Environment`, the environment).
+pub(crate) enum Probe {
+    Node(usize, ProbeFn),
+    Environment(ProbeFn),
+}
+
+/// What a probe calls: the instant and the node (or environment), erased.
+pub(crate) type ProbeFn = Box<dyn FnMut(Time, &dyn Any) + Send>;
+
+/// What a thread is given.
+pub(crate) struct Work {
+    pub(crate) name: String,
+    /// Global node indices, in stepping order (real receptors last).
+    pub(crate) nodes: Vec<usize>,
+    pub(crate) seeds: Vec<Box<dyn NodeSeed>>,
+    /// (global node index, plan).
+    pub(crate) outs: Vec<(usize, Box<dyn OutPlan>)>,
+    pub(crate) ins: Vec<(usize, Box<dyn InPlan>)>,
+    pub(crate) txs: ThreadHalves,
+    pub(crate) rxs: ThreadHalves,
+    pub(crate) environment: Option<Box<dyn Any + Send>>,
+    pub(crate) priority: Option<u8>,
+    pub(crate) probes: Vec<Probe>,
+}
+
+/// What the threads share.
+pub(crate) struct Shared {
+    pub(crate) info: SystemInfo,
+    pub(crate) clock: Clock,
+    pub(crate) stop: Arc<AtomicBool>,
+    /// Instants at or after this end the run (ns since the clock's origin).
+    pub(crate) end: u64,
+    pub(crate) config: ExecConfig,
+    pub(crate) errors: AtomicU64,
+}
+
+/// What a thread hands back.
+pub(crate) struct Done {
+    pub(crate) name: String,
+    /// (global node index, core).
+    pub(crate) cores: Vec<(usize, Box<dyn Any + Send>)>,
+    pub(crate) environment: Option<Box<dyn Any + Send>>,
+    pub(crate) timings: Vec<(usize, NodeTiming)>,
+    pub(crate) errors: Vec<ExecError>,
+    /// The priority asked for and what the OS said.
+    pub(crate) priority: Option<(u8, Result<(), String>)>,
+    /// The virtual time of the last instant executed.
+    pub(crate) last: Time,
+}
+
+pub(crate) fn run(work: Work, shared: &Shared) -> Done {
+    let Work {
+        name,
+        nodes: ids,
+        seeds,
+        outs,
+        ins,
+        mut txs,
+        mut rxs,
+        mut environment,
+        priority,
+        mut probes,
+    } = work;
+    let priority = priority.map(|p| (p, clock::set_fifo_priority(p)));
+    let info = &shared.info;
+    let position = |global: usize| ids.iter().position(|&g| g == global);
+    let mut nodes: Vec<Box<dyn InProcessNode>> = seeds
+        .into_iter()
+        .map(|s| s.into_in_process(shared.config.audit))
+        .collect();
+    // Handles and payload types were checked when the links were declared, and
+    // the halves were made from the same plans: installation cannot fail.
+    for (global, plan) in &outs {
+        let installed = position(*global).is_some_and(|k| {
+            plan.threaded(&mut txs)
+                .is_some_and(|port| nodes[k].install_out(port))
+        });
+        debug_assert!(installed, "output port type checked at connect()");
+    }
+    for (global, plan) in &ins {
+        let installed = position(*global).is_some_and(|k| {
+            plan.threaded(&mut rxs)
+                .is_some_and(|port| nodes[k].install_in(port))
+        });
+        debug_assert!(installed, "input port type checked at connect()");
+    }
+    let periods: Vec<u64> = ids
+        .iter()
+        .map(|&g| info.nodes[g].period.as_nanos())
+        .collect();
+    let mut next = vec![0u64; ids.len()];
+    let mut recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
+    let mut errors = Vec::new();
+    let mut last = Time::ZERO;
+    let clock = shared.clock;
+    loop {
+        if shared.stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let Some(t) = next.iter().copied().min().filter(|t| *t != u64::MAX) else {
+            break;
+        };
+        if t >= shared.end {
+            break;
+        }
+        clock.sleep_until(t);
+        let woke = clock.now();
+        let jitter = woke.saturating_sub(t);
+        let now = Time::from_nanos(t);
+        last = now;
+        let mut cx = LinkCx {
+            observer: None,
+            links: &info.links,
+            environment: None,
+        };
+        for (node, due) in nodes.iter_mut().zip(&next) {
+            if *due == t {
+                node.read(&mut cx);
+            }
+        }
+        let mut started = clock.now();
+        for k in 0..nodes.len() {
+            if next[k] != t {
+                continue;
+            }
+            let mut cx = LinkCx {
+                observer: None,
+                links: &info.links,
+                environment: environment.as_deref_mut(),
+            };
+            let result = nodes[k].step(now, ids[k], &mut cx);
+            let ended = clock.now();
+            recorders[k].record(jitter, ended.saturating_sub(started));
+            started = ended;
+            match result {
+                Ok(NodeStep::Ran) => next[k] = t.saturating_add(periods[k]),
+                Ok(NodeStep::Halted) => next[k] = u64::MAX,
+                Err(e) => {
+                    shared.errors.fetch_add(1, Ordering::Relaxed);
+                    match shared.config.on_error {
+                        OnError::Stop => {
+                            shared.stop.store(true, Ordering::Relaxed);
+                            errors.push(*e);
+                            next[k] = u64::MAX;
+                        }
+                        OnError::Continue => {
+                            if matches!(&*e, ExecError::Fsm { error, .. } if error.is_contract_violation())
+                            {
+                                nodes[k].halt();
+                                next[k] = u64::MAX;
+                            } else {
+                                next[k] = t.saturating_add(periods[k]);
+                            }
+                            if errors.len() < shared.config.max_recorded_errors {
+                                errors.push(*e);
+                            }
+                        }
+                    }
+                }
+            }
+            if next[k] != u64::MAX && ended > next[k] {
+                recorders[k].overruns += 1;
+            }
+            for probe in &mut probes {
+                match probe {
+                    Probe::Node(global, f) if *global == ids[k] => f(now, nodes[k].as_any()),
+                    _ => {}
+                }
+            }
+        }
+        if let Some(env) = environment.as_deref() {
+            for probe in &mut probes {
+                if let Probe::Environment(f) = probe {
+                    f(now, env);
+                }
+            }
+        }
+    }
+    let timings = ids
+        .iter()
+        .zip(&recorders)
+        .map(|(&g, r)| {
+            let n = &info.nodes[g];
+            (g, r.finish(n.name.clone(), name.clone(), n.period))
+        })
+        .collect();
+    let cores = ids
+        .iter()
+        .copied()
+        .zip(nodes)
+        .map(|(g, n)| (g, n.into_core()))
+        .collect();
+    Done {
+        name,
+        cores,
+        environment,
+        timings,
+        errors,
+        priority,
+        last,
+    }
+}

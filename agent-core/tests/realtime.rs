@@ -1,0 +1,228 @@
+//! The real-time executor runs the same systems as the deterministic one, on
+//! threads against the wall clock: link semantics between threads, the world's
+//! drivers together on one thread, every instant before the limit executed,
+//! probes, stopping, errors, and what the OS granted. No test asserts a duration:
+//! the machine's timing is not the code's.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+mod common;
+
+use std::time::Duration;
+
+use agent_core::*;
+use common::*;
+
+fn run(system: System, limit_ms: u64) -> Finished {
+    RealTime::new(system, RtConfig::default())
+        .start(Duration::from_millis(limit_ms))
+        .unwrap()
+        .join()
+        .unwrap()
+}
+
+#[test]
+fn a_queue_between_threads_delivers_every_value_in_order() {
+    let p = pair(1, 1, 1, Policy::queue(1024), false);
+    let f = run(p.system, 150);
+    // Every instant before the limit runs, late or not (absolute deadlines catch
+    // up): 0, 1, ..., 149 ms.
+    assert_eq!(f.activations(p.c.id()), Some(150));
+    assert_eq!(f.activations(p.e.id()), Some(150));
+    let got: Vec<u64> = f.memory(&p.e).unwrap().got.iter().map(|g| g.1).collect();
+    assert!(!got.is_empty());
+    assert_eq!(
+        got,
+        (0..got.len() as u64).collect::<Vec<_>>(),
+        "lossless and in order"
+    );
+    let s = f.link_stats(p.down).unwrap();
+    assert_eq!(s.sent, 150);
+    assert_eq!(s.delivered, got.len() as u64);
+    assert_eq!(s.overflowed, 0);
+    assert!(
+        s.sent - s.delivered <= 1024,
+        "the rest waits in the queue: {s:?}"
+    );
+    assert!(f.report().errors.is_empty(), "{:?}", f.report().errors);
+}
+
+#[test]
+fn a_sample_link_between_threads_delivers_the_latest_value() {
+    let p = pair(1, 3, 1, Policy::Sample, false);
+    let f = run(p.system, 150);
+    assert_eq!(f.activations(p.c.id()), Some(150));
+    assert_eq!(f.activations(p.e.id()), Some(50));
+    let got = &f.memory(&p.e).unwrap().got;
+    assert!(!got.is_empty());
+    for w in got.windows(2) {
+        assert!(w[1].1 > w[0].1, "newer values only: {w:?}");
+        assert!(w[1].2 > w[0].2, "stamps increase: {w:?}");
+    }
+    let s = f.link_stats(p.down).unwrap();
+    assert_eq!(s.sent, 150);
+    assert_eq!(s.delivered, got.len() as u64);
+    // Each value sent was read, overwritten, or is the last one waiting.
+    assert!(s.delivered + s.overwritten <= s.sent && s.sent <= s.delivered + s.overwritten + 1);
+    assert!(s.overwritten > 0, "e reads every third value: {s:?}");
+}
+
+/// The world: a cart on a rail.
+#[derive(Debug, Default)]
+struct Rail {
+    position: f64,
+}
+
+struct Motor;
+
+impl Driver for Motor {
+    const KIND: DeviceKind = DeviceKind::Effector;
+    type Input = ();
+    type Output = ();
+    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+        cx.environment::<Rail>()?.position += 1.0;
+        Ok(())
+    }
+}
+
+#[derive(Default)]
+struct Encoder {
+    sensed: Vec<f64>,
+}
+
+impl Driver for Encoder {
+    const KIND: DeviceKind = DeviceKind::Receptor;
+    type Input = ();
+    type Output = ();
+    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+        let position = cx.environment::<Rail>()?.position;
+        self.sensed.push(position);
+        Ok(())
+    }
+}
+
+#[test]
+fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let idle = Fsm::single(Behaviour::while_loop(
+        "idle",
+        Action::<Counter>::new(),
+        "false",
+    ))
+    .unwrap();
+    b.subsystem(a, "c", ms(5), CounterMemory { n: 0, every: 1 }, idle);
+    let encoder = b.driver(a, "R", ms(10), Encoder::default());
+    b.driver(a, "E", ms(10), Motor);
+    b.environment(Rail::default());
+    let f = run(b.build().unwrap(), 100);
+    assert_eq!(f.environment::<Rail>().map(|r| r.position), Some(10.0));
+    // As in the deterministic executor: the receptor senses the motor's step of
+    // the same instant, although it was declared first.
+    let sensed = &f.driver(&encoder).unwrap().sensed;
+    assert_eq!(sensed, &(1..=10).map(f64::from).collect::<Vec<_>>());
+    let threads: Vec<&str> = f.report().threads.iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(threads.len(), 2, "{threads:?}");
+    assert!(
+        threads.contains(&"world") && threads.contains(&"c"),
+        "{threads:?}"
+    );
+    let r = f.report().node("R").unwrap();
+    assert_eq!((r.thread.as_str(), r.activations), ("world", 10));
+}
+
+#[test]
+fn probes_watch_a_running_system_and_a_stop_ends_it() {
+    let p = pair(1, 1, 1, Policy::queue(8), false);
+    let mut rt = RealTime::new(p.system, RtConfig::default());
+    let counts = rt.probe(&p.c, |_, m: &CounterMemory, _| Some(m.n));
+    let running = rt.start(Duration::from_secs(60)).unwrap();
+    let mut seen = Vec::new();
+    while let Ok(n) = counts.recv_timeout(Duration::from_secs(10)) {
+        seen.push(n);
+        if n >= 20 {
+            running.stop();
+            break;
+        }
+    }
+    let f = running.join().unwrap();
+    assert_eq!(
+        seen,
+        (1..=20).collect::<Vec<_>>(),
+        "one result per activation"
+    );
+    let runs = f.activations(p.c.id()).unwrap();
+    assert!(
+        (20..60_000).contains(&runs),
+        "stopped long before the limit: {runs}"
+    );
+    assert_eq!(f.report().probe_dropped, 0);
+}
+
+#[test]
+fn an_error_stops_every_thread_and_is_reported() {
+    // c sends every millisecond into a queue of 2 that e empties every 10 ms: the
+    // queue overflows within a few periods, and an overflow is an error.
+    let p = pair(1, 10, 1, Policy::queue(2), false);
+    let f = RealTime::new(p.system, RtConfig::default())
+        .start(Duration::from_secs(60))
+        .unwrap()
+        .join()
+        .unwrap();
+    let report = f.report();
+    assert_eq!(report.errors.len(), 1, "{:?}", report.errors);
+    assert!(
+        matches!(
+            &report.errors[0],
+            ExecError::Link(LinkError::QueueOverflow { bound: 2, .. })
+        ),
+        "{}",
+        report.errors[0]
+    );
+    assert!(
+        report.errors[0].to_string().contains("c.e.count"),
+        "{}",
+        report.errors[0]
+    );
+    assert!(f.activations(p.c.id()).unwrap() < 1000, "the run stopped");
+    assert_eq!(f.link_stats(p.down).unwrap().overflowed, 1);
+}
+
+#[test]
+fn what_the_os_grants_is_reported_and_the_run_goes_on_without_it() {
+    let p = pair(1, 2, 1, Policy::Sample, false);
+    let f = RealTime::new(p.system, RtConfig::realtime())
+        .start(Duration::from_millis(50))
+        .unwrap()
+        .join()
+        .unwrap();
+    let report = f.report();
+    assert!(report.errors.is_empty(), "{:?}", report.errors);
+    assert_eq!(f.activations(p.c.id()), Some(50));
+    for t in &report.threads {
+        assert!(t.priority_asked.is_some(), "{t:?}");
+        if let Some(why) = &t.priority_refused {
+            assert!(!why.is_empty());
+        }
+    }
+    // The shorter period gets the higher priority.
+    let asked = |name: &str| {
+        report
+            .threads
+            .iter()
+            .find(|t| t.name == name)
+            .and_then(|t| t.priority_asked)
+    };
+    assert_eq!((asked("c"), asked("e")), (Some(80), Some(79)));
+    assert!(report.memory_locked.is_some());
+    let shown = report.to_string();
+    assert!(
+        shown.contains("SCHED_FIFO 80") || shown.contains("fallback"),
+        "{shown}"
+    );
+    assert!(shown.contains("jit_p99"), "{shown}");
+}
