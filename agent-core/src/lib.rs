@@ -57,7 +57,7 @@ pub use fsm::{
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
 pub use link::{Access, LinkId, LinkStats, Port};
-pub use realtime::{Finished, RealTime, RtConfig, RtError, RtReport, Running, StopHandle};
+pub use realtime::{Finished, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle};
 pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
     AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,

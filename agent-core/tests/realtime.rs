@@ -139,7 +139,7 @@ fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
 fn probes_watch_a_running_system_and_a_stop_ends_it() {
     let p = pair(1, 1, 1, Policy::queue(8), false);
     let mut rt = RealTime::new(p.system, RtConfig::default());
-    let counts = rt.probe(&p.c, |_, m: &CounterMemory, _| Some(m.n));
+    let counts = rt.probe(&p.c, |c| Some(c.memory.n));
     let running = rt.start(Duration::from_secs(60)).unwrap();
     let mut seen = Vec::new();
     while let Ok(n) = counts.recv_timeout(Duration::from_secs(10)) {

@@ -8,13 +8,14 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use embodied::RtConfig;
 use embodied::spec::Spec;
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
 use rex_agent::a1::{RexConfig, RunSettings, load_spec};
 use rex_agent::algorithms::planner::PlannerKind;
 use rex_agent::algorithms::planner::trajgen::Runtime;
 use rex_agent::mission::Mission;
-use rex_agent::run::{Outcome, Progress, run_mission};
+use rex_agent::run::{Outcome, Progress, run_mission, run_mission_realtime};
 use rex_agent::{config, report};
 
 /// Run Rex, the skid-steer robot of Janiak & Zieliński, through a mission.
@@ -78,6 +79,13 @@ struct Cli {
     /// Print only the summary.
     #[arg(long, short)]
     quiet: bool,
+    /// Run in real time, as on the robot: every subsystem on its own thread and
+    /// the world (the 1 kHz plant, the camera, the motion capture) on one, on
+    /// absolute deadlines of the wall clock, with SCHED_FIFO priority and locked
+    /// memory where the OS grants them (what it refuses is reported). Prints each
+    /// node's period, wake-up jitter, compute time and overruns.
+    #[arg(long)]
+    realtime: bool,
 }
 
 /// Write to standard output; if it is closed (`rex | head`), stop quietly instead of
@@ -185,7 +193,7 @@ fn run_one(
         );
     }
     let quiet = cli.quiet;
-    let outcome = run_mission(config, limit, Duration::from_secs(5), |p| match p {
+    let progress = |p: Progress<'_>| match p {
         _ if quiet => {}
         Progress::Ack { t, ack } => {
             eprintln!(
@@ -206,7 +214,28 @@ fn run_one(
                 .filter(|_| sample.executing)
                 .map_or("-".to_owned(), |e| format!("{:.1} mm", e * 1e3)),
         ),
-    })?;
+    };
+    let outcome = if cli.realtime {
+        let (outcome, timing) = run_mission_realtime(
+            config,
+            limit,
+            Duration::from_secs(5),
+            RtConfig::realtime(),
+            progress,
+        )?;
+        if !quiet {
+            eprintln!("{timing}");
+        }
+        emit(format_args!(
+            "rt_priority={} overruns={} executor_errors={}\n",
+            if timing.rt_priority() { "yes" } else { "no" },
+            timing.nodes.iter().map(|n| n.overruns).sum::<u64>(),
+            timing.error_count
+        ));
+        outcome
+    } else {
+        run_mission(config, limit, Duration::from_secs(5), progress)?
+    };
     emit(format_args!("{}", report::summary(&outcome)));
     if !cli.no_report {
         let dir = cli.out.join(&outcome.mission);

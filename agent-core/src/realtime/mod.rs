@@ -215,6 +215,21 @@ impl fmt::Display for RtReport {
     }
 }
 
+/// A subsystem as a probe sees it, right after an activation.
+#[derive(Debug)]
+pub struct Probed<'a, S: Subsystem> {
+    /// The activation's instant.
+    pub time: Time,
+    /// Its memory after the activation.
+    pub memory: &'a S::Memory,
+    /// Its inputs as the activation read them.
+    pub input: &'a S::Input,
+    /// The behaviour it is in (the one that ran, or the next one if it ended).
+    pub behaviour: &'a str,
+    /// Whether it reached a final behaviour.
+    pub halted: bool,
+}
+
 /// A system prepared for a real-time run: add probes, then [`RealTime::start`].
 pub struct RealTime {
     system: System,
@@ -288,22 +303,53 @@ impl RealTime {
     }
 
     /// Watch subsystem `h`: after each of its activations, on its thread, `f` sees
-    /// the instant, its memory and its inputs; what it returns arrives on the
-    /// receiver.
+    /// it ([`Probed`]: the instant, its memory, its inputs, its behaviour); what
+    /// `f` returns arrives on the receiver.
     pub fn probe<S, M, F>(&mut self, h: &SubsystemHandle<S>, mut f: F) -> Receiver<M>
     where
         S: Subsystem,
         M: Send + 'static,
-        F: FnMut(Time, &S::Memory, &S::Input) -> Option<M> + Send + 'static,
+        F: FnMut(&Probed<'_, S>) -> Option<M> + Send + 'static,
     {
         let (tx, rx) = sync_channel(self.config.probe_capacity);
         let dropped = self.dropped.clone();
         let node = h.id().index();
         let probe = worker::Probe::Node(
             node,
-            Box::new(move |t, any: &dyn Any| {
+            Box::new(move |time, any: &dyn Any| {
                 if let Some(core) = subsystem_core::<S>(any)
-                    && let Some(m) = f(t, &core.memory, &core.input)
+                    && let Some(m) = f(&Probed {
+                        time,
+                        memory: &core.memory,
+                        input: &core.input,
+                        behaviour: core.fsm.behaviour_name(core.state.behaviour()),
+                        halted: core.state.is_halted(),
+                    })
+                {
+                    send_or_count(&tx, m, &dropped);
+                }
+            }),
+        );
+        self.probes.push((Some(node), probe));
+        rx
+    }
+
+    /// Watch driver `h`: after each of its steps, on its thread, `f` sees the
+    /// instant and the device.
+    pub fn probe_driver<D, M, F>(&mut self, h: &DriverHandle<D>, mut f: F) -> Receiver<M>
+    where
+        D: Driver,
+        M: Send + 'static,
+        F: FnMut(Time, &D) -> Option<M> + Send + 'static,
+    {
+        let (tx, rx) = sync_channel(self.config.probe_capacity);
+        let dropped = self.dropped.clone();
+        let node = h.id().index();
+        let probe = worker::Probe::Node(
+            node,
+            Box::new(move |time, any: &dyn Any| {
+                if let Some(d) = any.downcast_ref::<crate::node::InProcess<DriverCore<D>>>()
+                    && let Some(m) = f(time, &d.core.driver)
                 {
                     send_or_count(&tx, m, &dropped);
                 }
@@ -648,6 +694,11 @@ impl Finished {
     /// Names, kinds, periods and links.
     pub fn info(&self) -> &SystemInfo {
         &self.info
+    }
+
+    /// The report, keeping nothing else.
+    pub fn into_report(self) -> RtReport {
+        self.report
     }
 
     fn core(&self, node: usize) -> Option<&dyn Any> {

@@ -8,7 +8,12 @@
 
 use std::time::{Duration, Instant};
 
-use embodied::{ExecError, Executor, NoObserver, Time};
+mod realtime;
+pub use realtime::{RtRunError, run_mission_realtime};
+
+use embodied::{
+    Driver, DriverHandle, ExecError, Executor, NoObserver, Subsystem, SubsystemHandle, Time,
+};
 
 use crate::a1::payload::{Ack, AckStatus, PlanOutcome};
 use crate::a1::{RexConfig, RexError, RexHandles, build};
@@ -316,8 +321,40 @@ pub fn run_mission(
     }
     out.wall_s = wall.elapsed().as_secs_f64();
     out.sim_s = exec.now().as_secs_f64();
-    let c = &mut out.counters;
-    if let Some(m) = exec.memory(&h.e11) {
+    let sent = finish_counters(&exec, &h, &mut out.counters);
+    out.counters.executor_errors = exec.report().error_count;
+    out.reports = judge::judge(&out, config, sent);
+    Ok(out)
+}
+
+/// What the end of a run is read from: the deterministic executor, or a finished
+/// real-time run.
+pub(crate) trait Inspect {
+    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory>;
+    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D>;
+}
+
+impl<O: embodied::Observer> Inspect for Executor<O> {
+    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
+        Executor::memory(self, h)
+    }
+    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
+        Executor::driver(self, h)
+    }
+}
+
+impl Inspect for embodied::Finished {
+    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
+        embodied::Finished::memory(self, h)
+    }
+    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
+        embodied::Finished::driver(self, h)
+    }
+}
+
+/// The counters of a run, read at its end; returns how many plans `a2` sent.
+pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters) -> usize {
+    if let Some(m) = x.memory(&h.e11) {
         c.fragments_received = m.track.received;
         c.fragments_completed = m.track.completed;
         c.fragments_rejected = m.track.rejected;
@@ -326,28 +363,25 @@ pub fn run_mission(
         c.estimator = m.estym.estimator.health();
         c.tracker = m.track.tracker.report();
     }
-    if let Some(p) = exec.driver(&h.platform) {
+    if let Some(p) = x.driver(&h.platform) {
         let s = p.command_stats();
         c.clamped_torques = s.not_finite + s.out_of_bounds;
         c.watchdog_steps = p.timeouts();
     }
-    if let Some(m) = exec.memory(&h.c1) {
+    if let Some(m) = x.memory(&h.c1) {
         let t = m.trajgen.totals();
         c.planned = t.fragments;
         c.planner_iterations = t.iterations;
         c.planner_failures = t.failures;
     }
-    c.executor_errors = exec.report().error_count;
-    if let Some(m) = exec.driver(&h.map.mocap) {
+    if let Some(m) = x.driver(&h.map.mocap) {
         c.mocap = m.counts();
     }
-    if let Some(m) = h.vision.and_then(|(r11, _)| exec.memory(&r11)) {
+    if let Some(m) = h.vision.and_then(|(r11, _)| x.memory(&r11)) {
         let s = m.odom.vo().stats();
         c.vo = (m.odom.pairs, s.motions, m.odom.no_estimates);
     }
-    let sent = exec.memory(&h.c2).map_or(0, |m| m.next);
-    out.reports = judge::judge(&out, config, sent);
-    Ok(out)
+    x.memory(&h.c2).map_or(0, |m| m.next)
 }
 
 fn sample(
