@@ -128,7 +128,8 @@ pub fn run_mission_realtime(
         match e11.recv_timeout(Duration::from_millis(5)) {
             Ok(v) => pending.push(v),
             Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => {}
+            // e11's thread ended (the others may not have yet): wait, don't spin.
+            Err(RecvTimeoutError::Disconnected) => std::thread::sleep(Duration::from_millis(5)),
         }
         pending.extend(e11.try_iter());
         truths.extend(truth.try_iter());
