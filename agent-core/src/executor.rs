@@ -34,7 +34,7 @@ use std::time::Duration;
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
-use crate::node::{Audited, DriverCore, InProcess, InProcessNode, NodeStep, SubsystemCore};
+use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -53,6 +53,13 @@ pub enum OnError {
     /// sent nothing and is retried at the next period; a value refused by a full queue is
     /// counted in the link's statistics.
     Continue,
+}
+
+/// Under [`OnError::Continue`], whether an error halts its node (a violated FSM
+/// contract) rather than letting it retry at its next period. One rule for both
+/// executors.
+pub(crate) fn halts_under_continue(e: &ExecError) -> bool {
+    matches!(e, ExecError::Fsm { error, .. } if error.is_contract_violation())
 }
 
 /// Executor settings.
@@ -300,7 +307,7 @@ impl<O: Observer> Executor<O> {
                 Err(e)
             }
             OnError::Continue => {
-                if matches!(&e, ExecError::Fsm { error, .. } if error.is_contract_violation()) {
+                if halts_under_continue(&e) {
                     self.nodes[i].halt();
                     self.next[i] = u64::MAX;
                 } else {
@@ -336,14 +343,7 @@ impl<O: Observer> Executor<O> {
     }
 
     fn subsystem_core<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&SubsystemCore<S>> {
-        let node = self.nodes.get(h.id().index())?;
-        let any = node.as_any();
-        any.downcast_ref::<InProcess<SubsystemCore<S>>>()
-            .map(|l| &l.core)
-            .or_else(|| {
-                any.downcast_ref::<InProcess<Audited<SubsystemCore<S>>>>()
-                    .map(|l| &l.core.0)
-            })
+        crate::node::subsystem_core(self.nodes.get(h.id().index())?.core())
     }
 
     /// The memory of a subsystem.
@@ -388,17 +388,17 @@ impl<O: Observer> Executor<O> {
     /// A driver's device.
     pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
         let node = self.nodes.get(h.id().index())?;
-        node.as_any()
-            .downcast_ref::<InProcess<DriverCore<D>>>()
-            .map(|d| &d.core.driver)
+        node.core()
+            .downcast_ref::<DriverCore<D>>()
+            .map(|d| &d.driver)
     }
 
     /// A driver's device, mutably (to inject faults or change the world in tests).
     pub fn driver_mut<D: Driver>(&mut self, h: &DriverHandle<D>) -> Option<&mut D> {
         let node = self.nodes.get_mut(h.id().index())?;
-        node.as_any_mut()
-            .downcast_mut::<InProcess<DriverCore<D>>>()
-            .map(|d| &mut d.core.driver)
+        node.core_mut()
+            .downcast_mut::<DriverCore<D>>()
+            .map(|d| &mut d.driver)
     }
 
     /// Counters of a link.

@@ -52,8 +52,10 @@ pub(crate) trait InProcessNode {
     fn halt(&mut self);
     fn is_halted(&self) -> bool;
     fn iteration(&self) -> u64;
-    fn as_any(&self) -> &dyn Any;
-    fn as_any_mut(&mut self) -> &mut dyn Any;
+    /// The node's core (a `SubsystemCore`, an `Audited` one, or a `DriverCore`),
+    /// erased: what inspection downcasts ([`subsystem_core`]).
+    fn core(&self) -> &dyn Any;
+    fn core_mut(&mut self) -> &mut dyn Any;
     /// The node's core (buffers, memory and FSM, or the device) without its
     /// ports: what a thread of the real-time executor hands back when it ends.
     fn into_core(self: Box<Self>) -> Box<dyn Any + Send>;
@@ -112,6 +114,15 @@ impl<C: NodeCore> NodeSeed for C {
             })
         }
     }
+}
+
+/// The subsystem core behind an erased node core, audited or not: how the
+/// executors' inspection (memory, inputs, behaviour) and probes reach it.
+pub(crate) fn subsystem_core<S: Subsystem>(core: &dyn Any) -> Option<&SubsystemCore<S>> {
+    core.downcast_ref::<SubsystemCore<S>>().or_else(|| {
+        core.downcast_ref::<Audited<SubsystemCore<S>>>()
+            .map(|a| &a.0)
+    })
 }
 
 /// A node core whose activations are audited (`ExecConfig::audit`).
@@ -226,12 +237,12 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
         self.core.iteration()
     }
 
-    fn as_any(&self) -> &dyn Any {
-        self
+    fn core(&self) -> &dyn Any {
+        &self.core
     }
 
-    fn as_any_mut(&mut self) -> &mut dyn Any {
-        self
+    fn core_mut(&mut self) -> &mut dyn Any {
+        &mut self.core
     }
 
     fn into_core(self: Box<Self>) -> Box<dyn Any + Send> {

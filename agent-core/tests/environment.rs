@@ -7,45 +7,12 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+mod common;
+
 use std::time::Duration;
 
 use agent_core::*;
-
-/// The world: a cart on a rail.
-#[derive(Debug, Default)]
-struct Rail {
-    position: f64,
-}
-
-/// E: a motor that moves the cart one unit per step.
-struct Motor;
-
-impl Driver for Motor {
-    const KIND: DeviceKind = DeviceKind::Effector;
-    type Input = ();
-    type Output = ();
-    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
-        cx.environment::<Rail>()?.position += 1.0;
-        Ok(())
-    }
-}
-
-/// R: an encoder that records the position it senses.
-#[derive(Default)]
-struct Encoder {
-    sensed: Vec<f64>,
-}
-
-impl Driver for Encoder {
-    const KIND: DeviceKind = DeviceKind::Receptor;
-    type Input = ();
-    type Output = ();
-    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
-        let position = cx.environment::<Rail>()?.position;
-        self.sensed.push(position);
-        Ok(())
-    }
-}
+use common::{Encoder, Motor, Rail};
 
 struct Idle;
 

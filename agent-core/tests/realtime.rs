@@ -71,40 +71,6 @@ fn a_sample_link_between_threads_delivers_the_latest_value() {
     assert!(s.overwritten > 0, "e reads every third value: {s:?}");
 }
 
-/// The world: a cart on a rail.
-#[derive(Debug, Default)]
-struct Rail {
-    position: f64,
-}
-
-struct Motor;
-
-impl Driver for Motor {
-    const KIND: DeviceKind = DeviceKind::Effector;
-    type Input = ();
-    type Output = ();
-    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
-        cx.environment::<Rail>()?.position += 1.0;
-        Ok(())
-    }
-}
-
-#[derive(Default)]
-struct Encoder {
-    sensed: Vec<f64>,
-}
-
-impl Driver for Encoder {
-    const KIND: DeviceKind = DeviceKind::Receptor;
-    type Input = ();
-    type Output = ();
-    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
-        let position = cx.environment::<Rail>()?.position;
-        self.sensed.push(position);
-        Ok(())
-    }
-}
-
 #[test]
 fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
     let mut b = SystemBuilder::new();

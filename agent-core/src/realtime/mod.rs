@@ -59,7 +59,7 @@ use crate::executor::ExecConfig;
 use crate::kinds::NodeKind;
 use crate::link::thread::SharedStats;
 use crate::link::{LinkId, LinkStats, ThreadHalves};
-use crate::node::{Audited, DriverCore, SubsystemCore};
+use crate::node::{DriverCore, subsystem_core};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -348,8 +348,8 @@ impl RealTime {
         let probe = worker::Probe::Node(
             node,
             Box::new(move |time, any: &dyn Any| {
-                if let Some(d) = any.downcast_ref::<crate::node::InProcess<DriverCore<D>>>()
-                    && let Some(m) = f(time, &d.core.driver)
+                if let Some(d) = any.downcast_ref::<DriverCore<D>>()
+                    && let Some(m) = f(time, &d.driver)
                 {
                     send_or_count(&tx, m, &dropped);
                 }
@@ -546,21 +546,6 @@ impl RealTime {
 
 fn empty(n: usize) -> ThreadHalves {
     (0..n).map(|_| None).collect()
-}
-
-fn subsystem_core<S: Subsystem>(any: &dyn Any) -> Option<&SubsystemCore<S>> {
-    use crate::node::InProcess;
-    any.downcast_ref::<InProcess<SubsystemCore<S>>>()
-        .map(|l| &l.core)
-        .or_else(|| {
-            any.downcast_ref::<InProcess<Audited<SubsystemCore<S>>>>()
-                .map(|l| &l.core.0)
-        })
-        .or_else(|| any.downcast_ref::<SubsystemCore<S>>())
-        .or_else(|| {
-            any.downcast_ref::<Audited<SubsystemCore<S>>>()
-                .map(|a| &a.0)
-        })
 }
 
 /// A real-time run in progress.

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use crate::error::ExecError;
-use crate::executor::{ExecConfig, OnError};
+use crate::executor::{ExecConfig, OnError, halts_under_continue};
 use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves};
 use crate::node::{InProcessNode, NodeSeed, NodeStep};
 use crate::time::Time;
@@ -21,7 +21,7 @@ use super::clock::{self, Clock};
 use super::timing::{NodeTiming, Recorder};
 
 /// A probe: called on the node's thread after each of its activations, with the
-/// node (or, for `Probe::Environment`, the environment).
+/// node's core (or, for `Probe::Environment`, the environment).
 pub(crate) enum Probe {
     Node(usize, ProbeFn),
     Environment(ProbeFn),
@@ -167,8 +167,7 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
                             next[k] = u64::MAX;
                         }
                         OnError::Continue => {
-                            if matches!(&*e, ExecError::Fsm { error, .. } if error.is_contract_violation())
-                            {
+                            if halts_under_continue(&e) {
                                 nodes[k].halt();
                                 next[k] = u64::MAX;
                             } else {
@@ -186,7 +185,7 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
             }
             for probe in &mut probes {
                 match probe {
-                    Probe::Node(global, f) if *global == ids[k] => f(now, nodes[k].as_any()),
+                    Probe::Node(global, f) if *global == ids[k] => f(now, nodes[k].core()),
                     _ => {}
                 }
             }

@@ -220,3 +220,42 @@ impl Subsystem for Reader {
     type Input = ReaderIn;
     type Output = ();
 }
+
+// ---------------------------------------------------------------------------
+// An environment: a cart on a rail, a motor that moves it, an encoder that senses it.
+
+/// The world: a cart on a rail.
+#[derive(Debug, Default)]
+pub(crate) struct Rail {
+    pub(crate) position: f64,
+}
+
+/// E: a motor that moves the cart one unit per step.
+pub(crate) struct Motor;
+
+impl Driver for Motor {
+    const KIND: DeviceKind = DeviceKind::Effector;
+    type Input = ();
+    type Output = ();
+    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+        cx.environment::<Rail>()?.position += 1.0;
+        Ok(())
+    }
+}
+
+/// R: an encoder that records the position it senses.
+#[derive(Default)]
+pub(crate) struct Encoder {
+    pub(crate) sensed: Vec<f64>,
+}
+
+impl Driver for Encoder {
+    const KIND: DeviceKind = DeviceKind::Receptor;
+    type Input = ();
+    type Output = ();
+    fn step(&mut self, mut cx: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+        let position = cx.environment::<Rail>()?.position;
+        self.sensed.push(position);
+        Ok(())
+    }
+}
