@@ -96,6 +96,63 @@ pub enum LinkError {
         /// Virtual time of the send.
         time: Time,
     },
+    /// A link between processes failed to carry a value.
+    #[error("link `{link}` over key `{key}`: {problem}")]
+    Remote {
+        /// The link's name.
+        link: String,
+        /// The key its values travel on.
+        key: String,
+        /// What went wrong.
+        problem: RemoteProblem,
+    },
+}
+
+/// What went wrong on a link between processes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RemoteProblem {
+    /// The sender's payload type is not the receiver's: the two processes were
+    /// built from different specs or code.
+    #[error(
+        "the sender's payload has fingerprint {got:#018x}, this process expects {expected:#018x} (`{type_name}`): the two processes were built from different specs or code; value refused"
+    )]
+    Fingerprint {
+        /// The receiver's fingerprint.
+        expected: u64,
+        /// The sender's.
+        got: u64,
+        /// The receiver's payload type.
+        type_name: &'static str,
+    },
+    /// Values of a queue link were lost on the way.
+    #[error("sequence gap: expected value {expected}, got {got} ({} lost)", got.wrapping_sub(*expected))]
+    Gap {
+        /// The sequence number expected.
+        expected: u64,
+        /// The one received.
+        got: u64,
+    },
+    /// More values arrived than the queue's bound holds; the value was refused.
+    #[error("{bound} values already wait in the receiving queue: a value was refused")]
+    Overflow {
+        /// The link's bound.
+        bound: usize,
+    },
+    /// A message that is not a value of this link.
+    #[error("undecodable message: {0}")]
+    Decode(String),
+    /// A value that could not be encoded.
+    #[error("cannot encode the value: {0}")]
+    Encode(String),
+    /// The transport refused or failed.
+    #[error("transport: {0}")]
+    Transport(String),
+    /// The process at the other end is gone.
+    #[error("the sending process `{process}` is gone")]
+    PeerLost {
+        /// The process.
+        process: String,
+    },
 }
 
 /// A problem found while building an FSM.

@@ -269,7 +269,8 @@ impl<O: Observer> Executor<O> {
         };
         for (node, next) in self.nodes.iter_mut().zip(&self.next) {
             if *next == tn {
-                node.read(&mut cx);
+                let read = node.read(&mut cx);
+                debug_assert!(read.is_ok(), "in-process links report no problem");
             }
         }
         for k in 0..self.order.len() {

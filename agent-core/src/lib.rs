@@ -47,7 +47,7 @@ pub use buffer::{BufferPort, Direction, Group, In, Out, Payload};
 pub use describe::{Buffers, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use error::{
     ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,
-    FsmError, FsmProblem, LinkError,
+    FsmError, FsmProblem, LinkError, RemoteProblem,
 };
 pub use executor::{ExecConfig, Executor, OnError, RunReport};
 pub use expr::{Expr, ExprError};
@@ -56,8 +56,11 @@ pub use fsm::{
     Step,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
+pub use link::remote::{Inbox, Publisher, Transport, TransportError};
 pub use link::{Access, LinkId, LinkStats, Port};
-pub use realtime::{Finished, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle};
+pub use realtime::{
+    Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
+};
 pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
     AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,

@@ -8,7 +8,7 @@
 use std::any::{Any, TypeId};
 
 use crate::describe::Fresh;
-use crate::error::{ExecError, FsmError};
+use crate::error::{ExecError, FsmError, LinkError};
 use crate::fsm::{Activated, Fsm, FsmState};
 use crate::link::{InPort, LinkCx, OutPort};
 use crate::subsystem::{Driver, DriverContext, Subsystem};
@@ -40,7 +40,9 @@ pub(crate) trait InProcessNode {
     /// Install an erased `Box<dyn InPort<Input>>`; false if the type does not match.
     fn install_in(&mut self, port: Box<dyn Any>) -> bool;
     /// The read at the start of an activation (the end of Algorithm 1's wait).
-    fn read(&mut self, cx: &mut LinkCx<'_>);
+    /// Every port is read; the first problem of a link between processes is
+    /// returned (in-process and thread links have none).
+    fn read(&mut self, cx: &mut LinkCx<'_>) -> Result<(), LinkError>;
     /// FSM decision, action (or driver step) and send.
     /// Errors are boxed: they are rare, and a small `Result` keeps the hot path lean.
     fn step(
@@ -186,11 +188,16 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
     }
 
     #[inline]
-    fn read(&mut self, cx: &mut LinkCx<'_>) {
+    fn read(&mut self, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
         let input = self.core.input();
+        let mut first = Ok(());
         for p in &mut self.ins {
-            p.read(input, cx);
+            let r = p.read(input, cx);
+            if first.is_ok() {
+                first = r;
+            }
         }
+        first
     }
 
     #[inline]

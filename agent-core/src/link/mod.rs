@@ -27,6 +27,7 @@ use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, TransferEvent};
 
+pub mod remote;
 pub(crate) mod thread;
 
 /// The halves of links between threads, by link index: each thread of the
@@ -452,25 +453,42 @@ pub(crate) struct LinkCx<'a> {
 // ---------------------------------------------------------------------------
 // Ports: the per-component halves of links.
 
-/// A value refused by a full queue: which link, and its capacity.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A value a link refused: which link, and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct Refused {
     pub(crate) link: usize,
-    pub(crate) bound: usize,
+    pub(crate) cause: Cause,
+}
+
+/// Why a link refused a value.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Cause {
+    /// A full queue, of this capacity.
+    Full(usize),
+    /// A link to another process failed (key, problem).
+    Remote(std::sync::Arc<str>, crate::error::RemoteProblem),
 }
 
 impl Refused {
     /// The error the executor reports.
     #[cold]
     pub(crate) fn into_error(self, stamp: Stamp, links: &[LinkInfo]) -> LinkError {
-        LinkError::QueueOverflow {
-            link: links
-                .get(self.link)
-                .map(|l| l.name.clone())
-                .unwrap_or_default(),
-            bound: self.bound,
-            iteration: stamp.iteration,
-            time: stamp.time,
+        let link = links
+            .get(self.link)
+            .map(|l| l.name.clone())
+            .unwrap_or_default();
+        match self.cause {
+            Cause::Full(bound) => LinkError::QueueOverflow {
+                link,
+                bound,
+                iteration: stamp.iteration,
+                time: stamp.time,
+            },
+            Cause::Remote(key, problem) => LinkError::Remote {
+                link,
+                key: key.to_string(),
+                problem,
+            },
         }
     }
 }
@@ -484,7 +502,9 @@ pub(crate) trait OutPort<O> {
 }
 
 pub(crate) trait InPort<I> {
-    fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>);
+    /// Take what the link holds into the buffer; a link between processes may
+    /// report a problem instead (the buffer then ages).
+    fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError>;
     /// Called once when the port is installed: names the buffer after its link.
     fn attach(&self, x: &mut I);
 }
@@ -513,7 +533,10 @@ impl<O, T: Payload, A> LocalOut<O, T, A> {
         channel
             .borrow_mut()
             .put(value, last, stamp)
-            .map_err(|bound| Refused { link: *link, bound })
+            .map_err(|bound| Refused {
+                link: *link,
+                cause: Cause::Full(bound),
+            })
     }
 }
 
@@ -552,8 +575,9 @@ pub(crate) struct LocalIn<I, T, A> {
 
 impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A> {
     #[inline]
-    fn read(&mut self, x: &mut I, _cx: &mut LinkCx<'_>) {
+    fn read(&mut self, x: &mut I, _cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
         self.channel.borrow_mut().take_into(self.port.get(x));
+        Ok(())
     }
 
     fn attach(&self, x: &mut I) {
@@ -649,6 +673,7 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
             port: self.port,
             rx: *rx.downcast::<thread::ThreadRx<T>>().ok()?,
             name: self.name.clone(),
+            link: self.link,
         });
         Some(Box::new(port))
     }
@@ -666,6 +691,20 @@ pub(crate) trait ChannelPlan: Send {
         Box<dyn Any + Send>,
         std::sync::Arc<thread::SharedStats>,
     );
+    /// The sending half of a link to another process (a `ThreadTx<T>`, erased).
+    fn remote_tx(&self, tx: remote::RemoteTx) -> Box<dyn Any + Send>;
+    /// The receiving half of a link from another process, its inbox (to give to
+    /// the transport) and the link's counters.
+    fn remote_rx(
+        &self,
+        key: std::sync::Arc<str>,
+    ) -> (
+        Box<dyn Any + Send>,
+        std::sync::Arc<remote::Inbox>,
+        std::sync::Arc<thread::SharedStats>,
+    );
+    /// The payload type's fingerprint.
+    fn fingerprint(&self) -> u64;
 }
 
 struct TypedChannelPlan<T> {
@@ -688,6 +727,33 @@ impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
     ) {
         let (tx, rx, stats) = thread::channel::<T>(self.policy);
         (Box::new(tx), Box::new(rx), stats)
+    }
+    fn remote_tx(&self, tx: remote::RemoteTx) -> Box<dyn Any + Send> {
+        Box::new(thread::ThreadTx::<T>::Remote(tx))
+    }
+    fn remote_rx(
+        &self,
+        key: std::sync::Arc<str>,
+    ) -> (
+        Box<dyn Any + Send>,
+        std::sync::Arc<remote::Inbox>,
+        std::sync::Arc<thread::SharedStats>,
+    ) {
+        let stats = std::sync::Arc::new(thread::SharedStats::default());
+        let inbox = std::sync::Arc::new(remote::Inbox::new(
+            key,
+            remote::fingerprint::<T>(),
+            std::any::type_name::<T>(),
+            self.policy,
+            stats.clone(),
+        ));
+        let rx = thread::ThreadRx::<T>::Remote(remote::RemoteRx {
+            inbox: inbox.clone(),
+        });
+        (Box::new(rx), inbox, stats)
+    }
+    fn fingerprint(&self) -> u64 {
+        remote::fingerprint::<T>()
     }
 }
 

@@ -20,17 +20,19 @@ use crate::kinds::Policy;
 use crate::time::{Stamp, Time};
 use crate::trace::TransferEvent;
 
-use super::{Access, InPort, LinkCx, LinkStats, OutPort, Port, Refused};
+use super::remote::{RemoteRx, RemoteTx};
+use super::{Access, Cause, InPort, LinkCx, LinkStats, OutPort, Port, Refused};
+use crate::error::LinkError;
 
 /// The counters of one link, shared by its two threads (relaxed atomics: they
 /// are statistics, read after the threads are joined or while they run).
 #[derive(Debug, Default)]
 pub(crate) struct SharedStats {
-    sent: AtomicU64,
-    delivered: AtomicU64,
-    overwritten: AtomicU64,
-    overflowed: AtomicU64,
-    max_pending: AtomicUsize,
+    pub(crate) sent: AtomicU64,
+    pub(crate) delivered: AtomicU64,
+    pub(crate) overwritten: AtomicU64,
+    pub(crate) overflowed: AtomicU64,
+    pub(crate) max_pending: AtomicUsize,
 }
 
 impl SharedStats {
@@ -56,12 +58,16 @@ pub(crate) struct Slot<T> {
 pub(crate) enum ThreadTx<T: Send> {
     Sample(triple_buffer::Input<Slot<T>>, Arc<SharedStats>),
     Queue(rtrb::Producer<(T, Stamp)>, usize, Arc<SharedStats>),
+    /// To another process.
+    Remote(RemoteTx),
 }
 
 /// The receiving half of a link between threads.
 pub(crate) enum ThreadRx<T: Send> {
     Sample(triple_buffer::Output<Slot<T>>, Arc<SharedStats>),
     Queue(rtrb::Consumer<(T, Stamp)>, Arc<SharedStats>),
+    /// From another process.
+    Remote(RemoteRx),
 }
 
 /// The two halves and the counters of a new link between threads.
@@ -95,7 +101,7 @@ impl<T: Payload> ThreadTx<T> {
     /// As the in-process channel's `put`: with `last` the value moves (the storage
     /// it replaces is left in `value`), otherwise it is cloned.
     #[inline]
-    fn put(&mut self, value: &mut Option<T>, last: bool, stamp: Stamp) -> Result<(), usize> {
+    fn put(&mut self, value: &mut Option<T>, last: bool, stamp: Stamp) -> Result<(), Cause> {
         match self {
             ThreadTx::Sample(tx, stats) => {
                 let slot = tx.input_buffer_mut();
@@ -114,14 +120,14 @@ impl<T: Payload> ThreadTx<T> {
             ThreadTx::Queue(tx, bound, stats) => {
                 if tx.is_full() {
                     stats.overflowed.fetch_add(1, Ordering::Relaxed);
-                    return Err(*bound);
+                    return Err(Cause::Full(*bound));
                 }
                 let v = if last { value.take() } else { value.clone() };
                 if let Some(v) = v {
                     // Only this thread pushes, and the ring had room.
                     if tx.push((v, stamp)).is_err() {
                         stats.overflowed.fetch_add(1, Ordering::Relaxed);
-                        return Err(*bound);
+                        return Err(Cause::Full(*bound));
                     }
                 }
                 let pending = *bound - tx.slots();
@@ -129,13 +135,21 @@ impl<T: Payload> ThreadTx<T> {
                 stats.sent.fetch_add(1, Ordering::Relaxed);
                 Ok(())
             }
+            ThreadTx::Remote(tx) => match value.as_ref() {
+                Some(v) => tx
+                    .put(v, stamp)
+                    .map_err(|p| Cause::Remote(tx.key().clone(), p)),
+                None => Ok(()),
+            },
         }
     }
 }
 
 impl<T: Payload> ThreadRx<T> {
+    /// Take what the link holds; a link from another process may report a
+    /// problem instead (key, problem).
     #[inline]
-    fn take_into(&mut self, x: &mut In<T>) {
+    fn take_into(&mut self, x: &mut In<T>) -> Result<(), (Arc<str>, crate::error::RemoteProblem)> {
         match self {
             ThreadRx::Sample(rx, stats) => {
                 if rx.update() {
@@ -153,7 +167,14 @@ impl<T: Payload> ThreadRx<T> {
                 }
                 Err(_) => x.age(),
             },
+            ThreadRx::Remote(rx) => {
+                return rx
+                    .inbox
+                    .take_into(x)
+                    .map_err(|p| (rx.inbox.key_arc(), p));
+            }
         }
+        Ok(())
     }
 }
 
@@ -176,9 +197,10 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for ThreadOut<O, T
             if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref()) {
                 obs.transfer(&TransferEvent { link: *link, stamp }, v);
             }
-            let r = tx
-                .put(value, k + 1 == n, stamp)
-                .map_err(|bound| Refused { link: *link, bound });
+            let r = tx.put(value, k + 1 == n, stamp).map_err(|cause| Refused {
+                link: *link,
+                cause,
+            });
             if result.is_ok() {
                 result = r;
             }
@@ -196,12 +218,23 @@ pub(crate) struct ThreadIn<I, T: Send, A> {
     pub(crate) port: Port<I, In<T>, A>,
     pub(crate) rx: ThreadRx<T>,
     pub(crate) name: std::borrow::Cow<'static, str>,
+    pub(crate) link: usize,
 }
 
 impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for ThreadIn<I, T, A> {
     #[inline]
-    fn read(&mut self, x: &mut I, _cx: &mut LinkCx<'_>) {
-        self.rx.take_into(self.port.get(x));
+    fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
+        self.rx
+            .take_into(self.port.get(x))
+            .map_err(|(key, problem)| LinkError::Remote {
+                link: cx
+                    .links
+                    .get(self.link)
+                    .map(|l| l.name.clone())
+                    .unwrap_or_default(),
+                key: key.to_string(),
+                problem,
+            })
     }
 
     fn attach(&self, x: &mut I) {
@@ -221,13 +254,13 @@ mod tests {
     fn sample_between_threads_keeps_the_latest_and_counts_overwrites() {
         let (mut tx, mut rx, stats) = channel::<u32>(Policy::Sample);
         let mut x = In::default();
-        rx.take_into(&mut x);
+        rx.take_into(&mut x).unwrap();
         assert!(!x.is_new() && !x.has_data());
         tx.put(&mut Some(1), true, stamp(1)).unwrap();
         tx.put(&mut Some(2), true, stamp(2)).unwrap();
-        rx.take_into(&mut x);
+        rx.take_into(&mut x).unwrap();
         assert_eq!((x.fresh(), x.stamp()), (Some(&2), Some(stamp(2))));
-        rx.take_into(&mut x);
+        rx.take_into(&mut x).unwrap();
         assert!(!x.is_new());
         assert_eq!(x.get(), Some(&2));
         let s = stats.snapshot();
@@ -239,13 +272,13 @@ mod tests {
         let (mut tx, mut rx, stats) = channel::<u32>(Policy::queue(2));
         tx.put(&mut Some(1), true, stamp(1)).unwrap();
         tx.put(&mut Some(2), false, stamp(2)).unwrap();
-        assert_eq!(tx.put(&mut Some(3), true, stamp(3)), Err(2));
+        assert_eq!(tx.put(&mut Some(3), true, stamp(3)), Err(Cause::Full(2)));
         let mut x = In::default();
         for expect in [Some(1), Some(2)] {
-            rx.take_into(&mut x);
+            rx.take_into(&mut x).unwrap();
             assert_eq!(x.fresh().copied(), expect);
         }
-        rx.take_into(&mut x);
+        rx.take_into(&mut x).unwrap();
         assert!(!x.is_new());
         let s = stats.snapshot();
         assert_eq!(
@@ -271,7 +304,7 @@ mod tests {
         let mut x = In::default();
         let mut expect = 0;
         while expect < N {
-            rx.take_into(&mut x);
+            rx.take_into(&mut x).unwrap();
             if let Some(v) = x.fresh() {
                 assert_eq!(*v, expect);
                 expect += 1;

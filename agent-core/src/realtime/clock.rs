@@ -26,6 +26,17 @@ impl Clock {
         }
     }
 
+    /// A clock whose instant zero is the wall-clock time `origin` (shared by the
+    /// processes of a deployment; in the past for a process that joins late).
+    pub(crate) fn at_wall(origin: std::time::SystemTime) -> Clock {
+        let (now, wall) = (Instant::now(), std::time::SystemTime::now());
+        let origin = match origin.duration_since(wall) {
+            Ok(ahead) => now + ahead,
+            Err(behind) => now.checked_sub(behind.duration()).unwrap_or(now),
+        };
+        Clock { origin }
+    }
+
     /// Nanoseconds since the origin (0 before it).
     #[inline]
     pub(crate) fn now(&self) -> u64 {

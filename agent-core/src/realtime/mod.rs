@@ -46,17 +46,18 @@ mod timing;
 mod worker;
 
 use std::any::Any;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::fmt;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use crate::error::ExecError;
 use crate::executor::ExecConfig;
 use crate::kinds::NodeKind;
+use crate::link::remote::{self, Transport, TransportError};
 use crate::link::thread::SharedStats;
 use crate::link::{LinkId, LinkStats, ThreadHalves};
 use crate::node::{DriverCore, subsystem_core};
@@ -236,6 +237,34 @@ pub struct RealTime {
     config: RtConfig,
     probes: Vec<(Option<usize>, worker::Probe)>,
     dropped: Arc<AtomicU64>,
+    placement: Option<Placement>,
+    origin: Option<SystemTime>,
+}
+
+/// This process's part of a deployment: the nodes it runs, and the transport
+/// that carries the links between them and the nodes of other processes.
+///
+/// A link whose two ends run here is a link between threads, as without a
+/// placement; a link with one end here travels over `transport` on the key
+/// [`link_key`](crate::link::remote::link_key)`(prefix, ...)`; a link with no end
+/// here is not made. Nodes not placed here are not run (and not returned by
+/// [`Finished`]).
+pub struct Placement {
+    /// The names of the nodes this process runs.
+    pub here: Vec<String>,
+    /// The first part of every key (the system's name, for example).
+    pub prefix: String,
+    /// How links leave the process.
+    pub transport: Box<dyn Transport>,
+}
+
+impl fmt::Debug for Placement {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Placement")
+            .field("here", &self.here)
+            .field("prefix", &self.prefix)
+            .finish()
+    }
 }
 
 impl fmt::Debug for RealTime {
@@ -278,6 +307,24 @@ pub enum RtError {
     /// A thread panicked (a bug in a node; its nodes are lost).
     #[error("thread `{0}` panicked")]
     Panicked(String),
+    /// A placement names a node the system does not have.
+    #[error("the placement runs `{name}`, which the system does not have (it has: {known})")]
+    UnknownNode {
+        /// The name.
+        name: String,
+        /// The system's nodes.
+        known: String,
+    },
+    /// The transport could not publish or subscribe a link's key.
+    #[error("link `{link}` over key `{key}`: {error}")]
+    Transport {
+        /// The link.
+        link: String,
+        /// Its key.
+        key: String,
+        /// The transport's error.
+        error: TransportError,
+    },
 }
 
 fn send_or_count<M>(tx: &SyncSender<M>, m: M, dropped: &AtomicU64) {
@@ -294,7 +341,39 @@ impl RealTime {
             config,
             probes: Vec::new(),
             dropped: Arc::new(AtomicU64::new(0)),
+            placement: None,
+            origin: None,
         }
+    }
+
+    /// Run only this process's part of a deployment (see [`Placement`]).
+    pub fn place(&mut self, placement: Placement) -> Result<&mut Self, RtError> {
+        let info = &self.system.info;
+        for name in &placement.here {
+            if !info.nodes.iter().any(|n| &n.name == name) {
+                return Err(RtError::UnknownNode {
+                    name: name.clone(),
+                    known: info
+                        .nodes
+                        .iter()
+                        .map(|n| n.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                });
+            }
+        }
+        self.placement = Some(placement);
+        Ok(self)
+    }
+
+    /// Put instant zero at the wall-clock time `origin` instead of
+    /// [`RtConfig::lead`] from the start: the processes of a deployment share it,
+    /// so their instants line up (on one host exactly; across hosts as well as
+    /// their clocks agree). When `origin` is past (a process restarted in a
+    /// running deployment), each node starts at its next instant.
+    pub fn origin(&mut self, origin: SystemTime) -> &mut Self {
+        self.origin = Some(origin);
+        self
     }
 
     /// Names, kinds, periods and links.
@@ -388,6 +467,8 @@ impl RealTime {
             config,
             probes,
             dropped,
+            placement,
+            origin,
         } = self;
         let System {
             info,
@@ -398,13 +479,24 @@ impl RealTime {
             environment,
         } = system;
         let n = nodes.len();
+        let here: Vec<bool> = match &placement {
+            None => vec![true; n],
+            Some(p) => info
+                .nodes
+                .iter()
+                .map(|node| p.here.contains(&node.name))
+                .collect(),
+        };
         // Threads: one per subsystem; the drivers together if they share an
         // environment, else one each.
         let has_env = environment.is_some();
-        let mut thread_of = vec![0usize; n];
+        let mut thread_of = vec![usize::MAX; n];
         let mut names: Vec<String> = Vec::new();
         let mut world = None;
         for (i, node) in info.nodes.iter().enumerate() {
+            if !here[i] {
+                continue;
+            }
             let is_driver = matches!(node.kind, NodeKind::RealEffector | NodeKind::RealReceptor);
             thread_of[i] = if is_driver && has_env {
                 *world.get_or_insert_with(|| {
@@ -420,8 +512,9 @@ impl RealTime {
         // Rate-monotonic priorities: the shortest period of a thread ranks it.
         let mut shortest = vec![u64::MAX; threads];
         for (i, node) in info.nodes.iter().enumerate() {
-            let s = &mut shortest[thread_of[i]];
-            *s = (*s).min(node.period.as_nanos());
+            if let Some(s) = shortest.get_mut(thread_of[i]) {
+                *s = (*s).min(node.period.as_nanos());
+            }
         }
         let mut distinct: Vec<u64> = shortest.clone();
         distinct.sort_unstable();
@@ -440,12 +533,69 @@ impl RealTime {
         let mut txs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
         let mut rxs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
         let mut stats: Vec<Arc<SharedStats>> = Vec::with_capacity(channels.len());
+        let mut subscriptions: Vec<Box<dyn Any + Send>> = Vec::new();
+        let mut transport = placement.map(|p| (p.prefix, p.transport));
+        // One publisher per output buffer (key), made by its first remote link;
+        // the policy of a key with a queue link among its links is the queue's.
+        let mut published: HashSet<String> = HashSet::new();
+        let epoch = remote::new_epoch();
         for (l, plan) in channels.iter().enumerate() {
-            let (tx, rx, s) = plan.threaded();
             let link = &info.links[l];
-            txs[thread_of[link.from]][l] = Some(tx);
-            rxs[thread_of[link.to]][l] = Some(rx);
-            stats.push(s);
+            match (here[link.from], here[link.to], transport.as_mut()) {
+                (true, true, _) | (_, _, None) => {
+                    let (tx, rx, s) = plan.threaded();
+                    txs[thread_of[link.from]][l] = Some(tx);
+                    rxs[thread_of[link.to]][l] = Some(rx);
+                    stats.push(s);
+                }
+                (true, false, Some((prefix, transport))) => {
+                    let key = remote::link_key(prefix, &info, link);
+                    let s = Arc::new(SharedStats::default());
+                    let publisher = if published.insert(key.clone()) {
+                        let policy = info
+                            .links
+                            .iter()
+                            .filter(|k| k.from == link.from && k.from_port == link.from_port)
+                            .map(|k| k.policy)
+                            .find(|p| matches!(p, crate::Policy::Queue { .. }))
+                            .unwrap_or(link.policy);
+                        let made = transport.publisher(&key, policy).map_err(|error| {
+                            RtError::Transport {
+                                link: link.name.clone(),
+                                key: key.clone(),
+                                error,
+                            }
+                        })?;
+                        Some(made)
+                    } else {
+                        None
+                    };
+                    let tx = remote::RemoteTx::new(
+                        publisher,
+                        key.into(),
+                        plan.fingerprint(),
+                        epoch,
+                        s.clone(),
+                    );
+                    txs[thread_of[link.from]][l] = Some(plan.remote_tx(tx));
+                    stats.push(s);
+                }
+                (false, true, Some((prefix, transport))) => {
+                    let key = remote::link_key(prefix, &info, link);
+                    let (rx, inbox, s) = plan.remote_rx(key.as_str().into());
+                    let guard = transport.subscribe(&key, inbox).map_err(|error| {
+                        RtError::Transport {
+                            link: link.name.clone(),
+                            key: key.clone(),
+                            error,
+                        }
+                    })?;
+                    subscriptions.push(guard);
+                    rxs[thread_of[link.to]][l] = Some(rx);
+                    stats.push(s);
+                }
+                (false, false, Some(_)) => stats.push(Arc::new(SharedStats::default())),
+            }
         }
         let mut works: Vec<worker::Work> = names
             .iter()
@@ -470,17 +620,20 @@ impl RealTime {
             (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
         order.extend(receptors);
         for i in order {
-            if let Some(seed) = seeds[i].take() {
-                let w = &mut works[thread_of[i]];
+            if let (Some(seed), Some(w)) = (seeds[i].take(), works.get_mut(thread_of[i])) {
                 w.nodes.push(i);
                 w.seeds.push(seed);
             }
         }
         for (node, plan) in outs {
-            works[thread_of[node]].outs.push((node, plan));
+            if let Some(w) = works.get_mut(thread_of[node]) {
+                w.outs.push((node, plan));
+            }
         }
         for (node, plan) in ins {
-            works[thread_of[node]].ins.push((node, plan));
+            if let Some(w) = works.get_mut(thread_of[node]) {
+                w.ins.push((node, plan));
+            }
         }
         if let Some(w) = world {
             works[w].environment = environment;
@@ -496,7 +649,10 @@ impl RealTime {
         }
         let memory_locked = config.lock_memory.then(clock::lock_memory);
         let stop = Arc::new(AtomicBool::new(false));
-        let clock = clock::Clock::starting_in(config.lead);
+        let clock = match origin {
+            Some(at) => clock::Clock::at_wall(at),
+            None => clock::Clock::starting_in(config.lead),
+        };
         let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
         let shared = Arc::new(worker::Shared {
             info: info.clone(),
@@ -540,6 +696,8 @@ impl RealTime {
             memory_locked,
             started: Instant::now(),
             lead: config.lead,
+            _subscriptions: subscriptions,
+            _transport: transport,
         })
     }
 }
@@ -559,6 +717,9 @@ pub struct Running {
     memory_locked: Option<Result<(), String>>,
     started: Instant,
     lead: Duration,
+    /// Links from other processes stay subscribed while the run goes on.
+    _subscriptions: Vec<Box<dyn Any + Send>>,
+    _transport: Option<(String, Box<dyn Transport>)>,
 }
 
 impl fmt::Debug for Running {
@@ -722,7 +883,8 @@ impl Finished {
 
     /// The number of activations a node executed.
     pub fn activations(&self, node: crate::NodeId) -> Option<u64> {
-        self.report.nodes.get(node.index()).map(|t| t.activations)
+        let name = &self.info.nodes.get(node.index())?.name;
+        self.report.node(name).map(|t| t.activations)
     }
 
     /// Counters of a link.

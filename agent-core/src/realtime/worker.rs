@@ -111,7 +111,13 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         .iter()
         .map(|&g| info.nodes[g].period.as_nanos())
         .collect();
-    let mut next = vec![0u64; ids.len()];
+    // A thread that starts after instant zero (a process joining a running
+    // deployment) begins at each node's next instant.
+    let joined = shared.clock.now();
+    let mut next: Vec<u64> = periods
+        .iter()
+        .map(|&p| joined.div_ceil(p.max(1)).saturating_mul(p))
+        .collect();
     let mut recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
     let mut errors = Vec::new();
     let mut last = Time::ZERO;
@@ -136,9 +142,30 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
             links: &info.links,
             environment: None,
         };
-        for (node, due) in nodes.iter_mut().zip(&next) {
-            if *due == t {
-                node.read(&mut cx);
+        let mut unread = Vec::new();
+        for (k, (node, due)) in nodes.iter_mut().zip(&next).enumerate() {
+            if *due == t
+                && let Err(e) = node.read(&mut cx)
+            {
+                unread.push((k, e));
+            }
+        }
+        // A link between processes that failed to deliver: the node still runs
+        // (its buffer aged), and the error goes through the policy.
+        for (k, e) in unread {
+            shared.errors.fetch_add(1, Ordering::Relaxed);
+            let e = ExecError::Link(e);
+            match shared.config.on_error {
+                OnError::Stop => {
+                    shared.stop.store(true, Ordering::Relaxed);
+                    errors.push(e);
+                    next[k] = u64::MAX;
+                }
+                OnError::Continue => {
+                    if errors.len() < shared.config.max_recorded_errors {
+                        errors.push(e);
+                    }
+                }
             }
         }
         let mut started = clock.now();

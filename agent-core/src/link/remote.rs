@@ -1,0 +1,641 @@
+//! Links between processes: the halves of a link whose two ends run in different
+//! processes (or hosts), over any byte transport that implements [`Transport`]
+//! (the `agent-zenoh` crate implements it over Eclipse Zenoh).
+//!
+//! The node code does not change: a remote half is one more kind of the
+//! real-time executor's link halves, behind the same ports.
+//!
+//! # Messages
+//!
+//! Each value travels as one message: a 41-byte header, then the value in
+//! postcard's compact encoding.
+//!
+//! | bytes | field |
+//! |---|---|
+//! | 0 | wire version (1) |
+//! | 1..9 | the payload type's [`fingerprint`] |
+//! | 9..17 | the sender's epoch (a new one each time the sending process starts) |
+//! | 17..25 | sequence number, from 1, per sender and epoch |
+//! | 25..33 | the sender's iteration |
+//! | 33..41 | the sender's instant, in ns |
+//!
+//! The receiver ([`Inbox`]) checks the fingerprint (a process built from
+//! different code is refused: [`RemoteProblem::Fingerprint`]), and on a queue link
+//! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss. A new epoch
+//! is a restarted sender: its numbering starts again, which is not a gap.
+//! Sample links keep the latest value; queue links keep every value in order, up
+//! to the link's bound (more is [`RemoteProblem::Overflow`]). Problems reach the
+//! receiving node's executor at its next read, as [`LinkError::Remote`](crate::LinkError::Remote), and go
+//! through its error policy like any other error.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::hash::Hasher;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use crate::buffer::{In, Payload};
+use crate::error::RemoteProblem;
+use crate::kinds::Policy;
+use crate::time::{Stamp, Time};
+use crate::trace::{LinkInfo, SystemInfo};
+
+use super::thread::SharedStats;
+
+/// The wire format's version, first byte of every message.
+pub const WIRE_VERSION: u8 = 1;
+/// The header's length in bytes.
+pub const HEADER_LEN: usize = 41;
+
+/// Why a transport could not do what it was asked.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct TransportError(pub String);
+
+/// Sends the messages of one output buffer (one key).
+pub trait Publisher: Send {
+    /// Send one message. Must not block for long: a sample link's publisher may
+    /// drop under congestion (the receiver keeps the latest anyway); a queue
+    /// link's publisher must not drop (reliable delivery), and reports what it
+    /// cannot send.
+    fn put(&mut self, message: &[u8]) -> Result<(), TransportError>;
+}
+
+/// A byte transport between processes: publishers and subscribers on keys.
+pub trait Transport: Send {
+    /// A publisher on `key` for a link with `policy` (`Queue`: reliable and
+    /// lossless; `Sample`: the latest value matters).
+    fn publisher(&mut self, key: &str, policy: Policy)
+    -> Result<Box<dyn Publisher>, TransportError>;
+
+    /// Subscribe to `key`: call [`Inbox::deliver`] with each message received,
+    /// from any thread. The returned value keeps the subscription alive; dropping
+    /// it ends the subscription.
+    fn subscribe(
+        &mut self,
+        key: &str,
+        inbox: Arc<Inbox>,
+    ) -> Result<Box<dyn std::any::Any + Send>, TransportError>;
+}
+
+/// The key of the values sent by `link`'s output buffer:
+/// `prefix/agent/component/group/buffer` (the port's dots become slashes). One
+/// output has one key whichever the number of inputs it feeds.
+pub fn link_key(prefix: &str, info: &SystemInfo, link: &LinkInfo) -> String {
+    let node = &info.nodes[link.from];
+    let mut key = String::with_capacity(prefix.len() + 48);
+    if !prefix.is_empty() {
+        key.push_str(prefix.trim_end_matches('/'));
+        key.push('/');
+    }
+    key.push_str(&node.agent);
+    key.push('/');
+    key.push_str(&node.name);
+    for part in link.from_port.split('.') {
+        key.push('/');
+        key.push_str(part);
+    }
+    key
+}
+
+/// A 64-bit fingerprint of the payload type `T`'s shape: its serde data model
+/// (names of structs, fields, enum variants, and the types within them), traced
+/// with `serde-reflection`, hashed with FNV-1a. Two processes agree on it when
+/// their payload types serialise alike; a field added, renamed or retyped
+/// changes it. A type that cannot be traced (a custom `Deserialize` that
+/// rejects the tracer's samples) falls back to the hash of its Rust type name.
+pub fn fingerprint<T: Payload>() -> u64 {
+    use serde_reflection::{Samples, Tracer, TracerConfig};
+    let mut tracer = Tracer::new(TracerConfig::default());
+    let samples = Samples::new();
+    let traced = tracer
+        .trace_type::<T>(&samples)
+        .ok()
+        .and_then(|(format, _)| Some((format, tracer.registry().ok()?)));
+    let mut hash = Fnv::default();
+    match traced {
+        Some((format, registry)) => {
+            hash.write(format!("{format:?}").as_bytes());
+            for (name, container) in registry {
+                hash.write(name.as_bytes());
+                hash.write(format!("{container:?}").as_bytes());
+            }
+        }
+        None => hash.write(std::any::type_name::<T>().as_bytes()),
+    }
+    hash.finish()
+}
+
+/// FNV-1a, 64 bits: stable across Rust versions and platforms (unlike
+/// `DefaultHasher`), which a fingerprint sent between builds must be.
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Hasher for Fnv {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= u64::from(*b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+/// A header, decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Header {
+    fingerprint: u64,
+    epoch: u64,
+    seq: u64,
+    stamp: Stamp,
+}
+
+fn write_header(out: &mut Vec<u8>, h: &Header) {
+    out.clear();
+    out.push(WIRE_VERSION);
+    for v in [
+        h.fingerprint,
+        h.epoch,
+        h.seq,
+        h.stamp.iteration,
+        h.stamp.time.as_nanos(),
+    ] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+fn read_header(message: &[u8]) -> Result<Header, RemoteProblem> {
+    let word = |k: usize| -> Option<u64> {
+        let bytes = message.get(1 + 8 * k..9 + 8 * k)?;
+        Some(u64::from_le_bytes(bytes.try_into().ok()?))
+    };
+    match message.first() {
+        Some(&WIRE_VERSION) => {}
+        Some(&v) => {
+            return Err(RemoteProblem::Decode(format!(
+                "wire version {v}, this build speaks {WIRE_VERSION}"
+            )));
+        }
+        None => return Err(RemoteProblem::Decode("an empty message".into())),
+    }
+    match (word(0), word(1), word(2), word(3), word(4)) {
+        (Some(fingerprint), Some(epoch), Some(seq), Some(iteration), Some(ns)) => Ok(Header {
+            fingerprint,
+            epoch,
+            seq,
+            stamp: Stamp::new(iteration, Time::from_nanos(ns)),
+        }),
+        _ => Err(RemoteProblem::Decode(format!(
+            "a message of {} bytes, shorter than the {HEADER_LEN}-byte header",
+            message.len()
+        ))),
+    }
+}
+
+/// A new epoch for a sending process: different at each start (time and
+/// process id mixed), so that receivers tell a restart from a gap.
+pub fn new_epoch() -> u64 {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let mut h = Fnv::default();
+    h.write(&nanos.to_le_bytes());
+    h.write(&std::process::id().to_le_bytes());
+    h.finish().max(1)
+}
+
+// ---------------------------------------------------------------------------
+// Sending
+
+/// The sending half of a link to another process.
+pub(crate) struct RemoteTx {
+    /// `None` when another link of the same output publishes on the key (one
+    /// publication reaches every subscriber).
+    publisher: Option<Box<dyn Publisher>>,
+    key: Arc<str>,
+    header: Header,
+    buf: Vec<u8>,
+    stats: Arc<SharedStats>,
+}
+
+impl RemoteTx {
+    pub(crate) fn key(&self) -> &Arc<str> {
+        &self.key
+    }
+
+    pub(crate) fn new(
+        publisher: Option<Box<dyn Publisher>>,
+        key: Arc<str>,
+        fingerprint: u64,
+        epoch: u64,
+        stats: Arc<SharedStats>,
+    ) -> Self {
+        RemoteTx {
+            publisher,
+            key,
+            header: Header {
+                fingerprint,
+                epoch,
+                seq: 0,
+                stamp: Stamp::new(0, Time::ZERO),
+            },
+            buf: Vec::with_capacity(256),
+            stats,
+        }
+    }
+
+    /// Encode and publish `value`.
+    pub(crate) fn put<T: Payload>(&mut self, value: &T, stamp: Stamp) -> Result<(), RemoteProblem> {
+        let Some(publisher) = self.publisher.as_mut() else {
+            self.stats.sent.fetch_add(1, Ordering::Relaxed);
+            return Ok(());
+        };
+        self.header.seq += 1;
+        self.header.stamp = stamp;
+        let mut buf = std::mem::take(&mut self.buf);
+        write_header(&mut buf, &self.header);
+        let encoded = postcard::to_extend(value, buf);
+        let buf = match encoded {
+            Ok(buf) => buf,
+            Err(e) => {
+                self.header.seq -= 1;
+                return Err(RemoteProblem::Encode(e.to_string()));
+            }
+        };
+        let sent = publisher.put(&buf);
+        self.buf = buf;
+        match sent {
+            Ok(()) => {
+                self.stats.sent.fetch_add(1, Ordering::Relaxed);
+                Ok(())
+            }
+            Err(e) => Err(RemoteProblem::Transport(format!("publishing on `{}`: {e}", self.key))),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Receiving
+
+/// Where a transport delivers the messages of one link; the receiving node's
+/// thread takes them at its reads.
+pub struct Inbox {
+    key: Arc<str>,
+    fingerprint: u64,
+    type_name: &'static str,
+    policy: Policy,
+    state: Mutex<InboxState>,
+    stats: Arc<SharedStats>,
+}
+
+#[derive(Default)]
+struct InboxState {
+    values: VecDeque<(Stamp, Vec<u8>)>,
+    problems: VecDeque<RemoteProblem>,
+    /// The sender's epoch and the next sequence number expected from it.
+    epoch: u64,
+    next: u64,
+    /// Message buffers given back by the reader, for the next deliveries.
+    spare: Vec<Vec<u8>>,
+    /// Restarts of the sender seen (a new epoch after the first).
+    restarts: u64,
+}
+
+impl fmt::Debug for Inbox {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Inbox")
+            .field("key", &self.key)
+            .field("policy", &self.policy)
+            .finish()
+    }
+}
+
+/// At most this many problems wait in an inbox; more are counted only.
+const MAX_PROBLEMS: usize = 16;
+
+impl Inbox {
+    pub(crate) fn new(
+        key: Arc<str>,
+        fingerprint: u64,
+        type_name: &'static str,
+        policy: Policy,
+        stats: Arc<SharedStats>,
+    ) -> Self {
+        Inbox {
+            key,
+            fingerprint,
+            type_name,
+            policy,
+            state: Mutex::new(InboxState::default()),
+            stats,
+        }
+    }
+
+    /// The key this inbox listens to.
+    pub fn key(&self) -> &str {
+        &self.key
+    }
+
+    pub(crate) fn key_arc(&self) -> Arc<str> {
+        self.key.clone()
+    }
+
+    /// The link's policy.
+    pub fn policy(&self) -> Policy {
+        self.policy
+    }
+
+    /// How many times the sender restarted (a new epoch) while this inbox listened.
+    pub fn restarts(&self) -> u64 {
+        self.lock().restarts
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, InboxState> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn problem(state: &mut InboxState, p: RemoteProblem) {
+        if state.problems.len() < MAX_PROBLEMS {
+            state.problems.push_back(p);
+        }
+    }
+
+    /// A message arrived (called by the transport, from any thread).
+    pub fn deliver(&self, message: &[u8]) {
+        let mut state = self.lock();
+        let header = match read_header(message) {
+            Ok(h) => h,
+            Err(p) => return Self::problem(&mut state, p),
+        };
+        if header.fingerprint != self.fingerprint {
+            return Self::problem(
+                &mut state,
+                RemoteProblem::Fingerprint {
+                    expected: self.fingerprint,
+                    got: header.fingerprint,
+                    type_name: self.type_name,
+                },
+            );
+        }
+        if header.epoch != state.epoch {
+            if state.epoch != 0 {
+                state.restarts += 1;
+            }
+            state.epoch = header.epoch;
+            state.next = header.seq;
+        }
+        if let Policy::Queue { .. } = self.policy
+            && header.seq != state.next
+        {
+            let (expected, got) = (state.next, header.seq);
+            Self::problem(&mut state, RemoteProblem::Gap { expected, got });
+        }
+        state.next = header.seq.wrapping_add(1);
+        let mut body = state.spare.pop().unwrap_or_default();
+        body.clear();
+        body.extend_from_slice(&message[HEADER_LEN..]);
+        match self.policy {
+            Policy::Sample => {
+                if let Some((_, old)) = state.values.pop_front() {
+                    self.stats.overwritten.fetch_add(1, Ordering::Relaxed);
+                    state.spare.push(old);
+                }
+                state.values.push_back((header.stamp, body));
+            }
+            Policy::Queue { bound } => {
+                if state.values.len() >= bound.max(1) {
+                    self.stats.overflowed.fetch_add(1, Ordering::Relaxed);
+                    state.spare.push(body);
+                    Self::problem(&mut state, RemoteProblem::Overflow { bound });
+                } else {
+                    state.values.push_back((header.stamp, body));
+                    self.stats
+                        .max_pending
+                        .fetch_max(state.values.len(), Ordering::Relaxed);
+                }
+            }
+        }
+    }
+
+    /// The sending process is gone (called by the transport or the runtime
+    /// watching the processes).
+    pub fn peer_lost(&self, process: &str) {
+        let mut state = self.lock();
+        Self::problem(
+            &mut state,
+            RemoteProblem::PeerLost {
+                process: process.to_owned(),
+            },
+        );
+    }
+
+    /// The reader's side: the next value (decoded into `x`) or the next problem.
+    pub(crate) fn take_into<T: Payload>(&self, x: &mut In<T>) -> Result<(), RemoteProblem> {
+        let mut state = self.lock();
+        if let Some(p) = state.problems.pop_front() {
+            x.age();
+            return Err(p);
+        }
+        let Some((stamp, body)) = state.values.pop_front() else {
+            x.age();
+            return Ok(());
+        };
+        drop(state);
+        let decoded = postcard::from_bytes::<T>(&body);
+        self.lock().spare.push(body);
+        match decoded {
+            Ok(v) => {
+                x.swap_in(&mut Some(v), stamp);
+                self.stats.delivered.fetch_add(1, Ordering::Relaxed);
+                Ok(())
+            }
+            Err(e) => {
+                x.age();
+                Err(RemoteProblem::Decode(format!(
+                    "a `{}` that does not decode: {e}",
+                    self.type_name
+                )))
+            }
+        }
+    }
+}
+
+/// The receiving half of a link from another process.
+pub(crate) struct RemoteRx {
+    pub(crate) inbox: Arc<Inbox>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inbox<T: Payload>(policy: Policy) -> (Arc<Inbox>, Arc<SharedStats>) {
+        let stats = Arc::new(SharedStats::default());
+        let inbox = Arc::new(Inbox::new(
+            "k".into(),
+            fingerprint::<T>(),
+            std::any::type_name::<T>(),
+            policy,
+            stats.clone(),
+        ));
+        (inbox, stats)
+    }
+
+    /// A publisher that hands its messages to an inbox directly.
+    struct Loop(Arc<Inbox>);
+    impl Publisher for Loop {
+        fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
+            self.0.deliver(message);
+            Ok(())
+        }
+    }
+
+    fn sender<T: Payload>(to: &Arc<Inbox>, epoch: u64) -> RemoteTx {
+        RemoteTx::new(
+            Some(Box::new(Loop(to.clone()))),
+            "k".into(),
+            fingerprint::<T>(),
+            epoch,
+            Arc::new(SharedStats::default()),
+        )
+    }
+
+    fn stamp(i: u64) -> Stamp {
+        Stamp::new(i, Time::from_nanos(i * 10))
+    }
+
+    #[test]
+    fn a_queue_carries_values_in_order_with_their_stamps() {
+        let (inbox, stats) = inbox::<Vec<u16>>(Policy::queue(4));
+        let mut tx = sender::<Vec<u16>>(&inbox, 7);
+        for i in 1..=3u16 {
+            tx.put(&vec![i; i as usize], stamp(u64::from(i))).unwrap();
+        }
+        let mut x = In::default();
+        for i in 1..=3u16 {
+            inbox.take_into(&mut x).unwrap();
+            assert_eq!(x.fresh(), Some(&vec![i; i as usize]));
+            assert_eq!(x.stamp(), Some(stamp(u64::from(i))));
+        }
+        inbox.take_into(&mut x).unwrap();
+        assert!(!x.is_new());
+        assert_eq!(stats.snapshot().delivered, 3);
+    }
+
+    #[test]
+    fn a_sample_keeps_the_latest() {
+        let (inbox, stats) = inbox::<f64>(Policy::Sample);
+        let mut tx = sender::<f64>(&inbox, 7);
+        for i in 1..=5 {
+            tx.put(&(i as f64), stamp(i)).unwrap();
+        }
+        let mut x = In::default();
+        inbox.take_into(&mut x).unwrap();
+        assert_eq!(x.fresh(), Some(&5.0));
+        assert_eq!(stats.snapshot().overwritten, 4);
+    }
+
+    #[test]
+    fn a_gap_a_foreign_type_and_an_overflow_are_reported() {
+        let (inbox, _) = inbox::<u32>(Policy::queue(2));
+        let mut tx = sender::<u32>(&inbox, 7);
+        tx.put(&1, stamp(1)).unwrap();
+        tx.header.seq += 1; // a message lost on the way
+        tx.put(&3, stamp(3)).unwrap();
+        tx.put(&4, stamp(4)).unwrap(); // the queue holds two
+        let mut x = In::default();
+        assert_eq!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Gap {
+                expected: 2,
+                got: 3
+            })
+        );
+        assert_eq!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Overflow { bound: 2 })
+        );
+        inbox.take_into(&mut x).unwrap();
+        assert_eq!(x.fresh(), Some(&1));
+
+        let mut foreign = sender::<(u32, u32)>(&inbox, 8);
+        foreign.put(&(1, 2), stamp(5)).unwrap();
+        // Problems come first, then the value 3 still waiting.
+        assert!(matches!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Fingerprint { .. })
+        ));
+        inbox.take_into(&mut x).unwrap();
+        assert_eq!(x.fresh(), Some(&3));
+    }
+
+    #[test]
+    fn a_restarted_sender_is_not_a_gap() {
+        let (inbox, _) = inbox::<u32>(Policy::queue(8));
+        let mut first = sender::<u32>(&inbox, 7);
+        first.put(&1, stamp(1)).unwrap();
+        first.put(&2, stamp(2)).unwrap();
+        let mut again = sender::<u32>(&inbox, 9);
+        again.put(&3, stamp(1)).unwrap();
+        let mut x = In::default();
+        for v in 1..=3 {
+            inbox.take_into(&mut x).unwrap();
+            assert_eq!(x.fresh(), Some(&v));
+        }
+        assert_eq!(inbox.restarts(), 1);
+    }
+
+    #[test]
+    fn truncated_and_alien_messages_are_errors_not_panics() {
+        let (inbox, _) = inbox::<u32>(Policy::Sample);
+        let mut x = In::<u32>::default();
+        for m in [&[][..], &[1, 2, 3][..], &[9; 50][..]] {
+            inbox.deliver(m);
+            assert!(matches!(
+                inbox.take_into(&mut x),
+                Err(RemoteProblem::Decode(_))
+            ));
+        }
+        // A header with the right fingerprint and a body that does not decode.
+        let mut m = Vec::new();
+        write_header(
+            &mut m,
+            &Header {
+                fingerprint: fingerprint::<u32>(),
+                epoch: 1,
+                seq: 1,
+                stamp: stamp(1),
+            },
+        );
+        m.push(0xff);
+        inbox.deliver(&m);
+        assert!(matches!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Decode(_))
+        ));
+    }
+
+    #[test]
+    fn fingerprints_tell_shapes_apart() {
+        #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+        struct A {
+            x: f64,
+        }
+        #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+        struct B {
+            x: f64,
+            y: f64,
+        }
+        assert_eq!(fingerprint::<A>(), fingerprint::<A>());
+        assert_ne!(fingerprint::<A>(), fingerprint::<B>());
+        assert_ne!(fingerprint::<u32>(), fingerprint::<u64>());
+        assert_ne!(fingerprint::<Vec<f64>>(), fingerprint::<[f64; 3]>());
+    }
+}
