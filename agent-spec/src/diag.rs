@@ -131,6 +131,9 @@ codes! {
     DeployTwice = "spec::deploy_twice", Error;
     /// A deployment neither runs nor omits a component.
     DeployMissing = "spec::deploy_missing", Error;
+    /// A process's endpoint that is not `tcp/<host>:<port>` (or `tls/...`), or one
+    /// that two processes share.
+    DeployEndpoint = "spec::deploy_endpoint", Error;
 }
 
 impl Code {

@@ -252,6 +252,20 @@ pub struct Deployment {
     /// Components deliberately not deployed.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub omit: Vec<String>,
+    /// The first port of the processes' default endpoints: the `k`-th process
+    /// (in order, over every host) listens on `tcp/<host address>:<port + k>`
+    /// unless it names its own `listen`. Default [`Deployment::DEFAULT_PORT`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub port: Option<u16>,
+    /// A Zenoh router every process connects to as well (`tcp/10.0.0.1:7447`),
+    /// for networks where the processes cannot reach each other directly.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub router: Option<String>,
+    /// How long a process waits for the others (to appear, to answer) before it
+    /// fails with an error that names them, in ms. Default
+    /// [`Deployment::DEFAULT_TIMEOUT_MS`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timeout_ms: Option<u64>,
 }
 
 /// A machine.
@@ -260,6 +274,9 @@ pub struct Deployment {
 pub struct Host {
     /// Name (`PC1`).
     pub name: String,
+    /// The address the other hosts reach it at (`10.0.0.2`); default `127.0.0.1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub address: Option<String>,
     /// Processes on it.
     pub processes: Vec<Process>,
 }
@@ -272,6 +289,10 @@ pub struct Process {
     pub name: String,
     /// Components it runs.
     pub runs: Vec<String>,
+    /// The Zenoh endpoint it listens on (`tcp/10.0.0.2:7451`); default from the
+    /// host's address and the deployment's port.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub listen: Option<String>,
 }
 
 impl Spec {
@@ -348,6 +369,55 @@ impl Spec {
 }
 
 impl Deployment {
+    /// The first port of the default endpoints.
+    pub const DEFAULT_PORT: u16 = 7450;
+    /// The default wait for the other processes, in ms.
+    pub const DEFAULT_TIMEOUT_MS: u64 = 10_000;
+
+    /// Every process with its host and the endpoint it listens on, in order.
+    pub fn processes(&self) -> Vec<(&Host, &Process, String)> {
+        let base = self.port.unwrap_or(Self::DEFAULT_PORT);
+        self.hosts
+            .iter()
+            .flat_map(|h| h.processes.iter().map(move |p| (h, p)))
+            .enumerate()
+            .map(|(k, (h, p))| {
+                let endpoint = p.listen.clone().unwrap_or_else(|| {
+                    let port = u16::try_from(k)
+                        .ok()
+                        .and_then(|k| base.checked_add(k))
+                        .unwrap_or(base);
+                    format!(
+                        "tcp/{}:{port}",
+                        h.address.as_deref().unwrap_or("127.0.0.1")
+                    )
+                });
+                (h, p, endpoint)
+            })
+            .collect()
+    }
+
+    /// The process called `name`, with its host.
+    pub fn process(&self, name: &str) -> Option<(&Host, &Process)> {
+        self.hosts
+            .iter()
+            .flat_map(|h| h.processes.iter().map(move |p| (h, p)))
+            .find(|(_, p)| p.name == name)
+    }
+
+    /// The process that runs component `component`.
+    pub fn process_of(&self, component: &str) -> Option<&Process> {
+        self.hosts
+            .iter()
+            .flat_map(|h| &h.processes)
+            .find(|p| p.runs.iter().any(|r| r == component))
+    }
+
+    /// How long to wait for the other processes.
+    pub fn timeout(&self) -> std::time::Duration {
+        std::time::Duration::from_millis(self.timeout_ms.unwrap_or(Self::DEFAULT_TIMEOUT_MS))
+    }
+
     /// The components it runs, on every host and in every process, in order.
     pub fn runs(&self) -> impl Iterator<Item = &str> {
         self.hosts

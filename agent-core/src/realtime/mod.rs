@@ -238,7 +238,6 @@ pub struct RealTime {
     probes: Vec<(Option<usize>, worker::Probe)>,
     dropped: Arc<AtomicU64>,
     placement: Option<Placement>,
-    origin: Option<SystemTime>,
 }
 
 /// This process's part of a deployment: the nodes it runs, and the transport
@@ -315,6 +314,9 @@ pub enum RtError {
         /// The system's nodes.
         known: String,
     },
+    /// The processes of a deployment could not agree on instant zero.
+    #[error("cannot start in step with the other processes: {0}")]
+    Sync(String),
     /// The transport could not publish or subscribe a link's key.
     #[error("link `{link}` over key `{key}`: {error}")]
     Transport {
@@ -342,7 +344,6 @@ impl RealTime {
             probes: Vec::new(),
             dropped: Arc::new(AtomicU64::new(0)),
             placement: None,
-            origin: None,
         }
     }
 
@@ -364,16 +365,6 @@ impl RealTime {
         }
         self.placement = Some(placement);
         Ok(self)
-    }
-
-    /// Put instant zero at the wall-clock time `origin` instead of
-    /// [`RtConfig::lead`] from the start: the processes of a deployment share it,
-    /// so their instants line up (on one host exactly; across hosts as well as
-    /// their clocks agree). When `origin` is past (a process restarted in a
-    /// running deployment), each node starts at its next instant.
-    pub fn origin(&mut self, origin: SystemTime) -> &mut Self {
-        self.origin = Some(origin);
-        self
     }
 
     /// Names, kinds, periods and links.
@@ -462,13 +453,45 @@ impl RealTime {
     /// Start the threads and run for at most `limit` (until stopped, or until
     /// every node halted, if that comes first).
     pub fn start(self, limit: Duration) -> Result<Running, RtError> {
+        self.start_inner(limit, None)
+    }
+
+    /// As [`RealTime::start`], with instant zero at the wall-clock time that
+    /// `sync` returns, called once every link is made (every subscription of a
+    /// placed process declared) and before any thread starts. The processes of
+    /// a deployment agree on it there (each announces itself ready, and one of
+    /// them sets instant zero for all), so their instants line up (on one host
+    /// exactly; across hosts as well as their clocks agree) and no value is sent
+    /// before its receiver listens. When the time is past (a process restarted
+    /// in a running deployment), each node starts at its next instant.
+    pub fn start_when<E: fmt::Display>(
+        self,
+        limit: Duration,
+        sync: impl FnOnce() -> Result<SystemTime, E>,
+    ) -> Result<Running, RtError> {
+        let mut sync = Some(sync);
+        let mut call = move || {
+            sync.take()
+                .map(|f| f().map_err(|e| RtError::Sync(e.to_string())))
+        };
+        self.start_inner(limit, Some(&mut call))
+    }
+
+    #[allow(
+        clippy::type_complexity,
+        reason = "a one-shot callback, private to the two start functions"
+    )]
+    fn start_inner(
+        self,
+        limit: Duration,
+        sync: Option<&mut dyn FnMut() -> Option<Result<SystemTime, RtError>>>,
+    ) -> Result<Running, RtError> {
         let RealTime {
             system,
             config,
             probes,
             dropped,
             placement,
-            origin,
         } = self;
         let System {
             info,
@@ -649,8 +672,14 @@ impl RealTime {
         }
         let memory_locked = config.lock_memory.then(clock::lock_memory);
         let stop = Arc::new(AtomicBool::new(false));
-        let clock = match origin {
-            Some(at) => clock::Clock::at_wall(at),
+        let clock = match sync.and_then(|f| f()) {
+            Some(Ok(at)) => clock::Clock::at_wall(at),
+            Some(Err(e)) => {
+                if memory_locked.as_ref().is_some_and(Result::is_ok) {
+                    clock::unlock_memory();
+                }
+                return Err(e);
+            }
             None => clock::Clock::starting_in(config.lead),
         };
         let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);

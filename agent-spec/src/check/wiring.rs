@@ -1,6 +1,7 @@
 //! Links between buffers and deployments of components.
 
 use super::*;
+use crate::model::Deployment;
 
 impl<'a> Checker<'a> {
     /// Find `comp.group.buffer`: (component, group peer, buffer type) on `outputs` or
@@ -341,6 +342,7 @@ impl<'a> Checker<'a> {
             for (k, name) in dep.omit.iter().enumerate() {
                 place(self, name, join(&dpath, &[F("omit"), I(k)]), "omits");
             }
+            self.endpoints(d, dep);
             for name in &all {
                 if !placed.contains_key(name) {
                     self.push(
@@ -349,6 +351,76 @@ impl<'a> Checker<'a> {
                     );
                 }
             }
+        }
+    }
+
+    /// Each process of deployment `d` listens on an endpoint Zenoh can use, and
+    /// no two on the same one.
+    fn endpoints(&mut self, d: usize, dep: &Deployment) {
+        let mut seen: HashMap<String, Path> = HashMap::new();
+        let mut k = 0;
+        let endpoints = dep.processes();
+        for (h, host) in dep.hosts.iter().enumerate() {
+            for (p, proc_) in host.processes.iter().enumerate() {
+                let endpoint = endpoints.get(k).map(|(_, _, e)| e.clone()).unwrap_or_default();
+                k += 1;
+                let field = if proc_.listen.is_some() { "listen" } else { "name" };
+                let path = vec![
+                    F("deployments"),
+                    I(d),
+                    F("hosts"),
+                    I(h),
+                    F("processes"),
+                    I(p),
+                    F(field),
+                ];
+                if let Err(why) = check_endpoint(&endpoint) {
+                    self.push(
+                        Finding::new(
+                            Code::DeployEndpoint,
+                            self.span(&path),
+                            "not an endpoint",
+                            format!(
+                                "process `{}` of deployment `{}` listens on `{endpoint}`: {why}",
+                                proc_.name, dep.name
+                            ),
+                        )
+                        .help("write `tcp/<address>:<port>` (or `tls/<address>:<port>` for a secure deployment)"),
+                    );
+                    continue;
+                }
+                if let Some(first) = seen.get(&endpoint) {
+                    let first = self.span(first);
+                    self.push(
+                        Finding::new(
+                            Code::DeployEndpoint,
+                            self.span(&path),
+                            "endpoint taken",
+                            format!(
+                                "process `{}` of deployment `{}` listens on `{endpoint}`, as another process does",
+                                proc_.name, dep.name
+                            ),
+                        )
+                        .label(first, "first listens here")
+                        .help("give each process its own `listen`, or its host an `address`"),
+                    );
+                } else {
+                    seen.insert(endpoint, path);
+                }
+            }
+        }
+        if let Some(router) = &dep.router
+            && let Err(why) = check_endpoint(router)
+        {
+            self.push(
+                Finding::new(
+                    Code::DeployEndpoint,
+                    self.span(&vec![F("deployments"), I(d), F("router")]),
+                    "not an endpoint",
+                    format!("the router of deployment `{}`, `{router}`: {why}", dep.name),
+                )
+                .help("write `tcp/<address>:<port>`"),
+            );
         }
     }
 
@@ -391,5 +463,25 @@ impl<'a> Checker<'a> {
                 buffer.ty, buffer.name, buffer.ty, buffer.name
             ),
         }
+    }
+}
+
+/// Whether `endpoint` is `<tcp|tls>/<host>:<port>`, and why not.
+fn check_endpoint(endpoint: &str) -> Result<(), String> {
+    let Some((proto, rest)) = endpoint.split_once('/') else {
+        return Err("no protocol (`tcp/` or `tls/`)".into());
+    };
+    if !matches!(proto, "tcp" | "tls") {
+        return Err(format!("protocol `{proto}` is not `tcp` or `tls`"));
+    }
+    let Some((host, port)) = rest.rsplit_once(':') else {
+        return Err("no `:<port>`".into());
+    };
+    if host.is_empty() {
+        return Err("no host".into());
+    }
+    match port.parse::<u16>() {
+        Ok(p) if p > 0 => Ok(()),
+        _ => Err(format!("`{port}` is not a port (1-65535)")),
     }
 }

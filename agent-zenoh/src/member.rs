@@ -1,0 +1,568 @@
+//! One process's membership in a running deployment: its session, presence,
+//! the shared instant zero, the stop signal, probes; and [`Watch`], the view of a
+//! launcher or monitor from outside.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use agent_core::Placement;
+use agent_spec::model::{Deployment, Spec};
+use zenoh::Wait;
+use zenoh::sample::SampleKind;
+
+use crate::transport::ZenohTransport;
+
+/// Settings a command line may change.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Options {
+    /// Replace the deployment's first port (so that tests or two runs of the
+    /// same deployment do not share endpoints).
+    pub port: Option<u16>,
+    /// Replace the deployment's wait for the other processes.
+    pub timeout: Option<Duration>,
+}
+
+/// Why a process could not join its deployment, or lost it.
+#[derive(Debug, thiserror::Error)]
+pub enum MemberError {
+    /// The spec has no such deployment.
+    #[error("spec `{spec}` has no deployment `{name}` (it has: {known})")]
+    UnknownDeployment {
+        /// The spec.
+        spec: String,
+        /// The deployment asked for.
+        name: String,
+        /// Those it has.
+        known: String,
+    },
+    /// The deployment has no such process.
+    #[error("deployment `{deployment}` has no process `{name}` (it has: {known})")]
+    UnknownProcess {
+        /// The deployment.
+        deployment: String,
+        /// The process asked for.
+        name: String,
+        /// Those it has.
+        known: String,
+    },
+    /// Zenoh refused (a bad endpoint, a port taken, ...).
+    #[error("zenoh, for process `{process}`: {error}")]
+    Zenoh {
+        /// This process.
+        process: String,
+        /// Zenoh's message.
+        error: String,
+    },
+    /// Processes did not appear in time.
+    #[error(
+        "process `{process}` waited {waited:?} for {missing} of deployment `{deployment}` (on {endpoints}); is it started, and reachable?"
+    )]
+    Missing {
+        /// This process.
+        process: String,
+        /// The deployment.
+        deployment: String,
+        /// The processes that did not appear, as a list.
+        missing: String,
+        /// Where they were expected.
+        endpoints: String,
+        /// How long.
+        waited: Duration,
+    },
+    /// The transport was already handed to a placement.
+    #[error("the placement of process `{0}` was already taken")]
+    PlacementTaken(String),
+}
+
+/// The deployment as one process sees it.
+struct Layout {
+    system: String,
+    deployment: String,
+    /// Every process: name, endpoint, components.
+    processes: Vec<(String, String, Vec<String>)>,
+    router: Option<String>,
+    timeout: Duration,
+}
+
+impl Layout {
+    fn of(spec: &Spec, deployment: &str, options: &Options) -> Result<Layout, MemberError> {
+        let dep: &Deployment = spec
+            .deployments
+            .iter()
+            .find(|d| d.name == deployment)
+            .ok_or_else(|| MemberError::UnknownDeployment {
+                spec: spec.name.clone(),
+                name: deployment.to_owned(),
+                known: spec
+                    .deployments
+                    .iter()
+                    .map(|d| d.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?;
+        let mut dep = dep.clone();
+        if let Some(port) = options.port {
+            dep.port = Some(port);
+        }
+        Ok(Layout {
+            system: spec.name.clone(),
+            deployment: dep.name.clone(),
+            processes: dep
+                .processes()
+                .into_iter()
+                .map(|(_, p, e)| (p.name.clone(), e, p.runs.clone()))
+                .collect(),
+            router: dep.router.clone(),
+            timeout: options.timeout.unwrap_or_else(|| dep.timeout()),
+        })
+    }
+
+    fn rt_key(&self, rest: &str) -> String {
+        format!("{}/_rt/{rest}", self.system)
+    }
+
+    fn endpoint(&self, process: &str) -> Option<&str> {
+        self.processes
+            .iter()
+            .find(|(p, _, _)| p == process)
+            .map(|(_, e, _)| e.as_str())
+    }
+
+    /// A peer session listening on `listen` (if any) and connected to every other
+    /// process and the router.
+    fn open(&self, me: &str, listen: Option<&str>) -> Result<zenoh::Session, MemberError> {
+        let err = |error: String| MemberError::Zenoh {
+            process: me.to_owned(),
+            error,
+        };
+        let connect: Vec<&str> = self
+            .processes
+            .iter()
+            .filter(|(p, _, _)| p != me)
+            .map(|(_, e, _)| e.as_str())
+            .chain(self.router.as_deref())
+            .collect();
+        let mut config = zenoh::Config::default();
+        let settings: Vec<(&str, String)> = vec![
+            ("mode", "\"peer\"".to_owned()),
+            ("listen/endpoints", json_list(listen.as_slice())),
+            ("connect/endpoints", json_list(&connect)),
+            // Peers that are not up yet are retried in the background; our own
+            // waits (with the deployment's timeout) decide when to give up.
+            ("connect/timeout_ms", "0".to_owned()),
+            ("connect/exit_on_failure", "false".to_owned()),
+            ("scouting/multicast/enabled", "false".to_owned()),
+        ];
+        for (key, value) in settings {
+            config
+                .insert_json5(key, &value)
+                .map_err(|e| err(format!("setting `{key}` to {value}: {e}")))?;
+        }
+        zenoh::open(config).wait().map_err(|e| err(e.to_string()))
+    }
+}
+
+/// A JSON list of strings (endpoints have no characters that need more than
+/// Rust's `Debug` quoting).
+fn json_list(items: &[&str]) -> String {
+    let items: Vec<String> = items.iter().map(|s| format!("{s:?}")).collect();
+    format!("[{}]", items.join(","))
+}
+
+/// Poll `key` (a liveliness key expression) until `done` says the tokens seen
+/// suffice, or `timeout`. Returns the tokens' keys last seen.
+fn poll_tokens(
+    session: &zenoh::Session,
+    key: &str,
+    timeout: Duration,
+    mut done: impl FnMut(&[String]) -> bool,
+) -> (bool, Vec<String>) {
+    let start = Instant::now();
+    let mut seen = Vec::new();
+    loop {
+        seen.clear();
+        if let Ok(replies) = session
+            .liveliness()
+            .get(key)
+            .timeout(Duration::from_millis(300))
+            .wait()
+        {
+            while let Ok(reply) = replies.recv() {
+                if let Ok(sample) = reply.result() {
+                    seen.push(sample.key_expr().as_str().to_owned());
+                }
+            }
+        }
+        if done(&seen) {
+            return (true, seen);
+        }
+        if start.elapsed() >= timeout {
+            return (false, seen);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// This process in its running deployment.
+pub struct Member {
+    layout: Layout,
+    process: String,
+    session: zenoh::Session,
+    transport: Option<ZenohTransport>,
+    stop: Arc<AtomicBool>,
+    gone: Arc<Mutex<Vec<String>>>,
+    _token: Option<zenoh::liveliness::LivelinessToken>,
+    _origin_token: Option<zenoh::liveliness::LivelinessToken>,
+    _watch: zenoh::pubsub::Subscriber<()>,
+    _stop: zenoh::pubsub::Subscriber<()>,
+}
+
+impl std::fmt::Debug for Member {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Member")
+            .field("system", &self.layout.system)
+            .field("deployment", &self.layout.deployment)
+            .field("process", &self.process)
+            .finish()
+    }
+}
+
+impl Member {
+    /// Join deployment `deployment` of `spec` as process `process`: open the
+    /// session on the process's endpoint, connect to the others, announce
+    /// presence, and watch for processes that vanish and for the stop signal.
+    pub fn join(
+        spec: &Spec,
+        deployment: &str,
+        process: &str,
+        options: &Options,
+    ) -> Result<Member, MemberError> {
+        let layout = Layout::of(spec, deployment, options)?;
+        let Some(listen) = layout.endpoint(process).map(str::to_owned) else {
+            return Err(MemberError::UnknownProcess {
+                deployment: layout.deployment.clone(),
+                name: process.to_owned(),
+                known: layout
+                    .processes
+                    .iter()
+                    .map(|(p, _, _)| p.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        };
+        let session = layout.open(process, Some(&listen))?;
+        let zerr = |e: zenoh::Error| MemberError::Zenoh {
+            process: process.to_owned(),
+            error: e.to_string(),
+        };
+        let transport = ZenohTransport::new(session.clone(), layout.system.clone());
+        let senders = transport.senders();
+        // Who runs what: to tell the inboxes fed by a process that vanished.
+        let runs: HashMap<String, Vec<String>> = layout
+            .processes
+            .iter()
+            .map(|(p, _, r)| (p.clone(), r.clone()))
+            .collect();
+        let gone = Arc::new(Mutex::new(Vec::new()));
+        let watch_gone = gone.clone();
+        let process_prefix = layout.rt_key("process/");
+        let watch = session
+            .liveliness()
+            .declare_subscriber(layout.rt_key("process/*"))
+            .callback(move |sample| {
+                if sample.kind() != SampleKind::Delete {
+                    return;
+                }
+                let key = sample.key_expr().as_str();
+                let Some(name) = key.strip_prefix(process_prefix.as_str()) else {
+                    return;
+                };
+                let senders = senders.lock().unwrap_or_else(PoisonError::into_inner);
+                for component in runs.get(name).into_iter().flatten() {
+                    for inbox in senders.get(component).into_iter().flatten() {
+                        inbox.peer_lost(name);
+                    }
+                }
+                watch_gone
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .push(name.to_owned());
+            })
+            .wait()
+            .map_err(zerr)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let stop_flag = stop.clone();
+        let stop_sub = session
+            .declare_subscriber(layout.rt_key("stop"))
+            .callback(move |_| stop_flag.store(true, Ordering::Relaxed))
+            .wait()
+            .map_err(zerr)?;
+        Ok(Member {
+            layout,
+            process: process.to_owned(),
+            session,
+            transport: Some(transport),
+            stop,
+            gone,
+            _token: None,
+            _origin_token: None,
+            _watch: watch,
+            _stop: stop_sub,
+        })
+    }
+
+    /// The components this process runs.
+    pub fn runs(&self) -> &[String] {
+        self.layout
+            .processes
+            .iter()
+            .find(|(p, _, _)| *p == self.process)
+            .map_or(&[][..], |(_, _, r)| r.as_slice())
+    }
+
+    /// This process's name.
+    pub fn process(&self) -> &str {
+        &self.process
+    }
+
+    /// The placement of this process for [`agent_core::RealTime::place`]: the
+    /// components it runs, and the Zenoh transport for the others (once).
+    pub fn placement(&mut self) -> Result<Placement, MemberError> {
+        let transport = self
+            .transport
+            .take()
+            .ok_or_else(|| MemberError::PlacementTaken(self.process.clone()))?;
+        Ok(Placement {
+            here: self.runs().to_vec(),
+            prefix: self.layout.system.clone(),
+            transport: Box::new(transport),
+        })
+    }
+
+    /// Wait until every other process of the deployment is present; the error
+    /// names those that did not appear within the deployment's timeout.
+    pub fn wait_for_all(&self) -> Result<(), MemberError> {
+        let others: Vec<&str> = self
+            .layout
+            .processes
+            .iter()
+            .map(|(p, _, _)| p.as_str())
+            .filter(|p| *p != self.process)
+            .collect();
+        let prefix = self.layout.rt_key("process/");
+        let missing_of = |seen: &[String]| -> Vec<&str> {
+            others
+                .iter()
+                .copied()
+                .filter(|o| !seen.iter().any(|k| k.strip_prefix(prefix.as_str()) == Some(*o)))
+                .collect()
+        };
+        let (ok, seen) = poll_tokens(
+            &self.session,
+            &self.layout.rt_key("process/*"),
+            self.layout.timeout,
+            |seen| missing_of(seen).is_empty(),
+        );
+        if ok {
+            return Ok(());
+        }
+        let missing = missing_of(&seen);
+        Err(MemberError::Missing {
+            process: self.process.clone(),
+            deployment: self.layout.deployment.clone(),
+            endpoints: missing
+                .iter()
+                .filter_map(|m| self.layout.endpoint(m))
+                .collect::<Vec<_>>()
+                .join(", "),
+            missing: missing
+                .iter()
+                .map(|m| format!("`{m}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            waited: self.layout.timeout,
+        })
+    }
+
+    /// Announce this process ready (its links made), and return the deployment's
+    /// instant zero: the first process of the deployment sets it, `lead` after
+    /// every process is ready, and announces it; the others wait for it (a
+    /// process restarted later finds it at once, in the past). Give it to
+    /// [`agent_core::RealTime::start_when`], which calls it once the links exist.
+    pub fn ready(&mut self, lead: Duration) -> Result<SystemTime, MemberError> {
+        if self._token.is_none() {
+            let token = self
+                .session
+                .liveliness()
+                .declare_token(self.layout.rt_key(&format!("process/{}", self.process)))
+                .wait()
+                .map_err(|e| MemberError::Zenoh {
+                    process: self.process.clone(),
+                    error: e.to_string(),
+                })?;
+            self._token = Some(token);
+        }
+        let leader = self
+            .layout
+            .processes
+            .first()
+            .map(|(p, _, _)| p.clone())
+            .unwrap_or_default();
+        let key = self.layout.rt_key("origin/*");
+        let parse = |seen: &[String]| -> Option<u64> {
+            seen.iter()
+                .filter_map(|k| k.rsplit('/').next()?.parse::<u64>().ok())
+                .max()
+        };
+        if leader == self.process {
+            let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, |_| true);
+            if let Some(ns) = parse(&seen) {
+                // A leader restarted in a running deployment keeps its origin.
+                return Ok(UNIX_EPOCH + Duration::from_nanos(ns));
+            }
+            self.wait_for_all()?;
+            let origin = SystemTime::now() + lead;
+            let ns = origin
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+            let token = self
+                .session
+                .liveliness()
+                .declare_token(self.layout.rt_key(&format!("origin/{ns}")))
+                .wait()
+                .map_err(|e| MemberError::Zenoh {
+                    process: self.process.clone(),
+                    error: e.to_string(),
+                })?;
+            self._origin_token = Some(token);
+            return Ok(origin);
+        }
+        let (ok, seen) = poll_tokens(&self.session, &key, self.layout.timeout, |seen| {
+            parse(seen).is_some()
+        });
+        match parse(&seen) {
+            Some(ns) if ok => Ok(UNIX_EPOCH + Duration::from_nanos(ns)),
+            _ => Err(MemberError::Missing {
+                process: self.process.clone(),
+                deployment: self.layout.deployment.clone(),
+                missing: format!("the start signal of `{leader}`"),
+                endpoints: self.layout.endpoint(&leader).unwrap_or("?").to_owned(),
+                waited: self.layout.timeout,
+            }),
+        }
+    }
+
+    /// Whether a stop was asked (by [`Member::request_stop`] or [`Watch::stop`]
+    /// of any participant).
+    pub fn stop_requested(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    /// Ask every process of the deployment to stop.
+    pub fn request_stop(&self) {
+        let _ = self.session.put(self.layout.rt_key("stop"), "stop").wait();
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// The processes seen to vanish so far.
+    pub fn gone(&self) -> Vec<String> {
+        self.gone
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Publish `bytes` as observation `name` of this process, for a [`Watch`]
+    /// (reliably: observations are not dropped under congestion).
+    pub fn observe(&self, name: &str, bytes: Vec<u8>) -> Result<(), MemberError> {
+        self.session
+            .put(
+                self.layout
+                    .rt_key(&format!("probe/{}/{name}", self.process)),
+                bytes,
+            )
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .wait()
+            .map_err(|e| MemberError::Zenoh {
+                process: self.process.clone(),
+                error: e.to_string(),
+            })
+    }
+}
+
+/// A deployment seen from outside (a launcher, a monitor): the observations its
+/// processes publish, their presence, and the stop signal.
+pub struct Watch {
+    layout: Layout,
+    session: zenoh::Session,
+    observations: zenoh::pubsub::Subscriber<
+        zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>,
+    >,
+}
+
+impl std::fmt::Debug for Watch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watch")
+            .field("deployment", &self.layout.deployment)
+            .finish()
+    }
+}
+
+/// One observation: the process, its name, the bytes.
+pub type Observation = (String, String, Vec<u8>);
+
+impl Watch {
+    /// Watch deployment `deployment` of `spec` (connecting to every process's
+    /// endpoint; nothing listens).
+    pub fn open(spec: &Spec, deployment: &str, options: &Options) -> Result<Watch, MemberError> {
+        let layout = Layout::of(spec, deployment, options)?;
+        let session = layout.open("launcher", None)?;
+        let observations = session
+            .declare_subscriber(layout.rt_key("probe/**"))
+            .with(zenoh::handlers::FifoChannel::new(1 << 16))
+            .wait()
+            .map_err(|e| MemberError::Zenoh {
+                process: "launcher".into(),
+                error: e.to_string(),
+            })?;
+        Ok(Watch {
+            layout,
+            session,
+            observations,
+        })
+    }
+
+    /// The next observation, waiting at most `timeout`.
+    pub fn next(&self, timeout: Duration) -> Option<Observation> {
+        let sample = self.observations.recv_timeout(timeout).ok().flatten()?;
+        let key = sample.key_expr().as_str();
+        let rest = key.strip_prefix(&self.layout.rt_key("probe/"))?;
+        let (process, name) = rest.split_once('/')?;
+        Some((
+            process.to_owned(),
+            name.to_owned(),
+            sample.payload().to_bytes().into_owned(),
+        ))
+    }
+
+    /// The processes present now.
+    pub fn present(&self) -> Vec<String> {
+        let prefix = self.layout.rt_key("process/");
+        let (_, seen) = poll_tokens(
+            &self.session,
+            &self.layout.rt_key("process/*"),
+            Duration::ZERO,
+            |_| true,
+        );
+        seen.iter()
+            .filter_map(|k| k.strip_prefix(prefix.as_str()).map(str::to_owned))
+            .collect()
+    }
+
+    /// Ask every process to stop.
+    pub fn stop(&self) {
+        let _ = self.session.put(self.layout.rt_key("stop"), "stop").wait();
+    }
+}

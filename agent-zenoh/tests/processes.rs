@@ -1,0 +1,261 @@
+//! Links between real processes over real Zenoh sessions on loopback.
+//!
+//! Each test starts this test binary again as the deployment's processes (the
+//! environment variable `AGENT_ZENOH_ROLE` tells a child which process it is and
+//! the test `child` runs it), so both sides are the code under test, in separate
+//! address spaces, talking through Zenoh.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+#[path = "../../agent-core/tests/common/mod.rs"]
+mod common;
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use agent_core::*;
+use agent_spec::model::Spec;
+use agent_zenoh::{Member, Options};
+use common::*;
+
+const ROLE: &str = "AGENT_ZENOH_ROLE";
+
+/// The counter `c` in process `p1`, the recorder `e` in process `p2`.
+fn spec(timeout_ms: u64) -> Spec {
+    agent_spec::options().from_str(&format!(
+        r#"(name: "relay", agents: [], deployments: [(
+            name: "two", timeout_ms: {timeout_ms},
+            hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
+        )])"#
+    ))
+    .unwrap()
+}
+
+/// What a child prints on its last line: `e`'s values, or `c`'s echo count,
+/// and the errors its executor met.
+fn child_main(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, fingerprint_twist: bool) {
+    let p = pair(2, 2, 1, Policy::queue(64), false);
+    let system = if fingerprint_twist && process == "p2" {
+        twisted_pair().system
+    } else {
+        p.system
+    };
+    let options = Options {
+        port: Some(port),
+        timeout: Some(Duration::from_millis(timeout_ms)),
+    };
+    let mut member = match Member::join(&spec(timeout_ms), "two", process, &options) {
+        Ok(m) => m,
+        Err(e) => {
+            println!("error: {e}");
+            std::process::exit(3);
+        }
+    };
+    let mut rt = RealTime::new(
+        system,
+        RtConfig {
+            exec: ExecConfig {
+                on_error: OnError::Continue,
+                ..ExecConfig::default()
+            },
+            ..RtConfig::default()
+        },
+    );
+    rt.place(member.placement().unwrap()).unwrap();
+    let running = match rt.start_when(Duration::from_millis(limit_ms), || {
+        member.ready(Duration::from_millis(300))
+    }) {
+        Ok(r) => r,
+        Err(e) => {
+            println!("error: {e}");
+            std::process::exit(4);
+        }
+    };
+    let f = running.join().unwrap();
+    for e in &f.report().errors {
+        println!("exec-error: {e}");
+    }
+    match process {
+        "p2" if !fingerprint_twist => {
+            let got: Vec<String> = f
+                .memory(&p.e)
+                .unwrap()
+                .got
+                .iter()
+                .map(|g| g.1.to_string())
+                .collect();
+            println!("got: {}", got.join(","));
+        }
+        _ => println!("done"),
+    }
+}
+
+/// The pair as another build would have it: `c.e.count` carries a `u32` (p1's
+/// carries a `u64`). Only `e` runs in p2; `c` is there for the structure.
+fn twisted_pair() -> Pair32 {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let idle = |name| Behaviour::while_loop(name, Action::<C32>::new(), "false");
+    let c = b.subsystem(a, "c", ms(2), (), Fsm::single(idle("count")).unwrap());
+    let e = b.subsystem(
+        a,
+        "e",
+        ms(2),
+        (),
+        Fsm::single(Behaviour::while_loop("record", Action::<E32>::new(), "false")).unwrap(),
+    );
+    b.connect(
+        c.output(port!(C32Out, e.count)),
+        e.input(port!(E32In, c.count)),
+        Policy::queue(64),
+    );
+    b.connect(
+        e.output(port!(E32Out, c.echo)),
+        c.input(port!(CounterIn, e.echo)),
+        Policy::Sample,
+    );
+    Pair32 {
+        system: b.build().unwrap(),
+    }
+}
+
+struct Pair32 {
+    system: System,
+}
+
+struct C32;
+#[derive(Debug, Default)]
+struct C32ToE {
+    count: Out<u32>,
+}
+impl Group for C32ToE {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+#[derive(Debug, Default)]
+struct C32Out {
+    e: C32ToE,
+}
+impl Subsystem for C32 {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = ();
+    type Input = CounterIn;
+    type Output = C32Out;
+}
+
+struct E32;
+#[derive(Debug, Default, Clone)]
+struct From32 {
+    count: In<u32>,
+}
+impl Group for From32 {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Debug, Default, Clone)]
+struct E32In {
+    c: From32,
+}
+#[derive(Debug, Default)]
+struct E32Out {
+    c: EchoToC,
+}
+impl Subsystem for E32 {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = ();
+    type Input = E32In;
+    type Output = E32Out;
+}
+
+#[test]
+fn child() {
+    let Ok(role) = std::env::var(ROLE) else {
+        return; // not a child: nothing to do
+    };
+    let parts: Vec<&str> = role.split(',').collect();
+    let [process, port, limit, timeout, twist] = parts[..] else {
+        panic!("bad role {role}");
+    };
+    child_main(
+        process,
+        port.parse().unwrap(),
+        limit.parse().unwrap(),
+        timeout.parse().unwrap(),
+        twist == "twist",
+    );
+    std::process::exit(0);
+}
+
+/// Start this binary as process `process` of the deployment.
+fn spawn(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, twist: bool) -> std::process::Child {
+    Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child", "--nocapture", "--test-threads=1"])
+        .env(
+            ROLE,
+            format!(
+                "{process},{port},{limit_ms},{timeout_ms},{}",
+                if twist { "twist" } else { "plain" }
+            ),
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn output(child: std::process::Child) -> (i32, String) {
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned()
+        + &String::from_utf8_lossy(&out.stderr);
+    (out.status.code().unwrap_or(-1), text)
+}
+
+#[test]
+fn a_queue_link_between_two_processes_carries_every_value_in_order() {
+    let port = 17_450;
+    let p1 = spawn("p1", port, 1_000, 10_000, false);
+    let p2 = spawn("p2", port, 1_000, 10_000, false);
+    let (c1, out1) = output(p1);
+    let (c2, out2) = output(p2);
+    assert_eq!((c1, c2), (0, 0), "p1:\n{out1}\np2:\n{out2}");
+    assert!(!out2.contains("exec-error"), "{out2}");
+    let got: Vec<u64> = out2
+        .lines()
+        .find_map(|l| l.split_once("got: ").map(|(_, v)| v))
+        .expect(&out2)
+        .split(',')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    // c counts every 2 ms for 1 s; the values still in flight at the end are
+    // the only ones missing, and none is lost or reordered before them.
+    assert!(got.len() > 400, "{} values: {got:?}", got.len());
+    assert_eq!(got, (0..got.len() as u64).collect::<Vec<_>>());
+}
+
+#[test]
+fn a_process_that_never_appears_is_named_in_a_timely_error() {
+    let p1 = spawn("p1", 17_470, 1_000, 1_500, false);
+    let (code, out) = output(p1);
+    assert_ne!(code, 0, "{out}");
+    assert!(
+        out.contains("`p2`") && out.contains("tcp/127.0.0.1:17471"),
+        "the error names the missing process and where it was expected:\n{out}"
+    );
+}
+
+#[test]
+fn a_process_built_from_other_code_is_refused_with_a_message_that_says_so() {
+    let port = 17_490;
+    let p1 = spawn("p1", port, 800, 10_000, false);
+    let p2 = spawn("p2", port, 800, 10_000, true);
+    let (_, out1) = output(p1);
+    let (_, out2) = output(p2);
+    assert!(
+        out2.contains("fingerprint") && out2.contains("built from different specs or code"),
+        "p2:\n{out2}\np1:\n{out1}"
+    );
+    assert!(out2.contains("relay/a/c/e/count"), "the error names the key:\n{out2}");
+}
