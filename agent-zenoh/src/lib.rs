@@ -33,7 +33,10 @@ mod member;
 mod transport;
 
 
-pub use member::{Member, MemberError, Observation, Options, Watch};
+pub use member::{Member, MemberError, Observation, Options, Watch, open_peer};
+
+/// The Zenoh crate this one is built on, for sessions of your own.
+pub use zenoh;
 pub use transport::ZenohTransport;
 
 pub use agent_core::{Inbox, Publisher, Transport, TransportError};

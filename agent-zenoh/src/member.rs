@@ -133,10 +133,6 @@ impl Layout {
     /// A peer session listening on `listen` (if any) and connected to every other
     /// process and the router.
     fn open(&self, me: &str, listen: Option<&str>) -> Result<zenoh::Session, MemberError> {
-        let err = |error: String| MemberError::Zenoh {
-            process: me.to_owned(),
-            error,
-        };
         let connect: Vec<&str> = self
             .processes
             .iter()
@@ -144,24 +140,38 @@ impl Layout {
             .map(|(_, e, _)| e.as_str())
             .chain(self.router.as_deref())
             .collect();
-        let mut config = zenoh::Config::default();
-        let settings: Vec<(&str, String)> = vec![
-            ("mode", "\"peer\"".to_owned()),
-            ("listen/endpoints", json_list(listen.as_slice())),
-            ("connect/endpoints", json_list(&connect)),
-            // Peers that are not up yet are retried in the background; our own
-            // waits (with the deployment's timeout) decide when to give up.
-            ("connect/timeout_ms", "0".to_owned()),
-            ("connect/exit_on_failure", "false".to_owned()),
-            ("scouting/multicast/enabled", "false".to_owned()),
-        ];
-        for (key, value) in settings {
-            config
-                .insert_json5(key, &value)
-                .map_err(|e| err(format!("setting `{key}` to {value}: {e}")))?;
-        }
-        zenoh::open(config).wait().map_err(|e| err(e.to_string()))
+        open_peer(listen, &connect).map_err(|error| MemberError::Zenoh {
+            process: me.to_owned(),
+            error,
+        })
     }
+}
+
+/// A Zenoh session in peer mode, listening on `listen` (if any) and connecting
+/// to `connect`, without multicast scouting (endpoints are given; multicast is
+/// often unavailable between network namespaces and hosts). Peers that are not
+/// up yet are retried in the background: the caller's own waits decide when to
+/// give up.
+pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Session, String> {
+    let mut config = zenoh::Config::default();
+    let settings: Vec<(&str, String)> = vec![
+        ("mode", "\"peer\"".to_owned()),
+        ("listen/endpoints", json_list(listen.as_slice())),
+        ("connect/endpoints", json_list(connect)),
+        // Connect in the background, retrying every 100 ms at first, 1 s at most.
+        ("connect/exit_on_failure", "false".to_owned()),
+        (
+            "connect/retry",
+            "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}".to_owned(),
+        ),
+        ("scouting/multicast/enabled", "false".to_owned()),
+    ];
+    for (key, value) in settings {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| format!("setting `{key}` to {value}: {e}"))?;
+    }
+    zenoh::open(config).wait().map_err(|e| e.to_string())
 }
 
 /// A JSON list of strings (endpoints have no characters that need more than

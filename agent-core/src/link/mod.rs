@@ -27,6 +27,7 @@ use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, TransferEvent};
 
+pub mod endpoint;
 pub mod remote;
 pub(crate) mod thread;
 

@@ -101,7 +101,7 @@ impl<T: Payload> ThreadTx<T> {
     /// As the in-process channel's `put`: with `last` the value moves (the storage
     /// it replaces is left in `value`), otherwise it is cloned.
     #[inline]
-    fn put(&mut self, value: &mut Option<T>, last: bool, stamp: Stamp) -> Result<(), Cause> {
+    pub(crate) fn put(&mut self, value: &mut Option<T>, last: bool, stamp: Stamp) -> Result<(), Cause> {
         match self {
             ThreadTx::Sample(tx, stats) => {
                 let slot = tx.input_buffer_mut();
@@ -149,7 +149,10 @@ impl<T: Payload> ThreadRx<T> {
     /// Take what the link holds; a link from another process may report a
     /// problem instead (key, problem).
     #[inline]
-    fn take_into(&mut self, x: &mut In<T>) -> Result<(), (Arc<str>, crate::error::RemoteProblem)> {
+    pub(crate) fn take_into(
+        &mut self,
+        x: &mut In<T>,
+    ) -> Result<(), (Arc<str>, crate::error::RemoteProblem)> {
         match self {
             ThreadRx::Sample(rx, stats) => {
                 if rx.update() {

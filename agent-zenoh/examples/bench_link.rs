@@ -1,0 +1,311 @@
+//! One hop of a 64-byte buffer: in-process, between threads, and between two
+//! processes over Zenoh on loopback, beside raw Zenoh publish/subscribe between
+//! the same two processes in the same run.
+//!
+//! `cargo run --release -p agent-zenoh --example bench_link`
+//!
+//! * `inproc_ns`: an instant of the deterministic executor in which one node
+//!   writes the buffer and another reads it (two activations and the hop).
+//! * `thread_us`, `zenoh_us`, `raw_zenoh_us`: half a round trip (ping, then
+//!   pong sent back on receipt), each side polling its end (yielding between
+//!   polls), so the figure is the link's and not a period's. `zenoh_us` goes
+//!   through the framework's links between processes (header, fingerprint and
+//!   sequence checks, postcard, the receiving inbox); `raw_zenoh_us` through
+//!   bare Zenoh publishers and subscribers on the same sessions' settings.
+//!
+//! Both Zenoh figures alternate in rounds of 1000 so that the machine's drift
+//! affects them alike. The last line is the figures line.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a benchmark: a failure ends it")]
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use agent_core::link::endpoint::{self, Receiver, Sender};
+use agent_core::prelude::*;
+use agent_zenoh::zenoh::Wait;
+use agent_zenoh::{ZenohTransport, open_peer};
+
+type Payload64 = [u64; 8];
+
+const ROUNDS: usize = 20;
+const PER_ROUND: usize = 1000;
+const PORT: u16 = 17_600;
+
+fn stamp(i: usize) -> Stamp {
+    Stamp::new(i as u64, Time::ZERO)
+}
+
+fn spin<T>(mut f: impl FnMut() -> Option<T>) -> T {
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        std::thread::yield_now();
+    }
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+// ---------------------------------------------------------------------------
+// In-process: a writer and a reader in the deterministic executor.
+
+struct Writer;
+#[derive(Debug, Default)]
+struct ToReader {
+    data: Out<Payload64>,
+}
+impl Group for ToReader {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+#[derive(Debug, Default)]
+struct WriterOut {
+    r: ToReader,
+}
+impl Subsystem for Writer {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = u64;
+    type Input = ();
+    type Output = WriterOut;
+}
+
+struct Reader;
+#[derive(Debug, Default, Clone)]
+struct FromWriter {
+    data: In<Payload64>,
+}
+impl Group for FromWriter {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Debug, Default, Clone)]
+struct ReaderIn {
+    w: FromWriter,
+}
+impl Subsystem for Reader {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = u64;
+    type Input = ReaderIn;
+    type Output = ();
+}
+
+fn inproc_ns() -> Vec<f64> {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let period = Period::from_millis(1).unwrap();
+    let write = Action::<Writer>::new()
+        .output(
+            |y| &mut y.r,
+            |m: &u64, _: &(), y: &mut ToReader| y.data.set([*m; 8]),
+        )
+        .memory(|m: &mut u64, _: &()| *m += 1);
+    let read = Action::<Reader>::new().memory(|m: &mut u64, x: &ReaderIn| {
+        if let Some(v) = x.w.data.fresh() {
+            *m = m.wrapping_add(v[7]);
+        }
+    });
+    let w = b.subsystem(
+        a,
+        "w",
+        period,
+        0,
+        Fsm::single(Behaviour::while_loop("write", write, "false")).unwrap(),
+    );
+    let r = b.subsystem(
+        a,
+        "r",
+        period,
+        0,
+        Fsm::single(Behaviour::while_loop("read", read, "false")).unwrap(),
+    );
+    b.connect(
+        w.output(port!(WriterOut, r.data)),
+        r.input(port!(ReaderIn, w.data)),
+        Policy::Sample,
+    );
+    let mut exec = Executor::new(b.build().unwrap(), ExecConfig::default());
+    let mut out = Vec::with_capacity(ROUNDS * PER_ROUND);
+    for _ in 0..1000 {
+        exec.step().unwrap();
+    }
+    for _ in 0..ROUNDS * PER_ROUND {
+        let t = Instant::now();
+        exec.step().unwrap();
+        out.push(t.elapsed().as_nanos() as f64);
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------
+// Between threads.
+
+fn thread_us() -> Vec<f64> {
+    let (mut ping_tx, mut ping_rx) = endpoint::between_threads::<Payload64>(Policy::queue(4));
+    let (mut pong_tx, mut pong_rx) = endpoint::between_threads::<Payload64>(Policy::queue(4));
+    let n = ROUNDS * PER_ROUND;
+    let echo = std::thread::spawn(move || {
+        for i in 0..n {
+            let v = spin(|| ping_rx.recv().unwrap().copied());
+            pong_tx.send(v, stamp(i)).unwrap();
+        }
+    });
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let t = Instant::now();
+        ping_tx.send([i as u64; 8], stamp(i)).unwrap();
+        let v = spin(|| pong_rx.recv().unwrap().copied());
+        assert_eq!(v[0], i as u64);
+        out.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+    }
+    echo.join().unwrap();
+    out
+}
+
+// ---------------------------------------------------------------------------
+// Between processes.
+
+struct Ours {
+    tx: Sender<Payload64>,
+    rx: Receiver<Payload64>,
+}
+
+struct Raw {
+    publisher: agent_zenoh::zenoh::pubsub::Publisher<'static>,
+    subscriber: agent_zenoh::zenoh::pubsub::Subscriber<
+        agent_zenoh::zenoh::handlers::FifoChannelHandler<agent_zenoh::zenoh::sample::Sample>,
+    >,
+}
+
+fn ends(session: &agent_zenoh::zenoh::Session, send: &str, recv: &str) -> (Ours, Raw) {
+    let mut transport = ZenohTransport::new(session.clone(), "bench");
+    let policy = Policy::queue(64);
+    let ours = Ours {
+        tx: endpoint::to_processes(&mut transport, &format!("bench/{send}"), policy).unwrap(),
+        rx: endpoint::from_process(&mut transport, &format!("bench/{recv}"), policy).unwrap(),
+    };
+    let raw = Raw {
+        publisher: session
+            .declare_publisher(format!("raw/{send}"))
+            .congestion_control(agent_zenoh::zenoh::qos::CongestionControl::Block)
+            .express(true)
+            .wait()
+            .unwrap(),
+        subscriber: session
+            .declare_subscriber(format!("raw/{recv}"))
+            .wait()
+            .unwrap(),
+    };
+    (ours, raw)
+}
+
+fn raw_recv(raw: &Raw) -> Option<Vec<u8>> {
+    raw.subscriber
+        .try_recv()
+        .ok()
+        .flatten()
+        .map(|s| s.payload().to_bytes().into_owned())
+}
+
+/// The echoing process: sends back every ping, ours and raw, until told to end.
+fn echo_main() {
+    let session = open_peer(Some(&format!("tcp/127.0.0.1:{PORT}")), &[]).unwrap();
+    let (mut ours, raw) = ends(&session, "pong", "ping");
+    let ready = session.declare_publisher("bench/ready").wait().unwrap();
+    let end = Instant::now() + Duration::from_secs(300);
+    let mut i = 0;
+    let mut last_ready = Instant::now() - Duration::from_secs(1);
+    while Instant::now() < end {
+        let mut idle = true;
+        if let Some(v) = ours.rx.recv().unwrap().copied() {
+            if v[1] == u64::MAX {
+                return;
+            }
+            ours.tx.send(v, stamp(i)).unwrap();
+            i += 1;
+            idle = false;
+        }
+        if let Some(bytes) = raw_recv(&raw) {
+            raw.publisher.put(bytes).wait().unwrap();
+            idle = false;
+        }
+        if idle {
+            if last_ready.elapsed() > Duration::from_millis(100) {
+                ready.put("ready").wait().unwrap();
+                last_ready = Instant::now();
+            }
+            std::thread::yield_now();
+        }
+    }
+}
+
+fn zenoh_us() -> (Vec<f64>, Vec<f64>) {
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .arg("--echo")
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let session = open_peer(None, &[&format!("tcp/127.0.0.1:{PORT}")]).unwrap();
+    let (mut ours, raw) = ends(&session, "ping", "pong");
+    // The echo process is up and its subscriptions reach us.
+    let ready = session.declare_subscriber("bench/ready").wait().unwrap();
+    ready.recv_timeout(Duration::from_secs(30)).unwrap().expect("the echo process is ready");
+    std::thread::sleep(Duration::from_millis(300));
+    let mut ours_us = Vec::new();
+    let mut raw_us = Vec::new();
+    let mut seq = 0u64;
+    for round in 0..ROUNDS + 1 {
+        // The first round warms both paths up and is not counted.
+        let count = round > 0;
+        for _ in 0..PER_ROUND {
+            seq += 1;
+            let t = Instant::now();
+            ours.tx.send([seq, 0, 0, 0, 0, 0, 0, 0], stamp(seq as usize)).unwrap();
+            let v = spin(|| ours.rx.recv().unwrap().copied());
+            assert_eq!(v[0], seq);
+            if count {
+                ours_us.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+            }
+        }
+        for _ in 0..PER_ROUND {
+            seq += 1;
+            let bytes = [seq; 8].map(u64::to_le_bytes).concat();
+            let t = Instant::now();
+            raw.publisher.put(bytes).wait().unwrap();
+            let back = spin(|| raw_recv(&raw));
+            assert_eq!(back.get(..8), Some(&seq.to_le_bytes()[..]));
+            if count {
+                raw_us.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+            }
+        }
+    }
+    ours.tx.send([0, u64::MAX, 0, 0, 0, 0, 0, 0], stamp(0)).unwrap();
+    let _ = child.wait();
+    (ours_us, raw_us)
+}
+
+fn report(name: &str, unit: &str, v: &mut [f64]) -> (f64, f64) {
+    let (p50, p99) = (percentile(v, 0.5), percentile(v, 0.99));
+    let max = v.iter().copied().fold(0.0, f64::max);
+    println!(
+        "{name:<10} n={:<6} p50={p50:.2} {unit}  p99={p99:.2} {unit}  max={max:.2} {unit}",
+        v.len()
+    );
+    (p50, p99)
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--echo") {
+        return echo_main();
+    }
+    let (inproc, _) = report("inproc", "ns", &mut inproc_ns());
+    let (thread, _) = report("thread", "us", &mut thread_us());
+    let (mut ours, mut raw) = zenoh_us();
+    let (zenoh_p50, zenoh_p99) = report("zenoh", "us", &mut ours);
+    let (raw_p50, _) = report("raw_zenoh", "us", &mut raw);
+    println!("zenoh_p50 / raw_zenoh_p50 = {:.2} (aim <= 1.2)", zenoh_p50 / raw_p50);
+    println!(
+        "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1}"
+    );
+}
