@@ -1,1 +1,286 @@
-//! placeholder
+//! Starting every process of a deployment: children with their output
+//! prefixed and collected, a crashed one restarted, all stopped together.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Command, ExitStatus, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::time::{Duration, Instant};
+
+/// One process to start.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Child {
+    /// Its name in the deployment (the prefix of its lines).
+    pub name: String,
+    /// The program.
+    pub program: PathBuf,
+    /// Its arguments.
+    pub args: Vec<String>,
+}
+
+/// What the launcher tells its caller.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Line {
+    /// A line a child printed (on stdout or stderr).
+    Output {
+        /// The child.
+        process: String,
+        /// The line.
+        text: String,
+    },
+    /// A child ended.
+    Exited {
+        /// The child.
+        process: String,
+        /// How (`None`: killed by a signal).
+        code: Option<i32>,
+        /// Whether it is started again.
+        restarting: bool,
+    },
+    /// Nothing happened for a while (a chance to look elsewhere).
+    Idle,
+}
+
+/// What the caller answers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    /// Go on.
+    Continue,
+    /// Stop every child (SIGTERM, then SIGKILL after the grace period).
+    Stop,
+}
+
+/// How a launch ended.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LaunchReport {
+    /// Processes started (not counting restarts).
+    pub processes: usize,
+    /// Restarts of crashed processes.
+    pub restarts: u32,
+    /// How each process ended last (`None`: by a signal).
+    pub exits: Vec<(String, Option<i32>)>,
+    /// Whether the caller (or Ctrl-C) stopped the launch.
+    pub stopped: bool,
+}
+
+impl LaunchReport {
+    /// Whether every process ended successfully.
+    pub fn all_succeeded(&self) -> bool {
+        self.exits.iter().all(|(_, c)| *c == Some(0))
+    }
+}
+
+/// Why a launch could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    /// A child could not be started.
+    #[error("cannot start process `{process}` ({program}): {source}")]
+    Spawn {
+        /// The child.
+        process: String,
+        /// Its program.
+        program: String,
+        /// The OS's reason.
+        source: std::io::Error,
+    },
+}
+
+/// Starts the processes of a deployment and watches them.
+#[derive(Debug)]
+pub struct Launcher {
+    children: Vec<Child>,
+    max_restarts: u32,
+    grace: Duration,
+}
+
+struct Running {
+    child: std::process::Child,
+    restarts: u32,
+}
+
+impl Launcher {
+    /// A launcher for `children`; a crashed child is restarted up to 3 times.
+    pub fn new(children: Vec<Child>) -> Self {
+        Launcher {
+            children,
+            max_restarts: 3,
+            grace: Duration::from_secs(5),
+        }
+    }
+
+    /// How many times each child may be restarted after a crash (an exit with
+    /// failure or by a signal that the launcher did not send).
+    pub fn max_restarts(mut self, n: u32) -> Self {
+        self.max_restarts = n;
+        self
+    }
+
+    /// How long children have to end after SIGTERM before SIGKILL.
+    pub fn grace(mut self, grace: Duration) -> Self {
+        self.grace = grace;
+        self
+    }
+
+    fn spawn(&self, k: usize, lines: &Sender<(usize, String)>) -> Result<std::process::Child, LaunchError> {
+        let c = &self.children[k];
+        let mut child = Command::new(&c.program)
+            .args(&c.args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|source| LaunchError::Spawn {
+                process: c.name.clone(),
+                program: c.program.display().to_string(),
+                source,
+            })?;
+        if let Some(out) = child.stdout.take() {
+            forward(k, out, lines.clone());
+        }
+        if let Some(err) = child.stderr.take() {
+            forward(k, err, lines.clone());
+        }
+        Ok(child)
+    }
+
+    /// Start every child and watch them until all have ended. `on` sees every
+    /// line and exit (and `Line::Idle` after each look, at least every 50 ms:
+    /// the moment to watch something else) and may stop the
+    /// launch; so does `interrupted` (set it from a Ctrl-C handler).
+    pub fn run(
+        self,
+        interrupted: &std::sync::atomic::AtomicBool,
+        mut on: impl FnMut(&Line) -> Control,
+    ) -> Result<LaunchReport, LaunchError> {
+        let (tx, rx): (Sender<(usize, String)>, Receiver<(usize, String)>) = channel();
+        let mut running: Vec<Option<Running>> = Vec::new();
+        let mut report = LaunchReport {
+            processes: self.children.len(),
+            ..LaunchReport::default()
+        };
+        let mut exits: Vec<Option<Option<i32>>> = vec![None; self.children.len()];
+        for k in 0..self.children.len() {
+            match self.spawn(k, &tx) {
+                Ok(child) => running.push(Some(Running { child, restarts: 0 })),
+                Err(e) => {
+                    for r in running.iter_mut().flatten() {
+                        let _ = r.child.kill();
+                        let _ = r.child.wait();
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        let mut stopping: Option<Instant> = None;
+        let mut killed = false;
+        loop {
+            let mut control = match rx.recv_timeout(Duration::from_millis(50)) {
+                Ok((k, text)) => {
+                    let mut control = on(&Line::Output {
+                        process: self.children[k].name.clone(),
+                        text,
+                    });
+                    // Drain what else is waiting before looking at the children.
+                    while let Ok((k, text)) = rx.try_recv() {
+                        if on(&Line::Output {
+                            process: self.children[k].name.clone(),
+                            text,
+                        }) == Control::Stop
+                        {
+                            control = Control::Stop;
+                        }
+                    }
+                    control
+                }
+                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => Control::Continue,
+            };
+            if on(&Line::Idle) == Control::Stop {
+                control = Control::Stop;
+            }
+            if (control == Control::Stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
+                && stopping.is_none()
+            {
+                stopping = Some(Instant::now());
+                report.stopped = true;
+                for r in running.iter().flatten() {
+                    terminate(&r.child);
+                }
+            }
+            if let Some(since) = stopping
+                && !killed
+                && since.elapsed() > self.grace
+            {
+                killed = true;
+                for r in running.iter_mut().flatten() {
+                    let _ = r.child.kill();
+                }
+            }
+            for k in 0..running.len() {
+                let Some(r) = running[k].as_mut() else {
+                    continue;
+                };
+                let status: ExitStatus = match r.child.try_wait() {
+                    Ok(Some(s)) => s,
+                    Ok(None) => continue,
+                    Err(_) => continue,
+                };
+                let code = status.code();
+                let crashed = !status.success() && stopping.is_none();
+                let restarting = crashed && r.restarts < self.max_restarts;
+                let restarts = r.restarts;
+                on(&Line::Exited {
+                    process: self.children[k].name.clone(),
+                    code,
+                    restarting,
+                });
+                exits[k] = Some(code);
+                running[k] = None;
+                if restarting {
+                    let child = self.spawn(k, &tx)?;
+                    report.restarts += 1;
+                    running[k] = Some(Running {
+                        child,
+                        restarts: restarts + 1,
+                    });
+                }
+            }
+            if running.iter().all(Option::is_none) {
+                // The last lines of the children that ended.
+                while let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(100)) {
+                    on(&Line::Output {
+                        process: self.children[k].name.clone(),
+                        text,
+                    });
+                }
+                break;
+            }
+        }
+        report.exits = self
+            .children
+            .iter()
+            .zip(exits)
+            .map(|(c, e)| (c.name.clone(), e.flatten()))
+            .collect();
+        Ok(report)
+    }
+}
+
+/// SIGTERM: the child stops cleanly (ends its run, prints its report).
+fn terminate(child: &std::process::Child) {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    if let Ok(pid) = i32::try_from(child.id()) {
+        let _ = kill(Pid::from_raw(pid), Signal::SIGTERM);
+    }
+}
+
+fn forward(k: usize, stream: impl Read + Send + 'static, lines: Sender<(usize, String)>) {
+    std::thread::spawn(move || {
+        for line in BufReader::new(stream).lines() {
+            let Ok(line) = line else { break };
+            if lines.send((k, line)).is_err() {
+                break;
+            }
+        }
+    });
+}

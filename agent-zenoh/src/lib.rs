@@ -29,10 +29,12 @@
 //! own keys live under `<system>/_rt/`.
 
 
+mod launch;
 mod member;
 mod transport;
 
 
+pub use launch::{Child, Control, LaunchError, LaunchReport, Launcher, Line};
 pub use member::{Member, MemberError, Observation, Options, Watch, open_peer};
 
 /// The Zenoh crate this one is built on, for sessions of your own.
