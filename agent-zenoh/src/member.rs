@@ -277,12 +277,15 @@ impl Member {
             .collect();
         let gone = Arc::new(Mutex::new(Vec::new()));
         let watch_gone = gone.clone();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopping = stop.clone();
         let process_prefix = layout.rt_key("process/");
         let watch = session
             .liveliness()
             .declare_subscriber(layout.rt_key("process/*"))
             .callback(move |sample| {
-                if sample.kind() != SampleKind::Delete {
+                // Processes that end after a stop was asked are not lost.
+                if sample.kind() != SampleKind::Delete || stopping.load(Ordering::Relaxed) {
                     return;
                 }
                 let key = sample.key_expr().as_str();
@@ -302,7 +305,6 @@ impl Member {
             })
             .wait()
             .map_err(zerr)?;
-        let stop = Arc::new(AtomicBool::new(false));
         let stop_flag = stop.clone();
         let stop_sub = session
             .declare_subscriber(layout.rt_key("stop"))

@@ -34,58 +34,86 @@ use rex_agent::{config, report};
 #[command(name = "rex", version)]
 struct Cli {
     /// Run file (RON): mission, world, surface, planner, tracker, estimator, limit.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, global = true, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Mission: `square`, `figure_eight`, `slalom`, a mission file, or `all` for the
     /// three shipped missions one after the other.
-    #[arg(long, value_name = "NAME|FILE")]
+    #[arg(long, global = true, value_name = "NAME|FILE")]
     mission: Option<String>,
     /// World file (platform, surfaces, sensors, camera, room, motion capture).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, global = true, value_name = "FILE")]
     world: Option<PathBuf>,
     /// The spec Rex is built from (default: `specs/rex.ron`): its components,
     /// periods and links; checked before anything runs.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, global = true, value_name = "FILE")]
     spec: Option<PathBuf>,
     /// One surface for the whole floor: a name from the world's `surfaces`
     /// (shipped: concrete, grass, ice).
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, global = true, value_name = "NAME")]
     surface: Option<String>,
     /// Trajectory planner of c1: `ecsa` (the paper's) or `polynomial`.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, global = true, value_name = "NAME")]
     planner: Option<PlannerKind>,
     /// Where the planner runs: `thread` (a concurrent planning process) or `inline`.
-    #[arg(long, value_name = "WHERE")]
+    #[arg(long, global = true, value_name = "WHERE")]
     planning: Option<Runtime>,
     /// Tracker of e11: `nmpc` (the paper's) or `backstepping`.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, global = true, value_name = "NAME")]
     tracker: Option<TrackerKind>,
     /// State estimator of e11: `mhe` (the paper's) or `ekf`.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, global = true, value_name = "NAME")]
     estimator: Option<EstimatorKind>,
     /// Longest simulated time, in seconds (positive, at most 10,000,000).
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, global = true, value_name = "SECONDS", allow_negative_numbers = true)]
     limit: Option<f64>,
     /// Run without the virtual receptor r11 and the camera (no visual odometry:
     /// the spec's deployment `simulation_without_vo`).
-    #[arg(long)]
+    #[arg(long, global = true)]
     no_vo: bool,
     /// Report folder; one sub-folder per mission.
-    #[arg(long, value_name = "DIR", default_value = "target/rex-report")]
+    #[arg(long, global = true, value_name = "DIR", default_value = "target/rex-report")]
     out: PathBuf,
     /// Do not write the report folder.
-    #[arg(long)]
+    #[arg(long, global = true)]
     no_report: bool,
     /// Print only the summary.
-    #[arg(long, short)]
+    #[arg(long, short, global = true)]
     quiet: bool,
     /// Run in real time, as on the robot: every subsystem on its own thread and
     /// the world (the 1 kHz plant, the camera, the motion capture) on one, on
     /// absolute deadlines of the wall clock, with SCHED_FIFO priority and locked
     /// memory where the OS grants them (what it refuses is reported). Prints each
     /// node's period, wake-up jitter, compute time and overruns.
-    #[arg(long)]
+    #[arg(long, global = true)]
     realtime: bool,
+    /// A deployment of the spec to run split into processes over Zenoh (with
+    /// `--process`, or `launch`). `split` is the paper's Fig. 10: the world and
+    /// the partner agents; c1 with e11; r11 on its own.
+    #[arg(long, global = true, value_name = "NAME")]
+    deployment: Option<String>,
+    /// Run only this process of `--deployment`, in real time; the others are
+    /// reached over Zenoh at the endpoints the spec gives.
+    #[arg(long, global = true, value_name = "NAME", requires = "deployment")]
+    process: Option<String>,
+    /// The first port of the deployment's endpoints (replaces the spec's, so that
+    /// two runs of a deployment do not meet).
+    #[arg(long, global = true, value_name = "PORT")]
+    port: Option<u16>,
+    /// How long a process waits for the others before it fails naming them, in
+    /// seconds (replaces the spec's `timeout_ms`).
+    #[arg(long, global = true, value_name = "SECONDS")]
+    wait: Option<f64>,
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Command {
+    /// Start every process of `--deployment` (this program, once per process),
+    /// print their output prefixed with their names, restart a crashed one, stop
+    /// them together on Ctrl-C or when the mission has ended, and print the
+    /// mission's summary with `processes=<n> restarts=<n>`.
+    Launch,
 }
 
 /// Write to standard output; if it is closed (`rex | head`), stop quietly instead of
@@ -174,26 +202,9 @@ fn prepare(
     Ok((config, spec, limit))
 }
 
-fn run_one(
-    cli: &Cli,
-    config: &RexConfig,
-    spec: &Spec,
-    limit: Duration,
-) -> Result<Outcome, Box<dyn std::error::Error>> {
-    if !cli.quiet {
-        eprintln!(
-            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
-            config.mission.name,
-            config.mission.plans.len(),
-            config.planner.name(),
-            config.tracker,
-            config.estimator,
-            config.runtime,
-            if config.visual_odometry { "on" } else { "off" }
-        );
-    }
-    let quiet = cli.quiet;
-    let progress = |p: Progress<'_>| match p {
+/// Prints acknowledgements and a line every few seconds (nothing when `quiet`).
+fn printer(quiet: bool) -> impl FnMut(Progress<'_>) {
+    move |p: Progress<'_>| match p {
         _ if quiet => {}
         Progress::Ack { t, ack } => {
             eprintln!(
@@ -214,7 +225,29 @@ fn run_one(
                 .filter(|_| sample.executing)
                 .map_or("-".to_owned(), |e| format!("{:.1} mm", e * 1e3)),
         ),
-    };
+    }
+}
+
+fn run_one(
+    cli: &Cli,
+    config: &RexConfig,
+    spec: &Spec,
+    limit: Duration,
+) -> Result<Outcome, Box<dyn std::error::Error>> {
+    if !cli.quiet {
+        eprintln!(
+            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
+            config.mission.name,
+            config.mission.plans.len(),
+            config.planner.name(),
+            config.tracker,
+            config.estimator,
+            config.runtime,
+            if config.visual_odometry { "on" } else { "off" }
+        );
+    }
+    let quiet = cli.quiet;
+    let progress = printer(quiet);
     let outcome = if cli.realtime {
         let (outcome, timing) = run_mission_realtime(
             config,
@@ -298,6 +331,9 @@ fn main() -> ExitCode {
             }
         }
     }
+    if cli.process.is_some() || cli.command.is_some() {
+        return distributed(&cli, &prepared);
+    }
     let mut lines = Vec::new();
     let mut ok = true;
     for (config, spec, limit) in &prepared {
@@ -321,4 +357,129 @@ fn main() -> ExitCode {
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// Set by Ctrl-C (SIGINT) or SIGTERM: a process of a deployment, or the
+/// launcher, ends its run cleanly.
+#[cfg(feature = "distributed")]
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// `--process` (one process of a deployment) or `launch` (all of them).
+#[cfg(feature = "distributed")]
+fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode {
+    use rex_agent::run::distributed::{launch, run_process};
+    let [(config, spec, limit)] = prepared else {
+        eprintln!("rex: a deployment runs one mission at a time (not `all`)");
+        return ExitCode::from(2);
+    };
+    let Some(deployment) = &cli.deployment else {
+        eprintln!("rex: `launch` needs `--deployment NAME` (the spec's deployments: {})", 
+            spec.deployments.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", "));
+        return ExitCode::from(2);
+    };
+    let options = agent_zenoh::Options {
+        port: cli.port,
+        timeout: match cli.wait.map(Duration::try_from_secs_f64) {
+            None => None,
+            Some(Ok(d)) => Some(d),
+            Some(Err(e)) => {
+                eprintln!("rex: --wait: {e}");
+                return ExitCode::from(2);
+            }
+        },
+    };
+    if let Err(e) = ctrlc::set_handler(|| INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed)) {
+        eprintln!("rex: cannot catch Ctrl-C ({e}); stop with SIGKILL");
+    }
+    if let Some(process) = &cli.process {
+        return match run_process(
+            config,
+            *limit,
+            deployment,
+            process,
+            &options,
+            RtConfig::realtime(),
+            &INTERRUPTED,
+        ) {
+            Ok(timing) => {
+                if !cli.quiet {
+                    eprintln!("{timing}");
+                }
+                emit(format_args!(
+                    "process={process} rt_priority={} overruns={} executor_errors={}\n",
+                    if timing.rt_priority() { "yes" } else { "no" },
+                    timing.nodes.iter().map(|n| n.overruns).sum::<u64>(),
+                    timing.error_count
+                ));
+                for e in timing.errors.iter().take(5) {
+                    eprintln!("rex: {e}");
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("rex: process `{process}`: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    // The launcher: every process is this program with the same arguments.
+    let program = match std::env::current_exe() {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("rex: cannot find this program to start the processes: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    if let Some(k) = args.iter().position(|a| a == "launch") {
+        args.remove(k);
+    }
+    args.push("--no-report".into());
+    let (outcome, launched) = match launch(
+        config,
+        deployment,
+        &options,
+        program,
+        &args,
+        &INTERRUPTED,
+        printer(cli.quiet),
+    ) {
+        Ok(v) => v,
+        Err(e) => {
+            eprintln!("rex: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    emit(format_args!("{}", report::summary(&outcome)));
+    if !cli.no_report {
+        let dir = cli.out.join(&outcome.mission);
+        match report::write(&dir, &outcome, config, spec) {
+            Ok(files) => emit(format_args!(
+                "report: {} ({} files)\n",
+                dir.display(),
+                files.len()
+            )),
+            Err(e) => eprintln!("rex: report: {e}"),
+        }
+    }
+    if !outcome.completed {
+        emit(format_args!("the mission did not complete\n"));
+    }
+    emit(format_args!(
+        "{} processes={} restarts={}\n",
+        outcome.summary_line(),
+        launched.processes,
+        launched.restarts
+    ));
+    if outcome.succeeded() && !INTERRUPTED.load(std::sync::atomic::Ordering::Relaxed) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
+}
+
+#[cfg(not(feature = "distributed"))]
+fn distributed(_: &Cli, _: &[(RexConfig, Spec, Duration)]) -> ExitCode {
+    eprintln!("rex: built without the feature `distributed`: no deployments over Zenoh");
+    ExitCode::from(2)
 }

@@ -8,6 +8,9 @@
 
 use std::time::{Duration, Instant};
 
+mod collect;
+#[cfg(feature = "distributed")]
+pub mod distributed;
 mod realtime;
 pub use realtime::{RtRunError, run_mission_realtime};
 
@@ -20,7 +23,7 @@ use crate::a1::{RexConfig, RexError, RexHandles, build};
 use crate::report::judge::{self, PlanReport, Verdict};
 
 /// One sample of a run, at every activation of `e11`.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sample {
     /// Simulation time [s].
     pub t: f64,

@@ -1,0 +1,230 @@
+//! Rex split into processes, as a deployment of the spec places its components
+//! (`split`: the world with the partner agents; c1 with e11; r11 on its own, as
+//! in the paper's Fig. 10), over Zenoh.
+//!
+//! Every process builds the whole system from the spec (so the wiring is
+//! checked the same way everywhere) and runs only its own components, in real
+//! time ([`embodied::RealTime::place`]); links to the other processes go over
+//! Zenoh. The processes agree on instant zero, so their instants line up as in
+//! the single-process real-time run. Each process publishes what its probes see
+//! (e11's tracking, c1's behaviour, a2's acknowledgements, the true pose);
+//! [`launch`] starts every process, collects that, judges the mission as the
+//! other runs do, and stops the processes when the mission has ended.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use agent_zenoh::{Child, Control, LaunchReport, Launcher, Line, Member, Options, Watch};
+use embodied::{ExecConfig, OnError, RealTime, RtConfig, RtReport};
+
+use super::collect::{Collector, Seen};
+use super::realtime::install_probes;
+use super::{Outcome, Progress};
+use crate::a1::{RexConfig, RexError, build_deployment, load_spec};
+use crate::report::judge;
+
+/// The drivers that act on or sense the simulated world: they share it, so a
+/// deployment must run them in one process.
+const WORLD_DRIVERS: [&str; 3] = ["E1", "R1", "R3"];
+
+/// How long processes get to come up, agree and start.
+const LEAD: Duration = Duration::from_millis(1000);
+
+/// Why a distributed run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DistError {
+    /// Rex could not be built.
+    #[error(transparent)]
+    Rex(#[from] RexError),
+    /// Joining the deployment failed.
+    #[error(transparent)]
+    Member(#[from] agent_zenoh::MemberError),
+    /// The real-time executor failed.
+    #[error(transparent)]
+    Rt(#[from] embodied::RtError),
+    /// The launcher failed.
+    #[error(transparent)]
+    Launch(#[from] agent_zenoh::LaunchError),
+    /// The deployment cannot run the simulation.
+    #[error("deployment `{deployment}`: {reason}")]
+    Deployment {
+        /// The deployment.
+        deployment: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// Check that `deployment` keeps the simulated world's drivers in one process.
+fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), DistError> {
+    let fail = |reason: String| DistError::Deployment {
+        deployment: deployment.to_owned(),
+        reason,
+    };
+    let Some(dep) = spec.deployments.iter().find(|d| d.name == deployment) else {
+        return Err(fail(format!(
+            "no such deployment in spec `{}` (it has: {})",
+            spec.name,
+            spec.deployments
+                .iter()
+                .map(|d| d.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    };
+    let mut places: Vec<(String, &str)> = WORLD_DRIVERS
+        .iter()
+        .filter_map(|d| Some((dep.process_of(d)?.name.clone(), *d)))
+        .collect();
+    places.sort();
+    if places.windows(2).any(|w| w[0].0 != w[1].0) {
+        return Err(fail(format!(
+            "the simulated world's drivers share one environment and must run in one process, but {}",
+            places
+                .iter()
+                .map(|(p, d)| format!("{d} runs in `{p}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
+    Ok(())
+}
+
+/// Run process `process` of `deployment`: its components in real time, the
+/// others reached over Zenoh, until the limit, a stop from any participant, or
+/// `interrupted`. What its probes see is published for the launcher.
+pub fn run_process(
+    config: &RexConfig,
+    limit: Duration,
+    deployment: &str,
+    process: &str,
+    options: &Options,
+    rt: RtConfig,
+    interrupted: &AtomicBool,
+) -> Result<RtReport, DistError> {
+    let spec = load_spec(&config.spec)?;
+    check_world(&spec, deployment)?;
+    let mut member = Member::join(&spec, deployment, process, options)?;
+    let (system, h) = build_deployment(config, deployment)?;
+    // A lost peer or a gap is reported and the run goes on: the platform's
+    // watchdog and e11's safety monitor handle the consequences.
+    let mut rt = RealTime::new(
+        system,
+        RtConfig {
+            exec: ExecConfig {
+                on_error: OnError::Continue,
+                ..config.exec
+            },
+            ..rt
+        },
+    );
+    let runs = member.runs().to_vec();
+    let probes = install_probes(&mut rt, &h, |n| runs.iter().any(|r| r == n));
+    rt.place(member.placement()?)?;
+    let running = rt.start_when(limit, || member.ready(LEAD))?;
+    loop {
+        let finished = running.is_finished();
+        for rx in &probes {
+            for seen in rx.try_iter() {
+                if let Ok(bytes) = postcard::to_allocvec(&seen) {
+                    // A monitor that is gone is not this process's failure.
+                    let _ = member.observe("seen", bytes);
+                }
+            }
+        }
+        if member.stop_requested() || interrupted.load(Ordering::Relaxed) {
+            running.stop();
+        }
+        if finished {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let finished = running.join()?;
+    Ok(finished.into_report())
+}
+
+/// Start every process of `deployment` (this program again, with `args` and
+/// `--process <name>`), print their lines prefixed with their names, collect
+/// what they observe, judge the mission, and stop them when it has ended (or
+/// on `interrupted`).
+pub fn launch(
+    config: &RexConfig,
+    deployment: &str,
+    options: &Options,
+    program: std::path::PathBuf,
+    args: &[String],
+    interrupted: &AtomicBool,
+    mut progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, LaunchReport), DistError> {
+    let spec = load_spec(&config.spec)?;
+    check_world(&spec, deployment)?;
+    let watch = Watch::open(&spec, deployment, options)?;
+    let dep = spec
+        .deployments
+        .iter()
+        .find(|d| d.name == deployment)
+        .ok_or_else(|| DistError::Deployment {
+            deployment: deployment.to_owned(),
+            reason: "no such deployment".into(),
+        })?;
+    let children: Vec<Child> = dep
+        .processes()
+        .into_iter()
+        .map(|(_, p, _)| Child {
+            name: p.name.clone(),
+            program: program.clone(),
+            args: args
+                .iter()
+                .cloned()
+                .chain(["--process".to_owned(), p.name.clone()])
+                .collect(),
+        })
+        .collect();
+    let mut collect = Collector::new(config, Duration::from_secs(5));
+    let wall = Instant::now();
+    let mut stop_sent = false;
+    let report = Launcher::new(children).run(interrupted, |line| {
+        match line {
+            Line::Output { process, text } => eprintln!("[{process}] {text}"),
+            Line::Exited {
+                process,
+                code,
+                restarting,
+            } => eprintln!(
+                "[{process}] exited ({}){}",
+                code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
+                if *restarting { "; restarting it" } else { "" }
+            ),
+            Line::Idle => {}
+        }
+        while let Some((_, _, bytes)) = watch.next(Duration::ZERO) {
+            if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
+                collect.see(seen, &mut progress);
+            }
+        }
+        if collect.advance(false, &mut progress) && !stop_sent {
+            stop_sent = true;
+            watch.stop();
+        }
+        Control::Continue
+    })?;
+    // What arrived after the processes ended.
+    while let Some((_, _, bytes)) = watch.next(Duration::from_millis(200)) {
+        if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
+            collect.see(seen, &mut progress);
+        }
+    }
+    collect.advance(true, &mut progress);
+    let sent = collect.sent;
+    let mut out = std::mem::take(&mut collect.out);
+    out.wall_s = wall.elapsed().as_secs_f64();
+    out.sim_s = out.samples.last().map_or(0.0, |s| s.t);
+    out.parts = [
+        config.planner.name().to_owned(),
+        format!("{:?}", config.tracker).to_lowercase(),
+        format!("{:?}", config.estimator).to_lowercase(),
+    ];
+    out.reports = judge::judge(&out, config, sent);
+    Ok((out, report))
+}
