@@ -91,6 +91,7 @@ pub struct Launcher {
     children: Vec<Child>,
     max_restarts: u32,
     grace: Duration,
+    fatal: Vec<i32>,
 }
 
 struct Running {
@@ -105,7 +106,16 @@ impl Launcher {
             children,
             max_restarts: 3,
             grace: Duration::from_secs(5),
+            fatal: Vec::new(),
         }
+    }
+
+    /// Exit codes that mean "this will fail again" (a bad command line or
+    /// configuration): a child that exits with one is not restarted, and the
+    /// launch stops.
+    pub fn fatal_codes(mut self, codes: impl IntoIterator<Item = i32>) -> Self {
+        self.fatal = codes.into_iter().collect();
+        self
     }
 
     /// How many times each child may be restarted after a crash (an exit with
@@ -225,8 +235,20 @@ impl Launcher {
                     Err(_) => continue,
                 };
                 let code = status.code();
+                let fatal = code.is_some_and(|c| self.fatal.contains(&c));
                 let crashed = !status.success() && stopping.is_none();
-                let restarting = crashed && r.restarts < self.max_restarts;
+                let restarting = crashed && !fatal && r.restarts < self.max_restarts;
+                if fatal && stopping.is_none() {
+                    stopping = Some(Instant::now());
+                    for (j, other) in running.iter().enumerate() {
+                        if let (true, Some(o)) = (j != k, other) {
+                            terminate(&o.child);
+                        }
+                    }
+                }
+                let Some(r) = running[k].as_mut() else {
+                    continue;
+                };
                 let restarts = r.restarts;
                 on(&Line::Exited {
                     process: self.children[k].name.clone(),

@@ -434,7 +434,9 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
     if let Some(k) = args.iter().position(|a| a == "launch") {
         args.remove(k);
     }
-    args.push("--no-report".into());
+    if !args.iter().any(|a| a == "--no-report") {
+        args.push("--no-report".into());
+    }
     let (outcome, launched) = match launch(
         config,
         deployment,

@@ -184,7 +184,8 @@ pub fn launch(
     let mut collect = Collector::new(config, Duration::from_secs(5));
     let wall = Instant::now();
     let mut stop_sent = false;
-    let report = Launcher::new(children).run(interrupted, |line| {
+    // Exit status 2 is a bad command line or configuration: restarting won't help.
+    let report = Launcher::new(children).fatal_codes([2]).run(interrupted, |line| {
         match line {
             Line::Output { process, text } => eprintln!("[{process}] {text}"),
             Line::Exited {

@@ -1,0 +1,93 @@
+//! The launcher with real child processes (`sh`): lines prefixed and collected,
+//! a crashed child restarted, a fatal exit not restarted and the others stopped,
+//! a stop ending every child.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use agent_zenoh::{Child, Control, Launcher, Line};
+
+fn sh(name: &str, script: &str) -> Child {
+    Child {
+        name: name.into(),
+        program: "sh".into(),
+        args: vec!["-c".into(), script.into()],
+    }
+}
+
+fn run(launcher: Launcher, mut stop_when: impl FnMut(&Line) -> bool) -> (agent_zenoh::LaunchReport, Vec<Line>) {
+    let mut lines = Vec::new();
+    let report = launcher
+        .run(&AtomicBool::new(false), |l| {
+            if *l != Line::Idle {
+                lines.push(l.clone());
+            }
+            if stop_when(l) { Control::Stop } else { Control::Continue }
+        })
+        .unwrap();
+    (report, lines)
+}
+
+#[test]
+fn a_crashed_child_is_restarted_and_lines_are_collected() {
+    let marker = std::env::temp_dir().join(format!("launcher-{}", std::process::id()));
+    let _ = std::fs::remove_file(&marker);
+    let script = format!(
+        "if [ -e {m} ]; then echo second; exit 0; else touch {m}; echo first; exit 1; fi",
+        m = marker.display()
+    );
+    let (report, lines) = run(
+        Launcher::new(vec![sh("flaky", &script), sh("steady", "echo hello")]),
+        |_| false,
+    );
+    assert_eq!(report.processes, 2);
+    assert_eq!(report.restarts, 1, "{lines:?}");
+    assert!(report.all_succeeded(), "{report:?}");
+    let said = |p: &str, t: &str| {
+        lines.contains(&Line::Output {
+            process: p.into(),
+            text: t.into(),
+        })
+    };
+    assert!(said("flaky", "first") && said("flaky", "second") && said("steady", "hello"));
+    assert!(lines.contains(&Line::Exited {
+        process: "flaky".into(),
+        code: Some(1),
+        restarting: true
+    }));
+    let _ = std::fs::remove_file(&marker);
+}
+
+#[test]
+fn a_fatal_exit_is_not_restarted_and_stops_the_others() {
+    let started = Instant::now();
+    let (report, lines) = run(
+        Launcher::new(vec![sh("bad", "echo usage; exit 2"), sh("long", "sleep 30")])
+            .fatal_codes([2])
+            .grace(Duration::from_secs(2)),
+        |_| false,
+    );
+    assert_eq!(report.restarts, 0, "{lines:?}");
+    assert_eq!(report.exits[0], ("bad".into(), Some(2)));
+    assert_ne!(report.exits[1].1, Some(0), "the other child was stopped");
+    assert!(started.elapsed() < Duration::from_secs(20));
+}
+
+#[test]
+fn a_stop_ends_every_child() {
+    let started = Instant::now();
+    let (report, _) = run(
+        Launcher::new(vec![sh("a", "echo up; sleep 30"), sh("b", "sleep 30")])
+            .grace(Duration::from_secs(2)),
+        |l| matches!(l, Line::Output { text, .. } if text == "up"),
+    );
+    assert!(report.stopped);
+    assert_eq!(report.restarts, 0, "stopped children are not restarted");
+    assert!(started.elapsed() < Duration::from_secs(20));
+}
