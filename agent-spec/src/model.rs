@@ -387,10 +387,7 @@ impl Deployment {
                         .ok()
                         .and_then(|k| base.checked_add(k))
                         .unwrap_or(base);
-                    format!(
-                        "tcp/{}:{port}",
-                        h.address.as_deref().unwrap_or("127.0.0.1")
-                    )
+                    format!("tcp/{}:{port}", h.address.as_deref().unwrap_or("127.0.0.1"))
                 });
                 (h, p, endpoint)
             })

@@ -16,7 +16,11 @@
 //! Both Zenoh figures alternate in rounds of 1000 so that the machine's drift
 //! affects them alike. The last line is the figures line.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a benchmark: a failure ends it")]
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a benchmark: a failure ends it"
+)]
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -250,7 +254,10 @@ fn zenoh_us() -> (Vec<f64>, Vec<f64>) {
     let (mut ours, raw) = ends(&session, "ping", "pong");
     // The echo process is up and its subscriptions reach us.
     let ready = session.declare_subscriber("bench/ready").wait().unwrap();
-    ready.recv_timeout(Duration::from_secs(30)).unwrap().expect("the echo process is ready");
+    ready
+        .recv_timeout(Duration::from_secs(30))
+        .unwrap()
+        .expect("the echo process is ready");
     std::thread::sleep(Duration::from_millis(300));
     let mut ours_us = Vec::new();
     let mut raw_us = Vec::new();
@@ -261,7 +268,9 @@ fn zenoh_us() -> (Vec<f64>, Vec<f64>) {
         for _ in 0..PER_ROUND {
             seq += 1;
             let t = Instant::now();
-            ours.tx.send([seq, 0, 0, 0, 0, 0, 0, 0], stamp(seq as usize)).unwrap();
+            ours.tx
+                .send([seq, 0, 0, 0, 0, 0, 0, 0], stamp(seq as usize))
+                .unwrap();
             let v = spin(|| ours.rx.recv().unwrap().copied());
             assert_eq!(v[0], seq);
             if count {
@@ -280,7 +289,9 @@ fn zenoh_us() -> (Vec<f64>, Vec<f64>) {
             }
         }
     }
-    ours.tx.send([0, u64::MAX, 0, 0, 0, 0, 0, 0], stamp(0)).unwrap();
+    ours.tx
+        .send([0, u64::MAX, 0, 0, 0, 0, 0, 0], stamp(0))
+        .unwrap();
     let _ = child.wait();
     (ours_us, raw_us)
 }
@@ -304,7 +315,10 @@ fn main() {
     let (mut ours, mut raw) = zenoh_us();
     let (zenoh_p50, zenoh_p99) = report("zenoh", "us", &mut ours);
     let (raw_p50, _) = report("raw_zenoh", "us", &mut raw);
-    println!("zenoh_p50 / raw_zenoh_p50 = {:.2} (aim <= 1.2)", zenoh_p50 / raw_p50);
+    println!(
+        "zenoh_p50 / raw_zenoh_p50 = {:.2} (aim <= 1.2)",
+        zenoh_p50 / raw_p50
+    );
     println!(
         "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1}"
     );

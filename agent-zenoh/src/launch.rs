@@ -4,7 +4,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
 use std::process::{Command, ExitStatus, Stdio};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::sync::mpsc::{RecvTimeoutError, Sender, channel};
 use std::time::{Duration, Instant};
 
 /// One process to start.
@@ -131,7 +131,11 @@ impl Launcher {
         self
     }
 
-    fn spawn(&self, k: usize, lines: &Sender<(usize, String)>) -> Result<std::process::Child, LaunchError> {
+    fn spawn(
+        &self,
+        k: usize,
+        lines: &Sender<(usize, String)>,
+    ) -> Result<std::process::Child, LaunchError> {
         let c = &self.children[k];
         let mut child = Command::new(&c.program)
             .args(&c.args)
@@ -162,7 +166,7 @@ impl Launcher {
         interrupted: &std::sync::atomic::AtomicBool,
         mut on: impl FnMut(&Line) -> Control,
     ) -> Result<LaunchReport, LaunchError> {
-        let (tx, rx): (Sender<(usize, String)>, Receiver<(usize, String)>) = channel();
+        let (tx, rx) = channel::<(usize, String)>();
         let mut running: Vec<Option<Running>> = Vec::new();
         let mut report = LaunchReport {
             processes: self.children.len(),
@@ -202,7 +206,9 @@ impl Launcher {
                     }
                     control
                 }
-                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => Control::Continue,
+                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {
+                    Control::Continue
+                }
             };
             if on(&Line::Idle) == Control::Stop {
                 control = Control::Stop;

@@ -28,17 +28,15 @@
 //! of its output buffer ([`agent_core::link::remote::link_key`]); the runtime's
 //! own keys live under `<system>/_rt/`.
 
-
 mod launch;
 mod member;
 mod transport;
 
-
 pub use launch::{Child, Control, LaunchError, LaunchReport, Launcher, Line};
 pub use member::{Member, MemberError, Observation, Options, Watch, open_peer};
 
+pub use transport::ZenohTransport;
 /// The Zenoh crate this one is built on, for sessions of your own.
 pub use zenoh;
-pub use transport::ZenohTransport;
 
 pub use agent_core::{Inbox, Publisher, Transport, TransportError};

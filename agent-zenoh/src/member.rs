@@ -368,7 +368,11 @@ impl Member {
             others
                 .iter()
                 .copied()
-                .filter(|o| !seen.iter().any(|k| k.strip_prefix(prefix.as_str()) == Some(*o)))
+                .filter(|o| {
+                    !seen
+                        .iter()
+                        .any(|k| k.strip_prefix(prefix.as_str()) == Some(*o))
+                })
                 .collect()
         };
         let (ok, seen) = poll_tokens(
@@ -509,9 +513,8 @@ impl Member {
 pub struct Watch {
     layout: Layout,
     session: zenoh::Session,
-    observations: zenoh::pubsub::Subscriber<
-        zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>,
-    >,
+    observations:
+        zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
 }
 
 impl std::fmt::Debug for Watch {

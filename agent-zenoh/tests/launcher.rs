@@ -21,14 +21,21 @@ fn sh(name: &str, script: &str) -> Child {
     }
 }
 
-fn run(launcher: Launcher, mut stop_when: impl FnMut(&Line) -> bool) -> (agent_zenoh::LaunchReport, Vec<Line>) {
+fn run(
+    launcher: Launcher,
+    mut stop_when: impl FnMut(&Line) -> bool,
+) -> (agent_zenoh::LaunchReport, Vec<Line>) {
     let mut lines = Vec::new();
     let report = launcher
         .run(&AtomicBool::new(false), |l| {
             if *l != Line::Idle {
                 lines.push(l.clone());
             }
-            if stop_when(l) { Control::Stop } else { Control::Continue }
+            if stop_when(l) {
+                Control::Stop
+            } else {
+                Control::Continue
+            }
         })
         .unwrap();
     (report, lines)
@@ -68,9 +75,12 @@ fn a_crashed_child_is_restarted_and_lines_are_collected() {
 fn a_fatal_exit_is_not_restarted_and_stops_the_others() {
     let started = Instant::now();
     let (report, lines) = run(
-        Launcher::new(vec![sh("bad", "echo usage; exit 2"), sh("long", "sleep 30")])
-            .fatal_codes([2])
-            .grace(Duration::from_secs(2)),
+        Launcher::new(vec![
+            sh("bad", "echo usage; exit 2"),
+            sh("long", "sleep 30"),
+        ])
+        .fatal_codes([2])
+        .grace(Duration::from_secs(2)),
         |_| false,
     );
     assert_eq!(report.restarts, 0, "{lines:?}");

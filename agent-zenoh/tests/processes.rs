@@ -106,7 +106,12 @@ fn twisted_pair() -> Pair32 {
         "e",
         ms(2),
         (),
-        Fsm::single(Behaviour::while_loop("record", Action::<E32>::new(), "false")).unwrap(),
+        Fsm::single(Behaviour::while_loop(
+            "record",
+            Action::<E32>::new(),
+            "false",
+        ))
+        .unwrap(),
     );
     b.connect(
         c.output(port!(C32Out, e.count)),
@@ -189,7 +194,13 @@ fn child() {
 }
 
 /// Start this binary as process `process` of the deployment.
-fn spawn(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, twist: bool) -> std::process::Child {
+fn spawn(
+    process: &str,
+    port: u16,
+    limit_ms: u64,
+    timeout_ms: u64,
+    twist: bool,
+) -> std::process::Child {
     Command::new(std::env::current_exe().unwrap())
         .args(["--exact", "child", "--nocapture", "--test-threads=1"])
         .env(
@@ -207,8 +218,8 @@ fn spawn(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, twist: bool) 
 
 fn output(child: std::process::Child) -> (i32, String) {
     let out = child.wait_with_output().unwrap();
-    let text = String::from_utf8_lossy(&out.stdout).into_owned()
-        + &String::from_utf8_lossy(&out.stderr);
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
     (out.status.code().unwrap_or(-1), text)
 }
 
@@ -257,5 +268,8 @@ fn a_process_built_from_other_code_is_refused_with_a_message_that_says_so() {
         out2.contains("fingerprint") && out2.contains("built from different specs or code"),
         "p2:\n{out2}\np1:\n{out1}"
     );
-    assert!(out2.contains("relay/a/c/e/count"), "the error names the key:\n{out2}");
+    assert!(
+        out2.contains("relay/a/c/e/count"),
+        "the error names the key:\n{out2}"
+    );
 }

@@ -64,14 +64,24 @@ struct Cli {
     #[arg(long, global = true, value_name = "NAME")]
     estimator: Option<EstimatorKind>,
     /// Longest simulated time, in seconds (positive, at most 10,000,000).
-    #[arg(long, global = true, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        global = true,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
     limit: Option<f64>,
     /// Run without the virtual receptor r11 and the camera (no visual odometry:
     /// the spec's deployment `simulation_without_vo`).
     #[arg(long, global = true)]
     no_vo: bool,
     /// Report folder; one sub-folder per mission.
-    #[arg(long, global = true, value_name = "DIR", default_value = "target/rex-report")]
+    #[arg(
+        long,
+        global = true,
+        value_name = "DIR",
+        default_value = "target/rex-report"
+    )]
     out: PathBuf,
     /// Do not write the report folder.
     #[arg(long, global = true)]
@@ -373,8 +383,14 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         return ExitCode::from(2);
     };
     let Some(deployment) = &cli.deployment else {
-        eprintln!("rex: `launch` needs `--deployment NAME` (the spec's deployments: {})", 
-            spec.deployments.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", "));
+        eprintln!(
+            "rex: `launch` needs `--deployment NAME` (the spec's deployments: {})",
+            spec.deployments
+                .iter()
+                .map(|d| d.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         return ExitCode::from(2);
     };
     let options = agent_zenoh::Options {
@@ -388,7 +404,9 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
             }
         },
     };
-    if let Err(e) = ctrlc::set_handler(|| INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed)) {
+    if let Err(e) =
+        ctrlc::set_handler(|| INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed))
+    {
         eprintln!("rex: cannot catch Ctrl-C ({e}); stop with SIGKILL");
     }
     if let Some(process) = &cli.process {

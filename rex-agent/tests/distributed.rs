@@ -43,8 +43,21 @@ fn figure(line: &str, key: &str) -> f64 {
 fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
     let mission = mission_file();
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
-        .args(["launch", "--deployment", "split_without_vo", "--no-vo", "--quiet"])
-        .args(["--port", "17800", "--limit", "60", "--no-report", "--mission"])
+        .args([
+            "launch",
+            "--deployment",
+            "split_without_vo",
+            "--no-vo",
+            "--quiet",
+        ])
+        .args([
+            "--port",
+            "17800",
+            "--limit",
+            "60",
+            "--no-report",
+            "--mission",
+        ])
         .arg(&mission)
         .output()
         .unwrap();
@@ -86,7 +99,13 @@ fn a_process_that_never_appears_is_named_and_the_wait_ends() {
     let mission = mission_file();
     let started = std::time::Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
-        .args(["--deployment", "split_without_vo", "--process", "locomotion", "--no-vo"])
+        .args([
+            "--deployment",
+            "split_without_vo",
+            "--process",
+            "locomotion",
+            "--no-vo",
+        ])
         .args(["--port", "17820", "--wait", "2", "--no-report", "--mission"])
         .arg(&mission)
         .output()
@@ -97,5 +116,8 @@ fn a_process_that_never_appears_is_named_and_the_wait_ends() {
         stderr.contains("`world`") && stderr.contains("tcp/127.0.0.1:17820"),
         "the error names the missing process and its endpoint:\n{stderr}"
     );
-    assert!(started.elapsed() < Duration::from_secs(60), "the wait ended");
+    assert!(
+        started.elapsed() < Duration::from_secs(60),
+        "the wait ended"
+    );
 }

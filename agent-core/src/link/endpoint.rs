@@ -27,9 +27,9 @@ use crate::kinds::Policy;
 use crate::time::Stamp;
 
 use super::Cause;
+use super::LinkStats;
 use super::remote::{self, Inbox, RemoteRx, RemoteTx, Transport, TransportError};
 use super::thread::{self, SharedStats, ThreadRx, ThreadTx};
-use super::LinkStats;
 
 /// The sending end of a link.
 pub struct Sender<T: Payload> {

@@ -65,8 +65,11 @@ pub trait Publisher: Send {
 pub trait Transport: Send {
     /// A publisher on `key` for a link with `policy` (`Queue`: reliable and
     /// lossless; `Sample`: the latest value matters).
-    fn publisher(&mut self, key: &str, policy: Policy)
-    -> Result<Box<dyn Publisher>, TransportError>;
+    fn publisher(
+        &mut self,
+        key: &str,
+        policy: Policy,
+    ) -> Result<Box<dyn Publisher>, TransportError>;
 
     /// Subscribe to `key`: call [`Inbox::deliver`] with each message received,
     /// from any thread. The returned value keeps the subscription alive; dropping
@@ -276,7 +279,10 @@ impl RemoteTx {
                 self.stats.sent.fetch_add(1, Ordering::Relaxed);
                 Ok(())
             }
-            Err(e) => Err(RemoteProblem::Transport(format!("publishing on `{}`: {e}", self.key))),
+            Err(e) => Err(RemoteProblem::Transport(format!(
+                "publishing on `{}`: {e}",
+                self.key
+            ))),
         }
     }
 }

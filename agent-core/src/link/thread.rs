@@ -101,7 +101,12 @@ impl<T: Payload> ThreadTx<T> {
     /// As the in-process channel's `put`: with `last` the value moves (the storage
     /// it replaces is left in `value`), otherwise it is cloned.
     #[inline]
-    pub(crate) fn put(&mut self, value: &mut Option<T>, last: bool, stamp: Stamp) -> Result<(), Cause> {
+    pub(crate) fn put(
+        &mut self,
+        value: &mut Option<T>,
+        last: bool,
+        stamp: Stamp,
+    ) -> Result<(), Cause> {
         match self {
             ThreadTx::Sample(tx, stats) => {
                 let slot = tx.input_buffer_mut();
@@ -171,10 +176,7 @@ impl<T: Payload> ThreadRx<T> {
                 Err(_) => x.age(),
             },
             ThreadRx::Remote(rx) => {
-                return rx
-                    .inbox
-                    .take_into(x)
-                    .map_err(|p| (rx.inbox.key_arc(), p));
+                return rx.inbox.take_into(x).map_err(|p| (rx.inbox.key_arc(), p));
             }
         }
         Ok(())
@@ -200,10 +202,9 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for ThreadOut<O, T
             if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref()) {
                 obs.transfer(&TransferEvent { link: *link, stamp }, v);
             }
-            let r = tx.put(value, k + 1 == n, stamp).map_err(|cause| Refused {
-                link: *link,
-                cause,
-            });
+            let r = tx
+                .put(value, k + 1 == n, stamp)
+                .map_err(|cause| Refused { link: *link, cause });
             if result.is_ok() {
                 result = r;
             }

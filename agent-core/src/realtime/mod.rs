@@ -477,10 +477,6 @@ impl RealTime {
         self.start_inner(limit, Some(&mut call))
     }
 
-    #[allow(
-        clippy::type_complexity,
-        reason = "a one-shot callback, private to the two start functions"
-    )]
     fn start_inner(
         self,
         limit: Duration,
@@ -606,13 +602,14 @@ impl RealTime {
                 (false, true, Some((prefix, transport))) => {
                     let key = remote::link_key(prefix, &info, link);
                     let (rx, inbox, s) = plan.remote_rx(key.as_str().into());
-                    let guard = transport.subscribe(&key, inbox).map_err(|error| {
-                        RtError::Transport {
-                            link: link.name.clone(),
-                            key: key.clone(),
-                            error,
-                        }
-                    })?;
+                    let guard =
+                        transport
+                            .subscribe(&key, inbox)
+                            .map_err(|error| RtError::Transport {
+                                link: link.name.clone(),
+                                key: key.clone(),
+                                error,
+                            })?;
                     subscriptions.push(guard);
                     rxs[thread_of[link.to]][l] = Some(rx);
                     stats.push(s);

@@ -362,9 +362,16 @@ impl<'a> Checker<'a> {
         let endpoints = dep.processes();
         for (h, host) in dep.hosts.iter().enumerate() {
             for (p, proc_) in host.processes.iter().enumerate() {
-                let endpoint = endpoints.get(k).map(|(_, _, e)| e.clone()).unwrap_or_default();
+                let endpoint = endpoints
+                    .get(k)
+                    .map(|(_, _, e)| e.clone())
+                    .unwrap_or_default();
                 k += 1;
-                let field = if proc_.listen.is_some() { "listen" } else { "name" };
+                let field = if proc_.listen.is_some() {
+                    "listen"
+                } else {
+                    "name"
+                };
                 let path = vec![
                     F("deployments"),
                     I(d),
@@ -415,7 +422,7 @@ impl<'a> Checker<'a> {
             self.push(
                 Finding::new(
                     Code::DeployEndpoint,
-                    self.span(&vec![F("deployments"), I(d), F("router")]),
+                    self.span(&[F("deployments"), I(d), F("router")]),
                     "not an endpoint",
                     format!("the router of deployment `{}`, `{router}`: {why}", dep.name),
                 )

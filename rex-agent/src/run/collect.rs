@@ -122,8 +122,17 @@ impl Collector {
     /// Pair the samples whose instant the world has passed (all of them once
     /// the run is `finished`) with the truth. Returns whether the mission has
     /// ended: a2 has every acknowledgement and e11 is idle.
-    pub(crate) fn advance(&mut self, finished: bool, progress: &mut impl FnMut(Progress<'_>)) -> bool {
-        let world_at = self.truths.keys().next_back().copied().unwrap_or(Time::ZERO);
+    pub(crate) fn advance(
+        &mut self,
+        finished: bool,
+        progress: &mut impl FnMut(Progress<'_>),
+    ) -> bool {
+        let world_at = self
+            .truths
+            .keys()
+            .next_back()
+            .copied()
+            .unwrap_or(Time::ZERO);
         self.pending.sort_by_key(|p| p.0);
         let split = self
             .pending
@@ -152,7 +161,10 @@ impl Collector {
             self.out.samples.push(sample);
             if u128::from(t.as_nanos()) >= self.next_tick {
                 self.next_tick += self.tick_ns;
-                progress(Progress::Tick { t: ts, sample: &sample });
+                progress(Progress::Tick {
+                    t: ts,
+                    sample: &sample,
+                });
             }
         }
         // Truth older than the oldest sample waiting is no longer needed.

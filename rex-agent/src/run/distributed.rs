@@ -185,31 +185,33 @@ pub fn launch(
     let wall = Instant::now();
     let mut stop_sent = false;
     // Exit status 2 is a bad command line or configuration: restarting won't help.
-    let report = Launcher::new(children).fatal_codes([2]).run(interrupted, |line| {
-        match line {
-            Line::Output { process, text } => eprintln!("[{process}] {text}"),
-            Line::Exited {
-                process,
-                code,
-                restarting,
-            } => eprintln!(
-                "[{process}] exited ({}){}",
-                code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
-                if *restarting { "; restarting it" } else { "" }
-            ),
-            Line::Idle => {}
-        }
-        while let Some((_, _, bytes)) = watch.next(Duration::ZERO) {
-            if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
-                collect.see(seen, &mut progress);
+    let report = Launcher::new(children)
+        .fatal_codes([2])
+        .run(interrupted, |line| {
+            match line {
+                Line::Output { process, text } => eprintln!("[{process}] {text}"),
+                Line::Exited {
+                    process,
+                    code,
+                    restarting,
+                } => eprintln!(
+                    "[{process}] exited ({}){}",
+                    code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
+                    if *restarting { "; restarting it" } else { "" }
+                ),
+                Line::Idle => {}
             }
-        }
-        if collect.advance(false, &mut progress) && !stop_sent {
-            stop_sent = true;
-            watch.stop();
-        }
-        Control::Continue
-    })?;
+            while let Some((_, _, bytes)) = watch.next(Duration::ZERO) {
+                if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
+                    collect.see(seen, &mut progress);
+                }
+            }
+            if collect.advance(false, &mut progress) && !stop_sent {
+                stop_sent = true;
+                watch.stop();
+            }
+            Control::Continue
+        })?;
     // What arrived after the processes ended.
     while let Some((_, _, bytes)) = watch.next(Duration::from_millis(200)) {
         if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {

@@ -57,7 +57,12 @@ pub fn run_mission_realtime(
     let wall = Instant::now();
     loop {
         let finished = running.is_finished();
-        if !receive(&probes, &mut collect, &mut progress, Duration::from_millis(5)) {
+        if !receive(
+            &probes,
+            &mut collect,
+            &mut progress,
+            Duration::from_millis(5),
+        ) {
             // Every probe's thread ended (the others may not have yet): wait,
             // don't spin.
             std::thread::sleep(Duration::from_millis(5));
