@@ -273,3 +273,20 @@ fn a_process_built_from_other_code_is_refused_with_a_message_that_says_so() {
         "the error names the key:\n{out2}"
     );
 }
+
+#[test]
+fn a_process_that_vanishes_is_reported_on_the_links_it_fed() {
+    let port = 17_510;
+    let mut p1 = spawn("p1", port, 20_000, 10_000, false);
+    let p2 = spawn("p2", port, 5_000, 10_000, false);
+    // Both are up and running well before this; then p1 dies without a word.
+    std::thread::sleep(Duration::from_millis(3_000));
+    p1.kill().unwrap();
+    let _ = p1.wait();
+    let (code, out) = output(p2);
+    assert_eq!(code, 0, "{out}");
+    assert!(
+        out.contains("the sending process `p1` is gone") && out.contains("relay/a/c/e/count"),
+        "p2 names the process and the key of the link it lost:\n{out}"
+    );
+}
