@@ -123,6 +123,15 @@ impl Layout {
         format!("{}/_rt/{rest}", self.system)
     }
 
+    /// `endpoints`, and the router when the deployment has one (a router that
+    /// is down is a reason why nobody appears).
+    fn where_(&self, endpoints: String) -> String {
+        match &self.router {
+            Some(r) => format!("{endpoints}, or through the router at {r}"),
+            None => endpoints,
+        }
+    }
+
     fn endpoint(&self, process: &str) -> Option<&str> {
         self.processes
             .iter()
@@ -388,11 +397,13 @@ impl Member {
         Err(MemberError::Missing {
             process: self.process.clone(),
             deployment: self.layout.deployment.clone(),
-            endpoints: missing
-                .iter()
-                .filter_map(|m| self.layout.endpoint(m))
-                .collect::<Vec<_>>()
-                .join(", "),
+            endpoints: self.layout.where_(
+                missing
+                    .iter()
+                    .filter_map(|m| self.layout.endpoint(m))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ),
             missing: missing
                 .iter()
                 .map(|m| format!("`{m}`"))
@@ -464,7 +475,9 @@ impl Member {
                 process: self.process.clone(),
                 deployment: self.layout.deployment.clone(),
                 missing: format!("the start signal of `{leader}`"),
-                endpoints: self.layout.endpoint(&leader).unwrap_or("?").to_owned(),
+                endpoints: self
+                    .layout
+                    .where_(self.layout.endpoint(&leader).unwrap_or("?").to_owned()),
                 waited: self.layout.timeout,
             }),
         }
@@ -480,6 +493,13 @@ impl Member {
     pub fn request_stop(&self) {
         let _ = self.session.put(self.layout.rt_key("stop"), "stop").wait();
         self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Leave the deployment: what was published is sent before the session
+    /// closes, and the others see this process go.
+    pub fn close(self) {
+        let Member { session, .. } = self;
+        let _ = session.close().wait();
     }
 
     /// The processes seen to vanish so far.

@@ -71,6 +71,23 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
     assert!(last.starts_with("mission=short plans_acked=2/2"), "{last}");
     assert_eq!(figure(last, "processes"), 2.0, "{last}");
     assert_eq!(figure(last, "restarts"), 0.0, "{last}");
+    // The counters of both processes reach the summary: c1's planner (in one
+    // process) and e11's fragments (the same), the motion capture (the other).
+    let counters = stdout
+        .lines()
+        .find(|l| l.starts_with("fragments planned="))
+        .expect(&stdout);
+    assert!(figure(counters, "planned") > 0.0, "{counters}");
+    assert_eq!(
+        figure(counters, "completed"),
+        figure(counters, "received"),
+        "{counters}"
+    );
+    let health = stdout
+        .lines()
+        .find(|l| l.contains("mocap_delivered="))
+        .expect(&stdout);
+    assert!(figure(health, "mocap_delivered") > 0.0, "{health}");
     // Both processes ran their part and said so.
     for p in ["world", "locomotion"] {
         assert!(

@@ -49,6 +49,8 @@ pub(crate) enum Seen {
     },
     /// The last pose the motion capture delivered, and when.
     Mocap(Option<f64>),
+    /// A process's counters at its end (its components' part of the run's).
+    Counters(Box<super::Counters>),
 }
 
 /// Turns what the probes report into an outcome.
@@ -116,6 +118,7 @@ impl Collector {
                 self.truths.insert(at, pose);
             }
             Seen::Mocap(at) => self.delivered_at = at.or(self.delivered_at),
+            Seen::Counters(c) => self.out.counters.absorb(*c),
         }
     }
 

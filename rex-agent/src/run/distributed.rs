@@ -19,7 +19,7 @@ use embodied::{ExecConfig, OnError, RealTime, RtConfig, RtReport};
 
 use super::collect::{Collector, Seen};
 use super::realtime::install_probes;
-use super::{Outcome, Progress};
+use super::{Outcome, Progress, finish_counters};
 use crate::a1::{RexConfig, RexError, build_deployment, load_spec};
 use crate::report::judge;
 
@@ -141,6 +141,14 @@ pub fn run_process(
         std::thread::sleep(Duration::from_millis(2));
     }
     let finished = running.join()?;
+    // This process's part of the run's counters, for the launcher's summary.
+    let mut counters = super::Counters::default();
+    finish_counters(&finished, &h, &mut counters);
+    counters.executor_errors = finished.report().error_count;
+    if let Ok(bytes) = postcard::to_allocvec(&Seen::Counters(Box::new(counters))) {
+        let _ = member.observe("seen", bytes);
+    }
+    member.close();
     Ok(finished.into_report())
 }
 

@@ -66,7 +66,7 @@ impl Sample {
 }
 
 /// Counters gathered at the end of a run.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Counters {
     /// Fragments received by `e11`.
     pub fragments_received: u32,
@@ -98,6 +98,37 @@ pub struct Counters {
     pub vo: (u64, u64, u64),
     /// What the tracker reports (solves, failures, fallbacks...).
     pub tracker: crate::a1::e11::tracker::TrackerReport,
+}
+
+impl Counters {
+    /// Add the counters of another part of the same run (another process of a
+    /// deployment): each counter comes from one component, so the parts add up.
+    pub fn absorb(&mut self, o: Counters) {
+        self.fragments_received += o.fragments_received;
+        self.fragments_completed += o.fragments_completed;
+        self.fragments_rejected += o.fragments_rejected;
+        self.fragments_stale += o.fragments_stale;
+        self.stops.extend(o.stops);
+        self.watchdog_steps += o.watchdog_steps;
+        let (e, f) = (&mut self.estimator, o.estimator);
+        e.rejected += f.rejected;
+        e.rejected_poses += f.rejected_poses;
+        e.relocalisations += f.relocalisations;
+        self.clamped_torques += o.clamped_torques;
+        self.planned += o.planned;
+        self.planner_iterations += o.planner_iterations;
+        self.planner_failures += o.planner_failures;
+        self.executor_errors += o.executor_errors;
+        self.mocap = (self.mocap.0 + o.mocap.0, self.mocap.1 + o.mocap.1);
+        self.vo = (self.vo.0 + o.vo.0, self.vo.1 + o.vo.1, self.vo.2 + o.vo.2);
+        let (t, u) = (&mut self.tracker, o.tracker);
+        t.solves += u.solves;
+        t.clarabel += u.clarabel;
+        t.failures += u.failures;
+        t.fallbacks += u.fallbacks;
+        t.safe_stops += u.safe_stops;
+        t.refused += u.refused;
+    }
 }
 
 /// What a run produced.

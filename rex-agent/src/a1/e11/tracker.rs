@@ -27,7 +27,7 @@ pub trait Tracker: Send + std::fmt::Debug {
 }
 
 /// What a tracker reports about its work.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct TrackerReport {
     /// Optimisation problems solved.
     pub solves: u64,
