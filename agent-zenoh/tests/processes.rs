@@ -24,20 +24,42 @@ use common::*;
 
 const ROLE: &str = "AGENT_ZENOH_ROLE";
 
-/// The counter `c` in process `p1`, the recorder `e` in process `p2`.
+/// The counter `c` in process `p1`, the recorder `e` in process `p2`: on one
+/// host (`two`), or on two hosts at the addresses of the network namespaces the
+/// test makes (`hosts`).
 fn spec(timeout_ms: u64) -> Spec {
-    agent_spec::options().from_str(&format!(
-        r#"(name: "relay", agents: [], deployments: [(
-            name: "two", timeout_ms: {timeout_ms},
-            hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
-        )])"#
-    ))
-    .unwrap()
+    agent_spec::options()
+        .from_str(&format!(
+            r#"(name: "relay", agents: [], deployments: [
+            (
+                name: "two", timeout_ms: {timeout_ms},
+                hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
+            ),
+            (
+                name: "hosts", timeout_ms: {timeout_ms},
+                hosts: [
+                    (name: "h1", address: "{A1}", processes: [(name: "p1", runs: ["c"])]),
+                    (name: "h2", address: "{A2}", processes: [(name: "p2", runs: ["e"])]),
+                ],
+            ),
+        ])"#
+        ))
+        .unwrap()
 }
+
+const A1: &str = "10.231.0.1";
+const A2: &str = "10.231.0.2";
 
 /// What a child prints on its last line: `e`'s values, or `c`'s echo count,
 /// and the errors its executor met.
-fn child_main(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, fingerprint_twist: bool) {
+fn child_main(
+    deployment: &str,
+    process: &str,
+    port: u16,
+    limit_ms: u64,
+    timeout_ms: u64,
+    fingerprint_twist: bool,
+) {
     let p = pair(2, 2, 1, Policy::queue(64), false);
     let system = if fingerprint_twist && process == "p2" {
         twisted_pair().system
@@ -48,7 +70,7 @@ fn child_main(process: &str, port: u16, limit_ms: u64, timeout_ms: u64, fingerpr
         port: Some(port),
         timeout: Some(Duration::from_millis(timeout_ms)),
     };
-    let mut member = match Member::join(&spec(timeout_ms), "two", process, &options) {
+    let mut member = match Member::join(&spec(timeout_ms), deployment, process, &options) {
         Ok(m) => m,
         Err(e) => {
             println!("error: {e}");
@@ -180,10 +202,11 @@ fn child() {
         return; // not a child: nothing to do
     };
     let parts: Vec<&str> = role.split(',').collect();
-    let [process, port, limit, timeout, twist] = parts[..] else {
+    let [deployment, process, port, limit, timeout, twist] = parts[..] else {
         panic!("bad role {role}");
     };
     child_main(
+        deployment,
         process,
         port.parse().unwrap(),
         limit.parse().unwrap(),
@@ -193,7 +216,7 @@ fn child() {
     std::process::exit(0);
 }
 
-/// Start this binary as process `process` of the deployment.
+/// Start this binary as process `process` of the deployment `two`.
 fn spawn(
     process: &str,
     port: u16,
@@ -201,12 +224,35 @@ fn spawn(
     timeout_ms: u64,
     twist: bool,
 ) -> std::process::Child {
-    Command::new(std::env::current_exe().unwrap())
+    spawn_in(None, "two", process, port, limit_ms, timeout_ms, twist)
+}
+
+/// Start this binary as process `process` of `deployment`, in network
+/// namespace `netns` if given.
+fn spawn_in(
+    netns: Option<&str>,
+    deployment: &str,
+    process: &str,
+    port: u16,
+    limit_ms: u64,
+    timeout_ms: u64,
+    twist: bool,
+) -> std::process::Child {
+    let exe = std::env::current_exe().unwrap();
+    let mut command = match netns {
+        Some(ns) => {
+            let mut c = Command::new("ip");
+            c.args(["netns", "exec", ns]).arg(&exe);
+            c
+        }
+        None => Command::new(&exe),
+    };
+    command
         .args(["--exact", "child", "--nocapture", "--test-threads=1"])
         .env(
             ROLE,
             format!(
-                "{process},{port},{limit_ms},{timeout_ms},{}",
+                "{deployment},{process},{port},{limit_ms},{timeout_ms},{}",
                 if twist { "twist" } else { "plain" }
             ),
         )
@@ -228,6 +274,11 @@ fn a_queue_link_between_two_processes_carries_every_value_in_order() {
     let port = 17_450;
     let p1 = spawn("p1", port, 1_000, 10_000, false);
     let p2 = spawn("p2", port, 1_000, 10_000, false);
+    assert_lossless(p1, p2);
+}
+
+/// p2 got every value p1 sent, in order, but those in flight at the end.
+fn assert_lossless(p1: std::process::Child, p2: std::process::Child) {
     let (c1, out1) = output(p1);
     let (c2, out2) = output(p2);
     assert_eq!((c1, c2), (0, 0), "p1:\n{out1}\np2:\n{out2}");
@@ -289,4 +340,85 @@ fn a_process_that_vanishes_is_reported_on_the_links_it_fed() {
         out.contains("the sending process `p1` is gone") && out.contains("relay/a/c/e/count"),
         "p2 names the process and the key of the link it lost:\n{out}"
     );
+}
+
+/// Two network namespaces joined by a veth pair: two hosts on one machine.
+/// Removed (with the pair) when dropped.
+struct Hosts {
+    names: [String; 2],
+}
+
+impl Hosts {
+    fn make() -> Result<Hosts, String> {
+        let tag = std::process::id() % 100_000;
+        let names = [format!("ea-h1-{tag}"), format!("ea-h2-{tag}")];
+        let (v1, v2) = (format!("ea1-{tag}"), format!("ea2-{tag}"));
+        let hosts = Hosts {
+            names: names.clone(),
+        };
+        let ip = |args: &[&str]| -> Result<(), String> {
+            let out = Command::new("ip")
+                .args(args)
+                .output()
+                .map_err(|e| format!("ip: {e}"))?;
+            if out.status.success() {
+                Ok(())
+            } else {
+                Err(format!(
+                    "`ip {}`: {}",
+                    args.join(" "),
+                    String::from_utf8_lossy(&out.stderr).trim()
+                ))
+            }
+        };
+        ip(&["netns", "add", &names[0]])?;
+        ip(&["netns", "add", &names[1]])?;
+        ip(&["link", "add", &v1, "type", "veth", "peer", "name", &v2])?;
+        for (ns, dev, addr) in [(&names[0], &v1, A1), (&names[1], &v2, A2)] {
+            ip(&["link", "set", dev, "netns", ns])?;
+            ip(&["-n", ns, "addr", "add", &format!("{addr}/24"), "dev", dev])?;
+            ip(&["-n", ns, "link", "set", dev, "up"])?;
+            ip(&["-n", ns, "link", "set", "lo", "up"])?;
+        }
+        Ok(hosts)
+    }
+}
+
+impl Drop for Hosts {
+    fn drop(&mut self) {
+        for ns in &self.names {
+            let _ = Command::new("ip").args(["netns", "del", ns]).output();
+        }
+    }
+}
+
+#[test]
+fn a_queue_link_between_two_hosts_carries_every_value_in_order() {
+    let hosts = match Hosts::make() {
+        Ok(h) => h,
+        Err(why) => {
+            println!("skipped: cannot make two hosts in network namespaces ({why}); run as root");
+            return;
+        }
+    };
+    let port = 17_530;
+    let p1 = spawn_in(
+        Some(&hosts.names[0]),
+        "hosts",
+        "p1",
+        port,
+        1_000,
+        10_000,
+        false,
+    );
+    let p2 = spawn_in(
+        Some(&hosts.names[1]),
+        "hosts",
+        "p2",
+        port,
+        1_000,
+        10_000,
+        false,
+    );
+    assert_lossless(p1, p2);
 }
