@@ -3,8 +3,9 @@
 //! ---
 //!
 //! This crate is the one dependency a user adds: it re-exports the formalism and the
-//! executor of `agent-core`, and the specification tools of `agent-spec` as
-//! [`spec`].
+//! executor of `agent-core`, the specification tools of `agent-spec` as
+//! [`spec`], and, with the feature `distributed`, the processes of a deployment
+//! over Zenoh (`agent-zenoh`) as `distributed`.
 
 pub use agent_core::*;
 
@@ -20,3 +21,10 @@ pub mod prelude {
 
 /// RON specifications: schema, checker, diagrams (the `agent-spec` crate).
 pub use agent_spec as spec;
+
+/// The processes of a deployment over Eclipse Zenoh (the `agent-zenoh` crate):
+/// `Member` joins a deployment as one of its processes, `ZenohTransport` carries
+/// links between processes, `Launcher` starts them all. Behind the feature
+/// `distributed`, because Zenoh's build is long.
+#[cfg(feature = "distributed")]
+pub use agent_zenoh as distributed;

@@ -393,7 +393,7 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         );
         return ExitCode::from(2);
     };
-    let options = agent_zenoh::Options {
+    let options = embodied::distributed::Options {
         port: cli.port,
         timeout: match cli.wait.map(Duration::try_from_secs_f64) {
             None => None,

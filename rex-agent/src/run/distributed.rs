@@ -14,7 +14,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use agent_zenoh::{Child, Control, LaunchReport, Launcher, Line, Member, Options, Watch};
+use embodied::distributed::{Child, Control, LaunchReport, Launcher, Line, Member, Options, Watch};
 use embodied::{ExecConfig, OnError, RealTime, RtConfig, RtReport};
 
 use super::collect::{Collector, Seen};
@@ -38,13 +38,13 @@ pub enum DistError {
     Rex(#[from] RexError),
     /// Joining the deployment failed.
     #[error(transparent)]
-    Member(#[from] agent_zenoh::MemberError),
+    Member(#[from] embodied::distributed::MemberError),
     /// The real-time executor failed.
     #[error(transparent)]
     Rt(#[from] embodied::RtError),
     /// The launcher failed.
     #[error(transparent)]
-    Launch(#[from] agent_zenoh::LaunchError),
+    Launch(#[from] embodied::distributed::LaunchError),
     /// The deployment cannot run the simulation.
     #[error("deployment `{deployment}`: {reason}")]
     Deployment {
