@@ -312,6 +312,8 @@ struct InboxState {
     spare: Vec<Vec<u8>>,
     /// Restarts of the sender seen (a new epoch after the first).
     restarts: u64,
+    /// Problems met, reported or not (at most `MAX_PROBLEMS` wait at once).
+    problem_count: u64,
 }
 
 impl fmt::Debug for Inbox {
@@ -323,7 +325,8 @@ impl fmt::Debug for Inbox {
     }
 }
 
-/// At most this many problems wait in an inbox; more are counted only.
+/// At most this many problems wait in an inbox; more are counted only
+/// ([`Inbox::problem_count`]): a flood of refused values must not grow memory.
 const MAX_PROBLEMS: usize = 16;
 
 impl Inbox {
@@ -368,9 +371,16 @@ impl Inbox {
     }
 
     fn problem(state: &mut InboxState, p: RemoteProblem) {
+        state.problem_count += 1;
         if state.problems.len() < MAX_PROBLEMS {
             state.problems.push_back(p);
         }
+    }
+
+    /// Every problem this inbox met (values refused, gaps, lost peers),
+    /// including those beyond the few that wait to be reported at the reads.
+    pub fn problem_count(&self) -> u64 {
+        self.lock().problem_count
     }
 
     /// A message arrived (called by the transport, from any thread).
@@ -573,6 +583,7 @@ mod tests {
 
         let mut foreign = sender::<(u32, u32)>(&inbox, 8);
         foreign.put(&(1, 2), stamp(5)).unwrap();
+        assert_eq!(inbox.problem_count(), 3, "gap, overflow, foreign type");
         // Problems come first, then the value 3 still waiting.
         assert!(matches!(
             inbox.take_into(&mut x),
@@ -580,6 +591,23 @@ mod tests {
         ));
         inbox.take_into(&mut x).unwrap();
         assert_eq!(x.fresh(), Some(&3));
+    }
+
+    #[test]
+    fn a_flood_of_bad_messages_is_counted_in_bounded_memory() {
+        let (inbox, _) = inbox::<u32>(Policy::Sample);
+        for _ in 0..1000 {
+            inbox.deliver(&[7]);
+        }
+        assert_eq!(inbox.problem_count(), 1000);
+        let mut x = In::<u32>::default();
+        let reported = (0..1000)
+            .take_while(|_| inbox.take_into(&mut x).is_err())
+            .count();
+        assert_eq!(
+            reported, MAX_PROBLEMS,
+            "the first ones wait; all are counted"
+        );
     }
 
     #[test]
