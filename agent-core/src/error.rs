@@ -125,8 +125,17 @@ pub enum RemoteProblem {
         type_name: &'static str,
     },
     /// Values of a queue link were lost on the way.
-    #[error("sequence gap: expected value {expected}, got {got} ({} lost)", got.wrapping_sub(*expected))]
+    #[error("sequence gap: expected value {expected}, got {got} ({} lost)", got.saturating_sub(*expected))]
     Gap {
+        /// The sequence number expected.
+        expected: u64,
+        /// The one received.
+        got: u64,
+    },
+    /// A value of a queue link numbered before the one expected (a repeat, or
+    /// out of order): refused, not delivered twice.
+    #[error("value {got} arrived again or out of order (expected {expected}): refused")]
+    Duplicate {
         /// The sequence number expected.
         expected: u64,
         /// The one received.

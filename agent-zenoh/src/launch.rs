@@ -159,7 +159,8 @@ impl Launcher {
 
     /// Start every child and watch them until all have ended. `on` sees every
     /// line and exit (and `Line::Idle` after each look, at least every 50 ms:
-    /// the moment to watch something else) and may stop the
+    /// the moment to watch something else); what it answers to a line or to
+    /// `Idle` may stop the
     /// launch; so does `interrupted` (set it from a Ctrl-C handler).
     pub fn run(
         self,
@@ -264,7 +265,14 @@ impl Launcher {
                 exits[k] = Some(code);
                 running[k] = None;
                 if restarting {
-                    let child = self.spawn(k, &tx)?;
+                    let child = match self.spawn(k, &tx) {
+                        Ok(c) => c,
+                        Err(e) => {
+                            // Leave nothing running behind an error.
+                            self.stop_all(&mut running);
+                            return Err(e);
+                        }
+                    };
                     report.restarts += 1;
                     running[k] = Some(Running {
                         child,
@@ -290,6 +298,27 @@ impl Launcher {
             .map(|(c, e)| (c.name.clone(), e.flatten()))
             .collect();
         Ok(report)
+    }
+}
+
+impl Launcher {
+    /// SIGTERM to every child still running, SIGKILL after the grace period,
+    /// and wait for them.
+    fn stop_all(&self, running: &mut [Option<Running>]) {
+        for r in running.iter().flatten() {
+            terminate(&r.child);
+        }
+        let until = Instant::now() + self.grace;
+        for r in running.iter_mut().flatten() {
+            while Instant::now() < until {
+                if let Ok(Some(_)) = r.child.try_wait() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let _ = r.child.kill();
+            let _ = r.child.wait();
+        }
     }
 }
 

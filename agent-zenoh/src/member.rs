@@ -446,7 +446,8 @@ impl Member {
         if leader == self.process {
             let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, |_| true);
             if let Some(ns) = parse(&seen) {
-                // A leader restarted in a running deployment keeps its origin.
+                // Another leader's origin still announced (the token lives with
+                // the session that declared it: a restarted leader sets a new one).
                 return Ok(UNIX_EPOCH + Duration::from_nanos(ns));
             }
             self.wait_for_all()?;

@@ -436,7 +436,13 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
             }
             Err(e) => {
                 eprintln!("rex: process `{process}`: {e}");
-                ExitCode::FAILURE
+                // A configuration that cannot run fails again: the launcher does
+                // not restart a process that exits with 2.
+                if e.is_configuration() {
+                    ExitCode::from(2)
+                } else {
+                    ExitCode::FAILURE
+                }
             }
         };
     }

@@ -21,8 +21,10 @@
 //!
 //! The receiver ([`Inbox`]) checks the fingerprint (a process built from
 //! different code is refused: [`RemoteProblem::Fingerprint`]), and on a queue link
-//! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss. A new epoch
-//! is a restarted sender: its numbering starts again, which is not a gap.
+//! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss, and a
+//! repeat is refused ([`RemoteProblem::Duplicate`]). A new epoch is a restarted
+//! sender, numbering again from 1; a first value numbered later (values sent
+//! before this receiver listened, or while its process was down) is a gap.
 //! Sample links keep the latest value; queue links keep every value in order, up
 //! to the link's bound (more is [`RemoteProblem::Overflow`]). Problems reach the
 //! receiving node's executor at its next read, as [`LinkError::Remote`](crate::LinkError::Remote), and go
@@ -405,13 +407,20 @@ impl Inbox {
                 state.restarts += 1;
             }
             state.epoch = header.epoch;
-            state.next = header.seq;
+            // A sender's numbering starts at 1: a first value numbered later on
+            // a queue link means values sent before this inbox listened (or
+            // while its process was down) were lost, and that is reported.
+            state.next = 1;
         }
-        if let Policy::Queue { .. } = self.policy
-            && header.seq != state.next
-        {
-            let (expected, got) = (state.next, header.seq);
-            Self::problem(&mut state, RemoteProblem::Gap { expected, got });
+        if let Policy::Queue { .. } = self.policy {
+            if header.seq < state.next {
+                let (expected, got) = (state.next, header.seq);
+                return Self::problem(&mut state, RemoteProblem::Duplicate { expected, got });
+            }
+            if header.seq != state.next {
+                let (expected, got) = (state.next, header.seq);
+                Self::problem(&mut state, RemoteProblem::Gap { expected, got });
+            }
         }
         state.next = header.seq.wrapping_add(1);
         let mut body = state.spare.pop().unwrap_or_default();
@@ -591,6 +600,35 @@ mod tests {
         ));
         inbox.take_into(&mut x).unwrap();
         assert_eq!(x.fresh(), Some(&3));
+    }
+
+    #[test]
+    fn values_sent_before_a_queue_listened_are_a_gap_and_a_repeat_is_refused() {
+        let (inbox, _) = inbox::<u32>(Policy::queue(8));
+        let mut tx = sender::<u32>(&inbox, 7);
+        tx.header.seq = 4; // four values went out before the inbox listened
+        tx.put(&5, stamp(5)).unwrap();
+        let mut x = In::default();
+        assert_eq!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Gap {
+                expected: 1,
+                got: 5
+            })
+        );
+        inbox.take_into(&mut x).unwrap();
+        assert_eq!(x.fresh(), Some(&5));
+        tx.header.seq = 4; // the same message again
+        tx.put(&5, stamp(5)).unwrap();
+        assert_eq!(
+            inbox.take_into(&mut x),
+            Err(RemoteProblem::Duplicate {
+                expected: 6,
+                got: 5
+            })
+        );
+        inbox.take_into(&mut x).unwrap();
+        assert!(!x.is_new(), "the repeat was not delivered");
     }
 
     #[test]

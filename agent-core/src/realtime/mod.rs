@@ -461,8 +461,9 @@ impl RealTime {
     /// placed process declared) and before any thread starts. The processes of
     /// a deployment agree on it there (each announces itself ready, and one of
     /// them sets instant zero for all), so their instants line up (on one host
-    /// exactly; across hosts as well as their clocks agree) and no value is sent
-    /// before its receiver listens. When the time is past (a process restarted
+    /// exactly; across hosts as well as their clocks agree) and, normally, no
+    /// value is sent before its receiver listens (if one is, a queue link's
+    /// receiver reports the gap). When the time is past (a process restarted
     /// in a running deployment), each node starts at its next instant.
     pub fn start_when<E: fmt::Display>(
         self,

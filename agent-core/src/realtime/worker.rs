@@ -150,8 +150,9 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
                 unread.push((k, e));
             }
         }
-        // A link between processes that failed to deliver: the node still runs
-        // (its buffer aged), and the error goes through the policy.
+        // A link between processes that failed to deliver: the error goes
+        // through the policy (under `Continue` the node still runs, its buffer
+        // aged; under `Stop` the run ends).
         for (k, e) in unread {
             shared.errors.fetch_add(1, Ordering::Relaxed);
             let e = ExecError::Link(e);

@@ -63,6 +63,8 @@ pub(crate) struct Collector {
     mocap_since: Option<f64>,
     a2_done: bool,
     idle: bool,
+    /// The latest instant of e11 seen: truths from it on may still be needed.
+    last_e11: Time,
     pub(crate) sent: usize,
     tick_ns: u128,
     next_tick: u128,
@@ -84,6 +86,7 @@ impl Collector {
             mocap_since: None,
             a2_done: false,
             idle: false,
+            last_e11: Time::ZERO,
             sent: 0,
             tick_ns,
             next_tick: tick_ns,
@@ -98,7 +101,10 @@ impl Collector {
                 sample,
                 event,
                 idle,
-            } => self.pending.push((t, sample, event, idle)),
+            } => {
+                self.last_e11 = self.last_e11.max(t);
+                self.pending.push((t, sample, event, idle));
+            }
             Seen::C1(b) => self.behaviour = b,
             Seen::C2 {
                 t,
@@ -170,8 +176,9 @@ impl Collector {
                 });
             }
         }
-        // Truth older than the oldest sample waiting is no longer needed.
-        let keep_from = self.pending.first().map_or(world_at, |p| p.0);
+        // Truth older than the oldest sample waiting, and than the latest sample
+        // seen, is no longer needed (a sample's truth often arrives first).
+        let keep_from = self.pending.first().map_or(self.last_e11, |p| p.0);
         self.truths = self.truths.split_off(&keep_from);
         if self.a2_done && self.idle && !self.out.completed {
             self.out.completed = true;

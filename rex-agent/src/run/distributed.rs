@@ -55,6 +55,24 @@ pub enum DistError {
     },
 }
 
+impl DistError {
+    /// Whether running again cannot help: a spec or deployment that does not
+    /// fit, a process or component the deployment does not have, an endpoint
+    /// Zenoh refuses (a port taken, an address not here).
+    pub fn is_configuration(&self) -> bool {
+        use embodied::distributed::MemberError as M;
+        matches!(
+            self,
+            DistError::Rex(_)
+                | DistError::Deployment { .. }
+                | DistError::Member(
+                    M::UnknownDeployment { .. } | M::UnknownProcess { .. } | M::Zenoh { .. }
+                )
+                | DistError::Rt(embodied::RtError::UnknownNode { .. })
+        )
+    }
+}
+
 /// Check that `deployment` keeps the simulated world's drivers in one process.
 fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), DistError> {
     let fail = |reason: String| DistError::Deployment {

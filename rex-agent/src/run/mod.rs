@@ -102,32 +102,42 @@ pub struct Counters {
 
 impl Counters {
     /// Add the counters of another part of the same run (another process of a
-    /// deployment): each counter comes from one component, so the parts add up.
+    /// deployment): each counter comes from one component, so the parts add up
+    /// (saturating: they arrive over the network).
     pub fn absorb(&mut self, o: Counters) {
-        self.fragments_received += o.fragments_received;
-        self.fragments_completed += o.fragments_completed;
-        self.fragments_rejected += o.fragments_rejected;
-        self.fragments_stale += o.fragments_stale;
+        self.fragments_received = self.fragments_received.saturating_add(o.fragments_received);
+        self.fragments_completed = self
+            .fragments_completed
+            .saturating_add(o.fragments_completed);
+        self.fragments_rejected = self.fragments_rejected.saturating_add(o.fragments_rejected);
+        self.fragments_stale = self.fragments_stale.saturating_add(o.fragments_stale);
         self.stops.extend(o.stops);
-        self.watchdog_steps += o.watchdog_steps;
+        self.watchdog_steps = self.watchdog_steps.saturating_add(o.watchdog_steps);
         let (e, f) = (&mut self.estimator, o.estimator);
-        e.rejected += f.rejected;
-        e.rejected_poses += f.rejected_poses;
-        e.relocalisations += f.relocalisations;
-        self.clamped_torques += o.clamped_torques;
-        self.planned += o.planned;
-        self.planner_iterations += o.planner_iterations;
-        self.planner_failures += o.planner_failures;
-        self.executor_errors += o.executor_errors;
-        self.mocap = (self.mocap.0 + o.mocap.0, self.mocap.1 + o.mocap.1);
-        self.vo = (self.vo.0 + o.vo.0, self.vo.1 + o.vo.1, self.vo.2 + o.vo.2);
+        e.rejected = e.rejected.saturating_add(f.rejected);
+        e.rejected_poses = e.rejected_poses.saturating_add(f.rejected_poses);
+        e.relocalisations = e.relocalisations.saturating_add(f.relocalisations);
+        self.clamped_torques = self.clamped_torques.saturating_add(o.clamped_torques);
+        self.planned = self.planned.saturating_add(o.planned);
+        self.planner_iterations = self.planner_iterations.saturating_add(o.planner_iterations);
+        self.planner_failures = self.planner_failures.saturating_add(o.planner_failures);
+        self.executor_errors = self.executor_errors.saturating_add(o.executor_errors);
+        self.mocap = (
+            self.mocap.0.saturating_add(o.mocap.0),
+            self.mocap.1.saturating_add(o.mocap.1),
+        );
+        self.vo = (
+            self.vo.0.saturating_add(o.vo.0),
+            self.vo.1.saturating_add(o.vo.1),
+            self.vo.2.saturating_add(o.vo.2),
+        );
         let (t, u) = (&mut self.tracker, o.tracker);
-        t.solves += u.solves;
-        t.clarabel += u.clarabel;
-        t.failures += u.failures;
-        t.fallbacks += u.fallbacks;
-        t.safe_stops += u.safe_stops;
-        t.refused += u.refused;
+        t.solves = t.solves.saturating_add(u.solves);
+        t.clarabel = t.clarabel.saturating_add(u.clarabel);
+        t.failures = t.failures.saturating_add(u.failures);
+        t.fallbacks = t.fallbacks.saturating_add(u.fallbacks);
+        t.safe_stops = t.safe_stops.saturating_add(u.safe_stops);
+        t.refused = t.refused.saturating_add(u.refused);
     }
 }
 
