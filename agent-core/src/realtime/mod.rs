@@ -42,6 +42,8 @@
 //! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
 
 mod clock;
+mod finished;
+mod report;
 mod timing;
 mod worker;
 
@@ -54,7 +56,6 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::error::ExecError;
 use crate::executor::ExecConfig;
 use crate::kinds::NodeKind;
 use crate::link::remote::{self, Transport, TransportError};
@@ -66,6 +67,8 @@ use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
 use crate::trace::SystemInfo;
 
+pub use finished::Finished;
+pub use report::{RtReport, ThreadReport};
 pub use timing::{NodeTiming, Spread};
 
 /// Settings of the real-time executor.
@@ -106,113 +109,6 @@ impl RtConfig {
             lock_memory: true,
             ..RtConfig::default()
         }
-    }
-}
-
-/// What the OS granted one thread.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ThreadReport {
-    /// The thread's name (a subsystem's name, or `world`).
-    pub name: String,
-    /// The FIFO priority asked for, if any.
-    pub priority_asked: Option<u8>,
-    /// Why it was refused, if it was.
-    pub priority_refused: Option<String>,
-}
-
-/// What a real-time run measured.
-#[derive(Debug, Default)]
-pub struct RtReport {
-    /// Each node's timing, in declaration order.
-    pub nodes: Vec<NodeTiming>,
-    /// Each thread and its priority.
-    pub threads: Vec<ThreadReport>,
-    /// `Some(Ok)`: memory was locked; `Some(Err(why))`: refused; `None`: not asked.
-    pub memory_locked: Option<Result<(), String>>,
-    /// Errors met (all of them under `OnError::Stop`, the first ones under
-    /// `Continue`).
-    pub errors: Vec<ExecError>,
-    /// All errors met.
-    pub error_count: u64,
-    /// Probe results that found their channel full.
-    pub probe_dropped: u64,
-    /// Wall-clock time from instant zero to the end.
-    pub wall: Duration,
-    /// The last instant executed.
-    pub last_instant: Time,
-}
-
-impl RtReport {
-    /// Whether every thread got the real-time priority it asked for (false when
-    /// none was asked).
-    pub fn rt_priority(&self) -> bool {
-        !self.threads.is_empty()
-            && self
-                .threads
-                .iter()
-                .all(|t| t.priority_asked.is_some() && t.priority_refused.is_none())
-    }
-
-    /// The timing of the node named `name`.
-    pub fn node(&self, name: &str) -> Option<&NodeTiming> {
-        self.nodes.iter().find(|n| n.name == name)
-    }
-}
-
-impl fmt::Display for RtReport {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(
-            f,
-            "{:<14} {:<10} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8}",
-            "node",
-            "thread",
-            "period_us",
-            "runs",
-            "jit_p50",
-            "jit_p99",
-            "jit_max",
-            "cpu_p50",
-            "cpu_p99",
-            "cpu_max",
-            "overruns"
-        )?;
-        for n in &self.nodes {
-            writeln!(
-                f,
-                "{:<14} {:<10} {:>9} {:>8} {} {} {:>8}",
-                n.name,
-                n.thread,
-                n.period.as_nanos() / 1000,
-                n.activations,
-                n.jitter,
-                n.compute,
-                n.overruns
-            )?;
-        }
-        for t in &self.threads {
-            match (&t.priority_asked, &t.priority_refused) {
-                (None, _) => writeln!(f, "thread {}: ordinary priority", t.name)?,
-                (Some(p), None) => writeln!(f, "thread {}: SCHED_FIFO {p}", t.name)?,
-                (Some(_), Some(why)) => {
-                    writeln!(f, "thread {}: ordinary priority (fallback: {why})", t.name)?
-                }
-            }
-        }
-        match &self.memory_locked {
-            Some(Ok(())) => writeln!(f, "memory locked")?,
-            Some(Err(why)) => writeln!(f, "memory not locked (fallback: {why})")?,
-            None => {}
-        }
-        if self.probe_dropped > 0 {
-            writeln!(f, "probe results dropped: {}", self.probe_dropped)?;
-        }
-        write!(
-            f,
-            "errors: {}; wall {:.3} s to instant {}",
-            self.error_count,
-            self.wall.as_secs_f64(),
-            self.last_instant
-        )
     }
 }
 
@@ -838,84 +734,5 @@ impl Running {
             links: self.stats.iter().map(|s| s.snapshot()).collect(),
             report,
         })
-    }
-}
-
-/// A real-time run that ended: its nodes, environment, links and report.
-pub struct Finished {
-    info: SystemInfo,
-    cores: BTreeMap<usize, Box<dyn Any + Send>>,
-    environment: Option<Box<dyn Any + Send>>,
-    links: Vec<LinkStats>,
-    report: RtReport,
-}
-
-impl fmt::Debug for Finished {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Finished")
-            .field("report", &self.report)
-            .finish()
-    }
-}
-
-impl Finished {
-    /// What the run measured.
-    pub fn report(&self) -> &RtReport {
-        &self.report
-    }
-
-    /// Names, kinds, periods and links.
-    pub fn info(&self) -> &SystemInfo {
-        &self.info
-    }
-
-    /// The report, keeping nothing else.
-    pub fn into_report(self) -> RtReport {
-        self.report
-    }
-
-    fn core(&self, node: usize) -> Option<&dyn Any> {
-        self.cores.get(&node).map(|c| &**c as &dyn Any)
-    }
-
-    /// The memory of a subsystem at the end.
-    pub fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
-        subsystem_core::<S>(self.core(h.id().index())?).map(|c| &c.memory)
-    }
-
-    /// The name of the behaviour a subsystem ended in.
-    pub fn behaviour<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&str> {
-        subsystem_core::<S>(self.core(h.id().index())?)
-            .map(|c| c.fsm.behaviour_name(c.state.behaviour()))
-    }
-
-    /// Whether a subsystem ended halted (final behaviour, or an FSM error).
-    pub fn is_halted<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> bool {
-        self.core(h.id().index())
-            .and_then(subsystem_core::<S>)
-            .is_some_and(|c| c.state.is_halted())
-    }
-
-    /// A driver's device at the end.
-    pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
-        self.core(h.id().index())?
-            .downcast_ref::<DriverCore<D>>()
-            .map(|c| &c.driver)
-    }
-
-    /// The system's environment at the end.
-    pub fn environment<W: Any>(&self) -> Option<&W> {
-        self.environment.as_deref()?.downcast_ref()
-    }
-
-    /// The number of activations a node executed.
-    pub fn activations(&self, node: crate::NodeId) -> Option<u64> {
-        let name = &self.info.nodes.get(node.index())?.name;
-        self.report.node(name).map(|t| t.activations)
-    }
-
-    /// Counters of a link.
-    pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
-        self.links.get(link.index()).copied()
     }
 }

@@ -1,0 +1,93 @@
+//! A real-time run that ended: every node, the environment, the links' counters
+//! and the report, for the program to inspect.
+
+use std::any::Any;
+use std::collections::BTreeMap;
+use std::fmt;
+
+use crate::link::{LinkId, LinkStats};
+use crate::node::{DriverCore, subsystem_core};
+use crate::subsystem::{Driver, Subsystem};
+use crate::system::{DriverHandle, SubsystemHandle};
+use crate::trace::SystemInfo;
+
+use super::RtReport;
+
+/// A real-time run that ended: its nodes, environment, links and report.
+pub struct Finished {
+    pub(super) info: SystemInfo,
+    pub(super) cores: BTreeMap<usize, Box<dyn Any + Send>>,
+    pub(super) environment: Option<Box<dyn Any + Send>>,
+    pub(super) links: Vec<LinkStats>,
+    pub(super) report: RtReport,
+}
+
+impl fmt::Debug for Finished {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Finished")
+            .field("report", &self.report)
+            .finish()
+    }
+}
+
+impl Finished {
+    /// What the run measured.
+    pub fn report(&self) -> &RtReport {
+        &self.report
+    }
+
+    /// Names, kinds, periods and links.
+    pub fn info(&self) -> &SystemInfo {
+        &self.info
+    }
+
+    /// The report, keeping nothing else.
+    pub fn into_report(self) -> RtReport {
+        self.report
+    }
+
+    fn core(&self, node: usize) -> Option<&dyn Any> {
+        self.cores.get(&node).map(|c| &**c as &dyn Any)
+    }
+
+    /// The memory of a subsystem at the end.
+    pub fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
+        subsystem_core::<S>(self.core(h.id().index())?).map(|c| &c.memory)
+    }
+
+    /// The name of the behaviour a subsystem ended in.
+    pub fn behaviour<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&str> {
+        subsystem_core::<S>(self.core(h.id().index())?)
+            .map(|c| c.fsm.behaviour_name(c.state.behaviour()))
+    }
+
+    /// Whether a subsystem ended halted (final behaviour, or an FSM error).
+    pub fn is_halted<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> bool {
+        self.core(h.id().index())
+            .and_then(subsystem_core::<S>)
+            .is_some_and(|c| c.state.is_halted())
+    }
+
+    /// A driver's device at the end.
+    pub fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
+        self.core(h.id().index())?
+            .downcast_ref::<DriverCore<D>>()
+            .map(|c| &c.driver)
+    }
+
+    /// The system's environment at the end.
+    pub fn environment<W: Any>(&self) -> Option<&W> {
+        self.environment.as_deref()?.downcast_ref()
+    }
+
+    /// The number of activations a node executed.
+    pub fn activations(&self, node: crate::NodeId) -> Option<u64> {
+        let name = &self.info.nodes.get(node.index())?.name;
+        self.report.node(name).map(|t| t.activations)
+    }
+
+    /// Counters of a link.
+    pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
+        self.links.get(link.index()).copied()
+    }
+}

@@ -1,0 +1,116 @@
+//! What a real-time run measured: per node, per thread, and what the OS granted.
+
+use std::fmt;
+use std::time::Duration;
+
+use crate::error::ExecError;
+use crate::time::Time;
+
+use super::timing::NodeTiming;
+
+/// What the OS granted one thread.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ThreadReport {
+    /// The thread's name (a subsystem's name, or `world`).
+    pub name: String,
+    /// The FIFO priority asked for, if any.
+    pub priority_asked: Option<u8>,
+    /// Why it was refused, if it was.
+    pub priority_refused: Option<String>,
+}
+
+/// What a real-time run measured.
+#[derive(Debug, Default)]
+pub struct RtReport {
+    /// Each node's timing, in declaration order.
+    pub nodes: Vec<NodeTiming>,
+    /// Each thread and its priority.
+    pub threads: Vec<ThreadReport>,
+    /// `Some(Ok)`: memory was locked; `Some(Err(why))`: refused; `None`: not asked.
+    pub memory_locked: Option<Result<(), String>>,
+    /// Errors met (all of them under `OnError::Stop`, the first ones under
+    /// `Continue`).
+    pub errors: Vec<ExecError>,
+    /// All errors met.
+    pub error_count: u64,
+    /// Probe results that found their channel full.
+    pub probe_dropped: u64,
+    /// Wall-clock time from instant zero to the end.
+    pub wall: Duration,
+    /// The last instant executed.
+    pub last_instant: Time,
+}
+
+impl RtReport {
+    /// Whether every thread got the real-time priority it asked for (false when
+    /// none was asked).
+    pub fn rt_priority(&self) -> bool {
+        !self.threads.is_empty()
+            && self
+                .threads
+                .iter()
+                .all(|t| t.priority_asked.is_some() && t.priority_refused.is_none())
+    }
+
+    /// The timing of the node named `name`.
+    pub fn node(&self, name: &str) -> Option<&NodeTiming> {
+        self.nodes.iter().find(|n| n.name == name)
+    }
+}
+
+impl fmt::Display for RtReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{:<14} {:<10} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8}",
+            "node",
+            "thread",
+            "period_us",
+            "runs",
+            "jit_p50",
+            "jit_p99",
+            "jit_max",
+            "cpu_p50",
+            "cpu_p99",
+            "cpu_max",
+            "overruns"
+        )?;
+        for n in &self.nodes {
+            writeln!(
+                f,
+                "{:<14} {:<10} {:>9} {:>8} {} {} {:>8}",
+                n.name,
+                n.thread,
+                n.period.as_nanos() / 1000,
+                n.activations,
+                n.jitter,
+                n.compute,
+                n.overruns
+            )?;
+        }
+        for t in &self.threads {
+            match (&t.priority_asked, &t.priority_refused) {
+                (None, _) => writeln!(f, "thread {}: ordinary priority", t.name)?,
+                (Some(p), None) => writeln!(f, "thread {}: SCHED_FIFO {p}", t.name)?,
+                (Some(_), Some(why)) => {
+                    writeln!(f, "thread {}: ordinary priority (fallback: {why})", t.name)?
+                }
+            }
+        }
+        match &self.memory_locked {
+            Some(Ok(())) => writeln!(f, "memory locked")?,
+            Some(Err(why)) => writeln!(f, "memory not locked (fallback: {why})")?,
+            None => {}
+        }
+        if self.probe_dropped > 0 {
+            writeln!(f, "probe results dropped: {}", self.probe_dropped)?;
+        }
+        write!(
+            f,
+            "errors: {}; wall {:.3} s to instant {}",
+            self.error_count,
+            self.wall.as_secs_f64(),
+            self.last_instant
+        )
+    }
+}
