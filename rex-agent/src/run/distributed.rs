@@ -210,6 +210,7 @@ pub fn launch(
     let mut collect = Collector::new(config, Duration::from_secs(5));
     let wall = Instant::now();
     let mut stop_sent = false;
+    let mut undecodable = 0u64;
     // Exit status 2 is a bad command line or configuration: restarting won't help.
     let report = Launcher::new(children)
         .fatal_codes([2])
@@ -227,10 +228,14 @@ pub fn launch(
                 ),
                 Line::Idle => {}
             }
-            while let Some((_, _, bytes)) = watch.next(Duration::ZERO) {
-                if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
-                    collect.see(seen, &mut progress);
-                }
+            while let Some((process, _, bytes)) = watch.next(Duration::ZERO) {
+                take(
+                    &mut collect,
+                    &mut undecodable,
+                    &process,
+                    &bytes,
+                    &mut progress,
+                );
             }
             if collect.advance(false, &mut progress) && !stop_sent {
                 stop_sent = true;
@@ -239,10 +244,19 @@ pub fn launch(
             Control::Continue
         })?;
     // What arrived after the processes ended.
-    while let Some((_, _, bytes)) = watch.next(Duration::from_millis(200)) {
-        if let Ok(seen) = postcard::from_bytes::<Seen>(&bytes) {
-            collect.see(seen, &mut progress);
-        }
+    while let Some((process, _, bytes)) = watch.next(Duration::from_millis(200)) {
+        take(
+            &mut collect,
+            &mut undecodable,
+            &process,
+            &bytes,
+            &mut progress,
+        );
+    }
+    if undecodable > 0 {
+        eprintln!(
+            "rex: {undecodable} observations did not decode (a process of another build?); the summary lacks them"
+        );
     }
     collect.advance(true, &mut progress);
     let sent = collect.sent;
@@ -256,4 +270,24 @@ pub fn launch(
     ];
     out.reports = judge::judge(&out, config, sent);
     Ok((out, report))
+}
+
+/// One observation into `collect`; one that does not decode is counted (and
+/// the first named), never silently dropped.
+fn take(
+    collect: &mut Collector,
+    undecodable: &mut u64,
+    process: &str,
+    bytes: &[u8],
+    progress: &mut impl FnMut(Progress<'_>),
+) {
+    match postcard::from_bytes::<Seen>(bytes) {
+        Ok(seen) => collect.see(seen, progress),
+        Err(e) => {
+            if *undecodable == 0 {
+                eprintln!("rex: an observation of `{process}` does not decode: {e}");
+            }
+            *undecodable += 1;
+        }
+    }
 }
