@@ -24,7 +24,10 @@
 //! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss, and a
 //! repeat is refused ([`RemoteProblem::Duplicate`]). A new epoch is a restarted
 //! sender, numbering again from 1; a first value numbered later (values sent
-//! before this receiver listened, or while its process was down) is a gap.
+//! before this receiver listened, or while its process was down) is a gap,
+//! except for a receiver that joined a running deployment late (its process
+//! restarted): the values its sender sent before were not for it, and its
+//! first value from that sender starts the count ([`Inbox::start`]).
 //! Sample links keep the latest value; queue links keep every value in order, up
 //! to the link's bound (more is [`RemoteProblem::Overflow`]). Problems reach the
 //! receiving node's executor at its next read, as [`LinkError::Remote`](crate::LinkError::Remote), and go
@@ -316,6 +319,14 @@ struct InboxState {
     restarts: u64,
     /// Problems met, reported or not (at most `MAX_PROBLEMS` wait at once).
     problem_count: u64,
+    /// Whether the receiving run has started ([`Inbox::start`]); until then a
+    /// gap before the first value is held in `first_gap`.
+    started: bool,
+    /// The receiving run joined a running deployment late.
+    late: bool,
+    /// Whether a value from any sender was seen.
+    heard: bool,
+    first_gap: Option<RemoteProblem>,
 }
 
 impl fmt::Debug for Inbox {
@@ -344,8 +355,32 @@ impl Inbox {
             fingerprint,
             type_name,
             policy,
-            state: Mutex::new(InboxState::default()),
+            state: Mutex::new(InboxState {
+                started: true,
+                ..InboxState::default()
+            }),
             stats,
+        }
+    }
+
+    /// Hold the judgement of the first value until [`Inbox::start`]: made by
+    /// a run that subscribes before it knows whether it joins late.
+    pub(crate) fn defer_start(&self) {
+        self.lock().started = false;
+    }
+
+    /// The receiving run starts; `late`: it joined a running deployment (its
+    /// process restarted), so the first value from a sender starts the count
+    /// of its numbering instead of revealing a gap (the values sent before
+    /// were not for this receiver).
+    pub fn start(&self, late: bool) {
+        let mut state = self.lock();
+        state.started = true;
+        state.late = late;
+        if let Some(gap) = state.first_gap.take()
+            && !late
+        {
+            Self::problem(&mut state, gap);
         }
     }
 
@@ -412,6 +447,7 @@ impl Inbox {
             // while its process was down) were lost, and that is reported.
             state.next = 1;
         }
+        let first = !std::mem::replace(&mut state.heard, true);
         if let Policy::Queue { .. } = self.policy {
             if header.seq < state.next {
                 let (expected, got) = (state.next, header.seq);
@@ -419,7 +455,13 @@ impl Inbox {
             }
             if header.seq != state.next {
                 let (expected, got) = (state.next, header.seq);
-                Self::problem(&mut state, RemoteProblem::Gap { expected, got });
+                let gap = RemoteProblem::Gap { expected, got };
+                match (first, state.started, state.late) {
+                    // A late joiner's first value: nothing was lost for it.
+                    (true, true, true) => {}
+                    (true, false, _) => state.first_gap = Some(gap),
+                    _ => Self::problem(&mut state, gap),
+                }
             }
         }
         state.next = header.seq.wrapping_add(1);
@@ -629,6 +671,57 @@ mod tests {
         );
         inbox.take_into(&mut x).unwrap();
         assert!(!x.is_new(), "the repeat was not delivered");
+    }
+
+    #[test]
+    fn a_late_joiner_starts_counting_at_its_first_value_and_an_early_one_does_not() {
+        // Whether the run joins late is known only after it subscribed: the
+        // first value may come before or after `start`.
+        for (late, before_start) in [(true, true), (true, false), (false, true), (false, false)] {
+            let (inbox, _) = inbox::<u32>(Policy::queue(8));
+            inbox.defer_start();
+            let mut tx = sender::<u32>(&inbox, 7);
+            tx.header.seq = 4; // four values went to this sender's earlier receivers
+            if before_start {
+                tx.put(&5, stamp(5)).unwrap();
+                inbox.start(late);
+            } else {
+                inbox.start(late);
+                tx.put(&5, stamp(5)).unwrap();
+            }
+            let mut x = In::default();
+            let first = inbox.take_into(&mut x);
+            if late {
+                assert_eq!(first, Ok(()), "late={late} before_start={before_start}");
+                assert_eq!(x.fresh(), Some(&5));
+            } else {
+                assert_eq!(
+                    first,
+                    Err(RemoteProblem::Gap {
+                        expected: 1,
+                        got: 5
+                    }),
+                    "late={late} before_start={before_start}"
+                );
+            }
+            // Later gaps are gaps for everyone.
+            tx.header.seq += 1;
+            tx.put(&7, stamp(7)).unwrap();
+            let mut problems = 0;
+            for _ in 0..4 {
+                if let Err(p) = inbox.take_into(&mut x) {
+                    assert_eq!(
+                        p,
+                        RemoteProblem::Gap {
+                            expected: 6,
+                            got: 7
+                        }
+                    );
+                    problems += 1;
+                }
+            }
+            assert_eq!(problems, 1);
+        }
     }
 
     #[test]

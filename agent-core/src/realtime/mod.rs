@@ -450,6 +450,7 @@ impl RealTime {
         let mut rxs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
         let mut stats: Vec<Arc<SharedStats>> = Vec::with_capacity(channels.len());
         let mut subscriptions: Vec<Box<dyn Any + Send>> = Vec::new();
+        let mut inboxes: Vec<Arc<remote::Inbox>> = Vec::new();
         let mut transport = placement.map(|p| (p.prefix, p.transport));
         // One publisher per output buffer (key), made by its first remote link;
         // the policy of a key with a queue link among its links is the queue's.
@@ -499,6 +500,9 @@ impl RealTime {
                 (false, true, Some((prefix, transport))) => {
                     let key = remote::link_key(prefix, &info, link);
                     let (rx, inbox, s) = plan.remote_rx(key.as_str().into());
+                    // Whether this process joins late is known at `sync`.
+                    inbox.defer_start();
+                    inboxes.push(inbox.clone());
                     let guard =
                         transport
                             .subscribe(&key, inbox)
@@ -567,14 +571,27 @@ impl RealTime {
         let memory_locked = config.lock_memory.then(clock::lock_memory);
         let stop = Arc::new(AtomicBool::new(false));
         let clock = match sync.and_then(|f| f()) {
-            Some(Ok(at)) => clock::Clock::at_wall(at),
+            Some(Ok(at)) => {
+                // Instant zero in the past: this process joins a running
+                // deployment (it was restarted).
+                let late = at <= SystemTime::now();
+                for inbox in &inboxes {
+                    inbox.start(late);
+                }
+                clock::Clock::at_wall(at)
+            }
             Some(Err(e)) => {
                 if memory_locked.as_ref().is_some_and(Result::is_ok) {
                     clock::unlock_memory();
                 }
                 return Err(e);
             }
-            None => clock::Clock::starting_in(config.lead),
+            None => {
+                for inbox in &inboxes {
+                    inbox.start(false);
+                }
+                clock::Clock::starting_in(config.lead)
+            }
         };
         let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
         let shared = Arc::new(worker::Shared {
