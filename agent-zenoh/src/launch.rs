@@ -4,7 +4,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
 use std::process::{Command, ExitStatus, Stdio};
-use std::sync::mpsc::{RecvTimeoutError, Sender, channel};
+use std::sync::mpsc::{Sender, channel};
 use std::time::{Duration, Instant};
 
 /// One process to start.
@@ -42,12 +42,16 @@ pub enum Line {
 }
 
 /// What the caller answers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Control {
     /// Go on.
     Continue,
     /// Stop every child (SIGTERM, then SIGKILL after the grace period).
     Stop,
+    /// Kill this child now with SIGKILL, as a crash would end it (fault
+    /// injection: it is restarted like any crashed child). An unknown name or
+    /// a child not running is ignored.
+    Kill(String),
 }
 
 /// How a launch ended.
@@ -92,6 +96,7 @@ pub struct Launcher {
     max_restarts: u32,
     grace: Duration,
     fatal: Vec<i32>,
+    restart_delay: Duration,
 }
 
 struct Running {
@@ -100,14 +105,24 @@ struct Running {
 }
 
 impl Launcher {
-    /// A launcher for `children`; a crashed child is restarted up to 3 times.
+    /// A launcher for `children`; a crashed child is restarted up to 3 times,
+    /// half a second after it ended.
     pub fn new(children: Vec<Child>) -> Self {
         Launcher {
             children,
             max_restarts: 3,
             grace: Duration::from_secs(5),
             fatal: Vec::new(),
+            restart_delay: Duration::from_millis(500),
         }
+    }
+
+    /// How long after a crash the child is started again (a crash that
+    /// repeats at once does not become a busy loop, and what the child held,
+    /// a port for example, is released meanwhile).
+    pub fn restart_delay(mut self, delay: Duration) -> Self {
+        self.restart_delay = delay;
+        self
     }
 
     /// Exit codes that mean "this will fail again" (a bad command line or
@@ -188,39 +203,65 @@ impl Launcher {
         }
         let mut stopping: Option<Instant> = None;
         let mut killed = false;
+        // Children to start again, when, and their restarts so far.
+        let mut due: Vec<Option<(Instant, u32)>> = vec![None; self.children.len()];
         loop {
-            let mut control = match rx.recv_timeout(Duration::from_millis(50)) {
-                Ok((k, text)) => {
-                    let mut control = on(&Line::Output {
+            let mut answers = Vec::new();
+            if let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(50)) {
+                answers.push(on(&Line::Output {
+                    process: self.children[k].name.clone(),
+                    text,
+                }));
+                // Drain what else is waiting before looking at the children.
+                while let Ok((k, text)) = rx.try_recv() {
+                    answers.push(on(&Line::Output {
                         process: self.children[k].name.clone(),
                         text,
-                    });
-                    // Drain what else is waiting before looking at the children.
-                    while let Ok((k, text)) = rx.try_recv() {
-                        if on(&Line::Output {
-                            process: self.children[k].name.clone(),
-                            text,
-                        }) == Control::Stop
-                        {
-                            control = Control::Stop;
+                    }));
+                }
+            }
+            answers.push(on(&Line::Idle));
+            let mut stop = false;
+            for answer in answers {
+                match answer {
+                    Control::Continue => {}
+                    Control::Stop => stop = true,
+                    Control::Kill(name) => {
+                        let child = self.children.iter().position(|c| c.name == name);
+                        if let Some(r) = child.and_then(|k| running[k].as_mut()) {
+                            let _ = r.child.kill();
                         }
                     }
-                    control
                 }
-                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {
-                    Control::Continue
-                }
-            };
-            if on(&Line::Idle) == Control::Stop {
-                control = Control::Stop;
             }
-            if (control == Control::Stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
+            if (stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
                 && stopping.is_none()
             {
                 stopping = Some(Instant::now());
                 report.stopped = true;
                 for r in running.iter().flatten() {
                     terminate(&r.child);
+                }
+                due.fill(None);
+            }
+            for k in 0..due.len() {
+                let Some((at, restarts)) = due[k] else {
+                    continue;
+                };
+                if Instant::now() < at {
+                    continue;
+                }
+                due[k] = None;
+                match self.spawn(k, &tx) {
+                    Ok(child) => {
+                        report.restarts += 1;
+                        running[k] = Some(Running { child, restarts });
+                    }
+                    Err(e) => {
+                        // Leave nothing running behind an error.
+                        self.stop_all(&mut running);
+                        return Err(e);
+                    }
                 }
             }
             if let Some(since) = stopping
@@ -252,6 +293,7 @@ impl Launcher {
                             terminate(&o.child);
                         }
                     }
+                    due.fill(None);
                 }
                 let Some(r) = running[k].as_mut() else {
                     continue;
@@ -265,22 +307,10 @@ impl Launcher {
                 exits[k] = Some(code);
                 running[k] = None;
                 if restarting {
-                    let child = match self.spawn(k, &tx) {
-                        Ok(c) => c,
-                        Err(e) => {
-                            // Leave nothing running behind an error.
-                            self.stop_all(&mut running);
-                            return Err(e);
-                        }
-                    };
-                    report.restarts += 1;
-                    running[k] = Some(Running {
-                        child,
-                        restarts: restarts + 1,
-                    });
+                    due[k] = Some((Instant::now() + self.restart_delay, restarts + 1));
                 }
             }
-            if running.iter().all(Option::is_none) {
+            if running.iter().all(Option::is_none) && due.iter().all(Option::is_none) {
                 // The last lines of the children that ended.
                 while let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(100)) {
                     on(&Line::Output {

@@ -124,9 +124,12 @@ impl Layout {
     }
 
     /// `endpoints`, and the router when the deployment has one (a router that
-    /// is down is a reason why nobody appears).
-    fn where_(&self, endpoints: String) -> String {
+    /// is down is a reason why nobody appears): whether `session` reaches it.
+    fn where_(&self, endpoints: String, session: &zenoh::Session) -> String {
         match &self.router {
+            Some(r) if session.info().routers_zid().wait().next().is_none() => {
+                format!("{endpoints}, or through the router at {r}, which is not reachable")
+            }
             Some(r) => format!("{endpoints}, or through the router at {r}"),
             None => endpoints,
         }
@@ -403,6 +406,7 @@ impl Member {
                     .filter_map(|m| self.layout.endpoint(m))
                     .collect::<Vec<_>>()
                     .join(", "),
+                &self.session,
             ),
             missing: missing
                 .iter()
@@ -444,17 +448,48 @@ impl Member {
                 .max()
         };
         if leader == self.process {
+            // Once the others are seen, their tokens are: a deployment already
+            // running (this leader restarted) keeps its instant zero, which
+            // every process announces.
+            self.wait_for_all()?;
             let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, |_| true);
             if let Some(ns) = parse(&seen) {
-                // Another leader's origin still announced (the token lives with
-                // the session that declared it: a restarted leader sets a new one).
+                self.announce_origin(ns)?;
                 return Ok(UNIX_EPOCH + Duration::from_nanos(ns));
             }
-            self.wait_for_all()?;
             let origin = SystemTime::now() + lead;
             let ns = origin
                 .duration_since(UNIX_EPOCH)
                 .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+            self.announce_origin(ns)?;
+            return Ok(origin);
+        }
+        let (ok, seen) = poll_tokens(&self.session, &key, self.layout.timeout, |seen| {
+            parse(seen).is_some()
+        });
+        match parse(&seen) {
+            Some(ns) if ok => {
+                self.announce_origin(ns)?;
+                Ok(UNIX_EPOCH + Duration::from_nanos(ns))
+            }
+            _ => Err(MemberError::Missing {
+                process: self.process.clone(),
+                deployment: self.layout.deployment.clone(),
+                missing: format!("the start signal of `{leader}`"),
+                endpoints: self.layout.where_(
+                    self.layout.endpoint(&leader).unwrap_or("?").to_owned(),
+                    &self.session,
+                ),
+                waited: self.layout.timeout,
+            }),
+        }
+    }
+
+    /// Announce instant zero (`ns` since the Unix epoch) as long as this process
+    /// lives: every process does, so that one restarted, the first included,
+    /// finds it.
+    fn announce_origin(&mut self, ns: u64) -> Result<(), MemberError> {
+        if self._origin_token.is_none() {
             let token = self
                 .session
                 .liveliness()
@@ -465,23 +500,8 @@ impl Member {
                     error: e.to_string(),
                 })?;
             self._origin_token = Some(token);
-            return Ok(origin);
         }
-        let (ok, seen) = poll_tokens(&self.session, &key, self.layout.timeout, |seen| {
-            parse(seen).is_some()
-        });
-        match parse(&seen) {
-            Some(ns) if ok => Ok(UNIX_EPOCH + Duration::from_nanos(ns)),
-            _ => Err(MemberError::Missing {
-                process: self.process.clone(),
-                deployment: self.layout.deployment.clone(),
-                missing: format!("the start signal of `{leader}`"),
-                endpoints: self
-                    .layout
-                    .where_(self.layout.endpoint(&leader).unwrap_or("?").to_owned()),
-                waited: self.layout.timeout,
-            }),
-        }
+        Ok(())
     }
 
     /// Whether a stop was asked (by [`Member::request_stop`] or [`Watch::stop`]

@@ -101,3 +101,57 @@ fn a_stop_ends_every_child() {
     assert_eq!(report.restarts, 0, "stopped children are not restarted");
     assert!(started.elapsed() < Duration::from_secs(20));
 }
+
+#[test]
+fn a_child_killed_on_request_is_restarted_as_a_crash() {
+    // The child says `up`; the caller kills it (fault injection); the second
+    // start finds the marker and ends cleanly.
+    let marker = std::env::temp_dir().join(format!("launcher-kill-{}", std::process::id()));
+    let _ = std::fs::remove_file(&marker);
+    let script = format!(
+        "if [ -e {m} ]; then echo again; exit 0; else touch {m}; echo up; sleep 30; fi",
+        m = marker.display()
+    );
+    let started = Instant::now();
+    let mut lines = Vec::new();
+    let (mut exited, mut again) = (None, None);
+    let report = Launcher::new(vec![sh("victim", &script), sh("other", "echo fine")])
+        .restart_delay(Duration::from_millis(300))
+        .run(&AtomicBool::new(false), |l| {
+            if *l != Line::Idle {
+                lines.push(l.clone());
+            }
+            match l {
+                Line::Exited { process, .. } if process == "victim" && exited.is_none() => {
+                    exited = Some(Instant::now());
+                }
+                Line::Output { text, .. } if text == "again" => again = Some(Instant::now()),
+                _ => {}
+            }
+            match l {
+                Line::Output { text, .. } if text == "up" => Control::Kill("victim".into()),
+                // Unknown names are ignored.
+                Line::Output { text, .. } if text == "fine" => Control::Kill("nobody".into()),
+                _ => Control::Continue,
+            }
+        })
+        .unwrap();
+    assert_eq!(report.restarts, 1, "{lines:?}");
+    assert!(lines.contains(&Line::Exited {
+        process: "victim".into(),
+        code: None,
+        restarting: true
+    }));
+    assert!(lines.contains(&Line::Output {
+        process: "victim".into(),
+        text: "again".into()
+    }));
+    assert!(report.all_succeeded(), "{report:?}");
+    let waited = again.unwrap() - exited.unwrap();
+    assert!(
+        waited >= Duration::from_millis(300),
+        "restarted after {waited:?}"
+    );
+    assert!(started.elapsed() < Duration::from_secs(20));
+    let _ = std::fs::remove_file(&marker);
+}

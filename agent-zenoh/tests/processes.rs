@@ -36,6 +36,10 @@ fn spec(timeout_ms: u64) -> Spec {
                 hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
             ),
             (
+                name: "routed", timeout_ms: {timeout_ms}, router: "{ROUTER}",
+                hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
+            ),
+            (
                 name: "hosts", timeout_ms: {timeout_ms},
                 hosts: [
                     (name: "h1", address: "{A1}", processes: [(name: "p1", runs: ["c"])]),
@@ -47,6 +51,8 @@ fn spec(timeout_ms: u64) -> Spec {
         .unwrap()
 }
 
+/// Where the deployment `routed` expects a router; none runs there.
+const ROUTER: &str = "tcp/127.0.0.1:17559";
 const A1: &str = "10.231.0.1";
 const A2: &str = "10.231.0.2";
 
@@ -88,8 +94,11 @@ fn child_main(
         },
     );
     rt.place(member.placement().unwrap()).unwrap();
+    let mut origin = None;
     let running = match rt.start_when(Duration::from_millis(limit_ms), || {
-        member.ready(Duration::from_millis(300))
+        let zero = member.ready(Duration::from_millis(300));
+        origin = zero.as_ref().ok().copied();
+        zero
     }) {
         Ok(r) => r,
         Err(e) => {
@@ -97,6 +106,11 @@ fn child_main(
             std::process::exit(4);
         }
     };
+    if let Some(t) = origin.and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok()) {
+        use std::io::Write;
+        println!("origin: {}", t.as_nanos());
+        let _ = std::io::stdout().flush();
+    }
     let f = running.join().unwrap();
     for e in &f.report().errors {
         println!("exec-error: {e}");
@@ -309,6 +323,26 @@ fn a_process_that_never_appears_is_named_in_a_timely_error() {
 }
 
 #[test]
+fn a_router_that_is_down_is_named_and_the_processes_reach_each_other_without_it() {
+    // Alone, a process says that neither its peer nor the router answers.
+    let started = std::time::Instant::now();
+    let p1 = spawn_in(None, "routed", "p1", 17_550, 1_000, 1_500, false);
+    let (code, out) = output(p1);
+    assert_ne!(code, 0, "{out}");
+    assert!(
+        out.contains("`p2`")
+            && out.contains("tcp/127.0.0.1:17551")
+            && out.contains(&format!("router at {ROUTER}, which is not reachable")),
+        "the error names the missing process, its endpoint and the router:\n{out}"
+    );
+    assert!(started.elapsed() < Duration::from_secs(30), "no hang");
+    // Together, they connect directly, as the spec's endpoints allow.
+    let p1 = spawn_in(None, "routed", "p1", 17_560, 1_500, 10_000, false);
+    let p2 = spawn_in(None, "routed", "p2", 17_560, 1_500, 10_000, false);
+    assert_lossless(p1, p2);
+}
+
+#[test]
 fn a_process_built_from_other_code_is_refused_with_a_message_that_says_so() {
     let port = 17_490;
     let p1 = spawn("p1", port, 800, 10_000, false);
@@ -329,16 +363,43 @@ fn a_process_built_from_other_code_is_refused_with_a_message_that_says_so() {
 fn a_process_that_vanishes_is_reported_on_the_links_it_fed() {
     let port = 17_510;
     let mut p1 = spawn("p1", port, 20_000, 10_000, false);
-    let p2 = spawn("p2", port, 5_000, 10_000, false);
+    let p2 = spawn("p2", port, 8_000, 10_000, false);
     // Both are up and running well before this; then p1 dies without a word.
     std::thread::sleep(Duration::from_millis(3_000));
     p1.kill().unwrap();
     let _ = p1.wait();
+    let (_, out1) = output(p1);
+    // p1 (the first process, which set instant zero) starts again: it joins the
+    // running deployment at the instant zero p2 keeps announcing.
+    let p1 = spawn("p1", port, 6_000, 10_000, false);
+    let (code, again) = output(p1);
+    assert_eq!(code, 0, "{again}");
     let (code, out) = output(p2);
     assert_eq!(code, 0, "{out}");
     assert!(
         out.contains("the sending process `p1` is gone") && out.contains("relay/a/c/e/count"),
         "p2 names the process and the key of the link it lost:\n{out}"
+    );
+    let origin = |text: &str| {
+        text.lines()
+            .find_map(|l| l.split("origin: ").nth(1))
+            .map(str::to_owned)
+            .unwrap_or_else(|| panic!("no origin in\n{text}"))
+    };
+    assert_eq!(origin(&out1), origin(&out), "p1 and p2 started together");
+    assert_eq!(
+        origin(&again),
+        origin(&out),
+        "the restarted p1 kept instant zero"
+    );
+    // And its values reached p2 again, a new count from its restart.
+    let got = out
+        .lines()
+        .find_map(|l| l.strip_prefix("got: "))
+        .unwrap_or_default();
+    assert!(
+        got.split(',').filter(|v| *v == "1").count() >= 2,
+        "p2 got the restarted p1's values: {got}"
     );
 }
 
