@@ -94,6 +94,7 @@ fn figure_eight() -> Result<(f64, f64, usize), Box<dyn std::error::Error>> {
         let plan = Plan {
             id: k as u32 + 1,
             points: points.clone(),
+            first: 0,
         };
         let waypoints = proc(&plan, &C1Params::default())?;
         for w in waypoints {

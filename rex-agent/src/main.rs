@@ -123,7 +123,30 @@ enum Command {
     /// print their output prefixed with their names, restart a crashed one, stop
     /// them together on Ctrl-C or when the mission has ended, and print the
     /// mission's summary with `processes=<n> restarts=<n>`.
-    Launch,
+    Launch {
+        /// Kill a process with SIGKILL when the mission's time reaches SECONDS
+        /// (fault injection, repeatable): the launcher restarts it, and the
+        /// agents recover (a2 resends what c1 lost; a1 goes on without visual
+        /// odometry while r11 is away).
+        #[arg(long, value_name = "PROCESS@SECONDS", value_parser = parse_fault)]
+        kill: Vec<(String, f64)>,
+    },
+}
+
+/// `PROCESS@SECONDS` of `--kill`.
+fn parse_fault(s: &str) -> Result<(String, f64), String> {
+    let (process, at) = s
+        .split_once('@')
+        .ok_or_else(|| format!("`{s}`: expected PROCESS@SECONDS, e.g. locomotion@8"))?;
+    let at: f64 = at
+        .parse()
+        .map_err(|e| format!("`{at}` is not a number of seconds: {e}"))?;
+    if process.is_empty() || !(at.is_finite() && at >= 0.0) {
+        return Err(format!(
+            "`{s}`: expected a process name and a time of at least 0 s"
+        ));
+    }
+    Ok((process.to_owned(), at))
 }
 
 /// Write to standard output; if it is closed (`rex | head`), stop quietly instead of
@@ -454,9 +477,26 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
             return ExitCode::FAILURE;
         }
     };
-    let mut args: Vec<String> = std::env::args().skip(1).collect();
-    if let Some(k) = args.iter().position(|a| a == "launch") {
-        args.remove(k);
+    let faults = match &cli.command {
+        Some(Command::Launch { kill }) => kill.clone(),
+        None => Vec::new(),
+    };
+    if let Some((process, _)) = faults
+        .iter()
+        .find(|(p, _)| !spec_runs_process(spec, deployment, p))
+    {
+        eprintln!("rex: --kill: deployment `{deployment}` has no process `{process}`");
+        return ExitCode::from(2);
+    }
+    // The processes get the same arguments, without `launch` and its options.
+    let mut args: Vec<String> = Vec::new();
+    let mut given = std::env::args().skip(1);
+    while let Some(a) = given.next() {
+        if a == "--kill" {
+            given.next();
+        } else if a != "launch" && !a.starts_with("--kill=") {
+            args.push(a);
+        }
     }
     if !args.iter().any(|a| a == "--no-report") {
         args.push("--no-report".into());
@@ -467,6 +507,7 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         &options,
         program,
         &args,
+        &faults,
         &INTERRUPTED,
         printer(cli.quiet),
     ) {
@@ -502,6 +543,15 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// Whether `deployment` of `spec` has a process named `process`.
+#[cfg(feature = "distributed")]
+fn spec_runs_process(spec: &Spec, deployment: &str, process: &str) -> bool {
+    spec.deployments
+        .iter()
+        .filter(|d| d.name == deployment)
+        .any(|d| d.process(process).is_some())
 }
 
 #[cfg(not(feature = "distributed"))]

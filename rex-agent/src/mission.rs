@@ -73,6 +73,7 @@ impl Mission {
         self.plans.get(k).map(|points| Plan {
             id: k as u32 + 1,
             points: points.clone(),
+            first: 0,
         })
     }
 }

@@ -130,7 +130,11 @@ fn plans() -> impl Strategy<Value = Plan> {
             };
             points.push(p);
         }
-        Plan { id: 1, points }
+        Plan {
+            id: 1,
+            points,
+            first: 0,
+        }
     })
 }
 

@@ -3,6 +3,14 @@
 //! process, c1 with e11 in another) on loopback, and the mission completes with
 //! every plan achieved, tracking within 25% of the in-process run of the same
 //! mission. A process that never appears is named in a timely error.
+//!
+//! Faults, injected by `rex launch --kill PROCESS@SECONDS` (SIGKILL, as a crash):
+//! c1 with e11 killed in the middle of a mission are restarted, the platform's
+//! watchdog holds it meanwhile, and the mission completes with no plan lost and
+//! no fragment executed twice; r11 killed, a1 goes on without visual odometry
+//! and reports the outage.
+//!
+//! The launches run one at a time (each is several real-time processes).
 
 #![cfg(feature = "distributed")]
 #![allow(
@@ -32,6 +40,119 @@ fn mission_file() -> std::path::PathBuf {
     path
 }
 
+/// One launch at a time: each runs real-time processes on every core.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// `rex launch` of the short mission with `args`; its stdout and stderr, after
+/// checking that it succeeded.
+fn launch(args: &[&str]) -> (String, String) {
+    let mission = mission_file();
+    let out = Command::new(env!("CARGO_BIN_EXE_rex"))
+        .arg("launch")
+        .args(args)
+        .args(["--limit", "90", "--no-report", "--mission"])
+        .arg(&mission)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "rex launch {args:?} failed:\n{stdout}\n{stderr}"
+    );
+    (stdout, stderr)
+}
+
+fn line<'a>(text: &'a str, start: &str) -> &'a str {
+    text.lines()
+        .find(|l| l.starts_with(start))
+        .unwrap_or_else(|| panic!("no line `{start}...` in\n{text}"))
+}
+
+#[test]
+fn killing_locomotion_mid_mission_loses_no_plan_and_repeats_no_fragment() {
+    let _one = one_at_a_time();
+    // At 4 s plan 1 is acknowledged (early: its last fragment runs) and plan 2
+    // sent: both are lost with c1.
+    let (stdout, stderr) = launch(&[
+        "--deployment",
+        "split_without_vo",
+        "--no-vo",
+        "--port",
+        "17840",
+        "--kill",
+        "locomotion@4",
+    ]);
+    let last = stdout.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("mission=short plans_acked=2/2"),
+        "every plan achieved (acknowledged, reached, confirmed by the truth):\n{stdout}\n{stderr}"
+    );
+    assert_eq!(figure(last, "restarts"), 1.0, "{last}");
+    assert!(
+        stderr.contains("[locomotion] exited (killed by a signal); restarting it"),
+        "{stderr}"
+    );
+    let recovery = line(&stdout, "recovery ");
+    assert_eq!(figure(recovery, "c1_restarts"), 1.0, "{recovery}");
+    assert!(figure(recovery, "plans_resent") >= 1.0, "{recovery}");
+    assert_eq!(figure(recovery, "fragments_repeated"), 0.0, "{recovery}");
+    // The platform's watchdog held it while nobody commanded it.
+    let faults = line(&stdout, "faults: ");
+    assert!(
+        faults.contains("platform steps at zero torque (command watchdog)"),
+        "{faults}"
+    );
+    // The restarted process joined the running deployment: no false gap.
+    assert!(!stderr.contains("sequence gap"), "{stderr}");
+    // Each plan was acknowledged done, and reported reached once.
+    for plan in ["plan=1", "plan=2"] {
+        let reached = stdout
+            .lines()
+            .filter(|l| l.starts_with("outcome ") && l.contains(plan))
+            .collect::<Vec<_>>();
+        assert_eq!(reached.len(), 1, "{plan}: {reached:?}");
+        assert!(reached[0].contains("reached its last point"), "{reached:?}");
+    }
+}
+
+#[test]
+fn killing_the_camera_process_a1_goes_on_without_visual_odometry_and_says_so() {
+    let _one = one_at_a_time();
+    let (stdout, stderr) = launch(&[
+        "--deployment",
+        "split",
+        "--port",
+        "17860",
+        "--kill",
+        "vision@3",
+    ]);
+    let last = stdout.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("mission=short plans_acked=2/2"),
+        "{stdout}\n{stderr}"
+    );
+    assert_eq!(figure(last, "processes"), 3.0, "{last}");
+    assert_eq!(figure(last, "restarts"), 1.0, "{last}");
+    let recovery = line(&stdout, "recovery ");
+    assert!(figure(recovery, "vo_outages") >= 1.0, "{recovery}");
+    assert_eq!(figure(recovery, "c1_restarts"), 0.0, "{recovery}");
+    let faults = line(&stdout, "faults: ");
+    assert!(faults.contains("visual odometry lost at"), "{faults}");
+    // The link that lost its sender was reported by the process that reads it.
+    assert!(
+        stderr.contains("`r11.c1.A4x4 -> c1.r11.A4x4`")
+            && stderr.contains("the sending process `vision` is gone"),
+        "{stderr}"
+    );
+}
+
 fn figure(line: &str, key: &str) -> f64 {
     line.split_whitespace()
         .find_map(|w| w.strip_prefix(&format!("{key}=")))
@@ -41,6 +162,7 @@ fn figure(line: &str, key: &str) -> f64 {
 
 #[test]
 fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
+    let _one = one_at_a_time();
     let mission = mission_file();
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args([

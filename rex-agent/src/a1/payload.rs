@@ -122,6 +122,9 @@ pub struct Encoders {
     pub theta: [f64; 4],
     /// Rate per wheel [rad/s], from the counts over the speed window.
     pub rate: [f64; 4],
+    /// The platform's clock when the counts were read [s] (the time stamp a
+    /// real motor controller puts on its messages).
+    pub time: f64,
 }
 
 /// The acquisition command of the stereo camera (`cmd_R1,1`).
@@ -159,18 +162,53 @@ impl std::fmt::Debug for StereoPair {
 }
 
 /// A plan from the ontology agent: points on the map to pass in order.
+///
+/// A plan is sent again, from its first point not yet reached, when the process
+/// of `c1` restarted while executing it (see [`Progress`]): `first` is then the
+/// index, in the plan as first sent, of `points[0]`, so that fragments keep
+/// their numbers and the acknowledgement and outcome the plan's id.
 #[derive(Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// Plan number.
     pub id: u32,
     /// The points.
     pub points: Vec<Point2>,
+    /// Index of `points[0]` in the plan as first sent (0 unless resumed).
+    pub first: u32,
+}
+
+/// `c1` says who it is (`alive`, every iteration): its incarnation (a new
+/// number each time its process starts) and the newest plan it has received.
+/// `a2` tells from it that plans it sent were lost: all those not settled
+/// when `c1` restarted, and those sent before it first heard from `c1` that
+/// `c1` never received.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Alive {
+    /// The incarnation.
+    pub boot: u64,
+    /// The newest plan id received (taken or waiting), 0 for none.
+    pub newest: u32,
+}
+
+/// How far a plan's execution got: its first `done` fragments were executed to
+/// their end (fragment `k` ends at the plan's point `k`). `e11` reports one per
+/// fragment completed, and `c1` relays them to `a2`, who resumes the plan after
+/// it if `c1` restarts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Progress {
+    /// The plan.
+    pub plan: u32,
+    /// Fragments executed to their end, counted from the plan's first point.
+    pub done: u32,
 }
 
 /// `Plan 3 [(1.00, 0.00), (1.00, 1.00), … 12 points]`: short enough for traces.
 impl std::fmt::Debug for Plan {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "Plan {} [", self.id)?;
+        if self.first > 0 {
+            write!(f, "from point {}: ", self.first)?;
+        }
         for (k, p) in self.points.iter().take(3).enumerate() {
             let sep = if k > 0 { ", " } else { "" };
             write!(f, "{sep}({:.2}, {:.2})", p.x, p.y)?;

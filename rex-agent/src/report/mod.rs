@@ -138,6 +138,11 @@ pub fn summary(o: &Outcome) -> String {
             t.solves, t.clarabel, t.failures, t.fallbacks, t.safe_stops, t.refused
         );
     }
+    let _ = writeln!(
+        s,
+        "recovery c1_restarts={} plans_resent={} fragments_repeated={} vo_outages={}",
+        c.c1_restarts, c.plans_resent, c.fragments_repeated, c.vo_outages
+    );
     let _ = writeln!(s, "faults: {}", faults(o));
     for r in &o.reports {
         let _ = writeln!(s, "{r}");
@@ -166,6 +171,22 @@ pub fn faults(o: &Outcome) -> String {
     }
     for (at, why) in &c.stops {
         list.push(format!("e11 stopped the platform at {at:.2} s: {why}"));
+    }
+    if c.c1_restarts > 0 {
+        list.push(format!(
+            "c1 restarted {} times: a2 sent {} plans again from where they had got to; {} fragments were executed twice",
+            c.c1_restarts, c.plans_resent, c.fragments_repeated
+        ));
+    }
+    for (from, to) in o.vo_outages() {
+        list.push(match to {
+            Some(to) => format!(
+                "visual odometry lost at {from:.2} s, back at {to:.2} s: a1 went on without it"
+            ),
+            None => format!(
+                "visual odometry lost at {from:.2} s, not back before the end: a1 went on without it"
+            ),
+        });
     }
     let counts = [
         (

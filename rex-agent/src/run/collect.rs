@@ -93,6 +93,16 @@ impl Collector {
         }
     }
 
+    /// The latest instant of the world seen [s].
+    pub(crate) fn time(&self) -> f64 {
+        self.truths
+            .keys()
+            .next_back()
+            .copied()
+            .unwrap_or(self.last_e11)
+            .as_secs_f64()
+    }
+
     /// Take one report in.
     pub(crate) fn see(&mut self, seen: Seen, progress: &mut impl FnMut(Progress<'_>)) {
         match seen {

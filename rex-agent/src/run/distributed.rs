@@ -123,7 +123,11 @@ pub fn run_process(
     let spec = load_spec(&config.spec)?;
     check_world(&spec, deployment)?;
     let mut member = Member::join(&spec, deployment, process, options)?;
-    let (system, h) = build_deployment(config, deployment)?;
+    // Each start of this process is a new incarnation of c1 (if it runs c1):
+    // a2 tells a restart by it and sends again the plans that were lost.
+    let mut config = config.clone();
+    config.c1.boot = embodied::link::remote::new_epoch();
+    let (system, h) = build_deployment(&config, deployment)?;
     // A lost peer or a gap is reported and the run goes on: the platform's
     // watchdog and e11's safety monitor handle the consequences.
     let mut rt = RealTime::new(
@@ -173,13 +177,19 @@ pub fn run_process(
 /// Start every process of `deployment` (this program again, with `args` and
 /// `--process <name>`), print their lines prefixed with their names, collect
 /// what they observe, judge the mission, and stop them when it has ended (or
-/// on `interrupted`).
+/// on `interrupted`). Each `(process, seconds)` of `faults` is killed with
+/// SIGKILL once the mission's time reaches `seconds` (and restarted).
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the launch's inputs, each used once"
+)]
 pub fn launch(
     config: &RexConfig,
     deployment: &str,
     options: &Options,
     program: std::path::PathBuf,
     args: &[String],
+    faults: &[(String, f64)],
     interrupted: &AtomicBool,
     mut progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, LaunchReport), DistError> {
@@ -211,6 +221,7 @@ pub fn launch(
     let wall = Instant::now();
     let mut stop_sent = false;
     let mut undecodable = 0u64;
+    let mut faults: Vec<(String, f64)> = faults.to_vec();
     // Exit status 2 is a bad command line or configuration: restarting won't help.
     let report = Launcher::new(children)
         .fatal_codes([2])
@@ -240,6 +251,12 @@ pub fn launch(
             if collect.advance(false, &mut progress) && !stop_sent {
                 stop_sent = true;
                 watch.stop();
+            }
+            let now = collect.time();
+            if let Some(k) = faults.iter().position(|(_, at)| now >= *at) {
+                let (process, at) = faults.remove(k);
+                eprintln!("rex: killing `{process}` at {now:.2} s (--kill {process}@{at})");
+                return Control::Kill(process);
             }
             Control::Continue
         })?;

@@ -44,6 +44,8 @@ pub struct Sample {
     /// How long the motion capture has been delivering poses without a gap [s]
     /// (0 during a dropout).
     pub mocap_for: f64,
+    /// Whether `e11` had lost the visual odometry it was receiving.
+    pub vo_lost: bool,
 }
 
 impl Sample {
@@ -98,6 +100,15 @@ pub struct Counters {
     pub vo: (u64, u64, u64),
     /// What the tracker reports (solves, failures, fallbacks...).
     pub tracker: crate::a1::e11::tracker::TrackerReport,
+    /// Restarts of `c1` that `a2` heard of (its process crashed and was
+    /// started again).
+    pub c1_restarts: u32,
+    /// Plans `a2` sent again after those restarts.
+    pub plans_resent: u32,
+    /// Fragments reported executed to their end a second time.
+    pub fragments_repeated: u32,
+    /// Times `e11` lost the visual odometry it was receiving.
+    pub vo_outages: u32,
 }
 
 impl Counters {
@@ -118,6 +129,10 @@ impl Counters {
         e.rejected_poses = e.rejected_poses.saturating_add(f.rejected_poses);
         e.relocalisations = e.relocalisations.saturating_add(f.relocalisations);
         self.clamped_torques = self.clamped_torques.saturating_add(o.clamped_torques);
+        self.c1_restarts = self.c1_restarts.saturating_add(o.c1_restarts);
+        self.plans_resent = self.plans_resent.saturating_add(o.plans_resent);
+        self.fragments_repeated = self.fragments_repeated.saturating_add(o.fragments_repeated);
+        self.vo_outages = self.vo_outages.saturating_add(o.vo_outages);
         self.planned = self.planned.saturating_add(o.planned);
         self.planner_iterations = self.planner_iterations.saturating_add(o.planner_iterations);
         self.planner_failures = self.planner_failures.saturating_add(o.planner_failures);
@@ -171,12 +186,37 @@ pub struct Outcome {
 
 impl Outcome {
     /// Plans acknowledged as done (the paper's early acknowledgement: every
-    /// fragment handed over).
+    /// fragment handed over), each counted once (a plan sent again after a
+    /// restart of `c1` is acknowledged again).
     pub fn plans_done(&self) -> usize {
-        self.acks
+        let mut done: Vec<u32> = self
+            .acks
             .iter()
             .filter(|(_, a)| a.status == AckStatus::Done)
-            .count()
+            .map(|(_, a)| a.plan)
+            .collect();
+        done.sort_unstable();
+        done.dedup();
+        done.len()
+    }
+
+    /// When `e11` lost the visual odometry it was receiving, and when it came
+    /// back (`None`: not before the end) [s].
+    pub fn vo_outages(&self) -> Vec<(f64, Option<f64>)> {
+        let mut out: Vec<(f64, Option<f64>)> = Vec::new();
+        let mut lost = false;
+        for s in &self.samples {
+            if s.vo_lost && !lost {
+                out.push((s.t, None));
+            } else if !s.vo_lost
+                && lost
+                && let Some(last) = out.last_mut()
+            {
+                last.1 = Some(s.t);
+            }
+            lost = s.vo_lost;
+        }
+        out
     }
 
     /// Plans achieved: acknowledged, reported reached by `e11`, and confirmed by
@@ -406,6 +446,7 @@ pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters
         c.stops = m.stops.clone();
         c.estimator = m.estym.estimator.health();
         c.tracker = m.track.tracker.report();
+        c.vo_outages = m.vo.outages;
     }
     if let Some(p) = x.driver(&h.platform) {
         let s = p.command_stats();
@@ -425,7 +466,12 @@ pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters
         let s = m.odom.vo().stats();
         c.vo = (m.odom.pairs, s.motions, m.odom.no_estimates);
     }
-    x.memory(&h.c2).map_or(0, |m| m.next)
+    x.memory(&h.c2).map_or(0, |m| {
+        c.c1_restarts = m.restarts;
+        c.plans_resent = m.resent;
+        c.fragments_repeated = m.repeated;
+        m.next
+    })
 }
 
 fn sample(
@@ -451,5 +497,6 @@ fn sample(
         behaviour,
         fragment: e11.track.following,
         mocap_for: 0.0,
+        vo_lost: e11.vo.lost,
     })
 }

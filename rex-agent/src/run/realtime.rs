@@ -116,6 +116,7 @@ pub(crate) fn install_probes(
                     behaviour: 0,
                     fragment: m.track.following,
                     mocap_for: 0.0,
+                    vo_lost: m.vo.lost,
                 },
                 event: m.event.clone(),
                 idle: m.track.running.is_none()

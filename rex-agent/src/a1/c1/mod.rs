@@ -24,6 +24,17 @@
 //! over before `c1` heard of a stop, and the plan after a stop is planned from the
 //! state estimate, not from where the last plan should have ended.
 //!
+//! **Restarts.** The process running `c1` may crash and be restarted (a
+//! deployment over several processes): its memory starts afresh, and the plan
+//! it was executing is lost with it. `c1` tells `a2` who it is every iteration
+//! (`alive`: the incarnation number its builder gives it, [`C1Params::boot`], and
+//! the newest plan it received) and
+//! relays `e11`'s `progress` (fragments executed to their end); `a2` answers a
+//! new incarnation by sending again, in order, every plan not yet settled, each
+//! from its first point not known reached ([`Plan::first`]). `c1` takes a plan
+//! id once: a copy of a plan it has taken (a resend crossing its `ack`) is
+//! ignored.
+//!
 //! Two details the paper leaves open. `ready` comes from `e11`, which runs five times
 //! slower than `c1`; it is an event (sent once per fragment, when `notify` steps are
 //! done, and once at start) latched in memory (`ready_latch`) until a fragment is
@@ -37,7 +48,9 @@ use std::collections::VecDeque;
 use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
 use crate::a1::map::Map;
-use crate::a1::payload::{Ack, AckStatus, Execution, MapPose, Plan, PlanOutcome, State, Transform};
+use crate::a1::payload::{
+    Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
+};
 use crate::algorithms::planner::trajgen::{Status, TrajGen};
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
 
@@ -55,6 +68,10 @@ pub struct C1Params {
     /// before it is refused (or, after a stop, for the platform to come to rest
     /// before it is planned from wherever it is).
     pub estimate_wait_max: u32,
+    /// This incarnation of `c1` (sent as `alive`): a process that runs `c1`
+    /// gives each of its starts a new number, so that `a2` knows that plans
+    /// sent before were lost. 0 in a run in one process.
+    pub boot: u64,
 }
 
 impl Default for C1Params {
@@ -64,6 +81,7 @@ impl Default for C1Params {
             max_points: 1000,
             notify_lead: 1.0,
             estimate_wait_max: 500,
+            boot: 0,
         }
     }
 }
@@ -83,6 +101,8 @@ pub struct C1Memory {
     pub ready_latch: bool,
     /// The plan being served.
     pub plan_id: u32,
+    /// The newest plan id taken: copies of it or of older plans are ignored.
+    pub taken: u32,
     /// Why the plan being served was refused.
     pub refusal: Option<String>,
     /// Fragments handed to `e11` for the current plan.
@@ -145,6 +165,7 @@ impl C1Memory {
             new: false,
             ready_latch: false,
             plan_id: 0,
+            taken: 0,
             refusal: None,
             handed: 0,
             pending: None,
@@ -167,6 +188,8 @@ pub struct C1FromE11 {
     pub ready: In<bool>,
     /// How a plan's execution ended.
     pub outcome: In<PlanOutcome>,
+    /// Fragments executed to their end.
+    pub progress: In<Progress>,
 }
 
 /// Inputs from `r11`.
@@ -232,6 +255,11 @@ pub struct C1ToC2 {
     pub ack: Out<Ack>,
     /// How a plan's execution ended (relayed from `e11`).
     pub outcome: Out<PlanOutcome>,
+    /// Fragments executed to their end (relayed from `e11`).
+    pub progress: Out<Progress>,
+    /// This incarnation of `c1` ([`C1Params::boot`]) and the newest plan it
+    /// received, every iteration.
+    pub alive: Out<Alive>,
 }
 
 /// Outputs to `c3`.
@@ -365,11 +393,18 @@ fn blocked(f: &Fragment, params: &C1Params) -> Option<String> {
     })
 }
 
-/// Relay a plan outcome from `e11` to `a2`.
-fn relay_outcome(x: &C1Input, y: &mut C1ToC2) {
+/// Relay plan outcomes and progress from `e11` to `a2`; say who is alive.
+fn relay(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     if let Some(o) = x.e11.outcome.fresh() {
         y.outcome.set(o.clone());
     }
+    if let Some(p) = x.e11.progress.fresh() {
+        y.progress.set(*p);
+    }
+    y.alive.set(Alive {
+        boot: m.params.boot,
+        newest: m.taken.max(m.pending.as_ref().map_or(0, |(p, _)| p.id)),
+    });
 }
 
 // ---------------------------------------------------------------------------
@@ -401,6 +436,7 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
         return;
     }
     m.plan_id = desired.id;
+    m.taken = m.taken.max(desired.id);
     m.handed = 0;
     m.traj.clear();
     m.new = true;
@@ -419,7 +455,7 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
             m.refusal = None;
             let p = state.pose();
             let pose = [p.x, p.y, p.phi];
-            m.trajgen.init(pose, desired.id);
+            m.trajgen.init(pose, desired.id, desired.first);
             if std::mem::take(&mut m.restart) {
                 m.trajgen.restart_from(pose);
             }
@@ -432,35 +468,41 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
     latch(m, x, false);
 }
 
+/// Whether `plan` is new to `c1`: not a copy of one taken or waiting.
+fn unseen(m: &C1Memory, plan: &Plan) -> bool {
+    plan.id > m.taken && m.pending.as_ref().is_none_or(|(p, _)| p.id != plan.id)
+}
+
 /// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false; plan outcomes
-/// are relayed.
+/// and progress are relayed.
 #[expect(
     non_snake_case,
     reason = "the paper's name: the target is the transmission buffer T"
 )]
-pub fn cT_1_tp(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
-    if let Some(plan) = x.c2.desired_plan.fresh() {
+pub fn cT_1_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+    if let Some(plan) = x.c2.desired_plan.fresh().filter(|p| unseen(m, p)) {
         y.ack.set(Ack {
             plan: plan.id,
             status: AckStatus::Received,
         });
     }
-    relay_outcome(x, y);
+    relay(m, x, y);
 }
 
-/// `c,T f_1,2`: relay plan outcomes during `B2`.
+/// `c,T f_1,2`: relay plan outcomes and progress during `B2`.
 #[expect(
     non_snake_case,
     reason = "the paper's name: the target is the transmission buffer T"
 )]
-pub fn cT_2(_: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
-    relay_outcome(x, y);
+pub fn cT_2(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
+    relay(m, x, y);
 }
 
 /// Keep a plan that arrives, whatever the behaviour: `B1` takes it (a plan sent
 /// during `B2` or `B3` is taken after the current one is acknowledged, never lost).
+/// A copy of a plan taken or waiting is ignored.
 fn keep_incoming(m: &mut C1Memory, x: &C1Input) {
-    if let Some(desired) = x.c2.desired_plan.fresh() {
+    if let Some(desired) = x.c2.desired_plan.fresh().filter(|p| unseen(m, p)) {
         if m.pending.is_some() {
             m.superseded += 1;
         }
@@ -565,7 +607,7 @@ pub fn cT_3_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
         plan: m.plan_id,
         status,
     });
-    relay_outcome(x, y);
+    relay(m, x, y);
 }
 
 /// `c,c f_1,3`: forget the plan's flags (so that `B1` waits for the next plan);

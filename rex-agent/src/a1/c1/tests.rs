@@ -9,6 +9,7 @@ fn pts(p: &[(f64, f64)]) -> Plan {
     Plan {
         id: 1,
         points: p.iter().map(|&(x, y)| Point2 { x, y }).collect(),
+        first: 0,
     }
 }
 
@@ -470,4 +471,92 @@ fn outcomes_are_relayed_in_every_behaviour() {
         "B2",
         "a miss is no stop"
     );
+}
+
+#[test]
+fn a_resumed_plan_keeps_its_numbers_and_a_copy_of_a_plan_taken_is_ignored() {
+    let fsm = c1_fsm().unwrap();
+    let mut st = fsm.start();
+    let mut m = memory(1);
+    m.params.boot = 42;
+    // Plan 3 sent again from its point 2 (a2 knows fragments 0 and 1 done).
+    let resumed = Plan {
+        id: 3,
+        first: 2,
+        ..pts(&[(2.0, 0.0), (3.0, 0.0)])
+    };
+    let mut x = input(Some(resumed.clone()), Some(state(1.0, 0.0, 0.0)), true);
+    let mut handed = Vec::new();
+    let mut acks = Vec::new();
+    for k in 0..12 {
+        let mut y = C1Output::default();
+        fsm.activate(&mut st, &mut m, &x, &mut y, |_| {}).unwrap();
+        handed.extend(y.e11.traj.written().cloned());
+        acks.extend(y.c2.ack.written().cloned());
+        assert_eq!(
+            y.c2.alive.written().map(|a| a.boot),
+            Some(42),
+            "alive in every iteration"
+        );
+        x.c2.desired_plan.age();
+        x.e11.ready.age();
+        if k == 3 {
+            // The same plan again (a resend that crossed the ack): ignored.
+            x.c2.desired_plan.deliver(resumed.clone(), stamp());
+        }
+        if handed.len() == 1 {
+            x.e11.ready.deliver(true, stamp());
+        }
+    }
+    let numbers: Vec<(u32, u32)> = handed.iter().map(|f| (f.plan, f.index)).collect();
+    assert_eq!(numbers, [(3, 2), (3, 3)], "numbered from `first`");
+    assert_eq!(
+        acks.iter()
+            .filter(|a| a.status == AckStatus::Received)
+            .count(),
+        1,
+        "{acks:?}"
+    );
+    assert!(
+        acks.iter()
+            .any(|a| a.plan == 3 && a.status == AckStatus::Done),
+        "{acks:?}"
+    );
+    assert!(m.pending.is_none() && m.taken == 3, "the copy was not kept");
+    // An older plan is a copy too.
+    x.c2.desired_plan.deliver(pts(&[(1.0, 1.0)]), stamp());
+    for _ in 0..3 {
+        activate(&fsm, &mut st, &mut m, &x);
+        x.c2.desired_plan.age();
+    }
+    assert_eq!(fsm.behaviour_name(st.behaviour()), "B1");
+    assert!(m.pending.is_none());
+}
+
+#[test]
+fn progress_is_relayed_while_waiting_and_executing() {
+    let fsm = c1_fsm().unwrap();
+    let mut st = fsm.start();
+    let mut m = memory(1);
+    let mut x = input(None, Some(state(0.0, 0.0, 0.0)), false);
+    let relay = |x: &C1Input, st: &mut embodied::FsmState, m: &mut C1Memory| {
+        let mut y = C1Output::default();
+        fsm.activate(st, m, x, &mut y, |_| {}).unwrap();
+        y.c2.progress.written().copied()
+    };
+    let p = Progress { plan: 7, done: 3 };
+    x.e11.progress.deliver(p, stamp());
+    assert_eq!(relay(&x, &mut st, &mut m), Some(p), "B1");
+    x.e11.progress.age();
+    x.c2.desired_plan
+        .deliver(pts(&[(1.0, 0.0), (2.0, 0.0)]), stamp());
+    relay(&x, &mut st, &mut m);
+    x.c2.desired_plan.age();
+    relay(&x, &mut st, &mut m);
+    assert_eq!(fsm.behaviour_name(st.behaviour()), "B2");
+    let p = Progress { plan: 1, done: 1 };
+    x.e11.progress.deliver(p, stamp());
+    assert_eq!(relay(&x, &mut st, &mut m), Some(p), "B2");
+    x.e11.progress.age();
+    assert_eq!(relay(&x, &mut st, &mut m), None, "once");
 }

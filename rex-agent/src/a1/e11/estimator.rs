@@ -550,6 +550,7 @@ mod tests {
                 encoders: Some(Encoders {
                     theta: [0.0; 4],
                     rate: [y[4], y[5], y[6], y[7]],
+                    time: t,
                 }),
                 imu: Some(Imu {
                     yaw: wrap(d.xs[k][2] + offset(k)),

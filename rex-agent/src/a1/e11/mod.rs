@@ -39,8 +39,8 @@ pub use tracker::{Tracker, TrackerKind};
 
 use crate::a1::map::Map;
 use crate::a1::payload::{
-    Encoders, Execution, Imu, ImuCommand, MapPose, PlanOutcome, State, Torques, Transform,
-    WheelLoads,
+    Encoders, Execution, Imu, ImuCommand, MapPose, PlanOutcome, Progress, State, Torques,
+    Transform, WheelLoads,
 };
 use crate::algorithms::planner::Fragment;
 
@@ -82,6 +82,54 @@ pub struct Arrival {
     pub end: [f64; 2],
     /// When the last fragment ended [s].
     pub since: f64,
+}
+
+/// Whether visual odometry comes in. Once the first motion has arrived, a1
+/// expects them; when none comes for `patience` iterations (its process
+/// crashed, the camera stopped), visual odometry counts as lost: the estimator
+/// goes on without it, as in a deployment without visual odometry, and the
+/// outage is counted (and reported by the run).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VoWatch {
+    /// Motions received.
+    pub received: u64,
+    /// The iteration of the latest.
+    pub last: Option<u64>,
+    /// Iterations without a motion after which visual odometry is lost.
+    pub patience: u64,
+    /// Whether it is lost now.
+    pub lost: bool,
+    /// Times it was lost.
+    pub outages: u32,
+}
+
+impl VoWatch {
+    /// A watch that declares visual odometry lost after `patience` iterations
+    /// without a motion.
+    pub fn new(patience: u64) -> VoWatch {
+        VoWatch {
+            received: 0,
+            last: None,
+            patience: patience.max(1),
+            lost: false,
+            outages: 0,
+        }
+    }
+
+    /// Iteration `now`, with a motion or not.
+    fn see(&mut self, now: u64, motion: bool) {
+        if motion {
+            self.received += 1;
+            self.last = Some(now);
+            self.lost = false;
+        } else if let Some(last) = self.last
+            && !self.lost
+            && now.saturating_sub(last) >= self.patience
+        {
+            self.lost = true;
+            self.outages += 1;
+        }
+    }
 }
 
 /// A fragment being executed.
@@ -147,6 +195,11 @@ pub struct E11Memory {
     pub tau: Torques,
     /// Iterations done.
     pub iteration: u64,
+    /// The instant of iteration 0, in periods: taken from the platform's clock
+    /// (the stamp of the first encoder reading), so that an `e11` started late
+    /// (its process restarted) keeps the time of the map poses and visual
+    /// odometry it fuses.
+    pub start: Option<u64>,
     /// The period [s].
     pub dt: f64,
     /// Iteration at which the IMU reset was sent.
@@ -169,6 +222,10 @@ pub struct E11Memory {
     pub stopped_now: bool,
     /// Why each stop happened, with its time [s].
     pub stops: Vec<(f64, String)>,
+    /// The fragment completed in the last iteration (reported as `progress`).
+    pub completed_now: Option<Progress>,
+    /// Whether visual odometry comes in.
+    pub vo: VoWatch,
 }
 
 impl E11Memory {
@@ -202,6 +259,7 @@ impl E11Memory {
             reported: false,
             tau: [0.0; 4],
             iteration: 0,
+            start: None,
             dt,
             imu_reset_at: None,
             x_icr,
@@ -213,6 +271,9 @@ impl E11Memory {
             event: None,
             stopped_now: false,
             stops: Vec::new(),
+            completed_now: None,
+            // Half a second without a motion (they come about ten times a second).
+            vo: VoWatch::new((0.5 / dt.max(1e-3)).ceil() as u64),
         }
     }
 
@@ -224,7 +285,25 @@ impl E11Memory {
 
     /// Simulation time of this iteration [s].
     fn now(&self) -> f64 {
-        self.iteration as f64 * self.dt
+        (self.iteration + self.start.unwrap_or(0)) as f64 * self.dt
+    }
+
+    /// Take the instant of iteration 0 from the first plausible encoder
+    /// reading (its stamp is within a millisecond of this instant).
+    fn set_clock(&mut self, encoders: Option<&Encoders>) {
+        if self.start.is_some() {
+            return;
+        }
+        if let Some(t) = encoders
+            .map(|e| e.time)
+            .filter(|t| t.is_finite() && *t >= 0.0)
+        {
+            // An absurd stamp (beyond a century) is not a clock: keep counting.
+            let periods = (t / self.dt).round();
+            if periods < 3.2e9 / self.dt {
+                self.start = Some((periods as u64).saturating_sub(self.iteration));
+            }
+        }
     }
 
     /// Queue the outcome of `plan`, once per plan.
@@ -291,6 +370,8 @@ pub struct E11ToC1 {
     pub ready: Out<bool>,
     /// How a plan's execution ended.
     pub outcome: Out<PlanOutcome>,
+    /// A fragment executed to its end.
+    pub progress: Out<Progress>,
 }
 
 /// Outputs to the platform.
@@ -453,8 +534,14 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
         map_pose: x.c1.pose.fresh().copied(),
         transform: x.c1.A4x4.fresh().copied(),
         imu_aligned: m.imu_reset_at.is_some_and(|at| m.iteration >= at + 2),
-        now: m.iteration as f64 * m.dt,
+        now: 0.0,
     };
+    m.set_clock(meas.encoders.as_ref());
+    let meas = Measurements {
+        now: m.now(),
+        ..meas
+    };
+    m.vo.see(m.iteration, meas.transform.is_some());
     let estimate = m.estym.estimator.update(m.dt, &m.tau, &meas);
     m.estym.estimate = estimate;
     m.track.following = None;
@@ -500,8 +587,12 @@ pub fn eE(m: &E11Memory, x: &E11Input, y: &mut E11ToE1) {
     }
 }
 
-/// `ec`: the state estimate, the ready event and plan outcomes to `c1`.
+/// `ec`: the state estimate, the ready event, plan outcomes and the fragment
+/// completed in the last iteration to `c1`.
 pub fn ec(m: &E11Memory, _: &E11Input, y: &mut E11ToC1) {
+    if let Some(p) = m.completed_now {
+        y.progress.set(p);
+    }
     if m.estym.estimate.localised {
         y.q_est.set(m.estym.estimate.to_state(m.x_icr));
     }
@@ -525,6 +616,8 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
     if report_ready(m) && m.iteration > 0 {
         m.reported = true;
     }
+    m.completed_now = None;
+    let now = m.now();
     if let Some(r) = &mut m.track.running {
         r.k += 1;
         m.step = m.step.saturating_sub(1);
@@ -538,9 +631,13 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
                 m.arrival = Some(Arrival {
                     plan: r.fragment.plan,
                     end: [e[0], e[1]],
-                    since: m.iteration as f64 * m.dt,
+                    since: now,
                 });
             }
+            m.completed_now = Some(Progress {
+                plan: r.fragment.plan,
+                done: r.fragment.index + 1,
+            });
             m.track.running = None;
             m.track.completed += 1;
         }

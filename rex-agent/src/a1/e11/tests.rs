@@ -292,3 +292,99 @@ fn bad_fragments_are_rejected_and_counted() {
     assert_eq!(rejected, 1);
     assert!(out.iter().all(|o| o.1.is_none()), "never followed: {out:?}");
 }
+
+#[test]
+fn each_fragment_executed_to_its_end_is_reported_once_as_progress() {
+    let mut m = memory();
+    let fsm = e11_fsm().unwrap();
+    let mut state = fsm.start();
+    let mut x = E11Input::default();
+    let stamp = Stamp::new(0, Time::ZERO);
+    let mut progress = Vec::new();
+    for it in 0..24u64 {
+        x.c1.traj.age();
+        x.c1.steps.age();
+        x.c1.notify.age();
+        x.c1.pose.age();
+        if it == 0 {
+            x.c1.pose.deliver(MapPose::default(), stamp);
+        }
+        // Fragments 3 and 4 of plan 1 (a plan resumed from its point 3).
+        for (at, index, x0, steps) in [(1, 3, 0.0, 10), (4, 4, 0.1, 4)] {
+            if at == it {
+                x.c1.traj
+                    .deliver(fragment(index, x0, steps as usize), stamp);
+                x.c1.steps.deliver(steps, stamp);
+                x.c1.notify.deliver(2, stamp);
+            }
+        }
+        let mut y = E11Output::default();
+        fsm.activate(&mut state, &mut m, &x, &mut y, |_| {})
+            .unwrap();
+        progress.extend(y.c1.progress.written().map(|p| (it, *p)));
+    }
+    // Fragment 3 runs 2..=11 and fragment 4 12..=15: each is reported in the
+    // iteration after its last step.
+    assert_eq!(
+        progress,
+        [
+            (12, Progress { plan: 1, done: 4 }),
+            (16, Progress { plan: 1, done: 5 })
+        ]
+    );
+}
+
+#[test]
+fn an_e11_started_late_takes_its_clock_from_the_platform() {
+    let reading = |time: f64| Encoders {
+        time,
+        ..Encoders::default()
+    };
+    // Started at 12.3 s (its process restarted): iteration 0 is that instant.
+    let mut m = memory();
+    m.set_clock(Some(&reading(12.3005)));
+    assert_eq!(m.start, Some(246));
+    assert!((m.now() - 12.3).abs() < 1e-9);
+    // Taken once: a later reading does not move it.
+    m.iteration = 5;
+    m.set_clock(Some(&reading(99.0)));
+    assert!((m.now() - 12.55).abs() < 1e-9);
+    // A stamp that is no clock is ignored: the count goes on from zero.
+    for bad in [f64::NAN, -1.0, f64::INFINITY, 1e300] {
+        let mut m = memory();
+        m.set_clock(Some(&reading(bad)));
+        assert_eq!(m.start, None, "{bad}");
+        assert_eq!(m.now(), 0.0);
+    }
+    // Started with the world: the clock and the count agree.
+    let mut m = memory();
+    m.set_clock(Some(&reading(0.001)));
+    assert_eq!(m.start, Some(0));
+}
+
+#[test]
+fn visual_odometry_is_lost_after_its_patience_and_back_with_the_next_motion() {
+    let mut w = VoWatch::new(10);
+    // Never received: not expected, never lost.
+    for k in 0..50 {
+        w.see(k, false);
+    }
+    assert!(!w.lost && w.outages == 0);
+    w.see(50, true);
+    for k in 51..60 {
+        w.see(k, false);
+    }
+    assert!(!w.lost, "9 iterations without a motion are within patience");
+    w.see(60, false);
+    assert!(w.lost && w.outages == 1);
+    for k in 61..100 {
+        w.see(k, false);
+    }
+    assert_eq!(w.outages, 1, "one outage, however long");
+    w.see(100, true);
+    assert!(!w.lost && w.received == 2);
+    for k in 101..120 {
+        w.see(k, false);
+    }
+    assert_eq!(w.outages, 2);
+}

@@ -215,13 +215,16 @@ impl TrajGen {
     /// while `e11` still executes that fragment, and the platform will be at its end
     /// (or holding it) when the next plan's first fragment begins. Starting from the
     /// current state instead would make the platform jump back along the path.
-    pub fn init(&mut self, pose: [f64; 3], plan: u32) {
+    ///
+    /// `first` is the number of the plan's first fragment: 0, or the point a
+    /// resumed plan starts from (see [`crate::a1::payload::Plan::first`]).
+    pub fn init(&mut self, pose: [f64; 3], plan: u32, first: u32) {
         self.abandon();
         if self.totals.fragments == 0 {
             self.from = pose;
         }
         self.plan = plan;
-        self.index = 0;
+        self.index = first;
         self.status = Status::Idle;
     }
 
@@ -351,7 +354,7 @@ mod tests {
 
     fn run(runtime: Runtime) -> Vec<Fragment> {
         let mut t = TrajGen::new(PlannerKind::Ecsa, PlannerSettings::default(), runtime, 3);
-        t.init([0.0, 0.0, 0.0], 7);
+        t.init([0.0, 0.0, 0.0], 7, 0);
         let mut out = Vec::new();
         for p in [(1.0, 0.0), (1.0, 1.0)] {
             t.start(Waypoint {
@@ -392,7 +395,7 @@ mod tests {
             Runtime::Inline,
             1,
         );
-        t.init([0.0, 0.0, 0.0], 1);
+        t.init([0.0, 0.0, 0.0], 1, 0);
         t.start(Waypoint {
             x: f64::INFINITY,
             y: 0.0,

@@ -216,6 +216,7 @@ impl Platform {
         let encoders = Encoders {
             theta: now_counts.map(|c| c as f64 * q),
             rate,
+            time: 0.0,
         };
         // IMU: biased, noisy gyroscope integrated into a drifting heading.
         self.bias += self.rng.gauss(p.gyro_bias_walk * dt.sqrt());
@@ -280,7 +281,8 @@ impl Driver for Platform {
             }
             None => [0.0; 4],
         };
-        let (imu, forces, encoders) = self.advance(command, dt);
+        let (imu, forces, mut encoders) = self.advance(command, dt);
+        encoders.time = now + dt;
         *cx.environment::<Truth>()? = Truth {
             time: now + dt,
             state: self.plant.state,

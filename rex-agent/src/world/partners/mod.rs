@@ -4,7 +4,12 @@
 //! * `a2`, the ontology agent: its control subsystem `c2` sends the plans of a
 //!   mission one by one, each after the previous one was acknowledged (`Done`, the
 //!   paper's early acknowledgement, or a refusal or failure), keeps how each plan's
-//!   execution ended (`outcome`), and ends when every plan sent has ended;
+//!   execution ended (`outcome`), and ends when every plan sent has ended. It
+//!   keeps how far each plan got (`progress`) and watches `c1`'s incarnation
+//!   (`alive`): when `c1` restarts (its process crashed and was started again),
+//!   the plans not yet settled are sent again, in order, each from its first
+//!   point not known reached, so that no plan is lost and no fragment executed
+//!   to its end is driven again;
 //! * `a3`, the map agent: the motion-capture system `R3` (a real receptor), its
 //!   virtual receptor `r31` that rejects implausible poses, and the control subsystem
 //!   `c3` that sends the pose on the map to `a1` and keeps `a1`'s state estimate.
@@ -13,7 +18,9 @@ use embodied::{
     Action, ActionError, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem,
 };
 
-use crate::a1::payload::{Ack, AckStatus, MapPose, Plan, PlanOutcome, State};
+use std::collections::BTreeMap;
+
+use crate::a1::payload::{Ack, AckStatus, Alive, MapPose, Plan, PlanOutcome, Progress, State};
 use crate::mission::Mission;
 
 // ---------------------------------------------------------------------------
@@ -35,6 +42,19 @@ pub struct OntologyMemory {
     pub acks: Vec<Ack>,
     /// How the execution of plans ended, in the order reported.
     pub outcomes: Vec<PlanOutcome>,
+    /// Fragments executed to their end, by plan (the most reported).
+    pub done: BTreeMap<u32, u32>,
+    /// `c1`'s incarnation, once heard.
+    pub boot: Option<u64>,
+    /// `c1` restarted with plans not settled: they are sent again.
+    pub lost: bool,
+    /// Restarts of `c1` heard of.
+    pub restarts: u32,
+    /// Plans sent again after a restart of `c1`.
+    pub resent: u32,
+    /// Fragments reported executed to their end a second time (never, if
+    /// resuming works).
+    pub repeated: u32,
 }
 
 impl OntologyMemory {
@@ -45,19 +65,38 @@ impl OntologyMemory {
             next: 0,
             acks: Vec::new(),
             outcomes: Vec::new(),
+            done: BTreeMap::new(),
+            boot: None,
+            lost: false,
+            restarts: 0,
+            resent: 0,
+            repeated: 0,
         }
+    }
+
+    /// Whether plan `id` has ended: refused, failed, or its execution reported.
+    fn plan_settled(&self, id: u32) -> bool {
+        self.outcomes.iter().any(|o| o.plan == id)
+            || self.acks.iter().any(|a| {
+                a.plan == id && matches!(a.status, AckStatus::Refused(_) | AckStatus::Failed(_))
+            })
+    }
+
+    /// The plan at index `k` of the mission, from its first point not known
+    /// reached (at least its last point, so that `e11` judges the arrival).
+    pub fn to_send(&self, k: usize) -> Option<Plan> {
+        let mut plan = self.mission.plan(k)?;
+        let done = self.done.get(&plan.id).copied().unwrap_or(0) as usize;
+        let first = done.min(plan.points.len().saturating_sub(1));
+        plan.points.drain(..first);
+        plan.first = first as u32;
+        Some(plan)
     }
 
     /// Whether every plan sent has ended: refused, failed, or its execution
     /// reported.
     pub fn settled(&self) -> bool {
-        let sent = self.next as u32;
-        (1..=sent).all(|id| {
-            self.outcomes.iter().any(|o| o.plan == id)
-                || self.acks.iter().any(|a| {
-                    a.plan == id && matches!(a.status, AckStatus::Refused(_) | AckStatus::Failed(_))
-                })
-        })
+        (1..=self.next as u32).all(|id| self.plan_settled(id))
     }
 
     /// The id of the last plan sent.
@@ -74,6 +113,10 @@ pub struct OntologyFromC1 {
     pub ack: In<Ack>,
     /// How a plan's execution ended.
     pub outcome: In<PlanOutcome>,
+    /// Fragments executed to their end.
+    pub progress: In<Progress>,
+    /// `c1`'s incarnation and the newest plan it received.
+    pub alive: In<Alive>,
 }
 
 /// `c2`'s inputs.
@@ -98,14 +141,52 @@ pub struct OntologyOutput {
     pub c1: OntologyToC1,
 }
 
-/// Keep a fresh final acknowledgement and a fresh outcome (every acting behaviour
-/// runs it, so none is lost).
+/// Keep a fresh final acknowledgement, a fresh outcome and progress (every
+/// acting behaviour runs it, so none is lost); when `c1` is a new incarnation,
+/// go back to the first plan it does not have ([`watch`]).
 fn record(m: &mut OntologyMemory, x: &OntologyInput) {
+    keep(m, x);
+    watch(m, x);
+}
+
+/// Keep a fresh final acknowledgement, a fresh outcome and progress.
+fn keep(m: &mut OntologyMemory, x: &OntologyInput) {
     if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
         m.acks.push(ack.clone());
     }
     if let Some(o) = x.c1.outcome.fresh() {
         m.outcomes.push(o.clone());
+    }
+    if let Some(p) = x.c1.progress.fresh() {
+        let done = m.done.entry(p.plan).or_insert(0);
+        if p.done <= *done {
+            m.repeated += 1;
+        }
+        *done = (*done).max(p.done);
+    }
+}
+
+/// When `c1` is a new incarnation, go back to the first plan it does not have
+/// and is not settled: it will be sent again. Not while a plan is being sent
+/// (`send`): `c1`'s `alive` read then was written before it could have the
+/// plan; the next activation looks.
+fn watch(m: &mut OntologyMemory, x: &OntologyInput) {
+    if let Some(&alive) = x.c1.alive.get()
+        && m.boot != Some(alive.boot)
+    {
+        // A new incarnation has none of the plans sent before; the first one
+        // heard has those up to its newest (the later ones were sent while it
+        // was not there, or are on their way: a copy is ignored).
+        let restarted = m.boot.is_some();
+        let held = if restarted { 0 } else { alive.newest as usize };
+        m.restarts += u32::from(restarted);
+        m.boot = Some(alive.boot);
+        // Plans are settled in order: send again from the first that is not.
+        if let Some(k) = (held..m.next).find(|&k| !m.plan_settled(k as u32 + 1)) {
+            m.resent += (m.next - k) as u32;
+            m.next = k;
+            m.lost = true;
+        }
     }
 }
 
@@ -123,6 +204,7 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                 .zip(m.last_sent())
                 .is_some_and(|(a, id)| a.plan == id && a.ready())
         })
+        .predicate("lost", |m: &OntologyMemory, _| m.lost)
         .behaviour(Behaviour::while_loop(
             "next_plan",
             Action::<Ontology>::new(),
@@ -135,8 +217,7 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                     |y| &mut y.c1,
                     |m: &OntologyMemory, _: &OntologyInput, y: &mut OntologyToC1| {
                         let plan = m
-                            .mission
-                            .plan(m.next)
+                            .to_send(m.next)
                             .ok_or_else(|| ActionError::failed("no plan left to send"))?;
                         y.desired_plan.set(plan);
                         Ok::<(), ActionError>(())
@@ -144,7 +225,8 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                 )
                 .named("send_plan")
                 .memory(|m: &mut OntologyMemory, x: &OntologyInput| {
-                    record(m, x);
+                    keep(m, x);
+                    m.lost = false;
                     m.next += 1;
                 })
                 .named("advance"),
@@ -154,12 +236,12 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
         .behaviour(Behaviour::while_loop(
             "wait",
             Action::<Ontology>::new().memory(record),
-            "acked",
+            "acked || lost",
         ))
         .behaviour(Behaviour::while_loop(
             "settle",
             Action::<Ontology>::new().memory(record),
-            "settled",
+            "settled || lost",
         ))
         .behaviour(Behaviour::repeat_loop(
             "done",
@@ -171,7 +253,8 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
         .arc("next_plan", "settle", "!more")
         .arc("send", "wait", "true")
         .arc("wait", "next_plan", "true")
-        .arc("settle", "done", "true")
+        .arc("settle", "done", "!lost")
+        .arc("settle", "next_plan", "lost")
         .final_behaviour("done")
         .build()
 }
@@ -397,141 +480,4 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::a1::payload::{AckStatus, Execution, Point2, Pose2};
-    use embodied::testing::{Environment, Termination};
-    use embodied::{Stamp, Time};
-    use proptest::prelude::*;
-
-    /// A `c1` that acknowledges each plan `delay` activations of `c2` after it was
-    /// sent (the early `Done`), and reports it reached `delay` activations later.
-    #[derive(Clone, Debug)]
-    struct Acker {
-        delay: u64,
-        pending: Option<(u32, u64)>,
-        executing: Vec<(u32, u64)>,
-    }
-
-    impl Environment<Ontology> for Acker {
-        fn inputs(&mut self, k: u64, previous: Option<&OntologyOutput>, x: &mut OntologyInput) {
-            if let Some(plan) = previous.and_then(|y| y.c1.desired_plan.written()) {
-                self.pending = Some((plan.id, k + self.delay));
-            }
-            match self.pending {
-                Some((id, due)) if due <= k => {
-                    x.c1.ack.deliver(
-                        Ack {
-                            plan: id,
-                            status: AckStatus::Done,
-                        },
-                        Stamp::new(k, Time::ZERO),
-                    );
-                    self.pending = None;
-                    self.executing.push((id, k + self.delay));
-                }
-                _ => x.c1.ack.age(),
-            }
-            // One outcome per activation at most (a queue link delivers one).
-            match self.executing.first() {
-                Some(&(id, due)) if due <= k => {
-                    x.c1.outcome.deliver(
-                        PlanOutcome {
-                            plan: id,
-                            epoch: 0,
-                            result: Execution::Reached { error_m: 0.01 },
-                        },
-                        Stamp::new(k, Time::ZERO),
-                    );
-                    self.executing.remove(0);
-                }
-                _ => x.c1.outcome.age(),
-            }
-        }
-    }
-
-    fn mission(plans: usize) -> Mission {
-        Mission {
-            name: "test".into(),
-            plans: (0..plans)
-                .map(|i| {
-                    vec![
-                        Point2 {
-                            x: i as f64,
-                            y: 0.0,
-                        },
-                        Point2 { x: 0.0, y: 0.0 },
-                    ]
-                })
-                .collect(),
-        }
-    }
-
-    #[test]
-    fn the_ontology_sends_every_plan_and_finishes() {
-        let fsm = ontology_fsm().unwrap();
-        // For any mission length and acknowledgement delay, `done` is reached within
-        // one round (send + wait + decide) per plan.
-        let memory = (1usize..6).prop_map(|n| OntologyMemory::new(mission(n)));
-        let env = (0u64..10).prop_map(|delay| Acker {
-            delay,
-            pending: None,
-            executing: Vec::new(),
-        });
-        // ... and the outcome of the last one, `delay` activations after its ack.
-        Termination::within(6 * 13 + 2 + 12)
-            .cases(64)
-            .returns_to(&fsm, "done", memory, env)
-            .unwrap();
-    }
-
-    /// A pose at `(x, 0, 0)` describing `time`.
-    fn at(x: f64, time: f64) -> MapPose {
-        MapPose {
-            pose: Pose2 {
-                x,
-                y: 0.0,
-                phi: 0.0,
-            },
-            time,
-        }
-    }
-
-    #[test]
-    fn implausible_poses_are_rejected() {
-        let mut m = MocapMemory {
-            max_speed: 2.0,
-            ..MocapMemory::default()
-        };
-        assert!(m.plausible(&at(0.0, 0.0)));
-        m.last = Some(at(0.0, 0.0));
-        assert!(m.plausible(&at(0.1, 0.1)));
-        assert!(!m.plausible(&at(5.0, 0.1)), "50 m/s");
-        assert!(!m.plausible(&at(f64::NAN, 0.2)));
-        assert!(!m.plausible(&at(0.0, -1.0)), "older than the last");
-    }
-
-    #[test]
-    fn a_jump_the_next_poses_confirm_is_believed() {
-        // A robot carried 4 m away: the first poses there are rejected, the third
-        // in a row that agree with each other is passed on; a lone outlier is not.
-        let mut m = MocapMemory {
-            max_speed: 2.0,
-            ..MocapMemory::default()
-        };
-        m.learn(&at(0.0, 0.0));
-        m.learn(&at(9.0, 0.01));
-        assert!(m.plausible(&at(0.01, 0.02)), "a lone outlier");
-        m.learn(&at(0.01, 0.02));
-        let passed: Vec<bool> = (3..8)
-            .map(|k| {
-                let p = at(4.0 + 0.001 * f64::from(k), 0.01 * f64::from(k));
-                let pass = m.plausible(&p);
-                m.learn(&p);
-                pass
-            })
-            .collect();
-        assert_eq!(passed, [false, false, true, true, true]);
-        assert_eq!(m.rejected, 3);
-    }
-}
+mod tests;

@@ -1,0 +1,321 @@
+//! Unit tests of the partner agents: a2's plans (with a crashing c1), a3's
+//! plausibility checks.
+
+use super::*;
+use crate::a1::payload::{AckStatus, Execution, Point2, Pose2};
+use embodied::testing::{Environment, Termination};
+use embodied::{Stamp, Time};
+use proptest::prelude::*;
+
+/// A `c1` that acknowledges each plan `delay` activations of `c2` after it was
+/// sent (the early `Done`), and reports it reached `delay` activations later.
+#[derive(Clone, Debug)]
+struct Acker {
+    delay: u64,
+    pending: Option<(u32, u64)>,
+    executing: Vec<(u32, u64)>,
+}
+
+impl Environment<Ontology> for Acker {
+    fn inputs(&mut self, k: u64, previous: Option<&OntologyOutput>, x: &mut OntologyInput) {
+        if let Some(plan) = previous.and_then(|y| y.c1.desired_plan.written()) {
+            self.pending = Some((plan.id, k + self.delay));
+        }
+        match self.pending {
+            Some((id, due)) if due <= k => {
+                x.c1.ack.deliver(
+                    Ack {
+                        plan: id,
+                        status: AckStatus::Done,
+                    },
+                    Stamp::new(k, Time::ZERO),
+                );
+                self.pending = None;
+                self.executing.push((id, k + self.delay));
+            }
+            _ => x.c1.ack.age(),
+        }
+        // One outcome per activation at most (a queue link delivers one).
+        match self.executing.first() {
+            Some(&(id, due)) if due <= k => {
+                x.c1.outcome.deliver(
+                    PlanOutcome {
+                        plan: id,
+                        epoch: 0,
+                        result: Execution::Reached { error_m: 0.01 },
+                    },
+                    Stamp::new(k, Time::ZERO),
+                );
+                self.executing.remove(0);
+            }
+            _ => x.c1.outcome.age(),
+        }
+    }
+}
+
+fn mission(plans: usize) -> Mission {
+    Mission {
+        name: "test".into(),
+        plans: (0..plans)
+            .map(|i| {
+                vec![
+                    Point2 {
+                        x: i as f64,
+                        y: 0.0,
+                    },
+                    Point2 { x: 0.0, y: 0.0 },
+                ]
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn the_ontology_sends_every_plan_and_finishes() {
+    let fsm = ontology_fsm().unwrap();
+    // For any mission length and acknowledgement delay, `done` is reached within
+    // one round (send + wait + decide) per plan.
+    let memory = (1usize..6).prop_map(|n| OntologyMemory::new(mission(n)));
+    let env = (0u64..10).prop_map(|delay| Acker {
+        delay,
+        pending: None,
+        executing: Vec::new(),
+    });
+    // ... and the outcome of the last one, `delay` activations after its ack.
+    Termination::within(6 * 13 + 2 + 12)
+        .cases(64)
+        .returns_to(&fsm, "done", memory, env)
+        .unwrap();
+}
+
+/// A `c1` (with its `e11`) whose process crashes at activation `crash_at`
+/// of `c2` and comes back `down` activations later as a new incarnation:
+/// what it held is lost. It executes a plan's points one per `step`
+/// activations, reporting each as progress, and reports the plan reached
+/// after its last point; it acknowledges `Done` (early) when it starts the
+/// last point.
+struct Crasher {
+    step: u64,
+    crash_at: u64,
+    down: u64,
+    boot: u64,
+    newest: u32,
+    /// The plan being executed: id, next point (in the plan as first sent),
+    /// points in all, when the next one is done.
+    running: Option<(u32, u32, u32, u64)>,
+    /// Plans received and not started.
+    waiting: std::collections::VecDeque<Plan>,
+    /// Every plan received, as received.
+    received: Vec<Plan>,
+    /// Points executed to their end, by plan and point.
+    executed: Vec<(u32, u32)>,
+}
+
+impl Crasher {
+    fn inputs(&mut self, k: u64, previous: &OntologyOutput, x: &mut OntologyInput) {
+        let up = !(self.crash_at..self.crash_at + self.down).contains(&k);
+        if k == self.crash_at {
+            self.boot += 1;
+            self.newest = 0;
+            self.running = None;
+            self.waiting.clear();
+        }
+        x.c1.ack.age();
+        x.c1.outcome.age();
+        x.c1.progress.age();
+        if !up {
+            return;
+        }
+        if let Some(plan) = previous.c1.desired_plan.written() {
+            self.received.push(plan.clone());
+            self.newest = self.newest.max(plan.id);
+            if !self.waiting.iter().any(|p| p.id == plan.id)
+                && self.running.is_none_or(|r| r.0 != plan.id)
+            {
+                self.waiting.push_back(plan.clone());
+            }
+        }
+        let stamp = Stamp::new(k, Time::ZERO);
+        x.c1.alive.deliver(
+            Alive {
+                boot: self.boot,
+                newest: self.newest,
+            },
+            stamp,
+        );
+        match self.running {
+            None => {
+                if let Some(p) = self.waiting.pop_front() {
+                    let total = p.first + p.points.len() as u32;
+                    self.running = Some((p.id, p.first, total, k + self.step));
+                    if p.points.len() == 1 {
+                        x.c1.ack.deliver(
+                            Ack {
+                                plan: p.id,
+                                status: AckStatus::Done,
+                            },
+                            stamp,
+                        );
+                    }
+                }
+            }
+            Some((id, next, total, due)) if due <= k => {
+                self.executed.push((id, next));
+                x.c1.progress.deliver(
+                    Progress {
+                        plan: id,
+                        done: next + 1,
+                    },
+                    stamp,
+                );
+                if next + 1 == total {
+                    self.running = None;
+                    x.c1.outcome.deliver(
+                        PlanOutcome {
+                            plan: id,
+                            epoch: 0,
+                            result: Execution::Reached { error_m: 0.01 },
+                        },
+                        stamp,
+                    );
+                } else {
+                    self.running = Some((id, next + 1, total, k + self.step));
+                    if next + 2 == total {
+                        x.c1.ack.deliver(
+                            Ack {
+                                plan: id,
+                                status: AckStatus::Done,
+                            },
+                            stamp,
+                        );
+                    }
+                }
+            }
+            Some(_) => {}
+        }
+    }
+}
+
+#[test]
+fn plans_lost_with_a_crashed_c1_are_sent_again_from_where_they_got_to() {
+    let fsm = ontology_fsm().unwrap();
+    let plans = 3;
+    let points = 3;
+    let mission = Mission {
+        name: "test".into(),
+        plans: (0..plans)
+            .map(|i| {
+                (0..points)
+                    .map(|j| Point2 {
+                        x: i as f64,
+                        y: j as f64,
+                    })
+                    .collect()
+            })
+            .collect(),
+    };
+    // A crash at every moment of the mission (and one after it).
+    for crash_at in 0..40 {
+        let mut env = Crasher {
+            step: 3,
+            crash_at,
+            down: 4,
+            boot: 7,
+            newest: 0,
+            running: None,
+            waiting: Default::default(),
+            received: Vec::new(),
+            executed: Vec::new(),
+        };
+        let mut m = OntologyMemory::new(mission.clone());
+        let mut st = fsm.start();
+        let mut y = OntologyOutput::default();
+        let mut k = 0;
+        while !st.is_halted() {
+            let mut x = OntologyInput::default();
+            env.inputs(k, &y, &mut x);
+            y = OntologyOutput::default();
+            fsm.activate(&mut st, &mut m, &x, &mut y, |_| {}).unwrap();
+            k += 1;
+            assert!(k < 200, "crash at {crash_at}: no end; {m:?}");
+        }
+        // Every plan reached, every point executed once, in order.
+        for id in 1..=plans as u32 {
+            assert!(
+                m.outcomes.iter().any(|o| o.plan == id && o.reached()),
+                "crash at {crash_at}: plan {id} not reached; {m:?}"
+            );
+            let done: Vec<u32> = env
+                .executed
+                .iter()
+                .filter(|e| e.0 == id)
+                .map(|e| e.1)
+                .collect();
+            assert_eq!(done, [0, 1, 2], "crash at {crash_at}, plan {id}");
+        }
+        assert_eq!(m.repeated, 0);
+        let crashed = m.restarts > 0;
+        assert_eq!(m.restarts, u32::from(crashed));
+        // A plan sent again starts after the points known done.
+        for p in env.received.iter().filter(|p| p.first > 0) {
+            assert!(
+                env.executed.contains(&(p.id, p.first - 1)),
+                "crash at {crash_at}: {p:?} skips a point not done"
+            );
+        }
+        if crash_at >= k {
+            // No crash before the end: nothing was sent twice.
+            assert_eq!((m.restarts, m.resent), (0, 0), "crash at {crash_at}");
+        }
+    }
+}
+
+/// A pose at `(x, 0, 0)` describing `time`.
+fn at(x: f64, time: f64) -> MapPose {
+    MapPose {
+        pose: Pose2 {
+            x,
+            y: 0.0,
+            phi: 0.0,
+        },
+        time,
+    }
+}
+
+#[test]
+fn implausible_poses_are_rejected() {
+    let mut m = MocapMemory {
+        max_speed: 2.0,
+        ..MocapMemory::default()
+    };
+    assert!(m.plausible(&at(0.0, 0.0)));
+    m.last = Some(at(0.0, 0.0));
+    assert!(m.plausible(&at(0.1, 0.1)));
+    assert!(!m.plausible(&at(5.0, 0.1)), "50 m/s");
+    assert!(!m.plausible(&at(f64::NAN, 0.2)));
+    assert!(!m.plausible(&at(0.0, -1.0)), "older than the last");
+}
+
+#[test]
+fn a_jump_the_next_poses_confirm_is_believed() {
+    // A robot carried 4 m away: the first poses there are rejected, the third
+    // in a row that agree with each other is passed on; a lone outlier is not.
+    let mut m = MocapMemory {
+        max_speed: 2.0,
+        ..MocapMemory::default()
+    };
+    m.learn(&at(0.0, 0.0));
+    m.learn(&at(9.0, 0.01));
+    assert!(m.plausible(&at(0.01, 0.02)), "a lone outlier");
+    m.learn(&at(0.01, 0.02));
+    let passed: Vec<bool> = (3..8)
+        .map(|k| {
+            let p = at(4.0 + 0.001 * f64::from(k), 0.01 * f64::from(k));
+            let pass = m.plausible(&p);
+            m.learn(&p);
+            pass
+        })
+        .collect();
+    assert_eq!(passed, [false, false, true, true, true]);
+    assert_eq!(m.rejected, 3);
+}
