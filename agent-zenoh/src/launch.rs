@@ -48,9 +48,10 @@ pub enum Control {
     Continue,
     /// Stop every child (SIGTERM, then SIGKILL after the grace period).
     Stop,
-    /// Kill this child now with SIGKILL, as a crash would end it (fault
-    /// injection: it is restarted like any crashed child). An unknown name or
-    /// a child not running is ignored.
+    /// Kill this child with SIGKILL, as a crash would end it (fault
+    /// injection: it is restarted like any crashed child): now if it runs, as
+    /// soon as it runs again if it waits to be restarted. An unknown name, or a
+    /// child that ended for good, is ignored.
     Kill(String),
 }
 
@@ -205,8 +206,10 @@ impl Launcher {
         let mut killed = false;
         // Children to start again, when, and their restarts so far.
         let mut due: Vec<Option<(Instant, u32)>> = vec![None; self.children.len()];
+        // The caller's answers not yet acted on, and the kills asked for.
+        let mut answers: Vec<Control> = Vec::new();
+        let mut kills: Vec<usize> = Vec::new();
         loop {
-            let mut answers = Vec::new();
             if let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(50)) {
                 answers.push(on(&Line::Output {
                     process: self.children[k].name.clone(),
@@ -222,18 +225,23 @@ impl Launcher {
             }
             answers.push(on(&Line::Idle));
             let mut stop = false;
-            for answer in answers {
+            for answer in answers.drain(..) {
                 match answer {
                     Control::Continue => {}
                     Control::Stop => stop = true,
                     Control::Kill(name) => {
-                        let child = self.children.iter().position(|c| c.name == name);
-                        if let Some(r) = child.and_then(|k| running[k].as_mut()) {
-                            let _ = r.child.kill();
-                        }
+                        kills.extend(self.children.iter().position(|c| c.name == name));
                     }
                 }
             }
+            kills.retain(|&k| match running[k].as_mut() {
+                Some(r) => {
+                    let _ = r.child.kill();
+                    false
+                }
+                // Waiting to be restarted: killed once it runs again.
+                None => due[k].is_some() && stopping.is_none(),
+            });
             if (stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
                 && stopping.is_none()
             {
@@ -299,11 +307,11 @@ impl Launcher {
                     continue;
                 };
                 let restarts = r.restarts;
-                on(&Line::Exited {
+                answers.push(on(&Line::Exited {
                     process: self.children[k].name.clone(),
                     code,
                     restarting,
-                });
+                }));
                 exits[k] = Some(code);
                 running[k] = None;
                 if restarting {

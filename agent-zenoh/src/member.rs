@@ -27,6 +27,20 @@ pub struct Options {
 /// Why a process could not join its deployment, or lost it.
 #[derive(Debug, thiserror::Error)]
 pub enum MemberError {
+    /// The deployment's announced instant zero is too far in the future to be
+    /// one this deployment set (a host's clock far off, or a foreign token):
+    /// waiting for it would look like a hang.
+    #[error(
+        "process `{process}`: the deployment's instant zero is {ahead:.1} s in the future (at most {allowed:.1} s expected); are the hosts' clocks synchronised?"
+    )]
+    Origin {
+        /// This process.
+        process: String,
+        /// How far ahead [s].
+        ahead: f64,
+        /// The most expected: the start lead and the deployment's timeout [s].
+        allowed: f64,
+    },
     /// The spec has no such deployment.
     #[error("spec `{spec}` has no deployment `{name}` (it has: {known})")]
     UnknownDeployment {
@@ -454,8 +468,9 @@ impl Member {
             self.wait_for_all()?;
             let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, |_| true);
             if let Some(ns) = parse(&seen) {
+                let origin = self.plausible(ns, lead)?;
                 self.announce_origin(ns)?;
-                return Ok(UNIX_EPOCH + Duration::from_nanos(ns));
+                return Ok(origin);
             }
             let origin = SystemTime::now() + lead;
             let ns = origin
@@ -469,8 +484,9 @@ impl Member {
         });
         match parse(&seen) {
             Some(ns) if ok => {
+                let origin = self.plausible(ns, lead)?;
                 self.announce_origin(ns)?;
-                Ok(UNIX_EPOCH + Duration::from_nanos(ns))
+                Ok(origin)
             }
             _ => Err(MemberError::Missing {
                 process: self.process.clone(),
@@ -482,6 +498,22 @@ impl Member {
                 ),
                 waited: self.layout.timeout,
             }),
+        }
+    }
+
+    /// Instant zero announced as `ns` since the Unix epoch, if it is no later
+    /// than a leader could have set it (`lead` after all were ready, and the
+    /// deployment's timeout for clocks and stragglers).
+    fn plausible(&self, ns: u64, lead: Duration) -> Result<SystemTime, MemberError> {
+        let origin = UNIX_EPOCH + Duration::from_nanos(ns);
+        let allowed = lead + self.layout.timeout;
+        match origin.duration_since(SystemTime::now()) {
+            Ok(ahead) if ahead > allowed => Err(MemberError::Origin {
+                process: self.process.clone(),
+                ahead: ahead.as_secs_f64(),
+                allowed: allowed.as_secs_f64(),
+            }),
+            _ => Ok(origin),
         }
     }
 

@@ -155,3 +155,50 @@ fn a_child_killed_on_request_is_restarted_as_a_crash() {
     assert!(started.elapsed() < Duration::from_secs(20));
     let _ = std::fs::remove_file(&marker);
 }
+
+#[test]
+fn a_kill_asked_while_the_child_waits_to_restart_reaches_it_when_it_runs() {
+    let marker = std::env::temp_dir().join(format!("launcher-late-kill-{}", std::process::id()));
+    let _ = std::fs::remove_file(&marker);
+    // Run 1 crashes; run 2 would sleep (it is killed as it starts); run 3 ends well.
+    let script = format!(
+        "n=$(cat {m} 2>/dev/null || echo 0); n=$((n+1)); echo $n > {m}; echo run$n; \
+         if [ $n -eq 1 ]; then exit 1; fi; if [ $n -eq 2 ]; then sleep 30; fi; exit 0",
+        m = marker.display()
+    );
+    let started = Instant::now();
+    let mut lines = Vec::new();
+    let report = Launcher::new(vec![sh("victim", &script)])
+        .restart_delay(Duration::from_millis(200))
+        .run(&AtomicBool::new(false), |l| {
+            if *l != Line::Idle {
+                lines.push(l.clone());
+            }
+            match l {
+                // Asked while the child waits out its restart delay.
+                Line::Exited {
+                    code: Some(1),
+                    restarting: true,
+                    ..
+                } => Control::Kill("victim".into()),
+                _ => Control::Continue,
+            }
+        })
+        .unwrap();
+    assert_eq!(report.restarts, 2, "{lines:?}");
+    assert!(lines.contains(&Line::Exited {
+        process: "victim".into(),
+        code: None,
+        restarting: true
+    }));
+    assert!(lines.contains(&Line::Output {
+        process: "victim".into(),
+        text: "run3".into()
+    }));
+    assert!(report.all_succeeded(), "{report:?}");
+    assert!(
+        started.elapsed() < Duration::from_secs(20),
+        "run 2 was killed"
+    );
+    let _ = std::fs::remove_file(&marker);
+}

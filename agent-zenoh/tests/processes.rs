@@ -483,3 +483,30 @@ fn a_queue_link_between_two_hosts_carries_every_value_in_order() {
     );
     assert_lossless(p1, p2);
 }
+
+#[test]
+fn an_instant_zero_far_in_the_future_is_refused_not_waited_for() {
+    use agent_zenoh::zenoh::Wait;
+    // Something on p1's endpoint announces an instant zero an hour ahead (a
+    // clock far off): p2 says so instead of sleeping an hour.
+    let port = 17_580;
+    let fake = agent_zenoh::open_peer(Some(&format!("tcp/127.0.0.1:{port}")), &[]).unwrap();
+    let far = std::time::SystemTime::now() + Duration::from_secs(3600);
+    let ns = far
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos();
+    let _token = fake
+        .liveliness()
+        .declare_token(format!("relay/_rt/origin/{ns}"))
+        .wait()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let (code, out) = output(spawn("p2", port, 1_000, 5_000, false));
+    assert_ne!(code, 0, "{out}");
+    assert!(
+        out.contains("s in the future") && out.contains("clocks synchronised"),
+        "{out}"
+    );
+    assert!(started.elapsed() < Duration::from_secs(60), "no hang");
+}

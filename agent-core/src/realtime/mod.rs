@@ -573,7 +573,9 @@ impl RealTime {
         let clock = match sync.and_then(|f| f()) {
             Some(Ok(at)) => {
                 // Instant zero in the past: this process joins a running
-                // deployment (it was restarted).
+                // deployment (it was restarted). Across hosts this reads
+                // another host's clock: they must agree well within the lead
+                // the first process gives the others (a second in Rex).
                 let late = at <= SystemTime::now();
                 for inbox in &inboxes {
                     inbox.start(late);

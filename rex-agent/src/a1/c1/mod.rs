@@ -305,6 +305,13 @@ pub fn proc(plan: &Plan, params: &C1Params) -> Result<VecDeque<Waypoint>, String
             params.max_points
         ));
     }
+    // A plan resumed from its point `first` had more points than that.
+    if plan.first as usize >= params.max_points {
+        return Err(format!(
+            "the plan resumes from point {}, beyond the {} points a plan may have",
+            plan.first, params.max_points
+        ));
+    }
     for (k, p) in pts.iter().enumerate() {
         if !(p.x.is_finite() && p.y.is_finite()) {
             return Err(format!("point {k} ({}, {}) is not finite", p.x, p.y));

@@ -50,6 +50,15 @@ fn proc_adds_orientations_and_refuses_bad_plans() {
             .unwrap_err()
             .contains("off the map")
     );
+    let absurd = Plan {
+        first: u32::MAX,
+        ..pts(&[(1.0, 0.0)])
+    };
+    assert!(
+        proc(&absurd, &params)
+            .unwrap_err()
+            .contains("resumes from point")
+    );
 }
 
 #[test]
@@ -523,14 +532,22 @@ fn a_resumed_plan_keeps_its_numbers_and_a_copy_of_a_plan_taken_is_ignored() {
         "{acks:?}"
     );
     assert!(m.pending.is_none() && m.taken == 3, "the copy was not kept");
-    // An older plan is a copy too.
-    x.c2.desired_plan.deliver(pts(&[(1.0, 1.0)]), stamp());
+    // Back in B1, a copy of plan 3 and an older plan are copies too: no
+    // acknowledgement, nothing taken, nothing planned.
     for _ in 0..3 {
         activate(&fsm, &mut st, &mut m, &x);
-        x.c2.desired_plan.age();
     }
     assert_eq!(fsm.behaviour_name(st.behaviour()), "B1");
-    assert!(m.pending.is_none());
+    for copy in [resumed.clone(), pts(&[(1.0, 1.0)])] {
+        x.c2.desired_plan.deliver(copy, stamp());
+        for _ in 0..3 {
+            let (f, a, _) = activate(&fsm, &mut st, &mut m, &x);
+            assert!(f.is_none() && a.is_none(), "{f:?} {a:?}");
+            x.c2.desired_plan.age();
+        }
+        assert_eq!(fsm.behaviour_name(st.behaviour()), "B1");
+        assert!(m.pending.is_none() && !m.new);
+    }
 }
 
 #[test]

@@ -85,10 +85,11 @@ pub struct Arrival {
 }
 
 /// Whether visual odometry comes in. Once the first motion has arrived, a1
-/// expects them; when none comes for `patience` iterations (its process
-/// crashed, the camera stopped), visual odometry counts as lost: the estimator
-/// goes on without it, as in a deployment without visual odometry, and the
-/// outage is counted (and reported by the run).
+/// expects them; when none comes for `patience` iterations (r11's process
+/// crashed, the camera stopped, or r11 could not use the pairs: it sends no
+/// motion then), visual odometry counts as lost: the estimator goes on without
+/// it, as in a deployment without visual odometry, and the outage is counted
+/// (and reported by the run).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VoWatch {
     /// Motions received.
@@ -636,7 +637,7 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
             }
             m.completed_now = Some(Progress {
                 plan: r.fragment.plan,
-                done: r.fragment.index + 1,
+                done: r.fragment.index.saturating_add(1),
             });
             m.track.running = None;
             m.track.completed += 1;

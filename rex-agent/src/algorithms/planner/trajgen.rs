@@ -332,7 +332,7 @@ impl TrajGen {
         self.job = None;
         fragment.plan = self.plan;
         fragment.index = self.index;
-        self.index += 1;
+        self.index = self.index.saturating_add(1);
         if let Some(end) = fragment.end() {
             self.from = [end[0], end[1], end[2]];
         }

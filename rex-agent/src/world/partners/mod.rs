@@ -18,7 +18,7 @@ use embodied::{
     Action, ActionError, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem,
 };
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use crate::a1::payload::{Ack, AckStatus, Alive, MapPose, Plan, PlanOutcome, Progress, State};
 use crate::mission::Mission;
@@ -55,6 +55,10 @@ pub struct OntologyMemory {
     /// Fragments reported executed to their end a second time (never, if
     /// resuming works).
     pub repeated: u32,
+    /// Plans the current incarnation of `c1` acknowledged as ready (done,
+    /// refused, failed): a copy of one sent again is ignored by `c1`, and its
+    /// acknowledgement, already here, ends the wait.
+    pub answered: BTreeSet<u32>,
 }
 
 impl OntologyMemory {
@@ -71,6 +75,7 @@ impl OntologyMemory {
             restarts: 0,
             resent: 0,
             repeated: 0,
+            answered: BTreeSet::new(),
         }
     }
 
@@ -152,14 +157,24 @@ fn record(m: &mut OntologyMemory, x: &OntologyInput) {
 /// Keep a fresh final acknowledgement, a fresh outcome and progress.
 fn keep(m: &mut OntologyMemory, x: &OntologyInput) {
     if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
+        m.answered.insert(ack.plan);
         m.acks.push(ack.clone());
     }
     if let Some(o) = x.c1.outcome.fresh() {
         m.outcomes.push(o.clone());
     }
     if let Some(p) = x.c1.progress.fresh() {
+        let points = m
+            .mission
+            .plans
+            .get((p.plan as usize).wrapping_sub(1))
+            .map_or(0, Vec::len) as u32;
         let done = m.done.entry(p.plan).or_insert(0);
-        if p.done <= *done {
+        // A plan whose every fragment was done, and whose outcome was lost, is
+        // sent again as its last point to have its arrival judged: that
+        // fragment, planned from where the platform stands, is not a repeat.
+        let confirmation = p.done == points && *done == points;
+        if p.done <= *done && !confirmation {
             m.repeated += 1;
         }
         *done = (*done).max(p.done);
@@ -180,6 +195,9 @@ fn watch(m: &mut OntologyMemory, x: &OntologyInput) {
         let restarted = m.boot.is_some();
         let held = if restarted { 0 } else { alive.newest as usize };
         m.restarts += u32::from(restarted);
+        if restarted {
+            m.answered.clear();
+        }
         m.boot = Some(alive.boot);
         // Plans are settled in order: send again from the first that is not.
         if let Some(k) = (held..m.next).find(|&k| !m.plan_settled(k as u32 + 1)) {
@@ -199,10 +217,10 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
             m.next < m.mission.plans.len()
         })
         .predicate("acked", |m: &OntologyMemory, x: &OntologyInput| {
-            x.c1.ack
-                .fresh()
-                .zip(m.last_sent())
-                .is_some_and(|(a, id)| a.plan == id && a.ready())
+            m.last_sent().is_some_and(|id| {
+                m.answered.contains(&id)
+                    || x.c1.ack.fresh().is_some_and(|a| a.plan == id && a.ready())
+            })
         })
         .predicate("lost", |m: &OntologyMemory, _| m.lost)
         .behaviour(Behaviour::while_loop(

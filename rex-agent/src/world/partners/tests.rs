@@ -126,12 +126,13 @@ impl Crasher {
         if !up {
             return;
         }
+        // As c1 does, a plan id is taken once (a copy is ignored); c1 runs ten
+        // times for each activation of c2, so its `alive` has the plan sent in
+        // c2's previous activation.
         if let Some(plan) = previous.c1.desired_plan.written() {
             self.received.push(plan.clone());
-            self.newest = self.newest.max(plan.id);
-            if !self.waiting.iter().any(|p| p.id == plan.id)
-                && self.running.is_none_or(|r| r.0 != plan.id)
-            {
+            if plan.id > self.newest {
+                self.newest = plan.id;
                 self.waiting.push_back(plan.clone());
             }
         }
@@ -268,6 +269,44 @@ fn plans_lost_with_a_crashed_c1_are_sent_again_from_where_they_got_to() {
             assert_eq!((m.restarts, m.resent), (0, 0), "crash at {crash_at}");
         }
     }
+}
+
+#[test]
+fn a_plan_sent_again_that_c1_already_answered_ends_the_wait() {
+    // a2 first hears c1 from an `alive` written before c1 had plan 1 (a late
+    // message): it sends plan 1 again, c1 ignores the copy, and the
+    // acknowledgement c1 sent for the original, arriving while the copy goes
+    // out, ends the wait.
+    let fsm = ontology_fsm().unwrap();
+    let mut m = OntologyMemory::new(mission(2));
+    let mut st = fsm.start();
+    let stamp = Stamp::new(0, Time::ZERO);
+    let mut sent = Vec::new();
+    let mut step = |x: &OntologyInput, m: &mut OntologyMemory, st: &mut embodied::FsmState| {
+        let mut y = OntologyOutput::default();
+        fsm.activate(st, m, x, &mut y, |_| {}).unwrap();
+        sent.extend(y.c1.desired_plan.written().map(|p| p.id));
+    };
+    let mut x = OntologyInput::default();
+    step(&x, &mut m, &mut st); // plan 1 sent
+    let stale = Alive { boot: 5, newest: 0 };
+    x.c1.alive.deliver(stale, stamp);
+    step(&x, &mut m, &mut st); // heard: c1 has no plan; plan 1 is lost
+    assert!(m.lost && m.next == 0, "{m:?}");
+    x.c1.ack.deliver(
+        Ack {
+            plan: 1,
+            status: AckStatus::Done,
+        },
+        stamp,
+    );
+    step(&x, &mut m, &mut st); // plan 1 again; the original's ack arrives
+    x.c1.ack.age();
+    for _ in 0..4 {
+        step(&x, &mut m, &mut st);
+    }
+    assert_eq!(sent, [1, 1, 2], "the wait for plan 1 ended: {m:?}");
+    assert_eq!((m.restarts, m.resent), (0, 1));
 }
 
 /// A pose at `(x, 0, 0)` describing `time`.
