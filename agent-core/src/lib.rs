@@ -53,7 +53,7 @@ pub use executor::{ExecConfig, Executor, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
     Activated, BehaviourShape, Fsm, FsmArc, FsmBuilder, FsmShape, FsmState, Predicate, Relation,
-    Step,
+    Step, Valuation,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
 pub use link::remote::{Inbox, Publisher, Transport, TransportError};

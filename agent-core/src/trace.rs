@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use crate::buffer::Payload;
 use crate::describe::{Fresh, Shape};
 use crate::error::ExecError;
-use crate::fsm::{FsmShape, Step};
+use crate::fsm::{FsmShape, Step, Valuation};
 use crate::kinds::{NodeKind, Policy};
 use crate::time::{Period, Stamp, Time};
 
@@ -202,6 +202,8 @@ pub enum TraceEvent {
         to: u32,
         /// Arc followed (index among `from`'s arcs).
         arc: u32,
+        /// The value of every predicate at the decision.
+        predicates: Valuation,
     },
     /// A final behaviour ended; the subsystem halted.
     Finished {
@@ -434,13 +436,19 @@ impl Observer for Recorder {
     fn transition(&mut self, e: &TransitionEvent) {
         let (time, node, iteration) = (e.time, small(e.node), e.iteration);
         self.trace.events.push(match e.step {
-            Step::Entered { from, arc, to } => TraceEvent::Transition {
+            Step::Entered {
+                from,
+                arc,
+                to,
+                predicates,
+            } => TraceEvent::Transition {
                 time,
                 node,
                 iteration,
                 from: small(from),
                 to: small(to),
                 arc: small(arc),
+                predicates,
             },
             Step::Finished | Step::Run => TraceEvent::Finished {
                 time,

@@ -161,6 +161,26 @@ impl FsmState {
     }
 }
 
+/// The values of an FSM's predicates at one decision: bit `i` of `value` is
+/// the value of predicate `i` (in [`FsmShape::predicates`] order) for every
+/// predicate in `known`, which holds all of them, up to the first 64.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+pub struct Valuation {
+    /// The predicates evaluated, as bits.
+    pub known: u64,
+    /// Their values, as bits.
+    pub value: u64,
+}
+
+impl Valuation {
+    /// The value of predicate `i`, if it was evaluated.
+    pub fn get(&self, i: usize) -> Option<bool> {
+        (i < 64 && self.known >> i & 1 == 1).then(|| self.value >> i & 1 == 1)
+    }
+}
+
 /// One decision of the FSM (terminal test and, if the behaviour ends, arc selection).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Step {
@@ -174,6 +194,10 @@ pub enum Step {
         arc: usize,
         /// Behaviour entered.
         to: usize,
+        /// The value of every predicate at the decision (the terminal
+        /// condition's and the arcs', and the others: predicates are pure, and
+        /// a transition is when a recording wants them all).
+        predicates: Valuation,
     },
     /// A final behaviour ended: the subsystem halts.
     Finished,
@@ -437,7 +461,18 @@ impl<S: Subsystem> Fsm<S> {
             (1, Some(arc)) => {
                 let to = node.arcs[arc].to;
                 *state = FsmState::entering(to);
-                Ok(Step::Entered { from, arc, to })
+                for i in 0..self.predicates.len().min(64) {
+                    memo.get(i, || self.predicates[i].holds(memory, input));
+                }
+                Ok(Step::Entered {
+                    from,
+                    arc,
+                    to,
+                    predicates: Valuation {
+                        known: memo.known,
+                        value: memo.value,
+                    },
+                })
             }
             (0, _) if node.is_final => {
                 state.halted = true;

@@ -141,7 +141,12 @@ fn while_tests_before_and_repeat_after() {
         vec![Step::Entered {
             from: 0,
             arc: 0,
-            to: 1
+            to: 1,
+            // Every predicate, though `true` needed none.
+            predicates: Valuation {
+                known: 0b111,
+                value: 0b000
+            }
         }]
     );
     // Activation 2: `r` tests after its first action, ends, `idle` runs forever.
@@ -194,7 +199,8 @@ fn ends_and_act_are_the_halves_of_activate() {
             Ok(Step::Entered {
                 from: 1,
                 arc: 0,
-                to: 2
+                to: 2,
+                ..
             })
         ),
         "step agrees"
@@ -380,4 +386,33 @@ fn build_reports_every_problem() {
     for cascade in ["`dead_end` can end", "behaviour `a` cannot be reached"] {
         assert!(!text.contains(cascade), "cascade {cascade:?} in:\n{text}");
     }
+}
+
+#[test]
+fn a_transition_carries_the_value_of_every_predicate() {
+    let fsm = builder()
+        .behaviour(Behaviour::while_loop("w", count(), "go"))
+        .behaviour(Behaviour::while_loop("idle", Action::new(), "false"))
+        .initial("w")
+        .arc("w", "idle", "true")
+        .build()
+        .unwrap();
+    let mut st = fsm.start();
+    let (mut m, mut y) = (3u32, Y::default());
+    let mut steps = Vec::new();
+    fsm.activate(&mut st, &mut m, &input(true, false), &mut y, |s| {
+        steps.push(*s)
+    })
+    .unwrap();
+    let [Step::Entered { predicates, .. }] = steps[..] else {
+        panic!("{steps:?}");
+    };
+    // go, not stop, three (m = 3).
+    assert_eq!(predicates.known, 0b111);
+    assert_eq!(
+        (0..3).map(|i| predicates.get(i)).collect::<Vec<_>>(),
+        [Some(true), Some(false), Some(true)]
+    );
+    assert_eq!(predicates.get(3), None);
+    assert_eq!(predicates.get(64), None);
 }
