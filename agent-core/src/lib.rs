@@ -56,11 +56,13 @@ pub use fsm::{
     Step, Valuation,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
-pub use link::remote::{Inbox, Publisher, Transport, TransportError};
+pub use link::remote::{Inbox, Publisher, Transport, TransportError, TypeShape, reflect};
 pub use link::{Access, LinkId, LinkStats, Port};
 pub use realtime::{
     Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
 };
+/// The tracer of payload types' shapes ([`reflect`]), for reading [`TypeShape`]s.
+pub use serde_reflection;
 pub use subsystem::{Driver, DriverContext, Subsystem};
 pub use system::{
     AgentId, DriverHandle, NodeId, Sink, Source, SubsystemHandle, System, SystemBuilder,

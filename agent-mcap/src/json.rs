@@ -1,0 +1,406 @@
+//! A buffer value's postcard bytes as JSON, and the JSON schema of its type,
+//! both read off the type's [`TypeShape`] (its serde data model).
+//!
+//! The JSON is what `serde_json` makes of the value itself: structs as objects,
+//! enums externally tagged (`"Unit"`, `{"Variant": ...}`), tuples and arrays as
+//! arrays, `None` as `null`, non-finite floats as `null`, map keys as strings.
+//! Integers beyond what JSON numbers carry exactly (128-bit ones outside the
+//! 64-bit range) become strings.
+
+use std::collections::BTreeSet;
+
+use agent_core::TypeShape;
+use agent_core::serde_reflection::{ContainerFormat, Format, Named, VariantFormat};
+use serde_json::{Map, Number, Value, json};
+
+/// Why bytes did not decode as the shape says.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("byte {offset}: {what}")]
+pub struct DecodeError {
+    /// Where in the bytes.
+    pub offset: usize,
+    /// What was expected or found.
+    pub what: String,
+}
+
+/// The value encoded (postcard) in `bytes`, as JSON, read with `shape`. All
+/// the bytes must be used.
+pub fn to_json(shape: &TypeShape, bytes: &[u8]) -> Result<Value, DecodeError> {
+    let mut r = Reader {
+        shape,
+        bytes,
+        at: 0,
+        depth: 0,
+    };
+    let v = r.value(&shape.root)?;
+    if r.at != bytes.len() {
+        return Err(r.fail(format!("{} bytes left over", bytes.len() - r.at)));
+    }
+    Ok(v)
+}
+
+/// Deeper nesting than this is refused (a recursive type fed hostile bytes).
+const MAX_DEPTH: usize = 128;
+
+struct Reader<'a> {
+    shape: &'a TypeShape,
+    bytes: &'a [u8],
+    at: usize,
+    depth: usize,
+}
+
+impl Reader<'_> {
+    fn fail(&self, what: String) -> DecodeError {
+        DecodeError {
+            offset: self.at,
+            what,
+        }
+    }
+
+    fn take(&mut self, n: usize) -> Result<&[u8], DecodeError> {
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|e| *e <= self.bytes.len())
+            .ok_or_else(|| self.fail(format!("{n} more bytes expected, the value ends")))?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+
+    fn byte(&mut self) -> Result<u8, DecodeError> {
+        Ok(self.take(1)?[0])
+    }
+
+    /// An unsigned LEB128 varint of at most `bits` bits.
+    fn varint(&mut self, bits: u32) -> Result<u128, DecodeError> {
+        let start = self.at;
+        let mut v: u128 = 0;
+        let mut shift = 0u32;
+        loop {
+            let b = self.byte()?;
+            if shift >= bits || (shift > 0 && u128::from(b & 0x7f) >> (bits - shift) != 0) {
+                self.at = start;
+                return Err(self.fail(format!("a varint longer than {bits} bits")));
+            }
+            v |= u128::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+            shift += 7;
+        }
+    }
+
+    fn signed(&mut self, bits: u32) -> Result<i128, DecodeError> {
+        let z = self.varint(bits)?;
+        // Zigzag.
+        Ok(((z >> 1) as i128) ^ -((z & 1) as i128))
+    }
+
+    fn len(&mut self) -> Result<usize, DecodeError> {
+        let n = self.varint(64)?;
+        let n = usize::try_from(n).map_err(|_| self.fail(format!("a length of {n}")))?;
+        // Every element takes a byte at least (except units): a longer length
+        // than the bytes left is a corrupt one, not an allocation to make.
+        if n > self.bytes.len() - self.at && n > 0 {
+            return Err(self.fail(format!(
+                "a length of {n} with {} bytes left",
+                self.bytes.len() - self.at
+            )));
+        }
+        Ok(n)
+    }
+
+    fn value(&mut self, f: &Format) -> Result<Value, DecodeError> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return Err(self.fail(format!("nested deeper than {MAX_DEPTH}")));
+        }
+        let v = self.inner(f);
+        self.depth -= 1;
+        v
+    }
+
+    fn inner(&mut self, f: &Format) -> Result<Value, DecodeError> {
+        Ok(match f {
+            Format::Unit => Value::Null,
+            Format::Bool => match self.byte()? {
+                0 => Value::Bool(false),
+                1 => Value::Bool(true),
+                b => {
+                    self.at -= 1;
+                    return Err(self.fail(format!("a bool byte of {b}")));
+                }
+            },
+            Format::U8 => json!(self.byte()?),
+            Format::I8 => json!(self.byte()? as i8),
+            Format::U16 => json!(self.varint(16)? as u16),
+            Format::U32 => json!(self.varint(32)? as u32),
+            Format::U64 => json!(self.varint(64)? as u64),
+            Format::U128 => big_unsigned(self.varint(128)?),
+            Format::I16 => json!(self.signed(16)? as i16),
+            Format::I32 => json!(self.signed(32)? as i32),
+            Format::I64 => json!(self.signed(64)? as i64),
+            Format::I128 => big_signed(self.signed(128)?),
+            Format::F32 => {
+                let b: [u8; 4] = self
+                    .take(4)?
+                    .try_into()
+                    .map_err(|_| self.fail("f32".into()))?;
+                float(f64::from(f32::from_le_bytes(b)))
+            }
+            Format::F64 => {
+                let b: [u8; 8] = self
+                    .take(8)?
+                    .try_into()
+                    .map_err(|_| self.fail("f64".into()))?;
+                float(f64::from_le_bytes(b))
+            }
+            Format::Char | Format::Str => {
+                let n = self.len()?;
+                let at = self.at;
+                let s = std::str::from_utf8(self.take(n)?).map_err(|e| DecodeError {
+                    offset: at,
+                    what: format!("a string that is not UTF-8: {e}"),
+                })?;
+                Value::String(s.to_owned())
+            }
+            Format::Bytes => {
+                let n = self.len()?;
+                Value::Array(self.take(n)?.iter().map(|b| json!(b)).collect())
+            }
+            Format::Option(inner) => match self.byte()? {
+                0 => Value::Null,
+                1 => self.value(inner)?,
+                b => {
+                    self.at -= 1;
+                    return Err(self.fail(format!("an option tag of {b}")));
+                }
+            },
+            Format::Seq(inner) => {
+                let n = self.len()?;
+                Value::Array(
+                    (0..n)
+                        .map(|_| self.value(inner))
+                        .collect::<Result<_, _>>()?,
+                )
+            }
+            Format::Map { key, value } => {
+                let n = self.len()?;
+                let mut m = Map::new();
+                for _ in 0..n {
+                    let k = self.value(key)?;
+                    let v = self.value(value)?;
+                    m.insert(key_text(k), v);
+                }
+                Value::Object(m)
+            }
+            Format::Tuple(items) => Value::Array(
+                items
+                    .iter()
+                    .map(|f| self.value(f))
+                    .collect::<Result<_, _>>()?,
+            ),
+            Format::TupleArray { content, size } => Value::Array(
+                (0..*size)
+                    .map(|_| self.value(content))
+                    .collect::<Result<_, _>>()?,
+            ),
+            Format::TypeName(name) => {
+                let c = self
+                    .shape
+                    .registry
+                    .get(name)
+                    .ok_or_else(|| self.fail(format!("type `{name}` is not in the shape")))?;
+                self.container(c)?
+            }
+            Format::Variable(_) => {
+                return Err(self.fail("a format left unknown by the tracer".into()));
+            }
+        })
+    }
+
+    fn container(&mut self, c: &ContainerFormat) -> Result<Value, DecodeError> {
+        Ok(match c {
+            ContainerFormat::UnitStruct => Value::Null,
+            ContainerFormat::NewTypeStruct(f) => self.value(f)?,
+            ContainerFormat::TupleStruct(fs) => {
+                Value::Array(fs.iter().map(|f| self.value(f)).collect::<Result<_, _>>()?)
+            }
+            ContainerFormat::Struct(fields) => self.fields(fields)?,
+            ContainerFormat::Enum(variants) => {
+                let at = self.at;
+                let k = self.varint(32)?;
+                let Some(v) = u32::try_from(k).ok().and_then(|k| variants.get(&k)) else {
+                    return Err(DecodeError {
+                        offset: at,
+                        what: format!("variant {k} of an enum of {}", variants.len()),
+                    });
+                };
+                let body = match &v.value {
+                    VariantFormat::Unit => return Ok(Value::String(v.name.clone())),
+                    VariantFormat::NewType(f) => self.value(f)?,
+                    VariantFormat::Tuple(fs) => {
+                        Value::Array(fs.iter().map(|f| self.value(f)).collect::<Result<_, _>>()?)
+                    }
+                    VariantFormat::Struct(fields) => self.fields(fields)?,
+                    VariantFormat::Variable(_) => {
+                        return Err(self.fail("a variant left unknown by the tracer".into()));
+                    }
+                };
+                let mut m = Map::new();
+                m.insert(v.name.clone(), body);
+                Value::Object(m)
+            }
+        })
+    }
+
+    fn fields(&mut self, fields: &[Named<Format>]) -> Result<Value, DecodeError> {
+        let mut m = Map::new();
+        for f in fields {
+            let v = self.value(&f.value)?;
+            m.insert(f.name.clone(), v);
+        }
+        Ok(Value::Object(m))
+    }
+}
+
+fn float(x: f64) -> Value {
+    Number::from_f64(x).map_or(Value::Null, Value::Number)
+}
+
+fn big_unsigned(v: u128) -> Value {
+    u64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
+}
+
+fn big_signed(v: i128) -> Value {
+    i64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
+}
+
+/// A map key as JSON object keys must be: strings as they are, anything else
+/// as its JSON text (numbers as `serde_json` writes them).
+fn key_text(k: Value) -> String {
+    match k {
+        Value::String(s) => s,
+        other => other.to_string(),
+    }
+}
+
+/// The JSON schema (draft 2020-12) of the values [`to_json`] makes for
+/// `shape`, titled `title`. Named types are written out where they are used
+/// (tools that plot fields follow no `$ref`); a type that contains itself is
+/// left open (`{}`) where it recurs.
+pub fn json_schema(shape: &TypeShape, title: &str) -> Value {
+    let mut s = schema(shape, &shape.root, &mut BTreeSet::new());
+    if let Value::Object(m) = &mut s {
+        m.insert(
+            "$schema".into(),
+            json!("https://json-schema.org/draft/2020-12/schema"),
+        );
+        m.insert("title".into(), json!(title));
+    }
+    s
+}
+
+fn schema<'a>(shape: &'a TypeShape, f: &'a Format, seen: &mut BTreeSet<&'a str>) -> Value {
+    match f {
+        Format::Unit => json!({"type": "null"}),
+        Format::Bool => json!({"type": "boolean"}),
+        Format::U8 | Format::U16 | Format::U32 | Format::U64 => {
+            json!({"type": "integer", "minimum": 0})
+        }
+        Format::I8 | Format::I16 | Format::I32 | Format::I64 => json!({"type": "integer"}),
+        Format::U128 | Format::I128 => json!({"type": ["integer", "string"]}),
+        // Non-finite values are written as null.
+        Format::F32 | Format::F64 => json!({"type": ["number", "null"]}),
+        Format::Char | Format::Str => json!({"type": "string"}),
+        Format::Bytes => {
+            json!({"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 255}})
+        }
+        Format::Option(inner) => {
+            json!({"anyOf": [schema(shape, inner, seen), {"type": "null"}]})
+        }
+        Format::Seq(inner) => json!({"type": "array", "items": schema(shape, inner, seen)}),
+        Format::Map { value, .. } => {
+            json!({"type": "object", "additionalProperties": schema(shape, value, seen)})
+        }
+        Format::Tuple(items) => tuple(shape, items, seen),
+        Format::TupleArray { content, size } => json!({
+            "type": "array",
+            "items": schema(shape, content, seen),
+            "minItems": size,
+            "maxItems": size,
+        }),
+        Format::TypeName(name) => match shape.registry.get(name) {
+            Some(c) if seen.insert(name) => {
+                let s = container_schema(shape, c, seen);
+                seen.remove(name.as_str());
+                s
+            }
+            _ => json!({}),
+        },
+        Format::Variable(_) => json!({}),
+    }
+}
+
+fn container_schema<'a>(
+    shape: &'a TypeShape,
+    c: &'a ContainerFormat,
+    seen: &mut BTreeSet<&'a str>,
+) -> Value {
+    match c {
+        ContainerFormat::UnitStruct => json!({"type": "null"}),
+        ContainerFormat::NewTypeStruct(f) => schema(shape, f, seen),
+        ContainerFormat::TupleStruct(fs) => tuple(shape, fs, seen),
+        ContainerFormat::Struct(fields) => object(shape, fields, seen),
+        ContainerFormat::Enum(variants) => {
+            let one_of: Vec<Value> = variants
+                .values()
+                .map(|v| {
+                    let body = match &v.value {
+                        VariantFormat::Unit => return json!({"const": v.name}),
+                        VariantFormat::NewType(f) => schema(shape, f, seen),
+                        VariantFormat::Tuple(fs) => tuple(shape, fs, seen),
+                        VariantFormat::Struct(fields) => object(shape, fields, seen),
+                        VariantFormat::Variable(_) => json!({}),
+                    };
+                    json!({
+                        "type": "object",
+                        "properties": {v.name.clone(): body},
+                        "required": [v.name],
+                        "additionalProperties": false,
+                    })
+                })
+                .collect();
+            json!({"oneOf": one_of})
+        }
+    }
+}
+
+fn tuple<'a>(shape: &'a TypeShape, items: &'a [Format], seen: &mut BTreeSet<&'a str>) -> Value {
+    json!({
+        "type": "array",
+        "prefixItems": items.iter().map(|f| schema(shape, f, seen)).collect::<Vec<_>>(),
+        "minItems": items.len(),
+        "maxItems": items.len(),
+    })
+}
+
+fn object<'a>(
+    shape: &'a TypeShape,
+    fields: &'a [Named<Format>],
+    seen: &mut BTreeSet<&'a str>,
+) -> Value {
+    let mut props = Map::new();
+    for f in fields {
+        props.insert(f.name.clone(), schema(shape, &f.value, seen));
+    }
+    json!({
+        "type": "object",
+        "properties": props,
+        "required": fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
+    })
+}
+
+#[cfg(test)]
+mod tests;
