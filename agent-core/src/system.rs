@@ -137,6 +137,14 @@ impl System {
     pub fn info(&self) -> &SystemInfo {
         &self.info
     }
+
+    /// The shape of the payload of link `link` (an index into
+    /// [`SystemInfo::links`]), traced when asked ([`crate::reflect`]): what a
+    /// recorder needs to show its values without the type. `None` for an
+    /// unknown link or a type the tracer cannot follow.
+    pub fn payload_shape(&self, link: usize) -> Option<crate::TypeShape> {
+        self.channels.get(link)?.shape()
+    }
 }
 
 /// Builds a [`System`]: agents, their subsystems and drivers, and the links.

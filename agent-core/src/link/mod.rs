@@ -558,6 +558,8 @@ pub(crate) trait ChannelPlan: Send {
     );
     /// The payload type's fingerprint.
     fn fingerprint(&self) -> u64;
+    /// The payload type's shape.
+    fn shape(&self) -> Option<remote::TypeShape>;
 }
 
 struct TypedChannelPlan<T> {
@@ -607,6 +609,9 @@ impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
     }
     fn fingerprint(&self) -> u64 {
         remote::fingerprint::<T>()
+    }
+    fn shape(&self) -> Option<remote::TypeShape> {
+        remote::reflect::<T>()
     }
 }
 
