@@ -1,0 +1,545 @@
+//! [`McapRecorder`]: an observer that writes a run to an MCAP file.
+//!
+//! The executor's thread only encodes each value it sees (postcard, into a
+//! buffer that the writer thread hands back, so the steady state allocates
+//! nothing) and queues it; the writer thread turns it into JSON, writes the
+//! MCAP records and compresses the chunks (zstd).
+//!
+//! Channels:
+//!
+//! * `/links/<from>/<port>/to/<to>` for every link (`<port>` with `/` for `.`):
+//!   the value as JSON, with the JSON schema of its type (Foxglove plots any
+//!   field); log time = the sender's instant, sequence = the link's count;
+//! * the same topic under `/raw/...`: the value's exact postcard bytes (for
+//!   replay: JSON cannot say NaN);
+//! * `/fsm/<node>`: each behaviour switch, with the arc and the value of every
+//!   predicate at the decision, and the end of a final behaviour;
+//! * `/errors`: every error the executor met, with its time.
+//!
+//! Metadata `system`: the nodes, behaviours and links; and whatever the caller
+//! adds ([`RecordOptions::metadata`]: the spec, the deployment, the settings).
+//! Queuing is lossless: when the writer falls behind by
+//! [`RecordOptions::queue`] records, the executor waits (counted). A writer
+//! that fails (disk full) stops the recording; the run goes on, and
+//! [`McapRecorder::finish`] returns the error.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, channel, sync_channel};
+use std::thread::JoinHandle;
+
+use agent_core::trace::{ErasedPayload, Observer, SystemInfo, TransferEvent, TransitionEvent};
+use agent_core::{ExecError, Step, System, Time, TypeShape};
+use serde_json::{Value, json};
+
+use crate::json::{json_schema, to_json};
+
+/// How a recording is made.
+#[derive(Clone, Debug)]
+pub struct RecordOptions {
+    /// Records the writer may fall behind by before the executor waits.
+    pub queue: usize,
+    /// Metadata records to add, by name: each a map of strings (the spec's
+    /// text, the deployment, the run's settings, versions).
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+}
+
+impl Default for RecordOptions {
+    fn default() -> Self {
+        RecordOptions {
+            queue: 65_536,
+            metadata: BTreeMap::new(),
+        }
+    }
+}
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The file could not be created.
+    #[error("recording {path}: {source}")]
+    Create {
+        /// The file.
+        path: PathBuf,
+        /// The OS's reason.
+        source: std::io::Error,
+    },
+    /// The MCAP writer failed (the disk, most likely).
+    #[error("recording {path}: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+    /// The writer thread ended without saying why.
+    #[error("recording {0}: the writer thread is gone")]
+    WriterGone(PathBuf),
+}
+
+/// What a finished recording holds.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RecordSummary {
+    /// Messages written, all channels.
+    pub messages: u64,
+    /// Channels.
+    pub channels: usize,
+    /// Values whose bytes did not read as their shape says (written raw only).
+    pub undecodable: u64,
+    /// Times the executor waited for the writer.
+    pub waits: u64,
+}
+
+enum Record {
+    Transfer {
+        link: u32,
+        time: Time,
+        bytes: Vec<u8>,
+    },
+    Transition {
+        node: u32,
+        time: Time,
+        iteration: u64,
+        step: Step,
+    },
+    Error {
+        time: Time,
+        message: String,
+    },
+}
+
+/// An [`Observer`] that writes the run to an MCAP file (see the module's
+/// documentation). Give it to `Executor::with_observer`; after the run, take
+/// it back (`Executor::into_observer`) and [`McapRecorder::finish`] it.
+pub struct McapRecorder {
+    tx: Option<SyncSender<Record>>,
+    spare: Receiver<Vec<u8>>,
+    writer: Option<JoinHandle<Result<RecordSummary, RecordError>>>,
+    path: PathBuf,
+    waits: u64,
+    encode_failures: u64,
+}
+
+impl std::fmt::Debug for McapRecorder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapRecorder")
+            .field("path", &self.path)
+            .finish()
+    }
+}
+
+/// A link's channels and how to read its values.
+struct LinkChannels {
+    json: u16,
+    raw: u16,
+    /// The payload's shape, as JSON text until the writer thread reads it
+    /// (`serde-reflection`'s formats cannot cross threads).
+    shape: Option<String>,
+    sequence: u32,
+}
+
+impl McapRecorder {
+    /// Record a run of `system` to `path` (created or truncated). The channels
+    /// are made now, from the system's links and their payload shapes.
+    pub fn create(
+        path: &Path,
+        system: &System,
+        options: RecordOptions,
+    ) -> Result<McapRecorder, RecordError> {
+        let file = File::create(path).map_err(|source| RecordError::Create {
+            path: path.to_owned(),
+            source,
+        })?;
+        let fail = |e: mcap::McapError| RecordError::Write {
+            path: path.to_owned(),
+            message: e.to_string(),
+        };
+        let mut w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .library(concat!(
+                "embodied-agents agent-mcap ",
+                env!("CARGO_PKG_VERSION")
+            ))
+            .create(BufWriter::new(file))
+            .map_err(fail)?;
+        let info = system.info().clone();
+        let mut links = Vec::with_capacity(info.links.len());
+        let none = BTreeMap::new();
+        let mut topics = std::collections::BTreeSet::new();
+        for (k, link) in info.links.iter().enumerate() {
+            let from = &info.nodes[link.from].name;
+            let to = &info.nodes[link.to].name;
+            let mut topic = format!("/links/{from}/{}/to/{to}", link.from_port.replace('.', "/"));
+            if !topics.insert(topic.clone()) {
+                topic = format!("{topic}/{}", link.to_port.replace('.', "/"));
+                topics.insert(topic.clone());
+            }
+            let shape = system.payload_shape(k);
+            let schema = match &shape {
+                Some(s) => {
+                    let text = json_schema(s, link.payload).to_string();
+                    w.add_schema(link.payload, "jsonschema", text.as_bytes())
+                        .map_err(fail)?
+                }
+                None => 0,
+            };
+            let json = w.add_channel(schema, &topic, "json", &none).map_err(fail)?;
+            let raw_schema = w.add_schema(link.payload, "postcard", &[]).map_err(fail)?;
+            let raw = w
+                .add_channel(raw_schema, &format!("/raw{topic}"), "postcard", &none)
+                .map_err(fail)?;
+            links.push(LinkChannels {
+                json,
+                raw,
+                shape: shape.and_then(|s| serde_json::to_string(&(s.root, s.registry)).ok()),
+                sequence: 0,
+            });
+        }
+        let fsm_schema = w
+            .add_schema(
+                "embodied.Transition",
+                "jsonschema",
+                TRANSITION_SCHEMA.as_bytes(),
+            )
+            .map_err(fail)?;
+        let mut fsm = Vec::with_capacity(info.nodes.len());
+        for node in &info.nodes {
+            fsm.push(
+                w.add_channel(fsm_schema, &format!("/fsm/{}", node.name), "json", &none)
+                    .map_err(fail)?,
+            );
+        }
+        let error_schema = w
+            .add_schema("embodied.Error", "jsonschema", ERROR_SCHEMA.as_bytes())
+            .map_err(fail)?;
+        let errors = w
+            .add_channel(error_schema, "/errors", "json", &none)
+            .map_err(fail)?;
+        let mut metadata = options.metadata.clone();
+        metadata.insert("system".into(), describe(&info));
+        for (name, entries) in metadata {
+            w.write_metadata(&mcap::records::Metadata {
+                name,
+                metadata: entries,
+            })
+            .map_err(fail)?;
+        }
+        let (tx, rx) = sync_channel::<Record>(options.queue.max(1));
+        let (give_back, spare) = channel::<Vec<u8>>();
+        let channels = links.len() * 2 + fsm.len() + 1;
+        let out = Output {
+            w,
+            path: path.to_owned(),
+            info,
+            links,
+            fsm,
+            errors,
+            summary: RecordSummary {
+                channels,
+                ..RecordSummary::default()
+            },
+        };
+        let writer = std::thread::Builder::new()
+            .name("mcap-writer".into())
+            .spawn(move || out.run(&rx, &give_back))
+            .map_err(|source| RecordError::Create {
+                path: path.to_owned(),
+                source,
+            })?;
+        Ok(McapRecorder {
+            tx: Some(tx),
+            spare,
+            writer: Some(writer),
+            path: path.to_owned(),
+            waits: 0,
+            encode_failures: 0,
+        })
+    }
+
+    fn send(&mut self, record: Record) {
+        let Some(tx) = &self.tx else {
+            return;
+        };
+        let sent = match tx.try_send(record) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(record)) => {
+                self.waits += 1;
+                tx.send(record).map_err(|_| ())
+            }
+            Err(TrySendError::Disconnected(_)) => Err(()),
+        };
+        if sent.is_err() {
+            // The writer failed: `finish` says why; the run goes on.
+            self.tx = None;
+        }
+    }
+
+    /// Close the file (its summary and index) and say what it holds, or why
+    /// the recording failed.
+    pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
+        self.tx = None;
+        let writer = self
+            .writer
+            .take()
+            .ok_or_else(|| RecordError::WriterGone(self.path.clone()))?;
+        let mut summary = writer
+            .join()
+            .map_err(|_| RecordError::WriterGone(self.path.clone()))??;
+        summary.waits = self.waits;
+        summary.undecodable += self.encode_failures;
+        Ok(summary)
+    }
+}
+
+impl Drop for McapRecorder {
+    fn drop(&mut self) {
+        // Not finished: close the file anyway (errors are lost; `finish` says them).
+        self.tx = None;
+        if let Some(w) = self.writer.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+impl Observer for McapRecorder {
+    fn transition(&mut self, e: &TransitionEvent) {
+        self.send(Record::Transition {
+            node: small(e.node),
+            time: e.time,
+            iteration: e.iteration,
+            step: e.step,
+        });
+    }
+
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        let mut bytes = self.spare.try_recv().unwrap_or_default();
+        bytes.clear();
+        if value.encode(&mut bytes).is_err() {
+            self.encode_failures += 1;
+            return;
+        }
+        self.send(Record::Transfer {
+            link: small(e.link),
+            time: e.stamp.time,
+            bytes,
+        });
+    }
+
+    fn error(&mut self, time: Time, error: &ExecError) {
+        self.send(Record::Error {
+            time,
+            message: error.to_string(),
+        });
+    }
+
+    fn start(&mut self, _system: &SystemInfo) {}
+}
+
+fn small(i: usize) -> u32 {
+    u32::try_from(i).unwrap_or(u32::MAX)
+}
+
+/// The writer thread's side.
+struct Output {
+    w: mcap::Writer<BufWriter<File>>,
+    path: PathBuf,
+    info: SystemInfo,
+    links: Vec<LinkChannels>,
+    fsm: Vec<u16>,
+    errors: u16,
+    summary: RecordSummary,
+}
+
+impl Output {
+    fn run(
+        mut self,
+        rx: &Receiver<Record>,
+        give_back: &std::sync::mpsc::Sender<Vec<u8>>,
+    ) -> Result<RecordSummary, RecordError> {
+        let shapes: Vec<Option<TypeShape>> = self
+            .links
+            .iter()
+            .map(|l| {
+                let (root, registry) = serde_json::from_str(l.shape.as_deref()?).ok()?;
+                Some(TypeShape { root, registry })
+            })
+            .collect();
+        let mut error_count = 0u32;
+        for record in rx.iter() {
+            match record {
+                Record::Transfer { link, time, bytes } => {
+                    let shape = shapes.get(link as usize).and_then(Option::as_ref);
+                    self.transfer(link, shape, time, &bytes)?;
+                    let _ = give_back.send(bytes);
+                }
+                Record::Transition {
+                    node,
+                    time,
+                    iteration,
+                    step,
+                } => self.transition(node, time, iteration, step)?,
+                Record::Error { time, message } => {
+                    let data = json!({"time_s": time.as_secs_f64(), "message": message});
+                    self.write(
+                        self.errors,
+                        error_count,
+                        time,
+                        &data.to_string().into_bytes(),
+                    )?;
+                    error_count += 1;
+                }
+            }
+        }
+        self.w.finish().map_err(|e| self.fail(&e))?;
+        Ok(self.summary)
+    }
+
+    fn fail(&self, e: &mcap::McapError) -> RecordError {
+        RecordError::Write {
+            path: self.path.clone(),
+            message: e.to_string(),
+        }
+    }
+
+    fn write(
+        &mut self,
+        channel: u16,
+        sequence: u32,
+        time: Time,
+        data: &[u8],
+    ) -> Result<(), RecordError> {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence,
+            log_time: time.as_nanos(),
+            publish_time: time.as_nanos(),
+        };
+        self.w
+            .write_to_known_channel(&header, data)
+            .map_err(|e| RecordError::Write {
+                path: self.path.clone(),
+                message: e.to_string(),
+            })?;
+        self.summary.messages += 1;
+        Ok(())
+    }
+
+    fn transfer(
+        &mut self,
+        link: u32,
+        shape: Option<&TypeShape>,
+        time: Time,
+        bytes: &[u8],
+    ) -> Result<(), RecordError> {
+        let Some(l) = self.links.get_mut(link as usize) else {
+            return Ok(());
+        };
+        let sequence = l.sequence;
+        l.sequence = l.sequence.wrapping_add(1);
+        let (json, raw) = (l.json, l.raw);
+        let value = shape.map(|s| to_json(s, bytes));
+        self.write(raw, sequence, time, bytes)?;
+        match value {
+            Some(Ok(v)) => self.write(json, sequence, time, &v.to_string().into_bytes()),
+            _ => {
+                self.summary.undecodable += 1;
+                Ok(())
+            }
+        }
+    }
+
+    fn transition(
+        &mut self,
+        node: u32,
+        time: Time,
+        iteration: u64,
+        step: Step,
+    ) -> Result<(), RecordError> {
+        let Some(n) = self.info.nodes.get(node as usize) else {
+            return Ok(());
+        };
+        let name = |b: usize| n.behaviours.get(b).cloned().unwrap_or_default();
+        let predicates = n
+            .fsm
+            .as_ref()
+            .map(|f| f.predicates.clone())
+            .unwrap_or_default();
+        let data = match step {
+            Step::Entered {
+                from,
+                arc,
+                to,
+                predicates: values,
+            } => {
+                let arc_text = n
+                    .fsm
+                    .as_ref()
+                    .and_then(|f| {
+                        f.arcs
+                            .iter()
+                            .filter(|(a, _, _)| *a == name(from))
+                            .nth(arc)
+                            .map(|(_, _, c)| c.clone())
+                    })
+                    .unwrap_or_default();
+                let values: serde_json::Map<String, Value> = predicates
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, p)| Some((p.clone(), Value::Bool(values.get(i)?))))
+                    .collect();
+                json!({
+                    "time_s": time.as_secs_f64(),
+                    "iteration": iteration,
+                    "from": name(from),
+                    "to": name(to),
+                    "arc": arc,
+                    "condition": arc_text,
+                    "predicates": values,
+                })
+            }
+            Step::Finished | Step::Run => json!({
+                "time_s": time.as_secs_f64(),
+                "iteration": iteration,
+                "finished": true,
+            }),
+        };
+        let channel = self.fsm[node as usize];
+        self.write(
+            channel,
+            small(iteration as usize),
+            time,
+            &data.to_string().into_bytes(),
+        )
+    }
+}
+
+/// The system's nodes, behaviours and links, for the metadata record.
+fn describe(info: &SystemInfo) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::new();
+    for n in &info.nodes {
+        m.insert(
+            format!("node/{}", n.name),
+            format!(
+                "agent {}, {:?}, period {}, behaviours [{}]",
+                n.agent,
+                n.kind,
+                n.period,
+                n.behaviours.join(", ")
+            ),
+        );
+    }
+    for (k, l) in info.links.iter().enumerate() {
+        m.insert(
+            format!("link/{k}"),
+            format!("{} ({:?}, {})", l.name, l.policy, l.payload),
+        );
+    }
+    m
+}
+
+const TRANSITION_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Transition","type":"object","properties":{"time_s":{"type":"number"},"iteration":{"type":"integer"},"from":{"type":"string"},"to":{"type":"string"},"arc":{"type":"integer"},"condition":{"type":"string"},"predicates":{"type":"object","additionalProperties":{"type":"boolean"}},"finished":{"type":"boolean"}}}"#;
+
+const ERROR_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Error","type":"object","properties":{"time_s":{"type":"number"},"message":{"type":"string"}},"required":["time_s","message"]}"#;

@@ -1,0 +1,127 @@
+//! A Rex run recorded to MCAP (`agent_mcap::McapRecorder` on the deterministic
+//! executor), read back with the `mcap` crate's reader: every link has a JSON
+//! channel with its type's schema and a raw channel with the exact bytes, the
+//! FSM channels hold the behaviour switches with the value of every predicate,
+//! the system is described in the metadata, and the JSON of a value is the
+//! value.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use agent_mcap::mcap;
+use agent_mcap::{McapRecorder, RecordOptions};
+use embodied::Executor;
+use rex_agent::a1::payload::State;
+use rex_agent::a1::{RexConfig, build};
+use rex_agent::mission::Mission;
+use rex_agent::world::WorldConfig;
+
+#[test]
+fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values() {
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("figure_eight").unwrap(),
+    );
+    config.visual_odometry = false;
+    let (system, _) = build(&config).unwrap();
+    let links = system.info().links.len();
+    let nodes = system.info().nodes.len();
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("rex_record.mcap");
+    let mut options = RecordOptions::default();
+    options.metadata.insert(
+        "run".into(),
+        BTreeMap::from([("mission".to_owned(), "figure_eight".to_owned())]),
+    );
+    let recorder = McapRecorder::create(&path, &system, options).unwrap();
+    let mut exec = Executor::with_observer(system, config.exec, recorder);
+    exec.run_for(Duration::from_secs(6)).unwrap();
+    let summary = exec.into_observer().finish().unwrap();
+    assert_eq!(summary.channels, 2 * links + nodes + 1);
+    assert_eq!(summary.undecodable, 0);
+    assert!(summary.messages > 10_000, "{summary:?}");
+
+    let bytes = std::fs::read(&path).unwrap();
+    let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
+    let mut switches = Vec::new();
+    let mut estimates = (0, 0);
+    let mut raw_q = Vec::new();
+    let mut json_q = Vec::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
+        let topic = m.channel.topic.as_str();
+        if !topic.starts_with("/raw/") {
+            assert_eq!(m.channel.message_encoding, "json", "{topic}");
+            let schema = m.channel.schema.as_ref().expect(topic);
+            assert_eq!(schema.encoding, "jsonschema", "{topic}");
+            serde_json::from_slice::<serde_json::Value>(&schema.data).unwrap();
+        }
+        if topic == "/fsm/c1" {
+            switches.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
+        }
+        if topic == "/links/e11/c1/q_est/to/c1" {
+            estimates.0 += 1;
+            json_q.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
+        }
+        if topic == "/raw/links/e11/c1/q_est/to/c1" {
+            estimates.1 += 1;
+            raw_q.push(postcard::from_bytes::<State>(&m.data).unwrap());
+        }
+    }
+    // Every link's two channels carried something in 6 s, but the camera's
+    // (no visual odometry here) and those that wait for events.
+    assert!(per_topic.len() > links, "{per_topic:?}");
+    assert_eq!(estimates.0, estimates.1);
+    assert!(estimates.0 > 100, "{estimates:?}");
+    // The JSON of each value is the value; the raw bytes are exact.
+    for (j, q) in json_q.iter().zip(&raw_q) {
+        assert_eq!(j, &serde_json::to_value(q).unwrap());
+    }
+    // c1 took the first plan: B1 -> B2 by `plan_valid`, with `plan_new` true.
+    let first = &switches[0];
+    assert_eq!(
+        (first["from"].as_str(), first["to"].as_str()),
+        (Some("B1"), Some("B2")),
+        "{switches:?}"
+    );
+    assert_eq!(first["condition"], "plan_valid");
+    assert_eq!(first["predicates"]["plan_new"], true);
+    assert_eq!(first["predicates"]["plan_valid"], true);
+    // The metadata: the system and the caller's.
+    let mut names = Vec::new();
+    for record in mcap::read::LinearReader::new(&bytes).unwrap() {
+        if let mcap::records::Record::Metadata(m) = record.unwrap() {
+            names.push(m.name.clone());
+            if m.name == "system" {
+                assert!(m.metadata.contains_key("node/c1"), "{:?}", m.metadata);
+            }
+        }
+    }
+    assert_eq!(names, ["run", "system"]);
+}
+
+#[test]
+fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("figure_eight").unwrap(),
+    );
+    config.visual_odometry = false;
+    let (system, _) = build(&config).unwrap();
+    let err = McapRecorder::create(
+        std::path::Path::new("/nonexistent-folder/run.mcap"),
+        &system,
+        RecordOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains("/nonexistent-folder/run.mcap"),
+        "{err}"
+    );
+}
