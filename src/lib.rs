@@ -28,3 +28,9 @@ pub use agent_spec as spec;
 /// `distributed`, because Zenoh's build is long.
 #[cfg(feature = "distributed")]
 pub use agent_zenoh as distributed;
+
+/// Recording runs to MCAP for Foxglove (the `agent-mcap` crate): the
+/// `McapRecorder` observer, buffer values as JSON with their types' schemas.
+/// Behind the feature `record`.
+#[cfg(feature = "record")]
+pub use agent_mcap as record;

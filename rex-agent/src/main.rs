@@ -9,13 +9,14 @@ use std::time::Duration;
 
 use clap::Parser;
 use embodied::RtConfig;
+use embodied::record::{McapRecorder, RecordOptions};
 use embodied::spec::Spec;
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
-use rex_agent::a1::{RexConfig, RunSettings, load_spec};
+use rex_agent::a1::{RexConfig, RunSettings, deployment, load_spec};
 use rex_agent::algorithms::planner::PlannerKind;
 use rex_agent::algorithms::planner::trajgen::Runtime;
 use rex_agent::mission::Mission;
-use rex_agent::run::{Outcome, Progress, run_mission, run_mission_realtime};
+use rex_agent::run::{Outcome, Progress, run_mission, run_mission_observed, run_mission_realtime};
 use rex_agent::{config, report};
 
 /// Run Rex, the skid-steer robot of Janiak & Zieliński, through a mission.
@@ -86,6 +87,13 @@ struct Cli {
     /// Do not write the report folder.
     #[arg(long, global = true)]
     no_report: bool,
+    /// Record the run to this MCAP file (open it in Foxglove): every buffer
+    /// transfer as JSON with its type's schema and as exact bytes, c1's and
+    /// every subsystem's behaviour switches with the value of each predicate,
+    /// errors, the spec and the settings. The simulated run only (not
+    /// `--realtime` or a deployment yet), one mission.
+    #[arg(long, global = true, value_name = "FILE")]
+    record: Option<PathBuf>,
     /// Print only the summary.
     #[arg(long, short, global = true)]
     quiet: bool,
@@ -261,6 +269,34 @@ fn printer(quiet: bool) -> impl FnMut(Progress<'_>) {
     }
 }
 
+/// What a recording says about its run: the spec, the settings, the versions.
+fn record_options(config: &RexConfig, spec: &Spec) -> RecordOptions {
+    let mut options = RecordOptions::default();
+    let text = std::fs::read_to_string(&config.spec).unwrap_or_default();
+    options.metadata.insert(
+        "spec".into(),
+        [
+            ("name".to_owned(), spec.name.clone()),
+            ("path".to_owned(), config.spec.display().to_string()),
+            ("text".to_owned(), text),
+        ]
+        .into(),
+    );
+    options.metadata.insert(
+        "run".into(),
+        [
+            ("mission".to_owned(), config.mission.name.clone()),
+            ("deployment".to_owned(), deployment(config).to_owned()),
+            ("planner".to_owned(), config.planner.name().to_owned()),
+            ("tracker".to_owned(), format!("{:?}", config.tracker)),
+            ("estimator".to_owned(), format!("{:?}", config.estimator)),
+            ("rex".to_owned(), env!("CARGO_PKG_VERSION").to_owned()),
+        ]
+        .into(),
+    );
+    options
+}
+
 fn run_one(
     cli: &Cli,
     config: &RexConfig,
@@ -297,6 +333,25 @@ fn run_one(
             if timing.rt_priority() { "yes" } else { "no" },
             timing.nodes.iter().map(|n| n.overruns).sum::<u64>(),
             timing.error_count
+        ));
+        outcome
+    } else if let Some(file) = &cli.record {
+        let options = record_options(config, spec);
+        let (outcome, recorder) = run_mission_observed(
+            config,
+            limit,
+            Duration::from_secs(5),
+            |system| Ok(McapRecorder::create(file, system, options)?),
+            progress,
+        )?;
+        let s = recorder.finish()?;
+        let size = std::fs::metadata(file).map_or(0, |m| m.len());
+        emit(format_args!(
+            "record: {} ({} messages on {} channels, {:.1} MB)\n",
+            file.display(),
+            s.messages,
+            s.channels,
+            size as f64 / 1e6
         ));
         outcome
     } else {
@@ -362,6 +417,19 @@ fn main() -> ExitCode {
                 eprintln!("rex: {e}");
                 return ExitCode::from(2);
             }
+        }
+    }
+    if let Some(file) = &cli.record {
+        let why = if cli.realtime || cli.deployment.is_some() {
+            Some("records the simulated run only (not --realtime or a deployment yet)")
+        } else if prepared.len() > 1 {
+            Some("records one mission (not `all`)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            eprintln!("rex: --record {}: {why}", file.display());
+            return ExitCode::from(2);
         }
     }
     if cli.process.is_some() || cli.command.is_some() {

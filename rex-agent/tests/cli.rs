@@ -154,3 +154,34 @@ fn bad_configuration_values_name_their_file_and_field() {
         "{text}"
     );
 }
+
+#[test]
+fn a_recording_is_written_or_refused_with_the_reason() {
+    let d = Dir::new("record");
+    let file = d.0.join("run.mcap");
+    let path = file.display().to_string();
+    // Not with the real-time executor, nor for several missions: exit 2 first.
+    for extra in [&["--realtime"][..], &["--mission", "all"][..]] {
+        let mut args = vec!["--no-report", "--no-vo", "--record", path.as_str()];
+        args.extend_from_slice(extra);
+        let (code, text) = rex(&args);
+        assert_eq!(code, Some(2), "{extra:?}: {text}");
+        assert!(text.contains("--record") && text.contains(&path), "{text}");
+        assert!(!file.exists(), "nothing ran");
+    }
+    // A short simulated run (it does not complete: exit 1) is recorded.
+    let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "2", "--record", &path]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains(&format!("record: {path} (")), "{text}");
+    let bytes = std::fs::read(&file).unwrap();
+    assert!(bytes.starts_with(b"\x89MCAP0\r\n"), "an MCAP file");
+    assert!(
+        bytes.ends_with(b"\x89MCAP0\r\n"),
+        "finished, with its footer"
+    );
+    // Into a folder that does not exist: the file is named.
+    let bad = d.0.join("missing/run.mcap").display().to_string();
+    let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "1", "--record", &bad]);
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains(&bad), "{text}");
+}

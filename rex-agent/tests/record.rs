@@ -1,4 +1,4 @@
-//! A Rex run recorded to MCAP (`agent_mcap::McapRecorder` on the deterministic
+//! A Rex run recorded to MCAP (`embodied::record::McapRecorder` on the deterministic
 //! executor), read back with the `mcap` crate's reader: every link has a JSON
 //! channel with its type's schema and a raw channel with the exact bytes, the
 //! FSM channels hold the behaviour switches with the value of every predicate,
@@ -14,9 +14,9 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use agent_mcap::mcap;
-use agent_mcap::{McapRecorder, RecordOptions};
 use embodied::Executor;
+use embodied::record::mcap;
+use embodied::record::{McapRecorder, RecordOptions};
 use rex_agent::a1::payload::State;
 use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;

@@ -8,7 +8,7 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use agent_mcap::json::{json_schema, to_json};
+use embodied::record::json::{json_schema, to_json};
 use rex_agent::a1::payload::{Ack, AckStatus, Execution, PlanOutcome};
 use rex_agent::a1::{RexConfig, build_deployment};
 use rex_agent::mission::Mission;

@@ -302,6 +302,9 @@ pub enum RunError {
     /// The executor stopped on an error.
     #[error(transparent)]
     Exec(#[from] ExecError),
+    /// The recording could not start.
+    #[error(transparent)]
+    Record(#[from] embodied::record::RecordError),
 }
 
 /// What a run reports while it goes.
@@ -330,10 +333,24 @@ pub fn run_mission(
     config: &RexConfig,
     limit: Duration,
     tick: Duration,
-    mut progress: impl FnMut(Progress<'_>),
+    progress: impl FnMut(Progress<'_>),
 ) -> Result<Outcome, RunError> {
+    run_mission_observed(config, limit, tick, |_| Ok(NoObserver), progress).map(|(out, _)| out)
+}
+
+/// [`run_mission`] with an observer of the executor, made by `observer` from
+/// the built system (a recorder, for example: [`embodied::record::McapRecorder`]);
+/// returns it with the outcome.
+pub fn run_mission_observed<O: embodied::Observer>(
+    config: &RexConfig,
+    limit: Duration,
+    tick: Duration,
+    observer: impl FnOnce(&embodied::System) -> Result<O, RunError>,
+    mut progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, O), RunError> {
     let (system, h) = build(config)?;
-    let mut exec: Executor<NoObserver> = Executor::new(system, config.exec);
+    let observer = observer(&system)?;
+    let mut exec: Executor<O> = Executor::with_observer(system, config.exec, observer);
     let mut out = Outcome {
         mission: config.mission.name.clone(),
         plans: config.mission.plans.len(),
@@ -408,7 +425,7 @@ pub fn run_mission(
     let sent = finish_counters(&exec, &h, &mut out.counters);
     out.counters.executor_errors = exec.report().error_count;
     out.reports = judge::judge(&out, config, sent);
-    Ok(out)
+    Ok((out, exec.into_observer()))
 }
 
 /// What the end of a run is read from: the deterministic executor, or a finished
@@ -474,8 +491,8 @@ pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters
     })
 }
 
-fn sample(
-    exec: &Executor<NoObserver>,
+fn sample<O: embodied::Observer>(
+    exec: &Executor<O>,
     h: &RexHandles,
     t: f64,
     truth: Option<[f64; 3]>,
