@@ -86,7 +86,9 @@ pub struct RecordSummary {
     pub messages: u64,
     /// Channels.
     pub channels: usize,
-    /// Values whose bytes did not read as their shape says (written raw only).
+    /// Values whose bytes did not read as their shape says, or that could not
+    /// be encoded (the former written raw only). A payload type without a
+    /// shape ([`agent_core::reflect`]) is written raw only, and not counted.
     pub undecodable: u64,
     /// Times the executor waited for the writer.
     pub waits: u64,
@@ -444,7 +446,10 @@ impl Output {
         self.write(raw, sequence, time, bytes)?;
         match value {
             Some(Ok(v)) => self.write(json, sequence, time, &v.to_string().into_bytes()),
-            _ => {
+            // A type without a shape is recorded raw only (its JSON channel
+            // stays empty): not a failure of this value.
+            None => Ok(()),
+            Some(Err(_)) => {
                 self.summary.undecodable += 1;
                 Ok(())
             }
