@@ -125,3 +125,82 @@ fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
         "{err}"
     );
 }
+
+/// Reads an MCAP file with the official Python reader: every message, JSON
+/// ones parsed with their schemas; prints the counts.
+const PY_READER: &str = r#"
+import json, sys
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as f:
+    reader = make_reader(f)
+    summary = reader.get_summary()
+    n = 0
+    topics = set()
+    for schema, channel, message in reader.iter_messages():
+        n += 1
+        topics.add(channel.topic)
+        if channel.message_encoding == "json":
+            json.loads(message.data)
+            assert schema is not None and schema.encoding == "jsonschema", channel.topic
+            json.loads(schema.data)
+    meta = sorted(m.name for m in reader.iter_metadata())
+    print(f"messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)}")
+"#;
+
+#[test]
+fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
+    // The reader is a test dependency the test command installs (PyPI `mcap`),
+    // in a virtual environment of its own under the target folder.
+    let tmp = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let venv = tmp.join("pyvenv-mcap");
+    let python = venv.join("bin/python");
+    if !python.exists() {
+        let made = std::process::Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()
+            .expect("python3 to make a virtual environment");
+        assert!(made.success(), "python3 -m venv {}", venv.display());
+    }
+    let installed = std::process::Command::new(&python)
+        .args(["-m", "pip", "install", "--quiet", "mcap>=1.2,<2"])
+        .status()
+        .expect("pip");
+    assert!(
+        installed.success(),
+        "pip install mcap (PyPI must be reachable)"
+    );
+
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("square").unwrap(),
+    );
+    config.visual_odometry = false;
+    let (system, _) = build(&config).unwrap();
+    let path = tmp.join("rex_python.mcap");
+    let recorder = McapRecorder::create(&path, &system, RecordOptions::default()).unwrap();
+    let mut exec = Executor::with_observer(system, config.exec, recorder);
+    exec.run_for(Duration::from_secs(3)).unwrap();
+    let summary = exec.into_observer().finish().unwrap();
+
+    let out = std::process::Command::new(&python)
+        .args(["-c", PY_READER])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figure = |key: &str| -> u64 {
+        text.split_whitespace()
+            .find_map(|w| w.strip_prefix(&format!("{key}=")))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no {key}= in {text}"))
+    };
+    assert_eq!(figure("messages"), summary.messages, "{text}");
+    assert_eq!(figure("channels") as usize, summary.channels, "{text}");
+    assert!(text.contains("metadata=system"), "{text}");
+}
