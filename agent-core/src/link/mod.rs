@@ -30,6 +30,7 @@ use crate::trace::{LinkInfo, Observer, TransferEvent};
 mod by_name;
 pub mod endpoint;
 pub mod remote;
+pub mod shape;
 pub(crate) mod thread;
 
 /// The halves of links between threads, by link index: each thread of the
