@@ -30,7 +30,20 @@ pub use agent_spec as spec;
 pub use agent_zenoh as distributed;
 
 /// Recording runs to MCAP for Foxglove (the `agent-mcap` crate): the
-/// `McapRecorder` observer, buffer values as JSON with their types' schemas.
+/// `McapRecorder` observer, buffer values as JSON with their types' schemas,
+/// derived channels (Foxglove's images and poses), reading a recording back.
 /// Behind the feature `record`.
 #[cfg(feature = "record")]
 pub use agent_mcap as record;
+
+/// Replaying one subsystem against a recording, bit for bit: `replay(&recording,
+/// system, "c1", options)` says `Equivalent` or gives the first `Divergence`.
+/// Behind the feature `record`.
+#[cfg(feature = "record")]
+pub mod replay {
+    pub use agent_mcap::replay::{
+        Difference, Divergence, ReplayError, ReplayOptions, Replayed, first_difference, replay,
+        replay_file,
+    };
+    pub use agent_mcap::{ReadError, Recording};
+}

@@ -410,6 +410,41 @@ impl<O: Observer> Executor<O> {
             .map(|c| *c.borrow().stats())
     }
 
+    /// Run only `node` from now on: every other node is never stepped again (a
+    /// replay: the others' values come from a recording, through
+    /// [`Executor::inject`]). Its instants stay those of its period.
+    pub fn isolate(&mut self, node: crate::NodeId) {
+        for (i, next) in self.next.iter_mut().enumerate() {
+            if i != node.index() {
+                *next = u64::MAX;
+            }
+        }
+    }
+
+    /// Put a value into link `link` as if its sender had sent it with `stamp`:
+    /// `body` is the value's postcard encoding (what a recording keeps). The
+    /// receiver reads it at its next activation, as any value.
+    pub fn inject(
+        &mut self,
+        link: usize,
+        body: &[u8],
+        stamp: crate::Stamp,
+    ) -> Result<(), crate::InjectError> {
+        self.channels
+            .stats
+            .get(link)
+            .ok_or(crate::InjectError::NoLink(link))?
+            .borrow_mut()
+            .put_encoded(body, stamp)
+    }
+
+    /// Drop the values waiting in link `link` (those no isolated node reads).
+    pub fn discard(&mut self, link: usize) {
+        if let Some(c) = self.channels.stats.get(link) {
+            c.borrow_mut().clear();
+        }
+    }
+
     /// Values waiting in a link (0 or 1 for a sample link).
     pub fn pending(&self, link: LinkId) -> Option<usize> {
         self.channels

@@ -56,8 +56,10 @@ pub use fsm::{
     Step, Valuation,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
-pub use link::remote::{Inbox, Publisher, Transport, TransportError, TypeShape, reflect};
-pub use link::{Access, LinkId, LinkStats, Port};
+pub use link::remote::{
+    Inbox, Publisher, Transport, TransportError, TypeShape, WireHeader, reflect,
+};
+pub use link::{Access, InjectError, LinkId, LinkStats, Port};
 pub use realtime::{
     Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
 };

@@ -145,6 +145,17 @@ impl System {
     pub fn payload_shape(&self, link: usize) -> Option<crate::TypeShape> {
         self.channels.get(link)?.shape()
     }
+
+    /// The node of this name.
+    pub fn node(&self, name: &str) -> Option<NodeId> {
+        self.info.nodes.iter().position(|n| n.name == name).map(NodeId)
+    }
+
+    /// The fingerprint of the payload type of link `link` ([`crate::link::remote::fingerprint`]):
+    /// what a recording keeps to tell the same type from a changed one.
+    pub fn payload_fingerprint(&self, link: usize) -> Option<u64> {
+        self.channels.get(link).map(|c| c.fingerprint())
+    }
 }
 
 /// Builds a [`System`]: agents, their subsystems and drivers, and the links.

@@ -1,18 +1,29 @@
-//! Recording runs of embodied agents so that standard tools read them.
+//! Recording runs of embodied agents so that standard tools read them, and
+//! replaying a subsystem against a recording.
 //!
 //! * [`json`]: buffer values as JSON with a JSON schema derived from the
 //!   payload type ([`agent_core::reflect`]), the form Foxglove plots any field
 //!   of, read from the postcard bytes the executors' observers produce
 //!   ([`agent_core::trace::ErasedPayload::encode`]) without the Rust type, so a
 //!   writer thread does it off the executor's thread;
-//! * [`record`]: [`McapRecorder`], the observer that writes a run to MCAP.
-//!
-//! Replay, merging the files of a distributed run and Foxglove's well-known
-//! schemas for poses and images build on these (see the README's roadmap).
+//! * [`record`]: [`McapRecorder`], the observer that writes a run to MCAP, and
+//!   [`Derive`], channels derived from buffers (Foxglove's images and poses);
+//! * [`read`]: [`Recording`], a file read back, with errors that name the
+//!   offset of a truncated or damaged part;
+//! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
+//!   and behaviour switches compared bit for bit with the recording.
 
 pub mod json;
+pub mod read;
 pub mod record;
+pub mod replay;
 
 /// The MCAP crate this one writes with (to read recordings back).
 pub use mcap;
-pub use record::{McapRecorder, RecordError, RecordOptions, RecordSummary};
+pub use read::{ReadError, Recording};
+pub use record::{
+    Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary,
+};
+pub use replay::{
+    Difference, Divergence, ReplayError, ReplayOptions, Replayed, replay, replay_file,
+};

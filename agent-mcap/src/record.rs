@@ -10,14 +10,23 @@
 //! * `/links/<from>/<port>/to/<to>` for every link (`<port>` with `/` for `.`):
 //!   the value as JSON, with the JSON schema of its type (Foxglove plots any
 //!   field); log time = the sender's instant, sequence = the link's count;
-//! * the same topic under `/raw/...`: the value's exact postcard bytes (for
-//!   replay: JSON cannot say NaN);
+//! * the same topic under `/raw/...`: the value exactly as a link between
+//!   processes carries it (encoding `embodied-wire/1`: the 41-byte header of
+//!   [`agent_core::WireHeader`] with the type's fingerprint, the link's count
+//!   and the sender's stamp, then the value's postcard bytes): what a replay
+//!   reads (JSON cannot say NaN); a value larger than
+//!   [`RecordOptions::json_max_bytes`] is recorded here only;
+//! * channels derived from links ([`Derive`]): for example Foxglove's images
+//!   and poses;
 //! * `/fsm/<node>`: each behaviour switch, with the arc and the value of every
 //!   predicate at the decision, and the end of a final behaviour;
 //! * `/errors`: every error the executor met, with its time.
 //!
-//! Metadata `system`: the nodes, behaviours and links; and whatever the caller
-//! adds ([`RecordOptions::metadata`]: the spec, the deployment, the settings).
+//! Metadata `system`: the nodes, behaviours and links; `end`: when the run
+//! ended and how many iterations each node made (written by
+//! [`McapRecorder::finish`]: a file without it was not finished); and whatever
+//! the caller adds ([`RecordOptions::metadata`]: the spec, the deployment, the
+//! settings).
 //! Queuing is lossless: when the writer falls behind by
 //! [`RecordOptions::queue`] records, the executor waits (counted). A writer
 //! that fails (disk full) stops the recording; the run goes on, and
@@ -30,20 +39,71 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, channel, sync_channel};
 use std::thread::JoinHandle;
 
-use agent_core::trace::{ErasedPayload, Observer, SystemInfo, TransferEvent, TransitionEvent};
-use agent_core::{ExecError, Step, System, Time, TypeShape};
+use agent_core::link::remote::HEADER_LEN;
+use agent_core::trace::{
+    ActionEvent, ErasedPayload, LinkInfo, NodeInfo, Observer, SystemInfo, TransferEvent, TransitionEvent,
+};
+use agent_core::{ExecError, Step, System, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
 
 use crate::json::{json_schema, to_json};
 
+/// The message encoding of the raw channels.
+pub const WIRE_ENCODING: &str = "embodied-wire/1";
+
+/// A channel derived from the values of some links, written beside their own:
+/// what a robotics user expects to look at in Foxglove (an image, a pose, a
+/// path) made from a buffer's value. Runs on the writer thread.
+pub trait Derive: Send {
+    /// The channel this adds for `link` (its index and description), or
+    /// `None`. Called once per link when the recording is created.
+    fn channel(&mut self, link: usize, info: &LinkInfo) -> Option<DerivedChannel>;
+    /// The message for one value of a link it asked for (`body`: the value's
+    /// postcard bytes; `time`: the sender's instant), written into `out`
+    /// (empty); `false`: no message for this value.
+    fn message(&mut self, link: usize, time: Time, body: &[u8], out: &mut Vec<u8>) -> bool;
+}
+
+/// A channel a [`Derive`] adds.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DerivedChannel {
+    /// The topic.
+    pub topic: String,
+    /// The schema's name (`foxglove.PoseInFrame`).
+    pub schema_name: String,
+    /// The schema's encoding (`jsonschema`).
+    pub schema_encoding: String,
+    /// The schema.
+    pub schema: Vec<u8>,
+    /// The messages' encoding (`json`).
+    pub message_encoding: String,
+}
+
 /// How a recording is made.
-#[derive(Clone, Debug)]
 pub struct RecordOptions {
     /// Records the writer may fall behind by before the executor waits.
     pub queue: usize,
     /// Metadata records to add, by name: each a map of strings (the spec's
     /// text, the deployment, the run's settings, versions).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// A value whose encoding is longer than this is recorded on its raw
+    /// channel only (an image as a JSON array of numbers costs more than the
+    /// run; a [`Derive`] can show it compressed). Counted in
+    /// [`RecordSummary::raw_only`].
+    pub json_max_bytes: usize,
+    /// Derived channels.
+    pub derived: Vec<Box<dyn Derive>>,
+}
+
+impl std::fmt::Debug for RecordOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RecordOptions")
+            .field("queue", &self.queue)
+            .field("metadata", &self.metadata.keys().collect::<Vec<_>>())
+            .field("json_max_bytes", &self.json_max_bytes)
+            .field("derived", &self.derived.len())
+            .finish()
+    }
 }
 
 impl Default for RecordOptions {
@@ -51,6 +111,8 @@ impl Default for RecordOptions {
         RecordOptions {
             queue: 65_536,
             metadata: BTreeMap::new(),
+            json_max_bytes: 16 * 1024,
+            derived: Vec::new(),
         }
     }
 }
@@ -90,6 +152,9 @@ pub struct RecordSummary {
     /// be encoded (the former written raw only). A payload type without a
     /// shape ([`agent_core::reflect`]) is written raw only, and not counted.
     pub undecodable: u64,
+    /// Values recorded on their raw channel only, being longer than
+    /// [`RecordOptions::json_max_bytes`].
+    pub raw_only: u64,
     /// Times the executor waited for the writer.
     pub waits: u64,
 }
@@ -110,6 +175,10 @@ enum Record {
         time: Time,
         message: String,
     },
+    End {
+        time: Time,
+        iterations: Vec<u64>,
+    },
 }
 
 /// An [`Observer`] that writes the run to an MCAP file (see the module's
@@ -122,6 +191,11 @@ pub struct McapRecorder {
     path: PathBuf,
     waits: u64,
     encode_failures: u64,
+    /// Per link: the payload's fingerprint and the values sent so far.
+    wire: Vec<(u64, u64)>,
+    /// Per node: iterations made; and the last instant seen.
+    iterations: Vec<u64>,
+    last: Time,
 }
 
 impl std::fmt::Debug for McapRecorder {
@@ -140,6 +214,8 @@ struct LinkChannels {
     /// (`serde-reflection`'s formats cannot cross threads).
     shape: Option<String>,
     sequence: u32,
+    /// Derived channels: (the derive, its channel).
+    derived: Vec<(usize, u16)>,
 }
 
 impl McapRecorder {
@@ -148,7 +224,7 @@ impl McapRecorder {
     pub fn create(
         path: &Path,
         system: &System,
-        options: RecordOptions,
+        mut options: RecordOptions,
     ) -> Result<McapRecorder, RecordError> {
         let file = File::create(path).map_err(|source| RecordError::Create {
             path: path.to_owned(),
@@ -169,6 +245,7 @@ impl McapRecorder {
             .map_err(fail)?;
         let info = system.info().clone();
         let mut links = Vec::with_capacity(info.links.len());
+        let mut wire = Vec::with_capacity(info.links.len());
         let none = BTreeMap::new();
         let mut topics = std::collections::BTreeSet::new();
         for (k, link) in info.links.iter().enumerate() {
@@ -189,15 +266,33 @@ impl McapRecorder {
                 None => 0,
             };
             let json = w.add_channel(schema, &topic, "json", &none).map_err(fail)?;
-            let raw_schema = w.add_schema(link.payload, "postcard", &[]).map_err(fail)?;
+            let fingerprint = system.payload_fingerprint(k).unwrap_or(0);
+            let raw_meta = BTreeMap::from([
+                ("link".to_owned(), link.name.clone()),
+                ("fingerprint".to_owned(), format!("{fingerprint:016x}")),
+            ]);
             let raw = w
-                .add_channel(raw_schema, &format!("/raw{topic}"), "postcard", &none)
+                .add_channel(0, &format!("/raw{topic}"), WIRE_ENCODING, &raw_meta)
                 .map_err(fail)?;
+            let mut derived = Vec::new();
+            for (d, derive) in options.derived.iter_mut().enumerate() {
+                if let Some(c) = derive.channel(k, link) {
+                    let schema = w
+                        .add_schema(&c.schema_name, &c.schema_encoding, &c.schema)
+                        .map_err(fail)?;
+                    let id = w
+                        .add_channel(schema, &c.topic, &c.message_encoding, &none)
+                        .map_err(fail)?;
+                    derived.push((d, id));
+                }
+            }
+            wire.push((fingerprint, 0));
             links.push(LinkChannels {
                 json,
                 raw,
                 shape: shape.and_then(|s| serde_json::to_string(&(s.root, s.registry)).ok()),
                 sequence: 0,
+                derived,
             });
         }
         let fsm_schema = w
@@ -231,7 +326,11 @@ impl McapRecorder {
         }
         let (tx, rx) = sync_channel::<Record>(options.queue.max(1));
         let (give_back, spare) = channel::<Vec<u8>>();
-        let channels = links.len() * 2 + fsm.len() + 1;
+        let channels = links.len() * 2
+            + links.iter().map(|l| l.derived.len()).sum::<usize>()
+            + fsm.len()
+            + 1;
+        let nodes = info.nodes.len();
         let out = Output {
             w,
             path: path.to_owned(),
@@ -239,6 +338,9 @@ impl McapRecorder {
             links,
             fsm,
             errors,
+            derived: options.derived,
+            json_max_bytes: options.json_max_bytes,
+            scratch: Vec::new(),
             summary: RecordSummary {
                 channels,
                 ..RecordSummary::default()
@@ -258,6 +360,9 @@ impl McapRecorder {
             path: path.to_owned(),
             waits: 0,
             encode_failures: 0,
+            wire,
+            iterations: vec![0; nodes],
+            last: Time::ZERO,
         })
     }
 
@@ -282,6 +387,11 @@ impl McapRecorder {
     /// Close the file (its summary and index) and say what it holds, or why
     /// the recording failed.
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
+        let iterations = std::mem::take(&mut self.iterations);
+        self.send(Record::End {
+            time: self.last,
+            iterations,
+        });
         self.tx = None;
         let writer = self
             .writer
@@ -316,9 +426,26 @@ impl Observer for McapRecorder {
         });
     }
 
+    fn action(&mut self, e: &ActionEvent) {
+        if let Some(n) = self.iterations.get_mut(e.node) {
+            *n += 1;
+        }
+        self.last = self.last.max(e.time);
+    }
+
     fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
         let mut bytes = self.spare.try_recv().unwrap_or_default();
-        bytes.clear();
+        let Some((fingerprint, count)) = self.wire.get_mut(e.link) else {
+            return;
+        };
+        *count += 1;
+        WireHeader {
+            fingerprint: *fingerprint,
+            epoch: 0,
+            seq: *count,
+            stamp: e.stamp,
+        }
+        .write(&mut bytes);
         if value.encode(&mut bytes).is_err() {
             self.encode_failures += 1;
             return;
@@ -340,6 +467,7 @@ impl Observer for McapRecorder {
     fn start(&mut self, _system: &SystemInfo) {}
 }
 
+
 fn small(i: usize) -> u32 {
     u32::try_from(i).unwrap_or(u32::MAX)
 }
@@ -352,6 +480,9 @@ struct Output {
     links: Vec<LinkChannels>,
     fsm: Vec<u16>,
     errors: u16,
+    derived: Vec<Box<dyn Derive>>,
+    json_max_bytes: usize,
+    scratch: Vec<u8>,
     summary: RecordSummary,
 }
 
@@ -392,6 +523,21 @@ impl Output {
                         &data.to_string().into_bytes(),
                     )?;
                     error_count += 1;
+                }
+                Record::End { time, iterations } => {
+                    let mut end = BTreeMap::from([
+                        ("time_ns".to_owned(), time.as_nanos().to_string()),
+                        ("finished".to_owned(), "true".to_owned()),
+                    ]);
+                    for (n, k) in self.info.nodes.iter().zip(&iterations) {
+                        end.insert(format!("iterations/{}", n.name), k.to_string());
+                    }
+                    self.w
+                        .write_metadata(&mcap::records::Metadata {
+                            name: "end".into(),
+                            metadata: end,
+                        })
+                        .map_err(|e| self.fail(&e))?;
                 }
             }
         }
@@ -442,8 +588,29 @@ impl Output {
         let sequence = l.sequence;
         l.sequence = l.sequence.wrapping_add(1);
         let (json, raw) = (l.json, l.raw);
-        let value = shape.map(|s| to_json(s, bytes));
         self.write(raw, sequence, time, bytes)?;
+        let body = bytes.get(HEADER_LEN..).unwrap_or_default();
+        for k in 0..self.links[link as usize].derived.len() {
+            let (d, channel) = self.links[link as usize].derived[k];
+            let mut out = std::mem::take(&mut self.scratch);
+            out.clear();
+            let made = self
+                .derived
+                .get_mut(d)
+                .is_some_and(|derive| derive.message(link as usize, time, body, &mut out));
+            let written = if made {
+                self.write(channel, sequence, time, &out)
+            } else {
+                Ok(())
+            };
+            self.scratch = out;
+            written?;
+        }
+        if body.len() > self.json_max_bytes {
+            self.summary.raw_only += 1;
+            return Ok(());
+        }
+        let value = shape.map(|s| to_json(s, body));
         match value {
             Some(Ok(v)) => self.write(json, sequence, time, &v.to_string().into_bytes()),
             // A type without a shape is recorded raw only (its JSON channel
@@ -466,51 +633,7 @@ impl Output {
         let Some(n) = self.info.nodes.get(node as usize) else {
             return Ok(());
         };
-        let name = |b: usize| n.behaviours.get(b).cloned().unwrap_or_default();
-        let predicates = n
-            .fsm
-            .as_ref()
-            .map(|f| f.predicates.clone())
-            .unwrap_or_default();
-        let data = match step {
-            Step::Entered {
-                from,
-                arc,
-                to,
-                predicates: values,
-            } => {
-                let arc_text = n
-                    .fsm
-                    .as_ref()
-                    .and_then(|f| {
-                        f.arcs
-                            .iter()
-                            .filter(|(a, _, _)| *a == name(from))
-                            .nth(arc)
-                            .map(|(_, _, c)| c.clone())
-                    })
-                    .unwrap_or_default();
-                let values: serde_json::Map<String, Value> = predicates
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, p)| Some((p.clone(), Value::Bool(values.get(i)?))))
-                    .collect();
-                json!({
-                    "time_s": time.as_secs_f64(),
-                    "iteration": iteration,
-                    "from": name(from),
-                    "to": name(to),
-                    "arc": arc,
-                    "condition": arc_text,
-                    "predicates": values,
-                })
-            }
-            Step::Finished | Step::Run => json!({
-                "time_s": time.as_secs_f64(),
-                "iteration": iteration,
-                "finished": true,
-            }),
-        };
+        let data = transition_json(n, time, iteration, step);
         let channel = self.fsm[node as usize];
         self.write(
             channel,
@@ -518,6 +641,56 @@ impl Output {
             time,
             &data.to_string().into_bytes(),
         )
+    }
+}
+
+/// A behaviour switch of node `n` as recorded on its `/fsm/<node>` channel
+/// (and as a replay compares it).
+pub(crate) fn transition_json(n: &NodeInfo, time: Time, iteration: u64, step: Step) -> Value {
+    let name = |b: usize| n.behaviours.get(b).cloned().unwrap_or_default();
+    let predicates = n
+        .fsm
+        .as_ref()
+        .map(|f| f.predicates.clone())
+        .unwrap_or_default();
+    match step {
+        Step::Entered {
+            from,
+            arc,
+            to,
+            predicates: values,
+        } => {
+            let arc_text = n
+                .fsm
+                .as_ref()
+                .and_then(|f| {
+                    f.arcs
+                        .iter()
+                        .filter(|(a, _, _)| *a == name(from))
+                        .nth(arc)
+                        .map(|(_, _, c)| c.clone())
+                })
+                .unwrap_or_default();
+            let values: serde_json::Map<String, Value> = predicates
+                .iter()
+                .enumerate()
+                .filter_map(|(i, p)| Some((p.clone(), Value::Bool(values.get(i)?))))
+                .collect();
+            json!({
+                "time_s": time.as_secs_f64(),
+                "iteration": iteration,
+                "from": name(from),
+                "to": name(to),
+                "arc": arc,
+                "condition": arc_text,
+                "predicates": values,
+            })
+        }
+        Step::Finished | Step::Run => json!({
+            "time_s": time.as_secs_f64(),
+            "iteration": iteration,
+            "finished": true,
+        }),
     }
 }
 

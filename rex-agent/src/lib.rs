@@ -21,6 +21,7 @@ pub mod a1;
 pub mod algorithms;
 pub mod config;
 pub mod mission;
+pub mod record;
 pub mod report;
 pub mod run;
 pub mod soak;

@@ -139,6 +139,21 @@ enum Command {
         #[arg(long, value_name = "PROCESS@SECONDS", value_parser = parse_fault)]
         kill: Vec<(String, f64)>,
     },
+    /// Replay one subsystem of a recorded run (`--record FILE.mcap`) against
+    /// the recording: build Rex from this program's code with the recorded
+    /// settings (a flag given here overrides one: `--spec`, `--planner`...),
+    /// feed the subsystem the recorded inputs at the recorded instants, and
+    /// compare what it sends and its behaviour switches with the recording,
+    /// bit for bit. Prints `equivalent: ...` (exit 0) or the first divergence
+    /// (exit 1); exit 2 when the file cannot be read.
+    Replay {
+        /// The recording.
+        #[arg(value_name = "FILE.mcap")]
+        file: PathBuf,
+        /// The subsystem to replay: c1, e11, r11, or a partner's (c2, c3, r31).
+        #[arg(long, value_name = "NAME")]
+        subsystem: String,
+    },
 }
 
 /// `PROCESS@SECONDS` of `--kill`.
@@ -189,6 +204,12 @@ fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
         ),
         None => (RunSettings::shipped()?, config::config_dir()),
     };
+    overrides(cli, &mut s)?;
+    Ok((s, base))
+}
+
+/// The command line's flags over the settings `s`.
+fn overrides(cli: &Cli, s: &mut RunSettings) -> Result<(), config::ConfigError> {
     if let Some(m) = &cli.mission {
         s.mission = m.clone();
     }
@@ -220,7 +241,30 @@ fn settings(cli: &Cli) -> Result<(RunSettings, PathBuf), config::ConfigError> {
     if cli.no_vo {
         s.visual_odometry = false;
     }
-    Ok((s, base))
+    Ok(())
+}
+
+/// The settings `s` (paths relative to `base`) with every path made absolute,
+/// as `prepare` resolves them: what a recording keeps so that a replay builds
+/// the same Rex from any folder.
+fn self_contained(cli: &Cli, s: &RunSettings, base: &Path) -> RunSettings {
+    let mut s = s.clone();
+    let absolute = |p: &Path| std::path::absolute(base.join(p)).unwrap_or_else(|_| base.join(p));
+    s.world = s.world.as_deref().map(absolute);
+    s.spec = s.spec.as_deref().map(absolute);
+    if !Mission::SHIPPED.contains(&s.mission.as_str()) {
+        let mission_base = if cli.mission.is_some() {
+            std::env::current_dir().unwrap_or_default()
+        } else {
+            base.to_owned()
+        };
+        let path = mission_base.join(&s.mission);
+        s.mission = std::path::absolute(&path)
+            .unwrap_or(path)
+            .display()
+            .to_string();
+    }
+    s
 }
 
 /// The configuration of one mission, checked: the run's settings, the world,
@@ -269,9 +313,11 @@ fn printer(quiet: bool) -> impl FnMut(Progress<'_>) {
     }
 }
 
-/// What a recording says about its run: the spec, the settings, the versions.
-fn record_options(config: &RexConfig, spec: &Spec) -> RecordOptions {
+/// What a recording says about its run: the spec, the settings (whole, as RON:
+/// what `rex replay` builds Rex from), the versions.
+fn record_options(config: &RexConfig, spec: &Spec, settings: &RunSettings) -> RecordOptions {
     let mut options = RecordOptions::default();
+    options.derived = rex_agent::record::derived();
     let text = std::fs::read_to_string(&config.spec).unwrap_or_default();
     options.metadata.insert(
         "spec".into(),
@@ -291,6 +337,11 @@ fn record_options(config: &RexConfig, spec: &Spec) -> RecordOptions {
             ("tracker".to_owned(), format!("{:?}", config.tracker)),
             ("estimator".to_owned(), format!("{:?}", config.estimator)),
             ("rex".to_owned(), env!("CARGO_PKG_VERSION").to_owned()),
+            (
+                "settings".to_owned(),
+                ron::ser::to_string_pretty(settings, ron::ser::PrettyConfig::default())
+                    .unwrap_or_default(),
+            ),
         ]
         .into(),
     );
@@ -299,9 +350,8 @@ fn record_options(config: &RexConfig, spec: &Spec) -> RecordOptions {
 
 fn run_one(
     cli: &Cli,
-    config: &RexConfig,
-    spec: &Spec,
-    limit: Duration,
+    (config, spec, limit): (&RexConfig, &Spec, Duration),
+    settings: &RunSettings,
 ) -> Result<Outcome, Box<dyn std::error::Error>> {
     if !cli.quiet {
         eprintln!(
@@ -336,7 +386,7 @@ fn run_one(
         ));
         outcome
     } else if let Some(file) = &cli.record {
-        let options = record_options(config, spec);
+        let options = record_options(config, spec, settings);
         let (outcome, recorder) = run_mission_observed(
             config,
             limit,
@@ -385,6 +435,9 @@ fn run_one(
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(Command::Replay { file, subsystem }) = &cli.command {
+        return replay(&cli, file, subsystem);
+    }
     let (settings, base) = match settings(&cli) {
         Ok(v) => v,
         Err(e) => {
@@ -406,11 +459,13 @@ fn main() -> ExitCode {
     }
     // Every mission's configuration is checked before anything runs (exit 2).
     let mut prepared = Vec::new();
+    let mut recorded = Vec::new();
     for mission in missions {
         let s = RunSettings {
             mission,
             ..settings.clone()
         };
+        recorded.push(self_contained(&cli, &s, &base));
         match prepare(&cli, &s, &base) {
             Ok(p) => prepared.push(p),
             Err(e) => {
@@ -437,8 +492,8 @@ fn main() -> ExitCode {
     }
     let mut lines = Vec::new();
     let mut ok = true;
-    for (config, spec, limit) in &prepared {
-        match run_one(&cli, config, spec, *limit) {
+    for ((config, spec, limit), settings) in prepared.iter().zip(&recorded) {
+        match run_one(&cli, (config, spec, *limit), settings) {
             Ok(outcome) => {
                 ok &= outcome.succeeded();
                 lines.push(outcome.summary_line());
@@ -547,7 +602,7 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
     };
     let faults = match &cli.command {
         Some(Command::Launch { kill }) => kill.clone(),
-        None => Vec::new(),
+        _ => Vec::new(),
     };
     if let Some((process, _)) = faults
         .iter()
@@ -626,4 +681,71 @@ fn spec_runs_process(spec: &Spec, deployment: &str, process: &str) -> bool {
 fn distributed(_: &Cli, _: &[(RexConfig, Spec, Duration)]) -> ExitCode {
     eprintln!("rex: built without the feature `distributed`: no deployments over Zenoh");
     ExitCode::from(2)
+}
+
+/// `rex replay FILE.mcap --subsystem NAME`.
+fn replay(cli: &Cli, file: &Path, subsystem: &str) -> ExitCode {
+    use embodied::replay::{ReplayOptions, Recording, replay_file};
+    // The metadata first (no message kept): the settings to build Rex from.
+    let head = match Recording::open_filtered(file, |_| false) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("rex replay: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let Some(text) = head.metadata.get("run").and_then(|m| m.get("settings")) else {
+        eprintln!(
+            "rex replay: {} does not say the settings of its run (not recorded by `rex --record`?)",
+            file.display()
+        );
+        return ExitCode::from(2);
+    };
+    let mut s: RunSettings = match ron::from_str(text) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!(
+                "rex replay: the settings recorded in {} do not read: {e}",
+                file.display()
+            );
+            return ExitCode::from(2);
+        }
+    };
+    let here = std::env::current_dir().unwrap_or_default();
+    let built = overrides(cli, &mut s)
+        .map_err(|e| e.to_string())
+        .and_then(|()| s.resolve(&here).map_err(|e| e.to_string()))
+        .and_then(|config| {
+            rex_agent::a1::build(&config)
+                .map(|(system, _)| (system, config.exec))
+                .map_err(|e| e.to_string())
+        });
+    let (system, exec) = match built {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("rex replay: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let start = std::time::Instant::now();
+    let result = replay_file(file, system, subsystem, ReplayOptions { exec });
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    match result {
+        Ok(r) => {
+            emit(format_args!("replay {subsystem}: {r}\n"));
+            emit(format_args!(
+                "replay_ms={ms:.0} equivalent={}\n",
+                if r.is_equivalent() { "yes" } else { "no" }
+            ));
+            if r.is_equivalent() {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+        Err(e) => {
+            eprintln!("rex replay: {e}");
+            ExitCode::from(2)
+        }
+    }
 }

@@ -265,11 +265,51 @@ impl<T: Clone> Channel<T> {
 pub(crate) trait AnyChannel {
     fn stats(&self) -> &LinkStats;
     fn pending(&self) -> usize;
+    /// Put a value given as its postcard encoding (a replay's input).
+    fn put_encoded(&mut self, body: &[u8], stamp: Stamp) -> Result<(), InjectError>;
+    /// Drop every value waiting (a replay drains what no node reads).
+    fn clear(&mut self);
 }
 
-impl<T> AnyChannel for Channel<T> {
+/// A value could not be put into a link ([`Executor::inject`](crate::Executor::inject)).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum InjectError {
+    /// No link has this index.
+    #[error("no link {0}")]
+    NoLink(usize),
+    /// The bytes are not a value of the link's payload type.
+    #[error("a `{type_name}` that does not decode: {message}")]
+    Decode {
+        /// The payload type.
+        type_name: &'static str,
+        /// postcard's reason.
+        message: String,
+    },
+    /// The link's queue is full.
+    #[error("the link's queue is full ({bound} values)")]
+    Full {
+        /// Its bound.
+        bound: usize,
+    },
+}
+
+impl<T: Payload> AnyChannel for Channel<T> {
     fn stats(&self) -> &LinkStats {
         &self.stats
+    }
+    fn put_encoded(&mut self, body: &[u8], stamp: Stamp) -> Result<(), InjectError> {
+        let value = postcard::from_bytes::<T>(body).map_err(|e| InjectError::Decode {
+            type_name: std::any::type_name::<T>(),
+            message: e.to_string(),
+        })?;
+        self.put(&mut Some(value), true, stamp)
+            .map_err(|bound| InjectError::Full { bound })
+    }
+    fn clear(&mut self) {
+        match &mut self.state {
+            ChannelState::Sample { unread, .. } => *unread = false,
+            ChannelState::Queue { items, .. } => items.clear(),
+        }
     }
     fn pending(&self) -> usize {
         match &self.state {

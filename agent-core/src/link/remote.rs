@@ -108,14 +108,35 @@ pub fn link_key(prefix: &str, info: &SystemInfo, link: &LinkInfo) -> String {
     key
 }
 
-/// A header, decoded.
+/// A message's header, decoded (see the module's table): what a link carries
+/// between processes, and what a recording keeps with each value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Header {
-    fingerprint: u64,
-    epoch: u64,
-    seq: u64,
-    stamp: Stamp,
+pub struct WireHeader {
+    /// The payload type's [`fingerprint`].
+    pub fingerprint: u64,
+    /// The sender's epoch.
+    pub epoch: u64,
+    /// The sequence number, from 1, per sender and epoch.
+    pub seq: u64,
+    /// The sender's iteration and instant.
+    pub stamp: Stamp,
 }
+
+impl WireHeader {
+    /// Write the header into `out` (cleared first); the value's postcard
+    /// encoding follows it.
+    pub fn write(&self, out: &mut Vec<u8>) {
+        write_header(out, self);
+    }
+
+    /// Split a message into its header and the value's postcard encoding.
+    pub fn read(message: &[u8]) -> Result<(WireHeader, &[u8]), RemoteProblem> {
+        let header = read_header(message)?;
+        Ok((header, &message[HEADER_LEN..]))
+    }
+}
+
+type Header = WireHeader;
 
 fn write_header(out: &mut Vec<u8>, h: &Header) {
     out.clear();

@@ -1,0 +1,287 @@
+//! Reading a recording back: [`Recording::open`] walks the file record by
+//! record (the `mcap` crate parses each record and decompresses and checks each
+//! chunk), so that a file cut short or damaged is an error that names the
+//! offset where it goes wrong, never a panic or a silent end.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use mcap::records::Record;
+
+/// The magic bytes that open and close an MCAP file.
+const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
+
+/// Why a recording could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file could not be read.
+    #[error("reading {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS's reason.
+        source: std::io::Error,
+    },
+    /// The file does not start as an MCAP file does.
+    #[error("{path} is not an MCAP file (it does not start with MCAP's magic bytes)")]
+    NotMcap {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file ends before its end: the run was cut short (the recorder did
+    /// not finish), or the file was truncated.
+    #[error("{path} is truncated at offset {offset}: {what}")]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// Where the missing part starts.
+        offset: u64,
+        /// What was expected there.
+        what: String,
+    },
+    /// A record cannot be read: the file is damaged.
+    #[error("{path} is corrupt at offset {offset}: {message}")]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// The offset of the record that cannot be read (of its chunk, for a
+        /// record inside a chunk).
+        offset: u64,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// A channel of a recording.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ChannelInfo {
+    /// The channel's id in the file.
+    pub id: u16,
+    /// Its topic.
+    pub topic: String,
+    /// Its messages' encoding.
+    pub message_encoding: String,
+    /// Its metadata.
+    pub metadata: BTreeMap<String, String>,
+    /// Its schema's name, if it has one.
+    pub schema: Option<String>,
+}
+
+/// One message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Message {
+    /// Its channel.
+    pub channel: u16,
+    /// Its sequence number in the channel.
+    pub sequence: u32,
+    /// Its log time, in ns (the sender's instant).
+    pub log_time: u64,
+    /// The offset of the record in the file (of its chunk, for a message
+    /// inside a chunk).
+    pub offset: u64,
+    /// Its bytes.
+    pub data: Vec<u8>,
+}
+
+/// A recording, read: its channels, metadata and (the kept) messages, in the
+/// file's order.
+#[derive(Clone, Debug, Default)]
+pub struct Recording {
+    /// The file.
+    pub path: PathBuf,
+    /// The channels, by id.
+    pub channels: BTreeMap<u16, ChannelInfo>,
+    /// The metadata records, by name.
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// The messages kept, in the file's order.
+    pub messages: Vec<Message>,
+}
+
+impl Recording {
+    /// Read every message of the file at `path`.
+    pub fn open(path: &Path) -> Result<Recording, ReadError> {
+        Recording::open_filtered(path, |_| true)
+    }
+
+    /// Read the file at `path`, keeping the messages of the channels `keep`
+    /// accepts (every record is still read and checked).
+    pub fn open_filtered(
+        path: &Path,
+        keep: impl FnMut(&ChannelInfo) -> bool,
+    ) -> Result<Recording, ReadError> {
+        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Recording::parse(path, &bytes, keep)
+    }
+
+    /// Read a file's bytes (`path` names it in errors).
+    pub fn parse(
+        path: &Path,
+        bytes: &[u8],
+        mut keep: impl FnMut(&ChannelInfo) -> bool,
+    ) -> Result<Recording, ReadError> {
+        let mut r = Reader {
+            path,
+            out: Recording {
+                path: path.to_owned(),
+                ..Recording::default()
+            },
+            schemas: BTreeMap::new(),
+            kept: BTreeMap::new(),
+        };
+        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+            return Err(ReadError::NotMcap {
+                path: path.to_owned(),
+            });
+        }
+        let mut offset = MAGIC.len();
+        loop {
+            let at = offset as u64;
+            let Some(head) = bytes.get(offset..offset + 9) else {
+                return Err(r.truncated(
+                    at,
+                    if offset == bytes.len() {
+                        "the file ends before its footer (the recording was not finished)".into()
+                    } else {
+                        format!(
+                            "a record header of 9 bytes, but the file ends at offset {}",
+                            bytes.len()
+                        )
+                    },
+                ));
+            };
+            let opcode = head[0];
+            let mut len = [0u8; 8];
+            len.copy_from_slice(&head[1..9]);
+            let len = u64::from_le_bytes(len);
+            let body_start = offset + 9;
+            let body_end = usize::try_from(len)
+                .ok()
+                .and_then(|l| body_start.checked_add(l))
+                .filter(|&end| end <= bytes.len());
+            let Some(body_end) = body_end else {
+                return Err(r.truncated(
+                    at,
+                    format!(
+                        "a record of {len} bytes, but the file ends at offset {}",
+                        bytes.len()
+                    ),
+                ));
+            };
+            let record = mcap::parse_record(opcode, &bytes[body_start..body_end])
+                .map_err(|e| r.corrupt(at, e.to_string()))?;
+            offset = body_end;
+            match record {
+                Record::Footer(_) => {
+                    return match bytes.get(offset..) {
+                        Some(tail) if tail == MAGIC => Ok(r.out),
+                        Some(tail) if tail.len() < MAGIC.len() => Err(r.truncated(
+                            offset as u64,
+                            "the closing magic bytes after the footer".into(),
+                        )),
+                        _ => Err(r.corrupt(
+                            offset as u64,
+                            "the footer is not followed by MCAP's closing magic bytes".into(),
+                        )),
+                    };
+                }
+                Record::Chunk { header, data } => {
+                    let chunk = mcap::read::ChunkReader::new(header, &data)
+                        .map_err(|e| r.corrupt(at, format!("in a chunk: {e}")))?;
+                    for inner in chunk {
+                        let inner = inner.map_err(|e| r.corrupt(at, format!("in a chunk: {e}")))?;
+                        r.take(at, inner, &mut keep)?;
+                    }
+                }
+                other => r.take(at, other, &mut keep)?,
+            }
+        }
+    }
+
+    /// The channel with this topic.
+    pub fn channel(&self, topic: &str) -> Option<&ChannelInfo> {
+        self.channels.values().find(|c| c.topic == topic)
+    }
+
+    /// Whether the recorder finished the file (its `end` metadata is there).
+    pub fn finished(&self) -> bool {
+        self.metadata
+            .get("end")
+            .is_some_and(|m| m.get("finished").is_some_and(|f| f == "true"))
+    }
+}
+
+struct Reader<'a> {
+    path: &'a Path,
+    out: Recording,
+    schemas: BTreeMap<u16, String>,
+    kept: BTreeMap<u16, bool>,
+}
+
+impl Reader<'_> {
+    fn truncated(&self, offset: u64, what: String) -> ReadError {
+        ReadError::Truncated {
+            path: self.path.to_owned(),
+            offset,
+            what,
+        }
+    }
+
+    fn corrupt(&self, offset: u64, message: String) -> ReadError {
+        ReadError::Corrupt {
+            path: self.path.to_owned(),
+            offset,
+            message,
+        }
+    }
+
+    fn take(
+        &mut self,
+        offset: u64,
+        record: Record<'_>,
+        keep: &mut impl FnMut(&ChannelInfo) -> bool,
+    ) -> Result<(), ReadError> {
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                let info = ChannelInfo {
+                    id: c.id,
+                    topic: c.topic,
+                    message_encoding: c.message_encoding,
+                    metadata: c.metadata,
+                    schema: self.schemas.get(&c.schema_id).cloned(),
+                };
+                self.kept.insert(c.id, keep(&info));
+                self.out.channels.insert(c.id, info);
+            }
+            Record::Message { header, data } => match self.kept.get(&header.channel_id) {
+                Some(true) => self.out.messages.push(Message {
+                    channel: header.channel_id,
+                    sequence: header.sequence,
+                    log_time: header.log_time,
+                    offset,
+                    data: data.into_owned(),
+                }),
+                Some(false) => {}
+                None => {
+                    return Err(self.corrupt(
+                        offset,
+                        format!(
+                            "a message on channel {}, which the file never declares",
+                            header.channel_id
+                        ),
+                    ));
+                }
+            },
+            Record::Metadata(m) => {
+                self.out.metadata.insert(m.name, m.metadata);
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
