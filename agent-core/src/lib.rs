@@ -52,7 +52,8 @@ pub use error::{
 pub use executor::{ExecConfig, Executor, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
-    Activated, BehaviourShape, Fsm, FsmArc, FsmBuilder, FsmShape, FsmState, Predicate, Relation,
+    Activated, BehaviourShape, Fsm, FsmArc, FsmBuilder, FsmGraph, FsmShape, FsmState, Predicate,
+    Relation,
     Step, Valuation,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};

@@ -11,6 +11,10 @@ use mcap::records::Record;
 /// The magic bytes that open and close an MCAP file.
 const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
+/// The largest chunk read: a chunk is a few MiB (one value more, if a
+/// value is larger); a chunk that says more has a damaged size.
+pub const MAX_CHUNK: u64 = 512 << 20;
+
 /// Why a recording could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum ReadError {
@@ -130,6 +134,7 @@ impl Recording {
             },
             schemas: BTreeMap::new(),
             kept: BTreeMap::new(),
+            summary: false,
         };
         if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
             return Err(ReadError::NotMcap {
@@ -188,13 +193,34 @@ impl Recording {
                     };
                 }
                 Record::Chunk { header, data } => {
-                    let chunk = mcap::read::ChunkReader::new(header, &data)
-                        .map_err(|e| r.corrupt(at, format!("in a chunk: {e}")))?;
-                    for inner in chunk {
-                        let inner = inner.map_err(|e| r.corrupt(at, format!("in a chunk: {e}")))?;
-                        r.take(at, inner, &mut keep)?;
+                    // A damaged size must not make the reader allocate it.
+                    if header.uncompressed_size > MAX_CHUNK {
+                        return Err(r.corrupt(
+                            at,
+                            format!(
+                                "a chunk that says it holds {} bytes (more than {MAX_CHUNK}: a damaged size)",
+                                header.uncompressed_size
+                            ),
+                        ));
+                    }
+                    let inner = decompress(&header, &data)
+                        .map_err(|message| r.corrupt(at, format!("in the chunk: {message}")))?;
+                    let mut pos = 0usize;
+                    while pos < inner.len() {
+                        let (opcode, body) = frame(&inner, pos).map_err(|message| {
+                            r.corrupt(at, format!("in the chunk, at byte {pos} of its data: {message}"))
+                        })?;
+                        let record = mcap::parse_record(opcode, body).map_err(|e| {
+                            r.corrupt(at, format!("in the chunk, at byte {pos} of its data: {e}"))
+                        })?;
+                        r.take(at, record, &mut keep)?;
+                        pos += 9 + body.len();
                     }
                 }
+                // The summary repeats the data section's schemas and
+                // channels, and indexes it: what is read is the data.
+                Record::DataEnd(_) => r.summary = true,
+                _ if r.summary => {}
                 other => r.take(at, other, &mut keep)?,
             }
         }
@@ -213,11 +239,55 @@ impl Recording {
     }
 }
 
+/// A chunk's records: its data decompressed (at most the size it declares)
+/// and checked against its CRC.
+fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+    let size = usize::try_from(header.uncompressed_size).map_err(|e| e.to_string())?;
+    let inner = match header.compression.as_str() {
+        "" => data.to_vec(),
+        "zstd" => zstd::bulk::decompress(data, size).map_err(|e| format!("zstd: {e}"))?,
+        other => return Err(format!("compression `{other}`, which this reader does not read")),
+    };
+    if inner.len() != size {
+        return Err(format!(
+            "{} bytes where the chunk says {size}",
+            inner.len()
+        ));
+    }
+    if header.uncompressed_crc != 0 {
+        let crc = crc32fast::hash(&inner);
+        if crc != header.uncompressed_crc {
+            return Err(format!(
+                "CRC {crc:08x} where the chunk says {:08x}",
+                header.uncompressed_crc
+            ));
+        }
+    }
+    Ok(inner)
+}
+
+/// The record at `pos` of `bytes`: its opcode and body.
+fn frame(bytes: &[u8], pos: usize) -> Result<(u8, &[u8]), String> {
+    let head = bytes
+        .get(pos..pos + 9)
+        .ok_or_else(|| "a record header cut short".to_owned())?;
+    let mut len = [0u8; 8];
+    len.copy_from_slice(&head[1..9]);
+    let len = u64::from_le_bytes(len);
+    let body = usize::try_from(len)
+        .ok()
+        .and_then(|l| (pos + 9).checked_add(l))
+        .and_then(|end| bytes.get(pos + 9..end))
+        .ok_or_else(|| format!("a record of {len} bytes, longer than what is left"))?;
+    Ok((head[0], body))
+}
+
 struct Reader<'a> {
     path: &'a Path,
     out: Recording,
     schemas: BTreeMap<u16, String>,
     kept: BTreeMap<u16, bool>,
+    summary: bool,
 }
 
 impl Reader<'_> {

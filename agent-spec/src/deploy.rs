@@ -79,6 +79,15 @@ pub enum AssemblyError {
     /// A component added twice.
     #[error("`{0}` is added twice")]
     Twice(String),
+    /// The spec's FSM of a subsystem does not fit the code's behaviours and
+    /// predicates.
+    #[error("the FSM of `{name}` in the spec does not fit its code: {message}")]
+    Fsm {
+        /// The subsystem.
+        name: String,
+        /// Why.
+        message: String,
+    },
     /// The spec's period cannot run.
     #[error("the period of `{name}` in the spec: {source}")]
     Period {
@@ -325,7 +334,12 @@ impl<'s> Assembly<'s> {
     }
 
     /// Add subsystem `name` with its initial memory and FSM, in the agent and with
-    /// the period of the spec.
+    /// the period of the spec. The code gives the behaviours (their actions)
+    /// and the predicates; the spec gives the graph: the initial behaviour, the
+    /// arcs with their initial conditions, the terminal conditions and the
+    /// final behaviours ([`Fsm::regraph`]), so that what the spec says (and
+    /// the checker proved) is what runs. The two must name the same
+    /// behaviours.
     pub fn subsystem<S: Subsystem>(
         &mut self,
         name: &str,
@@ -333,7 +347,57 @@ impl<'s> Assembly<'s> {
         fsm: Fsm<S>,
     ) -> Result<SubsystemHandle<S>, AssemblyError> {
         let (agent, period) = self.place(name, S::KIND.into(), std::any::type_name::<S>())?;
+        let fsm = self.spec_graph(name, fsm)?;
         Ok(self.builder.subsystem(agent, name, period, memory, fsm))
+    }
+
+    /// `fsm` with the spec's graph for subsystem `name`.
+    fn spec_graph<S: Subsystem>(&self, name: &str, fsm: Fsm<S>) -> Result<Fsm<S>, AssemblyError> {
+        let Some(declared) = self
+            .spec
+            .agents
+            .iter()
+            .flat_map(|a| &a.subsystems)
+            .find(|s| s.name == name)
+        else {
+            return Ok(fsm);
+        };
+        let fail = |message: String| AssemblyError::Fsm {
+            name: name.to_owned(),
+            message,
+        };
+        let mut code: Vec<&str> = (0..fsm.len()).map(|b| fsm.behaviour_name(b)).collect();
+        let mut spec: Vec<&str> = declared.behaviours.iter().map(|b| b.name.as_str()).collect();
+        code.sort_unstable();
+        spec.sort_unstable();
+        if code != spec {
+            return Err(fail(format!(
+                "the spec's behaviours are [{}], the code's [{}]",
+                spec.join(", "),
+                code.join(", ")
+            )));
+        }
+        let initial = match (&declared.fsm.initial, declared.behaviours.as_slice()) {
+            (Some(i), _) => i.clone(),
+            (None, [only]) => only.name.clone(),
+            (None, _) => return Err(fail("the spec names no initial behaviour".into())),
+        };
+        let graph = agent_core::FsmGraph {
+            initial,
+            arcs: declared
+                .fsm
+                .arcs
+                .iter()
+                .map(|a| (a.from.clone(), a.to.clone(), a.when.clone()))
+                .collect(),
+            terminals: declared
+                .behaviours
+                .iter()
+                .map(|b| (b.name.clone(), b.terminal.clone()))
+                .collect(),
+            finals: declared.fsm.finals.clone(),
+        };
+        fsm.regraph(&graph).map_err(|e| fail(e.to_string()))
     }
 
     /// Add driver `name` (a real effector or receptor), in the agent and with the

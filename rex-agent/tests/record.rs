@@ -71,7 +71,8 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
         }
         if topic == "/raw/links/e11/c1/q_est/to/c1" {
             estimates.1 += 1;
-            raw_q.push(postcard::from_bytes::<State>(&m.data).unwrap());
+            let (_, body) = embodied::WireHeader::read(&m.data).unwrap();
+            raw_q.push(postcard::from_bytes::<State>(body).unwrap());
         }
     }
     // Every link's two channels carried something in 6 s, but the camera's
@@ -103,7 +104,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
             }
         }
     }
-    assert_eq!(names, ["run", "system"]);
+    assert_eq!(names, ["run", "system", "end"]);
 }
 
 #[test]
@@ -136,15 +137,18 @@ with open(sys.argv[1], "rb") as f:
     summary = reader.get_summary()
     n = 0
     topics = set()
+    schemas = set()
     for schema, channel, message in reader.iter_messages():
         n += 1
         topics.add(channel.topic)
+        if schema is not None and schema.name.startswith("foxglove."):
+            schemas.add(schema.name + ":" + channel.topic)
         if channel.message_encoding == "json":
             json.loads(message.data)
             assert schema is not None and schema.encoding == "jsonschema", channel.topic
             json.loads(schema.data)
     meta = sorted(m.name for m in reader.iter_metadata())
-    print(f"messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)}")
+    print(f"messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
 "#;
 
 #[test]
@@ -178,7 +182,9 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     config.visual_odometry = false;
     let (system, _) = build(&config).unwrap();
     let path = tmp.join("rex_python.mcap");
-    let recorder = McapRecorder::create(&path, &system, RecordOptions::default()).unwrap();
+    let mut options = RecordOptions::default();
+    options.derived = rex_agent::record::derived();
+    let recorder = McapRecorder::create(&path, &system, options).unwrap();
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(3)).unwrap();
     let summary = exec.into_observer().finish().unwrap();
@@ -202,5 +208,12 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     };
     assert_eq!(figure("messages"), summary.messages, "{text}");
     assert_eq!(figure("channels") as usize, summary.channels, "{text}");
-    assert!(text.contains("metadata=system"), "{text}");
+    assert!(text.contains("metadata=end,system"), "{text}");
+    // Foxglove's schemas, on the channels Rex adds (no camera in this run).
+    assert!(
+        text.contains(
+            "foxglove=foxglove.PoseInFrame:/pose/estimate,foxglove.PoseInFrame:/pose/mocap,foxglove.PosesInFrame:/path/reference"
+        ),
+        "{text}"
+    );
 }

@@ -245,6 +245,59 @@ impl<S: Subsystem> FsmBuilder<S> {
     }
 }
 
+/// The graph of an FSM as text, as a spec writes it: what
+/// [`Fsm::regraph`] puts in place of the code's.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FsmGraph {
+    /// The initial behaviour.
+    pub initial: String,
+    /// The arcs `(from, to, initial condition)`, in order.
+    pub arcs: Vec<(String, String, String)>,
+    /// The terminal condition of each behaviour, by name (a behaviour not
+    /// named keeps its own).
+    pub terminals: Vec<(String, String)>,
+    /// The final behaviours.
+    pub finals: Vec<String>,
+}
+
+impl<S: Subsystem> Fsm<S> {
+    /// The same behaviours (actions) and predicates, with the graph `graph`:
+    /// its initial behaviour, arcs, terminal conditions and finals, checked as
+    /// [`FsmBuilder::build`] checks any FSM. This is how a spec drives the
+    /// FSM of code that supplies the actions and predicates: an edited arc in
+    /// the spec is an edited arc in the running system.
+    pub fn regraph(self, graph: &FsmGraph) -> Result<Fsm<S>, FsmBuildError> {
+        let mut problems = Vec::new();
+        let mut behaviours: Vec<Behaviour<S>> =
+            self.nodes.into_iter().map(|n| n.behaviour).collect();
+        for (name, terminal) in &graph.terminals {
+            match behaviours.iter_mut().find(|b| b.name == name.as_str()) {
+                Some(b) => b.terminal = Cow::Owned(terminal.clone()),
+                None => problems.push(FsmProblem::UnknownBehaviour {
+                    place: "the graph's terminal conditions".to_owned(),
+                    name: name.clone(),
+                }),
+            }
+        }
+        if !problems.is_empty() {
+            return Err(FsmBuildError { problems });
+        }
+        FsmBuilder {
+            predicates: self.predicates,
+            relations: self.relations,
+            behaviours,
+            arcs: graph
+                .arcs
+                .iter()
+                .map(|(f, t, c)| (f.clone().into(), t.clone().into(), c.clone().into()))
+                .collect(),
+            initial: Some(graph.initial.clone().into()),
+            finals: graph.finals.iter().map(|f| f.clone().into()).collect(),
+        }
+        .build()
+    }
+}
+
 /// Parse `text` and resolve its predicate names, recording problems.
 fn resolve(
     preds: &HashMap<&str, usize>,

@@ -22,7 +22,7 @@ use crate::transition::Part;
 mod builder;
 pub mod rules;
 
-pub use builder::FsmBuilder;
+pub use builder::{FsmBuilder, FsmGraph};
 
 type PredicateFn<S> =
     Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
