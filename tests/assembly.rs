@@ -337,3 +337,68 @@ fn a_link_between_different_types_is_refused() {
         "{e}"
     );
 }
+
+/// The spec gives the FSM's graph; the code its actions and predicates.
+#[test]
+fn the_spec_drives_the_fsm_graph_of_the_code() {
+    // The code ping-pongs between two behaviours.
+    let code = || {
+        Fsm::builder()
+            .behaviour(Behaviour::repeat_loop(
+                "idle",
+                Action::<Idle>::new(),
+                "true",
+            ))
+            .behaviour(Behaviour::repeat_loop("nap", Action::<Idle>::new(), "true"))
+            .initial("idle")
+            .arc("idle", "nap", "true")
+            .arc("nap", "idle", "true")
+            .build()
+            .unwrap()
+    };
+    // The spec: once in `nap`, stay there.
+    let text = SPEC.replace(
+        r#"behaviours: [(name: "idle", kind: While, terminal: "false")],
+                fsm: (initial: "idle"),"#,
+        r#"behaviours: [
+                    (name: "idle", kind: Repeat, terminal: "true"),
+                    (name: "nap", kind: Repeat, terminal: "false"),
+                ],
+                fsm: (initial: "idle", arcs: [(from: "idle", to: "nap", when: "true")]),"#,
+    );
+    assert_ne!(text, SPEC);
+    let spec = checked(&text);
+    let mut asm = Assembly::new(&spec, "no_device").unwrap();
+    let c = asm.subsystem("c", (), code()).unwrap();
+    asm.subsystem("e", CMem::default(), c_fsm()).unwrap();
+    let system = asm.build().unwrap();
+    let fsm = system.info().nodes[0].fsm.clone().unwrap();
+    assert_eq!(fsm.arcs, [("idle".into(), "nap".into(), "true".into())]);
+
+    struct Switches(u32);
+    impl Observer for Switches {
+        fn transition(&mut self, e: &TransitionEvent) {
+            if e.node == 0 {
+                self.0 += 1;
+            }
+        }
+    }
+    let mut exec = Executor::with_observer(system, ExecConfig::default(), Switches(0));
+    exec.run_for(Duration::from_secs(2)).unwrap();
+    assert_eq!(exec.behaviour(&c), Some("nap"));
+    assert_eq!(exec.observer().0, 1, "one switch, then `nap` for good");
+
+    // A behaviour the spec names and the code does not: named, both lists.
+    let renamed = text
+        .replace(r#"name: "nap""#, r#"name: "doze""#)
+        .replace(r#"to: "nap""#, r#"to: "doze""#);
+    let spec = checked(&renamed);
+    let mut asm = Assembly::new(&spec, "no_device").unwrap();
+    let e = asm.subsystem("c", (), code()).unwrap_err();
+    assert!(matches!(e, AssemblyError::Fsm { .. }), "{e}");
+    let e = e.to_string();
+    assert!(
+        e.contains("the spec's behaviours are [doze, idle], the code's [idle, nap]"),
+        "{e}"
+    );
+}

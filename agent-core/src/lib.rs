@@ -53,8 +53,7 @@ pub use executor::{ExecConfig, Executor, OnError, RunReport};
 pub use expr::{Expr, ExprError};
 pub use fsm::{
     Activated, BehaviourShape, Fsm, FsmArc, FsmBuilder, FsmGraph, FsmShape, FsmState, Predicate,
-    Relation,
-    Step, Valuation,
+    Relation, Step, Valuation,
 };
 pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
 pub use link::remote::{

@@ -148,7 +148,11 @@ impl System {
 
     /// The node of this name.
     pub fn node(&self, name: &str) -> Option<NodeId> {
-        self.info.nodes.iter().position(|n| n.name == name).map(NodeId)
+        self.info
+            .nodes
+            .iter()
+            .position(|n| n.name == name)
+            .map(NodeId)
     }
 
     /// The fingerprint of the payload type of link `link` ([`crate::link::remote::fingerprint`]):

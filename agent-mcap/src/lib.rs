@@ -21,9 +21,7 @@ pub mod replay;
 /// The MCAP crate this one writes with (to read recordings back).
 pub use mcap;
 pub use read::{ReadError, Recording};
-pub use record::{
-    Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary,
-};
+pub use record::{Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary};
 pub use replay::{
     Difference, Divergence, ReplayError, ReplayOptions, Replayed, replay, replay_file,
 };

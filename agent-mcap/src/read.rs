@@ -208,7 +208,10 @@ impl Recording {
                     let mut pos = 0usize;
                     while pos < inner.len() {
                         let (opcode, body) = frame(&inner, pos).map_err(|message| {
-                            r.corrupt(at, format!("in the chunk, at byte {pos} of its data: {message}"))
+                            r.corrupt(
+                                at,
+                                format!("in the chunk, at byte {pos} of its data: {message}"),
+                            )
                         })?;
                         let record = mcap::parse_record(opcode, body).map_err(|e| {
                             r.corrupt(at, format!("in the chunk, at byte {pos} of its data: {e}"))
@@ -246,13 +249,14 @@ fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8
     let inner = match header.compression.as_str() {
         "" => data.to_vec(),
         "zstd" => zstd::bulk::decompress(data, size).map_err(|e| format!("zstd: {e}"))?,
-        other => return Err(format!("compression `{other}`, which this reader does not read")),
+        other => {
+            return Err(format!(
+                "compression `{other}`, which this reader does not read"
+            ));
+        }
     };
     if inner.len() != size {
-        return Err(format!(
-            "{} bytes where the chunk says {size}",
-            inner.len()
-        ));
+        return Err(format!("{} bytes where the chunk says {size}", inner.len()));
     }
     if header.uncompressed_crc != 0 {
         let crc = crc32fast::hash(&inner);

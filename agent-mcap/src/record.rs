@@ -41,7 +41,8 @@ use std::thread::JoinHandle;
 
 use agent_core::link::remote::HEADER_LEN;
 use agent_core::trace::{
-    ActionEvent, ErasedPayload, LinkInfo, NodeInfo, Observer, SystemInfo, TransferEvent, TransitionEvent,
+    ActionEvent, ErasedPayload, LinkInfo, NodeInfo, Observer, SystemInfo, TransferEvent,
+    TransitionEvent,
 };
 use agent_core::{ExecError, Step, System, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
@@ -326,10 +327,8 @@ impl McapRecorder {
         }
         let (tx, rx) = sync_channel::<Record>(options.queue.max(1));
         let (give_back, spare) = channel::<Vec<u8>>();
-        let channels = links.len() * 2
-            + links.iter().map(|l| l.derived.len()).sum::<usize>()
-            + fsm.len()
-            + 1;
+        let channels =
+            links.len() * 2 + links.iter().map(|l| l.derived.len()).sum::<usize>() + fsm.len() + 1;
         let nodes = info.nodes.len();
         let out = Output {
             w,
@@ -466,7 +465,6 @@ impl Observer for McapRecorder {
 
     fn start(&mut self, _system: &SystemInfo) {}
 }
-
 
 fn small(i: usize) -> u32 {
     u32::try_from(i).unwrap_or(u32::MAX)

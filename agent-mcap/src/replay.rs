@@ -207,7 +207,11 @@ impl fmt::Display for Divergence {
                 recorded,
                 replayed,
             } => {
-                let field = if field.is_empty() { "(the value)" } else { field };
+                let field = if field.is_empty() {
+                    "(the value)"
+                } else {
+                    field
+                };
                 write!(
                     f,
                     "buffer `{link}`, field {field}: recorded {recorded}, replayed {replayed}"
@@ -357,13 +361,17 @@ pub fn replay(
     let x = info
         .nodes
         .iter()
-        .position(|n| n.name == node && !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+        .position(|n| {
+            n.name == node && !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor)
+        })
         .ok_or_else(|| ReplayError::NoSubsystem {
             name: node.to_owned(),
             available: subsystems(),
         })?;
     if !recording.finished() {
-        return Err(ReplayError::Unfinished(recording.path.display().to_string()));
+        return Err(ReplayError::Unfinished(
+            recording.path.display().to_string(),
+        ));
     }
     let end = recording.metadata.get("end");
     let end_time = end
@@ -408,9 +416,7 @@ pub fn replay(
             shapes.insert(k, system.payload_shape(k));
         }
     }
-    let fsm_channel = recording
-        .channel(&format!("/fsm/{node}"))
-        .map(|c| c.id);
+    let fsm_channel = recording.channel(&format!("/fsm/{node}")).map(|c| c.id);
 
     // The recorded values: inputs to feed, outputs and switches to compare.
     let mut inputs: Vec<(usize, Recorded)> = Vec::new();
@@ -418,13 +424,12 @@ pub fn replay(
     let mut switches: VecDeque<(u64, Value)> = VecDeque::new();
     for m in &recording.messages {
         if Some(m.channel) == fsm_channel {
-            let v: Value =
-                serde_json::from_slice(&m.data).map_err(|e| ReplayError::BadValue {
-                    link: format!("/fsm/{node}"),
-                    sequence: m.sequence,
-                    offset: m.offset,
-                    message: e.to_string(),
-                })?;
+            let v: Value = serde_json::from_slice(&m.data).map_err(|e| ReplayError::BadValue {
+                link: format!("/fsm/{node}"),
+                sequence: m.sequence,
+                offset: m.offset,
+                message: e.to_string(),
+            })?;
             switches.push_back((m.log_time, v));
             continue;
         }
@@ -459,10 +464,10 @@ pub fn replay(
         .collect();
 
     let n = &info.nodes[x];
-    let initial = n
-        .fsm
-        .as_ref()
-        .map_or_else(|| n.behaviours.first().cloned().unwrap_or_default(), |f| f.initial.clone());
+    let initial = n.fsm.as_ref().map_or_else(
+        || n.behaviours.first().cloned().unwrap_or_default(),
+        |f| f.initial.clone(),
+    );
     let mut cmp = Compare {
         node: node.to_owned(),
         info: &info,
@@ -537,7 +542,12 @@ pub fn replay(
     })
 }
 
-fn bad_input(info: &agent_core::SystemInfo, k: usize, r: &Recorded, e: &InjectError) -> ReplayError {
+fn bad_input(
+    info: &agent_core::SystemInfo,
+    k: usize,
+    r: &Recorded,
+    e: &InjectError,
+) -> ReplayError {
     ReplayError::BadValue {
         link: info.links[k].name.clone(),
         sequence: r.sequence,
@@ -620,7 +630,9 @@ impl Compare<'_> {
                     let node = &self.info.nodes.iter().find(|n| n.name == self.node)?;
                     let replayed = comparable(transition_json(node, time, it, step));
                     match switches.front() {
-                        Some((at, v)) if *at == time.as_nanos() && comparable(v.clone()) == replayed => {
+                        Some((at, v))
+                            if *at == time.as_nanos() && comparable(v.clone()) == replayed =>
+                        {
                             if let Some(to) = entered(v) {
                                 self.recorded_behaviour = to;
                             }
@@ -655,9 +667,8 @@ impl Compare<'_> {
                         }
                         Some(r) if r.stamp.time == stamp.time => {
                             let (rec, rep) = (self.json(link, &r.body), self.json(link, &bytes));
-                            let (field, a, b) = first_difference(&rec, &rep).unwrap_or_else(|| {
-                                (String::new(), hex(&r.body), hex(&bytes))
-                            });
+                            let (field, a, b) = first_difference(&rec, &rep)
+                                .unwrap_or_else(|| (String::new(), hex(&r.body), hex(&bytes)));
                             self.follow_recorded(t, switches);
                             return Some(self.divergence(
                                 t,

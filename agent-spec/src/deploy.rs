@@ -367,7 +367,11 @@ impl<'s> Assembly<'s> {
             message,
         };
         let mut code: Vec<&str> = (0..fsm.len()).map(|b| fsm.behaviour_name(b)).collect();
-        let mut spec: Vec<&str> = declared.behaviours.iter().map(|b| b.name.as_str()).collect();
+        let mut spec: Vec<&str> = declared
+            .behaviours
+            .iter()
+            .map(|b| b.name.as_str())
+            .collect();
         code.sort_unstable();
         spec.sort_unstable();
         if code != spec {

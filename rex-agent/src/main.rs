@@ -685,7 +685,7 @@ fn distributed(_: &Cli, _: &[(RexConfig, Spec, Duration)]) -> ExitCode {
 
 /// `rex replay FILE.mcap --subsystem NAME`.
 fn replay(cli: &Cli, file: &Path, subsystem: &str) -> ExitCode {
-    use embodied::replay::{ReplayOptions, Recording, replay_file};
+    use embodied::replay::{Recording, ReplayOptions, replay_file};
     // The metadata first (no message kept): the settings to build Rex from.
     let head = match Recording::open_filtered(file, |_| false) {
         Ok(r) => r,

@@ -51,15 +51,7 @@ fn record(config: &RexConfig, seconds: u64, name: &str) -> PathBuf {
 
 fn replayed(config: &RexConfig, path: &Path, node: &str) -> Replayed {
     let (system, _) = build(config).unwrap();
-    replay_file(
-        path,
-        system,
-        node,
-        ReplayOptions {
-            exec: config.exec,
-        },
-    )
-    .unwrap()
+    replay_file(path, system, node, ReplayOptions { exec: config.exec }).unwrap()
 }
 
 #[test]
@@ -132,8 +124,7 @@ fn every_subsystem_of_a_recorded_mission_replays_equivalent() {
 fn first_difference(a: &Path, b: &Path, node: &str) -> Option<(u64, Vec<String>)> {
     let keep = |c: &embodied::record::read::ChannelInfo| {
         c.topic == format!("/fsm/{node}")
-            || c
-                .metadata
+            || c.metadata
                 .get("link")
                 .is_some_and(|l| l.starts_with(&format!("{node}.")))
     };
@@ -247,29 +238,47 @@ fn a_replay_of_a_build_whose_types_or_names_differ_is_refused_clearly() {
     // A recording whose raw values say another type: the fingerprint differs.
     let mut recording = Recording::open(&path).unwrap();
     for c in recording.channels.values_mut() {
-        if c.metadata.get("link").is_some_and(|l| l.starts_with("c1.e11.traj")) {
-            c.metadata.insert("fingerprint".into(), "0000000000000001".into());
+        if c.metadata
+            .get("link")
+            .is_some_and(|l| l.starts_with("c1.e11.traj"))
+        {
+            c.metadata
+                .insert("fingerprint".into(), "0000000000000001".into());
         }
     }
     let (system, _) = build(&c).unwrap();
     let err = replay(&recording, system, "c1", ReplayOptions::default()).unwrap_err();
     assert!(err.to_string().contains("c1.e11.traj"), "{err}");
-    assert!(err.to_string().contains("differs from the recorded one"), "{err}");
+    assert!(
+        err.to_string().contains("differs from the recorded one"),
+        "{err}"
+    );
     // A recorded value whose header is damaged: the value and its offset named.
     let mut recording = Recording::open(&path).unwrap();
     let id = recording
         .channels
         .values()
-        .find(|c| c.metadata.get("link").is_some_and(|l| l.starts_with("e11.c1.q_est")))
+        .find(|c| {
+            c.metadata
+                .get("link")
+                .is_some_and(|l| l.starts_with("e11.c1.q_est"))
+        })
         .unwrap()
         .id;
-    let m = recording.messages.iter_mut().find(|m| m.channel == id).unwrap();
+    let m = recording
+        .messages
+        .iter_mut()
+        .find(|m| m.channel == id)
+        .unwrap();
     m.data[0] = 9;
     let offset = m.offset;
     let (system, _) = build(&c).unwrap();
     let err = replay(&recording, system, "c1", ReplayOptions::default()).unwrap_err();
     assert!(err.to_string().contains("wire version 9"), "{err}");
-    assert!(err.to_string().contains(&format!("offset {offset}")), "{err}");
+    assert!(
+        err.to_string().contains(&format!("offset {offset}")),
+        "{err}"
+    );
 }
 
 #[test]
@@ -280,17 +289,29 @@ fn the_recorded_stamps_are_the_senders() {
     let id = recording
         .channels
         .values()
-        .find(|c| c.metadata.get("link").is_some_and(|l| l.starts_with("e11.c1.q_est")))
+        .find(|c| {
+            c.metadata
+                .get("link")
+                .is_some_and(|l| l.starts_with("e11.c1.q_est"))
+        })
         .unwrap()
         .id;
     // e11 runs every 50 ms and sends its estimate at each iteration: the
     // stamps count its iterations and say its instants; the log time is the
     // instant.
-    for (k, m) in recording.messages.iter().filter(|m| m.channel == id).enumerate() {
+    for (k, m) in recording
+        .messages
+        .iter()
+        .filter(|m| m.channel == id)
+        .enumerate()
+    {
         let (header, _) = WireHeader::read(&m.data).unwrap();
         assert_eq!(header.seq, k as u64 + 1);
         assert_eq!(header.stamp.time.as_nanos(), m.log_time);
-        assert_eq!(header.stamp.time.as_nanos(), header.stamp.iteration * 50_000_000);
+        assert_eq!(
+            header.stamp.time.as_nanos(),
+            header.stamp.iteration * 50_000_000
+        );
     }
 }
 
