@@ -56,8 +56,10 @@ fn recorded(
         LIMIT,
         LIMIT,
         |system| {
-            let mut options = RecordOptions::default();
-            options.derived = rex_agent::record::derived();
+            let options = RecordOptions {
+                derived: rex_agent::record::derived(),
+                ..RecordOptions::default()
+            };
             Ok(McapRecorder::create(path, system, options)?)
         },
         |_| {},

@@ -182,8 +182,10 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     config.visual_odometry = false;
     let (system, _) = build(&config).unwrap();
     let path = tmp.join("rex_python.mcap");
-    let mut options = RecordOptions::default();
-    options.derived = rex_agent::record::derived();
+    let options = RecordOptions {
+        derived: rex_agent::record::derived(),
+        ..RecordOptions::default()
+    };
     let recorder = McapRecorder::create(&path, &system, options).unwrap();
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(3)).unwrap();

@@ -39,8 +39,10 @@ fn tmp(name: &str) -> PathBuf {
 fn record(config: &RexConfig, seconds: u64, name: &str) -> PathBuf {
     let path = tmp(name);
     let (system, _) = build(config).unwrap();
-    let mut options = RecordOptions::default();
-    options.derived = rex_agent::record::derived();
+    let options = RecordOptions {
+        derived: rex_agent::record::derived(),
+        ..RecordOptions::default()
+    };
     let recorder = McapRecorder::create(&path, &system, options).unwrap();
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(seconds)).unwrap();
