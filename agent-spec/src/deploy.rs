@@ -351,6 +351,21 @@ impl<'s> Assembly<'s> {
         Ok(self.builder.subsystem(agent, name, period, memory, fsm))
     }
 
+    /// Add a stand-in for subsystem `name` (a test double: a stub in place of
+    /// the real component), in the agent and with the period of the spec, with
+    /// its own FSM: the spec's graph is not applied, since the stand-in does
+    /// not have the component's behaviours. Its buffers are still linked by
+    /// the spec's links.
+    pub fn stand_in<S: Subsystem>(
+        &mut self,
+        name: &str,
+        memory: S::Memory,
+        fsm: Fsm<S>,
+    ) -> Result<SubsystemHandle<S>, AssemblyError> {
+        let (agent, period) = self.place(name, S::KIND.into(), std::any::type_name::<S>())?;
+        Ok(self.builder.subsystem(agent, name, period, memory, fsm))
+    }
+
     /// `fsm` with the spec's graph for subsystem `name`.
     fn spec_graph<S: Subsystem>(&self, name: &str, fsm: Fsm<S>) -> Result<Fsm<S>, AssemblyError> {
         let Some(declared) = self

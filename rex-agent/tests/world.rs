@@ -303,10 +303,10 @@ fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     sys.set_period("r11", Period::from_millis(stubs.r11_ms).unwrap())
         .unwrap();
     let c1 = sys
-        .subsystem("c1", StubC1Memory::default(), stub_c1())
+        .stand_in("c1", StubC1Memory::default(), stub_c1())
         .unwrap();
-    let e11 = sys.subsystem("e11", stubs.e11, stub_e11()).unwrap();
-    let r11 = sys.subsystem("r11", stubs.r11, stub_r11()).unwrap();
+    let e11 = sys.stand_in("e11", stubs.e11, stub_e11()).unwrap();
+    let r11 = sys.stand_in("r11", stubs.r11, stub_r11()).unwrap();
     world::add_environment(&mut sys);
     let platform = world::add_platform(&mut sys, config).unwrap();
     let camera = world::add_camera(&mut sys, config).unwrap();
