@@ -234,6 +234,15 @@ impl Recording {
         self.channels.values().find(|c| c.topic == topic)
     }
 
+    /// The raw channel (encoding `embodied-wire/1`) of the link named `link`
+    /// (`from.port -> to.port`).
+    pub fn raw_channel(&self, link: &str) -> Option<&ChannelInfo> {
+        self.channels.values().find(|c| {
+            c.message_encoding == crate::record::WIRE_ENCODING
+                && c.metadata.get("link").is_some_and(|l| l == link)
+        })
+    }
+
     /// Whether the recorder finished the file (its `end` metadata is there).
     pub fn finished(&self) -> bool {
         self.metadata

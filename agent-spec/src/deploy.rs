@@ -346,9 +346,8 @@ impl<'s> Assembly<'s> {
         memory: S::Memory,
         fsm: Fsm<S>,
     ) -> Result<SubsystemHandle<S>, AssemblyError> {
-        let (agent, period) = self.place(name, S::KIND.into(), std::any::type_name::<S>())?;
         let fsm = self.spec_graph(name, fsm)?;
-        Ok(self.builder.subsystem(agent, name, period, memory, fsm))
+        self.stand_in(name, memory, fsm)
     }
 
     /// Add a stand-in for subsystem `name` (a test double: a stub in place of

@@ -1,0 +1,390 @@
+//! Replaying one subsystem against a recording, and proving it equivalent.
+//!
+//! [`replay`] takes the system built from the user's code (all of it, as for a
+//! run: the same builder), runs only the named subsystem in the deterministic
+//! executor ([`Executor::isolate`]), feeds it the recorded values of every link
+//! into it at the recorded instants ([`Executor::inject`], each with its
+//! recorded stamp: the executor's semantics make it read a value at its first
+//! activation after the value's instant, as in the run), and compares what it
+//! does with the recording, bit for bit:
+//!
+//! * every value it sends, on every link out of it: the instant, the sender's
+//!   iteration, and the value's exact bytes;
+//! * every behaviour switch: instant, iteration, behaviours, arc, and the value
+//!   of every predicate at the decision (not the arc's text: a condition
+//!   rewritten to the same effect is the same behaviour);
+//! * the number of elementary actions it made.
+//!
+//! The result is [`Replayed::Equivalent`] or the first [`Divergence`]: the
+//! instant, the iteration, the buffer and the field that differ, the two values,
+//! and the behaviour each run was in.
+
+mod compare;
+mod verdict;
+
+use std::collections::{BTreeMap, VecDeque};
+
+use agent_core::trace::{ErasedPayload, Observer, TransferEvent, TransitionEvent};
+use agent_core::{
+    ExecConfig, Executor, InjectError, NodeKind, Stamp, Step, System, Time, TypeShape, WireHeader,
+};
+use serde_json::Value;
+
+use crate::read::Recording;
+use crate::record::WIRE_ENCODING;
+use compare::Compare;
+pub use compare::first_difference;
+pub use verdict::{Difference, Divergence, Replayed};
+
+/// Why a replay could not be made (a replay that runs and differs is not an
+/// error: it is a [`Divergence`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The system has no subsystem of this name.
+    #[error("no subsystem `{name}` in the system (it has: {available})")]
+    NoSubsystem {
+        /// The name asked for.
+        name: String,
+        /// The subsystems it has.
+        available: String,
+    },
+    /// The recording has no raw channel for a link of the replayed subsystem.
+    #[error(
+        "the recording has no values of `{link}` (recorded by a system without this link? record again)"
+    )]
+    Unrecorded {
+        /// The link.
+        link: String,
+    },
+    /// A link's payload type changed since the recording.
+    #[error(
+        "`{link}` carries a `{type_name}` whose type differs from the recorded one (fingerprint {built:016x}, recorded {recorded}): the recording cannot feed this build"
+    )]
+    Fingerprint {
+        /// The link.
+        link: String,
+        /// The payload type.
+        type_name: String,
+        /// This build's fingerprint.
+        built: u64,
+        /// The recording's.
+        recorded: String,
+    },
+    /// The recorder did not finish the file (no `end` record).
+    #[error("{0} was not finished by its recorder (no `end` record): the run was cut short")]
+    Unfinished(String),
+    /// A recorded value could not be read or fed.
+    #[error("the recorded value #{sequence} of `{link}` (file offset {offset}): {message}")]
+    BadValue {
+        /// The link.
+        link: String,
+        /// The value's sequence number in its channel.
+        sequence: u32,
+        /// The file offset of its record (or chunk).
+        offset: u64,
+        /// What is wrong.
+        message: String,
+    },
+    /// The recording could not be read.
+    #[error(transparent)]
+    Read(#[from] crate::read::ReadError),
+    /// The executor refused to go on.
+    #[error("the replay stopped: {0}")]
+    Exec(#[from] agent_core::ExecError),
+}
+
+/// How a replay runs.
+#[derive(Clone, Copy, Debug)]
+pub struct ReplayOptions {
+    /// The executor's settings (its error policy should be the recorded run's).
+    pub exec: ExecConfig,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions {
+            exec: ExecConfig::continue_on_error(),
+        }
+    }
+}
+
+/// What the replayed subsystem did in one instant.
+pub(crate) enum Event {
+    Transfer {
+        link: usize,
+        stamp: Stamp,
+        bytes: Vec<u8>,
+    },
+    Switch {
+        time: Time,
+        iteration: u64,
+        step: Step,
+    },
+}
+
+struct Watch {
+    node: usize,
+    events: Vec<Event>,
+    actions: u64,
+}
+
+impl Observer for Watch {
+    fn transition(&mut self, e: &TransitionEvent) {
+        if e.node == self.node {
+            self.events.push(Event::Switch {
+                time: e.time,
+                iteration: e.iteration,
+                step: e.step,
+            });
+        }
+    }
+    fn action(&mut self, e: &agent_core::ActionEvent) {
+        if e.node == self.node {
+            self.actions += 1;
+        }
+    }
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        let mut bytes = Vec::new();
+        // A value that cannot be encoded compares as no bytes (it differs
+        // from any recorded value, which was encoded).
+        let _ = value.encode(&mut bytes);
+        self.events.push(Event::Transfer {
+            link: e.link,
+            stamp: e.stamp,
+            bytes,
+        });
+    }
+}
+
+/// A recorded value: its stamp, its bytes, where it is in the file.
+pub(crate) struct Recorded {
+    pub(crate) stamp: Stamp,
+    pub(crate) body: Vec<u8>,
+    pub(crate) sequence: u32,
+    pub(crate) offset: u64,
+}
+
+/// [`replay`] against the file at `path`, reading only what the replay needs:
+/// the values of the links into and out of `node`, and its behaviour switches.
+pub fn replay_file(
+    path: &std::path::Path,
+    system: System,
+    node: &str,
+    options: ReplayOptions,
+) -> Result<Replayed, ReplayError> {
+    let info = system.info();
+    let wanted: std::collections::BTreeSet<&str> = info
+        .links
+        .iter()
+        .filter(|l| info.nodes[l.from].name == node || info.nodes[l.to].name == node)
+        .map(|l| l.name.as_str())
+        .collect();
+    let fsm = format!("/fsm/{node}");
+    let recording = Recording::open_filtered(path, |c| {
+        c.topic == fsm
+            || (c.message_encoding == WIRE_ENCODING
+                && c.metadata
+                    .get("link")
+                    .is_some_and(|l| wanted.contains(l.as_str())))
+    })?;
+    replay(&recording, system, node, options)
+}
+
+/// Replay subsystem `node` of `system` (built from the user's code, whole)
+/// against `recording` (see the module's documentation).
+pub fn replay(
+    recording: &Recording,
+    system: System,
+    node: &str,
+    options: ReplayOptions,
+) -> Result<Replayed, ReplayError> {
+    let info = system.info().clone();
+    let subsystems = || {
+        info.nodes
+            .iter()
+            .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+            .map(|n| n.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let x = info
+        .nodes
+        .iter()
+        .position(|n| {
+            n.name == node && !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor)
+        })
+        .ok_or_else(|| ReplayError::NoSubsystem {
+            name: node.to_owned(),
+            available: subsystems(),
+        })?;
+    if !recording.finished() {
+        return Err(ReplayError::Unfinished(
+            recording.path.display().to_string(),
+        ));
+    }
+    let end = recording.metadata.get("end");
+    let end_time = end
+        .and_then(|m| m.get("time_ns")?.parse::<u64>().ok())
+        .map_or(Time::ZERO, Time::from_nanos);
+    let recorded_iterations = end
+        .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
+        .unwrap_or(0);
+
+    // The raw channels by link name.
+    let by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
+        .channels
+        .values()
+        .filter(|c| c.message_encoding == WIRE_ENCODING)
+        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
+        .collect();
+    let mut channel_link: BTreeMap<u16, usize> = BTreeMap::new();
+    let mut shapes: BTreeMap<usize, Option<TypeShape>> = BTreeMap::new();
+    for (k, link) in info.links.iter().enumerate() {
+        let input = link.to == x && link.from != x;
+        let output = link.from == x;
+        if !(input || output) {
+            continue;
+        }
+        let c = by_link
+            .get(link.name.as_str())
+            .ok_or_else(|| ReplayError::Unrecorded {
+                link: link.name.clone(),
+            })?;
+        let built = system.payload_fingerprint(k).unwrap_or(0);
+        let recorded = c.metadata.get("fingerprint").cloned().unwrap_or_default();
+        if recorded != format!("{built:016x}") {
+            return Err(ReplayError::Fingerprint {
+                link: link.name.clone(),
+                type_name: link.payload.to_owned(),
+                built,
+                recorded,
+            });
+        }
+        channel_link.insert(c.id, k);
+        if output {
+            shapes.insert(k, system.payload_shape(k));
+        }
+    }
+    let fsm_channel = recording.channel(&format!("/fsm/{node}")).map(|c| c.id);
+
+    // The recorded values: inputs to feed, outputs and switches to compare.
+    let mut inputs: Vec<(usize, Recorded)> = Vec::new();
+    let mut outputs: BTreeMap<usize, VecDeque<Recorded>> = BTreeMap::new();
+    let mut switches: VecDeque<(u64, Value)> = VecDeque::new();
+    for m in &recording.messages {
+        if Some(m.channel) == fsm_channel {
+            let v: Value = serde_json::from_slice(&m.data).map_err(|e| ReplayError::BadValue {
+                link: format!("/fsm/{node}"),
+                sequence: m.sequence,
+                offset: m.offset,
+                message: e.to_string(),
+            })?;
+            switches.push_back((m.log_time, v));
+            continue;
+        }
+        let Some(&k) = channel_link.get(&m.channel) else {
+            continue;
+        };
+        let (header, body) = WireHeader::read(&m.data).map_err(|e| ReplayError::BadValue {
+            link: info.links[k].name.clone(),
+            sequence: m.sequence,
+            offset: m.offset,
+            message: e.to_string(),
+        })?;
+        let r = Recorded {
+            stamp: header.stamp,
+            body: body.to_vec(),
+            sequence: m.sequence,
+            offset: m.offset,
+        };
+        if info.links[k].from == x {
+            outputs.entry(k).or_default().push_back(r);
+        } else {
+            inputs.push((k, r));
+        }
+    }
+    inputs.sort_by_key(|(_, r)| r.stamp.time);
+    let out_links: Vec<usize> = info
+        .links
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.from == x && l.to != x)
+        .map(|(k, _)| k)
+        .collect();
+
+    let n = &info.nodes[x];
+    let initial = n.fsm.as_ref().map_or_else(
+        || n.behaviours.first().cloned().unwrap_or_default(),
+        |f| f.initial.clone(),
+    );
+    let mut cmp = Compare {
+        node: &info.nodes[x],
+        info: &info,
+        shapes: &shapes,
+        recorded_behaviour: initial.clone(),
+        replayed_behaviour: initial,
+        compared: 0,
+        switched: 0,
+    };
+
+    let id = system.node(node).ok_or_else(|| ReplayError::NoSubsystem {
+        name: node.to_owned(),
+        available: subsystems(),
+    })?;
+    let mut exec = Executor::with_observer(
+        system,
+        options.exec,
+        Watch {
+            node: x,
+            events: Vec::new(),
+            actions: 0,
+        },
+    );
+    exec.isolate(id);
+    let mut fed = 0u64;
+    let mut next_input = 0usize;
+    while let Some(t) = exec.next_instant() {
+        if t > end_time {
+            break;
+        }
+        while let Some((k, r)) = inputs.get(next_input) {
+            if r.stamp.time >= t {
+                break;
+            }
+            exec.inject(*k, &r.body, r.stamp)
+                .map_err(|e| bad_input(&info, *k, r, &e))?;
+            next_input += 1;
+            fed += 1;
+        }
+        let iteration = exec.observer().actions;
+        exec.step()?;
+        for &k in &out_links {
+            exec.discard(k);
+        }
+        let events = std::mem::take(&mut exec.observer_mut().events);
+        if let Some(d) = cmp.instant(t, iteration, events, &mut outputs, &mut switches) {
+            return Ok(Replayed::Diverged(Box::new(d)));
+        }
+    }
+    let replayed = exec.observer().actions;
+    Ok(cmp.end(
+        (end_time, replayed, recorded_iterations),
+        fed,
+        &mut outputs,
+        &mut switches,
+    ))
+}
+
+fn bad_input(
+    info: &agent_core::SystemInfo,
+    k: usize,
+    r: &Recorded,
+    e: &InjectError,
+) -> ReplayError {
+    ReplayError::BadValue {
+        link: info.links[k].name.clone(),
+        sequence: r.sequence,
+        offset: r.offset,
+        message: e.to_string(),
+    }
+}
