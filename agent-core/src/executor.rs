@@ -263,6 +263,7 @@ impl<O: Observer> Executor<O> {
         let tn = t.as_nanos();
         let observe = self.observer.enabled();
         let mut cx = LinkCx {
+            time: t,
             observer: observe.then_some(&mut self.observer as &mut dyn Observer),
             links: &self.info.links,
             environment: None,
@@ -279,6 +280,7 @@ impl<O: Observer> Executor<O> {
                 continue;
             }
             let mut cx = LinkCx {
+                time: t,
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
                 links: &self.info.links,
                 environment: self.environment.as_deref_mut(),

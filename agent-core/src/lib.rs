@@ -72,8 +72,8 @@ pub use system::{
 };
 pub use time::{Period, PeriodError, Stamp, Time};
 pub use trace::{
-    ActionEvent, AuditEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, Recorder,
-    SystemInfo, Trace, TraceEvent, TransferEvent, TransitionEvent,
+    ActionEvent, AuditEvent, ErasedPayload, LinkInfo, NoObserver, NodeInfo, Observer, ReadEvent,
+    Recorder, SystemInfo, Trace, TraceEvent, TransferEvent, TransitionEvent,
 };
 pub use transition::{Action, Outcome, Part, PartTarget};
 

@@ -152,6 +152,21 @@ pub struct TransferEvent {
     pub stamp: Stamp,
 }
 
+/// A value taken from a link into its receiver's input buffer.
+///
+/// In the deterministic executor which value a node reads follows from the
+/// stamps; in the real-time one it depends on which thread reached an instant
+/// first, so a replay of a real-time run needs these.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadEvent {
+    /// The receiver's instant (the activation that read it).
+    pub time: Time,
+    /// Link index.
+    pub link: usize,
+    /// The value's stamp: its sender's iteration and instant.
+    pub stamp: Stamp,
+}
+
 /// Hooks called by executors during a run. Every method has an empty default.
 pub trait Observer: Send {
     /// Whether the executor should call this observer at all. [`NoObserver`] says
@@ -171,6 +186,8 @@ pub trait Observer: Send {
     fn audit(&mut self, _event: &AuditEvent) {}
     /// A value was sent into a link.
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
+    /// A node took a value from a link (before its activation's step).
+    fn read(&mut self, _event: &ReadEvent) {}
     /// An error occurred (whether the run stops or continues).
     fn error(&mut self, _time: Time, _error: &ExecError) {}
 }

@@ -10,16 +10,20 @@
 //!   [`Derive`], channels derived from buffers (Foxglove's images and poses);
 //! * [`read`]: [`Recording`], a file read back, with errors that name the
 //!   offset of a truncated or damaged part;
+//! * [`merge`](mod@merge): the recordings of the processes of a distributed run
+//!   made one, in time order;
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
 //!   and behaviour switches compared bit for bit with the recording.
 
 pub mod json;
+pub mod merge;
 pub mod read;
 pub mod record;
 pub mod replay;
 
 /// The MCAP crate this one writes with (to read recordings back).
 pub use mcap;
+pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};
 pub use record::{Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary};
 pub use replay::{

@@ -69,6 +69,19 @@ pub struct ChannelInfo {
     pub metadata: BTreeMap<String, String>,
     /// Its schema's name, if it has one.
     pub schema: Option<String>,
+    /// Its schema's id in the file ([`Recording::schemas`]; 0: none).
+    pub schema_id: u16,
+}
+
+/// A schema of a recording.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SchemaInfo {
+    /// Its name (`foxglove.PoseInFrame`, a Rust type's path).
+    pub name: String,
+    /// Its encoding (`jsonschema`).
+    pub encoding: String,
+    /// The schema itself.
+    pub data: Vec<u8>,
 }
 
 /// One message.
@@ -95,6 +108,8 @@ pub struct Recording {
     pub path: PathBuf,
     /// The channels, by id.
     pub channels: BTreeMap<u16, ChannelInfo>,
+    /// The schemas, by id.
+    pub schemas: BTreeMap<u16, SchemaInfo>,
     /// The metadata records, by name.
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// The messages kept, in the file's order.
@@ -132,7 +147,6 @@ impl Recording {
                 path: path.to_owned(),
                 ..Recording::default()
             },
-            schemas: BTreeMap::new(),
             kept: BTreeMap::new(),
             summary: false,
         };
@@ -298,7 +312,6 @@ fn frame(bytes: &[u8], pos: usize) -> Result<(u8, &[u8]), String> {
 struct Reader<'a> {
     path: &'a Path,
     out: Recording,
-    schemas: BTreeMap<u16, String>,
     kept: BTreeMap<u16, bool>,
     summary: bool,
 }
@@ -327,8 +340,15 @@ impl Reader<'_> {
         keep: &mut impl FnMut(&ChannelInfo) -> bool,
     ) -> Result<(), ReadError> {
         match record {
-            Record::Schema { header, .. } => {
-                self.schemas.insert(header.id, header.name);
+            Record::Schema { header, data } => {
+                self.out.schemas.insert(
+                    header.id,
+                    SchemaInfo {
+                        name: header.name,
+                        encoding: header.encoding,
+                        data: data.into_owned(),
+                    },
+                );
             }
             Record::Channel(c) => {
                 let info = ChannelInfo {
@@ -336,7 +356,8 @@ impl Reader<'_> {
                     topic: c.topic,
                     message_encoding: c.message_encoding,
                     metadata: c.metadata,
-                    schema: self.schemas.get(&c.schema_id).cloned(),
+                    schema: self.out.schemas.get(&c.schema_id).map(|s| s.name.clone()),
+                    schema_id: c.schema_id,
                 };
                 self.kept.insert(c.id, keep(&info));
                 self.out.channels.insert(c.id, info);

@@ -18,6 +18,11 @@
 //!   [`RecordOptions::json_max_bytes`] is recorded here only;
 //! * channels derived from links ([`Derive`]): for example Foxglove's images
 //!   and poses;
+//! * `/reads/links/...` for every link (encoding `embodied-read/1`): each
+//!   value its receiver took, at the receiver's instant (log time), as the
+//!   value's stamp (sender's iteration, then instant, each a little-endian
+//!   `u64`): which value an activation read, which in a real-time run depends
+//!   on the threads' timing; what a replay feeds;
 //! * `/fsm/<node>`: each behaviour switch, with the arc and the value of every
 //!   predicate at the decision, and the end of a final behaviour;
 //! * `/errors`: every error the executor met, with its time.
@@ -27,6 +32,11 @@
 //! [`McapRecorder::finish`]: a file without it was not finished); and whatever
 //! the caller adds ([`RecordOptions::metadata`]: the spec, the deployment, the
 //! settings).
+//!
+//! The deterministic executor takes the recorder itself as its observer; the
+//! real-time executor one part per thread ([`McapRecorder::threads`]), each
+//! queuing to the same writer.
+//!
 //! Queuing is lossless: when the writer falls behind by
 //! [`RecordOptions::queue`] records, the executor waits (counted). A writer
 //! that fails (disk full) stops the recording; the run goes on, and
@@ -36,21 +46,40 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{Receiver, SyncSender, TrySendError, channel, sync_channel};
+use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel, sync_channel};
 use std::thread::JoinHandle;
 
 use agent_core::link::remote::HEADER_LEN;
 use agent_core::trace::{
-    ActionEvent, ErasedPayload, LinkInfo, NodeInfo, Observer, SystemInfo, TransferEvent,
+    ActionEvent, ErasedPayload, LinkInfo, NodeInfo, Observer, ReadEvent, SystemInfo, TransferEvent,
     TransitionEvent,
 };
-use agent_core::{ExecError, Step, System, Time, TypeShape, WireHeader};
+use agent_core::{ExecError, Stamp, Step, System, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
 
 use crate::json::{json_schema, to_json};
 
 /// The message encoding of the raw channels.
 pub const WIRE_ENCODING: &str = "embodied-wire/1";
+
+/// The message encoding of the reads channels: the stamp of the value read
+/// (the sender's iteration, then its instant in ns; little-endian `u64`s).
+pub const READ_ENCODING: &str = "embodied-read/1";
+
+/// One read as its channel carries it.
+pub(crate) fn encode_read(stamp: Stamp) -> [u8; 16] {
+    let mut b = [0u8; 16];
+    b[..8].copy_from_slice(&stamp.iteration.to_le_bytes());
+    b[8..].copy_from_slice(&stamp.time.as_nanos().to_le_bytes());
+    b
+}
+
+/// A read's stamp, from its channel's bytes.
+pub(crate) fn decode_read(data: &[u8]) -> Option<Stamp> {
+    let iteration = u64::from_le_bytes(data.get(..8)?.try_into().ok()?);
+    let time = u64::from_le_bytes(data.get(8..16)?.try_into().ok()?);
+    (data.len() == 16).then(|| Stamp::new(iteration, Time::from_nanos(time)))
+}
 
 /// A channel derived from the values of some links, written beside their own:
 /// what a robotics user expects to look at in Foxglove (an image, a pose, a
@@ -162,9 +191,15 @@ pub struct RecordSummary {
 
 enum Record {
     Transfer {
+        part: u16,
         link: u32,
         time: Time,
         bytes: Vec<u8>,
+    },
+    Read {
+        link: u32,
+        time: Time,
+        stamp: Stamp,
     },
     Transition {
         node: u32,
@@ -176,27 +211,53 @@ enum Record {
         time: Time,
         message: String,
     },
-    End {
-        time: Time,
-        iterations: Vec<u64>,
+    /// A part (one thread's observer) starts: where its buffers go back.
+    Part {
+        part: u16,
+        give_back: Sender<Vec<u8>>,
     },
+    /// A part ends: what it counted.
+    Counted(Counts),
+    /// The recording's owner finished it.
+    End,
+}
+
+/// What one part counted.
+#[derive(Default)]
+struct Counts {
+    iterations: Vec<u64>,
+    last: Time,
+    waits: u64,
+    encode_failures: u64,
+}
+
+impl Counts {
+    fn add(&mut self, other: &Counts) {
+        if self.iterations.len() < other.iterations.len() {
+            self.iterations.resize(other.iterations.len(), 0);
+        }
+        for (a, b) in self.iterations.iter_mut().zip(&other.iterations) {
+            *a += b;
+        }
+        self.last = self.last.max(other.last);
+        self.waits += other.waits;
+        self.encode_failures += other.encode_failures;
+    }
 }
 
 /// An [`Observer`] that writes the run to an MCAP file (see the module's
 /// documentation). Give it to `Executor::with_observer`; after the run, take
-/// it back (`Executor::into_observer`) and [`McapRecorder::finish`] it.
+/// it back (`Executor::into_observer`) and [`McapRecorder::finish`] it. For a
+/// real-time run, give `RealTime::observe` its [`McapRecorder::threads`] and
+/// finish it after `Running::join`.
 pub struct McapRecorder {
-    tx: Option<SyncSender<Record>>,
-    spare: Receiver<Vec<u8>>,
+    part: Part,
     writer: Option<JoinHandle<Result<RecordSummary, RecordError>>>,
     path: PathBuf,
-    waits: u64,
-    encode_failures: u64,
-    /// Per link: the payload's fingerprint and the values sent so far.
-    wire: Vec<(u64, u64)>,
-    /// Per node: iterations made; and the last instant seen.
-    iterations: Vec<u64>,
-    last: Time,
+    /// The links' payload fingerprints and the number of nodes, for parts.
+    fingerprints: std::sync::Arc<[u64]>,
+    nodes: usize,
+    parts: std::sync::Arc<std::sync::atomic::AtomicU16>,
 }
 
 impl std::fmt::Debug for McapRecorder {
@@ -207,10 +268,139 @@ impl std::fmt::Debug for McapRecorder {
     }
 }
 
+/// One thread's observer of a recording: it encodes what it sees and queues
+/// it to the writer thread.
+struct Part {
+    id: u16,
+    tx: Option<SyncSender<Record>>,
+    spare: Receiver<Vec<u8>>,
+    /// Per link: the payload's fingerprint and the values this part sent.
+    wire: Vec<(u64, u64)>,
+    counts: Counts,
+}
+
+impl Part {
+    fn new(id: u16, tx: SyncSender<Record>, fingerprints: &[u64], nodes: usize) -> Part {
+        let (give_back, spare) = channel::<Vec<u8>>();
+        let mut part = Part {
+            id,
+            tx: Some(tx),
+            spare,
+            wire: fingerprints.iter().map(|&f| (f, 0)).collect(),
+            counts: Counts {
+                iterations: vec![0; nodes],
+                ..Counts::default()
+            },
+        };
+        part.send(Record::Part {
+            part: id,
+            give_back,
+        });
+        part
+    }
+
+    fn send(&mut self, record: Record) {
+        let Some(tx) = &self.tx else {
+            return;
+        };
+        let sent = match tx.try_send(record) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(record)) => {
+                self.counts.waits += 1;
+                tx.send(record).map_err(|_| ())
+            }
+            Err(TrySendError::Disconnected(_)) => Err(()),
+        };
+        if sent.is_err() {
+            // The writer failed: `finish` says why; the run goes on.
+            self.tx = None;
+        }
+    }
+
+    /// Hand the counts to the writer (then, if `end`, say the run finished)
+    /// and let the writer go.
+    fn close(&mut self, end: bool) {
+        let counts = std::mem::take(&mut self.counts);
+        self.send(Record::Counted(counts));
+        if end {
+            self.send(Record::End);
+        }
+        self.tx = None;
+    }
+}
+
+impl Drop for Part {
+    fn drop(&mut self) {
+        if self.tx.is_some() {
+            self.close(false);
+        }
+    }
+}
+
+impl Observer for Part {
+    fn transition(&mut self, e: &TransitionEvent) {
+        self.send(Record::Transition {
+            node: small(e.node),
+            time: e.time,
+            iteration: e.iteration,
+            step: e.step,
+        });
+    }
+
+    fn action(&mut self, e: &ActionEvent) {
+        if let Some(n) = self.counts.iterations.get_mut(e.node) {
+            *n += 1;
+        }
+        self.counts.last = self.counts.last.max(e.time);
+    }
+
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        let mut bytes = self.spare.try_recv().unwrap_or_default();
+        let Some((fingerprint, count)) = self.wire.get_mut(e.link) else {
+            return;
+        };
+        *count += 1;
+        WireHeader {
+            fingerprint: *fingerprint,
+            epoch: 0,
+            seq: *count,
+            stamp: e.stamp,
+        }
+        .write(&mut bytes);
+        if value.encode(&mut bytes).is_err() {
+            self.counts.encode_failures += 1;
+            return;
+        }
+        self.send(Record::Transfer {
+            part: self.id,
+            link: small(e.link),
+            time: e.stamp.time,
+            bytes,
+        });
+    }
+
+    fn read(&mut self, e: &ReadEvent) {
+        self.send(Record::Read {
+            link: small(e.link),
+            time: e.time,
+            stamp: e.stamp,
+        });
+    }
+
+    fn error(&mut self, time: Time, error: &ExecError) {
+        self.send(Record::Error {
+            time,
+            message: error.to_string(),
+        });
+    }
+}
+
 /// A link's channels and how to read its values.
 struct LinkChannels {
     json: u16,
     raw: u16,
+    reads: u16,
+    read_sequence: u32,
     /// The payload's shape, as JSON text until the writer thread reads it
     /// (`serde-reflection`'s formats cannot cross threads).
     shape: Option<String>,
@@ -275,6 +465,9 @@ impl McapRecorder {
             let raw = w
                 .add_channel(0, &format!("/raw{topic}"), WIRE_ENCODING, &raw_meta)
                 .map_err(fail)?;
+            let reads = w
+                .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &raw_meta)
+                .map_err(fail)?;
             let mut derived = Vec::new();
             for (d, derive) in options.derived.iter_mut().enumerate() {
                 if let Some(c) = derive.channel(k, link) {
@@ -287,10 +480,12 @@ impl McapRecorder {
                     derived.push((d, id));
                 }
             }
-            wire.push((fingerprint, 0));
+            wire.push(fingerprint);
             links.push(LinkChannels {
                 json,
                 raw,
+                reads,
+                read_sequence: 0,
                 shape: shape.and_then(|s| serde_json::to_string(&(s.root, s.registry)).ok()),
                 sequence: 0,
                 derived,
@@ -326,9 +521,8 @@ impl McapRecorder {
             .map_err(fail)?;
         }
         let (tx, rx) = sync_channel::<Record>(options.queue.max(1));
-        let (give_back, spare) = channel::<Vec<u8>>();
         let channels =
-            links.len() * 2 + links.iter().map(|l| l.derived.len()).sum::<usize>() + fsm.len() + 1;
+            links.len() * 3 + links.iter().map(|l| l.derived.len()).sum::<usize>() + fsm.len() + 1;
         let nodes = info.nodes.len();
         let out = Output {
             w,
@@ -347,68 +541,61 @@ impl McapRecorder {
         };
         let writer = std::thread::Builder::new()
             .name("mcap-writer".into())
-            .spawn(move || out.run(&rx, &give_back))
+            .spawn(move || out.run(&rx))
             .map_err(|source| RecordError::Create {
                 path: path.to_owned(),
                 source,
             })?;
+        let fingerprints: std::sync::Arc<[u64]> = wire.into();
         Ok(McapRecorder {
-            tx: Some(tx),
-            spare,
+            part: Part::new(0, tx, &fingerprints, nodes),
             writer: Some(writer),
             path: path.to_owned(),
-            waits: 0,
-            encode_failures: 0,
-            wire,
-            iterations: vec![0; nodes],
-            last: Time::ZERO,
+            fingerprints,
+            nodes,
+            parts: std::sync::Arc::new(std::sync::atomic::AtomicU16::new(1)),
         })
     }
 
-    fn send(&mut self, record: Record) {
-        let Some(tx) = &self.tx else {
-            return;
-        };
-        let sent = match tx.try_send(record) {
-            Ok(()) => Ok(()),
-            Err(TrySendError::Full(record)) => {
-                self.waits += 1;
-                tx.send(record).map_err(|_| ())
+    /// The observers of a real-time run, one per thread, for
+    /// `RealTime::observe`: each queues to this recording's writer. Call
+    /// [`McapRecorder::finish`] after the run's `join` (it waits until every
+    /// thread's part is gone, so it must not be called while a `RealTime` that
+    /// holds these is neither started nor dropped).
+    pub fn threads(&self) -> impl FnMut(&str, &[usize]) -> Box<dyn Observer> + Send + 'static {
+        let tx = self.part.tx.clone();
+        let fingerprints = self.fingerprints.clone();
+        let nodes = self.nodes;
+        let ids = self.parts.clone();
+        move |_thread: &str, _nodes: &[usize]| -> Box<dyn Observer> {
+            let id = ids.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            match &tx {
+                Some(tx) => Box::new(Part::new(id, tx.clone(), &fingerprints, nodes)),
+                // The writer already failed: `finish` says why.
+                None => Box::new(agent_core::NoObserver),
             }
-            Err(TrySendError::Disconnected(_)) => Err(()),
-        };
-        if sent.is_err() {
-            // The writer failed: `finish` says why; the run goes on.
-            self.tx = None;
         }
     }
 
     /// Close the file (its summary and index) and say what it holds, or why
     /// the recording failed.
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
-        let iterations = std::mem::take(&mut self.iterations);
-        self.send(Record::End {
-            time: self.last,
-            iterations,
-        });
-        self.tx = None;
+        self.part.close(true);
         let writer = self
             .writer
             .take()
             .ok_or_else(|| RecordError::WriterGone(self.path.clone()))?;
-        let mut summary = writer
+        writer
             .join()
-            .map_err(|_| RecordError::WriterGone(self.path.clone()))??;
-        summary.waits = self.waits;
-        summary.undecodable += self.encode_failures;
-        Ok(summary)
+            .map_err(|_| RecordError::WriterGone(self.path.clone()))?
     }
 }
 
 impl Drop for McapRecorder {
     fn drop(&mut self) {
-        // Not finished: close the file anyway (errors are lost; `finish` says them).
-        self.tx = None;
+        // Not finished: close the file anyway (errors are lost; `finish` says
+        // them), without the `end` record that says the run was finished.
+        self.part.close(false);
         if let Some(w) = self.writer.take() {
             let _ = w.join();
         }
@@ -417,53 +604,20 @@ impl Drop for McapRecorder {
 
 impl Observer for McapRecorder {
     fn transition(&mut self, e: &TransitionEvent) {
-        self.send(Record::Transition {
-            node: small(e.node),
-            time: e.time,
-            iteration: e.iteration,
-            step: e.step,
-        });
+        self.part.transition(e);
     }
-
     fn action(&mut self, e: &ActionEvent) {
-        if let Some(n) = self.iterations.get_mut(e.node) {
-            *n += 1;
-        }
-        self.last = self.last.max(e.time);
+        self.part.action(e);
     }
-
     fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
-        let mut bytes = self.spare.try_recv().unwrap_or_default();
-        let Some((fingerprint, count)) = self.wire.get_mut(e.link) else {
-            return;
-        };
-        *count += 1;
-        WireHeader {
-            fingerprint: *fingerprint,
-            epoch: 0,
-            seq: *count,
-            stamp: e.stamp,
-        }
-        .write(&mut bytes);
-        if value.encode(&mut bytes).is_err() {
-            self.encode_failures += 1;
-            return;
-        }
-        self.send(Record::Transfer {
-            link: small(e.link),
-            time: e.stamp.time,
-            bytes,
-        });
+        self.part.transfer(e, value);
     }
-
+    fn read(&mut self, e: &ReadEvent) {
+        self.part.read(e);
+    }
     fn error(&mut self, time: Time, error: &ExecError) {
-        self.send(Record::Error {
-            time,
-            message: error.to_string(),
-        });
+        self.part.error(time, error);
     }
-
-    fn start(&mut self, _system: &SystemInfo) {}
 }
 
 fn small(i: usize) -> u32 {
@@ -485,11 +639,7 @@ struct Output {
 }
 
 impl Output {
-    fn run(
-        mut self,
-        rx: &Receiver<Record>,
-        give_back: &std::sync::mpsc::Sender<Vec<u8>>,
-    ) -> Result<RecordSummary, RecordError> {
+    fn run(mut self, rx: &Receiver<Record>) -> Result<RecordSummary, RecordError> {
         let shapes: Vec<Option<TypeShape>> = self
             .links
             .iter()
@@ -499,12 +649,30 @@ impl Output {
             })
             .collect();
         let mut error_count = 0u32;
+        let mut give_back: BTreeMap<u16, Sender<Vec<u8>>> = BTreeMap::new();
+        let mut counts = Counts::default();
+        let mut finished = false;
+        // Until the owner and every thread's part are gone.
         for record in rx.iter() {
             match record {
-                Record::Transfer { link, time, bytes } => {
+                Record::Transfer {
+                    part,
+                    link,
+                    time,
+                    bytes,
+                } => {
                     let shape = shapes.get(link as usize).and_then(Option::as_ref);
                     self.transfer(link, shape, time, &bytes)?;
-                    let _ = give_back.send(bytes);
+                    if let Some(back) = give_back.get(&part) {
+                        let _ = back.send(bytes);
+                    }
+                }
+                Record::Read { link, time, stamp } => {
+                    if let Some(l) = self.links.get_mut(link as usize) {
+                        let (channel, sequence) = (l.reads, l.read_sequence);
+                        l.read_sequence = l.read_sequence.wrapping_add(1);
+                        self.write(channel, sequence, time, &encode_read(stamp))?;
+                    }
                 }
                 Record::Transition {
                     node,
@@ -522,24 +690,31 @@ impl Output {
                     )?;
                     error_count += 1;
                 }
-                Record::End { time, iterations } => {
-                    let mut end = BTreeMap::from([
-                        ("time_ns".to_owned(), time.as_nanos().to_string()),
-                        ("finished".to_owned(), "true".to_owned()),
-                    ]);
-                    for (n, k) in self.info.nodes.iter().zip(&iterations) {
-                        end.insert(format!("iterations/{}", n.name), k.to_string());
-                    }
-                    self.w
-                        .write_metadata(&mcap::records::Metadata {
-                            name: "end".into(),
-                            metadata: end,
-                        })
-                        .map_err(|e| self.fail(&e))?;
+                Record::Part { part, give_back: g } => {
+                    give_back.insert(part, g);
                 }
+                Record::Counted(c) => counts.add(&c),
+                Record::End => finished = true,
             }
         }
+        if finished {
+            let mut end = BTreeMap::from([
+                ("time_ns".to_owned(), counts.last.as_nanos().to_string()),
+                ("finished".to_owned(), "true".to_owned()),
+            ]);
+            for (n, k) in self.info.nodes.iter().zip(&counts.iterations) {
+                end.insert(format!("iterations/{}", n.name), k.to_string());
+            }
+            self.w
+                .write_metadata(&mcap::records::Metadata {
+                    name: "end".into(),
+                    metadata: end,
+                })
+                .map_err(|e| self.fail(&e))?;
+        }
         self.w.finish().map_err(|e| self.fail(&e))?;
+        self.summary.waits = counts.waits;
+        self.summary.undecodable += counts.encode_failures;
         Ok(self.summary)
     }
 

@@ -16,7 +16,10 @@ use rex_agent::a1::{RexConfig, RunSettings, deployment, load_spec};
 use rex_agent::algorithms::planner::PlannerKind;
 use rex_agent::algorithms::planner::trajgen::Runtime;
 use rex_agent::mission::Mission;
-use rex_agent::run::{Outcome, Progress, run_mission, run_mission_observed, run_mission_realtime};
+use rex_agent::run::{
+    Outcome, Progress, run_mission, run_mission_observed, run_mission_realtime,
+    run_mission_realtime_recorded,
+};
 use rex_agent::{config, report};
 
 /// Run Rex, the skid-steer robot of Janiak & Zieliński, through a mission.
@@ -90,8 +93,11 @@ struct Cli {
     /// Record the run to this MCAP file (open it in Foxglove): every buffer
     /// transfer as JSON with its type's schema and as exact bytes, c1's and
     /// every subsystem's behaviour switches with the value of each predicate,
-    /// errors, the spec and the settings. The simulated run only (not
-    /// `--realtime` or a deployment yet), one mission.
+    /// errors, the spec and the settings; one mission. With `--realtime`,
+    /// also which value each activation read (the threads' timing decides
+    /// it). With `--process`, this process's part (`{process}` in the path is
+    /// its name); with `launch`, every process records `<stem>.<process>.mcap`
+    /// and the parts are merged into FILE when they end.
     #[arg(long, global = true, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Print only the summary.
@@ -370,13 +376,24 @@ fn run_one(
     let quiet = cli.quiet;
     let progress = printer(quiet);
     let outcome = if cli.realtime {
-        let (outcome, timing) = run_mission_realtime(
-            config,
-            limit,
-            Duration::from_secs(5),
-            RtConfig::realtime(),
-            progress,
-        )?;
+        let rt = RtConfig::realtime();
+        let tick = Duration::from_secs(5);
+        let (outcome, timing) = match &cli.record {
+            Some(file) => {
+                let options = record_options(config, spec, settings);
+                let (outcome, timing, s) = run_mission_realtime_recorded(
+                    config,
+                    limit,
+                    tick,
+                    rt,
+                    (file, options),
+                    progress,
+                )?;
+                print_recorded(file, &s);
+                (outcome, timing)
+            }
+            None => run_mission_realtime(config, limit, tick, rt, progress)?,
+        };
         if !quiet {
             eprintln!("{timing}");
         }
@@ -396,15 +413,7 @@ fn run_one(
             |system| Ok(McapRecorder::create(file, system, options)?),
             progress,
         )?;
-        let s = recorder.finish()?;
-        let size = std::fs::metadata(file).map_or(0, |m| m.len());
-        emit(format_args!(
-            "record: {} ({} messages on {} channels, {:.1} MB)\n",
-            file.display(),
-            s.messages,
-            s.channels,
-            size as f64 / 1e6
-        ));
+        print_recorded(file, &recorder.finish()?);
         outcome
     } else {
         run_mission(config, limit, Duration::from_secs(5), progress)?
@@ -433,6 +442,18 @@ fn run_one(
         ));
     }
     Ok(outcome)
+}
+
+/// The line that says where a recording went and what it holds.
+fn print_recorded(file: &Path, s: &embodied::record::RecordSummary) {
+    let size = std::fs::metadata(file).map_or(0, |m| m.len());
+    emit(format_args!(
+        "record: {} ({} messages on {} channels, {:.1} MB)\n",
+        file.display(),
+        s.messages,
+        s.channels,
+        size as f64 / 1e6
+    ));
 }
 
 fn main() -> ExitCode {
@@ -477,9 +498,7 @@ fn main() -> ExitCode {
         }
     }
     if let Some(file) = &cli.record {
-        let why = if cli.realtime || cli.deployment.is_some() {
-            Some("records the simulated run only (not --realtime or a deployment yet)")
-        } else if prepared.len() > 1 {
+        let why = if prepared.len() > 1 {
             Some("records one mission (not `all`)")
         } else {
             None
@@ -490,7 +509,7 @@ fn main() -> ExitCode {
         }
     }
     if cli.process.is_some() || cli.command.is_some() {
-        return distributed(&cli, &prepared);
+        return distributed(&cli, &prepared, &recorded);
     }
     let mut lines = Vec::new();
     let mut ok = true;
@@ -524,9 +543,13 @@ static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBoo
 
 /// `--process` (one process of a deployment) or `launch` (all of them).
 #[cfg(feature = "distributed")]
-fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode {
+fn distributed(
+    cli: &Cli,
+    prepared: &[(RexConfig, Spec, Duration)],
+    recorded: &[RunSettings],
+) -> ExitCode {
     use rex_agent::run::distributed::{launch, run_process};
-    let [(config, spec, limit)] = prepared else {
+    let ([(config, spec, limit)], [settings]) = (prepared, recorded) else {
         eprintln!("rex: a deployment runs one mission at a time (not `all`)");
         return ExitCode::from(2);
     };
@@ -558,6 +581,12 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         eprintln!("rex: cannot catch Ctrl-C ({e}); stop with SIGKILL");
     }
     if let Some(process) = &cli.process {
+        // `{process}` in the path is this process's name (the launcher's
+        // `--record` gives every process its own file so).
+        let file = cli
+            .record
+            .as_ref()
+            .map(|f| PathBuf::from(f.to_string_lossy().replace("{process}", process)));
         return match run_process(
             config,
             *limit,
@@ -565,11 +594,16 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
             process,
             &options,
             RtConfig::realtime(),
+            file.as_deref()
+                .map(|f| (f, record_options(config, spec, settings))),
             &INTERRUPTED,
         ) {
-            Ok(timing) => {
+            Ok((timing, summary)) => {
                 if !cli.quiet {
                     eprintln!("{timing}");
+                }
+                if let (Some(file), Some(s)) = (&file, &summary) {
+                    print_recorded(file, s);
                 }
                 emit(format_args!(
                     "process={process} rt_priority={} overruns={} executor_errors={}\n",
@@ -614,14 +648,21 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         return ExitCode::from(2);
     }
     // The processes get the same arguments, without `launch` and its options.
+    // Each records its own part (`--record`: `<stem>.<process>.mcap` beside
+    // the file), merged into the file when they have ended.
+    let parts = cli.record.as_ref().map(|f| record_parts(f));
     let mut args: Vec<String> = Vec::new();
     let mut given = std::env::args().skip(1);
     while let Some(a) = given.next() {
-        if a == "--kill" {
+        if a == "--kill" || a == "--record" {
             given.next();
-        } else if a != "launch" && !a.starts_with("--kill=") {
+        } else if a != "launch" && !a.starts_with("--kill=") && !a.starts_with("--record=") {
             args.push(a);
         }
+    }
+    if let Some(pattern) = &parts {
+        args.push("--record".into());
+        args.push(pattern.to_string_lossy().into_owned());
     }
     if !args.iter().any(|a| a == "--no-report") {
         args.push("--no-report".into());
@@ -643,6 +684,9 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
         }
     };
     emit(format_args!("{}", report::summary(&outcome)));
+    if let (Some(file), Some(pattern)) = (&cli.record, &parts) {
+        merge_parts(file, pattern, spec, deployment);
+    }
     if !cli.no_report {
         let dir = cli.out.join(&outcome.mission);
         match report::write(&dir, &outcome, config, spec) {
@@ -670,6 +714,47 @@ fn distributed(cli: &Cli, prepared: &[(RexConfig, Spec, Duration)]) -> ExitCode 
     }
 }
 
+/// The path of each process's part of a recording to `file`, with
+/// `{process}` for the process's name: `<stem>.{process}.mcap` beside it.
+#[cfg(feature = "distributed")]
+fn record_parts(file: &Path) -> PathBuf {
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "record".to_owned(), |s| s.to_string_lossy().into_owned());
+    file.with_file_name(format!("{stem}.{{process}}.mcap"))
+}
+
+/// Merge the processes' parts of a launched run's recording into `file`.
+#[cfg(feature = "distributed")]
+fn merge_parts(file: &Path, pattern: &Path, spec: &Spec, deployment: &str) {
+    let parts: Vec<PathBuf> = spec
+        .deployments
+        .iter()
+        .filter(|d| d.name == deployment)
+        .flat_map(|d| d.processes())
+        .map(|(_, p, _)| PathBuf::from(pattern.to_string_lossy().replace("{process}", &p.name)))
+        .collect();
+    match embodied::record::merge(&parts, file) {
+        Ok(m) => {
+            let size = std::fs::metadata(file).map_or(0, |m| m.len());
+            emit(format_args!(
+                "record: {} (merged from {} processes: {} messages on {} channels, {:.1} MB{})\n",
+                file.display(),
+                m.files,
+                m.messages,
+                m.channels,
+                size as f64 / 1e6,
+                if m.finished {
+                    ""
+                } else {
+                    "; a process did not finish its part"
+                }
+            ));
+        }
+        Err(e) => eprintln!("rex: --record {}: {e}", file.display()),
+    }
+}
+
 /// Whether `deployment` of `spec` has a process named `process`.
 #[cfg(feature = "distributed")]
 fn spec_runs_process(spec: &Spec, deployment: &str, process: &str) -> bool {
@@ -680,7 +765,7 @@ fn spec_runs_process(spec: &Spec, deployment: &str, process: &str) -> bool {
 }
 
 #[cfg(not(feature = "distributed"))]
-fn distributed(_: &Cli, _: &[(RexConfig, Spec, Duration)]) -> ExitCode {
+fn distributed(_: &Cli, _: &[(RexConfig, Spec, Duration)], _: &[RunSettings]) -> ExitCode {
     eprintln!("rex: built without the feature `distributed`: no deployments over Zenoh");
     ExitCode::from(2)
 }
@@ -717,8 +802,25 @@ fn replay(cli: &Cli, file: &Path, subsystem: &str) -> ExitCode {
     let built = overrides(cli, &mut s)
         .map_err(|e| e.to_string())
         .and_then(|()| s.resolve(&here).map_err(|e| e.to_string()))
-        .and_then(|config| {
-            rex_agent::a1::build(&config)
+        .and_then(|mut config| {
+            // A process of a deployment (or a merge of them) recorded it: the
+            // deployment's system, and c1's incarnation number as it ran.
+            let processes: Vec<_> = head
+                .metadata
+                .iter()
+                .filter(|(name, _)| *name == "process" || name.starts_with("process/"))
+                .map(|(_, m)| m)
+                .collect();
+            if let Some(boot) = processes.iter().find_map(|m| m.get("c1_boot")) {
+                config.c1.boot = boot
+                    .parse()
+                    .map_err(|e| format!("the recorded c1_boot `{boot}`: {e}"))?;
+            }
+            let built = match processes.iter().find_map(|m| m.get("deployment")) {
+                Some(d) => rex_agent::a1::build_deployment(&config, d),
+                None => rex_agent::a1::build(&config),
+            };
+            built
                 .map(|(system, _)| (system, config.exec))
                 .map_err(|e| e.to_string())
         });

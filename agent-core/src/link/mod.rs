@@ -25,7 +25,7 @@ use crate::buffer::{In, Out, Payload};
 use crate::error::LinkError;
 use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
-use crate::trace::{LinkInfo, Observer, TransferEvent};
+use crate::trace::{LinkInfo, Observer, ReadEvent, TransferEvent};
 
 mod by_name;
 pub mod endpoint;
@@ -338,6 +338,8 @@ impl Channels {
 
 /// What ports need from the executor during a transfer.
 pub(crate) struct LinkCx<'a> {
+    /// The instant being executed.
+    pub(crate) time: Time,
     pub(crate) observer: Option<&'a mut dyn Observer>,
     pub(crate) links: &'a [LinkInfo],
     /// The system's environment, for drivers.
@@ -465,12 +467,30 @@ pub(crate) struct LocalIn<I, T, A> {
     port: Port<I, In<T>, A>,
     channel: Shared<T>,
     name: Cow<'static, str>,
+    link: usize,
+}
+
+/// Tell the observer that the buffer `x` just took a value from `link` (if it did).
+#[inline]
+pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
+    if let Some(obs) = cx.observer.as_deref_mut()
+        && x.is_new()
+        && let Some(stamp) = x.stamp()
+    {
+        obs.read(&ReadEvent {
+            time: cx.time,
+            link,
+            stamp,
+        });
+    }
 }
 
 impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A> {
     #[inline]
-    fn read(&mut self, x: &mut I, _cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
-        self.channel.borrow_mut().take_into(self.port.get(x));
+    fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
+        let x = self.port.get(x);
+        self.channel.borrow_mut().take_into(x);
+        observe_read(x, self.link, cx);
         Ok(())
     }
 
@@ -558,6 +578,7 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
             port: self.port,
             channel: channels.shared::<T>(self.link)?,
             name: self.name.clone(),
+            link: self.link,
         });
         Some(Box::new(port))
     }

@@ -21,7 +21,7 @@ use crate::time::{Stamp, Time};
 use crate::trace::TransferEvent;
 
 use super::remote::{RemoteRx, RemoteTx};
-use super::{Access, Cause, InPort, LinkCx, LinkStats, OutPort, Port, Refused};
+use super::{Access, Cause, InPort, LinkCx, LinkStats, OutPort, Port, Refused, observe_read};
 use crate::error::LinkError;
 
 /// The counters of one link, shared by its two threads (relaxed atomics: they
@@ -228,17 +228,18 @@ pub(crate) struct ThreadIn<I, T: Send, A> {
 impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for ThreadIn<I, T, A> {
     #[inline]
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
-        self.rx
-            .take_into(self.port.get(x))
-            .map_err(|(key, problem)| LinkError::Remote {
-                link: cx
-                    .links
-                    .get(self.link)
-                    .map(|l| l.name.clone())
-                    .unwrap_or_default(),
-                key: key.to_string(),
-                problem,
-            })
+        let x = self.port.get(x);
+        let taken = self.rx.take_into(x);
+        observe_read(x, self.link, cx);
+        taken.map_err(|(key, problem)| LinkError::Remote {
+            link: cx
+                .links
+                .get(self.link)
+                .map(|l| l.name.clone())
+                .unwrap_or_default(),
+            key: key.to_string(),
+            problem,
+        })
     }
 
     fn attach(&self, x: &mut I) {

@@ -65,7 +65,7 @@ use crate::node::{DriverCore, subsystem_core};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
-use crate::trace::SystemInfo;
+use crate::trace::{Observer, SystemInfo};
 
 pub use finished::Finished;
 pub use report::{RtReport, ThreadReport};
@@ -134,7 +134,11 @@ pub struct RealTime {
     probes: Vec<(Option<usize>, worker::Probe)>,
     dropped: Arc<AtomicU64>,
     placement: Option<Placement>,
+    observers: Option<MakeObserver>,
 }
+
+/// Makes the observer of one thread (see [`RealTime::observe`]).
+type MakeObserver = Box<dyn FnMut(&str, &[usize]) -> Box<dyn Observer> + Send>;
 
 /// This process's part of a deployment: the nodes it runs, and the transport
 /// that carries the links between them and the nodes of other processes.
@@ -240,7 +244,25 @@ impl RealTime {
             probes: Vec::new(),
             dropped: Arc::new(AtomicU64::new(0)),
             placement: None,
+            observers: None,
         }
+    }
+
+    /// Observe the run as the deterministic executor's observer does: `make` is
+    /// called once per thread when the run starts, with the thread's name and
+    /// the nodes it runs (indices into [`SystemInfo::nodes`]); the observer it
+    /// returns sees that thread's behaviour switches, actions, values sent and
+    /// read, and errors, on that thread, and is dropped there when the thread
+    /// ends (so an observer that hands its results to another thread does so
+    /// when dropped; [`Running::join`] returns after every drop). Its calls run
+    /// within the nodes' activations: keep them short and allocation-free (a
+    /// recorder queues to a writer thread).
+    pub fn observe(
+        &mut self,
+        make: impl FnMut(&str, &[usize]) -> Box<dyn Observer> + Send + 'static,
+    ) -> &mut Self {
+        self.observers = Some(Box::new(make));
+        self
     }
 
     /// Run only this process's part of a deployment (see [`Placement`]).
@@ -385,6 +407,7 @@ impl RealTime {
             probes,
             dropped,
             placement,
+            mut observers,
         } = self;
         let System {
             info,
@@ -532,6 +555,7 @@ impl RealTime {
                 environment: None,
                 priority: priority_of(th),
                 probes: Vec::new(),
+                observer: None,
             })
             .collect();
         // Nodes in stepping order: declaration order, real receptors last.
@@ -558,6 +582,11 @@ impl RealTime {
         }
         if let Some(w) = world {
             works[w].environment = environment;
+        }
+        if let Some(make) = observers.as_mut() {
+            for w in &mut works {
+                w.observer = Some(make(&w.name, &w.nodes));
+            }
         }
         for (node, probe) in probes {
             let th = match node {

@@ -15,7 +15,7 @@ use crate::executor::{ExecConfig, OnError, halts_under_continue};
 use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves};
 use crate::node::{InProcessNode, NodeSeed, NodeStep};
 use crate::time::Time;
-use crate::trace::SystemInfo;
+use crate::trace::{Observer, SystemInfo};
 
 use super::clock::{self, Clock};
 use super::timing::{NodeTiming, Recorder};
@@ -44,6 +44,8 @@ pub(crate) struct Work {
     pub(crate) environment: Option<Box<dyn Any + Send>>,
     pub(crate) priority: Option<u8>,
     pub(crate) probes: Vec<Probe>,
+    /// The thread's observer ([`RealTime::observe`](super::RealTime::observe)).
+    pub(crate) observer: Option<Box<dyn Observer>>,
 }
 
 /// What the threads share.
@@ -83,7 +85,12 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         mut environment,
         priority,
         mut probes,
+        observer,
     } = work;
+    let mut observer = observer.filter(|o| o.enabled());
+    if let Some(o) = observer.as_deref_mut() {
+        o.start(&shared.info);
+    }
     let priority = priority.map(|p| (p, clock::set_fifo_priority(p)));
     let info = &shared.info;
     let position = |global: usize| ids.iter().position(|&g| g == global);
@@ -138,7 +145,8 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         let now = Time::from_nanos(t);
         last = now;
         let mut cx = LinkCx {
-            observer: None,
+            time: now,
+            observer: observer.as_deref_mut().map(|o| o as &mut dyn Observer),
             links: &info.links,
             environment: None,
         };
@@ -156,6 +164,9 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         for (k, e) in unread {
             shared.errors.fetch_add(1, Ordering::Relaxed);
             let e = ExecError::Link(e);
+            if let Some(o) = observer.as_deref_mut() {
+                o.error(now, &e);
+            }
             match shared.config.on_error {
                 OnError::Stop => {
                     shared.stop.store(true, Ordering::Relaxed);
@@ -175,7 +186,8 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
                 continue;
             }
             let mut cx = LinkCx {
-                observer: None,
+                time: now,
+                observer: observer.as_deref_mut().map(|o| o as &mut dyn Observer),
                 links: &info.links,
                 environment: environment.as_deref_mut(),
             };
@@ -188,6 +200,9 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
                 Ok(NodeStep::Halted) => next[k] = u64::MAX,
                 Err(e) => {
                     shared.errors.fetch_add(1, Ordering::Relaxed);
+                    if let Some(o) = observer.as_deref_mut() {
+                        o.error(now, &e);
+                    }
                     match shared.config.on_error {
                         OnError::Stop => {
                             shared.stop.store(true, Ordering::Relaxed);

@@ -3,10 +3,12 @@
 //! [`replay`] takes the system built from the user's code (all of it, as for a
 //! run: the same builder), runs only the named subsystem in the deterministic
 //! executor ([`Executor::isolate`]), feeds it the recorded values of every link
-//! into it at the recorded instants ([`Executor::inject`], each with its
-//! recorded stamp: the executor's semantics make it read a value at its first
-//! activation after the value's instant, as in the run), and compares what it
-//! does with the recording, bit for bit:
+//! into it ([`Executor::inject`], each with its recorded stamp) just before the
+//! activation that read it in the run (the recording's reads channels: in a
+//! real-time or distributed run which value an activation read depends on the
+//! threads' timing; a file without them is fed by the deterministic
+//! executor's rule, each value at the first activation after its instant), and
+//! compares what it does with the recording, bit for bit:
 //!
 //! * every value it sends, on every link out of it: the instant, the sender's
 //!   iteration, and the value's exact bytes;
@@ -31,7 +33,7 @@ use agent_core::{
 use serde_json::Value;
 
 use crate::read::Recording;
-use crate::record::WIRE_ENCODING;
+use crate::record::{READ_ENCODING, WIRE_ENCODING, decode_read};
 use compare::Compare;
 pub use compare::first_difference;
 pub use verdict::{Difference, Divergence, Replayed};
@@ -182,7 +184,7 @@ pub fn replay_file(
     let fsm = format!("/fsm/{node}");
     let recording = Recording::open_filtered(path, |c| {
         c.topic == fsm
-            || (c.message_encoding == WIRE_ENCODING
+            || ((c.message_encoding == WIRE_ENCODING || c.message_encoding == READ_ENCODING)
                 && c.metadata
                     .get("link")
                     .is_some_and(|l| wanted.contains(l.as_str())))
@@ -230,14 +232,19 @@ pub fn replay(
         .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
         .unwrap_or(0);
 
-    // The raw channels by link name.
-    let by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
-        .channels
-        .values()
-        .filter(|c| c.message_encoding == WIRE_ENCODING)
-        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
-        .collect();
+    // The raw and reads channels by link name.
+    let by_encoding = |encoding: &str| -> BTreeMap<&str, &crate::read::ChannelInfo> {
+        recording
+            .channels
+            .values()
+            .filter(|c| c.message_encoding == encoding)
+            .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
+            .collect()
+    };
+    let by_link = by_encoding(WIRE_ENCODING);
+    let reads_by_link = by_encoding(READ_ENCODING);
     let mut channel_link: BTreeMap<u16, usize> = BTreeMap::new();
+    let mut read_channel_link: BTreeMap<u16, usize> = BTreeMap::new();
     let mut shapes: BTreeMap<usize, Option<TypeShape>> = BTreeMap::new();
     for (k, link) in info.links.iter().enumerate() {
         let input = link.to == x && link.from != x;
@@ -261,6 +268,9 @@ pub fn replay(
             });
         }
         channel_link.insert(c.id, k);
+        if input && let Some(r) = reads_by_link.get(link.name.as_str()) {
+            read_channel_link.insert(r.id, k);
+        }
         if output {
             shapes.insert(k, system.payload_shape(k));
         }
@@ -268,7 +278,8 @@ pub fn replay(
     let fsm_channel = recording.channel(&format!("/fsm/{node}")).map(|c| c.id);
 
     // The recorded values: inputs to feed, outputs and switches to compare.
-    let mut inputs: Vec<(usize, Recorded)> = Vec::new();
+    let mut sent: BTreeMap<usize, Vec<Recorded>> = BTreeMap::new();
+    let mut reads: BTreeMap<usize, Vec<(u64, Stamp, &crate::read::Message)>> = BTreeMap::new();
     let mut outputs: BTreeMap<usize, VecDeque<Recorded>> = BTreeMap::new();
     let mut switches: VecDeque<(u64, Value)> = VecDeque::new();
     for m in &recording.messages {
@@ -280,6 +291,16 @@ pub fn replay(
                 message: e.to_string(),
             })?;
             switches.push_back((m.log_time, v));
+            continue;
+        }
+        if let Some(&k) = read_channel_link.get(&m.channel) {
+            let stamp = decode_read(&m.data).ok_or_else(|| ReplayError::BadValue {
+                link: info.links[k].name.clone(),
+                sequence: m.sequence,
+                offset: m.offset,
+                message: format!("a read of {} bytes (16 expected)", m.data.len()),
+            })?;
+            reads.entry(k).or_default().push((m.log_time, stamp, m));
             continue;
         }
         let Some(&k) = channel_link.get(&m.channel) else {
@@ -300,10 +321,13 @@ pub fn replay(
         if info.links[k].from == x {
             outputs.entry(k).or_default().push_back(r);
         } else {
-            inputs.push((k, r));
+            sent.entry(k).or_default().push(r);
         }
     }
-    inputs.sort_by_key(|(_, r)| r.stamp.time);
+    for k in read_channel_link.values() {
+        reads.entry(*k).or_default();
+    }
+    let inputs = feeds(&info, sent, reads)?;
     let out_links: Vec<usize> = info
         .links
         .iter()
@@ -347,8 +371,8 @@ pub fn replay(
         if t > end_time {
             break;
         }
-        while let Some((k, r)) = inputs.get(next_input) {
-            if r.stamp.time >= t {
+        while let Some((due, k, r)) = inputs.get(next_input) {
+            if *due > t {
                 break;
             }
             exec.inject(*k, &r.body, r.stamp)
@@ -373,6 +397,54 @@ pub fn replay(
         &mut outputs,
         &mut switches,
     ))
+}
+
+/// The inputs in the order they are fed, each with the instant of the
+/// activation that reads it: the recorded reads of a link where the file has
+/// them (`reads` has an entry, perhaps empty, for each link whose reads were
+/// recorded), else the first activation after the value's instant.
+fn feeds(
+    info: &agent_core::SystemInfo,
+    sent: BTreeMap<usize, Vec<Recorded>>,
+    reads: BTreeMap<usize, Vec<(u64, Stamp, &crate::read::Message)>>,
+) -> Result<Vec<(Time, usize, Recorded)>, ReplayError> {
+    let mut inputs = Vec::new();
+    for (k, values) in sent {
+        match reads.get(&k) {
+            Some(reads) => {
+                let mut by_stamp: BTreeMap<(u64, u64), Recorded> = values
+                    .into_iter()
+                    .map(|r| ((r.stamp.iteration, r.stamp.time.as_nanos()), r))
+                    .collect();
+                for (at, stamp, m) in reads {
+                    let r = by_stamp
+                        .remove(&(stamp.iteration, stamp.time.as_nanos()))
+                        .ok_or_else(|| ReplayError::BadValue {
+                            link: info.links[k].name.clone(),
+                            sequence: m.sequence,
+                            offset: m.offset,
+                            message: format!(
+                                "read at {} a value the recording does not hold (sent at {}, iteration {})",
+                                Time::from_nanos(*at),
+                                stamp.time,
+                                stamp.iteration
+                            ),
+                        })?;
+                    inputs.push((Time::from_nanos(*at), k, r));
+                }
+            }
+            None => inputs.extend(values.into_iter().map(|r| {
+                (
+                    Time::from_nanos(r.stamp.time.as_nanos().saturating_add(1)),
+                    k,
+                    r,
+                )
+            })),
+        }
+    }
+    // Stable: a link's values stay in their order.
+    inputs.sort_by_key(|(due, _, _)| *due);
+    Ok(inputs)
 }
 
 fn bad_input(

@@ -11,10 +11,13 @@
 //! [`launch`] starts every process, collects that, judges the mission as the
 //! other runs do, and stops the processes when the mission has ended.
 
+use std::collections::BTreeMap;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use embodied::distributed::{Child, Control, LaunchReport, Launcher, Line, Member, Options, Watch};
+use embodied::record::{McapRecorder, RecordOptions, RecordSummary};
 use embodied::{ExecConfig, OnError, RealTime, RtConfig, RtReport};
 
 use super::collect::{Collector, Seen};
@@ -45,6 +48,13 @@ pub enum DistError {
     /// The launcher failed.
     #[error(transparent)]
     Launch(#[from] embodied::distributed::LaunchError),
+    /// The recording of the process, or the merge of the processes'
+    /// recordings, failed.
+    #[error(transparent)]
+    Record(#[from] embodied::record::RecordError),
+    /// The processes' recordings could not be merged.
+    #[error(transparent)]
+    Merge(#[from] embodied::record::MergeError),
     /// The deployment cannot run the simulation.
     #[error("deployment `{deployment}`: {reason}")]
     Deployment {
@@ -110,7 +120,15 @@ fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), Dist
 
 /// Run process `process` of `deployment`: its components in real time, the
 /// others reached over Zenoh, until the limit, a stop from any participant, or
-/// `interrupted`. What its probes see is published for the launcher.
+/// `interrupted`. What its probes see is published for the launcher. With
+/// `record`, what its components do is recorded to that file, with the
+/// metadata `process` (its name, the deployment, the nodes it runs and, if it
+/// runs c1, c1's incarnation number: what a replay of c1 needs); the files of
+/// a run's processes merge into one ([`embodied::record::merge`]).
+#[expect(
+    clippy::too_many_arguments,
+    reason = "a process's inputs, each used once"
+)]
 pub fn run_process(
     config: &RexConfig,
     limit: Duration,
@@ -118,8 +136,9 @@ pub fn run_process(
     process: &str,
     options: &Options,
     rt: RtConfig,
+    record: Option<(&Path, RecordOptions)>,
     interrupted: &AtomicBool,
-) -> Result<RtReport, DistError> {
+) -> Result<(RtReport, Option<RecordSummary>), DistError> {
     let spec = load_spec(&config.spec)?;
     check_world(&spec, deployment)?;
     let mut member = Member::join(&spec, deployment, process, options)?;
@@ -128,6 +147,22 @@ pub fn run_process(
     let mut config = config.clone();
     config.c1.boot = embodied::link::remote::new_epoch();
     let (system, h) = build_deployment(&config, deployment)?;
+    let runs = member.runs().to_vec();
+    let recorder = match record {
+        Some((path, mut options)) => {
+            let mut about = BTreeMap::from([
+                ("name".to_owned(), process.to_owned()),
+                ("deployment".to_owned(), deployment.to_owned()),
+                ("runs".to_owned(), runs.join(", ")),
+            ]);
+            if runs.iter().any(|r| r == "c1") {
+                about.insert("c1_boot".into(), config.c1.boot.to_string());
+            }
+            options.metadata.insert("process".into(), about);
+            Some(McapRecorder::create(path, &system, options)?)
+        }
+        None => None,
+    };
     // A lost peer or a gap is reported and the run goes on: the platform's
     // watchdog and e11's safety monitor handle the consequences.
     let mut rt = RealTime::new(
@@ -140,8 +175,10 @@ pub fn run_process(
             ..rt
         },
     );
-    let runs = member.runs().to_vec();
     let probes = install_probes(&mut rt, &h, |n| runs.iter().any(|r| r == n));
+    if let Some(r) = &recorder {
+        rt.observe(r.threads());
+    }
     rt.place(member.placement()?)?;
     let running = rt.start_when(limit, || member.ready(LEAD))?;
     loop {
@@ -171,7 +208,8 @@ pub fn run_process(
         let _ = member.observe("seen", bytes);
     }
     member.close();
-    Ok(finished.into_report())
+    let summary = recorder.map(McapRecorder::finish).transpose()?;
+    Ok((finished.into_report(), summary))
 }
 
 /// Start every process of `deployment` (this program again, with `args` and

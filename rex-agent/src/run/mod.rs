@@ -12,7 +12,7 @@ mod collect;
 #[cfg(feature = "distributed")]
 pub mod distributed;
 mod realtime;
-pub use realtime::{RtRunError, run_mission_realtime};
+pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
 
 use embodied::{
     Driver, DriverHandle, ExecError, Executor, NoObserver, Subsystem, SubsystemHandle, Time,

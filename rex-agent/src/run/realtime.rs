@@ -10,9 +10,11 @@
 //! the deterministic run does. The mission ends as there: every plan sent,
 //! acknowledged, and the last fragment executed.
 
+use std::path::Path;
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
+use embodied::record::{McapRecorder, RecordOptions, RecordSummary};
 use embodied::{RealTime, RtConfig, RtReport, Time};
 
 use super::collect::{Collector, Seen};
@@ -41,9 +43,43 @@ pub fn run_mission_realtime(
     limit: Duration,
     tick: Duration,
     rt: RtConfig,
-    mut progress: impl FnMut(Progress<'_>),
+    progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, RtReport), RtRunError> {
+    let (outcome, report, _) = realtime(config, limit, tick, rt, None, progress)?;
+    Ok((outcome, report))
+}
+
+/// [`run_mission_realtime`], recorded to `path` (every thread's part of the
+/// run: what each node sent and read, its behaviour switches, the errors).
+pub fn run_mission_realtime_recorded(
+    config: &RexConfig,
+    limit: Duration,
+    tick: Duration,
+    rt: RtConfig,
+    (path, options): (&Path, RecordOptions),
+    progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, RtReport, RecordSummary), RtRunError> {
+    let (outcome, report, summary) =
+        realtime(config, limit, tick, rt, Some((path, options)), progress)?;
+    // A recording was asked for: `realtime` returns its summary.
+    Ok((outcome, report, summary.unwrap_or_default()))
+}
+
+fn realtime(
+    config: &RexConfig,
+    limit: Duration,
+    tick: Duration,
+    rt: RtConfig,
+    record: Option<(&Path, RecordOptions)>,
+    mut progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, RtReport, Option<RecordSummary>), RtRunError> {
     let (system, h) = build(config).map_err(RunError::from)?;
+    let recorder = match record {
+        Some((path, options)) => {
+            Some(McapRecorder::create(path, &system, options).map_err(RunError::from)?)
+        }
+        None => None,
+    };
     let mut rt = RealTime::new(
         system,
         RtConfig {
@@ -52,6 +88,9 @@ pub fn run_mission_realtime(
         },
     );
     let probes = install_probes(&mut rt, &h, |_| true);
+    if let Some(r) = &recorder {
+        rt.observe(r.threads());
+    }
     let mut collect = Collector::new(config, tick);
     let running = rt.start(limit)?;
     let wall = Instant::now();
@@ -88,7 +127,11 @@ pub fn run_mission_realtime(
     let sent = finish_counters(&finished, &h, &mut out.counters);
     out.counters.executor_errors = finished.report().error_count;
     out.reports = judge::judge(&out, config, sent);
-    Ok((out, finished.into_report()))
+    let summary = recorder
+        .map(McapRecorder::finish)
+        .transpose()
+        .map_err(RunError::from)?;
+    Ok((out, finished.into_report(), summary))
 }
 
 /// Probes on the components `here` says run in this process: e11 (what it

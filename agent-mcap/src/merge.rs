@@ -1,0 +1,270 @@
+//! Merging the recordings of the processes of one distributed run into one
+//! file, in time order.
+//!
+//! Each process of a deployment records what its own nodes did (the values they
+//! sent, the values they read, their behaviour switches and errors) with the
+//! same channels, made from the same system. [`merge`] checks that the files
+//! are of one system, puts every message of every file into one file ordered
+//! by log time (stable: a channel's messages keep their order), keeps each
+//! channel and schema once, and merges the metadata: records equal in every
+//! file once; `end` as the run's (finished if every process finished, the last
+//! instant of all, each node's iterations added up: a process counts only its
+//! own); any other record that differs, once per file, named
+//! `<name>/<process>` (the file's `process` record names it, else its file
+//! name). The result replays as a recording of the whole run.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use crate::read::{ReadError, Recording};
+
+/// What a merge wrote.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergeSummary {
+    /// Files merged.
+    pub files: usize,
+    /// Messages written.
+    pub messages: u64,
+    /// Channels written.
+    pub channels: usize,
+    /// Whether every process finished its recording.
+    pub finished: bool,
+}
+
+/// Why files could not be merged.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    /// No file to merge.
+    #[error("no recordings to merge")]
+    Empty,
+    /// A file could not be read.
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    /// The files are of different systems.
+    #[error(
+        "{file} records another system than {first} (their `system` metadata differ): recordings of one run only"
+    )]
+    OtherSystem {
+        /// The first file.
+        first: PathBuf,
+        /// The file that differs.
+        file: PathBuf,
+    },
+    /// Two files declare the same topic differently.
+    #[error("{file} declares `{topic}` with another encoding or schema than {first}")]
+    Channel {
+        /// The topic.
+        topic: String,
+        /// The file where it was first seen.
+        first: PathBuf,
+        /// The file that differs.
+        file: PathBuf,
+    },
+    /// The merged file could not be written.
+    #[error("writing {path}: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Merge the recordings `inputs` (of the processes of one run) into `output`
+/// (see the module's documentation).
+pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeError> {
+    let files = inputs
+        .iter()
+        .map(|p| Recording::open(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let first = files.first().ok_or(MergeError::Empty)?;
+    for f in &files[1..] {
+        if f.metadata.get("system") != first.metadata.get("system") {
+            return Err(MergeError::OtherSystem {
+                first: first.path.clone(),
+                file: f.path.clone(),
+            });
+        }
+    }
+    let fail = |e: mcap::McapError| MergeError::Write {
+        path: output.to_owned(),
+        message: e.to_string(),
+    };
+    let file = File::create(output).map_err(|e| MergeError::Write {
+        path: output.to_owned(),
+        message: e.to_string(),
+    })?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .profile("")
+        .library(concat!(
+            "embodied-agents agent-mcap ",
+            env!("CARGO_PKG_VERSION"),
+            " (merge)"
+        ))
+        .create(BufWriter::new(file))
+        .map_err(fail)?;
+
+    // Channels by topic: (encoding, schema, metadata) -> the merged id; each
+    // file's channel ids mapped to it.
+    type Key = (
+        String,
+        Option<(String, String, Vec<u8>)>,
+        BTreeMap<String, String>,
+    );
+    let mut by_topic: BTreeMap<String, (Key, u16, PathBuf)> = BTreeMap::new();
+    let mut schema_ids: BTreeMap<(String, String, Vec<u8>), u16> = BTreeMap::new();
+    let mut ids: Vec<BTreeMap<u16, u16>> = Vec::with_capacity(files.len());
+    for f in &files {
+        let mut map = BTreeMap::new();
+        for c in f.channels.values() {
+            let schema = f
+                .schemas
+                .get(&c.schema_id)
+                .map(|s| (s.name.clone(), s.encoding.clone(), s.data.clone()));
+            let key: Key = (c.message_encoding.clone(), schema, c.metadata.clone());
+            let id = match by_topic.get(&c.topic) {
+                Some((k, id, _)) if *k == key => *id,
+                Some((_, _, seen)) => {
+                    return Err(MergeError::Channel {
+                        topic: c.topic.clone(),
+                        first: seen.clone(),
+                        file: f.path.clone(),
+                    });
+                }
+                None => {
+                    let schema_id = match &key.1 {
+                        None => 0,
+                        Some(s) => match schema_ids.get(s) {
+                            Some(id) => *id,
+                            None => {
+                                let id = w.add_schema(&s.0, &s.1, &s.2).map_err(fail)?;
+                                schema_ids.insert(s.clone(), id);
+                                id
+                            }
+                        },
+                    };
+                    let id = w
+                        .add_channel(schema_id, &c.topic, &c.message_encoding, &c.metadata)
+                        .map_err(fail)?;
+                    by_topic.insert(c.topic.clone(), (key, id, f.path.clone()));
+                    id
+                }
+            };
+            map.insert(c.id, id);
+        }
+        ids.push(map);
+    }
+
+    // Metadata.
+    for (name, entries) in merged_metadata(&files) {
+        w.write_metadata(&mcap::records::Metadata {
+            name,
+            metadata: entries,
+        })
+        .map_err(fail)?;
+    }
+
+    // Messages in time order; stable, so each channel keeps its order.
+    let mut order: Vec<(u64, usize, usize)> = files
+        .iter()
+        .enumerate()
+        .flat_map(|(i, f)| {
+            f.messages
+                .iter()
+                .enumerate()
+                .map(move |(k, m)| (m.log_time, i, k))
+        })
+        .collect();
+    order.sort_by_key(|&(t, _, _)| t);
+    let mut messages = 0u64;
+    for (_, i, k) in order {
+        let m = &files[i].messages[k];
+        let Some(&channel_id) = ids[i].get(&m.channel) else {
+            continue;
+        };
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: m.sequence,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            },
+            &m.data,
+        )
+        .map_err(fail)?;
+        messages += 1;
+    }
+    w.finish().map_err(fail)?;
+    Ok(MergeSummary {
+        files: files.len(),
+        messages,
+        channels: by_topic.len(),
+        finished: files.iter().all(Recording::finished),
+    })
+}
+
+/// The name of the process a file recorded.
+fn process_of(f: &Recording) -> String {
+    f.metadata
+        .get("process")
+        .and_then(|m| m.get("name"))
+        .cloned()
+        .unwrap_or_else(|| {
+            f.path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+}
+
+fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, String>> {
+    let mut out = BTreeMap::new();
+    let names: std::collections::BTreeSet<&String> =
+        files.iter().flat_map(|f| f.metadata.keys()).collect();
+    for name in names {
+        if name == "end" {
+            continue;
+        }
+        let records: Vec<(&Recording, &BTreeMap<String, String>)> = files
+            .iter()
+            .filter_map(|f| Some((f, f.metadata.get(name)?)))
+            .collect();
+        if records.len() == files.len() && records.iter().all(|(_, r)| *r == records[0].1) {
+            out.insert(name.clone(), records[0].1.clone());
+        } else {
+            for (f, r) in records {
+                out.insert(format!("{name}/{}", process_of(f)), r.clone());
+            }
+        }
+    }
+    // The run's end: only if every process finished.
+    if files.iter().all(Recording::finished) {
+        let mut end = BTreeMap::from([("finished".to_owned(), "true".to_owned())]);
+        let mut time = 0u64;
+        let mut iterations: BTreeMap<String, u64> = BTreeMap::new();
+        for f in files {
+            let Some(e) = f.metadata.get("end") else {
+                continue;
+            };
+            for (k, v) in e {
+                let n = v.parse::<u64>().unwrap_or(0);
+                if k == "time_ns" {
+                    time = time.max(n);
+                } else if k.starts_with("iterations/") {
+                    *iterations.entry(k.clone()).or_default() += n;
+                }
+            }
+        }
+        end.insert("time_ns".into(), time.to_string());
+        end.extend(iterations.into_iter().map(|(k, v)| (k, v.to_string())));
+        end.insert(
+            "processes".into(),
+            files.iter().map(process_of).collect::<Vec<_>>().join(", "),
+        );
+        out.insert("end".into(), end);
+    }
+    out
+}
