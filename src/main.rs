@@ -1,5 +1,5 @@
-//! `embodied`: check specifications, draw their diagrams, and make agent crates
-//! from them. Built with the `cli` feature (`cargo install embodied --features
+//! `embodied`: check specifications, draw their diagrams, make agent crates
+//! from them, and merge the recordings of a distributed run. Built with the `cli` feature (`cargo install embodied --features
 //! cli`, or `cargo run --features cli --bin embodied -- ...` in this workspace).
 //!
 //! This file is the command line (clap); each command is a module of `cli`.
@@ -75,6 +75,19 @@ enum Command {
         #[arg(short, long, value_name = "PATH")]
         output: Option<PathBuf>,
     },
+    /// Merge the recordings (MCAP) of the processes of one distributed run into
+    /// one file, in time order: each channel and schema once, the metadata
+    /// merged (the run's end: finished if every process finished), so that it
+    /// opens in Foxglove as one run and replays as one. Refuses files of
+    /// different systems. Exit 0 merged, 1 refused or unreadable.
+    Merge {
+        /// The processes' recordings.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The merged file.
+        #[arg(short, long, value_name = "FILE")]
+        output: PathBuf,
+    },
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -147,5 +160,6 @@ fn main() -> ExitCode {
             },
             output.as_deref(),
         ),
+        Command::Merge { files, output } => cli::merge::run(&files, &output),
     }
 }

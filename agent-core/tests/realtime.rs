@@ -192,3 +192,110 @@ fn what_the_os_grants_is_reported_and_the_run_goes_on_without_it() {
     );
     assert!(shown.contains("jit_p99"), "{shown}");
 }
+
+/// What one thread's observer saw, handed over when it is dropped.
+#[derive(Debug, Default)]
+struct Seen {
+    thread: String,
+    nodes: Vec<usize>,
+    actions: Vec<usize>,
+    transfers: Vec<TransferEvent>,
+    reads: Vec<ReadEvent>,
+}
+
+struct PerThread {
+    seen: Seen,
+    out: std::sync::Arc<std::sync::Mutex<Vec<Seen>>>,
+}
+
+impl Observer for PerThread {
+    fn action(&mut self, e: &ActionEvent) {
+        self.seen.actions.push(e.node);
+    }
+    fn transfer(&mut self, e: &TransferEvent, _value: &dyn ErasedPayload) {
+        self.seen.transfers.push(*e);
+    }
+    fn read(&mut self, e: &ReadEvent) {
+        self.seen.reads.push(*e);
+    }
+}
+
+impl Drop for PerThread {
+    fn drop(&mut self) {
+        self.out
+            .lock()
+            .unwrap()
+            .push(std::mem::take(&mut self.seen));
+    }
+}
+
+#[test]
+fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
+    let p = pair(1, 3, 1, Policy::Sample, false);
+    let info = p.system.info().clone();
+    let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let mut rt = RealTime::new(p.system, RtConfig::default());
+    let given = out.clone();
+    rt.observe(move |thread, nodes| {
+        Box::new(PerThread {
+            seen: Seen {
+                thread: thread.to_owned(),
+                nodes: nodes.to_vec(),
+                ..Seen::default()
+            },
+            out: given.clone(),
+        })
+    });
+    let f = rt
+        .start(Duration::from_millis(150))
+        .unwrap()
+        .join()
+        .unwrap();
+    // Every observer was dropped on its thread before `join` returned.
+    let mut seen = std::mem::take(&mut *out.lock().unwrap());
+    seen.sort_by(|a, b| a.thread.cmp(&b.thread));
+    let threads: Vec<(&str, &[usize])> = seen
+        .iter()
+        .map(|s| (s.thread.as_str(), s.nodes.as_slice()))
+        .collect();
+    assert_eq!(threads, [("c", &[0][..]), ("e", &[1][..])]);
+    for s in &seen {
+        // Only its own nodes' actions, values sent and values read.
+        assert!(s.actions.iter().all(|n| s.nodes.contains(n)), "{s:?}");
+        assert!(
+            s.transfers
+                .iter()
+                .all(|t| s.nodes.contains(&info.links[t.link].from))
+        );
+        assert!(
+            s.reads
+                .iter()
+                .all(|r| s.nodes.contains(&info.links[r.link].to))
+        );
+    }
+    let (c, e) = (&seen[0], &seen[1]);
+    assert_eq!(c.actions.len() as u64, f.activations(p.c.id()).unwrap());
+    assert_eq!(e.actions.len() as u64, f.activations(p.e.id()).unwrap());
+    // Each value e read is one c sent (by its stamp), read at or after its
+    // instant at one of e's instants, newer than the one before.
+    let down = p.down.index();
+    let sent: Vec<Stamp> = c
+        .transfers
+        .iter()
+        .filter(|t| t.link == down)
+        .map(|t| t.stamp)
+        .collect();
+    let read: Vec<&ReadEvent> = e.reads.iter().filter(|r| r.link == down).collect();
+    let s = f.link_stats(p.down).unwrap();
+    assert_eq!(sent.len() as u64, s.sent);
+    assert_eq!(read.len() as u64, s.delivered);
+    assert!(!read.is_empty());
+    for r in &read {
+        assert!(sent.contains(&r.stamp), "{r:?}");
+        assert!(r.time >= r.stamp.time, "{r:?}");
+        assert_eq!(r.time.as_nanos() % 3_000_000, 0, "{r:?}");
+    }
+    for w in read.windows(2) {
+        assert!(w[1].stamp.iteration > w[0].stamp.iteration, "{w:?}");
+    }
+}

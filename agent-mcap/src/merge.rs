@@ -9,7 +9,7 @@
 //! channel and schema once, and merges the metadata: records equal in every
 //! file once; `end` as the run's (finished if every process finished, the last
 //! instant of all, each node's iterations added up: a process counts only its
-//! own); any other record that differs, once per file, named
+//! own; each node's last instant); any other record that differs, once per file, named
 //! `<name>/<process>` (the file's `process` record names it, else its file
 //! name). The result replays as a recording of the whole run.
 
@@ -245,6 +245,7 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
         let mut end = BTreeMap::from([("finished".to_owned(), "true".to_owned())]);
         let mut time = 0u64;
         let mut iterations: BTreeMap<String, u64> = BTreeMap::new();
+        let mut lasts: BTreeMap<String, u64> = BTreeMap::new();
         for f in files {
             let Some(e) = f.metadata.get("end") else {
                 continue;
@@ -253,6 +254,9 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
                 let n = v.parse::<u64>().unwrap_or(0);
                 if k == "time_ns" {
                     time = time.max(n);
+                } else if k.starts_with("last/") {
+                    let t = lasts.entry(k.clone()).or_default();
+                    *t = (*t).max(n);
                 } else if k.starts_with("iterations/") {
                     *iterations.entry(k.clone()).or_default() += n;
                 }
@@ -260,6 +264,7 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
         }
         end.insert("time_ns".into(), time.to_string());
         end.extend(iterations.into_iter().map(|(k, v)| (k, v.to_string())));
+        end.extend(lasts.into_iter().map(|(k, v)| (k, v.to_string())));
         end.insert(
             "processes".into(),
             files.iter().map(process_of).collect::<Vec<_>>().join(", "),

@@ -28,7 +28,8 @@
 //! * `/errors`: every error the executor met, with its time.
 //!
 //! Metadata `system`: the nodes, behaviours and links; `end`: when the run
-//! ended and how many iterations each node made (written by
+//! ended, how many iterations each node made and the instant of its last
+//! (`last/<node>`, ns) (written by
 //! [`McapRecorder::finish`]: a file without it was not finished); and whatever
 //! the caller adds ([`RecordOptions::metadata`]: the spec, the deployment, the
 //! settings).
@@ -226,6 +227,8 @@ enum Record {
 #[derive(Default)]
 struct Counts {
     iterations: Vec<u64>,
+    /// Per node: the instant of its last activation.
+    last_of: Vec<Time>,
     last: Time,
     waits: u64,
     encode_failures: u64,
@@ -238,6 +241,12 @@ impl Counts {
         }
         for (a, b) in self.iterations.iter_mut().zip(&other.iterations) {
             *a += b;
+        }
+        if self.last_of.len() < other.last_of.len() {
+            self.last_of.resize(other.last_of.len(), Time::ZERO);
+        }
+        for (a, b) in self.last_of.iter_mut().zip(&other.last_of) {
+            *a = (*a).max(*b);
         }
         self.last = self.last.max(other.last);
         self.waits += other.waits;
@@ -289,6 +298,7 @@ impl Part {
             wire: fingerprints.iter().map(|&f| (f, 0)).collect(),
             counts: Counts {
                 iterations: vec![0; nodes],
+                last_of: vec![Time::ZERO; nodes],
                 ..Counts::default()
             },
         };
@@ -339,6 +349,10 @@ impl Drop for Part {
 
 impl Observer for Part {
     fn transition(&mut self, e: &TransitionEvent) {
+        // A final behaviour's end is an activation without an action.
+        if let Some(t) = self.counts.last_of.get_mut(e.node) {
+            *t = (*t).max(e.time);
+        }
         self.send(Record::Transition {
             node: small(e.node),
             time: e.time,
@@ -350,6 +364,9 @@ impl Observer for Part {
     fn action(&mut self, e: &ActionEvent) {
         if let Some(n) = self.counts.iterations.get_mut(e.node) {
             *n += 1;
+        }
+        if let Some(t) = self.counts.last_of.get_mut(e.node) {
+            *t = (*t).max(e.time);
         }
         self.counts.last = self.counts.last.max(e.time);
     }
@@ -704,6 +721,17 @@ impl Output {
             ]);
             for (n, k) in self.info.nodes.iter().zip(&counts.iterations) {
                 end.insert(format!("iterations/{}", n.name), k.to_string());
+            }
+            for ((n, t), k) in self
+                .info
+                .nodes
+                .iter()
+                .zip(&counts.last_of)
+                .zip(&counts.iterations)
+            {
+                if *k > 0 || *t > Time::ZERO {
+                    end.insert(format!("last/{}", n.name), t.as_nanos().to_string());
+                }
             }
             self.w
                 .write_metadata(&mcap::records::Metadata {

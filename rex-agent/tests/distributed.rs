@@ -164,6 +164,7 @@ fn figure(line: &str, key: &str) -> f64 {
 fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
     let _one = one_at_a_time();
     let mission = mission_file();
+    let record = mission.with_file_name("split.mcap");
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args([
             "launch",
@@ -172,6 +173,8 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
             "--no-vo",
             "--quiet",
         ])
+        .arg("--record")
+        .arg(&record)
         .args([
             "--port",
             "17800",
@@ -231,6 +234,74 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
         "split rms {split:.4} m vs in-process {:.4} m\n{stderr}",
         one.rms()
     );
+    recorded_in_parts_merged_and_replayed(&record, &stdout);
+}
+
+/// The launch recorded each process's part beside `record` and merged them
+/// into it; the merged run replays equivalent, subsystem by subsystem, in
+/// whichever process each ran.
+fn recorded_in_parts_merged_and_replayed(record: &std::path::Path, stdout: &str) {
+    use embodied::record::{Recording, merge};
+    let merged_line = line(stdout, "record: ");
+    assert!(
+        merged_line.contains("merged from 2 processes"),
+        "{merged_line}"
+    );
+    let parts: Vec<_> = ["world", "locomotion"]
+        .iter()
+        .map(|p| record.with_file_name(format!("split.{p}.mcap")))
+        .collect();
+    let mut messages = 0;
+    for (part, process) in parts.iter().zip(["world", "locomotion"]) {
+        let r = Recording::open(part).unwrap();
+        assert!(r.finished(), "{}", part.display());
+        assert_eq!(r.metadata["process"]["name"], process);
+        messages += r.messages.len();
+    }
+    let whole = Recording::open(record).unwrap();
+    assert!(whole.finished());
+    assert_eq!(
+        whole.messages.len(),
+        messages,
+        "every message of every part"
+    );
+    assert!(
+        whole
+            .messages
+            .windows(2)
+            .all(|w| w[0].log_time <= w[1].log_time),
+        "in time order"
+    );
+    // c1 ran in `locomotion` with its own incarnation number, kept for the replay.
+    assert!(
+        whole.metadata["process/locomotion"]
+            .get("c1_boot")
+            .is_some()
+    );
+    let end = &whole.metadata["end"];
+    assert_eq!(end["processes"], "world, locomotion");
+    // The same merge by the library gives the same file's content.
+    let again = record.with_file_name("split-again.mcap");
+    let summary = merge(&parts, &again).unwrap();
+    assert_eq!(summary.messages as usize, messages);
+    for node in ["c1", "e11", "c2", "c3", "r31"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_rex"))
+            .arg("replay")
+            .arg(record)
+            .args(["--subsystem", node])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success()
+                && text.contains(&format!(
+                    "replay {node}: equivalent: {}",
+                    end[&format!("iterations/{node}")]
+                )),
+            "{node}:\n{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
 }
 
 #[test]

@@ -42,7 +42,8 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(6)).unwrap();
     let summary = exec.into_observer().finish().unwrap();
-    assert_eq!(summary.channels, 2 * links + nodes + 1);
+    // Per link: JSON, raw, reads; per node: its switches; the errors.
+    assert_eq!(summary.channels, 3 * links + nodes + 1);
     assert_eq!(summary.undecodable, 0);
     assert!(summary.messages > 10_000, "{summary:?}");
 
@@ -56,7 +57,10 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
         let m = m.unwrap();
         *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
         let topic = m.channel.topic.as_str();
-        if !topic.starts_with("/raw/") {
+        if topic.starts_with("/reads/") {
+            assert_eq!(m.channel.message_encoding, "embodied-read/1", "{topic}");
+            assert_eq!(m.data.len(), 16, "{topic}");
+        } else if !topic.starts_with("/raw/") {
             assert_eq!(m.channel.message_encoding, "json", "{topic}");
             let schema = m.channel.schema.as_ref().expect(topic);
             assert_eq!(schema.encoding, "jsonschema", "{topic}");

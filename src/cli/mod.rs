@@ -1,9 +1,11 @@
 //! The commands of the `embodied` binary, one module each: [`check`] runs the
 //! checker over spec files, [`diagram`] draws a spec, [`new`] makes an agent crate
-//! from a spec. `src/main.rs` parses the command line (clap) and calls them.
+//! from a spec, [`merge`] merges the recordings of a distributed run.
+//! `src/main.rs` parses the command line (clap) and calls them.
 
 pub(crate) mod check;
 pub(crate) mod diagram;
+pub(crate) mod merge;
 pub(crate) mod new;
 
 /// The width at which reports are drawn: `$COLUMNS`, or 100.

@@ -225,8 +225,15 @@ pub fn replay(
         ));
     }
     let end = recording.metadata.get("end");
+    // The node's own last instant (the processes of a deployment stop at
+    // different instants), else the run's.
     let end_time = end
-        .and_then(|m| m.get("time_ns")?.parse::<u64>().ok())
+        .and_then(|m| {
+            m.get(&format!("last/{node}"))
+                .or_else(|| m.get("time_ns"))?
+                .parse::<u64>()
+                .ok()
+        })
         .map_or(Time::ZERO, Time::from_nanos);
     let recorded_iterations = end
         .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
