@@ -1,0 +1,209 @@
+//! `embodied merge`: the recordings of the processes of one run made one.
+//!
+//! Two recorders split one run of the tank example as two processes would
+//! record it (each the nodes of one agent: what they did, sent and read); the
+//! merged file holds every message of both in time order, as many as one
+//! recorder of the whole run wrote, and every subsystem replays equivalent
+//! from it. Files of another system, or unreadable, are refused clearly.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+#[path = "../examples/tank/agent.rs"]
+mod agent;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use embodied::record::{McapRecorder, RecordOptions, Recording};
+use embodied::replay::{ReplayOptions, Replayed, replay_file};
+use embodied::trace::{ActionEvent, ErasedPayload, ReadEvent, TransferEvent, TransitionEvent};
+use embodied::*;
+
+fn tmp(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
+}
+
+fn system() -> System {
+    agent::build(agent::default_mission(), 0.2, 7).unwrap().0
+}
+
+/// Each event to the recorder of the process that runs the node it is about.
+struct Split {
+    owner: Vec<usize>,
+    from: Vec<usize>,
+    to: Vec<usize>,
+    parts: Vec<McapRecorder>,
+}
+
+impl Observer for Split {
+    fn transition(&mut self, e: &TransitionEvent) {
+        self.parts[self.owner[e.node]].transition(e);
+    }
+    fn action(&mut self, e: &ActionEvent) {
+        self.parts[self.owner[e.node]].action(e);
+    }
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        self.parts[self.from[e.link]].transfer(e, value);
+    }
+    fn read(&mut self, e: &ReadEvent) {
+        self.parts[self.to[e.link]].read(e);
+    }
+}
+
+/// The run recorded whole to `whole.mcap`, and split by agent into
+/// `station.mcap` and `operator.mcap`.
+fn run<O: Observer>(observer: O) -> O {
+    let mut exec = Executor::with_observer(system(), ExecConfig::default(), observer);
+    exec.run_for(Duration::from_secs(20)).unwrap();
+    exec.into_observer()
+}
+
+fn record() -> (PathBuf, Vec<PathBuf>) {
+    let whole = tmp("whole.mcap");
+    let s = system();
+    let recorder = McapRecorder::create(&whole, &s, RecordOptions::default()).unwrap();
+    run(recorder).finish().unwrap();
+
+    let info = s.info().clone();
+    let agents = ["station", "operator"];
+    let owner: Vec<usize> = info
+        .nodes
+        .iter()
+        .map(|n| agents.iter().position(|a| *a == n.agent).unwrap())
+        .collect();
+    let paths: Vec<PathBuf> = agents.iter().map(|a| tmp(&format!("{a}.mcap"))).collect();
+    let parts = agents
+        .iter()
+        .zip(&paths)
+        .map(|(a, p)| {
+            let mut options = RecordOptions::default();
+            options.metadata.insert(
+                "process".into(),
+                [("name".to_owned(), (*a).to_owned())].into(),
+            );
+            McapRecorder::create(p, &s, options).unwrap()
+        })
+        .collect();
+    let split = Split {
+        from: info.links.iter().map(|l| owner[l.from]).collect(),
+        to: info.links.iter().map(|l| owner[l.to]).collect(),
+        owner,
+        parts,
+    };
+    for part in run(split).parts {
+        part.finish().unwrap();
+    }
+    (whole, paths)
+}
+
+fn embodied(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn the_processes_recordings_merge_into_one_that_replays_as_the_whole_run() {
+    let (whole, parts) = record();
+    let merged = tmp("merged.mcap");
+    let path = |p: &Path| p.to_str().unwrap().to_owned();
+    let (code, stdout, stderr) = embodied(&[
+        "merge",
+        &path(&parts[0]),
+        &path(&parts[1]),
+        "-o",
+        &path(&merged),
+    ]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    assert!(stdout.contains("2 files merged"), "{stdout}");
+
+    let one = Recording::open(&whole).unwrap();
+    let m = Recording::open(&merged).unwrap();
+    let split: Vec<Recording> = parts.iter().map(|p| Recording::open(p).unwrap()).collect();
+    // Each part holds only its own: both had something to say.
+    assert!(split.iter().all(|r| !r.messages.is_empty()));
+    assert_eq!(
+        m.messages.len(),
+        split[0].messages.len() + split[1].messages.len()
+    );
+    assert_eq!(m.messages.len(), one.messages.len());
+    assert!(
+        m.messages
+            .windows(2)
+            .all(|w| w[0].log_time <= w[1].log_time)
+    );
+    // Per channel, the same messages as the whole run's recording.
+    let per_topic = |r: &Recording| {
+        let mut v: Vec<(String, u64, Vec<u8>)> = r
+            .messages
+            .iter()
+            .map(|x| {
+                (
+                    r.channels[&x.channel].topic.clone(),
+                    x.log_time,
+                    x.data.clone(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(per_topic(&m), per_topic(&one));
+    // The end: as the whole run's, with the processes named; the processes'
+    // own records kept apart.
+    let mut end = m.metadata["end"].clone();
+    assert_eq!(end.remove("processes").unwrap(), "station, operator");
+    assert_eq!(end, one.metadata["end"]);
+    assert_eq!(m.metadata["process/station"]["name"], "station");
+    assert_eq!(m.metadata["process/operator"]["name"], "operator");
+    // Every subsystem replays equivalent from the merged file.
+    let info = system().info().clone();
+    for n in info
+        .nodes
+        .iter()
+        .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+    {
+        let r = replay_file(&merged, system(), &n.name, ReplayOptions::default()).unwrap();
+        assert!(matches!(r, Replayed::Equivalent { .. }), "{}: {r}", n.name);
+    }
+
+    // Another system's file is refused, naming it; so is a missing file.
+    let other = tmp("other.mcap");
+    {
+        use embodied::record::mcap;
+        let mut w = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&other).unwrap(),
+        ))
+        .unwrap();
+        w.write_metadata(&mcap::records::Metadata {
+            name: "system".into(),
+            metadata: [("node/x".to_owned(), "another system".to_owned())].into(),
+        })
+        .unwrap();
+        w.finish().unwrap();
+    }
+    let (code, _, stderr) = embodied(&[
+        "merge",
+        &path(&parts[0]),
+        &path(&other),
+        "-o",
+        &path(&merged),
+    ]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("records another system"), "{stderr}");
+    assert!(stderr.contains("other.mcap"), "{stderr}");
+    let (code, _, stderr) = embodied(&["merge", "/nonexistent/run.mcap", "-o", &path(&merged)]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("/nonexistent/run.mcap"), "{stderr}");
+}
