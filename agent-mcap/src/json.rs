@@ -11,7 +11,7 @@ use std::collections::BTreeSet;
 
 use agent_core::TypeShape;
 use agent_core::serde_reflection::{ContainerFormat, Format, Named, VariantFormat};
-use serde_json::{Map, Number, Value, json};
+use serde_json::{Map, Value, json};
 
 /// Why bytes did not decode as the shape says.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -26,17 +26,31 @@ pub struct DecodeError {
 /// The value encoded (postcard) in `bytes`, as JSON, read with `shape`. All
 /// the bytes must be used.
 pub fn to_json(shape: &TypeShape, bytes: &[u8]) -> Result<Value, DecodeError> {
+    let mut text = Vec::with_capacity(bytes.len() * 4);
+    write_json(shape, bytes, &mut text)?;
+    serde_json::from_slice(&text).map_err(|e| DecodeError {
+        offset: 0,
+        what: format!("the JSON written does not read back: {e}"),
+    })
+}
+
+/// [`to_json`] as text, appended to `out` without building the value: what
+/// the recorder's writer thread does for every value (a `Value` tree costs an
+/// allocation per field and per element). Struct fields keep their declared
+/// order. On an error `out` holds a part of the text.
+pub fn write_json(shape: &TypeShape, bytes: &[u8], out: &mut Vec<u8>) -> Result<(), DecodeError> {
     let mut r = Reader {
         shape,
         bytes,
         at: 0,
         depth: 0,
+        out,
     };
-    let v = r.value(&shape.root)?;
+    r.value(&shape.root)?;
     if r.at != bytes.len() {
         return Err(r.fail(format!("{} bytes left over", bytes.len() - r.at)));
     }
-    Ok(v)
+    Ok(())
 }
 
 /// Deeper nesting than this is refused (a recursive type fed hostile bytes).
@@ -47,6 +61,13 @@ struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
     depth: usize,
+    out: &'a mut Vec<u8>,
+}
+
+/// Appends `v`'s JSON text (`serde_json`'s: shortest round-trip floats,
+/// escaped strings) to `out`; writing to a `Vec` cannot fail.
+fn emit<T: serde::Serialize + ?Sized>(out: &mut Vec<u8>, v: &T) {
+    let _ = serde_json::to_writer(out, v);
 }
 
 impl Reader<'_> {
@@ -111,7 +132,7 @@ impl Reader<'_> {
         Ok(n)
     }
 
-    fn value(&mut self, f: &Format) -> Result<Value, DecodeError> {
+    fn value(&mut self, f: &Format) -> Result<(), DecodeError> {
         self.depth += 1;
         if self.depth > MAX_DEPTH {
             return Err(self.fail(format!("nested deeper than {MAX_DEPTH}")));
@@ -121,56 +142,107 @@ impl Reader<'_> {
         v
     }
 
-    fn inner(&mut self, f: &Format) -> Result<Value, DecodeError> {
-        Ok(match f {
-            Format::Unit => Value::Null,
+    /// `n` values of `f` (or of each of `items`) as a JSON array.
+    fn array<'f>(&mut self, formats: impl Iterator<Item = &'f Format>) -> Result<(), DecodeError> {
+        self.out.push(b'[');
+        for (k, f) in formats.enumerate() {
+            if k > 0 {
+                self.out.push(b',');
+            }
+            self.value(f)?;
+        }
+        self.out.push(b']');
+        Ok(())
+    }
+
+    fn inner(&mut self, f: &Format) -> Result<(), DecodeError> {
+        match f {
+            Format::Unit => self.out.extend_from_slice(b"null"),
             Format::Bool => match self.byte()? {
-                0 => Value::Bool(false),
-                1 => Value::Bool(true),
+                0 => self.out.extend_from_slice(b"false"),
+                1 => self.out.extend_from_slice(b"true"),
                 b => {
                     self.at -= 1;
                     return Err(self.fail(format!("a bool byte of {b}")));
                 }
             },
-            Format::U8 => json!(self.byte()?),
-            Format::I8 => json!(self.byte()? as i8),
-            Format::U16 => json!(self.varint(16)? as u16),
-            Format::U32 => json!(self.varint(32)? as u32),
-            Format::U64 => json!(self.varint(64)? as u64),
-            Format::U128 => big_unsigned(self.varint(128)?),
-            Format::I16 => json!(self.signed(16)? as i16),
-            Format::I32 => json!(self.signed(32)? as i32),
-            Format::I64 => json!(self.signed(64)? as i64),
-            Format::I128 => big_signed(self.signed(128)?),
+            Format::U8 => {
+                let v = self.byte()?;
+                emit(self.out, &v);
+            }
+            Format::I8 => {
+                let v = self.byte()? as i8;
+                emit(self.out, &v);
+            }
+            Format::U16 | Format::U32 | Format::U64 | Format::U128 => {
+                let bits = match f {
+                    Format::U16 => 16,
+                    Format::U32 => 32,
+                    Format::U64 => 64,
+                    _ => 128,
+                };
+                let v = self.varint(bits)?;
+                // Beyond 64 bits a JSON number is not exact: a string.
+                match u64::try_from(v) {
+                    Ok(v) => emit(self.out, &v),
+                    Err(_) => emit(self.out, &v.to_string()),
+                }
+            }
+            Format::I16 | Format::I32 | Format::I64 | Format::I128 => {
+                let bits = match f {
+                    Format::I16 => 16,
+                    Format::I32 => 32,
+                    Format::I64 => 64,
+                    _ => 128,
+                };
+                let v = self.signed(bits)?;
+                match i64::try_from(v) {
+                    Ok(v) => emit(self.out, &v),
+                    Err(_) => emit(self.out, &v.to_string()),
+                }
+            }
             Format::F32 => {
                 let b: [u8; 4] = self
                     .take(4)?
                     .try_into()
                     .map_err(|_| self.fail("f32".into()))?;
-                float(f64::from(f32::from_le_bytes(b)))
+                // As `serde_json` writes an f32 widened to f64 (non-finite: null).
+                emit(self.out, &f64::from(f32::from_le_bytes(b)));
             }
             Format::F64 => {
                 let b: [u8; 8] = self
                     .take(8)?
                     .try_into()
                     .map_err(|_| self.fail("f64".into()))?;
-                float(f64::from_le_bytes(b))
+                emit(self.out, &f64::from_le_bytes(b));
             }
             Format::Char | Format::Str => {
                 let n = self.len()?;
                 let at = self.at;
-                let s = std::str::from_utf8(self.take(n)?).map_err(|e| DecodeError {
+                self.take(n)?;
+                let bytes: &[u8] = self.bytes;
+                let s = std::str::from_utf8(&bytes[at..at + n]).map_err(|e| DecodeError {
                     offset: at,
                     what: format!("a string that is not UTF-8: {e}"),
                 })?;
-                Value::String(s.to_owned())
+                emit(self.out, s);
             }
             Format::Bytes => {
                 let n = self.len()?;
-                Value::Array(self.take(n)?.iter().map(|b| json!(b)).collect())
+                let at = self.at;
+                self.take(n)?;
+                self.out.push(b'[');
+                for k in 0..n {
+                    if k > 0 {
+                        self.out.push(b',');
+                    }
+                    let b = self.bytes[at + k];
+                    emit(self.out, &b);
+                }
+                self.out.push(b']');
             }
             Format::Option(inner) => match self.byte()? {
-                0 => Value::Null,
+                0 => self.out.extend_from_slice(b"null"),
                 1 => self.value(inner)?,
                 b => {
                     self.at -= 1;
@@ -179,54 +251,53 @@ impl Reader<'_> {
             },
             Format::Seq(inner) => {
                 let n = self.len()?;
-                Value::Array(
-                    (0..n)
-                        .map(|_| self.value(inner))
-                        .collect::<Result<_, _>>()?,
-                )
+                self.array(std::iter::repeat_n(&**inner, n))?;
             }
             Format::Map { key, value } => {
                 let n = self.len()?;
-                let mut m = Map::new();
-                for _ in 0..n {
-                    let k = self.value(key)?;
-                    let v = self.value(value)?;
-                    m.insert(key_text(k), v);
+                self.out.push(b'{');
+                for k in 0..n {
+                    if k > 0 {
+                        self.out.push(b',');
+                    }
+                    // The key as an object key must be: a string as it is,
+                    // anything else as its JSON text, quoted.
+                    let start = self.out.len();
+                    self.value(key)?;
+                    if self.out.get(start) != Some(&b'"') {
+                        let text = String::from_utf8_lossy(&self.out[start..]).into_owned();
+                        self.out.truncate(start);
+                        emit(self.out, &text);
+                    }
+                    self.out.push(b':');
+                    self.value(value)?;
                 }
-                Value::Object(m)
+                self.out.push(b'}');
             }
-            Format::Tuple(items) => Value::Array(
-                items
-                    .iter()
-                    .map(|f| self.value(f))
-                    .collect::<Result<_, _>>()?,
-            ),
-            Format::TupleArray { content, size } => Value::Array(
-                (0..*size)
-                    .map(|_| self.value(content))
-                    .collect::<Result<_, _>>()?,
-            ),
+            Format::Tuple(items) => self.array(items.iter())?,
+            Format::TupleArray { content, size } => {
+                self.array(std::iter::repeat_n(&**content, *size))?;
+            }
             Format::TypeName(name) => {
-                let c = self
-                    .shape
+                let shape = self.shape;
+                let c = shape
                     .registry
                     .get(name)
                     .ok_or_else(|| self.fail(format!("type `{name}` is not in the shape")))?;
-                self.container(c)?
+                self.container(c)?;
             }
             Format::Variable(_) => {
                 return Err(self.fail("a format left unknown by the tracer".into()));
             }
-        })
+        }
+        Ok(())
     }
 
-    fn container(&mut self, c: &ContainerFormat) -> Result<Value, DecodeError> {
-        Ok(match c {
-            ContainerFormat::UnitStruct => Value::Null,
+    fn container(&mut self, c: &ContainerFormat) -> Result<(), DecodeError> {
+        match c {
+            ContainerFormat::UnitStruct => self.out.extend_from_slice(b"null"),
             ContainerFormat::NewTypeStruct(f) => self.value(f)?,
-            ContainerFormat::TupleStruct(fs) => {
-                Value::Array(fs.iter().map(|f| self.value(f)).collect::<Result<_, _>>()?)
-            }
+            ContainerFormat::TupleStruct(fs) => self.array(fs.iter())?,
             ContainerFormat::Struct(fields) => self.fields(fields)?,
             ContainerFormat::Enum(variants) => {
                 let at = self.at;
@@ -237,52 +308,40 @@ impl Reader<'_> {
                         what: format!("variant {k} of an enum of {}", variants.len()),
                     });
                 };
-                let body = match &v.value {
-                    VariantFormat::Unit => return Ok(Value::String(v.name.clone())),
+                if let VariantFormat::Unit = v.value {
+                    emit(self.out, &v.name);
+                    return Ok(());
+                }
+                self.out.push(b'{');
+                emit(self.out, &v.name);
+                self.out.push(b':');
+                match &v.value {
                     VariantFormat::NewType(f) => self.value(f)?,
-                    VariantFormat::Tuple(fs) => {
-                        Value::Array(fs.iter().map(|f| self.value(f)).collect::<Result<_, _>>()?)
-                    }
+                    VariantFormat::Tuple(fs) => self.array(fs.iter())?,
                     VariantFormat::Struct(fields) => self.fields(fields)?,
+                    VariantFormat::Unit => {}
                     VariantFormat::Variable(_) => {
                         return Err(self.fail("a variant left unknown by the tracer".into()));
                     }
-                };
-                let mut m = Map::new();
-                m.insert(v.name.clone(), body);
-                Value::Object(m)
+                }
+                self.out.push(b'}');
             }
-        })
-    }
-
-    fn fields(&mut self, fields: &[Named<Format>]) -> Result<Value, DecodeError> {
-        let mut m = Map::new();
-        for f in fields {
-            let v = self.value(&f.value)?;
-            m.insert(f.name.clone(), v);
         }
-        Ok(Value::Object(m))
+        Ok(())
     }
-}
 
-fn float(x: f64) -> Value {
-    Number::from_f64(x).map_or(Value::Null, Value::Number)
-}
-
-fn big_unsigned(v: u128) -> Value {
-    u64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
-}
-
-fn big_signed(v: i128) -> Value {
-    i64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
-}
-
-/// A map key as JSON object keys must be: strings as they are, anything else
-/// as its JSON text (numbers as `serde_json` writes them).
-fn key_text(k: Value) -> String {
-    match k {
-        Value::String(s) => s,
-        other => other.to_string(),
+    fn fields(&mut self, fields: &[Named<Format>]) -> Result<(), DecodeError> {
+        self.out.push(b'{');
+        for (k, f) in fields.iter().enumerate() {
+            if k > 0 {
+                self.out.push(b',');
+            }
+            emit(self.out, &f.name);
+            self.out.push(b':');
+            self.value(&f.value)?;
+        }
+        self.out.push(b'}');
+        Ok(())
     }
 }
 

@@ -58,7 +58,7 @@ use agent_core::trace::{
 use agent_core::{ExecError, Stamp, Step, System, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
 
-use crate::json::{json_schema, to_json};
+use crate::json::{json_schema, write_json};
 
 /// The message encoding of the raw channels.
 pub const WIRE_ENCODING: &str = "embodied-wire/1";
@@ -811,17 +811,22 @@ impl Output {
             self.summary.raw_only += 1;
             return Ok(());
         }
-        let value = shape.map(|s| to_json(s, body));
-        match value {
-            Some(Ok(v)) => self.write(json, sequence, time, &v.to_string().into_bytes()),
-            // A type without a shape is recorded raw only (its JSON channel
-            // stays empty): not a failure of this value.
-            None => Ok(()),
-            Some(Err(_)) => {
+        // A type without a shape is recorded raw only (its JSON channel
+        // stays empty): not a failure of this value.
+        let Some(shape) = shape else {
+            return Ok(());
+        };
+        let mut text = std::mem::take(&mut self.scratch);
+        text.clear();
+        let written = match write_json(shape, body, &mut text) {
+            Ok(()) => self.write(json, sequence, time, &text),
+            Err(_) => {
                 self.summary.undecodable += 1;
                 Ok(())
             }
-        }
+        };
+        self.scratch = text;
+        written
     }
 
     fn transition(

@@ -8,6 +8,15 @@ use serde::{Deserialize, Serialize};
 
 use super::*;
 
+/// What `serde_json` cannot carry exactly as a number is a string.
+fn big_unsigned(v: u128) -> Value {
+    u64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
+}
+
+fn big_signed(v: i128) -> Value {
+    i64::try_from(v).map_or_else(|_| Value::String(v.to_string()), |v| json!(v))
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct Unit;
 
@@ -248,4 +257,19 @@ fn an_enum_only_inside_a_sequence_has_no_shape_rather_than_a_partial_one() {
         panic!("{s:?}");
     };
     assert_eq!(v.len(), 4);
+}
+
+proptest! {
+    /// The text the recorder writes is `serde_json`'s own text of the value
+    /// (fields in declared order, the same number formatting), for types
+    /// without `f32` or 128-bit integers (which `serde_json` writes as
+    /// themselves, and the recording widens or quotes).
+    #[test]
+    fn the_text_written_is_serde_jsons_text(flag in any::<bool>(), kind in kind(), x in any::<f64>()) {
+        let v = Inner { flag, kind, unit: Unit, length: Meters(x) };
+        let s = agent_core::reflect::<Inner>().unwrap();
+        let mut text = Vec::new();
+        write_json(&s, &postcard::to_allocvec(&v).unwrap(), &mut text).unwrap();
+        prop_assert_eq!(String::from_utf8(text).unwrap(), serde_json::to_string(&v).unwrap());
+    }
 }
