@@ -444,6 +444,7 @@ impl McapRecorder {
         };
         let mut w = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
             .profile("")
             .library(concat!(
                 "embodied-agents agent-mcap ",

@@ -160,15 +160,18 @@ fn a_recording_is_written_or_refused_with_the_reason() {
     let d = Dir::new("record");
     let file = d.0.join("run.mcap");
     let path = file.display().to_string();
-    // Not with the real-time executor, nor for several missions: exit 2 first.
-    for extra in [&["--realtime"][..], &["--mission", "all"][..]] {
-        let mut args = vec!["--no-report", "--no-vo", "--record", path.as_str()];
-        args.extend_from_slice(extra);
-        let (code, text) = rex(&args);
-        assert_eq!(code, Some(2), "{extra:?}: {text}");
-        assert!(text.contains("--record") && text.contains(&path), "{text}");
-        assert!(!file.exists(), "nothing ran");
-    }
+    // Not for several missions: exit 2 first.
+    let (code, text) = rex(&[
+        "--no-report",
+        "--no-vo",
+        "--record",
+        path.as_str(),
+        "--mission",
+        "all",
+    ]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(text.contains("--record") && text.contains(&path), "{text}");
+    assert!(!file.exists(), "nothing ran");
     // A short simulated run (it does not complete: exit 1) is recorded.
     let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "2", "--record", &path]);
     assert_eq!(code, Some(1), "{text}");
@@ -184,4 +187,34 @@ fn a_recording_is_written_or_refused_with_the_reason() {
     let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "1", "--record", &bad]);
     assert_ne!(code, Some(0), "{text}");
     assert!(text.contains(&bad), "{text}");
+    // By default the report folder holds the run's recording; `--no-record`
+    // leaves it out.
+    let out = d.0.join("report").display().to_string();
+    let args = [
+        "--no-vo",
+        "--limit",
+        "1",
+        "--mission",
+        "square",
+        "--out",
+        &out,
+    ];
+    let (code, text) = rex(&args);
+    assert_eq!(code, Some(1), "{text}");
+    let recorded = d.0.join("report/square/run.mcap");
+    assert!(
+        text.contains(&format!("record: {} (", recorded.display())),
+        "{text}"
+    );
+    assert!(
+        std::fs::read(&recorded)
+            .unwrap()
+            .ends_with(b"\x89MCAP0\r\n")
+    );
+    std::fs::remove_file(&recorded).unwrap();
+    let (code, text) = rex(&[&args[..], &["--no-record"]].concat());
+    assert_eq!(code, Some(1), "{text}");
+    assert!(!text.contains("record: "), "{text}");
+    assert!(!recorded.exists());
+    assert!(d.0.join("report/square/summary.txt").exists());
 }
