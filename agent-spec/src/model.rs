@@ -266,6 +266,13 @@ pub struct Deployment {
     /// [`Deployment::DEFAULT_TIMEOUT_MS`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub timeout_ms: Option<u64>,
+    /// Secure the links between its processes: mutual TLS (each process proves
+    /// itself with a certificate of the deployment's authority) and an access
+    /// control list generated from the spec (a process may publish only the
+    /// output buffers of the components it runs, and subscribe only to their
+    /// inputs).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub secure: bool,
 }
 
 /// A machine.

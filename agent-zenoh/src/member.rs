@@ -22,6 +22,9 @@ pub struct Options {
     pub port: Option<u16>,
     /// Replace the deployment's wait for the other processes.
     pub timeout: Option<Duration>,
+    /// Where a secure deployment's credentials are (`ca.pem`,
+    /// `<process>.pem`, `<process>.key`: [`crate::security::Credentials`]).
+    pub credentials: Option<std::path::PathBuf>,
 }
 
 /// Why a process could not join its deployment, or lost it.
@@ -88,6 +91,19 @@ pub enum MemberError {
     /// The transport was already handed to a placement.
     #[error("the placement of process `{0}` was already taken")]
     PlacementTaken(String),
+    /// A secure deployment without the process's credentials.
+    #[error("process `{process}` of secure deployment `{deployment}`: {error}")]
+    Credentials {
+        /// This process.
+        process: String,
+        /// The deployment.
+        deployment: String,
+        /// What is missing.
+        error: crate::security::CredentialError,
+    },
+    /// The deployment's access policy could not be made.
+    #[error(transparent)]
+    Policy(#[from] crate::security::PolicyError),
 }
 
 /// The deployment as one process sees it.
@@ -98,6 +114,8 @@ struct Layout {
     processes: Vec<(String, String, Vec<String>)>,
     router: Option<String>,
     timeout: Duration,
+    /// A secure deployment's policy and where its credentials are.
+    secure: Option<(crate::security::AccessPolicy, Option<std::path::PathBuf>)>,
 }
 
 impl Layout {
@@ -120,16 +138,30 @@ impl Layout {
         if let Some(port) = options.port {
             dep.port = Some(port);
         }
+        let secure = if dep.secure {
+            Some((
+                crate::security::AccessPolicy::of(spec, &dep.name)?,
+                options.credentials.clone(),
+            ))
+        } else {
+            None
+        };
+        // A secure deployment's links are TLS.
+        let endpoint = |e: String| match (&secure, e.strip_prefix("tcp/")) {
+            (Some(_), Some(rest)) => format!("tls/{rest}"),
+            _ => e,
+        };
         Ok(Layout {
             system: spec.name.clone(),
             deployment: dep.name.clone(),
             processes: dep
                 .processes()
                 .into_iter()
-                .map(|(_, p, e)| (p.name.clone(), e, p.runs.clone()))
+                .map(|(_, p, e)| (p.name.clone(), endpoint(e), p.runs.clone()))
                 .collect(),
             router: dep.router.clone(),
             timeout: options.timeout.unwrap_or_else(|| dep.timeout()),
+            secure,
         })
     }
 
@@ -166,7 +198,27 @@ impl Layout {
             .map(|(_, e, _)| e.as_str())
             .chain(self.router.as_deref())
             .collect();
-        open_peer(listen, &connect).map_err(|error| MemberError::Zenoh {
+        let secured = match &self.secure {
+            None => None,
+            Some((policy, dir)) => {
+                let credentials = |error| MemberError::Credentials {
+                    process: me.to_owned(),
+                    deployment: self.deployment.clone(),
+                    error,
+                };
+                let dir = dir.as_deref().ok_or_else(|| {
+                    credentials(crate::security::CredentialError::Missing {
+                        path: std::path::PathBuf::from("(no credentials folder given)"),
+                    })
+                })?;
+                Some(crate::security::Secured {
+                    credentials: crate::security::Credentials::in_dir(dir, me)
+                        .map_err(credentials)?,
+                    acl: policy.acl(me)?,
+                })
+            }
+        };
+        open_secure_peer(listen, &connect, secured.as_ref()).map_err(|error| MemberError::Zenoh {
             process: me.to_owned(),
             error,
         })
@@ -179,8 +231,18 @@ impl Layout {
 /// up yet are retried in the background: the caller's own waits decide when to
 /// give up.
 pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Session, String> {
+    open_secure_peer(listen, connect, None)
+}
+
+/// [`open_peer`], with mutual TLS and an access control list if `secured`
+/// (the endpoints are then `tls/...`).
+pub fn open_secure_peer(
+    listen: Option<&str>,
+    connect: &[&str],
+    secured: Option<&crate::security::Secured>,
+) -> Result<zenoh::Session, String> {
     let mut config = zenoh::Config::default();
-    let settings: Vec<(&str, String)> = vec![
+    let mut settings: Vec<(&str, String)> = vec![
         ("mode", "\"peer\"".to_owned()),
         ("listen/endpoints", json_list(listen.as_slice())),
         ("connect/endpoints", json_list(connect)),
@@ -192,6 +254,25 @@ pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Sessio
         ),
         ("scouting/multicast/enabled", "false".to_owned()),
     ];
+    if let Some(s) = secured {
+        let path = |p: &std::path::Path| format!("{:?}", p.display().to_string());
+        let c = &s.credentials;
+        settings.extend([
+            ("transport/link/tls/root_ca_certificate", path(&c.authority)),
+            (
+                "transport/link/tls/listen_certificate",
+                path(&c.certificate),
+            ),
+            ("transport/link/tls/listen_private_key", path(&c.key)),
+            (
+                "transport/link/tls/connect_certificate",
+                path(&c.certificate),
+            ),
+            ("transport/link/tls/connect_private_key", path(&c.key)),
+            ("transport/link/tls/enable_mtls", "true".to_owned()),
+            ("access_control", s.acl.to_string()),
+        ]);
+    }
     for (key, value) in settings {
         config
             .insert_json5(key, &value)

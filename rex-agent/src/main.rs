@@ -133,6 +133,13 @@ struct Cli {
     /// seconds (replaces the spec's `timeout_ms`).
     #[arg(long, global = true, value_name = "SECONDS")]
     wait: Option<f64>,
+    /// The credentials of a secure deployment (`secure: true` in the spec): a
+    /// folder with the authority's `ca.pem` and each process's `<process>.pem`
+    /// and `<process>.key` (their common names `<process>.<deployment>.<spec>`).
+    /// Without it, `launch` makes a development authority under
+    /// `target/rex-credentials/<deployment>/`.
+    #[arg(long, global = true, value_name = "DIR")]
+    credentials: Option<PathBuf>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -592,7 +599,12 @@ fn distributed(
                 return ExitCode::from(2);
             }
         },
+        credentials: cli.credentials.clone(),
     };
+    let secure = spec
+        .deployments
+        .iter()
+        .any(|d| d.name == *deployment && d.secure);
     if let Err(e) =
         ctrlc::set_handler(|| INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed))
     {
@@ -682,6 +694,26 @@ fn distributed(
         args.push("--record".into());
         args.push(pattern.to_string_lossy().into_owned());
     }
+    // A secure deployment without credentials: a development authority.
+    let mut options = options;
+    if secure && options.credentials.is_none() {
+        let dir = PathBuf::from("target/rex-credentials").join(deployment);
+        match dev_credentials(spec, deployment, &dir) {
+            Ok(()) => {
+                eprintln!(
+                    "rex: deployment `{deployment}` is secure: a development authority and certificates in {}",
+                    dir.display()
+                );
+                args.push("--credentials".into());
+                args.push(dir.to_string_lossy().into_owned());
+                options.credentials = Some(dir);
+            }
+            Err(e) => {
+                eprintln!("rex: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
     if !args.iter().any(|a| a == "--no-report") {
         args.push("--no-report".into());
     }
@@ -730,6 +762,23 @@ fn distributed(
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// A development authority and certificates for `deployment` in `dir`.
+#[cfg(feature = "distributed")]
+fn dev_credentials(spec: &Spec, deployment: &str, dir: &Path) -> Result<(), String> {
+    use embodied::distributed::security::{AccessPolicy, create_dev_authority};
+    let policy = AccessPolicy::of(spec, deployment).map_err(|e| e.to_string())?;
+    let hosts: Vec<String> = spec
+        .deployments
+        .iter()
+        .filter(|d| d.name == deployment)
+        .flat_map(|d| &d.hosts)
+        .filter_map(|h| h.address.clone())
+        .collect();
+    create_dev_authority(dir, &policy, &hosts)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 /// The path of each process's part of a recording to `file`, with

@@ -38,6 +38,11 @@
 //! blocking the node). [`Running::stop`] ends the run; [`Running::join`] returns
 //! every node, the environment and the report ([`Finished`]).
 //!
+//! An [`Observer`] sees a run as in the deterministic executor, one per thread
+//! ([`RealTime::observe`]); here it also matters which value each activation
+//! read ([`Observer::read`]): that depends on which thread reached an instant
+//! first, so a recording keeps it and a replay feeds it.
+//!
 //! [`Executor`]: crate::Executor
 //! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
 

@@ -123,6 +123,13 @@ pub fn summary(o: &Outcome) -> String {
         c.mocap.0,
         c.mocap.1
     );
+    if c.acl_refused > 0 {
+        let _ = writeln!(
+            s,
+            "security acl_refused={} (messages the access control refused; each process names them)",
+            c.acl_refused
+        );
+    }
     if c.vo.0 > 0 {
         let _ = writeln!(
             s,

@@ -141,6 +141,13 @@ pub fn run_process(
 ) -> Result<(RtReport, Option<RecordSummary>), DistError> {
     let spec = load_spec(&config.spec)?;
     check_world(&spec, deployment)?;
+    // A secure deployment: count what the access control refuses (before the
+    // session opens, so that nothing is missed).
+    let refusals = spec
+        .deployments
+        .iter()
+        .any(|d| d.name == deployment && d.secure)
+        .then(embodied::distributed::security::Refusals::watch);
     let mut member = Member::join(&spec, deployment, process, options)?;
     // Each start of this process is a new incarnation of c1 (if it runs c1):
     // a2 tells a restart by it and sends again the plans that were lost.
@@ -204,6 +211,17 @@ pub fn run_process(
     let mut counters = super::Counters::default();
     finish_counters(&finished, &h, &mut counters);
     counters.executor_errors = finished.report().error_count;
+    if let Some(r) = &refusals {
+        if !r.counting() {
+            eprintln!(
+                "rex: refusals of the access control cannot be counted (a tracing subscriber was installed before)"
+            );
+        }
+        for (what, key, n) in r.counts() {
+            eprintln!("rex: the access control refused {n} x {what} on `{key}`");
+        }
+        counters.acl_refused = r.total();
+    }
     if let Ok(bytes) = postcard::to_allocvec(&Seen::Counters(Box::new(counters))) {
         let _ = member.observe("seen", bytes);
     }

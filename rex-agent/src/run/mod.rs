@@ -94,6 +94,10 @@ pub struct Counters {
     pub planner_failures: u64,
     /// Errors recorded by the executor (`OnError::Continue`).
     pub executor_errors: u64,
+    /// Messages the access control of a secure deployment refused (as the
+    /// processes' Zenoh saw them: publications and subscriptions to them that
+    /// the spec does not allow, and theirs to others).
+    pub acl_refused: u64,
     /// Motion-capture samples delivered and lost to dropouts.
     pub mocap: (u64, u64),
     /// Visual odometry: stereo pairs processed, motions sent, pairs without one.
@@ -137,6 +141,7 @@ impl Counters {
         self.planner_iterations = self.planner_iterations.saturating_add(o.planner_iterations);
         self.planner_failures = self.planner_failures.saturating_add(o.planner_failures);
         self.executor_errors = self.executor_errors.saturating_add(o.executor_errors);
+        self.acl_refused = self.acl_refused.saturating_add(o.acl_refused);
         self.mocap = (
             self.mocap.0.saturating_add(o.mocap.0),
             self.mocap.1.saturating_add(o.mocap.1),
