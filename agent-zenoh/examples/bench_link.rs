@@ -13,7 +13,12 @@
 //!   sequence checks, postcard, the receiving inbox); `raw_zenoh_us` through
 //!   bare Zenoh publishers and subscribers on the same sessions' settings.
 //!
-//! Both Zenoh figures alternate in rounds of 1000 so that the machine's drift
+//! * `zenoh_secure_us`: `zenoh_us` between two other processes whose sessions
+//!   use mutual TLS and the access control a secure deployment gets
+//!   ([`agent_zenoh::security`]: each side may publish only its own keys and
+//!   subscribe only to the other's).
+//!
+//! The Zenoh figures alternate in rounds of 1000 so that the machine's drift
 //! affects them alike. The last line is the figures line.
 
 #![allow(
@@ -28,13 +33,18 @@ use std::time::{Duration, Instant};
 use agent_core::link::endpoint::{self, Receiver, Sender};
 use agent_core::prelude::*;
 use agent_zenoh::zenoh::Wait;
-use agent_zenoh::{ZenohTransport, open_peer};
+use agent_zenoh::security::{
+    AccessPolicy, Credentials, LAUNCHER, ProcessAccess, Secured, common_name,
+    create_dev_authority,
+};
+use agent_zenoh::{ZenohTransport, open_secure_peer};
 
 type Payload64 = [u64; 8];
 
 const ROUNDS: usize = 20;
 const PER_ROUND: usize = 1000;
 const PORT: u16 = 17_600;
+const SECURE_PORT: u16 = 17_601;
 
 fn stamp(i: usize) -> Stamp {
     Stamp::new(i as u64, Time::ZERO)
@@ -212,11 +222,52 @@ fn raw_recv(raw: &Raw) -> Option<Vec<u8>> {
         .map(|s| s.payload().to_bytes().into_owned())
 }
 
+/// The policy of the two benchmark processes: `main` pings, `echo` pongs.
+fn policy() -> AccessPolicy {
+    let keys = |a: &str| {
+        [format!("bench/{a}"), format!("raw/{a}")]
+            .into_iter()
+            .collect::<std::collections::BTreeSet<_>>()
+    };
+    let process = |name: &str, publishes, subscribes| ProcessAccess {
+        name: name.to_owned(),
+        common_name: common_name("bench", "link", name),
+        publishes,
+        subscribes,
+    };
+    AccessPolicy {
+        system: "bench".into(),
+        deployment: "link".into(),
+        processes: vec![
+            process("main", keys("ping"), keys("pong")),
+            process("echo", keys("pong"), keys("ping")),
+            process(LAUNCHER, Default::default(), Default::default()),
+        ],
+    }
+}
+
+/// A session of `who`: plain TCP, or (with `certs`) TLS and the policy.
+fn session(who: &str, certs: Option<&std::path::Path>) -> agent_zenoh::zenoh::Session {
+    let secured = certs.map(|dir| Secured {
+        credentials: Credentials::in_dir(dir, who).unwrap(),
+        acl: policy().acl(who).unwrap(),
+    });
+    let endpoint = match certs {
+        None => format!("tcp/127.0.0.1:{PORT}"),
+        Some(_) => format!("tls/127.0.0.1:{SECURE_PORT}"),
+    };
+    if who == "echo" {
+        open_secure_peer(Some(&endpoint), &[], secured.as_ref()).unwrap()
+    } else {
+        open_secure_peer(None, &[&endpoint], secured.as_ref()).unwrap()
+    }
+}
+
 /// The echoing process: sends back every ping, ours and raw, until told to end.
-fn echo_main() {
-    let session = open_peer(Some(&format!("tcp/127.0.0.1:{PORT}")), &[]).unwrap();
+fn echo_main(certs: Option<&std::path::Path>) {
+    let session = session("echo", certs);
     let (mut ours, raw) = ends(&session, "pong", "ping");
-    let ready = session.declare_publisher("bench/ready").wait().unwrap();
+    let ready = session.declare_publisher("bench/_rt/ready").wait().unwrap();
     let end = Instant::now() + Duration::from_secs(300);
     let mut i = 0;
     let mut last_ready = Instant::now() - Duration::from_secs(1);
@@ -244,56 +295,83 @@ fn echo_main() {
     }
 }
 
-fn zenoh_us() -> (Vec<f64>, Vec<f64>) {
-    let mut child = Command::new(std::env::current_exe().unwrap())
-        .arg("--echo")
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
-    let session = open_peer(None, &[&format!("tcp/127.0.0.1:{PORT}")]).unwrap();
-    let (mut ours, raw) = ends(&session, "ping", "pong");
+/// One side of the Zenoh figures: the echo process and our ends.
+struct Pair {
+    child: std::process::Child,
+    ours: Ours,
+    raw: Raw,
+    _session: agent_zenoh::zenoh::Session,
+}
+
+fn pair(certs: Option<&std::path::Path>) -> Pair {
+    let mut cmd = Command::new(std::env::current_exe().unwrap());
+    cmd.arg("--echo");
+    if let Some(dir) = certs {
+        cmd.arg(dir);
+    }
+    let child = cmd.stdout(Stdio::null()).spawn().unwrap();
+    let session = session("main", certs);
+    let (ours, raw) = ends(&session, "ping", "pong");
     // The echo process is up and its subscriptions reach us.
-    let ready = session.declare_subscriber("bench/ready").wait().unwrap();
+    let ready = session.declare_subscriber("bench/_rt/ready").wait().unwrap();
     ready
         .recv_timeout(Duration::from_secs(30))
         .unwrap()
         .expect("the echo process is ready");
+    Pair {
+        child,
+        ours,
+        raw,
+        _session: session,
+    }
+}
+
+/// Half round trips through our links and through raw Zenoh, plain and
+/// secure, alternating in rounds.
+fn zenoh_us(certs: &std::path::Path) -> [Vec<f64>; 3] {
+    let mut plain = pair(None);
+    let mut secure = pair(Some(certs));
     std::thread::sleep(Duration::from_millis(300));
-    let mut ours_us = Vec::new();
-    let mut raw_us = Vec::new();
+    let mut out: [Vec<f64>; 3] = Default::default();
     let mut seq = 0u64;
     for round in 0..ROUNDS + 1 {
-        // The first round warms both paths up and is not counted.
+        // The first round warms every path up and is not counted.
         let count = round > 0;
-        for _ in 0..PER_ROUND {
-            seq += 1;
-            let t = Instant::now();
-            ours.tx
-                .send([seq, 0, 0, 0, 0, 0, 0, 0], stamp(seq as usize))
-                .unwrap();
-            let v = spin(|| ours.rx.recv().unwrap().copied());
-            assert_eq!(v[0], seq);
-            if count {
-                ours_us.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+        for (k, p) in [&mut plain, &mut secure].into_iter().enumerate() {
+            for _ in 0..PER_ROUND {
+                seq += 1;
+                let t = Instant::now();
+                p.ours
+                    .tx
+                    .send([seq, 0, 0, 0, 0, 0, 0, 0], stamp(seq as usize))
+                    .unwrap();
+                let v = spin(|| p.ours.rx.recv().unwrap().copied());
+                assert_eq!(v[0], seq);
+                if count {
+                    out[k * 2].push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+                }
             }
         }
         for _ in 0..PER_ROUND {
             seq += 1;
             let bytes = [seq; 8].map(u64::to_le_bytes).concat();
             let t = Instant::now();
-            raw.publisher.put(bytes).wait().unwrap();
-            let back = spin(|| raw_recv(&raw));
+            plain.raw.publisher.put(bytes).wait().unwrap();
+            let back = spin(|| raw_recv(&plain.raw));
             assert_eq!(back.get(..8), Some(&seq.to_le_bytes()[..]));
             if count {
-                raw_us.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+                out[1].push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
             }
         }
     }
-    ours.tx
-        .send([0, u64::MAX, 0, 0, 0, 0, 0, 0], stamp(0))
-        .unwrap();
-    let _ = child.wait();
-    (ours_us, raw_us)
+    for p in [&mut plain, &mut secure] {
+        p.ours
+            .tx
+            .send([0, u64::MAX, 0, 0, 0, 0, 0, 0], stamp(0))
+            .unwrap();
+        let _ = p.child.wait();
+    }
+    out
 }
 
 fn report(name: &str, unit: &str, v: &mut [f64]) -> (f64, f64) {
@@ -307,19 +385,28 @@ fn report(name: &str, unit: &str, v: &mut [f64]) -> (f64, f64) {
 }
 
 fn main() {
-    if std::env::args().any(|a| a == "--echo") {
-        return echo_main();
+    let args: Vec<String> = std::env::args().collect();
+    if args.get(1).map(String::as_str) == Some("--echo") {
+        return echo_main(args.get(2).map(std::path::Path::new));
     }
+    let certs = std::env::temp_dir().join(format!("bench-link-certs-{}", std::process::id()));
+    create_dev_authority(&certs, &policy(), &[]).unwrap();
     let (inproc, _) = report("inproc", "ns", &mut inproc_ns());
     let (thread, _) = report("thread", "us", &mut thread_us());
-    let (mut ours, mut raw) = zenoh_us();
+    let [mut ours, mut raw, mut secure] = zenoh_us(&certs);
+    let _ = std::fs::remove_dir_all(&certs);
     let (zenoh_p50, zenoh_p99) = report("zenoh", "us", &mut ours);
     let (raw_p50, _) = report("raw_zenoh", "us", &mut raw);
+    let (secure_p50, secure_p99) = report("secure", "us", &mut secure);
     println!(
         "zenoh_p50 / raw_zenoh_p50 = {:.2} (aim <= 1.2)",
         zenoh_p50 / raw_p50
     );
     println!(
-        "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1}"
+        "zenoh_secure_p50 / zenoh_p50 = {:.2} (TLS and access control; aim <= 1.3)",
+        secure_p50 / zenoh_p50
+    );
+    println!(
+        "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1} zenoh_secure_us_p50={secure_p50:.1} zenoh_secure_us_p99={secure_p99:.1}"
     );
 }
