@@ -32,11 +32,10 @@ use std::time::{Duration, Instant};
 
 use agent_core::link::endpoint::{self, Receiver, Sender};
 use agent_core::prelude::*;
-use agent_zenoh::zenoh::Wait;
 use agent_zenoh::security::{
-    AccessPolicy, Credentials, LAUNCHER, ProcessAccess, Secured, common_name,
-    create_dev_authority,
+    AccessPolicy, Credentials, LAUNCHER, ProcessAccess, Secured, common_name, create_dev_authority,
 };
+use agent_zenoh::zenoh::Wait;
 use agent_zenoh::{ZenohTransport, open_secure_peer};
 
 type Payload64 = [u64; 8];
@@ -313,7 +312,10 @@ fn pair(certs: Option<&std::path::Path>) -> Pair {
     let session = session("main", certs);
     let (ours, raw) = ends(&session, "ping", "pong");
     // The echo process is up and its subscriptions reach us.
-    let ready = session.declare_subscriber("bench/_rt/ready").wait().unwrap();
+    let ready = session
+        .declare_subscriber("bench/_rt/ready")
+        .wait()
+        .unwrap();
     ready
         .recv_timeout(Duration::from_secs(30))
         .unwrap()

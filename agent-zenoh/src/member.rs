@@ -206,11 +206,9 @@ impl Layout {
                     deployment: self.deployment.clone(),
                     error,
                 };
-                let dir = dir.as_deref().ok_or_else(|| {
-                    credentials(crate::security::CredentialError::Missing {
-                        path: std::path::PathBuf::from("(no credentials folder given)"),
-                    })
-                })?;
+                let dir = dir
+                    .as_deref()
+                    .ok_or_else(|| credentials(crate::security::CredentialError::NotGiven))?;
                 Some(crate::security::Secured {
                     credentials: crate::security::Credentials::in_dir(dir, me)
                         .map_err(credentials)?,

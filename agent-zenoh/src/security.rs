@@ -320,9 +320,14 @@ pub enum CredentialError {
         /// The OS's reason.
         source: std::io::Error,
     },
+    /// No credentials were given to a process of a secure deployment.
+    #[error(
+        "a secure deployment needs credentials: a folder with the authority's `ca.pem` and, per process, `<process>.pem` and `<process>.key` (`rex launch` makes development ones; in code, `security::create_dev_authority`)"
+    )]
+    NotGiven,
     /// A file a secure process needs is not there.
     #[error(
-        "{path} is missing: a secure deployment needs the authority's certificate `ca.pem` and, per process, `<process>.pem` and `<process>.key` (make development ones with `embodied certs`)"
+        "{path} is missing: a secure deployment needs the authority's certificate `ca.pem` and, per process, `<process>.pem` and `<process>.key`"
     )]
     Missing {
         /// The file.
@@ -535,5 +540,67 @@ impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Counter {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .entry((what.to_owned(), key.to_owned()))
             .or_default() += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
+
+    use super::*;
+
+    fn rex() -> Spec {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../specs/rex.ron");
+        agent_spec::load(path, std::fs::read_to_string(path).unwrap())
+            .unwrap()
+            .spec
+    }
+
+    #[test]
+    fn unknown_deployments_and_processes_are_named() {
+        let spec = rex();
+        let e = AccessPolicy::of(&spec, "nowhere").unwrap_err();
+        assert!(e.to_string().contains("split_secure"), "{e}");
+        let p = AccessPolicy::of(&spec, "split_secure").unwrap();
+        let e = p.acl("intruder").unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("world, locomotion, vision, launcher"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_process_in_one_process_deployment_has_no_keys_and_denies_the_rest() {
+        let p = AccessPolicy::of(&rex(), "simulation").unwrap();
+        let rex = p.process("rex").unwrap();
+        assert!(rex.publishes.is_empty() && rex.subscribes.is_empty());
+        let acl = p.acl("rex").unwrap();
+        assert_eq!(acl["default_permission"], "deny");
+        // Only the runtime's keys, with the launcher.
+        assert_eq!(acl["rules"].as_array().unwrap().len(), 1);
+        assert_eq!(acl["subjects"][0]["id"], "launcher");
+    }
+
+    #[test]
+    fn credentials_are_made_checked_and_their_keys_kept_secret() {
+        let dir = std::env::temp_dir().join(format!("agent-zenoh-certs-{}", std::process::id()));
+        let p = AccessPolicy::of(&rex(), "split_secure").unwrap();
+        let files = create_dev_authority(&dir, &p, &["10.0.0.2".into()]).unwrap();
+        // The authority, and a certificate and key per process and launcher.
+        assert_eq!(files.len(), 2 + 2 * 4);
+        let c = Credentials::in_dir(&dir, "locomotion").unwrap();
+        let pem = std::fs::read_to_string(&c.certificate).unwrap();
+        assert!(pem.starts_with("-----BEGIN CERTIFICATE-----"));
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            let mode = std::fs::metadata(&c.key).unwrap().permissions().mode();
+            assert_eq!(mode & 0o077, 0, "{mode:o}");
+        }
+        std::fs::remove_file(&c.key).unwrap();
+        let e = Credentials::in_dir(&dir, "locomotion").unwrap_err();
+        assert!(e.to_string().contains("locomotion.key is missing"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -75,6 +75,7 @@ fn child_main(
     let options = Options {
         port: Some(port),
         timeout: Some(Duration::from_millis(timeout_ms)),
+        ..Options::default()
     };
     let mut member = match Member::join(&spec(timeout_ms), deployment, process, &options) {
         Ok(m) => m,

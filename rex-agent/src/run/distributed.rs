@@ -76,7 +76,11 @@ impl DistError {
             DistError::Rex(_)
                 | DistError::Deployment { .. }
                 | DistError::Member(
-                    M::UnknownDeployment { .. } | M::UnknownProcess { .. } | M::Zenoh { .. }
+                    M::UnknownDeployment { .. }
+                        | M::UnknownProcess { .. }
+                        | M::Zenoh { .. }
+                        | M::Credentials { .. }
+                        | M::Policy(_)
                 )
                 | DistError::Rt(embodied::RtError::UnknownNode { .. })
         )
