@@ -1,0 +1,303 @@
+//! The recorder's writer thread: the MCAP records of every value, read,
+//! switch and error it is sent, the derived channels, and the end.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, Sender};
+
+use agent_core::link::remote::HEADER_LEN;
+use agent_core::trace::{NodeInfo, SystemInfo};
+use agent_core::{Step, Time, TypeShape};
+use serde_json::{Value, json};
+
+use super::{Counts, Derive, LinkChannels, Record, RecordError, RecordSummary, encode_read, small};
+use crate::json::write_json;
+
+/// The writer thread's side.
+pub(super) struct Output {
+    pub(super) w: mcap::Writer<BufWriter<File>>,
+    pub(super) path: PathBuf,
+    pub(super) info: SystemInfo,
+    pub(super) links: Vec<LinkChannels>,
+    pub(super) fsm: Vec<u16>,
+    pub(super) errors: u16,
+    pub(super) derived: Vec<Box<dyn Derive>>,
+    pub(super) json_max_bytes: usize,
+    pub(super) scratch: Vec<u8>,
+    pub(super) summary: RecordSummary,
+}
+
+impl Output {
+    pub(super) fn run(mut self, rx: &Receiver<Record>) -> Result<RecordSummary, RecordError> {
+        let shapes: Vec<Option<TypeShape>> = self
+            .links
+            .iter()
+            .map(|l| {
+                let (root, registry) = serde_json::from_str(l.shape.as_deref()?).ok()?;
+                Some(TypeShape { root, registry })
+            })
+            .collect();
+        let mut error_count = 0u32;
+        let mut give_back: BTreeMap<u16, Sender<Vec<u8>>> = BTreeMap::new();
+        let mut counts = Counts::default();
+        let mut finished = false;
+        // Until the owner and every thread's part are gone.
+        for record in rx.iter() {
+            match record {
+                Record::Transfer {
+                    part,
+                    link,
+                    time,
+                    bytes,
+                } => {
+                    let shape = shapes.get(link as usize).and_then(Option::as_ref);
+                    self.transfer(link, shape, time, &bytes)?;
+                    if let Some(back) = give_back.get(&part) {
+                        let _ = back.send(bytes);
+                    }
+                }
+                Record::Read { link, time, stamp } => {
+                    if let Some(l) = self.links.get_mut(link as usize) {
+                        let (channel, sequence) = (l.reads, l.read_sequence);
+                        l.read_sequence = l.read_sequence.wrapping_add(1);
+                        self.write(channel, sequence, time, &encode_read(stamp))?;
+                    }
+                }
+                Record::Transition {
+                    node,
+                    time,
+                    iteration,
+                    step,
+                } => self.transition(node, time, iteration, step)?,
+                Record::Error { time, message } => {
+                    let data = json!({"time_s": time.as_secs_f64(), "message": message});
+                    self.write(
+                        self.errors,
+                        error_count,
+                        time,
+                        &data.to_string().into_bytes(),
+                    )?;
+                    error_count += 1;
+                }
+                Record::Part { part, give_back: g } => {
+                    give_back.insert(part, g);
+                }
+                Record::Counted(c) => counts.add(&c),
+                Record::End => finished = true,
+            }
+        }
+        if finished {
+            let mut end = BTreeMap::from([
+                ("time_ns".to_owned(), counts.last.as_nanos().to_string()),
+                ("finished".to_owned(), "true".to_owned()),
+            ]);
+            for (n, k) in self.info.nodes.iter().zip(&counts.iterations) {
+                end.insert(format!("iterations/{}", n.name), k.to_string());
+            }
+            for ((n, t), k) in self
+                .info
+                .nodes
+                .iter()
+                .zip(&counts.last_of)
+                .zip(&counts.iterations)
+            {
+                if *k > 0 || *t > Time::ZERO {
+                    end.insert(format!("last/{}", n.name), t.as_nanos().to_string());
+                }
+            }
+            self.w
+                .write_metadata(&mcap::records::Metadata {
+                    name: "end".into(),
+                    metadata: end,
+                })
+                .map_err(|e| self.fail(&e))?;
+        }
+        self.w.finish().map_err(|e| self.fail(&e))?;
+        self.summary.waits = counts.waits;
+        self.summary.undecodable += counts.encode_failures;
+        Ok(self.summary)
+    }
+
+    fn fail(&self, e: &mcap::McapError) -> RecordError {
+        RecordError::Write {
+            path: self.path.clone(),
+            message: e.to_string(),
+        }
+    }
+
+    fn write(
+        &mut self,
+        channel: u16,
+        sequence: u32,
+        time: Time,
+        data: &[u8],
+    ) -> Result<(), RecordError> {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence,
+            log_time: time.as_nanos(),
+            publish_time: time.as_nanos(),
+        };
+        self.w
+            .write_to_known_channel(&header, data)
+            .map_err(|e| RecordError::Write {
+                path: self.path.clone(),
+                message: e.to_string(),
+            })?;
+        self.summary.messages += 1;
+        Ok(())
+    }
+
+    fn transfer(
+        &mut self,
+        link: u32,
+        shape: Option<&TypeShape>,
+        time: Time,
+        bytes: &[u8],
+    ) -> Result<(), RecordError> {
+        let Some(l) = self.links.get_mut(link as usize) else {
+            return Ok(());
+        };
+        let sequence = l.sequence;
+        l.sequence = l.sequence.wrapping_add(1);
+        let (json, raw) = (l.json, l.raw);
+        self.write(raw, sequence, time, bytes)?;
+        let body = bytes.get(HEADER_LEN..).unwrap_or_default();
+        for k in 0..self.links[link as usize].derived.len() {
+            let (d, channel) = self.links[link as usize].derived[k];
+            let mut out = std::mem::take(&mut self.scratch);
+            out.clear();
+            let made = self
+                .derived
+                .get_mut(d)
+                .is_some_and(|derive| derive.message(link as usize, time, body, &mut out));
+            let written = if made {
+                self.write(channel, sequence, time, &out)
+            } else {
+                Ok(())
+            };
+            self.scratch = out;
+            written?;
+        }
+        if body.len() > self.json_max_bytes {
+            self.summary.raw_only += 1;
+            return Ok(());
+        }
+        // A type without a shape is recorded raw only (its JSON channel
+        // stays empty): not a failure of this value.
+        let Some(shape) = shape else {
+            return Ok(());
+        };
+        let mut text = std::mem::take(&mut self.scratch);
+        text.clear();
+        let written = match write_json(shape, body, &mut text) {
+            Ok(()) => self.write(json, sequence, time, &text),
+            Err(_) => {
+                self.summary.undecodable += 1;
+                Ok(())
+            }
+        };
+        self.scratch = text;
+        written
+    }
+
+    fn transition(
+        &mut self,
+        node: u32,
+        time: Time,
+        iteration: u64,
+        step: Step,
+    ) -> Result<(), RecordError> {
+        let Some(n) = self.info.nodes.get(node as usize) else {
+            return Ok(());
+        };
+        let data = transition_json(n, time, iteration, step);
+        let channel = self.fsm[node as usize];
+        self.write(
+            channel,
+            small(iteration as usize),
+            time,
+            &data.to_string().into_bytes(),
+        )
+    }
+}
+
+/// A behaviour switch of node `n` as recorded on its `/fsm/<node>` channel
+/// (and as a replay compares it).
+pub(crate) fn transition_json(n: &NodeInfo, time: Time, iteration: u64, step: Step) -> Value {
+    let name = |b: usize| n.behaviours.get(b).cloned().unwrap_or_default();
+    let predicates = n
+        .fsm
+        .as_ref()
+        .map(|f| f.predicates.clone())
+        .unwrap_or_default();
+    match step {
+        Step::Entered {
+            from,
+            arc,
+            to,
+            predicates: values,
+        } => {
+            let arc_text = n
+                .fsm
+                .as_ref()
+                .and_then(|f| {
+                    f.arcs
+                        .iter()
+                        .filter(|(a, _, _)| *a == name(from))
+                        .nth(arc)
+                        .map(|(_, _, c)| c.clone())
+                })
+                .unwrap_or_default();
+            let values: serde_json::Map<String, Value> = predicates
+                .iter()
+                .enumerate()
+                .filter_map(|(i, p)| Some((p.clone(), Value::Bool(values.get(i)?))))
+                .collect();
+            json!({
+                "time_s": time.as_secs_f64(),
+                "iteration": iteration,
+                "from": name(from),
+                "to": name(to),
+                "arc": arc,
+                "condition": arc_text,
+                "predicates": values,
+            })
+        }
+        Step::Finished | Step::Run => json!({
+            "time_s": time.as_secs_f64(),
+            "iteration": iteration,
+            "finished": true,
+        }),
+    }
+}
+
+/// The system's nodes, behaviours and links, for the metadata record.
+pub(super) fn describe(info: &SystemInfo) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::new();
+    for n in &info.nodes {
+        m.insert(
+            format!("node/{}", n.name),
+            format!(
+                "agent {}, {:?}, period {}, behaviours [{}]",
+                n.agent,
+                n.kind,
+                n.period,
+                n.behaviours.join(", ")
+            ),
+        );
+    }
+    for (k, l) in info.links.iter().enumerate() {
+        m.insert(
+            format!("link/{k}"),
+            format!("{} ({:?}, {})", l.name, l.policy, l.payload),
+        );
+    }
+    m
+}
+
+pub(super) const TRANSITION_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Transition","type":"object","properties":{"time_s":{"type":"number"},"iteration":{"type":"integer"},"from":{"type":"string"},"to":{"type":"string"},"arc":{"type":"integer"},"condition":{"type":"string"},"predicates":{"type":"object","additionalProperties":{"type":"boolean"}},"finished":{"type":"boolean"}}}"#;
+
+pub(super) const ERROR_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Error","type":"object","properties":{"time_s":{"type":"number"},"message":{"type":"string"}},"required":["time_s","message"]}"#;
