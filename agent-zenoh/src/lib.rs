@@ -34,7 +34,10 @@ pub mod security;
 mod transport;
 
 pub use launch::{Child, Control, LaunchError, LaunchReport, Launcher, Line};
-pub use member::{Member, MemberError, Observation, Options, Watch, open_peer, open_secure_peer};
+pub use member::{
+    Member, MemberError, Observation, Options, Watch, open_peer, open_secure_client,
+    open_secure_peer,
+};
 
 pub use transport::ZenohTransport;
 /// The Zenoh crate this one is built on, for sessions of your own.

@@ -239,9 +239,28 @@ pub fn open_secure_peer(
     connect: &[&str],
     secured: Option<&crate::security::Secured>,
 ) -> Result<zenoh::Session, String> {
+    open_session("peer", listen, connect, secured)
+}
+
+/// A Zenoh session in client mode connected to `connect`, with mutual TLS and
+/// an access control list if `secured`: a monitor or a tool that talks to a
+/// deployment through one of its processes and takes no part in routing.
+pub fn open_secure_client(
+    connect: &[&str],
+    secured: Option<&crate::security::Secured>,
+) -> Result<zenoh::Session, String> {
+    open_session("client", None, connect, secured)
+}
+
+fn open_session(
+    mode: &str,
+    listen: Option<&str>,
+    connect: &[&str],
+    secured: Option<&crate::security::Secured>,
+) -> Result<zenoh::Session, String> {
     let mut config = zenoh::Config::default();
     let mut settings: Vec<(&str, String)> = vec![
-        ("mode", "\"peer\"".to_owned()),
+        ("mode", format!("{mode:?}")),
         ("listen/endpoints", json_list(listen.as_slice())),
         ("connect/endpoints", json_list(connect)),
         // Connect in the background, retrying every 100 ms at first, 1 s at most.
