@@ -499,6 +499,15 @@ impl Refusals {
     }
 }
 
+/// The decisions Zenoh makes when it caches a key's permissions (one per
+/// message kind of its access control).
+const CACHED_KINDS: u8 = 9;
+
+thread_local! {
+    /// Decisions still to come of a key's caching, on this thread.
+    static PRIMING: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
+}
+
 /// The layer that counts Zenoh's refusals.
 struct Counter(std::sync::Arc<std::sync::Mutex<std::collections::BTreeMap<(String, String), u64>>>);
 
@@ -514,8 +523,20 @@ impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Counter {
         }
         let mut m = Message(String::new());
         event.record(&mut m);
-        // `<zid> on <subject> is unauthorized to <what> on <key>`, or
-        // `Using cached result: <zid> is unauthorized to <what> on <key>`.
+        // Zenoh decides every kind of message at once when a key is first
+        // seen on a link (`caching permissions for ...`, then one decision
+        // per kind, on this thread): those are not messages. A message is
+        // decided by `Using cached result: <zid> is unauthorized to <what> on
+        // <key>`, or, uncached, `<zid> on <subject> is unauthorized to ...`.
+        if m.0.contains("caching permissions for") {
+            PRIMING.set(CACHED_KINDS);
+            return;
+        }
+        let decided = m.0.contains(" is authorized to ") || m.0.contains(" is unauthorized to ");
+        if decided && !m.0.starts_with("Using cached result") && PRIMING.get() > 0 {
+            PRIMING.set(PRIMING.get() - 1);
+            return;
+        }
         let Some((_, rest)) = m.0.split_once(" is unauthorized to ") else {
             return;
         };
