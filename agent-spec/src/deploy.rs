@@ -172,16 +172,11 @@ impl<'s> Assembly<'s> {
     /// The components that deployment `name` of `spec` runs (on any host and in any
     /// process).
     pub fn new(spec: &'s Spec, name: &str) -> Result<Assembly<'s>, AssemblyError> {
-        let Some(deployment) = spec.deployments.iter().find(|d| d.name == name) else {
+        let Some(deployment) = spec.deployment(name) else {
             return Err(AssemblyError::UnknownDeployment {
                 spec: spec.name.clone(),
                 name: name.to_owned(),
-                known: spec
-                    .deployments
-                    .iter()
-                    .map(|d| d.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                known: spec.deployment_names(),
             });
         };
         let runs = deployment.runs().collect();

@@ -303,6 +303,20 @@ pub struct Process {
 }
 
 impl Spec {
+    /// The deployment called `name`.
+    pub fn deployment(&self, name: &str) -> Option<&Deployment> {
+        self.deployments.iter().find(|d| d.name == name)
+    }
+
+    /// The names of its deployments, as a list for a message.
+    pub fn deployment_names(&self) -> String {
+        self.deployments
+            .iter()
+            .map(|d| d.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// Every subsystem, with its agent.
     pub fn subsystems(&self) -> impl Iterator<Item = (&Agent, &Subsystem)> {
         self.agents

@@ -120,20 +120,13 @@ struct Layout {
 
 impl Layout {
     fn of(spec: &Spec, deployment: &str, options: &Options) -> Result<Layout, MemberError> {
-        let dep: &Deployment = spec
-            .deployments
-            .iter()
-            .find(|d| d.name == deployment)
-            .ok_or_else(|| MemberError::UnknownDeployment {
-                spec: spec.name.clone(),
-                name: deployment.to_owned(),
-                known: spec
-                    .deployments
-                    .iter()
-                    .map(|d| d.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            })?;
+        let dep: &Deployment =
+            spec.deployment(deployment)
+                .ok_or_else(|| MemberError::UnknownDeployment {
+                    spec: spec.name.clone(),
+                    name: deployment.to_owned(),
+                    known: spec.deployment_names(),
+                })?;
         let mut dep = dep.clone();
         if let Some(port) = options.port {
             dep.port = Some(port);

@@ -112,22 +112,15 @@ impl AccessPolicy {
     /// The policy of `deployment` of `spec`.
     pub fn of(spec: &Spec, deployment: &str) -> Result<AccessPolicy, PolicyError> {
         let dep = spec
-            .deployments
-            .iter()
-            .find(|d| d.name == deployment)
+            .deployment(deployment)
             .ok_or_else(|| PolicyError::UnknownDeployment {
                 spec: spec.name.clone(),
                 name: deployment.to_owned(),
-                known: spec
-                    .deployments
-                    .iter()
-                    .map(|d| d.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                known: spec.deployment_names(),
             })?;
-        let mut processes: Vec<ProcessAccess> = dep
-            .processes()
-            .into_iter()
+        let placed = dep.processes();
+        let mut processes: Vec<ProcessAccess> = placed
+            .iter()
             .map(|(_, p, _)| ProcessAccess {
                 name: p.name.clone(),
                 common_name: common_name(&spec.name, &dep.name, &p.name),
@@ -136,7 +129,7 @@ impl AccessPolicy {
             })
             .collect();
         let process_of = |component: &str| {
-            dep.processes()
+            placed
                 .iter()
                 .position(|(_, p, _)| p.runs.iter().any(|r| r == component))
         };

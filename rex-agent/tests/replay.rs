@@ -59,6 +59,32 @@ fn replayed(config: &RexConfig, path: &Path, node: &str) -> Replayed {
     replay_file(path, system, node, ReplayOptions { exec: config.exec }).unwrap()
 }
 
+/// Every subsystem of Rex with VO replays `path` equivalent, with the
+/// recorded iteration counts (`end`: the recording's `end` metadata).
+fn every_subsystem_replays_equivalent(
+    vo: &RexConfig,
+    path: &Path,
+    end: &std::collections::BTreeMap<String, String>,
+) {
+    for node in ["c1", "e11", "r11", "c2", "c3", "r31"] {
+        let r = replayed(vo, path, node);
+        let Replayed::Equivalent {
+            iterations,
+            transfers,
+            ..
+        } = r
+        else {
+            panic!("{node}: {r}");
+        };
+        assert_eq!(
+            iterations.to_string(),
+            end[&format!("iterations/{node}")],
+            "{node}"
+        );
+        assert!(iterations > 0 && transfers > 0, "{node}: {r}");
+    }
+}
+
 #[test]
 fn every_subsystem_of_a_recorded_mission_replays_equivalent() {
     // With visual odometry (the camera's pairs, r11), a few seconds.
@@ -92,23 +118,7 @@ fn every_subsystem_of_a_recorded_mission_replays_equivalent() {
         (info.width, info.height),
         (vo.world.camera.width, vo.world.camera.height)
     );
-    for node in ["c1", "e11", "r11", "c2", "c3", "r31"] {
-        let r = replayed(&vo, &path, node);
-        let Replayed::Equivalent {
-            iterations,
-            transfers,
-            ..
-        } = r
-        else {
-            panic!("{node}: {r}");
-        };
-        assert_eq!(
-            iterations.to_string(),
-            end[&format!("iterations/{node}")],
-            "{node}"
-        );
-        assert!(iterations > 0 && transfers > 0, "{node}: {r}");
-    }
+    every_subsystem_replays_equivalent(&vo, &path, end);
     // The whole mission without visual odometry: every plan, every switch.
     let no_vo = config(false);
     let path = record(&no_vo, 60, "replay_mission.mcap");
@@ -371,23 +381,7 @@ fn every_subsystem_of_a_real_time_run_replays_equivalent() {
         reads.len(),
         report.nodes.iter().map(|n| n.overruns).sum::<u64>()
     );
-    for node in ["c1", "e11", "r11", "c2", "c3", "r31"] {
-        let r = replayed(&vo, &path, node);
-        let Replayed::Equivalent {
-            iterations,
-            transfers,
-            ..
-        } = r
-        else {
-            panic!("{node}: {r}");
-        };
-        assert_eq!(
-            iterations.to_string(),
-            end[&format!("iterations/{node}")],
-            "{node}"
-        );
-        assert!(iterations > 0 && transfers > 0, "{node}: {r}");
-    }
+    every_subsystem_replays_equivalent(&vo, &path, end);
 }
 
 fn small_recording() -> &'static (PathBuf, Vec<u8>) {

@@ -51,10 +51,7 @@ pub(crate) fn distributed(
         },
         credentials: cli.credentials.clone(),
     };
-    let secure = spec
-        .deployments
-        .iter()
-        .any(|d| d.name == *deployment && d.secure);
+    let secure = spec.deployment(deployment).is_some_and(|d| d.secure);
     if let Err(e) =
         ctrlc::set_handler(|| INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed))
     {

@@ -148,9 +148,8 @@ pub fn run_process(
     // A secure deployment: count what the access control refuses (before the
     // session opens, so that nothing is missed).
     let refusals = spec
-        .deployments
-        .iter()
-        .any(|d| d.name == deployment && d.secure)
+        .deployment(deployment)
+        .is_some_and(|d| d.secure)
         .then(embodied::distributed::security::Refusals::watch);
     let mut member = Member::join(&spec, deployment, process, options)?;
     // Each start of this process is a new incarnation of c1 (if it runs c1):
