@@ -9,9 +9,10 @@ use std::sync::mpsc::{Receiver, Sender};
 
 use agent_core::link::remote::HEADER_LEN;
 use agent_core::trace::{NodeInfo, SystemInfo};
-use agent_core::{Step, Time, TypeShape};
+use agent_core::{Stamp, Step, Time, TypeShape};
 use serde_json::{Value, json};
 
+use super::batch::{Entry, entries};
 use super::{Counts, Derive, LinkChannels, Record, RecordError, RecordSummary, encode_read, small};
 use crate::json::write_json;
 
@@ -46,23 +47,18 @@ impl Output {
         // Until the owner and every thread's part are gone.
         for record in rx.iter() {
             match record {
-                Record::Transfer {
-                    part,
-                    link,
-                    time,
-                    bytes,
-                } => {
-                    let shape = shapes.get(link as usize).and_then(Option::as_ref);
-                    self.transfer(link, shape, time, &bytes)?;
+                Record::Batch { part, bytes } => {
+                    for entry in entries(&bytes) {
+                        match entry {
+                            Entry::Transfer { link, time, bytes } => {
+                                let shape = shapes.get(link as usize).and_then(Option::as_ref);
+                                self.transfer(link, shape, time, bytes)?;
+                            }
+                            Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
+                        }
+                    }
                     if let Some(back) = give_back.get(&part) {
                         let _ = back.send(bytes);
-                    }
-                }
-                Record::Read { link, time, stamp } => {
-                    if let Some(l) = self.links.get_mut(link as usize) {
-                        let (channel, sequence) = (l.reads, l.read_sequence);
-                        l.read_sequence = l.read_sequence.wrapping_add(1);
-                        self.write(channel, sequence, time, &encode_read(stamp))?;
                     }
                 }
                 Record::Transition {
@@ -148,6 +144,15 @@ impl Output {
             })?;
         self.summary.messages += 1;
         Ok(())
+    }
+
+    fn read(&mut self, link: u32, time: Time, stamp: Stamp) -> Result<(), RecordError> {
+        let Some(l) = self.links.get_mut(link as usize) else {
+            return Ok(());
+        };
+        let (channel, sequence) = (l.reads, l.read_sequence);
+        l.read_sequence = l.read_sequence.wrapping_add(1);
+        self.write(channel, sequence, time, &encode_read(stamp))
     }
 
     fn transfer(
