@@ -549,6 +549,7 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
     m.stopped_now = false;
     if !estimate.localised {
         m.event = m.outbox.pop_front();
+        m.track.tracker.idle();
         m.tau = [0.0; 4];
         m.track.reference = None;
         return;
@@ -571,6 +572,7 @@ pub fn ee_estimate_track(m: &mut E11Memory, x: &E11Input) {
         m.track.reference = m.track.horizon.first().copied();
         m.tau = m.track.tracker.control(&estimate, &m.track.horizon, m.dt);
     } else {
+        m.track.tracker.idle();
         m.track.reference = None;
         m.tau = [0.0; 4];
     }

@@ -2,6 +2,7 @@
 //! a computed-torque loop) and the paper's NMPC ([`NmpcTracker`]).
 
 use super::estimator::Estimate;
+use crate::algorithms::mpc::nmpc::{DisturbanceObserver, DisturbanceSettings};
 use crate::algorithms::mpc::{Nmpc, NmpcError, NmpcSettings};
 use crate::world::model::{PlatformParams, Reduced, Torques};
 
@@ -19,6 +20,11 @@ pub trait Tracker: Send + std::fmt::Debug {
     /// Torques that make the platform follow the reference `(X, Y, φ, v, ω)`:
     /// `reference[k]` is the reference `k · dt` from now (`horizon() + 1` samples).
     fn control(&mut self, estimate: &Estimate, reference: &[[f64; 5]], dt: f64) -> Torques;
+
+    /// A sample without control (no reference to follow, or not localised):
+    /// the torques are zero, and the next [`Tracker::control`] does not follow
+    /// the last one.
+    fn idle(&mut self) {}
 
     /// Counters for reports (solver failures, fallbacks...).
     fn report(&self) -> TrackerReport {
@@ -82,6 +88,8 @@ impl TrackerKind {
 #[derive(Debug)]
 pub struct NmpcTracker {
     nmpc: Nmpc,
+    /// What the model leaves out (offset-free tracking).
+    observer: DisturbanceObserver,
     last: Torques,
     refused: u64,
     refused_in_a_row: usize,
@@ -100,6 +108,7 @@ impl NmpcTracker {
         };
         Ok(NmpcTracker {
             nmpc: Nmpc::new(Reduced::new(params), settings)?,
+            observer: DisturbanceObserver::new(DisturbanceSettings::default()),
             last: [0.0; 4],
             refused: 0,
             refused_in_a_row: 0,
@@ -127,14 +136,20 @@ impl Tracker for NmpcTracker {
         if let Some(r) = reference.first() {
             x[2] = crate::algorithms::planner::nearest_angle(x[2], r[2]);
         }
+        let d = self.observer.update(&self.nmpc, &x);
+        // The observer's disturbance is finite (bounded, non-finite errors
+        // skipped): accepted.
+        let _ = self.nmpc.set_disturbance(&d);
         match self.nmpc.control(&x, reference, &e.p) {
             Ok(c) => {
+                self.observer.applied(&x, &c.torques);
                 self.refused_in_a_row = 0;
                 self.last = c.torques;
                 c.torques
             }
             Err(_) => {
                 // Inputs the NMPC refuses: hold the last torques briefly, then stop.
+                self.observer.gap();
                 self.refused += 1;
                 self.refused_in_a_row += 1;
                 if self.refused_in_a_row > self.nmpc.settings().fallback_steps {
@@ -144,6 +159,10 @@ impl Tracker for NmpcTracker {
                 self.last
             }
         }
+    }
+
+    fn idle(&mut self) {
+        self.observer.gap();
     }
 
     fn report(&self) -> TrackerReport {

@@ -51,7 +51,10 @@ use serde::{Deserialize, Serialize};
 use super::linalg::Mat;
 use crate::world::model::{Reduced, SlipParams, State5, Torques};
 
+mod offset;
 mod qp;
+
+pub use offset::{DisturbanceObserver, DisturbanceSettings};
 
 use qp::ClarabelQp;
 
@@ -268,6 +271,9 @@ pub struct Nmpc {
     us: Vec<Torques>,
     reference: Vec<State5>,
     p: SlipParams,
+    /// Added to every predicted interval: `x_{k+1} = F(x_k, u_k, p) + d`
+    /// ([`Nmpc::set_disturbance`]).
+    disturbance: State5,
     stages: Vec<Stage>,
     /// Whether `stages` holds a linearisation of the current iterate.
     prepared: bool,
@@ -294,6 +300,7 @@ impl Nmpc {
             us: vec![[0.0; NU]; n],
             reference: vec![[0.0; NX]; n + 1],
             p: SlipParams::NOMINAL,
+            disturbance: [0.0; NX],
             stages: vec![Stage::default(); n],
             prepared: false,
             warm: false,
@@ -325,6 +332,28 @@ impl Nmpc {
     /// The torques `u_0..u_{N−1}` of the current solution.
     pub fn torques(&self) -> &[Torques] {
         &self.us
+    }
+
+    /// The disturbance the predictions add to each interval's end state, `x_{k+1}
+    /// = F(x_k, u_k, p) + d` (offset-free MPC: what the model leaves out, as an
+    /// observer of the one-step prediction errors estimates it;
+    /// [`DisturbanceObserver`]). Zero unless set; a non-finite `d` is refused.
+    pub fn set_disturbance(&mut self, d: &State5) -> Result<(), NmpcError> {
+        check_finite(d, "disturbance")?;
+        self.disturbance = *d;
+        Ok(())
+    }
+
+    /// The disturbance in use.
+    pub fn disturbance(&self) -> &State5 {
+        &self.disturbance
+    }
+
+    /// The model's prediction of one interval with the current parameters and
+    /// disturbance: where `x` goes under `u`.
+    pub fn predict(&self, x: &State5, u: &Torques) -> State5 {
+        let next = self.model.rk4(x, u, &self.p, self.s.dt, self.s.rk4_steps);
+        std::array::from_fn(|i| next[i] + self.disturbance[i])
     }
 
     /// Forget the previous solution (the next sample starts cold).
@@ -452,13 +481,7 @@ impl Nmpc {
         let n = self.s.horizon;
         self.xs.copy_within(1.., 0);
         self.us.copy_within(1.., 0);
-        self.xs[n] = self.model.rk4(
-            &self.xs[n - 1],
-            &self.us[n - 1],
-            &self.p,
-            self.s.dt,
-            self.s.rk4_steps,
-        );
+        self.xs[n] = self.predict(&self.xs[n - 1], &self.us[n - 1]);
     }
 
     fn solved(&mut self) -> Control {

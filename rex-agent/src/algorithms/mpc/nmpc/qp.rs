@@ -27,7 +27,7 @@ impl Nmpc {
             let st = &mut self.stages[k];
             st.a = Mat(j.x);
             st.b = Mat(j.u);
-            st.d = std::array::from_fn(|i| next[i] - self.xs[k + 1][i]);
+            st.d = std::array::from_fn(|i| next[i] + self.disturbance[i] - self.xs[k + 1][i]);
         }
     }
 

@@ -1,0 +1,179 @@
+//! Offset-free tracking: an observer of what the prediction model leaves out.
+//!
+//! The reduced model does not represent everything the platform does (the
+//! wheels' longitudinal slip, the load transfer, the motor curve, a surface
+//! its parameters do not fit yet). Left alone, the NMPC then tracks with a
+//! steady offset wherever the model is wrong, where a law with integral action
+//! does not. The standard cure (Pannocchia & Rawlings, offset-free MPC) is an
+//! integrating disturbance: the predictions add `d` to each interval's end
+//! state ([`Nmpc::set_disturbance`]) and `d` integrates the one-step
+//! prediction errors, `d ← d + L (x̂_k − F(x̂_{k−1}, u_{k−1}, p) − d)`, so at
+//! steady state the model predicts what the platform does.
+
+use super::{NX, Nmpc};
+use crate::world::model::{State5, Torques};
+
+/// Settings of the [`DisturbanceObserver`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisturbanceSettings {
+    /// Gain `L` per state component `(X, Y, φ, v, ω)`, in `[0, 1]`; zero leaves
+    /// a component to the feedback alone.
+    pub gain: [f64; NX],
+    /// Bound of `|d|` per component (per interval).
+    pub bound: [f64; NX],
+}
+
+impl Default for DisturbanceSettings {
+    /// Position: gain 0.1, at most 1 cm per interval (0.2 m/s at 50 ms: the
+    /// sideslip the reduced model cannot represent, as an integral action on
+    /// the position); speeds: gain 0.2, at most 0.1 m/s and 0.3 rad/s per
+    /// interval; heading: none (it follows from the yaw rate). Chosen on the
+    /// shipped missions (`bench_missions`; the README shows the table).
+    fn default() -> Self {
+        DisturbanceSettings {
+            gain: [0.1, 0.1, 0.0, 0.2, 0.2],
+            bound: [0.01, 0.01, 0.0, 0.1, 0.3],
+        }
+    }
+}
+
+/// Estimates the NMPC's disturbance from its one-step prediction errors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DisturbanceObserver {
+    s: DisturbanceSettings,
+    d: State5,
+    /// The state and torques of the last sample, if the next follows it.
+    last: Option<(State5, Torques)>,
+}
+
+impl DisturbanceObserver {
+    /// An observer starting from `d = 0`.
+    pub fn new(settings: DisturbanceSettings) -> DisturbanceObserver {
+        DisturbanceObserver {
+            s: settings,
+            d: [0.0; NX],
+            last: None,
+        }
+    }
+
+    /// The estimate.
+    pub fn disturbance(&self) -> &State5 {
+        &self.d
+    }
+
+    /// At a sample that follows the last one: compare the estimate `x_hat`
+    /// with what `nmpc` predicted for it (with the disturbance in use) and
+    /// integrate the error; returns the new disturbance. A non-finite error
+    /// changes nothing.
+    pub fn update(&mut self, nmpc: &Nmpc, x_hat: &State5) -> State5 {
+        if let Some((x, u)) = self.last.take() {
+            let predicted = nmpc.predict(&x, &u);
+            let error: State5 = std::array::from_fn(|i| x_hat[i] - predicted[i]);
+            if error.iter().all(|e| e.is_finite()) {
+                for i in 0..NX {
+                    let b = self.s.bound[i];
+                    self.d[i] = (self.d[i] + self.s.gain[i] * error[i]).clamp(-b, b);
+                }
+            }
+        }
+        self.d
+    }
+
+    /// The torques applied from the state `x` (the NMPC's `x_0`): the next
+    /// sample's prediction starts there.
+    pub fn applied(&mut self, x: &State5, u: &Torques) {
+        self.last = Some((*x, *u));
+    }
+
+    /// A sample without control (holding still, not localised): the next
+    /// error is not a one-step error; the disturbance is kept.
+    pub fn gap(&mut self) {
+        self.last = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algorithms::mpc::NmpcSettings;
+    use crate::world::model::{PlatformParams, Reduced, SlipParams};
+
+    fn nmpc() -> (Nmpc, Reduced) {
+        let model = Reduced::new(PlatformParams::peer_default());
+        (
+            Nmpc::new(model.clone(), NmpcSettings::default()).expect("valid settings"),
+            model,
+        )
+    }
+
+    /// A platform that does what the model says plus `offset` each interval,
+    /// driven by fixed torques; returns the observer after `samples`.
+    fn observe(offset: State5, samples: usize) -> (DisturbanceObserver, Nmpc, State5) {
+        let (mut nmpc, model) = nmpc();
+        let s = nmpc.settings().clone();
+        let mut obs = DisturbanceObserver::new(DisturbanceSettings::default());
+        let u = [1.0, 1.0, 2.0, 2.0];
+        let mut x = [0.0, 0.0, 0.3, 0.4, 0.0];
+        for _ in 0..samples {
+            let d = obs.update(&nmpc, &x);
+            nmpc.set_disturbance(&d).expect("finite");
+            obs.applied(&x, &u);
+            let next = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+            x = std::array::from_fn(|i| next[i] + offset[i]);
+        }
+        (obs, nmpc, x)
+    }
+
+    #[test]
+    fn a_constant_model_error_is_learnt_and_then_predicted() {
+        let offset = [0.004, -0.003, 0.0, 0.02, -0.05];
+        let (obs, nmpc, x) = observe(offset, 200);
+        let d = obs.disturbance();
+        for i in 0..NX {
+            assert!(
+                (d[i] - offset[i]).abs() < 1e-9,
+                "d = {d:?}, offset {offset:?}"
+            );
+        }
+        // The model with the disturbance predicts the platform.
+        let u = [1.0, 1.0, 2.0, 2.0];
+        let (_, model) = self::nmpc();
+        let s = nmpc.settings().clone();
+        let truth = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+        let predicted = nmpc.predict(&x, &u);
+        for i in 0..NX {
+            assert!((truth[i] + offset[i] - predicted[i]).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn the_disturbance_is_bounded_and_the_heading_left_alone() {
+        let (obs, _, _) = observe([1.0, -1.0, 0.5, 5.0, -5.0], 50);
+        assert_eq!(obs.disturbance(), &[0.01, -0.01, 0.0, 0.1, -0.3]);
+    }
+
+    #[test]
+    fn a_gap_or_a_non_finite_estimate_changes_nothing() {
+        let (mut obs, nmpc, x) = observe([0.0, 0.0, 0.0, 0.02, 0.0], 3);
+        let d = *obs.disturbance();
+        assert!(d[3] > 0.0);
+        obs.gap();
+        assert_eq!(
+            obs.update(&nmpc, &[9.0; 5]),
+            d,
+            "no prediction to compare with"
+        );
+        obs.applied(&x, &[0.0; 4]);
+        assert_eq!(obs.update(&nmpc, &[f64::NAN; 5]), d);
+    }
+
+    #[test]
+    fn a_non_finite_disturbance_is_refused() {
+        let (mut nmpc, _) = nmpc();
+        assert!(
+            nmpc.set_disturbance(&[0.0, f64::INFINITY, 0.0, 0.0, 0.0])
+                .is_err()
+        );
+        assert_eq!(nmpc.disturbance(), &[0.0; 5]);
+    }
+}
