@@ -176,4 +176,54 @@ mod tests {
         );
         assert_eq!(nmpc.disturbance(), &[0.0; 5]);
     }
+
+    /// The NMPC driving a platform that drifts sideways (what the model leaves
+    /// out: 6 cm/s across a straight path at 0.5 m/s), with and without the
+    /// observer: the mean cross-track offset over the last 2.5 s of 10 s.
+    fn drift_offset(with_observer: bool) -> f64 {
+        let (mut nmpc, model) = nmpc();
+        let s = nmpc.settings().clone();
+        let drift = [0.0, 0.06 * s.dt, 0.0, 0.0, 0.0];
+        let mut obs = DisturbanceObserver::new(DisturbanceSettings::default());
+        let mut x = [0.0, 0.0, 0.0, 0.5, 0.0];
+        let mut offsets = Vec::new();
+        for k in 0..200 {
+            let reference: Vec<State5> = (0..=s.horizon)
+                .map(|j| [0.5 * (k + j) as f64 * s.dt, 0.0, 0.0, 0.5, 0.0])
+                .collect();
+            if with_observer {
+                let d = obs.update(&nmpc, &x);
+                nmpc.set_disturbance(&d).expect("finite");
+            }
+            let u = nmpc
+                .control(&x, &reference, &SlipParams::NOMINAL)
+                .expect("a solvable problem")
+                .torques;
+            obs.applied(&x, &u);
+            let next = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+            x = std::array::from_fn(|i| next[i] + drift[i]);
+            if k >= 150 {
+                offsets.push(x[1]);
+            }
+        }
+        offsets.iter().sum::<f64>() / offsets.len() as f64
+    }
+
+    /// Measured: 0.066 m without, 0.029 m with. What remains is the NMPC's
+    /// trade between the heading the reference asks for (along the path) and
+    /// the heading that cancels the drift, both weighted; removing it too
+    /// needs a steady-state target calculation (not done).
+    #[test]
+    fn the_observer_halves_a_steady_offset() {
+        let without = drift_offset(false);
+        let with = drift_offset(true);
+        assert!(
+            without > 0.01,
+            "the drift leaves an offset without the observer: {without}"
+        );
+        assert!(
+            with.abs() < 0.5 * without,
+            "with the observer {with} m, without {without} m"
+        );
+    }
 }
