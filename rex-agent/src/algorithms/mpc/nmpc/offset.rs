@@ -47,10 +47,16 @@ pub struct DisturbanceObserver {
 }
 
 impl DisturbanceObserver {
-    /// An observer starting from `d = 0`.
+    /// An observer starting from `d = 0`. Settings out of range are made safe
+    /// rather than refused: a gain is clamped to `[0, 1]` and a bound taken by
+    /// its magnitude; a non-finite gain or bound is zero (that component off).
     pub fn new(settings: DisturbanceSettings) -> DisturbanceObserver {
+        let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
         DisturbanceObserver {
-            s: settings,
+            s: DisturbanceSettings {
+                gain: settings.gain.map(|g| finite(g).clamp(0.0, 1.0)),
+                bound: settings.bound.map(|b| finite(b).abs()),
+            },
             d: [0.0; NX],
             last: None,
         }
@@ -165,6 +171,19 @@ mod tests {
         );
         obs.applied(&x, &[0.0; 4]);
         assert_eq!(obs.update(&nmpc, &[f64::NAN; 5]), d);
+    }
+
+    #[test]
+    fn absurd_settings_turn_a_component_off_or_are_clamped() {
+        let (nmpc, _) = nmpc();
+        let mut obs = DisturbanceObserver::new(DisturbanceSettings {
+            gain: [f64::NAN, 5.0, -1.0, 1.0, 1.0],
+            bound: [1.0, -0.5, 1.0, f64::INFINITY, f64::NAN],
+        });
+        obs.applied(&[0.0; 5], &[0.0; 4]);
+        // At rest the model predicts rest: the whole estimate is the error.
+        let d = obs.update(&nmpc, &[1.0, 1.0, 1.0, 1.0, 1.0]);
+        assert_eq!(d, [0.0, 0.5, 0.0, 0.0, 0.0]);
     }
 
     #[test]
