@@ -46,6 +46,9 @@ pub struct Sample {
     pub mocap_for: f64,
     /// Whether `e11` had lost the visual odometry it was receiving.
     pub vo_lost: bool,
+    /// The estimator's slip parameters `(x_0, μ_s, μ_l)` (the MHE estimates
+    /// them; the EKF keeps the nominal ones).
+    pub slip: [f64; 3],
 }
 
 impl Sample {
@@ -222,6 +225,12 @@ impl Outcome {
             lost = s.vo_lost;
         }
         out
+    }
+
+    /// The estimator's slip parameters `(x_0, μ_s, μ_l)` at the run's last
+    /// sample.
+    pub fn slip_estimate(&self) -> Option<[f64; 3]> {
+        self.samples.last().map(|s| s.slip)
     }
 
     /// Plans achieved: acknowledged, reported reached by `e11`, and confirmed by
@@ -520,5 +529,6 @@ fn sample<O: embodied::Observer>(
         fragment: e11.track.following,
         mocap_for: 0.0,
         vo_lost: e11.vo.lost,
+        slip: e11.estym.estimate.p.to_array(),
     })
 }
