@@ -356,22 +356,11 @@ fn tracking_error(o: &Outcome) -> Plot {
 }
 
 fn slip(o: &Outcome) -> Plot {
-    let names = ["x_icr [m]", "mu_s", "mu_l"];
     Plot {
         title: format!("{}: slip parameters ({})", o.mission, o.parts[2]),
         x_label: "time [s]".into(),
         y_label: "estimate".into(),
-        series: names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| {
-                Series::new(
-                    *n,
-                    PALETTE[i],
-                    o.samples.iter().map(|s| Some((s.t, s.slip[i]))).collect(),
-                )
-            })
-            .collect(),
+        series: over_time(o, &["x_icr [m]", "mu_s", "mu_l"], |s, i| s.slip[i]),
         ..Plot::default()
     }
 }
@@ -387,19 +376,24 @@ fn torques(o: &Outcome) -> Plot {
         title: format!("{}: wheel torques", o.mission),
         x_label: "time [s]".into(),
         y_label: "torque [N m]".into(),
-        series: names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| {
-                Series::new(
-                    *n,
-                    PALETTE[i],
-                    o.samples.iter().map(|s| Some((s.t, s.tau[i]))).collect(),
-                )
-            })
-            .collect(),
+        series: over_time(o, &names, |s, i| s.tau[i]),
         ..Plot::default()
     }
+}
+
+/// One series per name, the `i`-th plotting `value(sample, i)` over time.
+fn over_time(o: &Outcome, names: &[&str], value: impl Fn(&Sample, usize) -> f64) -> Vec<Series> {
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| {
+            Series::new(
+                *n,
+                PALETTE[i % PALETTE.len()],
+                o.samples.iter().map(|s| Some((s.t, value(s, i)))).collect(),
+            )
+        })
+        .collect()
 }
 
 fn behaviour_timeline(o: &Outcome) -> String {
