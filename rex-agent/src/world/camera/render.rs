@@ -57,6 +57,9 @@ const CEILING_LEVEL: u8 = 196;
 
 type V3 = [f32; 3];
 
+/// Pixel rectangle `(u0, u1, v0, v1)`, inclusive.
+type Rect = (i64, i64, i64, i64);
+
 #[inline]
 fn axpy(a: f32, x: V3, y: V3) -> V3 {
     [a * x[0] + y[0], a * x[1] + y[1], a * x[2] + y[2]]
@@ -238,42 +241,72 @@ impl Renderer {
         }
     }
 
-    /// The pixel rectangle `(u0, u1, v0, v1)` an obstacle can cover, or the whole
-    /// image when a corner is behind the camera.
-    fn screen_rect(&self, pose: &CameraPose, i: usize) -> (i64, i64, i64, i64) {
+    /// The pixel rectangle `(u0, u1, v0, v1)` an obstacle can cover, `None` when it
+    /// is wholly behind the camera or outside the image.
+    ///
+    /// The box is clipped against a near plane before projecting: its corners in
+    /// front of the plane and the points where its edges cross it bound the part a
+    /// ray can hit (the trace ignores hits nearer than that plane), so a box beside
+    /// or behind the camera costs nothing instead of covering the whole image.
+    fn screen_rect(&self, pose: &CameraPose, i: usize) -> Option<Rect> {
+        // Depth of the near plane [m]: below the nearest hit `trace_from` accepts
+        // (`t > 1e-4` along a ray whose depth component is the focal length).
+        const NEAR: f64 = 1e-3;
         let (w, h) = (i64::from(self.camera.width), i64::from(self.camera.height));
         let [x0, y0, x1, y1, bh] = self.boxes[i].map(f64::from);
-        let mut rect = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
-        for p in [
-            [x0, y0, 0.0],
-            [x1, y0, 0.0],
-            [x0, y1, 0.0],
-            [x1, y1, 0.0],
-            [x0, y0, bh],
-            [x1, y0, bh],
-            [x0, y1, bh],
-            [x1, y1, bh],
-        ] {
-            let c = pose.to_camera(p);
-            if c[2] < 0.05 {
-                return (0, w - 1, 0, h - 1);
-            }
-            let (cu, cv) = self.camera.principal_point();
-            let u = self.camera.focal * c[0] / c[2] + cu;
-            let v = self.camera.focal * c[1] / c[2] + cv;
-            rect = (
-                rect.0.min(u.floor() as i64 - 1),
-                rect.1.max(u.ceil() as i64 + 1),
-                rect.2.min(v.floor() as i64 - 1),
-                rect.3.max(v.ceil() as i64 + 1),
-            );
+        // Corner k has x = [x0, x1][k & 1], y = [y0, y1][(k >> 1) & 1], z = [0, bh][k >> 2].
+        let corners: [[f64; 3]; 8] = std::array::from_fn(|k| {
+            pose.to_camera([
+                if k & 1 == 0 { x0 } else { x1 },
+                if k & 2 == 0 { y0 } else { y1 },
+                if k & 4 == 0 { 0.0 } else { bh },
+            ])
+        });
+        let (cu, cv) = self.camera.principal_point();
+        let f = self.camera.focal;
+        let mut rect = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        let mut add = |c: [f64; 3]| {
+            let (u, v) = (f * c[0] / c[2] + cu, f * c[1] / c[2] + cv);
+            rect = (rect.0.min(u), rect.1.max(u), rect.2.min(v), rect.3.max(v));
+        };
+        for c in corners.iter().filter(|c| c[2] >= NEAR) {
+            add(*c);
         }
-        (
-            rect.0.max(0),
-            rect.1.min(w - 1),
-            rect.2.max(0),
-            rect.3.min(h - 1),
-        )
+        // The 12 edges: corners differing in one bit.
+        for a in 0..8usize {
+            for bit in [1usize, 2, 4] {
+                let b = a | bit;
+                if b == a {
+                    continue;
+                }
+                let (p, q) = (corners[a], corners[b]);
+                if (p[2] >= NEAR) != (q[2] >= NEAR) {
+                    let s = (NEAR - p[2]) / (q[2] - p[2]);
+                    add([0, 1, 2].map(|j| p[j] + s * (q[j] - p[j])));
+                }
+            }
+        }
+        if !(rect.0 <= rect.1 && rect.2 <= rect.3) {
+            return None; // wholly behind the near plane (or NaN, which the scene excludes)
+        }
+        // Saturating conversions: a box reaching the near plane projects far outside.
+        let (u0, u1) = (
+            (rect.0.floor() as i64).saturating_sub(1),
+            (rect.1.ceil() as i64).saturating_add(1),
+        );
+        let (v0, v1) = (
+            (rect.2.floor() as i64).saturating_sub(1),
+            (rect.3.ceil() as i64).saturating_add(1),
+        );
+        if u1 < 0 || v1 < 0 || u0 > w - 1 || v0 > h - 1 {
+            return None;
+        }
+        Some((u0.max(0), u1.min(w - 1), v0.max(0), v1.min(h - 1)))
     }
 
     /// Render the view from `pose` into `out` (`width · height` bytes, row-major).
@@ -284,6 +317,15 @@ impl Renderer {
     /// any wall (the room is convex), so the walls are only intersected where the
     /// floor or ceiling hit falls outside.
     pub fn render(&self, pose: &CameraPose, out: &mut [u8]) {
+        let rects: Vec<(usize, Rect)> = (0..self.boxes.len())
+            .filter_map(|i| Some((i, self.screen_rect(pose, i)?)))
+            .collect();
+        self.render_with(pose, &rects, out);
+    }
+
+    /// [`Self::render`] testing obstacle `i` only inside its pixel rectangle, for each
+    /// `(i, (u0, u1, v0, v1))` of `rects`.
+    fn render_with(&self, pose: &CameraPose, rects: &[(usize, Rect)], out: &mut [u8]) {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let (cu, cv) = self.camera.principal_point();
         let f = self.camera.focal as f32;
@@ -295,9 +337,6 @@ impl Renderer {
         );
         let c = pose.center.map(|x| x as f32);
         let [x0, y0, x1, y1, room_height] = self.room;
-        let rects: Vec<(i64, i64, i64, i64)> = (0..self.boxes.len())
-            .map(|i| self.screen_rect(pose, i))
-            .collect();
         let mut active: Vec<usize> = Vec::with_capacity(self.boxes.len());
         let mut in_row: Vec<(usize, i64, i64)> = Vec::with_capacity(self.boxes.len());
         for (v, row) in out.chunks_exact_mut(w).take(h).enumerate() {
@@ -306,9 +345,8 @@ impl Renderer {
             in_row.extend(
                 rects
                     .iter()
-                    .enumerate()
                     .filter(|(_, r)| r.2 <= vi && vi <= r.3)
-                    .map(|(i, r)| (i, r.0, r.1)),
+                    .map(|&(i, r)| (i, r.0, r.1)),
             );
             // The ray through the centre of pixel (0, v), at (u, v) = (0, v).
             let dv = (v as f64 - cv) as f32;
@@ -321,33 +359,39 @@ impl Renderer {
             } else {
                 (f32::INFINITY, Surface::Floor)
             };
-            for (u, px) in row.iter_mut().enumerate() {
-                let ui = u as i64;
+            // Runs of pixels over which the set of obstacles to test is constant.
+            let mut u = 0usize;
+            while u < w {
                 active.clear();
-                if !in_row.is_empty() {
-                    active.extend(
-                        in_row
-                            .iter()
-                            .filter(|b| b.1 <= ui && ui <= b.2)
-                            .map(|b| b.0),
-                    );
+                let mut end = w;
+                for &(i, a, b) in &in_row {
+                    let (a, b) = (a as usize, b as usize);
+                    if a <= u && u <= b {
+                        active.push(i);
+                        end = end.min(b + 1);
+                    } else if a > u {
+                        end = end.min(a);
+                    }
                 }
-                let p = axpy(tz, d, c);
-                let plane_inside =
-                    tz.is_finite() && p[0] >= x0 && p[0] <= x1 && p[1] >= y0 && p[1] <= y1;
-                *px = if plane_inside && active.is_empty() {
-                    if plane == Surface::Floor {
-                        self.textures.floor.sample(p[0], p[1])
+                for px in &mut row[u..end] {
+                    let p = axpy(tz, d, c);
+                    let plane_inside =
+                        tz.is_finite() && p[0] >= x0 && p[0] <= x1 && p[1] >= y0 && p[1] <= y1;
+                    *px = if plane_inside && active.is_empty() {
+                        if plane == Surface::Floor {
+                            self.textures.floor.sample(p[0], p[1])
+                        } else {
+                            CEILING_LEVEL
+                        }
                     } else {
-                        CEILING_LEVEL
-                    }
-                } else {
-                    match self.trace_from(c, d, tz, plane, &active) {
-                        Some((t, s)) => self.shade(axpy(t, d, c), s),
-                        None => CEILING_LEVEL,
-                    }
-                };
-                d = [d[0] + r0[0], d[1] + r0[1], d[2] + r0[2]];
+                        match self.trace_from(c, d, tz, plane, &active) {
+                            Some((t, s)) => self.shade(axpy(t, d, c), s),
+                            None => CEILING_LEVEL,
+                        }
+                    };
+                    d = [d[0] + r0[0], d[1] + r0[1], d[2] + r0[2]];
+                }
+                u = end;
             }
         }
     }
@@ -380,6 +424,47 @@ mod tests {
         let hit = r.cast(&pose, 320.5, 470.5).unwrap();
         assert_eq!(hit.surface, Surface::Floor);
         assert!(hit.point[2].abs() < 1e-4);
+    }
+
+    #[test]
+    fn culling_obstacles_to_their_clipped_screen_rectangles_changes_no_pixel() {
+        // Against every obstacle tested at every pixel: poses all over the room,
+        // headings all round, some right against an obstacle (half of it behind the
+        // camera) and some with every obstacle behind.
+        let r = renderer();
+        let (w, h) = (r.camera.width as i64, r.camera.height as i64);
+        let everywhere: Vec<(usize, Rect)> = (0..r.boxes.len())
+            .map(|i| (i, (0, w - 1, 0, h - 1)))
+            .collect();
+        let n = (w * h) as usize;
+        let (mut fast, mut slow) = (vec![0u8; n], vec![0u8; n]);
+        let mut culled = 0;
+        for body in [
+            [0.0, 0.0, 0.0],
+            [0.3, -0.4, 2.1],
+            [-3.5, -3.5, -2.4],
+            [-3.7, -3.7, 0.3],
+            [3.5, 3.5, 0.8],
+            [4.2, 0.0, 0.05],
+            [4.4, -0.2, 3.0],
+            [-0.2, 3.9, 1.57],
+            [-0.2, 4.3, -1.2],
+            [5.0, 5.0, -2.4],
+        ] {
+            for pose in [r.camera.left_pose(body), r.camera.right_pose(body)] {
+                r.render(&pose, &mut fast);
+                r.render_with(&pose, &everywhere, &mut slow);
+                let differ = fast.iter().zip(&slow).filter(|(a, b)| a != b).count();
+                assert_eq!(differ, 0, "{body:?}: {differ} pixels differ");
+                culled += (0..r.boxes.len())
+                    .filter(|&i| r.screen_rect(&pose, i).is_none())
+                    .count();
+            }
+        }
+        assert!(
+            culled > 20,
+            "most poses leave obstacles out of view: {culled}"
+        );
     }
 
     #[test]
