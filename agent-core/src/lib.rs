@@ -33,6 +33,7 @@ pub mod kinds;
 pub mod link;
 pub mod names;
 mod node;
+pub mod offload;
 pub mod realtime;
 pub mod subsystem;
 pub mod system;
@@ -60,6 +61,7 @@ pub use link::remote::{
     Inbox, Publisher, Transport, TransportError, TypeShape, WireHeader, reflect,
 };
 pub use link::{Access, InjectError, LinkId, LinkStats, Port};
+pub use offload::{Offload, OffloadError, OffloadMode};
 pub use realtime::{
     Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
 };

@@ -8,9 +8,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use embodied::RtConfig;
 use embodied::record::{McapRecorder, RecordOptions};
 use embodied::spec::Spec;
+use embodied::{OffloadMode, RtConfig};
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
 use rex_agent::a1::{RexConfig, RunSettings, deployment, load_spec};
 use rex_agent::algorithms::planner::PlannerKind;
@@ -84,6 +84,16 @@ struct Cli {
     /// the spec's deployment `simulation_without_vo`).
     #[arg(long, global = true)]
     no_vo: bool,
+    /// Where the camera renders and r11 runs its odometry: `worker` (threads of
+    /// their own, beside the rest of the system) or `inline` (in their steps). The
+    /// run is the same, bit for bit; only the wall-clock time differs.
+    #[arg(long, global = true, value_name = "WHERE")]
+    vision: Option<OffloadMode>,
+    /// Steps of r11 (20 ms) from a stereo pair to its motion, at most: the time the
+    /// odometry has to run beside the rest (the motion leaves sooner when the next
+    /// pair arrives); 0: in the step the pair arrives.
+    #[arg(long, global = true, value_name = "STEPS")]
+    vo_latency: Option<u32>,
     /// Report folder; one sub-folder per mission.
     #[arg(
         long,
@@ -251,6 +261,8 @@ fn overrides(cli: &Cli, s: &mut RunSettings) -> Result<(), config::ConfigError> 
     s.planning = cli.planning.unwrap_or(s.planning);
     s.tracker = cli.tracker.unwrap_or(s.tracker);
     s.estimator = cli.estimator.unwrap_or(s.estimator);
+    s.vision = cli.vision.unwrap_or(s.vision);
+    s.vo_latency = cli.vo_latency.unwrap_or(s.vo_latency);
     s.limit_s = cli.limit.unwrap_or(s.limit_s);
     if let Some(limit) = cli.limit
         && !(limit.is_finite() && limit > 0.0 && limit <= 1e7)

@@ -271,6 +271,8 @@ struct Stubs {
     e11: StubE11Memory,
     /// a2's mission.
     mission: Mission,
+    /// Where the camera renders.
+    render: OffloadMode,
 }
 
 impl Default for Stubs {
@@ -280,6 +282,7 @@ impl Default for Stubs {
             r11: StubR11Memory::new(3, u64::MAX),
             e11: StubE11Memory::default(),
             mission: Mission::shipped("square").unwrap(),
+            render: OffloadMode::Worker,
         }
     }
 }
@@ -309,7 +312,7 @@ fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
     let r11 = sys.stand_in("r11", stubs.r11, stub_r11()).unwrap();
     world::add_environment(&mut sys);
     let platform = world::add_platform(&mut sys, config).unwrap();
-    let camera = world::add_camera(&mut sys, config).unwrap();
+    let camera = world::add_camera(&mut sys, config, stubs.render).unwrap();
     let c2 = world::add_ontology(&mut sys, stubs.mission).unwrap();
     let map = world::add_map_agent(&mut sys, config).unwrap();
     (
@@ -624,15 +627,24 @@ fn the_ontology_sends_the_next_plan_only_after_the_final_ack() {
 
 #[test]
 fn the_world_is_deterministic() {
-    let run = || {
-        let (system, _) = build(&world_config());
+    let run = |render| {
+        let (system, _) = build_with(
+            &world_config(),
+            Stubs {
+                render,
+                ..Stubs::default()
+            },
+        );
         let mut exec = Executor::with_observer(system, ExecConfig::default(), Recorder::new());
         exec.run_for(Duration::from_millis(1500)).unwrap();
         exec.into_observer().into_trace()
     };
-    let (a, b) = (run(), run());
+    let (a, b) = (run(OffloadMode::Worker), run(OffloadMode::Worker));
     assert!(a.events.len() > 5_000, "{} events", a.events.len());
     assert_eq!(a.first_difference(&b), None);
+    // Rendering on a worker thread or in the camera's step: the same pairs at the
+    // same instants.
+    assert_eq!(a.first_difference(&run(OffloadMode::Inline)), None);
 }
 
 #[test]

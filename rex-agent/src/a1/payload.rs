@@ -135,7 +135,7 @@ pub struct AcquireCommand {
 }
 
 /// A rectified grayscale stereo pair.
-#[derive(Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Default, PartialEq, Serialize, Deserialize)]
 pub struct StereoPair {
     /// Sequence number (from the acquisition command).
     pub seq: u64,
@@ -149,6 +149,24 @@ pub struct StereoPair {
     pub left: Vec<u8>,
     /// Right image.
     pub right: Vec<u8>,
+}
+
+impl Clone for StereoPair {
+    fn clone(&self) -> Self {
+        let mut c = StereoPair::default();
+        c.clone_from(self);
+        c
+    }
+
+    /// Reuses `self`'s image storage (no allocation once it is large enough).
+    fn clone_from(&mut self, source: &Self) {
+        self.seq = source.seq;
+        self.time = source.time;
+        self.width = source.width;
+        self.height = source.height;
+        self.left.clone_from(&source.left);
+        self.right.clone_from(&source.right);
+    }
 }
 
 impl std::fmt::Debug for StereoPair {

@@ -11,67 +11,190 @@
 //! * `rR` (to `R1`): the acquisition command, every `every` steps (video capture);
 //! * `rr_k` (memory): counts the steps to the next acquisition.
 //!
-//! `r11` runs faster than the camera acquires (every 20 ms, a pair every 5 steps):
-//! a pair is processed in the step it arrives and its motion leaves at once. A pair
-//! the odometry cannot use (blank, textureless, too few matches, no RANSAC
-//! consensus) sends nothing and is counted; the next usable pair starts again.
+//! `r11` runs faster than the camera acquires (every 20 ms, a pair every 5 steps).
+//! A pair goes to the odometry in the step it arrives; its motion leaves `latency`
+//! steps later, or earlier, in the step the next pair arrives (0: in the same
+//! step). Meanwhile the odometry runs on a worker thread
+//! ([`OffloadMode::Worker`]), concurrently with the rest of the system and with the
+//! camera rendering the next pair; or inside the step ([`OffloadMode::Inline`]).
+//! The motions and the instants they leave depend on the latency only, never on
+//! where or how fast the odometry ran. A pair the odometry cannot use (blank,
+//! textureless, too few matches, no RANSAC consensus) sends nothing and is
+//! counted; the next usable pair starts again.
 
-use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
+use embodied::{
+    Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Offload, OffloadMode, Out,
+    Subsystem,
+};
 
 use crate::a1::payload::{AcquireCommand, StereoPair, Transform};
 use crate::algorithms::geometry::{Pose34, compose, invert};
-use crate::algorithms::vo::{Calibration, NoEstimate, StereoOdometry, VoError, VoSettings};
+use crate::algorithms::vo::{
+    Calibration, NoEstimate, StereoOdometry, VoError, VoMotion, VoSettings, VoStats,
+};
+
+/// What the odometry makes of a pair (the pair's storage comes back with it).
+type VoAnswer = (StereoPair, Result<Option<VoMotion>, NoEstimate>);
+
+fn vo_job(vo: &mut StereoOdometry, pair: StereoPair) -> VoAnswer {
+    let (w, h) = (pair.width as usize, pair.height as usize);
+    let r = vo.process(&pair.left, &pair.right, w, h);
+    (pair, r)
+}
+
+/// A pair in the odometry: its time and the steps it has waited.
+#[derive(Clone, Copy, Debug)]
+struct InFlight {
+    time: f64,
+    waited: u32,
+}
 
 /// The odometry state (`odom`).
 #[derive(Debug)]
 pub struct Odometry {
-    vo: StereoOdometry,
+    vo: Offload<StereoOdometry, StereoPair, VoAnswer>,
     /// Camera to platform (4 × 4).
     mount: [[f64; 4]; 4],
+    /// Steps from a pair's arrival to its motion leaving, at most.
+    latency: u32,
     /// Time of the last pair processed.
     last_time: Option<f64>,
+    in_flight: Option<InFlight>,
+    /// Storage for the next pair sent to the odometry.
+    spare: StereoPair,
     /// The motion to send in this iteration.
     pub pending: Option<Transform>,
     /// Pairs received.
     pub pairs: u64,
+    /// Motions estimated.
+    pub motions: u64,
     /// Pairs without an estimate, and the last reason.
     pub no_estimates: u64,
     /// Why the last pair gave no estimate.
     pub last_failure: Option<NoEstimate>,
+    /// The odometry itself failed (a panic in it, caught): no more motions.
+    pub fault: Option<String>,
 }
 
 impl Odometry {
-    /// Odometry for a camera with this calibration and mounting.
+    /// Odometry for a camera with this calibration and mounting, computing inline
+    /// with no latency (a pair's motion leaves in the step the pair arrives).
     pub fn new(
         calib: Calibration,
         mount: [[f64; 4]; 4],
         settings: VoSettings,
     ) -> Result<Odometry, VoError> {
+        Odometry::pipelined(calib, mount, settings, OffloadMode::Inline, 0)
+    }
+
+    /// Odometry running on a worker thread or inline (`mode`), a pair's motion
+    /// leaving `latency` steps after the pair arrived, or when the next pair
+    /// arrives if that is sooner.
+    pub fn pipelined(
+        calib: Calibration,
+        mount: [[f64; 4]; 4],
+        settings: VoSettings,
+        mode: OffloadMode,
+        latency: u32,
+    ) -> Result<Odometry, VoError> {
         Ok(Odometry {
-            vo: StereoOdometry::new(calib, settings)?,
+            vo: Offload::new("vo", StereoOdometry::new(calib, settings)?, vo_job, mode),
             mount,
+            latency,
             last_time: None,
+            in_flight: None,
+            spare: StereoPair::default(),
             pending: None,
             pairs: 0,
+            motions: 0,
             no_estimates: 0,
             last_failure: None,
+            fault: None,
         })
     }
 
-    /// The odometry.
-    pub fn vo(&self) -> &StereoOdometry {
-        &self.vo
+    /// Where the odometry runs.
+    pub fn mode(&self) -> OffloadMode {
+        self.vo.mode()
     }
 
-    /// Process a pair; `pending` holds the platform's motion since the previous
-    /// pair when there is one.
-    pub fn process(&mut self, pair: &StereoPair) {
-        self.pairs += 1;
+    /// The counters, as the odometry's [`VoStats`].
+    pub fn stats(&self) -> VoStats {
+        VoStats {
+            pairs: self.pairs,
+            motions: self.motions,
+            failures: self.no_estimates,
+        }
+    }
+
+    /// One step: the motion of the pair in the odometry leaves (`pending`) if it
+    /// is due, and a new pair goes in.
+    pub fn step(&mut self, pair: Option<&StereoPair>) {
         self.pending = None;
-        let (w, h) = (pair.width as usize, pair.height as usize);
-        match self.vo.process(&pair.left, &pair.right, w, h) {
-            Ok(Some(m)) => match self.last_time {
-                Some(from) if pair.time.is_finite() => {
+        if let Some(f) = &mut self.in_flight {
+            f.waited += 1;
+            if pair.is_some() || f.waited >= self.latency {
+                self.finish();
+            }
+        }
+        let Some(pair) = pair else { return };
+        self.pairs += 1;
+        if self.fault.is_some() {
+            self.no_estimates += 1;
+            return;
+        }
+        let mut job = std::mem::take(&mut self.spare);
+        job.clone_from(pair);
+        match self.vo.submit(job) {
+            Ok(()) => {
+                self.in_flight = Some(InFlight {
+                    time: pair.time,
+                    waited: 0,
+                })
+            }
+            Err(e) => {
+                self.no_estimates += 1;
+                self.fault = Some(e.to_string());
+            }
+        }
+        if self.latency == 0 {
+            self.finish();
+        }
+    }
+
+    /// Process a pair and send its motion at once (latency 0), whatever the
+    /// latency set.
+    pub fn process(&mut self, pair: &StereoPair) {
+        self.step(Some(pair));
+        if self.in_flight.is_some() {
+            self.finish();
+        }
+    }
+
+    /// Collect the pair in the odometry; `pending` holds the platform's motion
+    /// since the previous pair when there is one.
+    fn finish(&mut self) {
+        let Some(f) = self.in_flight.take() else {
+            return;
+        };
+        let result = match self.vo.collect() {
+            Ok(Some((pair, result))) => {
+                self.spare = pair;
+                result
+            }
+            Ok(None) => return,
+            Err(e) => {
+                self.no_estimates += 1;
+                self.fault = Some(e.to_string());
+                return;
+            }
+        };
+        match result {
+            Ok(Some(m)) => {
+                self.motions += 1;
+                if let Some(from) = self.last_time
+                    && f.time.is_finite()
+                {
                     // The camera's motion `inv(Tr)`, seen from the platform: E inv(Tr) inv(E).
                     let tr: Pose34 = [m.tr[0], m.tr[1], m.tr[2]];
                     let e: Pose34 = [self.mount[0], self.mount[1], self.mount[2]];
@@ -79,21 +202,20 @@ impl Odometry {
                     let t = Transform {
                         matrix: [body[0], body[1], body[2], [0.0, 0.0, 0.0, 1.0]],
                         from,
-                        to: pair.time,
+                        to: f.time,
                     };
                     if t.is_finite() {
                         self.pending = Some(t);
                     }
                 }
-                _ => {}
-            },
+            }
             Ok(None) => {}
             Err(e) => {
                 self.no_estimates += 1;
                 self.last_failure = Some(e);
             }
         }
-        self.last_time = pair.time.is_finite().then_some(pair.time);
+        self.last_time = f.time.is_finite().then_some(f.time);
     }
 }
 
@@ -177,15 +299,13 @@ pub struct R11Output {
 #[subsystem(kind = VirtualReceptor, memory = R11Memory, input = R11Input, output = R11Output)]
 pub struct R11;
 
-/// `rr_vo` (common part): visual odometry on a new pair.
+/// `rr_vo` (common part): a new pair goes to the visual odometry; the motion of
+/// the pair before it comes out when due.
 pub fn rr_vo(m: &mut R11Memory, x: &R11Input) {
-    m.odom.pending = None;
-    if let Some(pair) = x.R1.img_lr.fresh() {
-        m.odom.process(pair);
-    }
+    m.odom.step(x.R1.img_lr.fresh());
 }
 
-/// `rc`: the motion to `c1` as soon as a pair is processed.
+/// `rc`: the motion to `c1` when it comes out of the odometry.
 pub fn rc(m: &R11Memory, _: &R11Input, y: &mut R11ToC1) {
     if let Some(t) = m.odom.pending {
         y.A4x4.set(t);
@@ -229,6 +349,7 @@ pub fn r11_fsm() -> Result<Fsm<R11>, FsmBuildError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::algorithms::vo::VoStats;
     use crate::world::camera::{CameraConfig, Renderer, SceneConfig};
 
     fn odometry(c: &CameraConfig) -> Odometry {
@@ -275,6 +396,81 @@ mod tests {
             "{:?}",
             t.matrix
         );
+    }
+
+    /// Runs r11 for 26 iterations with pairs arriving at iterations 0, 5 and 10
+    /// (the platform moving between them); the motions sent, with their iteration.
+    fn motions_sent(mode: OffloadMode, latency: u32) -> Vec<(u64, Transform)> {
+        let c = CameraConfig::default();
+        let r = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
+        let odom = Odometry::pipelined(
+            c.calibration(),
+            c.mount(),
+            VoSettings::default(),
+            mode,
+            latency,
+        )
+        .unwrap();
+        assert_eq!(odom.mode(), mode);
+        let mut m = R11Memory::new(odom, 5);
+        let fsm = r11_fsm().unwrap();
+        let mut state = fsm.start();
+        let mut x = R11Input::default();
+        let mut sent = Vec::new();
+        for it in 0..26u64 {
+            x.R1.img_lr.age();
+            if it % 5 == 0 && it <= 10 {
+                let k = it as f64 / 5.0;
+                let p = pair(
+                    &r,
+                    [0.5 + 0.05 * k, -0.3, 0.4 + 0.03 * k],
+                    k as u64,
+                    0.1 * k,
+                );
+                x.R1.img_lr
+                    .deliver(p, embodied::Stamp::new(it, embodied::Time::ZERO));
+            }
+            let mut y = R11Output::default();
+            fsm.activate(&mut state, &mut m, &x, &mut y, |_| {})
+                .unwrap();
+            if let Some(t) = y.c1.A4x4.written() {
+                sent.push((it, *t));
+            }
+        }
+        assert_eq!(
+            m.odom.stats(),
+            VoStats {
+                pairs: 3,
+                motions: 2,
+                failures: 0
+            }
+        );
+        sent
+    }
+
+    #[test]
+    fn a_motion_leaves_when_the_next_pair_arrives_or_after_the_latency_wherever_it_ran() {
+        let now = motions_sent(OffloadMode::Inline, 0);
+        assert_eq!(
+            now.iter().map(|s| s.0).collect::<Vec<_>>(),
+            [5, 10],
+            "latency 0: in the step the pair arrives"
+        );
+        let late = motions_sent(OffloadMode::Worker, 8);
+        assert_eq!(
+            late.iter().map(|s| s.0).collect::<Vec<_>>(),
+            [10, 18],
+            "the second pair's motion when the third arrives, the third's 8 steps after it"
+        );
+        assert_eq!(
+            late,
+            motions_sent(OffloadMode::Inline, 8),
+            "worker or inline: same run"
+        );
+        // The same motions, only later.
+        let values = |v: &[(u64, Transform)]| v.iter().map(|s| s.1).collect::<Vec<_>>();
+        assert_eq!(values(&late), values(&now));
+        assert_eq!((late[0].1.from, late[0].1.to), (0.0, 0.1));
     }
 
     #[test]

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use embodied::spec::model::Spec;
 use embodied::spec::{Assembly, AssemblyError};
-use embodied::{DriverHandle, ExecConfig, SubsystemHandle, System};
+use embodied::{DriverHandle, ExecConfig, OffloadMode, SubsystemHandle, System};
 use serde::{Deserialize, Serialize};
 
 use crate::a1::c1::{C1, C1Memory, C1Params, c1_fsm};
@@ -56,6 +56,14 @@ pub struct RunSettings {
     pub limit_s: f64,
     /// Run the virtual receptor r11 (stereo visual odometry on the camera R1).
     pub visual_odometry: bool,
+    /// Where the camera renders and r11 runs its odometry: `Worker` (threads of
+    /// their own, concurrently with the rest of the system) or `Inline` (in their
+    /// steps). The run is the same either way.
+    pub vision: OffloadMode,
+    /// Steps of r11 from a pair's arrival to its motion leaving, at most (it leaves
+    /// earlier when the next pair arrives); 0: in the step the pair arrives, which
+    /// leaves the odometry no time to run beside the rest.
+    pub vo_latency: u32,
     /// The limits a1 keeps and the run is judged by.
     pub limits: Limits,
 }
@@ -151,6 +159,8 @@ impl Default for RunSettings {
             estimator: EstimatorKind::Mhe,
             limit_s: 600.0,
             visual_odometry: true,
+            vision: OffloadMode::Worker,
+            vo_latency: 10,
             limits: Limits::default(),
         }
     }
@@ -244,6 +254,8 @@ impl RunSettings {
         config.tracker = self.tracker;
         config.estimator = self.estimator;
         config.visual_odometry = self.visual_odometry;
+        config.vision = self.vision;
+        config.vo_latency = self.vo_latency;
         config.limits = self.limits.clone();
         if let Some(spec) = &self.spec {
             config.spec = base.join(spec);
@@ -282,6 +294,10 @@ pub struct RexConfig {
     pub visual_odometry: bool,
     /// r11 commands a stereo pair every this many of its steps.
     pub acquire_every: u32,
+    /// Where the camera renders and r11 runs its odometry.
+    pub vision: OffloadMode,
+    /// Steps of r11 from a pair's arrival to its motion leaving, at most.
+    pub vo_latency: u32,
     /// The limits a1 keeps (c1's map is made from them and the world's scene
     /// when the system is built).
     pub limits: Limits,
@@ -313,6 +329,8 @@ impl RexConfig {
             exec: ExecConfig::default(),
             visual_odometry: defaults.visual_odometry,
             acquire_every: 5,
+            vision: defaults.vision,
+            vo_latency: defaults.vo_latency,
             limits: defaults.limits,
         }
     }
@@ -443,10 +461,12 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     let map = world::add_map_agent(&mut rex, &config.world)?;
     let vision = if rex.runs("r11") {
         let camera_config = &config.world.camera;
-        let odom = Odometry::new(
+        let odom = Odometry::pipelined(
             camera_config.calibration(),
             camera_config.mount(),
             VoSettings::default(),
+            config.vision,
+            config.vo_latency,
         )
         .map_err(|e| RexError::Spec {
             path: config.spec.clone(),
@@ -457,7 +477,7 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
             R11Memory::new(odom, config.acquire_every),
             r11_fsm()?,
         )?;
-        let camera = world::add_camera(&mut rex, &config.world)?;
+        let camera = world::add_camera(&mut rex, &config.world, config.vision)?;
         Some((r11, camera))
     } else {
         None

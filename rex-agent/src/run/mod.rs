@@ -494,8 +494,7 @@ pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters
         c.mocap = m.counts();
     }
     if let Some(m) = h.vision.and_then(|(r11, _)| x.memory(&r11)) {
-        let s = m.odom.vo().stats();
-        c.vo = (m.odom.pairs, s.motions, m.odom.no_estimates);
+        c.vo = (m.odom.pairs, m.odom.motions, m.odom.no_estimates);
     }
     x.memory(&h.c2).map_or(0, |m| {
         c.c1_restarts = m.restarts;

@@ -123,13 +123,15 @@ pub fn add_platform(
     Ok(rex.driver("E1", platform)?)
 }
 
-/// Add the stereo camera R1 (an error if the camera or the scene is invalid).
+/// Add the stereo camera R1, rendering on a worker thread or inline (`mode`; the
+/// pairs are the same either way); an error if the camera or the scene is invalid.
 pub fn add_camera(
     rex: &mut Assembly<'_>,
     config: &WorldConfig,
+    mode: embodied::OffloadMode,
 ) -> Result<DriverHandle<StereoCamera>, WorldError> {
     let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
-    Ok(rex.driver("R1", StereoCamera::new(renderer))?)
+    Ok(rex.driver("R1", StereoCamera::new(renderer, mode))?)
 }
 
 /// Add the ontology agent's `c2` with `mission`.
@@ -214,7 +216,7 @@ mod tests {
             .push(config.surfaces.surfaces[0].clone());
         let spec = crate::a1::load_spec(&crate::a1::default_spec()).unwrap();
         let mut rex = Assembly::new(&spec, "simulation").unwrap();
-        let err = add_camera(&mut rex, &config).unwrap_err();
+        let err = add_camera(&mut rex, &config, embodied::OffloadMode::Inline).unwrap_err();
         assert!(
             err.to_string().contains("<camera>: width x height = 0x480"),
             "{err}"

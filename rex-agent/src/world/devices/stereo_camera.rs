@@ -3,7 +3,8 @@
 //! sequence.
 
 use embodied::{
-    Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out, PortTable, Shape,
+    Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Offload, OffloadMode, Out,
+    PortTable, Shape,
 };
 
 use super::Truth;
@@ -42,13 +43,33 @@ pub struct CameraOutput {
     pub r11: CameraToR11,
 }
 
+/// A render job: the platform's pose `(x, y, φ)` and the pair to draw into.
+type RenderJob = ([f64; 3], StereoPair);
+
+fn render_job(renderer: &mut Renderer, (body, mut pair): RenderJob) -> StereoPair {
+    renderer.render_pair(body, &mut pair.left, &mut pair.right);
+    pair
+}
+
 /// The simulated stereo camera R1: on an acquisition command it renders a pair at
 /// the platform's pose of that instant, and delivers it at its next step (never in
 /// the same step, as the paper says). Without a command it sends nothing.
+///
+/// The rendering runs on a worker thread ([`OffloadMode::Worker`], the default)
+/// between the command's step and the delivery, concurrently with the rest of the
+/// system, or inside the command's step ([`OffloadMode::Inline`]); the pairs and
+/// the instants they are delivered are the same either way.
 pub struct StereoCamera {
-    renderer: Renderer,
-    pending: StereoPair,
-    has_pending: bool,
+    camera: crate::world::camera::CameraConfig,
+    render: Offload<Renderer, RenderJob, StereoPair>,
+    /// The pair being rendered: its pose, sequence number and time.
+    in_flight: Option<([f64; 3], u64, f64)>,
+    /// The pair rendered, to deliver at the next step.
+    rendered: Option<StereoPair>,
+    /// A rendering failure met outside a step, reported at the next one.
+    failure: Option<String>,
+    /// Storage for the next pair (recycled through the link).
+    spare: StereoPair,
     frames: u64,
     recorder: Option<SequenceWriter>,
 }
@@ -57,19 +78,23 @@ impl std::fmt::Debug for StereoCamera {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("StereoCamera")
             .field("frames", &self.frames)
+            .field("render", &self.render)
             .field("recording", &self.recorder.is_some())
             .finish()
     }
 }
 
 impl StereoCamera {
-    /// A camera rendering with `renderer`, looking from the pose in the system's
-    /// environment, [`Truth`].
-    pub fn new(renderer: Renderer) -> StereoCamera {
+    /// A camera rendering with `renderer` (on a worker thread or inline, `mode`),
+    /// looking from the pose in the system's environment, [`Truth`].
+    pub fn new(renderer: Renderer, mode: OffloadMode) -> StereoCamera {
         StereoCamera {
-            renderer,
-            pending: StereoPair::default(),
-            has_pending: false,
+            camera: renderer.camera().clone(),
+            render: Offload::new("render", renderer, render_job, mode),
+            in_flight: None,
+            rendered: None,
+            failure: None,
+            spare: StereoPair::default(),
             frames: 0,
             recorder: None,
         }
@@ -80,14 +105,44 @@ impl StereoCamera {
         self.recorder = Some(writer);
     }
 
-    /// Stop recording; returns the writer (call `finish` on it).
+    /// Stop recording; returns the writer (call `finish` on it). A pair still being
+    /// rendered is finished and written first, so the sequence holds every pair
+    /// rendered ([`StereoCamera::frames`]).
     pub fn take_recorder(&mut self) -> Option<SequenceWriter> {
+        if let Err(e) = self.finish_render() {
+            self.failure = Some(e);
+        }
         self.recorder.take()
     }
 
-    /// The renderer (camera parameters and scene).
-    pub fn renderer(&self) -> &Renderer {
-        &self.renderer
+    /// Wait for the pair in flight, stamp it and record it; it is delivered at the
+    /// next step.
+    fn finish_render(&mut self) -> Result<(), String> {
+        let Some((body, seq, time)) = self.in_flight.take() else {
+            return Ok(());
+        };
+        let mut pair = self
+            .render
+            .collect()
+            .map_err(|e| format!("rendering the stereo pair: {e}"))?
+            .ok_or("rendering the stereo pair: the job in flight is lost")?;
+        pair.seq = seq;
+        pair.time = time;
+        pair.width = self.camera.width;
+        pair.height = self.camera.height;
+        let recorded = match &mut self.recorder {
+            Some(w) => w
+                .push(time, &self.camera.left_pose(body), &pair.left, &pair.right)
+                .map_err(|e| format!("recording the KITTI sequence: {e}")),
+            None => Ok(()),
+        };
+        self.rendered = Some(pair);
+        recorded
+    }
+
+    /// Where the rendering runs.
+    pub fn mode(&self) -> OffloadMode {
+        self.render.mode()
     }
 
     /// Pairs rendered so far.
@@ -115,28 +170,24 @@ impl Driver for StereoCamera {
         x: &CameraInput,
         y: &mut CameraOutput,
     ) -> Result<(), DriverError> {
-        if self.has_pending {
-            // Hand over the pair; its storage comes back recycled through the link.
-            std::mem::swap(y.r11.img_lr.write_recycled(), &mut self.pending);
-            self.has_pending = false;
+        if let Some(e) = self.failure.take() {
+            return Err(DriverError::new(e));
+        }
+        self.finish_render().map_err(DriverError::new)?;
+        if let Some(mut pair) = self.rendered.take() {
+            // Hand over the pair rendered since the last step; its storage comes
+            // back recycled through the link.
+            std::mem::swap(y.r11.img_lr.write_recycled(), &mut pair);
+            self.spare = pair;
         }
         if let Some(cmd) = x.r11.cmd_R11.fresh() {
             let truth = *cx.environment::<Truth>()?;
             let s = truth.state;
-            let pair = &mut self.pending;
             let body = [s.x, s.y, s.phi];
-            self.renderer
-                .render_pair(body, &mut pair.left, &mut pair.right);
-            if let Some(w) = &mut self.recorder {
-                let pose = self.renderer.camera().left_pose(body);
-                w.push(truth.time, &pose, &pair.left, &pair.right)
-                    .map_err(|e| DriverError::new(format!("recording the KITTI sequence: {e}")))?;
-            }
-            pair.seq = cmd.seq;
-            pair.time = truth.time;
-            pair.width = self.renderer.camera().width;
-            pair.height = self.renderer.camera().height;
-            self.has_pending = true;
+            self.render
+                .submit((body, std::mem::take(&mut self.spare)))
+                .map_err(|e| DriverError::new(format!("rendering the stereo pair: {e}")))?;
+            self.in_flight = Some((body, cmd.seq, truth.time));
             self.frames += 1;
         }
         Ok(())
