@@ -174,10 +174,12 @@ impl Gradients {
 /// Sum of absolute differences of two byte arrays.
 #[inline]
 pub fn sad<const N: usize>(a: &[u8; N], b: &[u8; N]) -> u32 {
+    // Written as |zext(x) − zext(y)| summed in i32: the form LLVM turns into
+    // `psadbw` on x86-64 (measured: `abs_diff` on bytes was not vectorised).
     a.iter()
         .zip(b)
-        .map(|(x, y)| u32::from(x.abs_diff(*y)))
-        .sum()
+        .map(|(x, y)| (i32::from(*x) - i32::from(*y)).abs())
+        .sum::<i32>() as u32
 }
 
 /// The classes of features: matching only compares features of the same class.

@@ -17,6 +17,10 @@ pub struct Bins {
     /// For (class, bin): the range `start[c]..start[c+1]` of `items`.
     start: Vec<u32>,
     items: Vec<u32>,
+    /// The items' positions and descriptors in the same order: a search reads
+    /// them sequentially instead of gathering from the features.
+    pos: Vec<(i32, i32)>,
+    desc: Vec<[u8; DESCRIPTOR]>,
 }
 
 impl Bins {
@@ -47,6 +51,15 @@ impl Bins {
             self.items[fill[c] as usize] = k as u32;
             fill[c] += 1;
         }
+        self.pos.clear();
+        self.pos.extend(
+            self.items
+                .iter()
+                .map(|&k| (f.u[k as usize], f.v[k as usize])),
+        );
+        self.desc.clear();
+        self.desc
+            .extend(self.items.iter().map(|&k| f.desc[k as usize]));
     }
 
     /// The feature of `class` in `[u0, u1] × [v0, v1]` whose descriptor is closest
@@ -54,7 +67,6 @@ impl Bins {
     #[inline]
     fn best(
         &self,
-        f: &Features,
         class: u8,
         d: &[u8; DESCRIPTOR],
         (u0, u1, v0, v1): (i32, i32, i32, i32),
@@ -65,24 +77,29 @@ impl Bins {
         let base = usize::from(class) * (self.cols * self.rows) as usize;
         let (bu0, bu1) = ((u0 / self.size).max(0), (u1 / self.size).min(self.cols - 1));
         let (bv0, bv1) = ((v0 / self.size).max(0), (v1 / self.size).min(self.rows - 1));
-        let mut best: Option<(u32, usize)> = None;
+        let (mut best_cost, mut best_k) = (1u32 << 31, u32::MAX);
         for bv in bv0..=bv1 {
             for bu in bu0..=bu1 {
                 let c = base + (bv * self.cols + bu) as usize;
-                for &k in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
-                    let k = k as usize;
-                    let (u, v) = (f.u[k], f.v[k]);
-                    if u < u0 || u > u1 || v < v0 || v > v1 {
-                        continue;
-                    }
-                    let cost = sad(d, &f.desc[k]);
-                    if best.is_none_or(|(b, _)| cost < b) {
-                        best = Some((cost, k));
+                let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
+                for ((&(u, v), desc), &k) in self.pos[a..b]
+                    .iter()
+                    .zip(&self.desc[a..b])
+                    .zip(&self.items[a..b])
+                {
+                    // Without branches on the position (most candidates of a bin
+                    // are outside the window, unpredictably): the cost of one
+                    // outside is above any real one (at most 32 · 255).
+                    let outside = (u < u0) | (u > u1) | (v < v0) | (v > v1);
+                    let cost = sad(d, desc) | (u32::from(outside) << 31);
+                    if cost < best_cost {
+                        best_cost = cost;
+                        best_k = k;
                     }
                 }
             }
         }
-        best.map(|(_, k)| k)
+        (best_cost < 1 << 31).then_some(best_k as usize)
     }
 }
 
@@ -113,10 +130,7 @@ pub fn disparity_signs(
     for i in (0..f.len()).step_by(step) {
         let (u, v) = (f.u[i], f.v[i]);
         let window = (u - radius, u + radius, v - row_tolerance, v + row_tolerance);
-        if let Some(k) = right
-            .bins
-            .best(&right.features, f.class[i], &f.desc[i], window)
-        {
+        if let Some(k) = right.bins.best(f.class[i], &f.desc[i], window) {
             let d = u - right.features.u[k];
             if d > 1 {
                 positive += 1;
@@ -275,7 +289,7 @@ impl Circle<'_> {
                 let from = &self.images[leg].features;
                 let to = self.images[(leg + 1) % LEGS];
                 let window = self.window(leg, from.u[at], from.v[at], s, ranges);
-                let Some(next) = to.bins.best(&to.features, class, &from.desc[at], window) else {
+                let Some(next) = to.bins.best(class, &from.desc[at], window) else {
                     continue 'next;
                 };
                 if leg < 3 {
@@ -441,12 +455,14 @@ pub fn refine(
         if !inside(gr, u, v) {
             return None;
         }
-        let cost =
-            |dx: i32, dy: i32| f64::from(sad(&target, &gr.refine_descriptor(u + dx, v + dy)));
-        let mut best = (f64::INFINITY, 0, 0);
+        // The costs of the (2·reach + 1)² grid, each computed once (reach ≤ 3).
+        let side = (2 * reach + 1) as usize;
+        let mut costs = [0u32; 49];
+        let mut best = (u32::MAX, 0, 0);
         for dy in -reach..=reach {
             for dx in -reach..=reach {
-                let c = cost(dx, dy);
+                let c = sad(&target, &gr.refine_descriptor(u + dx, v + dy));
+                costs[(dy + reach) as usize * side + (dx + reach) as usize] = c;
                 if c < best.0 {
                     best = (c, dx, dy);
                 }
@@ -461,7 +477,9 @@ pub fn refine(
             return None;
         }
         // c(x, y) = a x² + b y² + c xy + d x + e y + g over the 3 × 3 costs.
-        let c = |x: i32, y: i32| cost(bx + x, by + y);
+        let c = |x: i32, y: i32| {
+            f64::from(costs[(by + y + reach) as usize * side + (bx + x + reach) as usize])
+        };
         let col = |x: i32| c(x, -1) + c(x, 0) + c(x, 1);
         let row = |y: i32| c(-1, y) + c(0, y) + c(1, y);
         let d = (col(1) - col(-1)) / 6.0;
