@@ -474,6 +474,33 @@ mod tests {
     }
 
     #[test]
+    fn refining_on_two_threads_gives_the_same_motions() {
+        let c = CameraConfig::default();
+        let r = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
+        let motions = |threads| {
+            let settings = VoSettings {
+                threads,
+                ..VoSettings::default()
+            };
+            let mut vo = StereoOdometry::new(c.calibration(), settings).unwrap();
+            (0..4)
+                .map(|k| {
+                    let k = f64::from(k);
+                    let p = pair(&r, [0.5 + 0.06 * k, -0.3, 0.4 + 0.04 * k], 0, k);
+                    vo.process(&p.left, &p.right, c.width as usize, c.height as usize)
+                })
+                .collect::<Vec<_>>()
+        };
+        let one = motions(1);
+        assert!(
+            one[1..]
+                .iter()
+                .all(|m| matches!(m, Ok(Some(m)) if m.matches > 100))
+        );
+        assert_eq!(motions(2), one);
+    }
+
+    #[test]
     fn commands_come_every_k_steps_and_bad_pairs_are_counted() {
         let c = CameraConfig::default();
         let mut m = R11Memory::new(odometry(&c), 5);

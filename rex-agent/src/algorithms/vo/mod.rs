@@ -82,6 +82,9 @@ pub struct VoSettings {
     pub min_features: usize,
     /// Seed of RANSAC and bucketing (runs are deterministic).
     pub seed: u64,
+    /// Threads refining the matches (each match alone; the results, in order, are
+    /// the same with any number). 1: the caller's thread only.
+    pub threads: usize,
 }
 
 impl Default for VoSettings {
@@ -105,6 +108,7 @@ impl Default for VoSettings {
             min_inliers: 6,
             min_features: 30,
             seed: 0,
+            threads: 1,
         }
     }
 }
@@ -467,27 +471,60 @@ impl StereoOdometry {
         let grads = [&p.left.full, &p.right.full, &c.right.full, &c.left.full];
         let images = [&p.left.image, &p.right.image, &c.right.image, &c.left.image];
         let f = scale as f64;
-        let mut out: Vec<[(f64, f64); 4]> = self
-            .scratch
-            .quads
-            .iter()
-            .filter_map(|k| {
-                let q = dense
-                    .positions(k)
-                    .map(|(u, v)| (f64::from(u) * f, f64::from(v) * f));
-                matching::refine(q, grads, s.refinement)
-            })
-            .collect();
+        let mode = s.refinement;
+        let mut out = filter_map_parallel(&self.scratch.quads, s.threads, |k| {
+            let q = dense
+                .positions(k)
+                .map(|(u, v)| (f64::from(u) * f, f64::from(v) * f));
+            matching::refine(q, grads, mode)
+        });
         matching::bucket(&mut out, s.bucket_size, s.bucket_max, &mut self.rng);
         if s.refinement == Refinement::Photometric {
             // On the matches kept only: it is the costly step.
-            out = out
-                .into_iter()
-                .filter_map(|m| matching::photometric(m, images))
-                .collect();
+            out = filter_map_parallel(&out, s.threads, |m| matching::photometric(*m, images));
         }
         out
     }
+}
+
+/// `items.iter().filter_map(f)` collected in order, the items split between
+/// `threads` threads (scoped; this one takes the first share). A thread that cannot
+/// be spawned leaves its share to this one; a panic in `f` is passed on.
+fn filter_map_parallel<T: Sync, U: Send>(
+    items: &[T],
+    threads: usize,
+    f: impl Fn(&T) -> Option<U> + Sync,
+) -> Vec<U> {
+    // Below this, a thread costs more than it saves.
+    const LEAST_PER_THREAD: usize = 32;
+    let threads = threads.min(items.len() / LEAST_PER_THREAD).max(1);
+    if threads == 1 {
+        return items.iter().filter_map(&f).collect();
+    }
+    let chunk = items.len().div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|scope| {
+        let others: Vec<_> = items
+            .chunks(chunk)
+            .skip(1)
+            .map(|part| {
+                let job = move || part.iter().filter_map(f).collect::<Vec<U>>();
+                (
+                    part,
+                    std::thread::Builder::new().spawn_scoped(scope, job).ok(),
+                )
+            })
+            .collect();
+        let mut out: Vec<U> = items[..chunk].iter().filter_map(f).collect();
+        for (part, handle) in others {
+            match handle.map(|h| h.join()) {
+                Some(Ok(v)) => out.extend(v),
+                Some(Err(panic)) => std::panic::resume_unwind(panic),
+                None => out.extend(part.iter().filter_map(f)),
+            }
+        }
+        out
+    })
 }
 
 /// The median of `v` (sorted in place); NaN when empty.
