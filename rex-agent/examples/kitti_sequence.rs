@@ -57,6 +57,6 @@ fn run() -> Result<usize, Box<dyn std::error::Error>> {
     config::check("command line", &config)?;
     let out = out.ok_or("missing OUT_DIR")?;
     let path: ScriptedPath = path.parse()?;
-    let renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
-    Ok(write_scripted(&out, &renderer, path, frames)?)
+    let mut renderer = Renderer::new(config.camera.clone(), config.scene.clone())?;
+    Ok(write_scripted(&out, &mut renderer, path, frames)?)
 }

@@ -71,6 +71,22 @@ impl Rng {
     }
 }
 
+/// The generator as a `rand` source, for `rand_distr`'s distributions (the
+/// camera's sensor noise draws its normal samples with the ziggurat method).
+impl rand_core::RngCore for Rng {
+    fn next_u32(&mut self) -> u32 {
+        (self.next_u64() >> 32) as u32
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        Rng::next_u64(self)
+    }
+
+    fn fill_bytes(&mut self, dst: &mut [u8]) {
+        rand_core::impls::fill_bytes_via_next(self, dst);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

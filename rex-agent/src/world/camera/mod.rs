@@ -16,6 +16,7 @@
 pub mod kitti;
 pub mod render;
 pub mod scene;
+pub mod sensor;
 
 use serde::{Deserialize, Serialize};
 
@@ -24,6 +25,7 @@ use crate::config::{Invalid, Validate, finite, non_negative, positive};
 
 pub use render::Renderer;
 pub use scene::{Obstacle, Room, SceneConfig, Texture, Textures};
+pub use sensor::{Exposure, SensorConfig, Side};
 
 /// Resolution, optics and mounting of the stereo pair.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -43,6 +45,10 @@ pub struct CameraConfig {
     pub mount_forward: f64,
     /// Downward pitch of the optical axis [rad].
     pub pitch: f64,
+    /// What the sensor adds to the ideal image: noise, gains, vignetting, motion
+    /// blur (default: the ideal sensor).
+    #[serde(default)]
+    pub sensor: SensorConfig,
 }
 
 impl Default for CameraConfig {
@@ -57,6 +63,7 @@ impl Default for CameraConfig {
             mount_height: 0.5,
             mount_forward: 0.2,
             pitch: 0.1,
+            sensor: SensorConfig::default(),
         }
     }
 }
@@ -82,7 +89,7 @@ impl Validate for CameraConfig {
                 "must be within ±1.5 rad",
             ));
         }
-        Ok(())
+        self.sensor.validate()
     }
 }
 
@@ -266,6 +273,29 @@ mod tests {
             ..CameraConfig::default()
         };
         assert_eq!(odd.principal_point(), (16.0, 8.0), "the middle pixel");
+    }
+
+    #[test]
+    fn a_world_file_sets_the_sensor_and_absurd_values_are_named() {
+        let text = "(width: 64, height: 48, focal: 50.0, baseline: 0.3, mount_height: 0.5,
+            mount_forward: 0.2, pitch: 0.1,
+            sensor: (seed: 11, read_noise: 2.0, shot_noise: 4.0, exposure_jitter: 0.03,
+                     gain_jitter: 0.02, right_gain: 1.06, right_offset: -3.0,
+                     vignetting: 0.25, exposure_s: 0.004, blur_samples: 8))";
+        let path = std::path::Path::new("camera.ron");
+        let cam: CameraConfig = crate::config::parse(path, text).unwrap();
+        assert_eq!(cam.sensor, SensorConfig::realistic(11));
+        // Without the block: the ideal sensor.
+        let plain = text.split(",\n            sensor").next().unwrap().to_owned() + ")";
+        let cam: CameraConfig = crate::config::parse(path, &plain).unwrap();
+        assert_eq!(cam.sensor, SensorConfig::default());
+        let bad = text.replace("vignetting: 0.25", "vignetting: -1.0");
+        let e = crate::config::parse::<CameraConfig>(path, &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sensor.vignetting"), "{e}");
+        let unknown = text.replace("seed: 11", "sed: 11");
+        assert!(crate::config::parse::<CameraConfig>(path, &unknown).is_err());
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! stepped incrementally along each row. Textures are sampled bilinearly.
 
 use super::scene::{SceneConfig, Textures};
-use super::{CameraConfig, CameraPose};
+use super::{CameraConfig, CameraPose, Exposure, Side};
 use crate::config::{self, ConfigError};
 
 /// What a ray hit.
@@ -51,6 +51,8 @@ pub struct Renderer {
     boxes: Vec<[f32; 5]>,
     /// `(x0, y0, x1, y1, height)` of the room.
     room: [f32; 5],
+    /// Storage of a blurred exposure: a sub-frame, and the sums of both images.
+    scratch: (Vec<u8>, Vec<u16>, Vec<u16>),
 }
 
 const CEILING_LEVEL: u8 = 196;
@@ -100,6 +102,7 @@ impl Renderer {
             textures,
             boxes,
             room,
+            scratch: Default::default(),
         })
     }
 
@@ -121,6 +124,50 @@ impl Renderer {
         right.resize(n, 0);
         self.render(&self.camera.left_pose(body), left);
         self.render(&self.camera.right_pose(body), right);
+    }
+
+    /// What the camera delivers for `exposure`: both images rendered along the
+    /// platform's motion while the shutter is open (the mean of
+    /// [`SensorConfig::sub_frames`](super::SensorConfig::sub_frames) sub-frames,
+    /// evenly spaced in the exposure), then developed by the camera's sensor
+    /// (noise, gains, vignetting, seeded by `exposure.frame`). With the ideal
+    /// sensor and a still platform, this is [`Renderer::render_pair`].
+    pub fn capture_pair(&mut self, exposure: &Exposure, left: &mut Vec<u8>, right: &mut Vec<u8>) {
+        let sensor = &self.camera.sensor;
+        let n = sensor.sub_frames(&self.camera, exposure);
+        if n <= 1 {
+            self.render_pair(exposure.at(0.5), left, right);
+        } else {
+            let pixels = self.camera.width as usize * self.camera.height as usize;
+            let (mut sub, mut sum_l, mut sum_r) = std::mem::take(&mut self.scratch);
+            sub.resize(pixels, 0);
+            for sum in [&mut sum_l, &mut sum_r] {
+                sum.clear();
+                sum.resize(pixels, 0);
+            }
+            for k in 0..n {
+                let body = exposure.at((f64::from(k) + 0.5) / f64::from(n));
+                for (pose, sum) in [
+                    (self.camera.left_pose(body), &mut sum_l),
+                    (self.camera.right_pose(body), &mut sum_r),
+                ] {
+                    self.render(&pose, &mut sub);
+                    for (s, &p) in sum.iter_mut().zip(&sub) {
+                        *s += u16::from(p);
+                    }
+                }
+            }
+            // n <= 64 sub-frames of at most 255: the sums fit in u16; rounded means.
+            let n = n as u16;
+            for (img, sum) in [(&mut *left, &sum_l), (&mut *right, &sum_r)] {
+                img.clear();
+                img.extend(sum.iter().map(|&s| ((s + n / 2) / n) as u8));
+            }
+            self.scratch = (sub, sum_l, sum_r);
+        }
+        let sensor = &self.camera.sensor;
+        sensor.develop(&self.camera, exposure.frame, Side::Left, left);
+        sensor.develop(&self.camera, exposure.frame, Side::Right, right);
     }
 
     /// The first surface hit by the ray through pixel `(u, v)` (continuous pixel

@@ -9,8 +9,8 @@ use embodied::{
 
 use super::Truth;
 use crate::a1::payload::{AcquireCommand, StereoPair};
-use crate::world::camera::Renderer;
 use crate::world::camera::kitti::SequenceWriter;
+use crate::world::camera::{Exposure, Renderer};
 
 /// The acquisition command from `r11`.
 #[derive(Debug, Default, Group)]
@@ -43,17 +43,21 @@ pub struct CameraOutput {
     pub r11: CameraToR11,
 }
 
-/// A render job: the platform's pose `(x, y, φ)` and the pair to draw into.
-type RenderJob = ([f64; 3], StereoPair);
+/// A render job: the exposure (the platform's motion while the shutter is open,
+/// the frame's number) and the pair to draw into.
+type RenderJob = (Exposure, StereoPair);
 
-fn render_job(renderer: &mut Renderer, (body, mut pair): RenderJob) -> StereoPair {
-    renderer.render_pair(body, &mut pair.left, &mut pair.right);
+fn render_job(renderer: &mut Renderer, (exposure, mut pair): RenderJob) -> StereoPair {
+    renderer.capture_pair(&exposure, &mut pair.left, &mut pair.right);
     pair
 }
 
 /// The simulated stereo camera R1: on an acquisition command it renders a pair at
 /// the platform's pose of that instant, and delivers it at its next step (never in
-/// the same step, as the paper says). Without a command it sends nothing.
+/// the same step, as the paper says). Without a command it sends nothing. The
+/// camera's sensor ([`crate::world::camera::SensorConfig`]) blurs the pair by the
+/// platform's motion during the exposure (centred on the command's instant) and
+/// adds its noise and gains, seeded by the command's sequence number.
 ///
 /// The rendering runs on a worker thread ([`OffloadMode::Worker`], the default)
 /// between the command's step and the delivery, concurrently with the rest of the
@@ -184,8 +188,11 @@ impl Driver for StereoCamera {
             let truth = *cx.environment::<Truth>()?;
             let s = truth.state;
             let body = [s.x, s.y, s.phi];
+            let (sin, cos) = s.phi.sin_cos();
+            let velocity = [s.vx * cos - s.vy * sin, s.vx * sin + s.vy * cos, s.omega];
+            let exposure = Exposure::moving(body, velocity, self.camera.sensor.exposure_s, cmd.seq);
             self.render
-                .submit((body, std::mem::take(&mut self.spare)))
+                .submit((exposure, std::mem::take(&mut self.spare)))
                 .map_err(|e| DriverError::new(format!("rendering the stereo pair: {e}")))?;
             self.in_flight = Some((body, cmd.seq, truth.time));
             self.frames += 1;

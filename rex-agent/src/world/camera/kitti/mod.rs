@@ -263,6 +263,11 @@ pub enum ScriptedPath {
     Straight,
     /// Turning in place at 0.3 rad/s.
     Turn,
+    /// A long tour of the room, different for each seed: three epicycles (the
+    /// largest of 1.8-2.3 m radius) driven at 0.9-2.2 m/s, always forward, turning
+    /// at most about 2 rad/s, within 4 m of the centre (clear of the shipped
+    /// room's obstacles); 200 m take about 140 s.
+    Tour(u64),
 }
 
 impl std::str::FromStr for ScriptedPath {
@@ -272,9 +277,13 @@ impl std::str::FromStr for ScriptedPath {
             "figure_eight" => Ok(ScriptedPath::FigureEight),
             "straight" => Ok(ScriptedPath::Straight),
             "turn" => Ok(ScriptedPath::Turn),
-            other => Err(format!(
-                "unknown path `{other}` (figure_eight, straight, turn)"
-            )),
+            "tour" => Ok(ScriptedPath::Tour(1)),
+            other => match other.strip_prefix("tour:").map(str::parse) {
+                Some(Ok(seed)) => Ok(ScriptedPath::Tour(seed)),
+                _ => Err(format!(
+                    "unknown path `{other}` (figure_eight, straight, turn, tour, tour:SEED)"
+                )),
+            },
         }
     }
 }
@@ -291,28 +300,112 @@ impl ScriptedPath {
             }
             ScriptedPath::Straight => [-3.0 + 0.3 * t, 0.5, 0.0],
             ScriptedPath::Turn => [0.0, 0.0, 0.3 * t],
+            ScriptedPath::Tour(seed) => {
+                let (c, terms) = tour(seed);
+                let (mut p, mut v) = (c, [0.0, 0.0]);
+                for [r, w, phase] in terms {
+                    let (s, co) = (w * t + phase).sin_cos();
+                    p = [p[0] + r * co, p[1] + r * s];
+                    v = [v[0] - r * w * s, v[1] + r * w * co];
+                }
+                [p[0], p[1], v[1].atan2(v[0])]
+            }
         }
+    }
+
+    /// The frames (10 per second) whose path is at least `length` metres long.
+    pub fn frames_for(self, length: f64) -> usize {
+        let mut travelled = 0.0;
+        let mut last = self.pose(0.0);
+        let mut k = 0usize;
+        // Turning in place never gets anywhere: a bound keeps this finite.
+        while travelled < length && k < 10_000_000 {
+            k += 1;
+            let p = self.pose(k as f64 * 0.1);
+            travelled += (p[0] - last[0]).hypot(p[1] - last[1]);
+            last = p;
+        }
+        k + 1
     }
 }
 
+/// The tour of `seed`: its centre and its three terms `(radius, rate, phase)`.
+/// The first term's speed exceeds the others' together by at least 0.85 m/s, so
+/// the platform always moves forward.
+fn tour(seed: u64) -> ([f64; 2], [[f64; 3]; 3]) {
+    let mut rng = crate::algorithms::rng::Rng::stream(seed, "tour");
+    let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
+    let centre = [u(-0.3, 0.3), u(-0.3, 0.3)];
+    let mut terms = [[0.0; 3]; 3];
+    // (radius range, speed range) of each term.
+    let ranges = [
+        ((1.8, 2.3), (1.35, 1.65)),
+        ((0.6, 0.9), (0.25, 0.35)),
+        ((0.2, 0.4), (0.1, 0.15)),
+    ];
+    for (k, ((r0, r1), (s0, s1))) in ranges.into_iter().enumerate() {
+        let r = u(r0, r1);
+        let speed = u(s0, s1);
+        let sign = if k > 0 && u(0.0, 1.0) < 0.5 {
+            -1.0
+        } else {
+            1.0
+        };
+        terms[k] = [r, sign * speed / r, u(0.0, std::f64::consts::TAU)];
+    }
+    (centre, terms)
+}
+
 /// Render `frames` stereo pairs along `path` (10 per second) and write them as a
-/// KITTI sequence in `dir`, with the true poses; returns the frames written.
+/// KITTI sequence in `dir`, with the true poses; returns the frames written. The
+/// camera's sensor blurs each pair by the motion during its exposure (centred on
+/// the pair's instant, the pose written) and adds its noise.
 pub fn write_scripted(
     dir: &Path,
-    renderer: &super::Renderer,
+    renderer: &mut super::Renderer,
     path: ScriptedPath,
     frames: usize,
 ) -> Result<usize, KittiError> {
-    let camera = renderer.camera();
-    let mut writer = SequenceWriter::create(dir, camera)?;
+    let camera = renderer.camera().clone();
+    let half = 0.5 * camera.sensor.exposure_s;
+    let mut writer = SequenceWriter::create(dir, &camera)?;
     let (mut left, mut right) = (Vec::new(), Vec::new());
     for k in 0..frames {
         let t = k as f64 * 0.1;
         let body = path.pose(t);
-        renderer.render_pair(body, &mut left, &mut right);
+        let exposure = super::Exposure {
+            open: path.pose(t - half),
+            close: path.pose(t + half),
+            frame: k as u64,
+        };
+        renderer.capture_pair(&exposure, &mut left, &mut right);
         writer.push(t, &camera.left_pose(body), &left, &right)?;
     }
     writer.finish()
+}
+
+/// The poses of a KITTI poses file (12 numbers a line: a 3 × 4 matrix, row-major),
+/// as the ground truth or an odometry's estimate.
+pub fn read_poses(path: &Path) -> Result<Vec<Pose34>, KittiError> {
+    let text = fs::read_to_string(path).map_err(io(path))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            let v = parse_numbers(path, i + 1, l)?;
+            if v.len() != 12 {
+                return Err(format_err(
+                    path,
+                    format!("line {}: {} numbers, expected 12", i + 1, v.len()),
+                ));
+            }
+            Ok([
+                [v[0], v[1], v[2], v[3]],
+                [v[4], v[5], v[6], v[7]],
+                [v[8], v[9], v[10], v[11]],
+            ])
+        })
+        .collect()
 }
 
 /// A KITTI sequence on disk.
@@ -457,26 +550,7 @@ impl Sequence {
         ];
         let mut poses = None;
         if let Some(path) = candidates.into_iter().flatten().find(|p| p.is_file()) {
-            let text = fs::read_to_string(&path).map_err(io(&path))?;
-            let list = text
-                .lines()
-                .enumerate()
-                .filter(|(_, l)| !l.trim().is_empty())
-                .map(|(i, l)| {
-                    let v = parse_numbers(&path, i + 1, l)?;
-                    if v.len() != 12 {
-                        return Err(format_err(
-                            &path,
-                            format!("line {}: {} numbers, expected 12", i + 1, v.len()),
-                        ));
-                    }
-                    Ok([
-                        [v[0], v[1], v[2], v[3]],
-                        [v[4], v[5], v[6], v[7]],
-                        [v[8], v[9], v[10], v[11]],
-                    ])
-                })
-                .collect::<Result<Vec<Pose34>, _>>()?;
+            let list = read_poses(&path)?;
             if list.len() != times.len() {
                 return Err(format_err(
                     &path,

@@ -380,3 +380,91 @@ fn transforms_invert() {
         }
     }
 }
+
+#[test]
+fn tours_stay_in_the_room_move_forward_and_differ_by_seed() {
+    let dt = 0.01;
+    for seed in [1, 2, 11, 12, 99] {
+        let path = ScriptedPath::Tour(seed);
+        let mut last = path.pose(0.0);
+        let (mut slowest, mut fastest, mut sharpest) = (f64::MAX, 0.0f64, 0.0f64);
+        for k in 1..30_000 {
+            let p = path.pose(k as f64 * dt);
+            assert!(
+                p[0].hypot(p[1]) < 4.05,
+                "seed {seed}: {p:?} leaves the free room"
+            );
+            let (dx, dy) = (p[0] - last[0], p[1] - last[1]);
+            let speed = dx.hypot(dy) / dt;
+            // Forward: the heading is the direction of travel.
+            let along = dx * p[2].cos() + dy * p[2].sin();
+            assert!(along > 0.8 * speed * dt, "seed {seed}: not forward at {k}");
+            let turn = (p[2] - last[2] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            slowest = slowest.min(speed);
+            fastest = fastest.max(speed);
+            sharpest = sharpest.max(turn.abs() / dt);
+            last = p;
+        }
+        assert!(
+            slowest > 0.8 && fastest < 2.3,
+            "seed {seed}: {slowest}..{fastest} m/s"
+        );
+        assert!(sharpest < 2.5, "seed {seed}: {sharpest} rad/s");
+    }
+    assert_eq!(
+        ScriptedPath::Tour(3).pose(7.0),
+        ScriptedPath::Tour(3).pose(7.0)
+    );
+    assert_ne!(
+        ScriptedPath::Tour(3).pose(7.0),
+        ScriptedPath::Tour(4).pose(7.0)
+    );
+    let frames = ScriptedPath::Tour(11).frames_for(200.0);
+    assert!((1000..2500).contains(&frames), "{frames} frames for 200 m");
+    assert_eq!("tour:12".parse(), Ok(ScriptedPath::Tour(12)));
+    assert!("tour:x".parse::<ScriptedPath>().is_err());
+}
+
+#[test]
+fn a_noisy_blurred_sequence_is_seeded_and_differs_from_the_ideal_one() {
+    let scene = crate::world::WorldConfig::shipped().unwrap().scene;
+    let ideal = CameraConfig {
+        width: 96,
+        height: 64,
+        focal: 60.0,
+        ..CameraConfig::default()
+    };
+    let noisy = CameraConfig {
+        sensor: crate::world::camera::SensorConfig::realistic(5),
+        ..ideal.clone()
+    };
+    let write = |camera: &CameraConfig, name: &str| {
+        let dir = temp_dir(name);
+        let mut r = Renderer::new(camera.clone(), scene.clone()).unwrap();
+        write_scripted(&dir, &mut r, ScriptedPath::Tour(2), 3).unwrap();
+        let seq = Sequence::open(&dir).unwrap();
+        let frames: Vec<_> = (0..3).map(|k| seq.frame(k).unwrap()).collect();
+        let _ = fs::remove_dir_all(&dir);
+        frames
+    };
+    let a = write(&noisy, "noisy-a");
+    assert_eq!(
+        a,
+        write(&noisy, "noisy-b"),
+        "the same seed, the same images"
+    );
+    let clean = write(&ideal, "ideal");
+    for (n, c) in a.iter().zip(&clean) {
+        assert_ne!(n.2, c.2);
+        assert_ne!(n.3, c.3);
+        // Noise and gains, not another picture: close on average.
+        let mean_diff =
+            n.2.iter()
+                .zip(&c.2)
+                .map(|(&x, &y)| (f64::from(x) - f64::from(y)).abs())
+                .sum::<f64>()
+                / n.2.len() as f64;
+        assert!(mean_diff < 20.0, "{mean_diff}");
+    }
+}
