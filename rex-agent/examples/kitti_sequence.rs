@@ -1,7 +1,7 @@
 //! Write a KITTI odometry sequence rendered by the simulated stereo camera.
 //!
 //! ```text
-//! cargo run --release -p rex-agent --example kitti_sequence -- OUT_DIR [--frames N] [--width W --height H --focal F] [--path figure_eight|straight|turn]
+//! cargo run --release -p rex-agent --example kitti_sequence -- OUT_DIR [--frames N] [--width W --height H --focal F] [--path figure_eight|straight|turn|tour|tour:SEED]
 //! ```
 //!
 //! The camera moves along a scripted path through the shipped room (10 frames per
@@ -45,7 +45,7 @@ fn run() -> Result<usize, Box<dyn std::error::Error>> {
             "--path" => path = value()?,
             "-h" | "--help" => {
                 println!(
-                    "usage: kitti_sequence OUT_DIR [--frames N] [--width W --height H --focal F] [--path figure_eight|straight|turn]"
+                    "usage: kitti_sequence OUT_DIR [--frames N] [--width W --height H --focal F] [--path figure_eight|straight|turn|tour|tour:SEED]"
                 );
                 return Ok(0);
             }

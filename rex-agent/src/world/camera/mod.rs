@@ -286,7 +286,12 @@ mod tests {
         let cam: CameraConfig = crate::config::parse(path, text).unwrap();
         assert_eq!(cam.sensor, SensorConfig::realistic(11));
         // Without the block: the ideal sensor.
-        let plain = text.split(",\n            sensor").next().unwrap().to_owned() + ")";
+        let plain = text
+            .split(",\n            sensor")
+            .next()
+            .unwrap()
+            .to_owned()
+            + ")";
         let cam: CameraConfig = crate::config::parse(path, &plain).unwrap();
         assert_eq!(cam.sensor, SensorConfig::default());
         let bad = text.replace("vignetting: 0.25", "vignetting: -1.0");
