@@ -43,6 +43,8 @@
 //! refused: `B1` goes straight to `B3`, which reports the reason to `a2`; a planned
 //! fragment that leaves the free space fails the plan like a planner failure.
 
+pub mod trajgen;
+
 use std::collections::VecDeque;
 
 use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
@@ -51,7 +53,7 @@ use crate::a1::map::Map;
 use crate::a1::payload::{
     Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
 };
-use crate::algorithms::planner::trajgen::{Status, TrajGen};
+use trajgen::{Status, TrajGen};
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
 
 /// Settings of `c1`.

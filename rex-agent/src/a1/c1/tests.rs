@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::a1::payload::Point2;
-use crate::algorithms::planner::trajgen::Runtime;
+use crate::a1::c1::trajgen::Runtime;
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 
 fn pts(p: &[(f64, f64)]) -> Plan {

@@ -9,7 +9,6 @@
 
 pub mod ecsa;
 pub mod poly;
-pub mod trajgen;
 
 use serde::{Deserialize, Serialize};
 
@@ -182,9 +181,9 @@ pub enum PlanError {
         /// Restarts from perturbed controls.
         restarts: usize,
     },
-    /// The planning process (thread) is gone.
-    #[error("the planning process stopped")]
-    ProcessGone,
+    /// The planning process failed (its planner panicked, or its thread is gone).
+    #[error("the planning process stopped: {0}")]
+    ProcessGone(String),
     /// The fragment still exceeds the speed or turn-rate bounds after being slowed
     /// down.
     #[error("the fragment exceeds the velocity bounds ({what} {value:.2}, bound {bound:.2})")]

@@ -6,12 +6,14 @@
 //! process of the paper); [`Runtime::Inline`] plans inside `trajgenStart`. Both report
 //! a result as ready only after `latency` calls of `trajgenGetStat` (the planning time
 //! in c1's iterations), and the threaded one then waits for the worker if it is not
-//! done yet, so a run is deterministic in virtual time whichever runtime plans.
+//! done yet, so a run is deterministic in virtual time whichever runtime plans. Both are
+//! an [`embodied::Offload`] of the planner.
 
-use std::sync::mpsc::{Receiver, Sender, channel};
-use std::thread::JoinHandle;
+use embodied::{Offload, OffloadError, OffloadMode};
 
-use super::{Fragment, PlanError, PlanStats, Planner, PlannerKind, PlannerSettings, Waypoint};
+use crate::algorithms::planner::{
+    Fragment, PlanError, PlanStats, Planner, PlannerKind, PlannerSettings, Waypoint,
+};
 
 /// Where planning runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -21,6 +23,16 @@ pub enum Runtime {
     Thread,
     /// Inside `start` (for property tests and single-threaded runs).
     Inline,
+}
+
+impl Runtime {
+    /// The [`Offload`] mode that plans this way.
+    pub fn mode(self) -> OffloadMode {
+        match self {
+            Runtime::Thread => OffloadMode::Worker,
+            Runtime::Inline => OffloadMode::Inline,
+        }
+    }
 }
 
 /// The planner's state as `trajgenGetStat` reports it.
@@ -40,42 +52,14 @@ pub enum Status {
 
 type Job = ([f64; 3], Waypoint);
 type Answer = Result<(Fragment, PlanStats), PlanError>;
+type Planning = Offload<Box<dyn Planner>, Job, Answer>;
 
-struct Worker {
-    jobs: Option<Sender<Job>>,
-    answers: Receiver<Answer>,
-    handle: Option<JoinHandle<()>>,
+fn plan(planner: &mut Box<dyn Planner>, (from, to): Job) -> Answer {
+    planner.plan(from, &to)
 }
 
-impl Drop for Worker {
-    fn drop(&mut self) {
-        // Closing the job channel ends the worker's loop.
-        self.jobs.take();
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
-    }
-}
-
-fn spawn(kind: PlannerKind, settings: PlannerSettings) -> Option<Worker> {
-    let (job_tx, job_rx) = channel::<Job>();
-    let (ans_tx, ans_rx) = channel::<Answer>();
-    let handle = std::thread::Builder::new()
-        .name("trajgen".into())
-        .spawn(move || {
-            let mut planner = kind.build(settings);
-            while let Ok((from, to)) = job_rx.recv() {
-                if ans_tx.send(planner.plan(from, &to)).is_err() {
-                    break;
-                }
-            }
-        })
-        .ok()?;
-    Some(Worker {
-        jobs: Some(job_tx),
-        answers: ans_rx,
-        handle: Some(handle),
-    })
+fn planning(kind: PlannerKind, settings: &PlannerSettings, mode: OffloadMode) -> Planning {
+    Offload::new("trajgen", kind.build(settings.clone()), plan, mode)
 }
 
 /// Figures of the planning so far.
@@ -95,8 +79,7 @@ pub struct TrajGen {
     settings: PlannerSettings,
     runtime: Runtime,
     latency: u32,
-    worker: Option<Worker>,
-    inline: Option<Box<dyn Planner>>,
+    planning: Planning,
     from: [f64; 3],
     plan: u32,
     index: u32,
@@ -135,13 +118,11 @@ impl Clone for TrajGen {
         t.waited = self.waited;
         t.job = self.job;
         t.totals = self.totals;
-        t.answer = match (&self.answer, self.job) {
-            (Some(a), _) => Some(a.clone()),
-            (None, Some((from, to))) if self.status == Status::Planning => {
-                t.inline.as_mut().map(|p| p.plan(from, &to))
-            }
-            _ => None,
-        };
+        t.answer = self.answer.clone();
+        if let (None, Some(job), Status::Planning) = (&self.answer, self.job, &self.status) {
+            // Planned inline, so at once: the clone collects it when `stat` says.
+            t.submit(job);
+        }
         t
     }
 }
@@ -165,21 +146,14 @@ impl TrajGen {
         runtime: Runtime,
         latency: u32,
     ) -> TrajGen {
-        let (worker, inline) = match runtime {
-            Runtime::Thread => match spawn(kind, settings.clone()) {
-                Some(w) => (Some(w), None),
-                // No thread available: plan inline rather than not at all.
-                None => (None, Some(kind.build(settings.clone()))),
-            },
-            Runtime::Inline => (None, Some(kind.build(settings.clone()))),
-        };
+        // With no thread available, the offload plans inline rather than not at all.
+        let planning = planning(kind, &settings, runtime.mode());
         TrajGen {
             kind,
             settings,
             runtime,
             latency,
-            worker,
-            inline,
+            planning,
             from: [0.0; 3],
             plan: 0,
             index: 0,
@@ -240,17 +214,26 @@ impl TrajGen {
         self.from
     }
 
-    /// Forget a job in flight (its answer is drained when it comes).
+    /// Forget a job in flight (waiting for the worker to finish it: one job at a
+    /// time).
     fn abandon(&mut self) {
-        if self.status == Status::Planning
-            && self.answer.is_none()
-            && let Some(w) = &self.worker
-        {
-            // Keep the worker's queue in step: wait for the stale answer.
-            let _ = w.answers.recv();
-        }
+        let _ = self.planning.collect();
         self.job = None;
         self.answer = None;
+    }
+
+    /// Hand `job` to the planning process. A planning process that failed (a
+    /// planner that panicked) is replaced by a fresh planner that plans inline:
+    /// the failure was reported with the job that caused it.
+    fn submit(&mut self, job: Job) {
+        if let Err(e) = self.planning.submit(job) {
+            if !matches!(e, OffloadError::Failed { .. }) {
+                // Busy cannot happen (`abandon` collected); stay safe anyway.
+                let _ = self.planning.collect();
+            }
+            self.planning = planning(self.kind, &self.settings, OffloadMode::Inline);
+            let _ = self.planning.submit(job);
+        }
     }
 
     /// `trajgenStart(trajgen, point)`: plan from the last processed configuration to
@@ -261,16 +244,7 @@ impl TrajGen {
         self.job = Some(job);
         self.waited = 0;
         self.status = Status::Planning;
-        if let Some(w) = &self.worker {
-            if w.jobs.as_ref().is_some_and(|tx| tx.send(job).is_ok()) {
-                return;
-            }
-            self.worker = None;
-            self.inline = Some(self.kind.build(self.settings.clone()));
-        }
-        if let Some(p) = &mut self.inline {
-            self.answer = Some(p.plan(job.0, &job.1));
-        }
+        self.submit(job);
     }
 
     /// `trajgenStop(trajgen)`: no more points.
@@ -304,10 +278,10 @@ impl TrajGen {
             self.waited += 1;
             if self.waited >= self.latency {
                 if self.answer.is_none() {
-                    self.answer = self
-                        .worker
-                        .as_ref()
-                        .map(|w| w.answers.recv().unwrap_or(Err(PlanError::ProcessGone)));
+                    self.answer = match self.planning.collect() {
+                        Ok(answer) => answer,
+                        Err(e) => Some(Err(PlanError::ProcessGone(e.to_string()))),
+                    };
                 }
                 match self.answer.as_ref() {
                     Some(Ok(_)) => self.status = Status::Ready,
@@ -315,7 +289,7 @@ impl TrajGen {
                         self.totals.failures += 1;
                         self.status = Status::Failed(e.to_string());
                     }
-                    None => self.status = Status::Failed("the planning process is gone".into()),
+                    None => self.status = Status::Failed("nothing was being planned".into()),
                 }
             }
         }
@@ -385,6 +359,48 @@ mod tests {
         assert_eq!((a[0].plan, a[0].index, a[1].index), (7, 0, 1));
         // The second fragment starts where the first ends.
         assert_eq!(a[1].states[0][..3], a[0].end().unwrap()[..3]);
+    }
+
+    #[test]
+    fn a_clone_taken_while_planning_plans_the_same_fragment() {
+        let mut t = TrajGen::new(
+            PlannerKind::Ecsa,
+            PlannerSettings::default(),
+            Runtime::Thread,
+            2,
+        );
+        t.init([0.0, 0.0, 0.0], 1, 0);
+        t.start(Waypoint {
+            x: 1.0,
+            y: 0.5,
+            phi: None,
+        });
+        let mut c = t.clone();
+        assert_eq!(c.runtime(), Runtime::Inline, "a clone plans inline");
+        for g in [&mut t, &mut c] {
+            assert_eq!(g.stat(), &Status::Planning);
+            assert_eq!(g.stat(), &Status::Ready);
+        }
+        assert_eq!(t.get_traj(), c.get_traj());
+        // A job abandoned by a new start: its answer is not taken for the new one.
+        t.start(Waypoint {
+            x: 5.0,
+            y: 5.0,
+            phi: None,
+        });
+        t.start(Waypoint {
+            x: 1.5,
+            y: 0.5,
+            phi: None,
+        });
+        c.start(Waypoint {
+            x: 1.5,
+            y: 0.5,
+            phi: None,
+        });
+        t.stat();
+        c.stat();
+        assert_eq!(t.get_traj(), c.get_traj());
     }
 
     #[test]
