@@ -11,10 +11,10 @@ use clap::Parser;
 use embodied::record::{McapRecorder, RecordOptions};
 use embodied::spec::Spec;
 use embodied::{OffloadMode, RtConfig};
+use rex_agent::a1::c1::trajgen::Runtime;
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
 use rex_agent::a1::{RexConfig, RunSettings, deployment, load_spec};
 use rex_agent::algorithms::planner::PlannerKind;
-use rex_agent::a1::c1::trajgen::Runtime;
 use rex_agent::mission::Mission;
 use rex_agent::run::{
     Outcome, Progress, run_mission, run_mission_observed, run_mission_realtime,

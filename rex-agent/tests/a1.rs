@@ -12,10 +12,10 @@ use embodied::testing::{Environment, Termination};
 use embodied::{Activated, Fsm, OffloadMode, Recorder, Stamp, Step, Time};
 use proptest::prelude::*;
 
+use rex_agent::a1::c1::trajgen::{Runtime, TrajGen};
 use rex_agent::a1::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
 use rex_agent::a1::payload::{Ack, AckStatus, Plan, Point2, State};
 use rex_agent::a1::{RexConfig, build};
-use rex_agent::a1::c1::trajgen::{Runtime, TrajGen};
 use rex_agent::algorithms::planner::{PlannerKind, PlannerSettings};
 use rex_agent::mission::Mission;
 use rex_agent::report::judge::Verdict;

@@ -13,11 +13,11 @@ use embodied::spec::{Assembly, AssemblyError};
 use embodied::{DriverHandle, ExecConfig, OffloadMode, SubsystemHandle, System};
 use serde::{Deserialize, Serialize};
 
+use crate::a1::c1::trajgen::{Runtime, TrajGen};
 use crate::a1::c1::{C1, C1Memory, C1Params, c1_fsm};
 use crate::a1::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
 use crate::a1::map::Map;
 use crate::a1::r11::{Odometry, R11, R11Memory, r11_fsm};
-use crate::a1::c1::trajgen::{Runtime, TrajGen};
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 use crate::algorithms::vo::VoSettings;
 use crate::config::{self, ConfigError, Invalid, Validate};

@@ -53,8 +53,8 @@ use crate::a1::map::Map;
 use crate::a1::payload::{
     Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
 };
-use trajgen::{Status, TrajGen};
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
+use trajgen::{Status, TrajGen};
 
 /// Settings of `c1`.
 #[derive(Clone, Debug, PartialEq)]

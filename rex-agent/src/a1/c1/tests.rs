@@ -1,8 +1,8 @@
 //! Unit tests of `c1`: Algorithms 4–8 and the FSM of Fig. 5 on scripted inputs.
 
 use super::*;
-use crate::a1::payload::Point2;
 use crate::a1::c1::trajgen::Runtime;
+use crate::a1::payload::Point2;
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 
 fn pts(p: &[(f64, f64)]) -> Plan {
