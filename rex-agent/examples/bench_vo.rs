@@ -14,9 +14,11 @@
 //! | `tour11_640x480` | 640 × 480 | tour seed 11, 200 m | noisy, seed 11 | held out |
 //! | `tour12_1241x376` | 1241 × 376 | tour seed 12, 200 m | noisy, seed 12 | held out |
 //!
-//! `VoSettings::default()` was tuned on the first two; the tours (another path, a
-//! noisy sensor: `SensorConfig::realistic`, with motion blur) were not used to
-//! choose any setting. Our odometry runs on one thread; the peer
+//! `VoSettings::default()` was tuned on the first two and on two noisy tuning
+//! tours of other seeds (21, 22: `kitti_sequence --path tour:21 --sensor
+//! realistic:21`); the tours here (another path, a noisy sensor:
+//! `SensorConfig::realistic`, with motion blur) were not used to choose any
+//! setting. Our odometry runs on one thread; the peer
 //! (`PEERS_DIR/opencv_stereo_vo.py`, default `../shared/peers`) on one OpenCV
 //! thread, in a Python environment the bench makes once in `target/peer-venv`
 //! (`pip install opencv-python-headless numpy`). Both are timed per pair over the

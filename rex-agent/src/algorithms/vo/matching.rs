@@ -417,7 +417,10 @@ pub fn lucas_kanade(
         {
             return None;
         }
-        if du.abs() < 1e-3 && dv.abs() < 1e-3 {
+        // Converged at a hundredth of a pixel (below the noise of real pixels):
+        // a thousandth dropped more matches that had not settled in ten steps,
+        // and drifted more on every tuning sequence (README, visual odometry).
+        if du.abs() < 1e-2 && dv.abs() < 1e-2 {
             return Some(q);
         }
     }
