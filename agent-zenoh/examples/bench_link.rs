@@ -412,7 +412,7 @@ fn main() {
     }
     match pin(0) {
         Some(_) => println!("pings on core 0, echo processes on core 1"),
-        None => println!("one core: every process on it"),
+        None => println!("not pinned (one core, or the OS refused the affinity)"),
     }
     let certs = std::env::temp_dir().join(format!("bench-link-certs-{}", std::process::id()));
     create_dev_authority(&certs, &policy(), &[]).unwrap();

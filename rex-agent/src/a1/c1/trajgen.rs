@@ -77,7 +77,6 @@ pub struct PlannerTotals {
 pub struct TrajGen {
     kind: PlannerKind,
     settings: PlannerSettings,
-    runtime: Runtime,
     latency: u32,
     planning: Planning,
     from: [f64; 3],
@@ -151,7 +150,6 @@ impl TrajGen {
         TrajGen {
             kind,
             settings,
-            runtime,
             latency,
             planning,
             from: [0.0; 3],
@@ -170,9 +168,13 @@ impl TrajGen {
         self.kind
     }
 
-    /// Which runtime.
+    /// Which runtime plans now: `Inline` once a failed worker was replaced, or
+    /// when no thread could be had.
     pub fn runtime(&self) -> Runtime {
-        self.runtime
+        match self.planning.mode() {
+            OffloadMode::Worker => Runtime::Thread,
+            OffloadMode::Inline => Runtime::Inline,
+        }
     }
 
     /// The shared planner settings.
