@@ -46,6 +46,9 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     assert_eq!(summary.channels, 3 * links + nodes + 1);
     assert_eq!(summary.undecodable, 0);
     assert!(summary.messages > 10_000, "{summary:?}");
+    // The writer ran in the background: SCHED_IDLE (which needs no privilege)
+    // as the OS reports the thread's policy once set.
+    assert_eq!(summary.background, cfg!(target_os = "linux"), "{summary:?}");
 
     let bytes = std::fs::read(&path).unwrap();
     let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
@@ -129,6 +132,29 @@ fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
         err.to_string().contains("/nonexistent-folder/run.mcap"),
         "{err}"
     );
+}
+
+/// Asked not to, the writer thread stays at normal priority (the first test
+/// checks the default, `SCHED_IDLE` as the OS reports it).
+#[test]
+fn the_writer_thread_runs_at_normal_priority_when_asked() {
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("figure_eight").unwrap(),
+    );
+    config.visual_odometry = false;
+    let (system, _) = build(&config).unwrap();
+    let options = RecordOptions {
+        background: false,
+        ..RecordOptions::default()
+    };
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("rex_foreground.mcap");
+    let recorder = McapRecorder::create(&path, &system, options).unwrap();
+    let mut exec = Executor::with_observer(system, config.exec, recorder);
+    exec.run_for(Duration::from_millis(500)).unwrap();
+    let summary = exec.into_observer().finish().unwrap();
+    assert!(!summary.background);
+    assert!(summary.messages > 100, "{summary:?}");
 }
 
 /// Reads an MCAP file with the official Python reader: every message, JSON

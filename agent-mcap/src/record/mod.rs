@@ -73,6 +73,26 @@ pub const WIRE_ENCODING: &str = "embodied-wire/1";
 /// (the sender's iteration, then its instant in ns; little-endian `u64`s).
 pub const READ_ENCODING: &str = "embodied-read/1";
 
+/// Put the calling thread at the lowest priority the system has
+/// (`SCHED_IDLE` on Linux, which needs no privilege); `true` when the OS then
+/// reports that policy for the thread.
+fn lowest_priority() -> bool {
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    {
+        use thread_priority::{
+            NormalThreadSchedulePolicy, ThreadPriority, ThreadSchedulePolicy,
+            set_thread_priority_and_policy, thread_native_id, thread_schedule_policy,
+        };
+        let idle = ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Idle);
+        set_thread_priority_and_policy(thread_native_id(), ThreadPriority::Min, idle).is_ok()
+            && thread_schedule_policy().is_ok_and(|p| p == idle)
+    }
+    #[cfg(not(any(target_os = "linux", target_os = "android")))]
+    {
+        false
+    }
+}
+
 /// One read as its channel carries it.
 pub(crate) fn encode_read(stamp: Stamp) -> [u8; 16] {
     let mut b = [0u8; 16];
@@ -132,6 +152,14 @@ pub struct RecordOptions {
     pub json_max_bytes: usize,
     /// Derived channels.
     pub derived: Vec<Box<dyn Derive>>,
+    /// Run the writer thread in the background: at the lowest priority the
+    /// system has (`SCHED_IDLE` on Linux), so that it takes only the CPU the
+    /// run leaves and never delays a node, a worker or an offloaded
+    /// computation. A run that leaves no CPU fills the queue, and the executor
+    /// then waits for the writer ([`RecordSummary::waits`]): slower, never
+    /// lossy. Default `true`; where the policy cannot be set the writer runs at
+    /// normal priority ([`RecordSummary::background`] says which).
+    pub background: bool,
 }
 
 impl std::fmt::Debug for RecordOptions {
@@ -141,6 +169,7 @@ impl std::fmt::Debug for RecordOptions {
             .field("metadata", &self.metadata.keys().collect::<Vec<_>>())
             .field("json_max_bytes", &self.json_max_bytes)
             .field("derived", &self.derived.len())
+            .field("background", &self.background)
             .finish()
     }
 }
@@ -152,6 +181,7 @@ impl Default for RecordOptions {
             metadata: BTreeMap::new(),
             json_max_bytes: 16 * 1024,
             derived: Vec::new(),
+            background: true,
         }
     }
 }
@@ -196,6 +226,8 @@ pub struct RecordSummary {
     pub raw_only: u64,
     /// Times the executor waited for the writer.
     pub waits: u64,
+    /// Whether the writer ran in the background ([`RecordOptions::background`]).
+    pub background: bool,
 }
 
 enum Record {
@@ -592,9 +624,14 @@ impl McapRecorder {
                 ..RecordSummary::default()
             },
         };
+        let background = options.background;
         let writer = std::thread::Builder::new()
             .name("mcap-writer".into())
-            .spawn(move || out.run(&rx))
+            .spawn(move || {
+                let mut out = out;
+                out.summary.background = background && lowest_priority();
+                out.run(&rx)
+            })
             .map_err(|source| RecordError::Create {
                 path: path.to_owned(),
                 source,

@@ -146,8 +146,10 @@ pub struct StereoPair {
     /// Height [px].
     pub height: u32,
     /// Left image, row-major, 8 bits per pixel.
+    #[serde(with = "serde_bytes")]
     pub left: Vec<u8>,
     /// Right image.
+    #[serde(with = "serde_bytes")]
     pub right: Vec<u8>,
 }
 
