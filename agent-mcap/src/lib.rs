@@ -8,6 +8,8 @@
 //!   writer thread does it off the executor's thread;
 //! * [`record`]: [`McapRecorder`], the observer that writes a run to MCAP, and
 //!   [`Derive`], channels derived from buffers (Foxglove's images and poses);
+//! * [`codec`]: [`Codec`], a lossless encoding of one payload type's values on
+//!   their raw channels (a camera's images as PNG);
 //! * [`read`]: [`Recording`], a file read back, with errors that name the
 //!   offset of a truncated or damaged part;
 //! * [`merge`](mod@merge): the recordings of the processes of a distributed run
@@ -15,6 +17,7 @@
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
 //!   and behaviour switches compared bit for bit with the recording.
 
+pub mod codec;
 pub mod json;
 pub mod merge;
 pub mod read;
@@ -22,6 +25,7 @@ pub mod record;
 pub mod replay;
 
 /// The MCAP crate this one writes with (to read recordings back).
+pub use codec::Codec;
 pub use mcap;
 pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};

@@ -22,8 +22,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use embodied::NoObserver;
-use embodied::record::{McapRecorder, RecordOptions};
-use embodied::replay::{ReplayOptions, replay_file};
+use embodied::record::McapRecorder;
+use embodied::replay::replay_file;
 use rex_agent::a1::{RexConfig, RunSettings, build};
 use rex_agent::run::{Outcome, RunError, run_mission_observed};
 
@@ -63,10 +63,7 @@ fn recorded(
         LIMIT,
         LIMIT,
         |system| {
-            let options = RecordOptions {
-                derived: rex_agent::record::derived(),
-                ..RecordOptions::default()
-            };
+            let options = rex_agent::record::options();
             Ok(McapRecorder::create(path, system, options)?)
         },
         |_| {},
@@ -141,7 +138,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for _ in 0..rounds {
         let (system, _) = build(&with_vo)?;
         let t = Instant::now();
-        let r = replay_file(&path_vo, system, "c1", ReplayOptions { exec: with_vo.exec })?;
+        let r = replay_file(
+            &path_vo,
+            system,
+            "c1",
+            rex_agent::record::replay_options(with_vo.exec),
+        )?;
         replays.push(t.elapsed().as_secs_f64() * 1e3);
         if !r.is_equivalent() {
             return Err(format!("the replay of c1 is not equivalent: {r}").into());

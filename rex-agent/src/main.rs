@@ -352,10 +352,7 @@ fn printer(quiet: bool) -> impl FnMut(Progress<'_>) {
 /// What a recording says about its run: the spec, the settings (whole, as RON:
 /// what `rex replay` builds Rex from), the versions.
 fn record_options(config: &RexConfig, spec: &Spec, settings: &RunSettings) -> RecordOptions {
-    let mut options = RecordOptions {
-        derived: rex_agent::record::derived(),
-        ..RecordOptions::default()
-    };
+    let mut options = rex_agent::record::options();
     let text = std::fs::read_to_string(&config.spec).unwrap_or_default();
     options.metadata.insert(
         "spec".into(),

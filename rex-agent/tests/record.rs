@@ -162,12 +162,14 @@ fn the_writer_thread_runs_at_normal_priority_when_asked() {
 const PY_READER: &str = r#"
 import json, sys
 from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 with open(sys.argv[1], "rb") as f:
-    reader = make_reader(f)
+    reader = make_reader(f, decoder_factories=[DecoderFactory()])
     summary = reader.get_summary()
     n = 0
     topics = set()
     schemas = set()
+    images = 0
     for schema, channel, message in reader.iter_messages():
         n += 1
         topics.add(channel.topic)
@@ -177,8 +179,15 @@ with open(sys.argv[1], "rb") as f:
             json.loads(message.data)
             assert schema is not None and schema.encoding == "jsonschema", channel.topic
             json.loads(schema.data)
+    # The camera's images, in ROS 2's schema: decoded by mcap_ros2.
+    for schema, channel, message, image in reader.iter_decoded_messages(topics=["/camera/left"]):
+        assert schema.name == "sensor_msgs/msg/CompressedImage" and channel.message_encoding == "cdr"
+        assert image.format == "png" and image.header.frame_id == "camera_left", image
+        assert bytes(image.data[:8]) == b"\x89PNG\r\n\x1a\n"
+        assert image.header.stamp.sec * 10**9 + image.header.stamp.nanosec == message.log_time
+        images += 1
     meta = sorted(m.name for m in reader.iter_metadata())
-    print(f"messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
+    print(f"images={images} messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
 "#;
 
 #[test]
@@ -197,25 +206,30 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
         assert!(made.success(), "python3 -m venv {}", venv.display());
     }
     let installed = std::process::Command::new(&python)
-        .args(["-m", "pip", "install", "--quiet", "mcap>=1.2,<2"])
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "mcap>=1.2,<2",
+            "mcap-ros2-support>=0.5,<1",
+        ])
         .status()
         .expect("pip");
     assert!(
         installed.success(),
-        "pip install mcap (PyPI must be reachable)"
+        "pip install mcap mcap-ros2-support (PyPI must be reachable)"
     );
 
     let mut config = RexConfig::new(
         WorldConfig::shipped().unwrap(),
         Mission::shipped("square").unwrap(),
     );
-    config.visual_odometry = false;
+    // With the camera: its images are in ROS 2's encoding.
+    config.visual_odometry = true;
     let (system, _) = build(&config).unwrap();
     let path = tmp.join("rex_python.mcap");
-    let options = RecordOptions {
-        derived: rex_agent::record::derived(),
-        ..RecordOptions::default()
-    };
+    let options = rex_agent::record::options();
     let recorder = McapRecorder::create(&path, &system, options).unwrap();
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(3)).unwrap();
@@ -241,7 +255,9 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     assert_eq!(figure("messages"), summary.messages, "{text}");
     assert_eq!(figure("channels") as usize, summary.channels, "{text}");
     assert!(text.contains("metadata=end,system"), "{text}");
-    // Foxglove's schemas, on the channels Rex adds (no camera in this run).
+    // Every image the camera took (from 0 s, every 0.1 s).
+    assert!(figure("images") >= 30, "{text}");
+    // Foxglove's schemas, on the channels Rex adds.
     assert!(
         text.contains(
             "foxglove=foxglove.PoseInFrame:/pose/estimate,foxglove.PoseInFrame:/pose/mocap,foxglove.PosesInFrame:/path/reference"

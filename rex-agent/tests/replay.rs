@@ -15,9 +15,10 @@ use std::time::Duration;
 
 use embodied::Executor;
 use embodied::WireHeader;
-use embodied::record::{McapRecorder, ReadError, RecordOptions, Recording};
+use embodied::record::{McapRecorder, ReadError, Recording};
 use embodied::replay::{Difference, ReplayOptions, Replayed, replay, replay_file};
 use proptest::prelude::*;
+use rex_agent::a1::payload::StereoPair;
 use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;
 use rex_agent::world::WorldConfig;
@@ -42,10 +43,7 @@ fn tmp(name: &str) -> PathBuf {
 fn record(config: &RexConfig, seconds: u64, name: &str) -> PathBuf {
     let path = tmp(name);
     let (system, _) = build(config).unwrap();
-    let options = RecordOptions {
-        derived: rex_agent::record::derived(),
-        ..RecordOptions::default()
-    };
+    let options = rex_agent::record::options();
     let recorder = McapRecorder::create(&path, &system, options).unwrap();
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(seconds)).unwrap();
@@ -56,7 +54,13 @@ fn record(config: &RexConfig, seconds: u64, name: &str) -> PathBuf {
 
 fn replayed(config: &RexConfig, path: &Path, node: &str) -> Replayed {
     let (system, _) = build(config).unwrap();
-    replay_file(path, system, node, ReplayOptions { exec: config.exec }).unwrap()
+    replay_file(
+        path,
+        system,
+        node,
+        rex_agent::record::replay_options(config.exec),
+    )
+    .unwrap()
 }
 
 /// Every subsystem of Rex with VO replays `path` equivalent, with the
@@ -92,31 +96,65 @@ fn every_subsystem_of_a_recorded_mission_replays_equivalent() {
     let path = record(&vo, 4, "replay_vo.mcap");
     let recording = Recording::open(&path).unwrap();
     let end = &recording.metadata["end"];
-    // The camera's left images, for Foxglove: PNG of the camera's size.
+    // The camera's left images, for Foxglove: ROS 2's CompressedImage in CDR,
+    // a PNG of the camera's size (the Python test decodes them independently).
     let camera = recording.channel("/camera/left").unwrap();
-    assert_eq!(camera.schema.as_deref(), Some("foxglove.CompressedImage"));
+    assert_eq!(
+        camera.schema.as_deref(),
+        Some("sensor_msgs/msg/CompressedImage")
+    );
+    assert_eq!(camera.message_encoding, "cdr");
     let images: Vec<_> = recording
         .messages
         .iter()
         .filter(|m| m.channel == camera.id)
         .collect();
     assert!(images.len() >= 10, "{}", images.len());
-    let image: serde_json::Value = serde_json::from_slice(&images[0].data).unwrap();
-    assert_eq!(image["format"], "png");
-    let png_bytes = {
-        use base64::Engine as _;
-        base64::engine::general_purpose::STANDARD
-            .decode(image["data"].as_str().unwrap())
-            .unwrap()
-    };
-    let info = png::Decoder::new(std::io::Cursor::new(png_bytes))
+    // After the header, the stamp and the frame (`camera_left`): the format
+    // (`png`) at 28, the data's length at 36, the data.
+    let cdr = &images[0].data;
+    assert_eq!(&cdr[32..36], b"png\0");
+    let len = u32::from_le_bytes(cdr[36..40].try_into().unwrap()) as usize;
+    let png_bytes = &cdr[40..];
+    assert_eq!(png_bytes.len(), len);
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(png_bytes))
         .read_info()
-        .unwrap()
-        .info()
-        .clone();
+        .unwrap();
+    let mut left = vec![0; decoder.output_buffer_size()];
+    decoder.next_frame(&mut left).unwrap();
     assert_eq!(
-        (info.width, info.height),
+        decoder.info().size(),
         (vo.world.camera.width, vo.world.camera.height)
+    );
+    // The pairs' raw channel: through the PNG codec (every pair as two PNGs),
+    // decoded to the pair the camera sent, whose left image Foxglove's is.
+    let raw = recording
+        .raw_channel("R1.r11.img_lr -> r11.R1.img_lr")
+        .unwrap();
+    assert_eq!(raw.metadata["codec"], "rex.stereo-png/1");
+    let pairs: Vec<_> = recording
+        .messages
+        .iter()
+        .filter(|m| m.channel == raw.id)
+        .collect();
+    assert_eq!(pairs.len(), images.len());
+    let codec = rex_agent::record::StereoPng;
+    for m in &pairs {
+        let (_, encoded) = WireHeader::read(&m.data).unwrap();
+        assert_eq!(encoded[0], 1, "the PNG form");
+    }
+    let (_, encoded) = WireHeader::read(&pairs[0].data).unwrap();
+    let mut body = Vec::new();
+    embodied::record::Codec::decode(&codec, encoded, &mut body).unwrap();
+    let pair: StereoPair = postcard::from_bytes(&body).unwrap();
+    assert_eq!(pair.left, left);
+    assert_eq!(pair.right.len(), left.len());
+    // A replay not given the codec refuses, naming it.
+    let (system, _) = build(&vo).unwrap();
+    let err = replay_file(&path, system, "r11", ReplayOptions::default()).unwrap_err();
+    assert!(
+        err.to_string().contains("codec `rex.stereo-png/1`"),
+        "{err}"
     );
     every_subsystem_replays_equivalent(&vo, &path, end);
     // The whole mission without visual odometry: every plan, every switch.
@@ -351,10 +389,7 @@ fn every_subsystem_of_a_real_time_run_replays_equivalent() {
     // first, late wake-ups, overruns; the recording says it, the replay feeds it.
     let vo = config(true);
     let path = tmp("replay_rt.mcap");
-    let options = RecordOptions {
-        derived: rex_agent::record::derived(),
-        ..RecordOptions::default()
-    };
+    let options = rex_agent::record::options();
     let (_, report, summary) = rex_agent::run::run_mission_realtime_recorded(
         &vo,
         Duration::from_secs(4),

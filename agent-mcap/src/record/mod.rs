@@ -48,6 +48,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel, sync_channel};
 use std::thread::JoinHandle;
 
@@ -56,6 +57,7 @@ use agent_core::trace::{
 };
 use agent_core::{ExecError, Stamp, Step, System, Time, WireHeader};
 
+use crate::codec::{CODEC_KEY, Codec};
 use crate::json::json_schema;
 
 mod batch;
@@ -119,6 +121,21 @@ pub trait Derive: Send {
     /// postcard bytes; `time`: the sender's instant), written into `out`
     /// (empty); `false`: no message for this value.
     fn message(&mut self, link: usize, time: Time, body: &[u8], out: &mut Vec<u8>) -> bool;
+    /// As [`Derive::message`], for a link recorded through a [`Codec`]: also
+    /// given the codec's encoding of the value (`encoded`), which the message
+    /// may reuse (an image the codec compressed already). By default,
+    /// [`Derive::message`].
+    fn message_encoded(
+        &mut self,
+        link: usize,
+        time: Time,
+        body: &[u8],
+        encoded: &[u8],
+        out: &mut Vec<u8>,
+    ) -> bool {
+        let _ = encoded;
+        self.message(link, time, body, out)
+    }
 }
 
 /// A channel a [`Derive`] adds.
@@ -152,6 +169,9 @@ pub struct RecordOptions {
     pub json_max_bytes: usize,
     /// Derived channels.
     pub derived: Vec<Box<dyn Derive>>,
+    /// Codecs for the raw channels of some payload types ([`Codec`]): each
+    /// link whose payload a codec names is recorded in its encoding.
+    pub codecs: Vec<Arc<dyn Codec>>,
     /// Run the writer thread in the background: at the lowest priority the
     /// system has (`SCHED_IDLE` on Linux), so that it takes only the CPU the
     /// run leaves and never delays a node, a worker or an offloaded
@@ -169,6 +189,10 @@ impl std::fmt::Debug for RecordOptions {
             .field("metadata", &self.metadata.keys().collect::<Vec<_>>())
             .field("json_max_bytes", &self.json_max_bytes)
             .field("derived", &self.derived.len())
+            .field(
+                "codecs",
+                &self.codecs.iter().map(|c| c.name()).collect::<Vec<_>>(),
+            )
             .field("background", &self.background)
             .finish()
     }
@@ -181,6 +205,7 @@ impl Default for RecordOptions {
             metadata: BTreeMap::new(),
             json_max_bytes: 16 * 1024,
             derived: Vec::new(),
+            codecs: Vec::new(),
             background: true,
         }
     }
@@ -487,6 +512,8 @@ struct LinkChannels {
     sequence: u32,
     /// Derived channels: (the derive, its channel).
     derived: Vec<(usize, u16)>,
+    /// The codec of the raw channel.
+    codec: Option<Arc<dyn Codec>>,
 }
 
 impl McapRecorder {
@@ -543,15 +570,24 @@ impl McapRecorder {
             };
             let json = w.add_channel(schema, &topic, "json", &none).map_err(fail)?;
             let fingerprint = system.payload_fingerprint(k).unwrap_or(0);
-            let raw_meta = BTreeMap::from([
+            let read_meta = BTreeMap::from([
                 ("link".to_owned(), link.name.clone()),
                 ("fingerprint".to_owned(), format!("{fingerprint:016x}")),
             ]);
+            let codec = options
+                .codecs
+                .iter()
+                .find(|c| c.payload() == link.payload)
+                .cloned();
+            let mut raw_meta = read_meta.clone();
+            if let Some(c) = &codec {
+                raw_meta.insert(CODEC_KEY.to_owned(), c.name().to_owned());
+            }
             let raw = w
                 .add_channel(0, &format!("/raw{topic}"), WIRE_ENCODING, &raw_meta)
                 .map_err(fail)?;
             let reads = w
-                .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &raw_meta)
+                .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &read_meta)
                 .map_err(fail)?;
             let mut derived = Vec::new();
             for (d, derive) in options.derived.iter_mut().enumerate() {
@@ -574,6 +610,7 @@ impl McapRecorder {
                 shape: shape.and_then(|s| serde_json::to_string(&(s.root, s.registry)).ok()),
                 sequence: 0,
                 derived,
+                codec,
             });
         }
         let fsm_schema = w
@@ -619,6 +656,7 @@ impl McapRecorder {
             derived: options.derived,
             json_max_bytes: options.json_max_bytes,
             scratch: Vec::new(),
+            encoded: Vec::new(),
             summary: RecordSummary {
                 channels,
                 ..RecordSummary::default()

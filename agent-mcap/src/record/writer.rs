@@ -27,6 +27,9 @@ pub(super) struct Output {
     pub(super) derived: Vec<Box<dyn Derive>>,
     pub(super) json_max_bytes: usize,
     pub(super) scratch: Vec<u8>,
+    /// A raw message through its link's codec: the wire header, then the
+    /// codec's encoding.
+    pub(super) encoded: Vec<u8>,
     pub(super) summary: RecordSummary,
 }
 
@@ -168,24 +171,25 @@ impl Output {
         let sequence = l.sequence;
         l.sequence = l.sequence.wrapping_add(1);
         let (json, raw) = (l.json, l.raw);
-        self.write(raw, sequence, time, bytes)?;
         let body = bytes.get(HEADER_LEN..).unwrap_or_default();
-        for k in 0..self.links[link as usize].derived.len() {
-            let (d, channel) = self.links[link as usize].derived[k];
-            let mut out = std::mem::take(&mut self.scratch);
-            out.clear();
-            let made = self
-                .derived
-                .get_mut(d)
-                .is_some_and(|derive| derive.message(link as usize, time, body, &mut out));
-            let written = if made {
-                self.write(channel, sequence, time, &out)
-            } else {
-                Ok(())
-            };
-            self.scratch = out;
-            written?;
-        }
+        // Through the codec: the header as it is, the body encoded.
+        let mut encoded = std::mem::take(&mut self.encoded);
+        encoded.clear();
+        let coded = match &l.codec {
+            Some(codec) if bytes.len() >= HEADER_LEN => {
+                encoded.extend_from_slice(&bytes[..HEADER_LEN]);
+                codec.encode(body, &mut encoded);
+                true
+            }
+            _ => false,
+        };
+        let written = self.write(raw, sequence, time, if coded { &encoded } else { bytes });
+        let written = written.and_then(|()| {
+            let encoded = coded.then(|| &encoded[HEADER_LEN..]);
+            self.derive(link, sequence, time, body, encoded)
+        });
+        self.encoded = encoded;
+        written?;
         if body.len() > self.json_max_bytes {
             self.summary.raw_only += 1;
             return Ok(());
@@ -206,6 +210,34 @@ impl Output {
         };
         self.scratch = text;
         written
+    }
+
+    /// The derived channels' messages for one value of `link`.
+    fn derive(
+        &mut self,
+        link: u32,
+        sequence: u32,
+        time: Time,
+        body: &[u8],
+        encoded: Option<&[u8]>,
+    ) -> Result<(), RecordError> {
+        for k in 0..self.links[link as usize].derived.len() {
+            let (d, channel) = self.links[link as usize].derived[k];
+            let mut out = std::mem::take(&mut self.scratch);
+            out.clear();
+            let made = self.derived.get_mut(d).is_some_and(|derive| match encoded {
+                Some(e) => derive.message_encoded(link as usize, time, body, e, &mut out),
+                None => derive.message(link as usize, time, body, &mut out),
+            });
+            let written = if made {
+                self.write(channel, sequence, time, &out)
+            } else {
+                Ok(())
+            };
+            self.scratch = out;
+            written?;
+        }
+        Ok(())
     }
 
     fn transition(

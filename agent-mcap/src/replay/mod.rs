@@ -25,6 +25,7 @@ mod compare;
 mod verdict;
 
 use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
 
 use agent_core::trace::{ErasedPayload, Observer, TransferEvent, TransitionEvent};
 use agent_core::{
@@ -32,6 +33,7 @@ use agent_core::{
 };
 use serde_json::Value;
 
+use crate::codec::{CODEC_KEY, Codec};
 use crate::read::Recording;
 use crate::record::{READ_ENCODING, WIRE_ENCODING, decode_read};
 use compare::Compare;
@@ -57,6 +59,18 @@ pub enum ReplayError {
     Unrecorded {
         /// The link.
         link: String,
+    },
+    /// A link was recorded through a codec this replay was not given.
+    #[error(
+        "`{link}` was recorded through the codec `{codec}`, which this replay was not given (ReplayOptions::codecs; given: {given})"
+    )]
+    Codec {
+        /// The link.
+        link: String,
+        /// The codec its raw channel names.
+        codec: String,
+        /// The codecs the replay was given.
+        given: String,
     },
     /// A link's payload type changed since the recording.
     #[error(
@@ -96,16 +110,35 @@ pub enum ReplayError {
 }
 
 /// How a replay runs.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone)]
 pub struct ReplayOptions {
     /// The executor's settings (its error policy should be the recorded run's).
     pub exec: ExecConfig,
+    /// The codecs the recording was made with ([`RecordOptions::codecs`]):
+    /// each link recorded through one is decoded with the codec of the name
+    /// its raw channel gives.
+    ///
+    /// [`RecordOptions::codecs`]: crate::RecordOptions::codecs
+    pub codecs: Vec<Arc<dyn Codec>>,
+}
+
+impl std::fmt::Debug for ReplayOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReplayOptions")
+            .field("exec", &self.exec)
+            .field(
+                "codecs",
+                &self.codecs.iter().map(|c| c.name()).collect::<Vec<_>>(),
+            )
+            .finish()
+    }
 }
 
 impl Default for ReplayOptions {
     fn default() -> Self {
         ReplayOptions {
             exec: ExecConfig::continue_on_error(),
+            codecs: Vec::new(),
         }
     }
 }
@@ -251,6 +284,7 @@ pub fn replay(
     let by_link = by_encoding(WIRE_ENCODING);
     let reads_by_link = by_encoding(READ_ENCODING);
     let mut channel_link: BTreeMap<u16, usize> = BTreeMap::new();
+    let mut codecs: BTreeMap<u16, Arc<dyn Codec>> = BTreeMap::new();
     let mut read_channel_link: BTreeMap<u16, usize> = BTreeMap::new();
     let mut shapes: BTreeMap<usize, Option<TypeShape>> = BTreeMap::new();
     for (k, link) in info.links.iter().enumerate() {
@@ -273,6 +307,23 @@ pub fn replay(
                 built,
                 recorded,
             });
+        }
+        if let Some(name) = c.metadata.get(CODEC_KEY) {
+            let codec = options
+                .codecs
+                .iter()
+                .find(|codec| codec.name() == name)
+                .ok_or_else(|| ReplayError::Codec {
+                    link: link.name.clone(),
+                    codec: name.clone(),
+                    given: options
+                        .codecs
+                        .iter()
+                        .map(|c| format!("`{}`", c.name()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                })?;
+            codecs.insert(c.id, codec.clone());
         }
         channel_link.insert(c.id, k);
         if input && let Some(r) = reads_by_link.get(link.name.as_str()) {
@@ -319,9 +370,24 @@ pub fn replay(
             offset: m.offset,
             message: e.to_string(),
         })?;
+        let body = match codecs.get(&m.channel) {
+            Some(codec) => {
+                let mut decoded = Vec::new();
+                codec
+                    .decode(body, &mut decoded)
+                    .map_err(|e| ReplayError::BadValue {
+                        link: info.links[k].name.clone(),
+                        sequence: m.sequence,
+                        offset: m.offset,
+                        message: format!("codec `{}`: {e}", codec.name()),
+                    })?;
+                decoded
+            }
+            None => body.to_vec(),
+        };
         let r = Recorded {
             stamp: header.stamp,
-            body: body.to_vec(),
+            body,
             sequence: m.sequence,
             offset: m.offset,
         };

@@ -9,7 +9,7 @@ use crate::{Cli, emit, overrides};
 
 /// `rex replay FILE.mcap --subsystem NAME`.
 pub(crate) fn replay(cli: &Cli, file: &Path, subsystem: &str) -> ExitCode {
-    use embodied::replay::{Recording, ReplayOptions, replay_file};
+    use embodied::replay::{Recording, replay_file};
     // The metadata first (no message kept): the settings to build Rex from.
     let head = match Recording::open_filtered(file, |_| false) {
         Ok(r) => r,
@@ -69,7 +69,12 @@ pub(crate) fn replay(cli: &Cli, file: &Path, subsystem: &str) -> ExitCode {
         }
     };
     let start = std::time::Instant::now();
-    let result = replay_file(file, system, subsystem, ReplayOptions { exec });
+    let result = replay_file(
+        file,
+        system,
+        subsystem,
+        rex_agent::record::replay_options(exec),
+    );
     let ms = start.elapsed().as_secs_f64() * 1e3;
     match result {
         Ok(r) => {
