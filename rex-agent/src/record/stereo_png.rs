@@ -56,7 +56,10 @@ fn split(body: &[u8]) -> Option<Parts<'_>> {
         whole.len() - after.len() == varint_len(image.len()) + image.len()
     };
     let n = (head.2 as usize).checked_mul(head.3 as usize)?;
+    // Only what `decode` takes back: a side beyond MAX_PNG_SIDE goes verbatim.
     (end.is_empty()
+        && head.2 <= MAX_PNG_SIDE
+        && head.3 <= MAX_PNG_SIDE
         && canonical(rest, after_left, left)
         && canonical(after_left, end, right)
         && n > 0
@@ -245,6 +248,11 @@ mod tests {
         // An empty pair too.
         let body = postcard::to_allocvec(&StereoPair::default()).unwrap();
         assert_eq!(round_trip(&body).1, body);
+        // A side longer than a PNG may have here: verbatim, so it comes back.
+        let body = postcard::to_allocvec(&pair(MAX_PNG_SIDE + 1, 1, 2)).unwrap();
+        let (encoded, decoded) = round_trip(&body);
+        assert_eq!(encoded[0], VERBATIM);
+        assert_eq!(decoded, body);
     }
 
     #[test]
