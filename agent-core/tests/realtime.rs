@@ -206,11 +206,17 @@ struct Seen {
 struct PerThread {
     seen: Seen,
     out: std::sync::Arc<std::sync::Mutex<Vec<Seen>>>,
+    /// Hold the thread this long after its first action (once), so that its
+    /// next instants run late.
+    stall: Duration,
 }
 
 impl Observer for PerThread {
     fn action(&mut self, e: &ActionEvent) {
         self.seen.actions.push(e.node);
+        if !self.stall.is_zero() {
+            std::thread::sleep(std::mem::take(&mut self.stall));
+        }
     }
     fn transfer(&mut self, e: &TransferEvent, _value: &dyn ErasedPayload) {
         self.seen.transfers.push(*e);
@@ -244,6 +250,7 @@ fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
                 ..Seen::default()
             },
             out: given.clone(),
+            stall: Duration::ZERO,
         })
     });
     let f = rt
@@ -297,5 +304,54 @@ fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
     }
     for w in read.windows(2) {
         assert!(w[1].stamp.iteration > w[0].stamp.iteration, "{w:?}");
+    }
+}
+
+#[test]
+fn a_thread_running_late_never_reads_a_value_stamped_after_its_instant() {
+    // e (every 3 ms) stalls 12 ms after its first action; its instants 3, 6, 9
+    // and 12 then run at once, when c (every 1 ms) has already sent values
+    // stamped up to about 12 ms. Each activation takes only what was sent at or
+    // before its own instant.
+    for policy in [Policy::Sample, Policy::queue(64)] {
+        let p = pair(1, 3, 1, policy, false);
+        let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut rt = RealTime::new(p.system, RtConfig::default());
+        let given = out.clone();
+        rt.observe(move |thread, nodes| {
+            Box::new(PerThread {
+                seen: Seen {
+                    thread: thread.to_owned(),
+                    nodes: nodes.to_vec(),
+                    ..Seen::default()
+                },
+                out: given.clone(),
+                stall: if thread == "e" {
+                    Duration::from_millis(12)
+                } else {
+                    Duration::ZERO
+                },
+            })
+        });
+        let f = rt.start(Duration::from_millis(60)).unwrap().join().unwrap();
+        assert_eq!(f.activations(p.e.id()), Some(20), "{policy:?}");
+        let seen = std::mem::take(&mut *out.lock().unwrap());
+        let e = seen.iter().find(|s| s.thread == "e").unwrap();
+        let down = p.down.index();
+        let read: Vec<&ReadEvent> = e.reads.iter().filter(|r| r.link == down).collect();
+        assert!(read.len() >= 5, "{policy:?}: {read:?}");
+        for r in &read {
+            assert!(r.time >= r.stamp.time, "{policy:?}: {r:?}");
+        }
+        for w in read.windows(2) {
+            assert!(w[1].stamp.iteration > w[0].stamp.iteration, "{w:?}");
+        }
+        let s = f.link_stats(p.down).unwrap();
+        assert_eq!(s.delivered, read.len() as u64, "{policy:?}");
+        if policy == Policy::Sample {
+            // Each value was read, overwritten (in the link or while held), or
+            // is the last one waiting.
+            assert!(s.sent <= s.delivered + s.overwritten + 1, "{s:?}");
+        }
     }
 }

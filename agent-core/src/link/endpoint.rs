@@ -24,7 +24,7 @@ use std::sync::Arc;
 use crate::buffer::{In, Payload};
 use crate::error::{LinkError, RemoteProblem};
 use crate::kinds::Policy;
-use crate::time::Stamp;
+use crate::time::{Stamp, Time};
 
 use super::Cause;
 use super::LinkStats;
@@ -160,7 +160,7 @@ impl<T: Payload> Receiver<T> {
     /// The next value if one arrived since the last call (sample: the latest;
     /// queue: the oldest waiting), or a problem of a link between processes.
     pub fn recv(&mut self) -> Result<Option<&T>, LinkError> {
-        match self.rx.take_into(&mut self.buffer) {
+        match self.rx.take_into(&mut self.buffer, Time::NEVER) {
             Ok(()) => Ok(self.buffer.fresh()),
             Err((key, problem)) => Err(remote_error(&self.name, &key, problem)),
         }

@@ -476,12 +476,26 @@ impl Inbox {
         );
     }
 
-    /// The reader's side: the next value (decoded into `x`) or the next problem.
-    pub(crate) fn take_into<T: Payload>(&self, x: &mut In<T>) -> Result<(), RemoteProblem> {
+    /// The reader's side for an activation of instant `now`: the next value
+    /// stamped at or before `now` (decoded into `x`; a later one waits, as on a
+    /// link between threads) or the next problem.
+    pub(crate) fn take_into<T: Payload>(
+        &self,
+        x: &mut In<T>,
+        now: Time,
+    ) -> Result<(), RemoteProblem> {
         let mut state = self.lock();
         if let Some(p) = state.problems.pop_front() {
             x.age();
             return Err(p);
+        }
+        if state
+            .values
+            .front()
+            .is_none_or(|(stamp, _)| stamp.time > now)
+        {
+            x.age();
+            return Ok(());
         }
         let Some((stamp, body)) = state.values.pop_front() else {
             x.age();
@@ -560,11 +574,11 @@ mod tests {
         }
         let mut x = In::default();
         for i in 1..=3u16 {
-            inbox.take_into(&mut x).unwrap();
+            inbox.take_into(&mut x, Time::NEVER).unwrap();
             assert_eq!(x.fresh(), Some(&vec![i; i as usize]));
             assert_eq!(x.stamp(), Some(stamp(u64::from(i))));
         }
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert!(!x.is_new());
         assert_eq!(stats.snapshot().delivered, 3);
     }
@@ -577,9 +591,27 @@ mod tests {
             tx.put(&(i as f64), stamp(i)).unwrap();
         }
         let mut x = In::default();
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!(x.fresh(), Some(&5.0));
         assert_eq!(stats.snapshot().overwritten, 4);
+    }
+
+    #[test]
+    fn a_value_stamped_after_the_reading_instant_waits_for_it() {
+        // stamp(i) is at 10·i ns.
+        let (inbox, stats) = inbox::<u32>(Policy::queue(4));
+        let mut tx = sender::<u32>(&inbox, 7);
+        for i in 1..=2u32 {
+            tx.put(&i, stamp(u64::from(i))).unwrap();
+        }
+        let mut x = In::<u32>::default();
+        let mut got = Vec::new();
+        for now in [0, 9, 10, 15, 25] {
+            inbox.take_into(&mut x, Time::from_nanos(now)).unwrap();
+            got.push(x.fresh().copied());
+        }
+        assert_eq!(got, [None, None, Some(1), None, Some(2)]);
+        assert_eq!(stats.snapshot().delivered, 2);
     }
 
     #[test]
@@ -592,17 +624,17 @@ mod tests {
         tx.put(&4, stamp(4)).unwrap(); // the queue holds two
         let mut x = In::default();
         assert_eq!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Gap {
                 expected: 2,
                 got: 3
             })
         );
         assert_eq!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Overflow { bound: 2 })
         );
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!(x.fresh(), Some(&1));
 
         let mut foreign = sender::<(u32, u32)>(&inbox, 8);
@@ -610,10 +642,10 @@ mod tests {
         assert_eq!(inbox.problem_count(), 3, "gap, overflow, foreign type");
         // Problems come first, then the value 3 still waiting.
         assert!(matches!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Fingerprint { .. })
         ));
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!(x.fresh(), Some(&3));
     }
 
@@ -625,24 +657,24 @@ mod tests {
         tx.put(&5, stamp(5)).unwrap();
         let mut x = In::default();
         assert_eq!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Gap {
                 expected: 1,
                 got: 5
             })
         );
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!(x.fresh(), Some(&5));
         tx.header.seq = 4; // the same message again
         tx.put(&5, stamp(5)).unwrap();
         assert_eq!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Duplicate {
                 expected: 6,
                 got: 5
             })
         );
-        inbox.take_into(&mut x).unwrap();
+        inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert!(!x.is_new(), "the repeat was not delivered");
     }
 
@@ -663,7 +695,7 @@ mod tests {
                 tx.put(&5, stamp(5)).unwrap();
             }
             let mut x = In::default();
-            let first = inbox.take_into(&mut x);
+            let first = inbox.take_into(&mut x, Time::NEVER);
             if late {
                 assert_eq!(first, Ok(()), "late={late} before_start={before_start}");
                 assert_eq!(x.fresh(), Some(&5));
@@ -682,7 +714,7 @@ mod tests {
             tx.put(&7, stamp(7)).unwrap();
             let mut problems = 0;
             for _ in 0..4 {
-                if let Err(p) = inbox.take_into(&mut x) {
+                if let Err(p) = inbox.take_into(&mut x, Time::NEVER) {
                     assert_eq!(
                         p,
                         RemoteProblem::Gap {
@@ -706,7 +738,7 @@ mod tests {
         assert_eq!(inbox.problem_count(), 1000);
         let mut x = In::<u32>::default();
         let reported = (0..1000)
-            .take_while(|_| inbox.take_into(&mut x).is_err())
+            .take_while(|_| inbox.take_into(&mut x, Time::NEVER).is_err())
             .count();
         assert_eq!(
             reported, MAX_PROBLEMS,
@@ -724,7 +756,7 @@ mod tests {
         again.put(&3, stamp(1)).unwrap();
         let mut x = In::default();
         for v in 1..=3 {
-            inbox.take_into(&mut x).unwrap();
+            inbox.take_into(&mut x, Time::NEVER).unwrap();
             assert_eq!(x.fresh(), Some(&v));
         }
         assert_eq!(inbox.restarts(), 1);
@@ -737,7 +769,7 @@ mod tests {
         for m in [&[][..], &[1, 2, 3][..], &[9; 50][..]] {
             inbox.deliver(m);
             assert!(matches!(
-                inbox.take_into(&mut x),
+                inbox.take_into(&mut x, Time::NEVER),
                 Err(RemoteProblem::Decode(_))
             ));
         }
@@ -755,7 +787,7 @@ mod tests {
         m.push(0xff);
         inbox.deliver(&m);
         assert!(matches!(
-            inbox.take_into(&mut x),
+            inbox.take_into(&mut x, Time::NEVER),
             Err(RemoteProblem::Decode(_))
         ));
     }

@@ -11,6 +11,14 @@
 //! Values move: the writer's storage goes into the link, and the reader's previous
 //! storage goes back into the triple buffer, so `Vec`-like payloads recycle their
 //! storage and `Copy` payloads never allocate after the link is made.
+//!
+//! Reads are causal: an activation of instant `t` takes only a value stamped at
+//! or before `t`. A thread that runs late (woken after its instant, or catching
+//! up after an overrun) may find a value its sender stamped after the instant it
+//! is running; that value stays in the link (sample: held, and replaced if a newer
+//! one arrives, which counts as overwritten; queue: at the front of the ring) until
+//! an activation whose instant reaches its stamp. A node therefore never sees a
+//! value from its own future, as in the deterministic executor.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -64,7 +72,9 @@ pub(crate) enum ThreadTx<T: Send> {
 
 /// The receiving half of a link between threads.
 pub(crate) enum ThreadRx<T: Send> {
-    Sample(triple_buffer::Output<Slot<T>>, Arc<SharedStats>),
+    /// The flag: the output buffer holds a value taken from the triple buffer
+    /// and not yet delivered (stamped after the instant that took it).
+    Sample(triple_buffer::Output<Slot<T>>, Arc<SharedStats>, bool),
     Queue(rtrb::Consumer<(T, Stamp)>, Arc<SharedStats>),
     /// From another process.
     Remote(RemoteRx),
@@ -81,7 +91,7 @@ pub(crate) fn channel<T: Payload>(policy: Policy) -> (ThreadTx<T>, ThreadRx<T>, 
             });
             (
                 ThreadTx::Sample(tx, stats.clone()),
-                ThreadRx::Sample(rx, stats.clone()),
+                ThreadRx::Sample(rx, stats.clone(), false),
                 stats,
             )
         }
@@ -151,32 +161,45 @@ impl<T: Payload> ThreadTx<T> {
 }
 
 impl<T: Payload> ThreadRx<T> {
-    /// Take what the link holds; a link from another process may report a
-    /// problem instead (key, problem).
+    /// Take what the link holds for an activation of instant `now` (only a value
+    /// stamped at or before it; [`Time::NEVER`] takes anything); a link from
+    /// another process may report a problem instead (key, problem).
     #[inline]
     pub(crate) fn take_into(
         &mut self,
         x: &mut In<T>,
+        now: Time,
     ) -> Result<(), (Arc<str>, crate::error::RemoteProblem)> {
         match self {
-            ThreadRx::Sample(rx, stats) => {
-                if rx.update() {
-                    let slot = rx.output_buffer_mut();
+            ThreadRx::Sample(rx, stats, held) => {
+                // A value held for a later instant and replaced by a newer one
+                // before any activation could take it was overwritten.
+                if rx.update() && std::mem::replace(held, true) {
+                    stats.overwritten.fetch_add(1, Ordering::Relaxed);
+                }
+                let slot = rx.output_buffer_mut();
+                if *held && slot.stamp.time <= now {
+                    *held = false;
                     x.swap_in(&mut slot.value, slot.stamp);
                     stats.delivered.fetch_add(1, Ordering::Relaxed);
                 } else {
                     x.age();
                 }
             }
-            ThreadRx::Queue(rx, stats) => match rx.pop() {
-                Ok((v, stamp)) => {
-                    x.swap_in(&mut Some(v), stamp);
-                    stats.delivered.fetch_add(1, Ordering::Relaxed);
+            ThreadRx::Queue(rx, stats) => match rx.peek() {
+                Ok((_, stamp)) if stamp.time <= now => {
+                    if let Ok((v, stamp)) = rx.pop() {
+                        x.swap_in(&mut Some(v), stamp);
+                        stats.delivered.fetch_add(1, Ordering::Relaxed);
+                    }
                 }
-                Err(_) => x.age(),
+                _ => x.age(),
             },
             ThreadRx::Remote(rx) => {
-                return rx.inbox.take_into(x).map_err(|p| (rx.inbox.key_arc(), p));
+                return rx
+                    .inbox
+                    .take_into(x, now)
+                    .map_err(|p| (rx.inbox.key_arc(), p));
             }
         }
         Ok(())
@@ -229,7 +252,7 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for ThreadIn<I, T, A
     #[inline]
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
         let x = self.port.get(x);
-        let taken = self.rx.take_into(x);
+        let taken = self.rx.take_into(x, cx.time);
         observe_read(x, self.link, cx);
         taken.map_err(|(key, problem)| LinkError::Remote {
             link: cx
@@ -259,13 +282,13 @@ mod tests {
     fn sample_between_threads_keeps_the_latest_and_counts_overwrites() {
         let (mut tx, mut rx, stats) = channel::<u32>(Policy::Sample);
         let mut x = In::default();
-        rx.take_into(&mut x).unwrap();
+        rx.take_into(&mut x, Time::NEVER).unwrap();
         assert!(!x.is_new() && !x.has_data());
         tx.put(&mut Some(1), true, stamp(1)).unwrap();
         tx.put(&mut Some(2), true, stamp(2)).unwrap();
-        rx.take_into(&mut x).unwrap();
+        rx.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!((x.fresh(), x.stamp()), (Some(&2), Some(stamp(2))));
-        rx.take_into(&mut x).unwrap();
+        rx.take_into(&mut x, Time::NEVER).unwrap();
         assert!(!x.is_new());
         assert_eq!(x.get(), Some(&2));
         let s = stats.snapshot();
@@ -280,16 +303,69 @@ mod tests {
         assert_eq!(tx.put(&mut Some(3), true, stamp(3)), Err(Cause::Full(2)));
         let mut x = In::default();
         for expect in [Some(1), Some(2)] {
-            rx.take_into(&mut x).unwrap();
+            rx.take_into(&mut x, Time::NEVER).unwrap();
             assert_eq!(x.fresh().copied(), expect);
         }
-        rx.take_into(&mut x).unwrap();
+        rx.take_into(&mut x, Time::NEVER).unwrap();
         assert!(!x.is_new());
         let s = stats.snapshot();
         assert_eq!(
             (s.sent, s.delivered, s.overflowed, s.max_pending),
             (2, 2, 1, 2)
         );
+    }
+
+    #[test]
+    fn a_late_activation_never_takes_a_value_from_its_future() {
+        let at = Time::from_nanos;
+        // Sample: the value stamped 5 waits for the activation of instant 5; one
+        // replaced while it waits counts as overwritten.
+        let (mut tx, mut rx, stats) = channel::<u32>(Policy::Sample);
+        let mut x = In::default();
+        tx.put(&mut Some(5), true, stamp(5)).unwrap();
+        rx.take_into(&mut x, at(3)).unwrap();
+        assert!(!x.is_new() && !x.has_data());
+        rx.take_into(&mut x, at(4)).unwrap();
+        assert!(!x.is_new());
+        rx.take_into(&mut x, at(5)).unwrap();
+        assert_eq!((x.fresh(), x.stamp()), (Some(&5), Some(stamp(5))));
+        tx.put(&mut Some(8), true, stamp(8)).unwrap();
+        rx.take_into(&mut x, at(6)).unwrap();
+        tx.put(&mut Some(9), true, stamp(9)).unwrap();
+        rx.take_into(&mut x, at(7)).unwrap();
+        assert!(!x.is_new());
+        assert_eq!(x.get(), Some(&5));
+        rx.take_into(&mut x, at(9)).unwrap();
+        assert_eq!(x.fresh(), Some(&9));
+        let s = stats.snapshot();
+        assert_eq!((s.sent, s.delivered, s.overwritten), (3, 2, 1));
+        // Queue: the front waits, and what is behind it waits in order.
+        let (mut tx, mut rx, stats) = channel::<u32>(Policy::queue(4));
+        for i in [2, 6, 7] {
+            tx.put(&mut Some(i), true, stamp(u64::from(i))).unwrap();
+        }
+        let mut got = Vec::new();
+        for now in 0..10 {
+            rx.take_into(&mut x, at(now)).unwrap();
+            got.push(x.fresh().copied());
+        }
+        let none = None;
+        assert_eq!(
+            got,
+            [
+                none,
+                none,
+                Some(2),
+                none,
+                none,
+                none,
+                Some(6),
+                Some(7),
+                none,
+                none
+            ]
+        );
+        assert_eq!(stats.snapshot().delivered, 3);
     }
 
     #[test]
@@ -309,7 +385,7 @@ mod tests {
         let mut x = In::default();
         let mut expect = 0;
         while expect < N {
-            rx.take_into(&mut x).unwrap();
+            rx.take_into(&mut x, Time::NEVER).unwrap();
             if let Some(v) = x.fresh() {
                 assert_eq!(*v, expect);
                 expect += 1;

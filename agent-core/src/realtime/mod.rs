@@ -27,7 +27,11 @@
 //! wait-free triple buffer (latest value; values overwritten before they were
 //! read are counted), a queue link a wait-free bounded ring allocated once (a value
 //! refused by a full ring is an error, as in-process). Values move rather than
-//! copy, so `Copy` payloads never allocate after the start.
+//! copy, so `Copy` payloads never allocate after the start. Reads are causal:
+//! an activation of instant `t` takes only values stamped at or before `t`, so a
+//! thread running late (catching up after an overrun) never sees a value its
+//! sender stamped after the instant it is running; such a value waits in the
+//! link for the activation whose instant reaches it.
 //!
 //! # Watching a run
 //!
