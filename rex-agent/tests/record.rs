@@ -22,13 +22,19 @@ use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;
 use rex_agent::world::WorldConfig;
 
-#[test]
-fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values() {
+/// The shipped figure-eight without the camera: the recording tests' mission.
+fn figure_eight() -> RexConfig {
     let mut config = RexConfig::new(
         WorldConfig::shipped().unwrap(),
         Mission::shipped("figure_eight").unwrap(),
     );
     config.visual_odometry = false;
+    config
+}
+
+#[test]
+fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values() {
+    let config = figure_eight();
     let (system, _) = build(&config).unwrap();
     let links = system.info().links.len();
     let nodes = system.info().nodes.len();
@@ -116,11 +122,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
 
 #[test]
 fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("figure_eight").unwrap(),
-    );
-    config.visual_odometry = false;
+    let config = figure_eight();
     let (system, _) = build(&config).unwrap();
     let err = McapRecorder::create(
         std::path::Path::new("/nonexistent-folder/run.mcap"),
@@ -138,11 +140,7 @@ fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
 /// checks the default, `SCHED_IDLE` as the OS reports it).
 #[test]
 fn the_writer_thread_runs_at_normal_priority_when_asked() {
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("figure_eight").unwrap(),
-    );
-    config.visual_odometry = false;
+    let config = figure_eight();
     let (system, _) = build(&config).unwrap();
     let options = RecordOptions {
         background: false,
