@@ -13,15 +13,8 @@ use agent_core::TypeShape;
 use agent_core::serde_reflection::{ContainerFormat, Format, Named, VariantFormat};
 use serde_json::{Map, Value, json};
 
-/// Why bytes did not decode as the shape says.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("byte {offset}: {what}")]
-pub struct DecodeError {
-    /// Where in the bytes.
-    pub offset: usize,
-    /// What was expected or found.
-    pub what: String,
-}
+pub use crate::postcard::DecodeError;
+use crate::postcard::{Cursor, MAX_DEPTH};
 
 /// The value encoded (postcard) in `bytes`, as JSON, read with `shape`. All
 /// the bytes must be used.
@@ -41,25 +34,17 @@ pub fn to_json(shape: &TypeShape, bytes: &[u8]) -> Result<Value, DecodeError> {
 pub fn write_json(shape: &TypeShape, bytes: &[u8], out: &mut Vec<u8>) -> Result<(), DecodeError> {
     let mut r = Reader {
         shape,
-        bytes,
-        at: 0,
+        c: Cursor::new(bytes),
         depth: 0,
         out,
     };
     r.value(&shape.root)?;
-    if r.at != bytes.len() {
-        return Err(r.fail(format!("{} bytes left over", bytes.len() - r.at)));
-    }
-    Ok(())
+    r.c.end()
 }
-
-/// Deeper nesting than this is refused (a recursive type fed hostile bytes).
-const MAX_DEPTH: usize = 128;
 
 struct Reader<'a> {
     shape: &'a TypeShape,
-    bytes: &'a [u8],
-    at: usize,
+    c: Cursor<'a>,
     depth: usize,
     out: &'a mut Vec<u8>,
 }
@@ -71,71 +56,10 @@ fn emit<T: serde::Serialize + ?Sized>(out: &mut Vec<u8>, v: &T) {
 }
 
 impl Reader<'_> {
-    fn fail(&self, what: String) -> DecodeError {
-        DecodeError {
-            offset: self.at,
-            what,
-        }
-    }
-
-    fn take(&mut self, n: usize) -> Result<&[u8], DecodeError> {
-        let end = self
-            .at
-            .checked_add(n)
-            .filter(|e| *e <= self.bytes.len())
-            .ok_or_else(|| self.fail(format!("{n} more bytes expected, the value ends")))?;
-        let s = &self.bytes[self.at..end];
-        self.at = end;
-        Ok(s)
-    }
-
-    fn byte(&mut self) -> Result<u8, DecodeError> {
-        Ok(self.take(1)?[0])
-    }
-
-    /// An unsigned LEB128 varint of at most `bits` bits.
-    fn varint(&mut self, bits: u32) -> Result<u128, DecodeError> {
-        let start = self.at;
-        let mut v: u128 = 0;
-        let mut shift = 0u32;
-        loop {
-            let b = self.byte()?;
-            if shift >= bits || (shift > 0 && u128::from(b & 0x7f) >> (bits - shift) != 0) {
-                self.at = start;
-                return Err(self.fail(format!("a varint longer than {bits} bits")));
-            }
-            v |= u128::from(b & 0x7f) << shift;
-            if b & 0x80 == 0 {
-                return Ok(v);
-            }
-            shift += 7;
-        }
-    }
-
-    fn signed(&mut self, bits: u32) -> Result<i128, DecodeError> {
-        let z = self.varint(bits)?;
-        // Zigzag.
-        Ok(((z >> 1) as i128) ^ -((z & 1) as i128))
-    }
-
-    fn len(&mut self) -> Result<usize, DecodeError> {
-        let n = self.varint(64)?;
-        let n = usize::try_from(n).map_err(|_| self.fail(format!("a length of {n}")))?;
-        // Every element takes a byte at least (except units): a longer length
-        // than the bytes left is a corrupt one, not an allocation to make.
-        if n > self.bytes.len() - self.at && n > 0 {
-            return Err(self.fail(format!(
-                "a length of {n} with {} bytes left",
-                self.bytes.len() - self.at
-            )));
-        }
-        Ok(n)
-    }
-
     fn value(&mut self, f: &Format) -> Result<(), DecodeError> {
         self.depth += 1;
         if self.depth > MAX_DEPTH {
-            return Err(self.fail(format!("nested deeper than {MAX_DEPTH}")));
+            return Err(self.c.fail(format!("nested deeper than {MAX_DEPTH}")));
         }
         let v = self.inner(f);
         self.depth -= 1;
@@ -158,20 +82,20 @@ impl Reader<'_> {
     fn inner(&mut self, f: &Format) -> Result<(), DecodeError> {
         match f {
             Format::Unit => self.out.extend_from_slice(b"null"),
-            Format::Bool => match self.byte()? {
+            Format::Bool => match self.c.byte()? {
                 0 => self.out.extend_from_slice(b"false"),
                 1 => self.out.extend_from_slice(b"true"),
                 b => {
-                    self.at -= 1;
-                    return Err(self.fail(format!("a bool byte of {b}")));
+                    self.c.at -= 1;
+                    return Err(self.c.fail(format!("a bool byte of {b}")));
                 }
             },
             Format::U8 => {
-                let v = self.byte()?;
+                let v = self.c.byte()?;
                 emit(self.out, &v);
             }
             Format::I8 => {
-                let v = self.byte()? as i8;
+                let v = self.c.byte()? as i8;
                 emit(self.out, &v);
             }
             Format::U16 | Format::U32 | Format::U64 | Format::U128 => {
@@ -181,7 +105,7 @@ impl Reader<'_> {
                     Format::U64 => 64,
                     _ => 128,
                 };
-                let v = self.varint(bits)?;
+                let v = self.c.varint(bits)?;
                 // Beyond 64 bits a JSON number is not exact: a string.
                 match u64::try_from(v) {
                     Ok(v) => emit(self.out, &v),
@@ -195,32 +119,26 @@ impl Reader<'_> {
                     Format::I64 => 64,
                     _ => 128,
                 };
-                let v = self.signed(bits)?;
+                let v = self.c.signed(bits)?;
                 match i64::try_from(v) {
                     Ok(v) => emit(self.out, &v),
                     Err(_) => emit(self.out, &v.to_string()),
                 }
             }
             Format::F32 => {
-                let b: [u8; 4] = self
-                    .take(4)?
-                    .try_into()
-                    .map_err(|_| self.fail("f32".into()))?;
+                let b = self.c.array::<4>()?;
                 // As `serde_json` writes an f32 widened to f64 (non-finite: null).
                 emit(self.out, &f64::from(f32::from_le_bytes(b)));
             }
             Format::F64 => {
-                let b: [u8; 8] = self
-                    .take(8)?
-                    .try_into()
-                    .map_err(|_| self.fail("f64".into()))?;
+                let b = self.c.array::<8>()?;
                 emit(self.out, &f64::from_le_bytes(b));
             }
             Format::Char | Format::Str => {
-                let n = self.len()?;
-                let at = self.at;
-                self.take(n)?;
-                let bytes: &[u8] = self.bytes;
+                let n = self.c.len()?;
+                let at = self.c.at;
+                self.c.take(n)?;
+                let bytes: &[u8] = self.c.bytes;
                 let s = std::str::from_utf8(&bytes[at..at + n]).map_err(|e| DecodeError {
                     offset: at,
                     what: format!("a string that is not UTF-8: {e}"),
@@ -228,33 +146,33 @@ impl Reader<'_> {
                 emit(self.out, s);
             }
             Format::Bytes => {
-                let n = self.len()?;
-                let at = self.at;
-                self.take(n)?;
+                let n = self.c.len()?;
+                let at = self.c.at;
+                self.c.take(n)?;
                 self.out.push(b'[');
                 for k in 0..n {
                     if k > 0 {
                         self.out.push(b',');
                     }
-                    let b = self.bytes[at + k];
+                    let b = self.c.bytes[at + k];
                     emit(self.out, &b);
                 }
                 self.out.push(b']');
             }
-            Format::Option(inner) => match self.byte()? {
+            Format::Option(inner) => match self.c.byte()? {
                 0 => self.out.extend_from_slice(b"null"),
                 1 => self.value(inner)?,
                 b => {
-                    self.at -= 1;
-                    return Err(self.fail(format!("an option tag of {b}")));
+                    self.c.at -= 1;
+                    return Err(self.c.fail(format!("an option tag of {b}")));
                 }
             },
             Format::Seq(inner) => {
-                let n = self.len()?;
+                let n = self.c.len()?;
                 self.array(std::iter::repeat_n(&**inner, n))?;
             }
             Format::Map { key, value } => {
-                let n = self.len()?;
+                let n = self.c.len()?;
                 self.out.push(b'{');
                 for k in 0..n {
                     if k > 0 {
@@ -283,11 +201,11 @@ impl Reader<'_> {
                 let c = shape
                     .registry
                     .get(name)
-                    .ok_or_else(|| self.fail(format!("type `{name}` is not in the shape")))?;
+                    .ok_or_else(|| self.c.fail(format!("type `{name}` is not in the shape")))?;
                 self.container(c)?;
             }
             Format::Variable(_) => {
-                return Err(self.fail("a format left unknown by the tracer".into()));
+                return Err(self.c.fail("a format left unknown by the tracer".into()));
             }
         }
         Ok(())
@@ -300,8 +218,8 @@ impl Reader<'_> {
             ContainerFormat::TupleStruct(fs) => self.array(fs.iter())?,
             ContainerFormat::Struct(fields) => self.fields(fields)?,
             ContainerFormat::Enum(variants) => {
-                let at = self.at;
-                let k = self.varint(32)?;
+                let at = self.c.at;
+                let k = self.c.varint(32)?;
                 let Some(v) = u32::try_from(k).ok().and_then(|k| variants.get(&k)) else {
                     return Err(DecodeError {
                         offset: at,
@@ -321,7 +239,7 @@ impl Reader<'_> {
                     VariantFormat::Struct(fields) => self.fields(fields)?,
                     VariantFormat::Unit => {}
                     VariantFormat::Variable(_) => {
-                        return Err(self.fail("a variant left unknown by the tracer".into()));
+                        return Err(self.c.fail("a variant left unknown by the tracer".into()));
                     }
                 }
                 self.out.push(b'}');
@@ -462,4 +380,4 @@ fn object<'a>(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -17,9 +17,11 @@
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
 //!   and behaviour switches compared bit for bit with the recording.
 
+pub mod cdr;
 pub mod codec;
 pub mod json;
 pub mod merge;
+mod postcard;
 pub mod read;
 pub mod record;
 pub mod replay;

@@ -48,7 +48,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     let mut exec = Executor::with_observer(system, config.exec, recorder);
     exec.run_for(Duration::from_secs(6)).unwrap();
     let summary = exec.into_observer().finish().unwrap();
-    // Per link: JSON, raw, reads; per node: its switches; the errors.
+    // Per link: its value, raw, reads; per node: its switches; the errors.
     assert_eq!(summary.channels, 3 * links + nodes + 1);
     assert_eq!(summary.undecodable, 0);
     assert!(summary.messages > 10_000, "{summary:?}");
@@ -61,7 +61,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     let mut switches = Vec::new();
     let mut estimates = (0, 0);
     let mut raw_q = Vec::new();
-    let mut json_q = Vec::new();
+    let mut cdr_q = Vec::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
@@ -69,6 +69,12 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
         if topic.starts_with("/reads/") {
             assert_eq!(m.channel.message_encoding, "embodied-read/1", "{topic}");
             assert_eq!(m.data.len(), 16, "{topic}");
+        } else if topic.starts_with("/links/") {
+            // Every Rex payload has a ROS 2 message: CDR, as Foxglove reads.
+            assert_eq!(m.channel.message_encoding, "cdr", "{topic}");
+            let schema = m.channel.schema.as_ref().expect(topic);
+            assert_eq!(schema.encoding, "ros2msg", "{topic}");
+            assert!(schema.name.starts_with("embodied/msg/"), "{topic}");
         } else if !topic.starts_with("/raw/") {
             assert_eq!(m.channel.message_encoding, "json", "{topic}");
             let schema = m.channel.schema.as_ref().expect(topic);
@@ -80,7 +86,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
         }
         if topic == "/links/e11/c1/q_est/to/c1" {
             estimates.0 += 1;
-            json_q.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
+            cdr_q.push(m.data.to_vec());
         }
         if topic == "/raw/links/e11/c1/q_est/to/c1" {
             estimates.1 += 1;
@@ -93,9 +99,15 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     assert!(per_topic.len() > links, "{per_topic:?}");
     assert_eq!(estimates.0, estimates.1);
     assert!(estimates.0 > 100, "{estimates:?}");
-    // The JSON of each value is the value; the raw bytes are exact.
-    for (j, q) in json_q.iter().zip(&raw_q) {
-        assert_eq!(j, &serde_json::to_value(q).unwrap());
+    // Each value's CDR is its fields as ROS 2 lays them out (`float64[7] q`,
+    // `float64[7] q_dot`: the header, then 14 little-endian doubles); the raw
+    // bytes are exact.
+    for (c, q) in cdr_q.iter().zip(&raw_q) {
+        let mut expected = vec![0, 1, 0, 0];
+        for x in q.q.iter().chain(&q.q_dot) {
+            expected.extend(x.to_le_bytes());
+        }
+        assert_eq!(c, &expected);
     }
     // c1 took the first plan: B1 -> B2 by `plan_valid`, with `plan_new` true.
     let first = &switches[0];
@@ -161,6 +173,7 @@ const PY_READER: &str = r#"
 import json, sys
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
 with open(sys.argv[1], "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     summary = reader.get_summary()
@@ -168,6 +181,8 @@ with open(sys.argv[1], "rb") as f:
     topics = set()
     schemas = set()
     images = 0
+    cdr = 0
+    codecs = {}
     for schema, channel, message in reader.iter_messages():
         n += 1
         topics.add(channel.topic)
@@ -177,6 +192,20 @@ with open(sys.argv[1], "rb") as f:
             json.loads(message.data)
             assert schema is not None and schema.encoding == "jsonschema", channel.topic
             json.loads(schema.data)
+        if schema is not None and schema.name.startswith("embodied/msg/"):
+            # A buffer's value in CDR: decoded by mcap_ros2 against the ros2msg
+            # schema the recorder made, and encoded again to the same bytes.
+            assert schema.encoding == "ros2msg" and channel.message_encoding == "cdr"
+            if schema.id not in codecs:
+                text = schema.data.decode()
+                codecs[schema.id] = (
+                    generate_dynamic(schema.name, text)[schema.name],
+                    serialize_dynamic(schema.name, text)[schema.name],
+                )
+            decode, encode = codecs[schema.id]
+            again = bytes(encode(decode(message.data)))
+            assert again == bytes(message.data), (channel.topic, message.data, again)
+            cdr += 1
     # The camera's images, in ROS 2's schema: decoded by mcap_ros2.
     for schema, channel, message, image in reader.iter_decoded_messages(topics=["/camera/left"]):
         assert schema.name == "sensor_msgs/msg/CompressedImage" and channel.message_encoding == "cdr"
@@ -185,7 +214,7 @@ with open(sys.argv[1], "rb") as f:
         assert image.header.stamp.sec * 10**9 + image.header.stamp.nanosec == message.log_time
         images += 1
     meta = sorted(m.name for m in reader.iter_metadata())
-    print(f"images={images} messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
+    print(f"images={images} cdr={cdr} messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
 "#;
 
 #[test]
@@ -252,6 +281,14 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     };
     assert_eq!(figure("messages"), summary.messages, "{text}");
     assert_eq!(figure("channels") as usize, summary.channels, "{text}");
+    // Every buffer value in CDR went through mcap_ros2 and back.
+    let bytes = std::fs::read(&path).unwrap();
+    let values = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .filter(|m| m.as_ref().unwrap().channel.topic.starts_with("/links/"))
+        .count() as u64;
+    assert!(values > 9_000, "{values}");
+    assert_eq!(figure("cdr"), values, "{text}");
     assert!(text.contains("metadata=end,system"), "{text}");
     // Every image the camera took (from 0 s, every 0.1 s).
     assert!(figure("images") >= 30, "{text}");

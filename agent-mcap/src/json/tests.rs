@@ -18,13 +18,13 @@ fn big_signed(v: i128) -> Value {
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct Unit;
+pub(crate) struct Unit;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct Meters(f64);
+pub(crate) struct Meters(f64);
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-enum Kind {
+pub(crate) enum Kind {
     Idle,
     Wait(i16),
     Pair(u8, u8),
@@ -32,7 +32,7 @@ enum Kind {
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct Inner {
+pub(crate) struct Inner {
     flag: bool,
     kind: Kind,
     unit: Unit,
@@ -40,7 +40,7 @@ struct Inner {
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct Everything {
+pub(crate) struct Everything {
     a: u8,
     b: i8,
     c: u16,
@@ -61,7 +61,7 @@ struct Everything {
     r: i128,
 }
 
-fn kind() -> impl Strategy<Value = Kind> {
+pub(crate) fn kind() -> impl Strategy<Value = Kind> {
     prop_oneof![
         Just(Kind::Idle),
         any::<i16>().prop_map(Kind::Wait),
@@ -70,7 +70,7 @@ fn kind() -> impl Strategy<Value = Kind> {
     ]
 }
 
-fn everything() -> impl Strategy<Value = Everything> {
+pub(crate) fn everything() -> impl Strategy<Value = Everything> {
     let inner = || {
         (any::<bool>(), kind(), any::<f64>()).prop_map(|(flag, kind, l)| Inner {
             flag,
@@ -127,7 +127,7 @@ fn everything() -> impl Strategy<Value = Everything> {
         )
 }
 
-fn shape() -> TypeShape {
+pub(crate) fn shape() -> TypeShape {
     agent_core::reflect::<Everything>().expect("traceable")
 }
 

@@ -1,0 +1,223 @@
+//! The CDR written off postcard bytes is aligned and laid out as the schema
+//! says; hostile bytes give errors, never panics; what ROS 2 messages cannot
+//! express is refused when the schema is made. (An independent decoder, the
+//! `mcap_ros2` Python package, reads and re-encodes every message of a Rex
+//! recording byte for byte: `rex-agent/tests/record.rs`.)
+
+use proptest::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::*;
+use crate::json::tests::{Kind, everything, kind, shape};
+
+fn cdr<T: Serialize>(shape: &TypeShape, v: &T) -> Vec<u8> {
+    let bytes = postcard::to_allocvec(v).unwrap();
+    let mut out = Vec::new();
+    write_cdr(shape, &bytes, &mut out).unwrap();
+    out
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Mixed {
+    a: u8,
+    b: f64,
+    c: u16,
+    d: String,
+    e: Option<u32>,
+    f: Vec<i16>,
+    g: bool,
+    h: i64,
+}
+
+#[test]
+fn fields_are_aligned_to_their_size_from_after_the_header() {
+    let shape = agent_core::reflect::<Mixed>().unwrap();
+    let v = Mixed {
+        a: 7,
+        b: 1.5,
+        c: 0x0102,
+        d: "hi".into(),
+        e: Some(9),
+        f: vec![-1, 2],
+        g: true,
+        h: -2,
+    };
+    let mut expected = vec![0, 1, 0, 0]; // CDR_LE
+    expected.push(7); // a at 0
+    expected.extend([0; 7]); // b aligned to 8
+    expected.extend(1.5f64.to_le_bytes()); // 8..16
+    expected.extend(0x0102u16.to_le_bytes()); // c at 16
+    expected.extend([0; 2]); // length aligned to 4
+    expected.extend(3u32.to_le_bytes()); // "hi" + NUL at 20
+    expected.extend(b"hi\0"); // 24..27
+    expected.push(0); // count aligned to 4
+    expected.extend(1u32.to_le_bytes()); // e: one element at 28
+    expected.extend(9u32.to_le_bytes()); // 32
+    expected.extend(2u32.to_le_bytes()); // f: two at 36
+    expected.extend((-1i16).to_le_bytes()); // 40
+    expected.extend(2i16.to_le_bytes()); // 42
+    expected.push(1); // g at 44
+    expected.extend([0; 3]); // h aligned to 8
+    expected.extend((-2i64).to_le_bytes()); // 48..56
+    assert_eq!(cdr(&shape, &v), expected);
+    let schema = ros2msg_schema(&shape, "Mixed").unwrap();
+    assert_eq!(schema.name, "embodied/msg/Mixed");
+    assert_eq!(
+        schema.text,
+        "uint8 a\nfloat64 b\nuint16 c\nstring d\nuint32[<=1] e\nint16[] f\nbool g\nint64 h\n"
+    );
+}
+
+#[test]
+fn an_enum_is_its_variant_and_one_optional_field_per_variant_with_data() {
+    let shape = agent_core::reflect::<Kind>().unwrap();
+    let schema = ros2msg_schema(&shape, "Kind").unwrap();
+    assert_eq!(schema.name, "embodied/msg/Kind");
+    let sep = "=".repeat(80);
+    assert_eq!(
+        schema.text,
+        format!(
+            "uint32 IDLE=0\nuint32 WAIT=1\nuint32 PAIR=2\nuint32 DRIVE=3\n\
+             uint32 variant\nint16[<=1] wait\nembodied/KindPair[<=1] pair\n\
+             embodied/KindDrive[<=1] drive\n\
+             {sep}\nMSG: embodied/KindPair\nuint8 item0\nuint8 item1\n\
+             {sep}\nMSG: embodied/KindDrive\nfloat64 speed\nstring note\n"
+        )
+    );
+    let none = 0u32.to_le_bytes();
+    let one = 1u32.to_le_bytes();
+    let mut idle = vec![0, 1, 0, 0];
+    idle.extend(0u32.to_le_bytes());
+    idle.extend(none.repeat(3));
+    assert_eq!(cdr(&shape, &Kind::Idle), idle);
+    let mut pair = vec![0, 1, 0, 0];
+    pair.extend(2u32.to_le_bytes());
+    pair.extend(none); // wait
+    pair.extend(one);
+    pair.extend([4, 5]); // pair's two bytes
+    pair.extend([0, 0]);
+    pair.extend(none); // drive
+    assert_eq!(cdr(&shape, &Kind::Pair(4, 5)), pair);
+}
+
+#[test]
+fn everything_has_a_schema_and_nested_arrays_are_wrapped() {
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    struct Nested {
+        grid: Vec<Vec<f64>>,
+        maybe: Option<[u8; 2]>,
+    }
+    let nested = agent_core::reflect::<Nested>().unwrap();
+    let schema = ros2msg_schema(&nested, "Nested").unwrap();
+    let sep = "=".repeat(80);
+    assert_eq!(
+        schema.text,
+        format!(
+            "embodied/Item[] grid\nembodied/Item2[<=1] maybe\n\
+             {sep}\nMSG: embodied/Item\nfloat64[] value\n\
+             {sep}\nMSG: embodied/Item2\nuint8[2] value\n"
+        )
+    );
+    // A wrapped element is encoded as its one field.
+    let v = Nested {
+        grid: vec![vec![1.0], vec![]],
+        maybe: Some([3, 4]),
+    };
+    let mut expected = vec![0, 1, 0, 0];
+    expected.extend(2u32.to_le_bytes());
+    expected.extend(1u32.to_le_bytes());
+    expected.extend(1.0f64.to_le_bytes());
+    expected.extend(0u32.to_le_bytes());
+    expected.extend(1u32.to_le_bytes());
+    expected.extend([3, 4]);
+    assert_eq!(cdr(&nested, &v), expected);
+    // The whole test type: every format has a message.
+    let schema = ros2msg_schema(&shape(), "Everything").unwrap();
+    assert_eq!(schema.name, "embodied/msg/Everything");
+    for line in [
+        "uint8[16] q",
+        "uint32 i",
+        "embodied/Entry[] o",
+        "embodied/Tuple n",
+    ] {
+        assert!(schema.text.contains(line), "{line}: {}", schema.text);
+    }
+}
+
+#[test]
+fn what_a_ros_2_message_cannot_express_is_refused() {
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    struct Tree {
+        children: Vec<Tree>,
+    }
+    let e = ros2msg_schema(&agent_core::reflect::<Tree>().unwrap(), "Tree").unwrap_err();
+    assert!(e.0.contains("contains itself"), "{e}");
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    #[allow(non_snake_case, reason = "the case under test")]
+    struct Shouting {
+        Speed: f64,
+    }
+    let e = ros2msg_schema(&agent_core::reflect::<Shouting>().unwrap(), "S").unwrap_err();
+    assert!(e.0.contains("`Speed`"), "{e}");
+}
+
+#[test]
+fn a_primitive_or_a_sequence_is_the_field_of_a_message() {
+    let shape = agent_core::reflect::<Vec<f32>>().unwrap();
+    let schema = ros2msg_schema(&shape, "Samples").unwrap();
+    assert_eq!(schema.name, "embodied/msg/Samples");
+    assert_eq!(schema.text, "float32[] value\n");
+    let mut expected = vec![0, 1, 0, 0];
+    expected.extend(1u32.to_le_bytes());
+    expected.extend(0.5f32.to_le_bytes());
+    assert_eq!(cdr(&shape, &vec![0.5f32]), expected);
+}
+
+proptest! {
+    #[test]
+    fn every_value_encodes_and_its_length_follows_from_its_content(v in everything()) {
+        let out = cdr(&shape(), &v);
+        // At least the fixed-size fields' bytes, aligned: a lower bound that
+        // a dropped field would break.
+        prop_assert!(out.len() >= 4 + 1 + 1 + 2 + 4 + 8 + 8 + 4 + 8 + 4 + 16 + 16);
+        prop_assert_eq!(&out[..4], &[0, 1, 0, 0]);
+    }
+
+    #[test]
+    fn an_enum_value_names_its_variant(k in kind()) {
+        let out = cdr(&agent_core::reflect::<Kind>().unwrap(), &k);
+        let variant = u32::from_le_bytes([out[4], out[5], out[6], out[7]]);
+        let expected = match k {
+            Kind::Idle => 0,
+            Kind::Wait(_) => 1,
+            Kind::Pair(..) => 2,
+            Kind::Drive { .. } => 3,
+        };
+        prop_assert_eq!(variant, expected);
+    }
+
+    #[test]
+    fn hostile_bytes_give_an_error_never_a_panic(bytes in prop::collection::vec(any::<u8>(), 0..200)) {
+        let _ = write_cdr(&shape(), &bytes, &mut Vec::new());
+    }
+
+    #[test]
+    fn a_cut_or_padded_value_is_an_error(v in everything(), cut in 1usize..8) {
+        let bytes = postcard::to_allocvec(&v).unwrap();
+        let short = &bytes[..bytes.len().saturating_sub(cut)];
+        prop_assert!(write_cdr(&shape(), short, &mut Vec::new()).is_err());
+        let mut long = bytes.clone();
+        long.push(0);
+        let e = write_cdr(&shape(), &long, &mut Vec::new()).unwrap_err();
+        prop_assert_eq!(e.offset, bytes.len());
+    }
+}
+
+#[test]
+fn names_are_made_valid_for_ros_2() {
+    assert_eq!(message_name("rex_agent::a1::State"), "RexAgentA1State");
+    assert_eq!(message_name("f64"), "F64");
+    assert_eq!(snake("NoEstimate"), "no_estimate");
+    assert_eq!(constant_name("NoEstimate"), "NO_ESTIMATE");
+    assert!(field_name_ok("q_est") && !field_name_ok("q__est") && !field_name_ok("q_"));
+}
