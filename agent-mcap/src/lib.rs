@@ -6,6 +6,9 @@
 //!   of, read from the postcard bytes the executors' observers produce
 //!   ([`agent_core::trace::ErasedPayload::encode`]) without the Rust type, so a
 //!   writer thread does it off the executor's thread;
+//! * [`cdr`]: the same values as ROS 2 CDR with a `ros2msg` schema made from
+//!   the type, the recorder's default (no field names, no number formatting
+//!   per value; Foxglove and every ROS 2 tool decode it);
 //! * [`record`]: [`McapRecorder`], the observer that writes a run to MCAP, and
 //!   [`Derive`], channels derived from buffers (Foxglove's images and poses);
 //! * [`codec`]: [`Codec`], a lossless encoding of one payload type's values on
