@@ -34,7 +34,9 @@ pub use codec::Codec;
 pub use mcap;
 pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};
-pub use record::{Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary};
+pub use record::{
+    Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary, Values,
+};
 pub use replay::{
     Difference, Divergence, ReplayError, ReplayOptions, Replayed, replay, replay_file,
 };

@@ -148,6 +148,50 @@ fn a_recording_to_a_place_that_cannot_be_written_is_a_clear_error() {
     );
 }
 
+/// Asked for JSON, the values are JSON with their JSON schema, each the value
+/// itself (CDR is the default, tested above).
+#[test]
+fn values_recorded_as_json_are_the_values_themselves() {
+    let config = figure_eight();
+    let (system, _) = build(&config).unwrap();
+    let options = RecordOptions {
+        values: embodied::record::Values::Json,
+        ..RecordOptions::default()
+    };
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("rex_json.mcap");
+    let recorder = McapRecorder::create(&path, &system, options).unwrap();
+    let mut exec = Executor::with_observer(system, config.exec, recorder);
+    exec.run_for(Duration::from_secs(2)).unwrap();
+    let summary = exec.into_observer().finish().unwrap();
+    assert_eq!(summary.undecodable, 0);
+    let bytes = std::fs::read(&path).unwrap();
+    let (mut json_q, mut raw_q) = (Vec::new(), Vec::new());
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let topic = m.channel.topic.as_str();
+        if topic.starts_with("/links/") {
+            assert_eq!(m.channel.message_encoding, "json", "{topic}");
+            let schema = m.channel.schema.as_ref().expect(topic);
+            assert_eq!(schema.encoding, "jsonschema", "{topic}");
+        }
+        if topic == "/links/e11/c1/q_est/to/c1" {
+            json_q.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
+        }
+        if topic == "/raw/links/e11/c1/q_est/to/c1" {
+            let (_, body) = embodied::WireHeader::read(&m.data).unwrap();
+            raw_q.push(postcard::from_bytes::<State>(body).unwrap());
+        }
+    }
+    assert!(
+        json_q.len() > 10 && json_q.len() == raw_q.len(),
+        "{}",
+        json_q.len()
+    );
+    for (j, q) in json_q.iter().zip(&raw_q) {
+        assert_eq!(j, &serde_json::to_value(q).unwrap());
+    }
+}
+
 /// Asked not to, the writer thread stays at normal priority (the first test
 /// checks the default, `SCHED_IDLE` as the OS reports it).
 #[test]
