@@ -320,6 +320,13 @@ impl<'a> Gen<'a> {
     }
 }
 
+/// The name of a payload type's root message when the type is not a named
+/// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`).
+pub(crate) fn root_name(payload: &str) -> &str {
+    let head = payload.split('<').next().unwrap_or(payload);
+    head.rsplit("::").next().unwrap_or(head)
+}
+
 /// A ROS 2 message name (`^[A-Z][A-Za-z0-9]*$`) from a Rust type name.
 fn message_name(name: &str) -> String {
     let mut out: String = name
@@ -533,11 +540,7 @@ impl Writer<'_, '_> {
                 }
             }
             Format::TypeName(name) => {
-                let shape = self.shape;
-                let c = shape
-                    .registry
-                    .get(name)
-                    .ok_or_else(|| self.c.fail(format!("type `{name}` is not in the shape")))?;
+                let c = self.c.container(self.shape, name)?;
                 self.container(c)?;
             }
             Format::Variable(_) => {

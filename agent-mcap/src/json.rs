@@ -197,11 +197,7 @@ impl Reader<'_> {
                 self.array(std::iter::repeat_n(&**content, *size))?;
             }
             Format::TypeName(name) => {
-                let shape = self.shape;
-                let c = shape
-                    .registry
-                    .get(name)
-                    .ok_or_else(|| self.c.fail(format!("type `{name}` is not in the shape")))?;
+                let c = self.c.container(self.shape, name)?;
                 self.container(c)?;
             }
             Format::Variable(_) => {

@@ -4,6 +4,9 @@
 //!
 //! [`TypeShape`]: agent_core::TypeShape
 
+use agent_core::TypeShape;
+use agent_core::serde_reflection::ContainerFormat;
+
 /// Why bytes did not decode as the shape says.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("byte {offset}: {what}")]
@@ -26,6 +29,18 @@ pub(crate) struct Cursor<'a> {
 impl<'a> Cursor<'a> {
     pub(crate) fn new(bytes: &'a [u8]) -> Self {
         Cursor { bytes, at: 0 }
+    }
+
+    /// The container `name` stands for in `shape`.
+    pub(crate) fn container<'s>(
+        &self,
+        shape: &'s TypeShape,
+        name: &str,
+    ) -> Result<&'s ContainerFormat, DecodeError> {
+        shape
+            .registry
+            .get(name)
+            .ok_or_else(|| self.fail(format!("type `{name}` is not in the shape")))
     }
 
     /// Every byte was read.

@@ -62,7 +62,7 @@ use agent_core::trace::{
 };
 use agent_core::{ExecError, Stamp, Step, System, Time, WireHeader};
 
-use crate::cdr::ros2msg_schema;
+use crate::cdr::{root_name, ros2msg_schema};
 use crate::codec::{CODEC_KEY, Codec};
 use crate::json::json_schema;
 
@@ -794,11 +794,4 @@ impl Observer for McapRecorder {
 
 fn small(i: usize) -> u32 {
     u32::try_from(i).unwrap_or(u32::MAX)
-}
-
-/// The name of a payload type's root message when the type is not a named
-/// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`).
-fn root_name(payload: &str) -> &str {
-    let head = payload.split('<').next().unwrap_or(payload);
-    head.rsplit("::").next().unwrap_or(head)
 }
