@@ -526,5 +526,8 @@ pub(crate) struct RemoteRx {
     pub(crate) inbox: Arc<Inbox>,
 }
 
+// Beside this file, not in a folder of its own: agent-core's module-graph
+// test reads one folder level per top-level module.
 #[cfg(test)]
+#[path = "remote_tests.rs"]
 mod tests;
