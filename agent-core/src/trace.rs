@@ -20,7 +20,8 @@ use crate::time::{Period, Stamp, Time};
 pub trait ErasedPayload {
     /// The value for `{:?}`.
     fn as_debug(&self) -> &dyn fmt::Debug;
-    /// Append the value's canonical binary encoding (postcard) to `out`.
+    /// Append the value's canonical binary encoding (postcard) to `out`; on
+    /// an error `out` is left as it was.
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), EncodeError>;
 }
 
@@ -34,14 +35,38 @@ impl<T: Payload> ErasedPayload for T {
         self
     }
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), EncodeError> {
-        let buf = std::mem::take(out);
-        match postcard::to_extend(self, buf) {
-            Ok(buf) => {
-                *out = buf;
-                Ok(())
+        let start = out.len();
+        match postcard::serialize_with_flavor(self, AppendTo(out)) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                out.truncate(start);
+                Err(EncodeError(e.to_string()))
             }
-            Err(e) => Err(EncodeError(e.to_string())),
         }
+    }
+}
+
+/// Postcard's output appended to a borrowed buffer, which a failed encoding
+/// gives back as it was (an owned `ExtendFlavor` would be lost with the error).
+struct AppendTo<'a>(&'a mut Vec<u8>);
+
+impl postcard::ser_flavors::Flavor for AppendTo<'_> {
+    type Output = ();
+
+    #[inline]
+    fn try_push(&mut self, byte: u8) -> postcard::Result<()> {
+        self.0.push(byte);
+        Ok(())
+    }
+
+    #[inline]
+    fn try_extend(&mut self, bytes: &[u8]) -> postcard::Result<()> {
+        self.0.extend_from_slice(bytes);
+        Ok(())
+    }
+
+    fn finalize(self) -> postcard::Result<()> {
+        Ok(())
     }
 }
 
@@ -513,5 +538,39 @@ impl Observer for Recorder {
             time,
             message: error.to_string(),
         });
+    }
+}
+
+#[cfg(test)]
+mod encode_tests {
+    use super::ErasedPayload;
+    use serde::{Deserialize, Serialize};
+
+    /// Serialises its first field, then fails (as a map of unknown length
+    /// does under postcard).
+    #[derive(Clone, Debug, Deserialize)]
+    struct FailsHalfway(u32);
+
+    impl Serialize for FailsHalfway {
+        fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            use serde::ser::{Error, SerializeTuple};
+            let mut t = s.serialize_tuple(2)?;
+            t.serialize_element(&self.0)?;
+            Err(S::Error::custom("no second field"))
+        }
+    }
+
+    #[test]
+    fn encoding_appends_and_a_failure_leaves_the_buffer_as_it_was() {
+        let mut out = vec![7, 8];
+        (300u16, true).encode(&mut out).expect("encodes");
+        assert_eq!(out, [7, 8, 0xac, 0x02, 1], "appended after what was there");
+        let err = FailsHalfway(5).encode(&mut out).expect_err("fails");
+        assert!(err.to_string().contains("cannot encode"), "{err}");
+        assert_eq!(
+            out,
+            [7, 8, 0xac, 0x02, 1],
+            "nothing of the failed value stays"
+        );
     }
 }

@@ -62,6 +62,8 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     let mut estimates = (0, 0);
     let mut raw_q = Vec::new();
     let mut cdr_q = Vec::new();
+    let mut raw_counts = BTreeMap::new();
+    let mut raw_iterations = Vec::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
@@ -88,12 +90,31 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
             estimates.0 += 1;
             cdr_q.push(m.data.to_vec());
         }
+        if topic.starts_with("/raw/") {
+            // The wire header a link between processes would carry: the
+            // type's fingerprint (as the channel says), the link's count from
+            // 1, and the sender's stamp (its instant the log time).
+            let (header, _) = embodied::WireHeader::read(&m.data).unwrap();
+            let fingerprint = &m.channel.metadata["fingerprint"];
+            assert_eq!(&format!("{:016x}", header.fingerprint), fingerprint);
+            let count = raw_counts.entry(m.channel.id).or_insert(0u64);
+            *count += 1;
+            assert_eq!((header.seq, header.epoch), (*count, 0), "{topic}");
+            assert_eq!(u64::from(m.sequence) + 1, header.seq, "{topic}");
+            assert_eq!(header.stamp.time.as_nanos(), m.log_time, "{topic}");
+        }
         if topic == "/raw/links/e11/c1/q_est/to/c1" {
             estimates.1 += 1;
-            let (_, body) = embodied::WireHeader::read(&m.data).unwrap();
+            let (header, body) = embodied::WireHeader::read(&m.data).unwrap();
             raw_q.push(postcard::from_bytes::<State>(body).unwrap());
+            raw_iterations.push(header.stamp.iteration);
         }
     }
+    // The stamps carry e11's iterations, one value per iteration at most.
+    assert!(
+        raw_iterations.windows(2).all(|w| w[1] > w[0]),
+        "{raw_iterations:?}"
+    );
     // Every link's two channels carried something in 6 s, but the camera's
     // (no visual odometry here) and those that wait for events.
     assert!(per_topic.len() > links, "{per_topic:?}");

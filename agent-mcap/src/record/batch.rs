@@ -4,8 +4,10 @@
 //! per batch instead of per value).
 //!
 //! An entry: a tag byte, the link (`u32`), the instant (`u64` ns), then for a
-//! transfer the length (`u64`) and the value's wire bytes, for a read the
-//! stamp read (iteration, instant: `u64`s); little-endian.
+//! transfer the sender's iteration (`u64`), the length (`u64`) and the
+//! value's postcard bytes (encoded in place: the wire header a raw message
+//! carries is the writer's to make), for a read the stamp read (iteration,
+//! instant: `u64`s); little-endian.
 
 use agent_core::{Stamp, Time};
 
@@ -18,22 +20,38 @@ const READ: u8 = 1;
 /// One event of a batch.
 #[derive(Debug, PartialEq, Eq)]
 pub(super) enum Entry<'a> {
-    /// A value sent on `link` at `time` (the sender's instant): its wire bytes.
+    /// A value sent on `link` with `stamp` (the sender's): its postcard bytes.
     Transfer {
         link: u32,
-        time: Time,
-        bytes: &'a [u8],
+        stamp: Stamp,
+        body: &'a [u8],
     },
     /// A value of `link` taken at `time` (the receiver's instant).
     Read { link: u32, time: Time, stamp: Stamp },
 }
 
-pub(super) fn push_transfer(out: &mut Vec<u8>, link: u32, time: Time, bytes: &[u8]) {
+/// Append a transfer whose bytes `encode` appends to `out`; if it fails,
+/// `out` is cut back to where it was and the error returned.
+pub(super) fn push_transfer<E>(
+    out: &mut Vec<u8>,
+    link: u32,
+    stamp: Stamp,
+    encode: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
+) -> Result<(), E> {
+    let start = out.len();
     out.push(TRANSFER);
     out.extend_from_slice(&link.to_le_bytes());
-    out.extend_from_slice(&time.as_nanos().to_le_bytes());
-    out.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
-    out.extend_from_slice(bytes);
+    out.extend_from_slice(&stamp.time.as_nanos().to_le_bytes());
+    out.extend_from_slice(&stamp.iteration.to_le_bytes());
+    let len_at = out.len();
+    out.extend_from_slice(&0u64.to_le_bytes());
+    if let Err(e) = encode(out) {
+        out.truncate(start);
+        return Err(e);
+    }
+    let len = (out.len() - len_at - 8) as u64;
+    out[len_at..len_at + 8].copy_from_slice(&len.to_le_bytes());
+    Ok(())
 }
 
 pub(super) fn push_read(out: &mut Vec<u8>, link: u32, time: Time, stamp: Stamp) {
@@ -55,9 +73,11 @@ pub(super) fn entries(batch: &[u8]) -> impl Iterator<Item = Entry<'_>> {
         let time = Time::from_nanos(u64_at(r, 4)?);
         let (entry, used) = match tag {
             TRANSFER => {
-                let len = usize::try_from(u64_at(r, 12)?).ok()?;
-                let bytes = r.get(20..20usize.checked_add(len)?)?;
-                (Entry::Transfer { link, time, bytes }, 20 + len)
+                let iteration = u64_at(r, 12)?;
+                let len = usize::try_from(u64_at(r, 20)?).ok()?;
+                let body = r.get(28..28usize.checked_add(len)?)?;
+                let stamp = Stamp::new(iteration, time);
+                (Entry::Transfer { link, stamp, body }, 28 + len)
             }
             READ => {
                 let stamp = Stamp::new(u64_at(r, 12)?, Time::from_nanos(u64_at(r, 20)?));
@@ -78,35 +98,38 @@ fn u64_at(b: &[u8], at: usize) -> Option<u64> {
 mod tests {
     use super::*;
 
+    fn bytes(b: &'static [u8]) -> impl FnOnce(&mut Vec<u8>) -> Result<(), ()> {
+        move |out| {
+            out.extend_from_slice(b);
+            Ok(())
+        }
+    }
+
     #[test]
     fn entries_come_back_in_order_and_a_cut_batch_ends_at_the_cut() {
         let mut b = Vec::new();
-        push_transfer(&mut b, 3, Time::from_nanos(10), b"abc");
-        push_read(
-            &mut b,
-            4,
-            Time::from_nanos(20),
-            Stamp::new(7, Time::from_nanos(15)),
-        );
-        push_transfer(&mut b, u32::MAX, Time::from_nanos(u64::MAX), b"");
+        let s = |i, t| Stamp::new(i, Time::from_nanos(t));
+        push_transfer(&mut b, 3, s(2, 10), bytes(b"abc")).expect("pushed");
+        push_read(&mut b, 4, Time::from_nanos(20), s(7, 15));
+        push_transfer(&mut b, u32::MAX, s(u64::MAX, u64::MAX), bytes(b"")).expect("pushed");
         let all: Vec<_> = entries(&b).collect();
         assert_eq!(
             all,
             [
                 Entry::Transfer {
                     link: 3,
-                    time: Time::from_nanos(10),
-                    bytes: b"abc"
+                    stamp: s(2, 10),
+                    body: b"abc"
                 },
                 Entry::Read {
                     link: 4,
                     time: Time::from_nanos(20),
-                    stamp: Stamp::new(7, Time::from_nanos(15))
+                    stamp: s(7, 15)
                 },
                 Entry::Transfer {
                     link: u32::MAX,
-                    time: Time::from_nanos(u64::MAX),
-                    bytes: b""
+                    stamp: s(u64::MAX, u64::MAX),
+                    body: b""
                 },
             ]
         );
@@ -114,7 +137,22 @@ mod tests {
             let n = entries(&b[..cut]).count();
             assert!(n < 3, "a batch cut at {cut} yields only whole entries");
         }
-        assert_eq!(entries(&b[..24]).count(), 1, "the first entry is 24 bytes");
-        assert_eq!(entries(&b[..23]).count(), 0);
+        assert_eq!(entries(&b[..32]).count(), 1, "the first entry is 32 bytes");
+        assert_eq!(entries(&b[..31]).count(), 0);
+    }
+
+    #[test]
+    fn a_transfer_that_fails_to_encode_leaves_the_batch_as_it_was() {
+        let mut b = Vec::new();
+        let s = Stamp::new(1, Time::from_nanos(5));
+        push_transfer(&mut b, 1, s, bytes(b"xy")).expect("pushed");
+        let before = b.clone();
+        let failed = push_transfer(&mut b, 2, s, |out| {
+            out.extend_from_slice(b"half");
+            Err("no")
+        });
+        assert_eq!(failed, Err("no"));
+        assert_eq!(b, before);
+        assert_eq!(entries(&b).count(), 1);
     }
 }

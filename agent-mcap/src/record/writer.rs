@@ -10,13 +10,17 @@ use std::time::Duration;
 
 use agent_core::link::remote::HEADER_LEN;
 use agent_core::trace::{NodeInfo, SystemInfo};
-use agent_core::{Stamp, Step, Time, TypeShape};
+use agent_core::{Stamp, Step, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
 
 use super::batch::{Entry, entries};
-use super::{Counts, Derive, LinkChannels, Record, RecordError, RecordSummary, encode_read, small};
-use crate::cdr::write_cdr;
-use crate::json::write_json;
+use super::{
+    Counts, Derive, LinkChannels, READ_ENCODING, Record, RecordError, RecordOptions, RecordSummary,
+    Values, WIRE_ENCODING, encode_read, small,
+};
+use crate::cdr::{root_name, ros2msg_schema, write_cdr};
+use crate::codec::CODEC_KEY;
+use crate::json::{json_schema, write_json};
 
 /// The writer thread's side.
 pub(super) struct Output {
@@ -29,22 +33,195 @@ pub(super) struct Output {
     pub(super) derived: Vec<Box<dyn Derive>>,
     pub(super) value_max_bytes: usize,
     pub(super) scratch: Vec<u8>,
-    /// A raw message through its link's codec: the wire header, then the
-    /// codec's encoding.
+    /// A raw message: the wire header, then the body or the codec's
+    /// encoding of it.
     pub(super) encoded: Vec<u8>,
     pub(super) summary: RecordSummary,
 }
 
+/// What the writer thread makes the file from: what needed the system, taken
+/// on the caller's thread.
+pub(super) struct Plan {
+    pub(super) file: File,
+    pub(super) path: PathBuf,
+    pub(super) info: SystemInfo,
+    /// Per link: the payload's shape as JSON text (`serde-reflection`'s
+    /// formats cannot cross threads), and its fingerprint.
+    pub(super) shapes: Vec<Option<String>>,
+    pub(super) fingerprints: Vec<u64>,
+    pub(super) options: RecordOptions,
+}
+
 impl Output {
-    pub(super) fn run(mut self, rx: &Receiver<Record>) -> Result<RecordSummary, RecordError> {
-        let shapes: Vec<Option<TypeShape>> = self
-            .links
+    /// Start the file: its header, schemas, channels and metadata. Returns
+    /// the writer and the links' shapes.
+    pub(super) fn open(plan: Plan) -> Result<(Output, Vec<Option<TypeShape>>), RecordError> {
+        let Plan {
+            file,
+            path,
+            info,
+            shapes,
+            fingerprints,
+            mut options,
+        } = plan;
+        let fail = |e: mcap::McapError| RecordError::Write {
+            path: path.clone(),
+            message: e.to_string(),
+        };
+        let shapes: Vec<Option<TypeShape>> = shapes
             .iter()
-            .map(|l| {
-                let (root, registry) = serde_json::from_str(l.shape.as_deref()?).ok()?;
+            .map(|text| {
+                let (root, registry) = serde_json::from_str(text.as_deref()?).ok()?;
                 Some(TypeShape { root, registry })
             })
             .collect();
+        let mut w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
+            // On the writer thread: Zstd's default worker per CPU takes the
+            // executor's core (measured: 1.47 -> 1.38 the wall time of a
+            // recorded run without images, `bench_record`).
+            .compression_threads(0)
+            .profile("")
+            .library(concat!(
+                "embodied-agents agent-mcap ",
+                env!("CARGO_PKG_VERSION")
+            ))
+            .create(BufWriter::new(file))
+            .map_err(fail)?;
+        let mut links = Vec::with_capacity(info.links.len());
+        let none = BTreeMap::new();
+        let mut topics = std::collections::BTreeSet::new();
+        for (k, link) in info.links.iter().enumerate() {
+            let from = &info.nodes[link.from].name;
+            let to = &info.nodes[link.to].name;
+            let mut topic = format!("/links/{from}/{}/to/{to}", link.from_port.replace('.', "/"));
+            if !topics.insert(topic.clone()) {
+                topic = format!("{topic}/{}", link.to_port.replace('.', "/"));
+                topics.insert(topic.clone());
+            }
+            let shape = shapes.get(k).and_then(Option::as_ref);
+            let ros2 = match (shape, options.values) {
+                (Some(s), Values::Cdr) => ros2msg_schema(s, root_name(link.payload)).ok(),
+                _ => None,
+            };
+            let (schema, encoding) = match (shape, &ros2) {
+                (_, Some(r)) => (
+                    w.add_schema(&r.name, "ros2msg", r.text.as_bytes())
+                        .map_err(fail)?,
+                    "cdr",
+                ),
+                (Some(s), None) => {
+                    let text = json_schema(s, link.payload).to_string();
+                    let id = w
+                        .add_schema(link.payload, "jsonschema", text.as_bytes())
+                        .map_err(fail)?;
+                    (id, "json")
+                }
+                (None, None) => (0, "json"),
+            };
+            let value = w
+                .add_channel(schema, &topic, encoding, &none)
+                .map_err(fail)?;
+            let fingerprint = fingerprints.get(k).copied().unwrap_or(0);
+            let read_meta = BTreeMap::from([
+                ("link".to_owned(), link.name.clone()),
+                ("fingerprint".to_owned(), format!("{fingerprint:016x}")),
+            ]);
+            let codec = options
+                .codecs
+                .iter()
+                .find(|c| c.payload() == link.payload)
+                .cloned();
+            let mut raw_meta = read_meta.clone();
+            if let Some(c) = &codec {
+                raw_meta.insert(CODEC_KEY.to_owned(), c.name().to_owned());
+            }
+            let raw = w
+                .add_channel(0, &format!("/raw{topic}"), WIRE_ENCODING, &raw_meta)
+                .map_err(fail)?;
+            let reads = w
+                .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &read_meta)
+                .map_err(fail)?;
+            let mut derived = Vec::new();
+            for (d, derive) in options.derived.iter_mut().enumerate() {
+                if let Some(c) = derive.channel(k, link) {
+                    let schema = w
+                        .add_schema(&c.schema_name, &c.schema_encoding, &c.schema)
+                        .map_err(fail)?;
+                    let id = w
+                        .add_channel(schema, &c.topic, &c.message_encoding, &none)
+                        .map_err(fail)?;
+                    derived.push((d, id));
+                }
+            }
+            links.push(LinkChannels {
+                value,
+                cdr: ros2.is_some(),
+                raw,
+                reads,
+                read_sequence: 0,
+                fingerprint,
+                count: 0,
+                derived,
+                codec,
+            });
+        }
+        let fsm_schema = w
+            .add_schema(
+                "embodied.Transition",
+                "jsonschema",
+                TRANSITION_SCHEMA.as_bytes(),
+            )
+            .map_err(fail)?;
+        let mut fsm = Vec::with_capacity(info.nodes.len());
+        for node in &info.nodes {
+            fsm.push(
+                w.add_channel(fsm_schema, &format!("/fsm/{}", node.name), "json", &none)
+                    .map_err(fail)?,
+            );
+        }
+        let error_schema = w
+            .add_schema("embodied.Error", "jsonschema", ERROR_SCHEMA.as_bytes())
+            .map_err(fail)?;
+        let errors = w
+            .add_channel(error_schema, "/errors", "json", &none)
+            .map_err(fail)?;
+        let mut metadata = std::mem::take(&mut options.metadata);
+        metadata.insert("system".into(), describe(&info));
+        for (name, entries) in metadata {
+            w.write_metadata(&mcap::records::Metadata {
+                name,
+                metadata: entries,
+            })
+            .map_err(fail)?;
+        }
+        let channels =
+            links.len() * 3 + links.iter().map(|l| l.derived.len()).sum::<usize>() + fsm.len() + 1;
+        let out = Output {
+            w,
+            path,
+            info,
+            links,
+            fsm,
+            errors,
+            derived: options.derived,
+            value_max_bytes: options.value_max_bytes,
+            scratch: Vec::new(),
+            encoded: Vec::new(),
+            summary: RecordSummary {
+                channels,
+                ..RecordSummary::default()
+            },
+        };
+        Ok((out, shapes))
+    }
+
+    pub(super) fn run(
+        mut self,
+        rx: &Receiver<Record>,
+        shapes: &[Option<TypeShape>],
+    ) -> Result<RecordSummary, RecordError> {
         let mut error_count = 0u32;
         let mut give_back: BTreeMap<u16, Sender<Vec<u8>>> = BTreeMap::new();
         let mut counts = Counts::default();
@@ -55,9 +232,9 @@ impl Output {
                 Record::Batch { part, bytes } => {
                     for entry in entries(&bytes) {
                         match entry {
-                            Entry::Transfer { link, time, bytes } => {
+                            Entry::Transfer { link, stamp, body } => {
                                 let shape = shapes.get(link as usize).and_then(Option::as_ref);
-                                self.transfer(link, shape, time, bytes)?;
+                                self.transfer(link, shape, stamp, body)?;
                             }
                             Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
                         }
@@ -164,33 +341,42 @@ impl Output {
         &mut self,
         link: u32,
         shape: Option<&TypeShape>,
-        time: Time,
-        bytes: &[u8],
+        stamp: Stamp,
+        body: &[u8],
     ) -> Result<(), RecordError> {
         let Some(l) = self.links.get_mut(link as usize) else {
             return Ok(());
         };
-        let sequence = l.sequence;
-        l.sequence = l.sequence.wrapping_add(1);
-        let (value, cdr, raw) = (l.value, l.cdr, l.raw);
-        let body = bytes.get(HEADER_LEN..).unwrap_or_default();
-        // Through the codec: the header as it is, the body encoded.
-        let mut encoded = std::mem::take(&mut self.encoded);
-        encoded.clear();
+        let time = stamp.time;
+        let sequence = l.count as u32;
+        l.count += 1;
+        // The raw message: the wire header a link between processes would
+        // send, then the body, as it is or through the link's codec.
+        let mut raw = std::mem::take(&mut self.encoded);
+        WireHeader {
+            fingerprint: l.fingerprint,
+            epoch: 0,
+            seq: l.count,
+            stamp,
+        }
+        .write(&mut raw);
         let coded = match &l.codec {
-            Some(codec) if bytes.len() >= HEADER_LEN => {
-                encoded.extend_from_slice(&bytes[..HEADER_LEN]);
-                codec.encode(body, &mut encoded);
+            Some(codec) => {
+                codec.encode(body, &mut raw);
                 true
             }
-            _ => false,
+            None => {
+                raw.extend_from_slice(body);
+                false
+            }
         };
-        let written = self.write(raw, sequence, time, if coded { &encoded } else { bytes });
+        let (value, cdr, channel) = (l.value, l.cdr, l.raw);
+        let written = self.write(channel, sequence, time, &raw);
         let written = written.and_then(|()| {
-            let encoded = coded.then(|| &encoded[HEADER_LEN..]);
+            let encoded = coded.then(|| &raw[HEADER_LEN..]);
             self.derive(link, sequence, time, body, encoded)
         });
-        self.encoded = encoded;
+        self.encoded = raw;
         written?;
         if body.len() > self.value_max_bytes {
             self.summary.raw_only += 1;
@@ -355,7 +541,9 @@ pub(super) const ERROR_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/dra
 /// up to [`Polled::LONGEST`] while the queue stays empty, so an idle recording
 /// costs a few wake-ups a second and a busy one lags the run by about a
 /// millisecond. A full queue still wakes its waiting sender at once (`try_recv`
-/// notifies it).
+/// notifies it). The nap is a `park_timeout`: the recorder's owner unparks the
+/// writer when it finishes the recording, so the run's end never waits out a
+/// nap.
 struct Polled<'a, T> {
     rx: &'a Receiver<T>,
     nap: Duration,
@@ -384,7 +572,7 @@ impl<T> Iterator for Polled<'_, T> {
                     return Some(record);
                 }
                 Err(TryRecvError::Empty) => {
-                    std::thread::sleep(self.nap);
+                    std::thread::park_timeout(self.nap);
                     self.nap = (self.nap * 2).min(Self::LONGEST);
                 }
                 Err(TryRecvError::Disconnected) => return None,
