@@ -291,9 +291,19 @@ impl<'a> Gen<'a> {
         variants: &'a BTreeMap<u32, Named<VariantFormat>>,
     ) -> Result<Ty, Unsupported> {
         let mut constants = String::new();
+        let mut names = BTreeSet::new();
         let mut fields = vec![("variant".to_owned(), Ty::Prim("uint32"))];
         for (k, v) in variants {
-            let _ = writeln!(constants, "uint32 {}={k}", constant_name(&v.name));
+            let constant = constant_name(&v.name);
+            if !constant_name_ok(&constant) || !names.insert(constant.clone()) {
+                return Err(Unsupported(format!(
+                    "the variant `{}` of `{base}` as the constant `{constant}` (ROS 2 \
+                     constant names are upper case letters, digits and single \
+                     underscores, unique)",
+                    v.name
+                )));
+            }
+            let _ = writeln!(constants, "uint32 {constant}={k}");
             let data = match &v.value {
                 VariantFormat::Unit => continue,
                 VariantFormat::NewType(f) => self.element(f)?,
@@ -371,6 +381,16 @@ fn constant_name(name: &str) -> String {
     } else {
         format!("V{s}")
     }
+}
+
+/// ROS 2's constant names: `^[A-Z]([A-Z0-9_]?[A-Z0-9]+)*$`.
+fn constant_name_ok(name: &str) -> bool {
+    name.starts_with(|c: char| c.is_ascii_uppercase())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+        && !name.contains("__")
+        && !name.ends_with('_')
 }
 
 fn field_name_ok(name: &str) -> bool {

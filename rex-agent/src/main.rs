@@ -493,6 +493,9 @@ fn print_recorded(file: &Path, s: &embodied::record::RecordSummary) {
         s.channels,
         size as f64 / 1e6
     ));
+    for link in &s.json_values {
+        emit(format_args!("record: values in JSON, not CDR: {link}\n"));
+    }
 }
 
 fn main() -> ExitCode {

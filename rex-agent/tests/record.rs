@@ -51,6 +51,7 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     // Per link: its value, raw, reads; per node: its switches; the errors.
     assert_eq!(summary.channels, 3 * links + nodes + 1);
     assert_eq!(summary.undecodable, 0);
+    assert!(summary.json_values.is_empty(), "{summary:?}");
     assert!(summary.messages > 10_000, "{summary:?}");
     // The writer ran in the background: SCHED_IDLE (which needs no privilege)
     // as the OS reports the thread's policy once set.

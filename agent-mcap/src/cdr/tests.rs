@@ -159,6 +159,38 @@ fn what_a_ros_2_message_cannot_express_is_refused() {
     }
     let e = ros2msg_schema(&agent_core::reflect::<Shouting>().unwrap(), "S").unwrap_err();
     assert!(e.0.contains("`Speed`"), "{e}");
+    // Variants name constants: each must be one ROS 2 accepts, and unique.
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    enum Drink {
+        Tea,
+        Café,
+    }
+    let e = ros2msg_schema(&agent_core::reflect::<Drink>().unwrap(), "D").unwrap_err();
+    assert!(e.0.contains("`Café`") && e.0.contains("`CAF_`"), "{e}");
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    #[allow(non_camel_case_types, reason = "the case under test")]
+    enum Twins {
+        NoEstimate,
+        No_Estimate,
+    }
+    let e = ros2msg_schema(&agent_core::reflect::<Twins>().unwrap(), "T").unwrap_err();
+    assert!(
+        e.0.contains("`No_Estimate`") && e.0.contains("NO_ESTIMATE"),
+        "{e}"
+    );
+    #[derive(Clone, Debug, Serialize, Deserialize)]
+    enum Fine {
+        NoEstimate,
+        Pose2d(f64),
+    }
+    let schema = ros2msg_schema(&agent_core::reflect::<Fine>().unwrap(), "F").unwrap();
+    assert!(
+        schema
+            .text
+            .starts_with("uint32 NO_ESTIMATE=0\nuint32 POSE2D=1\n"),
+        "{}",
+        schema.text
+    );
 }
 
 #[test]

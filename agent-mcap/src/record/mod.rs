@@ -275,6 +275,9 @@ pub struct RecordSummary {
     /// Values recorded on their raw channel only, being longer than
     /// [`RecordOptions::value_max_bytes`].
     pub raw_only: u64,
+    /// The links whose values are JSON though [`Values::Cdr`] was asked for,
+    /// their type having no ROS 2 message: each `<link>: <why>`.
+    pub json_values: Vec<String>,
     /// Times the executor waited for the writer.
     pub waits: u64,
     /// Whether the writer ran in the background ([`RecordOptions::background`]).

@@ -90,6 +90,7 @@ impl Output {
             .create(BufWriter::new(file))
             .map_err(fail)?;
         let mut links = Vec::with_capacity(info.links.len());
+        let mut json_values = Vec::new();
         let none = BTreeMap::new();
         let mut topics = std::collections::BTreeSet::new();
         for (k, link) in info.links.iter().enumerate() {
@@ -102,7 +103,13 @@ impl Output {
             }
             let shape = shapes.get(k).and_then(Option::as_ref);
             let ros2 = match (shape, options.values) {
-                (Some(s), Values::Cdr) => ros2msg_schema(s, root_name(link.payload)).ok(),
+                (Some(s), Values::Cdr) => match ros2msg_schema(s, root_name(link.payload)) {
+                    Ok(r) => Some(r),
+                    Err(why) => {
+                        json_values.push(format!("{}: {why}", link.name));
+                        None
+                    }
+                },
                 _ => None,
             };
             let (schema, encoding) = match (shape, &ros2) {
@@ -211,6 +218,7 @@ impl Output {
             encoded: Vec::new(),
             summary: RecordSummary {
                 channels,
+                json_values,
                 ..RecordSummary::default()
             },
         };
