@@ -45,8 +45,9 @@
 //! real-time executor one part per thread ([`McapRecorder::threads`]), each
 //! queuing to the same writer.
 //!
-//! Queuing is lossless: when the writer falls behind by
-//! [`RecordOptions::queue`] records, the executor waits (counted). A writer
+//! Queuing is lossless and bounded: when the writer falls behind by
+//! [`RecordOptions::queue`] records or [`RecordOptions::queue_bytes`] bytes,
+//! the executor waits (counted). A writer
 //! that fails (disk full) stops the recording; the run goes on, and
 //! [`McapRecorder::finish`] returns the error.
 
@@ -54,6 +55,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel, sync_channel};
 use std::thread::JoinHandle;
 
@@ -181,6 +183,12 @@ pub struct RecordOptions {
     /// waits: each either a batch of transfers and reads (about 64 KiB, or
     /// one value longer than that) or a behaviour switch or error.
     pub queue: usize,
+    /// Bytes of batches the writer may fall behind by before the executor
+    /// waits for it to catch up (a batch larger than this alone still goes
+    /// once the writer has emptied the queue): the memory a slow disk or a
+    /// starved writer can take. Default 128 MiB (about 200 of Rex's stereo
+    /// pairs).
+    pub queue_bytes: usize,
     /// Metadata records to add, by name: each a map of strings (the spec's
     /// text, the deployment, the run's settings, versions).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
@@ -210,6 +218,7 @@ impl std::fmt::Debug for RecordOptions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RecordOptions")
             .field("queue", &self.queue)
+            .field("queue_bytes", &self.queue_bytes)
             .field("metadata", &self.metadata.keys().collect::<Vec<_>>())
             .field("values", &self.values)
             .field("value_max_bytes", &self.value_max_bytes)
@@ -227,6 +236,7 @@ impl Default for RecordOptions {
     fn default() -> Self {
         RecordOptions {
             queue: 1024,
+            queue_bytes: 128 << 20,
             metadata: BTreeMap::new(),
             values: Values::default(),
             value_max_bytes: 16 * 1024,
@@ -280,6 +290,8 @@ pub struct RecordSummary {
     pub json_values: Vec<String>,
     /// Times the executor waited for the writer.
     pub waits: u64,
+    /// The most bytes of batches the writer was behind by.
+    pub backlog_peak_bytes: usize,
     /// Whether the writer ran in the background ([`RecordOptions::background`]).
     pub background: bool,
 }
@@ -351,8 +363,9 @@ pub struct McapRecorder {
     part: Part,
     writer: Option<JoinHandle<Result<RecordSummary, RecordError>>>,
     path: PathBuf,
-    /// The number of nodes, for parts.
+    /// The number of nodes, and the writer's backlog, for parts.
     nodes: usize,
+    backlog: Arc<Backlog>,
     parts: std::sync::Arc<std::sync::atomic::AtomicU16>,
 }
 
@@ -364,11 +377,71 @@ impl std::fmt::Debug for McapRecorder {
     }
 }
 
+/// The bytes of batches queued to the writer and not yet written, shared by
+/// the parts (which add) and the writer (which takes away, and says when it
+/// has stopped).
+#[derive(Debug)]
+struct Backlog {
+    bytes: AtomicUsize,
+    peak: AtomicUsize,
+    limit: usize,
+    writer_gone: AtomicBool,
+}
+
+impl Backlog {
+    fn new(limit: usize) -> Backlog {
+        Backlog {
+            bytes: AtomicUsize::new(0),
+            peak: AtomicUsize::new(0),
+            limit,
+            writer_gone: AtomicBool::new(false),
+        }
+    }
+
+    /// Wait until `n` more bytes fit (or the queue is empty, or the writer
+    /// gone), then count them in; `true` if it had to wait. The writer is
+    /// polled every 200 µs: waiting is the rare case of a writer that cannot
+    /// keep up, not the steady state.
+    fn wait_for_room(&self, n: usize) -> bool {
+        let mut waited = false;
+        loop {
+            let queued = self.bytes.load(Ordering::Acquire);
+            if queued == 0
+                || queued.saturating_add(n) <= self.limit
+                || self.writer_gone.load(Ordering::Acquire)
+            {
+                break;
+            }
+            waited = true;
+            std::thread::sleep(std::time::Duration::from_micros(200));
+        }
+        let now = self.bytes.fetch_add(n, Ordering::AcqRel) + n;
+        self.peak.fetch_max(now, Ordering::Relaxed);
+        waited
+    }
+
+    /// The writer wrote a batch of `n` bytes.
+    fn written(&self, n: usize) {
+        self.bytes.fetch_sub(n, Ordering::AcqRel);
+    }
+}
+
+/// Tells the parts the writer has stopped, however it stops (an error, a
+/// panic), so that none waits for room forever.
+struct WriterGone(Arc<Backlog>);
+
+impl Drop for WriterGone {
+    fn drop(&mut self) {
+        self.0.writer_gone.store(true, Ordering::Release);
+    }
+}
+
 /// One thread's observer of a recording: it encodes what it sees and queues
 /// it to the writer thread.
 struct Part {
     id: u16,
     tx: Option<SyncSender<Record>>,
+    backlog: Arc<Backlog>,
     spare: Receiver<Vec<u8>>,
     /// Transfers and reads not yet sent (sent when [`BATCH_BYTES`] long, and
     /// before any other record, so the writer sees one part's events in order).
@@ -377,11 +450,12 @@ struct Part {
 }
 
 impl Part {
-    fn new(id: u16, tx: SyncSender<Record>, nodes: usize) -> Part {
+    fn new(id: u16, tx: SyncSender<Record>, backlog: Arc<Backlog>, nodes: usize) -> Part {
         let (give_back, spare) = channel::<Vec<u8>>();
         let mut part = Part {
             id,
             tx: Some(tx),
+            backlog,
             spare,
             batch: Vec::new(),
             counts: Counts {
@@ -407,6 +481,9 @@ impl Part {
     fn flush(&mut self) {
         if self.batch.is_empty() || self.tx.is_none() {
             return;
+        }
+        if self.backlog.wait_for_room(self.batch.len()) {
+            self.counts.waits += 1;
         }
         let mut next = self.spare.try_recv().unwrap_or_default();
         next.clear();
@@ -567,9 +644,12 @@ impl McapRecorder {
         let nodes = plan.info.nodes.len();
         let (tx, rx) = sync_channel::<Record>(plan.options.queue.max(1));
         let background = plan.options.background;
+        let backlog = Arc::new(Backlog::new(plan.options.queue_bytes));
+        let gone = WriterGone(backlog.clone());
         let writer = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
+                let gone = gone;
                 let background = background && lowest_priority();
                 let (mut out, shapes) = match Output::open(plan) {
                     Ok(opened) => opened,
@@ -579,14 +659,15 @@ impl McapRecorder {
                     }
                 };
                 out.summary.background = background;
-                out.run(&rx, &shapes)
+                out.run(&rx, &shapes, &gone.0)
             })
             .map_err(|source| RecordError::Create {
                 path: path.to_owned(),
                 source,
             })?;
         Ok(McapRecorder {
-            part: Part::new(0, tx, nodes),
+            part: Part::new(0, tx, backlog.clone(), nodes),
+            backlog,
             writer: Some(writer),
             path: path.to_owned(),
             nodes,
@@ -601,12 +682,13 @@ impl McapRecorder {
     /// holds these is neither started nor dropped).
     pub fn threads(&self) -> impl FnMut(&str, &[usize]) -> Box<dyn Observer> + Send + 'static {
         let tx = self.part.tx.clone();
+        let backlog = self.backlog.clone();
         let nodes = self.nodes;
         let ids = self.parts.clone();
         move |_thread: &str, _nodes: &[usize]| -> Box<dyn Observer> {
             let id = ids.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             match &tx {
-                Some(tx) => Box::new(Part::new(id, tx.clone(), nodes)),
+                Some(tx) => Box::new(Part::new(id, tx.clone(), backlog.clone(), nodes)),
                 // The writer already failed: `finish` says why.
                 None => Box::new(agent_core::NoObserver),
             }

@@ -15,8 +15,8 @@ use serde_json::{Value, json};
 
 use super::batch::{Entry, entries};
 use super::{
-    Counts, Derive, LinkChannels, READ_ENCODING, Record, RecordError, RecordOptions, RecordSummary,
-    Values, WIRE_ENCODING, encode_read, small,
+    Backlog, Counts, Derive, LinkChannels, READ_ENCODING, Record, RecordError, RecordOptions,
+    RecordSummary, Values, WIRE_ENCODING, encode_read, small,
 };
 use crate::cdr::{root_name, ros2msg_schema, write_cdr};
 use crate::codec::CODEC_KEY;
@@ -229,6 +229,7 @@ impl Output {
         mut self,
         rx: &Receiver<Record>,
         shapes: &[Option<TypeShape>],
+        backlog: &Backlog,
     ) -> Result<RecordSummary, RecordError> {
         let mut error_count = 0u32;
         let mut give_back: BTreeMap<u16, Sender<Vec<u8>>> = BTreeMap::new();
@@ -247,6 +248,7 @@ impl Output {
                             Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
                         }
                     }
+                    backlog.written(bytes.len());
                     if let Some(back) = give_back.get(&part) {
                         let _ = back.send(bytes);
                     }
@@ -302,6 +304,7 @@ impl Output {
         }
         self.w.finish().map_err(|e| self.fail(&e))?;
         self.summary.waits = counts.waits;
+        self.summary.backlog_peak_bytes = backlog.peak.load(std::sync::atomic::Ordering::Relaxed);
         self.summary.undecodable += counts.encode_failures;
         Ok(self.summary)
     }

@@ -1,5 +1,7 @@
-//! A payload type with no ROS 2 message is recorded as JSON with its JSON
-//! schema (a CDR recording otherwise), and the summary names its link.
+//! The recorder on a small system: a payload type with no ROS 2 message is
+//! recorded as JSON with its JSON schema (a CDR recording otherwise), and the
+//! summary names its link; a writer slower than the run holds the executor
+//! back at the queue's byte bound, and loses nothing.
 
 #![allow(
     clippy::unwrap_used,
@@ -9,8 +11,9 @@
 
 use std::time::Duration;
 
+use agent_core::trace::LinkInfo;
 use agent_core::*;
-use agent_mcap::record::{McapRecorder, RecordOptions};
+use agent_mcap::record::{Derive, DerivedChannel, McapRecorder, RecordOptions};
 use serde::{Deserialize, Serialize};
 
 /// A type that contains itself: no ROS 2 message can say it.
@@ -36,9 +39,16 @@ struct GrowerOut {
     e: ToE,
 }
 
+/// The count, and how many leaves each tree has.
+#[derive(Clone, Debug)]
+struct GrowerMemory {
+    n: u32,
+    leaves: u32,
+}
+
 impl Subsystem for Grower {
     const KIND: SubsystemKind = SubsystemKind::Control;
-    type Memory = u32;
+    type Memory = GrowerMemory;
     type Input = ();
     type Output = GrowerOut;
 }
@@ -66,7 +76,8 @@ impl Subsystem for Keeper {
     type Output = ();
 }
 
-fn system() -> System {
+/// c sends e a tree of `leaves` leaves and a number every 10 ms.
+fn system(leaves: u32) -> System {
     let mut b = SystemBuilder::new();
     let a = b.agent("a");
     let period = Period::from_millis(10).unwrap();
@@ -75,19 +86,19 @@ fn system() -> System {
         Action::<Grower>::new()
             .output(
                 |y| &mut y.e,
-                |n: &u32, _: &(), y: &mut ToE| {
-                    let leaf = Tree {
-                        label: *n,
+                |m: &GrowerMemory, _: &(), y: &mut ToE| {
+                    let leaf = |label| Tree {
+                        label,
                         children: Vec::new(),
                     };
                     y.tree.set(Tree {
-                        label: n + 100,
-                        children: vec![leaf],
+                        label: m.n + 100,
+                        children: (0..m.leaves).map(|k| leaf(m.n + k)).collect(),
                     });
-                    y.size.set(f64::from(*n) * 0.5);
+                    y.size.set(f64::from(m.n) * 0.5);
                 },
             )
-            .memory(|n: &mut u32, _: &()| *n += 1),
+            .memory(|m: &mut GrowerMemory, _: &()| m.n += 1),
         "false",
     ))
     .unwrap();
@@ -97,7 +108,7 @@ fn system() -> System {
         "false",
     ))
     .unwrap();
-    let c = b.subsystem(a, "c", period, 0u32, grow);
+    let c = b.subsystem(a, "c", period, GrowerMemory { n: 0, leaves }, grow);
     let e = b.subsystem(a, "e", period, (), keep);
     b.connect(
         c.output(port!(GrowerOut, e.tree)),
@@ -115,7 +126,7 @@ fn system() -> System {
 #[test]
 fn a_type_without_a_ros_2_message_is_recorded_as_json_and_named_in_the_summary() {
     let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("json_fallback.mcap");
-    let s = system();
+    let s = system(1);
     let recorder = McapRecorder::create(&path, &s, RecordOptions::default()).unwrap();
     let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
     exec.run_for(Duration::from_millis(100)).unwrap();
@@ -152,4 +163,68 @@ fn a_type_without_a_ros_2_message_is_recorded_as_json_and_named_in_the_summary()
     assert_eq!(trees[3].label, 103);
     assert_eq!(sizes.len(), 10);
     assert_eq!(sizes[3], 1.5);
+}
+
+/// A derived channel that takes 1 ms per tree: a writer slower than the run.
+struct Slow;
+
+impl Derive for Slow {
+    fn channel(&mut self, _link: usize, info: &LinkInfo) -> Option<DerivedChannel> {
+        info.name.contains("tree").then(|| DerivedChannel {
+            topic: "/slow".into(),
+            schema_name: "slow".into(),
+            schema_encoding: "jsonschema".into(),
+            schema: b"{}".to_vec(),
+            message_encoding: "json".into(),
+        })
+    }
+
+    fn message(&mut self, _link: usize, _time: Time, _body: &[u8], out: &mut Vec<u8>) -> bool {
+        std::thread::sleep(Duration::from_millis(1));
+        out.extend_from_slice(b"{}");
+        true
+    }
+}
+
+/// Record 10 s of c sending trees of 1000 leaves (about 6 KB each: a batch
+/// every ten trees) through the slow writer, with at most `queue_bytes`
+/// queued: (summary, messages in the file).
+fn slow_recording(queue_bytes: usize, name: &str) -> (agent_mcap::record::RecordSummary, usize) {
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let s = system(1000);
+    let options = RecordOptions {
+        queue_bytes,
+        derived: vec![Box::new(Slow)],
+        ..RecordOptions::default()
+    };
+    let recorder = McapRecorder::create(&path, &s, options).unwrap();
+    let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
+    exec.run_for(Duration::from_secs(10)).unwrap();
+    let summary = exec.into_observer().finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let messages = mcap::MessageStream::new(&bytes).unwrap().count();
+    (summary, messages)
+}
+
+#[test]
+fn a_writer_slower_than_the_run_holds_it_at_the_byte_bound_and_loses_nothing() {
+    let (free, free_messages) = slow_recording(usize::MAX, "slow_free.mcap");
+    let (bound, bound_messages) = slow_recording(100_000, "slow_bound.mcap");
+    // 1000 trees and numbers: each a value, a raw copy and a read (but the
+    // last, sent as the run ends); each tree a slow message too.
+    for (s, m) in [(&free, free_messages), (&bound, bound_messages)] {
+        assert_eq!(s.messages as usize, m, "{s:?}");
+        assert_eq!(m, 1000 * 7 - 2, "{s:?}");
+    }
+    assert_eq!(free_messages, bound_messages, "nothing lost waiting");
+    // Unbounded, the run outpaces the writer (1 s): most of the 6 MB of
+    // trees wait in the queue. Bounded, the executor waits instead,
+    // and the queue holds at most the bound and one batch.
+    assert_eq!(free.waits, 0, "{free:?}");
+    assert!(free.backlog_peak_bytes > 1_000_000, "{free:?}");
+    assert!(bound.waits > 10, "{bound:?}");
+    assert!(
+        bound.backlog_peak_bytes <= 100_000 + 64 * 1024 + 8 * 1024,
+        "{bound:?}"
+    );
 }
