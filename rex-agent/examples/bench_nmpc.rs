@@ -8,16 +8,28 @@
 //! ```
 //!
 //! Timing is the wall-clock time of a whole real-time iteration (shift, exact
-//! linearisation, QP, step), median and 95th percentile over steps 1..199 (step 0,
-//! the cold start, runs the converged SQP and is reported apart), best of `--repeat`
-//! runs (default 3). Three variants run: real-time iteration with the structured
-//! QP (the default: Riccati, Clarabel when a bound is active), real-time iteration
-//! with every QP by Clarabel, and converged SQP every step. With `--peer DIR`,
-//! `DIR/casadi_nmpc.py` runs in the same session (`pip install casadi numpy`).
+//! linearisation, QP, step) over steps 1..199 (step 0, the cold start, runs the
+//! converged SQP and is reported apart): median, mean, p95, p99 and max, of the
+//! run with the best median of `--repeat` runs (default 3). Three variants run
+//! at the peer's horizon N = 20: real-time iteration with the structured QP (the
+//! default: Riccati, Clarabel when a bound is active), real-time iteration with
+//! every QP by Clarabel, and converged SQP every step; then the default at
+//! N = 50. Each prints the share of steps whose QP had an active bound. With
+//! `--peer DIR`, `DIR/casadi_nmpc.py`'s real-time iterations (HPIPM, qrqp) run
+//! in the same session with the same repeat policy, in a Python environment the
+//! bench makes once in `target/peer-venv` (`pip install casadi numpy`), each step
+//! timed by a wrapper around the peer's step function with the same statistics,
+//! and the peer's own split of a step into preparation (linearisation) and QP.
 //! The last line is
-//! `nmpc_median_ms=<..> nmpc_p95_ms=<..> rms_ss_m=<..> rms_m=<..>`.
+//! `nmpc_median_ms=<..> nmpc_mean_ms=<..> nmpc_p95_ms=<..> nmpc_p99_ms=<..> rms_ss_m=<..> rms_m=<..>`
+//! (N = 20, structured QPs).
 
+use std::path::Path;
+use std::process::Command;
 use std::time::Instant;
+
+#[path = "common/peer_python.rs"]
+mod common;
 
 use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
 use rex_agent::algorithms::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
@@ -25,8 +37,7 @@ use rex_agent::world::model::SlipParams;
 
 #[derive(Clone, Debug, Default)]
 struct Run {
-    median_ms: f64,
-    p95_ms: f64,
+    step: Stats,
     cold_ms: f64,
     rms_m: f64,
     rms_ss_m: f64,
@@ -47,10 +58,48 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
     v[i.min(v.len() - 1)]
 }
 
-fn closed_loop(qp: QpStrategy, converged: bool) -> Result<Run, Box<dyn std::error::Error>> {
+/// Step times (ms): the same statistics for ours and the peer's.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stats {
+    median: f64,
+    mean: f64,
+    p95: f64,
+    p99: f64,
+    max: f64,
+}
+
+impl Stats {
+    fn of(v: &[f64]) -> Stats {
+        let mut v = v.to_vec();
+        Stats {
+            median: percentile(&mut v, 0.5),
+            mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
+            p95: percentile(&mut v, 0.95),
+            p99: percentile(&mut v, 0.99),
+            max: v.iter().copied().fold(f64::NAN, f64::max),
+        }
+    }
+}
+
+impl std::fmt::Display for Stats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "median {:.4} ms, mean {:.4}, p95 {:.4}, p99 {:.4}, max {:.4}",
+            self.median, self.mean, self.p95, self.p99, self.max
+        )
+    }
+}
+
+fn closed_loop(
+    qp: QpStrategy,
+    converged: bool,
+    horizon: usize,
+) -> Result<Run, Box<dyn std::error::Error>> {
     let model = peer::model();
     let settings = NmpcSettings {
         qp,
+        horizon,
         ..NmpcSettings::default()
     };
     let n = settings.horizon;
@@ -95,8 +144,7 @@ fn closed_loop(qp: QpStrategy, converged: bool) -> Result<Run, Box<dyn std::erro
     let skip = (SS_SKIP_S / DT).round() as usize;
     let stats = nmpc.stats();
     Ok(Run {
-        median_ms: percentile(&mut times.clone(), 0.5),
-        p95_ms: percentile(&mut times, 0.95),
+        step: Stats::of(&times),
         cold_ms: cold,
         rms_m: rms(&err),
         rms_ss_m: rms(&err[skip..]),
@@ -113,11 +161,16 @@ fn closed_loop(qp: QpStrategy, converged: bool) -> Result<Run, Box<dyn std::erro
     })
 }
 
-fn best(qp: QpStrategy, converged: bool, repeat: usize) -> Result<Run, Box<dyn std::error::Error>> {
+fn best(
+    qp: QpStrategy,
+    converged: bool,
+    horizon: usize,
+    repeat: usize,
+) -> Result<Run, Box<dyn std::error::Error>> {
     let mut best: Option<Run> = None;
     for _ in 0..repeat.max(1) {
-        let r = closed_loop(qp, converged)?;
-        if best.as_ref().is_none_or(|b| r.median_ms < b.median_ms) {
+        let r = closed_loop(qp, converged, horizon)?;
+        if best.as_ref().is_none_or(|b| r.step.median < b.step.median) {
             best = Some(r);
         }
     }
@@ -126,9 +179,8 @@ fn best(qp: QpStrategy, converged: bool, repeat: usize) -> Result<Run, Box<dyn s
 
 fn print(name: &str, r: &Run) {
     println!(
-        "# {name}: median {:.4} ms, p95 {:.4} ms, cold {:.2} ms | rms {:.4} m, rms_ss {:.4} m, max_ss {:.4} m, max|tau| {:.2} | QPs by Clarabel {:.1} % ({:.1} IPM iterations each), failures {}{}",
-        r.median_ms,
-        r.p95_ms,
+        "# {name}: {}, cold {:.2} ms | rms {:.4} m, rms_ss {:.4} m, max_ss {:.4} m, max|tau| {:.2} | steps with an active bound (QP by Clarabel) {:.1} % ({:.1} IPM iterations each), failures {}{}",
+        r.step,
         r.cold_ms,
         r.rms_m,
         r.rms_ss_m,
@@ -151,33 +203,93 @@ fn load() -> String {
         .unwrap_or_else(|_| "unknown".into())
 }
 
-fn peer_lines(dir: &str) -> Vec<String> {
-    let script = std::path::Path::new(dir).join("casadi_nmpc.py");
-    match std::process::Command::new("python3")
-        .arg(&script)
-        .args(["--solver", "rti_hpipm,rti_qrqp,ipopt"])
-        .output()
-    {
-        Ok(out) if out.status.success() => String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .filter(|l| l.starts_with("casadi_"))
-            .map(str::to_owned)
-            .collect(),
-        Ok(out) => {
-            eprintln!("peer: {}", String::from_utf8_lossy(&out.stderr).trim());
-            Vec::new()
-        }
-        Err(e) => {
-            eprintln!("peer: cannot run {}: {e}", script.display());
-            Vec::new()
-        }
-    }
+/// One closed-loop run of a peer variant: its step times (ms, steps
+/// 1..199), its preparation and QP times, its tracking error.
+struct PeerRun {
+    step: Stats,
+    prep_median: f64,
+    qp_median: f64,
+    rms_ss_m: f64,
 }
 
-fn field(line: &str, key: &str) -> Option<f64> {
-    line.split_whitespace()
-        .find_map(|kv| kv.strip_prefix(key))
-        .and_then(|v| v.parse().ok())
+/// `variant` of `DIR/casadi_nmpc.py` (`rti_hpipm`, `rti_qrqp`), the best
+/// median of `repeat` closed loops, each step timed around the peer's step
+/// function (as the peer times it: `perf_counter` before and after).
+fn peer_run(
+    python: &Path,
+    dir: &str,
+    variant: &str,
+    repeat: usize,
+) -> Result<PeerRun, Box<dyn std::error::Error>> {
+    let out = std::env::temp_dir().join(format!("bench_nmpc_peer_{}.txt", std::process::id()));
+    let script = format!(
+        r#"
+import sys, time
+sys.path.insert(0, {dir:?})
+import casadi_nmpc as p
+variant = {variant:?}
+conic = variant.split("_", 1)[1]
+best = None
+for _ in range({repeat}):
+    steps = []
+    holder = {{}}
+    def make():
+        inner = p.make_rti(conic)
+        holder["timing"] = inner.timing
+        def timed(x, ref, k):
+            t = time.perf_counter()
+            r = inner(x, ref, k)
+            steps.append(1e3 * (time.perf_counter() - t))
+            return r
+        return timed
+    res = p.run_closed_loop(variant, make)
+    t = holder["timing"]
+    run = (steps[1:], [1e3 * v for v in t["prep"][1:]], [1e3 * v for v in t["qp"][1:]], res["rms_ss_m"])
+    warm = sorted(run[0])
+    if best is None or warm[len(warm) // 2] < best[0]:
+        best = (warm[len(warm) // 2], run)
+steps, prep, qp, rms_ss = best[1]
+with open({out:?}, "w") as f:
+    f.write("%r\n" % rms_ss)
+    for a, b, c in zip(steps, prep, qp):
+        f.write("%.6f %.6f %.6f\n" % (a, b, c))
+"#,
+        out = out.display().to_string(),
+    );
+    let run = Command::new(python).args(["-c", &script]).output()?;
+    if !run.status.success() {
+        return Err(String::from_utf8_lossy(&run.stderr)
+            .trim()
+            .to_owned()
+            .into());
+    }
+    let text = std::fs::read_to_string(&out)?;
+    std::fs::remove_file(&out)?;
+    let mut lines = text.lines();
+    let rms_ss_m: f64 = lines.next().ok_or("empty peer output")?.parse()?;
+    let (mut steps, mut prep, mut qp) = (Vec::new(), Vec::new(), Vec::new());
+    for line in lines {
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(str::parse)
+            .collect::<Result<_, _>>()?;
+        if let [a, b, c] = v[..] {
+            steps.push(a);
+            prep.push(b);
+            qp.push(c);
+        } else {
+            return Err(format!("peer output line {line:?}").into());
+        }
+    }
+    if steps.len() + 1 != N_SIM {
+        return Err(format!("the peer timed {} steps, not {}", steps.len(), N_SIM - 1).into());
+    }
+    Ok(PeerRun {
+        step: Stats::of(&steps),
+        prep_median: percentile(&mut prep, 0.5),
+        qp_median: percentile(&mut qp, 0.5),
+        rms_ss_m,
+    })
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -189,38 +301,62 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let repeat = arg("--repeat").and_then(|v| v.parse().ok()).unwrap_or(3);
     println!("# load average before: {}", load());
-    let clarabel = best(QpStrategy::Clarabel, false, repeat)?;
-    print("rti, every QP by Clarabel", &clarabel);
-    let sqp = best(QpStrategy::Structured, true, 1)?;
-    print("converged SQP every step (structured QPs)", &sqp);
-    let rti = best(QpStrategy::Structured, false, repeat)?;
+    let clarabel = best(QpStrategy::Clarabel, false, 20, repeat)?;
+    print("N=20 rti, every QP by Clarabel", &clarabel);
+    let sqp = best(QpStrategy::Structured, true, 20, 1)?;
+    print("N=20 converged SQP every step (structured QPs)", &sqp);
+    let rti = best(QpStrategy::Structured, false, 20, repeat)?;
     print(
-        "rti, structured QPs (Riccati; Clarabel when a bound is active)",
+        "N=20 rti, structured QPs (Riccati; Clarabel when a bound is active)",
         &rti,
     );
+    let rti50 = best(QpStrategy::Structured, false, 50, repeat)?;
+    print("N=50 rti, structured QPs", &rti50);
     println!("# load average after: {}", load());
+    let mut hpipm = None;
     if let Some(dir) = arg("--peer") {
-        for line in peer_lines(dir) {
-            println!("# peer: {line}");
-            if let Some(ms) = field(&line, "median_ms=") {
-                let name = line.split_whitespace().next().unwrap_or("peer");
-                println!(
-                    "#   ours / {name}: median {:.3} (rti structured), {:.3} (rti Clarabel only)",
-                    rti.median_ms / ms,
-                    clarabel.median_ms / ms
-                );
+        match common::peer_python("import casadi, numpy", &["casadi", "numpy"]) {
+            Ok(python) => {
+                for variant in ["rti_hpipm", "rti_qrqp"] {
+                    match peer_run(&python, dir, variant, repeat) {
+                        Ok(p) => {
+                            println!(
+                                "# peer casadi_{variant} (N=20): {} | preparation median {:.4} ms, QP median {:.4} ms | rms_ss {:.4} m",
+                                p.step, p.prep_median, p.qp_median, p.rms_ss_m
+                            );
+                            println!(
+                                "#   ours (rti, structured) / casadi_{variant}: median {:.3}, mean {:.3}, p99 {:.3}, max {:.3}",
+                                rti.step.median / p.step.median,
+                                rti.step.mean / p.step.mean,
+                                rti.step.p99 / p.step.p99,
+                                rti.step.max / p.step.max
+                            );
+                            if variant == "rti_hpipm" {
+                                hpipm = Some(p);
+                            }
+                        }
+                        Err(e) => eprintln!("peer casadi_{variant}: {e}"),
+                    }
+                }
             }
+            Err(e) => eprintln!("peer: {e}"),
         }
         println!("# load average after the peer: {}", load());
     }
     println!(
-        "# target: median <= 0.45 ms (ratio {:.3}), rms_ss <= 0.002 m (ratio {:.3})",
-        rti.median_ms / 0.45,
+        "# aims: N=20 p99 <= 0.15 ms (ratio {:.3}){}; N=50 p99 <= 0.3 ms (ratio {:.3}); rms_ss <= 0.002 m (ratio {:.3})",
+        rti.step.p99 / 0.15,
+        hpipm.as_ref().map_or(String::new(), |p| format!(
+            " and <= 0.2x the peer's median (HPIPM: {:.3}x, ratio {:.3})",
+            rti.step.p99 / p.step.median,
+            rti.step.p99 / p.step.median / 0.2
+        )),
+        rti50.step.p99 / 0.3,
         rti.rms_ss_m / 0.002
     );
     println!(
-        "nmpc_median_ms={:.4} nmpc_p95_ms={:.4} rms_ss_m={:.4} rms_m={:.4}",
-        rti.median_ms, rti.p95_ms, rti.rms_ss_m, rti.rms_m
+        "nmpc_median_ms={:.4} nmpc_mean_ms={:.4} nmpc_p95_ms={:.4} nmpc_p99_ms={:.4} rms_ss_m={:.4} rms_m={:.4}",
+        rti.step.median, rti.step.mean, rti.step.p95, rti.step.p99, rti.rms_ss_m, rti.rms_m
     );
     Ok(())
 }

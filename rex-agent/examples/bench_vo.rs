@@ -44,6 +44,9 @@ use rex_agent::world::camera::{Renderer, SensorConfig};
 
 type Error = Box<dyn std::error::Error>;
 
+#[path = "common/peer_python.rs"]
+mod common;
+
 /// One side's figures on one sequence.
 struct Figures {
     ms: Timing,
@@ -160,33 +163,10 @@ fn ours(seq: &Sequence) -> Result<(Figures, usize), Error> {
 
 /// The Python with OpenCV, made in `target/peer-venv` the first time.
 fn peer_python() -> Result<PathBuf, Error> {
-    let venv = PathBuf::from("target/peer-venv");
-    let python = venv.join("bin/python");
-    let has_cv2 = |p: &Path| {
-        Command::new(p)
-            .args(["-c", "import cv2, numpy"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    };
-    if has_cv2(&python) {
-        return Ok(python);
-    }
-    eprintln!("making {} with OpenCV (once)", venv.display());
-    let made = Command::new("python3")
-        .args(["-m", "venv"])
-        .arg(&venv)
-        .status()?;
-    if !made.success() {
-        return Err("python3 -m venv failed".into());
-    }
-    let pip = Command::new(&python)
-        .args(["-m", "pip", "install", "--quiet"])
-        .args(["opencv-python-headless>=4.8,<5", "numpy"])
-        .status()?;
-    if !pip.success() || !has_cv2(&python) {
-        return Err("pip install opencv-python-headless numpy failed".into());
-    }
-    Ok(python)
+    Ok(common::peer_python(
+        "import cv2, numpy",
+        &["opencv-python-headless>=4.8,<5", "numpy"],
+    )?)
 }
 
 /// The peer on `dir`, one OpenCV thread, each `process` call timed.
