@@ -12,7 +12,8 @@
 //! converged SQP and is reported apart): median, mean, p95, p99 and max, of the
 //! run with the best median of `--repeat` runs (default 3). Three variants run
 //! at the peer's horizon N = 20: real-time iteration with the structured QP (the
-//! default: Riccati, Clarabel when a bound is active), real-time iteration with
+//! default: Riccati, and when a bound is active an interior-point method whose
+//! Newton steps are Riccati recursions), real-time iteration with
 //! every QP by Clarabel, and converged SQP every step; then the default at
 //! N = 50. Each prints the share of steps whose QP had an active bound. With
 //! `--peer DIR`, `DIR/casadi_nmpc.py`'s real-time iterations (HPIPM, qrqp) run
@@ -45,6 +46,8 @@ struct Run {
     max_tau: f64,
     clarabel_share: f64,
     clarabel_iters: f64,
+    ipm_iters: f64,
+    ipm_share: f64,
     fails: u64,
     sqp_iters: f64,
 }
@@ -150,7 +153,9 @@ fn closed_loop(
         rms_ss_m: rms(&err[skip..]),
         max_ss_m: err[skip..].iter().fold(0.0, |m: f64, v| m.max(*v)),
         max_tau,
-        clarabel_share: stats.clarabel as f64 / stats.qps.max(1) as f64,
+        clarabel_share: (stats.clarabel + stats.ipm) as f64 / stats.qps.max(1) as f64,
+        ipm_iters: stats.ipm_iterations as f64 / stats.ipm.max(1) as f64,
+        ipm_share: stats.ipm as f64 / (stats.clarabel + stats.ipm).max(1) as f64,
         clarabel_iters: stats.clarabel_iterations as f64 / stats.clarabel.max(1) as f64,
         fails,
         sqp_iters: if iters.is_empty() {
@@ -179,7 +184,7 @@ fn best(
 
 fn print(name: &str, r: &Run) {
     println!(
-        "# {name}: {}, cold {:.2} ms | rms {:.4} m, rms_ss {:.4} m, max_ss {:.4} m, max|tau| {:.2} | steps with an active bound (QP by Clarabel) {:.1} % ({:.1} IPM iterations each), failures {}{}",
+        "# {name}: {}, cold {:.2} ms | rms {:.4} m, rms_ss {:.4} m, max_ss {:.4} m, max|tau| {:.2} | steps with an active bound {:.1} % (by the structured IPM {:.1} %, {:.1} iterations each; by Clarabel {:.1} iterations each), failures {}{}",
         r.step,
         r.cold_ms,
         r.rms_m,
@@ -187,6 +192,8 @@ fn print(name: &str, r: &Run) {
         r.max_ss_m,
         r.max_tau,
         100.0 * r.clarabel_share,
+        100.0 * r.ipm_share,
+        r.ipm_iters,
         r.clarabel_iters,
         r.fails,
         if r.sqp_iters > 0.0 {
@@ -307,7 +314,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     print("N=20 converged SQP every step (structured QPs)", &sqp);
     let rti = best(QpStrategy::Structured, false, 20, repeat)?;
     print(
-        "N=20 rti, structured QPs (Riccati; Clarabel when a bound is active)",
+        "N=20 rti, structured QPs (Riccati; with a bound active, the interior-point method on the stages)",
         &rti,
     );
     let rti50 = best(QpStrategy::Structured, false, 50, repeat)?;

@@ -27,9 +27,16 @@
 //! [`QpStrategy::Structured`] first solves the equality-constrained QP by a Riccati
 //! recursion over the stages (linear in `N`, a few microseconds); if that solution
 //! satisfies every bound, it *is* the solution of the whole QP (the KKT conditions
-//! hold with zero multipliers on the bounds). Only when a bound would be violated
-//! does Clarabel solve the full sparse QP, on a solver built once whose data are
-//! updated in place (`update_q`, `update_A`, `update_b`; the sparsity never changes).
+//! hold with zero multipliers on the bounds). When a bound would be violated, a
+//! primal-dual interior-point method whose Newton steps are the same Riccati
+//! recursion with the barrier's diagonal added to the stage weights (`ipm.rs`,
+//! as HPIPM does; Mehrotra's predictor-corrector, one factorisation for both
+//! solves) solves the QP with its bounds in about eight iterations: on the
+//! peers' closed loop the step's p99 went from 0.52 ms (Clarabel for these QPs)
+//! to 0.16 ms. Clarabel stays the reference the tests compare it with, and the
+//! fallback should it not converge: it solves the full sparse QP, on a solver
+//! built once whose data are updated in place (`update_q`, `update_A`,
+//! `update_b`; the sparsity never changes).
 //! Clarabel's defaults are tuned for hard problems; this QP is small and well
 //! scaled, and measured on the peers' closed loop (`bench_nmpc`, Clarabel for every
 //! QP) a solve took 0.77 ms with the defaults, 0.53 ms without iterative refinement,
@@ -51,11 +58,13 @@ use serde::{Deserialize, Serialize};
 use super::linalg::Mat;
 use crate::world::model::{Reduced, SlipParams, State5, Torques};
 
+mod ipm;
 mod offset;
 mod qp;
 
 pub use offset::{DisturbanceObserver, DisturbanceSettings};
 
+use ipm::IpmWork;
 use qp::ClarabelQp;
 
 const NX: usize = 5;
@@ -64,8 +73,9 @@ const NU: usize = 4;
 /// How the QP of each SQP iteration is solved.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum QpStrategy {
-    /// Riccati recursion on the equality-constrained QP; Clarabel when a bound
-    /// would be violated. Same solutions, far less time.
+    /// Riccati recursion on the equality-constrained QP; when a bound would be
+    /// violated, the interior-point method on the stage structure (Clarabel if
+    /// it does not converge). Same solutions, far less time.
     #[default]
     Structured,
     /// Every QP by Clarabel.
@@ -238,6 +248,14 @@ pub struct NmpcStats {
     pub qps: u64,
     /// QPs solved by the Riccati recursion alone (no bound active).
     pub structured: u64,
+    /// QPs with an active bound solved by the structured interior-point
+    /// method.
+    pub ipm: u64,
+    /// Its iterations, summed.
+    pub ipm_iterations: u64,
+    /// QPs the structured interior-point method did not solve, given to
+    /// Clarabel.
+    pub ipm_fallbacks: u64,
     /// QPs solved by Clarabel.
     pub clarabel: u64,
     /// Clarabel's interior-point iterations, summed.
@@ -286,6 +304,8 @@ pub struct Nmpc {
     du: Vec<[f64; NU]>,
     dx: Vec<[f64; NX]>,
     qp: Option<ClarabelQp>,
+    /// The structured interior-point method's memory.
+    work: IpmWork,
     stats: NmpcStats,
 }
 
@@ -309,6 +329,7 @@ impl Nmpc {
             du: vec![[0.0; NU]; n],
             dx: vec![[0.0; NX]; n + 1],
             qp: None,
+            work: IpmWork::new(n),
             stats: NmpcStats::default(),
             s: settings,
         })

@@ -32,7 +32,7 @@ impl Nmpc {
     }
 
     /// Gradient of the cost at stage `k` (`2 Q (x_k − x_d,k)`, `Q_N` at the end).
-    fn gradient_x(&self, k: usize) -> [f64; NX] {
+    pub(super) fn gradient_x(&self, k: usize) -> [f64; NX] {
         let w = if k == self.s.horizon {
             &self.s.q_terminal
         } else {
@@ -101,8 +101,67 @@ impl Nmpc {
                 self.stats.structured += 1;
                 return Ok(self.apply_structured());
             }
+            if let Some(iterations) = self.ipm(&dx0) {
+                self.last_clarabel = false;
+                self.stats.qps += 1;
+                self.stats.ipm += 1;
+                self.stats.ipm_iterations += iterations as u64;
+                return Ok(self.apply_structured());
+            }
+            self.stats.ipm_fallbacks += 1;
         }
         self.clarabel_step(&dx0)
+    }
+
+    /// The QP of the current linearisation with `Δx_0 = x̂ − x_0` by the
+    /// structured interior-point method and by Clarabel at tolerance `tol`,
+    /// neither applied: both steps `Δw` (per stage `Δu_k`, then `Δx_{k+1}`),
+    /// both objectives, and the method's iterations; or `None` when no bound
+    /// is active (the Riccati solution is the answer).
+    #[cfg(test)]
+    pub(super) fn both_solutions(&mut self, x_hat: &State5, tol: f64) -> Option<BothSolutions> {
+        let dx0: [f64; NX] = std::array::from_fn(|i| x_hat[i] - self.xs[0][i]);
+        self.riccati().ok()?;
+        if self.forward(&dx0) {
+            return None;
+        }
+        let iterations = self.ipm(&dx0)?;
+        let mut ipm = Vec::new();
+        for k in 0..self.s.horizon {
+            ipm.extend(self.du[k]);
+            ipm.extend(self.dx[k + 1]);
+        }
+        let tight = NmpcSettings {
+            qp_tolerance: tol,
+            ..self.s.clone()
+        };
+        let mut clarabel = ClarabelQp::new(&tight).ok()?;
+        let data = self.qp_data(&dx0);
+        let (dw, _) = clarabel.solve(&data).ok()?;
+        // The objective ½ Δwᵀ P Δw + qᵀ Δw (P diagonal) of both.
+        let nz = NU + NX;
+        let objective = |w: &[f64]| {
+            let mut f = 0.0;
+            for (j, v) in w.iter().enumerate() {
+                let (k, i) = (j / nz, j % nz);
+                let p = if i < NU {
+                    2.0 * self.s.r[i]
+                } else if k + 1 == self.s.horizon {
+                    2.0 * self.s.q_terminal[i - NU]
+                } else {
+                    2.0 * self.s.q[i - NU]
+                };
+                f += 0.5 * p * v * v + data.q[j] * v;
+            }
+            f
+        };
+        let objectives = [objective(&ipm), objective(&dw)];
+        Some(BothSolutions {
+            ipm,
+            clarabel: dw,
+            objectives,
+            iterations,
+        })
     }
 
     /// Forward sweep of the Riccati solution into `du`, `dx`; whether it is finite
@@ -231,6 +290,16 @@ impl Nmpc {
         }
         QpData { q, a, b }
     }
+}
+
+/// One QP solved both ways ([`Nmpc::both_solutions`]).
+#[cfg(test)]
+pub(super) struct BothSolutions {
+    pub(super) ipm: Vec<f64>,
+    pub(super) clarabel: Vec<f64>,
+    /// The interior-point method's, then Clarabel's.
+    pub(super) objectives: [f64; 2],
+    pub(super) iterations: usize,
 }
 
 /// The values of one QP in the fixed layout of [`ClarabelQp`].
