@@ -149,8 +149,8 @@ pub fn summary(o: &Outcome) -> String {
     if t.solves > 0 || t.refused > 0 {
         let _ = writeln!(
             s,
-            "tracker_qps={} by_clarabel={} failures={} fallbacks={} safe_stops={} refused={}",
-            t.solves, t.clarabel, t.failures, t.fallbacks, t.safe_stops, t.refused
+            "tracker_qps={} constrained={} by_clarabel={} failures={} fallbacks={} safe_stops={} refused={}",
+            t.solves, t.constrained, t.clarabel, t.failures, t.fallbacks, t.safe_stops, t.refused
         );
     }
     let _ = writeln!(

@@ -156,6 +156,7 @@ impl Counters {
         );
         let (t, u) = (&mut self.tracker, o.tracker);
         t.solves = t.solves.saturating_add(u.solves);
+        t.constrained = t.constrained.saturating_add(u.constrained);
         t.clarabel = t.clarabel.saturating_add(u.clarabel);
         t.failures = t.failures.saturating_add(u.failures);
         t.fallbacks = t.fallbacks.saturating_add(u.fallbacks);

@@ -37,7 +37,11 @@ pub trait Tracker: Send + std::fmt::Debug {
 pub struct TrackerReport {
     /// Optimisation problems solved.
     pub solves: u64,
-    /// Of which by Clarabel (constraints active).
+    /// Of which with a bound active (solved by the interior-point method on
+    /// the stages, or by Clarabel).
+    pub constrained: u64,
+    /// Of which by Clarabel (the interior-point method did not converge, or
+    /// `QpStrategy::Clarabel`).
     pub clarabel: u64,
     /// Failed solves.
     pub failures: u64,
@@ -169,6 +173,7 @@ impl Tracker for NmpcTracker {
         let s = self.nmpc.stats();
         TrackerReport {
             solves: s.qps,
+            constrained: s.ipm + s.clarabel,
             clarabel: s.clarabel,
             failures: s.failures,
             fallbacks: s.fallbacks,
