@@ -31,6 +31,10 @@ use std::time::Instant;
 
 #[path = "common/peer_python.rs"]
 mod common;
+#[path = "common/stats.rs"]
+mod stats;
+
+use stats::{Stats, percentile};
 
 use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
 use rex_agent::algorithms::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
@@ -50,48 +54,6 @@ struct Run {
     ipm_share: f64,
     fails: u64,
     sqp_iters: f64,
-}
-
-fn percentile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let i = (q * (v.len() - 1) as f64).round() as usize;
-    v[i.min(v.len() - 1)]
-}
-
-/// Step times (ms): the same statistics for ours and the peer's.
-#[derive(Clone, Copy, Debug, Default)]
-struct Stats {
-    median: f64,
-    mean: f64,
-    p95: f64,
-    p99: f64,
-    max: f64,
-}
-
-impl Stats {
-    fn of(v: &[f64]) -> Stats {
-        let mut v = v.to_vec();
-        Stats {
-            median: percentile(&mut v, 0.5),
-            mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
-            p95: percentile(&mut v, 0.95),
-            p99: percentile(&mut v, 0.99),
-            max: v.iter().copied().fold(f64::NAN, f64::max),
-        }
-    }
-}
-
-impl std::fmt::Display for Stats {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "median {:.4} ms, mean {:.4}, p95 {:.4}, p99 {:.4}, max {:.4}",
-            self.median, self.mean, self.p95, self.p99, self.max
-        )
-    }
 }
 
 fn closed_loop(
