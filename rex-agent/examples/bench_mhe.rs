@@ -21,7 +21,6 @@
 //! `mhe_median_ms=<..> mhe_mean_ms=<..> mhe_p99_ms=<..> pos_rms_m=<..> p_err=<x_icr>,<mu_s>,<mu_l>`.
 
 use std::path::Path;
-use std::process::Command;
 use std::time::Instant;
 
 #[path = "common/peer_python.rs"]
@@ -135,15 +134,7 @@ with open({out:?}, "w") as f:
 "#,
         out = out.display().to_string(),
     );
-    let run = Command::new(python).args(["-c", &script]).output()?;
-    if !run.status.success() {
-        return Err(String::from_utf8_lossy(&run.stderr)
-            .trim()
-            .to_owned()
-            .into());
-    }
-    let text = std::fs::read_to_string(&out)?;
-    std::fs::remove_file(&out)?;
+    let text = common::run_script(python, &script, &out)?;
     let mut lines = text.lines();
     let first = lines.next().ok_or("empty peer output")?;
     let (pos, p_err) = first.split_once(' ').ok_or("peer output")?;
@@ -213,13 +204,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "# peer casadi_mhe rti_qrqp: {} | position rms {:.4} m | |p - p_true| = {}",
                     p.step, p.pos_rms, p.p_err
                 );
-                println!(
-                    "#   ours (structured) / peer: median {:.3}, mean {:.3}, p99 {:.3}, max {:.3}",
-                    r.step.median / p.step.median,
-                    r.step.mean / p.step.mean,
-                    r.step.p99 / p.step.p99,
-                    r.step.max / p.step.max
-                );
+                println!("#   ours (structured) / peer: {}", r.step.ratios(&p.step));
             }
             Err(e) => eprintln!("peer casadi_mhe: {e}"),
         }

@@ -26,7 +26,6 @@
 //! (N = 20, structured QPs).
 
 use std::path::Path;
-use std::process::Command;
 use std::time::Instant;
 
 #[path = "common/peer_python.rs"]
@@ -225,15 +224,7 @@ with open({out:?}, "w") as f:
 "#,
         out = out.display().to_string(),
     );
-    let run = Command::new(python).args(["-c", &script]).output()?;
-    if !run.status.success() {
-        return Err(String::from_utf8_lossy(&run.stderr)
-            .trim()
-            .to_owned()
-            .into());
-    }
-    let text = std::fs::read_to_string(&out)?;
-    std::fs::remove_file(&out)?;
+    let text = common::run_script(python, &script, &out)?;
     let mut lines = text.lines();
     let rms_ss_m: f64 = lines.next().ok_or("empty peer output")?.parse()?;
     let (mut steps, mut prep, mut qp) = (Vec::new(), Vec::new(), Vec::new());
@@ -294,11 +285,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                                 p.step, p.prep_median, p.qp_median, p.rms_ss_m
                             );
                             println!(
-                                "#   ours (rti, structured) / casadi_{variant}: median {:.3}, mean {:.3}, p99 {:.3}, max {:.3}",
-                                rti.step.median / p.step.median,
-                                rti.step.mean / p.step.mean,
-                                rti.step.p99 / p.step.p99,
-                                rti.step.max / p.step.max
+                                "#   ours (rti, structured) / casadi_{variant}: {}",
+                                rti.step.ratios(&p.step)
                             );
                             if variant == "rti_hpipm" {
                                 hpipm = Some(p);

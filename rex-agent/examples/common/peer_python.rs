@@ -46,3 +46,22 @@ pub(crate) fn peer_python(import: &str, packages: &[&str]) -> Result<PathBuf, St
     }
     Ok(python)
 }
+
+/// Run `script` with `python`; what it wrote to `out` (removed afterwards), or
+/// its error output.
+#[allow(
+    dead_code,
+    reason = "bench_vo shares this file and runs its peer with arguments of its own"
+)]
+pub(crate) fn run_script(python: &Path, script: &str, out: &Path) -> Result<String, String> {
+    let run = Command::new(python)
+        .args(["-c", script])
+        .output()
+        .map_err(|e| format!("{}: {e}", python.display()))?;
+    if !run.status.success() {
+        return Err(String::from_utf8_lossy(&run.stderr).trim().to_owned());
+    }
+    let text = std::fs::read_to_string(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    std::fs::remove_file(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    Ok(text)
+}

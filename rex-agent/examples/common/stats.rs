@@ -33,6 +33,19 @@ impl Stats {
     }
 }
 
+impl Stats {
+    /// Ours over the peer's: `median .., mean .., p99 .., max ..`.
+    pub(crate) fn ratios(&self, peer: &Stats) -> String {
+        format!(
+            "median {:.3}, mean {:.3}, p99 {:.3}, max {:.3}",
+            self.median / peer.median,
+            self.mean / peer.mean,
+            self.p99 / peer.p99,
+            self.max / peer.max
+        )
+    }
+}
+
 impl std::fmt::Display for Stats {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
