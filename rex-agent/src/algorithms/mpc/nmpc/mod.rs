@@ -215,9 +215,11 @@ pub enum NmpcError {
 /// How the torques of a sample were obtained.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Status {
-    /// The QP was solved (`clarabel`: by Clarabel, because a bound was active).
+    /// The QP was solved (by the Riccati recursion, the interior-point method
+    /// on the stages when a bound was active, or Clarabel).
     Solved {
-        /// Whether Clarabel solved it.
+        /// Whether Clarabel solved it (the interior-point method did not
+        /// converge, or [`QpStrategy::Clarabel`]).
         clarabel: bool,
     },
     /// The QP failed; the shifted previous solution is applied.

@@ -148,6 +148,30 @@ fn converged_sqp_satisfies_the_dynamics_and_the_bounds() {
 }
 
 #[test]
+fn an_infeasible_qp_is_refused_by_both_solvers_never_solved_wrongly() {
+    // Far above the speed bound (1.5 m/s): no torque brings the next state
+    // within it, so the QP has no solution. The interior-point method must
+    // not return one; Clarabel then refuses it too, and the controller falls
+    // back.
+    let model = peer::model();
+    let s = NmpcSettings::default();
+    let r = peer::reference_run(s.horizon + 1);
+    let mut nmpc = Nmpc::new(model, s).unwrap();
+    let p = SlipParams::NOMINAL;
+    let fast = [0.0, 0.0, 0.0, 6.0, 0.0];
+    let c = nmpc.control(&fast, &r, &p).unwrap();
+    assert!(
+        matches!(c.status, Status::Fallback { .. } | Status::SafeStop { .. }),
+        "{:?}",
+        c.status
+    );
+    let stats = nmpc.stats();
+    assert_eq!((stats.ipm, stats.clarabel), (0, 0), "{stats:?}");
+    assert!(stats.ipm_fallbacks >= 1 && stats.failures >= 1, "{stats:?}");
+    assert!(c.torques.iter().all(|t| t.is_finite() && t.abs() <= 10.0));
+}
+
+#[test]
 fn qp_failures_fall_back_then_brake() {
     // Clarabel cannot finish in one iteration: every QP fails.
     let settings = NmpcSettings {
