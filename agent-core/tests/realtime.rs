@@ -235,12 +235,13 @@ impl Drop for PerThread {
     }
 }
 
-#[test]
-fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
-    let p = pair(1, 3, 1, Policy::Sample, false);
-    let info = p.system.info().clone();
+/// A [`PerThread`] observer on each of `rt`'s threads (stalling as `stall`
+/// says for the thread's name); what each saw, once the run is joined.
+fn observe_each_thread(
+    rt: &mut RealTime,
+    stall: fn(&str) -> Duration,
+) -> std::sync::Arc<std::sync::Mutex<Vec<Seen>>> {
     let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    let mut rt = RealTime::new(p.system, RtConfig::default());
     let given = out.clone();
     rt.observe(move |thread, nodes| {
         Box::new(PerThread {
@@ -250,9 +251,18 @@ fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
                 ..Seen::default()
             },
             out: given.clone(),
-            stall: Duration::ZERO,
+            stall: stall(thread),
         })
     });
+    out
+}
+
+#[test]
+fn each_thread_has_its_observer_which_sees_what_its_nodes_send_and_read() {
+    let p = pair(1, 3, 1, Policy::Sample, false);
+    let info = p.system.info().clone();
+    let mut rt = RealTime::new(p.system, RtConfig::default());
+    let out = observe_each_thread(&mut rt, |_| Duration::ZERO);
     let f = rt
         .start(Duration::from_millis(150))
         .unwrap()
@@ -315,23 +325,13 @@ fn a_thread_running_late_never_reads_a_value_stamped_after_its_instant() {
     // before its own instant.
     for policy in [Policy::Sample, Policy::queue(64)] {
         let p = pair(1, 3, 1, policy, false);
-        let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         let mut rt = RealTime::new(p.system, RtConfig::default());
-        let given = out.clone();
-        rt.observe(move |thread, nodes| {
-            Box::new(PerThread {
-                seen: Seen {
-                    thread: thread.to_owned(),
-                    nodes: nodes.to_vec(),
-                    ..Seen::default()
-                },
-                out: given.clone(),
-                stall: if thread == "e" {
-                    Duration::from_millis(12)
-                } else {
-                    Duration::ZERO
-                },
-            })
+        let out = observe_each_thread(&mut rt, |thread| {
+            if thread == "e" {
+                Duration::from_millis(12)
+            } else {
+                Duration::ZERO
+            }
         });
         let f = rt.start(Duration::from_millis(60)).unwrap().join().unwrap();
         assert_eq!(f.activations(p.e.id()), Some(20), "{policy:?}");

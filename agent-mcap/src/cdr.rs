@@ -385,19 +385,21 @@ fn constant_name(name: &str) -> String {
 
 /// ROS 2's constant names: `^[A-Z]([A-Z0-9_]?[A-Z0-9]+)*$`.
 fn constant_name_ok(name: &str) -> bool {
-    name.starts_with(|c: char| c.is_ascii_uppercase())
-        && name
-            .chars()
-            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
-        && !name.contains("__")
-        && !name.ends_with('_')
+    ros_name_ok(name, |c| c.is_ascii_uppercase())
 }
 
+/// ROS 2's field names: `^[a-z]([a-z0-9_]?[a-z0-9]+)*$`.
 fn field_name_ok(name: &str) -> bool {
-    name.starts_with(|c: char| c.is_ascii_lowercase())
+    ros_name_ok(name, |c| c.is_ascii_lowercase())
+}
+
+/// A name of `letter`s, digits and single underscores, starting with a letter
+/// and not ending with an underscore.
+fn ros_name_ok(name: &str, letter: fn(&char) -> bool) -> bool {
+    name.starts_with(|c: char| letter(&c))
         && name
             .chars()
-            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+            .all(|c| letter(&c) || c.is_ascii_digit() || c == '_')
         && !name.contains("__")
         && !name.ends_with('_')
 }
