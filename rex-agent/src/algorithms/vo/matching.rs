@@ -77,7 +77,9 @@ impl Bins {
         let base = usize::from(class) * (self.cols * self.rows) as usize;
         let (bu0, bu1) = ((u0 / self.size).max(0), (u1 / self.size).min(self.cols - 1));
         let (bv0, bv1) = ((v0 / self.size).max(0), (v1 / self.size).min(self.rows - 1));
-        let (mut best_cost, mut best_k) = (1u32 << 31, u32::MAX);
+        // The least (cost, index): ties go to the first feature whatever the bins,
+        // so the size of the bins changes the time, never the match.
+        let mut best = u64::MAX;
         for bv in bv0..=bv1 {
             for bu in bu0..=bu1 {
                 let c = base + (bv * self.cols + bu) as usize;
@@ -92,14 +94,11 @@ impl Bins {
                     // outside is above any real one (at most 32 · 255).
                     let outside = (u < u0) | (u > u1) | (v < v0) | (v > v1);
                     let cost = sad(d, desc) | (u32::from(outside) << 31);
-                    if cost < best_cost {
-                        best_cost = cost;
-                        best_k = k;
-                    }
+                    best = best.min((u64::from(cost) << 32) | u64::from(k));
                 }
             }
         }
-        (best_cost < 1 << 31).then_some(best_k as usize)
+        (best >> 32 < 1 << 31).then_some((best & u64::from(u32::MAX)) as usize)
     }
 }
 
@@ -327,88 +326,100 @@ pub enum Refinement {
     Photometric,
 }
 
-/// The `(2r+1)²` patch of `img` around `(u, v)`, bilinearly interpolated (one
-/// fractional offset for the whole patch, so the weights are computed once), into
-/// `out`; `false` if the patch (with a 1-pixel rim) leaves the image.
+/// The `S × S` patch of `img` centred on `(u, v)` (`S` odd), bilinearly
+/// interpolated (one fractional offset for the whole patch, so the weights are
+/// computed once), into `out` row by row; `false` if the patch (with a 1-pixel
+/// rim) leaves the image. In `f32` (ample for 8-bit pixels) and of a size known at
+/// compile time, so that each row is a few vector operations.
 #[inline]
-fn patch(img: &super::features::Gray, u: f64, v: f64, r: i32, out: &mut [f64]) -> bool {
+fn patch<const S: usize>(
+    img: &super::features::Gray,
+    u: f64,
+    v: f64,
+    out: &mut [[f32; S]; S],
+) -> bool {
+    let r = (S / 2) as i64;
     let (u0, v0) = (u.floor(), v.floor());
-    let (a, b) = (u - u0, v - v0);
-    let (i, j) = (u0 as i64 - i64::from(r), v0 as i64 - i64::from(r));
-    let side = 2 * r as i64 + 1;
+    let (a, b) = ((u - u0) as f32, (v - v0) as f32);
+    let (i, j) = (u0 as i64 - r, v0 as i64 - r);
+    let side = S as i64;
     if i < 1 || j < 1 || i + side + 1 >= img.w as i64 || j + side + 1 >= img.h as i64 {
         return false;
     }
     let (w00, w10, w01, w11) = ((1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b);
     let w = img.w;
-    let mut k = 0;
-    for y in 0..side as usize {
-        let row0 = (j as usize + y) * w + i as usize;
-        let row1 = row0 + w;
-        for x in 0..side as usize {
-            out[k] = w00 * f64::from(img.data[row0 + x])
-                + w10 * f64::from(img.data[row0 + x + 1])
-                + w01 * f64::from(img.data[row1 + x])
-                + w11 * f64::from(img.data[row1 + x + 1]);
-            k += 1;
+    let row = |y: usize, dx: usize| -> &[u8; S] {
+        let start = (j as usize + y) * w + i as usize + dx;
+        // In the image: checked above.
+        img.data[start..start + S].try_into().unwrap_or(&[0; S])
+    };
+    for (y, o) in out.iter_mut().enumerate() {
+        let (t0, t1, b0, b1) = (row(y, 0), row(y, 1), row(y + 1, 0), row(y + 1, 1));
+        for x in 0..S {
+            o[x] = w00 * f32::from(t0[x])
+                + w10 * f32::from(t1[x])
+                + w01 * f32::from(b0[x])
+                + w11 * f32::from(b1[x]);
         }
     }
     true
 }
 
-/// Align a `(2r+1)²` patch of `target` at `p` with the patch of `template` at `t`
+/// Align the 9 × 9 patch of `target` at `p` with the patch of `template` at `t`
 /// (translation only, inverse compositional Lucas–Kanade on mean-subtracted
-/// intensities, `r ≤ 5`); `None` if it does not converge, leaves the image or moves
-/// more than a pixel and a half.
+/// intensities); `None` if it does not converge, leaves the image or moves more
+/// than a pixel and a half. Intensities and sums in `f32`, the position in `f64`.
 pub fn lucas_kanade(
     template: &super::features::Gray,
     t: (f64, f64),
     target: &super::features::Gray,
     p: (f64, f64),
-    r: i32,
 ) -> Option<(f64, f64)> {
-    let side = (2 * r + 1) as usize;
-    let n = side * side;
+    const S: usize = 9;
+    let n = (S * S) as f32;
     // The template with a 1-pixel rim for its central differences.
-    let big = side + 2;
-    let mut tb = [0.0f64; 169];
-    if !(1..=5).contains(&r) || !patch(template, t.0, t.1, r + 1, &mut tb[..big * big]) {
+    let mut tb = [[0.0f32; S + 2]; S + 2];
+    if !patch(template, t.0, t.1, &mut tb) {
         return None;
     }
-    let (mut tv, mut gx, mut gy) = ([0.0f64; 121], [0.0f64; 121], [0.0f64; 121]);
-    for y in 0..side {
-        for x in 0..side {
-            let (k, c) = (y * side + x, (y + 1) * big + x + 1);
-            tv[k] = tb[c];
-            gx[k] = 0.5 * (tb[c + 1] - tb[c - 1]);
-            gy[k] = 0.5 * (tb[c + big] - tb[c - big]);
+    let (mut tv, mut gx, mut gy) = ([[0.0f32; S]; S], [[0.0f32; S]; S], [[0.0f32; S]; S]);
+    for y in 0..S {
+        for x in 0..S {
+            tv[y][x] = tb[y + 1][x + 1];
+            gx[y][x] = 0.5 * (tb[y + 1][x + 2] - tb[y + 1][x]);
+            gy[y][x] = 0.5 * (tb[y + 2][x + 1] - tb[y][x + 1]);
         }
     }
-    let mean_t = tv[..n].iter().sum::<f64>() / n as f64;
-    let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
-    for k in 0..n {
-        h00 += gx[k] * gx[k];
-        h01 += gx[k] * gy[k];
-        h11 += gy[k] * gy[k];
+    let (tv, gx, gy) = (tv.as_flattened_mut(), gx.as_flattened(), gy.as_flattened());
+    let mean_t = tv.iter().sum::<f32>() / n;
+    for x in tv.iter_mut() {
+        *x -= mean_t;
     }
+    let (mut h00, mut h01, mut h11) = (0.0f32, 0.0f32, 0.0f32);
+    for (x, y) in gx.iter().zip(gy) {
+        h00 += x * x;
+        h01 += x * y;
+        h11 += y * y;
+    }
+    let (h00, h01, h11) = (f64::from(h00), f64::from(h01), f64::from(h11));
     let det = h00 * h11 - h01 * h01;
     // A flat or one-dimensional patch (an edge) cannot be aligned; NaN neither.
     if det.is_nan() || det <= 1e-9 * (h00 + h11).powi(2).max(1e-12) {
         return None;
     }
     let mut q = p;
-    let mut iv = [0.0f64; 121];
+    let mut iv = [[0.0f32; S]; S];
     for _ in 0..10 {
-        if !patch(target, q.0, q.1, r, &mut iv[..n]) {
+        if !patch(target, q.0, q.1, &mut iv) {
             return None;
         }
-        let mean_i = iv[..n].iter().sum::<f64>() / n as f64;
-        let (mut b0, mut b1) = (0.0, 0.0);
-        for k in 0..n {
-            let e = (iv[k] - mean_i) - (tv[k] - mean_t);
-            b0 += gx[k] * e;
-            b1 += gy[k] * e;
+        let iv = iv.as_flattened();
+        let mean_i = dot(iv, None) / n;
+        let mut e = [0.0f32; S * S];
+        for ((e, i), t) in e.iter_mut().zip(iv).zip(&*tv) {
+            *e = (i - mean_i) - t;
         }
+        let (b0, b1) = (f64::from(dot(gx, Some(&e))), f64::from(dot(gy, Some(&e))));
         let (du, dv) = ((h11 * b0 - h01 * b1) / det, (-h01 * b0 + h00 * b1) / det);
         q = (q.0 - du, q.1 - dv);
         if !(q.0.is_finite() && q.1.is_finite())
@@ -425,6 +436,40 @@ pub fn lucas_kanade(
         }
     }
     None
+}
+
+/// `Σ a[k]·b[k]` (`b` all ones when `None`), summed in eight independent lanes so
+/// that the compiler vectorises it (one `f32` accumulator must be summed in order).
+#[inline]
+fn dot(a: &[f32], b: Option<&[f32]>) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let chunks = a.chunks_exact(8);
+    let rest = chunks.remainder();
+    let tail: f32 = match b {
+        Some(b) => {
+            let b_chunks = b.chunks_exact(8);
+            let tail = rest
+                .iter()
+                .zip(b_chunks.remainder())
+                .map(|(x, y)| x * y)
+                .sum();
+            for (x, y) in chunks.zip(b_chunks) {
+                for l in 0..8 {
+                    acc[l] += x[l] * y[l];
+                }
+            }
+            tail
+        }
+        None => {
+            for x in chunks {
+                for l in 0..8 {
+                    acc[l] += x[l];
+                }
+            }
+            rest.iter().sum()
+        }
+    };
+    acc.iter().sum::<f32>() + tail
 }
 
 /// Refine the positions in the previous left, previous right and current right
@@ -461,11 +506,20 @@ pub fn refine(
         // The costs of the (2·reach + 1)² grid, each computed once (reach ≤ 3).
         let side = (2 * reach + 1) as usize;
         let mut costs = [0u32; 49];
+        if reach == 3 {
+            costs = gr.refine_costs(&target, u, v);
+        } else {
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    costs[(dy + reach) as usize * side + (dx + reach) as usize] =
+                        sad(&target, &gr.refine_descriptor(u + dx, v + dy));
+                }
+            }
+        }
         let mut best = (u32::MAX, 0, 0);
         for dy in -reach..=reach {
             for dx in -reach..=reach {
-                let c = sad(&target, &gr.refine_descriptor(u + dx, v + dy));
-                costs[(dy + reach) as usize * side + (dx + reach) as usize] = c;
+                let c = costs[(dy + reach) as usize * side + (dx + reach) as usize];
                 if c < best.0 {
                     best = (c, dx, dy);
                 }
@@ -513,29 +567,65 @@ pub fn photometric(
 ) -> Option<[(f64, f64); 4]> {
     let mut out = p;
     for m in 0..3 {
-        out[m] = lucas_kanade(images[3], p[3], images[m], p[m], 4)?;
+        out[m] = lucas_kanade(images[3], p[3], images[m], p[m])?;
     }
     Some(out)
 }
 
 /// Keep at most `per_bucket` matches per `size × size` bucket of the current left
-/// positions (full resolution), chosen by a seeded shuffle.
-pub fn bucket(matches: &mut Vec<[(f64, f64); 4]>, size: f64, per_bucket: usize, rng: &mut Rng) {
-    // Shuffle (Fisher–Yates), then keep the first ones of each bucket.
-    for i in (1..matches.len()).rev() {
+/// positions (full resolution), chosen by a seeded shuffle; a candidate counts only
+/// if `accept` (its refinement) keeps it. Candidates are refined lazily: a bucket
+/// stops refining once it is full, so a crowded bucket costs `per_bucket`
+/// refinements and a few failures, not one per candidate. The result is grouped by
+/// bucket (in the order of their first candidate after the shuffle), each group in
+/// shuffled order; the same for any number of `threads`.
+pub fn bucket_refined(
+    candidates: &mut [[(f64, f64); 4]],
+    size: f64,
+    per_bucket: usize,
+    rng: &mut Rng,
+    threads: usize,
+    accept: impl Fn(&[(f64, f64); 4]) -> Option<[(f64, f64); 4]> + Sync,
+) -> Vec<[(f64, f64); 4]> {
+    // Shuffle (Fisher–Yates).
+    for i in (1..candidates.len()).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-        matches.swap(i, j);
+        candidates.swap(i, j);
     }
-    let mut counts: std::collections::HashMap<(i64, i64), usize> = std::collections::HashMap::new();
-    matches.retain(|m| {
-        let key = (
+    // Group by bucket, keeping the shuffled order within each (a stable sort on the
+    // order of each bucket's first appearance).
+    let key = |m: &[(f64, f64); 4]| {
+        (
             (m[3].0 / size).floor() as i64,
             (m[3].1 / size).floor() as i64,
-        );
-        let c = counts.entry(key).or_insert(0);
-        *c += 1;
-        *c <= per_bucket
+        )
+    };
+    let mut first: std::collections::HashMap<(i64, i64), usize> = std::collections::HashMap::new();
+    let mut order: Vec<(usize, usize)> = candidates
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let next = first.len();
+            (*first.entry(key(m)).or_insert(next), i)
+        })
+        .collect();
+    order.sort_unstable();
+    let mut groups: Vec<&[(usize, usize)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
+    groups.retain(|g| !g.is_empty());
+    let candidates = &*candidates;
+    let kept = super::filter_map_parallel(&groups, threads, |group| {
+        let mut out = Vec::with_capacity(per_bucket.min(group.len()));
+        for &(_, i) in group.iter() {
+            if out.len() == per_bucket {
+                break;
+            }
+            if let Some(m) = accept(&candidates[i]) {
+                out.push(m);
+            }
+        }
+        Some(out)
     });
+    kept.into_iter().flatten().collect()
 }
 
 #[cfg(test)]
@@ -576,7 +666,7 @@ mod tests {
         for (gain, offset) in [(1.0, 0.0), (1.0, 20.0), (1.0, -15.0)] {
             let target = scene(du, dv, gain, offset);
             // Started at the integer position, as the subpixel pass leaves it.
-            let q = lucas_kanade(&template, (24.0, 24.0), &target, (24.0, 24.0), 4)
+            let q = lucas_kanade(&template, (24.0, 24.0), &target, (24.0, 24.0))
                 .unwrap_or_else(|| panic!("gain {gain}, offset {offset}: no alignment"));
             let err = ((q.0 - 24.0 - du).powi(2) + (q.1 - 24.0 - dv).powi(2)).sqrt();
             assert!(
@@ -587,15 +677,54 @@ mod tests {
     }
 
     #[test]
+    fn bucketing_refines_lazily_and_keeps_at_most_the_quota() {
+        // 600 candidates in 6 buckets of 50 px; every fifth refinement fails.
+        let candidates: Vec<[(f64, f64); 4]> = (0..600)
+            .map(|i| {
+                let p = (
+                    f64::from(i % 3) * 50.0 + 7.0,
+                    f64::from(i % 2) * 50.0 + f64::from(i % 40),
+                );
+                [(f64::from(i), 0.0), (0.0, 0.0), (0.0, 0.0), p]
+            })
+            .collect();
+        let run = |threads: usize| {
+            let calls = std::sync::atomic::AtomicUsize::new(0);
+            let mut c = candidates.clone();
+            let kept = bucket_refined(&mut c, 50.0, 8, &mut Rng::new(3), threads, |m| {
+                calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                (m[0].0 as i64 % 5 != 0).then_some(*m)
+            });
+            (kept, calls.into_inner())
+        };
+        let (kept, calls) = run(1);
+        assert_eq!(kept.len(), 6 * 8, "8 from each bucket");
+        assert!(
+            kept.iter().all(|m| m[0].0 as i64 % 5 != 0),
+            "only accepted ones"
+        );
+        let mut per_bucket = std::collections::HashMap::new();
+        for m in &kept {
+            *per_bucket
+                .entry(((m[3].0 / 50.0) as i64, (m[3].1 / 50.0) as i64))
+                .or_insert(0) += 1;
+        }
+        assert!(per_bucket.values().all(|&n| n == 8), "{per_bucket:?}");
+        // Lazily: each bucket stops at its quota (8 of about 10 refined), far
+        // fewer than the 600 candidates.
+        assert!(calls < 6 * 20, "{calls} refinements");
+        // Any number of threads: the same matches in the same order.
+        assert_eq!(run(2).0, kept);
+        assert_eq!(run(4).0, kept);
+    }
+
+    #[test]
     fn lucas_kanade_refuses_a_flat_patch() {
         let flat = Gray {
             w: 32,
             h: 32,
             data: vec![90; 32 * 32],
         };
-        assert_eq!(
-            lucas_kanade(&flat, (16.0, 16.0), &flat, (16.0, 16.0), 4),
-            None
-        );
+        assert_eq!(lucas_kanade(&flat, (16.0, 16.0), &flat, (16.0, 16.0)), None);
     }
 }
