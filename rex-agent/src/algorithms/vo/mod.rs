@@ -199,13 +199,20 @@ struct PairData {
     usable: bool,
 }
 
-/// Scratch buffers reused from pair to pair.
+/// Scratch buffers of one image's features, reused from pair to pair.
 #[derive(Debug, Default)]
-struct Scratch {
+struct ImageScratch {
     full: Gray,
     half: Gray,
     responses: Responses,
     grad: Gradients,
+}
+
+/// Scratch buffers reused from pair to pair.
+#[derive(Debug, Default)]
+struct Scratch {
+    /// The left and the right image's.
+    images: [ImageScratch; 2],
     quads: Vec<[usize; 4]>,
 }
 
@@ -319,8 +326,40 @@ impl StereoOdometry {
         }
         self.size = Some((w, h));
         let mut curr = std::mem::take(&mut self.curr);
-        self.features(left, w, h, &mut curr.left);
-        self.features(right, w, h, &mut curr.right);
+        let [sl, sr] = &mut self.scratch.images;
+        let (s, (cl, cr)) = (&self.s, (&mut curr.left, &mut curr.right));
+        if s.threads > 1 {
+            // The two images on two threads: the right one is left for a scoped
+            // thread, which this one takes over if it has not started by the time
+            // the left one is done (or could not be spawned). The same features.
+            let right_job = std::sync::Mutex::new(Some((sr, cr)));
+            let right_job = &right_job;
+            let take = || {
+                right_job
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .take()
+            };
+            std::thread::scope(|scope| {
+                let other = std::thread::Builder::new()
+                    .spawn_scoped(scope, move || {
+                        if let Some((sr, cr)) = take() {
+                            features(s, right, w, h, sr, cr);
+                        }
+                    })
+                    .ok();
+                features(s, left, w, h, sl, cl);
+                if let Some((sr, cr)) = take() {
+                    features(s, right, w, h, sr, cr);
+                }
+                if let Some(Err(panic)) = other.map(|t| t.join()) {
+                    std::panic::resume_unwind(panic);
+                }
+            });
+        } else {
+            features(s, left, w, h, sl, cl);
+            features(s, right, w, h, sr, cr);
+        }
         let (nl, nr) = (
             curr.left.dense.features.len(),
             curr.right.dense.features.len(),
@@ -372,71 +411,6 @@ impl StereoOdometry {
             matches: matches.len(),
             inliers: e.inliers,
         }))
-    }
-
-    /// Features of one image (both scales), its full-resolution gradients.
-    fn features(&mut self, data: &[u8], w: usize, h: usize, out: &mut ImageData) {
-        let s = &self.s;
-        let sc = &mut self.scratch;
-        sc.full.w = w;
-        sc.full.h = h;
-        sc.full.data.clear();
-        sc.full.data.extend_from_slice(data);
-        let img = if s.half_resolution {
-            sc.full.half_into(&mut sc.half);
-            &sc.half
-        } else {
-            &sc.full
-        };
-        sc.responses.compute(img);
-        sc.grad.compute(img);
-        let sparse_n = if 3 * s.nms_n > 10 {
-            s.nms_n.max(10)
-        } else {
-            3 * s.nms_n
-        };
-        sc.responses.suppress(
-            s.nms_n,
-            s.nms_tau,
-            s.margin,
-            &sc.grad,
-            &mut out.dense.features,
-        );
-        let scale = if s.half_resolution { 2 } else { 1 };
-        let bin = (s.match_binsize / scale).max(1);
-        // The dense features' windows are narrow (a search range, or a few rows):
-        // finer bins scan fewer candidates outside them (a third of the ranges'
-        // bins: 8 px at half resolution, measured best of 25, 16, 12, 8, 6; the
-        // matches do not depend on it).
-        let dense_bin = (bin / 3).max(1);
-        out.dense
-            .bins
-            .build(&out.dense.features, img.w, img.h, dense_bin);
-        if s.multi_stage {
-            sc.responses.suppress(
-                sparse_n,
-                s.nms_tau,
-                s.margin,
-                &sc.grad,
-                &mut out.sparse.features,
-            );
-            out.sparse
-                .bins
-                .build(&out.sparse.features, img.w, img.h, bin);
-        }
-        if s.refinement == Refinement::Photometric {
-            out.image.w = w;
-            out.image.h = h;
-            out.image.data.clear();
-            out.image.data.extend_from_slice(data);
-        }
-        if s.refinement != Refinement::None {
-            if s.half_resolution {
-                out.full.compute(&sc.full);
-            } else {
-                std::mem::swap(&mut out.full, &mut sc.grad);
-            }
-        }
     }
 
     /// Circular matches of the previous and current pairs, refined, bucketed, at
@@ -509,6 +483,76 @@ impl StereoOdometry {
                 }
             },
         )
+    }
+}
+
+/// Features of one image (both scales), its full-resolution gradients.
+fn features(
+    s: &VoSettings,
+    data: &[u8],
+    w: usize,
+    h: usize,
+    sc: &mut ImageScratch,
+    out: &mut ImageData,
+) {
+    sc.full.w = w;
+    sc.full.h = h;
+    sc.full.data.clear();
+    sc.full.data.extend_from_slice(data);
+    let img = if s.half_resolution {
+        sc.full.half_into(&mut sc.half);
+        &sc.half
+    } else {
+        &sc.full
+    };
+    sc.responses.compute(img);
+    sc.grad.compute(img);
+    let sparse_n = if 3 * s.nms_n > 10 {
+        s.nms_n.max(10)
+    } else {
+        3 * s.nms_n
+    };
+    sc.responses.suppress(
+        s.nms_n,
+        s.nms_tau,
+        s.margin,
+        &sc.grad,
+        &mut out.dense.features,
+    );
+    let scale = if s.half_resolution { 2 } else { 1 };
+    let bin = (s.match_binsize / scale).max(1);
+    // The dense features' windows are narrow (a search range, or a few rows):
+    // finer bins scan fewer candidates outside them (a third of the ranges'
+    // bins: 8 px at half resolution, measured best of 25, 16, 12, 8, 6; the
+    // matches do not depend on it).
+    let dense_bin = (bin / 3).max(1);
+    out.dense
+        .bins
+        .build(&out.dense.features, img.w, img.h, dense_bin);
+    if s.multi_stage {
+        sc.responses.suppress(
+            sparse_n,
+            s.nms_tau,
+            s.margin,
+            &sc.grad,
+            &mut out.sparse.features,
+        );
+        out.sparse
+            .bins
+            .build(&out.sparse.features, img.w, img.h, bin);
+    }
+    if s.refinement == Refinement::Photometric {
+        out.image.w = w;
+        out.image.h = h;
+        out.image.data.clear();
+        out.image.data.extend_from_slice(data);
+    }
+    if s.refinement != Refinement::None {
+        if s.half_resolution {
+            out.full.compute(&sc.full);
+        } else {
+            std::mem::swap(&mut out.full, &mut sc.grad);
+        }
     }
 }
 
