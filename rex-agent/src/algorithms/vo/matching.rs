@@ -2,8 +2,8 @@
 //! previous right (stereo) → current right (time) → current left (stereo) → previous
 //! left (time), accepted only if the loop closes on the feature it started from.
 //! A sparse pass gives the displacements to expect in each part of the image; the
-//! dense pass searches only there. Matches are refined at full resolution and
-//! bucketed.
+//! dense pass searches only there. Matches are bucketed, each bucket refining
+//! its candidates at full resolution until it holds its quota.
 
 use super::features::{CLASSES, DESCRIPTOR, Features, Gradients, sad};
 use crate::algorithms::rng::Rng;

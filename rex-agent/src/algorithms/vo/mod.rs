@@ -86,8 +86,10 @@ pub struct VoSettings {
     pub min_features: usize,
     /// Seed of RANSAC and bucketing (runs are deterministic).
     pub seed: u64,
-    /// Threads refining the matches (each match alone; the results, in order, are
-    /// the same with any number). 1: the caller's thread only.
+    /// Threads of a pair: above 1, the left and right images' features are
+    /// computed on two threads and the matches' buckets are refined on up to this
+    /// many (the results, in order, are the same with any number). 1: the
+    /// caller's thread only.
     pub threads: usize,
 }
 
