@@ -117,11 +117,18 @@ impl Gradients {
                 std::array::from_fn(|k| &t[(v + k - 2) * w + 2..(v + k - 1) * w - 2])
             }
             let (d, s) = (rows(&self.tmp_d, v, w), rows(&self.tmp_s, v, w));
-            for u in 0..w - 4 {
-                let x = d[0][u] + 4 * d[1][u] + 6 * d[2][u] + 4 * d[3][u] + d[4][u];
-                let y = s[0][u] + 2 * s[1][u] - 2 * s[3][u] - s[4][u];
-                du[u + 2] = sat(x);
-                dv[u + 2] = sat(y);
+            // Every slice of the same length `n` and one output per loop: then the
+            // loops are vectorised (indexing the rows as before kept them scalar;
+            // Gradients::compute 7.0 -> 5.4 % of the odometry's samples).
+            let n = w - 4;
+            let [d0, d1, d2, d3, d4] = d.map(|r| &r[..n]);
+            let [s0, s1, _, s3, s4] = s.map(|r| &r[..n]);
+            let (du_in, dv_in) = (&mut du[2..n + 2], &mut dv[2..n + 2]);
+            for (u, o) in du_in.iter_mut().enumerate().take(n) {
+                *o = sat(d0[u] + 4 * d1[u] + 6 * d2[u] + 4 * d3[u] + d4[u]);
+            }
+            for (u, o) in dv_in.iter_mut().enumerate().take(n) {
+                *o = sat(s0[u] + 2 * s1[u] - 2 * s3[u] - s4[u]);
             }
             du[..2].fill(128);
             dv[..2].fill(128);
@@ -399,7 +406,7 @@ impl Responses {
     /// Whether nothing in the neighbourhood of `(u, v)` (clipped to the valid
     /// area) is strictly more extreme than `val`. The candidate is the extreme of
     /// its own block, which the neighbourhood contains, so the block needs no
-    /// exception; each row is compared without branches (vectorised).
+    /// exception; each row is compared without branches.
     #[inline]
     fn is_extreme(
         &self,
