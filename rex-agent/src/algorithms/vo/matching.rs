@@ -610,8 +610,7 @@ pub fn bucket_refined(
         })
         .collect();
     order.sort_unstable();
-    let mut groups: Vec<&[(usize, usize)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
-    groups.retain(|g| !g.is_empty());
+    let groups: Vec<&[(usize, usize)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
     let candidates = &*candidates;
     let kept = super::filter_map_parallel(&groups, threads, |group| {
         let mut out = Vec::with_capacity(per_bucket.min(group.len()));
