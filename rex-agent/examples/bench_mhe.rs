@@ -43,7 +43,7 @@ struct Run {
 }
 
 fn run(d: &MheData, qp: QpStrategy) -> Result<Run, Box<dyn std::error::Error>> {
-    let settings = MheSettings {
+    let settings = MheSettings::<5, 3> {
         qp,
         ..MheSettings::default()
     };
@@ -71,11 +71,7 @@ fn run(d: &MheData, qp: QpStrategy) -> Result<Run, Box<dyn std::error::Error>> {
         step: Stats::of(&times),
         pos_rms: rms(&err),
         meas_rms: rms(&meas),
-        p_err: [
-            (p.x_icr - P_TRUE_MHE.x_icr).abs(),
-            (p.mu_s - P_TRUE_MHE.mu_s).abs(),
-            (p.mu_l - P_TRUE_MHE.mu_l).abs(),
-        ],
+        p_err: std::array::from_fn(|i| (p[i] - P_TRUE_MHE.to_array()[i]).abs()),
         clarabel: mhe.stats().clarabel,
     })
 }
@@ -139,7 +135,7 @@ with open({out:?}, "w") as f:
     let first = lines.next().ok_or("empty peer output")?;
     let (pos, p_err) = first.split_once(' ').ok_or("peer output")?;
     let ms: Vec<f64> = lines.map(str::parse).collect::<Result<_, _>>()?;
-    let expected = N_SIM - MheSettings::default().horizon;
+    let expected = N_SIM - MheSettings::<5, 3>::default().horizon;
     if ms.len() != expected {
         return Err(format!("the peer timed {} updates, not {expected}", ms.len()).into());
     }

@@ -69,7 +69,7 @@ fn closed_loop(
     let n = settings.horizon;
     let reference = peer::reference_run(N_SIM + n + 1);
     let mut nmpc = Nmpc::new(model.clone(), settings)?;
-    let p = SlipParams::NOMINAL;
+    let p = SlipParams::NOMINAL.to_array();
     let mut x = reference[0];
     for i in 0..5 {
         x[i] += INIT_OFFSET[i];
@@ -85,7 +85,7 @@ fn closed_loop(
                 Ok(it) => iters.push(it as f64),
                 Err(_) => fails += 1,
             }
-            nmpc.torques()[0]
+            nmpc.torques()[0].into()
         } else {
             let c = nmpc.control(&x, window, &p)?;
             if !matches!(c.status, Status::Solved { .. }) {
@@ -101,7 +101,7 @@ fn closed_loop(
         }
         let u = u.map(|v| v.clamp(-10.0, 10.0));
         max_tau = max_tau.max(u.iter().fold(0.0f64, |m, v| m.max(v.abs())));
-        x = model.rk4(&x, &u, &p, DT, PLANT_RK4_STEPS);
+        x = model.rk4_5(&x, &u, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
         err.push((x[0] - reference[k + 1][0]).hypot(x[1] - reference[k + 1][1]));
     }
     let rms = |e: &[f64]| (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt();

@@ -124,8 +124,8 @@ pub fn mhe_data(seed: u64) -> Result<MheData, NmpcError> {
         ys: vec![measure(&x)],
     };
     for k in 0..N_SIM {
-        let c = nmpc.control(&x, &reference[k..=k + n], &SlipParams::NOMINAL)?;
-        x = model.rk4(&x, &c.torques, &P_TRUE_MHE, DT, PLANT_RK4_STEPS);
+        let c = nmpc.control(&x, &reference[k..=k + n], &SlipParams::NOMINAL.to_array())?;
+        x = model.rk4_5(&x, &c.torques, &P_TRUE_MHE, DT, PLANT_RK4_STEPS);
         data.us.push(c.torques);
         data.xs.push(x);
         data.ys.push(measure(&x));

@@ -145,6 +145,50 @@ impl Validate for SlipParams {
     }
 }
 
+/// The friction of a ground as the lateral-slip model ([`super::Lateral`]) and
+/// its estimator know it: the three coefficients of a [`Surface`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    /// Longitudinal friction μ_x: the traction a wheel can transmit is `μ_x N`.
+    pub mu_long: f64,
+    /// Lateral friction μ_y.
+    pub mu_lat: f64,
+    /// Rolling resistance coefficient μ_r.
+    pub rolling: f64,
+}
+
+impl Friction {
+    /// Concrete's (μ_x 0.8, μ_y 0.6, rolling 0.02): what an estimator assumes
+    /// before it has seen the ground.
+    pub const CONCRETE: Friction = Friction {
+        mu_long: 0.8,
+        mu_lat: 0.6,
+        rolling: 0.02,
+    };
+
+    /// As an array `[μ_x, μ_y, μ_r]`.
+    pub fn to_array(self) -> [f64; 3] {
+        [self.mu_long, self.mu_lat, self.rolling]
+    }
+
+    /// From an array `[μ_x, μ_y, μ_r]`.
+    pub fn from_array(a: [f64; 3]) -> Friction {
+        Friction {
+            mu_long: a[0],
+            mu_lat: a[1],
+            rolling: a[2],
+        }
+    }
+
+    /// The largest relative difference of the two friction coefficients
+    /// (μ_x, μ_y) from `truth`'s.
+    pub fn friction_error(&self, truth: &Friction) -> f64 {
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-9);
+        rel(self.mu_long, truth.mu_long).max(rel(self.mu_lat, truth.mu_lat))
+    }
+}
+
 /// Friction of one kind of ground, for the full model (§1.4).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -157,6 +201,17 @@ pub struct Surface {
     pub mu_lat: f64,
     /// Rolling resistance coefficient (a torque `r μ_r N` against the wheel's spin).
     pub rolling: f64,
+}
+
+impl Surface {
+    /// Its friction coefficients.
+    pub fn friction(&self) -> Friction {
+        Friction {
+            mu_long: self.mu_long,
+            mu_lat: self.mu_lat,
+            rolling: self.rolling,
+        }
+    }
 }
 
 impl Validate for Surface {

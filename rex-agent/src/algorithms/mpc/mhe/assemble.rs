@@ -1,16 +1,33 @@
 //! One Gauss–Newton step of the MHE: the normal equations `JᵀJ Δ = −Jᵀr` of the
 //! whole window, assembled stage by stage (block-tridiagonal in the states, with a
-//! border for the slip parameters), from the arrival cost, the process model and
-//! each stage's measurements; then the step, solved in `solve.rs`, applied within
-//! the parameter bounds.
+//! border for the parameters), from the arrival cost, the process model and each
+//! stage's measurements; then the step, solved in `solve.rs`, applied within the
+//! parameter bounds.
 
-use super::{Blocks, Mhe, MheError, NP, NX, slip};
+use super::{Blocks, Mhe, MheError};
 use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::QpStrategy;
-use crate::algorithms::mpc::linalg::Mat;
-use crate::world::model::{SlipParams, State5, Torques};
+use crate::world::model::{Dynamics, Matrix, Measured, NU, Vector};
 
-impl Mhe {
+/// One scalar residual `r` with standard deviation `sigma` and gradients `h`
+/// (states of one stage) and `hp` (parameters), added to the normal equations.
+fn add_scalar<const NX: usize, const NP: usize>(
+    b: &mut Blocks<NX, NP>,
+    hpp: &mut Matrix<NP, NP>,
+    gp: &mut Vector<NP>,
+    m: &Measured<NX, NP>,
+    r: f64,
+    sigma: f64,
+) {
+    let w = 1.0 / (sigma * sigma);
+    b.g += m.x * (w * r);
+    b.d += m.x * m.x.transpose() * w;
+    b.c += m.p * m.x.transpose() * w;
+    *gp += m.p * (w * r);
+    *hpp += m.p * m.p.transpose() * w;
+}
+
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// One Gauss–Newton step on the whole window.
     pub(super) fn gauss_newton(&mut self) -> Result<(), MheError> {
         let n = self.window.len() - 1;
@@ -19,13 +36,16 @@ impl Mhe {
             QpStrategy::Structured => self.solve_structured(n)?,
             QpStrategy::Clarabel => self.solve_full(n)?,
         };
-        if dx.iter().flatten().chain(&dp).any(|v| !v.is_finite()) {
+        if dx
+            .iter()
+            .flat_map(|v| v.iter())
+            .chain(dp.iter())
+            .any(|v| !v.is_finite())
+        {
             return Err(MheError::Solve("the step is not finite".into()));
         }
         for (stage, d) in self.window.iter_mut().zip(&dx) {
-            for k in 0..NX {
-                stage.x[k] += d[k];
-            }
+            stage.x += d;
         }
         for k in 0..NP {
             self.p[k] = (self.p[k] + dp[k]).clamp(self.s.p_lb[k], self.s.p_ub[k]);
@@ -38,17 +58,17 @@ impl Mhe {
     fn assemble(&mut self) -> Result<(), MheError> {
         let n = self.window.len() - 1;
         let s = &self.s;
-        let p = slip(&self.p);
+        let p = self.p;
         for b in &mut self.blocks[..=n] {
             *b = Blocks::default();
         }
-        let mut hpp = Mat::<NP, NP>::zero();
-        let mut gp = [0.0; NP];
+        let mut hpp = Matrix::<NP, NP>::zeros();
+        let mut gp = Vector::<NP>::zeros();
         // Arrival cost.
         let x0 = self.window[0].x;
         for k in 0..NX {
             let w = 1.0 / s.sigma_x0[k].powi(2);
-            self.blocks[0].d.0[k][k] += w;
+            self.blocks[0].d[(k, k)] += w;
             let e = if k == 2 {
                 wrap(x0[k] - self.x_bar[k])
             } else {
@@ -58,63 +78,50 @@ impl Mhe {
         }
         for k in 0..NP {
             let w = 1.0 / s.sigma_p[k].powi(2);
-            hpp.0[k][k] += w;
+            hpp[(k, k)] += w;
             gp[k] += w * (self.p[k] - self.p_bar[k]);
         }
         // Measurements.
-        let wheel_r = self.model.params.wheel_radius;
-        let contacts = self.model.params.contacts();
+        let unit = |k: usize| Measured {
+            value: 0.0,
+            sigma: 0.0,
+            x: Vector::<NX>::from_fn(|j, _| f64::from(u8::from(j == k))),
+            p: Vector::<NP>::zeros(),
+        };
         for i in 0..=n {
             let st = self.window[i];
-            let loads = st.loads.map(|l| (l, self.load_model(&st.x, &st.u, &p)));
+            // The torques of the interval that ends here: what the encoders and
+            // the force sensors saw just before this instant.
+            let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
+            let loads = st.loads.map(|l| (l, self.load_model(&st.x, &u_in, &p)));
             let b = &mut self.blocks[i];
-            let mut scalar = |h: &[f64; NX], hp: &[f64; NP], r: f64, sigma: f64| {
-                let w = 1.0 / (sigma * sigma);
-                for a in 0..NX {
-                    b.g[a] += w * h[a] * r;
-                    for c in 0..NX {
-                        b.d.0[a][c] += w * h[a] * h[c];
-                    }
-                    for c in 0..NP {
-                        b.c.0[c][a] += w * hp[c] * h[a];
-                    }
-                }
-                for a in 0..NP {
-                    gp[a] += w * hp[a] * r;
-                    for c in 0..NP {
-                        hpp.0[a][c] += w * hp[a] * hp[c];
-                    }
-                }
-            };
-            let unit =
-                |k: usize| -> [f64; NX] { std::array::from_fn(|j| f64::from(u8::from(j == k))) };
-            let no_p = [0.0; NP];
             if let Some(pose) = st.pose {
-                scalar(&unit(0), &no_p, st.x[0] - pose[0], st.pose_sigma[0]);
-                scalar(&unit(1), &no_p, st.x[1] - pose[1], st.pose_sigma[0]);
-                scalar(&unit(2), &no_p, st.x[2] - pose[2], st.pose_sigma[1]);
+                for k in 0..3 {
+                    let sigma = st.pose_sigma[usize::from(k == 2)];
+                    add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - pose[k], sigma);
+                }
             }
             if let Some(g) = st.gyro {
-                scalar(&unit(4), &no_p, st.x[4] - g, s.sigma_gyro);
+                let k = M::YAW_RATE;
+                add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - g, s.sigma_gyro);
             }
             if let Some(e) = st.encoders {
-                let r = wheel_r;
-                for k in 0..4 {
-                    let dy = contacts[k][1];
-                    let mut h = [0.0; NX];
-                    h[3] = 1.0 / r;
-                    h[4] = -dy / r;
-                    scalar(
-                        &h,
-                        &no_p,
-                        (st.x[3] - dy * st.x[4]) / r - e[k],
-                        s.sigma_encoder,
-                    );
+                for (k, reading) in e.iter().enumerate() {
+                    // A wheel the model cannot predict (spinning) or one gated
+                    // out when it arrived (NaN) is left out.
+                    if !reading.is_finite() {
+                        continue;
+                    }
+                    if let Some(m) = self.model.encoder_rate(k, &st.x, &u_in, &p) {
+                        let sigma = s.sigma_encoder.hypot(m.sigma);
+                        add_scalar(b, &mut hpp, &mut gp, &m, m.value - reading, sigma);
+                    }
                 }
             }
-            if let Some((l, (pred, jx, jp))) = loads {
-                for k in 0..4 {
-                    scalar(&jx[k], &jp[k], pred[k] - l[k], s.sigma_load);
+            if let Some((l, predicted)) = loads {
+                for (k, m) in predicted.iter().enumerate() {
+                    let sigma = s.sigma_load.hypot(m.sigma);
+                    add_scalar(b, &mut hpp, &mut gp, m, m.value - l[k], sigma);
                 }
             }
         }
@@ -131,33 +138,34 @@ impl Mhe {
                 -sn * dx + c * dy - rel[1],
                 b[2] - a[2] - rel[2],
             ];
-            // Rows of ∂r/∂x_i and ∂r/∂x_{i+1}.
-            let ja = [
-                [-c, -sn, -sn * dx + c * dy, 0.0, 0.0],
-                [sn, -c, -c * dx - sn * dy, 0.0, 0.0],
-                [0.0, 0.0, -1.0, 0.0, 0.0],
-            ];
-            let jb = [
-                [c, sn, 0.0, 0.0, 0.0],
-                [-sn, c, 0.0, 0.0, 0.0],
-                [0.0, 0.0, 1.0, 0.0, 0.0],
-            ];
-            let w = [
+            // Rows of ∂r/∂x_i and ∂r/∂x_{i+1} (pose components only).
+            let mut ja = Matrix::<3, NX>::zeros();
+            let mut jb = Matrix::<3, NX>::zeros();
+            ja[(0, 0)] = -c;
+            ja[(0, 1)] = -sn;
+            ja[(0, 2)] = -sn * dx + c * dy;
+            ja[(1, 0)] = sn;
+            ja[(1, 1)] = -c;
+            ja[(1, 2)] = -c * dx - sn * dy;
+            ja[(2, 2)] = -1.0;
+            jb[(0, 0)] = c;
+            jb[(0, 1)] = sn;
+            jb[(1, 0)] = -sn;
+            jb[(1, 1)] = c;
+            jb[(2, 2)] = 1.0;
+            let w = Vector::<3>::new(
                 1.0 / s.sigma_vo_step.powi(2),
                 1.0 / s.sigma_vo_step.powi(2),
                 1.0 / s.sigma_vo_turn.powi(2),
-            ];
-            for k in 0..3 {
-                for m in 0..NX {
-                    self.blocks[i].g[m] += w[k] * ja[k][m] * r[k];
-                    self.blocks[i + 1].g[m] += w[k] * jb[k][m] * r[k];
-                    for q in 0..NX {
-                        self.blocks[i].d.0[m][q] += w[k] * ja[k][m] * ja[k][q];
-                        self.blocks[i + 1].d.0[m][q] += w[k] * jb[k][m] * jb[k][q];
-                        self.blocks[i].o.0[m][q] += w[k] * ja[k][m] * jb[k][q];
-                    }
-                }
-            }
+            );
+            let wr = Vector::<3>::from_fn(|k, _| w[k] * r[k]);
+            let wja = Matrix::<3, NX>::from_fn(|k, m| w[k] * ja[(k, m)]);
+            let wjb = Matrix::<3, NX>::from_fn(|k, m| w[k] * jb[(k, m)]);
+            self.blocks[i].g += ja.tr_mul(&wr);
+            self.blocks[i + 1].g += jb.tr_mul(&wr);
+            self.blocks[i].d += ja.tr_mul(&wja);
+            self.blocks[i + 1].d += jb.tr_mul(&wjb);
+            self.blocks[i].o += ja.tr_mul(&wjb);
         }
         // IMU heading: r = (φ_{i+1} − φ_i) − (h_{i+1} − h_i), the integrated gyro.
         let w = 1.0 / s.sigma_heading_step.powi(2);
@@ -166,102 +174,67 @@ impl Mhe {
                 continue;
             };
             let r = (self.window[i + 1].x[2] - self.window[i].x[2]) - wrap(h1 - h0);
-            self.blocks[i].d.0[2][2] += w;
-            self.blocks[i + 1].d.0[2][2] += w;
-            self.blocks[i].o.0[2][2] -= w;
+            self.blocks[i].d[(2, 2)] += w;
+            self.blocks[i + 1].d[(2, 2)] += w;
+            self.blocks[i].o[(2, 2)] -= w;
             self.blocks[i].g[2] -= w * r;
             self.blocks[i + 1].g[2] += w * r;
         }
         // Dynamics: r = x_{i+1} − F(x_i, u_i, p), weights 1/σ_w².
+        let w = Vector::<NX>::from(s.sigma_w.map(|v| 1.0 / (v * v)));
         for i in 0..n {
             let st = self.window[i];
-            let (next, j) = self
+            let j = self
                 .model
                 .rk4_sensitivities(&st.x, &st.u, &p, s.dt, s.rk4_steps);
-            if next.iter().any(|v| !v.is_finite()) {
+            if j.value.iter().any(|v| !v.is_finite()) {
                 return Err(MheError::Solve("the model prediction is not finite".into()));
             }
-            self.lin[i] = j;
-            let x1 = self.window[i + 1].x;
-            let r: [f64; NX] = std::array::from_fn(|k| x1[k] - next[k]);
-            let w: [f64; NX] = s.sigma_w.map(|v| 1.0 / (v * v));
-            let a = Mat(j.x);
-            let pm = Mat(j.p);
-            // W A and W P (rows scaled).
-            let wa = Mat(std::array::from_fn(|k| a.0[k].map(|v| v * w[k])));
-            let wp = Mat(std::array::from_fn(|k| pm.0[k].map(|v| v * w[k])));
-            let wr: [f64; NX] = std::array::from_fn(|k| w[k] * r[k]);
+            let r = self.window[i + 1].x - j.value;
+            // W A, W P (rows scaled) and W r.
+            let wa = Matrix::<NX, NX>::from_fn(|k, c| w[k] * j.x[(k, c)]);
+            let wp = Matrix::<NX, NP>::from_fn(|k, c| w[k] * j.p[(k, c)]);
+            let wr = r.component_mul(&w);
             {
                 let b = &mut self.blocks[i];
-                b.d = b.d.add(&a.tmul(&wa));
-                for c in 0..NX {
-                    for k in 0..NX {
-                        b.o.0[c][k] -= wa.0[k][c];
-                    }
-                    b.g[c] -= a.col_dot(c, &wr);
-                }
-                b.c = b.c.add(&pm.tmul(&wa));
+                b.d += j.x.tr_mul(&wa);
+                b.o -= wa.transpose();
+                b.g -= j.x.tr_mul(&wr);
+                b.c += j.p.tr_mul(&wa);
             }
             {
                 let b = &mut self.blocks[i + 1];
-                for k in 0..NX {
-                    b.d.0[k][k] += w[k];
-                    b.g[k] += wr[k];
-                    for c in 0..NP {
-                        b.c.0[c][k] -= wp.0[k][c];
-                    }
-                }
+                b.d += Matrix::<NX, NX>::from_diagonal(&w);
+                b.g += wr;
+                b.c -= wp.transpose();
             }
-            hpp = hpp.add(&pm.tmul(&wp));
-            for c in 0..NP {
-                gp[c] -= pm.col_dot(c, &wr);
-            }
+            hpp += j.p.tr_mul(&wp);
+            gp -= j.p.tr_mul(&wr);
         }
         self.hpp = hpp;
         self.gp = gp;
         Ok(())
     }
-}
 
-impl Mhe {
-    /// Predicted wheel loads of the force sensors and their Jacobians: static loads
-    /// plus the transfer of the body accelerations `a_x = v̇ + x₀ω²`,
-    /// `a_y = vω − x₀ω̇` (as the plant computes them).
-    fn load_model(
-        &self,
-        x: &State5,
-        u: &Torques,
-        p: &SlipParams,
-    ) -> ([f64; 4], [[f64; NX]; 4], [[f64; NP]; 4]) {
-        let pr = &self.model.params;
-        let f = self.model.f(x, u, p);
-        let j = self.model.f_jacobians(x, u, p);
-        let (v, w, x0) = (x[3], x[4], p.x_icr);
-        let ax = f[3] + x0 * w * w;
-        let ay = v * w - x0 * f[4];
-        let mut ax_x = j.x[3];
-        ax_x[4] += 2.0 * x0 * w;
-        let mut ax_p = j.p[3];
-        ax_p[0] += w * w;
-        let mut ay_x: [f64; NX] = std::array::from_fn(|k| -x0 * j.x[4][k]);
-        ay_x[3] += w;
-        ay_x[4] += v;
-        let mut ay_p: [f64; NP] = std::array::from_fn(|k| -x0 * j.p[4][k]);
-        ay_p[0] -= f[4];
+    /// Predicted wheel loads of the force sensors and their gradients: static
+    /// loads plus the transfer of the body accelerations the model predicts
+    /// ([`Dynamics::body_accelerations`], as the plant computes them).
+    fn load_model(&self, x: &Vector<NX>, u: &Vector<NU>, p: &Vector<NP>) -> [Measured<NX, NP>; 4] {
+        let pr = self.model.platform();
+        let [ax, ay] = self.model.body_accelerations(x, u, p);
         let long = pr.mass * pr.cog_height / (2.0 * (pr.front + pr.rear));
         let lat = pr.mass * pr.cog_height / (4.0 * pr.half_track);
         let n0 = pr.static_loads();
         let d = pr.contacts();
-        let mut loads = [0.0; 4];
-        let mut jx = [[0.0; NX]; 4];
-        let mut jp = [[0.0; NP]; 4];
-        for i in 0..4 {
-            let front = if d[i][0] > 0.0 { -1.0 } else { 1.0 };
-            let left = if d[i][1] > 0.0 { -1.0 } else { 1.0 };
-            loads[i] = n0[i] + front * long * ax + left * lat * ay;
-            jx[i] = std::array::from_fn(|k| front * long * ax_x[k] + left * lat * ay_x[k]);
-            jp[i] = std::array::from_fn(|k| front * long * ax_p[k] + left * lat * ay_p[k]);
-        }
-        (loads, jx, jp)
+        std::array::from_fn(|i| {
+            let front = if d[i][0] > 0.0 { -long } else { long };
+            let left = if d[i][1] > 0.0 { -lat } else { lat };
+            Measured {
+                value: n0[i] + front * ax.value + left * ay.value,
+                sigma: 0.0,
+                x: ax.x * front + ay.x * left,
+                p: ax.p * front + ay.p * left,
+            }
+        })
     }
 }

@@ -1,5 +1,8 @@
-//! Moving-horizon estimation of the state and the slip parameters (the paper's
-//! section 3.2; notes §3.2), the problem of `peers/casadi_mhe.py`:
+//! Moving-horizon estimation of the state and the model's parameters (the paper's
+//! section 3.2; notes §3.2), the problem of `peers/casadi_mhe.py` on any
+//! prediction model ([`Dynamics`]): the peers' reduced model with its slip
+//! parameters `(x_0, μ_s, μ_l)` ([`ReducedMhe`]), or the lateral-slip model with
+//! the ground's friction `(μ_x, μ_y, μ_r)` ([`LateralMhe`], Rex's):
 //!
 //! ```text
 //! min_{x_0..x_N, p}  ‖x_0 − x̄‖²_{P0} + ‖p − p̄‖²_{PP} + Σ_i ‖y_i − h(x_i)‖²_V
@@ -24,9 +27,14 @@
 //!   absolute heading it pulled the estimate off the motion-capture poses until they
 //!   were gated out for good; its increments are the integrated gyro over the
 //!   interval, which the drift leaves intact;
-//! * encoder rates `θ̇_i = (v − d_iy ω) / r`;
+//! * encoder rates as the model predicts them ([`Dynamics::encoder_rate`]):
+//!   `θ̇_i = (v − d_iy ω) / r` on the reduced model; with the longitudinal slip
+//!   of the traction each wheel transmits on the lateral-slip model, which is
+//!   how the encoders tell the ground's `μ_x` (a wheel whose torque the model
+//!   says the ground cannot take is left out, and so is a reading whose slip
+//!   no `μ_x` explains: [`Dynamics::encoder_usable`]);
 //! * wheel loads (force sensors): static loads plus the load transfer of the
-//!   accelerations the model predicts.
+//!   accelerations the model predicts under the torques of the interval before.
 //!
 //! Exteroceptive measurements (poses) are gated: an innovation beyond
 //! `gate · σ` (widened by `drift_rate` per second without an accepted pose) is
@@ -38,9 +46,10 @@
 //! **Solution.** Gauss–Newton with exact sensitivities, one iteration per sample
 //! (real-time iteration; more at start). The normal equations are block-tridiagonal
 //! in the states with a border for `p`: a block Cholesky factorisation of the states'
-//! part and the 3 × 3 Schur complement of `p` solve them exactly in `O(N)`. When the
-//! step would leave the parameter bounds, the QP reduced to `Δp` (a 3-variable box
-//! QP, exact after eliminating the states) is solved by Clarabel.
+//! part and the `NP × NP` Schur complement of `p` solve them exactly in `O(N)` (on
+//! nalgebra's fixed-size types). When the step would leave the parameter bounds,
+//! the QP reduced to `Δp` (a box QP in `NP` variables, exact after eliminating the
+//! states) is solved by Clarabel.
 //! [`QpStrategy::Clarabel`] instead gives Clarabel the whole QP in `(Δx, Δp)`.
 //!
 //! This file holds the settings, the window and how measurements join it;
@@ -49,44 +58,44 @@
 
 use std::collections::VecDeque;
 
-use serde::{Deserialize, Serialize};
-
-use super::linalg::Mat;
 use super::nmpc::QpStrategy;
-use crate::algorithms::geometry::wrap;
-use crate::world::model::{Jacobians, Reduced, SlipParams, State5, Torques};
+use crate::world::model::{
+    Dynamics, Friction, Lateral, Matrix, NU, Reduced, SlipParams, Torques, Vector,
+};
 
 mod assemble;
+mod attach;
 mod solve;
 
 use solve::{BoxQp, FullQp};
 
-const NX: usize = 5;
-const NP: usize = 3;
+/// The MHE on the peers' reduced model.
+pub type ReducedMhe = Mhe<Reduced, 5, 3>;
+/// The MHE on the lateral-slip model.
+pub type LateralMhe = Mhe<Lateral, 6, 3>;
 
-/// Settings of the MHE; the defaults are the peer's (`casadi_mhe.py`) where it has
-/// them.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct MheSettings {
+/// Settings of the MHE for a model of `NX` states and `NP` parameters; the
+/// reduced model's defaults are the peer's (`casadi_mhe.py`) where it has them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MheSettings<const NX: usize, const NP: usize> {
     /// Window length `N` (intervals).
     pub horizon: usize,
     /// Interval [s].
     pub dt: f64,
     /// RK4 steps per interval.
     pub rk4_steps: usize,
-    /// Process noise standard deviations per interval, `(X, Y, φ, v, ω)`.
-    pub sigma_w: [f64; 5],
+    /// Process noise standard deviations per interval, per state component.
+    pub sigma_w: [f64; NX],
     /// Arrival cost on `x_0`.
-    pub sigma_x0: [f64; 5],
+    pub sigma_x0: [f64; NX],
     /// Arrival cost on `p`.
-    pub sigma_p: [f64; 3],
-    /// Initial parameter guess `(x_0, μ_s, μ_l)`.
-    pub p_prior: [f64; 3],
+    pub sigma_p: [f64; NP],
+    /// Initial parameter guess.
+    pub p_prior: [f64; NP],
     /// Lower parameter bounds.
-    pub p_lb: [f64; 3],
+    pub p_lb: [f64; NP],
     /// Upper parameter bounds.
-    pub p_ub: [f64; 3],
+    pub p_ub: [f64; NP],
     /// Map pose position noise [m].
     pub sigma_pos: f64,
     /// Map pose heading noise [rad].
@@ -125,18 +134,27 @@ pub struct MheSettings {
     pub qp_tolerance: f64,
 }
 
-impl Default for MheSettings {
-    fn default() -> Self {
+impl<const NX: usize, const NP: usize> MheSettings<NX, NP> {
+    /// The settings that do not depend on the model, with its noise, arrival
+    /// cost and parameter set.
+    pub fn with_model(
+        sigma_w: [f64; NX],
+        sigma_x0: [f64; NX],
+        sigma_p: [f64; NP],
+        p_prior: [f64; NP],
+        p_lb: [f64; NP],
+        p_ub: [f64; NP],
+    ) -> MheSettings<NX, NP> {
         MheSettings {
             horizon: 20,
             dt: 0.05,
             rk4_steps: 2,
-            sigma_w: [0.002, 0.002, 0.002, 0.01, 0.02],
-            sigma_x0: [0.05, 0.05, 0.05, 0.1, 0.1],
-            sigma_p: [0.05, 0.05, 0.2],
-            p_prior: [0.03, 0.05, 0.50],
-            p_lb: [-0.15, 0.0, 0.05],
-            p_ub: [0.15, 0.5, 1.5],
+            sigma_w,
+            sigma_x0,
+            sigma_p,
+            p_prior,
+            p_lb,
+            p_ub,
             sigma_pos: 0.02,
             sigma_phi: 0.01,
             sigma_gyro: 0.01,
@@ -156,9 +174,7 @@ impl Default for MheSettings {
             qp_tolerance: 1e-6,
         }
     }
-}
 
-impl MheSettings {
     /// Check the settings.
     pub fn validate(&self) -> Result<(), MheError> {
         let bad = |w: &str| Err(MheError::Settings(w.to_owned()));
@@ -200,6 +216,40 @@ impl MheSettings {
             }
         }
         Ok(())
+    }
+}
+
+impl Default for MheSettings<5, 3> {
+    /// The peer's, on the reduced model: parameters `(x_0, μ_s, μ_l)` from
+    /// `(0.03, 0.05, 0.5)`.
+    fn default() -> Self {
+        MheSettings::with_model(
+            [0.002, 0.002, 0.002, 0.01, 0.02],
+            [0.05, 0.05, 0.05, 0.1, 0.1],
+            [0.05, 0.05, 0.2],
+            SlipParams::NOMINAL.to_array(),
+            [-0.15, 0.0, 0.05],
+            [0.15, 0.5, 1.5],
+        )
+    }
+}
+
+impl Default for MheSettings<6, 3> {
+    /// On the lateral-slip model: the ground's `(μ_x, μ_y, μ_r)` from concrete's,
+    /// within `[0.02, 1.5] × [0.02, 1.5] × [0, 0.3]`; the lateral velocity's
+    /// process noise as the forward speed's; three RK4 steps per interval.
+    fn default() -> Self {
+        MheSettings {
+            rk4_steps: 3,
+            ..MheSettings::with_model(
+                [0.002, 0.002, 0.002, 0.01, 0.01, 0.02],
+                [0.05, 0.05, 0.05, 0.1, 0.1, 0.1],
+                [0.2, 0.2, 0.05],
+                Friction::CONCRETE.to_array(),
+                [0.02, 0.02, 0.0],
+                [1.5, 1.5, 0.3],
+            )
+        }
     }
 }
 
@@ -265,33 +315,39 @@ pub struct MheStats {
     pub rejected: u64,
     /// Of those, map poses gated out.
     pub rejected_poses: u64,
+    /// Of those, encoder readings gated out (a wheel spinning far beyond what
+    /// the model predicts for it; counted per wheel).
+    pub rejected_encoders: u64,
     /// Restarts of the window from a map pose after `relocalise_after` seconds of
     /// rejected poses.
     pub relocalisations: u64,
     /// Samples before the first pose (nothing to anchor the estimate).
     pub waiting: u64,
+    /// Windows dropped because their newest state was implausible (counted in
+    /// `failures` too); each restarts from the next pose.
+    pub restarts: u64,
     /// Failed steps (the previous estimate was propagated instead).
     pub failures: u64,
 }
 
 /// What the estimator believes now.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct MheEstimate {
-    /// State `(X, Y, φ)` of the newest sample, and `(v, ω)`.
-    pub x: State5,
-    /// Slip parameters.
-    pub p: SlipParams,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MheEstimate<const NX: usize, const NP: usize> {
+    /// The state of the newest sample.
+    pub x: [f64; NX],
+    /// The parameters.
+    pub p: [f64; NP],
     /// Whether a pose anchored the estimate.
     pub localised: bool,
 }
 
 /// One stage of the window.
-#[derive(Clone, Copy, Debug, Default)]
-struct Stage {
+#[derive(Clone, Copy, Debug)]
+struct Stage<const NX: usize> {
     t: f64,
-    x: State5,
+    x: Vector<NX>,
     /// Torques applied from this stage to the next.
-    u: Torques,
+    u: Vector<NU>,
     pose: Option<[f64; 3]>,
     /// Standard deviations of `pose` (position, heading).
     pose_sigma: [f64; 2],
@@ -304,74 +360,112 @@ struct Stage {
     rel: Option<[f64; 3]>,
 }
 
-/// Blocks of the normal equations.
-#[derive(Clone, Copy, Debug, Default)]
-struct Blocks {
-    d: Mat<NX, NX>,
-    /// Coupling with the next stage (block `(i, i+1)`).
-    o: Mat<NX, NX>,
-    /// Coupling with `p` (block `(p, i)`, 3 × 5).
-    c: Mat<NP, NX>,
-    g: [f64; NX],
+impl<const NX: usize> Default for Stage<NX> {
+    fn default() -> Self {
+        Stage {
+            t: 0.0,
+            x: Vector::zeros(),
+            u: Vector::zeros(),
+            pose: None,
+            pose_sigma: [0.0; 2],
+            gyro: None,
+            heading: None,
+            encoders: None,
+            loads: None,
+            rel: None,
+        }
+    }
 }
 
-/// The moving-horizon estimator.
+/// Blocks of the normal equations.
+#[derive(Clone, Copy, Debug)]
+struct Blocks<const NX: usize, const NP: usize> {
+    d: Matrix<NX, NX>,
+    /// Coupling with the next stage (block `(i, i+1)`).
+    o: Matrix<NX, NX>,
+    /// Coupling with `p` (block `(p, i)`, `NP × NX`).
+    c: Matrix<NP, NX>,
+    g: Vector<NX>,
+}
+
+impl<const NX: usize, const NP: usize> Default for Blocks<NX, NP> {
+    fn default() -> Self {
+        Blocks {
+            d: Matrix::zeros(),
+            o: Matrix::zeros(),
+            c: Matrix::zeros(),
+            g: Vector::zeros(),
+        }
+    }
+}
+
+/// The moving-horizon estimator on the prediction model `M`.
 #[derive(Debug)]
-pub struct Mhe {
-    model: Reduced,
-    s: MheSettings,
-    window: VecDeque<Stage>,
-    p: [f64; NP],
+pub struct Mhe<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> {
+    model: M,
+    s: MheSettings<NX, NP>,
+    window: VecDeque<Stage<NX>>,
+    p: Vector<NP>,
     /// Arrival cost anchors.
-    x_bar: State5,
-    p_bar: [f64; NP],
+    x_bar: Vector<NX>,
+    p_bar: Vector<NP>,
     last_pose_time: Option<f64>,
     /// When the current run of gated-out poses began (`None` after an accepted one).
     rejecting_since: Option<f64>,
-    blocks: Vec<Blocks>,
-    hpp: Mat<NP, NP>,
-    gp: [f64; NP],
-    lin: Vec<Jacobians>,
-    /// Block Cholesky factors of the states' part, and the solutions for the
-    /// gradient and for the three coupling columns.
-    chol: Vec<Mat<NX, NX>>,
-    e: Vec<Mat<NX, NX>>,
-    sol: Vec<Mat<NX, 4>>,
+    blocks: Vec<Blocks<NX, NP>>,
+    hpp: Matrix<NP, NP>,
+    gp: Vector<NP>,
+    /// Block Cholesky factors of the states' part (`L_i`, lower), the blocks
+    /// `E_i = L_i⁻¹ O_i`, and the solutions for the gradient and for the
+    /// coupling columns.
+    chol: Vec<Matrix<NX, NX>>,
+    e: Vec<Matrix<NX, NX>>,
+    sol_g: Vec<Vector<NX>>,
+    sol_c: Vec<Matrix<NX, NP>>,
     qp: Option<BoxQp>,
     full: Option<FullQp>,
+    /// The information on each parameter from the window's data at the last
+    /// structured step ([`Mhe::information`]).
+    information: Vector<NP>,
     stats: MheStats,
 }
 
-impl Mhe {
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// An estimator for `model`.
-    pub fn new(model: Reduced, settings: MheSettings) -> Result<Mhe, MheError> {
+    pub fn new(model: M, settings: MheSettings<NX, NP>) -> Result<Self, MheError> {
         settings.validate()?;
         let n = settings.horizon;
         Ok(Mhe {
             model,
             window: VecDeque::with_capacity(n + 2),
-            p: settings.p_prior,
-            x_bar: [0.0; NX],
-            p_bar: settings.p_prior,
+            p: Vector::from(settings.p_prior),
+            x_bar: Vector::zeros(),
+            p_bar: Vector::from(settings.p_prior),
             last_pose_time: None,
             rejecting_since: None,
             blocks: vec![Blocks::default(); n + 1],
-            hpp: Mat::zero(),
-            gp: [0.0; NP],
-            lin: vec![Jacobians::default(); n],
-            chol: vec![Mat::zero(); n + 1],
-            e: vec![Mat::zero(); n + 1],
-            sol: vec![Mat::zero(); n + 1],
+            hpp: Matrix::zeros(),
+            gp: Vector::zeros(),
+            chol: vec![Matrix::zeros(); n + 1],
+            e: vec![Matrix::zeros(); n + 1],
+            sol_g: vec![Vector::zeros(); n + 1],
+            sol_c: vec![Matrix::zeros(); n + 1],
             qp: None,
             full: None,
+            information: Vector::zeros(),
             stats: MheStats::default(),
             s: settings,
         })
     }
 
     /// The settings.
-    pub fn settings(&self) -> &MheSettings {
+    pub fn settings(&self) -> &MheSettings<NX, NP> {
         &self.s
+    }
+
+    /// The prediction model.
+    pub fn model(&self) -> &M {
+        &self.model
     }
 
     /// The counters.
@@ -379,34 +473,54 @@ impl Mhe {
         self.stats
     }
 
+    /// Change the arrival cost's standard deviations of the parameters (how far
+    /// each sample may move them: loose while nothing is known of them, tight
+    /// once they are). Refused unless each is positive and finite.
+    pub fn set_sigma_p(&mut self, sigma_p: [f64; NP]) -> Result<(), MheError> {
+        if sigma_p.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+            return Err(MheError::Settings(
+                "sigma_p must be positive and finite".into(),
+            ));
+        }
+        self.s.sigma_p = sigma_p;
+        Ok(())
+    }
+
+    /// How much the window's data say about each parameter: the diagonal of
+    /// the Gauss–Newton information of `p` with the states eliminated (the
+    /// Schur complement of the normal equations) less the arrival cost's part,
+    /// `1/σ²` of what the data alone would pin each parameter to, the others
+    /// held. Zero while the platform stands still (nothing is learnt of the
+    /// ground then); from the last [`QpStrategy::Structured`] step.
+    pub fn information(&self) -> [f64; NP] {
+        self.information.into()
+    }
+
     /// The current estimate.
-    pub fn estimate(&self) -> MheEstimate {
+    pub fn estimate(&self) -> MheEstimate<NX, NP> {
         MheEstimate {
-            x: self.window.back().map_or([0.0; NX], |s| s.x),
-            p: slip(&self.p),
+            x: self.window.back().map_or([0.0; NX], |s| s.x.into()),
+            p: self.p.into(),
             localised: !self.window.is_empty(),
         }
     }
 
     /// The estimate of the state at time `t` inside the window (nearest stage).
-    pub fn state_at(&self, t: f64) -> Option<State5> {
+    pub fn state_at(&self, t: f64) -> Option<[f64; NX]> {
         self.nearest(t)
-            .map(|i| self.shifted(&self.window[i].x, t - self.window[i].t))
+            .map(|i| self.shifted(&self.window[i].x, t - self.window[i].t).into())
     }
 
     /// The state `x` moved along its own velocity by `dt` seconds (first order):
     /// measurements are rarely taken at a stage's instant, and 25 ms at 0.5 m/s
     /// are 12 mm.
-    fn shifted(&self, x: &State5, dt: f64) -> State5 {
-        let (s, c) = x[2].sin_cos();
-        let (v, w, x0) = (x[3], x[4], self.p[0]);
-        [
-            x[0] + dt * (v * c + x0 * w * s),
-            x[1] + dt * (v * s - x0 * w * c),
-            x[2] + dt * w,
-            v,
-            w,
-        ]
+    fn shifted(&self, x: &Vector<NX>, dt: f64) -> Vector<NX> {
+        let [vx, vy] = self.model.world_velocity(x, &self.p);
+        let mut out = *x;
+        out[0] += dt * vx;
+        out[1] += dt * vy;
+        out[2] += dt * x[M::YAW_RATE];
+        out
     }
 
     fn nearest(&self, t: f64) -> Option<usize> {
@@ -423,26 +537,25 @@ impl Mhe {
 
     /// A new sample at time `t`: `u` is the torque applied since the previous
     /// sample, `m` the measurements. Returns the estimate after the update.
-    pub fn update(&mut self, t: f64, u: &Torques, m: &Sample) -> MheEstimate {
+    pub fn update(&mut self, t: f64, u: &Torques, m: &Sample) -> MheEstimate<NX, NP> {
         self.stats.samples += 1;
-        let u = u.map(|v| if v.is_finite() { v } else { 0.0 });
+        let u = Vector::from(u.map(|v| if v.is_finite() { v } else { 0.0 }));
         if self.window.is_empty() {
             return self.start(t, m);
         }
         // Predict the new stage and shift the window.
-        let (mut prev, p) = (
-            self.window.back().copied().unwrap_or_default(),
-            slip(&self.p),
-        );
-        prev.u = u;
-        if let Some(last) = self.window.back_mut() {
-            last.u = u;
-        }
-        let x_new = self.model.rk4(&prev.x, &u, &p, self.s.dt, self.s.rk4_steps);
+        let Some(last) = self.window.back_mut() else {
+            return self.estimate();
+        };
+        last.u = u;
+        let prev = last.x;
+        let x_new = self
+            .model
+            .rk4(&prev, &u, &self.p, self.s.dt, self.s.rk4_steps);
         let x_new = if x_new.iter().all(|v| v.is_finite()) {
             x_new
         } else {
-            prev.x
+            prev
         };
         self.window.push_back(Stage {
             t,
@@ -469,11 +582,34 @@ impl Mhe {
                 break;
             }
         }
+        if !self.plausible() {
+            // The window explains its measurements with a motion no platform
+            // makes (wheels spinning in place read as a spin of the body, on a
+            // platform too heavy to move): a failure, and the window restarts
+            // from the next pose rather than drifting on.
+            self.stats.failures += 1;
+            self.stats.restarts += 1;
+            self.window.clear();
+            self.rejecting_since = None;
+        }
         self.estimate()
     }
 
+    /// Whether the newest stage's velocities are ones a platform within the
+    /// settings' limits could have (three times `max_speed`, `max_yaw_rate`, as
+    /// for the measurements) and its pose is finite.
+    fn plausible(&self) -> bool {
+        let Some(last) = self.window.back() else {
+            return true;
+        };
+        let [vx, vy] = self.model.world_velocity(&last.x, &self.p);
+        last.x.iter().all(|v| v.is_finite())
+            && vx.hypot(vy) <= 3.0 * self.s.max_speed
+            && last.x[M::YAW_RATE].abs() <= 3.0 * self.s.max_yaw_rate
+    }
+
     /// The first sample with a pose starts the window; before it, samples wait.
-    fn start(&mut self, t: f64, m: &Sample) -> MheEstimate {
+    fn start(&mut self, t: f64, m: &Sample) -> MheEstimate<NX, NP> {
         let pose = m
             .pose
             .filter(|p| p.pose.iter().all(|v| v.is_finite()) && p.time.is_finite());
@@ -489,12 +625,12 @@ impl Mhe {
             .encoders
             .filter(|e| e.iter().all(|v| v.is_finite()))
             .map_or(0.0, |e| {
-                self.model.params.wheel_radius * e.iter().sum::<f64>() / 4.0
+                self.model.platform().wheel_radius * e.iter().sum::<f64>() / 4.0
             });
-        let [x, y, phi] = pose.pose;
         // The pose describes an earlier time (it is late): moved to now, it is
         // the first stage's measurement.
-        self.x_bar = self.shifted(&[x, y, phi, v, w], t - pose.time);
+        let x = self.model.state_at_pose(pose.pose, v, w, &self.p);
+        self.x_bar = self.shifted(&x, t - pose.time);
         self.p_bar = self.p;
         self.window.push_back(Stage {
             t,
@@ -512,172 +648,6 @@ impl Mhe {
             }
         }
         self.estimate()
-    }
-
-    /// Attach the measurements of a sample to their stages, rejecting bad ones.
-    fn attach(&mut self, m: &Sample) {
-        let n = self.window.len() - 1;
-        let plausible_rate = 4.0 * self.model.params.wheel_speed_max.max(1.0);
-        let now = self.window[n].t;
-        if let Some(g) = m.gyro {
-            if g.is_finite() && g.abs() <= 20.0 {
-                self.window[n].gyro = Some(g);
-            } else {
-                self.stats.rejected += 1;
-            }
-        }
-        if let Some(h) = m.heading {
-            // A jump no turn makes (a reset of the IMU between the samples, or
-            // garbage) breaks the chain of increments.
-            let previous = n.checked_sub(1).and_then(|i| {
-                self.window[i]
-                    .heading
-                    .map(|h0| (h0, now - self.window[i].t))
-            });
-            let plausible = previous.is_none_or(|(h0, dt)| {
-                wrap(h - h0).abs() <= 3.0 * self.s.max_yaw_rate * dt.abs() + 0.05
-            });
-            if h.is_finite() && plausible {
-                self.window[n].heading = Some(h);
-            } else {
-                self.stats.rejected += 1;
-            }
-        }
-        if let Some(e) = m.encoders {
-            if e.iter().all(|v| v.is_finite() && v.abs() <= plausible_rate) {
-                self.window[n].encoders = Some(e);
-            } else {
-                self.stats.rejected += 1;
-            }
-        }
-        if let Some(l) = m.loads
-            && self.s.sigma_load > 0.0
-        {
-            let weight = self.model.params.mass * self.model.params.gravity;
-            if l.iter()
-                .all(|v| v.is_finite() && *v >= -0.1 * weight && *v <= weight)
-            {
-                self.window[n].loads = Some(l);
-            } else {
-                self.stats.rejected += 1;
-            }
-        }
-        if let Some(p) = m.pose {
-            let sigma = [self.s.sigma_pos, self.s.sigma_phi];
-            self.attach_pose(p.time, p.pose, sigma, now);
-        }
-        let first = self.window.front().map_or(now, |s| s.t);
-        let filling = self.window.len() <= self.s.horizon;
-        if let Some(mo) = m
-            .motion
-            .filter(|mo| !(filling && mo.from < first - 0.5 * self.s.dt))
-        {
-            // (A motion that began before a window still filling is of no use,
-            // and nothing wrong.) Visual odometry measures a relative motion: the average velocity
-            // over the interval, attached to the stage nearest its middle. (Composed
-            // onto the estimate at `from` as a pose, it would repeat the estimate's
-            // own error as if it were new evidence.)
-            let span = mo.to - mo.from;
-            let (a, b) = (self.nearest(mo.from), self.nearest(mo.to));
-            // The displacement in the frame at the interval's middle: the chord of
-            // an arc points along the heading half-way (in the frame at `from` it
-            // would show a lateral v ω Δt / 2 that is no slip).
-            let [dx, dy, dphi] = mo.delta;
-            let (sh, ch) = (0.5 * dphi).sin_cos();
-            let (mx, my) = (ch * dx + sh * dy, -sh * dx + ch * dy);
-            let speed = [mx / span, my / span, dphi / span];
-            let plausible = speed[0].abs() <= 3.0 * self.s.max_speed
-                && speed[1].abs() <= 3.0 * self.s.max_speed
-                && speed[2].abs() <= 3.0 * self.s.max_yaw_rate;
-            match (a, b) {
-                (Some(a), Some(b))
-                    if span > 1e-3 && speed.iter().all(|v| v.is_finite()) && plausible =>
-                {
-                    // The motion between consecutive stages at that velocity (chords).
-                    for k in a..b {
-                        let tau = self.window[k + 1].t - self.window[k].t;
-                        let turn = speed[2] * tau;
-                        let (sh, ch) = (0.5 * turn).sin_cos();
-                        let (ex, ey) = (speed[0] * tau, speed[1] * tau);
-                        self.window[k].rel = Some([ch * ex - sh * ey, sh * ex + ch * ey, turn]);
-                    }
-                    if a == b {
-                        // Shorter than a stage: nothing to tie together.
-                        self.stats.rejected += 1;
-                    }
-                }
-                _ => self.stats.rejected += 1,
-            }
-        }
-    }
-
-    fn attach_pose(&mut self, time: f64, pose: [f64; 3], sigma: [f64; 2], now: f64) {
-        let first = self.window.front().map_or(now, |s| s.t);
-        if time < first - 0.5 * self.s.dt && self.window.len() <= self.s.horizon {
-            // Older than a window that is still filling: the first stage was
-            // anchored on a newer pose.
-            return;
-        }
-        let Some(i) = self
-            .nearest(time)
-            .filter(|_| pose.iter().all(|v| v.is_finite()))
-        else {
-            self.stats.rejected += 1;
-            return;
-        };
-        // The measurement moved to the stage's instant along the estimated velocity.
-        let x = self.window[i].x;
-        let dt = self.window[i].t - time;
-        let moved = self.shifted(&[pose[0], pose[1], pose[2], x[3], x[4]], dt);
-        let pose = [moved[0], moved[1], moved[2]];
-        let since = self.last_pose_time.map_or(0.0, |t| (now - t).max(0.0));
-        let radius = self.s.gate * sigma[0] + self.s.drift_rate * since;
-        let dphi = wrap(pose[2] - x[2]);
-        let heading_gate = self.s.gate * sigma[1] + 0.5 * self.s.drift_rate * since;
-        if (pose[0] - x[0]).hypot(pose[1] - x[1]) > radius || dphi.abs() > heading_gate {
-            self.stats.rejected += 1;
-            self.stats.rejected_poses += 1;
-            let since = *self.rejecting_since.get_or_insert(time);
-            if now - since >= self.s.relocalise_after {
-                let t = self.window[i].t;
-                self.relocalise(t, [pose[0], pose[1], x[2] + dphi], now);
-            }
-            return;
-        }
-        self.rejecting_since = None;
-        self.window[i].pose = Some([pose[0], pose[1], x[2] + dphi]);
-        self.window[i].pose_sigma = sigma;
-        self.last_pose_time = Some(self.last_pose_time.map_or(time, |t| t.max(time)));
-    }
-
-    /// Restart the window from a map pose that describes the time `t`: the newest
-    /// stage keeps its measurements and velocities, takes the pose moved to its
-    /// instant, and becomes the whole window (the arrival cost anchors on it).
-    fn relocalise(&mut self, t: f64, pose: [f64; 3], now: f64) {
-        let Some(last) = self.window.back().copied() else {
-            return;
-        };
-        let x = self.shifted(&[pose[0], pose[1], pose[2], last.x[3], last.x[4]], now - t);
-        self.window.clear();
-        self.window.push_back(Stage {
-            x,
-            pose: None,
-            rel: None,
-            ..last
-        });
-        self.x_bar = x;
-        self.p_bar = self.p;
-        self.last_pose_time = Some(t);
-        self.rejecting_since = None;
-        self.stats.relocalisations += 1;
-    }
-}
-
-fn slip(p: &[f64; NP]) -> SlipParams {
-    SlipParams {
-        x_icr: p[0],
-        mu_s: p[1],
-        mu_l: p[2],
     }
 }
 

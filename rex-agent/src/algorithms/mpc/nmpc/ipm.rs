@@ -16,14 +16,13 @@
 //! tolerance. A Riccati pivot that is not positive, a step that stalls, or no
 //! convergence in [`MAX_ITERATIONS`] returns `None`, and Clarabel solves the QP.
 
-use super::{NU, NX, Nmpc};
-use crate::algorithms::mpc::linalg::{Mat, cholesky, cholesky_solve};
+use super::{Nmpc, UuFactor, spd_cholesky};
+use crate::world::model::{Dynamics, Matrix, NU, Vector};
 
 /// Bounded components per stage: the torques of `Δu_k`, then the speed and
-/// yaw rate of `Δx_{k+1}`.
+/// yaw rate of `Δx_{k+1}` (the model's [`Dynamics::SPEED`] and
+/// [`Dynamics::YAW_RATE`]).
 const NB: usize = NU + 2;
-/// The state components that have bounds.
-const BOUNDED_X: [usize; 2] = [3, 4];
 /// The multipliers' start. Measured on the peers' lap (`bench_nmpc`, mean
 /// iterations at N = 20 / 50): 1.0 -> 8.0 / 7.8, 0.1 -> 6.8 / 6.5, 0.01 ->
 /// 7.5 / 7.4, 0.001 -> 7.5 / 7.4.
@@ -44,20 +43,20 @@ struct Bound {
 
 /// A direction: the trajectory and the slacks' and multipliers' steps.
 #[derive(Clone, Debug, Default)]
-struct Direction {
-    du: Vec<[f64; NU]>,
-    dx: Vec<[f64; NX]>,
+struct Direction<const NX: usize> {
+    du: Vec<Vector<NU>>,
+    dx: Vec<Vector<NX>>,
     s_l: Vec<f64>,
     s_u: Vec<f64>,
     l_l: Vec<f64>,
     l_u: Vec<f64>,
 }
 
-impl Direction {
-    fn new(n: usize) -> Direction {
+impl<const NX: usize> Direction<NX> {
+    fn new(n: usize) -> Direction<NX> {
         Direction {
-            du: vec![[0.0; NU]; n],
-            dx: vec![[0.0; NX]; n + 1],
+            du: vec![Vector::zeros(); n],
+            dx: vec![Vector::zeros(); n + 1],
             s_l: vec![0.0; n * NB],
             s_u: vec![0.0; n * NB],
             l_l: vec![0.0; n * NB],
@@ -68,58 +67,68 @@ impl Direction {
 
 /// The method's memory, allocated once for the horizon.
 #[derive(Clone, Debug, Default)]
-pub(super) struct IpmWork {
+pub(super) struct IpmWork<const NX: usize> {
     bounds: Vec<Bound>,
-    du: Vec<[f64; NU]>,
-    dx: Vec<[f64; NX]>,
-    aff: Direction,
-    dir: Direction,
+    du: Vec<Vector<NU>>,
+    dx: Vec<Vector<NX>>,
+    aff: Direction<NX>,
+    dir: Direction<NX>,
     /// The cost's own gradient (the barrier's terms are added per solve).
-    r_grad: Vec<[f64; NU]>,
-    q_grad: Vec<[f64; NX]>,
-    r_lin: Vec<[f64; NU]>,
-    q_lin: Vec<[f64; NX]>,
+    r_grad: Vec<Vector<NU>>,
+    q_grad: Vec<Vector<NX>>,
+    r_lin: Vec<Vector<NU>>,
+    q_lin: Vec<Vector<NX>>,
     /// Per stage `k`: `P_{k+1}`, the Cholesky factor of `H_uu`, and `H_ux`:
     /// the factorisation both of an iteration's solves use.
-    p_next: Vec<Mat<NX, NX>>,
-    chol: Vec<Mat<NU, NU>>,
-    hux: Vec<Mat<NU, NX>>,
+    p_next: Vec<Matrix<NX, NX>>,
+    chol: Vec<UuFactor>,
+    hux: Vec<Matrix<NU, NX>>,
 }
 
-impl IpmWork {
-    pub(super) fn new(n: usize) -> IpmWork {
+impl<const NX: usize> IpmWork<NX> {
+    pub(super) fn new(n: usize) -> IpmWork<NX> {
         IpmWork {
             bounds: vec![Bound::default(); n * NB],
-            du: vec![[0.0; NU]; n],
-            dx: vec![[0.0; NX]; n + 1],
+            du: vec![Vector::zeros(); n],
+            dx: vec![Vector::zeros(); n + 1],
             aff: Direction::new(n),
             dir: Direction::new(n),
-            r_grad: vec![[0.0; NU]; n],
-            q_grad: vec![[0.0; NX]; n + 1],
-            r_lin: vec![[0.0; NU]; n],
-            q_lin: vec![[0.0; NX]; n + 1],
-            p_next: vec![Mat::zero(); n],
-            chol: vec![Mat::zero(); n],
-            hux: vec![Mat::zero(); n],
+            r_grad: vec![Vector::zeros(); n],
+            q_grad: vec![Vector::zeros(); n + 1],
+            r_lin: vec![Vector::zeros(); n],
+            q_lin: vec![Vector::zeros(); n + 1],
+            p_next: vec![Matrix::zeros(); n],
+            chol: vec![UuFactor::pack_dirty(Matrix::identity()); n],
+            hux: vec![Matrix::zeros(); n],
         }
     }
 }
 
-/// The bounded component `b` of stage `k`'s variables.
-fn value(du: &[[f64; NU]], dx: &[[f64; NX]], k: usize, b: usize) -> f64 {
+/// The bounded component `b` of stage `k`'s variables (`bounded`: the state
+/// components with bounds).
+fn value<const NX: usize>(
+    du: &[Vector<NU>],
+    dx: &[Vector<NX>],
+    bounded: [usize; 2],
+    k: usize,
+    b: usize,
+) -> f64 {
     if b < NU {
         du[k][b]
     } else {
-        dx[k + 1][BOUNDED_X[b - NU]]
+        dx[k + 1][bounded[b - NU]]
     }
 }
 
-impl Nmpc {
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
+    /// The state components with bounds: the speed and the yaw rate.
+    const BOUNDED: [usize; 2] = [M::SPEED, M::YAW_RATE];
+
     /// Solve the QP of the current linearisation with `Δx_0 = dx0` and its
     /// bounds into `self.du`, `self.dx`; the iterations, or `None` if it did
     /// not converge (then `self.du`, `self.dx` are not a solution). Expects
     /// `self.du`, `self.dx` to hold the equality-constrained solution.
-    pub(super) fn ipm(&mut self, dx0: &[f64; NX]) -> Option<usize> {
+    pub(super) fn ipm(&mut self, dx0: &Vector<NX>) -> Option<usize> {
         let mut w = std::mem::take(&mut self.work);
         if w.bounds.len() != self.s.horizon * NB {
             w = IpmWork::new(self.s.horizon);
@@ -129,11 +138,12 @@ impl Nmpc {
         result
     }
 
-    fn ipm_with(&mut self, dx0: &[f64; NX], w: &mut IpmWork) -> Option<usize> {
+    fn ipm_with(&mut self, dx0: &Vector<NX>, w: &mut IpmWork<NX>) -> Option<usize> {
         let n = self.s.horizon;
         let tol = self.s.qp_tolerance;
+        let bounded = Self::BOUNDED;
         for k in 0..n {
-            w.r_grad[k] = std::array::from_fn(|i| 2.0 * self.s.r[i] * self.us[k][i]);
+            w.r_grad[k] = self.gradient_u(k);
             w.q_grad[k + 1] = self.gradient_x(k + 1);
         }
         // The boxes, in deltas from the current iterate; the start: the
@@ -145,14 +155,14 @@ impl Nmpc {
         for k in 0..n {
             for b in 0..NB {
                 let (limit, at) = if b < NU {
-                    (self.s.torque_max, self.us[k][b])
+                    (self.limits[b], self.us[k][b])
                 } else if b == NU {
-                    (self.s.speed_max, self.xs[k + 1][3])
+                    (self.s.speed_max, self.xs[k + 1][M::SPEED])
                 } else {
-                    (self.s.yaw_rate_max, self.xs[k + 1][4])
+                    (self.s.yaw_rate_max, self.xs[k + 1][M::YAW_RATE])
                 };
                 let (lb, ub) = (-limit - at, limit - at);
-                let z = value(&w.du, &w.dx, k, b);
+                let z = value(&w.du, &w.dx, bounded, k, b);
                 let floor = 0.1 * (ub - lb);
                 w.bounds[k * NB + b] = Bound {
                     lb,
@@ -174,7 +184,7 @@ impl Nmpc {
                 / m;
             let residual = (0..n * NB)
                 .map(|j| {
-                    let z = value(&w.du, &w.dx, j / NB, j % NB);
+                    let z = value(&w.du, &w.dx, bounded, j / NB, j % NB);
                     let b = &w.bounds[j];
                     (z - b.s_l - b.lb).abs().max((b.ub - z - b.s_u).abs())
                 })
@@ -224,12 +234,8 @@ impl Nmpc {
                 return None;
             }
             for k in 0..n {
-                for i in 0..NU {
-                    w.du[k][i] += alpha * dir.du[k][i];
-                }
-                for i in 0..NX {
-                    w.dx[k + 1][i] += alpha * dir.dx[k + 1][i];
-                }
+                w.du[k] += dir.du[k] * alpha;
+                w.dx[k + 1] += dir.dx[k + 1] * alpha;
             }
             for (j, b) in w.bounds.iter_mut().enumerate() {
                 b.s_l += alpha * dir.s_l[j];
@@ -245,53 +251,45 @@ impl Nmpc {
     /// The backward Riccati recursion's matrices for the stage weights with
     /// the barrier's diagonal: the gains into the stages, the rest into `w`;
     /// `None` if a pivot is not positive.
-    fn factor(&mut self, w: &mut IpmWork) -> Option<()> {
+    fn factor(&mut self, w: &mut IpmWork<NX>) -> Option<()> {
         let n = self.s.horizon;
+        let bounded = Self::BOUNDED;
         let barrier = |k: usize, b: usize| {
             let bd = &w.bounds[k * NB + b];
             bd.l_l / bd.s_l + bd.l_u / bd.s_u
         };
+        let (q, q_terminal) = (&self.s.q, &self.s.q_terminal);
         let q_diag = |k: usize| {
-            let q = if k == n {
-                &self.s.q_terminal
-            } else {
-                &self.s.q
-            };
-            let mut d = q.map(|v| 2.0 * v);
-            for (b, &i) in BOUNDED_X.iter().enumerate() {
+            let weights = if k == n { q_terminal } else { q };
+            let mut d = Vector::<NX>::from(weights.map(|v| 2.0 * v));
+            for (b, &i) in bounded.iter().enumerate() {
                 d[i] += barrier(k - 1, NU + b);
             }
             d
         };
-        let mut p = Mat::<NX, NX>::diag(q_diag(n));
+        let mut p = Matrix::<NX, NX>::from_diagonal(&q_diag(n));
         for k in (0..n).rev() {
             let st = &self.stages[k];
-            let pa = p.mul(&st.a);
-            let pb = p.mul(&st.b);
-            let mut huu = st.b.tmul(&pb);
+            let pa = p * st.a;
+            let pb = p * st.b;
+            let mut huu = st.b.tr_mul(&pb);
             for i in 0..NU {
-                huu.0[i][i] += 2.0 * self.s.r[i] + barrier(k, i);
+                huu[(i, i)] += 2.0 * self.s.r[i] + barrier(k, i);
             }
-            let hux = st.b.tmul(&pa);
-            let l = cholesky(&huu)?;
-            let mut kmat = Mat::<NU, NX>::zero();
-            for c in 0..NX {
-                let col = cholesky_solve(&l, &std::array::from_fn(|r| hux.0[r][c]));
-                for r in 0..NU {
-                    kmat.0[r][c] = -col[r];
-                }
-            }
+            let hux = st.b.tr_mul(&pa);
+            let l = spd_cholesky(huu)?;
+            let kmat = -l.solve(&hux);
             w.p_next[k] = p;
-            w.chol[k] = l;
             w.hux[k] = hux;
             if k > 0 {
-                let mut next = st.a.tmul(&pa).add(&hux.tmul(&kmat));
+                let mut next = st.a.tr_mul(&pa) + hux.tr_mul(&kmat);
                 let q = q_diag(k);
                 for i in 0..NX {
-                    next.0[i][i] += q[i];
+                    next[(i, i)] += q[i];
                 }
-                p = next.symmetrised();
+                p = (next + next.transpose()) * 0.5;
             }
+            w.chol[k] = l;
             self.stages[k].gain = kmat;
         }
         Some(())
@@ -302,12 +300,13 @@ impl Nmpc {
     /// of [`Nmpc::factor`], into `out`; `None` if it is not finite.
     fn direction(
         &mut self,
-        dx0: &[f64; NX],
-        w: &mut IpmWork,
+        dx0: &Vector<NX>,
+        w: &mut IpmWork<NX>,
         target: impl Fn(usize) -> (f64, f64),
-        out: &mut Direction,
+        out: &mut Direction<NX>,
     ) -> Option<()> {
         let n = self.s.horizon;
+        let bounded = Self::BOUNDED;
         // The gradient: the cost's, and the barrier's terms.
         w.r_lin.copy_from_slice(&w.r_grad);
         w.q_lin.copy_from_slice(&w.q_grad);
@@ -320,20 +319,18 @@ impl Nmpc {
             if b < NU {
                 w.r_lin[k][b] += g;
             } else {
-                w.q_lin[k + 1][BOUNDED_X[b - NU]] += g;
+                w.q_lin[k + 1][bounded[b - NU]] += g;
             }
         }
         // The backward pass of the vectors.
         let mut pv = w.q_lin[n];
         for k in (0..n).rev() {
             let st = &self.stages[k];
-            let h: [f64; NX] = std::array::from_fn(|i| w.p_next[k].row_dot(i, &st.d) + pv[i]);
-            let hu: [f64; NU] = std::array::from_fn(|i| w.r_lin[k][i] + st.b.col_dot(i, &h));
-            let kff = cholesky_solve(&w.chol[k], &hu).map(|v| -v);
+            let h = w.p_next[k] * st.d + pv;
+            let hu = w.r_lin[k] + st.b.tr_mul(&h);
+            let kff = -w.chol[k].solve(&hu);
             if k > 0 {
-                pv = std::array::from_fn(|i| {
-                    w.q_lin[k][i] + st.a.col_dot(i, &h) + w.hux[k].col_dot(i, &kff)
-                });
+                pv = w.q_lin[k] + st.a.tr_mul(&h) + w.hux[k].tr_mul(&kff);
             }
             self.stages[k].ff = kff;
         }
@@ -342,25 +339,20 @@ impl Nmpc {
         for k in 0..n {
             let st = &self.stages[k];
             let x = out.dx[k];
-            out.du[k] = std::array::from_fn(|i| st.gain.row_dot(i, &x) + st.ff[i]);
-            let u = out.du[k];
-            out.dx[k + 1] =
-                std::array::from_fn(|i| st.a.row_dot(i, &x) + st.b.row_dot(i, &u) + st.d[i]);
+            let u = st.gain * x + st.ff;
+            out.du[k] = u;
+            out.dx[k + 1] = st.a * x + st.b * u + st.d;
         }
         for k in 0..n {
-            for i in 0..NU {
-                out.du[k][i] -= w.du[k][i];
-            }
-            for i in 0..NX {
-                out.dx[k + 1][i] -= w.dx[k + 1][i];
-            }
+            out.du[k] -= w.du[k];
+            out.dx[k + 1] -= w.dx[k + 1];
         }
         for j in 0..n * NB {
             let (k, b) = (j / NB, j % NB);
             let bd = &w.bounds[j];
             let (t_l, t_u) = target(j);
-            let z = value(&w.du, &w.dx, k, b);
-            let dz = value(&out.du, &out.dx, k, b);
+            let z = value(&w.du, &w.dx, bounded, k, b);
+            let dz = value(&out.du, &out.dx, bounded, k, b);
             let ds_l = dz + (z - bd.s_l - bd.lb);
             let ds_u = -dz + (bd.ub - z - bd.s_u);
             out.s_l[j] = ds_l;
@@ -368,8 +360,9 @@ impl Nmpc {
             out.l_l[j] = (t_l - bd.s_l * bd.l_l - bd.l_l * ds_l) / bd.s_l;
             out.l_u[j] = (t_u - bd.s_u * bd.l_u - bd.l_u * ds_u) / bd.s_u;
         }
-        let finite = out.du.iter().flatten().chain(out.dx.iter().flatten());
+        let finite = out.du.iter().flat_map(|v| v.iter());
         let finite = finite
+            .chain(out.dx.iter().flat_map(|v| v.iter()))
             .chain(&out.s_l)
             .chain(&out.s_u)
             .chain(&out.l_l)
@@ -381,7 +374,7 @@ impl Nmpc {
 
 /// The longest step `≤ 1`, times `fraction`, that keeps every slack and
 /// multiplier positive.
-fn step_length(bounds: &[Bound], d: &Direction, fraction: f64) -> f64 {
+fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f64) -> f64 {
     let mut alpha = 1.0f64;
     for (j, b) in bounds.iter().enumerate() {
         for (v, dv) in [

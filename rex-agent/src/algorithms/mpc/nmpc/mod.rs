@@ -4,13 +4,15 @@
 //!
 //! ```text
 //! min  Σ_{k<N} (x_k − x_d,k)ᵀ Q (x_k − x_d,k) + u_kᵀ R u_k  +  (x_N − x_d,N)ᵀ Q_N (x_N − x_d,N)
-//! s.t. x_0 = x̂,  x_{k+1} = F(x_k, u_k, p),  |τ_i| ≤ τ_max,  |v_k| ≤ v_max,  |ω_k| ≤ ω_max (k ≥ 1)
+//! s.t. x_0 = x̂,  x_{k+1} = F(x_k, u_k, p),  |τ_i| ≤ τ_max,i,  |v_k| ≤ v_max,  |ω_k| ≤ ω_max (k ≥ 1)
 //! ```
 //!
-//! with `F` the reduced model integrated by RK4 over each interval (direct multiple
-//! shooting). It is solved by Gauss–Newton SQP: linearise `F` around the current
-//! iterate with exact sensitivities ([`Reduced::rk4_sensitivities`]), solve the QP in
-//! `Δw`, take the full step.
+//! with `F` a prediction model ([`Dynamics`]) integrated by RK4 over each interval
+//! (direct multiple shooting): the peers' reduced model ([`ReducedNmpc`]) for the
+//! comparisons with them, the lateral-slip model ([`LateralNmpc`]) for Rex. It is
+//! solved by Gauss–Newton SQP: linearise `F` around the current iterate with exact
+//! sensitivities ([`Dynamics::rk4_sensitivities`]), solve the QP in `Δw`, take the
+//! full step.
 //!
 //! * **Real-time iteration** ([`Nmpc::prepare`] then [`Nmpc::feedback`]): one QP per
 //!   sample. The preparation shifts the previous solution one stage, linearises and
@@ -19,19 +21,19 @@
 //! * **Converged SQP** ([`Nmpc::solve`]): QPs until the step is below a tolerance,
 //!   for cold starts and tests.
 //!
-//! **How the QP is solved.** The QP has 180 variables (`Δx_0` is fixed by the
-//! measurement), 100 equality rows and 240 inequality rows. Solved by Clarabel
-//! (interior point, no warm start) it costs about nine iterations whatever the
-//! starting point: 0.8–0.9 ms here, twice the whole budget. But the inequality rows
-//! are rarely active once the platform is on its path. So
-//! [`QpStrategy::Structured`] first solves the equality-constrained QP by a Riccati
-//! recursion over the stages (linear in `N`, a few microseconds); if that solution
-//! satisfies every bound, it *is* the solution of the whole QP (the KKT conditions
-//! hold with zero multipliers on the bounds). When a bound would be violated, a
-//! primal-dual interior-point method whose Newton steps are the same Riccati
-//! recursion with the barrier's diagonal added to the stage weights (`ipm.rs`,
-//! as HPIPM does; Mehrotra's predictor-corrector, one factorisation for both
-//! solves) solves the QP with its bounds in about seven iterations: on the
+//! **How the QP is solved.** The QP has `N (NX + 4)` variables (`Δx_0` is fixed by
+//! the measurement; 180 for the peers' problem), `N NX` equality rows and `12 N`
+//! inequality rows. Solved by Clarabel (interior point, no warm start) it costs
+//! about nine iterations whatever the starting point: 0.8–0.9 ms here, twice the
+//! whole budget. But the inequality rows are rarely active once the platform is on
+//! its path. So [`QpStrategy::Structured`] first solves the equality-constrained QP
+//! by a Riccati recursion over the stages (linear in `N`, a few microseconds); if
+//! that solution satisfies every bound, it *is* the solution of the whole QP (the
+//! KKT conditions hold with zero multipliers on the bounds). When a bound would be
+//! violated, a primal-dual interior-point method whose Newton steps are the same
+//! Riccati recursion with the barrier's diagonal added to the stage weights
+//! (`ipm.rs`, as HPIPM does; Mehrotra's predictor-corrector, one factorisation for
+//! both solves) solves the QP with its bounds in about seven iterations: on the
 //! peers' closed loop the step's p99 went from 0.52 ms (Clarabel for these QPs)
 //! to 0.16 ms. Clarabel stays the reference the tests compare it with, and the
 //! fallback should it not converge: it solves the full sparse QP, on a solver
@@ -44,6 +46,9 @@
 //! as well, with the same closed loop to 1e-6: those are the defaults here.
 //! [`QpStrategy::Clarabel`] sends every QP to Clarabel, for comparison.
 //!
+//! The small dense algebra of the stages (products, the 4 × 4 Cholesky
+//! factorisations of the Riccati recursion) is nalgebra's, on fixed-size types.
+//!
 //! **Faults.** A QP that Clarabel does not solve, a Riccati recursion that meets a
 //! non-positive pivot, or non-finite data never panic: the controller applies the
 //! shifted previous solution for at most `fallback_steps` samples, then brakes to a
@@ -53,10 +58,12 @@
 //! This file holds the settings, the controller, its warm start and its fallbacks;
 //! `qp.rs` the QP of one SQP iteration (linearisation, Riccati recursion, Clarabel).
 
-use serde::{Deserialize, Serialize};
+use nalgebra::Cholesky;
 
-use super::linalg::Mat;
-use crate::world::model::{Reduced, SlipParams, State5, Torques};
+use super::spd_cholesky;
+use crate::world::model::{
+    Dynamics, Lateral, Matrix, NU, PlatformParams, Reduced, Torques, Vector,
+};
 
 mod ipm;
 mod offset;
@@ -67,11 +74,13 @@ pub use offset::{DisturbanceObserver, DisturbanceSettings};
 use ipm::IpmWork;
 use qp::ClarabelQp;
 
-const NX: usize = 5;
-const NU: usize = 4;
+/// The NMPC on the peers' reduced model `(X, Y, φ, v, ω)`.
+pub type ReducedNmpc = Nmpc<Reduced, 5, 3>;
+/// The NMPC on the lateral-slip model `(X, Y, φ, v_x, v_y, ω)`.
+pub type LateralNmpc = Nmpc<Lateral, 6, 3>;
 
 /// How the QP of each SQP iteration is solved.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum QpStrategy {
     /// Riccati recursion on the equality-constrained QP; when a bound would be
     /// violated, the interior-point method on the stage structure (Clarabel if
@@ -82,20 +91,20 @@ pub enum QpStrategy {
     Clarabel,
 }
 
-/// Settings of the NMPC; the defaults are the peers' (`casadi_nmpc.py`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct NmpcSettings {
+/// Settings of the NMPC for a model of `NX` states; the defaults of the reduced
+/// model are the peers' (`casadi_nmpc.py`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NmpcSettings<const NX: usize> {
     /// Horizon `N` (shooting intervals).
     pub horizon: usize,
     /// Interval length [s].
     pub dt: f64,
     /// RK4 steps per interval.
     pub rk4_steps: usize,
-    /// State weights `Q` on `(X, Y, φ, v, ω)` errors.
-    pub q: [f64; 5],
+    /// State weights `Q`.
+    pub q: [f64; NX],
     /// Terminal weights `Q_N`.
-    pub q_terminal: [f64; 5],
+    pub q_terminal: [f64; NX],
     /// Torque weights `R`.
     pub r: [f64; 4],
     /// Torque bound per wheel [N m].
@@ -125,14 +134,16 @@ pub struct NmpcSettings {
     pub brake_time: f64,
 }
 
-impl Default for NmpcSettings {
-    fn default() -> Self {
+impl<const NX: usize> NmpcSettings<NX> {
+    /// The settings common to every model, with the state weights `q` (also
+    /// terminal).
+    pub fn with_weights(q: [f64; NX]) -> NmpcSettings<NX> {
         NmpcSettings {
             horizon: 20,
             dt: 0.05,
             rk4_steps: 2,
-            q: [200.0, 200.0, 20.0, 1.0, 1.0],
-            q_terminal: [200.0, 200.0, 20.0, 1.0, 1.0],
+            q,
+            q_terminal: q,
             r: [1e-3; 4],
             torque_max: 10.0,
             speed_max: 1.5,
@@ -148,9 +159,7 @@ impl Default for NmpcSettings {
             brake_time: 0.3,
         }
     }
-}
 
-impl NmpcSettings {
     /// Check the settings: every number finite, weights non-negative, `R` and the
     /// bounds positive, a horizon and a step.
     pub fn validate(&self) -> Result<(), NmpcError> {
@@ -184,6 +193,26 @@ impl NmpcSettings {
             return bad("sqp_tolerance must be positive");
         }
         Ok(())
+    }
+}
+
+impl Default for NmpcSettings<5> {
+    /// The peers': `Q = Q_N = diag(200, 200, 20, 1, 1)` on `(X, Y, φ, v, ω)`,
+    /// `R = 10⁻³ I`, N = 20 × 50 ms, two RK4 steps per interval.
+    fn default() -> Self {
+        NmpcSettings::with_weights([200.0, 200.0, 20.0, 1.0, 1.0])
+    }
+}
+
+impl Default for NmpcSettings<6> {
+    /// The peers' weights on `(X, Y, φ, v_x, v_y, ω)`, the lateral velocity
+    /// weighted as the forward speed; three RK4 steps per interval (the
+    /// lateral mode is stiff on a grippy ground, see [`Lateral`]).
+    fn default() -> Self {
+        NmpcSettings {
+            rk4_steps: 3,
+            ..NmpcSettings::with_weights([200.0, 200.0, 20.0, 1.0, 1.0, 1.0])
+        }
     }
 }
 
@@ -271,30 +300,45 @@ pub struct NmpcStats {
 }
 
 /// One linearised stage: `Δx_{k+1} = A Δx_k + B Δu_k + d`.
-#[derive(Clone, Copy, Debug, Default)]
-struct Stage {
-    a: Mat<NX, NX>,
-    b: Mat<NX, NU>,
-    d: [f64; NX],
+#[derive(Clone, Copy, Debug)]
+struct Stage<const NX: usize> {
+    a: Matrix<NX, NX>,
+    b: Matrix<NX, NU>,
+    d: Vector<NX>,
     /// Feedback gain and feed-forward of the Riccati solution: `Δu = K Δx + k`.
-    gain: Mat<NU, NX>,
-    ff: [f64; NU],
+    gain: Matrix<NU, NX>,
+    ff: Vector<NU>,
 }
 
-/// The NMPC tracker.
+impl<const NX: usize> Default for Stage<NX> {
+    fn default() -> Self {
+        Stage {
+            a: Matrix::zeros(),
+            b: Matrix::zeros(),
+            d: Vector::zeros(),
+            gain: Matrix::zeros(),
+            ff: Vector::zeros(),
+        }
+    }
+}
+
+/// The NMPC tracker on the prediction model `M`.
 #[derive(Debug)]
-pub struct Nmpc {
-    model: Reduced,
-    s: NmpcSettings,
+pub struct Nmpc<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> {
+    model: M,
+    s: NmpcSettings<NX>,
     /// Current iterate: states `x_0..x_N` and torques `u_0..u_{N−1}`.
-    xs: Vec<State5>,
-    us: Vec<Torques>,
-    reference: Vec<State5>,
-    p: SlipParams,
+    xs: Vec<Vector<NX>>,
+    us: Vec<Vector<NU>>,
+    reference: Vec<Vector<NX>>,
+    p: Vector<NP>,
+    /// The torque bound of each wheel in use (`torque_max` unless lowered by
+    /// [`Nmpc::set_torque_limits`]).
+    limits: [f64; NU],
     /// Added to every predicted interval: `x_{k+1} = F(x_k, u_k, p) + d`
     /// ([`Nmpc::set_disturbance`]).
-    disturbance: State5,
-    stages: Vec<Stage>,
+    disturbance: Vector<NX>,
+    stages: Vec<Stage<NX>>,
     /// Whether `stages` holds a linearisation of the current iterate.
     prepared: bool,
     /// Whether the iterate comes from a previous solution (else: cold start).
@@ -303,33 +347,34 @@ pub struct Nmpc {
     /// Whether the last QP went to Clarabel.
     last_clarabel: bool,
     /// The step of the structured solution, checked against the bounds first.
-    du: Vec<[f64; NU]>,
-    dx: Vec<[f64; NX]>,
+    du: Vec<Vector<NU>>,
+    dx: Vec<Vector<NX>>,
     qp: Option<ClarabelQp>,
     /// The structured interior-point method's memory.
-    work: IpmWork,
+    work: IpmWork<NX>,
     stats: NmpcStats,
 }
 
-impl Nmpc {
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     /// A controller for `model`.
-    pub fn new(model: Reduced, settings: NmpcSettings) -> Result<Nmpc, NmpcError> {
+    pub fn new(model: M, settings: NmpcSettings<NX>) -> Result<Self, NmpcError> {
         settings.validate()?;
         let n = settings.horizon;
         Ok(Nmpc {
             model,
-            xs: vec![[0.0; NX]; n + 1],
-            us: vec![[0.0; NU]; n],
-            reference: vec![[0.0; NX]; n + 1],
-            p: SlipParams::NOMINAL,
-            disturbance: [0.0; NX],
+            xs: vec![Vector::zeros(); n + 1],
+            us: vec![Vector::zeros(); n],
+            reference: vec![Vector::zeros(); n + 1],
+            p: Vector::zeros(),
+            limits: [settings.torque_max; NU],
+            disturbance: Vector::zeros(),
             stages: vec![Stage::default(); n],
             prepared: false,
             warm: false,
             failures_in_a_row: 0,
             last_clarabel: false,
-            du: vec![[0.0; NU]; n],
-            dx: vec![[0.0; NX]; n + 1],
+            du: vec![Vector::zeros(); n],
+            dx: vec![Vector::zeros(); n + 1],
             qp: None,
             work: IpmWork::new(n),
             stats: NmpcStats::default(),
@@ -338,8 +383,13 @@ impl Nmpc {
     }
 
     /// The settings.
-    pub fn settings(&self) -> &NmpcSettings {
+    pub fn settings(&self) -> &NmpcSettings<NX> {
         &self.s
+    }
+
+    /// The prediction model.
+    pub fn model(&self) -> &M {
+        &self.model
     }
 
     /// The counters.
@@ -348,35 +398,57 @@ impl Nmpc {
     }
 
     /// The predicted states `x_0..x_N` of the current solution.
-    pub fn predicted(&self) -> &[State5] {
+    pub fn predicted(&self) -> &[Vector<NX>] {
         &self.xs
     }
 
     /// The torques `u_0..u_{N−1}` of the current solution.
-    pub fn torques(&self) -> &[Torques] {
+    pub fn torques(&self) -> &[Vector<NU>] {
         &self.us
+    }
+
+    /// Lower the torque bound of each wheel below `torque_max` (what the ground
+    /// can take, say); a limit above `torque_max` is `torque_max`. Refused
+    /// (nothing changes) unless every limit is positive and finite.
+    pub fn set_torque_limits(&mut self, limits: [f64; NU]) -> Result<(), NmpcError> {
+        if limits.iter().any(|l| !(l.is_finite() && *l > 0.0)) {
+            return Err(NmpcError::NotFinite("torque limit"));
+        }
+        self.limits = limits.map(|l| l.min(self.s.torque_max));
+        Ok(())
+    }
+
+    /// The torque bounds in use.
+    pub fn torque_limits(&self) -> [f64; NU] {
+        self.limits
     }
 
     /// The disturbance the predictions add to each interval's end state, `x_{k+1}
     /// = F(x_k, u_k, p) + d` (offset-free MPC: what the model leaves out, as an
     /// observer of the one-step prediction errors estimates it;
     /// [`DisturbanceObserver`]). Zero unless set; a non-finite `d` is refused.
-    pub fn set_disturbance(&mut self, d: &State5) -> Result<(), NmpcError> {
+    pub fn set_disturbance(&mut self, d: &[f64; NX]) -> Result<(), NmpcError> {
         check_finite(d, "disturbance")?;
-        self.disturbance = *d;
+        self.disturbance = Vector::from(*d);
         Ok(())
     }
 
     /// The disturbance in use.
-    pub fn disturbance(&self) -> &State5 {
-        &self.disturbance
+    pub fn disturbance(&self) -> [f64; NX] {
+        self.disturbance.into()
     }
 
     /// The model's prediction of one interval with the current parameters and
     /// disturbance: where `x` goes under `u`.
-    pub fn predict(&self, x: &State5, u: &Torques) -> State5 {
-        let next = self.model.rk4(x, u, &self.p, self.s.dt, self.s.rk4_steps);
-        std::array::from_fn(|i| next[i] + self.disturbance[i])
+    pub fn predict(&self, x: &[f64; NX], u: &Torques) -> [f64; NX] {
+        let next = self.model.rk4(
+            &Vector::from(*x),
+            &Vector::from(*u),
+            &self.p,
+            self.s.dt,
+            self.s.rk4_steps,
+        );
+        (next + self.disturbance).into()
     }
 
     /// Forget the previous solution (the next sample starts cold).
@@ -390,30 +462,31 @@ impl Nmpc {
     /// runs the converged SQP instead.
     pub fn control(
         &mut self,
-        x_hat: &State5,
-        reference: &[State5],
-        p: &SlipParams,
+        x_hat: &[f64; NX],
+        reference: &[[f64; NX]],
+        p: &[f64; NP],
     ) -> Result<Control, NmpcError> {
         check_finite(x_hat, "state estimate")?;
+        let x_hat = Vector::from(*x_hat);
         if !self.warm {
             self.set_problem(reference, p)?;
-            self.cold_start(x_hat);
-            return Ok(match self.iterate(x_hat, self.s.sqp_max_iterations) {
+            self.cold_start(&x_hat);
+            return Ok(match self.iterate(&x_hat, self.s.sqp_max_iterations) {
                 Ok(_) => {
                     self.warm = true;
                     self.solved()
                 }
-                Err(e) => self.failed(x_hat, e),
+                Err(e) => self.failed(&x_hat, e),
             });
         }
         self.prepare(reference, p)?;
-        self.feedback(x_hat)
+        self.feedback_vector(&x_hat)
     }
 
     /// Preparation: shift the previous solution one stage, take the new reference
     /// window `x_d,0..x_d,N` and parameters, linearise and run the backward Riccati
     /// recursion. Everything that does not need the measurement.
-    pub fn prepare(&mut self, reference: &[State5], p: &SlipParams) -> Result<(), NmpcError> {
+    pub fn prepare(&mut self, reference: &[[f64; NX]], p: &[f64; NP]) -> Result<(), NmpcError> {
         self.set_problem(reference, p)?;
         if self.warm {
             self.shift();
@@ -425,8 +498,12 @@ impl Nmpc {
 
     /// Feedback: the QP with `Δx_0 = x̂ − x_0`, solved (see the module docs), the
     /// step applied, the first torques returned.
-    pub fn feedback(&mut self, x_hat: &State5) -> Result<Control, NmpcError> {
+    pub fn feedback(&mut self, x_hat: &[f64; NX]) -> Result<Control, NmpcError> {
         check_finite(x_hat, "state estimate")?;
+        self.feedback_vector(&Vector::from(*x_hat))
+    }
+
+    fn feedback_vector(&mut self, x_hat: &Vector<NX>) -> Result<Control, NmpcError> {
         if !self.prepared {
             return Err(NmpcError::NotPrepared);
         }
@@ -444,21 +521,22 @@ impl Nmpc {
     /// the largest step component is below `sqp_tolerance`; returns the iterations.
     pub fn solve(
         &mut self,
-        x_hat: &State5,
-        reference: &[State5],
-        p: &SlipParams,
+        x_hat: &[f64; NX],
+        reference: &[[f64; NX]],
+        p: &[f64; NP],
     ) -> Result<usize, NmpcError> {
         check_finite(x_hat, "state estimate")?;
+        let x_hat = Vector::from(*x_hat);
         self.set_problem(reference, p)?;
         if !self.warm {
-            self.cold_start(x_hat);
+            self.cold_start(&x_hat);
         }
-        let n = self.iterate(x_hat, self.s.sqp_max_iterations)?;
+        let n = self.iterate(&x_hat, self.s.sqp_max_iterations)?;
         self.warm = true;
         Ok(n)
     }
 
-    fn set_problem(&mut self, reference: &[State5], p: &SlipParams) -> Result<(), NmpcError> {
+    fn set_problem(&mut self, reference: &[[f64; NX]], p: &[f64; NP]) -> Result<(), NmpcError> {
         let need = self.s.horizon + 1;
         if reference.len() < need {
             return Err(NmpcError::ShortReference {
@@ -472,23 +550,23 @@ impl Nmpc {
         {
             return Err(NmpcError::NotFinite("reference"));
         }
-        if ![p.x_icr, p.mu_s, p.mu_l].iter().all(|v| v.is_finite()) {
-            return Err(NmpcError::NotFinite("slip parameter estimate"));
+        check_finite(p, "parameter estimate")?;
+        for (to, from) in self.reference.iter_mut().zip(reference) {
+            *to = Vector::from(*from);
         }
-        self.reference.copy_from_slice(&reference[..need]);
-        self.p = *p;
+        self.p = Vector::from(*p);
         Ok(())
     }
 
-    fn cold_start(&mut self, x_hat: &State5) {
+    fn cold_start(&mut self, x_hat: &Vector<NX>) {
         self.xs[0] = *x_hat;
         for k in 1..=self.s.horizon {
             self.xs[k] = self.reference[k];
         }
-        self.us.iter_mut().for_each(|u| *u = [0.0; NU]);
+        self.us.iter_mut().for_each(|u| *u = Vector::zeros());
     }
 
-    fn iterate(&mut self, x_hat: &State5, max: usize) -> Result<usize, NmpcError> {
+    fn iterate(&mut self, x_hat: &Vector<NX>, max: usize) -> Result<usize, NmpcError> {
         for i in 1..=max.max(1) {
             self.linearise();
             let step = self.qp_step(x_hat)?;
@@ -504,20 +582,27 @@ impl Nmpc {
         let n = self.s.horizon;
         self.xs.copy_within(1.., 0);
         self.us.copy_within(1.., 0);
-        self.xs[n] = self.predict(&self.xs[n - 1], &self.us[n - 1]);
+        let next = self.model.rk4(
+            &self.xs[n - 1],
+            &self.us[n - 1],
+            &self.p,
+            self.s.dt,
+            self.s.rk4_steps,
+        );
+        self.xs[n] = next + self.disturbance;
     }
 
     fn solved(&mut self) -> Control {
         self.failures_in_a_row = 0;
         Control {
-            torques: self.clamped(self.us[0]),
+            torques: self.clamped(&self.us[0]),
             status: Status::Solved {
                 clarabel: self.last_clarabel,
             },
         }
     }
 
-    fn failed(&mut self, x_hat: &State5, error: NmpcError) -> Control {
+    fn failed(&mut self, x_hat: &Vector<NX>, error: NmpcError) -> Control {
         self.stats.failures += 1;
         self.failures_in_a_row += 1;
         let reason = error.to_string();
@@ -525,7 +610,7 @@ impl Nmpc {
             self.stats.fallbacks += 1;
             // The iterate is the shifted previous solution: its first torques.
             Control {
-                torques: self.clamped(self.us[0]),
+                torques: self.clamped(&self.us[0]),
                 status: Status::Fallback { reason },
             }
         } else {
@@ -538,34 +623,42 @@ impl Nmpc {
         }
     }
 
-    /// Torques that stop the platform within `brake_time`, from the reduced model's
-    /// effective mass and inertia.
-    fn brake(&self, x: &State5) -> Torques {
-        let pr = &self.model.params;
-        let (v, w) = (x[3], x[4]);
+    /// Torques that stop the platform within `brake_time`, from its effective
+    /// mass and inertia.
+    fn brake(&self, x: &Vector<NX>) -> Torques {
+        let pr: &PlatformParams = self.model.platform();
+        let (v, w) = (x[M::SPEED], x[M::YAW_RATE]);
         let m_eff = pr.effective_mass();
-        let i_eff = pr.inertia
-            + pr.mass * self.p.x_icr.powi(2)
-            + 4.0 * pr.wheel_inertia * pr.half_track.powi(2) / pr.wheel_radius.powi(2);
+        let i_eff =
+            pr.inertia + 4.0 * pr.wheel_inertia * pr.half_track.powi(2) / pr.wheel_radius.powi(2);
         let sum = -m_eff * v / self.s.brake_time * pr.wheel_radius / 2.0;
         let diff = -i_eff * w / self.s.brake_time * pr.wheel_radius / (2.0 * pr.half_track);
         let (l, r) = ((sum - diff) / 2.0, (sum + diff) / 2.0);
-        self.clamped([l, l, r, r])
+        self.clamped(&Vector::from([l, l, r, r]))
     }
 
-    fn clamped(&self, u: Torques) -> Torques {
-        let t = self.s.torque_max;
-        u.map(|v| if v.is_finite() { v.clamp(-t, t) } else { 0.0 })
+    fn clamped(&self, u: &Vector<NU>) -> Torques {
+        std::array::from_fn(|i| {
+            let t = self.limits[i];
+            if u[i].is_finite() {
+                u[i].clamp(-t, t)
+            } else {
+                0.0
+            }
+        })
     }
 }
 
-fn check_finite(x: &State5, what: &'static str) -> Result<(), NmpcError> {
+fn check_finite<const N: usize>(x: &[f64; N], what: &'static str) -> Result<(), NmpcError> {
     if x.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
         Err(NmpcError::NotFinite(what))
     }
 }
+
+/// The Cholesky factor of a stage's `H_uu` (see [`spd_cholesky`]).
+type UuFactor = Cholesky<f64, nalgebra::Const<NU>>;
 
 #[cfg(test)]
 mod tests;

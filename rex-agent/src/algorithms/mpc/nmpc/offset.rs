@@ -10,25 +10,25 @@
 //! prediction errors, `d ← d + L (x̂_k − F(x̂_{k−1}, u_{k−1}, p) − d)`, so at
 //! steady state the model predicts what the platform does.
 
-use super::{NX, Nmpc};
-use crate::world::model::{State5, Torques};
+use super::Nmpc;
+use crate::world::model::{Dynamics, Torques};
 
-/// Settings of the [`DisturbanceObserver`].
+/// Settings of the [`DisturbanceObserver`] of a model of `NX` states.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DisturbanceSettings {
-    /// Gain `L` per state component `(X, Y, φ, v, ω)`, in `[0, 1]`; zero leaves
-    /// a component to the feedback alone.
+pub struct DisturbanceSettings<const NX: usize> {
+    /// Gain `L` per state component, in `[0, 1]`; zero leaves a component to
+    /// the feedback alone.
     pub gain: [f64; NX],
     /// Bound of `|d|` per component (per interval).
     pub bound: [f64; NX],
 }
 
-impl Default for DisturbanceSettings {
-    /// Position: gain 0.1, at most 1 cm per interval (0.2 m/s at 50 ms: the
-    /// sideslip the reduced model cannot represent, as an integral action on
-    /// the position); speeds: gain 0.2, at most 0.1 m/s and 0.3 rad/s per
-    /// interval; heading: none (it follows from the yaw rate). Chosen on the
-    /// shipped missions (`bench_missions`; the README shows the table).
+impl Default for DisturbanceSettings<5> {
+    /// On `(X, Y, φ, v, ω)`: position gain 0.1, at most 1 cm per interval (0.2
+    /// m/s at 50 ms: the sideslip the reduced model cannot represent, as an
+    /// integral action on the position); speeds: gain 0.2, at most 0.1 m/s and
+    /// 0.3 rad/s per interval; heading: none (it follows from the yaw rate).
+    /// Chosen on the shipped missions (`bench_missions`).
     fn default() -> Self {
         DisturbanceSettings {
             gain: [0.1, 0.1, 0.0, 0.2, 0.2],
@@ -37,20 +37,31 @@ impl Default for DisturbanceSettings {
     }
 }
 
-/// Estimates the NMPC's disturbance from its one-step prediction errors.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DisturbanceObserver {
-    s: DisturbanceSettings,
-    d: State5,
-    /// The state and torques of the last sample, if the next follows it.
-    last: Option<(State5, Torques)>,
+impl Default for DisturbanceSettings<6> {
+    /// On `(X, Y, φ, v_x, v_y, ω)`: the same gains and bounds, the lateral
+    /// velocity's as the forward speed's.
+    fn default() -> Self {
+        DisturbanceSettings {
+            gain: [0.1, 0.1, 0.0, 0.2, 0.2, 0.2],
+            bound: [0.01, 0.01, 0.0, 0.1, 0.1, 0.3],
+        }
+    }
 }
 
-impl DisturbanceObserver {
+/// Estimates the NMPC's disturbance from its one-step prediction errors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DisturbanceObserver<const NX: usize> {
+    s: DisturbanceSettings<NX>,
+    d: [f64; NX],
+    /// The state and torques of the last sample, if the next follows it.
+    last: Option<([f64; NX], Torques)>,
+}
+
+impl<const NX: usize> DisturbanceObserver<NX> {
     /// An observer starting from `d = 0`. Settings out of range are made safe
     /// rather than refused: a gain is clamped to `[0, 1]` and a bound taken by
     /// its magnitude; a non-finite gain or bound is zero (that component off).
-    pub fn new(settings: DisturbanceSettings) -> DisturbanceObserver {
+    pub fn new(settings: DisturbanceSettings<NX>) -> DisturbanceObserver<NX> {
         let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
         DisturbanceObserver {
             s: DisturbanceSettings {
@@ -63,7 +74,7 @@ impl DisturbanceObserver {
     }
 
     /// The estimate.
-    pub fn disturbance(&self) -> &State5 {
+    pub fn disturbance(&self) -> &[f64; NX] {
         &self.d
     }
 
@@ -71,10 +82,14 @@ impl DisturbanceObserver {
     /// with what `nmpc` predicted for it (with the disturbance in use) and
     /// integrate the error; returns the new disturbance. A non-finite error
     /// changes nothing.
-    pub fn update(&mut self, nmpc: &Nmpc, x_hat: &State5) -> State5 {
+    pub fn update<M: Dynamics<NX, NP>, const NP: usize>(
+        &mut self,
+        nmpc: &Nmpc<M, NX, NP>,
+        x_hat: &[f64; NX],
+    ) -> [f64; NX] {
         if let Some((x, u)) = self.last.take() {
             let predicted = nmpc.predict(&x, &u);
-            let error: State5 = std::array::from_fn(|i| x_hat[i] - predicted[i]);
+            let error: [f64; NX] = std::array::from_fn(|i| x_hat[i] - predicted[i]);
             if error.iter().all(|e| e.is_finite()) {
                 for i in 0..NX {
                     let b = self.s.bound[i];
@@ -87,7 +102,7 @@ impl DisturbanceObserver {
 
     /// The torques applied from the state `x` (the NMPC's `x_0`): the next
     /// sample's prediction starts there.
-    pub fn applied(&mut self, x: &State5, u: &Torques) {
+    pub fn applied(&mut self, x: &[f64; NX], u: &Torques) {
         self.last = Some((*x, *u));
     }
 
@@ -102,19 +117,24 @@ impl DisturbanceObserver {
 mod tests {
     use super::*;
     use crate::algorithms::mpc::NmpcSettings;
-    use crate::world::model::{PlatformParams, Reduced, SlipParams};
+    use crate::algorithms::mpc::nmpc::ReducedNmpc;
+    use crate::world::model::{PlatformParams, Reduced, SlipParams, State5};
 
-    fn nmpc() -> (Nmpc, Reduced) {
+    const NX: usize = 5;
+
+    fn nmpc() -> (ReducedNmpc, Reduced) {
         let model = Reduced::new(PlatformParams::peer_default());
-        (
-            Nmpc::new(model.clone(), NmpcSettings::default()).expect("valid settings"),
-            model,
-        )
+        let mut nmpc = Nmpc::new(model.clone(), NmpcSettings::default()).expect("valid settings");
+        // The parameters the predictions use (the first control sets them).
+        let reference = vec![[0.0; 5]; 21];
+        nmpc.prepare(&reference, &SlipParams::NOMINAL.to_array())
+            .expect("valid problem");
+        (nmpc, model)
     }
 
     /// A platform that does what the model says plus `offset` each interval,
     /// driven by fixed torques; returns the observer after `samples`.
-    fn observe(offset: State5, samples: usize) -> (DisturbanceObserver, Nmpc, State5) {
+    fn observe(offset: State5, samples: usize) -> (DisturbanceObserver<5>, ReducedNmpc, State5) {
         let (mut nmpc, model) = nmpc();
         let s = nmpc.settings().clone();
         let mut obs = DisturbanceObserver::new(DisturbanceSettings::default());
@@ -124,7 +144,7 @@ mod tests {
             let d = obs.update(&nmpc, &x);
             nmpc.set_disturbance(&d).expect("finite");
             obs.applied(&x, &u);
-            let next = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+            let next = model.rk4_5(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
             x = std::array::from_fn(|i| next[i] + offset[i]);
         }
         (obs, nmpc, x)
@@ -145,7 +165,7 @@ mod tests {
         let u = [1.0, 1.0, 2.0, 2.0];
         let (_, model) = self::nmpc();
         let s = nmpc.settings().clone();
-        let truth = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+        let truth = model.rk4_5(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
         let predicted = nmpc.predict(&x, &u);
         for i in 0..NX {
             assert!((truth[i] + offset[i] - predicted[i]).abs() < 1e-9);
@@ -193,7 +213,7 @@ mod tests {
             nmpc.set_disturbance(&[0.0, f64::INFINITY, 0.0, 0.0, 0.0])
                 .is_err()
         );
-        assert_eq!(nmpc.disturbance(), &[0.0; 5]);
+        assert_eq!(nmpc.disturbance(), [0.0; 5]);
     }
 
     /// The NMPC driving a platform that drifts sideways (what the model leaves
@@ -215,11 +235,11 @@ mod tests {
                 nmpc.set_disturbance(&d).expect("finite");
             }
             let u = nmpc
-                .control(&x, &reference, &SlipParams::NOMINAL)
+                .control(&x, &reference, &SlipParams::NOMINAL.to_array())
                 .expect("a solvable problem")
                 .torques;
             obs.applied(&x, &u);
-            let next = model.rk4(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
+            let next = model.rk4_5(&x, &u, &SlipParams::NOMINAL, s.dt, s.rk4_steps);
             x = std::array::from_fn(|i| next[i] + drift[i]);
             if k >= 150 {
                 offsets.push(x[1]);

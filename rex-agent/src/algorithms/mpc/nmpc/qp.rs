@@ -8,16 +8,15 @@ use clarabel::solver::{
     DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
 
-use super::{NU, NX, Nmpc, NmpcError, NmpcSettings, QpStrategy};
-use crate::algorithms::mpc::linalg::{Mat, cholesky, cholesky_solve};
+use super::{Nmpc, NmpcError, NmpcSettings, QpStrategy, spd_cholesky};
 use crate::algorithms::mpc::sparse::Pattern;
-use crate::world::model::State5;
+use crate::world::model::{Dynamics, Matrix, NU, Vector};
 
-impl Nmpc {
-    /// Linearise every stage and run the backward Riccati recursion.
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
+    /// Linearise every stage.
     pub(super) fn linearise(&mut self) {
         for k in 0..self.s.horizon {
-            let (next, j) = self.model.rk4_sensitivities(
+            let j = self.model.rk4_sensitivities(
                 &self.xs[k],
                 &self.us[k],
                 &self.p,
@@ -25,64 +24,68 @@ impl Nmpc {
                 self.s.rk4_steps,
             );
             let st = &mut self.stages[k];
-            st.a = Mat(j.x);
-            st.b = Mat(j.u);
-            st.d = std::array::from_fn(|i| next[i] + self.disturbance[i] - self.xs[k + 1][i]);
+            st.a = j.x;
+            st.b = j.u;
+            st.d = j.value + self.disturbance - self.xs[k + 1];
+        }
+    }
+
+    /// The state weights of stage `k` (`Q`, `Q_N` at the end).
+    pub(super) fn weights(&self, k: usize) -> &[f64; NX] {
+        if k == self.s.horizon {
+            &self.s.q_terminal
+        } else {
+            &self.s.q
         }
     }
 
     /// Gradient of the cost at stage `k` (`2 Q (x_k − x_d,k)`, `Q_N` at the end).
-    pub(super) fn gradient_x(&self, k: usize) -> [f64; NX] {
-        let w = if k == self.s.horizon {
-            &self.s.q_terminal
-        } else {
-            &self.s.q
-        };
-        std::array::from_fn(|i| 2.0 * w[i] * (self.xs[k][i] - self.reference[k][i]))
+    pub(super) fn gradient_x(&self, k: usize) -> Vector<NX> {
+        let w = self.weights(k);
+        let e = self.xs[k] - self.reference[k];
+        Vector::from_fn(|i, _| 2.0 * w[i] * e[i])
+    }
+
+    /// The torques' gradient at stage `k`, `2 R u_k`.
+    pub(super) fn gradient_u(&self, k: usize) -> Vector<NU> {
+        Vector::from_fn(|i, _| 2.0 * self.s.r[i] * self.us[k][i])
     }
 
     /// Backward Riccati recursion of the equality-constrained QP; stores the gains.
     fn riccati(&mut self) -> Result<(), NmpcError> {
         let n = self.s.horizon;
-        let mut p = Mat::<NX, NX>::diag(self.s.q_terminal.map(|w| 2.0 * w));
+        let mut p =
+            Matrix::<NX, NX>::from_diagonal(&Vector::from(self.s.q_terminal.map(|w| 2.0 * w)));
         let mut pv = self.gradient_x(n);
         for k in (0..n).rev() {
             let st = self.stages[k];
-            let pa = p.mul(&st.a);
-            let pb = p.mul(&st.b);
-            let h: [f64; NX] = std::array::from_fn(|i| p.row_dot(i, &st.d) + pv[i]);
-            let mut huu = st.b.tmul(&pb);
+            let pa = p * st.a;
+            let pb = p * st.b;
+            let h = p * st.d + pv;
+            let mut huu = st.b.tr_mul(&pb);
             for i in 0..NU {
-                huu.0[i][i] += 2.0 * self.s.r[i];
+                huu[(i, i)] += 2.0 * self.s.r[i];
             }
-            let hux = st.b.tmul(&pa);
-            let hu: [f64; NU] =
-                std::array::from_fn(|i| 2.0 * self.s.r[i] * self.us[k][i] + st.b.col_dot(i, &h));
-            let l = cholesky(&huu).ok_or_else(|| {
+            let hux = st.b.tr_mul(&pa);
+            let hu = self.gradient_u(k) + st.b.tr_mul(&h);
+            let l = spd_cholesky(huu).ok_or_else(|| {
                 NmpcError::Qp(format!(
                     "Riccati: the Hessian of stage {k} is not positive definite"
                 ))
             })?;
             // K = −Huu⁻¹ Hux, k = −Huu⁻¹ hu.
-            let mut kmat = Mat::<NU, NX>::zero();
-            for c in 0..NX {
-                let col = cholesky_solve(&l, &std::array::from_fn(|r| hux.0[r][c]));
-                for r in 0..NU {
-                    kmat.0[r][c] = -col[r];
-                }
-            }
-            let kff = cholesky_solve(&l, &hu).map(|v| -v);
+            let kmat = -l.solve(&hux);
+            let kff = -l.solve(&hu);
             self.stages[k].gain = kmat;
             self.stages[k].ff = kff;
             if k > 0 {
                 // P ← 2Q + Aᵀ P A + Huxᵀ K,  p ← q + Aᵀ h + Huxᵀ k.
-                let mut next = st.a.tmul(&pa).add(&hux.tmul(&kmat));
+                let mut next = st.a.tr_mul(&pa) + hux.tr_mul(&kmat);
                 for i in 0..NX {
-                    next.0[i][i] += 2.0 * self.s.q[i];
+                    next[(i, i)] += 2.0 * self.s.q[i];
                 }
-                p = next.symmetrised();
-                let q = self.gradient_x(k);
-                pv = std::array::from_fn(|i| q[i] + st.a.col_dot(i, &h) + hux.col_dot(i, &kff));
+                p = (next + next.transpose()) * 0.5;
+                pv = self.gradient_x(k) + st.a.tr_mul(&h) + hux.tr_mul(&kff);
             }
         }
         Ok(())
@@ -90,8 +93,8 @@ impl Nmpc {
 
     /// Solve the QP at the current linearisation with `Δx_0 = x̂ − x_0`, apply the
     /// step; returns the largest step component.
-    pub(super) fn qp_step(&mut self, x_hat: &State5) -> Result<f64, NmpcError> {
-        let dx0: [f64; NX] = std::array::from_fn(|i| x_hat[i] - self.xs[0][i]);
+    pub(super) fn qp_step(&mut self, x_hat: &Vector<NX>) -> Result<f64, NmpcError> {
+        let dx0 = x_hat - self.xs[0];
         self.last_clarabel = true;
         if self.s.qp == QpStrategy::Structured {
             self.riccati()?;
@@ -119,8 +122,8 @@ impl Nmpc {
     /// both objectives, and the method's iterations; or `None` when no bound
     /// is active (the Riccati solution is the answer).
     #[cfg(test)]
-    pub(super) fn both_solutions(&mut self, x_hat: &State5, tol: f64) -> Option<BothSolutions> {
-        let dx0: [f64; NX] = std::array::from_fn(|i| x_hat[i] - self.xs[0][i]);
+    pub(super) fn both_solutions(&mut self, x_hat: &[f64; NX], tol: f64) -> Option<BothSolutions> {
+        let dx0 = Vector::from(*x_hat) - self.xs[0];
         self.riccati().ok()?;
         if self.forward(&dx0) {
             return None;
@@ -128,14 +131,14 @@ impl Nmpc {
         let iterations = self.ipm(&dx0)?;
         let mut ipm = Vec::new();
         for k in 0..self.s.horizon {
-            ipm.extend(self.du[k]);
-            ipm.extend(self.dx[k + 1]);
+            ipm.extend(self.du[k].iter());
+            ipm.extend(self.dx[k + 1].iter());
         }
         let tight = NmpcSettings {
             qp_tolerance: tol,
             ..self.s.clone()
         };
-        let mut clarabel = ClarabelQp::new(&tight).ok()?;
+        let mut clarabel = ClarabelQp::new(&tight, [M::SPEED, M::YAW_RATE]).ok()?;
         let data = self.qp_data(&dx0);
         let (dw, _) = clarabel.solve(&data).ok()?;
         // The objective ½ Δwᵀ P Δw + qᵀ Δw (P diagonal) of both.
@@ -146,10 +149,8 @@ impl Nmpc {
                 let (k, i) = (j / nz, j % nz);
                 let p = if i < NU {
                     2.0 * self.s.r[i]
-                } else if k + 1 == self.s.horizon {
-                    2.0 * self.s.q_terminal[i - NU]
                 } else {
-                    2.0 * self.s.q[i - NU]
+                    2.0 * self.weights(k + 1)[i - NU]
                 };
                 f += 0.5 * p * v * v + data.q[j] * v;
             }
@@ -166,22 +167,21 @@ impl Nmpc {
 
     /// Forward sweep of the Riccati solution into `du`, `dx`; whether it is finite
     /// and satisfies every bound (then it solves the whole QP).
-    fn forward(&mut self, dx0: &[f64; NX]) -> bool {
+    fn forward(&mut self, dx0: &Vector<NX>) -> bool {
         let n = self.s.horizon;
-        let (tau, vmax, wmax) = (self.s.torque_max, self.s.speed_max, self.s.yaw_rate_max);
+        let (vmax, wmax) = (self.s.speed_max, self.s.yaw_rate_max);
         let tol = 1e-9;
         self.dx[0] = *dx0;
         let mut ok = dx0.iter().all(|v| v.is_finite());
         for k in 0..n {
             let st = &self.stages[k];
-            let dx = self.dx[k];
-            let du: [f64; NU] = std::array::from_fn(|i| st.gain.row_dot(i, &dx) + st.ff[i]);
-            let next: [f64; NX] =
-                std::array::from_fn(|i| st.a.row_dot(i, &dx) + st.b.row_dot(i, &du) + st.d[i]);
-            ok &= (0..NU).all(|i| (self.us[k][i] + du[i]).abs() <= tau + tol);
+            let du = st.gain * self.dx[k] + st.ff;
+            let next = st.a * self.dx[k] + st.b * du + st.d;
+            ok &= (0..NU).all(|i| (self.us[k][i] + du[i]).abs() <= self.limits[i] + tol);
             let x = &self.xs[k + 1];
-            ok &= (x[3] + next[3]).abs() <= vmax + tol && (x[4] + next[4]).abs() <= wmax + tol;
-            ok &= du.iter().chain(&next).all(|v| v.is_finite());
+            ok &= (x[M::SPEED] + next[M::SPEED]).abs() <= vmax + tol
+                && (x[M::YAW_RATE] + next[M::YAW_RATE]).abs() <= wmax + tol;
+            ok &= du.iter().chain(next.iter()).all(|v| v.is_finite());
             self.du[k] = du;
             self.dx[k + 1] = next;
         }
@@ -192,24 +192,20 @@ impl Nmpc {
     fn apply_structured(&mut self) -> f64 {
         let mut step = 0.0f64;
         for (u, du) in self.us.iter_mut().zip(&self.du) {
-            for i in 0..NU {
-                u[i] += du[i];
-                step = step.max(du[i].abs());
-            }
+            *u += du;
+            step = step.max(du.amax());
         }
         for (x, dx) in self.xs.iter_mut().zip(&self.dx) {
-            for i in 0..NX {
-                x[i] += dx[i];
-                step = step.max(dx[i].abs());
-            }
+            *x += dx;
+            step = step.max(dx.amax());
         }
         step
     }
 
-    fn clarabel_step(&mut self, dx0: &[f64; NX]) -> Result<f64, NmpcError> {
+    fn clarabel_step(&mut self, dx0: &Vector<NX>) -> Result<f64, NmpcError> {
         let n = self.s.horizon;
         if self.qp.is_none() {
-            self.qp = Some(ClarabelQp::new(&self.s)?);
+            self.qp = Some(ClarabelQp::new(&self.s, [M::SPEED, M::YAW_RATE])?);
         }
         let data = self.qp_data(dx0);
         let Some(qp) = self.qp.as_mut() else {
@@ -219,19 +215,17 @@ impl Nmpc {
         self.stats.qps += 1;
         self.stats.clarabel += 1;
         self.stats.clarabel_iterations += u64::from(iterations);
-        let mut step = 0.0f64;
-        for i in 0..NX {
-            self.xs[0][i] += dx0[i];
-            step = step.max(dx0[i].abs());
-        }
+        self.xs[0] += dx0;
+        let mut step = dx0.amax();
         for k in 0..n {
+            let at = k * (NU + NX);
             for i in 0..NU {
-                let d = dw[k * (NU + NX) + i];
+                let d = dw[at + i];
                 self.us[k][i] += d;
                 step = step.max(d.abs());
             }
             for i in 0..NX {
-                let d = dw[k * (NU + NX) + NU + i];
+                let d = dw[at + NU + i];
                 self.xs[k + 1][i] += d;
                 step = step.max(d.abs());
             }
@@ -240,18 +234,15 @@ impl Nmpc {
     }
 
     /// The QP's `q`, `A` values (declaration order of [`ClarabelQp`]) and `b`.
-    fn qp_data(&self, dx0: &[f64; NX]) -> QpData {
+    fn qp_data(&self, dx0: &Vector<NX>) -> QpData {
         let n = self.s.horizon;
         let nz = NU + NX;
         let mut q = vec![0.0; n * nz];
         let mut a = Vec::with_capacity(n * (NX + NX * NX + NX * NU) + 2 * n * nz);
         let mut b = Vec::with_capacity(n * NX + 2 * n * (NU + 2));
         for k in 0..n {
-            for i in 0..NU {
-                q[k * nz + i] = 2.0 * self.s.r[i] * self.us[k][i];
-            }
-            let g = self.gradient_x(k + 1);
-            q[k * nz + NU..(k + 1) * nz].copy_from_slice(&g);
+            q[k * nz..k * nz + NU].copy_from_slice(self.gradient_u(k).as_slice());
+            q[k * nz + NU..(k + 1) * nz].copy_from_slice(self.gradient_x(k + 1).as_slice());
         }
         // Equalities, block k: Δx_{k+1} − A_k Δx_k − B_k Δu_k = d_k (+ A_0 Δx_0).
         for k in 0..n {
@@ -259,29 +250,30 @@ impl Nmpc {
             for i in 0..NX {
                 a.push(1.0);
                 for c in 0..NU {
-                    a.push(-st.b.0[i][c]);
+                    a.push(-st.b[(i, c)]);
                 }
                 if k > 0 {
                     for c in 0..NX {
-                        a.push(-st.a.0[i][c]);
+                        a.push(-st.a[(i, c)]);
                     }
                 }
             }
-            for i in 0..NX {
-                let extra = if k == 0 { st.a.row_dot(i, dx0) } else { 0.0 };
-                b.push(st.d[i] + extra);
-            }
+            let extra = if k == 0 { st.a * dx0 } else { Vector::zeros() };
+            b.extend((st.d + extra).iter());
         }
         // Bounds: ±Δu ≤ τ_max ∓ u, ±Δv ≤ v_max ∓ v, ±Δω ≤ ω_max ∓ ω.
         for k in 0..n {
             for i in 0..NU {
                 a.push(1.0);
-                b.push(self.s.torque_max - self.us[k][i]);
+                b.push(self.limits[i] - self.us[k][i]);
                 a.push(-1.0);
-                b.push(self.s.torque_max + self.us[k][i]);
+                b.push(self.limits[i] + self.us[k][i]);
             }
             let x = &self.xs[k + 1];
-            for (i, bound) in [(3, self.s.speed_max), (4, self.s.yaw_rate_max)] {
+            for (i, bound) in [
+                (M::SPEED, self.s.speed_max),
+                (M::YAW_RATE, self.s.yaw_rate_max),
+            ] {
                 a.push(1.0);
                 b.push(bound - x[i]);
                 a.push(-1.0);
@@ -310,8 +302,8 @@ struct QpData {
 }
 
 /// Clarabel on the sparse multiple-shooting QP, built once. Variables per stage k:
-/// `Δu_k` (4) then `Δx_{k+1}` (5); rows: 5 equalities per stage, then per stage
-/// 8 torque-bound rows and 4 velocity-bound rows.
+/// `Δu_k` (4) then `Δx_{k+1}` (`NX`); rows: `NX` equalities per stage, then per
+/// stage 8 torque-bound rows and 4 velocity-bound rows.
 pub(super) struct ClarabelQp {
     solver: DefaultSolver<f64>,
     a_pattern: Pattern,
@@ -325,7 +317,12 @@ impl std::fmt::Debug for ClarabelQp {
 }
 
 impl ClarabelQp {
-    fn new(s: &NmpcSettings) -> Result<ClarabelQp, NmpcError> {
+    /// The QP of a model whose speed and yaw rate are the state components
+    /// `bounded`.
+    fn new<const NX: usize>(
+        s: &NmpcSettings<NX>,
+        bounded: [usize; 2],
+    ) -> Result<ClarabelQp, NmpcError> {
         let n = s.horizon;
         let nz = NU + NX;
         let nv = n * nz;
@@ -369,7 +366,7 @@ impl ClarabelQp {
                 a.push(row + 1, k * nz + i);
                 row += 2;
             }
-            for i in [3, 4] {
+            for i in bounded {
                 a.push(row, k * nz + NU + i);
                 a.push(row + 1, k * nz + NU + i);
                 row += 2;

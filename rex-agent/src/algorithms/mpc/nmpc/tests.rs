@@ -3,15 +3,21 @@
 
 use super::*;
 use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
+use crate::world::model::{SlipParams, State5};
+
+const NX: usize = 5;
+
+/// The nominal slip parameters as the NMPC takes them.
+const P: [f64; 3] = [0.03, 0.05, 0.5];
 
 /// The peers' closed loop for `steps` samples; the true positions and the
 /// statuses.
-fn closed_loop(settings: NmpcSettings, steps: usize) -> (Vec<State5>, Vec<Status>, NmpcStats) {
+fn closed_loop(settings: NmpcSettings<5>, steps: usize) -> (Vec<State5>, Vec<Status>, NmpcStats) {
     let model = peer::model();
     let n = settings.horizon;
     let r = peer::reference_run(N_SIM + n + 1);
     let mut nmpc = Nmpc::new(model.clone(), settings).unwrap();
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let mut x = r[0];
     for i in 0..5 {
         x[i] += INIT_OFFSET[i];
@@ -20,7 +26,7 @@ fn closed_loop(settings: NmpcSettings, steps: usize) -> (Vec<State5>, Vec<Status
     for k in 0..steps {
         let c = nmpc.control(&x, &r[k..=k + n], &p).unwrap();
         status.push(c.status);
-        x = model.rk4(&x, &c.torques, &p, DT, PLANT_RK4_STEPS);
+        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
         xs.push(x);
     }
     (xs, status, nmpc.stats())
@@ -80,7 +86,7 @@ fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
     let n = s.horizon;
     let r = peer::reference_run(N_SIM + n + 1);
     let mut nmpc = Nmpc::new(model.clone(), s).unwrap();
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let mut x = r[0];
     for i in 0..5 {
         x[i] += INIT_OFFSET[i];
@@ -104,7 +110,7 @@ fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
             }
         }
         let c = nmpc.control(&x, &r[k..=k + n], &p).unwrap();
-        x = model.rk4(&x, &c.torques, &p, DT, PLANT_RK4_STEPS);
+        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
     }
     assert!(compared > 50, "{compared} QPs with an active bound");
     assert!(iterations < super::ipm::MAX_ITERATIONS, "{iterations}");
@@ -126,13 +132,13 @@ fn converged_sqp_satisfies_the_dynamics_and_the_bounds() {
     let mut nmpc = Nmpc::new(model.clone(), s.clone()).unwrap();
     let mut x0 = r[0];
     x0[0] += 0.3;
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let iterations = nmpc.solve(&x0, &r, &p).unwrap();
     assert!(iterations < s.sqp_max_iterations, "{iterations} iterations");
     let (xs, us) = (nmpc.predicted(), nmpc.torques());
-    assert_eq!(xs[0], x0);
+    assert_eq!(xs[0], Vector::from(x0));
     for k in 0..s.horizon {
-        let next = model.rk4(&xs[k], &us[k], &p, s.dt, s.rk4_steps);
+        let next = model.rk4(&xs[k], &us[k], &Vector::from(p), s.dt, s.rk4_steps);
         for i in 0..5 {
             assert!((next[i] - xs[k + 1][i]).abs() < 1e-7, "defect at stage {k}");
         }
@@ -157,7 +163,7 @@ fn an_infeasible_qp_is_refused_by_both_solvers_never_solved_wrongly() {
     let s = NmpcSettings::default();
     let r = peer::reference_run(s.horizon + 1);
     let mut nmpc = Nmpc::new(model, s).unwrap();
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let fast = [0.0, 0.0, 0.0, 6.0, 0.0];
     let c = nmpc.control(&fast, &r, &p).unwrap();
     assert!(
@@ -183,7 +189,7 @@ fn qp_failures_fall_back_then_brake() {
     let model = peer::model();
     let r = peer::reference_run(40);
     let mut nmpc = Nmpc::new(model, settings).unwrap();
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let moving = [0.0, 0.0, 0.0, 0.6, 0.5];
     let mut kinds = Vec::new();
     for k in 0..6 {
@@ -217,7 +223,7 @@ fn qp_failures_fall_back_then_brake() {
 fn bad_input_is_an_error_not_a_panic() {
     let mut nmpc = Nmpc::new(peer::model(), NmpcSettings::default()).unwrap();
     let r = peer::reference_run(21);
-    let p = SlipParams::NOMINAL;
+    let p = P;
     let nan = [f64::NAN, 0.0, 0.0, 0.0, 0.0];
     assert_eq!(
         nmpc.control(&nan, &r, &p),
@@ -227,10 +233,7 @@ fn bad_input_is_an_error_not_a_panic() {
         nmpc.control(&r[0], &r[..5], &p),
         Err(NmpcError::ShortReference { got: 5, need: 21 })
     ));
-    let bad_p = SlipParams {
-        mu_l: f64::INFINITY,
-        ..p
-    };
+    let bad_p = [0.03, 0.05, f64::INFINITY];
     assert!(nmpc.control(&r[0], &r, &bad_p).is_err());
     assert_eq!(nmpc.feedback(&r[0]), Err(NmpcError::NotPrepared));
     for bad in [
