@@ -21,6 +21,7 @@ use rex_agent::mission::Mission;
 use rex_agent::report::judge::Verdict;
 use rex_agent::run::{Outcome, run_mission, run_mission_observed};
 use rex_agent::world::WorldConfig;
+use rex_agent::world::model::Friction;
 
 // ---------------------------------------------------------------------------
 // c1 alone, driven by a model of e11 and a2.
@@ -68,6 +69,7 @@ impl Environment<C1> for E11AndA2 {
             let state = State {
                 q: [0.0; 7],
                 q_dot: [0.0; 7],
+                ground: None,
             };
             x.e11.q_est.deliver(state, stamp(0));
         }
@@ -579,14 +581,18 @@ fn the_main_job_exits_non_zero_and_names_the_failed_plans() {
 }
 
 #[test]
-fn the_mhe_learns_the_friction_of_concrete_and_grass() {
-    // On a uniform floor the MHE's lateral friction μ_l comes within 15% of the
-    // plant's μ_y after 5 s (measured, figure-eight: 0.585 for 0.60, 0.445 for
-    // 0.45). Not asserted, as it does not hold: its rolling resistance μ_s is
-    // 15-17% low on concrete (0.0166-0.0170 for 0.02 at 5-10 s) and 8-18% low
-    // on grass; and on ice nothing holds (μ_l 0.45-1.4 for 0.07): the reduced
-    // model cannot represent it (README, "NMPC and MHE").
-    for surface in ["concrete", "grass"] {
+fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
+    // On a uniform floor, from a cautious prior (ice's values) on every ground,
+    // the MHE's longitudinal and lateral friction come within 15% of the
+    // plant's after 5 s of the figure eight, and stay there, on concrete and
+    // grass. On ice, where the wheels are near their bound whenever they pull,
+    // the estimate is noisier and `μ_x` biased up (the encoder readings of a
+    // spinning wheel are gated out, which drops those that say "slippery"):
+    // measured 14% high on average, single samples up to 30%; asserted are
+    // the average within 15% and every sample within 35%. The rolling
+    // resistance is reported, not asserted this tightly (a force of 2-8 N on a
+    // 40 kg platform).
+    for surface in ["concrete", "grass", "ice"] {
         let mut config = RexConfig::new(
             WorldConfig::shipped().unwrap(),
             Mission::shipped("figure_eight").unwrap(),
@@ -602,18 +608,38 @@ fn the_mhe_learns_the_friction_of_concrete_and_grass() {
             .surfaces
             .iter()
             .find(|s| s.name == surface)
-            .cloned()
+            .map(|s| s.friction())
             .unwrap();
         let out = run(&config, 120);
-        let at = |t: f64| out.samples.iter().find(|s| s.t >= t).unwrap().slip;
-        let [_, _, mu_l] = at(5.0);
+        let start = out
+            .samples
+            .iter()
+            .find(|s| s.tau.iter().any(|t| *t != 0.0))
+            .map_or(0.0, |s| s.t);
+        let after: Vec<Friction> = out
+            .samples
+            .iter()
+            .filter(|s| s.t >= start + 5.0)
+            .map(|s| Friction::from_array(s.friction))
+            .collect();
+        assert!(after.len() > 200, "{surface}: {} samples", after.len());
+        let every = if surface == "ice" { 0.35 } else { 0.15 };
+        for (k, e) in after.iter().enumerate() {
+            assert!(
+                e.friction_error(&plant) <= every,
+                "{surface}: {e:?} at sample {k} after 5 s, the plant's {plant:?}"
+            );
+        }
+        let n = after.len() as f64;
+        let mean = Friction::from_array(std::array::from_fn(|i| {
+            after.iter().map(|e| e.to_array()[i]).sum::<f64>() / n
+        }));
         assert!(
-            (mu_l - plant.mu_lat).abs() <= 0.15 * plant.mu_lat,
-            "{surface}: μ_l {mu_l} at 5 s, the plant's μ_y {}",
-            plant.mu_lat
+            mean.friction_error(&plant) <= 0.15,
+            "{surface}: on average {mean:?}, the plant's {plant:?}"
         );
         // The summary reports the estimate.
         let summary = rex_agent::report::summary(&out);
-        assert!(summary.contains("slip_estimate x_icr="), "{summary}");
+        assert!(summary.contains("friction_estimate mu_long="), "{summary}");
     }
 }

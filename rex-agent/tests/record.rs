@@ -122,15 +122,31 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     assert_eq!(estimates.0, estimates.1);
     assert!(estimates.0 > 100, "{estimates:?}");
     // Each value's CDR is its fields as ROS 2 lays them out (`float64[7] q`,
-    // `float64[7] q_dot`: the header, then 14 little-endian doubles); the raw
-    // bytes are exact.
+    // `float64[7] q_dot`, `Ground[<=1] ground`: the header, 14 little-endian
+    // doubles, the bounded sequence's length, then (aligned to 8) the friction's
+    // three doubles and the `settled` byte); the raw bytes are exact.
+    let mut grounds = 0;
     for (c, q) in cdr_q.iter().zip(&raw_q) {
         let mut expected = vec![0, 1, 0, 0];
         for x in q.q.iter().chain(&q.q_dot) {
             expected.extend(x.to_le_bytes());
         }
+        match q.ground {
+            None => expected.extend(0u32.to_le_bytes()),
+            Some(g) => {
+                grounds += 1;
+                expected.extend(1u32.to_le_bytes());
+                expected.extend([0; 4]);
+                for x in g.friction.to_array() {
+                    expected.extend(x.to_le_bytes());
+                }
+                expected.push(u8::from(g.settled));
+            }
+        }
         assert_eq!(c, &expected);
     }
+    // The MHE estimates the ground from its first estimate on.
+    assert_eq!(grounds, cdr_q.len());
     // c1 took the first plan: B1 -> B2 by `plan_valid`, with `plan_new` true.
     let first = &switches[0];
     assert_eq!(

@@ -42,13 +42,28 @@ pub struct MapPose {
 }
 
 /// The platform's state estimate (`q~`, `q~ dot`): `q = (X, Y, φ, θ_1..θ_4)` and its
-/// time derivative.
+/// time derivative, and the ground's friction when the estimator estimates it (the
+/// paper's `p`).
 #[derive(Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct State {
     /// Generalised coordinates `(X, Y, φ, θ_1, θ_2, θ_3, θ_4)`.
     pub q: [f64; 7],
     /// Their rates.
     pub q_dot: [f64; 7],
+    /// The ground as estimated (the MHE's; `None` from an estimator that does
+    /// not estimate it).
+    pub ground: Option<Ground>,
+}
+
+/// The ground under the platform as the estimator knows it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ground {
+    /// The friction estimated.
+    pub friction: Friction,
+    /// Whether the estimate has settled: the platform has driven on this ground
+    /// for a while and the estimate no longer moves much. Until then it may be
+    /// the estimator's prior, far from the truth.
+    pub settled: bool,
 }
 
 /// `q (X, Y, φ | θ1 θ2 θ3 θ4) q̇ (…)`, three decimals: short enough for traces.
@@ -80,10 +95,17 @@ impl State {
 
     /// Whether every component is finite.
     pub fn is_finite(&self) -> bool {
-        self.q.iter().chain(&self.q_dot).all(|v| v.is_finite())
+        let friction = self.ground.map_or([0.0; 3], |g| g.friction.to_array());
+        self.q
+            .iter()
+            .chain(&self.q_dot)
+            .chain(&friction)
+            .all(|v| v.is_finite())
     }
 }
 
+/// The ground's friction (in [`State`]).
+pub use crate::world::model::Friction;
 /// Wheel torques (`tau`, e1,1 to E1): the platform model's [`Torques`].
 pub use crate::world::model::Torques;
 

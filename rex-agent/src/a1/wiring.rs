@@ -18,11 +18,13 @@ use crate::a1::c1::{C1, C1Memory, C1Params, c1_fsm};
 use crate::a1::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
 use crate::a1::map::Map;
 use crate::a1::r11::{Odometry, R11, R11Memory, r11_fsm};
+use crate::algorithms::planner::ground::GroundTiming;
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 use crate::algorithms::vo::VoSettings;
 use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::mission::Mission;
 use crate::world::devices::{Platform, StereoCamera};
+use crate::world::model::{Friction, Lateral};
 use crate::world::partners::Ontology;
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
@@ -94,6 +96,13 @@ pub struct Limits {
     /// The run fails a plan during which the estimate was farther than this from
     /// the true position while the motion capture delivered [m].
     pub estimate_m: f64,
+    /// `c1` slows each fragment down until it asks at most this share of a
+    /// wheel's traction on the ground `e11` estimates (the rest is left to the
+    /// tracker); 0 leaves fragments as planned.
+    pub traction_share: f64,
+    /// The ground fragments are timed for until the estimate has settled (the
+    /// slipperiest expected).
+    pub cautious_ground: Friction,
 }
 
 impl Default for Limits {
@@ -106,6 +115,12 @@ impl Default for Limits {
             settle_s: 3.0,
             brake_decel: 1.0,
             estimate_m: 0.1,
+            traction_share: 0.8,
+            cautious_ground: Friction {
+                mu_long: 0.1,
+                mu_lat: 0.07,
+                rolling: 0.01,
+            },
         }
     }
 }
@@ -118,7 +133,23 @@ impl Validate for Limits {
         config::positive("limits.final_m", self.final_m)?;
         config::non_negative("limits.settle_s", self.settle_s)?;
         config::positive("limits.brake_decel", self.brake_decel)?;
-        config::positive("limits.estimate_m", self.estimate_m)
+        config::positive("limits.estimate_m", self.estimate_m)?;
+        if !(0.0..=1.0).contains(&self.traction_share) {
+            return Err((
+                "limits.traction_share".into(),
+                self.traction_share.to_string(),
+                "must be a share of the traction, in [0, 1]",
+            ));
+        }
+        config::positive(
+            "limits.cautious_ground.mu_long",
+            self.cautious_ground.mu_long,
+        )?;
+        config::positive("limits.cautious_ground.mu_lat", self.cautious_ground.mu_lat)?;
+        config::non_negative(
+            "limits.cautious_ground.rolling",
+            self.cautious_ground.rolling,
+        )
     }
 }
 
@@ -131,6 +162,17 @@ impl Limits {
     /// The free space of `world` with the clearance plans keep.
     pub fn plan_map(&self, world: &WorldConfig) -> Map {
         Map::of_scene(&world.scene, self.clearance_m + self.plan_margin_m)
+    }
+
+    /// How `c1` times fragments for the ground (`None` when `traction_share` is
+    /// 0), fragments at most `max_duration` seconds long.
+    pub fn ground_timing(&self, world: &WorldConfig, max_duration: f64) -> Option<GroundTiming> {
+        (self.traction_share > 0.0).then(|| GroundTiming {
+            model: Lateral::new(world.platform.clone()),
+            margin: self.traction_share,
+            max_duration,
+            cautious: self.cautious_ground,
+        })
     }
 
     /// `e11`'s safety settings in `world`.
@@ -443,6 +485,9 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
         trajgen,
         C1Params {
             map: config.limits.plan_map(&config.world),
+            ground: config
+                .limits
+                .ground_timing(&config.world, settings.max_duration),
             ..config.c1.clone()
         },
     );
@@ -450,7 +495,9 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     let p = config.world.platform.clone();
     let e11_memory = E11Memory::new(
         config.tracker.build(p.clone(), dt)?,
-        config.estimator.build(p, settings.slip, dt)?,
+        config
+            .estimator
+            .build(p, settings.slip, config.limits.cautious_ground, dt)?,
         dt,
         settings.slip.x_icr,
     )

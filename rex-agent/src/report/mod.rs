@@ -8,7 +8,7 @@
 //! | `trajectory.svg` | reference, true and estimated paths on the map, with the plan points |
 //! | `tracking_error.svg` | distance between the true position and the reference over time |
 //! | `torques.svg` | the four wheel torques over time |
-//! | `slip.svg` | the estimator's slip parameters `(x_0, μ_s, μ_l)` over time (the MHE's estimates; the EKF's stay nominal) |
+//! | `friction.svg` | the estimator's friction of the ground `(μ_x, μ_y, μ_r)` over time (the MHE's; the EKF estimates none) |
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
 //! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
 
@@ -47,7 +47,7 @@ pub fn write(
     put("trajectory.svg", trajectory(outcome, config).to_svg())?;
     put("tracking_error.svg", tracking_error(outcome).to_svg())?;
     put("torques.svg", torques(outcome).to_svg())?;
-    put("slip.svg", slip(outcome).to_svg())?;
+    put("friction.svg", friction(outcome).to_svg())?;
     put("timeline.svg", behaviour_timeline(outcome))?;
     let diagrams: [(&str, Kind, Option<&str>, Format); 6] = [
         ("diagrams/fsm_c1.svg", Kind::Fsm, Some("c1"), Format::Svg),
@@ -103,10 +103,10 @@ pub fn summary(o: &Outcome) -> String {
         o.wall_s,
         o.estimate_rms()
     );
-    if let Some([x_icr, mu_s, mu_l]) = o.slip_estimate().filter(|_| o.parts[2] == "mhe") {
+    if let Some([mu_long, mu_lat, rolling]) = o.friction_estimate() {
         let _ = writeln!(
             s,
-            "slip_estimate x_icr={x_icr:.4} mu_s={mu_s:.4} mu_l={mu_l:.4} (the MHE's, at the end)"
+            "friction_estimate mu_long={mu_long:.4} mu_lat={mu_lat:.4} rolling={rolling:.4} (the MHE's, at the end)"
         );
     }
     let _ = writeln!(
@@ -246,7 +246,7 @@ pub fn faults(o: &Outcome) -> String {
 
 fn csv(samples: &[Sample]) -> String {
     let mut s = String::from(
-        "t,x,y,phi,x_est,y_est,phi_est,x_ref,y_ref,phi_ref,v_ref,w_ref,error,tau1,tau2,tau3,tau4,behaviour,plan,fragment,x_icr_est,mu_s_est,mu_l_est\n",
+        "t,x,y,phi,x_est,y_est,phi_est,x_ref,y_ref,phi_ref,v_ref,w_ref,error,tau1,tau2,tau3,tau4,behaviour,plan,fragment,mu_long_est,mu_lat_est,rolling_est\n",
     );
     for p in samples {
         let r = p.reference.map_or([f64::NAN; 5], |r| r);
@@ -274,9 +274,9 @@ fn csv(samples: &[Sample]) -> String {
             p.tau[2],
             p.tau[3],
             p.behaviour + 1,
-            p.slip[0],
-            p.slip[1],
-            p.slip[2]
+            p.friction[0],
+            p.friction[1],
+            p.friction[2]
         );
     }
     s
@@ -355,12 +355,12 @@ fn tracking_error(o: &Outcome) -> Plot {
     }
 }
 
-fn slip(o: &Outcome) -> Plot {
+fn friction(o: &Outcome) -> Plot {
     Plot {
-        title: format!("{}: slip parameters ({})", o.mission, o.parts[2]),
+        title: format!("{}: friction of the ground ({})", o.mission, o.parts[2]),
         x_label: "time [s]".into(),
         y_label: "estimate".into(),
-        series: over_time(o, &["x_icr [m]", "mu_s", "mu_l"], |s, i| s.slip[i]),
+        series: over_time(o, &["mu_long", "mu_lat", "rolling"], |s, i| s.friction[i]),
         ..Plot::default()
     }
 }

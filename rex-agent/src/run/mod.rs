@@ -46,9 +46,9 @@ pub struct Sample {
     pub mocap_for: f64,
     /// Whether `e11` had lost the visual odometry it was receiving.
     pub vo_lost: bool,
-    /// The estimator's slip parameters `(x_0, μ_s, μ_l)` (the MHE estimates
-    /// them; the EKF keeps the nominal ones).
-    pub slip: [f64; 3],
+    /// The estimator's friction of the ground `(μ_x, μ_y, μ_r)` (the MHE
+    /// estimates it; NaN for an estimator that does not).
+    pub friction: [f64; 3],
 }
 
 impl Sample {
@@ -228,10 +228,13 @@ impl Outcome {
         out
     }
 
-    /// The estimator's slip parameters `(x_0, μ_s, μ_l)` at the run's last
+    /// The estimator's friction of the ground `(μ_x, μ_y, μ_r)` at the run's last
     /// sample.
-    pub fn slip_estimate(&self) -> Option<[f64; 3]> {
-        self.samples.last().map(|s| s.slip)
+    pub fn friction_estimate(&self) -> Option<[f64; 3]> {
+        self.samples
+            .last()
+            .map(|s| s.friction)
+            .filter(|f| f.iter().all(|v| v.is_finite()))
     }
 
     /// Plans achieved: acknowledged, reported reached by `e11`, and confirmed by
@@ -529,6 +532,10 @@ fn sample<O: embodied::Observer>(
         fragment: e11.track.following,
         mocap_for: 0.0,
         vo_lost: e11.vo.lost,
-        slip: e11.estym.estimate.p.to_array(),
+        friction: e11
+            .estym
+            .estimate
+            .friction
+            .map_or([f64::NAN; 3], |f| f.to_array()),
     })
 }

@@ -160,7 +160,11 @@ pub(crate) fn install_probes(
                     fragment: m.track.following,
                     mocap_for: 0.0,
                     vo_lost: m.vo.lost,
-                    slip: m.estym.estimate.p.to_array(),
+                    friction: m
+                        .estym
+                        .estimate
+                        .friction
+                        .map_or([f64::NAN; 3], |f| f.to_array()),
                 },
                 event: m.event.clone(),
                 idle: m.track.running.is_none()

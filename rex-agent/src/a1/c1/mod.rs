@@ -53,6 +53,7 @@ use crate::a1::map::Map;
 use crate::a1::payload::{
     Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
 };
+use crate::algorithms::planner::ground::GroundTiming;
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
 use trajgen::{Status, TrajGen};
 
@@ -74,6 +75,9 @@ pub struct C1Params {
     /// gives each of its starts a new number, so that `a2` knows that plans
     /// sent before were lost. 0 in a run in one process.
     pub boot: u64,
+    /// How fragments are timed for the ground `e11` estimates, when it does
+    /// (`None`: as planned).
+    pub ground: Option<GroundTiming>,
 }
 
 impl Default for C1Params {
@@ -84,6 +88,7 @@ impl Default for C1Params {
             notify_lead: 1.0,
             estimate_wait_max: 500,
             boot: 0,
+            ground: None,
         }
     }
 }
@@ -402,6 +407,28 @@ fn blocked(f: &Fragment, params: &C1Params) -> Option<String> {
     })
 }
 
+/// The fragment at the front of the list as it is handed over: timed for the
+/// ground `e11` estimates now ([`GroundTiming`]; for the cautious ground while
+/// the estimate has not settled), when it estimates one and `params.ground` is
+/// set; `Err` with the reason when that ground cannot deliver it. (Planned one
+/// fragment ahead, a fragment is timed at hand-over: by then the estimator has
+/// seen the platform drive on the ground of the one before.)
+fn front_timed(m: &C1Memory, x: &C1Input) -> Option<Result<Fragment, String>> {
+    let f = m.traj.front()?;
+    let ground = x.e11.q_est.get().and_then(|s| s.ground);
+    Some(match (&m.params.ground, ground) {
+        (Some(timing), Some(ground)) => {
+            let friction = if ground.settled {
+                ground.friction
+            } else {
+                timing.cautious
+            };
+            timing.time(f, &friction).map_err(|e| e.to_string())
+        }
+        _ => Ok(f.clone()),
+    })
+}
+
 /// Relay plan outcomes and progress from `e11` to `a2`; say who is alive.
 fn relay(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     if let Some(o) = x.e11.outcome.fresh() {
@@ -530,7 +557,13 @@ pub fn cc_2_tp(m: &mut C1Memory, x: &C1Input) {
     keep_incoming(m, x);
     let ready_i = ready(m, x);
     let gen_ready = m.trajgen.is_ready();
-    let hand_over = ready_i && !m.traj.is_empty();
+    let mut hand_over = ready_i && !m.traj.is_empty();
+    if hand_over && let Some(Err(why)) = front_timed(m, x) {
+        // The ground cannot deliver it: the plan fails (B2 ends on
+        // `planner_failed`), nothing is handed over.
+        m.failure = Some(why);
+        hand_over = false;
+    }
     if hand_over {
         if gen_ready {
             collect(m);
@@ -572,20 +605,20 @@ fn collect(m: &mut C1Memory) {
 /// `steps` and `notify`; relay the pose and the visual odometry.
 pub fn ce_2_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToE11) {
     if ready(m, x)
-        && let Some(f) = m.traj.front()
+        && let Some(Ok(f)) = front_timed(m, x)
     {
         // The last one: nothing more planned, or to plan.
         let last = !m.new
             && m.plan.is_empty()
             && m.traj.len() == 1
             && *m.trajgen.status() == Status::Stopped;
+        y.steps.set(traj_to_steps(&f));
+        y.notify.set(traj_to_notify(&f, &m.params));
         y.traj.set(Fragment {
             last,
             epoch: epoch(x),
-            ..f.clone()
+            ..f
         });
-        y.steps.set(traj_to_steps(f));
-        y.notify.set(traj_to_notify(f, &m.params));
     }
     ce_1(m, x, y);
 }

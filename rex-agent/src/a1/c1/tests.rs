@@ -116,6 +116,7 @@ fn state(x: f64, y: f64, phi: f64) -> State {
     State {
         q: [x, y, phi, 0.0, 0.0, 0.0, 0.0],
         q_dot: [0.0; 7],
+        ground: None,
     }
 }
 

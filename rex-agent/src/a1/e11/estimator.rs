@@ -3,18 +3,28 @@
 
 use std::collections::VecDeque;
 
-use crate::a1::payload::{Encoders, Imu, MapPose, State, Transform, WheelLoads};
+use crate::a1::payload::{Encoders, Ground, Imu, MapPose, State, Transform, WheelLoads};
 use crate::algorithms::geometry::wrap;
-use crate::algorithms::mpc::{Mhe, MheError, MheSettings, Motion, Sample, TimedPose};
-use crate::world::model::{PlatformParams, Reduced, SlipParams, Torques};
+use crate::algorithms::mpc::{LateralMhe, MheError, MheSettings, Motion, Sample, TimedPose};
+use crate::world::model::{
+    Dynamics, Friction, Lateral, PlatformParams, Reduced, SlipParams, Torques, Vector,
+};
 
 /// What the estimator believes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Estimate {
-    /// Reduced state `(X, Y, φ, v, ω)`.
+    /// Pose, forward speed and yaw rate `(X, Y, φ, v, ω)`.
     pub x: [f64; 5],
-    /// Slip parameters.
+    /// The lateral velocity `v_y` (body frame, left) when the estimator
+    /// estimates it (the MHE on the lateral-slip model); `None`: the reduced
+    /// model's, `−x_0 ω`.
+    pub lateral: Option<f64>,
+    /// The reduced model's slip parameters (the nominal ones unless estimated).
     pub p: SlipParams,
+    /// The ground's friction, when the estimator estimates it (the MHE).
+    pub friction: Option<Friction>,
+    /// Whether that estimate has settled ([`Ground::settled`]).
+    pub friction_settled: bool,
     /// Wheel angles (from the encoders).
     pub theta: [f64; 4],
     /// Wheel rates.
@@ -24,11 +34,23 @@ pub struct Estimate {
 }
 
 impl Estimate {
-    /// As the paper's state estimate `(q~, q~ dot)`.
+    /// The lateral velocity: estimated, or the reduced model's `−x_0 ω` with
+    /// the ICR offset `x_icr`.
+    pub fn lateral_or(&self, x_icr: f64) -> f64 {
+        self.lateral.unwrap_or(-x_icr * self.x[4])
+    }
+
+    /// As the paper's state estimate `(q~, q~ dot)`; the lateral velocity is
+    /// the estimate's, or the reduced model's with the ICR offset `x_icr`.
     pub fn to_state(&self, x_icr: f64) -> State {
         let [x, y, phi, v, w] = self.x;
+        let vy = self.lateral_or(x_icr);
         let (s, c) = phi.sin_cos();
         State {
+            ground: self.friction.map(|friction| Ground {
+                friction,
+                settled: self.friction_settled,
+            }),
             q: [
                 x,
                 y,
@@ -39,8 +61,8 @@ impl Estimate {
                 self.theta[3],
             ],
             q_dot: [
-                v * c + x_icr * w * s,
-                v * s - x_icr * w * c,
+                v * c - vy * s,
+                v * s + vy * c,
                 w,
                 self.theta_dot[0],
                 self.theta_dot[1],
@@ -100,7 +122,8 @@ pub enum EstimatorKind {
     /// Extended Kalman filter on the reduced model.
     #[default]
     Ekf,
-    /// Moving-horizon estimation of the state and the slip parameters (the paper's).
+    /// Moving-horizon estimation of the state and the ground's friction on the
+    /// lateral-slip model (the paper's MHE).
     Mhe,
 }
 
@@ -116,17 +139,18 @@ impl std::str::FromStr for EstimatorKind {
 }
 
 impl EstimatorKind {
-    /// An estimator of this kind for the platform `params` (nominal slip `p`), run
-    /// every `dt` seconds.
+    /// An estimator of this kind for the platform `params` (nominal slip `p`; the
+    /// ground assumed until it has seen it, `ground`), run every `dt` seconds.
     pub fn build(
         self,
         params: PlatformParams,
         p: SlipParams,
+        ground: Friction,
         dt: f64,
     ) -> Result<Box<dyn Estimator>, MheError> {
         Ok(match self {
             EstimatorKind::Ekf => Box::new(Ekf::new(params, p)),
-            EstimatorKind::Mhe => Box::new(MheEstimator::new(params, p, dt)?),
+            EstimatorKind::Mhe => Box::new(MheEstimator::new(params, ground, dt)?),
         })
     }
 }
@@ -268,16 +292,17 @@ impl Ekf {
     }
 
     fn predict(&mut self, dt: f64, tau: &Torques) {
-        let x5: [f64; 5] = std::array::from_fn(|i| self.x[i]);
-        let (next, j) = self
-            .model
-            .rk4_sensitivities(&x5, tau, &self.p_nominal, dt, 2);
+        let x5 = Vector::<5>::from_fn(|i, _| self.x[i]);
+        let j = self.model.rk4_sensitivities(
+            &x5,
+            &Vector::from(*tau),
+            &Vector::from(self.p_nominal.to_array()),
+            dt,
+            2,
+        );
+        let next = j.value;
         let mut f = M6::identity();
-        for r in 0..5 {
-            for c in 0..5 {
-                f[(r, c)] = j.x[r][c];
-            }
-        }
+        f.fixed_view_mut::<5, 5>(0, 0).copy_from(&j.x);
         let n = &self.noise;
         let q = V6::new(
             n.process[0],
@@ -289,8 +314,8 @@ impl Ekf {
         )
         .map(|d| d * d * dt);
         if next.iter().all(|v| v.is_finite()) && f.iter().all(|v| v.is_finite()) {
-            for (i, v) in next.into_iter().enumerate() {
-                self.x[i] = v;
+            for (i, v) in next.iter().enumerate() {
+                self.x[i] = *v;
             }
             self.cov = f * self.cov * f.transpose();
         }
@@ -417,7 +442,10 @@ impl Estimator for Ekf {
         }
         Estimate {
             x: std::array::from_fn(|i| self.x[i]),
+            lateral: None,
             p: self.p_nominal,
+            friction: None,
+            friction_settled: false,
             theta: self.theta,
             theta_dot: self.theta_dot,
             localised: self.localised,
@@ -429,52 +457,112 @@ impl Estimator for Ekf {
     }
 }
 
-/// The MHE of [`crate::algorithms::mpc::mhe`] as e1,1's estimator. Every iteration of e1,1 is a
-/// sample: the encoder rates, the gyroscope rate, the IMU heading once it is
-/// aligned with the map, the wheel loads, the map pose when one arrives (attached to
-/// the time it describes: the map agent's poses are late), and the visual
-/// odometry's motion between two pairs (`A4x4`, relayed by c1). It
-/// estimates the slip parameters `(x_0, μ_s, μ_l)` with the state; the NMPC uses
-/// them.
+/// The MHE of [`crate::algorithms::mpc::mhe`] on the lateral-slip model as e1,1's
+/// estimator. Every iteration of e1,1 is a sample: the encoder rates, the
+/// gyroscope rate, the IMU heading once it is aligned with the map, the wheel
+/// loads, the map pose when one arrives (attached to the time it describes: the
+/// map agent's poses are late), and the visual odometry's motion between two
+/// pairs (`A4x4`, relayed by c1). It estimates the lateral velocity and the
+/// ground's friction `(μ_x, μ_y, μ_r)` with the state; the NMPC uses them.
 #[derive(Debug)]
 pub struct MheEstimator {
-    mhe: Mhe,
+    mhe: LateralMhe,
     theta: [f64; 4],
     theta_dot: [f64; 4],
+    settling: Settling,
+    /// The settings' arrival cost of the friction, reached once the platform
+    /// has moved for a while.
+    sigma_p: [f64; 3],
+}
+
+/// Whether the friction estimate has settled: the platform has been moving for
+/// [`Settling::MOVING_S`] and over the last [`Settling::WINDOW_S`] the estimated
+/// `μ_x` and `μ_y` stayed within [`Settling::BAND`] of their mean. Not latched:
+/// on a new ground the estimate moves again, and is unsettled until it stops.
+#[derive(Clone, Debug, Default)]
+struct Settling {
+    moving: f64,
+    recent: VecDeque<(f64, [f64; 2])>,
+}
+
+/// The friction's arrival cost: loose at start ([`SIGMA_P_START`]; nothing is
+/// known of the ground), tightening towards the settings' with the time the
+/// platform has moved (time constant [`SIGMA_P_SETTLE_S`]; standing still
+/// teaches nothing of the ground).
+const SIGMA_P_START: [f64; 3] = [0.3, 0.3, 0.05];
+/// See [`SIGMA_P_START`] [s].
+const SIGMA_P_SETTLE_S: f64 = 1.0;
+
+impl Settling {
+    const MOVING_S: f64 = 1.0;
+    const WINDOW_S: f64 = 1.0;
+    const BAND: f64 = 0.1;
+
+    /// One sample at time `now`, after `dt` seconds; forward speed `v`, yaw rate `w`.
+    fn update(&mut self, now: f64, dt: f64, v: f64, w: f64, f: &Friction) -> bool {
+        if v.abs() > 0.05 || w.abs() > 0.1 {
+            self.moving += dt;
+        }
+        self.recent.push_back((now, [f.mu_long, f.mu_lat]));
+        while self
+            .recent
+            .front()
+            .is_some_and(|(t, _)| *t < now - Self::WINDOW_S)
+        {
+            self.recent.pop_front();
+        }
+        let n = self.recent.len() as f64;
+        let steady = (0..2).all(|k| {
+            let mean = self.recent.iter().map(|(_, p)| p[k]).sum::<f64>() / n;
+            self.recent
+                .iter()
+                .all(|(_, p)| (p[k] - mean).abs() <= Self::BAND * mean.abs())
+        });
+        self.moving >= Self::MOVING_S && steady
+    }
 }
 
 impl MheEstimator {
-    /// Settings for Rex: the peer's weights, with noise levels for what the
-    /// simulated platform does that the reduced model does not (longitudinal wheel
-    /// slip shows in the encoder rates), the IMU heading's increments (its
-    /// absolute value drifts with the gyroscope's bias), and a slower random walk
-    /// of the parameters (the peer's
-    /// arrival cost lets them move 0.05 per sample, which suits a 10 s lap but
-    /// makes the NMPC's model jitter over a long mission).
-    pub fn settings(p: SlipParams, dt: f64) -> MheSettings {
+    /// Settings for Rex: the lateral-slip model's defaults with noise levels
+    /// for what the simulated platform does that the model does not (the load
+    /// transfer, the wheels' spin-up) and for its sensors (the encoders' rate
+    /// over a short window of ticks), the IMU heading's increments (its
+    /// absolute value drifts with the gyroscope's bias), and a random walk of
+    /// the friction that lets it follow a change of ground within a second or
+    /// two; starting from the ground `prior`.
+    pub fn settings(prior: Friction, dt: f64) -> MheSettings<6, 3> {
         MheSettings {
             dt,
-            p_prior: p.to_array(),
-            sigma_w: [0.003, 0.003, 0.003, 0.03, 0.05],
-            sigma_encoder: 0.3,
+            p_prior: prior.to_array(),
+            sigma_w: [0.003, 0.003, 0.003, 0.03, 0.03, 0.05],
+            sigma_encoder: 0.15,
             sigma_heading_step: 0.002,
             sigma_load: 5.0,
-            sigma_p: [0.002, 0.002, 0.01],
+            sigma_p: [0.01, 0.01, 0.002],
             ..MheSettings::default()
         }
     }
 
-    /// An estimator for the platform `params`, starting from the slip `p`.
-    pub fn new(params: PlatformParams, p: SlipParams, dt: f64) -> Result<MheEstimator, MheError> {
+    /// An estimator for the platform `params`, starting from the ground `prior`
+    /// (Rex starts from the slipperiest it expects: its NMPC then uses little
+    /// torque until the estimator has seen that the ground takes more, rather
+    /// than spinning its wheels on ice it took for concrete).
+    pub fn new(params: PlatformParams, prior: Friction, dt: f64) -> Result<MheEstimator, MheError> {
+        let settings = Self::settings(prior, dt);
+        let sigma_p = settings.sigma_p;
+        let mut mhe = LateralMhe::new(Lateral::new(params), settings)?;
+        mhe.set_sigma_p(SIGMA_P_START)?;
         Ok(MheEstimator {
-            mhe: Mhe::new(Reduced::new(params), Self::settings(p, dt))?,
+            mhe,
             theta: [0.0; 4],
             theta_dot: [0.0; 4],
+            settling: Settling::default(),
+            sigma_p,
         })
     }
 
     /// The estimator.
-    pub fn mhe(&self) -> &Mhe {
+    pub fn mhe(&self) -> &LateralMhe {
         &self.mhe
     }
 }
@@ -484,7 +572,7 @@ impl Estimator for MheEstimator {
         "mhe"
     }
 
-    fn update(&mut self, _dt: f64, tau: &Torques, m: &Measurements) -> Estimate {
+    fn update(&mut self, dt: f64, tau: &Torques, m: &Measurements) -> Estimate {
         if let Some(e) = m
             .encoders
             .filter(|e| e.theta.iter().chain(&e.rate).all(|v| v.is_finite()))
@@ -508,9 +596,21 @@ impl Estimator for MheEstimator {
             loads: m.loads.map(|l| l.load),
         };
         let e = self.mhe.update(m.now, tau, &sample);
+        let [x, y, phi, vx, vy, w] = e.x;
+        let loose = (-self.settling.moving / SIGMA_P_SETTLE_S).exp();
+        let steady = self.sigma_p;
+        let sigma_p: [f64; 3] =
+            std::array::from_fn(|k| steady[k] + (SIGMA_P_START[k] - steady[k]) * loose);
+        // Positive and finite: accepted.
+        let _ = self.mhe.set_sigma_p(sigma_p);
+        let friction = Friction::from_array(e.p);
+        let settled = e.localised && self.settling.update(m.now, dt, vx, w, &friction);
         Estimate {
-            x: e.x,
-            p: e.p,
+            x: [x, y, phi, vx, w],
+            lateral: Some(vy),
+            p: SlipParams::NOMINAL,
+            friction: Some(friction),
+            friction_settled: settled,
             theta: self.theta,
             theta_dot: self.theta_dot,
             localised: e.localised,

@@ -2,7 +2,7 @@
 //! safety monitor's stops and epochs, and each plan's outcome.
 
 use super::*;
-use crate::world::model::{PlatformParams, SlipParams};
+use crate::world::model::{Friction, PlatformParams, SlipParams};
 use embodied::{Stamp, Time};
 
 fn fragment(index: u32, x0: f64, n: usize) -> Fragment {
@@ -26,7 +26,7 @@ fn memory() -> E11Memory {
             .build(params.clone(), 0.05)
             .unwrap(),
         EstimatorKind::Ekf
-            .build(params, SlipParams::NOMINAL, 0.05)
+            .build(params, SlipParams::NOMINAL, Friction::CONCRETE, 0.05)
             .unwrap(),
         0.05,
         0.03,

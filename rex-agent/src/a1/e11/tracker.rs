@@ -3,8 +3,9 @@
 
 use super::estimator::Estimate;
 use crate::algorithms::mpc::nmpc::{DisturbanceObserver, DisturbanceSettings};
-use crate::algorithms::mpc::{Nmpc, NmpcError, NmpcSettings};
-use crate::world::model::{PlatformParams, Reduced, Torques};
+use crate::algorithms::mpc::{LateralNmpc, NmpcError, NmpcSettings};
+use crate::algorithms::planner::nearest_angle;
+use crate::world::model::{Friction, Lateral, PlatformParams, Reduced, Torques};
 
 /// A trajectory tracker: wheel torques from the estimate and the reference.
 pub trait Tracker: Send + std::fmt::Debug {
@@ -84,16 +85,42 @@ impl TrackerKind {
     }
 }
 
-/// The NMPC of [`crate::algorithms::mpc::nmpc`] as e1,1's tracker: the reduced model with the
-/// slip parameters of the estimate (the MHE's, or the nominal ones), the bounds of
-/// the platform, one real-time iteration per sample. A refused input (a
-/// non-finite estimate or reference) keeps the last torques for the fallback steps
-/// the NMPC allows, then brakes.
+/// Below this speed along the path [m/s] its direction is the planner's
+/// heading (finite differences of positions a few millimetres apart say little).
+const MOVING: f64 = 0.02;
+
+/// The NMPC of [`crate::algorithms::mpc::nmpc`] as e1,1's tracker, on the
+/// lateral-slip model with the ground's friction of the estimate (the MHE's; the
+/// concrete's when the estimator has none), the bounds of the platform, one
+/// real-time iteration per sample.
+///
+/// Two things it takes from what it knows of the ground:
+///
+/// * **The reference, made consistent with the model.** The planner's reference
+///   `(X, Y, φ, v, ω)` describes a path and a speed along it; on a slippery
+///   ground the body must turn its nose into each bend by the sideslip angle
+///   `β = atan2(v_y, v_x)` of the steady turn ([`Lateral::steady_lateral`]),
+///   and its lateral velocity is `v_y`, not zero. The tracker recomputes the
+///   heading, forward and lateral velocities of each sample from the path's
+///   tangent and speed (finite differences of its positions) and that steady
+///   turn: tracking the planner's heading would make the NMPC trade position for
+///   a heading the ground does not allow.
+/// * **The traction bound.** Each wheel's torque stays below `traction_margin`
+///   times what the ground can take, `r μ_x N` (the rest of the model's force
+///   law bends onto that bound): above it the wheel spins and the model no
+///   longer holds.
+///
+/// A refused input (a non-finite estimate or reference) keeps the last torques
+/// for the fallback steps the NMPC allows, then brakes.
 #[derive(Debug)]
 pub struct NmpcTracker {
-    nmpc: Nmpc,
+    nmpc: LateralNmpc,
     /// What the model leaves out (offset-free tracking).
-    observer: DisturbanceObserver,
+    observer: DisturbanceObserver<6>,
+    /// The fraction of the traction bound the torques may use.
+    traction_margin: f64,
+    /// The model's reference over the horizon (reused every sample).
+    reference: Vec<[f64; 6]>,
     last: Torques,
     refused: u64,
     refused_in_a_row: usize,
@@ -108,11 +135,13 @@ impl NmpcTracker {
             torque_max: params.torque_max,
             speed_max: params.speed_max,
             yaw_rate_max: params.yaw_rate_max,
-            ..NmpcSettings::default()
+            ..NmpcSettings::<6>::default()
         };
         Ok(NmpcTracker {
-            nmpc: Nmpc::new(Reduced::new(params), settings)?,
-            observer: DisturbanceObserver::new(DisturbanceSettings::default()),
+            nmpc: LateralNmpc::new(Lateral::new(params), settings)?,
+            observer: DisturbanceObserver::new(DisturbanceSettings::<6>::default()),
+            traction_margin: 0.85,
+            reference: Vec::new(),
             last: [0.0; 4],
             refused: 0,
             refused_in_a_row: 0,
@@ -120,8 +149,65 @@ impl NmpcTracker {
     }
 
     /// The controller.
-    pub fn nmpc(&self) -> &Nmpc {
+    pub fn nmpc(&self) -> &LateralNmpc {
         &self.nmpc
+    }
+
+    /// The model's reference `(X, Y, φ, v_x, v_y, ω)` for the planner's
+    /// `(X, Y, φ, v, ω)` samples `dt` apart on the ground `friction`, headings
+    /// unwrapped from `heading`.
+    pub fn model_reference(
+        model: &Lateral,
+        reference: &[[f64; 5]],
+        dt: f64,
+        friction: &Friction,
+        heading: f64,
+        out: &mut Vec<[f64; 6]>,
+    ) {
+        out.clear();
+        let n = reference.len();
+        let mut last_phi = heading;
+        for k in 0..n {
+            let r = reference[k];
+            // The path's velocity by central differences (one-sided at the ends).
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            let span = (b - a) as f64 * dt;
+            let (dx, dy) = (
+                reference[b][0] - reference[a][0],
+                reference[b][1] - reference[a][1],
+            );
+            let speed = if span > 0.0 { dx.hypot(dy) / span } else { 0.0 };
+            // Where the path goes, and whether the body goes forwards or
+            // backwards along it (its heading against the path's direction);
+            // hardly moving, the direction is not defined: the planner's
+            // heading.
+            let moving = speed > MOVING;
+            let psi = dy.atan2(dx);
+            let forwards = !moving || (psi - r[2]).cos() >= 0.0;
+            let tangent = match (moving, forwards) {
+                (false, _) => r[2],
+                (true, true) => psi,
+                (true, false) => psi + std::f64::consts::PI,
+            };
+            let w = r[4];
+            let v_signed = if forwards { speed } else { -speed };
+            let vy = if moving {
+                model.steady_lateral(v_signed, w, friction).unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            let vx = v_signed.signum() * (speed * speed - vy * vy).max(0.0).sqrt();
+            // The velocity points along the tangent: φ = ψ − atan2(v_y, v_x)
+            // (for v_x < 0, the tangent already turned by π above).
+            let beta = if moving {
+                (vy / speed).clamp(-1.0, 1.0).asin() * v_signed.signum()
+            } else {
+                0.0
+            };
+            let phi = nearest_angle(tangent - beta, last_phi);
+            last_phi = phi;
+            out.push([r[0], r[1], phi, vx, vy, w]);
+        }
     }
 }
 
@@ -134,19 +220,45 @@ impl Tracker for NmpcTracker {
         self.nmpc.settings().horizon
     }
 
-    fn control(&mut self, e: &Estimate, reference: &[[f64; 5]], _dt: f64) -> Torques {
+    fn control(&mut self, e: &Estimate, reference: &[[f64; 5]], dt: f64) -> Torques {
+        let friction = e.friction.unwrap_or(Friction::CONCRETE);
         // The estimate's heading, unwrapped next to the reference's.
-        let mut x = e.x;
-        if let Some(r) = reference.first() {
-            x[2] = crate::algorithms::planner::nearest_angle(x[2], r[2]);
-        }
-        let d = self.observer.update(&self.nmpc, &x);
+        let [x, y, phi, v, w] = e.x;
+        let phi = reference.first().map_or(phi, |r| nearest_angle(phi, r[2]));
+        let vy = e.lateral.unwrap_or_else(|| {
+            self.nmpc
+                .model()
+                .steady_lateral(v, w, &friction)
+                .unwrap_or(0.0)
+        });
+        let state = [x, y, phi, v, vy, w];
+        let mut model_reference = std::mem::take(&mut self.reference);
+        Self::model_reference(
+            self.nmpc.model(),
+            reference,
+            dt,
+            &friction,
+            phi,
+            &mut model_reference,
+        );
+        // The traction bound of each wheel on this ground (refused only if not
+        // finite: then the previous limits stay).
+        let model = self.nmpc.model();
+        let limits: [f64; 4] = std::array::from_fn(|i| {
+            self.traction_margin * model.traction_torque(i, friction.mu_long)
+        });
+        let _ = self.nmpc.set_torque_limits(limits);
+        let d = self.observer.update(&self.nmpc, &state);
         // The observer's disturbance is finite (bounded, non-finite errors
         // skipped): accepted.
         let _ = self.nmpc.set_disturbance(&d);
-        match self.nmpc.control(&x, reference, &e.p) {
+        let result = self
+            .nmpc
+            .control(&state, &model_reference, &friction.to_array());
+        self.reference = model_reference;
+        match result {
             Ok(c) => {
-                self.observer.applied(&x, &c.torques);
+                self.observer.applied(&state, &c.torques);
                 self.refused_in_a_row = 0;
                 self.last = c.torques;
                 c.torques
@@ -297,7 +409,7 @@ impl Tracker for Backstepping {
         let vdot = (next[3] - reference[3]) / dt + g.kv * ev + iv;
         let wdot = (next[4] - reference[4]) / dt + g.kw * ew + iw;
         // Accelerations with zero torque, then the torques that add what is missing.
-        let free = self.model.f(&e.x, &[0.0; 4], &e.p);
+        let free = self.model.f5(&e.x, &[0.0; 4], &e.p);
         let m_eff = p.effective_mass();
         let i_eff = p.inertia
             + p.mass * e.p.x_icr.powi(2)
@@ -346,7 +458,7 @@ mod tests {
                     ..Estimate::default()
                 };
                 let tau = t.control(&e, &[reference(k), reference(k + 1)], dt);
-                x = model.rk4(&x, &tau, &p, dt, 4);
+                x = model.rk4_5(&x, &tau, &p, dt, 4);
                 let r = reference(k + 1);
                 worst = worst.max((x[0] - r[0]).hypot(x[1] - r[1]));
             }
@@ -376,7 +488,7 @@ mod tests {
                 ..Estimate::default()
             };
             let tau = t.control(&e, &[reference(k), reference(k + 1)], dt);
-            x = model.rk4(&x, &tau, &p, dt, 4);
+            x = model.rk4_5(&x, &tau, &p, dt, 4);
         }
         let r = reference(200);
         assert!((x[0] - r[0]).hypot(x[1] - r[1]) < 0.01, "{x:?} vs {r:?}");

@@ -8,6 +8,7 @@
 //! a configuration value ([`PlannerKind`]), nothing else changes.
 
 pub mod ecsa;
+pub mod ground;
 pub mod poly;
 
 use serde::{Deserialize, Serialize};
