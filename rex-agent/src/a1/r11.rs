@@ -28,7 +28,7 @@ use embodied::{
 };
 
 use crate::a1::payload::{AcquireCommand, StereoPair, Transform};
-use crate::algorithms::geometry::{Pose34, compose, invert};
+use crate::algorithms::geometry::{isometry, pose34};
 use crate::algorithms::vo::{
     Calibration, NoEstimate, StereoOdometry, VoError, VoMotion, VoSettings, VoStats,
 };
@@ -196,9 +196,9 @@ impl Odometry {
                     && f.time.is_finite()
                 {
                     // The camera's motion `inv(Tr)`, seen from the platform: E inv(Tr) inv(E).
-                    let tr: Pose34 = [m.tr[0], m.tr[1], m.tr[2]];
-                    let e: Pose34 = [self.mount[0], self.mount[1], self.mount[2]];
-                    let body = compose(&compose(&e, &invert(&tr)), &invert(&e));
+                    let tr = isometry(&[m.tr[0], m.tr[1], m.tr[2]]);
+                    let e = isometry(&[self.mount[0], self.mount[1], self.mount[2]]);
+                    let body = pose34(&(e * tr.inverse() * e.inverse()));
                     let t = Transform {
                         matrix: [body[0], body[1], body[2], [0.0, 0.0, 0.0, 1.0]],
                         from,

@@ -1,7 +1,9 @@
 //! Plane angles and rigid transforms, shared by the algorithms, the simulated world
 //! and a1: [`wrap`] brings an angle into (−π, π]; [`Pose34`] is a 4×4 rigid
 //! transform as its top 3×4 rows (KITTI's pose format), with [`compose`] and
-//! [`invert`].
+//! [`invert`] (by nalgebra's [`IsometryMatrix3`]: [`isometry`], [`pose34`]).
+
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3};
 
 /// An angle in (−π, π].
 pub fn wrap(a: f64) -> f64 {
@@ -16,28 +18,28 @@ pub fn wrap(a: f64) -> f64 {
 /// A 4×4 rigid transform as its top 3×4 rows.
 pub type Pose34 = [[f64; 4]; 3];
 
+/// `pose` as nalgebra's rigid transform (its rotation block taken as it is).
+pub fn isometry(pose: &Pose34) -> IsometryMatrix3<f64> {
+    IsometryMatrix3::from_parts(
+        Translation3::new(pose[0][3], pose[1][3], pose[2][3]),
+        Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| pose[i][j])),
+    )
+}
+
+/// A rigid transform's top 3×4 rows.
+pub fn pose34(t: &IsometryMatrix3<f64>) -> Pose34 {
+    let (r, c) = (t.rotation.matrix(), &t.translation.vector);
+    std::array::from_fn(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)], c[i]])
+}
+
 /// `a · b` for rigid transforms.
 pub fn compose(a: &Pose34, b: &Pose34) -> Pose34 {
-    let mut r = [[0.0; 4]; 3];
-    for i in 0..3 {
-        for j in 0..4 {
-            r[i][j] =
-                (0..3).map(|k| a[i][k] * b[k][j]).sum::<f64>() + if j == 3 { a[i][3] } else { 0.0 };
-        }
-    }
-    r
+    pose34(&(isometry(a) * isometry(b)))
 }
 
 /// The inverse of a rigid transform.
 pub fn invert(a: &Pose34) -> Pose34 {
-    let mut r = [[0.0; 4]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = a[j][i];
-        }
-        r[i][3] = -(0..3).map(|k| a[k][i] * a[k][3]).sum::<f64>();
-    }
-    r
+    pose34(&isometry(a).inverse())
 }
 
 /// The identity transform.

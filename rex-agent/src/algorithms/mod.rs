@@ -8,13 +8,15 @@
 //!   behind the paper's `trajgen` API;
 //! * [`vo`]: stereo visual odometry and the KITTI drift metric (section 3.3);
 //! * [`geometry`]: plane angles and rigid transforms; [`rng`]: seeded random
-//!   numbers (RANSAC, ECSA, and the simulated sensors' noise).
+//!   numbers (RANSAC, ECSA, and the simulated sensors' noise); `linsolve`: the
+//!   small linear solves (nalgebra's LU and Cholesky, with the refusals they share).
 //!
 //! The only module of the crate they use is the platform model
 //! ([`crate::world::model`]: parameters and the reduced model, pure math); a test
 //! (`tests/layout.rs`) keeps it so.
 
 pub mod geometry;
+pub(crate) mod linsolve;
 pub mod mpc;
 pub mod planner;
 pub mod rng;

@@ -16,7 +16,10 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
+use nalgebra::{Const, DimMin, SMatrix, SVector};
+
 use super::{Fragment, PlanError, PlanStats, Planner, PlannerSettings, Waypoint};
+use crate::algorithms::linsolve;
 use crate::algorithms::rng::Rng;
 
 /// Harmonics per control channel.
@@ -297,31 +300,25 @@ impl Ecsa {
     }
 }
 
-/// Solve the leading `m`×`m` block of `d y = e` (m ≤ 3) by Gaussian elimination.
+/// Solve the leading `m`×`m` block (m ≤ 3) of `d y = e`, `d = J W Jᵀ + α I`
+/// symmetric, by nalgebra's Cholesky (LU should rounding make it indefinite):
+/// `None` when it is singular or not finite.
 fn solve_small(d: &[[f64; 3]; 3], e: &[f64; 3], m: usize) -> Option<[f64; 3]> {
-    let mut a = *d;
-    let mut b = *e;
-    for col in 0..m {
-        let p = (col..m).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[p][col].abs() < 1e-300 || a[p][col].is_nan() {
-            return None;
-        }
-        a.swap(col, p);
-        b.swap(col, p);
-        for row in col + 1..m {
-            let f = a[row][col] / a[col][col];
-            for k in col..m {
-                a[row][k] -= f * a[col][k];
-            }
-            b[row] -= f * b[col];
-        }
+    fn block<const M: usize>(d: &[[f64; 3]; 3], e: &[f64; 3]) -> Option<[f64; 3]>
+    where
+        Const<M>: DimMin<Const<M>, Output = Const<M>>,
+    {
+        let a = SMatrix::<f64, M, M>::from_fn(|row, col| d[row][col]);
+        let b = SVector::<f64, M>::from_fn(|row, _| e[row]);
+        let y = linsolve::solve_symmetric(a, &b, 1e-300)?;
+        Some(std::array::from_fn(|k| if k < M { y[k] } else { 0.0 }))
     }
-    let mut y = [0.0; 3];
-    for row in (0..m).rev() {
-        let acc = b[row] - (row + 1..m).map(|k| a[row][k] * y[k]).sum::<f64>();
-        y[row] = acc / a[row][row];
+    match m {
+        1 => block::<1>(d, e),
+        2 => block::<2>(d, e),
+        3 => block::<3>(d, e),
+        _ => None,
     }
-    y[..m].iter().all(|v| v.is_finite()).then_some(y)
 }
 
 impl Planner for Ecsa {

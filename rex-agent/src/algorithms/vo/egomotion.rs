@@ -1,8 +1,16 @@
 //! The motion between two stereo pairs from matched features (notes `vo.md` §1.8):
 //! points triangulated in the previous pair, Gauss–Newton on the reprojection error
 //! in the current pair over `θ = (r_x, r_y, r_z, t_x, t_y, t_z)`
-//! (`p_curr = R_x R_y R_z p_prev + t`), inside RANSAC on 3-point samples.
+//! (`p_curr = R_x R_y R_z p_prev + t`), inside RANSAC on 3-point samples. The
+//! normal equations of each step are solved by nalgebra's Cholesky
+//! (`linsolve::solve_symmetric`).
 
+use nalgebra::{
+    IsometryMatrix3, Matrix3, Matrix3x6, Matrix4x3, Matrix6, Rotation3, Translation3, Vector3,
+    Vector4, Vector6,
+};
+
+use crate::algorithms::linsolve;
 use crate::algorithms::rng::Rng;
 
 /// Rectified stereo intrinsics.
@@ -57,37 +65,28 @@ pub fn observations(
         .collect()
 }
 
-fn rotation(t: &[f64; 6]) -> ([[f64; 3]; 3], [[[f64; 3]; 3]; 3]) {
-    let (sx, cx) = t[0].sin_cos();
-    let (sy, cy) = t[1].sin_cos();
-    let (sz, cz) = t[2].sin_cos();
-    let rx = [[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]];
-    let ry = [[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]];
-    let rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]];
-    let drx = [[0.0, 0.0, 0.0], [0.0, -sx, -cx], [0.0, cx, -sx]];
-    let dry = [[-sy, 0.0, cy], [0.0, 0.0, 0.0], [-cy, 0.0, -sy]];
-    let drz = [[-sz, -cz, 0.0], [cz, -sz, 0.0], [0.0, 0.0, 0.0]];
-    let mul = |a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]| -> [[f64; 3]; 3] {
-        std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-    };
-    (
-        mul(&mul(&rx, &ry), &rz),
-        [
-            mul(&mul(&drx, &ry), &rz),
-            mul(&mul(&rx, &dry), &rz),
-            mul(&mul(&rx, &ry), &drz),
-        ],
-    )
+/// `R = R_x R_y R_z` of `θ` and its derivatives `∂R/∂r_x, ∂R/∂r_y, ∂R/∂r_z`
+/// (`d R_a(α)/dα = R_a(α) [a]×` for a rotation about the axis `a`).
+fn rotation(t: &[f64; 6]) -> (Matrix3<f64>, [Matrix3<f64>; 3]) {
+    let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), t[0]).into_inner();
+    let ry = Rotation3::from_axis_angle(&Vector3::y_axis(), t[1]).into_inner();
+    let rz = Rotation3::from_axis_angle(&Vector3::z_axis(), t[2]).into_inner();
+    let drx = rx * Vector3::x().cross_matrix();
+    let dry = ry * Vector3::y().cross_matrix();
+    let drz = rz * Vector3::z().cross_matrix();
+    (rx * ry * rz, [drx * ry * rz, rx * dry * rz, rx * ry * drz])
 }
 
-fn apply(r: &[[f64; 3]; 3], p: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2])
+/// The translation of `θ`.
+fn translation(t: &[f64; 6]) -> Vector3<f64> {
+    Vector3::new(t[3], t[4], t[5])
 }
 
-/// Predicted `(u_l, v_l, u_r, v_r)` of `p` moved by `θ`, or `None` behind the camera.
-fn project(c: &Calibration, r: &[[f64; 3]; 3], t: &[f64; 6], p: &[f64; 3]) -> Option<[f64; 4]> {
-    let q = apply(r, p);
-    let (x, y, z) = (q[0] + t[3], q[1] + t[4], q[2] + t[5]);
+/// Predicted `(u_l, v_l, u_r, v_r)` of `p` moved by `θ` (its rotation `r`), or
+/// `None` behind the camera.
+fn project(c: &Calibration, r: &Matrix3<f64>, t: &[f64; 6], p: &[f64; 3]) -> Option<[f64; 4]> {
+    let q = r * Vector3::from(*p) + translation(t);
+    let (x, y, z) = (q.x, q.y, q.z);
     if z <= 1e-6 {
         return None;
     }
@@ -100,7 +99,7 @@ fn project(c: &Calibration, r: &[[f64; 3]; 3], t: &[f64; 6], p: &[f64; 3]) -> Op
 }
 
 /// Squared reprojection error (unweighted) of one observation, or infinity.
-fn error2(c: &Calibration, r: &[[f64; 3]; 3], t: &[f64; 6], o: &Observation) -> f64 {
+fn error2(c: &Calibration, r: &Matrix3<f64>, t: &[f64; 6], o: &Observation) -> f64 {
     project(c, r, t, &o.p).map_or(f64::INFINITY, |pr| {
         (0..4).map(|k| (o.obs[k] - pr[k]).powi(2)).sum()
     })
@@ -122,56 +121,53 @@ pub fn gauss_newton(
     let mut t = theta;
     for _ in 0..max_iter {
         let (r, dr) = rotation(&t);
-        let mut a = [[0.0; 6]; 6];
-        let mut g = [0.0; 6];
+        let shift = translation(&t);
+        // The normal equations `JᵀJ δ = Jᵀ res` (the lower triangle of JᵀJ).
+        let mut jtj = Matrix6::zeros();
+        let mut jtr = Vector6::zeros();
         for &i in active {
             let o = &obs[i];
-            let q = apply(&r, &o.p);
-            let (x, y, z) = (q[0] + t[3], q[1] + t[4], q[2] + t[5]);
+            let p = Vector3::from(o.p);
+            let q = r * p + shift;
+            let (x, y, z) = (q.x, q.y, q.z);
             if z <= 1e-6 {
                 continue;
             }
-            // ∂(x, y, z)/∂θ: rotations through dR, translations the identity.
-            let mut dp = [[0.0; 6]; 3];
-            for k in 0..3 {
-                let d = apply(&dr[k], &o.p);
-                for row in 0..3 {
-                    dp[row][k] = d[row];
-                }
-                dp[k][3 + k] = 1.0;
-            }
+            // ∂q/∂θ: rotations through dR, translations the identity.
+            let dq = Matrix3x6::from_columns(&[
+                dr[0] * p,
+                dr[1] * p,
+                dr[2] * p,
+                Vector3::x(),
+                Vector3::y(),
+                Vector3::z(),
+            ]);
             let (f, iz) = (c.f, 1.0 / z);
-            let pred = [
+            let pred = Vector4::new(
                 f * x * iz + c.cu,
                 f * y * iz + c.cv,
                 f * (x - c.baseline) * iz + c.cu,
                 f * y * iz + c.cv,
-            ];
-            let rows: [[f64; 3]; 4] = [
-                [f * iz, 0.0, -f * x * iz * iz],
-                [0.0, f * iz, -f * y * iz * iz],
-                [f * iz, 0.0, -f * (x - c.baseline) * iz * iz],
-                [0.0, f * iz, -f * y * iz * iz],
-            ];
+            );
+            // ∂(u_l, v_l, u_r, v_r)/∂q.
+            #[rustfmt::skip]
+            let dpred = Matrix4x3::new(
+                f * iz, 0.0, -f * x * iz * iz,
+                0.0, f * iz, -f * y * iz * iz,
+                f * iz, 0.0, -f * (x - c.baseline) * iz * iz,
+                0.0, f * iz, -f * y * iz * iz,
+            );
+            let jac = o.w * (dpred * dq);
+            let res = o.w * (Vector4::from(o.obs) - pred);
             for k in 0..4 {
-                let jrow: [f64; 6] = std::array::from_fn(|m| {
-                    o.w * (rows[k][0] * dp[0][m] + rows[k][1] * dp[1][m] + rows[k][2] * dp[2][m])
-                });
-                let res = o.w * (o.obs[k] - pred[k]);
-                for m in 0..6 {
-                    g[m] += jrow[m] * res;
-                    for n in m..6 {
-                        a[m][n] += jrow[m] * jrow[n];
-                    }
-                }
+                let row = jac.row(k).transpose();
+                jtr.axpy(res[k], &row, 1.0);
+                jtj.syger(1.0, &row, &row, 1.0);
             }
         }
-        for m in 0..6 {
-            for n in 0..m {
-                a[m][n] = a[n][m];
-            }
-        }
-        let delta = solve6(a, g)?;
+        // Pivots at or below 1e-12 are singular (as they were for the Gaussian
+        // elimination this replaces).
+        let delta = linsolve::solve_symmetric(jtj, &jtr, 1e-12)?;
         for m in 0..6 {
             t[m] += delta[m];
         }
@@ -183,32 +179,6 @@ pub fn gauss_newton(
         }
     }
     None
-}
-
-/// Solve `a x = b` (6 × 6) by Gaussian elimination with partial pivoting.
-fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
-    for col in 0..6 {
-        let p = (col..6).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        // Also refuses a NaN pivot.
-        if a[p][col].abs().is_nan() || a[p][col].abs() <= 1e-12 {
-            return None;
-        }
-        a.swap(col, p);
-        b.swap(col, p);
-        for row in col + 1..6 {
-            let f = a[row][col] / a[col][col];
-            for k in col..6 {
-                a[row][k] -= f * a[col][k];
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 6];
-    for row in (0..6).rev() {
-        let s: f64 = (row + 1..6).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / a[row][row];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Why no motion could be estimated from the matches.
@@ -304,15 +274,14 @@ pub fn estimate(
     })
 }
 
-/// The 4 × 4 transform `[R t; 0 1]` of `θ`.
+/// The 4 × 4 transform `[R t; 0 1]` of `θ` (row-major).
 pub fn transform(theta: &[f64; 6]) -> [[f64; 4]; 4] {
     let (r, _) = rotation(theta);
-    [
-        [r[0][0], r[0][1], r[0][2], theta[3]],
-        [r[1][0], r[1][1], r[1][2], theta[4]],
-        [r[2][0], r[2][1], r[2][2], theta[5]],
-        [0.0, 0.0, 0.0, 1.0],
-    ]
+    let pose = IsometryMatrix3::from_parts(
+        Translation3::from(translation(theta)),
+        Rotation3::from_matrix_unchecked(r),
+    );
+    pose.to_homogeneous().transpose().into()
 }
 
 #[cfg(test)]

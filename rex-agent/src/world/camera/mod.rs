@@ -18,6 +18,7 @@ pub mod render;
 pub mod scene;
 pub mod sensor;
 
+use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::algorithms::vo::Calibration;
@@ -166,25 +167,24 @@ impl CameraConfig {
     /// Pose of the left camera when the platform is at `(x, y, φ)`.
     pub fn left_pose(&self, body: [f64; 3]) -> CameraPose {
         let [x, y, phi] = body;
-        let (sp, cp) = phi.sin_cos();
-        let (st, ct) = self.pitch.sin_cos();
-        // Camera axes in the body frame (x forward, y left, z up).
-        let z_b = [ct, 0.0, -st];
-        let x_b = [0.0, -1.0, 0.0];
-        let y_b = [-st, 0.0, -ct];
-        let yaw = |v: [f64; 3]| [cp * v[0] - sp * v[1], sp * v[0] + cp * v[1], v[2]];
-        let (xw, yw, zw) = (yaw(x_b), yaw(y_b), yaw(z_b));
+        // The camera's axes (x right, y down, z forward) in the body frame (x forward,
+        // y left, z up) of a level camera, as columns; the camera pitched down by
+        // `pitch` (about the body's y axis), the body turned by φ.
+        #[rustfmt::skip]
+        let level = Matrix3::new(
+            0.0, 0.0, 1.0,
+            -1.0, 0.0, 0.0,
+            0.0, -1.0, 0.0,
+        );
+        let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), phi);
+        let pitch = Rotation3::from_axis_angle(&Vector3::y_axis(), self.pitch);
+        let rotation = (yaw * pitch).matrix() * level;
+        let center = Vector3::new(x, y, 0.0)
+            + yaw * Vector3::new(self.mount_forward, 0.0, self.mount_height);
         CameraPose {
-            center: [
-                x + cp * self.mount_forward,
-                y + sp * self.mount_forward,
-                self.mount_height,
-            ],
-            rotation: [
-                [xw[0], yw[0], zw[0]],
-                [xw[1], yw[1], zw[1]],
-                [xw[2], yw[2], zw[2]],
-            ],
+            center: center.into(),
+            // Row-major.
+            rotation: rotation.transpose().into(),
         }
     }
 

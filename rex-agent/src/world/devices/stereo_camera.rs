@@ -6,6 +6,7 @@ use embodied::{
     Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Offload, OffloadMode, Out,
     PortTable, Shape,
 };
+use nalgebra::{UnitComplex, Vector2};
 
 use super::Truth;
 use crate::a1::payload::{AcquireCommand, StereoPair};
@@ -188,8 +189,8 @@ impl Driver for StereoCamera {
             let truth = *cx.environment::<Truth>()?;
             let s = truth.state;
             let body = [s.x, s.y, s.phi];
-            let (sin, cos) = s.phi.sin_cos();
-            let velocity = [s.vx * cos - s.vy * sin, s.vx * sin + s.vy * cos, s.omega];
+            let v = UnitComplex::new(s.phi) * Vector2::new(s.vx, s.vy);
+            let velocity = [v.x, v.y, s.omega];
             let exposure = Exposure::moving(body, velocity, self.camera.sensor.exposure_s, cmd.seq);
             self.render
                 .submit((exposure, std::mem::take(&mut self.spare)))

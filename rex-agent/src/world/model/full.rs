@@ -19,9 +19,10 @@
 //! `w = (v_x, v_y, ω, θ̇_1..θ̇_4)` is therefore advanced by the **backward (implicit)
 //! Euler** method, `M (w − w_n) − h G(w) = 0`, solved for `w` by **damped Newton
 //! iterations** with the analytic 7×7 Jacobian `∂G/∂w` of the friction and Coriolis
-//! terms: each iteration solves `(M − h ∂G/∂w) Δw = −F(w)` and halves the update
-//! while the residual `F` does not decrease (taking 1/64 of it at worst); at most 12
-//! iterations, stopping once the residual is below 10⁻¹⁰. The first undamped update
+//! terms: each iteration solves `(M − h ∂G/∂w) Δw = −F(w)` (nalgebra's LU with
+//! partial pivoting, on the stack) and halves the update while the residual `F`
+//! does not decrease (taking 1/64 of it at worst); at most 12 iterations, stopping
+//! once the residual is below 10⁻¹⁰. The first undamped update
 //! from `w_n` is the linearly implicit (Rosenbrock) Euler step; further iterations
 //! are needed when a friction force crosses the steep part of its sign function
 //! within the step. Backward Euler is L-stable for any stiffness (a test runs it with a
@@ -38,8 +39,11 @@
 //! the residual still above the tolerance in [`IntegrationStats::unconverged`]; both
 //! are read with [`Plant::integration_stats`].
 
+use nalgebra::{Isometry2, Point2, SMatrix, SVector, UnitComplex, Vector2};
+
 use super::params::{PlatformParams, SurfaceMap};
 use super::reduced::{sg, sg_prime};
+use crate::algorithms::linsolve;
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
 
 /// A start pose `(x, y, φ)`, checked for finite values.
@@ -241,14 +245,14 @@ impl Plant {
         }
         self.loads = n;
         // Ground under each wheel.
-        let (sin, cos) = s.phi.sin_cos();
+        let body = Isometry2::new(Vector2::new(s.x, s.y), s.phi);
         let mut mu = [[0.0; 3]; 4];
         for i in 0..4 {
-            let [dx, dy] = self.d[i];
+            let contact = body * Point2::from(self.d[i]);
             // A validated map always has a surface; no ground means no friction.
             mu[i] = self
                 .surfaces
-                .at(s.x + cos * dx - sin * dy, s.y + sin * dx + cos * dy)
+                .at(contact.x, contact.y)
                 .map_or([0.0; 3], |g| [g.mu_long, g.mu_lat, g.rolling]);
         }
         // Backward Euler on the velocities, w = (vx, vy, ω, θ̇1..4):
@@ -350,9 +354,9 @@ impl Plant {
             next.theta[i] += h * next.theta_dot[i];
         }
         let phi_mid = s.phi + 0.5 * h * next.omega;
-        let (sm, cm) = phi_mid.sin_cos();
-        next.x += h * (next.vx * cm - next.vy * sm);
-        next.y += h * (next.vx * sm + next.vy * cm);
+        let velocity = UnitComplex::new(phi_mid) * Vector2::new(next.vx, next.vy);
+        next.x += h * velocity.x;
+        next.y += h * velocity.y;
         next.phi += h * next.omega;
         // Physical body-frame acceleration: v̇ + ω × v.
         self.accel = [
@@ -438,35 +442,12 @@ impl Forces {
     }
 }
 
-/// Solve a 7×7 linear system by Gaussian elimination with partial pivoting.
-fn solve7(mut a: [[f64; 7]; 7], mut b: [f64; 7]) -> Option<[f64; 7]> {
-    for col in 0..7 {
-        let pivot = (col..7).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        let magnitude = a[pivot][col].abs();
-        if magnitude.is_nan() || magnitude <= 1e-300 {
-            return None;
-        }
-        a.swap(col, pivot);
-        b.swap(col, pivot);
-        for row in col + 1..7 {
-            let f = a[row][col] / a[col][col];
-            if f != 0.0 {
-                for k in col..7 {
-                    a[row][k] -= f * a[col][k];
-                }
-                b[row] -= f * b[col];
-            }
-        }
-    }
-    let mut x = [0.0; 7];
-    for row in (0..7).rev() {
-        let mut acc = b[row];
-        for k in row + 1..7 {
-            acc -= a[row][k] * x[k];
-        }
-        x[row] = acc / a[row][row];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
+/// Solve the 7×7 Newton system `a x = b` (`a` row-major) by nalgebra's LU with
+/// partial pivoting: `None` when it is singular (a pivot of magnitude at most
+/// 1e-300) or not finite.
+fn solve7(a: [[f64; 7]; 7], b: [f64; 7]) -> Option<[f64; 7]> {
+    let a = SMatrix::<f64, 7, 7>::from_fn(|row, col| a[row][col]);
+    linsolve::solve_lu(a, &SVector::from(b), 1e-300).map(Into::into)
 }
 
 #[cfg(test)]
