@@ -82,8 +82,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             } else {
                 worst_ratio = worst_ratio.max(a / b);
             }
+            let friction = ours.friction_estimate().map_or("none".to_owned(), |p| {
+                format!("mu_long {:.3} mu_lat {:.3} rolling {:.3}", p[0], p[1], p[2])
+            });
             achieved.push(format!(
-                "{surface}/{mission}: achieved {}/{} vs {}/{}; done {} vs {}; false successes {} vs {}",
+                "{surface}/{mission}: achieved {}/{} vs {}/{}; done {} vs {}; false successes {} vs {}; \
+                 simulated {:.1} s vs {:.1} s; friction estimated at the end: {friction}",
                 ours.plans_achieved(),
                 ours.plans,
                 base.plans_achieved(),
@@ -92,11 +96,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 base.plans_done(),
                 ours.false_done(),
                 base.false_done(),
+                ours.sim_s,
+                base.sim_s,
             ));
         }
         println!("| {surface} | {} |", cells.join(" | "));
     }
-    println!("plans (NMPC+MHE vs Kanayama+EKF):");
+    println!("plans and durations (NMPC+MHE vs Kanayama+EKF):");
     for line in achieved {
         println!("  {line}");
     }

@@ -515,6 +515,42 @@ fn on_ice_no_plan_is_reported_achieved_that_was_not() {
 }
 
 #[test]
+fn a_plan_the_ground_cannot_deliver_fails_with_the_reason() {
+    // Fragments are timed for the cautious ground until the estimate settles.
+    // On one of glass (μ 0.001) with fragments allowed 5% of the traction, the
+    // first fragment would take about 25 times longer: more than the longest
+    // fragment allowed (60 s). c1 fails the plan with the reason at hand-over,
+    // before the platform moves, and does not acknowledge it done.
+    let mut config = short();
+    config.visual_odometry = false;
+    config.limits.cautious_ground = Friction {
+        mu_long: 0.001,
+        mu_lat: 0.001,
+        rolling: 0.0,
+    };
+    config.limits.traction_share = 0.05;
+    let out = run(&config, 60);
+    assert!(out.completed, "{}", out.summary_line());
+    assert!(!out.succeeded());
+    assert_eq!(out.plans_achieved(), 0, "{:#?}", out.reports);
+    assert_eq!(out.false_done(), 0);
+    for r in &out.reports {
+        assert!(
+            matches!(&r.verdict, Verdict::Failed(why)
+                if why.contains("cannot deliver fragment") && why.contains("μ_x 0.00")),
+            "{r}"
+        );
+    }
+    // Nothing was handed to e11: the platform did not move.
+    let moved = out
+        .samples
+        .iter()
+        .map(|s| s.truth[0].hypot(s.truth[1]))
+        .fold(0.0, f64::max);
+    assert!(moved < 0.01, "moved {moved} m");
+}
+
+#[test]
 fn a_platform_pushed_out_of_the_free_space_is_stopped_and_its_plan_failed() {
     // Four seconds into the square, something pushes the platform to 0.35 m from
     // the wall at x = 6 m (e11 keeps 0.45 m): e11 stops it as soon as the motion
@@ -588,8 +624,9 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // grass. On ice, where the wheels are near their bound whenever they pull,
     // the estimate is noisier and `μ_x` biased up (the encoder readings of a
     // spinning wheel are gated out, which drops those that say "slippery"):
-    // measured 14% high on average, single samples up to 30%; asserted are
-    // the average within 15% and every sample within 35%. The rolling
+    // measured 13% high on average, single samples up to 29% (on the square
+    // 12% and 28%, on the slalom 17% and 42%); asserted are the average within
+    // 15% and every sample within 35%. The rolling
     // resistance is reported, not asserted this tightly (a force of 2-8 N on a
     // 40 kg platform).
     for surface in ["concrete", "grass", "ice"] {

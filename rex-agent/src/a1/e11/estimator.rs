@@ -529,17 +529,21 @@ impl MheEstimator {
     /// over a short window of ticks), the IMU heading's increments (its
     /// absolute value drifts with the gyroscope's bias), and a random walk of
     /// the friction that lets it follow a change of ground within a second or
-    /// two; starting from the ground `prior`.
+    /// two; starting from the ground `prior` (the bounds widened to hold it).
     pub fn settings(prior: Friction, dt: f64) -> MheSettings<6, 3> {
+        let d = MheSettings::<6, 3>::default();
+        let p = prior.to_array();
         MheSettings {
             dt,
-            p_prior: prior.to_array(),
+            p_prior: p,
+            p_lb: std::array::from_fn(|i| d.p_lb[i].min(p[i])),
+            p_ub: std::array::from_fn(|i| d.p_ub[i].max(p[i])),
             sigma_w: [0.003, 0.003, 0.003, 0.03, 0.03, 0.05],
             sigma_encoder: 0.15,
             sigma_heading_step: 0.002,
             sigma_load: 5.0,
             sigma_p: [0.01, 0.01, 0.002],
-            ..MheSettings::default()
+            ..d
         }
     }
 

@@ -19,7 +19,8 @@ pub use mhe::{
     TimedPose,
 };
 pub use nmpc::{
-    Control, LateralNmpc, Nmpc, NmpcError, NmpcSettings, NmpcStats, QpStrategy, ReducedNmpc, Status,
+    ClarabelWorkspace, Control, FrozenQp, LateralNmpc, Nmpc, NmpcError, NmpcSettings, NmpcStats,
+    QpSolution, QpStrategy, ReducedNmpc, SparseQp, Status,
 };
 
 /// The Cholesky factorisation of a symmetric positive definite matrix, or

@@ -65,10 +65,12 @@ use crate::world::model::{
     Dynamics, Lateral, Matrix, NU, PlatformParams, Reduced, Torques, Vector,
 };
 
+mod frozen;
 mod ipm;
 mod offset;
 mod qp;
 
+pub use frozen::{ClarabelWorkspace, FrozenQp, QpSolution, SparseQp};
 pub use offset::{DisturbanceObserver, DisturbanceSettings};
 
 use ipm::IpmWork;

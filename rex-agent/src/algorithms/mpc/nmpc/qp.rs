@@ -52,7 +52,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     }
 
     /// Backward Riccati recursion of the equality-constrained QP; stores the gains.
-    fn riccati(&mut self) -> Result<(), NmpcError> {
+    pub(super) fn riccati(&mut self) -> Result<(), NmpcError> {
         let n = self.s.horizon;
         let mut p =
             Matrix::<NX, NX>::from_diagonal(&Vector::from(self.s.q_terminal.map(|w| 2.0 * w)));
@@ -116,58 +116,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         self.clarabel_step(&dx0)
     }
 
-    /// The QP of the current linearisation with `Δx_0 = x̂ − x_0` by the
-    /// structured interior-point method and by Clarabel at tolerance `tol`,
-    /// neither applied: both steps `Δw` (per stage `Δu_k`, then `Δx_{k+1}`),
-    /// both objectives, and the method's iterations; or `None` when no bound
-    /// is active (the Riccati solution is the answer).
-    #[cfg(test)]
-    pub(super) fn both_solutions(&mut self, x_hat: &[f64; NX], tol: f64) -> Option<BothSolutions> {
-        let dx0 = Vector::from(*x_hat) - self.xs[0];
-        self.riccati().ok()?;
-        if self.forward(&dx0) {
-            return None;
-        }
-        let iterations = self.ipm(&dx0)?;
-        let mut ipm = Vec::new();
-        for k in 0..self.s.horizon {
-            ipm.extend(self.du[k].iter());
-            ipm.extend(self.dx[k + 1].iter());
-        }
-        let tight = NmpcSettings {
-            qp_tolerance: tol,
-            ..self.s.clone()
-        };
-        let mut clarabel = ClarabelQp::new(&tight, [M::SPEED, M::YAW_RATE]).ok()?;
-        let data = self.qp_data(&dx0);
-        let (dw, _) = clarabel.solve(&data).ok()?;
-        // The objective ½ Δwᵀ P Δw + qᵀ Δw (P diagonal) of both.
-        let nz = NU + NX;
-        let objective = |w: &[f64]| {
-            let mut f = 0.0;
-            for (j, v) in w.iter().enumerate() {
-                let (k, i) = (j / nz, j % nz);
-                let p = if i < NU {
-                    2.0 * self.s.r[i]
-                } else {
-                    2.0 * self.weights(k + 1)[i - NU]
-                };
-                f += 0.5 * p * v * v + data.q[j] * v;
-            }
-            f
-        };
-        let objectives = [objective(&ipm), objective(&dw)];
-        Some(BothSolutions {
-            ipm,
-            clarabel: dw,
-            objectives,
-            iterations,
-        })
-    }
-
     /// Forward sweep of the Riccati solution into `du`, `dx`; whether it is finite
     /// and satisfies every bound (then it solves the whole QP).
-    fn forward(&mut self, dx0: &Vector<NX>) -> bool {
+    pub(super) fn forward(&mut self, dx0: &Vector<NX>) -> bool {
         let n = self.s.horizon;
         let (vmax, wmax) = (self.s.speed_max, self.s.yaw_rate_max);
         let tol = 1e-9;
@@ -234,7 +185,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     }
 
     /// The QP's `q`, `A` values (declaration order of [`ClarabelQp`]) and `b`.
-    fn qp_data(&self, dx0: &Vector<NX>) -> QpData {
+    pub(super) fn qp_data(&self, dx0: &Vector<NX>) -> QpData {
         let n = self.s.horizon;
         let nz = NU + NX;
         let mut q = vec![0.0; n * nz];
@@ -284,21 +235,11 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     }
 }
 
-/// One QP solved both ways ([`Nmpc::both_solutions`]).
-#[cfg(test)]
-pub(super) struct BothSolutions {
-    pub(super) ipm: Vec<f64>,
-    pub(super) clarabel: Vec<f64>,
-    /// The interior-point method's, then Clarabel's.
-    pub(super) objectives: [f64; 2],
-    pub(super) iterations: usize,
-}
-
 /// The values of one QP in the fixed layout of [`ClarabelQp`].
-struct QpData {
-    q: Vec<f64>,
-    a: Vec<f64>,
-    b: Vec<f64>,
+pub(super) struct QpData {
+    pub(super) q: Vec<f64>,
+    pub(super) a: Vec<f64>,
+    pub(super) b: Vec<f64>,
 }
 
 /// Clarabel on the sparse multiple-shooting QP, built once. Variables per stage k:
@@ -319,7 +260,7 @@ impl std::fmt::Debug for ClarabelQp {
 impl ClarabelQp {
     /// The QP of a model whose speed and yaw rate are the state components
     /// `bounded`.
-    fn new<const NX: usize>(
+    pub(super) fn new<const NX: usize>(
         s: &NmpcSettings<NX>,
         bounded: [usize; 2],
     ) -> Result<ClarabelQp, NmpcError> {
@@ -408,7 +349,7 @@ impl ClarabelQp {
     }
 
     /// Update the data in place and solve; the step `Δw` and the iterations.
-    fn solve(&mut self, data: &QpData) -> Result<(Vec<f64>, u32), NmpcError> {
+    pub(super) fn solve(&mut self, data: &QpData) -> Result<(Vec<f64>, u32), NmpcError> {
         if data
             .q
             .iter()

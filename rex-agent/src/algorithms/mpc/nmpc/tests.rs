@@ -95,24 +95,41 @@ fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
     // Largest differences: states, torques, objective (its values are 1e-3 to
     // 0.2).
     let mut worst = [0.0f64; 3];
+    let mut violation = 0.0f64;
     for k in 0..N_SIM {
-        if k > 0 {
+        let c = if k > 0 {
             nmpc.prepare(&r[k..=k + n], &p).unwrap();
-            if let Some(both) = nmpc.both_solutions(&x, 1e-10) {
+            let mut qp = nmpc.freeze_qp(&x).unwrap();
+            if qp.active().unwrap() {
                 compared += 1;
-                iterations = iterations.max(both.iterations);
-                let f = both.objectives;
-                for (j, (a, b)) in both.ipm.iter().zip(&both.clarabel).enumerate() {
+                let ipm = qp.solve_structured().unwrap();
+                let mut tight = qp.clarabel(1e-10).unwrap();
+                let clarabel = qp.solve_clarabel(&mut tight).unwrap();
+                iterations = iterations.max(ipm.iterations);
+                for (j, (a, b)) in ipm.step.iter().zip(&clarabel.step).enumerate() {
                     let torque = usize::from(j % (NU + NX) < NU);
                     worst[torque] = worst[torque].max((a - b).abs());
                 }
+                // The same QP in the common sparse form: both feasible, the
+                // same objective.
+                let sparse = qp.sparse();
+                let f = [
+                    sparse.objective(&ipm.step),
+                    sparse.objective(&clarabel.step),
+                ];
                 worst[2] = worst[2].max((f[0] - f[1]).abs());
+                violation = violation
+                    .max(sparse.violation(&ipm.step))
+                    .max(sparse.violation(&clarabel.step));
             }
-        }
-        let c = nmpc.control(&x, &r[k..=k + n], &p).unwrap();
+            nmpc.feedback(&x).unwrap()
+        } else {
+            nmpc.control(&x, &r[k..=k + n], &p).unwrap()
+        };
         x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
     }
     assert!(compared > 50, "{compared} QPs with an active bound");
+    assert!(violation < 1e-8, "constraint violation {violation}");
     assert!(iterations < super::ipm::MAX_ITERATIONS, "{iterations}");
     // The same optimum: the objectives agree to 1e-9, the state trajectories
     // to 1e-6 (measured: 3.5e-7). The torques, which the cost weighs by 1e-3
