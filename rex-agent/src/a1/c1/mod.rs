@@ -55,6 +55,7 @@ use crate::a1::payload::{
 };
 use crate::algorithms::planner::ground::GroundTiming;
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
+use crate::world::model::Friction;
 use trajgen::{Status, TrajGen};
 
 /// Settings of `c1`.
@@ -408,22 +409,30 @@ fn blocked(f: &Fragment, params: &C1Params) -> Option<String> {
 }
 
 /// The fragment at the front of the list as it is handed over: timed for the
-/// ground `e11` estimates now ([`GroundTiming`]; for the cautious ground while
-/// the estimate has not settled), when it estimates one and `params.ground` is
-/// set; `Err` with the reason when that ground cannot deliver it. (Planned one
-/// fragment ahead, a fragment is timed at hand-over: by then the estimator has
-/// seen the platform drive on the ground of the one before.)
+/// ground `e11` estimates now ([`GroundTiming`]; while the estimate has not
+/// settled, for the more slippery of it and the cautious ground, each
+/// coefficient apart), when it estimates one and `params.ground` is set; `Err`
+/// with the reason when that ground cannot deliver it. (Planned one fragment
+/// ahead, a fragment is timed at hand-over: by then the estimator has seen the
+/// platform drive on the ground of the one before.) `cc_2_tp` and `ce_2_tp`
+/// both ask, in the iteration of a hand-over only.
 fn front_timed(m: &C1Memory, x: &C1Input) -> Option<Result<Fragment, String>> {
     let f = m.traj.front()?;
     let ground = x.e11.q_est.get().and_then(|s| s.ground);
     Some(match (&m.params.ground, ground) {
+        (Some(timing), Some(ground)) if ground.settled => {
+            timing.time(f, &ground.friction).map_err(|e| e.to_string())
+        }
         (Some(timing), Some(ground)) => {
-            let friction = if ground.settled {
-                ground.friction
-            } else {
-                timing.cautious
+            let (e, c) = (ground.friction, timing.cautious);
+            let assumed = Friction {
+                mu_long: e.mu_long.min(c.mu_long),
+                mu_lat: e.mu_lat.min(c.mu_lat),
+                rolling: e.rolling.max(c.rolling),
             };
-            timing.time(f, &friction).map_err(|e| e.to_string())
+            timing
+                .time(f, &assumed)
+                .map_err(|e| format!("{e} (assumed until the estimate settles)"))
         }
         _ => Ok(f.clone()),
     })

@@ -608,7 +608,8 @@ impl Estimator for MheEstimator {
         // Positive and finite: accepted.
         let _ = self.mhe.set_sigma_p(sigma_p);
         let friction = Friction::from_array(e.p);
-        let settled = e.localised && self.settling.update(m.now, dt, vx, w, &friction);
+        let steady = self.settling.update(m.now, dt, vx, w, &friction);
+        let settled = e.localised && steady;
         Estimate {
             x: [x, y, phi, vx, w],
             lateral: Some(vy),

@@ -7,8 +7,6 @@
 //! at most a margin of it. A fragment that would need more than the longest
 //! duration allowed cannot be executed on that ground: an error that says why.
 
-use serde::{Deserialize, Serialize};
-
 use super::Fragment;
 use crate::world::model::{Friction, Lateral};
 
@@ -29,7 +27,7 @@ pub struct GroundTiming {
 }
 
 /// Why a fragment cannot be timed for the ground.
-#[derive(Clone, Debug, PartialEq, thiserror::Error, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum GroundError {
     /// Even slowed down to the longest duration it asks more than the margin.
     #[error(
@@ -59,6 +57,8 @@ pub enum GroundError {
 
 /// How much longer each attempt makes the fragment.
 const STEP: f64 = 1.05;
+/// The most attempts: 1.05²⁰⁰ is 17,000 times longer.
+const MAX_STEPS: usize = 200;
 
 impl GroundTiming {
     /// The largest traction demand of `f` slowed by `factor` on `ground`
@@ -98,28 +98,32 @@ impl GroundTiming {
         }
         let duration = f.steps() as f64 * f.dt;
         let mut factor = 1.0;
-        loop {
-            let demand = self.demand(f, ground, factor);
-            if demand <= self.margin {
-                return Ok(if factor > 1.0 {
-                    f.slowed(factor)
-                } else {
-                    f.clone()
-                });
-            }
-            if duration * factor * STEP > self.max_duration {
-                return Err(GroundError::TooSlippery {
-                    plan: f.plan,
-                    index: f.index,
-                    mu_long: ground.mu_long,
-                    mu_lat: ground.mu_lat,
-                    demand: 100.0 * demand,
-                    margin: 100.0 * self.margin,
-                    max_duration: self.max_duration,
-                });
+        let mut demand = self.demand(f, ground, factor);
+        for _ in 0..MAX_STEPS {
+            let longer = duration * factor * STEP;
+            // A NaN duration or limit ends the search too.
+            if demand <= self.margin || longer.is_nan() || longer > self.max_duration {
+                break;
             }
             factor *= STEP;
+            demand = self.demand(f, ground, factor);
         }
+        if demand <= self.margin {
+            return Ok(if factor > 1.0 {
+                f.slowed(factor)
+            } else {
+                f.clone()
+            });
+        }
+        Err(GroundError::TooSlippery {
+            plan: f.plan,
+            index: f.index,
+            mu_long: ground.mu_long,
+            mu_lat: ground.mu_lat,
+            demand: 100.0 * demand,
+            margin: 100.0 * self.margin,
+            max_duration: self.max_duration,
+        })
     }
 }
 
@@ -127,7 +131,8 @@ impl Fragment {
     /// The same path `factor` (≥ 1) times slower: the duration rounded up to a
     /// whole number of samples, positions and headings interpolated along the
     /// path, speeds and turn rates divided by the actual factor. The first and
-    /// last samples are kept.
+    /// last samples keep their positions and headings (their speeds, zero on a
+    /// fragment that starts and ends at rest, are divided too).
     pub fn slowed(&self, factor: f64) -> Fragment {
         let steps = self.steps();
         if steps == 0 || !(factor.is_finite() && factor > 1.0) {
@@ -252,6 +257,23 @@ mod tests {
         assert!(t.demand(&f, &ICE, factor) <= t.margin);
         // The smallest such factor, within a step.
         assert!(t.demand(&f, &ICE, factor / (STEP * STEP)) > t.margin);
+    }
+
+    #[test]
+    fn an_unreachable_margin_or_a_nan_limit_ends_the_search() {
+        // A margin no duration meets, with no limit to the duration (NaN, as
+        // from a corrupt setting): the search stops after its last step
+        // instead of running forever.
+        let f = fragment();
+        for max_duration in [f64::NAN, f64::INFINITY] {
+            let t = GroundTiming {
+                max_duration,
+                margin: 1e-12,
+                ..timing()
+            };
+            let err = t.time(&f, &ICE).expect_err("no duration asks that little");
+            assert!(matches!(err, GroundError::TooSlippery { .. }), "{err}");
+        }
     }
 
     #[test]

@@ -22,8 +22,8 @@
 //! on (their spin mode, about −10³ s⁻¹, settles within a millisecond, so it is
 //! eliminated): a wheel's torque reaches the ground as a force `τ / r`, its spin
 //! inertia adds to the body's, and the force is bounded by what the ground can
-//! take, `μ_x N`: `sat` is the identity up to 0.8 and bends smoothly onto ±1 by
-//! 1.2 (a wheel asked for more spins, as the plant's does). The longitudinal
+//! take, `μ_x N`: `sat` is the identity up to 0.9 and bends smoothly onto ±1 by
+//! 1.1 (a wheel asked for more spins, as the plant's does). The longitudinal
 //! slip is then a quasi-static function of the traction the wheel transmits,
 //! `μ_x N sg(s) = F_x`, which is what the encoders show beside the body's motion
 //! ([`Dynamics::encoder_rate`]): it lets the MHE tell `μ_x` from the encoders
@@ -66,8 +66,8 @@ const ENCODER_FRACTION_MAX: f64 = 0.97;
 /// came out 20 % high on average with 0.05, 16 % with 0.15, 13 % with 0.3.
 const FRACTION_SIGMA: (f64, f64) = (0.3, 0.01);
 
-/// A force fraction bounded smoothly by 1: the identity on `[−0.8, 0.8]`, a
-/// quadratic blend onto ±1 on `0.8 < |z| < 1.2` (value and slope continuous),
+/// A force fraction bounded smoothly by 1: the identity on `[−0.9, 0.9]`, a
+/// quadratic blend onto ±1 on `0.9 < |z| < 1.1` (value and slope continuous),
 /// ±1 beyond; with its derivative.
 #[inline]
 pub fn saturate(z: f64) -> (f64, f64) {

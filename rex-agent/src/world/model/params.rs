@@ -159,8 +159,8 @@ pub struct Friction {
 }
 
 impl Friction {
-    /// Concrete's (μ_x 0.8, μ_y 0.6, rolling 0.02): what an estimator assumes
-    /// before it has seen the ground.
+    /// Concrete's (μ_x 0.8, μ_y 0.6, rolling 0.02): the lateral-slip MHE's
+    /// default prior (Rex's starts from its cautious ground instead).
     pub const CONCRETE: Friction = Friction {
         mu_long: 0.8,
         mu_lat: 0.6,

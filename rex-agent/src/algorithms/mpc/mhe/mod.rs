@@ -41,7 +41,7 @@
 //! rejected; any non-finite or implausible measurement is rejected. All are counted.
 //! An estimate that disagrees with the map poses for `relocalise_after` seconds is
 //! wrong, not the poses: the window restarts from the latest pose (a relocalisation,
-//! counted in [`MheStats::relocalisations`]), keeping the slip parameters.
+//! counted in [`MheStats::relocalisations`]), keeping the parameters.
 //!
 //! **Solution.** Gauss–Newton with exact sensitivities, one iteration per sample
 //! (real-time iteration; more at start). The normal equations are block-tridiagonal

@@ -80,7 +80,7 @@ impl SparseQp {
 #[derive(Debug)]
 pub struct ClarabelWorkspace(ClarabelQp);
 
-impl<M: Dynamics<NX, NP> + Clone, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
+impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     /// The QP the next [`Nmpc::feedback`] with `x_hat` solves (after
     /// [`Nmpc::prepare`]), frozen; the controller is not changed.
     pub fn freeze_qp(&self, x_hat: &[f64; NX]) -> Result<FrozenQp<M, NX, NP>, NmpcError> {
