@@ -685,6 +685,14 @@ mod tests {
         };
         let err = Plant::new(bad, SurfaceMap::concrete(), [0.0; 3]).unwrap_err();
         assert!(err.to_string().contains("<platform>: mass = -1"), "{err}");
+        // A centre of mass over an axle leaves the other axle's wheels without
+        // load, which the prediction models divide by.
+        let over_the_axle = PlatformParams {
+            rear: 0.0,
+            ..PlatformParams::peer_default()
+        };
+        let err = Plant::new(over_the_axle, SurfaceMap::concrete(), [0.0; 3]).unwrap_err();
+        assert!(err.to_string().contains("<platform>: rear = 0"), "{err}");
         let empty = SurfaceMap {
             surfaces: Vec::new(),
             ..SurfaceMap::concrete()

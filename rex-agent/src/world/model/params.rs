@@ -89,9 +89,10 @@ impl Validate for PlatformParams {
         positive("inertia", self.inertia)?;
         positive("wheel_radius", self.wheel_radius)?;
         positive("half_track", self.half_track)?;
-        non_negative("front", self.front)?;
-        non_negative("rear", self.rear)?;
-        positive("front + rear", self.front + self.rear)?;
+        // Both positive: every wheel carries a share of the weight (the
+        // prediction models divide by the static loads).
+        positive("front", self.front)?;
+        positive("rear", self.rear)?;
         positive("wheel_inertia", self.wheel_inertia)?;
         non_negative("cog_height", self.cog_height)?;
         positive("gravity", self.gravity)?;
