@@ -631,9 +631,8 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // the MHE's longitudinal and lateral friction come within 15% of the
     // plant's after 5 s of the figure eight, and stay there, on concrete and
     // grass. On ice, where the wheels are near their bound whenever they pull,
-    // the estimate is noisier and `μ_x` biased up (the encoder readings of a
-    // spinning wheel are gated out, which drops those that say "slippery"):
-    // measured 13% high on average, single samples up to 32% (on the square
+    // the estimate is noisier and `μ_x` biased up (cause not established; see
+    // the README's "NMPC and MHE"): measured 13% high on average, single samples up to 32% (on the square
     // 12% and 28%, on the slalom 16% and 32%); asserted are the average within
     // 15% and every sample within 35%. The rolling
     // resistance is reported, not asserted this tightly (a force of 2-8 N on a
