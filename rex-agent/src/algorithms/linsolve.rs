@@ -1,18 +1,36 @@
 //! The small dense linear solves of the algorithms and of the plant, on nalgebra's
 //! fixed-size matrices (on the stack, no allocation): [`solve_lu`] for a general
 //! system, [`solve_symmetric`] for normal equations (symmetric, positive definite
-//! unless the data are degenerate). Both refuse with `None`, and never panic on, a
+//! unless the data are degenerate), [`spd_cholesky`] for a factor to solve with
+//! several times. Both refuse with `None`, and never panic on, a
 //! system with a pivot of magnitude at most `pivot_min` or NaN, or a solution that
 //! is not finite (as Gaussian elimination refuses them: a NaN anywhere in the
 //! system reaches a pivot or the solution).
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Cholesky, DefaultAllocator, DimMin, OMatrix, OVector};
+use nalgebra::{Cholesky, Const, DefaultAllocator, DimMin, OMatrix, OVector, SMatrix};
 
 /// Whether every number is finite (over the storage's slice: nalgebra's element
 /// iterator costs several times as much in the plant's Newton loop).
 fn finite(values: &[f64]) -> bool {
     values.iter().fold(true, |all, v| all & v.is_finite())
+}
+
+/// The Cholesky factorisation of a symmetric positive definite matrix, or
+/// `None` if it is not (a pivot not positive) or not finite. (nalgebra's
+/// `Cholesky::new` accepts an infinite pivot.)
+pub(crate) fn spd_cholesky<const N: usize>(
+    m: SMatrix<f64, N, N>,
+) -> Option<Cholesky<f64, Const<N>>> {
+    if !finite(m.as_slice()) {
+        return None;
+    }
+    let l = Cholesky::new(m)?;
+    l.l_dirty()
+        .diagonal()
+        .iter()
+        .all(|d| d.is_finite() && *d > 0.0)
+        .then_some(l)
 }
 
 /// Solve `a x = b` by LU with partial pivoting.
@@ -100,5 +118,17 @@ mod tests {
             assert!(solve_lu(a, &b, 1e-12).is_none());
             assert!(solve_symmetric(a, &b, 1e-12).is_none());
         }
+    }
+
+    #[test]
+    fn cholesky_solves_and_refuses_indefinite_or_non_finite_matrices() {
+        let a = nalgebra::Matrix3::new(4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0);
+        let b = Vector3::new(1.0, 2.0, 3.0);
+        let x = spd_cholesky(a).expect("positive definite").solve(&b);
+        assert!((a * x - b).amax() < 1e-12);
+        assert!(spd_cholesky(nalgebra::Matrix2::new(1.0, 2.0, 2.0, 1.0)).is_none());
+        assert!(spd_cholesky(nalgebra::Matrix1::new(f64::NAN)).is_none());
+        assert!(spd_cholesky(nalgebra::Matrix1::new(f64::INFINITY)).is_none());
+        assert!(spd_cholesky(nalgebra::Matrix2::new(1.0, 0.0, 0.0, 0.0)).is_none());
     }
 }

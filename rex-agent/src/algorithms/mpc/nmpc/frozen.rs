@@ -4,7 +4,7 @@
 //! the controller's path.
 
 use super::qp::ClarabelQp;
-use super::{IpmWork, Nmpc, NmpcError};
+use super::{Nmpc, NmpcError};
 use crate::world::model::{Dynamics, NU, Vector};
 
 /// The QP that [`Nmpc::feedback`] would solve after the last
@@ -88,27 +88,18 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             return Err(NmpcError::NotPrepared);
         }
         super::check_finite(x_hat, "state estimate")?;
-        let n = self.s.horizon;
-        let nmpc = Nmpc {
-            model: self.model.clone(),
-            s: self.s.clone(),
-            xs: self.xs.clone(),
-            us: self.us.clone(),
-            reference: self.reference.clone(),
-            p: self.p,
-            limits: self.limits,
-            disturbance: self.disturbance,
-            stages: self.stages.clone(),
-            prepared: true,
-            warm: self.warm,
-            failures_in_a_row: 0,
-            last_clarabel: false,
-            du: vec![Vector::zeros(); n],
-            dx: vec![Vector::zeros(); n + 1],
-            qp: None,
-            work: IpmWork::new(n),
-            stats: Default::default(),
-        };
+        // A fresh controller (no Clarabel set up, empty statistics) holding
+        // this one's problem and linearisation.
+        let mut nmpc = Nmpc::new(self.model.clone(), self.s.clone())?;
+        nmpc.xs.clone_from(&self.xs);
+        nmpc.us.clone_from(&self.us);
+        nmpc.reference.clone_from(&self.reference);
+        nmpc.stages.clone_from(&self.stages);
+        nmpc.p = self.p;
+        nmpc.limits = self.limits;
+        nmpc.disturbance = self.disturbance;
+        nmpc.prepared = true;
+        nmpc.warm = self.warm;
         Ok(FrozenQp {
             dx0: Vector::from(*x_hat) - self.xs[0],
             nmpc,
