@@ -302,6 +302,14 @@ impl Circle<'_> {
         }
     }
 
+    /// Positions of a circle's features at full resolution
+    /// ([`Features::full_position`]). The current left one is the anchor the
+    /// refinement aligns the others to: at its feature's peak (see
+    /// [`Features::peak`]).
+    pub fn full_positions(&self, k: &[usize; 4], scale: usize) -> [(f64, f64); 4] {
+        std::array::from_fn(|m| self.images[m].features.full_position(k[m], scale))
+    }
+
     /// Positions of a circle's features, matching resolution.
     pub fn positions(&self, k: &[usize; 4]) -> [(i32, i32); 4] {
         std::array::from_fn(|m| {

@@ -457,17 +457,12 @@ impl StereoOdometry {
         dense.matches(&search, ranges.as_ref(), &mut self.scratch.quads);
         let grads = [&p.left.full, &p.right.full, &c.right.full, &c.left.full];
         let images = [&p.left.image, &p.right.image, &c.right.image, &c.left.image];
-        let f = scale as f64;
         let mode = s.refinement;
         let mut candidates: Vec<[(f64, f64); 4]> = self
             .scratch
             .quads
             .iter()
-            .map(|k| {
-                dense
-                    .positions(k)
-                    .map(|(u, v)| (f64::from(u) * f, f64::from(v) * f))
-            })
+            .map(|k| dense.full_positions(k, scale))
             .collect();
         let photometric = s.refinement == Refinement::Photometric;
         matching::bucket_refined(
