@@ -330,7 +330,9 @@ pub enum Refinement {
     Pixel,
     /// A parabola fitted to the costs around the best offset of a ±3 px grid.
     Subpixel,
-    /// [`Refinement::Subpixel`], then Lucas–Kanade alignment of the intensities.
+    /// Lucas–Kanade alignment of the intensities ([`photometric`]), from the
+    /// matching positions. (A subpixel pass before it, as this was until
+    /// 2026-11-26, drifted more and took longer: README, visual odometry.)
     Photometric,
 }
 
