@@ -375,77 +375,115 @@ fn patch<const S: usize>(
     true
 }
 
+/// Side of the Lucas–Kanade patches.
+const LK: usize = 9;
+
+/// The template of a Lucas–Kanade alignment: the mean-subtracted 9 × 9 patch, its
+/// gradients and the Gauss–Newton matrix they make (inverse compositional: fixed
+/// for every target aligned with it).
+pub struct Template {
+    tv: [f32; LK * LK],
+    gx: [f32; LK * LK],
+    gy: [f32; LK * LK],
+    h: (f64, f64, f64),
+    det: f64,
+}
+
+impl Template {
+    /// The template of `image` at `t`; `None` if the patch leaves the image, or is
+    /// flat or one-dimensional (an edge: it cannot be aligned), or not finite.
+    pub fn new(image: &super::features::Gray, t: (f64, f64)) -> Option<Template> {
+        const S: usize = LK;
+        // The patch with a 1-pixel rim for its central differences.
+        let mut tb = [[0.0f32; S + 2]; S + 2];
+        if !patch(image, t.0, t.1, &mut tb) {
+            return None;
+        }
+        let (mut tv, mut gx, mut gy) = ([0.0f32; S * S], [0.0f32; S * S], [0.0f32; S * S]);
+        for y in 0..S {
+            for x in 0..S {
+                tv[y * S + x] = tb[y + 1][x + 1];
+                gx[y * S + x] = 0.5 * (tb[y + 1][x + 2] - tb[y + 1][x]);
+                gy[y * S + x] = 0.5 * (tb[y + 2][x + 1] - tb[y][x + 1]);
+            }
+        }
+        let mean_t = tv.iter().sum::<f32>() / (S * S) as f32;
+        for x in tv.iter_mut() {
+            *x -= mean_t;
+        }
+        let (mut h00, mut h01, mut h11) = (0.0f32, 0.0f32, 0.0f32);
+        for (x, y) in gx.iter().zip(&gy) {
+            h00 += x * x;
+            h01 += x * y;
+            h11 += y * y;
+        }
+        let (h00, h01, h11) = (f64::from(h00), f64::from(h01), f64::from(h11));
+        let det = h00 * h11 - h01 * h01;
+        // NaN fails the comparison too.
+        if !(det > 1e-9 * (h00 + h11).powi(2).max(1e-12)) {
+            return None;
+        }
+        Some(Template {
+            tv,
+            gx,
+            gy,
+            h: (h00, h01, h11),
+            det,
+        })
+    }
+
+    /// Align the 9 × 9 patch of `target` at `p` with the template (translation
+    /// only, on mean-subtracted intensities); `None` if it does not converge,
+    /// leaves the image or moves more than a pixel and a half. Intensities and sums
+    /// in `f32`, the position in `f64`.
+    pub fn align(&self, target: &super::features::Gray, p: (f64, f64)) -> Option<(f64, f64)> {
+        let n = (LK * LK) as f32;
+        let (h00, h01, h11) = self.h;
+        let det = self.det;
+        let mut q = p;
+        let mut iv = [[0.0f32; LK]; LK];
+        for _ in 0..10 {
+            if !patch(target, q.0, q.1, &mut iv) {
+                return None;
+            }
+            let iv = iv.as_flattened();
+            let mean_i = dot(iv, None) / n;
+            let mut e = [0.0f32; LK * LK];
+            for ((e, i), t) in e.iter_mut().zip(iv).zip(&self.tv) {
+                *e = (i - mean_i) - t;
+            }
+            let (b0, b1) = (
+                f64::from(dot(&self.gx, Some(&e))),
+                f64::from(dot(&self.gy, Some(&e))),
+            );
+            let (du, dv) = ((h11 * b0 - h01 * b1) / det, (-h01 * b0 + h00 * b1) / det);
+            q = (q.0 - du, q.1 - dv);
+            if !(q.0.is_finite() && q.1.is_finite())
+                || (q.0 - p.0).abs() > 1.5
+                || (q.1 - p.1).abs() > 1.5
+            {
+                return None;
+            }
+            // Converged at a hundredth of a pixel (below the noise of real pixels):
+            // a thousandth dropped more matches that had not settled in ten steps,
+            // and drifted more on every tuning sequence (README, visual odometry).
+            if du.abs() < 1e-2 && dv.abs() < 1e-2 {
+                return Some(q);
+            }
+        }
+        None
+    }
+}
+
 /// Align the 9 × 9 patch of `target` at `p` with the patch of `template` at `t`
-/// (translation only, inverse compositional Lucas–Kanade on mean-subtracted
-/// intensities); `None` if it does not converge, leaves the image or moves more
-/// than a pixel and a half. Intensities and sums in `f32`, the position in `f64`.
+/// ([`Template::new`], [`Template::align`]).
 pub fn lucas_kanade(
     template: &super::features::Gray,
     t: (f64, f64),
     target: &super::features::Gray,
     p: (f64, f64),
 ) -> Option<(f64, f64)> {
-    const S: usize = 9;
-    let n = (S * S) as f32;
-    // The template with a 1-pixel rim for its central differences.
-    let mut tb = [[0.0f32; S + 2]; S + 2];
-    if !patch(template, t.0, t.1, &mut tb) {
-        return None;
-    }
-    let (mut tv, mut gx, mut gy) = ([[0.0f32; S]; S], [[0.0f32; S]; S], [[0.0f32; S]; S]);
-    for y in 0..S {
-        for x in 0..S {
-            tv[y][x] = tb[y + 1][x + 1];
-            gx[y][x] = 0.5 * (tb[y + 1][x + 2] - tb[y + 1][x]);
-            gy[y][x] = 0.5 * (tb[y + 2][x + 1] - tb[y][x + 1]);
-        }
-    }
-    let (tv, gx, gy) = (tv.as_flattened_mut(), gx.as_flattened(), gy.as_flattened());
-    let mean_t = tv.iter().sum::<f32>() / n;
-    for x in tv.iter_mut() {
-        *x -= mean_t;
-    }
-    let (mut h00, mut h01, mut h11) = (0.0f32, 0.0f32, 0.0f32);
-    for (x, y) in gx.iter().zip(gy) {
-        h00 += x * x;
-        h01 += x * y;
-        h11 += y * y;
-    }
-    let (h00, h01, h11) = (f64::from(h00), f64::from(h01), f64::from(h11));
-    let det = h00 * h11 - h01 * h01;
-    // A flat or one-dimensional patch (an edge) cannot be aligned; NaN neither.
-    if det.is_nan() || det <= 1e-9 * (h00 + h11).powi(2).max(1e-12) {
-        return None;
-    }
-    let mut q = p;
-    let mut iv = [[0.0f32; S]; S];
-    for _ in 0..10 {
-        if !patch(target, q.0, q.1, &mut iv) {
-            return None;
-        }
-        let iv = iv.as_flattened();
-        let mean_i = dot(iv, None) / n;
-        let mut e = [0.0f32; S * S];
-        for ((e, i), t) in e.iter_mut().zip(iv).zip(&*tv) {
-            *e = (i - mean_i) - t;
-        }
-        let (b0, b1) = (f64::from(dot(gx, Some(&e))), f64::from(dot(gy, Some(&e))));
-        let (du, dv) = ((h11 * b0 - h01 * b1) / det, (-h01 * b0 + h00 * b1) / det);
-        q = (q.0 - du, q.1 - dv);
-        if !(q.0.is_finite() && q.1.is_finite())
-            || (q.0 - p.0).abs() > 1.5
-            || (q.1 - p.1).abs() > 1.5
-        {
-            return None;
-        }
-        // Converged at a hundredth of a pixel (below the noise of real pixels):
-        // a thousandth dropped more matches that had not settled in ten steps,
-        // and drifted more on every tuning sequence (README, visual odometry).
-        if du.abs() < 1e-2 && dv.abs() < 1e-2 {
-            return Some(q);
-        }
-    }
-    None
+    Template::new(template, t)?.align(target, p)
 }
 
 /// `Σ a[k]·b[k]` (`b` all ones when `None`), summed in eight independent lanes so
@@ -575,9 +613,10 @@ pub fn photometric(
     p: [(f64, f64); 4],
     images: [&super::features::Gray; 4],
 ) -> Option<[(f64, f64); 4]> {
+    let template = Template::new(images[3], p[3])?;
     let mut out = p;
     for m in 0..3 {
-        out[m] = lucas_kanade(images[3], p[3], images[m], p[m])?;
+        out[m] = template.align(images[m], p[m])?;
     }
     Some(out)
 }
