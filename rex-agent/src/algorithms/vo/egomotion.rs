@@ -44,25 +44,35 @@ pub fn observations(
     matches: &[[(f64, f64); 4]],
     reweighting: bool,
 ) -> Vec<Observation> {
-    matches
-        .iter()
-        .map(|m| {
-            let (pl, pr, cr, cl) = (m[0], m[1], m[2], m[3]);
-            let d = (pl.0 - pr.0).max(1e-4);
-            let z = c.f * c.baseline / d;
-            let p = [(pl.0 - c.cu) * z / c.f, (pl.1 - c.cv) * z / c.f, z];
-            let w = if reweighting {
-                1.0 / ((cl.0 - c.cu).abs() / c.cu.abs().max(1.0) + 0.05)
-            } else {
-                1.0
-            };
-            Observation {
-                p,
-                obs: [cl.0, cl.1, cr.0, cr.1],
-                w,
-            }
-        })
-        .collect()
+    let mut out = Vec::with_capacity(matches.len());
+    observations_into(c, matches, reweighting, &mut out);
+    out
+}
+
+/// [`observations`] into `out` (replaced; no allocation once it has grown).
+pub fn observations_into(
+    c: &Calibration,
+    matches: &[[(f64, f64); 4]],
+    reweighting: bool,
+    out: &mut Vec<Observation>,
+) {
+    out.clear();
+    out.extend(matches.iter().map(|m| {
+        let (pl, pr, cr, cl) = (m[0], m[1], m[2], m[3]);
+        let d = (pl.0 - pr.0).max(1e-4);
+        let z = c.f * c.baseline / d;
+        let p = [(pl.0 - c.cu) * z / c.f, (pl.1 - c.cv) * z / c.f, z];
+        let w = if reweighting {
+            1.0 / ((cl.0 - c.cu).abs() / c.cu.abs().max(1.0) + 0.05)
+        } else {
+            1.0
+        };
+        Observation {
+            p,
+            obs: [cl.0, cl.1, cr.0, cr.1],
+            w,
+        }
+    }));
 }
 
 /// `R = R_x R_y R_z` of `θ` and its derivatives `∂R/∂r_x, ∂R/∂r_y, ∂R/∂r_z`
@@ -219,6 +229,14 @@ pub struct Estimate {
     pub inliers: usize,
 }
 
+/// Reusable buffers of [`estimate`]: the inlier sets of a hypothesis and of the
+/// best one (no allocation once they have grown).
+#[derive(Clone, Debug, Default)]
+pub struct RansacScratch {
+    inliers: Vec<usize>,
+    best: Vec<usize>,
+}
+
 /// RANSAC and the final fit.
 pub fn estimate(
     c: &Calibration,
@@ -227,6 +245,7 @@ pub fn estimate(
     threshold: f64,
     min_inliers: usize,
     rng: &mut Rng,
+    scratch: &mut RansacScratch,
 ) -> Result<Estimate, EgomotionError> {
     let n = obs.len();
     let needed = min_inliers.max(6);
@@ -234,8 +253,12 @@ pub fn estimate(
         return Err(EgomotionError::TooFewMatches { found: n, needed });
     }
     let thr2 = threshold * threshold;
-    let mut best: (Vec<usize>, [f64; 6]) = (Vec::new(), [0.0; 6]);
-    let mut inliers = Vec::with_capacity(n);
+    let RansacScratch {
+        inliers,
+        best: best_set,
+    } = scratch;
+    best_set.clear();
+    let mut best = (best_set, [0.0; 6]);
     for _ in 0..iterations {
         // Three distinct matches.
         let a = (rng.next_u64() % n as u64) as usize;
@@ -254,7 +277,8 @@ pub fn estimate(
         inliers.clear();
         inliers.extend((0..n).filter(|&i| error2(c, &r, &theta, &obs[i]) < thr2));
         if inliers.len() > best.0.len() {
-            best = (inliers.clone(), theta);
+            std::mem::swap(best.0, inliers);
+            best.1 = theta;
         }
     }
     if best.0.len() < needed {
@@ -265,7 +289,7 @@ pub fn estimate(
         });
     }
     let theta =
-        gauss_newton(c, obs, &best.0, best.1, 100, 1e-8).ok_or(EgomotionError::NoConvergence {
+        gauss_newton(c, obs, best.0, best.1, 100, 1e-8).ok_or(EgomotionError::NoConvergence {
             inliers: best.0.len(),
         })?;
     Ok(Estimate {
@@ -325,7 +349,16 @@ mod tests {
     fn recovers_a_motion_despite_outliers() {
         let truth = [0.01, -0.08, 0.005, 0.05, -0.01, 0.4];
         let obs = scene(truth, 40);
-        let e = estimate(&calib(), &obs, 200, 2.0, 6, &mut Rng::new(0)).unwrap();
+        let e = estimate(
+            &calib(),
+            &obs,
+            200,
+            2.0,
+            6,
+            &mut Rng::new(0),
+            &mut RansacScratch::default(),
+        )
+        .unwrap();
         assert_eq!(e.inliers, 80);
         for k in 0..6 {
             assert!(
@@ -339,9 +372,27 @@ mod tests {
     #[test]
     fn too_little_support_is_an_error_not_a_guess() {
         let obs = scene([0.0, 0.1, 0.0, 0.0, 0.0, 0.3], 118);
-        let err = estimate(&calib(), &obs, 200, 2.0, 6, &mut Rng::new(0)).unwrap_err();
+        let err = estimate(
+            &calib(),
+            &obs,
+            200,
+            2.0,
+            6,
+            &mut Rng::new(0),
+            &mut RansacScratch::default(),
+        )
+        .unwrap_err();
         assert!(matches!(err, EgomotionError::TooFewInliers { .. }), "{err}");
-        let err = estimate(&calib(), &obs[..4], 200, 2.0, 6, &mut Rng::new(0)).unwrap_err();
+        let err = estimate(
+            &calib(),
+            &obs[..4],
+            200,
+            2.0,
+            6,
+            &mut Rng::new(0),
+            &mut RansacScratch::default(),
+        )
+        .unwrap_err();
         assert_eq!(
             err,
             EgomotionError::TooFewMatches {

@@ -21,6 +21,8 @@ pub struct Bins {
     /// them sequentially instead of gathering from the features.
     pos: Vec<(i32, i32)>,
     desc: Vec<[u8; DESCRIPTOR]>,
+    /// Scratch of `build`: the next free slot of each cell.
+    fill: Vec<u32>,
 }
 
 impl Bins {
@@ -45,11 +47,12 @@ impl Bins {
         }
         self.items.clear();
         self.items.resize(f.len(), 0);
-        let mut fill = self.start.clone();
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.start);
         for k in 0..f.len() {
             let c = cell(k);
-            self.items[fill[c] as usize] = k as u32;
-            fill[c] += 1;
+            self.items[self.fill[c] as usize] = k as u32;
+            self.fill[c] += 1;
         }
         self.pos.clear();
         self.pos.extend(
@@ -175,16 +178,29 @@ impl Ranges {
         size: usize,
         min_width: i32,
     ) -> Ranges {
+        let mut r = Ranges::default();
+        r.rebuild(quads, w, h, size, min_width);
+        r
+    }
+
+    /// [`Ranges::from_quads`] into this one's buffers (no allocation once grown).
+    pub fn rebuild(
+        &mut self,
+        quads: &[[(i32, i32); 4]],
+        w: usize,
+        h: usize,
+        size: usize,
+        min_width: i32,
+    ) {
         let size = size.max(1) as i32;
         let (cols, rows) = ((w as i32 + size - 1) / size, (h as i32 + size - 1) / size);
         let n = (cols * rows) as usize;
-        let mut r = Ranges {
-            size,
-            cols,
-            rows,
-            data: vec![None; LEGS * n],
-            ranges: vec![None; LEGS * n],
-        };
+        let r = self;
+        (r.size, r.cols, r.rows) = (size, cols, rows);
+        for v in [&mut r.data, &mut r.ranges] {
+            v.clear();
+            v.resize(LEGS * n, None);
+        }
         for q in quads {
             for leg in 0..LEGS {
                 let (s, t) = (q[leg], q[(leg + 1) % LEGS]);
@@ -225,7 +241,6 @@ impl Ranges {
                 }
             }
         }
-        r
     }
 
     fn bin(&self, leg: usize, u: i32, v: i32) -> usize {
@@ -419,8 +434,7 @@ impl Template {
         }
         let (h00, h01, h11) = (f64::from(h00), f64::from(h01), f64::from(h11));
         let det = h00 * h11 - h01 * h01;
-        // NaN fails the comparison too.
-        if !(det > 1e-9 * (h00 + h11).powi(2).max(1e-12)) {
+        if det.is_nan() || det <= 1e-9 * (h00 + h11).powi(2).max(1e-12) {
             return None;
         }
         Some(Template {
@@ -621,59 +635,99 @@ pub fn photometric(
     Some(out)
 }
 
+/// Reusable buffers of [`bucket_refined`] (no allocation once they have grown).
+#[derive(Clone, Debug, Default)]
+pub struct BucketScratch {
+    /// Per bucket of the grid: the order of its first candidate, or `usize::MAX`.
+    first: Vec<usize>,
+    /// `(bucket order, candidate)`, sorted.
+    order: Vec<(usize, usize)>,
+    /// Each bucket's range of `order`.
+    groups: Vec<(usize, usize)>,
+}
+
 /// Keep at most `per_bucket` matches per `size × size` bucket of the current left
 /// positions (full resolution), chosen by a seeded shuffle; a candidate counts only
 /// if `accept` (its refinement) keeps it. Candidates are refined lazily: a bucket
 /// stops refining once it is full, so a crowded bucket costs `per_bucket`
-/// refinements and a few failures, not one per candidate. The result is grouped by
-/// bucket (in the order of their first candidate after the shuffle), each group in
-/// shuffled order; the same for any number of `threads`.
+/// refinements and a few failures, not one per candidate. The result (in `out`,
+/// replaced) is grouped by bucket (in the order of their first candidate after the
+/// shuffle), each group in shuffled order; the same for any number of `threads`.
+/// On one thread nothing is allocated once `scratch` and `out` have grown.
+#[allow(clippy::too_many_arguments)]
 pub fn bucket_refined(
     candidates: &mut [[(f64, f64); 4]],
     size: f64,
     per_bucket: usize,
     rng: &mut Rng,
     threads: usize,
+    scratch: &mut BucketScratch,
+    out: &mut Vec<[(f64, f64); 4]>,
     accept: impl Fn(&[(f64, f64); 4]) -> Option<[(f64, f64); 4]> + Sync,
-) -> Vec<[(f64, f64); 4]> {
+) {
+    out.clear();
     // Shuffle (Fisher–Yates).
     for i in (1..candidates.len()).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         candidates.swap(i, j);
     }
-    // Group by bucket, keeping the shuffled order within each (a stable sort on the
-    // order of each bucket's first appearance).
-    let key = |m: &[(f64, f64); 4]| {
-        (
-            (m[3].0 / size).floor() as i64,
-            (m[3].1 / size).floor() as i64,
-        )
-    };
-    let mut first: std::collections::HashMap<(i64, i64), usize> = std::collections::HashMap::new();
-    let mut order: Vec<(usize, usize)> = candidates
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let next = first.len();
-            (*first.entry(key(m)).or_insert(next), i)
-        })
-        .collect();
+    // Group by bucket, keeping the shuffled order within each (a sort on the order
+    // of each bucket's first appearance, then the candidate's).
+    let cell = |x: f64| (x / size).floor().max(0.0) as usize;
+    let cols = candidates.iter().map(|m| cell(m[3].0)).max().unwrap_or(0) + 1;
+    let rows = candidates.iter().map(|m| cell(m[3].1)).max().unwrap_or(0) + 1;
+    let BucketScratch {
+        first,
+        order,
+        groups,
+    } = scratch;
+    first.clear();
+    first.resize(cols * rows, usize::MAX);
+    order.clear();
+    let mut buckets = 0;
+    for (i, m) in candidates.iter().enumerate() {
+        let b = &mut first[cell(m[3].1) * cols + cell(m[3].0)];
+        if *b == usize::MAX {
+            *b = buckets;
+            buckets += 1;
+        }
+        order.push((*b, i));
+    }
     order.sort_unstable();
-    let groups: Vec<&[(usize, usize)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
+    groups.clear();
+    let mut a = 0;
+    for b in 1..=order.len() {
+        if b == order.len() || order[b].0 != order[a].0 {
+            groups.push((a, b));
+            a = b;
+        }
+    }
     let candidates = &*candidates;
-    let kept = super::filter_map_parallel(&groups, threads, |group| {
-        let mut out = Vec::with_capacity(per_bucket.min(group.len()));
-        for &(_, i) in group.iter() {
-            if out.len() == per_bucket {
+    let order = &*order;
+    let fill = |(a, b): (usize, usize), out: &mut Vec<[(f64, f64); 4]>| {
+        let mut kept = 0;
+        for &(_, i) in &order[a..b] {
+            if kept == per_bucket {
                 break;
             }
             if let Some(m) = accept(&candidates[i]) {
                 out.push(m);
+                kept += 1;
             }
         }
-        Some(out)
-    });
-    kept.into_iter().flatten().collect()
+    };
+    if threads <= 1 {
+        for &g in groups.iter() {
+            fill(g, out);
+        }
+    } else {
+        let kept = super::filter_map_parallel(groups, threads, |&g| {
+            let mut v = Vec::with_capacity(per_bucket.min(g.1 - g.0));
+            fill(g, &mut v);
+            Some(v)
+        });
+        out.extend(kept.into_iter().flatten());
+    }
 }
 
 #[cfg(test)]
@@ -739,10 +793,21 @@ mod tests {
         let run = |threads: usize| {
             let calls = std::sync::atomic::AtomicUsize::new(0);
             let mut c = candidates.clone();
-            let kept = bucket_refined(&mut c, 50.0, 8, &mut Rng::new(3), threads, |m| {
-                calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                (m[0].0 as i64 % 5 != 0).then_some(*m)
-            });
+            let mut kept = Vec::new();
+            let mut scratch = BucketScratch::default();
+            bucket_refined(
+                &mut c,
+                50.0,
+                8,
+                &mut Rng::new(3),
+                threads,
+                &mut scratch,
+                &mut kept,
+                |m| {
+                    calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    (m[0].0 as i64 % 5 != 0).then_some(*m)
+                },
+            );
             (kept, calls.into_inner())
         };
         let (kept, calls) = run(1);

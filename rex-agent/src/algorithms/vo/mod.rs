@@ -219,6 +219,15 @@ struct Scratch {
     /// The left and the right image's.
     images: [ImageScratch; 2],
     quads: Vec<[usize; 4]>,
+    /// The sparse circles' positions.
+    positions: Vec<[(i32, i32); 4]>,
+    ranges: Ranges,
+    candidates: Vec<[(f64, f64); 4]>,
+    buckets: matching::BucketScratch,
+    /// The matches kept, refined.
+    matches: Vec<[(f64, f64); 4]>,
+    observations: Vec<egomotion::Observation>,
+    ransac: egomotion::RansacScratch,
 }
 
 /// Stereo visual odometry, one pair at a time.
@@ -401,27 +410,36 @@ impl StereoOdometry {
                 Err(NoEstimate::NoReference)
             };
         }
-        let matches = self.matches(w, h);
-        let obs = egomotion::observations(&self.calib, &matches, self.s.reweighting);
+        self.matches(w, h);
+        let sc = &mut self.scratch;
+        egomotion::observations_into(
+            &self.calib,
+            &sc.matches,
+            self.s.reweighting,
+            &mut sc.observations,
+        );
         let e = egomotion::estimate(
             &self.calib,
-            &obs,
+            &sc.observations,
             self.s.ransac_iterations,
             self.s.inlier_threshold,
             self.s.min_inliers,
             &mut self.rng,
+            &mut sc.ransac,
         )?;
         Ok(Some(VoMotion {
             tr: egomotion::transform(&e.theta),
-            matches: matches.len(),
+            matches: sc.matches.len(),
             inliers: e.inliers,
         }))
     }
 
     /// Circular matches of the previous and current pairs, refined, bucketed, at
-    /// full resolution: `[prev_left, prev_right, curr_right, curr_left]`.
-    fn matches(&mut self, w: usize, h: usize) -> Vec<[(f64, f64); 4]> {
+    /// full resolution, into `scratch.matches`: `[prev_left, prev_right,
+    /// curr_right, curr_left]`.
+    fn matches(&mut self, w: usize, h: usize) {
         let s = &self.s;
+        let sc = &mut self.scratch;
         let scale: usize = if s.half_resolution { 2 } else { 1 };
         let search = Search {
             radius: (s.match_radius / scale as i32).max(1),
@@ -437,42 +455,39 @@ impl StereoOdometry {
                     &c.left.sparse,
                 ],
             };
-            sparse.matches(&search, None, &mut self.scratch.quads);
-            let quads: Vec<[(i32, i32); 4]> = self
-                .scratch
-                .quads
-                .iter()
-                .map(|k| sparse.positions(k))
-                .collect();
-            Some(Ranges::from_quads(
-                &quads,
+            sparse.matches(&search, None, &mut sc.quads);
+            sc.positions.clear();
+            sc.positions
+                .extend(sc.quads.iter().map(|k| sparse.positions(k)));
+            sc.ranges.rebuild(
+                &sc.positions,
                 w / scale,
                 h / scale,
                 (s.match_binsize / scale).max(1),
                 (s.range_min_width / scale as i32).max(1),
-            ))
+            );
+            Some(&sc.ranges)
         } else {
             None
         };
         let dense = Circle {
             images: [&p.left.dense, &p.right.dense, &c.right.dense, &c.left.dense],
         };
-        dense.matches(&search, ranges.as_ref(), &mut self.scratch.quads);
+        dense.matches(&search, ranges, &mut sc.quads);
         let grads = [&p.left.full, &p.right.full, &c.right.full, &c.left.full];
         let images = [&p.left.image, &p.right.image, &c.right.image, &c.left.image];
         let mode = s.refinement;
-        let mut candidates: Vec<[(f64, f64); 4]> = self
-            .scratch
-            .quads
-            .iter()
-            .map(|k| dense.full_positions(k, scale))
-            .collect();
+        sc.candidates.clear();
+        sc.candidates
+            .extend(sc.quads.iter().map(|k| dense.full_positions(k, scale)));
         matching::bucket_refined(
-            &mut candidates,
+            &mut sc.candidates,
             s.bucket_size,
             s.bucket_max,
             &mut self.rng,
             s.threads,
+            &mut sc.buckets,
+            &mut sc.matches,
             |q| match mode {
                 Refinement::Photometric => matching::photometric(*q, images),
                 _ => matching::refine(*q, grads, mode),
