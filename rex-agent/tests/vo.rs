@@ -101,3 +101,40 @@ fn a_rendered_motion_is_recovered_and_a_blank_pair_is_bridged() {
     let m = vo.process(&l3, &r3, w, h).unwrap().unwrap();
     assert!((m.tr[2][3] + 0.1).abs() < 0.01);
 }
+
+#[test]
+fn with_the_constant_velocity_prior_a_forward_drive_is_recovered() {
+    // Four pairs 10 cm apart along a gentle turn: from the third pair on, the
+    // previous motion predicts where the points move (libviso2's prior).
+    let c = camera();
+    let renderer = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
+    let (w, h) = (c.width as usize, c.height as usize);
+    let settings = VoSettings {
+        motion_prior_weight: 4.0,
+        ..VoSettings::default()
+    };
+    let mut vo = StereoOdometry::new(c.calibration(), settings).unwrap();
+    for k in 0..4 {
+        let k = f64::from(k);
+        let (mut l, mut r) = (Vec::new(), Vec::new());
+        renderer.render_pair([0.1 * k, 0.3, 0.2 + 1f64.to_radians() * k], &mut l, &mut r);
+        let Some(m) = vo.process(&l, &r, w, h).unwrap() else {
+            assert_eq!(k, 0.0, "only the first pair has no motion");
+            continue;
+        };
+        assert!((m.tr[2][3] + 0.1).abs() < 0.01, "pair {k}: {m:?}");
+        let yaw = m.tr[0][2].atan2(m.tr[0][0]);
+        assert!(
+            (yaw.abs() - 1f64.to_radians()).abs() < 0.002,
+            "pair {k}: yaw {yaw}"
+        );
+    }
+    assert_eq!(vo.stats().motions, 3);
+    for weight in [-1.0, f32::NAN, f32::INFINITY] {
+        let settings = VoSettings {
+            motion_prior_weight: weight,
+            ..VoSettings::default()
+        };
+        assert!(StereoOdometry::new(c.calibration(), settings).is_err());
+    }
+}

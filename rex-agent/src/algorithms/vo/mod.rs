@@ -8,8 +8,8 @@
 //! descriptors), circular matching of the previous and current pairs
 //! ([`matching`]: a sparse pass that measures the displacements to expect in each
 //! part of the image, then a dense pass searching only there; refinement at full
-//! resolution; bucketing), and the motion by Gauss–Newton on the reprojection error
-//! inside RANSAC ([`egomotion`]). [`StereoOdometry::process`] returns the motion `Tr`
+//! resolution, [`refine`]; bucketing), and the motion by Gauss–Newton on the
+//! reprojection error inside RANSAC ([`egomotion`]). [`StereoOdometry::process`] returns the motion `Tr`
 //! with `p_curr = Tr · p_prev` (a point of the previous left-camera frame in the
 //! current one), or an explicit [`NoEstimate`]: never an identity guessed in its
 //! place, never a non-finite transform. After a failure the pair just processed
@@ -17,18 +17,20 @@
 //! good pair. [`metric`] is the KITTI drift metric.
 //!
 //! Not implemented from libviso2: the Delaunay-based outlier pre-filter (RANSAC does
-//! the rejection) and the constant-velocity prior on the temporal search. Added:
+//! the rejection); its constant-velocity prior on the temporal search is an option,
+//! off by default ([`VoSettings::motion_prior_weight`]). Added:
 //! Lucas–Kanade refinement of the matches kept ([`Refinement::Photometric`]).
 
 pub mod egomotion;
 pub mod features;
 pub mod matching;
 pub mod metric;
+pub mod refine;
 
 use serde::{Deserialize, Serialize};
 
 pub use egomotion::{Calibration, EgomotionError};
-pub use matching::Refinement;
+pub use refine::Refinement;
 
 use features::{Gradients, Gray, Responses};
 use matching::{Circle, Indexed, Ranges, Search};
@@ -83,6 +85,12 @@ pub struct VoSettings {
     pub inlier_threshold: f64,
     /// Weight residuals towards the image's centre column.
     pub reweighting: bool,
+    /// libviso2's constant-velocity prior on the temporal legs of the matching:
+    /// the last motion predicts where a point appears, and a candidate's cost
+    /// grows by `motion_prior_weight` per pixel from there (0: off; libviso2: 4).
+    /// Off by default: on the tuning sequences it helped some and hurt others
+    /// (README, visual odometry), where no pair fails to match without it.
+    pub motion_prior_weight: f32,
     /// Fewest inliers of an estimate.
     pub min_inliers: usize,
     /// Fewest features per image for a pair to be usable.
@@ -114,6 +122,7 @@ impl Default for VoSettings {
             ransac_iterations: 200,
             inlier_threshold: 2.0,
             reweighting: false,
+            motion_prior_weight: 0.0,
             min_inliers: 6,
             min_features: 30,
             seed: 0,
@@ -243,6 +252,8 @@ pub struct StereoOdometry {
     size: Option<(usize, usize)>,
     /// Whether some pair was usable before: then a missing reference is a failure.
     had_usable: bool,
+    /// The last motion (`θ`), while pairs keep giving one: the prior of the next.
+    last: Option<[f64; 6]>,
 }
 
 impl StereoOdometry {
@@ -268,6 +279,12 @@ impl StereoOdometry {
                 "inlier_threshold, bucket_size and match_radius must be positive".into(),
             ));
         }
+        if !s.motion_prior_weight.is_finite() || s.motion_prior_weight < 0.0 {
+            return Err(VoError(format!(
+                "motion_prior_weight must be finite and at least 0, not {}",
+                s.motion_prior_weight
+            )));
+        }
         let rng = Rng::new(settings.seed);
         Ok(StereoOdometry {
             calib,
@@ -279,6 +296,7 @@ impl StereoOdometry {
             stats: VoStats::default(),
             size: None,
             had_usable: false,
+            last: None,
         })
     }
 
@@ -303,6 +321,9 @@ impl StereoOdometry {
     ) -> Result<Option<VoMotion>, NoEstimate> {
         self.stats.pairs += 1;
         let result = self.step(left, right, w, h);
+        if !matches!(result, Ok(Some(_))) {
+            self.last = None;
+        }
         match &result {
             Ok(Some(_)) => self.stats.motions += 1,
             Ok(None) => {}
@@ -427,6 +448,7 @@ impl StereoOdometry {
             &mut self.rng,
             &mut sc.ransac,
         )?;
+        self.last = Some(e.theta);
         Ok(Some(VoMotion {
             tr: egomotion::transform(&e.theta),
             matches: sc.matches.len(),
@@ -446,6 +468,25 @@ impl StereoOdometry {
             row_tolerance: s.match_disp_tolerance,
         };
         let (p, c) = (&self.prev, &self.curr);
+        let prior = self
+            .last
+            .filter(|_| s.motion_prior_weight > 0.0)
+            .map(|theta| {
+                let tr = egomotion::transform(&theta);
+                let k = scale as f64;
+                let at = |x: f64| (x - (k - 1.0) / 2.0) / k;
+                matching::MotionPrior {
+                    r: nalgebra::Matrix3::from_fn(|i, j| tr[i][j]),
+                    t: nalgebra::Vector3::new(tr[0][3], tr[1][3], tr[2][3]),
+                    calib: Calibration {
+                        f: self.calib.f / k,
+                        cu: at(self.calib.cu),
+                        cv: at(self.calib.cv),
+                        baseline: self.calib.baseline,
+                    },
+                    weight: s.motion_prior_weight,
+                }
+            });
         let ranges = if s.multi_stage {
             let sparse = Circle {
                 images: [
@@ -455,7 +496,7 @@ impl StereoOdometry {
                     &c.left.sparse,
                 ],
             };
-            sparse.matches(&search, None, &mut sc.quads);
+            sparse.matches(&search, None, prior.as_ref(), &mut sc.quads);
             sc.positions.clear();
             sc.positions
                 .extend(sc.quads.iter().map(|k| sparse.positions(k)));
@@ -473,7 +514,7 @@ impl StereoOdometry {
         let dense = Circle {
             images: [&p.left.dense, &p.right.dense, &c.right.dense, &c.left.dense],
         };
-        dense.matches(&search, ranges, &mut sc.quads);
+        dense.matches(&search, ranges, prior.as_ref(), &mut sc.quads);
         let grads = [&p.left.full, &p.right.full, &c.right.full, &c.left.full];
         let images = [&p.left.image, &p.right.image, &c.right.image, &c.left.image];
         let mode = s.refinement;
@@ -489,8 +530,8 @@ impl StereoOdometry {
             &mut sc.buckets,
             &mut sc.matches,
             |q| match mode {
-                Refinement::Photometric => matching::photometric(*q, images),
-                _ => matching::refine(*q, grads, mode),
+                Refinement::Photometric => refine::photometric(*q, images),
+                _ => refine::refine(*q, grads, mode),
             },
         )
     }
