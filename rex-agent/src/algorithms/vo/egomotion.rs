@@ -345,20 +345,24 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn recovers_a_motion_despite_outliers() {
-        let truth = [0.01, -0.08, 0.005, 0.05, -0.01, 0.4];
-        let obs = scene(truth, 40);
-        let e = estimate(
+    /// RANSAC as the odometry runs it (200 hypotheses, 2 px, 6 inliers), seeded.
+    fn ransac(obs: &[Observation]) -> Result<Estimate, EgomotionError> {
+        estimate(
             &calib(),
-            &obs,
+            obs,
             200,
             2.0,
             6,
             &mut Rng::new(0),
             &mut RansacScratch::default(),
         )
-        .unwrap();
+    }
+
+    #[test]
+    fn recovers_a_motion_despite_outliers() {
+        let truth = [0.01, -0.08, 0.005, 0.05, -0.01, 0.4];
+        let obs = scene(truth, 40);
+        let e = ransac(&obs).unwrap();
         assert_eq!(e.inliers, 80);
         for k in 0..6 {
             assert!(
@@ -372,27 +376,9 @@ mod tests {
     #[test]
     fn too_little_support_is_an_error_not_a_guess() {
         let obs = scene([0.0, 0.1, 0.0, 0.0, 0.0, 0.3], 118);
-        let err = estimate(
-            &calib(),
-            &obs,
-            200,
-            2.0,
-            6,
-            &mut Rng::new(0),
-            &mut RansacScratch::default(),
-        )
-        .unwrap_err();
+        let err = ransac(&obs).unwrap_err();
         assert!(matches!(err, EgomotionError::TooFewInliers { .. }), "{err}");
-        let err = estimate(
-            &calib(),
-            &obs[..4],
-            200,
-            2.0,
-            6,
-            &mut Rng::new(0),
-            &mut RansacScratch::default(),
-        )
-        .unwrap_err();
+        let err = ransac(&obs[..4]).unwrap_err();
         assert_eq!(
             err,
             EgomotionError::TooFewMatches {

@@ -68,11 +68,35 @@ impl Bins {
     /// The feature of `class` in `[u0, u1] × [v0, v1]` whose descriptor is closest
     /// to `d` (sum of absolute differences).
     #[inline]
-    fn best(
+    fn best(&self, class: u8, d: &[u8; DESCRIPTOR], window: (i32, i32, i32, i32)) -> Option<usize> {
+        self.scan(class, d, window, |_, _| 0)
+    }
+
+    /// [`Bins::best`] with `weight` added to the cost per pixel of distance from
+    /// `near` (the constant-velocity prior; libviso2's weight is 4).
+    #[inline]
+    fn best_near(
+        &self,
+        class: u8,
+        d: &[u8; DESCRIPTOR],
+        window: (i32, i32, i32, i32),
+        (near, weight): ((f32, f32), f32),
+    ) -> Option<usize> {
+        self.scan(class, d, window, |u, v| {
+            let (du, dv) = (u as f32 - near.0, v as f32 - near.1);
+            // At most 2^20: the cost stays below 2^31.
+            (weight * (du * du + dv * dv).sqrt()).min(1_048_576.0) as u32
+        })
+    }
+
+    /// The least `SAD + penalty(u, v)` in the window (`penalty` at most 2^20).
+    #[inline(always)]
+    fn scan(
         &self,
         class: u8,
         d: &[u8; DESCRIPTOR],
         (u0, u1, v0, v1): (i32, i32, i32, i32),
+        penalty: impl Fn(i32, i32) -> u32,
     ) -> Option<usize> {
         if u1 < u0 || v1 < v0 {
             return None;
@@ -94,49 +118,9 @@ impl Bins {
                 {
                     // Without branches on the position (most candidates of a bin
                     // are outside the window, unpredictably): the cost of one
-                    // outside is above any real one (at most 32 · 255).
+                    // outside is above any real one (at most 32 · 255 + 2^20).
                     let outside = (u < u0) | (u > u1) | (v < v0) | (v > v1);
-                    let cost = sad(d, desc) | (u32::from(outside) << 31);
-                    best = best.min((u64::from(cost) << 32) | u64::from(k));
-                }
-            }
-        }
-        (best >> 32 < 1 << 31).then_some((best & u64::from(u32::MAX)) as usize)
-    }
-}
-
-impl Bins {
-    /// [`Bins::best`] with `weight` added to the cost per pixel of distance from
-    /// `near` (the constant-velocity prior; libviso2's weight is 4).
-    #[inline]
-    fn best_near(
-        &self,
-        class: u8,
-        d: &[u8; DESCRIPTOR],
-        (u0, u1, v0, v1): (i32, i32, i32, i32),
-        (near, weight): ((f32, f32), f32),
-    ) -> Option<usize> {
-        if u1 < u0 || v1 < v0 {
-            return None;
-        }
-        let base = usize::from(class) * (self.cols * self.rows) as usize;
-        let (bu0, bu1) = ((u0 / self.size).max(0), (u1 / self.size).min(self.cols - 1));
-        let (bv0, bv1) = ((v0 / self.size).max(0), (v1 / self.size).min(self.rows - 1));
-        let mut best = u64::MAX;
-        for bv in bv0..=bv1 {
-            for bu in bu0..=bu1 {
-                let c = base + (bv * self.cols + bu) as usize;
-                let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
-                for ((&(u, v), desc), &k) in self.pos[a..b]
-                    .iter()
-                    .zip(&self.desc[a..b])
-                    .zip(&self.items[a..b])
-                {
-                    let outside = (u < u0) | (u > u1) | (v < v0) | (v > v1);
-                    let (du, dv) = (u as f32 - near.0, v as f32 - near.1);
-                    // At most 2^20 from the prior: the sum stays below 2^31.
-                    let penalty = (weight * (du * du + dv * dv).sqrt()).min(1_048_576.0) as u32;
-                    let cost = (sad(d, desc) + penalty) | (u32::from(outside) << 31);
+                    let cost = (sad(d, desc) + penalty(u, v)) | (u32::from(outside) << 31);
                     best = best.min((u64::from(cost) << 32) | u64::from(k));
                 }
             }
