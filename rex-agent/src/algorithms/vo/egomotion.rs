@@ -38,18 +38,8 @@ pub struct Observation {
 }
 
 /// Triangulate matches `[prev_left, prev_right, curr_right, curr_left]` (pixel
-/// positions); the weight favours the centre column when `reweighting`.
-pub fn observations(
-    c: &Calibration,
-    matches: &[[(f64, f64); 4]],
-    reweighting: bool,
-) -> Vec<Observation> {
-    let mut out = Vec::with_capacity(matches.len());
-    observations_into(c, matches, reweighting, &mut out);
-    out
-}
-
-/// [`observations`] into `out` (replaced; no allocation once it has grown).
+/// positions) into `out` (replaced; no allocation once it has grown); the weight
+/// favours the centre column when `reweighting`.
 pub fn observations_into(
     c: &Calibration,
     matches: &[[(f64, f64); 4]],

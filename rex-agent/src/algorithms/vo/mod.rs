@@ -9,12 +9,12 @@
 //! ([`matching`]: a sparse pass that measures the displacements to expect in each
 //! part of the image, then a dense pass searching only there; refinement at full
 //! resolution, [`refine`]; bucketing), and the motion by Gauss–Newton on the
-//! reprojection error inside RANSAC ([`egomotion`]). [`StereoOdometry::process`] returns the motion `Tr`
-//! with `p_curr = Tr · p_prev` (a point of the previous left-camera frame in the
-//! current one), or an explicit [`NoEstimate`]: never an identity guessed in its
-//! place, never a non-finite transform. After a failure the pair just processed
-//! becomes the reference of the next one, so the odometry recovers on the next
-//! good pair. [`metric`] is the KITTI drift metric.
+//! reprojection error inside RANSAC ([`egomotion`]). [`StereoOdometry::process`]
+//! returns the motion `Tr` with `p_curr = Tr · p_prev` (a point of the previous
+//! left-camera frame in the current one), or an explicit [`NoEstimate`]: never an
+//! identity guessed in its place, never a non-finite transform. After a failure the
+//! pair just processed becomes the reference of the next one, so the odometry
+//! recovers on the next good pair. [`metric`] is the KITTI drift metric.
 //!
 //! Not implemented from libviso2: the Delaunay-based outlier pre-filter (RANSAC does
 //! the rejection); its constant-velocity prior on the temporal search is an option,
