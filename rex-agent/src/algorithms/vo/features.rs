@@ -374,7 +374,9 @@ impl Responses {
     /// Non-maximum and non-minimum suppression in blocks of `(n+1) × (n+1)`: in each
     /// block the extreme responses of each filter are candidates, kept if nothing in
     /// their `(2n+1) × (2n+1)` neighbourhood is more extreme and their magnitude
-    /// reaches `tau`. Features closer than `margin` to the border are skipped.
+    /// reaches `tau`. Features closer than `margin` to the border are skipped, and
+    /// closer than 5 whatever `margin` (the descriptor's reach: a smaller margin
+    /// read outside the gradients).
     /// Appends to `out` with descriptors from `grad`.
     pub fn suppress(
         &self,
@@ -385,6 +387,7 @@ impl Responses {
         out: &mut Features,
     ) {
         out.clear();
+        let margin = margin.max(5);
         let (w, h) = (self.w, self.h);
         if w <= 2 * (n + margin) || h <= 2 * (n + margin) {
             return;
@@ -430,6 +433,7 @@ impl Responses {
                         out.v.push(v as i32);
                         out.class.push(class as u8);
                         out.desc.push(grad.descriptor(u, v));
+                        // Neighbours inside: the margin is at least 5.
                         out.peak.push((
                             vertex(map[v * w + u - 1], val, map[v * w + u + 1]),
                             vertex(map[(v - 1) * w + u], val, map[(v + 1) * w + u]),
@@ -527,6 +531,25 @@ mod tests {
         // A plateau to one side: half-way to that neighbour.
         assert_eq!(vertex(10, 10, 0), -0.5);
         assert_eq!(vertex(0, 10, 10), 0.5);
+    }
+
+    #[test]
+    fn a_margin_below_the_descriptors_reach_is_raised_to_it() {
+        // No margin and no threshold (a descriptor there read outside the
+        // gradients and panicked): features keep 5 px from the border, each with
+        // a peak within ±0.5.
+        let img = image(24, 20, |u, v| ((u * 37 + v * 91) % 251) as u8);
+        let mut r = Responses::default();
+        r.compute(&img);
+        let mut g = Gradients::default();
+        g.compute(&img);
+        let mut f = Features::default();
+        r.suppress(1, 0, 0, &g, &mut f);
+        assert!(!f.is_empty());
+        assert!(f.u.iter().all(|&u| (5..19).contains(&u)), "{:?}", f.u);
+        assert!(f.v.iter().all(|&v| (5..15).contains(&v)), "{:?}", f.v);
+        assert_eq!(f.peak.len(), f.len());
+        assert!(f.peak.iter().all(|p| p.0.abs() <= 0.5 && p.1.abs() <= 0.5));
     }
 
     #[test]
