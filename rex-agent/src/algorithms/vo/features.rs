@@ -487,6 +487,17 @@ mod tests {
         }
     }
 
+    /// The features of `img` (`suppress(n, tau, margin)`).
+    fn features_of(img: &Gray, n: usize, tau: i32, margin: usize) -> Features {
+        let mut r = Responses::default();
+        r.compute(img);
+        let mut g = Gradients::default();
+        g.compute(img);
+        let mut f = Features::default();
+        r.suppress(n, tau, margin, &g, &mut f);
+        f
+    }
+
     #[test]
     fn a_bright_dot_is_a_blob_maximum_and_a_checker_a_corner() {
         // A bright 3 × 3 dot at (20, 20) on black; a checkerboard corner at (40, 20).
@@ -499,12 +510,7 @@ mod tests {
                 0
             }
         });
-        let mut r = Responses::default();
-        r.compute(&img);
-        let mut g = Gradients::default();
-        g.compute(&img);
-        let mut f = Features::default();
-        r.suppress(3, 50, 6, &g, &mut f);
+        let f = features_of(&img, 3, 50, 6);
         let find = |class: u8, u: i32, v: i32| {
             (0..f.len())
                 .any(|k| f.class[k] == class && (f.u[k] - u).abs() <= 1 && (f.v[k] - v).abs() <= 1)
@@ -539,12 +545,7 @@ mod tests {
         // gradients and panicked): features keep 5 px from the border, each with
         // a peak within ±0.5.
         let img = image(24, 20, |u, v| ((u * 37 + v * 91) % 251) as u8);
-        let mut r = Responses::default();
-        r.compute(&img);
-        let mut g = Gradients::default();
-        g.compute(&img);
-        let mut f = Features::default();
-        r.suppress(1, 0, 0, &g, &mut f);
+        let f = features_of(&img, 1, 0, 0);
         assert!(!f.is_empty());
         assert!(f.u.iter().all(|&u| (5..19).contains(&u)), "{:?}", f.u);
         assert!(f.v.iter().all(|&v| (5..15).contains(&v)), "{:?}", f.v);
@@ -568,12 +569,7 @@ mod tests {
             });
             let mut half = Gray::default();
             full.half_into(&mut half);
-            let mut r = Responses::default();
-            r.compute(&half);
-            let mut g = Gradients::default();
-            g.compute(&half);
-            let mut f = Features::default();
-            r.suppress(3, 20, 4, &g, &mut f);
+            let f = features_of(&half, 3, 20, 4);
             let Some(k) = (0..f.len()).find(|&k| f.class[k] == 1) else {
                 panic!("no blob maximum for the blob at ({cu}, {cv})");
             };
