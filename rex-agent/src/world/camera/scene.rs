@@ -108,7 +108,14 @@ impl Validate for SceneConfig {
     }
 }
 
+/// The offset of the fixed-point texel coordinates ([`Texture::sample_fixed`]): a
+/// large positive offset keeps them positive (the integer conversion a plain
+/// truncation) and leaves a 256th of a texel of `f32` precision.
+pub const TEXEL_OFFSET: f32 = 8_388_608.0;
+
 /// A square grayscale texture that repeats, with its scale in texels per metre.
+/// Stored row-major with a copy of its first row and column after its last, so
+/// that a bilinear sample reads its four texels at fixed offsets.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     log2: u32,
@@ -126,21 +133,30 @@ impl Texture {
     /// Bilinear sample at `(u, v)` metres (repeating), in 8-bit fixed point.
     #[inline(always)]
     pub fn sample(&self, u: f32, v: f32) -> u8 {
-        // Texel coordinates in 1/256 units; a large positive offset keeps the integer
-        // conversion a plain truncation.
-        const OFFSET: f32 = 8_388_608.0;
         let scale = self.texels_per_m * 256.0;
-        let uf = (u * scale + OFFSET) as u32;
-        let vf = (v * scale + OFFSET) as u32;
+        let uf = (u * scale + TEXEL_OFFSET) as u32;
+        let vf = (v * scale + TEXEL_OFFSET) as u32;
+        self.sample_fixed(uf, vf)
+    }
+
+    /// Bilinear sample at texel coordinates in 1/256 of a texel, offset by
+    /// [`TEXEL_OFFSET`] (`metres · texels_per_m · 256 + TEXEL_OFFSET`, repeating).
+    #[inline(always)]
+    pub fn sample_fixed(&self, uf: u32, vf: u32) -> u8 {
         let (fu, fv) = (uf & 255, vf & 255);
         let mask = (1u32 << self.log2) - 1;
         let (u0, v0) = ((uf >> 8) & mask, (vf >> 8) & mask);
-        let (u1, v1) = ((u0 + 1) & mask, (v0 + 1) & mask);
-        let (r0, r1) = ((v0 << self.log2) as usize, (v1 << self.log2) as usize);
-        let d = &self.data;
-        let at = |i: usize| u32::from(d.get(i).copied().unwrap_or(0));
-        let top = at(r0 + u0 as usize) * (256 - fu) + at(r0 + u1 as usize) * fu;
-        let bottom = at(r1 + u0 as usize) * (256 - fu) + at(r1 + u1 as usize) * fu;
+        // The four texels: the padding holds the wrapped neighbours, so they are at
+        // fixed offsets in one slice (one bounds check).
+        let stride = (1usize << self.log2) + 1;
+        let i = v0 as usize * stride + u0 as usize;
+        let Some(q) = self.data.get(i..i + stride + 2) else {
+            return 0; // unreachable: i is at most (size − 1)·(stride + 1)
+        };
+        let (top, bottom) = (&q[..2], &q[stride..]);
+        let at = |x: u8| u32::from(x);
+        let top = at(top[0]) * (256 - fu) + at(top[1]) * fu;
+        let bottom = at(bottom[0]) * (256 - fu) + at(bottom[1]) * fu;
         ((top * (256 - fv) + bottom * fv) >> 16) as u8
     }
 
@@ -184,9 +200,14 @@ impl Texture {
                 }
             }
         }
-        let data = acc
-            .iter()
-            .map(|v| (mean + v).clamp(8.0, 247.0) as u8)
+        // Row-major with one more row and column, copies of the first: the
+        // neighbours of a bilinear sample never wrap.
+        let stride = size + 1;
+        let data = (0..stride * stride)
+            .map(|i| {
+                let (x, y) = ((i % stride) % size, (i / stride) % size);
+                (mean + acc[y * size + x]).clamp(8.0, 247.0) as u8
+            })
             .collect();
         Texture {
             log2,
