@@ -40,20 +40,30 @@ fn patch<const S: usize>(
     if i < 1 || j < 1 || i + side + 1 >= img.w as i64 || j + side + 1 >= img.h as i64 {
         return false;
     }
-    let (w00, w10, w01, w11) = ((1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b);
     let w = img.w;
-    let row = |y: usize, dx: usize| -> &[u8; S] {
-        let start = (j as usize + y) * w + i as usize + dx;
+    // Separable: each of the S + 1 rows interpolated along u, then each pair of
+    // rows along v (a third of the conversions and half the arithmetic of
+    // weighting four pixels per sample).
+    let mut across = [[0.0f32; S]; 2];
+    for y in 0..=S {
+        let start = (j as usize + y) * w + i as usize;
         // In the image: checked above.
-        img.data[start..start + S].try_into().unwrap_or(&[0; S])
-    };
-    for (y, o) in out.iter_mut().enumerate() {
-        let (t0, t1, b0, b1) = (row(y, 0), row(y, 1), row(y + 1, 0), row(y + 1, 1));
-        for x in 0..S {
-            o[x] = w00 * f32::from(t0[x])
-                + w10 * f32::from(t1[x])
-                + w01 * f32::from(b0[x])
-                + w11 * f32::from(b1[x]);
+        let px: &[u8] = img.data.get(start..start + S + 1).unwrap_or(&[]);
+        let (left, right) = (px.get(..S).unwrap_or(&[]), px.get(1..).unwrap_or(&[]));
+        let row = &mut across[y % 2];
+        for ((r, &p0), &p1) in row.iter_mut().zip(left).zip(right) {
+            let p0 = f32::from(p0);
+            *r = p0 + a * (f32::from(p1) - p0);
+        }
+        if y > 0 {
+            let (top, bottom) = if y % 2 == 1 {
+                (&across[0], &across[1])
+            } else {
+                (&across[1], &across[0])
+            };
+            for ((o, &t), &b_) in out[y - 1].iter_mut().zip(top).zip(bottom) {
+                *o = t + b * (b_ - t);
+            }
         }
     }
     true
@@ -62,15 +72,17 @@ fn patch<const S: usize>(
 /// Side of the Lucas–Kanade patches.
 const LK: usize = 9;
 
-/// The template of a Lucas–Kanade alignment: the mean-subtracted 9 × 9 patch, its
-/// gradients and the Gauss–Newton matrix they make (inverse compositional: fixed
-/// for every target aligned with it).
+/// The template of a Lucas–Kanade alignment: the gradients of the 9 × 9 patch, the
+/// Gauss–Newton matrix they make (inverse compositional: fixed for every target
+/// aligned with it), and their products with the mean-subtracted patch.
 pub struct Template {
-    tv: [f32; LK * LK],
     gx: [f32; LK * LK],
     gy: [f32; LK * LK],
     h: (f64, f64, f64),
     det: f64,
+    /// `Σ gx`, `Σ gy`, `Σ gx·t`, `Σ gy·t` (`t` the mean-subtracted patch): the
+    /// parts of the steepest-descent products that do not depend on the target.
+    sums: [f32; 4],
 }
 
 impl Template {
@@ -106,12 +118,18 @@ impl Template {
         if det.is_nan() || det <= 1e-9 * (h00 + h11).powi(2).max(1e-12) {
             return None;
         }
+        let sums = [
+            dot(&gx, None),
+            dot(&gy, None),
+            dot(&gx, Some(&tv)),
+            dot(&gy, Some(&tv)),
+        ];
         Some(Template {
-            tv,
             gx,
             gy,
             h: (h00, h01, h11),
             det,
+            sums,
         })
     }
 
@@ -130,14 +148,12 @@ impl Template {
                 return None;
             }
             let iv = iv.as_flattened();
+            // Σ g·(i − mean − t) = Σ g·i − mean·Σ g − Σ g·t.
             let mean_i = dot(iv, None) / n;
-            let mut e = [0.0f32; LK * LK];
-            for ((e, i), t) in e.iter_mut().zip(iv).zip(&self.tv) {
-                *e = (i - mean_i) - t;
-            }
+            let [sgx, sgy, sgxt, sgyt] = self.sums;
             let (b0, b1) = (
-                f64::from(dot(&self.gx, Some(&e))),
-                f64::from(dot(&self.gy, Some(&e))),
+                f64::from(dot(&self.gx, Some(iv)) - mean_i * sgx - sgxt),
+                f64::from(dot(&self.gy, Some(iv)) - mean_i * sgy - sgyt),
             );
             let (du, dv) = ((h11 * b0 - h01 * b1) / det, (-h01 * b0 + h00 * b1) / det);
             q = (q.0 - du, q.1 - dv);
