@@ -554,7 +554,8 @@ fn inside_columns(w: usize, axes: [(f64, f64, f64, f64); 2]) -> std::ops::Range<
             to = to.min(p.max(q));
         }
     }
-    if !(from <= to) {
+    // Empty (or NaN, which finite rows exclude).
+    if from.partial_cmp(&to).is_none_or(|o| o.is_gt()) {
         return 0..0;
     }
     // Within 0..w: the conversions cannot saturate.
