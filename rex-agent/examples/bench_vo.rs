@@ -5,7 +5,8 @@
 //! cargo run --release -p rex-agent --example bench_vo [-- --peer PEERS_DIR] [--dir DIR] [--no-peer] [--quick]
 //! ```
 //!
-//! Four sequences are rendered once into `DIR` (default `target/vo-bench`):
+//! Four sequences are rendered once into `DIR` (default `target/vo-bench`), and
+//! again when the stored first or last pair is not what the renderer makes now:
 //!
 //! | sequence | size | path | camera | role |
 //! |---|---|---|---|---|
@@ -38,7 +39,7 @@ use rex_agent::algorithms::vo::VoSettings;
 use rex_agent::algorithms::vo::metric::evaluate;
 use rex_agent::world::WorldConfig;
 use rex_agent::world::camera::kitti::{
-    ScriptedPath, Sequence, read_poses, run_sequence, write_scripted,
+    ScriptedPath, Sequence, is_current, read_poses, run_sequence, write_scripted,
 };
 use rex_agent::world::camera::{Renderer, SensorConfig};
 
@@ -112,17 +113,22 @@ fn sequence(dir: &Path, case: &Case, quick: bool) -> Result<Sequence, Error> {
         Extent::Metres(_) if quick => 300,
         Extent::Metres(m) => case.path.frames_for(m),
     };
-    if let Ok(seq) = Sequence::open(dir)
-        && seq.len() == frames
-    {
-        return Ok(seq);
-    }
     let mut world = WorldConfig::shipped()?;
     world.camera.width = case.width;
     world.camera.height = case.height;
     world.camera.focal = case.focal;
     world.camera.sensor = case.sensor.clone();
     let mut renderer = Renderer::new(world.camera, world.scene)?;
+    // Rendered before, by this renderer with this camera and scene: reused.
+    if let Ok(seq) = Sequence::open(dir) {
+        if is_current(&seq, &mut renderer, case.path, frames)? {
+            return Ok(seq);
+        }
+        eprintln!(
+            "{} is not what the renderer makes now (another version, camera or length): rendering it again",
+            dir.display()
+        );
+    }
     eprintln!(
         "rendering {frames} pairs of {}x{} into {}",
         case.width,

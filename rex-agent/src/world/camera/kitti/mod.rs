@@ -367,21 +367,61 @@ pub fn write_scripted(
     frames: usize,
 ) -> Result<usize, KittiError> {
     let camera = renderer.camera().clone();
-    let half = 0.5 * camera.sensor.exposure_s;
     let mut writer = SequenceWriter::create(dir, &camera)?;
     let (mut left, mut right) = (Vec::new(), Vec::new());
     for k in 0..frames {
-        let t = k as f64 * 0.1;
-        let body = path.pose(t);
-        let exposure = super::Exposure {
-            open: path.pose(t - half),
-            close: path.pose(t + half),
-            frame: k as u64,
-        };
-        renderer.capture_pair(&exposure, &mut left, &mut right);
+        let (t, body) = capture_scripted(renderer, path, k, &mut left, &mut right);
         writer.push(t, &camera.left_pose(body), &left, &right)?;
     }
     writer.finish()
+}
+
+/// Frame `k` of [`write_scripted`]'s sequence along `path` into `left` and
+/// `right`; its instant and the platform's pose then.
+fn capture_scripted(
+    renderer: &mut super::Renderer,
+    path: ScriptedPath,
+    k: usize,
+    left: &mut Vec<u8>,
+    right: &mut Vec<u8>,
+) -> (f64, [f64; 3]) {
+    let half = 0.5 * renderer.camera().sensor.exposure_s;
+    let t = k as f64 * 0.1;
+    let exposure = super::Exposure {
+        open: path.pose(t - half),
+        close: path.pose(t + half),
+        frame: k as u64,
+    };
+    renderer.capture_pair(&exposure, left, right);
+    (t, path.pose(t))
+}
+
+/// Whether `seq` is what [`write_scripted`] would write now with `renderer` along
+/// `path`: as many frames as `frames`, and its first and last pairs the same
+/// pixels as they render now (a sequence rendered by another version of the
+/// renderer, or with another camera or scene, is not).
+pub fn is_current(
+    seq: &Sequence,
+    renderer: &mut super::Renderer,
+    path: ScriptedPath,
+    frames: usize,
+) -> Result<bool, KittiError> {
+    if seq.len() != frames {
+        return Ok(false);
+    }
+    let size = (renderer.camera().width, renderer.camera().height);
+    let (mut left, mut right) = (Vec::new(), Vec::new());
+    for k in [0, frames.saturating_sub(1)] {
+        if k >= frames {
+            break;
+        }
+        let (w, h, stored_left, stored_right) = seq.frame(k)?;
+        capture_scripted(renderer, path, k, &mut left, &mut right);
+        if (w, h) != size || stored_left != left || stored_right != right {
+            return Ok(false);
+        }
+    }
+    Ok(true)
 }
 
 /// The poses of a KITTI poses file (12 numbers a line: a 3 × 4 matrix, row-major),

@@ -468,3 +468,54 @@ fn a_noisy_blurred_sequence_is_seeded_and_differs_from_the_ideal_one() {
         assert!(mean_diff < 20.0, "{mean_diff}");
     }
 }
+
+#[test]
+fn a_stored_sequence_is_current_only_for_the_renderer_camera_and_length_that_made_it() {
+    let scene = crate::world::WorldConfig::shipped().unwrap().scene;
+    let camera = CameraConfig {
+        width: 96,
+        height: 64,
+        focal: 60.0,
+        sensor: crate::world::camera::SensorConfig::realistic(3),
+        ..CameraConfig::default()
+    };
+    let dir = temp_dir("current");
+    let mut r = Renderer::new(camera.clone(), scene.clone()).unwrap();
+    write_scripted(&dir, &mut r, ScriptedPath::FigureEight, 4).unwrap();
+    let seq = Sequence::open(&dir).unwrap();
+    let path = ScriptedPath::FigureEight;
+    assert!(is_current(&seq, &mut r, path, 4).unwrap());
+    // Another length, path, texture (as another renderer would draw), camera or
+    // sensor seed: not current.
+    assert!(!is_current(&seq, &mut r, path, 5).unwrap());
+    assert!(!is_current(&seq, &mut r, ScriptedPath::Tour(2), 4).unwrap());
+    let other_scene = SceneConfig {
+        texture_seed: scene.texture_seed + 1,
+        ..scene.clone()
+    };
+    let mut textures = Renderer::new(camera.clone(), other_scene).unwrap();
+    assert!(!is_current(&seq, &mut textures, path, 4).unwrap());
+    let mut pitched = Renderer::new(
+        CameraConfig {
+            pitch: camera.pitch + 0.01,
+            ..camera.clone()
+        },
+        scene.clone(),
+    )
+    .unwrap();
+    assert!(!is_current(&seq, &mut pitched, path, 4).unwrap());
+    let mut reseeded = Renderer::new(
+        CameraConfig {
+            sensor: crate::world::camera::SensorConfig::realistic(4),
+            ..camera.clone()
+        },
+        scene,
+    )
+    .unwrap();
+    assert!(!is_current(&seq, &mut reseeded, path, 4).unwrap());
+    // A damaged image is an error naming it, not a panic.
+    fs::write(dir.join("image_0").join("000003.png"), b"not a png").unwrap();
+    let err = is_current(&seq, &mut r, path, 4).unwrap_err().to_string();
+    assert!(err.contains("000003.png"), "{err}");
+    let _ = fs::remove_dir_all(&dir);
+}
