@@ -121,13 +121,14 @@ fn sequence(dir: &Path, case: &Case, quick: bool) -> Result<Sequence, Error> {
     let mut renderer = Renderer::new(world.camera, world.scene)?;
     // Rendered before, by this renderer with this camera and scene: reused.
     if let Ok(seq) = Sequence::open(dir) {
-        if is_current(&seq, &mut renderer, case.path, frames)? {
-            return Ok(seq);
+        match is_current(&seq, &mut renderer, case.path, frames) {
+            Ok(true) => return Ok(seq),
+            Ok(false) => eprintln!(
+                "{} is not what the renderer makes now (another version, camera or length): rendering it again",
+                dir.display()
+            ),
+            Err(e) => eprintln!("{e}: rendering {} again", dir.display()),
         }
-        eprintln!(
-            "{} is not what the renderer makes now (another version, camera or length): rendering it again",
-            dir.display()
-        );
     }
     eprintln!(
         "rendering {frames} pairs of {}x{} into {}",
