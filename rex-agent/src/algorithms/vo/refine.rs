@@ -44,27 +44,23 @@ fn patch<const S: usize>(
     // Separable: each of the S + 1 rows interpolated along u, then each pair of
     // rows along v (a third of the conversions and half the arithmetic of
     // weighting four pixels per sample).
-    let mut across = [[0.0f32; S]; 2];
+    let mut above = [0.0f32; S];
     for y in 0..=S {
         let start = (j as usize + y) * w + i as usize;
         // In the image: checked above.
         let px: &[u8] = img.data.get(start..start + S + 1).unwrap_or(&[]);
         let (left, right) = (px.get(..S).unwrap_or(&[]), px.get(1..).unwrap_or(&[]));
-        let row = &mut across[y % 2];
+        let mut row = [0.0f32; S];
         for ((r, &p0), &p1) in row.iter_mut().zip(left).zip(right) {
             let p0 = f32::from(p0);
             *r = p0 + a * (f32::from(p1) - p0);
         }
         if y > 0 {
-            let (top, bottom) = if y % 2 == 1 {
-                (&across[0], &across[1])
-            } else {
-                (&across[1], &across[0])
-            };
-            for ((o, &t), &b_) in out[y - 1].iter_mut().zip(top).zip(bottom) {
+            for ((o, &t), &b_) in out[y - 1].iter_mut().zip(&above).zip(&row) {
                 *o = t + b * (b_ - t);
             }
         }
+        above = row;
     }
     true
 }

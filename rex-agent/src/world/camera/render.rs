@@ -469,10 +469,12 @@ impl Renderer {
                 if active.is_empty() {
                     // Walls, the plane inside the room, walls.
                     let (a, b) = (inside.start.clamp(u, run_end), inside.end.clamp(u, run_end));
-                    for (px, k) in row[u..a].iter_mut().zip(u..a) {
+                    let wall_at = |k: usize| {
                         let d = axpy(k as f32, r0, d0);
-                        *px =
-                            self.shade_hit(c, d, self.wall(c, d, row_plane), floor, &row_floor, k);
+                        self.shade_hit(c, d, self.wall(c, d, row_plane), floor, &row_floor, k)
+                    };
+                    for k in (u..a).chain(b..run_end) {
+                        row[k] = wall_at(k);
                     }
                     if plane == Surface::Floor {
                         for (px, k) in row[a..b].iter_mut().zip(a..b) {
@@ -480,11 +482,6 @@ impl Renderer {
                         }
                     } else {
                         row[a..b].fill(CEILING_LEVEL);
-                    }
-                    for (px, k) in row[b..run_end].iter_mut().zip(b..run_end) {
-                        let d = axpy(k as f32, r0, d0);
-                        *px =
-                            self.shade_hit(c, d, self.wall(c, d, row_plane), floor, &row_floor, k);
                     }
                 } else {
                     for (px, k) in row[u..run_end].iter_mut().zip(u..run_end) {
