@@ -12,25 +12,34 @@
 //!
 //! ```text
 //! v_ix = v_x − d_iy ω,           v_iy = v_y + d_ix ω
-//! F_xi = μ_x N_i sat(τ_i / (r μ_x N_i)) − μ_r N_i sg(v_ix)     (traction − rolling)
-//! F_yi = −μ_y N_i sg(v_iy)
-//! m_e v̇_x = Σ F_xi + m v_y ω,    m v̇_y = Σ F_yi − m v_x ω,    I_e ω̇ = Σ (d_ix F_yi − d_iy F_xi)
-//! m_e = m + 4 J_w / r²,          I_e = I + 4 J_w c² / r²
+//! g_i  = τ_i / r − μ_r N_i sg(v_ix) − (J_w / r²) (a⁰_x − d_iy α⁰)    (what the ground is asked for)
+//! F_xi = μ_x N_i sat(g_i / (μ_x N_i)),     F_yi = −μ_y N_i sg(v_iy)
+//! m (v̇_x − v_y ω) = Σ F_xi,    m (v̇_y + v_x ω) = Σ F_yi,    I ω̇ = Σ (d_ix F_yi − d_iy F_xi)
 //! ```
 //!
 //! The wheels are taken to roll at the speed their torque and the ground agree
 //! on (their spin mode, about −10³ s⁻¹, settles within a millisecond, so it is
-//! eliminated): a wheel's torque reaches the ground as a force `τ / r`, its spin
-//! inertia adds to the body's, and the force is bounded by what the ground can
-//! take, `μ_x N`: `sat` is the identity up to 0.9 and bends smoothly onto ±1 by
-//! 1.1 (a wheel asked for more spins, as the plant's does). The longitudinal
-//! slip is then a quasi-static function of the traction the wheel transmits,
-//! `μ_x N sg(s) = F_x`, which is what the encoders show beside the body's motion
-//! ([`Dynamics::encoder_rate`]): it lets the MHE tell `μ_x` from the encoders
-//! while a wheel pulls, long before it spins. Near the bound the slip law is
-//! steep, so the prediction's uncertainty grows with its slope (a few percent
-//! of the traction fraction, what the left-out load transfer moves), and a
-//! wheel beyond 97 % of it is not predicted at all.
+//! eliminated). A wheel's torque then does three things, as in the plant: it
+//! overcomes the rolling resistance (a torque on the wheel), spins the wheel up
+//! with the body, and pushes on the ground. `a⁰_x`, `α⁰` are the accelerations
+//! of the motion unbounded by the ground, body and wheels' spin inertia together
+//! (`m_e a⁰_x = Σ (τ_i / r − μ_r N_i sg(v_ix)) + m v_y ω`, `I_e α⁰ = Σ (d_ix F_yi
+//! − d_iy (τ_i / r − μ_r N_i sg(v_ix)))`, `m_e = m + 4 J_w / r²`, `I_e = I +
+//! 4 J_w c² / r²`): below the traction bound the body moves exactly so, and the
+//! force on the ground is the torque's less the spin-up's share (a tenth of it
+//! for this platform: taking the whole torque's force as the ground's, as this
+//! model did before, made the MHE's `μ_x` on ice 13 % high on average; with the
+//! share taken off, 5-9 %). The force is bounded by what the ground can take,
+//! `μ_x N`: `sat` is the identity up to 0.9 and bends smoothly onto ±1 by 1.1
+//! (a wheel asked for more spins, as the plant's does, and gives the body its
+//! bound whatever its torque). The longitudinal slip is then a quasi-static
+//! function of the traction the wheel transmits, `μ_x N sg(s) = F_x`, which is
+//! what the encoders show beside the body's motion ([`Dynamics::encoder_rate`]):
+//! it lets the MHE tell `μ_x` from the encoders while a wheel pulls, long
+//! before it spins. Near the bound the slip law is steep, so the prediction's
+//! uncertainty grows with its slope (a few percent of the traction fraction,
+//! what the left-out load transfer moves), and a wheel beyond 97 % of it is not
+//! predicted at all.
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
@@ -101,19 +110,27 @@ pub struct Lateral {
 /// of zero would make a wheel's force fraction infinite).
 const MU_MIN: f64 = 1e-3;
 
-/// One wheel's forces and their partial derivatives.
-#[derive(Clone, Copy, Debug, Default)]
-struct Wheel {
-    /// `F_x`, and its derivatives by `v_ix`, `τ_i`, `μ_x`, `μ_r`.
-    fx: f64,
-    fx_vix: f64,
-    fx_tau: f64,
-    fx_mux: f64,
-    fx_mur: f64,
-    /// `F_y`, and its derivatives by `v_iy`, `μ_y`.
-    fy: f64,
-    fy_viy: f64,
-    fy_muy: f64,
+/// Gradients by the body velocities, the torques and the parameters:
+/// `(v_x, v_y, ω, τ_1..τ_4, μ_x, μ_y, μ_r)`.
+type Grad = Vector<10>;
+const G_VX: usize = 0;
+const G_VY: usize = 1;
+const G_W: usize = 2;
+const G_TAU: usize = 3;
+const G_P: usize = 7;
+
+/// The ground's forces on the wheels, with their gradients ([`Lateral::forces`]).
+#[derive(Clone, Copy, Debug)]
+struct Forces {
+    /// Longitudinal force of each wheel on the body, `F_xi`.
+    fx: [f64; 4],
+    gx: [Grad; 4],
+    /// Each wheel's fraction of its traction bound, `F_xi / (μ_x N_i)`.
+    fraction: [f64; 4],
+    gfraction: [Grad; 4],
+    /// Lateral force of each wheel, `F_yi`.
+    fy: [f64; 4],
+    gy: [Grad; 4],
 }
 
 impl Lateral {
@@ -136,36 +153,87 @@ impl Lateral {
         self.params.wheel_radius * mu_long.max(MU_MIN) * self.n[i]
     }
 
-    fn wheel(&self, i: usize, x: &Vector<6>, tau: f64, p: &Vector<3>) -> Wheel {
-        let [dx, dy] = self.d[i];
-        let (r, ks, n) = (
+    /// The ground's forces on the wheels at `x` under torques `u`. A wheel's
+    /// torque drives its own spin as well as the ground: what the ground is
+    /// asked for is `g_i = τ_i / r − μ_r N_i sg(v_ix) − (J_w / r²) v̇_ix`, the
+    /// rolling resistance and the spin-up taken off, with the accelerations
+    /// `v̇_ix = v̇_x − d_iy ω̇` of the unbounded motion (the body and the wheels'
+    /// spin inertia together: `m_e`, `I_e`); the ground gives
+    /// `F_xi = μ_x N_i sat(g_i / (μ_x N_i))`. Below the bound the body then
+    /// accelerates exactly as the unbounded motion says (the spin-up is the
+    /// wheels' share of it); a wheel at its bound gives the body `μ_x N_i`
+    /// whatever its torque (the rest spins it up).
+    fn forces(&self, x: &Vector<6>, u: &Vector<NU>, p: &Vector<3>) -> Forces {
+        let (m, r, ks) = (
+            self.params.mass,
             self.params.wheel_radius,
             self.params.sign_smoothing,
-            self.n[i],
         );
-        let mux = p[MU_X].max(MU_MIN);
-        let vix = x[VX] - dy * x[W];
-        let viy = x[VY] + dx * x[W];
-        let cap = mux * n;
-        let z = tau / (r * cap);
-        let (sat, sat1) = saturate(z);
-        let (sx, sx1) = (sg(ks, vix), sg_prime(ks, vix));
-        let (sy, sy1) = (sg(ks, viy), sg_prime(ks, viy));
-        Wheel {
-            fx: cap * sat - p[MU_R] * n * sx,
-            fx_vix: -p[MU_R] * n * sx1,
-            fx_tau: sat1 / r,
-            // ∂(μ N sat(τ / (r μ N)))/∂μ = N (sat − z sat'); zero below the knee.
-            fx_mux: if p[MU_X] > MU_MIN {
-                n * (sat - z * sat1)
-            } else {
-                0.0
-            },
-            fx_mur: -n * sx,
-            fy: -p[MU_Y] * n * sy,
-            fy_viy: -p[MU_Y] * n * sy1,
-            fy_muy: -n * sy,
+        let kappa = self.params.wheel_inertia / (r * r);
+        let (vx, vy, w) = (x[VX], x[VY], x[W]);
+        let mut drive = [0.0; 4];
+        let mut gdrive = [Grad::zeros(); 4];
+        let mut fy = [0.0; 4];
+        let mut gy = [Grad::zeros(); 4];
+        // The unbounded accelerations' numerators: Σ drive + m v_y ω, and the
+        // yaw moment Σ (d_ix F_yi − d_iy drive_i).
+        let mut sum = m * vy * w;
+        let mut gsum = Grad::zeros();
+        gsum[G_VY] = m * w;
+        gsum[G_W] = m * vy;
+        let mut moment = 0.0;
+        let mut gmoment = Grad::zeros();
+        for i in 0..4 {
+            let [dx, dy] = self.d[i];
+            let n = self.n[i];
+            let (vix, viy) = (vx - dy * w, vy + dx * w);
+            let (sx, sx1) = (sg(ks, vix), sg_prime(ks, vix));
+            let (sy, sy1) = (sg(ks, viy), sg_prime(ks, viy));
+            drive[i] = u[i] / r - p[MU_R] * n * sx;
+            let g = &mut gdrive[i];
+            g[G_VX] = -p[MU_R] * n * sx1;
+            g[G_W] = dy * p[MU_R] * n * sx1;
+            g[G_TAU + i] = 1.0 / r;
+            g[G_P + MU_R] = -n * sx;
+            fy[i] = -p[MU_Y] * n * sy;
+            let g = &mut gy[i];
+            g[G_VY] = -p[MU_Y] * n * sy1;
+            g[G_W] = -dx * p[MU_Y] * n * sy1;
+            g[G_P + MU_Y] = -n * sy;
+            sum += drive[i];
+            gsum += gdrive[i];
+            moment += dx * fy[i] - dy * drive[i];
+            gmoment += gy[i] * dx - gdrive[i] * dy;
         }
+        let (a0, ga0) = (sum / self.m_eff, gsum / self.m_eff);
+        let (b0, gb0) = (moment / self.i_eff, gmoment / self.i_eff);
+        let mux = p[MU_X].max(MU_MIN);
+        let mut out = Forces {
+            fx: [0.0; 4],
+            gx: [Grad::zeros(); 4],
+            fraction: [0.0; 4],
+            gfraction: [Grad::zeros(); 4],
+            fy,
+            gy,
+        };
+        for i in 0..4 {
+            let dy = self.d[i][1];
+            let cap = mux * self.n[i];
+            let g = drive[i] - kappa * (a0 - dy * b0);
+            let gg = gdrive[i] - (ga0 - gb0 * dy) * kappa;
+            let z = g / cap;
+            let (sat, sat1) = saturate(z);
+            out.fx[i] = cap * sat;
+            out.gx[i] = gg * sat1;
+            out.fraction[i] = sat;
+            out.gfraction[i] = gg * (sat1 / cap);
+            // ∂(μ N sat(g / (μ N)))/∂μ = N (sat − z sat'); zero below the knee.
+            if p[MU_X] > MU_MIN {
+                out.gx[i][G_P + MU_X] = self.n[i] * (sat - z * sat1);
+                out.gfraction[i][G_P + MU_X] = -z * sat1 / mux;
+            }
+        }
+        out
     }
 
     /// The state `(X, Y, φ, v_x, v_y, ω)` as an array.
@@ -220,10 +288,11 @@ impl Lateral {
     /// the steady sideslip of that turn ([`Lateral::steady_lateral`]), each side's
     /// two wheels pulling alike. `None` when the ground cannot carry the turn.
     ///
-    /// From the model's equations: the wheels must give `Σ F_x = m_e v̇ − m v_y ω`
-    /// and `Σ d_iy F_x = Σ d_ix F_yi − I_e ω̇` (the yaw moment the lateral
-    /// friction resists with), and each wheel's drive is its `F_x` plus its
-    /// rolling resistance.
+    /// From the model's equations, as torques (over `r`): the wheels' drives must
+    /// give `Σ = m_e v̇ − m v_y ω` and `Σ d_iy · = Σ d_ix F_yi − I_e ω̇` (the yaw
+    /// moment the lateral friction resists with; `m_e`, `I_e` count the wheels'
+    /// spin-up), and each wheel's drive is that plus its rolling resistance: the
+    /// fraction the NMPC's torque bound (`r μ_x N` times its margin) limits.
     pub fn traction_demand(
         &self,
         v: f64,
@@ -276,48 +345,50 @@ impl Dynamics<6, 3> for Lateral {
     }
 
     fn linearise(&self, x: &Vector<6>, u: &Vector<NU>, p: &Vector<3>) -> Linearised<6, 3> {
-        let m = self.params.mass;
+        let (m, inertia) = (self.params.mass, self.params.inertia);
         let (phi, vx, vy, w) = (x[2], x[VX], x[VY], x[W]);
-        let mut out = Linearised::<6, 3>::default();
-        // Sums of the forces and the moment, and their derivatives.
-        let (mut fx, mut fy, mut mz) = (0.0, 0.0, 0.0);
-        let (mut fx_vx, mut fx_w, mut fy_vy, mut fy_w) = (0.0, 0.0, 0.0, 0.0);
-        let (mut mz_vx, mut mz_vy, mut mz_w) = (0.0, 0.0, 0.0);
-        let mut fx_p = [0.0; 3];
-        let mut fy_p = [0.0; 3];
-        let mut mz_p = [0.0; 3];
+        let f = self.forces(x, u, p);
+        // The body under the ground's forces (the wheels' spin inertia is in
+        // them): m (v̇_x − v_y ω) = Σ F_xi, m (v̇_y + v_x ω) = Σ F_yi,
+        // I ω̇ = Σ (d_ix F_yi − d_iy F_xi).
+        let mut ax = m * vy * w;
+        let mut gax = Grad::zeros();
+        gax[G_VY] = m * w;
+        gax[G_W] = m * vy;
+        let mut ay = -m * vx * w;
+        let mut gay = Grad::zeros();
+        gay[G_VX] = -m * w;
+        gay[G_W] = -m * vx;
+        let (mut mz, mut gmz) = (0.0, Grad::zeros());
         for i in 0..4 {
             let [dx, dy] = self.d[i];
-            let wh = self.wheel(i, x, u[i], p);
-            fx += wh.fx;
-            fy += wh.fy;
-            mz += dx * wh.fy - dy * wh.fx;
-            // ∂v_ix/∂(v_x, ω) = (1, −d_iy); ∂v_iy/∂(v_y, ω) = (1, d_ix).
-            fx_vx += wh.fx_vix;
-            fx_w -= dy * wh.fx_vix;
-            fy_vy += wh.fy_viy;
-            fy_w += dx * wh.fy_viy;
-            mz_vx -= dy * wh.fx_vix;
-            mz_vy += dx * wh.fy_viy;
-            mz_w += dx * dx * wh.fy_viy + dy * dy * wh.fx_vix;
-            fx_p[MU_X] += wh.fx_mux;
-            fx_p[MU_R] += wh.fx_mur;
-            fy_p[MU_Y] += wh.fy_muy;
-            mz_p[MU_X] -= dy * wh.fx_mux;
-            mz_p[MU_R] -= dy * wh.fx_mur;
-            mz_p[MU_Y] += dx * wh.fy_muy;
-            out.u[(VX, i)] = wh.fx_tau / self.m_eff;
-            out.u[(W, i)] = -dy * wh.fx_tau / self.i_eff;
+            ax += f.fx[i];
+            gax += f.gx[i];
+            ay += f.fy[i];
+            gay += f.gy[i];
+            mz += dx * f.fy[i] - dy * f.fx[i];
+            gmz += f.gy[i] * dx - f.gx[i] * dy;
         }
+        let rows = [
+            (VX, ax / m, gax / m),
+            (VY, ay / m, gay / m),
+            (W, mz / inertia, gmz / inertia),
+        ];
         let (s, c) = phi.sin_cos();
-        out.value = Vector::<6>::from([
-            vx * c - vy * s,
-            vx * s + vy * c,
-            w,
-            (fx + m * vy * w) / self.m_eff,
-            (fy - m * vx * w) / m,
-            mz / self.i_eff,
-        ]);
+        let mut out = Linearised::<6, 3>::default();
+        out.value = Vector::<6>::from([vx * c - vy * s, vx * s + vy * c, w, 0.0, 0.0, 0.0]);
+        for (row, value, g) in rows {
+            out.value[row] = value;
+            for (col, k) in [(VX, G_VX), (VY, G_VY), (W, G_W)] {
+                out.x[(row, col)] = g[k];
+            }
+            for k in 0..NU {
+                out.u[(row, k)] = g[G_TAU + k];
+            }
+            for k in 0..3 {
+                out.p[(row, k)] = g[G_P + k];
+            }
+        }
         let j = &mut out.x;
         j[(0, 2)] = -vx * s - vy * c;
         j[(0, VX)] = c;
@@ -326,20 +397,6 @@ impl Dynamics<6, 3> for Lateral {
         j[(1, VX)] = s;
         j[(1, VY)] = c;
         j[(2, W)] = 1.0;
-        j[(VX, VX)] = fx_vx / self.m_eff;
-        j[(VX, VY)] = m * w / self.m_eff;
-        j[(VX, W)] = (fx_w + m * vy) / self.m_eff;
-        j[(VY, VX)] = -w;
-        j[(VY, VY)] = fy_vy / m;
-        j[(VY, W)] = fy_w / m - vx;
-        j[(W, VX)] = mz_vx / self.i_eff;
-        j[(W, VY)] = mz_vy / self.i_eff;
-        j[(W, W)] = mz_w / self.i_eff;
-        for k in 0..3 {
-            out.p[(VX, k)] = fx_p[k] / self.m_eff;
-            out.p[(VY, k)] = fy_p[k] / m;
-            out.p[(W, k)] = mz_p[k] / self.i_eff;
-        }
         out
     }
 
@@ -400,37 +457,29 @@ impl Dynamics<6, 3> for Lateral {
     ) -> Option<Measured<6, 3>> {
         // θ̇_i = (v_ix + s_i) / r with the slip s_i at which the ground takes the
         // wheel's traction: μ_x N sg(s) = F_x, i.e. s = sg⁻¹(F_x / (μ_x N)).
-        let [_, dy] = self.d[i];
-        let (r, ks, n) = (
-            self.params.wheel_radius,
-            self.params.sign_smoothing,
-            self.n[i],
-        );
-        let mux = p[MU_X].max(MU_MIN);
-        let wh = self.wheel(i, x, u[i], p);
-        let zeta = wh.fx / (mux * n);
+        let [_, dy] = *self.d.get(i)?;
+        let (r, ks) = (self.params.wheel_radius, self.params.sign_smoothing);
+        let f = self.forces(x, u, p);
+        let zeta = f.fraction[i];
         if zeta.is_nan() || zeta.abs() > ENCODER_FRACTION_MAX {
             return None;
         }
         let (slip, slip_zeta) = sg_inverse(ks, zeta);
         let vix = x[VX] - dy * x[W];
         let (rel, abs) = FRACTION_SIGMA;
+        let g = f.gfraction[i] * (slip_zeta / r);
         let mut m = Measured {
             value: (vix + slip) / r,
             sigma: slip_zeta * (rel * zeta.abs() + abs) / r,
             x: Vector::zeros(),
             p: Vector::zeros(),
         };
-        let zeta_vix = wh.fx_vix / (mux * n);
-        m.x[VX] = (1.0 + slip_zeta * zeta_vix) / r;
-        m.x[W] = -dy * (1.0 + slip_zeta * zeta_vix) / r;
-        let zeta_mux = if p[MU_X] > MU_MIN {
-            wh.fx_mux / (mux * n) - wh.fx / (mux * mux * n)
-        } else {
-            0.0
-        };
-        m.p[MU_X] = slip_zeta * zeta_mux / r;
-        m.p[MU_R] = slip_zeta * wh.fx_mur / (mux * n) / r;
+        m.x[VX] = 1.0 / r + g[G_VX];
+        m.x[VY] = g[G_VY];
+        m.x[W] = -dy / r + g[G_W];
+        for k in 0..3 {
+            m.p[k] = g[G_P + k];
+        }
         Some(m)
     }
 }
