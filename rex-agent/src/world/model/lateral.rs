@@ -375,8 +375,10 @@ impl Dynamics<6, 3> for Lateral {
             (W, mz / inertia, gmz / inertia),
         ];
         let (s, c) = phi.sin_cos();
-        let mut out = Linearised::<6, 3>::default();
-        out.value = Vector::<6>::from([vx * c - vy * s, vx * s + vy * c, w, 0.0, 0.0, 0.0]);
+        let mut out = Linearised::<6, 3> {
+            value: Vector::<6>::from([vx * c - vy * s, vx * s + vy * c, w, 0.0, 0.0, 0.0]),
+            ..Linearised::default()
+        };
         for (row, value, g) in rows {
             out.value[row] = value;
             for (col, k) in [(VX, G_VX), (VY, G_VY), (W, G_W)] {
