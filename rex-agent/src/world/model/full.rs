@@ -41,6 +41,7 @@
 
 use nalgebra::{Isometry2, Point2, SMatrix, SVector, UnitComplex, Vector2};
 
+use super::dynamics::sg4;
 use super::params::{PlatformParams, SurfaceMap};
 use super::reduced::{sg, sg_prime};
 use crate::algorithms::linsolve;
@@ -407,6 +408,7 @@ impl Forces {
         jac[0][2] = mass * vy;
         jac[1][0] = -mass * om;
         jac[1][2] = -mass * vx;
+        let sgy = sg4(k, std::array::from_fn(|i| vy + self.d[i][0] * om));
         for i in 0..4 {
             let [dx, dy] = self.d[i];
             let [mux, muy, mur] = self.mu[i];
@@ -415,9 +417,9 @@ impl Forces {
             let slip = r * spin - (vx - dy * om);
             let fx = mux * n * sg(k, slip);
             let dfx = mux * n * sg_prime(k, slip); // ∂F_x/∂slip
-            let viy = vy + dx * om;
-            let fy = -muy * n * sg(k, viy);
-            let dfy = -muy * n * sg_prime(k, viy); // ∂F_y/∂v_iy
+            let (sy, sy1) = sgy[i];
+            let fy = -muy * n * sy;
+            let dfy = -muy * n * sy1; // ∂F_y/∂v_iy
             // ∂slip/∂(vx, ω, θ̇_i) = (−1, d_iy, r); ∂v_iy/∂(vy, ω) = (1, d_ix).
             g[0] += fx;
             jac[0][0] -= dfx;

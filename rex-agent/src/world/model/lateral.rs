@@ -45,7 +45,7 @@
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
 //! two steps (three are used).
 
-use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector, sg, sg_inverse, sg_prime};
+use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector, sg, sg_inverse, sg_prime, sg4};
 use super::params::{Friction, PlatformParams};
 
 /// State of the lateral-slip model: `(X, Y, φ, v_x, v_y, ω)`.
@@ -183,12 +183,12 @@ impl Lateral {
         gsum[G_W] = m * vy;
         let mut moment = 0.0;
         let mut gmoment = Grad::zeros();
+        let sgx = sg4(ks, std::array::from_fn(|i| vx - self.d[i][1] * w));
+        let sgy = sg4(ks, std::array::from_fn(|i| vy + self.d[i][0] * w));
         for i in 0..4 {
             let [dx, dy] = self.d[i];
             let n = self.n[i];
-            let (vix, viy) = (vx - dy * w, vy + dx * w);
-            let (sx, sx1) = (sg(ks, vix), sg_prime(ks, vix));
-            let (sy, sy1) = (sg(ks, viy), sg_prime(ks, viy));
+            let ((sx, sx1), (sy, sy1)) = (sgx[i], sgy[i]);
             drive[i] = u[i] / r - p[MU_R] * n * sx;
             let g = &mut gdrive[i];
             g[G_VX] = -p[MU_R] * n * sx1;

@@ -3,7 +3,7 @@
 //! `x = (X, Y, φ, v, ω)` and the inputs are the four wheel torques. Used by
 //! controllers and estimators; `peers/casadi_nmpc.py` implements the same equations.
 
-use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector};
+use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector, sg4};
 use super::params::{PlatformParams, SlipParams};
 
 /// Reduced state `(X, Y, φ, v, ω)`.
@@ -118,13 +118,12 @@ impl Dynamics<5, 3> for Reduced {
         let (mut fx_v, mut fx_w, mut fx_mus) = (0.0, 0.0, 0.0);
         let (mut mz_v, mut mz_w, mut mz_x0, mut mz_mus, mut mz_mul) = (0.0, 0.0, 0.0, 0.0, 0.0);
         let mut mz_u = [0.0; 4];
+        let sgx = sg4(ks, std::array::from_fn(|i| v - self.d[i][1] * w));
+        let sgy = sg4(ks, std::array::from_fn(|i| (self.d[i][0] - x0) * w));
         for i in 0..4 {
             let [dx, dy] = self.d[i];
             let n = self.n[i];
-            let vix = v - dy * w;
-            let viy = (dx - x0) * w;
-            let (sx, sx1) = (sg(ks, vix), sg_prime(ks, vix));
-            let (sy, sy1) = (sg(ks, viy), sg_prime(ks, viy));
+            let ((sx, sx1), (sy, sy1)) = (sgx[i], sgy[i]);
             let fxi = u[i] / r - mu_s * n * sx;
             let fyi = -mu_l * n * sy;
             // ∂F_xi/∂(v, w, μ_s); ∂F_yi/∂(w, x_0, μ_l).
