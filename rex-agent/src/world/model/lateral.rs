@@ -125,9 +125,6 @@ struct Forces {
     /// Longitudinal force of each wheel on the body, `F_xi`.
     fx: [f64; 4],
     gx: [Grad; 4],
-    /// Each wheel's fraction of its traction bound, `F_xi / (μ_x N_i)`.
-    fraction: [f64; 4],
-    gfraction: [Grad; 4],
     /// Lateral force of each wheel, `F_yi`.
     fy: [f64; 4],
     gy: [Grad; 4],
@@ -211,8 +208,6 @@ impl Lateral {
         let mut out = Forces {
             fx: [0.0; 4],
             gx: [Grad::zeros(); 4],
-            fraction: [0.0; 4],
-            gfraction: [Grad::zeros(); 4],
             fy,
             gy,
         };
@@ -225,12 +220,9 @@ impl Lateral {
             let (sat, sat1) = saturate(z);
             out.fx[i] = cap * sat;
             out.gx[i] = gg * sat1;
-            out.fraction[i] = sat;
-            out.gfraction[i] = gg * (sat1 / cap);
             // ∂(μ N sat(g / (μ N)))/∂μ = N (sat − z sat'); zero below the knee.
             if p[MU_X] > MU_MIN {
                 out.gx[i][G_P + MU_X] = self.n[i] * (sat - z * sat1);
-                out.gfraction[i][G_P + MU_X] = -z * sat1 / mux;
             }
         }
         out
@@ -462,14 +454,23 @@ impl Dynamics<6, 3> for Lateral {
         let [_, dy] = *self.d.get(i)?;
         let (r, ks) = (self.params.wheel_radius, self.params.sign_smoothing);
         let f = self.forces(x, u, p);
-        let zeta = f.fraction[i];
+        // The wheel's fraction of its traction bound, `ζ = F_x / (μ_x N)`, and
+        // its gradient: `F_x`'s over the bound, and for `μ_x` also `−ζ / μ_x`
+        // (the bound moves with it; not below the floor, where it is fixed).
+        let mux = p[MU_X].max(MU_MIN);
+        let cap = mux * self.n[i];
+        let zeta = f.fx[i] / cap;
+        let mut gzeta = f.gx[i] / cap;
+        if p[MU_X] > MU_MIN {
+            gzeta[G_P + MU_X] -= zeta / mux;
+        }
         if zeta.is_nan() || zeta.abs() > ENCODER_FRACTION_MAX {
             return None;
         }
         let (slip, slip_zeta) = sg_inverse(ks, zeta);
         let vix = x[VX] - dy * x[W];
         let (rel, abs) = FRACTION_SIGMA;
-        let g = f.gfraction[i] * (slip_zeta / r);
+        let g = gzeta * (slip_zeta / r);
         let mut m = Measured {
             value: (vix + slip) / r,
             sigma: slip_zeta * (rel * zeta.abs() + abs) / r,
