@@ -5,10 +5,13 @@ use std::collections::VecDeque;
 
 use crate::a1::payload::{Encoders, Ground, Imu, MapPose, State, Transform, WheelLoads};
 use crate::algorithms::geometry::wrap;
-use crate::algorithms::mpc::{LateralMhe, MheError, MheSettings, Motion, Sample, TimedPose};
+use crate::algorithms::mpc::MheError;
 use crate::world::model::{
-    Dynamics, Friction, Lateral, PlatformParams, Reduced, SlipParams, Torques, Vector,
+    Dynamics, Friction, PlatformParams, Reduced, SlipParams, Torques, Vector,
 };
+
+mod mhe;
+pub use mhe::MheEstimator;
 
 /// What the estimator believes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -454,181 +457,6 @@ impl Estimator for Ekf {
 
     fn health(&self) -> EstimatorHealth {
         self.health
-    }
-}
-
-/// The MHE of [`crate::algorithms::mpc::mhe`] on the lateral-slip model as e1,1's
-/// estimator. Every iteration of e1,1 is a sample: the encoder rates, the
-/// gyroscope rate, the IMU heading once it is aligned with the map, the wheel
-/// loads, the map pose when one arrives (attached to the time it describes: the
-/// map agent's poses are late), and the visual odometry's motion between two
-/// pairs (`A4x4`, relayed by c1). It estimates the lateral velocity and the
-/// ground's friction `(μ_x, μ_y, μ_r)` with the state; the NMPC uses them.
-#[derive(Debug)]
-pub struct MheEstimator {
-    mhe: LateralMhe,
-    theta: [f64; 4],
-    theta_dot: [f64; 4],
-    settling: Settling,
-    /// The settings' arrival cost of the friction, reached once the platform
-    /// has moved for a while.
-    sigma_p: [f64; 3],
-}
-
-/// Whether the friction estimate has settled: the platform has been moving for
-/// [`Settling::MOVING_S`] and over the last [`Settling::WINDOW_S`] the estimated
-/// `μ_x` and `μ_y` stayed within [`Settling::BAND`] of their mean. Not latched:
-/// on a new ground the estimate moves again, and is unsettled until it stops.
-#[derive(Clone, Debug, Default)]
-struct Settling {
-    moving: f64,
-    recent: VecDeque<(f64, [f64; 2])>,
-}
-
-/// The friction's arrival cost: loose at start ([`SIGMA_P_START`]; nothing is
-/// known of the ground), tightening towards the settings' with the time the
-/// platform has moved (time constant [`SIGMA_P_SETTLE_S`]; standing still
-/// teaches nothing of the ground).
-const SIGMA_P_START: [f64; 3] = [0.3, 0.3, 0.05];
-/// See [`SIGMA_P_START`] [s].
-const SIGMA_P_SETTLE_S: f64 = 1.0;
-
-impl Settling {
-    const MOVING_S: f64 = 1.0;
-    const WINDOW_S: f64 = 1.0;
-    const BAND: f64 = 0.1;
-
-    /// One sample at time `now`, after `dt` seconds; forward speed `v`, yaw rate `w`.
-    fn update(&mut self, now: f64, dt: f64, v: f64, w: f64, f: &Friction) -> bool {
-        if v.abs() > 0.05 || w.abs() > 0.1 {
-            self.moving += dt;
-        }
-        self.recent.push_back((now, [f.mu_long, f.mu_lat]));
-        while self
-            .recent
-            .front()
-            .is_some_and(|(t, _)| *t < now - Self::WINDOW_S)
-        {
-            self.recent.pop_front();
-        }
-        let n = self.recent.len() as f64;
-        let steady = (0..2).all(|k| {
-            let mean = self.recent.iter().map(|(_, p)| p[k]).sum::<f64>() / n;
-            self.recent
-                .iter()
-                .all(|(_, p)| (p[k] - mean).abs() <= Self::BAND * mean.abs())
-        });
-        self.moving >= Self::MOVING_S && steady
-    }
-}
-
-impl MheEstimator {
-    /// Settings for Rex: the lateral-slip model's defaults with noise levels
-    /// for what the simulated platform does that the model does not (the load
-    /// transfer, the wheels' spin-up) and for its sensors (the encoders' rate
-    /// over a short window of ticks), the IMU heading's increments (its
-    /// absolute value drifts with the gyroscope's bias), and a random walk of
-    /// the friction that lets it follow a change of ground within a second or
-    /// two; starting from the ground `prior` (the bounds widened to hold it).
-    pub fn settings(prior: Friction, dt: f64) -> MheSettings<6, 3> {
-        let d = MheSettings::<6, 3>::default();
-        let p = prior.to_array();
-        MheSettings {
-            dt,
-            p_prior: p,
-            p_lb: std::array::from_fn(|i| d.p_lb[i].min(p[i])),
-            p_ub: std::array::from_fn(|i| d.p_ub[i].max(p[i])),
-            sigma_w: [0.003, 0.003, 0.003, 0.03, 0.03, 0.05],
-            sigma_encoder: 0.15,
-            sigma_heading_step: 0.002,
-            sigma_load: 5.0,
-            sigma_p: [0.01, 0.01, 0.002],
-            ..d
-        }
-    }
-
-    /// An estimator for the platform `params`, starting from the ground `prior`
-    /// (Rex starts from the slipperiest it expects: its NMPC then uses little
-    /// torque until the estimator has seen that the ground takes more, rather
-    /// than spinning its wheels on ice it took for concrete).
-    pub fn new(params: PlatformParams, prior: Friction, dt: f64) -> Result<MheEstimator, MheError> {
-        let settings = Self::settings(prior, dt);
-        let sigma_p = settings.sigma_p;
-        let mut mhe = LateralMhe::new(Lateral::new(params), settings)?;
-        mhe.set_sigma_p(SIGMA_P_START)?;
-        Ok(MheEstimator {
-            mhe,
-            theta: [0.0; 4],
-            theta_dot: [0.0; 4],
-            settling: Settling::default(),
-            sigma_p,
-        })
-    }
-
-    /// The estimator.
-    pub fn mhe(&self) -> &LateralMhe {
-        &self.mhe
-    }
-}
-
-impl Estimator for MheEstimator {
-    fn name(&self) -> &'static str {
-        "mhe"
-    }
-
-    fn update(&mut self, dt: f64, tau: &Torques, m: &Measurements) -> Estimate {
-        if let Some(e) = m
-            .encoders
-            .filter(|e| e.theta.iter().chain(&e.rate).all(|v| v.is_finite()))
-        {
-            self.theta = e.theta;
-            self.theta_dot = e.rate;
-        }
-        let sample = Sample {
-            pose: m.map_pose.map(|p| TimedPose {
-                time: p.time,
-                pose: [p.pose.x, p.pose.y, p.pose.phi],
-            }),
-            motion: m.transform.filter(Transform::is_finite).map(|t| Motion {
-                from: t.from,
-                to: t.to,
-                delta: t.planar(),
-            }),
-            gyro: m.imu.map(|i| i.yaw_rate),
-            heading: m.imu.filter(|_| m.imu_aligned).map(|i| i.yaw),
-            encoders: m.encoders.map(|e| e.rate),
-            loads: m.loads.map(|l| l.load),
-        };
-        let e = self.mhe.update(m.now, tau, &sample);
-        let [x, y, phi, vx, vy, w] = e.x;
-        let loose = (-self.settling.moving / SIGMA_P_SETTLE_S).exp();
-        let steady = self.sigma_p;
-        let sigma_p: [f64; 3] =
-            std::array::from_fn(|k| steady[k] + (SIGMA_P_START[k] - steady[k]) * loose);
-        // Positive and finite: accepted.
-        let _ = self.mhe.set_sigma_p(sigma_p);
-        let friction = Friction::from_array(e.p);
-        let steady = self.settling.update(m.now, dt, vx, w, &friction);
-        let settled = e.localised && steady;
-        Estimate {
-            x: [x, y, phi, vx, w],
-            lateral: Some(vy),
-            p: SlipParams::NOMINAL,
-            friction: Some(friction),
-            friction_settled: settled,
-            theta: self.theta,
-            theta_dot: self.theta_dot,
-            localised: e.localised,
-        }
-    }
-
-    fn health(&self) -> EstimatorHealth {
-        let s = self.mhe.stats();
-        EstimatorHealth {
-            rejected: s.rejected,
-            rejected_poses: s.rejected_poses,
-            relocalisations: s.relocalisations,
-        }
     }
 }
 

@@ -13,8 +13,8 @@ pub mod sparse;
 pub(crate) use crate::algorithms::linsolve::spd_cholesky;
 
 pub use mhe::{
-    LateralMhe, Mhe, MheError, MheEstimate, MheSettings, MheStats, Motion, ReducedMhe, Sample,
-    TimedPose,
+    Innovation, LateralMhe, Mhe, MheError, MheEstimate, MheSettings, MheStats, Motion, ReducedMhe,
+    Sample, TimedPose,
 };
 pub use nmpc::{
     ClarabelWorkspace, Control, FrozenQp, LateralNmpc, Nmpc, NmpcError, NmpcSettings, NmpcStats,

@@ -427,7 +427,28 @@ pub struct Mhe<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> {
     /// The information on each parameter from the window's data at the last
     /// structured step ([`Mhe::information`]).
     information: Vector<NP>,
+    /// The newest sample's encoder innovation ([`Mhe::innovation`]).
+    innovation: Option<Innovation>,
     stats: MheStats,
+}
+
+/// How far the newest sample's encoder readings were from what the model
+/// predicted before they were fitted (the prediction from the previous
+/// estimate), in units of their standard deviation; and how many were left out
+/// as spinning. (A reading of a wheel the model itself predicts beyond its
+/// bound is in neither count.)
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Innovation {
+    /// The mean of the normalised residuals (predicted − read); 0 without
+    /// a reading compared.
+    pub mean: f64,
+    /// The mean of their squares; 0 without a reading compared.
+    pub mean_square: f64,
+    /// The readings compared.
+    pub readings: usize,
+    /// The readings left out as a wheel spinning beyond what any friction
+    /// explains (gated when they arrived).
+    pub spinning: usize,
 }
 
 impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
@@ -453,6 +474,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             qp: None,
             full: None,
             information: Vector::zeros(),
+            innovation: None,
             stats: MheStats::default(),
             s: settings,
         })
@@ -494,6 +516,40 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// ground then); from the last [`QpStrategy::Structured`] step.
     pub fn information(&self) -> [f64; NP] {
         self.information.into()
+    }
+
+    /// The newest sample's encoder readings against the model's prediction
+    /// before the fit: a change of the parameters (a new ground) shows here as
+    /// residuals the noise does not explain. `None` before a second sample or
+    /// without encoder readings.
+    pub fn innovation(&self) -> Option<Innovation> {
+        self.innovation
+    }
+
+    fn encoder_innovation(&self) -> Option<Innovation> {
+        let n = self.window.len().checked_sub(2)?;
+        let (prev, last) = (&self.window[n], &self.window[n + 1]);
+        let e = last.encoders?;
+        let (mut sum, mut square, mut readings, mut spinning) = (0.0, 0.0, 0, 0);
+        for (k, reading) in e.iter().enumerate() {
+            if !reading.is_finite() {
+                spinning += 1;
+                continue;
+            }
+            if let Some(m) = self.model.encoder_rate(k, &last.x, &prev.u, &self.p) {
+                let r = (m.value - reading) / self.s.sigma_encoder.hypot(m.sigma);
+                sum += r;
+                square += r * r;
+                readings += 1;
+            }
+        }
+        let n = readings.max(1) as f64;
+        (readings + spinning > 0).then_some(Innovation {
+            mean: sum / n,
+            mean_square: square / n,
+            readings,
+            spinning,
+        })
     }
 
     /// The current estimate.
@@ -571,6 +627,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             self.p_bar = self.p;
         }
         self.attach(m);
+        self.innovation = self.encoder_innovation();
         let iterations = if self.window.len() <= self.s.horizon {
             self.s.start_iterations.max(self.s.iterations)
         } else {

@@ -329,3 +329,48 @@ fn nothing_is_estimated_before_the_first_pose() {
         Err(MheError::Settings(_))
     ));
 }
+
+#[test]
+fn the_encoder_innovation_shows_a_change_the_noise_does_not_explain() {
+    // The peer's data, whose encoders the model explains up to their noise,
+    // and the same data with the wheels turning 20 % faster from sample 100 on
+    // (as on a ground that suddenly slips more): the innovation is the residual
+    // before the fit, so it shows the change at once.
+    let d = data();
+    let innovations = |scale: f64| {
+        let mut mhe = Mhe::new(peer::model(), Settings::default()).unwrap();
+        let mut out = Vec::new();
+        for k in 0..=N_SIM {
+            let mut s = d.sample(k);
+            if k >= 100 {
+                s.encoders = s.encoders.map(|e| e.map(|v| v * scale));
+            }
+            let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
+            mhe.update(k as f64 * DT, &u, &s);
+            out.push(mhe.innovation());
+        }
+        out
+    };
+    let clean = innovations(1.0);
+    let changed = innovations(1.2);
+    assert!(clean[0].is_none(), "no innovation before a second sample");
+    let mean = |v: &[Option<Innovation>]| {
+        v.iter().map(|i| i.unwrap().mean_square).sum::<f64>() / v.len() as f64
+    };
+    let (before, after) = (mean(&clean[40..]), mean(&changed[100..105]));
+    assert!(
+        clean[1..]
+            .iter()
+            .all(|i| i.is_some_and(|i| i.readings == 4))
+    );
+    // Measured 1.17: the encoders' noise as the settings say (a mean square
+    // near 1 is what normalised residuals of a right model have).
+    assert!(
+        (0.5..2.0).contains(&before),
+        "the model explains the clean data: {before}"
+    );
+    assert!(after > 10.0 * before, "{after} vs {before}");
+    // The sign says which way: the wheels turn faster than predicted.
+    assert!(changed[100].unwrap().mean < -3.0, "{:?}", changed[100]);
+    assert_eq!(clean[..100], changed[..100]);
+}
