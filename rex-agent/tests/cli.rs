@@ -76,6 +76,18 @@ fn absurd_or_negative_limits_are_refused() {
         text.contains("limit_s = 1000000000000000000000000000000"),
         "{text}"
     );
+    // A margin for the estimate's error that leaves no tolerance: no plan
+    // could ever be reported reached.
+    let run = d.file(
+        "margin.ron",
+        "(limits: (final_m: 0.1, final_margin_m: 0.1))",
+    );
+    let (code, text) = rex(&["--config", &run, "--quiet", "--no-vo"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains("limits.final_margin_m") && text.contains("less than limits.final_m"),
+        "{text}"
+    );
 }
 
 #[test]

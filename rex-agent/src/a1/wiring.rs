@@ -87,6 +87,11 @@ pub struct Limits {
     pub tracking_m: f64,
     /// A plan's last point is reached within this distance [m].
     pub final_m: f64,
+    /// What `e11` allows for its estimate's own error when it reports a plan
+    /// reached: only when the estimate is within `final_m − final_margin_m` of
+    /// the last point [m] (a success it reports is then one the truth
+    /// confirms unless the estimate is off by more than this).
+    pub final_margin_m: f64,
     /// How long `e11` waits, holding a plan's last point, for the platform to
     /// come within `final_m` [s].
     pub settle_s: f64,
@@ -112,6 +117,7 @@ impl Default for Limits {
             plan_margin_m: 0.1,
             tracking_m: 0.3,
             final_m: 0.1,
+            final_margin_m: 0.05,
             settle_s: 3.0,
             brake_decel: 1.0,
             estimate_m: 0.1,
@@ -131,6 +137,14 @@ impl Validate for Limits {
         config::non_negative("limits.plan_margin_m", self.plan_margin_m)?;
         config::positive("limits.tracking_m", self.tracking_m)?;
         config::positive("limits.final_m", self.final_m)?;
+        config::non_negative("limits.final_margin_m", self.final_margin_m)?;
+        if self.final_margin_m >= self.final_m {
+            return Err((
+                "limits.final_margin_m".into(),
+                self.final_margin_m.to_string(),
+                "must be less than limits.final_m (no plan could be reported reached)",
+            ));
+        }
         config::non_negative("limits.settle_s", self.settle_s)?;
         config::positive("limits.brake_decel", self.brake_decel)?;
         config::positive("limits.estimate_m", self.estimate_m)?;
@@ -181,6 +195,7 @@ impl Limits {
             map: self.safety_map(world),
             max_tracking_error: self.tracking_m,
             final_tolerance: self.final_m,
+            final_margin: self.final_margin_m,
             settle: self.settle_s,
             brake_decel: self.brake_decel,
         }

@@ -23,7 +23,8 @@
 //! stamps the fragments it hands over with the epoch it knows, so fragments it
 //! sent before it heard of the stop are refused, never executed. When a plan's
 //! last fragment ends, `e11` reports whether the platform reached its end point
-//! (within `final_tolerance`, waiting up to `settle` seconds while holding it):
+//! (its estimate within `final_tolerance` less `final_margin`, the estimate's own
+//! error allowed for; waiting up to `settle` seconds while holding it):
 //! the early acknowledgement `Done` of `c1` says that the plan was handed over,
 //! this says whether it was achieved.
 
@@ -54,6 +55,10 @@ pub struct Safety {
     pub max_tracking_error: f64,
     /// A plan's last point is reached within this distance [m].
     pub final_tolerance: f64,
+    /// The estimate's own error allowed for: a plan is reported reached only
+    /// when the estimate is within `final_tolerance − final_margin` of its
+    /// last point [m].
+    pub final_margin: f64,
     /// How long `e11` waits, holding the last point, for the platform to come
     /// within the tolerance [s].
     pub settle: f64,
@@ -67,6 +72,7 @@ impl Default for Safety {
             map: Map::default(),
             max_tracking_error: 0.3,
             final_tolerance: 0.1,
+            final_margin: 0.05,
             settle: 3.0,
             brake_decel: 1.0,
         }
@@ -466,14 +472,15 @@ fn stop(m: &mut E11Memory, e: &Estimate, reason: String) {
 }
 
 /// The end of a plan: reached when the estimate comes within the tolerance of its
-/// last point; missed if it does not within `settle` seconds, or when the next
-/// plan's fragments take over first.
+/// last point less the margin for the estimate's own error; missed if it does
+/// not within `settle` seconds, or when the next plan's fragments take over
+/// first.
 fn judge_arrival(m: &mut E11Memory, e: &Estimate) {
     let Some(a) = m.arrival else {
         return;
     };
     let error = (e.x[0] - a.end[0]).hypot(e.x[1] - a.end[1]);
-    let result = if error <= m.safety.final_tolerance {
+    let result = if error <= m.safety.final_tolerance - m.safety.final_margin {
         Execution::Reached { error_m: error }
     } else if m.track.running.is_some() || m.now() - a.since >= m.safety.settle {
         Execution::Missed { error_m: error }
