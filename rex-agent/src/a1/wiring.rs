@@ -117,7 +117,7 @@ impl Default for Limits {
             plan_margin_m: 0.1,
             tracking_m: 0.3,
             final_m: 0.1,
-            final_margin_m: 0.05,
+            final_margin_m: 0.03,
             settle_s: 3.0,
             brake_decel: 1.0,
             estimate_m: 0.1,

@@ -72,7 +72,7 @@ impl Default for Safety {
             map: Map::default(),
             max_tracking_error: 0.3,
             final_tolerance: 0.1,
-            final_margin: 0.05,
+            final_margin: 0.03,
             settle: 3.0,
             brake_decel: 1.0,
         }

@@ -391,11 +391,11 @@ fn visual_odometry_is_lost_after_its_patience_and_back_with_the_next_motion() {
 
 #[test]
 fn a_success_is_reported_only_with_a_margin_for_the_estimates_error() {
-    // The platform stops 0.08 m short of the end of a 0.2 m fragment: within
+    // The platform stops 0.09 m short of the end of a 0.2 m fragment: within
     // the tolerance (0.1 m), but not with the margin for the estimate's own
-    // error (0.05 m), so e11 does not claim it: it holds for 3 s and reports
+    // error (0.03 m), so e11 does not claim it: it holds for 3 s and reports
     // a miss. 0.03 m short, it is reached.
-    for (short, reached) in [(0.08, false), (0.03, true)] {
+    for (short, reached) in [(0.09, false), (0.03, true)] {
         let follow = move |it: u64| ((0.01 * it.saturating_sub(2) as f64).min(0.2 - short), 0.0);
         let (sent, _) = drive(&[(1, last(fragment(0, 0.0, 20)))], follow, 100);
         let o = outcomes(&sent);
@@ -404,7 +404,7 @@ fn a_success_is_reported_only_with_a_margin_for_the_estimates_error() {
         if reached {
             assert_eq!(*at, 22, "{o:?}");
             assert!(
-                matches!(o.result, Execution::Reached { error_m } if error_m < 0.05),
+                matches!(o.result, Execution::Reached { error_m } if error_m < 0.07),
                 "{o:?}"
             );
         } else {
