@@ -595,6 +595,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// sample, `m` the measurements. Returns the estimate after the update.
     pub fn update(&mut self, t: f64, u: &Torques, m: &Sample) -> MheEstimate<NX, NP> {
         self.stats.samples += 1;
+        self.innovation = None;
         let u = Vector::from(u.map(|v| if v.is_finite() { v } else { 0.0 }));
         if self.window.is_empty() {
             return self.start(t, m);
