@@ -93,7 +93,8 @@ impl Collector {
         }
     }
 
-    /// The latest instant of the world seen [s].
+    /// The latest instant of the world seen [s] (a distributed run's clock).
+    #[cfg(feature = "distributed")]
     pub(crate) fn time(&self) -> f64 {
         self.truths
             .keys()
