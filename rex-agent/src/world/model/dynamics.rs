@@ -113,6 +113,18 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         p: &Vector<NP>,
     ) -> Option<Measured<NX, NP>>;
 
+    /// The four encoders' rates, [`Dynamics::encoder_rate`] of each wheel in
+    /// turn unless a model shares work between the wheels (the lateral model
+    /// computes the ground's forces once for all four).
+    fn encoder_rates(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+    ) -> [Option<Measured<NX, NP>>; 4] {
+        std::array::from_fn(|i| self.encoder_rate(i, x, u, p))
+    }
+
     /// Whether wheel `i`'s encoder `reading` [rad/s] is one the model can
     /// represent at state `x` with some parameters (a wheel spinning far faster
     /// than the ground moves under it is not: its slip has no bound the model

@@ -449,11 +449,34 @@ impl Dynamics<6, 3> for Lateral {
         u: &Vector<NU>,
         p: &Vector<3>,
     ) -> Option<Measured<6, 3>> {
+        self.encoder_rate_with(i, x, p, &self.forces(x, u, p))
+    }
+
+    fn encoder_rates(
+        &self,
+        x: &Vector<6>,
+        u: &Vector<NU>,
+        p: &Vector<3>,
+    ) -> [Option<Measured<6, 3>>; 4] {
+        let f = self.forces(x, u, p);
+        std::array::from_fn(|i| self.encoder_rate_with(i, x, p, &f))
+    }
+}
+
+impl Lateral {
+    /// [`Dynamics::encoder_rate`] of wheel `i` with the ground's forces `f`
+    /// at `(x, u, p)`.
+    fn encoder_rate_with(
+        &self,
+        i: usize,
+        x: &Vector<6>,
+        p: &Vector<3>,
+        f: &Forces,
+    ) -> Option<Measured<6, 3>> {
         // θ̇_i = (v_ix + s_i) / r with the slip s_i at which the ground takes the
         // wheel's traction: μ_x N sg(s) = F_x, i.e. s = sg⁻¹(F_x / (μ_x N)).
         let [_, dy] = *self.d.get(i)?;
         let (r, ks) = (self.params.wheel_radius, self.params.sign_smoothing);
-        let f = self.forces(x, u, p);
         // The wheel's fraction of its traction bound, `ζ = F_x / (μ_x N)`, and
         // its gradient: `F_x`'s over the bound, and for `μ_x` also `−ζ / μ_x`
         // (the bound moves with it; not below the floor, where it is fixed).
@@ -673,5 +696,32 @@ mod tests {
         assert!(m.steady_lateral(0.4, 1.0, &ice).is_some());
         assert!(m.steady_lateral(f64::NAN, 1.0, &ice).is_none());
         assert_eq!(m.steady_lateral(0.0, 0.0, &ice), Some(0.0));
+    }
+
+    #[test]
+    fn the_four_encoder_rates_at_once_are_each_wheels_bit_for_bit() {
+        let m = model();
+        let p = Vector::from([0.1, 0.07, 0.01]);
+        let mut predicted = 0;
+        for (x, u) in [
+            ([0.0, 0.0, 0.3, 0.5, 0.05, 0.4], [2.0, 1.5, 4.0, 3.5]),
+            ([1.0, -2.0, 0.0, 0.2, -0.1, -1.0], [9.0, 9.0, -9.0, -9.0]),
+            ([0.0; 6], [0.0; 4]),
+        ] {
+            let (x, u) = (Vector::from(x), Vector::from(u));
+            let all = m.encoder_rates(&x, &u, &p);
+            predicted += all.iter().flatten().count();
+            for (i, a) in all.iter().enumerate() {
+                let one = m.encoder_rate(i, &x, &u, &p);
+                assert_eq!(a.is_some(), one.is_some(), "wheel {i}");
+                if let (Some(a), Some(b)) = (a, one) {
+                    assert_eq!(a.value.to_bits(), b.value.to_bits(), "wheel {i}");
+                    assert_eq!(a.sigma.to_bits(), b.sigma.to_bits());
+                    assert_eq!((a.x, a.p), (b.x, b.p));
+                }
+            }
+        }
+        // Both kinds: wheels predicted, and wheels spinning beyond the bound.
+        assert!(predicted > 0 && predicted < 12, "{predicted}");
     }
 }

@@ -106,13 +106,14 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
                 add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - g, s.sigma_gyro);
             }
             if let Some(e) = st.encoders {
-                for (k, reading) in e.iter().enumerate() {
+                let predicted = self.model.encoder_rates(&st.x, &u_in, &p);
+                for (reading, m) in e.iter().zip(predicted) {
                     // A wheel the model cannot predict (spinning) or one gated
                     // out when it arrived (NaN) is left out.
                     if !reading.is_finite() {
                         continue;
                     }
-                    if let Some(m) = self.model.encoder_rate(k, &st.x, &u_in, &p) {
+                    if let Some(m) = m {
                         let sigma = s.sigma_encoder.hypot(m.sigma);
                         add_scalar(b, &mut hpp, &mut gp, &m, m.value - reading, sigma);
                     }

@@ -531,12 +531,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         let (prev, last) = (&self.window[n], &self.window[n + 1]);
         let e = last.encoders?;
         let (mut sum, mut square, mut readings, mut spinning) = (0.0, 0.0, 0, 0);
-        for (k, reading) in e.iter().enumerate() {
+        let predicted = self.model.encoder_rates(&last.x, &prev.u, &self.p);
+        for (reading, m) in e.iter().zip(predicted) {
             if !reading.is_finite() {
                 spinning += 1;
                 continue;
             }
-            if let Some(m) = self.model.encoder_rate(k, &last.x, &prev.u, &self.p) {
+            if let Some(m) = m {
                 let r = (m.value - reading) / self.s.sigma_encoder.hypot(m.sigma);
                 sum += r;
                 square += r * r;
