@@ -36,6 +36,7 @@ pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};
 pub use record::{
     Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary, Values,
+    raw_values,
 };
 pub use replay::{
     Difference, Divergence, ReplayError, ReplayOptions, Replayed, replay, replay_file,

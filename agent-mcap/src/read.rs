@@ -248,11 +248,13 @@ impl Recording {
         self.channels.values().find(|c| c.topic == topic)
     }
 
-    /// The raw channel (encoding `embodied-wire/1`) of the link named `link`
-    /// (`from.port -> to.port`).
+    /// The raw channel (encoding `embodied-wire-frames/1`, or
+    /// `embodied-wire/1` in earlier files) of the link named `link`
+    /// (`from.port -> to.port`); [`crate::raw_values`] reads its messages.
     pub fn raw_channel(&self, link: &str) -> Option<&ChannelInfo> {
         self.channels.values().find(|c| {
-            c.message_encoding == crate::record::WIRE_ENCODING
+            [crate::record::FRAMES_ENCODING, crate::record::WIRE_ENCODING]
+                .contains(&c.message_encoding.as_str())
                 && c.metadata.get("link").is_some_and(|l| l == link)
         })
     }

@@ -188,8 +188,12 @@ impl Derive for Slow {
 
 /// Record 10 s of c sending trees of 1000 leaves (about 6 KB each: a batch
 /// every ten trees) through the slow writer, with at most `queue_bytes`
-/// queued: (summary, messages in the file).
-fn slow_recording(queue_bytes: usize, name: &str) -> (agent_mcap::record::RecordSummary, usize) {
+/// queued: (summary, messages in the file, records in them: a raw message
+/// holds several values).
+fn slow_recording(
+    queue_bytes: usize,
+    name: &str,
+) -> (agent_mcap::record::RecordSummary, usize, usize) {
     let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let s = system(1000);
     let options = RecordOptions {
@@ -202,21 +206,35 @@ fn slow_recording(queue_bytes: usize, name: &str) -> (agent_mcap::record::Record
     exec.run_for(Duration::from_secs(10)).unwrap();
     let summary = exec.into_observer().finish().unwrap();
     let bytes = std::fs::read(&path).unwrap();
-    let messages = mcap::MessageStream::new(&bytes).unwrap().count();
-    (summary, messages)
+    let (mut messages, mut records) = (0, 0);
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        messages += 1;
+        records += if m.channel.topic.starts_with("/raw/") {
+            agent_mcap::raw_values(&m.channel.message_encoding, &m.data).count()
+        } else {
+            1
+        };
+    }
+    (summary, messages, records)
 }
 
 #[test]
 fn a_writer_slower_than_the_run_holds_it_at_the_byte_bound_and_loses_nothing() {
-    let (free, free_messages) = slow_recording(usize::MAX, "slow_free.mcap");
-    let (bound, bound_messages) = slow_recording(100_000, "slow_bound.mcap");
+    let (free, free_messages, free_records) = slow_recording(usize::MAX, "slow_free.mcap");
+    let (bound, bound_messages, bound_records) = slow_recording(100_000, "slow_bound.mcap");
     // 1000 trees and numbers: each a value, a raw copy and a read (but the
-    // last, sent as the run ends); each tree a slow message too.
-    for (s, m) in [(&free, free_messages), (&bound, bound_messages)] {
+    // last, sent as the run ends); each tree a slow message too. The raw
+    // copies share messages, a batch's to one.
+    for (s, m, r) in [
+        (&free, free_messages, free_records),
+        (&bound, bound_messages, bound_records),
+    ] {
         assert_eq!(s.messages as usize, m, "{s:?}");
-        assert_eq!(m, 1000 * 7 - 2, "{s:?}");
+        assert_eq!(r, 1000 * 7 - 2, "{s:?}");
+        assert!(m < r - 1000, "{m} messages for {r} records");
     }
-    assert_eq!(free_messages, bound_messages, "nothing lost waiting");
+    assert_eq!(free_records, bound_records, "nothing lost waiting");
     // Unbounded, the run outpaces the writer (1 s): most of the 6 MB of
     // trees wait in the queue. Bounded, the executor waits instead,
     // and the queue holds at most the bound and one batch.

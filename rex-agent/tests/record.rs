@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use embodied::Executor;
 use embodied::record::mcap;
-use embodied::record::{McapRecorder, RecordOptions};
+use embodied::record::{self, McapRecorder, RecordOptions};
 use rex_agent::a1::payload::State;
 use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;
@@ -65,6 +65,8 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     let mut cdr_q = Vec::new();
     let mut raw_counts = BTreeMap::new();
     let mut raw_iterations = Vec::new();
+    let mut raw_messages = BTreeMap::new();
+    let mut values_per_raw_message = (0u64, 0u64);
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
@@ -92,25 +94,51 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
             cdr_q.push(m.data.to_vec());
         }
         if topic.starts_with("/raw/") {
-            // The wire header a link between processes would carry: the
-            // type's fingerprint (as the channel says), the link's count from
-            // 1, and the sender's stamp (its instant the log time).
-            let (header, _) = embodied::WireHeader::read(&m.data).unwrap();
-            let fingerprint = &m.channel.metadata["fingerprint"];
-            assert_eq!(&format!("{:016x}", header.fingerprint), fingerprint);
-            let count = raw_counts.entry(m.channel.id).or_insert(0u64);
-            *count += 1;
-            assert_eq!((header.seq, header.epoch), (*count, 0), "{topic}");
-            assert_eq!(u64::from(m.sequence) + 1, header.seq, "{topic}");
-            assert_eq!(header.stamp.time.as_nanos(), m.log_time, "{topic}");
-        }
-        if topic == "/raw/links/e11/c1/q_est/to/c1" {
-            estimates.1 += 1;
-            let (header, body) = embodied::WireHeader::read(&m.data).unwrap();
-            raw_q.push(postcard::from_bytes::<State>(body).unwrap());
-            raw_iterations.push(header.stamp.iteration);
+            // Several values a message, each framed: the wire header a link
+            // between processes would carry: the type's fingerprint (as the
+            // channel says), the link's count from 1, and the sender's stamp
+            // (the first value's instant the message's log time).
+            assert_eq!(m.channel.message_encoding, "embodied-wire-frames/1");
+            let raw = raw_messages.entry(m.channel.id).or_insert(0u32);
+            assert_eq!(m.sequence, *raw, "{topic}");
+            *raw += 1;
+            let mut last_time = 0;
+            for (k, value) in record::raw_values(&m.channel.message_encoding, &m.data).enumerate() {
+                let (header, body) = embodied::WireHeader::read(value.unwrap()).unwrap();
+                let fingerprint = &m.channel.metadata["fingerprint"];
+                assert_eq!(&format!("{:016x}", header.fingerprint), fingerprint);
+                let count = raw_counts.entry(topic.to_owned()).or_insert(0u64);
+                *count += 1;
+                assert_eq!((header.seq, header.epoch), (*count, 0), "{topic}");
+                let time = header.stamp.time.as_nanos();
+                if k == 0 {
+                    assert_eq!(time, m.log_time, "{topic}");
+                }
+                assert!(time >= last_time, "{topic}");
+                last_time = time;
+                values_per_raw_message.0 += 1;
+                if topic == "/raw/links/e11/c1/q_est/to/c1" {
+                    estimates.1 += 1;
+                    raw_q.push(postcard::from_bytes::<State>(body).unwrap());
+                    raw_iterations.push(header.stamp.iteration);
+                }
+            }
+            values_per_raw_message.1 += 1;
         }
     }
+    // The 1 kHz sensor links fill a raw message with many values.
+    assert!(
+        values_per_raw_message.0 > 10 * values_per_raw_message.1,
+        "{values_per_raw_message:?}"
+    );
+    // Every value of a link is on its raw channel as on its value channel
+    // (no value here is too long for the latter).
+    assert_eq!(summary.raw_only, 0);
+    for (topic, values) in &raw_counts {
+        let value_topic = topic.strip_prefix("/raw").unwrap();
+        assert_eq!(Some(values), per_topic.get(value_topic), "{topic}");
+    }
+    assert!(raw_counts.len() > links / 2, "{raw_counts:?}");
     // The stamps carry e11's iterations, one value per iteration at most.
     assert!(
         raw_iterations.windows(2).all(|w| w[1] > w[0]),
@@ -216,8 +244,10 @@ fn values_recorded_as_json_are_the_values_themselves() {
             json_q.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
         }
         if topic == "/raw/links/e11/c1/q_est/to/c1" {
-            let (_, body) = embodied::WireHeader::read(&m.data).unwrap();
-            raw_q.push(postcard::from_bytes::<State>(body).unwrap());
+            for value in record::raw_values(&m.channel.message_encoding, &m.data) {
+                let (_, body) = embodied::WireHeader::read(value.unwrap()).unwrap();
+                raw_q.push(postcard::from_bytes::<State>(body).unwrap());
+            }
         }
     }
     assert!(

@@ -136,14 +136,16 @@ fn every_subsystem_of_a_recorded_mission_replays_equivalent() {
         .messages
         .iter()
         .filter(|m| m.channel == raw.id)
+        .flat_map(|m| embodied::record::raw_values(&raw.message_encoding, &m.data))
+        .map(Result::unwrap)
         .collect();
     assert_eq!(pairs.len(), images.len());
     let codec = rex_agent::record::StereoPng;
     for m in &pairs {
-        let (_, encoded) = WireHeader::read(&m.data).unwrap();
+        let (_, encoded) = WireHeader::read(m).unwrap();
         assert_eq!(encoded[0], 1, "the PNG form");
     }
-    let (_, encoded) = WireHeader::read(&pairs[0].data).unwrap();
+    let (_, encoded) = WireHeader::read(pairs[0]).unwrap();
     let mut body = Vec::new();
     embodied::record::Codec::decode(&codec, encoded, &mut body).unwrap();
     let pair: StereoPair = postcard::from_bytes(&body).unwrap();
@@ -195,17 +197,32 @@ fn first_difference(a: &Path, b: &Path, node: &str) -> Option<(u64, Vec<String>)
         let (Some(ca), Some(cb)) = (a.channel(&topic), b.channel(&topic)) else {
             continue;
         };
-        let ma: Vec<_> = a.messages.iter().filter(|m| m.channel == ca.id).collect();
-        let mb: Vec<_> = b.messages.iter().filter(|m| m.channel == cb.id).collect();
+        // Each record: its instant and bytes (a raw message's values one by one).
+        let records = |r: &Recording, c: &embodied::record::read::ChannelInfo| {
+            let mut out: Vec<(u64, Vec<u8>)> = Vec::new();
+            for m in r.messages.iter().filter(|m| m.channel == c.id) {
+                if c.topic.starts_with("/raw/") {
+                    for v in embodied::record::raw_values(&c.message_encoding, &m.data) {
+                        let v = v.unwrap();
+                        let (header, _) = WireHeader::read(v).unwrap();
+                        out.push((header.stamp.time.as_nanos(), v.to_vec()));
+                    }
+                } else {
+                    out.push((m.log_time, m.data.clone()));
+                }
+            }
+            out
+        };
+        let (ma, mb) = (records(&a, ca), records(&b, cb));
         let at = ma
             .iter()
             .zip(&mb)
-            .find(|(x, y)| x.log_time != y.log_time || x.data != y.data)
-            .map(|(x, y)| x.log_time.min(y.log_time))
+            .find(|(x, y)| x != y)
+            .map(|(x, y)| x.0.min(y.0))
             .or_else(|| {
                 (ma.len() != mb.len()).then(|| {
                     let n = ma.len().min(mb.len());
-                    ma.get(n).or(mb.get(n)).map_or(u64::MAX, |m| m.log_time)
+                    ma.get(n).or(mb.get(n)).map_or(u64::MAX, |m| m.0)
                 })
             });
         match (at, &mut first) {
@@ -314,7 +331,8 @@ fn a_replay_of_a_build_whose_types_or_names_differ_is_refused_clearly() {
         .iter_mut()
         .find(|m| m.channel == id)
         .unwrap();
-    m.data[0] = 9;
+    // The first value's header, after its 4-byte length.
+    m.data[4] = 9;
     let offset = m.offset;
     let (system, _) = build(&c).unwrap();
     let err = replay(&recording, system, "c1", ReplayOptions::default()).unwrap_err();
@@ -323,6 +341,25 @@ fn a_replay_of_a_build_whose_types_or_names_differ_is_refused_clearly() {
         err.to_string().contains(&format!("offset {offset}")),
         "{err}"
     );
+    // A raw message cut inside a value: the cut and the offset named.
+    let mut recording = Recording::open(&path).unwrap();
+    let m = recording
+        .messages
+        .iter_mut()
+        .find(|m| m.channel == id)
+        .unwrap();
+    let len = m.data.len();
+    m.data.truncate(len - 3);
+    let offset = m.offset;
+    let (system, _) = build(&c).unwrap();
+    let err = replay(&recording, system, "c1", ReplayOptions::default()).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("raw message: a value of"), "{err}");
+    assert!(
+        text.contains(&format!("of a message of {} bytes", len - 3)),
+        "{err}"
+    );
+    assert!(text.contains(&format!("offset {offset}")), "{err}");
 }
 
 /// The reads of a recording: (reader's instant, the value's stamp) per link
@@ -356,20 +393,24 @@ fn the_recorded_stamps_are_the_senders() {
     // e11 runs every 50 ms and sends its estimate at each iteration: the
     // stamps count its iterations and say its instants; the log time is the
     // instant.
-    for (k, m) in recording
-        .messages
-        .iter()
-        .filter(|m| m.channel == id)
-        .enumerate()
-    {
-        let (header, _) = WireHeader::read(&m.data).unwrap();
-        assert_eq!(header.seq, k as u64 + 1);
-        assert_eq!(header.stamp.time.as_nanos(), m.log_time);
-        assert_eq!(
-            header.stamp.time.as_nanos(),
-            header.stamp.iteration * 50_000_000
-        );
+    let encoding = &recording.channels[&id].message_encoding;
+    let mut k = 0;
+    for m in recording.messages.iter().filter(|m| m.channel == id) {
+        for (i, value) in embodied::record::raw_values(encoding, &m.data).enumerate() {
+            let (header, _) = WireHeader::read(value.unwrap()).unwrap();
+            k += 1;
+            assert_eq!(header.seq, k);
+            // A raw message's log time is its first value's instant.
+            let time = header.stamp.time.as_nanos();
+            assert!(if i == 0 {
+                time == m.log_time
+            } else {
+                time > m.log_time
+            });
+            assert_eq!(time, header.stamp.iteration * 50_000_000);
+        }
     }
+    assert!(k > 10, "{k}");
     // In the deterministic executor a node reads a value at its first
     // activation after the value's instant, never at it.
     let reads = reads(&recording);

@@ -17,12 +17,14 @@
 //!   for it or the type has no ROS 2 message (it contains itself, or a field
 //!   name ROS 2 refuses); log time = the sender's instant, sequence = the
 //!   link's count;
-//! * the same topic under `/raw/...`: the value exactly as a link between
-//!   processes carries it (encoding `embodied-wire/1`: the 41-byte header of
-//!   [`agent_core::WireHeader`] with the type's fingerprint, the link's count
-//!   and the sender's stamp, then the value's postcard bytes): what a replay
-//!   reads (the value channel is for tools; JSON cannot say NaN); a value
-//!   larger than [`RecordOptions::value_max_bytes`] is recorded here only;
+//! * the same topic under `/raw/...`: each value exactly as a link between
+//!   processes carries it (the 41-byte header of [`agent_core::WireHeader`]
+//!   with the type's fingerprint, the link's count and the sender's stamp,
+//!   then the value's postcard bytes), several values of the link to a
+//!   message, each behind its length (encoding [`FRAMES_ENCODING`];
+//!   [`raw_values`] reads them): what a replay reads (the value channel is
+//!   for tools; JSON cannot say NaN); a value larger than
+//!   [`RecordOptions::value_max_bytes`] is recorded here only;
 //! * channels derived from links ([`Derive`]): for example Foxglove's images
 //!   and poses;
 //! * `/reads/links/...` for every link (encoding `embodied-read/1`): each
@@ -67,15 +69,14 @@ use agent_core::{ExecError, Stamp, Step, System, Time};
 use crate::codec::Codec;
 
 mod batch;
+mod frames;
 mod writer;
 
 use batch::BATCH_BYTES;
+pub use frames::{FRAMES_ENCODING, WIRE_ENCODING, raw_values};
 
 pub(crate) use writer::transition_json;
 use writer::{Output, Plan};
-
-/// The message encoding of the raw channels.
-pub const WIRE_ENCODING: &str = "embodied-wire/1";
 
 /// The message encoding of the reads channels: the stamp of the value read
 /// (the sender's iteration, then its instant in ns; little-endian `u64`s).
@@ -607,6 +608,12 @@ struct LinkChannels {
     derived: Vec<(usize, u16)>,
     /// The codec of the raw channel.
     codec: Option<Arc<dyn Codec>>,
+    /// Values not yet written to the raw channel ([`FRAMES_ENCODING`]), and
+    /// the first one's instant.
+    pending: Vec<u8>,
+    pending_since: Time,
+    /// Raw messages written: their MCAP sequence (wrapping).
+    raw_messages: u32,
 }
 
 impl McapRecorder {

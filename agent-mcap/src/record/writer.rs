@@ -15,8 +15,8 @@ use serde_json::{Value, json};
 
 use super::batch::{Entry, entries};
 use super::{
-    Backlog, Counts, Derive, LinkChannels, READ_ENCODING, Record, RecordError, RecordOptions,
-    RecordSummary, Values, WIRE_ENCODING, encode_read, small,
+    Backlog, Counts, Derive, FRAMES_ENCODING, LinkChannels, READ_ENCODING, Record, RecordError,
+    RecordOptions, RecordSummary, Values, encode_read, small,
 };
 use crate::cdr::{root_name, ros2msg_schema, write_cdr};
 use crate::codec::CODEC_KEY;
@@ -145,7 +145,7 @@ impl Output {
                 raw_meta.insert(CODEC_KEY.to_owned(), c.name().to_owned());
             }
             let raw = w
-                .add_channel(0, &format!("/raw{topic}"), WIRE_ENCODING, &raw_meta)
+                .add_channel(0, &format!("/raw{topic}"), FRAMES_ENCODING, &raw_meta)
                 .map_err(fail)?;
             let reads = w
                 .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &read_meta)
@@ -172,6 +172,9 @@ impl Output {
                 count: 0,
                 derived,
                 codec,
+                pending: Vec::new(),
+                pending_since: Time::ZERO,
+                raw_messages: 0,
             });
         }
         let fsm_schema = w
@@ -248,6 +251,8 @@ impl Output {
                             Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
                         }
                     }
+                    // One raw message per link and batch.
+                    self.write_pending()?;
                     backlog.written(bytes.len());
                     if let Some(back) = give_back.get(&part) {
                         let _ = back.send(bytes);
@@ -276,6 +281,7 @@ impl Output {
                 Record::End => finished = true,
             }
         }
+        self.write_pending()?;
         if finished {
             let mut end = BTreeMap::from([
                 ("time_ns".to_owned(), counts.last.as_nanos().to_string()),
@@ -381,9 +387,32 @@ impl Output {
                 false
             }
         };
-        let (value, cdr, channel) = (l.value, l.cdr, l.raw);
-        let written = self.write(channel, sequence, time, &raw);
-        let written = written.and_then(|()| {
+        // Framed into the link's pending raw message (written at the end of
+        // the batch, or now if it is long).
+        let framed = u32::try_from(raw.len()).map_err(|_| RecordError::Write {
+            path: self.path.clone(),
+            message: format!(
+                "a value of {} bytes on `{}` (4 GiB at most)",
+                raw.len(),
+                self.info
+                    .links
+                    .get(link as usize)
+                    .map_or("?", |i| i.name.as_str())
+            ),
+        });
+        let framed = framed.map(|len| {
+            if l.pending.is_empty() {
+                l.pending_since = time;
+            }
+            l.pending.extend_from_slice(&len.to_le_bytes());
+            l.pending.extend_from_slice(&raw);
+            l.pending.len() >= PENDING_BYTES
+        });
+        let (value, cdr) = (l.value, l.cdr);
+        let written = framed.and_then(|long| {
+            if long {
+                self.write_pending_of(link as usize)?;
+            }
             let encoded = coded.then(|| &raw[HEADER_LEN..]);
             self.derive(link, sequence, time, body, encoded)
         });
@@ -413,6 +442,32 @@ impl Output {
             }
         };
         self.scratch = text;
+        written
+    }
+
+    /// Write every link's pending raw values.
+    fn write_pending(&mut self) -> Result<(), RecordError> {
+        for k in 0..self.links.len() {
+            self.write_pending_of(k)?;
+        }
+        Ok(())
+    }
+
+    /// Write the pending raw values of link `k` as one message, if any.
+    fn write_pending_of(&mut self, k: usize) -> Result<(), RecordError> {
+        let Some(l) = self.links.get_mut(k) else {
+            return Ok(());
+        };
+        if l.pending.is_empty() {
+            return Ok(());
+        }
+        let pending = std::mem::take(&mut l.pending);
+        let (channel, sequence, time) = (l.raw, l.raw_messages, l.pending_since);
+        l.raw_messages = l.raw_messages.wrapping_add(1);
+        let written = self.write(channel, sequence, time, &pending);
+        let mut pending = pending;
+        pending.clear();
+        self.links[k].pending = pending;
         written
     }
 
@@ -514,6 +569,10 @@ pub(crate) fn transition_json(n: &NodeInfo, time: Time, iteration: u64, step: St
         }),
     }
 }
+
+/// The length at which a link's pending raw values are written at once,
+/// not at the end of the batch (one camera image is longer).
+const PENDING_BYTES: usize = 64 * 1024;
 
 /// The system's nodes, behaviours and links, for the metadata record.
 pub(super) fn describe(info: &SystemInfo) -> BTreeMap<String, String> {

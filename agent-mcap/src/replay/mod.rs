@@ -35,7 +35,7 @@ use serde_json::Value;
 
 use crate::codec::{CODEC_KEY, Codec};
 use crate::read::Recording;
-use crate::record::{READ_ENCODING, WIRE_ENCODING, decode_read};
+use crate::record::{FRAMES_ENCODING, READ_ENCODING, WIRE_ENCODING, decode_read, raw_values};
 use compare::Compare;
 pub use compare::first_difference;
 pub use verdict::{Difference, Divergence, Replayed};
@@ -217,7 +217,8 @@ pub fn replay_file(
     let fsm = format!("/fsm/{node}");
     let recording = Recording::open_filtered(path, |c| {
         c.topic == fsm
-            || ((c.message_encoding == WIRE_ENCODING || c.message_encoding == READ_ENCODING)
+            || ([FRAMES_ENCODING, WIRE_ENCODING, READ_ENCODING]
+                .contains(&c.message_encoding.as_str())
                 && c.metadata
                     .get("link")
                     .is_some_and(|l| wanted.contains(l.as_str())))
@@ -281,9 +282,10 @@ pub fn replay(
             .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
             .collect()
     };
-    let by_link = by_encoding(WIRE_ENCODING);
+    let mut by_link = by_encoding(WIRE_ENCODING);
+    by_link.extend(by_encoding(FRAMES_ENCODING));
     let reads_by_link = by_encoding(READ_ENCODING);
-    let mut channel_link: BTreeMap<u16, usize> = BTreeMap::new();
+    let mut channel_link: BTreeMap<u16, (usize, &str)> = BTreeMap::new();
     let mut codecs: BTreeMap<u16, Arc<dyn Codec>> = BTreeMap::new();
     let mut read_channel_link: BTreeMap<u16, usize> = BTreeMap::new();
     let mut shapes: BTreeMap<usize, Option<TypeShape>> = BTreeMap::new();
@@ -325,7 +327,7 @@ pub fn replay(
                 })?;
             codecs.insert(c.id, codec.clone());
         }
-        channel_link.insert(c.id, k);
+        channel_link.insert(c.id, (k, c.message_encoding.as_str()));
         if input && let Some(r) = reads_by_link.get(link.name.as_str()) {
             read_channel_link.insert(r.id, k);
         }
@@ -361,40 +363,42 @@ pub fn replay(
             reads.entry(k).or_default().push((m.log_time, stamp, m));
             continue;
         }
-        let Some(&k) = channel_link.get(&m.channel) else {
+        let Some(&(k, encoding)) = channel_link.get(&m.channel) else {
             continue;
         };
-        let (header, body) = WireHeader::read(&m.data).map_err(|e| ReplayError::BadValue {
+        let bad = |sequence: u32, message: String| ReplayError::BadValue {
             link: info.links[k].name.clone(),
-            sequence: m.sequence,
+            sequence,
             offset: m.offset,
-            message: e.to_string(),
-        })?;
-        let body = match codecs.get(&m.channel) {
-            Some(codec) => {
-                let mut decoded = Vec::new();
-                codec
-                    .decode(body, &mut decoded)
-                    .map_err(|e| ReplayError::BadValue {
-                        link: info.links[k].name.clone(),
-                        sequence: m.sequence,
-                        offset: m.offset,
-                        message: format!("codec `{}`: {e}", codec.name()),
-                    })?;
-                decoded
+            message,
+        };
+        for value in raw_values(encoding, &m.data) {
+            let value = value.map_err(|e| bad(m.sequence, format!("raw message: {e}")))?;
+            let (header, body) =
+                WireHeader::read(value).map_err(|e| bad(m.sequence, e.to_string()))?;
+            // The value's number on its link, from 0 (the header's count is from 1).
+            let sequence = header.seq.wrapping_sub(1) as u32;
+            let body = match codecs.get(&m.channel) {
+                Some(codec) => {
+                    let mut decoded = Vec::new();
+                    codec
+                        .decode(body, &mut decoded)
+                        .map_err(|e| bad(sequence, format!("codec `{}`: {e}", codec.name())))?;
+                    decoded
+                }
+                None => body.to_vec(),
+            };
+            let r = Recorded {
+                stamp: header.stamp,
+                body,
+                sequence,
+                offset: m.offset,
+            };
+            if info.links[k].from == x {
+                outputs.entry(k).or_default().push_back(r);
+            } else {
+                sent.entry(k).or_default().push(r);
             }
-            None => body.to_vec(),
-        };
-        let r = Recorded {
-            stamp: header.stamp,
-            body,
-            sequence: m.sequence,
-            offset: m.offset,
-        };
-        if info.links[k].from == x {
-            outputs.entry(k).or_default().push_back(r);
-        } else {
-            sent.entry(k).or_default().push(r);
         }
     }
     for k in read_channel_link.values() {
