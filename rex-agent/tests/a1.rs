@@ -254,6 +254,18 @@ fn mission(name: &str, plans: Vec<Vec<(f64, f64)>>) -> Mission {
     }
 }
 
+/// The figure eight without visual odometry, the whole floor `surface` (no patches).
+fn figure_eight_on(surface: &str) -> RexConfig {
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::shipped("figure_eight").unwrap(),
+    );
+    config.world.surfaces.default = surface.into();
+    config.world.surfaces.patches.clear();
+    config.visual_odometry = false;
+    config
+}
+
 fn run(config: &RexConfig, seconds: u64) -> Outcome {
     run_mission(
         config,
@@ -497,13 +509,7 @@ fn a_platform_that_cannot_move_fails_its_plans_with_the_reason() {
 fn on_ice_no_plan_is_reported_achieved_that_was_not() {
     // On ice the trackers cannot follow the plans: the plans end as failures (or
     // achievements the truth confirms), never as unconfirmed successes.
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("figure_eight").unwrap(),
-    );
-    config.world.surfaces.default = "ice".into();
-    config.world.surfaces.patches.clear();
-    config.visual_odometry = false;
+    let config = figure_eight_on("ice");
     let out = run(&config, 300);
     assert!(out.completed, "{}", out.summary_line());
     assert_eq!(out.false_done(), 0, "{:#?}", out.reports);
@@ -636,13 +642,7 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // resistance is reported, not asserted this tightly (a force of 2-8 N on a
     // 40 kg platform).
     for surface in ["concrete", "grass", "ice"] {
-        let mut config = RexConfig::new(
-            WorldConfig::shipped().unwrap(),
-            Mission::shipped("figure_eight").unwrap(),
-        );
-        config.world.surfaces.default = surface.into();
-        config.world.surfaces.patches.clear();
-        config.visual_odometry = false;
+        let mut config = figure_eight_on(surface);
         config.tracker = rex_agent::a1::e11::TrackerKind::Nmpc;
         config.estimator = rex_agent::a1::e11::EstimatorKind::Mhe;
         let plant = config
@@ -697,11 +697,7 @@ fn the_mhe_follows_a_change_of_ground_and_no_plan_is_reported_achieved_that_was_
     // 2.35 s after the robot's centre crossed (its wheels cross over a while);
     // with the walk not widened (`FrictionWalk::GAIN` 0) it never came within
     // 15% and both plans failed.
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("figure_eight").unwrap(),
-    );
-    config.world.surfaces.default = "ice".into();
+    let mut config = figure_eight_on("ice");
     config.world.surfaces.patches = vec![Patch {
         surface: "concrete".into(),
         region: Region::Rect {
@@ -711,7 +707,6 @@ fn the_mhe_follows_a_change_of_ground_and_no_plan_is_reported_achieved_that_was_
             y1: 50.0,
         },
     }];
-    config.visual_odometry = false;
     config.tracker = rex_agent::a1::e11::TrackerKind::Nmpc;
     config.estimator = rex_agent::a1::e11::EstimatorKind::Mhe;
     let map = config.world.surfaces.clone();
