@@ -14,6 +14,11 @@ use agent_core::{Stamp, Time};
 /// The size at which a part queues its batch.
 pub(super) const BATCH_BYTES: usize = 64 * 1024;
 
+/// The capacity a new batch buffer is made with: a batch is sent with the
+/// first entry that takes it to [`BATCH_BYTES`], which for values of up to
+/// 4 KiB fits without growing the buffer.
+pub(super) const BATCH_CAPACITY: usize = BATCH_BYTES + 4 * 1024;
+
 const TRANSFER: u8 = 0;
 const READ: u8 = 1;
 

@@ -72,7 +72,7 @@ mod batch;
 mod frames;
 mod writer;
 
-use batch::BATCH_BYTES;
+use batch::{BATCH_BYTES, BATCH_CAPACITY};
 pub use frames::{FRAMES_ENCODING, WIRE_ENCODING, raw_values};
 
 pub(crate) use writer::transition_json;
@@ -458,7 +458,7 @@ impl Part {
             tx: Some(tx),
             backlog,
             spare,
-            batch: Vec::new(),
+            batch: Vec::with_capacity(BATCH_CAPACITY),
             counts: Counts {
                 iterations: vec![0; nodes],
                 last_of: vec![Time::ZERO; nodes],
@@ -486,7 +486,12 @@ impl Part {
         if self.backlog.wait_for_room(self.batch.len()) {
             self.counts.waits += 1;
         }
-        let mut next = self.spare.try_recv().unwrap_or_default();
+        // A buffer the writer gave back, else a new one of a batch's size (one
+        // allocation, not the dozen of a vector grown value by value).
+        let mut next = self
+            .spare
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH_CAPACITY));
         next.clear();
         let bytes = std::mem::replace(&mut self.batch, next);
         self.send_now(Record::Batch {
