@@ -14,6 +14,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System as SystemAlloc};
 use std::cell::Cell;
+use std::sync::Mutex;
 use std::time::Duration;
 
 use agent_core::*;
@@ -68,6 +69,10 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
+
+/// One test at a time: the other's threads would take the CPU the writer
+/// thread (in the background, `SCHED_IDLE`) needs to keep up.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 /// Allocations on this thread while `f` runs.
 fn allocations<T>(f: impl FnOnce() -> T) -> (u64, T) {
@@ -229,6 +234,7 @@ fn plain() -> u64 {
 
 #[test]
 fn a_recorded_run_allocates_at_most_once_a_batch_on_the_executors_thread() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let s = system();
     let recorder = recorder("alloc_fast.mcap", &s);
     let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
@@ -255,16 +261,20 @@ fn a_recorded_run_allocates_at_most_once_a_batch_on_the_executors_thread() {
 
 #[test]
 fn a_paced_recorded_run_allocates_nothing_on_the_executors_thread_once_warm() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let s = system();
     let recorder = recorder("alloc_paced.mcap", &s);
     let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
-    // Paced in steps of 200 ms of the system's time with a pause after each,
-    // so that the writer thread keeps up as it does in a real-time run: a
-    // batch (about 1,500 values, 250 ms of the system) finds the buffer the
-    // writer gave back.
+    // Paced in steps of 200 ms of the system's time, each followed by a wait
+    // until the writer has caught up, as it does in a real-time run: a batch
+    // (about 320 ms of the system) finds the buffer the writer gave back.
     let step = |exec: &mut Executor<McapRecorder>| {
         exec.run_for(Duration::from_millis(200)).unwrap();
-        std::thread::sleep(Duration::from_millis(20));
+        let t = std::time::Instant::now();
+        while exec.observer().backlog_bytes() > 0 {
+            assert!(t.elapsed() < Duration::from_secs(60), "the writer is stuck");
+            std::thread::sleep(Duration::from_millis(1));
+        }
     };
     for _ in 0..20 {
         step(&mut exec);

@@ -707,6 +707,14 @@ impl McapRecorder {
         }
     }
 
+    /// The bytes of values queued to the writer thread and not yet written:
+    /// how far behind the run the writer is now (the summary's
+    /// `backlog_peak_bytes` is the most it was). Values not yet in a batch
+    /// (under 64 KiB a thread) are not counted.
+    pub fn backlog_bytes(&self) -> usize {
+        self.backlog.bytes.load(Ordering::Acquire)
+    }
+
     /// Close the file (its summary and index) and say what it holds, or why
     /// the recording failed.
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {

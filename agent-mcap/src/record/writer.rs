@@ -253,10 +253,13 @@ impl Output {
                     }
                     // One raw message per link and batch.
                     self.write_pending()?;
-                    backlog.written(bytes.len());
+                    // Counted out after the buffer is given back: a backlog of
+                    // nothing means every buffer is back for reuse.
+                    let n = bytes.len();
                     if let Some(back) = give_back.get(&part) {
                         let _ = back.send(bytes);
                     }
+                    backlog.written(n);
                 }
                 Record::Transition {
                     node,
