@@ -279,13 +279,28 @@ fn the_writer_thread_runs_at_normal_priority_when_asked() {
     assert!(summary.messages > 100, "{summary:?}");
 }
 
-/// Reads an MCAP file with the official Python reader: every message, JSON
-/// ones parsed with their schemas; prints the counts.
+/// Reads an MCAP file (argument 1) with the official Python reader: every
+/// message, JSON ones parsed with their schemas, and those of a Foxglove
+/// schema validated against Foxglove's own (argument 2: its JSON schemas by
+/// title); prints the counts.
 const PY_READER: &str = r#"
 import json, sys
+import jsonschema
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
+foxglove_schemas = json.load(open(sys.argv[2]))
+def only_foxglove_fields(value, schema, where):
+    # Foxglove's schemas allow other fields; Foxglove would ignore them: none.
+    if schema.get("type") == "object":
+        fields = schema.get("properties", {})
+        for k, v in value.items():
+            assert k in fields, f"{where}: {k} is not a field of Foxglove's schema"
+            only_foxglove_fields(v, fields[k], where + "." + k)
+    elif schema.get("type") == "array":
+        for v in value:
+            only_foxglove_fields(v, schema["items"], where + "[]")
+foxglove_valid = 0
 with open(sys.argv[1], "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     summary = reader.get_summary()
@@ -300,6 +315,13 @@ with open(sys.argv[1], "rb") as f:
         topics.add(channel.topic)
         if schema is not None and schema.name.startswith("foxglove."):
             schemas.add(schema.name + ":" + channel.topic)
+            # What Foxglove's panels read: the message against Foxglove's
+            # schema of that name (not the one in the file, which is ours).
+            official = foxglove_schemas[schema.name]
+            value = json.loads(message.data)
+            jsonschema.validate(value, official)
+            only_foxglove_fields(value, official, channel.topic)
+            foxglove_valid += 1
         if channel.message_encoding == "json":
             json.loads(message.data)
             assert schema is not None and schema.encoding == "jsonschema", channel.topic
@@ -326,7 +348,7 @@ with open(sys.argv[1], "rb") as f:
         assert image.header.stamp.sec * 10**9 + image.header.stamp.nanosec == message.log_time
         images += 1
     meta = sorted(m.name for m in reader.iter_metadata())
-    print(f"images={images} cdr={cdr} messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))}")
+    print(f"images={images} cdr={cdr} messages={n} channels={len(summary.channels)} topics={len(topics)} metadata={','.join(meta)} foxglove={','.join(sorted(schemas))} foxglove_valid={foxglove_valid}")
 "#;
 
 #[test]
@@ -352,13 +374,15 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
             "--quiet",
             "mcap>=1.2,<2",
             "mcap-ros2-support>=0.5,<1",
+            "jsonschema>=4,<5",
         ])
         .status()
         .expect("pip");
     assert!(
         installed.success(),
-        "pip install mcap mcap-ros2-support (PyPI must be reachable)"
+        "pip install mcap mcap-ros2-support jsonschema (PyPI must be reachable)"
     );
+    let foxglove = foxglove_json_schemas(tmp);
 
     let mut config = RexConfig::new(
         WorldConfig::shipped().unwrap(),
@@ -377,6 +401,7 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
     let out = std::process::Command::new(&python)
         .args(["-c", PY_READER])
         .arg(&path)
+        .arg(&foxglove)
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -411,4 +436,61 @@ fn the_official_python_reader_reads_every_message_of_a_rex_recording() {
         ),
         "{text}"
     );
+    // Every one of their messages is valid in Foxglove's own schemas.
+    let poses = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .filter(|m| {
+            let topic = &m.as_ref().unwrap().channel.topic;
+            topic.starts_with("/pose/") || topic == "/path/reference"
+        })
+        .count() as u64;
+    assert!(poses > 200, "{poses}");
+    assert_eq!(figure("foxglove_valid"), poses, "{text}");
+}
+
+/// Foxglove's JSON schemas, from its package on the npm registry
+/// (`@foxglove/schemas`, the schemas Foxglove's panels read), written to a
+/// file as a map from each schema's title (`foxglove.PoseInFrame`) to the
+/// schema; a test dependency the test installs, as it does the Python reader.
+fn foxglove_json_schemas(tmp: &std::path::Path) -> std::path::PathBuf {
+    const PACKAGE: &str = "@foxglove/schemas@2.1.0";
+    let dir = tmp.join("npm-foxglove-schemas");
+    let out = dir.join("schemas.json");
+    if out.exists() {
+        return out;
+    }
+    std::fs::create_dir_all(&dir).unwrap();
+    let packed = std::process::Command::new("npm")
+        .args(["pack", "--silent", PACKAGE, "--pack-destination"])
+        .arg(&dir)
+        .output()
+        .expect("npm (Node.js), to fetch Foxglove's schemas");
+    assert!(
+        packed.status.success(),
+        "npm pack {PACKAGE} (the npm registry must be reachable): {}",
+        String::from_utf8_lossy(&packed.stderr)
+    );
+    let tarball = String::from_utf8_lossy(&packed.stdout).trim().to_owned();
+    let unpacked = std::process::Command::new("tar")
+        .arg("xzf")
+        .arg(dir.join(&tarball))
+        .arg("-C")
+        .arg(&dir)
+        .status()
+        .unwrap();
+    assert!(unpacked.success(), "tar xzf {tarball}");
+    let index = dir.join("package/dist/jsonschema/index.js");
+    let dumped = std::process::Command::new("node")
+        .arg("-e")
+        .arg(
+            "const s = require(process.argv[1]); const byTitle = {};
+             for (const v of Object.values(s)) if (v && v.title) byTitle[v.title] = v;
+             require('fs').writeFileSync(process.argv[2], JSON.stringify(byTitle));",
+        )
+        .arg(&index)
+        .arg(&out)
+        .status()
+        .expect("node");
+    assert!(dumped.success(), "node could not read {}", index.display());
+    out
 }
