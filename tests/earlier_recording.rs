@@ -1,0 +1,217 @@
+//! A recording in the raw encoding of earlier versions (`embodied-wire/1`: one
+//! value a message, its log time the value's instant, its sequence the link's
+//! count) replays as a recording of today does.
+//!
+//! The earlier file is made from today's recording of the tank example by
+//! writing each value of a raw message (`embodied-wire-frames/1`) as a message
+//! of its own, as the writer did before it framed them; every other record is
+//! copied as it is. Every subsystem replays equivalent from both files, and a
+//! change of one value in the earlier file is the first divergence, at its
+//! instant.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+#[path = "../examples/tank/agent.rs"]
+mod agent;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use embodied::record::record::{FRAMES_ENCODING, WIRE_ENCODING};
+use embodied::record::{McapRecorder, RecordOptions, mcap};
+use embodied::replay::{Difference, Recording, ReplayOptions, Replayed, replay_file};
+use embodied::*;
+
+fn tmp(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
+}
+
+fn system() -> System {
+    agent::build(agent::default_mission(), 0.2, 7).unwrap().0
+}
+
+/// 20 s of the tank example, recorded today.
+fn record(path: &Path) {
+    let s = system();
+    let recorder = McapRecorder::create(path, &s, RecordOptions::default()).unwrap();
+    let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
+    exec.run_for(Duration::from_secs(20)).unwrap();
+    exec.into_observer().finish().unwrap();
+}
+
+/// `from` written again to `to` with its raw channels in the earlier
+/// encoding; `change`, if given, is applied to the body of the raw value of
+/// that link's topic and count (from 1). Returns (raw values, raw messages
+/// of `from`).
+fn to_earlier(from: &Path, to: &Path, change: Option<(&str, u64)>) -> (usize, usize) {
+    let r = Recording::open(from).unwrap();
+    let mut w =
+        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
+    let schemas: BTreeMap<u16, u16> = r
+        .schemas
+        .iter()
+        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
+        .collect();
+    let mut channels = BTreeMap::new();
+    for (&id, c) in &r.channels {
+        let framed = c.message_encoding == FRAMES_ENCODING;
+        let encoding = if framed {
+            WIRE_ENCODING
+        } else {
+            c.message_encoding.as_str()
+        };
+        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
+        let new = w
+            .add_channel(schema, &c.topic, encoding, &c.metadata)
+            .unwrap();
+        channels.insert(id, (new, framed, c.topic.clone()));
+    }
+    for (name, metadata) in &r.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })
+        .unwrap();
+    }
+    let (mut values, mut frames) = (0, 0);
+    let mut counts: BTreeMap<u16, u32> = BTreeMap::new();
+    for m in &r.messages {
+        let (channel, framed, topic) = &channels[&m.channel];
+        if !framed {
+            let header = mcap::records::MessageHeader {
+                channel_id: *channel,
+                sequence: m.sequence,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            };
+            w.write_to_known_channel(&header, &m.data).unwrap();
+            continue;
+        }
+        frames += 1;
+        for value in embodied::record::record::raw_values(FRAMES_ENCODING, &m.data) {
+            let mut value = value.unwrap().to_vec();
+            let (header, body) = WireHeader::read(&value).unwrap();
+            let (time, seq, an_f64) = (header.stamp.time.as_nanos(), header.seq, body.len() == 8);
+            if change == Some((topic.as_str(), seq)) && an_f64 {
+                // The value's last byte (a little-endian f64's sign and
+                // exponent: another number).
+                *value.last_mut().unwrap() ^= 0x40;
+            }
+            let count = counts.entry(*channel).or_default();
+            let header = mcap::records::MessageHeader {
+                channel_id: *channel,
+                sequence: *count,
+                log_time: time,
+                publish_time: time,
+            };
+            *count += 1;
+            w.write_to_known_channel(&header, &value).unwrap();
+            values += 1;
+        }
+    }
+    w.finish().unwrap();
+    (values, frames)
+}
+
+fn subsystems() -> Vec<String> {
+    system()
+        .info()
+        .nodes
+        .iter()
+        .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+        .map(|n| n.name.clone())
+        .collect()
+}
+
+#[test]
+fn a_recording_in_the_earlier_raw_encoding_replays_as_todays_does() {
+    let (today, earlier) = (tmp("today.mcap"), tmp("earlier.mcap"));
+    record(&today);
+    let (values, frames) = to_earlier(&today, &earlier, None);
+    // Today's file frames several values a message; the earlier one does not.
+    assert!(values > 2 * frames, "{values} values in {frames} messages");
+    let old = Recording::open(&earlier).unwrap();
+    let raw: Vec<_> = old
+        .channels
+        .values()
+        .filter(|c| c.topic.starts_with("/raw/"))
+        .collect();
+    assert!(!raw.is_empty());
+    assert!(raw.iter().all(|c| c.message_encoding == WIRE_ENCODING));
+    let raw_messages = old
+        .messages
+        .iter()
+        .filter(|m| old.channels[&m.channel].topic.starts_with("/raw/"))
+        .count();
+    assert_eq!(raw_messages, values);
+
+    for node in subsystems() {
+        let a = replay_file(&today, system(), &node, ReplayOptions::default()).unwrap();
+        let b = replay_file(&earlier, system(), &node, ReplayOptions::default()).unwrap();
+        assert!(matches!(a, Replayed::Equivalent { .. }), "{node}: {a}");
+        assert!(matches!(b, Replayed::Equivalent { .. }), "{node}: {b}");
+        // The same iterations and transfers from either file.
+        assert_eq!(a.to_string(), b.to_string(), "{node}");
+    }
+}
+
+#[test]
+fn a_changed_value_in_the_earlier_encoding_is_the_first_divergence() {
+    let (today, earlier) = (tmp("today_changed.mcap"), tmp("earlier_changed.mcap"));
+    record(&today);
+    // The 50th value of each link of an `f64` (levels, flows, duties) that a
+    // subsystem sends, changed in turn: the sender's replay diverges exactly there (it sends
+    // another value than the file says), and no replay diverges before.
+    let r = Recording::open(&today).unwrap();
+    let links: Vec<String> = r
+        .channels
+        .values()
+        .filter(|c| c.topic.starts_with("/raw/") && c.message_encoding == FRAMES_ENCODING)
+        .filter(|c| {
+            ["/level/", "/flow/", "/duty/"]
+                .iter()
+                .any(|p| c.topic.contains(p))
+        })
+        // Sent by a subsystem (a real effector or receptor is not replayed).
+        .filter(|c| {
+            let from = c.topic.trim_start_matches("/raw/links/");
+            subsystems()
+                .iter()
+                .any(|n| from.starts_with(&format!("{n}/")))
+        })
+        .map(|c| c.topic.clone())
+        .collect();
+    assert!(links.len() >= 3, "{links:?}");
+    for topic in &links {
+        to_earlier(&today, &earlier, Some((topic, 50)));
+        let c = Recording::open(&earlier).unwrap();
+        let channel = c.channels.values().find(|x| &x.topic == topic).unwrap();
+        let changed = c
+            .messages
+            .iter()
+            .filter(|m| m.channel == channel.id)
+            .nth(49)
+            .unwrap()
+            .log_time;
+        let mut at_the_change = 0;
+        for node in subsystems() {
+            let replayed =
+                replay_file(&earlier, system(), &node, ReplayOptions::default()).unwrap();
+            if let Replayed::Diverged(d) = &replayed {
+                assert!(
+                    d.time.as_nanos() >= changed,
+                    "{topic} changed at {changed} ns, {node} diverged before: {replayed}"
+                );
+                if d.time.as_nanos() == changed && matches!(d.what, Difference::Value { .. }) {
+                    at_the_change += 1;
+                }
+            }
+        }
+        assert_eq!(at_the_change, 1, "{topic}: the sender, at {changed} ns");
+    }
+}
