@@ -30,15 +30,22 @@ const START_MULTIPLIER: f64 = 0.1;
 /// Iterations before giving the QP to Clarabel.
 pub(super) const MAX_ITERATIONS: usize = 40;
 
+/// A bounded component's slacks and multipliers (or their steps): below
+/// (`s_l = z − lb`, `λ_l`) and above (`s_u = ub − z`, `λ_u`).
+#[derive(Clone, Copy, Debug, Default)]
+struct Slacks {
+    s_l: f64,
+    s_u: f64,
+    l_l: f64,
+    l_u: f64,
+}
+
 /// One component's box and its slacks and multipliers.
 #[derive(Clone, Copy, Debug, Default)]
 struct Bound {
     lb: f64,
     ub: f64,
-    s_l: f64,
-    s_u: f64,
-    l_l: f64,
-    l_u: f64,
+    at: Slacks,
 }
 
 /// A direction: the trajectory and the slacks' and multipliers' steps.
@@ -46,10 +53,7 @@ struct Bound {
 struct Direction<const NX: usize> {
     du: Vec<Vector<NU>>,
     dx: Vec<Vector<NX>>,
-    s_l: Vec<f64>,
-    s_u: Vec<f64>,
-    l_l: Vec<f64>,
-    l_u: Vec<f64>,
+    slacks: Vec<Slacks>,
 }
 
 impl<const NX: usize> Direction<NX> {
@@ -57,10 +61,7 @@ impl<const NX: usize> Direction<NX> {
         Direction {
             du: vec![Vector::zeros(); n],
             dx: vec![Vector::zeros(); n + 1],
-            s_l: vec![0.0; n * NB],
-            s_u: vec![0.0; n * NB],
-            l_l: vec![0.0; n * NB],
-            l_u: vec![0.0; n * NB],
+            slacks: vec![Slacks::default(); n * NB],
         }
     }
 }
@@ -104,20 +105,20 @@ impl<const NX: usize> IpmWork<NX> {
     }
 }
 
-/// The bounded component `b` of stage `k`'s variables (`bounded`: the state
-/// components with bounds).
-fn value<const NX: usize>(
+/// The bounded components of stage `k`'s variables: the torques of `du[k]`,
+/// then the components `bounded` of `dx[k + 1]`.
+fn values<const NX: usize>(
     du: &[Vector<NU>],
     dx: &[Vector<NX>],
     bounded: [usize; 2],
     k: usize,
-    b: usize,
-) -> f64 {
-    if b < NU {
-        du[k][b]
-    } else {
-        dx[k + 1][bounded[b - NU]]
-    }
+) -> [f64; NB] {
+    let (u, x) = (&du[k], &dx[k + 1]);
+    let mut z = [0.0; NB];
+    z[..NU].copy_from_slice(u.as_slice());
+    z[NU] = x[bounded[0]];
+    z[NU + 1] = x[bounded[1]];
+    z
 }
 
 impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
@@ -152,8 +153,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         // holds).
         w.du.copy_from_slice(&self.du);
         w.dx.copy_from_slice(&self.dx);
-        for k in 0..n {
-            for b in 0..NB {
+        for (k, stage) in w.bounds.chunks_exact_mut(NB).enumerate() {
+            let z = values(&w.du, &w.dx, bounded, k);
+            for (b, bound) in stage.iter_mut().enumerate() {
                 let (limit, at) = if b < NU {
                     (self.limits[b], self.us[k][b])
                 } else if b == NU {
@@ -162,15 +164,16 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                     (self.s.yaw_rate_max, self.xs[k + 1][M::YAW_RATE])
                 };
                 let (lb, ub) = (-limit - at, limit - at);
-                let z = value(&w.du, &w.dx, bounded, k, b);
                 let floor = 0.1 * (ub - lb);
-                w.bounds[k * NB + b] = Bound {
+                *bound = Bound {
                     lb,
                     ub,
-                    s_l: (z - lb).max(floor),
-                    s_u: (ub - z).max(floor),
-                    l_l: START_MULTIPLIER,
-                    l_u: START_MULTIPLIER,
+                    at: Slacks {
+                        s_l: (z[b] - lb).max(floor),
+                        s_u: (ub - z[b]).max(floor),
+                        l_l: START_MULTIPLIER,
+                        l_u: START_MULTIPLIER,
+                    },
                 };
             }
         }
@@ -179,16 +182,18 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             let mu = w
                 .bounds
                 .iter()
-                .map(|b| b.s_l * b.l_l + b.s_u * b.l_u)
+                .map(|b| b.at.s_l * b.at.l_l + b.at.s_u * b.at.l_u)
                 .sum::<f64>()
                 / m;
-            let residual = (0..n * NB)
-                .map(|j| {
-                    let z = value(&w.du, &w.dx, bounded, j / NB, j % NB);
-                    let b = &w.bounds[j];
-                    (z - b.s_l - b.lb).abs().max((b.ub - z - b.s_u).abs())
-                })
-                .fold(0.0f64, f64::max);
+            let mut residual = 0.0f64;
+            for (k, stage) in w.bounds.chunks_exact(NB).enumerate() {
+                let z = values(&w.du, &w.dx, bounded, k);
+                for (z, b) in z.iter().zip(stage) {
+                    residual = residual
+                        .max((z - b.at.s_l - b.lb).abs())
+                        .max((b.ub - z - b.at.s_u).abs());
+                }
+            }
             if !(mu.is_finite() && residual.is_finite()) {
                 return None;
             }
@@ -204,28 +209,23 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             self.factor(w)?;
             // Predictor: the affine direction (complementarity target 0).
             let mut aff = std::mem::take(&mut w.aff);
-            self.direction(dx0, w, |_| (0.0, 0.0), &mut aff)?;
+            self.direction(dx0, w, None, &mut aff)?;
             let a_aff = step_length(&w.bounds, &aff, 1.0);
             let mu_aff = w
                 .bounds
                 .iter()
-                .enumerate()
-                .map(|(j, b)| {
-                    (b.s_l + a_aff * aff.s_l[j]) * (b.l_l + a_aff * aff.l_l[j])
-                        + (b.s_u + a_aff * aff.s_u[j]) * (b.l_u + a_aff * aff.l_u[j])
+                .zip(&aff.slacks)
+                .map(|(b, d)| {
+                    let b = &b.at;
+                    (b.s_l + a_aff * d.s_l) * (b.l_l + a_aff * d.l_l)
+                        + (b.s_u + a_aff * d.s_u) * (b.l_u + a_aff * d.l_u)
                 })
                 .sum::<f64>()
                 / m;
             let sigma = (mu_aff / mu).clamp(0.0, 1.0).powi(3);
             // Corrector: centred, with the predictor's second-order term.
-            let target = |j: usize| {
-                (
-                    sigma * mu - aff.s_l[j] * aff.l_l[j],
-                    sigma * mu - aff.s_u[j] * aff.l_u[j],
-                )
-            };
             let mut dir = std::mem::take(&mut w.dir);
-            let solved = self.direction(dx0, w, target, &mut dir);
+            let solved = self.direction(dx0, w, Some((&aff.slacks, sigma * mu)), &mut dir);
             w.aff = aff;
             solved?;
             let alpha = step_length(&w.bounds, &dir, 0.995);
@@ -237,11 +237,12 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 w.du[k] += dir.du[k] * alpha;
                 w.dx[k + 1] += dir.dx[k + 1] * alpha;
             }
-            for (j, b) in w.bounds.iter_mut().enumerate() {
-                b.s_l += alpha * dir.s_l[j];
-                b.s_u += alpha * dir.s_u[j];
-                b.l_l += alpha * dir.l_l[j];
-                b.l_u += alpha * dir.l_u[j];
+            for (b, d) in w.bounds.iter_mut().zip(&dir.slacks) {
+                let b = &mut b.at;
+                b.s_l += alpha * d.s_l;
+                b.s_u += alpha * d.s_u;
+                b.l_l += alpha * d.l_l;
+                b.l_u += alpha * d.l_u;
             }
             w.dir = dir;
         }
@@ -255,7 +256,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         let n = self.s.horizon;
         let bounded = Self::BOUNDED;
         let barrier = |k: usize, b: usize| {
-            let bd = &w.bounds[k * NB + b];
+            let bd = &w.bounds[k * NB + b].at;
             bd.l_l / bd.s_l + bd.l_u / bd.s_u
         };
         let (q, q_terminal) = (&self.s.q, &self.s.q_terminal);
@@ -295,32 +296,43 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         Some(())
     }
 
-    /// The Newton direction from `(w.du, w.dx, w.bounds)` towards the
-    /// complementarity targets `target(j) = (t_l, t_u)`, on the factorisation
-    /// of [`Nmpc::factor`], into `out`; `None` if it is not finite.
+    /// The Newton direction from `(w.du, w.dx, w.bounds)` on the
+    /// factorisation of [`Nmpc::factor`], into `out`; `None` if it is not
+    /// finite. The complementarity targets: none (the predictor), or
+    /// `corrector = (aff, c)`: `c − Δs Δλ` with the predictor's steps `aff`
+    /// on each side.
     fn direction(
         &mut self,
         dx0: &Vector<NX>,
         w: &mut IpmWork<NX>,
-        target: impl Fn(usize) -> (f64, f64),
+        corrector: Option<(&[Slacks], f64)>,
         out: &mut Direction<NX>,
     ) -> Option<()> {
         let n = self.s.horizon;
         let bounded = Self::BOUNDED;
+        let target = |j: usize| match corrector {
+            Some((aff, c)) => {
+                let d = &aff[j];
+                (c - d.s_l * d.l_l, c - d.s_u * d.l_u)
+            }
+            None => (0.0, 0.0),
+        };
         // The gradient: the cost's, and the barrier's terms.
         w.r_lin.copy_from_slice(&w.r_grad);
         w.q_lin.copy_from_slice(&w.q_grad);
-        for j in 0..n * NB {
-            let (k, b) = (j / NB, j % NB);
-            let bd = &w.bounds[j];
-            let (t_l, t_u) = target(j);
-            let (d_l, d_u) = (bd.l_l / bd.s_l, bd.l_u / bd.s_u);
-            let g = -t_l / bd.s_l + t_u / bd.s_u - bd.l_l + bd.l_u - d_l * bd.lb - d_u * bd.ub;
-            if b < NU {
-                w.r_lin[k][b] += g;
-            } else {
-                w.q_lin[k + 1][bounded[b - NU]] += g;
+        for (k, stage) in w.bounds.chunks_exact(NB).enumerate() {
+            let mut g = [0.0; NB];
+            for (b, (bound, g)) in stage.iter().zip(&mut g).enumerate() {
+                let (t_l, t_u) = target(k * NB + b);
+                let (lb, ub, bd) = (bound.lb, bound.ub, &bound.at);
+                let (d_l, d_u) = (bd.l_l / bd.s_l, bd.l_u / bd.s_u);
+                *g = -t_l / bd.s_l + t_u / bd.s_u - bd.l_l + bd.l_u - d_l * lb - d_u * ub;
             }
+            for i in 0..NU {
+                w.r_lin[k][i] += g[i];
+            }
+            w.q_lin[k + 1][bounded[0]] += g[NU];
+            w.q_lin[k + 1][bounded[1]] += g[NU + 1];
         }
         // The backward pass of the vectors.
         let mut pv = w.q_lin[n];
@@ -347,27 +359,28 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             out.du[k] -= w.du[k];
             out.dx[k + 1] -= w.dx[k + 1];
         }
-        for j in 0..n * NB {
-            let (k, b) = (j / NB, j % NB);
-            let bd = &w.bounds[j];
-            let (t_l, t_u) = target(j);
-            let z = value(&w.du, &w.dx, bounded, k, b);
-            let dz = value(&out.du, &out.dx, bounded, k, b);
-            let ds_l = dz + (z - bd.s_l - bd.lb);
-            let ds_u = -dz + (bd.ub - z - bd.s_u);
-            out.s_l[j] = ds_l;
-            out.s_u[j] = ds_u;
-            out.l_l[j] = (t_l - bd.s_l * bd.l_l - bd.l_l * ds_l) / bd.s_l;
-            out.l_u[j] = (t_u - bd.s_u * bd.l_u - bd.l_u * ds_u) / bd.s_u;
+        let stages = w.bounds.chunks_exact(NB).zip(out.slacks.chunks_exact_mut(NB));
+        for (k, (stage, steps)) in stages.enumerate() {
+            let z = values(&w.du, &w.dx, bounded, k);
+            let dz = values(&out.du, &out.dx, bounded, k);
+            for (b, (bound, step)) in stage.iter().zip(steps).enumerate() {
+                let (t_l, t_u) = target(k * NB + b);
+                let bd = &bound.at;
+                let ds_l = dz[b] + (z[b] - bd.s_l - bound.lb);
+                let ds_u = -dz[b] + (bound.ub - z[b] - bd.s_u);
+                *step = Slacks {
+                    s_l: ds_l,
+                    s_u: ds_u,
+                    l_l: (t_l - bd.s_l * bd.l_l - bd.l_l * ds_l) / bd.s_l,
+                    l_u: (t_u - bd.s_u * bd.l_u - bd.l_u * ds_u) / bd.s_u,
+                };
+            }
         }
-        let finite = out.du.iter().flat_map(|v| v.iter());
+        let finite = out.du.iter().flat_map(|v| v.iter().copied());
         let finite = finite
-            .chain(out.dx.iter().flat_map(|v| v.iter()))
-            .chain(&out.s_l)
-            .chain(&out.s_u)
-            .chain(&out.l_l)
-            .chain(&out.l_u)
-            .all(|v| v.is_finite());
+            .chain(out.dx.iter().flat_map(|v| v.iter().copied()))
+            .chain(out.slacks.iter().flat_map(|d| [d.s_l, d.s_u, d.l_l, d.l_u]))
+            .all(f64::is_finite);
         finite.then_some(())
     }
 }
@@ -376,13 +389,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
 /// multiplier positive.
 fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f64) -> f64 {
     let mut alpha = 1.0f64;
-    for (j, b) in bounds.iter().enumerate() {
-        for (v, dv) in [
-            (b.s_l, d.s_l[j]),
-            (b.s_u, d.s_u[j]),
-            (b.l_l, d.l_l[j]),
-            (b.l_u, d.l_u[j]),
-        ] {
+    for (b, d) in bounds.iter().zip(&d.slacks) {
+        let b = &b.at;
+        for (v, dv) in [(b.s_l, d.s_l), (b.s_u, d.s_u), (b.l_l, d.l_l), (b.l_u, d.l_u)] {
             if dv < 0.0 {
                 alpha = alpha.min(-fraction * v / dv);
             }
