@@ -359,7 +359,10 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             out.du[k] -= w.du[k];
             out.dx[k + 1] -= w.dx[k + 1];
         }
-        let stages = w.bounds.chunks_exact(NB).zip(out.slacks.chunks_exact_mut(NB));
+        let stages = w
+            .bounds
+            .chunks_exact(NB)
+            .zip(out.slacks.chunks_exact_mut(NB));
         for (k, (stage, steps)) in stages.enumerate() {
             let z = values(&w.du, &w.dx, bounded, k);
             let dz = values(&out.du, &out.dx, bounded, k);
@@ -391,7 +394,12 @@ fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f
     let mut alpha = 1.0f64;
     for (b, d) in bounds.iter().zip(&d.slacks) {
         let b = &b.at;
-        for (v, dv) in [(b.s_l, d.s_l), (b.s_u, d.s_u), (b.l_l, d.l_l), (b.l_u, d.l_u)] {
+        for (v, dv) in [
+            (b.s_l, d.s_l),
+            (b.s_u, d.s_u),
+            (b.l_l, d.l_l),
+            (b.l_u, d.l_u),
+        ] {
             if dv < 0.0 {
                 alpha = alpha.min(-fraction * v / dv);
             }
