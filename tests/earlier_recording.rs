@@ -15,11 +15,11 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-#[path = "../examples/tank/agent.rs"]
-mod agent;
+#[path = "common/tank_run.rs"]
+mod tank_run;
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use embodied::record::record::{FRAMES_ENCODING, WIRE_ENCODING};
@@ -27,13 +27,7 @@ use embodied::record::{McapRecorder, RecordOptions, mcap};
 use embodied::replay::{Difference, Recording, ReplayOptions, Replayed, replay_file};
 use embodied::*;
 
-fn tmp(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
-}
-
-fn system() -> System {
-    agent::build(agent::default_mission(), 0.2, 7).unwrap().0
-}
+use tank_run::{subsystems, system, tmp};
 
 /// 20 s of the tank example, recorded today.
 fn record(path: &Path) {
@@ -116,16 +110,6 @@ fn to_earlier(from: &Path, to: &Path, change: Option<(&str, u64)>) -> (usize, us
     }
     w.finish().unwrap();
     (values, frames)
-}
-
-fn subsystems() -> Vec<String> {
-    system()
-        .info()
-        .nodes
-        .iter()
-        .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
-        .map(|n| n.name.clone())
-        .collect()
 }
 
 #[test]

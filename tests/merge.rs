@@ -12,8 +12,8 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-#[path = "../examples/tank/agent.rs"]
-mod agent;
+#[path = "common/tank_run.rs"]
+mod tank_run;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -24,13 +24,7 @@ use embodied::replay::{ReplayOptions, Replayed, replay_file};
 use embodied::trace::{ActionEvent, ErasedPayload, ReadEvent, TransferEvent, TransitionEvent};
 use embodied::*;
 
-fn tmp(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
-}
-
-fn system() -> System {
-    agent::build(agent::default_mission(), 0.2, 7).unwrap().0
-}
+use tank_run::{subsystems, system, tmp};
 
 /// Each event to the recorder of the process that runs the node it is about.
 struct Split {
@@ -172,14 +166,9 @@ fn the_processes_recordings_merge_into_one_that_replays_as_the_whole_run() {
     assert_eq!(m.metadata["process/station"]["name"], "station");
     assert_eq!(m.metadata["process/operator"]["name"], "operator");
     // Every subsystem replays equivalent from the merged file.
-    let info = system().info().clone();
-    for n in info
-        .nodes
-        .iter()
-        .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
-    {
-        let r = replay_file(&merged, system(), &n.name, ReplayOptions::default()).unwrap();
-        assert!(matches!(r, Replayed::Equivalent { .. }), "{}: {r}", n.name);
+    for node in subsystems() {
+        let r = replay_file(&merged, system(), &node, ReplayOptions::default()).unwrap();
+        assert!(matches!(r, Replayed::Equivalent { .. }), "{node}: {r}");
     }
 
     // Another system's file is refused, naming it; so is a missing file.
