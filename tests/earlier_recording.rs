@@ -149,8 +149,9 @@ fn a_changed_value_in_the_earlier_encoding_is_the_first_divergence() {
     let (today, earlier) = (tmp("today_changed.mcap"), tmp("earlier_changed.mcap"));
     record(&today);
     // The 50th value of each link of an `f64` (levels, flows, duties) that a
-    // subsystem sends, changed in turn: the sender's replay diverges exactly there (it sends
-    // another value than the file says), and no replay diverges before.
+    // subsystem sends, changed in turn: the sender's replay diverges exactly
+    // there (it sends another value than the file says), and no replay
+    // diverges before.
     let r = Recording::open(&today).unwrap();
     let links: Vec<String> = r
         .channels
