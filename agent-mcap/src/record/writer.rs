@@ -464,11 +464,10 @@ impl Output {
         if l.pending.is_empty() {
             return Ok(());
         }
-        let pending = std::mem::take(&mut l.pending);
+        let mut pending = std::mem::take(&mut l.pending);
         let (channel, sequence, time) = (l.raw, l.raw_messages, l.pending_since);
         l.raw_messages = l.raw_messages.wrapping_add(1);
         let written = self.write(channel, sequence, time, &pending);
-        let mut pending = pending;
         pending.clear();
         self.links[k].pending = pending;
         written
