@@ -26,48 +26,15 @@
 //! Medians over batches of 20 000 instants (40 000 actions); the last line reads
 //! `action_ns=<..> fsm_step_ns=<..> allocs_per_cycle=<..>` (hand-written).
 
-use std::alloc::{GlobalAlloc, Layout, System as SystemAlloc};
 use std::hint::black_box;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use embodied::*;
 use serde::{Deserialize, Serialize};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: every method forwards to the system allocator with the caller's arguments
-// unchanged; counting has no effect on the memory handed out.
-#[expect(
-    unsafe_code,
-    reason = "a global allocator is an unsafe trait; this one only counts"
-)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Relaxed);
-        // SAFETY: same contract as our caller's.
-        unsafe { SystemAlloc.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Relaxed);
-        // SAFETY: same contract as our caller's.
-        unsafe { SystemAlloc.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Relaxed);
-        // SAFETY: same contract as our caller's.
-        unsafe { SystemAlloc.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as our caller's.
-        unsafe { SystemAlloc.dealloc(ptr, layout) }
-    }
-}
-
+/// Counts every thread's allocations ([`allocations::total`]).
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: allocations::CountingAllocator = allocations::CountingAllocator;
 
 // ---------------------------------------------------------------------------
 // Two subsystems with three buffers each way.
@@ -431,13 +398,13 @@ impl ActionBench {
     }
 
     fn batch(&mut self) -> Result<(), ExecError> {
-        let before = ALLOCATIONS.load(Relaxed);
+        let before = allocations::total();
         let start = Instant::now();
         for _ in 0..BATCH {
             self.exec.step()?;
         }
         let elapsed = start.elapsed();
-        self.allocations += ALLOCATIONS.load(Relaxed) - before;
+        self.allocations += allocations::total() - before;
         self.cycles += BATCH;
         self.action_ns
             .push(elapsed.as_nanos() as f64 / (ACTIONS_PER_CYCLE * BATCH) as f64);

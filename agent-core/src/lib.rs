@@ -22,6 +22,7 @@
 //! [`SystemBuilder`] and [`Executor`]. The `testing` feature adds
 //! [`testing`]: termination properties checked with proptest.
 
+pub mod allocations;
 pub mod behaviour;
 pub mod buffer;
 pub mod describe;

@@ -12,63 +12,16 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::alloc::{GlobalAlloc, Layout, System as SystemAlloc};
-use std::cell::Cell;
 use std::sync::Mutex;
 use std::time::Duration;
 
+use agent_core::allocations::{CountingAllocator, count};
 use agent_core::*;
 use agent_mcap::record::{McapRecorder, RecordOptions};
 use serde::{Deserialize, Serialize};
 
-thread_local! {
-    /// Whether this thread's allocations are counted, and how many so far.
-    static WATCHED: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-fn count() {
-    // `try_with`: a thread being torn down has no locals left; not counted.
-    let _ = WATCHED.try_with(|w| {
-        if w.get() {
-            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        }
-    });
-}
-
-// SAFETY: every method forwards to the system allocator with the caller's
-// arguments; counting touches only `const`-initialised thread locals, which
-// never allocate.
-#[allow(
-    unsafe_code,
-    reason = "a global allocator is an unsafe trait; this one only counts"
-)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: the caller's contract, passed on.
-        unsafe { SystemAlloc.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: the caller's contract, passed on.
-        unsafe { SystemAlloc.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: the caller's contract, passed on.
-        unsafe { SystemAlloc.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: the caller's contract, passed on.
-        unsafe { SystemAlloc.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// One test at a time: the other's threads would take the CPU the writer
 /// thread (in the background, `SCHED_IDLE`) needs to keep up.
@@ -76,11 +29,7 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 /// Allocations on this thread while `f` runs.
 fn allocations<T>(f: impl FnOnce() -> T) -> (u64, T) {
-    COUNT.with(|c| c.set(0));
-    WATCHED.with(|w| w.set(true));
-    let out = f();
-    WATCHED.with(|w| w.set(false));
-    (COUNT.with(Cell::get), out)
+    count(f).expect("the counting allocator is installed above")
 }
 
 /// A `Copy` payload: what a controller sends at 1 kHz.
