@@ -138,3 +138,39 @@ fn with_the_constant_velocity_prior_a_forward_drive_is_recovered() {
         assert!(StereoOdometry::new(c.calibration(), settings).is_err());
     }
 }
+
+#[test]
+fn with_the_outlier_filter_a_forward_drive_is_recovered_from_fewer_matches() {
+    // libviso2's Delaunay filter drops matches whose neighbours move otherwise
+    // (in a room: at the edges of obstacles and walls); the motion stays.
+    let c = camera();
+    let renderer = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
+    let (w, h) = (c.width as usize, c.height as usize);
+    let run = |outlier_filter: bool| {
+        let settings = VoSettings {
+            outlier_filter,
+            ..VoSettings::default()
+        };
+        let mut vo = StereoOdometry::new(c.calibration(), settings).unwrap();
+        let mut matches = 0;
+        for k in 0..3 {
+            let k = f64::from(k);
+            let (mut l, mut r) = (Vec::new(), Vec::new());
+            renderer.render_pair([0.1 * k, 0.3, 0.2 + 1f64.to_radians() * k], &mut l, &mut r);
+            let Some(m) = vo.process(&l, &r, w, h).unwrap() else {
+                continue;
+            };
+            assert!((m.tr[2][3] + 0.1).abs() < 0.01, "pair {k}: {m:?}");
+            let yaw = m.tr[0][2].atan2(m.tr[0][0]);
+            assert!((yaw.abs() - 1f64.to_radians()).abs() < 0.002, "yaw {yaw}");
+            matches += m.matches;
+        }
+        assert_eq!(vo.stats().motions, 2);
+        matches
+    };
+    let (without, with) = (run(false), run(true));
+    assert!(
+        with < without,
+        "{with} matches with the filter, {without} without"
+    );
+}

@@ -25,6 +25,7 @@ pub mod egomotion;
 pub mod features;
 pub mod matching;
 pub mod metric;
+pub mod outliers;
 pub mod refine;
 
 use serde::{Deserialize, Serialize};
@@ -91,6 +92,14 @@ pub struct VoSettings {
     /// Off by default: on the tuning sequences it helped some and hurt others
     /// (README, visual odometry), where no pair fails to match without it.
     pub motion_prior_weight: f32,
+    /// libviso2's outlier pre-filter ([`outliers`]): a circular match whose
+    /// neighbours (Delaunay) disagree with its disparity or flow by 5 px or more
+    /// is dropped, in the sparse pass before it sets the search ranges and in the
+    /// dense pass before refinement. Off by default: on the five tuning
+    /// sequences it dropped correct matches at the room's depth edges and drifted
+    /// more on four of them (README, visual odometry). On, a pair allocates its
+    /// triangulation.
+    pub outlier_filter: bool,
     /// Fewest inliers of an estimate.
     pub min_inliers: usize,
     /// Fewest features per image for a pair to be usable.
@@ -123,6 +132,7 @@ impl Default for VoSettings {
             inlier_threshold: 2.0,
             reweighting: false,
             motion_prior_weight: 0.0,
+            outlier_filter: false,
             min_inliers: 6,
             min_features: 30,
             seed: 0,
@@ -231,6 +241,7 @@ struct Scratch {
     /// The sparse circles' positions.
     positions: Vec<[(i32, i32); 4]>,
     ranges: Ranges,
+    outliers: outliers::Scratch,
     candidates: Vec<[(f64, f64); 4]>,
     buckets: matching::BucketScratch,
     /// The matches kept, refined.
@@ -500,6 +511,18 @@ impl StereoOdometry {
             sc.positions.clear();
             sc.positions
                 .extend(sc.quads.iter().map(|k| sparse.positions(k)));
+            if s.outlier_filter {
+                let full = |q: &[(i32, i32); 4], m: usize| {
+                    let k = scale as f64;
+                    (f64::from(q[m].0) * k, f64::from(q[m].1) * k)
+                };
+                outliers::filter(
+                    &mut sc.positions,
+                    full,
+                    OUTLIER_TOLERANCES,
+                    &mut sc.outliers,
+                );
+            }
             sc.ranges.rebuild(
                 &sc.positions,
                 w / scale,
@@ -521,6 +544,10 @@ impl StereoOdometry {
         sc.candidates.clear();
         sc.candidates
             .extend(sc.quads.iter().map(|k| dense.full_positions(k, scale)));
+        if s.outlier_filter {
+            let at = |q: &[(f64, f64); 4], m: usize| q[m];
+            outliers::filter(&mut sc.candidates, at, OUTLIER_TOLERANCES, &mut sc.outliers);
+        }
         matching::bucket_refined(
             &mut sc.candidates,
             s.bucket_size,
@@ -536,6 +563,12 @@ impl StereoOdometry {
         )
     }
 }
+
+/// libviso2's tolerances of the outlier filter, at full resolution.
+const OUTLIER_TOLERANCES: outliers::Tolerances = outliers::Tolerances {
+    disparity: 5.0,
+    flow: 5.0,
+};
 
 /// Features of one image (both scales), its full-resolution gradients.
 fn features(
