@@ -32,7 +32,8 @@ pub struct Scratch {
 /// of `[prev_left, prev_right, curr_right, curr_left]`. Fewer than three
 /// matches, or all on one line, leave no triangle: nothing is supported and
 /// all are removed, as in libviso2 (the pair then has too few matches for a
-/// motion). A match with a position that is not finite is removed.
+/// motion). A match with a position that is not finite is removed, and so is
+/// one at the current-left position of another (the triangulation skips it).
 pub fn filter<T>(
     quads: &mut Vec<T>,
     position: impl Fn(&T, usize) -> (f64, f64),
@@ -141,6 +142,11 @@ mod tests {
             .collect();
         filter(&mut line, at, TOL, &mut scratch);
         assert!(line.is_empty());
+        // Two matches at one current-left position: one is not triangulated.
+        let mut twins = grid((1.0, 1.0));
+        twins.push(twins[44]);
+        filter(&mut twins, at, TOL, &mut scratch);
+        assert_eq!(twins.len(), 100);
         // NaN positions neither panic nor survive.
         let mut bad = grid((1.0, 1.0));
         bad[0] = [(f64::NAN, 0.0); 4];
