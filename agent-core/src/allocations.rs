@@ -20,6 +20,15 @@
 //!     assert_eq!(n, 0, "within capacity");
 //!     let (n, ()) = count(|| buffer.extend([0u8; 64])).unwrap();
 //!     assert_eq!(n, 1, "one reallocation");
+//!     // Nested: the outer count includes the inner one's.
+//!     let (outer, inner) = count(|| {
+//!         let v = vec![0u8; 16];
+//!         let (inner, ()) = count(|| drop(vec![1u8; 16])).unwrap();
+//!         drop(v);
+//!         inner
+//!     })
+//!     .unwrap();
+//!     assert_eq!((outer, inner), (2, 1));
 //! }
 //! ```
 //!
@@ -113,11 +122,27 @@ pub fn count<T>(f: impl FnOnce() -> T) -> Result<(u64, T), NotInstalled> {
         return Err(NotInstalled);
     }
     COUNT.with(|c| c.set(0));
+    // Restores the outer state even if `f` unwinds.
+    let restore = Restore { outer, before };
     let out = f();
-    WATCHED.with(|w| w.set(outer));
     let n = COUNT.with(Cell::get);
-    COUNT.with(|c| c.set(before + n));
+    drop(restore);
     Ok((n, out))
+}
+
+/// The watching state of an enclosing [`count`] (or none), restored on drop,
+/// with what the inner one counted added to it.
+struct Restore {
+    outer: bool,
+    before: u64,
+}
+
+impl Drop for Restore {
+    fn drop(&mut self) {
+        let n = COUNT.with(Cell::get);
+        WATCHED.with(|w| w.set(self.outer));
+        COUNT.with(|c| c.set(self.before + n));
+    }
 }
 
 /// The allocations of the whole process so far (every thread), when

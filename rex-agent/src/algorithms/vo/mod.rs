@@ -95,10 +95,9 @@ pub struct VoSettings {
     /// libviso2's outlier pre-filter ([`outliers`]): a circular match whose
     /// neighbours (Delaunay) disagree with its disparity or flow by 5 px or more
     /// is dropped, in the sparse pass before it sets the search ranges and in the
-    /// dense pass before refinement. Off by default: on the five tuning
-    /// sequences it dropped correct matches at the room's depth edges and drifted
-    /// more on four of them (README, visual odometry). On, a pair allocates its
-    /// triangulation.
+    /// dense pass before refinement. Off by default: on four of the five tuning
+    /// sequences the odometry drifted more with it, and it costs time (README,
+    /// visual odometry). On, a pair allocates its triangulation.
     pub outlier_filter: bool,
     /// Fewest inliers of an estimate.
     pub min_inliers: usize,
