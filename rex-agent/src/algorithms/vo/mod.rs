@@ -511,10 +511,9 @@ impl StereoOdometry {
             sc.positions
                 .extend(sc.quads.iter().map(|k| sparse.positions(k)));
             if s.outlier_filter {
-                let full = |q: &[(i32, i32); 4], m: usize| {
-                    let k = scale as f64;
-                    (f64::from(q[m].0) * k, f64::from(q[m].1) * k)
-                };
+                let k = scale as f64;
+                let full =
+                    |q: &[(i32, i32); 4], m: usize| (f64::from(q[m].0) * k, f64::from(q[m].1) * k);
                 outliers::filter(
                     &mut sc.positions,
                     full,

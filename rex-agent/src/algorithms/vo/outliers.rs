@@ -24,6 +24,8 @@ pub struct Tolerances {
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     points: Vec<Point>,
+    /// Each match's disparity in the previous pair and flow `(u, v)`.
+    motions: Vec<(f64, f64, f64)>,
     votes: Vec<u32>,
 }
 
@@ -51,18 +53,18 @@ pub fn filter<T>(
         let (x, y) = position(q, 3);
         Point { x, y }
     }));
+    scratch.motions.clear();
+    scratch.motions.extend(quads.iter().map(|q| {
+        let (pl, pr, cl) = (position(q, 0), position(q, 1), position(q, 3));
+        (pl.0 - pr.0, cl.0 - pl.0, cl.1 - pl.1)
+    }));
     let triangulation = delaunator::triangulate(&scratch.points);
     scratch.votes.clear();
     scratch.votes.resize(quads.len(), 0);
-    // The disparity in the previous pair and the flow of each match.
-    let motion = |q: &T| {
-        let (pl, pr, cl) = (position(q, 0), position(q, 1), position(q, 3));
-        (pl.0 - pr.0, cl.0 - pl.0, cl.1 - pl.1)
-    };
     for t in triangulation.triangles.chunks_exact(3) {
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            let (da, ua, va) = motion(&quads[a]);
-            let (db, ub, vb) = motion(&quads[b]);
+            let (da, ua, va) = scratch.motions[a];
+            let (db, ub, vb) = scratch.motions[b];
             if (da - db).abs() < tol.disparity && (ua - ub).abs() + (va - vb).abs() < tol.flow {
                 scratch.votes[a] += 1;
                 scratch.votes[b] += 1;
