@@ -608,6 +608,8 @@ impl RealTime {
         }
         let memory_locked = config.lock_memory.then(clock::lock_memory);
         let stop = Arc::new(AtomicBool::new(false));
+        // Whether this process joins a deployment whose instant zero is past.
+        let mut joining = false;
         let clock = match sync.and_then(|f| f()) {
             Some(Ok(at)) => {
                 // Instant zero in the past: this process joins a running
@@ -615,6 +617,7 @@ impl RealTime {
                 // another host's clock: they must agree well within the lead
                 // the first process gives the others (a second in Rex).
                 let late = at <= SystemTime::now();
+                joining = late;
                 for inbox in &inboxes {
                     inbox.start(late);
                 }
@@ -634,10 +637,14 @@ impl RealTime {
             }
         };
         let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
+        // Decided once for every thread: a thread spawned late on a loaded
+        // machine still runs from instant zero (its deadlines catch up).
+        let first = if joining { clock.now() } else { 0 };
         let shared = Arc::new(worker::Shared {
             info: info.clone(),
             clock,
             stop: stop.clone(),
+            first,
             end,
             config: config.exec,
             errors: AtomicU64::new(0),

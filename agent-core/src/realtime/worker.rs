@@ -53,6 +53,9 @@ pub(crate) struct Shared {
     pub(crate) info: SystemInfo,
     pub(crate) clock: Clock,
     pub(crate) stop: Arc<AtomicBool>,
+    /// The first instant the threads run (ns since the clock's origin): zero,
+    /// or for a process joining a running deployment the time it joined.
+    pub(crate) first: u64,
     /// Instants at or after this end the run (ns since the clock's origin).
     pub(crate) end: u64,
     pub(crate) config: ExecConfig,
@@ -118,12 +121,12 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         .iter()
         .map(|&g| info.nodes[g].period.as_nanos())
         .collect();
-    // A thread that starts after instant zero (a process joining a running
-    // deployment) begins at each node's next instant.
-    let joined = shared.clock.now();
+    // A process joining a running deployment begins at each node's next
+    // instant; otherwise every node begins at instant zero, however late this
+    // thread was spawned.
     let mut next: Vec<u64> = periods
         .iter()
-        .map(|&p| joined.div_ceil(p.max(1)).saturating_mul(p))
+        .map(|&p| shared.first.div_ceil(p.max(1)).saturating_mul(p))
         .collect();
     let mut recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
     let mut errors = Vec::new();
