@@ -91,7 +91,9 @@ pub struct RtConfig {
     pub priority: Option<u8>,
     /// Lock the process's memory (`mlockall`) for the run.
     pub lock_memory: bool,
-    /// Time given to the threads to start before instant zero.
+    /// Time given to the threads to start before instant zero. A thread that
+    /// starts later still runs every instant from zero (catching up), so the
+    /// lead bounds the first instants' lateness, not what runs.
     pub lead: Duration,
     /// Capacity of each probe's channel.
     pub probe_capacity: usize,
