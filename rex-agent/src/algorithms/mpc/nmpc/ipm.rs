@@ -46,6 +46,10 @@ struct Bound {
     lb: f64,
     ub: f64,
     at: Slacks,
+    /// `1 / s_l`, `1 / s_u` of the iteration: each iteration's factorisation
+    /// and its two directions divide by the slacks a dozen times a bound.
+    inv_l: f64,
+    inv_u: f64,
 }
 
 /// A direction: the trajectory and the slacks' and multipliers' steps.
@@ -174,6 +178,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                         l_l: START_MULTIPLIER,
                         l_u: START_MULTIPLIER,
                     },
+                    inv_l: 0.0,
+                    inv_u: 0.0,
                 };
             }
         }
@@ -205,6 +211,10 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 self.du.copy_from_slice(&w.du);
                 self.dx.copy_from_slice(&w.dx);
                 return Some(iteration);
+            }
+            for b in &mut w.bounds {
+                b.inv_l = 1.0 / b.at.s_l;
+                b.inv_u = 1.0 / b.at.s_u;
             }
             self.factor(w)?;
             // Predictor: the affine direction (complementarity target 0).
@@ -256,8 +266,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         let n = self.s.horizon;
         let bounded = Self::BOUNDED;
         let barrier = |k: usize, b: usize| {
-            let bd = &w.bounds[k * NB + b].at;
-            bd.l_l / bd.s_l + bd.l_u / bd.s_u
+            let bound = &w.bounds[k * NB + b];
+            bound.at.l_l * bound.inv_l + bound.at.l_u * bound.inv_u
         };
         let (q, q_terminal) = (&self.s.q, &self.s.q_terminal);
         let q_diag = |k: usize| {
@@ -325,8 +335,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             for (b, (bound, g)) in stage.iter().zip(&mut g).enumerate() {
                 let (t_l, t_u) = target(k * NB + b);
                 let (lb, ub, bd) = (bound.lb, bound.ub, &bound.at);
-                let (d_l, d_u) = (bd.l_l / bd.s_l, bd.l_u / bd.s_u);
-                *g = -t_l / bd.s_l + t_u / bd.s_u - bd.l_l + bd.l_u - d_l * lb - d_u * ub;
+                let (i_l, i_u) = (bound.inv_l, bound.inv_u);
+                let (d_l, d_u) = (bd.l_l * i_l, bd.l_u * i_u);
+                *g = -t_l * i_l + t_u * i_u - bd.l_l + bd.l_u - d_l * lb - d_u * ub;
             }
             for i in 0..NU {
                 w.r_lin[k][i] += g[i];
@@ -374,8 +385,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 *step = Slacks {
                     s_l: ds_l,
                     s_u: ds_u,
-                    l_l: (t_l - bd.s_l * bd.l_l - bd.l_l * ds_l) / bd.s_l,
-                    l_u: (t_u - bd.s_u * bd.l_u - bd.l_u * ds_u) / bd.s_u,
+                    l_l: (t_l - bd.s_l * bd.l_l - bd.l_l * ds_l) * bound.inv_l,
+                    l_u: (t_u - bd.s_u * bd.l_u - bd.l_u * ds_u) * bound.inv_u,
                 };
             }
         }
