@@ -400,9 +400,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
 }
 
 /// The longest step `≤ 1`, times `fraction`, that keeps every slack and
-/// multiplier positive.
+/// multiplier positive. The least ratio `v / −dv` over the decreasing ones is
+/// tracked as a fraction (compared by cross-multiplying: both denominators are
+/// positive) and divided once, where a division per value was the dearest part
+/// of the search.
 fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f64) -> f64 {
-    let mut alpha = 1.0f64;
+    // The least ratio `num / den`, starting at `1 / fraction` (the step 1).
+    let (mut num, mut den) = (1.0f64, fraction);
     for (b, d) in bounds.iter().zip(&d.slacks) {
         let b = &b.at;
         for (v, dv) in [
@@ -411,10 +415,10 @@ fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f
             (b.l_l, d.l_l),
             (b.l_u, d.l_u),
         ] {
-            if dv < 0.0 {
-                alpha = alpha.min(-fraction * v / dv);
+            if dv < 0.0 && v * den < num * -dv {
+                (num, den) = (v, -dv);
             }
         }
     }
-    alpha.min(1.0)
+    (fraction * num / den).min(1.0)
 }
