@@ -73,8 +73,9 @@ fn a_sample_link_between_threads_delivers_the_latest_value() {
     assert!(s.overwritten > 0, "e reads every third value: {s:?}");
 }
 
-#[test]
-fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
+/// An idle subsystem `c` (every 5 ms) beside a receptor `R` and an effector `E`
+/// (every 10 ms) sharing a rail: the system, `c` and `R`.
+fn rail_system() -> (System, SubsystemHandle<Counter>, DriverHandle<Encoder>) {
     let mut b = SystemBuilder::new();
     let a = b.agent("a");
     let idle = Fsm::single(Behaviour::while_loop(
@@ -83,11 +84,17 @@ fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
         "false",
     ))
     .unwrap();
-    b.subsystem(a, "c", ms(5), CounterMemory { n: 0, every: 1 }, idle);
+    let c = b.subsystem(a, "c", ms(5), CounterMemory { n: 0, every: 1 }, idle);
     let encoder = b.driver(a, "R", ms(10), Encoder::default());
     b.driver(a, "E", ms(10), Motor);
     b.environment(Rail::default());
-    let f = run(b.build().unwrap(), 100);
+    (b.build().unwrap(), c, encoder)
+}
+
+#[test]
+fn the_drivers_of_an_environment_share_one_thread_and_keep_their_order() {
+    let (system, _, encoder) = rail_system();
+    let f = run(system, 100);
     assert_eq!(f.environment::<Rail>().map(|r| r.position), Some(10.0));
     // As in the deterministic executor: the receptor senses the motor's step of
     // the same instant, although it was declared first.
@@ -165,23 +172,12 @@ fn threads_started_after_instant_zero_still_run_it() {
     // With no lead, every thread is spawned after the clock's instant zero (as
     // on a loaded machine with the default lead): each still runs every instant
     // from zero, catching up, and the drivers' rail moves once per instant.
-    let mut b = SystemBuilder::new();
-    let a = b.agent("a");
-    let idle = Fsm::single(Behaviour::while_loop(
-        "idle",
-        Action::<Counter>::new(),
-        "false",
-    ))
-    .unwrap();
-    let c = b.subsystem(a, "c", ms(5), CounterMemory { n: 0, every: 1 }, idle);
-    b.driver(a, "R", ms(10), Encoder::default());
-    b.driver(a, "E", ms(10), Motor);
-    b.environment(Rail::default());
+    let (system, c, _) = rail_system();
     let config = RtConfig {
         lead: Duration::ZERO,
         ..RtConfig::default()
     };
-    let f = RealTime::new(b.build().unwrap(), config)
+    let f = RealTime::new(system, config)
         .start(Duration::from_millis(50))
         .unwrap()
         .join()
