@@ -1,0 +1,87 @@
+//! What a real-time run is given ([`RtConfig`]) and why it may not start
+//! ([`RtError`]).
+
+use std::time::Duration;
+
+use crate::executor::ExecConfig;
+use crate::link::remote::TransportError;
+
+/// Settings of the real-time executor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RtConfig {
+    /// Error policy, audit, as for the deterministic executor.
+    pub exec: ExecConfig,
+    /// Ask for `SCHED_FIFO` priority: the highest, given to the nodes of the
+    /// shortest period; each longer period one lower (never below 1). `None`:
+    /// ordinary threads.
+    pub priority: Option<u8>,
+    /// Lock the process's memory (`mlockall`) for the run.
+    pub lock_memory: bool,
+    /// Time given to the threads to start before instant zero. A thread that
+    /// starts later still runs every instant from zero (catching up), so the
+    /// lead bounds the first instants' lateness, not what runs.
+    pub lead: Duration,
+    /// Capacity of each probe's channel.
+    pub probe_capacity: usize,
+}
+
+impl Default for RtConfig {
+    /// Ordinary threads on absolute deadlines, no memory locking.
+    fn default() -> Self {
+        RtConfig {
+            exec: ExecConfig::default(),
+            priority: None,
+            lock_memory: false,
+            lead: Duration::from_millis(20),
+            probe_capacity: 4096,
+        }
+    }
+}
+
+impl RtConfig {
+    /// As on a robot: `SCHED_FIFO` priorities from 80 down, memory locked.
+    pub fn realtime() -> Self {
+        RtConfig {
+            priority: Some(80),
+            lock_memory: true,
+            ..RtConfig::default()
+        }
+    }
+}
+
+/// Why a real-time run could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RtError {
+    /// The OS refused a thread.
+    #[error("cannot start thread `{thread}`: {source}")]
+    Spawn {
+        /// The thread's name.
+        thread: String,
+        /// The OS's reason.
+        source: std::io::Error,
+    },
+    /// A thread panicked (a bug in a node; its nodes are lost).
+    #[error("thread `{0}` panicked")]
+    Panicked(String),
+    /// A placement names a node the system does not have.
+    #[error("the placement runs `{name}`, which the system does not have (it has: {known})")]
+    UnknownNode {
+        /// The name.
+        name: String,
+        /// The system's nodes.
+        known: String,
+    },
+    /// The processes of a deployment could not agree on instant zero.
+    #[error("cannot start in step with the other processes: {0}")]
+    Sync(String),
+    /// The transport could not publish or subscribe a link's key.
+    #[error("link `{link}` over key `{key}`: {error}")]
+    Transport {
+        /// The link.
+        link: String,
+        /// Its key.
+        key: String,
+        /// The transport's error.
+        error: TransportError,
+    },
+}
