@@ -6,7 +6,8 @@
 //! where their projected bounding rectangle covers the pixel. Along a row the floor
 //! (or ceiling) is seen over one interval of columns, found once a row, where a
 //! pixel is a texture fetch at fixed-point coordinates stepped along the row;
-//! walls and obstacles are intersected elsewhere only. Textures are sampled
+//! walls and obstacles are intersected elsewhere only, the walls a block of
+//! columns at a time in code the compiler vectorises. Textures are sampled
 //! bilinearly.
 
 use super::scene::{SceneConfig, TEXEL_OFFSET, Texture, Textures};
@@ -469,12 +470,10 @@ impl Renderer {
                 if active.is_empty() {
                     // Walls, the plane inside the room, walls.
                     let (a, b) = (inside.start.clamp(u, run_end), inside.end.clamp(u, run_end));
-                    let wall_at = |k: usize| {
-                        let d = axpy(k as f32, r0, d0);
-                        self.shade_hit(c, d, self.wall(c, d, row_plane), floor, &row_floor, k)
-                    };
-                    for k in (u..a).chain(b..run_end) {
-                        row[k] = wall_at(k);
+                    let rays = Rays { c, d0, r0 };
+                    for span in [u..a, b..run_end] {
+                        let wall = &mut row[span.clone()];
+                        self.walls(&rays, row_plane, &row_floor, span.start, wall);
                     }
                     if plane == Surface::Floor {
                         for (px, k) in row[a..b].iter_mut().zip(a..b) {
@@ -499,6 +498,80 @@ impl Renderer {
         }
     }
 
+    /// The pixels `out` of a row from column `from` on, whose floor (or ceiling)
+    /// hit lies outside the room: each is what [`Self::wall`] and
+    /// [`Self::shade_hit`] give, bit for bit.
+    ///
+    /// In blocks of [`BLOCK`] columns, first every ray's wall and texel
+    /// coordinates (straight-line code the compiler vectorises: the wall a ray
+    /// meets is selected, not branched to), then the texture fetches. A ray that
+    /// meets no wall before the floor or the ceiling plane (only at the room's
+    /// edges, in rounding), or meets it beyond [`texel_fixed`]'s range, takes the
+    /// one-pixel path.
+    fn walls(
+        &self,
+        rays: &Rays,
+        (tz, plane): (f32, Surface),
+        row_floor: &RowFloor,
+        from: usize,
+        out: &mut [u8],
+    ) {
+        let Rays { c, d0, r0 } = *rays;
+        let [x0, y0, x1, y1, _] = self.room;
+        let texture = &self.textures.wall;
+        let scale = texture.texels_per_m * 256.0;
+        let fixed = |x: f32| texel_fixed(x * scale + TEXEL_OFFSET);
+        for (block, out) in out.chunks_mut(BLOCK).enumerate() {
+            let first = from + block * BLOCK;
+            let mut texel_u = [0u32; BLOCK];
+            let mut texel_v = [0u32; BLOCK];
+            let mut gain = [0u32; BLOCK];
+            let mut direct = [false; BLOCK];
+            let n = out.len();
+            for (j, (((tu, tv), gain), direct)) in texel_u[..n]
+                .iter_mut()
+                .zip(&mut texel_v[..n])
+                .zip(&mut gain[..n])
+                .zip(&mut direct[..n])
+                .enumerate()
+            {
+                let d = axpy((first + j) as f32, r0, d0);
+                // `Self::wall`'s arithmetic, selecting instead of branching.
+                let (ex, ax) = if d[0] >= 0.0 {
+                    (x1 - c[0], d[0])
+                } else {
+                    (c[0] - x0, -d[0])
+                };
+                let (ey, ay) = if d[1] >= 0.0 {
+                    (y1 - c[1], d[1])
+                } else {
+                    (c[1] - y0, -d[1])
+                };
+                let wall_x = ex * ay <= ey * ax;
+                let (e, a) = if wall_x { (ex, ax) } else { (ey, ay) };
+                let t = e / a;
+                let p = axpy(t, d, c);
+                // `Self::shade`'s coordinates and gains for the two walls.
+                let along = if wall_x { p[1] } else { p[0] + 7.3 };
+                let ((u, u_valid), (v, v_valid)) = (fixed(along), fixed(p[2]));
+                (*tu, *tv) = (u, v);
+                *direct = a > 1e-9 && t < tz && u_valid && v_valid;
+                *gain = if wall_x { 256 } else { 218 };
+            }
+            for (j, px) in out.iter_mut().enumerate() {
+                *px = if direct[j] {
+                    let (u, v) = (texel_u[j], texel_v[j]);
+                    ((u32::from(texture.sample_fixed(u, v)) * gain[j]) >> 8).min(255) as u8
+                } else {
+                    let k = first + j;
+                    let d = axpy(k as f32, r0, d0);
+                    let hit = self.wall(c, d, (tz, plane));
+                    self.shade_hit(c, d, hit, &self.textures.floor, row_floor, k)
+                };
+            }
+        }
+    }
+
     /// The grey level of the hit `(t, surface)` of ray `c + t d` through column `k`
     /// (the floor's from the row's fixed-point texel coordinates; a ray that hits
     /// nothing, `t` infinite, sees the ceiling's level).
@@ -518,6 +591,38 @@ impl Renderer {
             s => self.shade(axpy(t, d, c), s),
         }
     }
+}
+
+/// `x as u32` for `x` in `[2²², 2²⁴)`, and whether `x` is in that range (where
+/// [`TEXEL_OFFSET`] keeps the texel coordinates of any point within 160 m of the
+/// origin). From the bits: the integer part of such an `x` is its mantissa,
+/// shifted by one place below 2²³ (a half's precision there). Integer operations
+/// and comparisons, which the compiler vectorises where the saturating
+/// conversion stays scalar.
+#[inline(always)]
+fn texel_fixed(x: f32) -> (u32, bool) {
+    // The bits of 2²², 2²³ and 2²⁴ (a negative `x` or a NaN is out of range).
+    const TWO_22: u32 = 0x4a80_0000;
+    const TWO_23: u32 = 0x4b00_0000;
+    const TWO_24: u32 = 0x4b80_0000;
+    let (bits, mantissa) = (x.to_bits(), x.to_bits() & 0x007f_ffff);
+    let fixed = if bits >= TWO_23 {
+        0x0080_0000 + mantissa
+    } else {
+        0x0040_0000 + (mantissa >> 1)
+    };
+    (fixed, (TWO_22..TWO_24).contains(&bits))
+}
+
+/// Columns of a row whose walls [`Renderer::walls`] computes at once.
+const BLOCK: usize = 64;
+
+/// A row's rays: from the camera's centre `c`, through column `k` along `d0 + k r0`.
+#[derive(Clone, Copy)]
+struct Rays {
+    c: V3,
+    d0: V3,
+    r0: V3,
 }
 
 /// A row's floor texel coordinates at column `k`: `start + k · step` along u and

@@ -1,6 +1,7 @@
 //! Unit tests of the renderer: the pinhole round trip, culling obstacles to their
-//! screen rectangles, the row-stepped image against a ray cast per pixel, disparity,
-//! invalid cameras and scenes, texture everywhere.
+//! screen rectangles, the row-stepped image against a ray cast per pixel, the
+//! blocked walls against the one-pixel path, disparity, invalid cameras and scenes,
+//! texture everywhere.
 
 use super::*;
 use crate::world::camera::scene::Room;
@@ -112,6 +113,99 @@ fn the_row_stepped_image_is_a_ray_cast_at_every_pixel() {
             total - close
         );
     }
+}
+
+#[test]
+fn texel_fixed_is_the_saturating_conversion_over_its_range() {
+    // Every f32 of [2²², 2²⁴), and the values around that range.
+    for bits in 0x4a80_0000u32..0x4b80_0000 {
+        let x = f32::from_bits(bits);
+        assert_eq!(texel_fixed(x), (x as u32, true), "{x}");
+    }
+    for x in [
+        f32::from_bits(0x4a80_0000 - 1),
+        16_777_216.0,
+        3e9,
+        0.0,
+        -1.0,
+        -8_388_608.0,
+        f32::NAN,
+        f32::INFINITY,
+    ] {
+        assert!(!texel_fixed(x).1, "{x} is out of range");
+    }
+}
+
+#[test]
+fn the_blocked_walls_are_the_one_pixel_path_bit_for_bit() {
+    // The rows of random camera poses in the shipped room and in a room of 1 km
+    // (texel coordinates beyond `texel_fixed`'s range), with the row's floor or
+    // ceiling distance as rendered and random ones (walls behind the plane).
+    let mut rng = crate::algorithms::rng::Rng::new(17);
+    let big = SceneConfig {
+        room: Room {
+            x0: -500.0,
+            y0: -40.0,
+            x1: 500.0,
+            y1: 300.0,
+            height: 3.0,
+        },
+        obstacles: Vec::new(),
+        texture_seed: 3,
+    };
+    let (mut direct, mut fallback) = (0usize, 0usize);
+    for r in [
+        renderer(),
+        Renderer::new(CameraConfig::default(), big).unwrap(),
+    ] {
+        let [x0, y0, x1, y1, _] = r.room;
+        let (w, h) = (r.camera.width as usize, r.camera.height as usize);
+        let (cu, cv) = r.camera.principal_point();
+        let floor = &r.textures.floor;
+        for _ in 0..40 {
+            let mut at = |a: f32, b: f32| f64::from(a + (b - a) * rng.uniform() as f32);
+            let body = [at(x0, x1), at(y0, y1), at(-3.2, 3.2)];
+            let pose = r.camera.left_pose(body);
+            let c = pose.center.map(|x| x as f32);
+            let r0 = pose.to_world_dir([1.0, 0.0, 0.0]).map(|x| x as f32);
+            for v in (0..h).step_by(7) {
+                let d0 = pose
+                    .to_world_dir([-cu, v as f64 - cv, r.camera.focal])
+                    .map(|x| x as f32);
+                let plane = if d0[2] < 0.0 {
+                    (-c[2] / d0[2], Surface::Floor)
+                } else {
+                    ((r.room[4] - c[2]) / d0[2], Surface::Ceiling)
+                };
+                let row_floor = RowFloor {
+                    u: (rng.uniform().to_bits() as i64, 1 << 20),
+                    v: (rng.uniform().to_bits() as i64, -3 << 18),
+                };
+                let random = (20.0 * rng.uniform() as f32, plane.1);
+                for row_plane in [plane, random, (f32::INFINITY, Surface::Floor)] {
+                    let mut out = vec![0u8; w];
+                    let from = (rng.uniform() * 100.0) as usize;
+                    let rays = Rays { c, d0, r0 };
+                    r.walls(&rays, row_plane, &row_floor, from, &mut out[from..]);
+                    for k in from..w {
+                        let d = axpy(k as f32, r0, d0);
+                        let hit = r.wall(c, d, row_plane);
+                        let expected = r.shade_hit(c, d, hit, floor, &row_floor, k);
+                        assert_eq!(out[k], expected, "{body:?}, row {v}, column {k}");
+                        if hit.1 == Surface::WallX || hit.1 == Surface::WallY {
+                            direct += 1;
+                        } else {
+                            fallback += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        direct > 100_000 && fallback > 100_000,
+        "{direct} / {fallback}"
+    );
 }
 
 #[test]
