@@ -474,7 +474,7 @@ mod tests {
     }
 
     #[test]
-    fn refining_on_two_threads_gives_the_same_motions() {
+    fn matching_and_refining_on_more_threads_gives_the_same_motions() {
         let c = CameraConfig::default();
         let r = Renderer::new(c.clone(), SceneConfig::default_room()).unwrap();
         let motions = |threads| {
@@ -498,6 +498,7 @@ mod tests {
                 .all(|m| matches!(m, Ok(Some(m)) if m.matches > 100))
         );
         assert_eq!(motions(2), one);
+        assert_eq!(motions(3), one);
     }
 
     #[test]

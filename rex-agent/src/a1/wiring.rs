@@ -523,8 +523,8 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     let map = world::add_map_agent(&mut rex, &config.world)?;
     let vision = if rex.runs("r11") {
         let camera_config = &config.world.camera;
-        // On workers, the matches are refined on every core (the same motions as
-        // on one: each match is refined alone).
+        // On workers, the circles are matched and the matches refined on every
+        // core (the same motions as on one: each is found and refined alone).
         let threads = match config.vision {
             OffloadMode::Worker => {
                 std::thread::available_parallelism().map_or(1, |n| n.get().min(4))

@@ -355,47 +355,61 @@ impl Circle<'_> {
     }
 
     /// Every closed circle: indices of the feature in each image; with a
-    /// constant-velocity `prior` on the temporal legs.
+    /// constant-velocity `prior` on the temporal legs. The start features are
+    /// split between up to `threads` threads (scoped); the circles are the same,
+    /// in the same order, for any number of threads, and on one thread nothing
+    /// is allocated once `out` has grown.
     pub fn matches(
         &self,
         s: &Search,
         ranges: Option<&Ranges>,
         prior: Option<&MotionPrior>,
+        threads: usize,
         out: &mut Vec<[usize; 4]>,
     ) {
         out.clear();
-        let start = &self.images[0].features;
-        'next: for i in 0..start.len() {
-            let class = start.class[i];
-            let mut k = [i, 0, 0, 0];
-            let mut at = i;
-            for leg in 0..LEGS {
-                let from = &self.images[leg].features;
-                let to = self.images[(leg + 1) % LEGS];
-                let window = self.window(leg, from.u[at], from.v[at], s, ranges);
-                let near = prior.and_then(|p| match leg {
-                    1 => p
-                        .predict_right((start.u[i], start.v[i]), from.u[at])
-                        .map(|x| (x, p.weight)),
-                    3 => Some(((start.u[i] as f32, start.v[i] as f32), p.weight)),
-                    _ => None,
-                });
-                let next = match near {
-                    Some(near) => to.bins.best_near(class, &from.desc[at], window, near),
-                    None => to.bins.best(class, &from.desc[at], window),
-                };
-                let Some(next) = next else {
-                    continue 'next;
-                };
-                if leg < 3 {
-                    k[leg + 1] = next;
-                }
-                at = next;
-            }
-            if at == i {
-                out.push(k);
-            }
+        let n = self.images[0].features.len();
+        let circle = |i: usize| self.circle(i, s, ranges, prior);
+        if threads > 1 {
+            out.extend(super::filter_map_range_parallel(n, threads, circle));
+        } else {
+            out.extend((0..n).filter_map(circle));
         }
+    }
+
+    /// The circle from start feature `i`, if it closes (see [`Self::matches`]).
+    fn circle(
+        &self,
+        i: usize,
+        s: &Search,
+        ranges: Option<&Ranges>,
+        prior: Option<&MotionPrior>,
+    ) -> Option<[usize; 4]> {
+        let start = &self.images[0].features;
+        let class = start.class[i];
+        let mut k = [i, 0, 0, 0];
+        let mut at = i;
+        for leg in 0..LEGS {
+            let from = &self.images[leg].features;
+            let to = self.images[(leg + 1) % LEGS];
+            let window = self.window(leg, from.u[at], from.v[at], s, ranges);
+            let near = prior.and_then(|p| match leg {
+                1 => p
+                    .predict_right((start.u[i], start.v[i]), from.u[at])
+                    .map(|x| (x, p.weight)),
+                3 => Some(((start.u[i] as f32, start.v[i] as f32), p.weight)),
+                _ => None,
+            });
+            let next = match near {
+                Some(near) => to.bins.best_near(class, &from.desc[at], window, near),
+                None => to.bins.best(class, &from.desc[at], window),
+            }?;
+            if leg < 3 {
+                k[leg + 1] = next;
+            }
+            at = next;
+        }
+        (at == i).then_some(k)
     }
 
     /// Positions of a circle's features at full resolution

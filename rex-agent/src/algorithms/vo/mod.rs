@@ -106,9 +106,9 @@ pub struct VoSettings {
     /// Seed of RANSAC and bucketing (runs are deterministic).
     pub seed: u64,
     /// Threads of a pair: above 1, the left and right images' features are
-    /// computed on two threads and the matches' buckets are refined on up to this
-    /// many (the results, in order, are the same with any number). 1: the
-    /// caller's thread only.
+    /// computed on two threads, and the circles are matched and their buckets
+    /// refined on up to this many (the results, in order, are the same with any
+    /// number). 1: the caller's thread only.
     pub threads: usize,
 }
 
@@ -506,7 +506,7 @@ impl StereoOdometry {
                     &c.left.sparse,
                 ],
             };
-            sparse.matches(&search, None, prior.as_ref(), &mut sc.quads);
+            sparse.matches(&search, None, prior.as_ref(), s.threads, &mut sc.quads);
             sc.positions.clear();
             sc.positions
                 .extend(sc.quads.iter().map(|k| sparse.positions(k)));
@@ -535,7 +535,7 @@ impl StereoOdometry {
         let dense = Circle {
             images: [&p.left.dense, &p.right.dense, &c.right.dense, &c.left.dense],
         };
-        dense.matches(&search, ranges, prior.as_ref(), &mut sc.quads);
+        dense.matches(&search, ranges, prior.as_ref(), s.threads, &mut sc.quads);
         let grads = [&p.left.full, &p.right.full, &c.right.full, &c.left.full];
         let images = [&p.left.image, &p.right.image, &c.right.image, &c.left.image];
         let mode = s.refinement;
@@ -639,39 +639,52 @@ fn features(
 }
 
 /// `items.iter().filter_map(f)` collected in order, the items split between
-/// `threads` threads (scoped; this one takes the first share). A thread that cannot
-/// be spawned leaves its share to this one; a panic in `f` is passed on.
+/// `threads` threads ([`filter_map_range_parallel`]).
 pub(crate) fn filter_map_parallel<T: Sync, U: Send>(
     items: &[T],
     threads: usize,
     f: impl Fn(&T) -> Option<U> + Sync,
 ) -> Vec<U> {
+    filter_map_range_parallel(items.len(), threads, |i| f(&items[i]))
+}
+
+/// `(0..n).filter_map(f)` collected in order, the indices split between
+/// `threads` threads (scoped; this one takes the first share). A thread that cannot
+/// be spawned leaves its share to this one; a panic in `f` is passed on.
+pub(crate) fn filter_map_range_parallel<U: Send>(
+    n: usize,
+    threads: usize,
+    f: impl Fn(usize) -> Option<U> + Sync,
+) -> Vec<U> {
     // Below this, a thread costs more than it saves.
     const LEAST_PER_THREAD: usize = 32;
-    let threads = threads.min(items.len() / LEAST_PER_THREAD).max(1);
+    let threads = threads.min(n / LEAST_PER_THREAD).max(1);
     if threads == 1 {
-        return items.iter().filter_map(&f).collect();
+        return (0..n).filter_map(&f).collect();
     }
-    let chunk = items.len().div_ceil(threads);
+    let chunk = n.div_ceil(threads);
     let f = &f;
     std::thread::scope(|scope| {
-        let others: Vec<_> = items
-            .chunks(chunk)
-            .skip(1)
-            .map(|part| {
-                let job = move || part.iter().filter_map(f).collect::<Vec<U>>();
+        let others: Vec<_> = (chunk..n)
+            .step_by(chunk)
+            .map(|from| {
+                let part = from..(from + chunk).min(n);
+                let job = {
+                    let part = part.clone();
+                    move || part.filter_map(f).collect::<Vec<U>>()
+                };
                 (
                     part,
                     std::thread::Builder::new().spawn_scoped(scope, job).ok(),
                 )
             })
             .collect();
-        let mut out: Vec<U> = items[..chunk].iter().filter_map(f).collect();
+        let mut out: Vec<U> = (0..chunk).filter_map(f).collect();
         for (part, handle) in others {
             match handle.map(|h| h.join()) {
                 Some(Ok(v)) => out.extend(v),
                 Some(Err(panic)) => std::panic::resume_unwind(panic),
-                None => out.extend(part.iter().filter_map(f)),
+                None => out.extend(part.filter_map(f)),
             }
         }
         out
