@@ -260,19 +260,9 @@ impl Renderer {
     /// `c + t d` leaves the room through.
     #[inline]
     fn wall(&self, c: V3, d: V3, (tz, plane): (f32, Surface)) -> (f32, Surface) {
-        let [x0, y0, x1, y1, _] = self.room;
         // The wall the ray leaves the room through: compare the two candidate
         // distances without dividing, (X − c_x)/d_x < (Y − c_y)/d_y, then divide once.
-        let (ex, ax) = if d[0] >= 0.0 {
-            (x1 - c[0], d[0])
-        } else {
-            (c[0] - x0, -d[0])
-        };
-        let (ey, ay) = if d[1] >= 0.0 {
-            (y1 - c[1], d[1])
-        } else {
-            (c[1] - y0, -d[1])
-        };
+        let ((ex, ax), (ey, ay)) = self.exits(c, d);
         let (t_wall, wall) = if ex * ay <= ey * ax {
             (
                 if ax > 1e-9 { ex / ax } else { f32::INFINITY },
@@ -289,6 +279,25 @@ impl Renderer {
         } else {
             (tz, plane)
         }
+    }
+
+    /// The walls of constant x and of constant y that the ray `c + t d` heads
+    /// for, each as `(e, a)`: the distance `e ≥ 0` to it and the ray's speed
+    /// `a = |d|` across it (the wall is met at `t = e / a`).
+    #[inline(always)]
+    fn exits(&self, c: V3, d: V3) -> ((f32, f32), (f32, f32)) {
+        let [x0, y0, x1, y1, _] = self.room;
+        let x = if d[0] >= 0.0 {
+            (x1 - c[0], d[0])
+        } else {
+            (c[0] - x0, -d[0])
+        };
+        let y = if d[1] >= 0.0 {
+            (y1 - c[1], d[1])
+        } else {
+            (c[1] - y0, -d[1])
+        };
+        (x, y)
     }
 
     /// The grey level of `surface` at world point `p`: its texture, darkened or
@@ -517,7 +526,6 @@ impl Renderer {
         out: &mut [u8],
     ) {
         let Rays { c, d0, r0 } = *rays;
-        let [x0, y0, x1, y1, _] = self.room;
         let texture = &self.textures.wall;
         let scale = texture.texels_per_m * 256.0;
         let fixed = |x: f32| texel_fixed(x * scale + TEXEL_OFFSET);
@@ -537,16 +545,7 @@ impl Renderer {
             {
                 let d = axpy((first + j) as f32, r0, d0);
                 // `Self::wall`'s arithmetic, selecting instead of branching.
-                let (ex, ax) = if d[0] >= 0.0 {
-                    (x1 - c[0], d[0])
-                } else {
-                    (c[0] - x0, -d[0])
-                };
-                let (ey, ay) = if d[1] >= 0.0 {
-                    (y1 - c[1], d[1])
-                } else {
-                    (c[1] - y0, -d[1])
-                };
+                let ((ex, ax), (ey, ay)) = self.exits(c, d);
                 let wall_x = ex * ay <= ey * ax;
                 let (e, a) = if wall_x { (ex, ax) } else { (ey, ay) };
                 let t = e / a;
