@@ -264,9 +264,19 @@ pub fn estimate(
             continue;
         };
         let (r, _) = rotation(&theta);
+        // Only a set larger than the best is kept: the count stops as soon as
+        // the observations left could no longer make it larger.
+        let beat = best.0.len();
         inliers.clear();
-        inliers.extend((0..n).filter(|&i| error2(c, &r, &theta, &obs[i]) < thr2));
-        if inliers.len() > best.0.len() {
+        for (i, o) in obs.iter().enumerate() {
+            if inliers.len() + (n - i) <= beat {
+                break;
+            }
+            if error2(c, &r, &theta, o) < thr2 {
+                inliers.push(i);
+            }
+        }
+        if inliers.len() > beat {
             std::mem::swap(best.0, inliers);
             best.1 = theta;
         }
