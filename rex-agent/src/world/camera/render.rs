@@ -308,8 +308,10 @@ impl Renderer {
         let (texture, a, b, gain) = match surface {
             Surface::Floor => (&t.floor, p[0], p[1], 256),
             Surface::Ceiling => return CEILING_LEVEL,
-            Surface::WallX => (&t.wall, p[1], p[2], 256),
-            Surface::WallY => (&t.wall, p[0] + 7.3, p[2], 218), // 0.85
+            Surface::WallX | Surface::WallY => {
+                let (a, b, gain) = wall_face(p, surface == Surface::WallX);
+                (&t.wall, a, b, gain)
+            }
             Surface::ObstacleX(_) => (&t.obstacle, p[1], p[2], 243), // 0.95
             Surface::ObstacleY(_) => (&t.obstacle, p[0], p[2], 205), // 0.8
             Surface::ObstacleTop(_) => (&t.obstacle, p[0], p[1], 282), // 1.1
@@ -549,13 +551,10 @@ impl Renderer {
                 let wall_x = ex * ay <= ey * ax;
                 let (e, a) = if wall_x { (ex, ax) } else { (ey, ay) };
                 let t = e / a;
-                let p = axpy(t, d, c);
-                // `Self::shade`'s coordinates and gains for the two walls.
-                let along = if wall_x { p[1] } else { p[0] + 7.3 };
-                let ((u, u_valid), (v, v_valid)) = (fixed(along), fixed(p[2]));
-                (*tu, *tv) = (u, v);
+                let (along, up, face_gain) = wall_face(axpy(t, d, c), wall_x);
+                let ((u, u_valid), (v, v_valid)) = (fixed(along), fixed(up));
+                (*tu, *tv, *gain) = (u, v, face_gain);
                 *direct = a > 1e-9 && t < tz && u_valid && v_valid;
-                *gain = if wall_x { 256 } else { 218 };
             }
             for (j, px) in out.iter_mut().enumerate() {
                 *px = if direct[j] {
@@ -589,6 +588,19 @@ impl Renderer {
             _ if !t.is_finite() => CEILING_LEVEL,
             s => self.shade(axpy(t, d, c), s),
         }
+    }
+}
+
+/// The wall texture's coordinates at world point `p` of a wall of constant x
+/// (`wall_x`) or of constant y, and the face's gain in 256ths (0.85 on the walls
+/// of constant y, so that walls meeting at a corner differ; their texture is
+/// shifted too).
+#[inline(always)]
+fn wall_face(p: V3, wall_x: bool) -> (f32, f32, u32) {
+    if wall_x {
+        (p[1], p[2], 256)
+    } else {
+        (p[0] + 7.3, p[2], 218)
     }
 }
 
