@@ -153,7 +153,9 @@ fn the_blocked_walls_are_the_one_pixel_path_bit_for_bit() {
         obstacles: Vec::new(),
         texture_seed: 3,
     };
-    let (mut direct, mut fallback) = (0usize, 0usize);
+    // Pixels that see a wall, and pixels that see the floor or ceiling plane
+    // (the one-pixel path's, in the blocked walls).
+    let (mut on_walls, mut on_planes) = (0usize, 0usize);
     for r in [
         renderer(),
         Renderer::new(CameraConfig::default(), big).unwrap(),
@@ -193,9 +195,9 @@ fn the_blocked_walls_are_the_one_pixel_path_bit_for_bit() {
                         let expected = r.shade_hit(c, d, hit, floor, &row_floor, k);
                         assert_eq!(out[k], expected, "{body:?}, row {v}, column {k}");
                         if hit.1 == Surface::WallX || hit.1 == Surface::WallY {
-                            direct += 1;
+                            on_walls += 1;
                         } else {
-                            fallback += 1;
+                            on_planes += 1;
                         }
                     }
                 }
@@ -203,8 +205,8 @@ fn the_blocked_walls_are_the_one_pixel_path_bit_for_bit() {
         }
     }
     assert!(
-        direct > 100_000 && fallback > 100_000,
-        "{direct} / {fallback}"
+        on_walls > 100_000 && on_planes > 100_000,
+        "{on_walls} / {on_planes}"
     );
 }
 
