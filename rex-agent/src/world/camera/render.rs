@@ -282,8 +282,9 @@ impl Renderer {
     }
 
     /// The walls of constant x and of constant y that the ray `c + t d` heads
-    /// for, each as `(e, a)`: the distance `e ≥ 0` to it and the ray's speed
-    /// `a = |d|` across it (the wall is met at `t = e / a`).
+    /// for, each as `(e, a)`: the distance `e ≥ 0` from `c` to it along its axis
+    /// and the ray's speed along that axis, `a = |d_x|` or `|d_y|` (the wall is
+    /// met at `t = e / a`).
     #[inline(always)]
     fn exits(&self, c: V3, d: V3) -> ((f32, f32), (f32, f32)) {
         let [x0, y0, x1, y1, _] = self.room;
