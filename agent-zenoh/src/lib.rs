@@ -6,7 +6,9 @@
 //! * [`ZenohTransport`] implements agent-core's byte [`Transport`]: a publisher
 //!   per output buffer that leaves the process (queue links: reliable, blocking
 //!   congestion control; sample links: dropping), a callback subscriber per input
-//!   buffer fed from elsewhere.
+//!   buffer fed from elsewhere. Nodes hand their messages to wait-free rings that
+//!   the transport's own thread publishes from, so a real-time node never waits
+//!   for Zenoh.
 //! * [`Member`] is the process's membership in the running deployment: its Zenoh
 //!   session (peer mode, listening on the endpoint the spec gives it, connected to
 //!   every other process's endpoint, no multicast), its presence (a liveliness
@@ -30,6 +32,7 @@
 
 mod launch;
 mod member;
+mod outbox;
 pub mod security;
 mod transport;
 

@@ -12,6 +12,7 @@ use agent_spec::model::{Deployment, Spec};
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
+use crate::outbox::Outbox;
 use crate::transport::ZenohTransport;
 
 /// Settings a command line may change.
@@ -104,6 +105,15 @@ pub enum MemberError {
     /// The deployment's access policy could not be made.
     #[error(transparent)]
     Policy(#[from] crate::security::PolicyError),
+    /// Messages the run put were not yet in Zenoh's hands when the session
+    /// closed (a peer that does not take what a reliable link sends).
+    #[error("process `{process}`: messages still waited to be published {waited:?} after the run")]
+    Unsent {
+        /// This process.
+        process: String,
+        /// How long the close waited.
+        waited: Duration,
+    },
 }
 
 /// The deployment as one process sees it.
@@ -338,6 +348,8 @@ pub struct Member {
     process: String,
     session: zenoh::Session,
     transport: Option<ZenohTransport>,
+    /// The transport's publishing thread, flushed before the session closes.
+    outbox: Arc<Outbox>,
     stop: Arc<AtomicBool>,
     gone: Arc<Mutex<Vec<String>>>,
     _token: Option<zenoh::liveliness::LivelinessToken>,
@@ -357,6 +369,9 @@ impl std::fmt::Debug for Member {
 }
 
 impl Member {
+    /// How long [`Member::close`] waits for what the run put to be published.
+    pub const FLUSH: Duration = Duration::from_secs(5);
+
     /// Join deployment `deployment` of `spec` as process `process`: open the
     /// session on the process's endpoint, connect to the others, announce
     /// presence, and watch for processes that vanish and for the stop signal.
@@ -432,6 +447,7 @@ impl Member {
             layout,
             process: process.to_owned(),
             session,
+            outbox: transport.outbox(),
             transport: Some(transport),
             stop,
             gone,
@@ -640,10 +656,25 @@ impl Member {
     }
 
     /// Leave the deployment: what was published is sent before the session
-    /// closes, and the others see this process go.
-    pub fn close(self) {
-        let Member { session, .. } = self;
+    /// closes (waiting at most [`Member::FLUSH`] for the publishing thread),
+    /// and the others see this process go.
+    pub fn close(self) -> Result<(), MemberError> {
+        let Member {
+            session,
+            outbox,
+            process,
+            ..
+        } = self;
+        let flushed = outbox.flush(Member::FLUSH);
         let _ = session.close().wait();
+        if flushed {
+            Ok(())
+        } else {
+            Err(MemberError::Unsent {
+                process,
+                waited: Member::FLUSH,
+            })
+        }
     }
 
     /// The processes seen to vanish so far.

@@ -7,6 +7,8 @@ use agent_core::{Inbox, Policy, Publisher, Transport, TransportError};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
+use crate::outbox::{Outbox, OutboxPublisher, Sink, WhenFull};
+
 /// Publishers and subscribers of one process's links, on its session.
 ///
 /// Sample links publish with `CongestionControl::Drop` (under congestion the
@@ -14,8 +16,16 @@ use zenoh::qos::CongestionControl;
 /// `Block` (never dropped by Zenoh; Zenoh's TCP links are reliable, and the
 /// receiver checks the sequence anyway). Both are `express` (not batched): a
 /// control loop wants each value at once.
+///
+/// A node's `put` never enters Zenoh: it hands the message to a wait-free ring
+/// that the transport's publishing thread (`zenoh-out`) drains into Zenoh, so a
+/// real-time node never blocks on Zenoh's locks or congestion (see
+/// [`ZenohTransport::dropped`] for what a full ring does). The thread outlives
+/// the transport while publishers made by it live; [`ZenohTransport::flush`]
+/// waits until what they put is in Zenoh's hands (before closing the session).
 pub struct ZenohTransport {
     session: zenoh::Session,
+    outbox: Arc<Outbox>,
     /// The inboxes fed by each sending component, to tell them when it vanishes.
     by_sender: Arc<Mutex<HashMap<String, Vec<Arc<Inbox>>>>>,
     prefix: String,
@@ -34,6 +44,7 @@ impl ZenohTransport {
     pub fn new(session: zenoh::Session, prefix: impl Into<String>) -> Self {
         ZenohTransport {
             session,
+            outbox: Arc::new(Outbox::new("zenoh-out")),
             by_sender: Arc::default(),
             prefix: prefix.into(),
         }
@@ -50,18 +61,38 @@ impl ZenohTransport {
         let rest = key.strip_prefix(self.prefix.as_str())?.strip_prefix('/')?;
         rest.split('/').nth(1)
     }
+
+    /// Sample messages dropped because the publishing thread was
+    /// [`CAPACITY`](crate::outbox::CAPACITY) messages behind on their link (as
+    /// Zenoh's own congestion control drops them); a queue link's message is
+    /// refused with an error instead.
+    pub fn dropped(&self) -> u64 {
+        self.outbox.dropped()
+    }
+
+    /// Wait until every message put so far on this transport's publishers is
+    /// in Zenoh's hands, for at most `timeout`; whether it is.
+    pub fn flush(&self, timeout: std::time::Duration) -> bool {
+        self.outbox.flush(timeout)
+    }
+
+    /// The outbox, for the member that closes the session after the run.
+    pub(crate) fn outbox(&self) -> Arc<Outbox> {
+        self.outbox.clone()
+    }
 }
 
-struct ZenohPublisher {
-    publisher: zenoh::pubsub::Publisher<'static>,
+impl Sink for zenoh::pubsub::Publisher<'static> {
+    fn send(&mut self, message: Vec<u8>) -> Result<(), String> {
+        self.put(message).wait().map_err(|e| e.to_string())
+    }
 }
+
+struct ZenohPublisher(OutboxPublisher);
 
 impl Publisher for ZenohPublisher {
     fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
-        self.publisher
-            .put(message.to_vec())
-            .wait()
-            .map_err(|e| TransportError(e.to_string()))
+        self.0.put(message)
     }
 }
 
@@ -71,9 +102,9 @@ impl Transport for ZenohTransport {
         key: &str,
         policy: Policy,
     ) -> Result<Box<dyn Publisher>, TransportError> {
-        let congestion = match policy {
-            Policy::Queue { .. } => CongestionControl::Block,
-            Policy::Sample => CongestionControl::Drop,
+        let (congestion, when_full) = match policy {
+            Policy::Queue { .. } => (CongestionControl::Block, WhenFull::Refuse),
+            Policy::Sample => (CongestionControl::Drop, WhenFull::Drop),
         };
         let publisher = self
             .session
@@ -82,7 +113,11 @@ impl Transport for ZenohTransport {
             .express(true)
             .wait()
             .map_err(|e| TransportError(e.to_string()))?;
-        Ok(Box::new(ZenohPublisher { publisher }))
+        let publisher = self
+            .outbox
+            .publisher(Box::new(publisher), when_full)
+            .map_err(|e| TransportError(format!("starting the publishing thread: {e}")))?;
+        Ok(Box::new(ZenohPublisher(publisher)))
     }
 
     fn subscribe(

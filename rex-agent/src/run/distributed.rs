@@ -228,7 +228,7 @@ pub fn run_process(
     if let Ok(bytes) = postcard::to_allocvec(&Seen::Counters(Box::new(counters))) {
         let _ = member.observe("seen", bytes);
     }
-    member.close();
+    member.close()?;
     let summary = recorder.map(McapRecorder::finish).transpose()?;
     Ok((finished.into_report(), summary))
 }
