@@ -677,6 +677,12 @@ impl Member {
         }
     }
 
+    /// Values of sample links dropped so far because the publishing thread
+    /// was behind ([`ZenohTransport::dropped`]).
+    pub fn sample_dropped(&self) -> u64 {
+        self.outbox.dropped()
+    }
+
     /// The processes seen to vanish so far.
     pub fn gone(&self) -> Vec<String> {
         self.gone

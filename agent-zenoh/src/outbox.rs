@@ -19,7 +19,7 @@
 //! message put so far is in Zenoh's hands (before a session closes). The thread
 //! ends once the outbox and all its publishers are gone and their rings drained.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
@@ -41,8 +41,13 @@ pub(crate) enum WhenFull {
     Drop,
 }
 
-/// The messages waiting in a ring, at most.
+/// The messages a ring holds, at most.
 pub(crate) const CAPACITY: usize = 1024;
+
+/// The bytes a sample link's ring holds, at most: its values may be images, of
+/// which only the latest matters (16 stereo VGA pairs; a queue link's values are
+/// small, and none may be lost, so only their number is bounded).
+pub(crate) const SAMPLE_BYTES: usize = 10 << 20;
 
 /// What a publisher and the publishing thread share about one key.
 #[derive(Default)]
@@ -50,6 +55,8 @@ struct Health {
     /// Whether `error` holds an error not yet reported.
     failed: AtomicBool,
     error: Mutex<Option<String>>,
+    /// The bytes in the ring.
+    pending: AtomicUsize,
 }
 
 struct Outlet {
@@ -199,6 +206,10 @@ fn publish(shared: &Shared) {
         outlets.append(&mut shared.new.lock().unwrap_or_else(PoisonError::into_inner));
         for outlet in &mut outlets {
             while let Ok(message) = outlet.ring.pop() {
+                outlet
+                    .health
+                    .pending
+                    .fetch_sub(message.len(), Ordering::Relaxed);
                 let sent = outlet.sink.send(message);
                 if let Err(e) = sent {
                     *outlet
@@ -245,10 +256,18 @@ impl OutboxPublisher {
                 return Err(TransportError(format!("an earlier message: {e}")));
             }
         }
-        let pushed = self
-            .ring
-            .as_mut()
-            .is_some_and(|ring| ring.push(message.to_vec()).is_ok());
+        let room = self.when_full == WhenFull::Refuse
+            || self.health.pending.load(Ordering::Relaxed) + message.len() <= SAMPLE_BYTES;
+        let pushed = room
+            && self
+                .ring
+                .as_mut()
+                .is_some_and(|ring| ring.push(message.to_vec()).is_ok());
+        if pushed {
+            self.health
+                .pending
+                .fetch_add(message.len(), Ordering::Relaxed);
+        }
         self.thread.unpark();
         match (pushed, self.when_full) {
             (true, _) => {

@@ -56,7 +56,8 @@ fn a_put_never_waits_for_the_sink_and_every_message_arrives_in_order() {
     let mut publisher = outbox.publisher(sink, WhenFull::Refuse).unwrap();
     // The sink is stalled in its first message until the gate opens, which
     // happens only after every put returned.
-    for i in 0..CAPACITY {
+    let capacity = CAPACITY;
+    for i in 0..capacity {
         publisher.put(&message(i)).unwrap();
     }
     open.send(()).unwrap();
@@ -66,7 +67,7 @@ fn a_put_never_waits_for_the_sink_and_every_message_arrives_in_order() {
         "a put waited for the sink"
     );
     let got = got.lock().unwrap();
-    assert_eq!(got.len(), CAPACITY);
+    assert_eq!(got.len(), capacity);
     assert!(got.iter().enumerate().all(|(i, m)| *m == message(i)));
 }
 
@@ -78,10 +79,11 @@ fn a_full_ring_refuses_a_queue_message_and_drops_a_sample_counting_it() {
     let mut queue = outbox.publisher(queue_sink, WhenFull::Refuse).unwrap();
     let mut sample = outbox.publisher(sample_sink, WhenFull::Drop).unwrap();
     // The thread holds at most the message its sink is stalled in: the ring
-    // is full after `CAPACITY` more.
+    // is full after `capacity` more.
+    let capacity = CAPACITY;
     let mut accepted = 0;
     let mut refused = None;
-    for i in 0..CAPACITY + 2 {
+    for i in 0..capacity + 2 {
         match queue.put(&message(i)) {
             Ok(()) => accepted += 1,
             Err(e) => {
@@ -95,10 +97,10 @@ fn a_full_ring_refuses_a_queue_message_and_drops_a_sample_counting_it() {
         refused.0.contains("wait for the publishing thread"),
         "{refused}"
     );
-    assert!((CAPACITY..=CAPACITY + 1).contains(&accepted), "{accepted}");
+    assert!((capacity..=capacity + 1).contains(&accepted), "{accepted}");
     // Stalled in the queue's sink, the thread does not reach the sample's
     // ring: it fills, and the rest is dropped and counted, without an error.
-    for i in 0..CAPACITY + 10 {
+    for i in 0..capacity + 10 {
         sample.put(&message(i)).unwrap();
     }
     assert_eq!(outbox.dropped(), 10);
@@ -111,7 +113,7 @@ fn a_full_ring_refuses_a_queue_message_and_drops_a_sample_counting_it() {
     assert_eq!(queue_got.len(), accepted);
     assert!(queue_got.iter().enumerate().all(|(i, m)| *m == message(i)));
     let sample_got = sample_got.lock().unwrap();
-    assert_eq!(sample_got.len(), CAPACITY);
+    assert_eq!(sample_got.len(), capacity);
     assert!(sample_got.iter().enumerate().all(|(i, m)| *m == message(i)));
 }
 
@@ -192,4 +194,29 @@ fn the_thread_outlives_the_outbox_while_a_publisher_lives_then_ends() {
         *got.lock().unwrap(),
         [b"before".to_vec(), b"after".to_vec()]
     );
+}
+
+#[test]
+fn a_sample_ring_holds_a_bounded_number_of_bytes() {
+    let outbox = Outbox::new("test-out");
+    let (sink, open, got, _) = gated();
+    let mut images = outbox.publisher(sink, WhenFull::Drop).unwrap();
+    let image = vec![7u8; 1 << 20];
+    // The sink is stalled (in the first image, or before it): beyond the
+    // bytes bound, images are dropped and counted.
+    for _ in 0..40 {
+        images.put(&image).unwrap();
+    }
+    let kept = 40 - outbox.dropped() as usize;
+    assert!(
+        (SAMPLE_BYTES >> 20..=(SAMPLE_BYTES >> 20) + 1).contains(&kept),
+        "{kept} kept"
+    );
+    open.send(()).unwrap();
+    assert!(outbox.flush(FLUSH));
+    assert_eq!(got.lock().unwrap().len(), kept);
+    // Drained, the ring takes images again.
+    images.put(&image).unwrap();
+    assert!(outbox.flush(FLUSH));
+    assert_eq!(got.lock().unwrap().len(), kept + 1);
 }

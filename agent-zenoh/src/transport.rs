@@ -62,10 +62,10 @@ impl ZenohTransport {
         rest.split('/').nth(1)
     }
 
-    /// Sample messages dropped because the publishing thread was
-    /// [`CAPACITY`](crate::outbox::CAPACITY) messages behind on their link (as
-    /// Zenoh's own congestion control drops them); a queue link's message is
-    /// refused with an error instead.
+    /// Sample messages dropped because the publishing thread was behind on
+    /// their link by 1024 messages or 10 MB (as Zenoh's own congestion control
+    /// drops them); a queue link's message is refused with an error instead,
+    /// 1024 messages behind.
     pub fn dropped(&self) -> u64 {
         self.outbox.dropped()
     }

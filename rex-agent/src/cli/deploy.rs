@@ -75,18 +75,20 @@ pub(crate) fn distributed(
                 .map(|f| (f, record_options(config, spec, settings))),
             &INTERRUPTED,
         ) {
-            Ok((timing, summary)) => {
+            Ok(run) => {
+                let timing = &run.report;
                 if !cli.quiet {
                     eprintln!("{timing}");
                 }
-                if let (Some(file), Some(s)) = (&file, &summary) {
+                if let (Some(file), Some(s)) = (&file, &run.recording) {
                     print_recorded(file, s);
                 }
                 emit(format_args!(
-                    "process={process} rt_priority={} overruns={} executor_errors={}\n",
+                    "process={process} rt_priority={} overruns={} executor_errors={} sample_dropped={}\n",
                     if timing.rt_priority() { "yes" } else { "no" },
                     timing.nodes.iter().map(|n| n.overruns).sum::<u64>(),
-                    timing.error_count
+                    timing.error_count,
+                    run.sample_dropped
                 ));
                 for e in timing.errors.iter().take(5) {
                     eprintln!("rex: {e}");

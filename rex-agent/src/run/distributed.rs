@@ -122,6 +122,18 @@ fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), Dist
     Ok(())
 }
 
+/// What one process of a deployment did ([`run_process`]).
+#[derive(Debug)]
+pub struct ProcessRun {
+    /// The real-time run's timing, errors and priorities.
+    pub report: RtReport,
+    /// What was recorded, with `record`.
+    pub recording: Option<RecordSummary>,
+    /// Values of sample links this process dropped before Zenoh had them
+    /// (its publishing thread that far behind; queue links refuse instead).
+    pub sample_dropped: u64,
+}
+
 /// Run process `process` of `deployment`: its components in real time, the
 /// others reached over Zenoh, until the limit, a stop from any participant, or
 /// `interrupted`. What its probes see is published for the launcher. With
@@ -142,7 +154,7 @@ pub fn run_process(
     rt: RtConfig,
     record: Option<(&Path, RecordOptions)>,
     interrupted: &AtomicBool,
-) -> Result<(RtReport, Option<RecordSummary>), DistError> {
+) -> Result<ProcessRun, DistError> {
     let spec = load_spec(&config.spec)?;
     check_world(&spec, deployment)?;
     // A secure deployment: count what the access control refuses (before the
@@ -228,9 +240,14 @@ pub fn run_process(
     if let Ok(bytes) = postcard::to_allocvec(&Seen::Counters(Box::new(counters))) {
         let _ = member.observe("seen", bytes);
     }
+    let sample_dropped = member.sample_dropped();
     member.close()?;
-    let summary = recorder.map(McapRecorder::finish).transpose()?;
-    Ok((finished.into_report(), summary))
+    let recording = recorder.map(McapRecorder::finish).transpose()?;
+    Ok(ProcessRun {
+        report: finished.into_report(),
+        recording,
+        sample_dropped,
+    })
 }
 
 /// Start every process of `deployment` (this program again, with `args` and
