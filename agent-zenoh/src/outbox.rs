@@ -5,16 +5,16 @@
 //! threads (which run at normal priority, so a busy machine preempts them while
 //! they hold one: a priority inversion), and, for a reliable publisher, until
 //! the pipeline has room. Measured on a loaded 2-core machine, Rex's plant
-//! (1 kHz) blocked in `put` for up to 80 ms. So a publisher hands each message
+//! (1 kHz) blocked in `put` for up to 83 ms. So a publisher hands each message
 //! to a wait-free bounded ring (`rtrb`) and wakes the transport's one publishing
 //! thread (`Thread::unpark`: an atomic swap, a futex wake only when the thread
 //! sleeps), which hands the messages to Zenoh in the order each ring received
 //! them.
 //!
-//! A ring that is full (the publishing thread that far behind) refuses: a queue
-//! link's message is an error the node reports (never dropped silently); a
-//! sample link's newest message is dropped and counted, as Zenoh's own
-//! congestion control would. What Zenoh refuses on the publishing thread is
+//! A ring that is full (the publishing thread [`CAPACITY`] messages behind, or
+//! [`SAMPLE_BYTES`] on a sample link) refuses: a queue link's message is an
+//! error the node reports (never dropped silently); a sample link's newest
+//! message is dropped and counted, as Zenoh's own congestion control would. What Zenoh refuses on the publishing thread is
 //! reported by the publisher's next `put`. [`Outbox::flush`] waits until every
 //! message put so far is in Zenoh's hands (before a session closes). The thread
 //! ends once the outbox and all its publishers are gone and their rings drained.
@@ -256,18 +256,24 @@ impl OutboxPublisher {
                 return Err(TransportError(format!("an earlier message: {e}")));
             }
         }
-        let room = self.when_full == WhenFull::Refuse
-            || self.health.pending.load(Ordering::Relaxed) + message.len() <= SAMPLE_BYTES;
-        let pushed = room
-            && self
+        let len = message.len();
+        // An empty ring takes a sample of any size.
+        let pending = self.health.pending.load(Ordering::Relaxed);
+        let room =
+            self.when_full == WhenFull::Refuse || pending == 0 || pending + len <= SAMPLE_BYTES;
+        // Counted before the push, so that the thread's count after its pop
+        // never goes below zero.
+        let pushed = room && {
+            self.health.pending.fetch_add(len, Ordering::Relaxed);
+            let pushed = self
                 .ring
                 .as_mut()
                 .is_some_and(|ring| ring.push(message.to_vec()).is_ok());
-        if pushed {
-            self.health
-                .pending
-                .fetch_add(message.len(), Ordering::Relaxed);
-        }
+            if !pushed {
+                self.health.pending.fetch_sub(len, Ordering::Relaxed);
+            }
+            pushed
+        };
         self.thread.unpark();
         match (pushed, self.when_full) {
             (true, _) => {

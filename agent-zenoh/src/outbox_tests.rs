@@ -215,8 +215,11 @@ fn a_sample_ring_holds_a_bounded_number_of_bytes() {
     open.send(()).unwrap();
     assert!(outbox.flush(FLUSH));
     assert_eq!(got.lock().unwrap().len(), kept);
-    // Drained, the ring takes images again.
+    // Drained, the ring takes images again, even one larger than the bound.
     images.put(&image).unwrap();
     assert!(outbox.flush(FLUSH));
-    assert_eq!(got.lock().unwrap().len(), kept + 1);
+    images.put(&vec![1u8; SAMPLE_BYTES + 1]).unwrap();
+    assert!(outbox.flush(FLUSH));
+    assert_eq!(got.lock().unwrap().len(), kept + 2);
+    assert_eq!(outbox.dropped() as usize, 40 - kept);
 }
