@@ -93,6 +93,9 @@ pub(crate) fn distributed(
                 for e in timing.errors.iter().take(5) {
                     eprintln!("rex: {e}");
                 }
+                if let Err(e) = &run.left {
+                    eprintln!("rex: {e}");
+                }
                 ExitCode::SUCCESS
             }
             Err(e) => {

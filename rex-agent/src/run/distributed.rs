@@ -132,6 +132,10 @@ pub struct ProcessRun {
     /// Values of sample links this process dropped before Zenoh had them
     /// (its publishing thread that far behind; queue links refuse instead).
     pub sample_dropped: u64,
+    /// Why leaving the deployment did not go cleanly (messages put in the run
+    /// that were not yet in Zenoh's hands when the session closed), if it did
+    /// not: reported, and the run's report and recording are kept.
+    pub left: Result<(), embodied::distributed::MemberError>,
 }
 
 /// Run process `process` of `deployment`: its components in real time, the
@@ -241,12 +245,13 @@ pub fn run_process(
         let _ = member.observe("seen", bytes);
     }
     let sample_dropped = member.sample_dropped();
-    member.close()?;
+    let left = member.close();
     let recording = recorder.map(McapRecorder::finish).transpose()?;
     Ok(ProcessRun {
         report: finished.into_report(),
         recording,
         sample_dropped,
+        left,
     })
 }
 
