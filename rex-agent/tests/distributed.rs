@@ -2,7 +2,9 @@
 //! spec's deployment `split_without_vo` (the world with the partner agents in one
 //! process, c1 with e11 in another) on loopback, and the mission completes with
 //! every plan achieved, tracking within 25% of the in-process run of the same
-//! mission. A process that never appears is named in a timely error.
+//! mission (judged on a run that kept real time: one whose processes overran
+//! at most ~2.5 % of the plant's steps, up to three attempts). A process that
+//! never appears is named in a timely error.
 //!
 //! Faults, injected by `rex launch --kill PROCESS@SECONDS` (SIGKILL, as a crash):
 //! c1 with e11 killed in the middle of a mission are restarted, the platform's
@@ -160,11 +162,62 @@ fn figure(line: &str, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {key}= in {line}"))
 }
 
+/// Overruns of every process of a run together, at most, for its tracking to
+/// be compared with the simulated run's: about 2.5 % of the plant's steps.
+/// Beyond, the machine did not give the real-time threads their CPU (a busy
+/// or descheduled virtual machine: runs here overran 0-140 times when it did,
+/// 3 000 and more when not), and the tracking says nothing about the
+/// deployment.
+const REAL_TIME_OVERRUNS: f64 = 500.0;
+
 #[test]
 fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
     let _one = one_at_a_time();
     let mission = mission_file();
     let record = mission.with_file_name("split.mcap");
+    // The same mission in one process, deterministic.
+    let mut config = RexConfig::new(
+        WorldConfig::shipped().unwrap(),
+        Mission::load(&mission).unwrap(),
+    );
+    config.visual_odometry = false;
+    let one = run_mission(&config, Duration::from_secs(60), Duration::MAX, |_| {}).unwrap();
+    assert!(one.succeeded(), "{}", one.summary_line());
+    // Every attempt completes the mission, reports every process's part and
+    // records a run that replays; the tracking is compared on the first that
+    // kept real time (three attempts at most).
+    let mut lost = Vec::new();
+    for attempt in 1..=3 {
+        let (stdout, stderr) = split_run(&mission, &record);
+        recorded_in_parts_merged_and_replayed(&record, &stdout);
+        let last = stdout.lines().last().unwrap_or_default();
+        let overruns: f64 = ["world", "locomotion"]
+            .iter()
+            .map(|p| figure(line(&stderr, &format!("[{p}] process={p} ")), "overruns"))
+            .sum();
+        if overruns > REAL_TIME_OVERRUNS {
+            eprintln!(
+                "attempt {attempt}: {overruns} overruns, the machine did not keep real time; again"
+            );
+            lost.push(overruns);
+            continue;
+        }
+        let split = figure(last, "rms_m");
+        assert!(
+            split <= 1.25 * one.rms(),
+            "split rms {split:.4} m vs in-process {:.4} m\n{stderr}",
+            one.rms()
+        );
+        return;
+    }
+    panic!(
+        "no attempt kept real time (overruns {lost:?}, at most {REAL_TIME_OVERRUNS} expected): this machine cannot run real-time processes now"
+    );
+}
+
+/// One launch of the split deployment, recorded to `record`: it completes the
+/// mission, both processes report, and their counters reach the summary.
+fn split_run(mission: &std::path::Path, record: &std::path::Path) -> (String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args([
             "launch",
@@ -174,7 +227,7 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
             "--quiet",
         ])
         .arg("--record")
-        .arg(&record)
+        .arg(record)
         .args([
             "--port",
             "17800",
@@ -183,11 +236,11 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
             "--no-report",
             "--mission",
         ])
-        .arg(&mission)
+        .arg(mission)
         .output()
         .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     let last = stdout.lines().last().unwrap_or_default();
     assert!(
         out.status.success(),
@@ -220,21 +273,7 @@ fn rex_split_into_processes_completes_its_mission_as_in_one_process() {
             "no report of `{p}`:\n{stderr}"
         );
     }
-    // The same mission in one process, deterministic.
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::load(&mission).unwrap(),
-    );
-    config.visual_odometry = false;
-    let one = run_mission(&config, Duration::from_secs(60), Duration::MAX, |_| {}).unwrap();
-    assert!(one.succeeded(), "{}", one.summary_line());
-    let split = figure(last, "rms_m");
-    assert!(
-        split <= 1.25 * one.rms(),
-        "split rms {split:.4} m vs in-process {:.4} m\n{stderr}",
-        one.rms()
-    );
-    recorded_in_parts_merged_and_replayed(&record, &stdout);
+    (stdout, stderr)
 }
 
 /// The launch recorded each process's part beside `record` and merged them
