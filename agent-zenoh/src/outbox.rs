@@ -24,7 +24,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
-use agent_core::TransportError;
+use agent_core::{Publisher, TransportError};
 
 /// Where the publishing thread sends one key's messages.
 pub(crate) trait Sink: Send + 'static {
@@ -186,11 +186,9 @@ impl Outbox {
 
 impl Drop for Outbox {
     fn drop(&mut self) {
-        if let Some(s) = self.shared() {
-            s.owner_gone.store(true, Ordering::Release);
-        }
         let started = self.started.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(s) = started.as_ref() {
+            s.shared.owner_gone.store(true, Ordering::Release);
             s.thread.unpark();
         }
     }
@@ -243,8 +241,8 @@ pub(crate) struct OutboxPublisher {
     thread: Thread,
 }
 
-impl OutboxPublisher {
-    pub(crate) fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
+impl Publisher for OutboxPublisher {
+    fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
         if self.health.failed.swap(false, Ordering::Acquire) {
             let error = self
                 .health

@@ -7,7 +7,7 @@ use agent_core::{Inbox, Policy, Publisher, Transport, TransportError};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
-use crate::outbox::{Outbox, OutboxPublisher, Sink, WhenFull};
+use crate::outbox::{Outbox, Sink, WhenFull};
 
 /// Publishers and subscribers of one process's links, on its session.
 ///
@@ -88,14 +88,6 @@ impl Sink for zenoh::pubsub::Publisher<'static> {
     }
 }
 
-struct ZenohPublisher(OutboxPublisher);
-
-impl Publisher for ZenohPublisher {
-    fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
-        self.0.put(message)
-    }
-}
-
 impl Transport for ZenohTransport {
     fn publisher(
         &mut self,
@@ -117,7 +109,7 @@ impl Transport for ZenohTransport {
             .outbox
             .publisher(Box::new(publisher), when_full)
             .map_err(|e| TransportError(format!("starting the publishing thread: {e}")))?;
-        Ok(Box::new(ZenohPublisher(publisher)))
+        Ok(Box::new(publisher))
     }
 
     fn subscribe(
