@@ -1,8 +1,12 @@
 //! Features of a grey image (StereoScan, notes `vo.md` §1.1–1.2): a blob and a
-//! corner filter response, non-maximum suppression in blocks (Neubeck & Van Gool),
+//! corner filter response, non-maximum suppression in blocks ([`Responses`]),
 //! four classes (blob min/max, corner min/max), and a 32-byte descriptor of
 //! gradient samples around each feature, compared by the sum of absolute
 //! differences.
+
+mod responses;
+
+pub use responses::Responses;
 
 /// Bytes of a matching descriptor.
 pub const DESCRIPTOR: usize = 32;
@@ -314,165 +318,6 @@ fn vertex(a: i32, b: i32, c: i32) -> f32 {
         return 0.0;
     }
     (0.5 * (a - c) / curvature).clamp(-0.5, 0.5)
-}
-
-/// The blob and corner responses of an image (computed through an integral image).
-#[derive(Clone, Debug, Default)]
-pub struct Responses {
-    w: usize,
-    h: usize,
-    integral: Vec<i32>,
-    /// Blob response: centre-surround (`−Σ5×5 + 2·Σ3×3 + 7·centre`).
-    pub blob: Vec<i32>,
-    /// Corner (checkerboard) response: the diagonal 2 × 2 quadrants of the 5 × 5
-    /// window against the anti-diagonal ones.
-    pub corner: Vec<i32>,
-}
-
-impl Responses {
-    /// Compute both responses of `img` (zero on the 2-pixel border).
-    pub fn compute(&mut self, img: &Gray) {
-        let (w, h) = (img.w, img.h);
-        self.w = w;
-        self.h = h;
-        let iw = w + 1;
-        self.integral.clear();
-        self.integral.resize(iw * (h + 1), 0);
-        for v in 0..h {
-            let mut row = 0i32;
-            for u in 0..w {
-                row += i32::from(img.data[v * w + u]);
-                self.integral[(v + 1) * iw + u + 1] = self.integral[v * iw + u + 1] + row;
-            }
-        }
-        self.blob.clear();
-        self.blob.resize(w * h, 0);
-        self.corner.clear();
-        self.corner.resize(w * h, 0);
-        if w < 5 || h < 5 {
-            return;
-        }
-        let ii = &self.integral;
-        // Σ over columns u0..=u1, rows v0..=v1.
-        let sum = |u0: usize, v0: usize, u1: usize, v1: usize| {
-            ii[(v1 + 1) * iw + u1 + 1] - ii[v0 * iw + u1 + 1] - ii[(v1 + 1) * iw + u0]
-                + ii[v0 * iw + u0]
-        };
-        for v in 2..h - 2 {
-            for u in 2..w - 2 {
-                let c = i32::from(img.data[v * w + u]);
-                self.blob[v * w + u] =
-                    -sum(u - 2, v - 2, u + 2, v + 2) + 2 * sum(u - 1, v - 1, u + 1, v + 1) + 7 * c;
-                self.corner[v * w + u] = -sum(u - 2, v - 2, u - 1, v - 1)
-                    + sum(u + 1, v - 2, u + 2, v - 1)
-                    + sum(u - 2, v + 1, u - 1, v + 2)
-                    - sum(u + 1, v + 1, u + 2, v + 2);
-            }
-        }
-    }
-
-    /// Non-maximum and non-minimum suppression in blocks of `(n+1) × (n+1)`: in each
-    /// block the extreme responses of each filter are candidates, kept if nothing in
-    /// their `(2n+1) × (2n+1)` neighbourhood is more extreme and their magnitude
-    /// reaches `tau`. Features closer than `margin` to the border are skipped, and
-    /// closer than 5 whatever `margin` (the descriptor's reach: a smaller margin
-    /// read outside the gradients).
-    /// Appends to `out` with descriptors from `grad`.
-    pub fn suppress(
-        &self,
-        n: usize,
-        tau: i32,
-        margin: usize,
-        grad: &Gradients,
-        out: &mut Features,
-    ) {
-        out.clear();
-        let margin = margin.max(5);
-        let (w, h) = (self.w, self.h);
-        if w <= 2 * (n + margin) || h <= 2 * (n + margin) {
-            return;
-        }
-        let step = n + 1;
-        let (lo_u, hi_u) = (margin, w - margin); // valid: lo ≤ u < hi
-        let (lo_v, hi_v) = (margin, h - margin);
-        let mut i = n + margin;
-        while i + n < hi_u {
-            let mut j = n + margin;
-            while j + n < hi_v {
-                // Extremes in the block [i, i+n] × [j, j+n].
-                let (bu1, bv1) = ((i + n).min(hi_u - 1), (j + n).min(hi_v - 1));
-                let mut cand = [(i, j, self.blob[j * w + i]); 4];
-                cand[2].2 = self.corner[j * w + i];
-                cand[3].2 = cand[2].2;
-                for v in j..=bv1 {
-                    for u in i..=bu1 {
-                        let b = self.blob[v * w + u];
-                        let c = self.corner[v * w + u];
-                        if b < cand[0].2 {
-                            cand[0] = (u, v, b);
-                        }
-                        if b > cand[1].2 {
-                            cand[1] = (u, v, b);
-                        }
-                        if c < cand[2].2 {
-                            cand[2] = (u, v, c);
-                        }
-                        if c > cand[3].2 {
-                            cand[3] = (u, v, c);
-                        }
-                    }
-                }
-                for (class, &(u, v, val)) in cand.iter().enumerate() {
-                    let is_max = class % 2 == 1;
-                    if (is_max && val < tau) || (!is_max && val > -tau) {
-                        continue;
-                    }
-                    let map = if class < 2 { &self.blob } else { &self.corner };
-                    if self.is_extreme(map, (u, v, val, is_max), n, (lo_u, lo_v, hi_u, hi_v)) {
-                        out.u.push(u as i32);
-                        out.v.push(v as i32);
-                        out.class.push(class as u8);
-                        out.desc.push(grad.descriptor(u, v));
-                        // Neighbours inside: the margin is at least 5.
-                        out.peak.push((
-                            vertex(map[v * w + u - 1], val, map[v * w + u + 1]),
-                            vertex(map[(v - 1) * w + u], val, map[(v + 1) * w + u]),
-                        ));
-                    }
-                }
-                j += step;
-            }
-            i += step;
-        }
-    }
-
-    /// Whether nothing in the neighbourhood of `(u, v)` (clipped to the valid
-    /// area) is strictly more extreme than `val`. The candidate is the extreme of
-    /// its own block, which the neighbourhood contains, so the block needs no
-    /// exception; each row is compared without branches.
-    #[inline]
-    fn is_extreme(
-        &self,
-        map: &[i32],
-        (u, v, val, is_max): (usize, usize, i32, bool),
-        n: usize,
-        valid: (usize, usize, usize, usize),
-    ) -> bool {
-        let w = self.w;
-        let u0 = u.saturating_sub(n).max(valid.0);
-        let v0 = v.saturating_sub(n).max(valid.1);
-        let u1 = (u + n).min(valid.2 - 1);
-        let v1 = (v + n).min(valid.3 - 1);
-        // A minimum is a maximum of the negated map: compare `sign · x > sign · val`
-        // (responses are far from `i32::MIN`).
-        let sign = if is_max { 1 } else { -1 };
-        let val = sign * val;
-        (v0..=v1).all(|vv| {
-            !map[vv * w + u0..=vv * w + u1]
-                .iter()
-                .fold(false, |beaten, &x| beaten | (sign * x > val))
-        })
-    }
 }
 
 #[cfg(test)]

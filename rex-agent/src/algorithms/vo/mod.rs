@@ -594,12 +594,13 @@ fn features(
     } else {
         3 * s.nms_n
     };
-    sc.responses.suppress(
-        s.nms_n,
+    sc.responses.suppress_scales(
+        (s.nms_n, &mut out.dense.features),
+        s.multi_stage
+            .then_some((sparse_n, &mut out.sparse.features)),
         s.nms_tau,
         s.margin,
         &sc.grad,
-        &mut out.dense.features,
     );
     let scale = if s.half_resolution { 2 } else { 1 };
     let bin = (s.match_binsize / scale).max(1);
@@ -612,13 +613,6 @@ fn features(
         .bins
         .build(&out.dense.features, img.w, img.h, dense_bin);
     if s.multi_stage {
-        sc.responses.suppress(
-            sparse_n,
-            s.nms_tau,
-            s.margin,
-            &sc.grad,
-            &mut out.sparse.features,
-        );
         out.sparse
             .bins
             .build(&out.sparse.features, img.w, img.h, bin);
