@@ -37,6 +37,7 @@ impl Gray {
     }
 
     /// Half resolution by 2 × 2 averaging into `out`.
+    #[inline(always)]
     pub fn half_into(&self, out: &mut Gray) {
         let (w, h) = (self.w / 2, self.h / 2);
         out.reshape(w, h);
@@ -74,6 +75,7 @@ pub struct Gradients {
 
 impl Gradients {
     /// Compute the gradients of `img`.
+    #[inline(always)]
     pub fn compute(&mut self, img: &Gray) {
         let (w, h) = (img.w, img.h);
         self.w = w;

@@ -84,6 +84,7 @@ pub struct Template {
 impl Template {
     /// The template of `image` at `t`; `None` if the patch leaves the image, or is
     /// flat or one-dimensional (an edge: it cannot be aligned), or not finite.
+    #[inline(always)]
     pub fn new(image: &super::features::Gray, t: (f64, f64)) -> Option<Template> {
         const S: usize = LK;
         // The patch with a 1-pixel rim for its central differences.
@@ -133,6 +134,7 @@ impl Template {
     /// only, on mean-subtracted intensities); `None` if it does not converge,
     /// leaves the image or moves more than a pixel and a half. Intensities and sums
     /// in `f32`, the position in `f64`.
+    #[inline(always)]
     pub fn align(&self, target: &super::features::Gray, p: (f64, f64)) -> Option<(f64, f64)> {
         let n = (LK * LK) as f32;
         let (h00, h01, h11) = self.h;
@@ -304,6 +306,13 @@ pub fn refine(
 
 /// Align the previous left, previous right and current right positions of a match
 /// with the current left one by [`lucas_kanade`] (9 × 9 patches); `None` drops it.
+///
+/// Compiled for AVX2 as well, chosen at run time, with the template and the
+/// alignment inlined (callgrind, 20 pairs of tour 21: 432 M -> 365 M
+/// instructions). The same positions on any machine: Rust never fuses a
+/// multiply and an add, so each operation rounds as IEEE 754 says whatever
+/// the vector width.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 pub fn photometric(
     p: [(f64, f64); 4],
     images: [&super::features::Gray; 4],

@@ -47,6 +47,7 @@ fn row<T>(map: &[T], w: usize, r: usize, c0: usize, n: usize) -> &[T] {
 
 impl Responses {
     /// Compute both responses of `img` (zero on the 2-pixel border).
+    #[inline(always)]
     pub fn compute(&mut self, img: &Gray) {
         let (w, h) = (img.w, img.h);
         self.w = w;
@@ -132,6 +133,7 @@ impl Responses {
     /// [`suppress`](Responses::suppress) at two window sizes at once (libviso2's
     /// dense and sparse features): the larger windows' extremes are the smaller
     /// ones' joined (two passes an axis from 7 to 19 or 21 instead of five from 1).
+    #[inline(always)]
     pub fn suppress_scales(
         &mut self,
         dense: (usize, &mut Features),
@@ -282,6 +284,7 @@ fn keep(
 /// where the window lies inside the map). Windows double (`from`, `2·from`, …)
 /// and a last pass joins two overlapping ones, in each axis: `⌈log₂(to/from)⌉`
 /// passes an axis, each a vectorised maximum of two slices.
+#[inline(always)]
 fn widen(src: &[i16], w: usize, from: usize, to: usize, bufs: &mut [Vec<i16>; 2]) {
     let len = src.len();
     let mut first = true;
