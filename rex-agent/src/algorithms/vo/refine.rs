@@ -25,7 +25,7 @@ pub enum Refinement {
 /// computed once), into `out` row by row; `false` if the patch (with a 1-pixel
 /// rim) leaves the image. In `f32` (ample for 8-bit pixels) and of a size known at
 /// compile time, so that each row is a few vector operations.
-#[inline]
+#[inline(always)]
 fn patch<const S: usize>(
     img: &super::features::Gray,
     u: f64,
@@ -185,7 +185,7 @@ pub fn lucas_kanade(
 
 /// `Σ a[k]·b[k]` (`b` all ones when `None`), summed in eight independent lanes so
 /// that the compiler vectorises it (one `f32` accumulator must be summed in order).
-#[inline]
+#[inline(always)]
 fn dot(a: &[f32], b: Option<&[f32]>) -> f32 {
     let mut acc = [0.0f32; 8];
     let chunks = a.chunks_exact(8);
