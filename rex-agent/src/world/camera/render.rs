@@ -213,7 +213,7 @@ impl Renderer {
     /// [`Self::trace`] with the floor or ceiling distance `tz` already known, and
     /// whether that hit lies inside the room (then it is nearer than any wall: the
     /// room is convex).
-    #[inline]
+    #[inline(always)]
     fn trace_from(
         &self,
         c: V3,
@@ -258,7 +258,7 @@ impl Renderer {
 
     /// The nearer of the floor or ceiling hit `(tz, plane)` and the wall the ray
     /// `c + t d` leaves the room through.
-    #[inline]
+    #[inline(always)]
     fn wall(&self, c: V3, d: V3, (tz, plane): (f32, Surface)) -> (f32, Surface) {
         // The wall the ray leaves the room through: compare the two candidate
         // distances without dividing, (X − c_x)/d_x < (Y − c_y)/d_y, then divide once.
@@ -399,7 +399,7 @@ impl Renderer {
         let rects: Vec<(usize, Rect)> = (0..self.boxes.len())
             .filter_map(|i| Some((i, self.screen_rect(pose, i)?)))
             .collect();
-        self.render_with(pose, &rects, out);
+        render_multiversioned(self, pose, &rects, out);
     }
 
     /// [`Self::render`] testing obstacle `i` only inside its pixel rectangle, for each
@@ -411,6 +411,7 @@ impl Renderer {
     /// stepped in fixed point (an integer multiply-add a pixel, the same whichever
     /// path shades the pixel). There, where no obstacle can be seen, a pixel is a
     /// texture fetch; the walls and the obstacles are intersected elsewhere only.
+    #[inline(always)]
     fn render_with(&self, pose: &CameraPose, rects: &[(usize, Rect)], out: &mut [u8]) {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let (cu, cv) = self.camera.principal_point();
@@ -520,6 +521,7 @@ impl Renderer {
     /// meets no wall before the floor or the ceiling plane (only at the room's
     /// edges, in rounding), or meets it beyond [`texel_fixed`]'s range, takes the
     /// one-pixel path.
+    #[inline(always)]
     fn walls(
         &self,
         rays: &Rays,
@@ -596,6 +598,13 @@ impl Renderer {
 /// (`wall_x`) or of constant y, and the face's gain in 256ths (0.85 on the walls
 /// of constant y, so that walls meeting at a corner differ; their texture is
 /// shifted too).
+/// [`Renderer::render_with`], compiled for AVX2 as well and chosen at run time
+/// (the same pixels on any machine: Rust never fuses a multiply and an add).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn render_multiversioned(r: &Renderer, pose: &CameraPose, rects: &[(usize, Rect)], out: &mut [u8]) {
+    r.render_with(pose, rects, out);
+}
+
 #[inline(always)]
 fn wall_face(p: V3, wall_x: bool) -> (f32, f32, u32) {
     if wall_x {

@@ -34,7 +34,9 @@ fn rays_round_trip_through_the_pinhole_model() {
 fn culling_obstacles_to_their_clipped_screen_rectangles_changes_no_pixel() {
     // Against every obstacle tested at every pixel: poses all over the room,
     // headings all round, some right against an obstacle (half of it behind the
-    // camera) and some with every obstacle behind.
+    // camera) and some with every obstacle behind. `render` runs the AVX2 clone
+    // where the machine has AVX2, `render_with` here the baseline code: the
+    // comparison covers both.
     let r = renderer();
     let (w, h) = (r.camera.width as i64, r.camera.height as i64);
     let everywhere: Vec<(usize, Rect)> = (0..r.boxes.len())
