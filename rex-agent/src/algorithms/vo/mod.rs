@@ -700,3 +700,54 @@ pub fn median(v: &mut [f64]) -> f64 {
         v[v.len() / 2]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::features::Features;
+    use super::*;
+
+    #[test]
+    fn the_dispatched_features_are_the_baseline_code() {
+        // `features` runs its AVX2 clone where the machine has AVX2; the filters
+        // and the suppression called here are compiled at the baseline level.
+        let mut rng = crate::algorithms::rng::Rng::new(5);
+        let (w, h) = (160, 120);
+        let noise: Vec<u8> = (0..w * h).map(|_| (rng.next_u64() % 256) as u8).collect();
+        // Smoothed noise: blobs and corners of every size.
+        let data: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (u, v) = (i % w, i / w);
+                let at = |du: usize, dv: usize| u32::from(noise[((v + dv) % h) * w + (u + du) % w]);
+                ((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)) / 4) as u8
+            })
+            .collect();
+        let s = VoSettings::default();
+        let (mut sc, mut out) = (ImageScratch::default(), ImageData::default());
+        features(&s, &data, w, h, &mut sc, &mut out);
+        let full = Gray { w, h, data };
+        let (mut half, mut r, mut g) =
+            (Gray::default(), Responses::default(), Gradients::default());
+        full.half_into(&mut half);
+        r.compute(&half);
+        g.compute(&half);
+        let (mut dense, mut sparse) = (Features::default(), Features::default());
+        r.suppress_scales(
+            (s.nms_n, &mut dense),
+            Some((3 * s.nms_n, &mut sparse)),
+            s.nms_tau,
+            s.margin,
+            &g,
+        );
+        assert!(dense.len() > 100, "features found: {}", dense.len());
+        for (ours, base) in [
+            (&out.dense.features, &dense),
+            (&out.sparse.features, &sparse),
+        ] {
+            assert_eq!(
+                (&ours.u, &ours.v, &ours.class),
+                (&base.u, &base.v, &base.class)
+            );
+            assert_eq!((&ours.desc, &ours.peak), (&base.desc, &base.peak));
+        }
+    }
+}

@@ -374,6 +374,50 @@ mod tests {
     }
 
     #[test]
+    fn the_dispatched_refinement_is_the_baseline_code_bit_for_bit() {
+        // `photometric` runs its AVX2 clone where the machine has AVX2; the
+        // template and alignment called here are compiled at the baseline level.
+        let images = [
+            scene(0.4, -0.3, 1.0, 0.0),
+            scene(-0.7, 0.2, 1.0, 12.0),
+            scene(0.9, 0.6, 1.0, -9.0),
+            scene(0.0, 0.0, 1.0, 0.0),
+        ];
+        let refs = [&images[0], &images[1], &images[2], &images[3]];
+        let mut aligned = 0;
+        for t in [
+            (24.0, 24.0),
+            (23.6, 24.3),
+            (24.2, 23.1),
+            (23.0, 25.0),
+            (3.0, 3.0),
+        ] {
+            // Near where each image's content lies, as the matching leaves it.
+            let p = [
+                (t.0 + 0.3, t.1 - 0.2),
+                (t.0 - 0.5, t.1 + 0.1),
+                (t.0 + 0.7, t.1 + 0.5),
+                t,
+            ];
+            let baseline = Template::new(refs[3], p[3]).and_then(|t| {
+                let mut out = p;
+                for m in 0..3 {
+                    out[m] = t.align(refs[m], p[m])?;
+                }
+                Some(out)
+            });
+            let dispatched = photometric(p, refs);
+            assert_eq!(
+                dispatched.map(|o| o.map(|(u, v)| (u.to_bits(), v.to_bits()))),
+                baseline.map(|o| o.map(|(u, v)| (u.to_bits(), v.to_bits()))),
+                "at {t:?}"
+            );
+            aligned += usize::from(baseline.is_some());
+        }
+        assert!(aligned >= 3, "most starts align: {aligned}");
+    }
+
+    #[test]
     fn lucas_kanade_refuses_a_flat_patch() {
         let flat = Gray {
             w: 32,
