@@ -144,14 +144,18 @@ impl Responses {
     ) {
         let margin = margin.max(5);
         let (w, h) = (self.w, self.h);
-        let mut scales: Vec<(usize, &mut Features)> = Vec::with_capacity(2);
+        // The window sizes that fit the image, in front (no allocation).
+        let mut scales: [Option<(usize, &mut Features)>; 2] = [None, None];
+        let (mut ns, mut count) = ([0usize; 2], 0);
         for (n, out) in std::iter::once(dense).chain(sparse) {
             out.clear();
             if w > 2 * (n + margin) && h > 2 * (n + margin) {
-                scales.push((n, out));
+                (scales[count], ns[count]) = (Some((n, out)), n);
+                count += 1;
             }
         }
-        let Some(pad) = scales.iter().map(|s| s.0).max() else {
+        let ns = &ns[..count];
+        let Some(&pad) = ns.iter().max() else {
             return;
         };
         // The valid area [lo, hi) in each axis, padded by `pad` on every side.
@@ -193,14 +197,11 @@ impl Responses {
                 }
             }
             // Each window size from the largest smaller one computed (or from 1).
-            for k in 0..scales.len() {
-                let n = scales[k].0;
-                let base = (0..k)
-                    .filter(|&b| scales[b].0 <= n)
-                    .max_by_key(|&b| scales[b].0);
+            for (k, &n) in ns.iter().enumerate() {
+                let base = (0..k).filter(|&b| ns[b] <= n).max_by_key(|&b| ns[b]);
                 let (done, rest) = wide.split_at_mut(k);
                 match base {
-                    Some(b) => widen(&done[b], pw, 2 * scales[b].0 + 1, 2 * n + 1, pass),
+                    Some(b) => widen(&done[b], pw, 2 * ns[b] + 1, 2 * n + 1, pass),
                     None => widen(padded, pw, 1, 2 * n + 1, pass),
                 }
                 std::mem::swap(&mut rest[0], &mut pass[0]);
@@ -216,7 +217,7 @@ impl Responses {
         }
         let at = |u: usize, v: usize| (v - lo_v) * pw + (u - lo_u);
         let maps = [&*blob, &*blob, &*corner, &*corner];
-        for (k, (n, out)) in scales.into_iter().enumerate() {
+        for (k, (n, out)) in scales.into_iter().flatten().enumerate() {
             // Blocks [i, i+n] × [j, j+n], columns outer, as libviso2 walks them.
             let step = n + 1;
             let mut i = n + margin;
