@@ -13,7 +13,9 @@
 //! neighbourhood, each map is dilated once (a separable running maximum, by
 //! doubling windows) and a pixel is a local extreme where it equals its
 //! dilation: the same features in the same order (tested against the
-//! window-by-window scan), for about a tenth of the instructions.
+//! window-by-window scan). Measured with `callgrind` on 20 pairs of tour 21:
+//! the suppression 559 M -> 320 M instructions (the descriptors included), the
+//! filters 148 M -> 47 M.
 
 use super::{Features, Gradients, Gray, vertex};
 
