@@ -183,14 +183,16 @@ impl Responses {
         // index i + off(pad); the window of radius r around it starts at
         // i + off(pad − r).
         let off = |r: usize| r * (pw + 1);
+        // i16::MIN around the valid area (outside every neighbourhood, which is
+        // clipped to the valid area), filled once: each class rewrites only the
+        // valid area.
+        padded.clear();
+        padded.resize(pw * ph, i16::MIN);
         for class in 0..4 {
             let map = if class < 2 { &*blob } else { &*corner };
             // A minimum is a maximum of the negated map (exact: |x| ≤ 4 080).
             let sign: i16 = if class % 2 == 1 { 1 } else { -1 };
-            // The signed map in the valid area, i16::MIN around it (outside the
-            // neighbourhood, which is clipped to the valid area).
-            padded.clear();
-            padded.resize(pw * ph, i16::MIN);
+            // The signed map in the valid area.
             for v in lo_v..hi_v {
                 let src = row(map, w, v, lo_u, hi_u - lo_u);
                 let dst = &mut padded[(v - lo_v + pad) * pw + pad..][..hi_u - lo_u];
