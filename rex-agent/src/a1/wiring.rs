@@ -89,8 +89,9 @@ pub struct Limits {
     pub final_m: f64,
     /// What `e11` allows for its estimate's own error when it reports a plan
     /// reached: only when the estimate is within `final_m − final_margin_m` of
-    /// the last point [m] (a success it reports is then one the truth
-    /// confirms unless the estimate is off by more than this).
+    /// the last point, and within `final_margin_m` of the map poses of the last
+    /// half second [m] (a success it reports is then one the truth confirms
+    /// unless the estimate is off by more than this).
     pub final_margin_m: f64,
     /// How long `e11` waits, holding a plan's last point, for the platform to
     /// come within `final_m` [s].

@@ -34,7 +34,17 @@ pub struct Estimate {
     pub theta_dot: [f64; 4],
     /// Whether a pose measurement has been fused (before, the pose is a guess).
     pub localised: bool,
+    /// How far the estimate was from the map poses of the last
+    /// [`DISAGREEMENT_SPAN_S`] [m], the largest distance: the MHE's fit at the
+    /// poses' times, the EKF's estimate once corrected by each pose (a pose
+    /// gated out: the whole innovation). Beyond the poses' own noise it says the estimate cannot follow
+    /// them (a model the data contradict, a new ground): its error may then be
+    /// larger than usual. `None` without a pose in that span.
+    pub pose_disagreement: Option<f64>,
 }
+
+/// The span of map poses [`Estimate::pose_disagreement`] looks back over [s].
+pub const DISAGREEMENT_SPAN_S: f64 = 0.5;
 
 impl Estimate {
     /// The lateral velocity: estimated, or the reduced model's `−x_0 ω` with
@@ -239,6 +249,9 @@ pub struct Ekf {
     offset_known: bool,
     /// When the current run of gated-out map poses began.
     rejecting_since: Option<f64>,
+    /// The position innovations of the map poses of the last
+    /// [`DISAGREEMENT_SPAN_S`]: `(arrival time, distance)`.
+    disagreements: VecDeque<(f64, f64)>,
     health: EstimatorHealth,
     theta: [f64; 4],
     theta_dot: [f64; 4],
@@ -262,6 +275,7 @@ impl Ekf {
             localised: false,
             offset_known: false,
             rejecting_since: None,
+            disagreements: VecDeque::with_capacity(32),
             health: EstimatorHealth::default(),
             theta: [0.0; 4],
             theta_dot: [0.0; 4],
@@ -342,6 +356,7 @@ impl Ekf {
         self.cov[(B, B)] = 10.0;
         self.offset_known = false;
         self.history.clear();
+        self.disagreements.clear();
         self.rejecting_since = None;
     }
 
@@ -369,6 +384,7 @@ impl Ekf {
             return;
         }
         let n = self.noise;
+        let before = [self.x[X], self.x[Y]];
         let mut accepted = 0;
         for (i, sigma) in [
             (X, n.map_position),
@@ -382,6 +398,11 @@ impl Ekf {
                 self.health.rejected_poses += 1;
             }
         }
+        // The corrected estimate against the pose (the correction applies at
+        // the pose's time as now): what the poses could not pull it to.
+        let moved = [self.x[X] - before[0], self.x[Y] - before[1]];
+        let residual = (inn[0] - moved[0]).hypot(inn[1] - moved[1]);
+        self.disagreements.push_back((now, residual));
         if accepted == 3 {
             self.rejecting_since = None;
             return;
@@ -443,6 +464,13 @@ impl Estimator for Ekf {
         {
             self.history.pop_front();
         }
+        while self
+            .disagreements
+            .front()
+            .is_some_and(|(t, _)| *t < m.now - DISAGREEMENT_SPAN_S)
+        {
+            self.disagreements.pop_front();
+        }
         Estimate {
             x: std::array::from_fn(|i| self.x[i]),
             lateral: None,
@@ -452,6 +480,7 @@ impl Estimator for Ekf {
             theta: self.theta,
             theta_dot: self.theta_dot,
             localised: self.localised,
+            pose_disagreement: self.disagreements.iter().map(|(_, d)| *d).reduce(f64::max),
         }
     }
 
@@ -617,5 +646,56 @@ mod tests {
             "NaN and a 49 m jump are rejected"
         );
         assert!((ekf.state()[0] - 1.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn reports_how_far_the_map_poses_of_the_last_half_second_were() {
+        fn step(ekf: &mut Ekf, k: u32, x: Option<f64>) -> Option<f64> {
+            let t = f64::from(k) * 0.05;
+            let pose = x.map(|x| MapPose {
+                pose: Pose2 {
+                    x,
+                    y: 0.0,
+                    phi: 0.0,
+                },
+                time: t,
+            });
+            let m = Measurements {
+                map_pose: pose,
+                now: t,
+                ..Measurements::default()
+            };
+            ekf.update(0.05, &[0.0; 4], &m).pose_disagreement
+        }
+        let mut ekf = Ekf::new(PlatformParams::peer_default(), SlipParams::NOMINAL);
+        assert_eq!(step(&mut ekf, 0, None), None, "no pose yet");
+        assert_eq!(step(&mut ekf, 1, Some(1.0)), None, "the first is adopted");
+        // 5 cm off: the correction takes the estimate part of the way.
+        let d = step(&mut ekf, 2, Some(1.05)).unwrap_or(f64::NAN);
+        let x = ekf.state()[X];
+        assert!(d > 0.005 && d < 0.045, "{d}");
+        assert!((d - (1.05 - x)).abs() < 1e-9, "{d} vs {x}");
+        // 2 m off: gated out, the whole of it.
+        let d = step(&mut ekf, 3, Some(x + 2.0)).unwrap_or(f64::NAN);
+        assert!((d - 2.0).abs() < 0.01, "{d}");
+        // Then poses where the estimate is: the 2 m (at 0.15 s) is the
+        // largest for half a second, then leaves the span.
+        for k in 4..=15 {
+            let x = ekf.state()[X];
+            let d = step(&mut ekf, k, Some(x));
+            // (At 0.65 s exactly, either: the instants are sums of 0.05.)
+            if k <= 12 {
+                assert!(d.is_some_and(|d| d > 1.9), "{k}: {d:?}");
+            } else if k >= 14 {
+                assert!(d.is_some_and(|d| d < 0.005), "{k}: {d:?}");
+            }
+        }
+        // Half a second without a pose: nothing to say.
+        for k in 16..=26 {
+            let d = step(&mut ekf, k, None);
+            if k != 25 {
+                assert_eq!(d.is_some(), k < 25, "{k}: {d:?}");
+            }
+        }
     }
 }

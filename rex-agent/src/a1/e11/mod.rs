@@ -24,7 +24,8 @@
 //! sent before it heard of the stop are refused, never executed. When a plan's
 //! last fragment ends, `e11` reports whether the platform reached its end point
 //! (its estimate within `final_tolerance` less `final_margin`, the estimate's own
-//! error allowed for; waiting up to `settle` seconds while holding it):
+//! error allowed for, and no farther than `final_margin` from the map poses of
+//! the last half second; waiting up to `settle` seconds while holding it):
 //! the early acknowledgement `Done` of `c1` says that the plan was handed over,
 //! this says whether it was achieved.
 
@@ -57,7 +58,8 @@ pub struct Safety {
     pub final_tolerance: f64,
     /// The estimate's own error allowed for: a plan is reported reached only
     /// when the estimate is within `final_tolerance − final_margin` of its
-    /// last point [m].
+    /// last point, and within `final_margin` of the map poses of the last
+    /// half second ([`Estimate::pose_disagreement`]) [m].
     pub final_margin: f64,
     /// How long `e11` waits, holding the last point, for the platform to come
     /// within the tolerance [s].
@@ -472,15 +474,21 @@ fn stop(m: &mut E11Memory, e: &Estimate, reason: String) {
 }
 
 /// The end of a plan: reached when the estimate comes within the tolerance of its
-/// last point less the margin for the estimate's own error; missed if it does
-/// not within `settle` seconds, or when the next plan's fragments take over
-/// first.
+/// last point less the margin for the estimate's own error, while the estimate
+/// keeps to the map poses within that margin ([`Estimate::pose_disagreement`]:
+/// when it does not, as on a ground the estimator has not caught up with, its
+/// error may exceed the margin, and `e11` waits); missed if it is not reached
+/// within `settle` seconds, or when the next plan's fragments take over first.
 fn judge_arrival(m: &mut E11Memory, e: &Estimate) {
     let Some(a) = m.arrival else {
         return;
     };
     let error = (e.x[0] - a.end[0]).hypot(e.x[1] - a.end[1]);
-    let result = if error <= m.safety.final_tolerance - m.safety.final_margin {
+    // The margin holds while the estimate keeps to the map poses within it.
+    let trusted = e
+        .pose_disagreement
+        .is_none_or(|d| d <= m.safety.final_margin);
+    let result = if trusted && error <= m.safety.final_tolerance - m.safety.final_margin {
         Execution::Reached { error_m: error }
     } else if m.track.running.is_some() || m.now() - a.since >= m.safety.settle {
         Execution::Missed { error_m: error }

@@ -416,3 +416,55 @@ fn a_success_is_reported_only_with_a_margin_for_the_estimates_error() {
         }
     }
 }
+
+#[test]
+fn a_success_is_not_reported_while_the_estimate_strays_from_the_map_poses() {
+    // The estimate 1 cm from the end: reached, unless it is farther from the
+    // latest map poses than the margin it is allowed (0.03 m): then its own
+    // error may be larger too, and e11 waits for it to keep to the poses
+    // again, or for `settle` (3 s) to pass.
+    let at = |d: Option<f64>| Estimate {
+        x: [1.01, 0.0, 0.0, 0.0, 0.0],
+        localised: true,
+        pose_disagreement: d,
+        ..Estimate::default()
+    };
+    let arrival = Arrival {
+        plan: 1,
+        end: [1.0, 0.0],
+        since: 0.0,
+    };
+    let mut m = memory();
+    m.arrival = Some(arrival);
+    for d in [0.05, 0.031, f64::NAN] {
+        judge_arrival(&mut m, &at(Some(d)));
+        assert!(m.outbox.is_empty(), "{d}: {:?}", m.outbox);
+        m.iteration += 1;
+    }
+    judge_arrival(&mut m, &at(Some(0.02)));
+    let o = m.outbox.pop_front().unwrap();
+    assert!(
+        matches!(o.result, Execution::Reached { error_m } if (error_m - 0.01).abs() < 1e-9),
+        "{o:?}"
+    );
+    // No pose in the last half second: the margin alone (as before poses).
+    let mut m = memory();
+    m.arrival = Some(arrival);
+    judge_arrival(&mut m, &at(None));
+    assert!(matches!(
+        m.outbox.pop_front().map(|o| o.result),
+        Some(Execution::Reached { .. })
+    ));
+    // Straying for longer than `settle`: missed, with the estimate's distance.
+    let mut m = memory();
+    m.arrival = Some(arrival);
+    judge_arrival(&mut m, &at(Some(0.05)));
+    assert!(m.outbox.is_empty());
+    m.iteration = 60;
+    judge_arrival(&mut m, &at(Some(0.05)));
+    let o = m.outbox.pop_front().unwrap();
+    assert!(
+        matches!(o.result, Execution::Missed { error_m } if (error_m - 0.01).abs() < 1e-9),
+        "{o:?}"
+    );
+}

@@ -3,7 +3,7 @@
 
 use std::collections::VecDeque;
 
-use super::{Estimate, Estimator, EstimatorHealth, Measurements};
+use super::{DISAGREEMENT_SPAN_S, Estimate, Estimator, EstimatorHealth, Measurements};
 use crate::a1::payload::Transform;
 use crate::algorithms::mpc::{
     Innovation, LateralMhe, MheError, MheSettings, Motion, Sample, TimedPose,
@@ -234,6 +234,7 @@ impl Estimator for MheEstimator {
             theta: self.theta,
             theta_dot: self.theta_dot,
             localised: e.localised,
+            pose_disagreement: self.mhe.pose_residual(DISAGREEMENT_SPAN_S),
         }
     }
 

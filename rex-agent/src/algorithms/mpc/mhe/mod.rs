@@ -518,6 +518,19 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         self.information.into()
     }
 
+    /// How far the fitted states are from the map poses attached in the last
+    /// `span` seconds of the window: the largest distance [m] (position only).
+    /// The poses' own noise aside, a fit that cannot follow them (a model the
+    /// data contradict) shows here. `None` without such a pose.
+    pub fn pose_residual(&self, span: f64) -> Option<f64> {
+        let newest = self.window.back()?.t;
+        self.window
+            .iter()
+            .filter(|s| s.t >= newest - span)
+            .filter_map(|s| s.pose.map(|p| (p[0] - s.x[0]).hypot(p[1] - s.x[1])))
+            .reduce(f64::max)
+    }
+
     /// The newest sample's encoder readings against the model's prediction
     /// before the fit: a change of the parameters (a new ground) shows here as
     /// residuals the noise does not explain. `None` before a second sample or
