@@ -100,6 +100,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         nmpc.disturbance = self.disturbance;
         nmpc.prepared = true;
         nmpc.warm = self.warm;
+        nmpc.ipm_start.clone_from(&self.ipm_start);
         Ok(FrozenQp {
             dx0: Vector::from(*x_hat) - self.xs[0],
             nmpc,
@@ -120,7 +121,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> FrozenQp<M, NX, NP> 
     }
 
     /// Solved as the controller solves it: the Riccati recursion, kept when it
-    /// meets every bound, else the interior-point method on the stages.
+    /// meets every bound, else the interior-point method on the stages, from
+    /// the controller's start when frozen (each solve from the same one).
     pub fn solve_structured(&mut self) -> Result<QpSolution, NmpcError> {
         let dx0 = self.dx0;
         self.nmpc.riccati()?;
@@ -135,6 +137,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> FrozenQp<M, NX, NP> 
             step: self.step(),
             iterations,
         })
+    }
+
+    /// The same QP, its interior-point solves starting cold (every multiplier
+    /// at the same value) instead of from the controller's last solution.
+    pub fn cold(mut self) -> FrozenQp<M, NX, NP> {
+        self.nmpc.ipm_start.clear();
+        self
     }
 
     /// Whether a bound is active (the Riccati solution violates one).

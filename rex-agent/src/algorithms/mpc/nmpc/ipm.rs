@@ -9,12 +9,16 @@
 //! `N`. Mehrotra's predictor-corrector: two recursions per iteration.
 //!
 //! Every bounded component `z` has slacks `s_l = z − lb`, `s_u = ub − z` and
-//! multipliers `λ_l`, `λ_u`. Starting from the equality-constrained solution
-//! with `λ_l = λ_u`, the stationarity of the Lagrangian holds exactly at the
-//! start, and every step (one step length for all) keeps it; the iteration
-//! stops when the slacks' residuals and the complementarity are below the
-//! tolerance. A Riccati pivot that is not positive, a step that stalls, or no
-//! convergence in [`MAX_ITERATIONS`] returns `None`, and Clarabel solves the QP.
+//! multipliers `λ_l`, `λ_u`. The start is the equality-constrained solution
+//! with the previous solve's multipliers ([`IpmStart`]), or `λ_l = λ_u`
+//! everywhere. The stationarity of the Lagrangian is then off by `λ_u − λ_l`
+//! in each bounded component (nothing else: the equality-constrained solution
+//! is stationary without bounds), and the Newton steps are linear in it, so a
+//! step of length `α` (one for all) scales it by `1 − α`: it is tracked as that
+//! product, and is zero all along from a cold start. The iteration stops when
+//! it, the slacks' residuals and the complementarity are below the tolerance.
+//! A Riccati pivot that is not positive, a step that stalls, or no convergence
+//! in [`MAX_ITERATIONS`] returns `None`, and Clarabel solves the QP.
 
 use super::{Nmpc, UuFactor, spd_cholesky};
 use crate::world::model::{Dynamics, Matrix, NU, Vector};
@@ -29,6 +33,56 @@ const NB: usize = NU + 2;
 const START_MULTIPLIER: f64 = 0.1;
 /// Iterations before giving the QP to Clarabel.
 pub(super) const MAX_ITERATIONS: usize = 40;
+/// The least multiplier of a warm start (below, [`IpmStart`]). Measured on
+/// the peers' lap (`bench_nmpc`, the real-time iteration's interior-point
+/// solves, iterations mean / max at N = 20 and 50): cold 6.7 / 10 and 6.5 / 8;
+/// warm with 0.001 5.7 / 8, 5.8 / 9; 0.01 5.5 / 8, 5.4 / 8; 0.03 6.1 / 7,
+/// 6.2 / 8; 0.1 6.5 and 6.3 on average. The slacks' floor of a cold start (a
+/// tenth of the box) was best for a warm one too (0.01, 0.03 and 0.3 of it
+/// tried: means up to 6.2, maxima up to 9).
+const WARM_FLOOR: f64 = 0.01;
+
+/// Where the next solve starts its multipliers: the last converged solve's,
+/// shifted a stage with the trajectory (the real-time iteration's QPs follow
+/// each other closely), each at least [`WARM_FLOOR`]; or, when the last QP
+/// had no active bound or was not solved here, every multiplier at
+/// [`START_MULTIPLIER`].
+#[derive(Clone, Debug, Default)]
+pub(super) struct IpmStart {
+    /// `(λ_l, λ_u)` per bounded component, as [`IpmWork::bounds`].
+    multipliers: Vec<(f64, f64)>,
+    valid: bool,
+}
+
+impl IpmStart {
+    pub(super) fn new(n: usize) -> IpmStart {
+        IpmStart {
+            multipliers: vec![(0.0, 0.0); n * NB],
+            valid: false,
+        }
+    }
+
+    /// Forget the multipliers (the next solve starts cold).
+    pub(super) fn clear(&mut self) {
+        self.valid = false;
+    }
+
+    /// Shift the multipliers one stage, as the trajectory; the last stage
+    /// keeps its own.
+    pub(super) fn shift(&mut self) {
+        if self.multipliers.len() > NB {
+            self.multipliers.copy_within(NB.., 0);
+        }
+    }
+
+    /// The start of bound `j`'s multipliers.
+    fn at(&self, j: usize) -> (f64, f64) {
+        match self.multipliers.get(j) {
+            Some(&(l, u)) if self.valid => (l.max(WARM_FLOOR), u.max(WARM_FLOOR)),
+            _ => (START_MULTIPLIER, START_MULTIPLIER),
+        }
+    }
+}
 
 /// A bounded component's slacks and multipliers (or their steps): below
 /// (`s_l = z − lb`, `λ_l`) and above (`s_u = ub − z`, `λ_u`).
@@ -132,7 +186,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     /// Solve the QP of the current linearisation with `Δx_0 = dx0` and its
     /// bounds into `self.du`, `self.dx`; the iterations, or `None` if it did
     /// not converge (then `self.du`, `self.dx` are not a solution). Expects
-    /// `self.du`, `self.dx` to hold the equality-constrained solution.
+    /// `self.du`, `self.dx` to hold the equality-constrained solution. Starts
+    /// from `self.ipm_start`, which it leaves as it is ([`Nmpc::keep_ipm_start`]).
     pub(super) fn ipm(&mut self, dx0: &Vector<NX>) -> Option<usize> {
         let mut w = std::mem::take(&mut self.work);
         if w.bounds.len() != self.s.horizon * NB {
@@ -141,6 +196,15 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         let result = self.ipm_with(dx0, &mut w);
         self.work = w;
         result
+    }
+
+    /// The last converged solve's multipliers become the next solve's start.
+    pub(super) fn keep_ipm_start(&mut self) {
+        let start = &mut self.ipm_start;
+        start.multipliers.clear();
+        let kept = self.work.bounds.iter().map(|b| (b.at.l_l, b.at.l_u));
+        start.multipliers.extend(kept);
+        start.valid = true;
     }
 
     fn ipm_with(&mut self, dx0: &Vector<NX>, w: &mut IpmWork<NX>) -> Option<usize> {
@@ -153,8 +217,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         }
         // The boxes, in deltas from the current iterate; the start: the
         // equality-constrained solution, slacks at least a tenth of the box
-        // from zero, equal multipliers on both sides (so that stationarity
-        // holds).
+        // from zero, the multipliers of `self.ipm_start` (the stationarity is
+        // then off by `λ_u − λ_l`: module docs).
         w.du.copy_from_slice(&self.du);
         w.dx.copy_from_slice(&self.dx);
         for (k, stage) in w.bounds.chunks_exact_mut(NB).enumerate() {
@@ -169,14 +233,15 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 };
                 let (lb, ub) = (-limit - at, limit - at);
                 let floor = 0.1 * (ub - lb);
+                let (l_l, l_u) = self.ipm_start.at(k * NB + b);
                 *bound = Bound {
                     lb,
                     ub,
                     at: Slacks {
                         s_l: (z[b] - lb).max(floor),
                         s_u: (ub - z[b]).max(floor),
-                        l_l: START_MULTIPLIER,
-                        l_u: START_MULTIPLIER,
+                        l_l,
+                        l_u,
                     },
                     inv_l: 0.0,
                     inv_u: 0.0,
@@ -184,6 +249,10 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             }
         }
         let m = (2 * n * NB) as f64;
+        // The stationarity's residual (module docs).
+        let mut stationarity = (w.bounds.iter())
+            .map(|b| (b.at.l_u - b.at.l_l).abs())
+            .fold(0.0f64, f64::max);
         for iteration in 0..MAX_ITERATIONS {
             let mu = w
                 .bounds
@@ -207,7 +276,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             // 1e-3), so the complementarity must go far below the tolerance
             // for the solution to be within it (measured against Clarabel at
             // 1e-10: 2e-6 apart with `μ ≤ 1e-8`, within 1e-8 with `μ ≤ 1e-12`).
-            if mu <= tol * 1e-6 && residual <= tol * 1e-2 {
+            if mu <= tol * 1e-6 && residual <= tol * 1e-2 && stationarity <= tol * 1e-2 {
                 self.du.copy_from_slice(&w.du);
                 self.dx.copy_from_slice(&w.dx);
                 return Some(iteration);
@@ -243,6 +312,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 w.dir = dir;
                 return None;
             }
+            stationarity *= 1.0 - alpha;
             for k in 0..n {
                 w.du[k] += dir.du[k] * alpha;
                 w.dx[k + 1] += dir.dx[k + 1] * alpha;

@@ -73,7 +73,7 @@ mod qp;
 pub use frozen::{ClarabelWorkspace, FrozenQp, QpSolution, SparseQp};
 pub use offset::{DisturbanceObserver, DisturbanceSettings};
 
-use ipm::IpmWork;
+use ipm::{IpmStart, IpmWork};
 use qp::ClarabelQp;
 
 /// The NMPC on the peers' reduced model `(X, Y, φ, v, ω)`.
@@ -352,8 +352,10 @@ pub struct Nmpc<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> {
     du: Vec<Vector<NU>>,
     dx: Vec<Vector<NX>>,
     qp: Option<ClarabelQp>,
-    /// The structured interior-point method's memory.
+    /// The structured interior-point method's memory, and where its next
+    /// solve starts.
     work: IpmWork<NX>,
+    ipm_start: IpmStart,
     stats: NmpcStats,
 }
 
@@ -379,6 +381,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             dx: vec![Vector::zeros(); n + 1],
             qp: None,
             work: IpmWork::new(n),
+            ipm_start: IpmStart::new(n),
             stats: NmpcStats::default(),
             s: settings,
         })
@@ -457,6 +460,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     pub fn reset(&mut self) {
         self.warm = false;
         self.prepared = false;
+        self.ipm_start.clear();
     }
 
     /// One sample of the real-time iteration: [`Nmpc::prepare`], then
@@ -584,6 +588,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         let n = self.s.horizon;
         self.xs.copy_within(1.., 0);
         self.us.copy_within(1.., 0);
+        self.ipm_start.shift();
         let next = self.model.rk4(
             &self.xs[n - 1],
             &self.us[n - 1],

@@ -102,6 +102,8 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 self.last_clarabel = false;
                 self.stats.qps += 1;
                 self.stats.structured += 1;
+                // No bound active: every multiplier is zero.
+                self.ipm_start.clear();
                 return Ok(self.apply_structured());
             }
             if let Some(iterations) = self.ipm(&dx0) {
@@ -109,10 +111,12 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 self.stats.qps += 1;
                 self.stats.ipm += 1;
                 self.stats.ipm_iterations += iterations as u64;
+                self.keep_ipm_start();
                 return Ok(self.apply_structured());
             }
             self.stats.ipm_fallbacks += 1;
         }
+        self.ipm_start.clear();
         self.clarabel_step(&dx0)
     }
 
