@@ -137,11 +137,10 @@ pub(super) struct IpmWork<const NX: usize> {
     q_grad: Vec<Vector<NX>>,
     r_lin: Vec<Vector<NU>>,
     q_lin: Vec<Vector<NX>>,
-    /// Per stage `k`: `P_{k+1}`, the Cholesky factor of `H_uu`, and `H_ux`:
-    /// the factorisation both of an iteration's solves use.
+    /// Per stage `k`: `P_{k+1}` and the Cholesky factor of `H_uu`: the
+    /// factorisation both of an iteration's solves use (with the gains `K`).
     p_next: Vec<Matrix<NX, NX>>,
     chol: Vec<UuFactor>,
-    hux: Vec<Matrix<NU, NX>>,
 }
 
 impl<const NX: usize> IpmWork<NX> {
@@ -158,7 +157,6 @@ impl<const NX: usize> IpmWork<NX> {
             q_lin: vec![Vector::zeros(); n + 1],
             p_next: vec![Matrix::zeros(); n],
             chol: vec![UuFactor::pack_dirty(Matrix::identity()); n],
-            hux: vec![Matrix::zeros(); n],
         }
     }
 }
@@ -359,11 +357,14 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             }
             let hux = st.b.tr_mul(&pa);
             let l = spd_cholesky(huu)?;
-            let kmat = -l.solve(&hux);
+            // With `M = L⁻¹ H_ux`: `K = −L⁻ᵀ M` and `H_uxᵀ K = −Mᵀ M`. The
+            // next stage waits for the forward substitution only, the back
+            // substitution for `K` overlaps it.
+            let m = l.l_dirty().solve_lower_triangular_unchecked(&hux);
+            let kmat = -l.l_dirty().tr_solve_lower_triangular_unchecked(&m);
             w.p_next[k] = p;
-            w.hux[k] = hux;
             if k > 0 {
-                let mut next = st.a.tr_mul(&pa) + hux.tr_mul(&kmat);
+                let mut next = st.a.tr_mul(&pa) - m.tr_mul(&m);
                 let q = q_diag(k);
                 for i in 0..NX {
                     next[(i, i)] += q[i];
@@ -415,17 +416,19 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             w.q_lin[k + 1][bounded[0]] += g[NU];
             w.q_lin[k + 1][bounded[1]] += g[NU + 1];
         }
-        // The backward pass of the vectors.
+        // The backward pass of the vectors. `H_uxᵀ k = −H_uxᵀ H_uu⁻¹ h_u = Kᵀ
+        // h_u` (`H_uu` is symmetric): the recursion goes on without waiting
+        // for the solve, whose chained divisions then overlap the next
+        // stages' work.
         let mut pv = w.q_lin[n];
         for k in (0..n).rev() {
             let st = &self.stages[k];
             let h = w.p_next[k] * st.d + pv;
             let hu = w.r_lin[k] + st.b.tr_mul(&h);
-            let kff = -w.chol[k].solve(&hu);
             if k > 0 {
-                pv = w.q_lin[k] + st.a.tr_mul(&h) + w.hux[k].tr_mul(&kff);
+                pv = w.q_lin[k] + st.a.tr_mul(&h) + st.gain.tr_mul(&hu);
             }
-            self.stages[k].ff = kff;
+            self.stages[k].ff = -w.chol[k].solve(&hu);
         }
         // The new trajectory, then the direction to it.
         out.dx[0] = *dx0;
