@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
-use crate::world::model::{SlipParams, State5};
+use crate::world::model::{Reduced, SlipParams, State5};
 
 const NX: usize = 5;
 
@@ -30,6 +30,37 @@ fn closed_loop(settings: NmpcSettings<5>, steps: usize) -> (Vec<State5>, Vec<Sta
         xs.push(x);
     }
     (xs, status, nmpc.stats())
+}
+
+/// The peers' closed loop (one lap, default settings): `each` gets every QP
+/// with an active bound, frozen before the controller solves it and goes on.
+/// The number of such QPs.
+fn each_active_qp_of_the_lap(mut each: impl FnMut(FrozenQp<Reduced, 5, 3>)) -> usize {
+    let model = peer::model();
+    let s = NmpcSettings::default();
+    let n = s.horizon;
+    let r = peer::reference_run(N_SIM + n + 1);
+    let mut nmpc = Nmpc::new(model.clone(), s).unwrap();
+    let mut x = r[0];
+    for i in 0..5 {
+        x[i] += INIT_OFFSET[i];
+    }
+    let mut active = 0;
+    for k in 0..N_SIM {
+        let c = if k > 0 {
+            nmpc.prepare(&r[k..=k + n], &P).unwrap();
+            let mut qp = nmpc.freeze_qp(&x).unwrap();
+            if qp.active().unwrap() {
+                active += 1;
+                each(qp);
+            }
+            nmpc.feedback(&x).unwrap()
+        } else {
+            nmpc.control(&x, &r[k..=k + n], &P).unwrap()
+        };
+        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
+    }
+    active
 }
 
 #[test]
@@ -81,53 +112,32 @@ fn structured_and_clarabel_qps_give_the_same_closed_loop() {
 fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
     // The QPs of the peers' closed loop (one lap) with an active bound, each
     // solved by both before the controller goes on.
-    let model = peer::model();
-    let s = NmpcSettings::default();
-    let n = s.horizon;
-    let r = peer::reference_run(N_SIM + n + 1);
-    let mut nmpc = Nmpc::new(model.clone(), s).unwrap();
-    let p = P;
-    let mut x = r[0];
-    for i in 0..5 {
-        x[i] += INIT_OFFSET[i];
-    }
-    let (mut compared, mut iterations) = (0, 0);
+    let mut iterations = 0;
     // Largest differences: states, torques, objective (its values are 1e-3 to
     // 0.2).
     let mut worst = [0.0f64; 3];
     let mut violation = 0.0f64;
-    for k in 0..N_SIM {
-        let c = if k > 0 {
-            nmpc.prepare(&r[k..=k + n], &p).unwrap();
-            let mut qp = nmpc.freeze_qp(&x).unwrap();
-            if qp.active().unwrap() {
-                compared += 1;
-                let ipm = qp.solve_structured().unwrap();
-                let mut tight = qp.clarabel(1e-10).unwrap();
-                let clarabel = qp.solve_clarabel(&mut tight).unwrap();
-                iterations = iterations.max(ipm.iterations);
-                for (j, (a, b)) in ipm.step.iter().zip(&clarabel.step).enumerate() {
-                    let torque = usize::from(j % (NU + NX) < NU);
-                    worst[torque] = worst[torque].max((a - b).abs());
-                }
-                // The same QP in the common sparse form: both feasible, the
-                // same objective.
-                let sparse = qp.sparse();
-                let f = [
-                    sparse.objective(&ipm.step),
-                    sparse.objective(&clarabel.step),
-                ];
-                worst[2] = worst[2].max((f[0] - f[1]).abs());
-                violation = violation
-                    .max(sparse.violation(&ipm.step))
-                    .max(sparse.violation(&clarabel.step));
-            }
-            nmpc.feedback(&x).unwrap()
-        } else {
-            nmpc.control(&x, &r[k..=k + n], &p).unwrap()
-        };
-        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
-    }
+    let compared = each_active_qp_of_the_lap(|mut qp| {
+        let ipm = qp.solve_structured().unwrap();
+        let mut tight = qp.clarabel(1e-10).unwrap();
+        let clarabel = qp.solve_clarabel(&mut tight).unwrap();
+        iterations = iterations.max(ipm.iterations);
+        for (j, (a, b)) in ipm.step.iter().zip(&clarabel.step).enumerate() {
+            let torque = usize::from(j % (NU + NX) < NU);
+            worst[torque] = worst[torque].max((a - b).abs());
+        }
+        // The same QP in the common sparse form: both feasible, the same
+        // objective.
+        let sparse = qp.sparse();
+        let f = [
+            sparse.objective(&ipm.step),
+            sparse.objective(&clarabel.step),
+        ];
+        worst[2] = worst[2].max((f[0] - f[1]).abs());
+        violation = violation
+            .max(sparse.violation(&ipm.step))
+            .max(sparse.violation(&clarabel.step));
+    });
     assert!(compared > 50, "{compared} QPs with an active bound");
     assert!(violation < 1e-8, "constraint violation {violation}");
     assert!(iterations < super::ipm::MAX_ITERATIONS, "{iterations}");
@@ -145,39 +155,20 @@ fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
 fn warm_started_interior_point_solves_are_the_cold_ones_in_fewer_iterations() {
     // Every QP with an active bound of the peers' lap, solved from the
     // controller's start (the last solution's multipliers, shifted) and cold.
-    let model = peer::model();
-    let s = NmpcSettings::default();
-    let n = s.horizon;
-    let r = peer::reference_run(N_SIM + n + 1);
-    let mut nmpc = Nmpc::new(model.clone(), s).unwrap();
-    let mut x = r[0];
-    for i in 0..5 {
-        x[i] += INIT_OFFSET[i];
-    }
-    let (mut warm, mut cold, mut compared) = (0, 0, 0);
+    let (mut warm, mut cold) = (0, 0);
     let mut worst = 0.0f64;
-    for k in 0..N_SIM {
-        let c = if k > 0 {
-            nmpc.prepare(&r[k..=k + n], &P).unwrap();
-            let mut qp = nmpc.freeze_qp(&x).unwrap();
-            if qp.active().unwrap() {
-                let a = qp.solve_structured().unwrap();
-                // Solving again starts from the same multipliers.
-                assert_eq!(qp.solve_structured().unwrap().step, a.step);
-                let b = qp.cold().solve_structured().unwrap();
-                for (j, (a, b)) in a.step.iter().zip(&b.step).enumerate() {
-                    if j % (NU + NX) >= NU {
-                        worst = worst.max((a - b).abs());
-                    }
-                }
-                (warm, cold, compared) = (warm + a.iterations, cold + b.iterations, compared + 1);
+    let compared = each_active_qp_of_the_lap(|mut qp| {
+        let a = qp.solve_structured().unwrap();
+        // Solving again starts from the same multipliers.
+        assert_eq!(qp.solve_structured().unwrap().step, a.step);
+        let b = qp.cold().solve_structured().unwrap();
+        for (j, (a, b)) in a.step.iter().zip(&b.step).enumerate() {
+            if j % (NU + NX) >= NU {
+                worst = worst.max((a - b).abs());
             }
-            nmpc.feedback(&x).unwrap()
-        } else {
-            nmpc.control(&x, &r[k..=k + n], &P).unwrap()
-        };
-        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
-    }
+        }
+        (warm, cold) = (warm + a.iterations, cold + b.iterations);
+    });
     assert!(compared > 50, "{compared} QPs with an active bound");
     // The same solution (states to 1e-6, as against Clarabel), measured
     // 5.6 against 6.8 iterations on average.
