@@ -66,7 +66,7 @@ fn child_main(
     timeout_ms: u64,
     fingerprint_twist: bool,
 ) {
-    let p = pair(2, 2, 1, Policy::queue(64), false);
+    let p = pair(2, 2, 1, Policy::queue(512), false);
     let system = if fingerprint_twist && process == "p2" {
         twisted_pair().system
     } else {
@@ -153,7 +153,7 @@ fn twisted_pair() -> Pair32 {
     b.connect(
         c.output(port!(C32Out, e.count)),
         e.input(port!(E32In, c.count)),
-        Policy::queue(64),
+        Policy::queue(512),
     );
     b.connect(
         e.output(port!(E32Out, c.echo)),
