@@ -6,7 +6,8 @@
 //!   cautious prior (ice's values), for the sensor seeds given (default 1, 2,
 //!   3; the friction's walk was tuned on seed 1): the largest relative error of
 //!   `μ_x` or `μ_y` over every sample from 5 s after the torques start, and
-//!   the mean of `μ_x`'s and `μ_y`'s relative errors.
+//!   the mean of `μ_x`'s and `μ_y`'s relative errors; and the same samples'
+//!   rolling resistance `μ_r`: its mean relative error and the largest.
 //! * Split floors: the floor one ground, and another for `x >= X0` (concrete |
 //!   ice, ice | concrete, grass | ice, concrete | grass), every mission, for
 //!   `X0` of 0, 1 and 2 m on every seed and of 0.5, 1.5 and 3 m on seed 1:
@@ -118,6 +119,7 @@ fn main() -> Result<(), Error> {
     println!("| seed | surface | {} |", MISSIONS.join(" | "));
     println!("|---|---|{}", "---|".repeat(MISSIONS.len()));
     let (mut worst, mut worst_ice) = (0.0f64, 0.0f64);
+    let mut rolling_worst = Vec::new();
     for &seed in &seeds {
         for surface in SURFACES {
             let mut cells = Vec::new();
@@ -151,6 +153,15 @@ fn main() -> Result<(), Error> {
                     .map(|e| e.mu_lat / plant.mu_lat - 1.0)
                     .sum::<f64>()
                     / n;
+                let rolling = after
+                    .iter()
+                    .map(|e| e.rolling / plant.rolling - 1.0)
+                    .collect::<Vec<_>>();
+                let rolling_mean = rolling.iter().sum::<f64>() / n;
+                let rolling_max = rolling.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+                rolling_worst.push(format!(
+                    "{seed} {surface} {mission}: {rolling_mean:+.3} mean, {rolling_max:.3} max"
+                ));
                 worst = worst.max(max);
                 if surface == "ice" {
                     worst_ice = worst_ice.max(max);
@@ -159,6 +170,10 @@ fn main() -> Result<(), Error> {
             }
             println!("| {seed} | {surface} | {} |", cells.join(" | "));
         }
+    }
+    println!("The rolling resistance mu_r, the same samples: relative error (mean, largest)");
+    for line in &rolling_worst {
+        println!("  {line}");
     }
     println!("Split floors (ground | ground beyond x = X0): plans achieved, crossings followed");
     println!("| seed | X0 [m] | plans achieved | crossings followed |");
