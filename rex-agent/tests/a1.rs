@@ -14,8 +14,9 @@ use proptest::prelude::*;
 
 use rex_agent::a1::c1::trajgen::{Runtime, TrajGen};
 use rex_agent::a1::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
-use rex_agent::a1::payload::{Ack, AckStatus, Plan, Point2, State};
-use rex_agent::a1::{RexConfig, build};
+use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
+use rex_agent::a1::payload::{Ack, AckStatus, Execution, Plan, Point2, State};
+use rex_agent::a1::{RexConfig, RunSettings, build};
 use rex_agent::algorithms::planner::{PlannerKind, PlannerSettings};
 use rex_agent::mission::Mission;
 use rex_agent::report::judge::Verdict;
@@ -527,6 +528,44 @@ fn on_ice_no_plan_is_reported_achieved_that_was_not() {
     {
         assert!(r.ack.is_some() || r.outcome.is_some(), "{r}");
     }
+}
+
+#[test]
+fn a_plan_that_ends_where_ice_begins_is_claimed_only_once_the_estimate_keeps_to_the_poses() {
+    // The slalom on ice with concrete beyond x = 0, sensor seed 3 (one of
+    // bench_friction's runs): plan 2 ends on the line, the platform slides on
+    // past its end onto the ice, and the MHE, still on concrete's friction,
+    // has its estimate stop with the wheels, 6.5 cm off. With the margin for
+    // the estimate's error alone, e1,1 reported the plan reached there with
+    // the platform 0.102 m from its end (the tolerance: 0.10 m). It waits now,
+    // holding the point, until its estimate keeps to the motion capture.
+    let settings = RunSettings {
+        mission: "slalom".into(),
+        surface: Some("ice".into()),
+        tracker: TrackerKind::Nmpc,
+        estimator: EstimatorKind::Mhe,
+        visual_odometry: false,
+        ..RunSettings::default()
+    };
+    let mut config = settings.resolve(std::path::Path::new(".")).unwrap();
+    config.world.sensors.seed = 3;
+    config.world.surfaces.patches = vec![Patch {
+        surface: "concrete".into(),
+        region: Region::Rect {
+            x0: 0.0,
+            y0: -50.0,
+            x1: 50.0,
+            y1: 50.0,
+        },
+    }];
+    let out = run(&config, 600);
+    assert_eq!(out.false_done(), 0, "{:#?}", out.reports);
+    let report = out.reports.iter().find(|r| r.plan == 2).unwrap();
+    assert!(
+        matches!(report.outcome, Some((_, Execution::Reached { .. }))),
+        "{report}"
+    );
+    assert!(report.end_error_m.is_some_and(|e| e < 0.1), "{report}");
 }
 
 #[test]
