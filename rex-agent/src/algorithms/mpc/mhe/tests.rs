@@ -330,6 +330,37 @@ fn nothing_is_estimated_before_the_first_pose() {
     ));
 }
 
+/// Run the MHE over the data set with the encoders' readings scaled by
+/// `scale` from sample 100 on (as on a ground that suddenly slips more), the
+/// poses exact (the truth) if `exact_poses`; `read` what is wanted of the
+/// estimator after each sample.
+fn with_encoders_scaled<T>(
+    d: &MheData,
+    scale: f64,
+    exact_poses: bool,
+    read: impl Fn(&ReducedMhe) -> T,
+) -> Vec<T> {
+    let mut mhe = Mhe::new(peer::model(), Settings::default()).unwrap();
+    let mut out = Vec::new();
+    for k in 0..=N_SIM {
+        let mut s = d.sample(k);
+        if exact_poses {
+            let x = d.xs[k];
+            s.pose = s.pose.map(|p| TimedPose {
+                pose: [x[0], x[1], x[2]],
+                ..p
+            });
+        }
+        if k >= 100 {
+            s.encoders = s.encoders.map(|e| e.map(|v| v * scale));
+        }
+        let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
+        mhe.update(k as f64 * DT, &u, &s);
+        out.push(read(&mhe));
+    }
+    out
+}
+
 #[test]
 fn the_encoder_innovation_shows_a_change_the_noise_does_not_explain() {
     // The peer's data, whose encoders the model explains up to their noise,
@@ -337,20 +368,7 @@ fn the_encoder_innovation_shows_a_change_the_noise_does_not_explain() {
     // (as on a ground that suddenly slips more): the innovation is the residual
     // before the fit, so it shows the change at once.
     let d = data();
-    let innovations = |scale: f64| {
-        let mut mhe = Mhe::new(peer::model(), Settings::default()).unwrap();
-        let mut out = Vec::new();
-        for k in 0..=N_SIM {
-            let mut s = d.sample(k);
-            if k >= 100 {
-                s.encoders = s.encoders.map(|e| e.map(|v| v * scale));
-            }
-            let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
-            mhe.update(k as f64 * DT, &u, &s);
-            out.push(mhe.innovation());
-        }
-        out
-    };
+    let innovations = |scale: f64| with_encoders_scaled(&d, scale, false, Mhe::innovation);
     let clean = innovations(1.0);
     let changed = innovations(1.2);
     assert!(clean[0].is_none(), "no innovation before a second sample");
@@ -383,25 +401,7 @@ fn the_pose_residual_shows_a_fit_the_model_keeps_from_the_poses() {
     // more): the encoders and the model then carry the fit ahead of the
     // poses, which stay where the robot is.
     let d = data();
-    let residuals = |scale: f64| {
-        let mut mhe = Mhe::new(peer::model(), Settings::default()).unwrap();
-        let mut out = Vec::new();
-        for k in 0..=N_SIM {
-            let mut s = d.sample(k);
-            let x = d.xs[k];
-            s.pose = s.pose.map(|p| TimedPose {
-                pose: [x[0], x[1], x[2]],
-                ..p
-            });
-            if k >= 100 {
-                s.encoders = s.encoders.map(|e| e.map(|v| v * scale));
-            }
-            let u = if k > 0 { d.us[k - 1] } else { [0.0; 4] };
-            mhe.update(k as f64 * DT, &u, &s);
-            out.push(mhe.pose_residual(0.5));
-        }
-        out
-    };
+    let residuals = |scale: f64| with_encoders_scaled(&d, scale, true, |m| m.pose_residual(0.5));
     let clean = residuals(1.0);
     let changed = residuals(1.3);
     let max = |v: &[Option<f64>]| v.iter().map(|r| r.unwrap()).fold(0.0, f64::max);
