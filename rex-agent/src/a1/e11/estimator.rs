@@ -37,9 +37,10 @@ pub struct Estimate {
     /// How far the estimate was from the map poses of the last
     /// [`DISAGREEMENT_SPAN_S`] [m], the largest distance: the MHE's fit at the
     /// poses' times, the EKF's estimate once corrected by each pose (a pose
-    /// gated out: the whole innovation). Beyond the poses' own noise it says the estimate cannot follow
-    /// them (a model the data contradict, a new ground): its error may then be
-    /// larger than usual. `None` without a pose in that span.
+    /// gated out: the whole innovation). Beyond the poses' own noise it says
+    /// the estimate cannot follow them (a model the data contradict, a new
+    /// ground): its error may then be larger than usual. `None` without a
+    /// pose in that span.
     pub pose_disagreement: Option<f64>,
 }
 
@@ -249,7 +250,7 @@ pub struct Ekf {
     offset_known: bool,
     /// When the current run of gated-out map poses began.
     rejecting_since: Option<f64>,
-    /// The position innovations of the map poses of the last
+    /// How far the corrected estimate was from each map pose of the last
     /// [`DISAGREEMENT_SPAN_S`]: `(arrival time, distance)`.
     disagreements: VecDeque<(f64, f64)>,
     health: EstimatorHealth,
