@@ -47,6 +47,13 @@ pub struct Estimate {
 /// The span of map poses [`Estimate::pose_disagreement`] looks back over [s].
 pub const DISAGREEMENT_SPAN_S: f64 = 0.5;
 
+/// Drop the entries of a time-ordered queue stamped before `t`.
+fn forget_before<T>(queue: &mut VecDeque<(f64, T)>, t: f64) {
+    while queue.front().is_some_and(|(at, _)| *at < t) {
+        queue.pop_front();
+    }
+}
+
 impl Estimate {
     /// The lateral velocity: estimated, or the reduced model's `−x_0 ω` with
     /// the ICR offset `x_icr`.
@@ -461,17 +468,8 @@ impl Estimator for Ekf {
             self.map_pose(&pose, m.now);
         }
         self.history.push_back((m.now, self.x));
-        while self.history.len() > 1 && self.history.front().is_some_and(|(t, _)| *t < m.now - 1.0)
-        {
-            self.history.pop_front();
-        }
-        while self
-            .disagreements
-            .front()
-            .is_some_and(|(t, _)| *t < m.now - DISAGREEMENT_SPAN_S)
-        {
-            self.disagreements.pop_front();
-        }
+        forget_before(&mut self.history, m.now - 1.0);
+        forget_before(&mut self.disagreements, m.now - DISAGREEMENT_SPAN_S);
         Estimate {
             x: std::array::from_fn(|i| self.x[i]),
             lateral: None,

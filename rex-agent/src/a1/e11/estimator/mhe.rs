@@ -3,7 +3,9 @@
 
 use std::collections::VecDeque;
 
-use super::{DISAGREEMENT_SPAN_S, Estimate, Estimator, EstimatorHealth, Measurements};
+use super::{
+    DISAGREEMENT_SPAN_S, Estimate, Estimator, EstimatorHealth, Measurements, forget_before,
+};
 use crate::a1::payload::Transform;
 use crate::algorithms::mpc::{
     Innovation, LateralMhe, MheError, MheSettings, Motion, Sample, TimedPose,
@@ -116,13 +118,7 @@ impl Settling {
             self.moving += dt;
         }
         self.recent.push_back((now, [f.mu_long, f.mu_lat]));
-        while self
-            .recent
-            .front()
-            .is_some_and(|(t, _)| *t < now - Self::WINDOW_S)
-        {
-            self.recent.pop_front();
-        }
+        forget_before(&mut self.recent, now - Self::WINDOW_S);
         let n = self.recent.len() as f64;
         let steady = (0..2).all(|k| {
             let mean = self.recent.iter().map(|(_, p)| p[k]).sum::<f64>() / n;
