@@ -2,8 +2,8 @@
 //! must fail to compile with the error in its `.stderr` file, which is what a user
 //! sees. `tests/ui/pass` must compile and run.
 //!
-//! After changing a message on purpose: `TRYBUILD=overwrite cargo test --test
-//! macros_ui`, then read the new `.stderr` files before committing them.
+//! After changing a message on purpose: `TRYBUILD=overwrite cargo test -p
+//! embodied-ui-tests`, then read the new `.stderr` files before committing them.
 
 #[test]
 fn programs_using_the_macros_correctly_compile_and_run() {
