@@ -10,25 +10,41 @@ const NX: usize = 5;
 /// The nominal slip parameters as the NMPC takes them.
 const P: [f64; 3] = [0.03, 0.05, 0.5];
 
-/// The peers' closed loop for `steps` samples; the true positions and the
-/// statuses.
-fn closed_loop(settings: NmpcSettings<5>, steps: usize) -> (Vec<State5>, Vec<Status>, NmpcStats) {
+/// The peers' closed loop for `steps` samples from their initial offset:
+/// `control` gives sample `k`'s torques from the controller, `k`, the true state
+/// and the reference over the horizon. The true states (the first included) and
+/// the controller.
+fn drive(
+    settings: NmpcSettings<5>,
+    steps: usize,
+    mut control: impl FnMut(&mut Nmpc<Reduced, 5, 3>, usize, &State5, &[State5]) -> Control,
+) -> (Vec<State5>, Nmpc<Reduced, 5, 3>) {
     let model = peer::model();
     let n = settings.horizon;
     let r = peer::reference_run(N_SIM + n + 1);
     let mut nmpc = Nmpc::new(model.clone(), settings).unwrap();
-    let p = P;
     let mut x = r[0];
     for i in 0..5 {
         x[i] += INIT_OFFSET[i];
     }
-    let (mut xs, mut status) = (vec![x], Vec::new());
+    let mut xs = vec![x];
     for k in 0..steps {
-        let c = nmpc.control(&x, &r[k..=k + n], &p).unwrap();
-        status.push(c.status);
+        let c = control(&mut nmpc, k, &x, &r[k..=k + n]);
         x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
         xs.push(x);
     }
+    (xs, nmpc)
+}
+
+/// The peers' closed loop for `steps` samples; the true positions and the
+/// statuses.
+fn closed_loop(settings: NmpcSettings<5>, steps: usize) -> (Vec<State5>, Vec<Status>, NmpcStats) {
+    let mut status = Vec::new();
+    let (xs, nmpc) = drive(settings, steps, |nmpc, _, x, r| {
+        let c = nmpc.control(x, r, &P).unwrap();
+        status.push(c.status.clone());
+        c
+    });
     (xs, status, nmpc.stats())
 }
 
@@ -36,30 +52,19 @@ fn closed_loop(settings: NmpcSettings<5>, steps: usize) -> (Vec<State5>, Vec<Sta
 /// with an active bound, frozen before the controller solves it and goes on.
 /// The number of such QPs.
 fn each_active_qp_of_the_lap(mut each: impl FnMut(FrozenQp<Reduced, 5, 3>)) -> usize {
-    let model = peer::model();
-    let s = NmpcSettings::default();
-    let n = s.horizon;
-    let r = peer::reference_run(N_SIM + n + 1);
-    let mut nmpc = Nmpc::new(model.clone(), s).unwrap();
-    let mut x = r[0];
-    for i in 0..5 {
-        x[i] += INIT_OFFSET[i];
-    }
     let mut active = 0;
-    for k in 0..N_SIM {
-        let c = if k > 0 {
-            nmpc.prepare(&r[k..=k + n], &P).unwrap();
-            let mut qp = nmpc.freeze_qp(&x).unwrap();
-            if qp.active().unwrap() {
-                active += 1;
-                each(qp);
-            }
-            nmpc.feedback(&x).unwrap()
-        } else {
-            nmpc.control(&x, &r[k..=k + n], &P).unwrap()
-        };
-        x = model.rk4_5(&x, &c.torques, &SlipParams::NOMINAL, DT, PLANT_RK4_STEPS);
-    }
+    drive(NmpcSettings::default(), N_SIM, |nmpc, k, x, r| {
+        if k == 0 {
+            return nmpc.control(x, r, &P).unwrap();
+        }
+        nmpc.prepare(r, &P).unwrap();
+        let mut qp = nmpc.freeze_qp(x).unwrap();
+        if qp.active().unwrap() {
+            active += 1;
+            each(qp);
+        }
+        nmpc.feedback(x).unwrap()
+    });
     active
 }
 
