@@ -675,11 +675,13 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // On a uniform floor, from a cautious prior (ice's values) on every ground,
     // the MHE's longitudinal and lateral friction come within 15% of the
     // plant's after 5 s of the figure eight, and stay there, sample by sample.
-    // Measured (every sample after 5 s): concrete 6.6%, grass 7.8%, ice 10.7%
-    // (on ice `μ_x` is biased up, 6% on average: see the README's "NMPC and
-    // MHE"; the average is asserted within 10% there). The rolling
-    // resistance is reported, not asserted this tightly (a force of 2-8 N on a
-    // 40 kg platform).
+    // Measured (every sample after 5 s): concrete 5.8%, grass 7.8%, ice 7.8%;
+    // on ice `μ_x` is biased up, 3.5% on average (6.1% and single samples
+    // 10.4% before the encoders were predicted from the slip of the reading
+    // before: see the README's "NMPC and MHE"); the average is asserted within
+    // 5% there. The rolling resistance (a force of 2-8 N on a 40 kg
+    // platform) only on average, within 15%: measured −2.9%, −2.4%, −13.1%
+    // (on ice −18.8% before).
     for surface in ["concrete", "grass", "ice"] {
         let mut config = figure_eight_on(surface);
         config.tracker = rex_agent::a1::e11::TrackerKind::Nmpc;
@@ -715,10 +717,14 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
         let mean = Friction::from_array(std::array::from_fn(|i| {
             after.iter().map(|e| e.to_array()[i]).sum::<f64>() / n
         }));
-        let average = if surface == "ice" { 0.10 } else { 0.15 };
+        let average = if surface == "ice" { 0.05 } else { 0.15 };
         assert!(
             mean.friction_error(&plant) <= average,
             "{surface}: on average {mean:?}, the plant's {plant:?}"
+        );
+        assert!(
+            (mean.rolling / plant.rolling - 1.0).abs() <= 0.15,
+            "{surface}: rolling resistance on average {mean:?}, the plant's {plant:?}"
         );
         // The summary reports the estimate.
         let summary = rex_agent::report::summary(&out);

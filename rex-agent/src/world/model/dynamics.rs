@@ -125,6 +125,26 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         std::array::from_fn(|i| self.encoder_rate(i, x, u, p))
     }
 
+    /// [`Dynamics::encoder_rates`] for a model that knows how a wheel's slip
+    /// settles after its torque changes: each wheel's rate at `x` under `u`
+    /// reached from the slip its encoder showed `h` seconds before
+    /// (`previous[i]` [rad/s], read at the state `x_previous`; NaN where there
+    /// was no reading). `x_previous` and `previous` enter as data (no gradient
+    /// by them). The default: the slip settles at once, as
+    /// [`Dynamics::encoder_rates`] has it.
+    fn encoder_rates_settling(
+        &self,
+        x_previous: &Vector<NX>,
+        previous: [f64; 4],
+        h: f64,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+    ) -> [Option<Measured<NX, NP>>; 4] {
+        let _ = (x_previous, previous, h);
+        self.encoder_rates(x, u, p)
+    }
+
     /// Whether wheel `i`'s encoder `reading` [rad/s] is one the model can
     /// represent at state `x` with some parameters (a wheel spinning far faster
     /// than the ground moves under it is not: its slip has no bound the model

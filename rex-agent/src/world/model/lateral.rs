@@ -39,7 +39,10 @@
 //! before it spins. Near the bound the slip law is steep, so the prediction's
 //! uncertainty grows with its slope (a few percent of the traction fraction,
 //! what the left-out load transfer moves), and a wheel beyond 97 % of it is not
-//! predicted at all.
+//! predicted at all. The slip takes time to settle after the torque changes
+//! (the wheel's spin inertia against the ground's slope, 8-80 ms on ice), so
+//! the MHE predicts each reading from the slip the one before showed
+//! ([`super::settling`], [`Dynamics::encoder_rates_settling`]).
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
@@ -47,6 +50,7 @@
 
 use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector, sg, sg_inverse, sg_prime, sg4};
 use super::params::{Friction, PlatformParams};
+use super::settling::settle_slip;
 
 /// State of the lateral-slip model: `(X, Y, φ, v_x, v_y, ω)`.
 pub type State6 = [f64; 6];
@@ -449,7 +453,7 @@ impl Dynamics<6, 3> for Lateral {
         u: &Vector<NU>,
         p: &Vector<3>,
     ) -> Option<Measured<6, 3>> {
-        self.encoder_rate_with(i, x, p, &self.forces(x, u, p))
+        self.encoder_rate_with(i, x, p, &self.forces(x, u, p), None)
     }
 
     fn encoder_rates(
@@ -459,19 +463,43 @@ impl Dynamics<6, 3> for Lateral {
         p: &Vector<3>,
     ) -> [Option<Measured<6, 3>>; 4] {
         let f = self.forces(x, u, p);
-        std::array::from_fn(|i| self.encoder_rate_with(i, x, p, &f))
+        std::array::from_fn(|i| self.encoder_rate_with(i, x, p, &f, None))
+    }
+
+    /// Each wheel's slip from the one its encoder showed `h` seconds before
+    /// ([`settle_slip`]); a wheel without a finite reading then, or with no
+    /// time since, as [`Dynamics::encoder_rates`] has it.
+    fn encoder_rates_settling(
+        &self,
+        x_previous: &Vector<6>,
+        previous: [f64; 4],
+        h: f64,
+        x: &Vector<6>,
+        u: &Vector<NU>,
+        p: &Vector<3>,
+    ) -> [Option<Measured<6, 3>>; 4] {
+        let f = self.forces(x, u, p);
+        let r = self.params.wheel_radius;
+        std::array::from_fn(|i| {
+            let dy = self.d[i][1];
+            let start = r * previous[i] - (x_previous[VX] - dy * x_previous[W]);
+            let settle = (start.is_finite() && h > 0.0).then_some((start, h));
+            self.encoder_rate_with(i, x, p, &f, settle)
+        })
     }
 }
 
 impl Lateral {
     /// [`Dynamics::encoder_rate`] of wheel `i` with the ground's forces `f`
-    /// at `(x, u, p)`.
+    /// at `(x, u, p)`; with `settle`, `(s₀, h)`, the slip reached `h` seconds
+    /// after the slip `s₀` ([`settle_slip`]) instead of the settled one.
     fn encoder_rate_with(
         &self,
         i: usize,
         x: &Vector<6>,
         p: &Vector<3>,
         f: &Forces,
+        settle: Option<(f64, f64)>,
     ) -> Option<Measured<6, 3>> {
         // θ̇_i = (v_ix + s_i) / r with the slip s_i at which the ground takes the
         // wheel's traction: μ_x N sg(s) = F_x, i.e. s = sg⁻¹(F_x / (μ_x N)).
@@ -490,7 +518,16 @@ impl Lateral {
         if zeta.is_nan() || zeta.abs() > ENCODER_FRACTION_MAX {
             return None;
         }
-        let (slip, slip_zeta) = sg_inverse(ks, zeta);
+        // The slip, its slope in ζ, and its derivative by the bound `μ_x N`
+        // itself (how fast the slip settles depends on it).
+        let kappa = self.params.wheel_inertia / (r * r);
+        let (slip, slip_zeta, slip_cap) = settle
+            .map(|(start, h)| settle_slip(ks, kappa, cap, zeta, start, h))
+            .filter(|s| s.0.is_finite() && s.1.is_finite() && s.2.is_finite())
+            .unwrap_or_else(|| {
+                let (s, ds) = sg_inverse(ks, zeta);
+                (s, ds, 0.0)
+            });
         let vix = x[VX] - dy * x[W];
         let (rel, abs) = FRACTION_SIGMA;
         let g = gzeta * (slip_zeta / r);
@@ -505,6 +542,9 @@ impl Lateral {
         m.x[W] = -dy / r + g[G_W];
         for k in 0..3 {
             m.p[k] = g[G_P + k];
+        }
+        if p[MU_X] > MU_MIN {
+            m.p[MU_X] += slip_cap * self.n[i] / r;
         }
         Some(m)
     }

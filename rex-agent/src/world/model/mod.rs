@@ -6,6 +6,7 @@ pub mod full;
 pub mod lateral;
 pub mod params;
 pub mod reduced;
+pub mod settling;
 
 pub use dynamics::{Dynamics, Linearised, Matrix, Measured, NU, Vector};
 pub use full::{CommandStats, FullState, IntegrationStats, Plant};

@@ -94,6 +94,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             // the force sensors saw just before this instant.
             let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
             let loads = st.loads.map(|l| (l, self.load_model(&st.x, &u_in, &p)));
+            let encoders = st.encoders.map(|e| (e, self.encoder_prediction(i, &p)));
             let b = &mut self.blocks[i];
             if let Some(pose) = st.pose {
                 for k in 0..3 {
@@ -105,8 +106,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
                 let k = M::YAW_RATE;
                 add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - g, s.sigma_gyro);
             }
-            if let Some(e) = st.encoders {
-                let predicted = self.model.encoder_rates(&st.x, &u_in, &p);
+            if let Some((e, predicted)) = encoders {
                 for (reading, m) in e.iter().zip(predicted) {
                     // A wheel the model cannot predict (spinning) or one gated
                     // out when it arrived (NaN) is left out.

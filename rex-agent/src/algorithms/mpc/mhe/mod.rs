@@ -60,7 +60,7 @@ use std::collections::VecDeque;
 
 use super::nmpc::QpStrategy;
 use crate::world::model::{
-    Dynamics, Friction, Lateral, Matrix, NU, Reduced, SlipParams, Torques, Vector,
+    Dynamics, Friction, Lateral, Matrix, Measured, NU, Reduced, SlipParams, Torques, Vector,
 };
 
 mod assemble;
@@ -539,12 +539,31 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         self.innovation
     }
 
+    /// What stage `i`'s encoders should read with the parameters `p`: under
+    /// the torques of the interval that ends there, from the slips the
+    /// readings of the stage before showed ([`Dynamics::encoder_rates_settling`];
+    /// the first stage's as settled).
+    fn encoder_prediction(&self, i: usize, p: &Vector<NP>) -> [Option<Measured<NX, NP>>; 4] {
+        let st = &self.window[i];
+        match i.checked_sub(1).map(|k| &self.window[k]) {
+            Some(before) => self.model.encoder_rates_settling(
+                &before.x,
+                before.encoders.unwrap_or([f64::NAN; 4]),
+                st.t - before.t,
+                &st.x,
+                &before.u,
+                p,
+            ),
+            None => self.model.encoder_rates(&st.x, &st.u, p),
+        }
+    }
+
     fn encoder_innovation(&self) -> Option<Innovation> {
         let n = self.window.len().checked_sub(2)?;
-        let (prev, last) = (&self.window[n], &self.window[n + 1]);
+        let last = &self.window[n + 1];
         let e = last.encoders?;
         let (mut sum, mut square, mut readings, mut spinning) = (0.0, 0.0, 0, 0);
-        let predicted = self.model.encoder_rates(&last.x, &prev.u, &self.p);
+        let predicted = self.encoder_prediction(n + 1, &self.p);
         for (reading, m) in e.iter().zip(predicted) {
             if !reading.is_finite() {
                 spinning += 1;

@@ -1,0 +1,244 @@
+//! How a wheel's slip settles after its torque changes: what the lateral
+//! model's encoder prediction ([`super::Lateral`], through
+//! [`super::Dynamics::encoder_rates_settling`]) takes from the plant's wheel
+//! spin, which the model otherwise eliminates.
+//!
+//! The plant's wheel `J_w θ̈ = τ − r F_x − r μ_r N sg(r θ̇)` with
+//! `θ̇ = (v_ix + s) / r` gives, for the slip `s`,
+//!
+//! ```text
+//! κ ṡ = g − μ_x N sg(s),     κ = J_w / r²
+//! ```
+//!
+//! where `g = τ / r − μ_r N sg − κ v̇_ix` is what the ground is asked for, the
+//! lateral model's `g_i` (as the fraction `ζ = g / (μ_x N)` of the bound). The
+//! model takes `s` as settled at once, `sg(s) = ζ`; its time constant is
+//! `κ / (μ_x N sg′(s))`: a millisecond on concrete at no slip, 8 ms on ice,
+//! and 80 ms on ice at 80 % of the bound, against the MHE's 50 ms samples. On
+//! ice the settled slip was wrong often enough to bias the MHE's friction
+//! (`μ_x` 5-8 % high on average, the rolling resistance `μ_r` 11-30 % low; the
+//! README's "NMPC and MHE" has the measurements): the encoders, read at the end
+//! of a sample, still show part of the slip of the torque before.
+//!
+//! So the MHE predicts each encoder from the slip its previous reading showed,
+//! integrated over the sample under the torque of the interval ([`settle_slip`]:
+//! backward Euler, stable at any stiffness; the slip of the previous reading
+//! enters as data).
+
+use super::dynamics::{sg, sg_inverse, sg_prime};
+
+/// Backward Euler steps over one sample.
+const STEPS: usize = 5;
+
+/// The slip `h` seconds after `start` [m/s] of a wheel whose ground is asked
+/// for the fraction `zeta` (`|ζ| < 1`) of its traction bound `cap = μ_x N`
+/// [N], the wheel's spin inertia at its rim being `kappa = J_w / r²` [kg]:
+/// `κ ṡ = cap (ζ − sg(s))` by backward Euler in [`STEPS`] steps. Returns the
+/// slip and its derivatives by `zeta` and by `cap`. Each step's implicit
+/// equation is increasing in `s` with its root between the step's start and
+/// the settled slip `sg⁻¹(ζ)`: Newton's method kept inside that bracket
+/// (bisection where a Newton step leaves it). With `h = 0` the slip is
+/// `start`; as `h` grows it tends to `sg⁻¹(ζ)`, the settled one.
+pub fn settle_slip(
+    k_s: f64,
+    kappa: f64,
+    cap: f64,
+    zeta: f64,
+    start: f64,
+    h: f64,
+) -> (f64, f64, f64) {
+    let settled = sg_inverse(k_s, zeta).0;
+    let c = h / STEPS as f64 * cap / kappa;
+    let (mut s, mut ds_dzeta, mut ds_dcap) = (start, 0.0, 0.0);
+    for _ in 0..STEPS {
+        let from = s;
+        let (mut lo, mut hi) = (from.min(settled), from.max(settled));
+        // sg and sg′ at the step's slip, as of the last evaluation.
+        let (mut sgs, mut slope) = (sg(k_s, s), sg_prime(k_s, s));
+        for _ in 0..100 {
+            let g = s - from - c * (zeta - sgs);
+            if g > 0.0 {
+                hi = s;
+            } else {
+                lo = s;
+            }
+            let mut next = s - g / (1.0 + c * slope);
+            if !(next >= lo && next <= hi) {
+                next = 0.5 * (lo + hi);
+            }
+            let step = next - s;
+            s = next;
+            sgs = sg(k_s, s);
+            slope = sg_prime(k_s, s);
+            if step.abs() <= 1e-14 {
+                break;
+            }
+        }
+        // Differentiating the step's equation `s − from = c (ζ − sg(s))`.
+        let d = 1.0 + c * slope;
+        ds_dzeta = (ds_dzeta + c) / d;
+        ds_dcap = (ds_dcap + c / cap * (zeta - sgs)) / d;
+    }
+    (s, ds_dzeta, ds_dcap)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::model::{Dynamics, Lateral, PlatformParams, Vector};
+
+    const KS: f64 = 20.0;
+    /// The peers' platform: `J_w / r²` = 1 kg; ice's bound on a wheel.
+    const KAPPA: f64 = 1.0;
+    const ICE: f64 = 0.1 * 98.1;
+
+    #[test]
+    fn the_slip_starts_where_it_was_and_settles_where_the_ground_takes_the_traction() {
+        for (zeta, start) in [
+            (0.5, 0.0),
+            (-0.8, 0.3),
+            (0.0, -1.0),
+            (0.95, 2.0),
+            (0.3, 0.3),
+        ] {
+            let settled = sg_inverse(KS, zeta).0;
+            let (s, _, _) = settle_slip(KS, KAPPA, ICE, zeta, start, 0.0);
+            assert!((s - start).abs() < 1e-12, "{zeta} {start}: {s}");
+            let (s, _, _) = settle_slip(KS, KAPPA, ICE, zeta, start, 1e4);
+            assert!((s - settled).abs() < 1e-6, "{zeta} {start}: {s} {settled}");
+            // Monotone in between, never past the settled slip.
+            let mut last = start;
+            for k in 1..=20 {
+                let (s, _, _) = settle_slip(KS, KAPPA, ICE, zeta, start, 0.005 * f64::from(k));
+                let toward = (settled - start).signum();
+                assert!((s - last) * toward >= -1e-12, "{zeta} {start}");
+                assert!((settled - s) * toward >= -1e-12, "{zeta} {start}");
+                last = s;
+            }
+        }
+    }
+
+    #[test]
+    fn the_slip_follows_the_wheel_equation() {
+        // Against the ODE integrated finely (explicit Euler, 1 µs): within
+        // what backward Euler in five steps leaves, a few percent of the way.
+        for (zeta, start, h) in [(0.5, 0.0, 0.05), (-0.8, 0.2, 0.05), (0.9, 0.0, 0.02)] {
+            let mut s = start;
+            let steps = (h / 1e-6) as usize;
+            for _ in 0..steps {
+                s += 1e-6 * ICE * (zeta - sg(KS, s)) / KAPPA;
+            }
+            let (be, _, _) = settle_slip(KS, KAPPA, ICE, zeta, start, h);
+            let way = (sg_inverse(KS, zeta).0 - start).abs();
+            assert!((be - s).abs() < 0.05 * way, "{zeta} {start} {h}: {be} {s}");
+        }
+    }
+
+    #[test]
+    fn its_derivatives_match_finite_differences() {
+        for (zeta, start, cap) in [(0.5, 0.0, ICE), (-0.8, 0.3, ICE), (0.2, -0.05, 78.5)] {
+            let (_, dz, dc) = settle_slip(KS, KAPPA, cap, zeta, start, 0.05);
+            let e = 1e-6;
+            let fd_z = (settle_slip(KS, KAPPA, cap, zeta + e, start, 0.05).0
+                - settle_slip(KS, KAPPA, cap, zeta - e, start, 0.05).0)
+                / (2.0 * e);
+            let ec = 1e-6 * cap;
+            let fd_c = (settle_slip(KS, KAPPA, cap + ec, zeta, start, 0.05).0
+                - settle_slip(KS, KAPPA, cap - ec, zeta, start, 0.05).0)
+                / (2.0 * ec);
+            assert!((dz - fd_z).abs() < 1e-6 * (1.0 + fd_z.abs()), "{dz} {fd_z}");
+            assert!((dc - fd_c).abs() < 1e-6 * (1.0 + fd_c.abs()), "{dc} {fd_c}");
+        }
+    }
+
+    /// A point of the lateral model on ice with every wheel below its bound.
+    fn ice_point() -> (Lateral, Vector<6>, Vector<4>, Vector<3>) {
+        (
+            Lateral::new(PlatformParams::peer_default()),
+            Vector::from([0.3, -0.2, 0.7, 0.4, 0.02, 0.6]),
+            Vector::from([0.5, 0.4, 0.3, 0.2]),
+            Vector::from([0.1, 0.07, 0.01]),
+        )
+    }
+
+    #[test]
+    fn from_the_settled_slip_or_without_a_reading_the_prediction_is_the_settled_one() {
+        let (m, x, u, p) = ice_point();
+        let settled = m.encoder_rates(&x, &u, &p);
+        assert!(settled.iter().all(Option::is_some));
+        // No readings before (NaN), or no time since: bit for bit.
+        for (previous, h) in [([f64::NAN; 4], 0.05), ([0.0; 4], 0.0)] {
+            let again = m.encoder_rates_settling(&x, previous, h, &x, &u, &p);
+            for (a, b) in settled.iter().zip(&again) {
+                let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+                assert_eq!(a.value.to_bits(), b.value.to_bits());
+                assert_eq!((a.x, a.p), (b.x, b.p));
+            }
+        }
+        // Readings that already showed the settled slip, at the same state:
+        // the same rates.
+        let previous = settled.map(|m| m.map_or(f64::NAN, |m| m.value));
+        let from = m.encoder_rates_settling(&x, previous, 0.05, &x, &u, &p);
+        for (a, b) in settled.iter().zip(&from) {
+            let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+            assert!((a.value - b.value).abs() < 1e-9, "{} {}", a.value, b.value);
+        }
+        // Readings of a wheel still at the body's speed (no slip yet): the
+        // prediction lies between that and the settled rate.
+        let x_prev = x;
+        let rolling = [0, 1, 2, 3].map(|i| {
+            let dy = PlatformParams::peer_default().contacts()[i][1];
+            (x[3] - dy * x[5]) / 0.1
+        });
+        let lagged = m.encoder_rates_settling(&x_prev, rolling, 0.05, &x, &u, &p);
+        for i in 0..4 {
+            let (a, b) = (
+                settled[i].as_ref().unwrap().value,
+                lagged[i].as_ref().unwrap().value,
+            );
+            let t = (b - rolling[i]) / (a - rolling[i]);
+            assert!(t > 0.5 && t < 1.0, "wheel {i}: {t}");
+        }
+    }
+
+    #[test]
+    fn the_settling_predictions_gradients_match_finite_differences() {
+        let (m, x, u, p) = ice_point();
+        let previous = [4.5, 4.0, 3.0, 3.2];
+        let x_prev = Vector::from([0.28, -0.21, 0.68, 0.38, 0.02, 0.55]);
+        let at = |x: &Vector<6>, p: &Vector<3>| {
+            m.encoder_rates_settling(&x_prev, previous, 0.05, x, &u, p)
+                .map(|r| r.map_or(f64::NAN, |r| r.value))
+        };
+        let base = m.encoder_rates_settling(&x_prev, previous, 0.05, &x, &u, &p);
+        let e = 1e-7;
+        for k in 0..6 {
+            let (mut a, mut b) = (x, x);
+            a[k] += e;
+            b[k] -= e;
+            let (fa, fb) = (at(&a, &p), at(&b, &p));
+            for i in 0..4 {
+                let g = base[i].as_ref().unwrap().x[k];
+                let fd = (fa[i] - fb[i]) / (2.0 * e);
+                assert!(
+                    (g - fd).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "x{k} wheel {i}: {g} {fd}"
+                );
+            }
+        }
+        for k in 0..3 {
+            let (mut a, mut b) = (p, p);
+            a[k] += e;
+            b[k] -= e;
+            let (fa, fb) = (at(&x, &a), at(&x, &b));
+            for i in 0..4 {
+                let g = base[i].as_ref().unwrap().p[k];
+                let fd = (fa[i] - fb[i]) / (2.0 * e);
+                assert!(
+                    (g - fd).abs() < 1e-4 * (1.0 + fd.abs()),
+                    "p{k} wheel {i}: {g} {fd}"
+                );
+            }
+        }
+    }
+}
