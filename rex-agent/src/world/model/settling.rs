@@ -33,7 +33,7 @@ const STEPS: usize = 5;
 /// The slip `h` seconds after `start` [m/s] of a wheel whose ground is asked
 /// for the fraction `zeta` (`|ζ| < 1`) of its traction bound `cap = μ_x N`
 /// [N], the wheel's spin inertia at its rim being `kappa = J_w / r²` [kg]:
-/// `κ ṡ = cap (ζ − sg(s))` by backward Euler in [`STEPS`] steps. Returns the
+/// `κ ṡ = cap (ζ − sg(s))` by backward Euler in five steps. Returns the
 /// slip and its derivatives by `zeta` and by `cap`. Each step's implicit
 /// equation is increasing in `s` with its root between the step's start and
 /// the settled slip `sg⁻¹(ζ)`: Newton's method kept inside that bracket
