@@ -134,14 +134,13 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
     /// [`Dynamics::encoder_rates`] has it.
     fn encoder_rates_settling(
         &self,
-        x_previous: &Vector<NX>,
-        previous: [f64; 4],
-        h: f64,
+        _x_previous: &Vector<NX>,
+        _previous: [f64; 4],
+        _h: f64,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
     ) -> [Option<Measured<NX, NP>>; 4] {
-        let _ = (x_previous, previous, h);
         self.encoder_rates(x, u, p)
     }
 

@@ -522,8 +522,7 @@ impl Lateral {
         // itself (how fast the slip settles depends on it).
         let kappa = self.params.wheel_inertia / (r * r);
         let (slip, slip_zeta, slip_cap) = settle
-            .map(|(start, h)| settle_slip(ks, kappa, cap, zeta, start, h))
-            .filter(|s| s.0.is_finite() && s.1.is_finite() && s.2.is_finite())
+            .and_then(|(start, h)| settle_slip(ks, kappa, cap, zeta, start, h))
             .unwrap_or_else(|| {
                 let (s, ds) = sg_inverse(ks, zeta);
                 (s, ds, 0.0)
