@@ -60,6 +60,58 @@ pub struct Measured<const NX: usize, const NP: usize> {
     pub p: Vector<NP>,
 }
 
+/// The wheels' rates over one interval as their encoders read them [rad/s]:
+/// at its start and at its end, NaN where a wheel was not read. A model whose
+/// state does not hold the wheels' spin (the lateral model) takes from them the
+/// direction of the rolling resistance, which opposes the wheel's spin and not
+/// the ground's motion under it: the two part when a wheel slips, as an inner
+/// wheel does in a turn on ice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WheelSpin {
+    /// At the interval's start.
+    pub start: [f64; 4],
+    /// At its end.
+    pub end: [f64; 4],
+}
+
+/// The encoders' rates read `h` seconds before the instant a model predicts
+/// them at ([`Dynamics::encoder_rates_settling`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EarlierReading<const NX: usize> {
+    /// The state then.
+    pub x: Vector<NX>,
+    /// The rates read then [rad/s] (NaN where a wheel was not read).
+    pub rates: [f64; 4],
+    /// How long before [s].
+    pub h: f64,
+}
+
+/// No wheel's rate read at an instant.
+pub const NOT_READ: [f64; 4] = [f64::NAN; 4];
+
+impl WheelSpin {
+    /// Nothing read: the models take the ground's motion under each wheel.
+    pub const UNKNOWN: WheelSpin = WheelSpin {
+        start: NOT_READ,
+        end: NOT_READ,
+    };
+
+    /// The rates at the fraction `s` (in `[0, 1]`) of the interval: linear
+    /// between two readings, the one reading of a wheel read once, NaN for a
+    /// wheel not read.
+    pub fn at(&self, s: f64) -> [f64; 4] {
+        std::array::from_fn(|i| {
+            let (a, b) = (self.start[i], self.end[i]);
+            match (a.is_finite(), b.is_finite()) {
+                (true, true) => a + (b - a) * s,
+                (true, false) => a,
+                (false, true) => b,
+                (false, false) => f64::NAN,
+            }
+        })
+    }
+}
+
 /// A skid-steer prediction model: state `x ∈ R^NX` whose first three components
 /// are the pose `(X, Y, φ)`, the four wheel torques as inputs, parameters
 /// `p ∈ R^NP` (estimated by the MHE, used by the NMPC).
@@ -85,6 +137,31 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         self.linearise(x, u, p).value
     }
 
+    /// [`Dynamics::linearise`] with the wheels' rates `spin` [rad/s] known
+    /// from outside the model (NaN where not; [`WheelSpin`]). The default: a
+    /// model whose state holds what it needs ignores them.
+    fn linearise_spinning(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        _spin: &[f64; 4],
+    ) -> Linearised<NX, NP> {
+        self.linearise(x, u, p)
+    }
+
+    /// [`Dynamics::f`] with the wheels' rates known, as
+    /// [`Dynamics::linearise_spinning`] (the default ignores them).
+    fn f_spinning(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        _spin: &[f64; 4],
+    ) -> Vector<NX> {
+        self.f(x, u, p)
+    }
+
     /// The state at pose `(X, Y, φ)` moving with forward speed `v` and yaw rate
     /// `w`, as the model represents it (for starting an estimate).
     fn state_at_pose(&self, pose: [f64; 3], v: f64, w: f64, p: &Vector<NP>) -> Vector<NX>;
@@ -94,12 +171,14 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
     fn world_velocity(&self, x: &Vector<NX>, p: &Vector<NP>) -> [f64; 2];
 
     /// The body-frame accelerations `(a_x, a_y)` of the centre of mass (what
-    /// the wheel loads' transfer follows), with their gradients.
+    /// the wheel loads' transfer follows), with their gradients; `spin` the
+    /// wheels' rates read at `x` as in [`Dynamics::linearise_spinning`].
     fn body_accelerations(
         &self,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
+        spin: &[f64; 4],
     ) -> [Measured<NX, NP>; 2];
 
     /// The rate wheel `i`'s encoder should read, with its gradients; `None`
@@ -127,19 +206,18 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
 
     /// [`Dynamics::encoder_rates`] for a model that knows how a wheel's slip
     /// settles after its torque changes: each wheel's rate at `x` under `u`
-    /// reached from the slip its encoder showed `h` seconds before
-    /// (`previous[i]` [rad/s], read at the state `x_previous`; NaN where there
-    /// was no reading). `x_previous` and `previous` enter as data (no gradient
-    /// by them). The default: the slip settles at once, as
+    /// reached from the slip its encoder showed `before.h` seconds before,
+    /// and `spin` the rates read at `x` as in
+    /// [`Dynamics::linearise_spinning`]. `before` and `spin` enter as data (no
+    /// gradient by them). The default: the slip settles at once, as
     /// [`Dynamics::encoder_rates`] has it.
     fn encoder_rates_settling(
         &self,
-        _x_previous: &Vector<NX>,
-        _previous: [f64; 4],
-        _h: f64,
+        _before: &EarlierReading<NX>,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
+        _spin: &[f64; 4],
     ) -> [Option<Measured<NX, NP>>; 4] {
         self.encoder_rates(x, u, p)
     }
@@ -162,16 +240,21 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         dt: f64,
         steps: usize,
     ) -> Vector<NX> {
-        let h = dt / steps.max(1) as f64;
-        let mut xk = *x;
-        for _ in 0..steps.max(1) {
-            let k1 = self.f(&xk, u, p);
-            let k2 = self.f(&(xk + k1 * (h / 2.0)), u, p);
-            let k3 = self.f(&(xk + k2 * (h / 2.0)), u, p);
-            let k4 = self.f(&(xk + k3 * h), u, p);
-            xk += (k1 + (k2 + k3) * 2.0 + k4) * (h / 6.0);
-        }
-        xk
+        rk4_with(x, dt, steps, |y, _| self.f(y, u, p))
+    }
+
+    /// [`Dynamics::rk4`] with the wheels' rates over the interval known
+    /// ([`Dynamics::f_spinning`] at each RK4 stage's instant).
+    fn rk4_spinning(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        dt: f64,
+        steps: usize,
+        spin: &WheelSpin,
+    ) -> Vector<NX> {
+        rk4_with(x, dt, steps, |y, s| self.f_spinning(y, u, p, &spin.at(s)))
     }
 
     /// [`Dynamics::rk4`] and its exact Jacobians, by differentiating every RK4
@@ -186,42 +269,95 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         dt: f64,
         steps: usize,
     ) -> Linearised<NX, NP> {
-        let h = dt / steps.max(1) as f64;
-        let mut s = Linearised {
-            value: *x,
-            x: Matrix::identity(),
-            u: Matrix::zeros(),
-            p: Matrix::zeros(),
-        };
-        // The derivative of a stage point `y` with sensitivities `dy`.
-        let stage = |y: &Linearised<NX, NP>| -> Linearised<NX, NP> {
-            let j = self.linearise(&y.value, u, p);
-            Linearised {
-                value: j.value,
-                x: j.x * y.x,
-                u: j.x * y.u + j.u,
-                p: j.x * y.p + j.p,
-            }
-        };
-        let shift = |a: &Linearised<NX, NP>, k: &Linearised<NX, NP>, c: f64| Linearised {
-            value: a.value + k.value * c,
-            x: a.x + k.x * c,
-            u: a.u + k.u * c,
-            p: a.p + k.p * c,
-        };
-        for _ in 0..steps.max(1) {
-            let k1 = stage(&s);
-            let k2 = stage(&shift(&s, &k1, h / 2.0));
-            let k3 = stage(&shift(&s, &k2, h / 2.0));
-            let k4 = stage(&shift(&s, &k3, h));
-            let w = h / 6.0;
-            s.value += (k1.value + (k2.value + k3.value) * 2.0 + k4.value) * w;
-            s.x += (k1.x + (k2.x + k3.x) * 2.0 + k4.x) * w;
-            s.u += (k1.u + (k2.u + k3.u) * 2.0 + k4.u) * w;
-            s.p += (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * w;
-        }
-        s
+        rk4_sensitivities_with(x, dt, steps, |y, _| self.linearise(y, u, p))
     }
+
+    /// [`Dynamics::rk4_sensitivities`] with the wheels' rates over the interval
+    /// known ([`Dynamics::linearise_spinning`] at each RK4 stage's instant).
+    fn rk4_sensitivities_spinning(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        dt: f64,
+        steps: usize,
+        spin: &WheelSpin,
+    ) -> Linearised<NX, NP> {
+        rk4_sensitivities_with(x, dt, steps, |y, s| {
+            self.linearise_spinning(y, u, p, &spin.at(s))
+        })
+    }
+}
+
+/// `steps` classical RK4 steps over `dt` of `ẋ = f(x, s)`, `s` the fraction of
+/// the interval at each stage.
+fn rk4_with<const NX: usize>(
+    x: &Vector<NX>,
+    dt: f64,
+    steps: usize,
+    f: impl Fn(&Vector<NX>, f64) -> Vector<NX>,
+) -> Vector<NX> {
+    let n = steps.max(1);
+    let h = dt / n as f64;
+    let mut xk = *x;
+    for j in 0..n {
+        let s = j as f64 / n as f64;
+        let (mid, end) = (s + 0.5 / n as f64, (j + 1) as f64 / n as f64);
+        let k1 = f(&xk, s);
+        let k2 = f(&(xk + k1 * (h / 2.0)), mid);
+        let k3 = f(&(xk + k2 * (h / 2.0)), mid);
+        let k4 = f(&(xk + k3 * h), end);
+        xk += (k1 + (k2 + k3) * 2.0 + k4) * (h / 6.0);
+    }
+    xk
+}
+
+/// [`rk4_with`] with the sensitivities of the result to `(x, u, p)`, from the
+/// linearisation `f` of the right-hand side at each stage.
+fn rk4_sensitivities_with<const NX: usize, const NP: usize>(
+    x: &Vector<NX>,
+    dt: f64,
+    steps: usize,
+    f: impl Fn(&Vector<NX>, f64) -> Linearised<NX, NP>,
+) -> Linearised<NX, NP> {
+    let n = steps.max(1);
+    let h = dt / n as f64;
+    let mut s = Linearised {
+        value: *x,
+        x: Matrix::identity(),
+        u: Matrix::zeros(),
+        p: Matrix::zeros(),
+    };
+    // The derivative of a stage point `y` with sensitivities `dy`.
+    let stage = |y: &Linearised<NX, NP>, at: f64| -> Linearised<NX, NP> {
+        let j = f(&y.value, at);
+        Linearised {
+            value: j.value,
+            x: j.x * y.x,
+            u: j.x * y.u + j.u,
+            p: j.x * y.p + j.p,
+        }
+    };
+    let shift = |a: &Linearised<NX, NP>, k: &Linearised<NX, NP>, c: f64| Linearised {
+        value: a.value + k.value * c,
+        x: a.x + k.x * c,
+        u: a.u + k.u * c,
+        p: a.p + k.p * c,
+    };
+    for j in 0..n {
+        let at = j as f64 / n as f64;
+        let (mid, end) = (at + 0.5 / n as f64, (j + 1) as f64 / n as f64);
+        let k1 = stage(&s, at);
+        let k2 = stage(&shift(&s, &k1, h / 2.0), mid);
+        let k3 = stage(&shift(&s, &k2, h / 2.0), mid);
+        let k4 = stage(&shift(&s, &k3, h), end);
+        let w = h / 6.0;
+        s.value += (k1.value + (k2.value + k3.value) * 2.0 + k4.value) * w;
+        s.x += (k1.x + (k2.x + k3.x) * 2.0 + k4.x) * w;
+        s.u += (k1.u + (k2.u + k3.u) * 2.0 + k4.u) * w;
+        s.p += (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * w;
+    }
+    s
 }
 
 /// The smoothed sign `sg(s) = 2/π atan(k_s s)` of the friction laws.
@@ -268,7 +404,8 @@ pub(crate) mod check {
     use super::*;
 
     /// Check `linearise` and `rk4_sensitivities` of `m` against central
-    /// differences at `(x, u, p)`.
+    /// differences at `(x, u, p)`, and that the spinning variants without
+    /// a wheel read are the same bits.
     pub(crate) fn jacobians<M: Dynamics<NX, NP>, const NX: usize, const NP: usize>(
         m: &M,
         x: &Vector<NX>,
@@ -277,10 +414,44 @@ pub(crate) mod check {
         dt: f64,
         steps: usize,
     ) {
-        let jf = m.linearise(x, u, p);
-        let jd = m.rk4_sensitivities(x, u, p, dt, steps);
-        assert!((jf.value - m.f(x, u, p)).norm() < 1e-12);
-        assert!((jd.value - m.rk4(x, u, p, dt, steps)).norm() < 1e-12);
+        let unknown = WheelSpin::UNKNOWN;
+        assert_eq!(
+            m.linearise(x, u, p),
+            m.linearise_spinning(x, u, p, &NOT_READ)
+        );
+        assert_eq!(m.f(x, u, p), m.f_spinning(x, u, p, &NOT_READ));
+        assert_eq!(
+            m.rk4_sensitivities(x, u, p, dt, steps),
+            m.rk4_sensitivities_spinning(x, u, p, dt, steps, &unknown)
+        );
+        assert_eq!(
+            m.rk4(x, u, p, dt, steps),
+            m.rk4_spinning(x, u, p, dt, steps, &unknown)
+        );
+        jacobians_spinning(m, x, u, p, dt, steps, &unknown);
+    }
+
+    /// Check `linearise_spinning` (at the interval's start) and
+    /// `rk4_sensitivities_spinning` of `m` against central differences at
+    /// `(x, u, p)` with the wheels' rates `spin`.
+    pub(crate) fn jacobians_spinning<M: Dynamics<NX, NP>, const NX: usize, const NP: usize>(
+        m: &M,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        dt: f64,
+        steps: usize,
+        spin: &WheelSpin,
+    ) {
+        let now = spin.at(0.0);
+        let jf = m.linearise_spinning(x, u, p, &now);
+        let jd = m.rk4_sensitivities_spinning(x, u, p, dt, steps, spin);
+        let f = |x: &Vector<NX>, u: &Vector<NU>, p: &Vector<NP>| m.f_spinning(x, u, p, &now);
+        let rk4 = |x: &Vector<NX>, u: &Vector<NU>, p: &Vector<NP>, dt: f64, steps: usize| {
+            m.rk4_spinning(x, u, p, dt, steps, spin)
+        };
+        assert!((jf.value - f(x, u, p)).norm() < 1e-12);
+        assert!((jd.value - rk4(x, u, p, dt, steps)).norm() < 1e-12);
         let h = 1e-6;
         let compare = |what: &str, analytic: f64, fd: f64, tol: f64| {
             assert!(
@@ -292,8 +463,8 @@ pub(crate) mod check {
             let (mut xp, mut xm) = (*x, *x);
             xp[c] += h;
             xm[c] -= h;
-            let fd = (m.f(&xp, u, p) - m.f(&xm, u, p)) / (2.0 * h);
-            let dd = (m.rk4(&xp, u, p, dt, steps) - m.rk4(&xm, u, p, dt, steps)) / (2.0 * h);
+            let fd = (f(&xp, u, p) - f(&xm, u, p)) / (2.0 * h);
+            let dd = (rk4(&xp, u, p, dt, steps) - rk4(&xm, u, p, dt, steps)) / (2.0 * h);
             for r in 0..NX {
                 compare(&format!("∂f{r}/∂x{c}"), jf.x[(r, c)], fd[r], 1e-5);
                 compare(&format!("∂F{r}/∂x{c}"), jd.x[(r, c)], dd[r], 1e-6);
@@ -303,8 +474,8 @@ pub(crate) mod check {
             let (mut up, mut um) = (*u, *u);
             up[c] += h;
             um[c] -= h;
-            let fd = (m.f(x, &up, p) - m.f(x, &um, p)) / (2.0 * h);
-            let dd = (m.rk4(x, &up, p, dt, steps) - m.rk4(x, &um, p, dt, steps)) / (2.0 * h);
+            let fd = (f(x, &up, p) - f(x, &um, p)) / (2.0 * h);
+            let dd = (rk4(x, &up, p, dt, steps) - rk4(x, &um, p, dt, steps)) / (2.0 * h);
             for r in 0..NX {
                 compare(&format!("∂f{r}/∂u{c}"), jf.u[(r, c)], fd[r], 1e-5);
                 compare(&format!("∂F{r}/∂u{c}"), jd.u[(r, c)], dd[r], 1e-6);
@@ -314,8 +485,8 @@ pub(crate) mod check {
             let (mut pp, mut pm) = (*p, *p);
             pp[c] += h;
             pm[c] -= h;
-            let fd = (m.f(x, u, &pp) - m.f(x, u, &pm)) / (2.0 * h);
-            let dd = (m.rk4(x, u, &pp, dt, steps) - m.rk4(x, u, &pm, dt, steps)) / (2.0 * h);
+            let fd = (f(x, u, &pp) - f(x, u, &pm)) / (2.0 * h);
+            let dd = (rk4(x, u, &pp, dt, steps) - rk4(x, u, &pm, dt, steps)) / (2.0 * h);
             for r in 0..NX {
                 compare(&format!("∂f{r}/∂p{c}"), jf.p[(r, c)], fd[r], 1e-5);
                 compare(&format!("∂F{r}/∂p{c}"), jd.p[(r, c)], dd[r], 1e-6);
@@ -360,6 +531,20 @@ pub(crate) mod check {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wheel_spin_is_linear_between_two_readings_else_the_one_there_is() {
+        let spin = WheelSpin {
+            start: [1.0, f64::NAN, 2.0, f64::NAN],
+            end: [3.0, 4.0, f64::NAN, f64::INFINITY],
+        };
+        let at = |s: f64| spin.at(s);
+        assert_eq!(at(0.0)[..3], [1.0, 4.0, 2.0]);
+        assert_eq!(at(0.25)[..3], [1.5, 4.0, 2.0]);
+        assert_eq!(at(1.0)[..3], [3.0, 4.0, 2.0]);
+        assert!((0..=4).all(|k| at(f64::from(k) / 4.0)[3].is_nan()));
+        assert!(WheelSpin::UNKNOWN.at(0.5).iter().all(|v| v.is_nan()));
+    }
 
     #[test]
     fn sg4_gives_the_bits_of_four_separate_calls() {

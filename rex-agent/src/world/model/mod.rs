@@ -8,7 +8,9 @@ pub mod params;
 pub mod reduced;
 pub mod settling;
 
-pub use dynamics::{Dynamics, Linearised, Matrix, Measured, NU, Vector};
+pub use dynamics::{
+    Dynamics, EarlierReading, Linearised, Matrix, Measured, NOT_READ, NU, Vector, WheelSpin,
+};
 pub use full::{CommandStats, FullState, IntegrationStats, Plant};
 pub use lateral::{Lateral, State6};
 pub use params::{Friction, Patch, PlatformParams, Region, SlipParams, Surface, SurfaceMap};

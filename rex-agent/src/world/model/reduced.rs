@@ -202,6 +202,7 @@ impl Dynamics<5, 3> for Reduced {
         x: &Vector<5>,
         u: &Vector<NU>,
         p: &Vector<3>,
+        _spin: &[f64; 4],
     ) -> [Measured<5, 3>; 2] {
         let j = self.linearise(x, u, p);
         let (v, w, x0) = (x[3], x[4], p[0]);
@@ -250,7 +251,7 @@ impl Dynamics<5, 3> for Reduced {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::dynamics::check;
+    use crate::world::model::dynamics::{NOT_READ, check};
 
     /// Golden values of notes §1.6 (`python3 peers/casadi_nmpc.py --check-model`).
     #[test]
@@ -318,7 +319,7 @@ mod tests {
             for k in 0..2 {
                 check::measured(
                     &format!("a{k}"),
-                    |x, p| m.body_accelerations(x, &u, p)[k],
+                    |x, p| m.body_accelerations(x, &u, p, &NOT_READ)[k],
                     &x,
                     &p,
                 );

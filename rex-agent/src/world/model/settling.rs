@@ -99,7 +99,7 @@ pub fn settle_slip(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::dynamics::check;
+    use crate::world::model::dynamics::{EarlierReading, NOT_READ, check};
     use crate::world::model::{Dynamics, Lateral, PlatformParams, Vector};
 
     const KS: f64 = 20.0;
@@ -201,7 +201,17 @@ mod tests {
         assert!(settled.iter().all(Option::is_some));
         // No readings before (NaN), or no time since: bit for bit.
         for (previous, h) in [([f64::NAN; 4], 0.05), ([0.0; 4], 0.0)] {
-            let again = m.encoder_rates_settling(&x, previous, h, &x, &u, &p);
+            let again = m.encoder_rates_settling(
+                &EarlierReading {
+                    x,
+                    rates: previous,
+                    h,
+                },
+                &x,
+                &u,
+                &p,
+                &NOT_READ,
+            );
             for (a, b) in settled.iter().zip(&again) {
                 let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
                 assert_eq!(a.value.to_bits(), b.value.to_bits());
@@ -211,7 +221,17 @@ mod tests {
         // Readings that already showed the settled slip, at the same state:
         // the same rates.
         let previous = settled.map(|m| m.map_or(f64::NAN, |m| m.value));
-        let from = m.encoder_rates_settling(&x, previous, 0.05, &x, &u, &p);
+        let from = m.encoder_rates_settling(
+            &EarlierReading {
+                x,
+                rates: previous,
+                h: 0.05,
+            },
+            &x,
+            &u,
+            &p,
+            &NOT_READ,
+        );
         for (a, b) in settled.iter().zip(&from) {
             let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
             assert!((a.value - b.value).abs() < 1e-9, "{} {}", a.value, b.value);
@@ -223,7 +243,17 @@ mod tests {
             let dy = PlatformParams::peer_default().contacts()[i][1];
             (x[3] - dy * x[5]) / 0.1
         });
-        let lagged = m.encoder_rates_settling(&x_prev, rolling, 0.05, &x, &u, &p);
+        let lagged = m.encoder_rates_settling(
+            &EarlierReading {
+                x: x_prev,
+                rates: rolling,
+                h: 0.05,
+            },
+            &x,
+            &u,
+            &p,
+            &NOT_READ,
+        );
         for i in 0..4 {
             let (a, b) = (
                 settled[i].as_ref().unwrap().value,
@@ -243,7 +273,17 @@ mod tests {
             check::measured(
                 &format!("settling encoder {i}"),
                 |x, p| {
-                    m.encoder_rates_settling(&x_prev, previous, 0.05, x, &u, p)[i]
+                    m.encoder_rates_settling(
+                        &EarlierReading {
+                            x: x_prev,
+                            rates: previous,
+                            h: 0.05,
+                        },
+                        x,
+                        &u,
+                        p,
+                        &NOT_READ,
+                    )[i]
                         .expect("every wheel below its bound")
                 },
                 &x,

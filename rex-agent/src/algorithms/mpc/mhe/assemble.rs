@@ -7,7 +7,7 @@
 use super::{Blocks, Mhe, MheError};
 use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::QpStrategy;
-use crate::world::model::{Dynamics, Matrix, Measured, NU, Vector};
+use crate::world::model::{Dynamics, Matrix, Measured, NU, Vector, WheelSpin};
 
 /// One scalar residual `r` with standard deviation `sigma` and gradients `h`
 /// (states of one stage) and `hp` (parameters), added to the normal equations.
@@ -93,7 +93,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             // The torques of the interval that ends here: what the encoders and
             // the force sensors saw just before this instant.
             let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
-            let loads = st.loads.map(|l| (l, self.load_model(&st.x, &u_in, &p)));
+            let loads = st
+                .loads
+                .map(|l| (l, self.load_model(&st.x, &u_in, &p, &st.spin)));
             let encoders = st.encoders.map(|e| (e, self.encoder_prediction(i, &p)));
             let b = &mut self.blocks[i];
             if let Some(pose) = st.pose {
@@ -185,9 +187,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         let w = Vector::<NX>::from(s.sigma_w.map(|v| 1.0 / (v * v)));
         for i in 0..n {
             let st = self.window[i];
-            let j = self
-                .model
-                .rk4_sensitivities(&st.x, &st.u, &p, s.dt, s.rk4_steps);
+            let spin = WheelSpin {
+                start: st.spin,
+                end: self.window[i + 1].spin,
+            };
+            let j =
+                self.model
+                    .rk4_sensitivities_spinning(&st.x, &st.u, &p, s.dt, s.rk4_steps, &spin);
             if j.value.iter().any(|v| !v.is_finite()) {
                 return Err(MheError::Solve("the model prediction is not finite".into()));
             }
@@ -220,9 +226,15 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// Predicted wheel loads of the force sensors and their gradients: static
     /// loads plus the transfer of the body accelerations the model predicts
     /// ([`Dynamics::body_accelerations`], as the plant computes them).
-    fn load_model(&self, x: &Vector<NX>, u: &Vector<NU>, p: &Vector<NP>) -> [Measured<NX, NP>; 4] {
+    fn load_model(
+        &self,
+        x: &Vector<NX>,
+        u: &Vector<NU>,
+        p: &Vector<NP>,
+        spin: &[f64; 4],
+    ) -> [Measured<NX, NP>; 4] {
         let pr = self.model.platform();
-        let [ax, ay] = self.model.body_accelerations(x, u, p);
+        let [ax, ay] = self.model.body_accelerations(x, u, p, spin);
         let long = pr.mass * pr.cog_height / (2.0 * (pr.front + pr.rear));
         let lat = pr.mass * pr.cog_height / (4.0 * pr.half_track);
         let n0 = pr.static_loads();

@@ -38,6 +38,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         }
         if let Some(e) = m.encoders {
             if e.iter().all(|v| v.is_finite() && v.abs() <= plausible_rate) {
+                self.window[n].spin = e;
                 self.window[n].encoders = Some(self.gate_encoders(n, e));
             } else {
                 self.stats.rejected += 1;

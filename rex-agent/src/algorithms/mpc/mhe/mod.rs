@@ -60,7 +60,8 @@ use std::collections::VecDeque;
 
 use super::nmpc::QpStrategy;
 use crate::world::model::{
-    Dynamics, Friction, Lateral, Matrix, Measured, NU, Reduced, SlipParams, Torques, Vector,
+    Dynamics, EarlierReading, Friction, Lateral, Matrix, Measured, NOT_READ, NU, Reduced,
+    SlipParams, Torques, Vector, WheelSpin,
 };
 
 mod assemble;
@@ -354,6 +355,9 @@ struct Stage<const NX: usize> {
     gyro: Option<f64>,
     heading: Option<f64>,
     encoders: Option<[f64; 4]>,
+    /// The wheels' rates read, gated or not (NaN where not read): the
+    /// direction of their rolling resistance ([`Dynamics::linearise_spinning`]).
+    spin: [f64; 4],
     loads: Option<[f64; 4]>,
     /// The motion `(dx, dy, dφ)` to the next stage in this stage's frame, from
     /// visual odometry.
@@ -371,6 +375,7 @@ impl<const NX: usize> Default for Stage<NX> {
             gyro: None,
             heading: None,
             encoders: None,
+            spin: NOT_READ,
             loads: None,
             rel: None,
         }
@@ -547,12 +552,15 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         let st = &self.window[i];
         match i.checked_sub(1).map(|k| &self.window[k]) {
             Some(before) => self.model.encoder_rates_settling(
-                &before.x,
-                before.encoders.unwrap_or([f64::NAN; 4]),
-                st.t - before.t,
+                &EarlierReading {
+                    x: before.x,
+                    rates: before.encoders.unwrap_or(NOT_READ),
+                    h: st.t - before.t,
+                },
                 &st.x,
                 &before.u,
                 p,
+                &st.spin,
             ),
             None => self.model.encoder_rates(&st.x, &st.u, p),
         }
@@ -639,9 +647,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         };
         last.u = u;
         let prev = last.x;
+        let spin = WheelSpin {
+            start: last.spin,
+            end: NOT_READ,
+        };
         let x_new = self
             .model
-            .rk4(&prev, &u, &self.p, self.s.dt, self.s.rk4_steps);
+            .rk4_spinning(&prev, &u, &self.p, self.s.dt, self.s.rk4_steps, &spin);
         let x_new = if x_new.iter().all(|v| v.is_finite()) {
             x_new
         } else {
