@@ -511,9 +511,16 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     let p = config.world.platform.clone();
     let e11_memory = E11Memory::new(
         config.tracker.build(p.clone(), dt)?,
-        config
-            .estimator
-            .build(p, settings.slip, config.limits.cautious_ground, dt)?,
+        config.estimator.build(
+            p,
+            settings.slip,
+            config.limits.cautious_ground,
+            dt,
+            config
+                .world
+                .sensors
+                .encoder_window(rex.period("E1")?.as_secs_f64()),
+        )?,
         dt,
         settings.slip.x_icr,
     )

@@ -161,17 +161,19 @@ impl std::str::FromStr for EstimatorKind {
 
 impl EstimatorKind {
     /// An estimator of this kind for the platform `params` (nominal slip `p`; the
-    /// ground assumed until it has seen it, `ground`), run every `dt` seconds.
+    /// ground assumed until it has seen it, `ground`), run every `dt` seconds,
+    /// whose encoders count ticks over `encoder_window` seconds for a rate.
     pub fn build(
         self,
         params: PlatformParams,
         p: SlipParams,
         ground: Friction,
         dt: f64,
+        encoder_window: f64,
     ) -> Result<Box<dyn Estimator>, MheError> {
         Ok(match self {
             EstimatorKind::Ekf => Box::new(Ekf::new(params, p)),
-            EstimatorKind::Mhe => Box::new(MheEstimator::new(params, ground, dt)?),
+            EstimatorKind::Mhe => Box::new(MheEstimator::new(params, ground, dt, encoder_window)?),
         })
     }
 }

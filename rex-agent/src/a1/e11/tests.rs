@@ -26,7 +26,7 @@ fn memory() -> E11Memory {
             .build(params.clone(), 0.05)
             .unwrap(),
         EstimatorKind::Ekf
-            .build(params, SlipParams::NOMINAL, Friction::CONCRETE, 0.05)
+            .build(params, SlipParams::NOMINAL, Friction::CONCRETE, 0.05, 0.01)
             .unwrap(),
         0.05,
         0.03,

@@ -55,6 +55,14 @@ impl Default for SensorParams {
     }
 }
 
+impl SensorParams {
+    /// How long the encoders count ticks for a rate [s], sampled every
+    /// `step` seconds (the platform's period).
+    pub fn encoder_window(&self, step: f64) -> f64 {
+        f64::from(self.speed_window) * step
+    }
+}
+
 impl Validate for SensorParams {
     fn validate(&self) -> Result<(), Invalid> {
         if self.encoder_ticks == 0 {

@@ -121,6 +121,8 @@ pub struct Lateral {
     n: [f64; 4],
     m_eff: f64,
     i_eff: f64,
+    /// How long the encoders count ticks for a rate [s] (0: an instant).
+    encoder_window: f64,
 }
 
 /// The smallest friction coefficient the model computes with (a bound `μ_x N`
@@ -158,7 +160,19 @@ impl Lateral {
             i_eff: params.inertia
                 + 4.0 * params.wheel_inertia * params.half_track.powi(2) / (r * r),
             params,
+            encoder_window: 0.0,
         }
+    }
+
+    /// The model of encoders that give a wheel's rate as its ticks over the
+    /// last `window` seconds: the settling prediction is then the slip's mean
+    /// over that window ([`settle_slip`]). `None` unless `window` is finite
+    /// and not negative.
+    pub fn with_encoder_window(self, window: f64) -> Option<Lateral> {
+        (window.is_finite() && window >= 0.0).then_some(Lateral {
+            encoder_window: window,
+            ..self
+        })
     }
 
     /// The traction bound of wheel `i` on a ground of longitudinal friction
@@ -580,7 +594,7 @@ impl Lateral {
         // itself (how fast the slip settles depends on it).
         let kappa = self.params.wheel_inertia / (r * r);
         let (slip, slip_zeta, slip_cap) = settle
-            .and_then(|(start, h)| settle_slip(ks, kappa, cap, zeta, start, h))
+            .and_then(|(start, h)| settle_slip(ks, kappa, cap, zeta, start, h, self.encoder_window))
             .unwrap_or_else(|| {
                 let (s, ds) = sg_inverse(ks, zeta);
                 (s, ds, 0.0)
