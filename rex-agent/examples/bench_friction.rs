@@ -15,10 +15,11 @@
 //!   other ground after which the estimate came within 15 % of it before the
 //!   next crossing.
 //!
-//! Ends with `friction_err_max=<largest single-sample error on a uniform floor>
-//! friction_err_max_ice=<the same on ice> split_achieved=<plans>/<plans run>
-//! split_followed=<crossings followed>/<crossings>
-//! split_false_successes=<plans reported reached that the truth did not confirm>`.
+//! Ends with `friction_err_max=<largest single-sample error of μ_x or μ_y on a
+//! uniform floor> friction_err_max_ice=<the same on ice>
+//! split_achieved=<plans>/<plans run> split_followed=<crossings followed>/<crossings>
+//! split_false_successes=<plans reported reached that the truth did not confirm>
+//! rolling_err_max=<largest single-sample error of μ_r on a uniform floor>`.
 //!
 //! ```text
 //! cargo run --release -p rex-agent --example bench_friction [-- --seeds 1,2,3]
@@ -120,6 +121,7 @@ fn main() -> Result<(), Error> {
     println!("|---|---|{}", "---|".repeat(MISSIONS.len()));
     let (mut worst, mut worst_ice) = (0.0f64, 0.0f64);
     let mut rolling_worst = Vec::new();
+    let mut rolling_max_all = 0.0f64;
     for &seed in &seeds {
         for surface in SURFACES {
             let mut cells = Vec::new();
@@ -159,6 +161,7 @@ fn main() -> Result<(), Error> {
                     .collect::<Vec<_>>();
                 let rolling_mean = rolling.iter().sum::<f64>() / n;
                 let rolling_max = rolling.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+                rolling_max_all = rolling_max_all.max(rolling_max);
                 rolling_worst.push(format!(
                     "{seed} {surface} {mission}: {rolling_mean:+.3} mean, {rolling_max:.3} max"
                 ));
@@ -231,7 +234,7 @@ fn main() -> Result<(), Error> {
     println!(
         "friction_err_max={worst:.3} friction_err_max_ice={worst_ice:.3} \
          split_achieved={achieved}/{plans} split_followed={followed}/{crossings} \
-         split_false_successes={false_successes}"
+         split_false_successes={false_successes} rolling_err_max={rolling_max_all:.3}"
     );
     Ok(())
 }
