@@ -301,8 +301,7 @@ fn rk4_with<const NX: usize>(
     let h = dt / n as f64;
     let mut xk = *x;
     for j in 0..n {
-        let s = j as f64 / n as f64;
-        let (mid, end) = (s + 0.5 / n as f64, (j + 1) as f64 / n as f64);
+        let (s, mid, end) = stage_instants(j, n);
         let k1 = f(&xk, s);
         let k2 = f(&(xk + k1 * (h / 2.0)), mid);
         let k3 = f(&(xk + k2 * (h / 2.0)), mid);
@@ -310,6 +309,13 @@ fn rk4_with<const NX: usize>(
         xk += (k1 + (k2 + k3) * 2.0 + k4) * (h / 6.0);
     }
     xk
+}
+
+/// Where RK4 step `j` of `n` evaluates its stages, as fractions of the
+/// interval: its start, its middle, its end.
+fn stage_instants(j: usize, n: usize) -> (f64, f64, f64) {
+    let (j, n) = (j as f64, n as f64);
+    (j / n, (j + 0.5) / n, (j + 1.0) / n)
 }
 
 /// [`rk4_with`] with the sensitivities of the result to `(x, u, p)`, from the
@@ -345,8 +351,7 @@ fn rk4_sensitivities_with<const NX: usize, const NP: usize>(
         p: a.p + k.p * c,
     };
     for j in 0..n {
-        let at = j as f64 / n as f64;
-        let (mid, end) = (at + 0.5 / n as f64, (j + 1) as f64 / n as f64);
+        let (at, mid, end) = stage_instants(j, n);
         let k1 = stage(&s, at);
         let k2 = stage(&shift(&s, &k1, h / 2.0), mid);
         let k3 = stage(&shift(&s, &k2, h / 2.0), mid);
