@@ -675,14 +675,14 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // On a uniform floor, from a cautious prior (ice's values) on every ground,
     // the MHE's longitudinal and lateral friction and its rolling resistance
     // come within 15% of the plant's after 5 s of the figure eight, and stay
-    // there, sample by sample. Measured (every sample after 5 s): concrete 5.2%,
-    // grass 6.1%, ice 8.0%; on ice `μ_x` is biased up, 0.4% on average (3.5%
+    // there, sample by sample. Measured (every sample after 5 s): concrete 5.7%,
+    // grass 5.4%, ice 4.8%; on ice `μ_x` is biased up, 1.0% on average (3.5%
     // before the rolling resistance took its direction from the wheels' spin,
     // 6.1% and single samples 10.4% before the encoders were predicted from the
     // slip of the reading before: see the README's "NMPC and MHE"); the average
     // is asserted within 5% there. The rolling resistance (a force of 2-8 N on
-    // a 40 kg platform): on average −1.2%, −0.4%, +0.7%, single samples within
-    // 1.5%, 2.6%, 5.6% (on ice up to 53% off before the model took its
+    // a 40 kg platform): on average −1.2%, −0.4%, −5.6%, single samples within
+    // 1.6%, 2.3%, 6.4% (on ice up to 53% off before the model took its
     // direction from the wheels' spin, its walk became relative and the
     // encoders were predicted as they count, over their window).
     for surface in ["concrete", "grass", "ice"] {

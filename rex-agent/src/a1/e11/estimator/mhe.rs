@@ -50,7 +50,7 @@ struct Settling {
 ///   in single samples. The rolling resistance's was an absolute 0.002 until
 ///   its model took its direction from the wheels' spin (2026-11-28): 20 % of
 ///   ice's value, and single samples 37-93 % off; relative (and with the
-///   encoders' counting window predicted), within 14.2 % on ice and 6.9 %
+///   encoders' counting window predicted), within 16 % on ice and 7.2 %
 ///   elsewhere (the README's "NMPC and MHE").
 /// * Widened while the encoders disagree with the model: by `1 + GAIN · s`,
 ///   where `s` is the mean square of the encoders' normalised innovation

@@ -547,23 +547,30 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// What stage `i`'s encoders should read with the parameters `p`: under
     /// the torques of the interval that ends there, from the slips the
     /// readings of the stage before showed ([`Dynamics::encoder_rates_settling`];
-    /// the first stage's as settled).
+    /// the first stage's as settled, without an earlier reading), the
+    /// rolling resistance opposing the spin read at the stage.
     fn encoder_prediction(&self, i: usize, p: &Vector<NP>) -> [Option<Measured<NX, NP>>; 4] {
         let st = &self.window[i];
-        match i.checked_sub(1).map(|k| &self.window[k]) {
-            Some(before) => self.model.encoder_rates_settling(
-                &EarlierReading {
-                    x: before.x,
-                    rates: before.encoders.unwrap_or(NOT_READ),
-                    h: st.t - before.t,
+        let (before, u) = match i.checked_sub(1).map(|k| &self.window[k]) {
+            Some(b) => (
+                EarlierReading {
+                    x: b.x,
+                    rates: b.encoders.unwrap_or(NOT_READ),
+                    h: st.t - b.t,
                 },
-                &st.x,
-                &before.u,
-                p,
-                &st.spin,
+                b.u,
             ),
-            None => self.model.encoder_rates(&st.x, &st.u, p),
-        }
+            None => (
+                EarlierReading {
+                    x: st.x,
+                    rates: NOT_READ,
+                    h: 0.0,
+                },
+                st.u,
+            ),
+        };
+        self.model
+            .encoder_rates_settling(&before, &st.x, &u, p, &st.spin)
     }
 
     fn encoder_innovation(&self) -> Option<Innovation> {

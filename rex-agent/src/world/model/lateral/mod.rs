@@ -51,8 +51,11 @@
 //! it from their encoders where it is given them ([`super::WheelSpin`],
 //! [`Dynamics::linearise_spinning`]; the MHE gives every interval its two
 //! readings), and `sg(v_ix)` otherwise (the NMPC's prediction). On ice the
-//! MHE's `μ_r` came out 7-19 % low on average with `sg(v_ix)`, and up to
-//! 17 % with the spin read (the README's "NMPC and MHE").
+//! MHE's `μ_r` came out 7-19 % low on average with `sg(v_ix)`; with the spin
+//! read (and the encoders predicted over their counting window,
+//! [`super::settling`]), single samples after 5 s within 16 % on ice and
+//! 7.2 % elsewhere, 4-16 % low on average on ice (the README's "NMPC and
+//! MHE").
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
