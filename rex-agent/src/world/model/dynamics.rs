@@ -60,6 +60,9 @@ pub struct Measured<const NX: usize, const NP: usize> {
     pub p: Vector<NP>,
 }
 
+/// No wheel's rate read at an instant.
+pub const NOT_READ: [f64; 4] = [f64::NAN; 4];
+
 /// The wheels' rates over one interval as their encoders read them [rad/s]:
 /// at its start and at its end, NaN where a wheel was not read. A model whose
 /// state does not hold the wheels' spin (the lateral model) takes from them the
@@ -73,21 +76,6 @@ pub struct WheelSpin {
     /// At its end.
     pub end: [f64; 4],
 }
-
-/// The encoders' rates read `h` seconds before the instant a model predicts
-/// them at ([`Dynamics::encoder_rates_settling`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EarlierReading<const NX: usize> {
-    /// The state then.
-    pub x: Vector<NX>,
-    /// The rates read then [rad/s] (NaN where a wheel was not read).
-    pub rates: [f64; 4],
-    /// How long before [s].
-    pub h: f64,
-}
-
-/// No wheel's rate read at an instant.
-pub const NOT_READ: [f64; 4] = [f64::NAN; 4];
 
 impl WheelSpin {
     /// Nothing read: the models take the ground's motion under each wheel.
@@ -110,6 +98,18 @@ impl WheelSpin {
             }
         })
     }
+}
+
+/// The encoders' rates read `h` seconds before the instant a model predicts
+/// them at ([`Dynamics::encoder_rates_settling`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EarlierReading<const NX: usize> {
+    /// The state then.
+    pub x: Vector<NX>,
+    /// The rates read then [rad/s] (NaN where a wheel was not read).
+    pub rates: [f64; 4],
+    /// How long before [s].
+    pub h: f64,
 }
 
 /// A skid-steer prediction model: state `x ∈ R^NX` whose first three components
