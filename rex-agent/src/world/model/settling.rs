@@ -33,12 +33,11 @@
 
 use super::dynamics::{sg, sg_inverse, sg_prime};
 
-/// Backward Euler steps over one sample.
+/// Backward Euler steps over one sample. With a counting window the last one
+/// crosses the window (two inside it leave fewer before it, whose lag
+/// dominates: 6.1 % of the way against 5.1 % in the test against the finely
+/// integrated equation).
 const STEPS: usize = 5;
-/// Of those, the steps inside an encoder's counting window (two leave
-/// fewer before it, whose lag dominates: 6.1 % of the way against 5.1 % in
-/// the test against the finely integrated equation).
-const WINDOW_STEPS: usize = 1;
 
 /// The slip `h` seconds after `start` [m/s] of a wheel whose ground is asked
 /// for the fraction `zeta` (`|ζ| < 1`) of its traction bound `cap = μ_x N`
@@ -81,8 +80,7 @@ pub fn settle_slip(
         settled: sg_inverse(k_s, zeta).0,
     };
     let window = window.min(h);
-    let inside = if window > 0.0 { WINDOW_STEPS } else { 0 };
-    let before = STEPS - inside;
+    let before = if window > 0.0 { STEPS - 1 } else { STEPS };
     let c = (h - window) / before as f64 * cap / kappa;
     let mut slip = Slip {
         s: start,
@@ -92,15 +90,14 @@ pub fn settle_slip(
     for _ in 0..before {
         slip = wheel.step(slip, c);
     }
-    if inside > 0 {
-        // The trapezoid rule over the window's steps.
-        let c = window / inside as f64 * cap / kappa;
-        let mut sum = slip.scaled(0.5);
-        for k in 0..inside {
-            slip = wheel.step(slip, c);
-            sum = sum.plus(slip.scaled(if k + 1 == inside { 0.5 } else { 1.0 }));
-        }
-        slip = sum.scaled(1.0 / inside as f64);
+    if window > 0.0 {
+        // The mean over the window: the trapezoid of its two ends.
+        let end = wheel.step(slip, window * cap / kappa);
+        slip = Slip {
+            s: 0.5 * (slip.s + end.s),
+            by_zeta: 0.5 * (slip.by_zeta + end.by_zeta),
+            by_cap: 0.5 * (slip.by_cap + end.by_cap),
+        };
     }
     [slip.s, slip.by_zeta, slip.by_cap]
         .iter()
@@ -114,24 +111,6 @@ struct Slip {
     s: f64,
     by_zeta: f64,
     by_cap: f64,
-}
-
-impl Slip {
-    fn scaled(self, a: f64) -> Slip {
-        Slip {
-            s: a * self.s,
-            by_zeta: a * self.by_zeta,
-            by_cap: a * self.by_cap,
-        }
-    }
-
-    fn plus(self, b: Slip) -> Slip {
-        Slip {
-            s: self.s + b.s,
-            by_zeta: self.by_zeta + b.by_zeta,
-            by_cap: self.by_cap + b.by_cap,
-        }
-    }
 }
 
 /// What a step of [`settle_slip`] needs of the wheel.
