@@ -675,16 +675,18 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // On a uniform floor, from a cautious prior (ice's values) on every ground,
     // the MHE's longitudinal and lateral friction and its rolling resistance
     // come within 15% of the plant's after 5 s of the figure eight, and stay
-    // there, sample by sample. Measured (every sample after 5 s): concrete 5.7%,
-    // grass 5.4%, ice 4.8%; on ice `μ_x` is biased up, 1.0% on average (3.5%
-    // before the rolling resistance took its direction from the wheels' spin,
-    // 6.1% and single samples 10.4% before the encoders were predicted from the
-    // slip of the reading before: see the README's "NMPC and MHE"); the average
-    // is asserted within 5% there. The rolling resistance (a force of 2-8 N on
-    // a 40 kg platform): on average −1.2%, −0.4%, −5.6%, single samples within
-    // 1.6%, 2.3%, 6.4% (on ice up to 53% off before the model took its
-    // direction from the wheels' spin, its walk became relative and the
-    // encoders were predicted as they count, over their window).
+    // there, sample by sample. Measured (every sample after 5 s): concrete 4.3%,
+    // grass 6.6%, ice 4.3%; on ice `μ_x` is biased up, 0.6% on average (1.0%
+    // before the wheels' spin-up was read from their encoders, 3.5% before the
+    // rolling resistance took its direction from the wheels' spin, 6.1% and
+    // single samples 10.4% before the encoders were predicted from the slip of
+    // the reading before: see the README's "NMPC and MHE"); the average is
+    // asserted within 5% there. The rolling resistance (a force of 2-8 N on a
+    // 40 kg platform): on average −0.8%, −0.3%, −4.3%, single samples within
+    // 1.3%, 2.4%, 5.1% (on ice 6.4% before the spin-up was read, up to 53% off
+    // before the model took its direction from the wheels' spin, its walk
+    // became relative and the encoders were predicted as they count, over
+    // their window).
     for surface in ["concrete", "grass", "ice"] {
         let mut config = figure_eight_on(surface);
         config.tracker = rex_agent::a1::e11::TrackerKind::Nmpc;

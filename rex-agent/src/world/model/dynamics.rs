@@ -63,12 +63,44 @@ pub struct Measured<const NX: usize, const NP: usize> {
 /// No wheel's rate read at an instant.
 pub const NOT_READ: [f64; 4] = [f64::NAN; 4];
 
+/// What the wheels' encoders tell a model at an instant of an interval
+/// ([`WheelSpin`]): each wheel's rate [rad/s] and its acceleration over the
+/// interval [rad/s²], NaN where not read. A model whose state does not hold
+/// the wheels' spin (the lateral model) takes from the rates the direction of
+/// the rolling resistance, and from the accelerations the share of a wheel's
+/// torque that spins the wheel up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpinRead {
+    /// The rates.
+    pub rates: [f64; 4],
+    /// The accelerations.
+    pub accelerations: [f64; 4],
+}
+
+impl SpinRead {
+    /// Nothing read.
+    pub const NONE: SpinRead = SpinRead {
+        rates: NOT_READ,
+        accelerations: NOT_READ,
+    };
+
+    /// The rates `rates` read, no acceleration (an instant without the
+    /// interval around it).
+    pub const fn rates(rates: [f64; 4]) -> SpinRead {
+        SpinRead {
+            rates,
+            accelerations: NOT_READ,
+        }
+    }
+}
+
 /// The wheels' rates over one interval as their encoders read them [rad/s]:
 /// at its start and at its end, NaN where a wheel was not read. A model whose
 /// state does not hold the wheels' spin (the lateral model) takes from them the
 /// direction of the rolling resistance, which opposes the wheel's spin and not
-/// the ground's motion under it: the two part when a wheel slips, as an inner
-/// wheel does in a turn on ice.
+/// the ground's motion under it (the two part when a wheel slips, as an inner
+/// wheel does in a turn on ice), and the wheels' acceleration
+/// ([`SpinRead`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WheelSpin {
     /// At the interval's start.
@@ -97,6 +129,30 @@ impl WheelSpin {
                 (false, false) => f64::NAN,
             }
         })
+    }
+
+    /// Each wheel's mean acceleration over an interval of `dt` seconds [rad/s²]:
+    /// its two readings' difference over `dt`; NaN for a wheel not read at
+    /// both ends, and for every wheel unless `dt` is positive and finite.
+    pub fn accelerations(&self, dt: f64) -> [f64; 4] {
+        std::array::from_fn(|i| {
+            let a = (self.end[i] - self.start[i]) / dt;
+            if dt > 0.0 && dt.is_finite() && a.is_finite() {
+                a
+            } else {
+                f64::NAN
+            }
+        })
+    }
+
+    /// What a model is told at the fraction `s` of an interval of `dt`
+    /// seconds: the rates there ([`WheelSpin::at`]) and the interval's
+    /// accelerations ([`WheelSpin::accelerations`]).
+    pub fn read_at(&self, s: f64, dt: f64) -> SpinRead {
+        SpinRead {
+            rates: self.at(s),
+            accelerations: self.accelerations(dt),
+        }
     }
 }
 
@@ -137,27 +193,27 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         self.linearise(x, u, p).value
     }
 
-    /// [`Dynamics::linearise`] with the wheels' rates `spin` [rad/s] known
-    /// from outside the model (NaN where not; [`WheelSpin`]). The default: a
-    /// model whose state holds what it needs ignores them.
+    /// [`Dynamics::linearise`] with the wheels' rates and accelerations
+    /// `spin` known from outside the model (NaN where not; [`SpinRead`]).
+    /// The default: a model whose state holds what it needs ignores them.
     fn linearise_spinning(
         &self,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
-        _spin: &[f64; 4],
+        _spin: &SpinRead,
     ) -> Linearised<NX, NP> {
         self.linearise(x, u, p)
     }
 
-    /// [`Dynamics::f`] with the wheels' rates known, as
-    /// [`Dynamics::linearise_spinning`] (the default ignores them).
+    /// [`Dynamics::f`] with the wheels' spin known, as
+    /// [`Dynamics::linearise_spinning`] (the default ignores it).
     fn f_spinning(
         &self,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
-        _spin: &[f64; 4],
+        _spin: &SpinRead,
     ) -> Vector<NX> {
         self.f(x, u, p)
     }
@@ -172,13 +228,13 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
 
     /// The body-frame accelerations `(a_x, a_y)` of the centre of mass (what
     /// the wheel loads' transfer follows), with their gradients; `spin` the
-    /// wheels' rates read at `x` as in [`Dynamics::linearise_spinning`].
+    /// wheels' spin read at `x` as in [`Dynamics::linearise_spinning`].
     fn body_accelerations(
         &self,
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
-        spin: &[f64; 4],
+        spin: &SpinRead,
     ) -> [Measured<NX, NP>; 2];
 
     /// The rate wheel `i`'s encoder should read, with its gradients; `None`
@@ -207,10 +263,11 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
     /// [`Dynamics::encoder_rates`] for a model that knows how a wheel's slip
     /// settles after its torque changes: each wheel's rate at `x` under `u`
     /// reached from the slip its encoder showed `before.h` seconds before,
-    /// and `spin` the rates read at `x` as in
-    /// [`Dynamics::linearise_spinning`]. `before` and `spin` enter as data (no
-    /// gradient by them). The default: the slip settles at once, as
-    /// [`Dynamics::encoder_rates`] has it.
+    /// and `spin` the rates read at `x` (the direction of the rolling
+    /// resistance, as in [`Dynamics::linearise_spinning`]; not the wheels'
+    /// accelerations: the readings predicted are what they would come from).
+    /// `before` and `spin` enter as data (no gradient by them). The default:
+    /// the slip settles at once, as [`Dynamics::encoder_rates`] has it.
     fn encoder_rates_settling(
         &self,
         _before: &EarlierReading<NX>,
@@ -243,8 +300,9 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         rk4_with(x, dt, steps, |y, _| self.f(y, u, p))
     }
 
-    /// [`Dynamics::rk4`] with the wheels' rates over the interval known
-    /// ([`Dynamics::f_spinning`] at each RK4 stage's instant).
+    /// [`Dynamics::rk4`] with the wheels' readings over the interval known
+    /// ([`Dynamics::f_spinning`] at each RK4 stage's instant,
+    /// [`WheelSpin::read_at`]).
     fn rk4_spinning(
         &self,
         x: &Vector<NX>,
@@ -254,7 +312,9 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         steps: usize,
         spin: &WheelSpin,
     ) -> Vector<NX> {
-        rk4_with(x, dt, steps, |y, s| self.f_spinning(y, u, p, &spin.at(s)))
+        rk4_with(x, dt, steps, |y, s| {
+            self.f_spinning(y, u, p, &spin.read_at(s, dt))
+        })
     }
 
     /// [`Dynamics::rk4`] and its exact Jacobians, by differentiating every RK4
@@ -272,8 +332,9 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         rk4_sensitivities_with(x, dt, steps, |y, _| self.linearise(y, u, p))
     }
 
-    /// [`Dynamics::rk4_sensitivities`] with the wheels' rates over the interval
-    /// known ([`Dynamics::linearise_spinning`] at each RK4 stage's instant).
+    /// [`Dynamics::rk4_sensitivities`] with the wheels' readings over the
+    /// interval known ([`Dynamics::linearise_spinning`] at each RK4 stage's
+    /// instant, [`WheelSpin::read_at`]).
     fn rk4_sensitivities_spinning(
         &self,
         x: &Vector<NX>,
@@ -284,7 +345,7 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         spin: &WheelSpin,
     ) -> Linearised<NX, NP> {
         rk4_sensitivities_with(x, dt, steps, |y, s| {
-            self.linearise_spinning(y, u, p, &spin.at(s))
+            self.linearise_spinning(y, u, p, &spin.read_at(s, dt))
         })
     }
 }
@@ -422,9 +483,9 @@ pub(crate) mod check {
         let unknown = WheelSpin::UNKNOWN;
         assert_eq!(
             m.linearise(x, u, p),
-            m.linearise_spinning(x, u, p, &NOT_READ)
+            m.linearise_spinning(x, u, p, &SpinRead::NONE)
         );
-        assert_eq!(m.f(x, u, p), m.f_spinning(x, u, p, &NOT_READ));
+        assert_eq!(m.f(x, u, p), m.f_spinning(x, u, p, &SpinRead::NONE));
         assert_eq!(
             m.rk4_sensitivities(x, u, p, dt, steps),
             m.rk4_sensitivities_spinning(x, u, p, dt, steps, &unknown)
@@ -438,7 +499,7 @@ pub(crate) mod check {
 
     /// Check `linearise_spinning` (at the interval's start) and
     /// `rk4_sensitivities_spinning` of `m` against central differences at
-    /// `(x, u, p)` with the wheels' rates `spin`.
+    /// `(x, u, p)` with the wheels' readings `spin`.
     pub(crate) fn jacobians_spinning<M: Dynamics<NX, NP>, const NX: usize, const NP: usize>(
         m: &M,
         x: &Vector<NX>,
@@ -448,7 +509,7 @@ pub(crate) mod check {
         steps: usize,
         spin: &WheelSpin,
     ) {
-        let now = spin.at(0.0);
+        let now = spin.read_at(0.0, dt);
         let jf = m.linearise_spinning(x, u, p, &now);
         let jd = m.rk4_sensitivities_spinning(x, u, p, dt, steps, spin);
         let f = |x: &Vector<NX>, u: &Vector<NU>, p: &Vector<NP>| m.f_spinning(x, u, p, &now);
@@ -549,6 +610,40 @@ mod tests {
         assert_eq!(at(1.0)[..3], [3.0, 4.0, 2.0]);
         assert!((0..=4).all(|k| at(f64::from(k) / 4.0)[3].is_nan()));
         assert!(WheelSpin::UNKNOWN.at(0.5).iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn wheel_spin_accelerations_need_both_readings_and_a_real_interval() {
+        let spin = WheelSpin {
+            start: [1.0, f64::NAN, 2.0, f64::INFINITY],
+            end: [3.0, 4.0, f64::NAN, 1.0],
+        };
+        let a = spin.accelerations(0.5);
+        assert_eq!(a[0], 4.0);
+        assert!(a[1..].iter().all(|v| v.is_nan()), "{a:?}");
+        for dt in [0.0, -0.5, f64::NAN, f64::INFINITY] {
+            assert!(spin.accelerations(dt).iter().all(|v| v.is_nan()), "{dt}");
+        }
+        // What a model is told inside the interval: the rates there and the
+        // interval's accelerations.
+        let read = spin.read_at(0.25, 0.5);
+        assert_eq!(read.rates[..3], spin.at(0.25)[..3]);
+        assert_eq!(read.accelerations[0], 4.0);
+        assert_eq!(SpinRead::rates([1.0; 4]).rates, [1.0; 4]);
+        assert!(
+            SpinRead::rates([1.0; 4])
+                .accelerations
+                .iter()
+                .all(|v| v.is_nan())
+        );
+        let nothing = WheelSpin::UNKNOWN.read_at(0.5, 0.05);
+        assert!(
+            nothing
+                .rates
+                .iter()
+                .chain(&nothing.accelerations)
+                .all(|v| v.is_nan())
+        );
     }
 
     #[test]

@@ -9,7 +9,8 @@ pub mod reduced;
 pub mod settling;
 
 pub use dynamics::{
-    Dynamics, EarlierReading, Linearised, Matrix, Measured, NOT_READ, NU, Vector, WheelSpin,
+    Dynamics, EarlierReading, Linearised, Matrix, Measured, NOT_READ, NU, SpinRead, Vector,
+    WheelSpin,
 };
 pub use full::{CommandStats, FullState, IntegrationStats, Plant};
 pub use lateral::{Lateral, State6};

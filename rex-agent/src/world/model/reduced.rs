@@ -3,7 +3,7 @@
 //! `x = (X, Y, φ, v, ω)` and the inputs are the four wheel torques. Used by
 //! controllers and estimators; `peers/casadi_nmpc.py` implements the same equations.
 
-use super::dynamics::{Dynamics, Linearised, Measured, NU, Vector, sg4};
+use super::dynamics::{Dynamics, Linearised, Measured, NU, SpinRead, Vector, sg4};
 use super::params::{PlatformParams, SlipParams};
 
 /// Reduced state `(X, Y, φ, v, ω)`.
@@ -202,7 +202,7 @@ impl Dynamics<5, 3> for Reduced {
         x: &Vector<5>,
         u: &Vector<NU>,
         p: &Vector<3>,
-        _spin: &[f64; 4],
+        _spin: &SpinRead,
     ) -> [Measured<5, 3>; 2] {
         let j = self.linearise(x, u, p);
         let (v, w, x0) = (x[3], x[4], p[0]);
@@ -251,7 +251,7 @@ impl Dynamics<5, 3> for Reduced {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::dynamics::{NOT_READ, check};
+    use crate::world::model::dynamics::check;
 
     /// Golden values of notes §1.6 (`python3 peers/casadi_nmpc.py --check-model`).
     #[test]
@@ -319,7 +319,7 @@ mod tests {
             for k in 0..2 {
                 check::measured(
                     &format!("a{k}"),
-                    |x, p| m.body_accelerations(x, &u, p, &NOT_READ)[k],
+                    |x, p| m.body_accelerations(x, &u, p, &SpinRead::NONE)[k],
                     &x,
                     &p,
                 );

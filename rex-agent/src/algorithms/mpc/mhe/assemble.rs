@@ -7,7 +7,7 @@
 use super::{Blocks, Mhe, MheError};
 use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::QpStrategy;
-use crate::world::model::{Dynamics, Matrix, Measured, NU, Vector, WheelSpin};
+use crate::world::model::{Dynamics, Matrix, Measured, NU, SpinRead, Vector, WheelSpin};
 
 /// One scalar residual `r` with standard deviation `sigma` and gradients `h`
 /// (states of one stage) and `hp` (parameters), added to the normal equations.
@@ -93,9 +93,19 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             // The torques of the interval that ends here: what the encoders and
             // the force sensors saw just before this instant.
             let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
-            let loads = st
-                .loads
-                .map(|l| (l, self.load_model(&st.x, &u_in, &p, &st.spin)));
+            let loads = st.loads.map(|l| {
+                // The wheels' spin read here, with their accelerations over
+                // that interval.
+                let spin = match i.checked_sub(1).map(|k| &self.window[k]) {
+                    Some(before) => WheelSpin {
+                        start: before.spin,
+                        end: st.spin,
+                    }
+                    .read_at(1.0, st.t - before.t),
+                    None => SpinRead::rates(st.spin),
+                };
+                (l, self.load_model(&st.x, &u_in, &p, &spin))
+            });
             let encoders = st.encoders.map(|e| (e, self.encoder_prediction(i, &p)));
             let b = &mut self.blocks[i];
             if let Some(pose) = st.pose {
@@ -231,7 +241,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         x: &Vector<NX>,
         u: &Vector<NU>,
         p: &Vector<NP>,
-        spin: &[f64; 4],
+        spin: &SpinRead,
     ) -> [Measured<NX, NP>; 4] {
         let pr = self.model.platform();
         let [ax, ay] = self.model.body_accelerations(x, u, p, spin);

@@ -356,7 +356,8 @@ struct Stage<const NX: usize> {
     heading: Option<f64>,
     encoders: Option<[f64; 4]>,
     /// The wheels' rates read, gated or not (NaN where not read): the
-    /// direction of their rolling resistance ([`Dynamics::linearise_spinning`]).
+    /// direction of their rolling resistance and, with a neighbour stage's,
+    /// their acceleration ([`Dynamics::linearise_spinning`]).
     spin: [f64; 4],
     loads: Option<[f64; 4]>,
     /// The motion `(dx, dy, dφ)` to the next stage in this stage's frame, from

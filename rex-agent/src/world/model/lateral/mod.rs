@@ -12,16 +12,21 @@
 //!
 //! ```text
 //! v_ix = v_x − d_iy ω,           v_iy = v_y + d_ix ω
-//! g_i  = τ_i / r − μ_r N_i sg(r θ̇_i) − (J_w / r²) (a⁰_x − d_iy α⁰)    (what the ground is asked for)
+//! g_i  = τ_i / r − μ_r N_i sg(r θ̇_i) − (J_w / r) θ̈_i                 (what the ground is asked for)
 //! F_xi = μ_x N_i sat(g_i / (μ_x N_i)),     F_yi = −μ_y N_i sg(v_iy)
 //! m (v̇_x − v_y ω) = Σ F_xi,    m (v̇_y + v_x ω) = Σ F_yi,    I ω̇ = Σ (d_ix F_yi − d_iy F_xi)
 //! ```
 //!
-//! The wheels are taken to roll at the speed their torque and the ground agree
-//! on (their spin mode, about −10³ s⁻¹, settles within a millisecond, so it is
-//! eliminated). A wheel's torque then does three things, as in the plant: it
-//! overcomes the rolling resistance (a torque on the wheel), spins the wheel up
-//! with the body, and pushes on the ground. `a⁰_x`, `α⁰` are the accelerations
+//! A wheel's torque does three things, as in the plant: it overcomes the
+//! rolling resistance (a torque on the wheel), spins the wheel up (`J_w θ̈_i`),
+//! and pushes on the ground. Where the wheel's acceleration is read (the MHE
+//! gives each interval its encoders' two readings, [`super::SpinRead`]), `g_i`
+//! is the plant's force on the ground but for the readings' noise and lag,
+//! whether the wheel rolls, pulls or spins. Where it is not (the NMPC's
+//! prediction), the wheels are taken to roll at the speed their torque and the
+//! ground agree on (their spin mode, about −10³ s⁻¹, settles within a
+//! millisecond, so it is eliminated) and spin up with the body:
+//! `θ̈_i = (a⁰_x − d_iy α⁰) / r`, where `a⁰_x`, `α⁰` are the accelerations
 //! of the motion unbounded by the ground, body and wheels' spin inertia together
 //! (`m_e a⁰_x = Σ (τ_i / r − μ_r N_i sg(r θ̇_i)) + m v_y ω`, `I_e α⁰ = Σ (d_ix
 //! F_yi − d_iy (τ_i / r − μ_r N_i sg(r θ̇_i)))`, `m_e = m + 4 J_w / r²`, `I_e = I +
@@ -54,15 +59,16 @@
 //! MHE's `μ_r` came out 7-19 % low on average with `sg(v_ix)`; with the spin
 //! read (and the encoders predicted over their counting window,
 //! [`super::settling`]), single samples after 5 s within 16 % on ice and
-//! 7.2 % elsewhere, 4-16 % low on average on ice (the README's "NMPC and
-//! MHE").
+//! 7.2 % elsewhere, 4-16 % low on average on ice; with the wheels' spin-up
+//! read too, within 9.7 % on ice and 6.5 % elsewhere, 1-9 % low on average
+//! on ice (the README's "NMPC and MHE").
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
 //! two steps (three are used).
 
 use super::dynamics::{
-    Dynamics, EarlierReading, Linearised, Measured, NOT_READ, NU, Vector, sg, sg_inverse, sg_prime,
+    Dynamics, EarlierReading, Linearised, Measured, NU, SpinRead, Vector, sg, sg_inverse, sg_prime,
     sg4,
 };
 use super::params::{Friction, PlatformParams};
@@ -186,20 +192,21 @@ impl Lateral {
 
     /// The ground's forces on the wheels at `x` under torques `u`. A wheel's
     /// torque drives its own spin as well as the ground: what the ground is
-    /// asked for is `g_i = τ_i / r − μ_r N_i sg(r θ̇_i) − (J_w / r²) v̇_ix`, the
-    /// rolling resistance and the spin-up taken off, with the accelerations
-    /// `v̇_ix = v̇_x − d_iy ω̇` of the unbounded motion (the body and the wheels'
-    /// spin inertia together: `m_e`, `I_e`); the ground gives
-    /// `F_xi = μ_x N_i sat(g_i / (μ_x N_i))`. Below the bound the body then
-    /// accelerates exactly as the unbounded motion says (the spin-up is the
-    /// wheels' share of it); a wheel at its bound gives the body `μ_x N_i`
-    /// whatever its torque (the rest spins it up).
+    /// asked for is `g_i = τ_i / r − μ_r N_i sg(r θ̇_i) − (J_w / r) θ̈_i`, the
+    /// rolling resistance and the spin-up taken off; the ground gives
+    /// `F_xi = μ_x N_i sat(g_i / (μ_x N_i))`.
+    ///
+    /// The spin-up is the wheel's acceleration read where `spin` has it (data,
+    /// without gradient), else the one of a wheel rolling with the unbounded
+    /// motion, `r θ̈_i = v̇_ix = v̇_x − d_iy ω̇` (the body and the wheels' spin
+    /// inertia together: `m_e`, `I_e`): below the bound the body then
+    /// accelerates exactly as the unbounded motion says; a wheel at its bound
+    /// gives the body `μ_x N_i` whatever its torque (the rest spins it up).
     ///
     /// The rolling resistance opposes each wheel's spin: `sg(r θ̇_i)` where
-    /// `spin[i]` gives the rate (read by the encoder, data without gradient),
-    /// else the ground's motion under the wheel, `sg(v_ix)` (what the spin
-    /// is when the wheel does not slip).
-    fn forces(&self, x: &Vector<6>, u: &Vector<NU>, p: &Vector<3>, spin: &[f64; 4]) -> Forces {
+    /// `spin` gives the rate (data), else the ground's motion under the
+    /// wheel, `sg(v_ix)` (what the spin is when the wheel does not slip).
+    fn forces(&self, x: &Vector<6>, u: &Vector<NU>, p: &Vector<3>, spin: &SpinRead) -> Forces {
         let (m, r, ks) = (
             self.params.mass,
             self.params.wheel_radius,
@@ -221,12 +228,12 @@ impl Lateral {
         let mut gmoment = Grad::zeros();
         // The rolling resistance's direction, and its slope in `v_ix` (none
         // where the spin was read).
-        let read = spin.map(f64::is_finite);
+        let read = spin.rates.map(f64::is_finite);
         let mut sgx = sg4(
             ks,
             std::array::from_fn(|i| {
                 if read[i] {
-                    r * spin[i]
+                    r * spin.rates[i]
                 } else {
                     vx - self.d[i][1] * w
                 }
@@ -270,8 +277,14 @@ impl Lateral {
         for i in 0..4 {
             let dy = self.d[i][1];
             let cap = mux * self.n[i];
-            let g = drive[i] - kappa * (a0 - dy * b0);
-            let gg = gdrive[i] - (ga0 - gb0 * dy) * kappa;
+            let (g, gg) = if spin.accelerations[i].is_finite() {
+                (drive[i] - kappa * r * spin.accelerations[i], gdrive[i])
+            } else {
+                (
+                    drive[i] - kappa * (a0 - dy * b0),
+                    gdrive[i] - (ga0 - gb0 * dy) * kappa,
+                )
+            };
             let z = g / cap;
             let (sat, sat1) = saturate(z);
             out.fx[i] = cap * sat;
@@ -393,17 +406,18 @@ impl Dynamics<6, 3> for Lateral {
     }
 
     fn linearise(&self, x: &Vector<6>, u: &Vector<NU>, p: &Vector<3>) -> Linearised<6, 3> {
-        self.linearise_spinning(x, u, p, &NOT_READ)
+        self.linearise_spinning(x, u, p, &SpinRead::NONE)
     }
 
-    /// The rolling resistance opposes the spin read (the wheels' rates are
-    /// data: no gradient by them), else the ground's motion under the wheel.
+    /// The rolling resistance opposes the spin read, else the ground's motion
+    /// under the wheel; the spin-up is the acceleration read, else the
+    /// unbounded motion's (the readings are data: no gradient by them).
     fn linearise_spinning(
         &self,
         x: &Vector<6>,
         u: &Vector<NU>,
         p: &Vector<3>,
-        spin: &[f64; 4],
+        spin: &SpinRead,
     ) -> Linearised<6, 3> {
         let (m, inertia) = (self.params.mass, self.params.inertia);
         let (phi, vx, vy, w) = (x[2], x[VX], x[VY], x[W]);
@@ -467,7 +481,7 @@ impl Dynamics<6, 3> for Lateral {
         x: &Vector<6>,
         u: &Vector<NU>,
         p: &Vector<3>,
-        spin: &[f64; 4],
+        spin: &SpinRead,
     ) -> Vector<6> {
         self.linearise_spinning(x, u, p, spin).value
     }
@@ -486,7 +500,7 @@ impl Dynamics<6, 3> for Lateral {
         x: &Vector<6>,
         u: &Vector<NU>,
         p: &Vector<3>,
-        spin: &[f64; 4],
+        spin: &SpinRead,
     ) -> [Measured<6, 3>; 2] {
         // a_x = v̇_x − v_y ω, a_y = v̇_y + v_x ω (what the plant's load transfer
         // follows).
@@ -528,7 +542,7 @@ impl Dynamics<6, 3> for Lateral {
         u: &Vector<NU>,
         p: &Vector<3>,
     ) -> Option<Measured<6, 3>> {
-        let f = self.forces(x, u, p, &NOT_READ);
+        let f = self.forces(x, u, p, &SpinRead::NONE);
         self.encoder_rate_with(i, x, p, &f, None)
     }
 
@@ -538,7 +552,7 @@ impl Dynamics<6, 3> for Lateral {
         u: &Vector<NU>,
         p: &Vector<3>,
     ) -> [Option<Measured<6, 3>>; 4] {
-        let f = self.forces(x, u, p, &NOT_READ);
+        let f = self.forces(x, u, p, &SpinRead::NONE);
         std::array::from_fn(|i| self.encoder_rate_with(i, x, p, &f, None))
     }
 
@@ -553,7 +567,7 @@ impl Dynamics<6, 3> for Lateral {
         p: &Vector<3>,
         spin: &[f64; 4],
     ) -> [Option<Measured<6, 3>>; 4] {
-        let f = self.forces(x, u, p, spin);
+        let f = self.forces(x, u, p, &SpinRead::rates(*spin));
         let r = self.params.wheel_radius;
         std::array::from_fn(|i| {
             let dy = self.d[i][1];

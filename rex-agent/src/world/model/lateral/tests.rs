@@ -1,5 +1,6 @@
 //! The lateral-slip model's tests: Jacobians against finite differences, the
-//! model against the plant, the rolling resistance's direction.
+//! model against the plant, the rolling resistance's direction, the wheels'
+//! spin-up read.
 
 use super::*;
 use crate::world::model::dynamics::check;
@@ -66,7 +67,7 @@ fn jacobians_match_finite_differences() {
         for k in 0..2 {
             check::measured(
                 &format!("a{k}"),
-                |x, p| m.body_accelerations(x, &u, p, &NOT_READ)[k],
+                |x, p| m.body_accelerations(x, &u, p, &SpinRead::NONE)[k],
                 &x,
                 &p,
             );
@@ -233,7 +234,7 @@ fn the_rolling_resistance_opposes_the_wheels_spin_read() {
     let p = Vector::from([0.1, 0.07, 0.01]);
     let params = &m.params;
     let rate = 5.0;
-    let spinning = m.f_spinning(&x, &u, &p, &[rate; 4]);
+    let spinning = m.f_spinning(&x, &u, &p, &SpinRead::rates([rate; 4]));
     let rolling: f64 = params
         .static_loads()
         .iter()
@@ -252,6 +253,77 @@ fn the_rolling_resistance_opposes_the_wheels_spin_read() {
     let u = Vector::from([0.3, 0.4, 0.5, 0.6]);
     let rolling_with_the_ground: [f64; 4] =
         std::array::from_fn(|i| (x[VX] - m.d[i][1] * x[W]) / params.wheel_radius);
-    let with = m.f_spinning(&x, &u, &p, &rolling_with_the_ground);
+    let with = m.f_spinning(&x, &u, &p, &SpinRead::rates(rolling_with_the_ground));
     assert!((with - m.f(&x, &u, &p)).norm() < 1e-12, "{with:?}");
+}
+
+/// The plant on ice from rest under torques `tau` held: its state at the
+/// step, after `first` seconds and `interval` seconds later.
+fn plant_on_ice(tau: [f64; 4], first: f64, interval: f64) -> [crate::world::model::FullState; 2] {
+    let ice = Surface {
+        name: "ice".into(),
+        mu_long: 0.1,
+        mu_lat: 0.07,
+        rolling: 0.01,
+    };
+    let mut plant = Plant::new(
+        PlatformParams::peer_default(),
+        SurfaceMap::uniform(ice),
+        [0.0; 3],
+    )
+    .expect("valid");
+    let mut run = |seconds: f64| {
+        for _ in 0..(seconds / 1e-3).round() as usize {
+            let applied = plant.available(tau);
+            plant.step(applied, 1e-3);
+        }
+        plant.state
+    };
+    let a = run(first);
+    let b = run(interval);
+    [a, b]
+}
+
+#[test]
+fn the_wheels_spin_up_read_gives_the_body_the_plants_traction() {
+    // Torques stepped on from rest on ice: the wheels' slip builds up before
+    // the ground pulls the body (the torque first spins the wheels up), or
+    // the wheels spin beyond the traction bound. Over one interval of 50 ms
+    // the model told the wheels' two readings predicts the body's speed
+    // with the plant's traction; told the rates only, it takes the wheels to
+    // roll with the body and, while the slip builds up, gives the body the
+    // torque's force too early. Measured, the speed's error as a share of
+    // the speed gained: 2.5 % and 0.6 % read vs 35 % and 12 % rates only
+    // while the slip builds up, 2.5 % vs 3.5 % spinning.
+    let m = model();
+    let p = Vector::from([0.1, 0.07, 0.01]);
+    let dt = 0.05;
+    // (torque per wheel [N m], time since the step [s]); the traction bound
+    // is r μ_x N = 0.98 N m a wheel.
+    for (torque, first, building_up) in [(0.7, 0.0, true), (0.7, 0.01, true), (1.5, 0.2, false)] {
+        let tau = [torque; 4];
+        let [a, b] = plant_on_ice(tau, first, dt);
+        let x0 = Vector::from([a.x, a.y, a.phi, a.vx, a.vy, a.omega]);
+        let u = Vector::from(tau);
+        let spin = WheelSpin {
+            start: a.theta_dot,
+            end: b.theta_dot,
+        };
+        let read = m.rk4_spinning(&x0, &u, &p, dt, 3, &spin);
+        let rates_only = WheelSpin {
+            start: a.theta_dot,
+            end: [f64::NAN; 4],
+        };
+        let unread = m.rk4_spinning(&x0, &u, &p, dt, 3, &rates_only);
+        let gained = b.vx - a.vx;
+        let (err_read, err_unread) = ((read[VX] - b.vx).abs(), (unread[VX] - b.vx).abs());
+        assert!(gained > 0.0, "{a:?} {b:?}");
+        assert!(
+            err_read < 0.05 * gained,
+            "torque {torque} at {first} s: model {read:?} vs plant {b:?}"
+        );
+        if building_up {
+            assert!(err_unread > 4.0 * err_read, "{err_unread} vs {err_read}");
+        }
+    }
 }
