@@ -35,6 +35,8 @@ use crate::error::ExecError;
 use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
 use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
+use crate::probe::{ProbeFn, Probes, Target};
+use crate::realtime::{Finished, RtReport};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -131,6 +133,11 @@ pub struct Executor<O: Observer = NoObserver> {
     started: bool,
     stopped: bool,
     report: RunReport,
+    /// Probes, by node index (`probes`), and of the environment.
+    probes: Vec<Vec<ProbeFn>>,
+    environment_probes: Vec<ProbeFn>,
+    /// The counters of the probe sets' full channels.
+    probes_dropped: Vec<std::sync::Arc<std::sync::atomic::AtomicU64>>,
 }
 
 impl<O: Observer> std::fmt::Debug for Executor<O> {
@@ -203,7 +210,68 @@ impl<O: Observer> Executor<O> {
             started: false,
             stopped: false,
             report: RunReport::default(),
+            probes: Vec::new(),
+            environment_probes: Vec::new(),
+            probes_dropped: Vec::new(),
         }
+    }
+
+    /// Watch the run with a set of probes (see [`Probes`]): each is called
+    /// within [`Executor::step`], right after each activation of the node it
+    /// watches (an environment probe after each instant at which a driver ran).
+    pub fn watch<M>(&mut self, probes: Probes<M>) -> &mut Self {
+        self.probes_dropped.push(probes.dropped_counter());
+        if self.probes.is_empty() {
+            self.probes = (0..self.nodes.len()).map(|_| Vec::new()).collect();
+        }
+        for (target, f) in probes.entries {
+            match target {
+                Target::Node(i) => {
+                    if let Some(p) = self.probes.get_mut(i) {
+                        p.push(f);
+                    }
+                }
+                Target::Environment => self.environment_probes.push(f),
+            }
+        }
+        self
+    }
+
+    /// End the run: every node, the environment and the links' counters, as
+    /// the real-time executor returns them ([`Finished`]), with this run's
+    /// errors and last instant in its report; and the observer.
+    pub fn finish(self) -> (Finished, O) {
+        let Executor {
+            info,
+            nodes,
+            environment,
+            channels,
+            now,
+            observer,
+            report,
+            probes_dropped,
+            ..
+        } = self;
+        let links = channels.stats.iter().map(|c| *c.borrow().stats()).collect();
+        let cores = nodes
+            .into_iter()
+            .enumerate()
+            .map(|(i, n)| (i, n.into_core()))
+            .collect();
+        let report = RtReport {
+            errors: report.errors,
+            error_count: report.error_count,
+            last_instant: now,
+            probe_dropped: probes_dropped
+                .iter()
+                .map(|d| d.load(std::sync::atomic::Ordering::Relaxed))
+                .sum(),
+            ..RtReport::default()
+        };
+        (
+            Finished::new(info, cores, environment, links, report),
+            observer,
+        )
     }
 
     /// The current virtual time (the last instant executed).
@@ -274,11 +342,17 @@ impl<O: Observer> Executor<O> {
                 debug_assert!(read.is_ok(), "in-process links report no problem");
             }
         }
+        // Whether a driver (the environment's, if there is one) ran.
+        let mut world_ran = false;
         for k in 0..self.order.len() {
             let i = self.order[k];
             if self.next[i] != tn {
                 continue;
             }
+            world_ran |= matches!(
+                self.info.nodes[i].kind,
+                NodeKind::RealEffector | NodeKind::RealReceptor
+            );
             let mut cx = LinkCx {
                 time: t,
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
@@ -294,6 +368,19 @@ impl<O: Observer> Executor<O> {
                     }
                     self.handle_error(i, tn, *e)?;
                 }
+            }
+            if let Some(probes) = self.probes.get_mut(i) {
+                for f in probes {
+                    f(t, self.nodes[i].core());
+                }
+            }
+        }
+        if world_ran
+            && !self.environment_probes.is_empty()
+            && let Some(env) = self.environment.as_deref()
+        {
+            for f in &mut self.environment_probes {
+                f(t, env);
             }
         }
         self.report.instants += 1;

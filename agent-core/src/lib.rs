@@ -35,6 +35,7 @@ pub mod link;
 pub mod names;
 mod node;
 pub mod offload;
+pub mod probe;
 pub mod realtime;
 pub mod subsystem;
 pub mod system;
@@ -63,6 +64,7 @@ pub use link::remote::{
 };
 pub use link::{Access, InjectError, LinkId, LinkStats, Port};
 pub use offload::{Offload, OffloadError, OffloadMode};
+pub use probe::Probes;
 pub use realtime::{
     Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
 };

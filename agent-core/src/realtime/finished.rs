@@ -31,6 +31,22 @@ impl fmt::Debug for Finished {
 }
 
 impl Finished {
+    pub(crate) fn new(
+        info: SystemInfo,
+        cores: BTreeMap<usize, Box<dyn Any + Send>>,
+        environment: Option<Box<dyn Any + Send>>,
+        links: Vec<LinkStats>,
+        report: RtReport,
+    ) -> Finished {
+        Finished {
+            info,
+            cores,
+            environment,
+            links,
+            report,
+        }
+    }
+
     /// What the run measured.
     pub fn report(&self) -> &RtReport {
         &self.report

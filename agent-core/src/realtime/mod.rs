@@ -62,7 +62,7 @@ use std::collections::{BTreeMap, HashSet};
 use std::fmt;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::mpsc::Receiver;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
@@ -70,38 +70,25 @@ use crate::kinds::NodeKind;
 use crate::link::remote::{self, Transport};
 use crate::link::thread::SharedStats;
 use crate::link::{LinkId, LinkStats, ThreadHalves};
-use crate::node::{DriverCore, subsystem_core};
+use crate::probe::{ProbeFn, Probes, Target};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
 use crate::trace::{Observer, SystemInfo};
 
+pub use crate::probe::Probed;
 pub use config::{RtConfig, RtError};
 pub use finished::Finished;
 pub use report::{RtReport, ThreadReport};
 pub use timing::{NodeTiming, Spread};
 
-/// A subsystem as a probe sees it, right after an activation.
-#[derive(Debug)]
-pub struct Probed<'a, S: Subsystem> {
-    /// The activation's instant.
-    pub time: Time,
-    /// Its memory after the activation.
-    pub memory: &'a S::Memory,
-    /// Its inputs as the activation read them.
-    pub input: &'a S::Input,
-    /// The behaviour it is in (the one that ran, or the next one if it ended).
-    pub behaviour: &'a str,
-    /// Whether it reached a final behaviour.
-    pub halted: bool,
-}
-
 /// A system prepared for a real-time run: add probes, then [`RealTime::start`].
 pub struct RealTime {
     system: System,
     config: RtConfig,
-    probes: Vec<(Option<usize>, worker::Probe)>,
-    dropped: Arc<AtomicU64>,
+    probes: Vec<(Target, ProbeFn)>,
+    /// The counters of the probe sets' full channels.
+    dropped: Vec<Arc<AtomicU64>>,
     placement: Option<Placement>,
     observers: Option<MakeObserver>,
 }
@@ -161,12 +148,6 @@ impl StopHandle {
     }
 }
 
-fn send_or_count<M>(tx: &SyncSender<M>, m: M, dropped: &AtomicU64) {
-    if let Err(TrySendError::Full(_)) = tx.try_send(m) {
-        dropped.fetch_add(1, Ordering::Relaxed);
-    }
-}
-
 impl RealTime {
     /// Prepare `system` for a real-time run.
     pub fn new(system: System, config: RtConfig) -> Self {
@@ -174,7 +155,7 @@ impl RealTime {
             system,
             config,
             probes: Vec::new(),
-            dropped: Arc::new(AtomicU64::new(0)),
+            dropped: Vec::new(),
             placement: None,
             observers: None,
         }
@@ -222,81 +203,55 @@ impl RealTime {
         &self.system.info
     }
 
+    /// Watch the run with a set of probes (see [`Probes`]): each is called on
+    /// the thread of the node it watches (the environment's: the world's),
+    /// after each activation.
+    pub fn watch<M>(&mut self, probes: Probes<M>) -> &mut Self {
+        self.dropped.push(probes.dropped_counter());
+        self.probes.extend(probes.entries);
+        self
+    }
+
     /// Watch subsystem `h`: after each of its activations, on its thread, `f` sees
     /// it ([`Probed`]: the instant, its memory, its inputs, its behaviour); what
     /// `f` returns arrives on the receiver.
-    pub fn probe<S, M, F>(&mut self, h: &SubsystemHandle<S>, mut f: F) -> Receiver<M>
+    pub fn probe<S, M, F>(&mut self, h: &SubsystemHandle<S>, f: F) -> Receiver<M>
     where
         S: Subsystem,
         M: Send + 'static,
         F: FnMut(&Probed<'_, S>) -> Option<M> + Send + 'static,
     {
-        let (tx, rx) = sync_channel(self.config.probe_capacity);
-        let dropped = self.dropped.clone();
-        let node = h.id().index();
-        let probe = worker::Probe::Node(
-            node,
-            Box::new(move |time, any: &dyn Any| {
-                if let Some(core) = subsystem_core::<S>(any)
-                    && let Some(m) = f(&Probed {
-                        time,
-                        memory: &core.memory,
-                        input: &core.input,
-                        behaviour: core.fsm.behaviour_name(core.state.behaviour()),
-                        halted: core.state.is_halted(),
-                    })
-                {
-                    send_or_count(&tx, m, &dropped);
-                }
-            }),
-        );
-        self.probes.push((Some(node), probe));
+        let (mut probes, rx) = Probes::new(self.config.probe_capacity);
+        probes.subsystem(h, f);
+        self.watch(probes);
         rx
     }
 
     /// Watch driver `h`: after each of its steps, on its thread, `f` sees the
     /// instant and the device.
-    pub fn probe_driver<D, M, F>(&mut self, h: &DriverHandle<D>, mut f: F) -> Receiver<M>
+    pub fn probe_driver<D, M, F>(&mut self, h: &DriverHandle<D>, f: F) -> Receiver<M>
     where
         D: Driver,
         M: Send + 'static,
         F: FnMut(Time, &D) -> Option<M> + Send + 'static,
     {
-        let (tx, rx) = sync_channel(self.config.probe_capacity);
-        let dropped = self.dropped.clone();
-        let node = h.id().index();
-        let probe = worker::Probe::Node(
-            node,
-            Box::new(move |time, any: &dyn Any| {
-                if let Some(d) = any.downcast_ref::<DriverCore<D>>()
-                    && let Some(m) = f(time, &d.driver)
-                {
-                    send_or_count(&tx, m, &dropped);
-                }
-            }),
-        );
-        self.probes.push((Some(node), probe));
+        let (mut probes, rx) = Probes::new(self.config.probe_capacity);
+        probes.driver(h, f);
+        self.watch(probes);
         rx
     }
 
     /// Watch the environment (of type `W`): after each instant of the world's
     /// thread, `f` sees the instant and the environment.
-    pub fn probe_environment<W, M, F>(&mut self, mut f: F) -> Receiver<M>
+    pub fn probe_environment<W, M, F>(&mut self, f: F) -> Receiver<M>
     where
         W: Any,
         M: Send + 'static,
         F: FnMut(Time, &W) -> Option<M> + Send + 'static,
     {
-        let (tx, rx) = sync_channel(self.config.probe_capacity);
-        let dropped = self.dropped.clone();
-        let probe = worker::Probe::Environment(Box::new(move |t, any: &dyn Any| {
-            if let Some(w) = any.downcast_ref::<W>()
-                && let Some(m) = f(t, w)
-            {
-                send_or_count(&tx, m, &dropped);
-            }
-        }));
-        self.probes.push((None, probe));
+        let (mut probes, rx) = Probes::new(self.config.probe_capacity);
+        probes.environment(f);
+        self.watch(probes);
         rx
     }
 
@@ -520,13 +475,13 @@ impl RealTime {
                 w.observer = Some(make(&w.name, &w.nodes));
             }
         }
-        for (node, probe) in probes {
-            let th = match node {
-                Some(i) => thread_of[i],
-                None => world.unwrap_or(0),
+        for (target, probe) in probes {
+            let th = match target {
+                Target::Node(i) => thread_of.get(i).copied().unwrap_or(usize::MAX),
+                Target::Environment => world.unwrap_or(usize::MAX),
             };
             if let Some(w) = works.get_mut(th) {
-                w.probes.push(probe);
+                w.probes.push((target, probe));
             }
         }
         let memory_locked = config.lock_memory.then(clock::lock_memory);
@@ -571,6 +526,7 @@ impl RealTime {
             end,
             config: config.exec,
             errors: AtomicU64::new(0),
+            halted: (0..n).map(|_| AtomicBool::new(false)).collect(),
         });
         let mut handles = Vec::with_capacity(works.len());
         for work in works {
@@ -623,7 +579,7 @@ pub struct Running {
     stop: StopHandle,
     shared: Arc<worker::Shared>,
     stats: Vec<Arc<SharedStats>>,
-    dropped: Arc<AtomicU64>,
+    dropped: Vec<Arc<AtomicU64>>,
     memory_locked: Option<Result<(), String>>,
     started: Instant,
     lead: Duration,
@@ -655,6 +611,15 @@ impl Running {
     /// halted).
     pub fn is_finished(&self) -> bool {
         self.handles.iter().all(|(_, h)| h.is_finished())
+    }
+
+    /// Whether `node` (one this process runs) has halted: reached a final
+    /// behaviour, or was halted by its error policy.
+    pub fn is_halted(&self, node: crate::NodeId) -> bool {
+        self.shared
+            .halted
+            .get(node.index())
+            .is_some_and(|h| h.load(Ordering::Relaxed))
     }
 
     /// Errors met so far.
@@ -712,7 +677,7 @@ impl Running {
         timings.sort_by_key(|(g, _)| *g);
         report.nodes = timings.into_iter().map(|(_, t)| t).collect();
         report.error_count = self.shared.errors.load(Ordering::Relaxed);
-        report.probe_dropped = self.dropped.load(Ordering::Relaxed);
+        report.probe_dropped = self.dropped.iter().map(|d| d.load(Ordering::Relaxed)).sum();
         report.wall = self.started.elapsed().saturating_sub(self.lead);
         Ok(Finished {
             info: self.info,

@@ -17,18 +17,10 @@ use crate::node::{InProcessNode, NodeSeed, NodeStep};
 use crate::time::Time;
 use crate::trace::{Observer, SystemInfo};
 
+use crate::probe::{ProbeFn, Target};
+
 use super::clock::{self, Clock};
 use super::timing::{NodeTiming, Recorder};
-
-/// A probe: called on the node's thread after each of its activations, with the
-/// node's core (or, for `Probe::Environment`, the environment).
-pub(crate) enum Probe {
-    Node(usize, ProbeFn),
-    Environment(ProbeFn),
-}
-
-/// What a probe calls: the instant and the node (or environment), erased.
-pub(crate) type ProbeFn = Box<dyn FnMut(Time, &dyn Any) + Send>;
 
 /// What a thread is given.
 pub(crate) struct Work {
@@ -43,7 +35,9 @@ pub(crate) struct Work {
     pub(crate) rxs: ThreadHalves,
     pub(crate) environment: Option<Box<dyn Any + Send>>,
     pub(crate) priority: Option<u8>,
-    pub(crate) probes: Vec<Probe>,
+    /// Called on this thread after each activation of the node they watch
+    /// (the environment's: after each instant).
+    pub(crate) probes: Vec<(Target, ProbeFn)>,
     /// The thread's observer ([`RealTime::observe`](super::RealTime::observe)).
     pub(crate) observer: Option<Box<dyn Observer>>,
 }
@@ -60,6 +54,8 @@ pub(crate) struct Shared {
     pub(crate) end: u64,
     pub(crate) config: ExecConfig,
     pub(crate) errors: AtomicU64,
+    /// Per node (global index): whether it has halted.
+    pub(crate) halted: Vec<AtomicBool>,
 }
 
 /// What a thread hands back.
@@ -229,16 +225,20 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
             if next[k] != u64::MAX && ended > next[k] {
                 recorders[k].overruns += 1;
             }
-            for probe in &mut probes {
-                match probe {
-                    Probe::Node(global, f) if *global == ids[k] => f(now, nodes[k].core()),
-                    _ => {}
+            if nodes[k].is_halted()
+                && let Some(h) = shared.halted.get(ids[k])
+            {
+                h.store(true, Ordering::Relaxed);
+            }
+            for (target, f) in &mut probes {
+                if matches!(target, Target::Node(g) if *g == ids[k]) {
+                    f(now, nodes[k].core());
                 }
             }
         }
         if let Some(env) = environment.as_deref() {
-            for probe in &mut probes {
-                if let Probe::Environment(f) = probe {
+            for (target, f) in &mut probes {
+                if matches!(target, Target::Environment) {
                     f(now, env);
                 }
             }
