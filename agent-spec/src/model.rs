@@ -300,6 +300,23 @@ pub struct Process {
     /// host's address and the deployment's port.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub listen: Option<String>,
+    /// How many times a launcher may start it again after a crash; `0`:
+    /// never (a process whose state cannot be rebuilt, such as a simulated
+    /// world: its crash ends the launch). Default
+    /// [`Process::DEFAULT_RESTARTS`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restarts: Option<u32>,
+}
+
+impl Process {
+    /// How many times a launcher restarts a crashed process unless the spec
+    /// says otherwise.
+    pub const DEFAULT_RESTARTS: u32 = 3;
+
+    /// How many times a launcher may restart it ([`Process::restarts`]).
+    pub fn restart_budget(&self) -> u32 {
+        self.restarts.unwrap_or(Process::DEFAULT_RESTARTS)
+    }
 }
 
 impl Spec {
