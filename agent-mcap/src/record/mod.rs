@@ -715,6 +715,18 @@ impl McapRecorder {
         self.backlog.bytes.load(Ordering::Acquire)
     }
 
+    /// Whether the writer thread has stopped before the recording was
+    /// finished: it failed (a full disk, most likely), and the run goes on
+    /// unrecorded; [`McapRecorder::finish`] says why.
+    pub fn has_failed(&self) -> bool {
+        self.writer.is_some() && self.backlog.writer_gone.load(Ordering::Acquire)
+    }
+
+    /// The file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// Close the file (its summary and index) and say what it holds, or why
     /// the recording failed.
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
