@@ -16,6 +16,26 @@ pub struct Child {
     pub program: PathBuf,
     /// Its arguments.
     pub args: Vec<String>,
+    /// How many times it may be started again after a crash (`None`: the
+    /// launcher's [`Launcher::max_restarts`]; `Some(0)`: never).
+    pub restarts: Option<u32>,
+    /// A flag the launcher adds with the start's number (0 for the first, `k`
+    /// after the `k`-th restart), for example `--incarnation`.
+    pub incarnation_flag: Option<String>,
+}
+
+impl Child {
+    /// A child started as `program args`, restarted as the launcher's default
+    /// says.
+    pub fn new(name: impl Into<String>, program: impl Into<PathBuf>, args: Vec<String>) -> Child {
+        Child {
+            name: name.into(),
+            program: program.into(),
+            args,
+            restarts: None,
+            incarnation_flag: None,
+        }
+    }
 }
 
 /// What the launcher tells its caller.
@@ -66,6 +86,13 @@ pub struct LaunchReport {
     pub exits: Vec<(String, Option<i32>)>,
     /// Whether the caller (or Ctrl-C) stopped the launch.
     pub stopped: bool,
+    /// A child that crashed and could not be restarted, which ended the
+    /// launch: its name, how it ended (`None`: by a signal), and the restarts
+    /// it had.
+    pub lost: Option<(String, Option<i32>, u32)>,
+    /// A child that exited with a fatal code ([`Launcher::fatal_codes`]),
+    /// which ended the launch: its name and code.
+    pub fatal: Option<(String, i32)>,
 }
 
 impl LaunchReport {
@@ -150,11 +177,19 @@ impl Launcher {
     fn spawn(
         &self,
         k: usize,
+        incarnation: u32,
         lines: &Sender<(usize, String)>,
     ) -> Result<std::process::Child, LaunchError> {
+        use std::os::unix::process::CommandExt;
         let c = &self.children[k];
-        let mut child = Command::new(&c.program)
-            .args(&c.args)
+        let mut command = Command::new(&c.program);
+        command.args(&c.args);
+        if let Some(flag) = &c.incarnation_flag {
+            command.arg(flag).arg(incarnation.to_string());
+        }
+        let mut child = command
+            // A group of its own: stopping it stops what it started.
+            .process_group(0)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -191,7 +226,7 @@ impl Launcher {
         };
         let mut exits: Vec<Option<Option<i32>>> = vec![None; self.children.len()];
         for k in 0..self.children.len() {
-            match self.spawn(k, &tx) {
+            match self.spawn(k, 0, &tx) {
                 Ok(child) => running.push(Some(Running { child, restarts: 0 })),
                 Err(e) => {
                     for r in running.iter_mut().flatten() {
@@ -260,7 +295,7 @@ impl Launcher {
                     continue;
                 }
                 due[k] = None;
-                match self.spawn(k, &tx) {
+                match self.spawn(k, restarts, &tx) {
                     Ok(child) => {
                         report.restarts += 1;
                         running[k] = Some(Running { child, restarts });
@@ -278,7 +313,7 @@ impl Launcher {
             {
                 killed = true;
                 for r in running.iter_mut().flatten() {
-                    let _ = r.child.kill();
+                    kill_group(&mut r.child);
                 }
             }
             for k in 0..running.len() {
@@ -293,8 +328,17 @@ impl Launcher {
                 let code = status.code();
                 let fatal = code.is_some_and(|c| self.fatal.contains(&c));
                 let crashed = !status.success() && stopping.is_none();
-                let restarting = crashed && !fatal && r.restarts < self.max_restarts;
+                let budget = self.children[k].restarts.unwrap_or(self.max_restarts);
+                let restarting = crashed && !fatal && r.restarts < budget;
                 if fatal && stopping.is_none() {
+                    report.fatal = code.map(|c| (self.children[k].name.clone(), c));
+                }
+                // A crash that may not be restarted ends the launch.
+                let lost = crashed && !fatal && !restarting;
+                if lost {
+                    report.lost = Some((self.children[k].name.clone(), code, r.restarts));
+                }
+                if (fatal || lost) && stopping.is_none() {
                     stopping = Some(Instant::now());
                     for (j, other) in running.iter().enumerate() {
                         if let (true, Some(o)) = (j != k, other) {
@@ -354,19 +398,31 @@ impl Launcher {
                 }
                 std::thread::sleep(Duration::from_millis(20));
             }
-            let _ = r.child.kill();
+            kill_group(&mut r.child);
             let _ = r.child.wait();
         }
     }
 }
 
-/// SIGTERM: the child stops cleanly (ends its run, prints its report).
+/// SIGTERM to the child's process group: the child stops cleanly (ends its
+/// run, prints its report, finishes its recording), and so does what it
+/// started.
 fn terminate(child: &std::process::Child) {
-    use nix::sys::signal::{Signal, kill};
+    use nix::sys::signal::{Signal, killpg};
     use nix::unistd::Pid;
     if let Ok(pid) = i32::try_from(child.id()) {
-        let _ = kill(Pid::from_raw(pid), Signal::SIGTERM);
+        let _ = killpg(Pid::from_raw(pid), Signal::SIGTERM);
     }
+}
+
+/// SIGKILL to the child's process group (the grace period is over).
+fn kill_group(child: &mut std::process::Child) {
+    use nix::sys::signal::{Signal, killpg};
+    use nix::unistd::Pid;
+    if let Ok(pid) = i32::try_from(child.id()) {
+        let _ = killpg(Pid::from_raw(pid), Signal::SIGKILL);
+    }
+    let _ = child.kill();
 }
 
 fn forward(k: usize, stream: impl Read + Send + 'static, lines: Sender<(usize, String)>) {

@@ -16,7 +16,7 @@ use crate::outbox::Outbox;
 use crate::transport::ZenohTransport;
 
 /// Settings a command line may change.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default)]
 pub struct Options {
     /// Replace the deployment's first port (so that tests or two runs of the
     /// same deployment do not share endpoints).
@@ -26,6 +26,23 @@ pub struct Options {
     /// Where a secure deployment's credentials are (`ca.pem`,
     /// `<process>.pem`, `<process>.key`: [`crate::security::Credentials`]).
     pub credentials: Option<std::path::PathBuf>,
+    /// The launch this process belongs to: the runtime's keys (presence,
+    /// instant zero, the stop signal, observations) are under
+    /// `<system>/_rt/<launch>/`, so that processes of two launches never take
+    /// each other for their own. Default [`Options::DEFAULT_LAUNCH`] (processes
+    /// started by hand agree on it).
+    pub launch: Option<String>,
+    /// Started by a launcher: the process stops when the launcher's presence
+    /// (its liveliness token) is gone.
+    pub launched: bool,
+    /// Set from outside (a signal handler) to end the waits for the other
+    /// processes early ([`MemberError::Cancelled`]).
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl Options {
+    /// The launch of processes started without a launcher.
+    pub const DEFAULT_LAUNCH: &'static str = "default";
 }
 
 /// Why a process could not join its deployment, or lost it.
@@ -105,6 +122,17 @@ pub enum MemberError {
     /// The deployment's access policy could not be made.
     #[error(transparent)]
     Policy(#[from] crate::security::PolicyError),
+    /// The wait for the other processes was cancelled (a signal).
+    #[error("process `{process}`: stopped while waiting for {what}")]
+    Cancelled {
+        /// This process.
+        process: String,
+        /// What it waited for.
+        what: String,
+    },
+    /// A launch identity that cannot be part of a key.
+    #[error("launch identity `{0}`: use letters, digits, `-` and `_` only")]
+    Launch(String),
     /// Messages the run put were not yet in Zenoh's hands when the session
     /// closed (a peer that does not take what a reliable link sends).
     #[error("process `{process}`: messages still waited to be published {waited:?} after the run")]
@@ -120,12 +148,16 @@ pub enum MemberError {
 struct Layout {
     system: String,
     deployment: String,
+    /// The launch's identity (the runtime keys' third part).
+    launch: String,
     /// Every process: name, endpoint, components.
     processes: Vec<(String, String, Vec<String>)>,
     router: Option<String>,
     timeout: Duration,
     /// A secure deployment's policy and where its credentials are.
     secure: Option<(crate::security::AccessPolicy, Option<std::path::PathBuf>)>,
+    /// Ends the waits early.
+    cancel: Option<Arc<AtomicBool>>,
 }
 
 impl Layout {
@@ -154,9 +186,21 @@ impl Layout {
             (Some(_), Some(rest)) => format!("tls/{rest}"),
             _ => e,
         };
+        let launch = options
+            .launch
+            .clone()
+            .unwrap_or_else(|| Options::DEFAULT_LAUNCH.to_owned());
+        if launch.is_empty()
+            || !launch
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(MemberError::Launch(launch));
+        }
         Ok(Layout {
             system: spec.name.clone(),
             deployment: dep.name.clone(),
+            launch,
             processes: dep
                 .processes()
                 .into_iter()
@@ -165,11 +209,12 @@ impl Layout {
             router: dep.router.clone(),
             timeout: options.timeout.unwrap_or_else(|| dep.timeout()),
             secure,
+            cancel: options.cancel.clone(),
         })
     }
 
     fn rt_key(&self, rest: &str) -> String {
-        format!("{}/_rt/{rest}", self.system)
+        format!("{}/_rt/{}/{rest}", self.system, self.launch)
     }
 
     /// `endpoints`, and the router when the deployment has one (a router that
@@ -182,6 +227,12 @@ impl Layout {
             Some(r) => format!("{endpoints}, or through the router at {r}"),
             None => endpoints,
         }
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel
+            .as_deref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
     fn endpoint(&self, process: &str) -> Option<&str> {
@@ -314,11 +365,15 @@ fn poll_tokens(
     session: &zenoh::Session,
     key: &str,
     timeout: Duration,
+    cancel: Option<&AtomicBool>,
     mut done: impl FnMut(&[String]) -> bool,
 ) -> (bool, Vec<String>) {
     let start = Instant::now();
     let mut seen = Vec::new();
     loop {
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return (false, seen);
+        }
         seen.clear();
         if let Ok(replies) = session
             .liveliness()
@@ -351,8 +406,13 @@ pub struct Member {
     /// The transport's publishing thread, flushed before the session closes.
     outbox: Arc<Outbox>,
     stop: Arc<AtomicBool>,
+    /// Who asked the deployment to stop, as the stop signal says.
+    stopped_by: Arc<Mutex<Option<String>>>,
+    /// Whether the launcher's presence went away.
+    launcher_gone: Arc<AtomicBool>,
     gone: Arc<Mutex<Vec<String>>>,
     _token: Option<zenoh::liveliness::LivelinessToken>,
+    _launcher: Option<zenoh::pubsub::Subscriber<()>>,
     _origin_token: Option<zenoh::liveliness::LivelinessToken>,
     _watch: zenoh::pubsub::Subscriber<()>,
     _stop: zenoh::pubsub::Subscriber<()>,
@@ -371,6 +431,11 @@ impl std::fmt::Debug for Member {
 impl Member {
     /// How long [`Member::close`] waits for what the run put to be published.
     pub const FLUSH: Duration = Duration::from_secs(5);
+
+    /// How long after a process is seen to go it is reported lost, unless a
+    /// stop of the deployment arrives meanwhile (the stop and the departure
+    /// travel different ways, so the departure may come first).
+    pub const STOP_SKEW: Duration = Duration::from_millis(300);
 
     /// Join deployment `deployment` of `spec` as process `process`: open the
     /// session on the process's endpoint, connect to the others, announce
@@ -424,25 +489,74 @@ impl Member {
                 let Some(name) = key.strip_prefix(process_prefix.as_str()) else {
                     return;
                 };
-                let senders = senders.lock().unwrap_or_else(PoisonError::into_inner);
-                for component in runs.get(name).into_iter().flatten() {
-                    for inbox in senders.get(component).into_iter().flatten() {
-                        inbox.peer_lost(name);
+                // A process that leaves because the deployment was asked to
+                // stop may be seen to go before the stop itself arrives here
+                // (they travel different ways): judge it a moment later.
+                let (name, senders, runs, gone, stopping) = (
+                    name.to_owned(),
+                    senders.clone(),
+                    runs.clone(),
+                    watch_gone.clone(),
+                    stopping.clone(),
+                );
+                std::thread::spawn(move || {
+                    std::thread::sleep(Member::STOP_SKEW);
+                    if stopping.load(Ordering::Relaxed) {
+                        return;
                     }
-                }
-                watch_gone
-                    .lock()
-                    .unwrap_or_else(PoisonError::into_inner)
-                    .push(name.to_owned());
+                    let senders = senders.lock().unwrap_or_else(PoisonError::into_inner);
+                    for component in runs.get(&name).into_iter().flatten() {
+                        for inbox in senders.get(component).into_iter().flatten() {
+                            inbox.peer_lost(&name);
+                        }
+                    }
+                    gone.lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .push(name);
+                });
             })
             .wait()
             .map_err(zerr)?;
         let stop_flag = stop.clone();
+        let stopped_by = Arc::new(Mutex::new(None));
+        let by = stopped_by.clone();
         let stop_sub = session
             .declare_subscriber(layout.rt_key("stop"))
-            .callback(move |_| stop_flag.store(true, Ordering::Relaxed))
+            .callback(move |sample| {
+                // The sender names itself (at most a line of it is kept).
+                let who: String = String::from_utf8_lossy(&sample.payload().to_bytes())
+                    .chars()
+                    .take(200)
+                    .filter(|c| !c.is_control())
+                    .collect();
+                by.lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .get_or_insert(who);
+                stop_flag.store(true, Ordering::Relaxed);
+            })
             .wait()
             .map_err(zerr)?;
+        // A launched process ends with its launcher: when the launcher's
+        // presence goes (killed, its host lost), the run stops.
+        let launcher_gone = Arc::new(AtomicBool::new(false));
+        let launcher = if options.launched {
+            let (gone_flag, stop_flag) = (launcher_gone.clone(), stop.clone());
+            Some(
+                session
+                    .liveliness()
+                    .declare_subscriber(layout.rt_key("launcher"))
+                    .callback(move |sample| {
+                        if sample.kind() == SampleKind::Delete {
+                            gone_flag.store(true, Ordering::Relaxed);
+                            stop_flag.store(true, Ordering::Relaxed);
+                        }
+                    })
+                    .wait()
+                    .map_err(zerr)?,
+            )
+        } else {
+            None
+        };
         Ok(Member {
             layout,
             process: process.to_owned(),
@@ -450,8 +564,11 @@ impl Member {
             outbox: transport.outbox(),
             transport: Some(transport),
             stop,
+            stopped_by,
+            launcher_gone,
             gone,
             _token: None,
+            _launcher: launcher,
             _origin_token: None,
             _watch: watch,
             _stop: stop_sub,
@@ -512,12 +629,23 @@ impl Member {
             &self.session,
             &self.layout.rt_key("process/*"),
             self.layout.timeout,
+            self.layout.cancel.as_deref(),
             |seen| missing_of(seen).is_empty(),
         );
         if ok {
             return Ok(());
         }
         let missing = missing_of(&seen);
+        if self.layout.cancelled() {
+            return Err(MemberError::Cancelled {
+                process: self.process.clone(),
+                what: missing
+                    .iter()
+                    .map(|m| format!("`{m}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        }
         Err(MemberError::Missing {
             process: self.process.clone(),
             deployment: self.layout.deployment.clone(),
@@ -573,7 +701,7 @@ impl Member {
             // running (this leader restarted) keeps its instant zero, which
             // every process announces.
             self.wait_for_all()?;
-            let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, |_| true);
+            let (_, seen) = poll_tokens(&self.session, &key, Duration::ZERO, None, |_| true);
             if let Some(ns) = parse(&seen) {
                 let origin = self.plausible(ns, lead)?;
                 self.announce_origin(ns)?;
@@ -586,9 +714,19 @@ impl Member {
             self.announce_origin(ns)?;
             return Ok(origin);
         }
-        let (ok, seen) = poll_tokens(&self.session, &key, self.layout.timeout, |seen| {
-            parse(seen).is_some()
-        });
+        let (ok, seen) = poll_tokens(
+            &self.session,
+            &key,
+            self.layout.timeout,
+            self.layout.cancel.as_deref(),
+            |seen| parse(seen).is_some(),
+        );
+        if !ok && self.layout.cancelled() {
+            return Err(MemberError::Cancelled {
+                process: self.process.clone(),
+                what: format!("the start signal of `{leader}`"),
+            });
+        }
         match parse(&seen) {
             Some(ns) if ok => {
                 let origin = self.plausible(ns, lead)?;
@@ -649,10 +787,37 @@ impl Member {
         self.stop.load(Ordering::Relaxed)
     }
 
-    /// Ask every process of the deployment to stop.
+    /// Ask every process of the deployment to stop (the signal names this
+    /// process).
     pub fn request_stop(&self) {
-        let _ = self.session.put(self.layout.rt_key("stop"), "stop").wait();
+        let _ = self
+            .session
+            .put(
+                self.layout.rt_key("stop"),
+                format!("process `{}`", self.process),
+            )
+            .wait();
         self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Who asked the deployment to stop, as its stop signal names itself
+    /// (`launcher`, `process \`world\``), if a stop came over the network.
+    pub fn stopped_by(&self) -> Option<String> {
+        self.stopped_by
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Whether the launcher that started this process is gone (its presence
+    /// ended): the run stops.
+    pub fn launcher_gone(&self) -> bool {
+        self.launcher_gone.load(Ordering::Relaxed)
+    }
+
+    /// This process's launch (the runtime keys' part).
+    pub fn launch(&self) -> &str {
+        &self.layout.launch
     }
 
     /// Leave the deployment: what was published is sent before the session
@@ -714,6 +879,7 @@ impl Member {
 pub struct Watch {
     layout: Layout,
     session: zenoh::Session,
+    _presence: zenoh::liveliness::LivelinessToken,
     observations:
         zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
 }
@@ -735,17 +901,25 @@ impl Watch {
     pub fn open(spec: &Spec, deployment: &str, options: &Options) -> Result<Watch, MemberError> {
         let layout = Layout::of(spec, deployment, options)?;
         let session = layout.open("launcher", None)?;
+        let zerr = |e: zenoh::Error| MemberError::Zenoh {
+            process: "launcher".into(),
+            error: e.to_string(),
+        };
         let observations = session
             .declare_subscriber(layout.rt_key("probe/**"))
             .with(zenoh::handlers::FifoChannel::new(1 << 16))
             .wait()
-            .map_err(|e| MemberError::Zenoh {
-                process: "launcher".into(),
-                error: e.to_string(),
-            })?;
+            .map_err(zerr)?;
+        // The processes of the launch watch this: when it goes, they stop.
+        let presence = session
+            .liveliness()
+            .declare_token(layout.rt_key("launcher"))
+            .wait()
+            .map_err(zerr)?;
         Ok(Watch {
             layout,
             session,
+            _presence: presence,
             observations,
         })
     }
@@ -770,6 +944,7 @@ impl Watch {
             &self.session,
             &self.layout.rt_key("process/*"),
             Duration::ZERO,
+            None,
             |_| true,
         );
         seen.iter()
@@ -777,8 +952,27 @@ impl Watch {
             .collect()
     }
 
-    /// Ask every process to stop.
+    /// The deployment's instant zero, once a process has announced it (a
+    /// query of up to 300 ms: ask until it is known, not in a hot loop).
+    pub fn origin(&self) -> Option<SystemTime> {
+        let (_, seen) = poll_tokens(
+            &self.session,
+            &self.layout.rt_key("origin/*"),
+            Duration::ZERO,
+            None,
+            |_| true,
+        );
+        seen.iter()
+            .filter_map(|k| k.rsplit('/').next()?.parse::<u64>().ok())
+            .max()
+            .map(|ns| UNIX_EPOCH + Duration::from_nanos(ns))
+    }
+
+    /// Ask every process to stop (the signal names the launcher).
     pub fn stop(&self) {
-        let _ = self.session.put(self.layout.rt_key("stop"), "stop").wait();
+        let _ = self
+            .session
+            .put(self.layout.rt_key("stop"), "launcher")
+            .wait();
     }
 }

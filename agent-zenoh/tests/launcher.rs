@@ -1,6 +1,8 @@
 //! The launcher with real child processes (`sh`): lines prefixed and collected,
 //! a crashed child restarted, a fatal exit not restarted and the others stopped,
-//! a stop ending every child.
+//! a stop ending every child (and what it started), a child that may not be
+//! restarted or whose budget is spent ending the launch, each start told its
+//! number.
 
 #![allow(
     clippy::unwrap_used,
@@ -14,11 +16,7 @@ use std::time::{Duration, Instant};
 use agent_zenoh::{Child, Control, Launcher, Line};
 
 fn sh(name: &str, script: &str) -> Child {
-    Child {
-        name: name.into(),
-        program: "sh".into(),
-        args: vec!["-c".into(), script.into()],
-    }
+    Child::new(name, "sh", vec!["-c".into(), script.into()])
 }
 
 fn run(
@@ -201,4 +199,89 @@ fn a_kill_asked_while_the_child_waits_to_restart_reaches_it_when_it_runs() {
         "run 2 was killed"
     );
     let _ = std::fs::remove_file(&marker);
+}
+
+#[test]
+fn a_crash_that_may_not_be_restarted_ends_the_launch_naming_the_child() {
+    let started = Instant::now();
+    let world = Child {
+        restarts: Some(0),
+        ..sh("world", "echo up; exit 1")
+    };
+    let (report, lines) = run(
+        Launcher::new(vec![world, sh("long", "sleep 30")]).grace(Duration::from_secs(2)),
+        |_| false,
+    );
+    assert_eq!(report.restarts, 0, "{lines:?}");
+    assert_eq!(report.lost, Some(("world".into(), Some(1), 0)));
+    assert!(lines.contains(&Line::Exited {
+        process: "world".into(),
+        code: Some(1),
+        restarting: false
+    }));
+    assert_ne!(report.exits[1].1, Some(0), "the other child was stopped");
+    assert!(started.elapsed() < Duration::from_secs(20));
+}
+
+#[test]
+fn a_spent_restart_budget_ends_the_launch_and_each_start_knows_its_number() {
+    let started = Instant::now();
+    let crashing = Child {
+        restarts: Some(2),
+        incarnation_flag: Some("start".into()),
+        // `sh -c SCRIPT start K`: $0 is `start`, $1 the start's number.
+        ..Child::new(
+            "crashing",
+            "sh",
+            vec!["-c".into(), "echo start=$1; exit 1".into()],
+        )
+    };
+    let (report, lines) = run(
+        Launcher::new(vec![crashing, sh("long", "sleep 30")])
+            .restart_delay(Duration::from_millis(50))
+            .grace(Duration::from_secs(2)),
+        |_| false,
+    );
+    assert_eq!(report.restarts, 2, "{lines:?}");
+    assert_eq!(report.lost, Some(("crashing".into(), Some(1), 2)));
+    for k in 0..=2 {
+        assert!(
+            lines.contains(&Line::Output {
+                process: "crashing".into(),
+                text: format!("start={k}")
+            }),
+            "start {k}: {lines:?}"
+        );
+    }
+    assert!(started.elapsed() < Duration::from_secs(20));
+}
+
+#[test]
+fn stopping_a_child_stops_what_it_started() {
+    let pidfile = std::env::temp_dir().join(format!("launcher-grandchild-{}", std::process::id()));
+    let _ = std::fs::remove_file(&pidfile);
+    // The child starts a grandchild that ignores nothing, and waits.
+    let script = format!(
+        "sleep 60 & echo $! > {p}; echo up; wait",
+        p = pidfile.display()
+    );
+    let (report, _) = run(
+        Launcher::new(vec![sh("parent", &script)]).grace(Duration::from_secs(2)),
+        |l| matches!(l, Line::Output { text, .. } if text == "up"),
+    );
+    assert!(report.stopped);
+    let pid: i32 = std::fs::read_to_string(&pidfile)
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // Reaped by init, or at least dead: no process of that pid runs `sleep`.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let alive =
+        || std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| !s.contains(") Z "));
+    while alive() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(!alive(), "the grandchild {pid} outlived the stop");
+    let _ = std::fs::remove_file(&pidfile);
 }

@@ -499,7 +499,7 @@ fn an_instant_zero_far_in_the_future_is_refused_not_waited_for() {
         .as_nanos();
     let _token = fake
         .liveliness()
-        .declare_token(format!("relay/_rt/origin/{ns}"))
+        .declare_token(format!("relay/_rt/default/origin/{ns}"))
         .wait()
         .unwrap();
     let started = std::time::Instant::now();
