@@ -29,6 +29,13 @@ pub use agent_spec as spec;
 #[cfg(feature = "distributed")]
 pub use agent_zenoh as distributed;
 
+/// The application layer (the `agent-app` crate): one command line for any
+/// agent crate (`run`, `--realtime`, `--record`, `replay`, `check`,
+/// `diagram`, and with the feature `distributed` `--deployment D --process P`
+/// and `launch`). Behind the feature `app`.
+#[cfg(feature = "app")]
+pub use agent_app as app;
+
 /// Recording runs to MCAP for Foxglove (the `agent-mcap` crate): the
 /// `McapRecorder` observer, buffer values as JSON with their types' schemas,
 /// derived channels (Foxglove's images and poses), reading a recording back.

@@ -1,0 +1,440 @@
+//! `launch --deployment NAME`: every process of a deployment started as a
+//! child of this program, their output prefixed with their names, a crashed
+//! one restarted as often as the spec allows, the run watched through what the
+//! processes report, ended by its rule (every process stopped then), and
+//! judged once for the whole deployment.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant, SystemTime};
+
+use agent_zenoh::{Child, Control, LaunchReport, Launcher, Line, Options, Watch};
+
+use super::process::part_path;
+use super::{NOTE, Note, SEEN};
+use crate::error::{AppError, Status};
+use crate::watch::{Ended, Mode, RunSummary, Watcher};
+use crate::{Application, Common, Signals, output};
+
+/// How long processes get to end by themselves after the launcher asked them
+/// to stop, before they are sent SIGTERM.
+const STOP_GRACE: Duration = Duration::from_secs(10);
+
+/// The flags `launch` gives its children, and the flags of its own that it
+/// does not pass on (with whether they take a value).
+const OWN_FLAGS: [(&str, bool); 5] = [
+    ("--kill", true),
+    ("--record", true),
+    ("--launch-id", true),
+    ("--launcher-pid", true),
+    ("--incarnation", true),
+];
+
+/// The arguments of the children: this program's, without `launch` and its
+/// own flags.
+fn child_args() -> Vec<String> {
+    let mut args = Vec::new();
+    let mut given = std::env::args().skip(1);
+    let mut launch_seen = false;
+    while let Some(a) = given.next() {
+        if !launch_seen && a == "launch" {
+            launch_seen = true;
+            continue;
+        }
+        if let Some((_, takes)) = OWN_FLAGS.iter().find(|(f, _)| a == *f) {
+            if *takes {
+                given.next();
+            }
+            continue;
+        }
+        if OWN_FLAGS
+            .iter()
+            .any(|(f, takes)| *takes && a.starts_with(&format!("{f}=")))
+        {
+            continue;
+        }
+        args.push(a);
+    }
+    args
+}
+
+/// The part of a recording each process writes: `<stem>.{process}.mcap`
+/// beside `file`.
+fn parts_pattern(file: &Path) -> PathBuf {
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "record".to_owned(), |s| s.to_string_lossy().into_owned());
+    file.with_file_name(format!("{stem}.{{process}}.mcap"))
+}
+
+/// A new launch's identity: unique among the launches that meet on a network.
+fn launch_id() -> String {
+    format!("{:016x}", agent_core::link::remote::new_epoch())
+}
+
+/// What the launcher gathers from the processes' reports.
+struct Gathered {
+    halted: Vec<String>,
+    errors: u64,
+    first_errors: Vec<String>,
+    last_ns: u64,
+    undecodable: u64,
+}
+
+/// Start and watch every process of `--deployment`.
+pub(crate) fn launch<A: Application>(
+    app: &mut A,
+    config: A::Config,
+    common: &Common,
+    kill: &[(String, f64)],
+) -> Result<Status, AppError> {
+    let signals = Signals::get();
+    let spec = app.spec(&config)?;
+    let Some(deployment) = &common.deployment else {
+        return Err(AppError::invalid(format!(
+            "`launch` needs `--deployment NAME` (the spec's deployments: {})",
+            spec.spec.deployment_names()
+        )));
+    };
+    let Some(dep) = spec.spec.deployment(deployment) else {
+        return Err(AppError::invalid(format!(
+            "spec `{}` has no deployment `{deployment}` (it has: {})",
+            spec.spec.name,
+            spec.spec.deployment_names()
+        )));
+    };
+    if common.process.is_some() {
+        return Err(AppError::invalid(
+            "`launch` starts every process; `--process` runs one without it",
+        ));
+    }
+    super::check_port(&spec.spec, deployment, common.port)?;
+    app.check_deployment(&config, deployment)?;
+    let processes = dep.processes();
+    if let Some((p, _)) = kill
+        .iter()
+        .find(|(p, _)| !processes.iter().any(|(_, q, _)| q.name == *p))
+    {
+        return Err(AppError::invalid(format!(
+            "--kill: deployment `{deployment}` has no process `{p}`"
+        )));
+    }
+    let program = std::env::current_exe().map_err(|e| {
+        AppError::Run(format!(
+            "cannot find this program to start the processes: {e}"
+        ))
+    })?;
+    let id = launch_id();
+    let mut args = child_args();
+    let pattern = common.record.as_deref().map(parts_pattern);
+    if let Some(p) = &pattern {
+        args.push("--record".into());
+        args.push(p.to_string_lossy().into_owned());
+    }
+    args.extend([
+        "--launch-id".to_owned(),
+        id.clone(),
+        "--launcher-pid".to_owned(),
+        std::process::id().to_string(),
+    ]);
+    let mut options = Options {
+        port: common.port,
+        timeout: common.wait()?,
+        credentials: common.credentials.clone(),
+        launch: Some(id.clone()),
+        launched: false,
+        cancel: Some(signals.flag()),
+    };
+    if dep.secure && options.credentials.is_none() {
+        let dir = dev_credentials(&spec.spec, deployment)?;
+        output::err(format_args!(
+            "{}: deployment `{deployment}` is secure: a development authority and certificates in {}",
+            output::program(),
+            dir.display()
+        ));
+        args.push("--credentials".into());
+        args.push(dir.to_string_lossy().into_owned());
+        options.credentials = Some(dir);
+    }
+    let watch = Watch::open(&spec.spec, deployment, &options)?;
+    let children: Vec<Child> = processes
+        .iter()
+        .map(|(_, p, _)| Child {
+            restarts: Some(p.restart_budget()),
+            incarnation_flag: Some("--incarnation".into()),
+            ..Child::new(
+                p.name.clone(),
+                program.clone(),
+                args.iter()
+                    .cloned()
+                    .chain(["--process".to_owned(), p.name.clone()])
+                    .collect(),
+            )
+        })
+        .collect();
+    let budgets: Vec<(String, u32)> = processes
+        .iter()
+        .map(|(_, p, _)| (p.name.clone(), p.restart_budget()))
+        .collect();
+    let end = app.end(&config);
+    let rule: Vec<String> = match &end {
+        crate::End::Limit => Vec::new(),
+        crate::End::Halted(names) => names.clone(),
+    };
+    let mut watcher = app.watcher(&config, common);
+    let mut gathered = Gathered {
+        halted: Vec::new(),
+        errors: 0,
+        first_errors: Vec::new(),
+        last_ns: 0,
+        undecodable: 0,
+    };
+    let wall = Instant::now();
+    let mut origin: Option<SystemTime> = None;
+    let mut next_origin_look = Instant::now();
+    let mut ended: Option<(Ended, Instant)> = None;
+    let mut faults: Vec<(String, f64)> = kill.to_vec();
+    let report = Launcher::new(children)
+        .fatal_codes([2])
+        .run(&signals.flag(), |line| {
+            match line {
+                Line::Output { process, text } => {
+                    output::err(format_args!("[{process}] {text}"));
+                }
+                Line::Exited {
+                    process,
+                    code,
+                    restarting,
+                } => output::err(format_args!(
+                    "[{process}] exited ({}){}",
+                    code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
+                    if *restarting { "; restarting it" } else { "" }
+                )),
+                Line::Idle => {}
+            }
+            take(&watch, watcher.as_mut(), &mut gathered, Duration::ZERO);
+            if ended.is_none() {
+                let by_rule = !rule.is_empty() && rule.iter().all(|r| gathered.halted.contains(r));
+                if watcher.ended(false) {
+                    ended = Some((
+                        Ended::Rule("the application's end was reached".into()),
+                        Instant::now(),
+                    ));
+                } else if by_rule {
+                    ended = Some((
+                        Ended::Rule(format!("{} halted", rule.join(", "))),
+                        Instant::now(),
+                    ));
+                }
+                if ended.is_some() {
+                    watch.stop();
+                }
+            }
+            if let Some((_, since)) = &ended
+                && since.elapsed() > STOP_GRACE
+            {
+                return Control::Stop;
+            }
+            if origin.is_none() && Instant::now() >= next_origin_look {
+                origin = watch.origin();
+                next_origin_look = Instant::now() + Duration::from_millis(500);
+            }
+            let now = origin
+                .and_then(|o| SystemTime::now().duration_since(o).ok())
+                .map_or(0.0, |d| d.as_secs_f64());
+            if let Some(k) = faults
+                .iter()
+                .position(|(_, at)| origin.is_some() && now >= *at)
+            {
+                let (process, at) = faults.remove(k);
+                output::err(format_args!(
+                    "{}: killing `{process}` at {now:.2} s (--kill {process}@{at})",
+                    output::program()
+                ));
+                return Control::Kill(process);
+            }
+            Control::Continue
+        })?;
+    // What arrived after the processes ended.
+    take(
+        &watch,
+        watcher.as_mut(),
+        &mut gathered,
+        Duration::from_millis(300),
+    );
+    watcher.ended(true);
+    if gathered.undecodable > 0 {
+        output::warn(format_args!(
+            "{} reports of the processes did not decode (a process of another build?); the judgement lacks them",
+            gathered.undecodable
+        ));
+    }
+    if let Some((process, code)) = &report.fatal {
+        return Err(AppError::invalid(format!(
+            "process `{process}` cannot run (exit {code}: invalid input, see its lines above); the launch ended"
+        )));
+    }
+    let ended = launch_end(&report, ended.map(|(e, _)| e), &budgets, signals);
+    let recorded = match (&common.record, &pattern) {
+        (Some(file), Some(pattern)) => merge_parts(file, pattern, &budgets),
+        _ => true,
+    };
+    let summary = RunSummary {
+        spec: spec.spec.name.clone(),
+        mode: Mode::Launched {
+            deployment: deployment.clone(),
+            processes: report.processes,
+            restarts: report.restarts,
+        },
+        rule_stated: end.is_stated(),
+        ended,
+        last: agent_core::Time::from_nanos(gathered.last_ns),
+        wall: wall.elapsed(),
+        errors: gathered.errors,
+        first_errors: gathered.first_errors,
+    };
+    let verdict = watcher.judge(&summary);
+    output::out(format_args!("{}", verdict.text));
+    output::out(format_args!(
+        "{} processes={} restarts={}\n",
+        verdict.line, report.processes, report.restarts
+    ));
+    let stopped = matches!(summary.ended, Ended::Stopped(_));
+    Ok(if verdict.passed && recorded && !stopped {
+        Status::Success
+    } else {
+        Status::Failed
+    })
+}
+
+/// How a launch ended.
+fn launch_end(
+    report: &LaunchReport,
+    by_rule: Option<Ended>,
+    budgets: &[(String, u32)],
+    signals: &Signals,
+) -> Ended {
+    if let Some((process, code, restarts)) = &report.lost {
+        let how = code.map_or("killed by a signal".to_owned(), |c| format!("status {c}"));
+        let budget = budgets
+            .iter()
+            .find(|(p, _)| p == process)
+            .map_or(0, |(_, b)| *b);
+        return Ended::Stopped(if budget == 0 {
+            format!(
+                "process `{process}` ended ({how}) and may not be restarted (`restarts: 0` in the spec)"
+            )
+        } else {
+            format!(
+                "process `{process}` ended ({how}) after {restarts} restarts, all the spec allows (`restarts: {budget}`)"
+            )
+        });
+    }
+    if let Some(sig) = signals.received() {
+        return Ended::Stopped(format!("{sig} received"));
+    }
+    by_rule.unwrap_or(Ended::Limit)
+}
+
+/// Take the processes' reports in (waiting at most `wait` for the first).
+fn take<M: serde::de::DeserializeOwned>(
+    watch: &Watch,
+    watcher: &mut dyn Watcher<M>,
+    g: &mut Gathered,
+    wait: Duration,
+) {
+    let mut wait = wait;
+    while let Some((process, name, bytes)) = watch.next(wait) {
+        wait = Duration::ZERO.max(wait.min(Duration::from_millis(100)));
+        match name.as_str() {
+            SEEN => match postcard::from_bytes::<M>(&bytes) {
+                Ok(m) => watcher.see(m),
+                Err(e) => {
+                    if g.undecodable == 0 {
+                        output::warn(format_args!("a report of `{process}` does not decode: {e}"));
+                    }
+                    g.undecodable += 1;
+                }
+            },
+            NOTE => match postcard::from_bytes::<Note>(&bytes) {
+                Ok(Note::Halted(node)) => {
+                    if !g.halted.contains(&node) {
+                        g.halted.push(node);
+                    }
+                }
+                Ok(Note::Ended {
+                    errors,
+                    first_errors,
+                    last_ns,
+                    ..
+                }) => {
+                    g.errors = g.errors.saturating_add(errors);
+                    g.first_errors.extend(
+                        first_errors
+                            .into_iter()
+                            .map(|e| format!("{process}: {e}"))
+                            .take(5usize.saturating_sub(g.first_errors.len())),
+                    );
+                    g.last_ns = g.last_ns.max(last_ns);
+                }
+                Err(_) => g.undecodable += 1,
+            },
+            _ => g.undecodable += 1,
+        }
+    }
+}
+
+/// Merge every start's part of the recording into `file`; whether it went.
+fn merge_parts(file: &Path, pattern: &Path, processes: &[(String, u32)]) -> bool {
+    let parts: Vec<PathBuf> = processes
+        .iter()
+        .flat_map(|(p, budget)| (0..=*budget).map(move |k| part_path(pattern, p, k)))
+        .filter(|f| f.exists())
+        .collect();
+    match agent_mcap::merge(&parts, file) {
+        Ok(m) => {
+            let size = std::fs::metadata(file).map_or(0, |m| m.len());
+            let restarts = parts.len().saturating_sub(processes.len());
+            output::out(format_args!(
+                "record: {} (merged from {} processes{}: {} messages on {} channels, {:.1} MB{})\n",
+                file.display(),
+                m.files - restarts,
+                if restarts > 0 {
+                    format!(" and {restarts} restarts")
+                } else {
+                    String::new()
+                },
+                m.messages,
+                m.channels,
+                size as f64 / 1e6,
+                if m.finished {
+                    ""
+                } else {
+                    "; a process did not finish its part"
+                }
+            ));
+            true
+        }
+        Err(e) => {
+            output::error(&format_args!("--record {}: {e}", file.display()));
+            false
+        }
+    }
+}
+
+/// A development authority and certificates for `deployment`, in the run's
+/// folder (`target/<program>-credentials/<deployment>`).
+fn dev_credentials(spec: &agent_spec::Spec, deployment: &str) -> Result<PathBuf, AppError> {
+    use agent_zenoh::security::{AccessPolicy, create_dev_authority};
+    let dir = PathBuf::from("target")
+        .join(format!("{}-credentials", output::program()))
+        .join(deployment);
+    let policy = AccessPolicy::of(spec, deployment).map_err(AppError::invalid)?;
+    let hosts: Vec<String> = spec
+        .deployment(deployment)
+        .into_iter()
+        .flat_map(|d| &d.hosts)
+        .filter_map(|h| h.address.clone())
+        .collect();
+    create_dev_authority(&dir, &policy, &hosts).map_err(|e| AppError::Run(e.to_string()))?;
+    Ok(dir)
+}

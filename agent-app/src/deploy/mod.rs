@@ -1,0 +1,77 @@
+//! Deployments over Zenoh: one process of a deployment (`--deployment D
+//! --process P`), and the launcher of all of them (`launch`).
+//!
+//! A launch has an identity, made when it starts and given to every process
+//! it starts: the runtime's keys (presence, instant zero, the stop signal,
+//! observations) carry it, so two launches never take each other's processes
+//! for their own, whatever their ports. A process ends with its launcher: the
+//! OS stops it when the launcher dies (a parent-death signal), and it stops
+//! when the launcher's presence leaves the deployment (the launcher's host
+//! lost).
+
+pub(crate) mod holder;
+pub(crate) mod launch;
+pub(crate) mod process;
+
+use serde::{Deserialize, Serialize};
+
+/// What the layer itself reports from a process to its launcher (beside the
+/// application's reports), on the observation `_layer`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub(crate) enum Note {
+    /// A subsystem of the process halted.
+    Halted(String),
+    /// The process's run ended: its errors, the first of them, its last
+    /// instant [ns], its overruns.
+    Ended {
+        errors: u64,
+        first_errors: Vec<String>,
+        last_ns: u64,
+        overruns: u64,
+    },
+}
+
+/// The observation that carries the application's reports.
+pub(crate) const SEEN: &str = "seen";
+/// The observation that carries the layer's [`Note`]s.
+pub(crate) const NOTE: &str = "_layer";
+
+/// The endpoint process `process` of `deployment` listens on, with the first
+/// port replaced by `port`.
+pub(crate) fn endpoint_of(
+    spec: &agent_spec::Spec,
+    deployment: &str,
+    process: &str,
+    port: Option<u16>,
+) -> Option<String> {
+    let mut dep = spec.deployment(deployment)?.clone();
+    if port.is_some() {
+        dep.port = port;
+    }
+    dep.processes()
+        .into_iter()
+        .find(|(_, p, _)| p.name == process)
+        .map(|(_, _, e)| e)
+}
+
+/// Check `--port` against the deployment: every process's port must be a
+/// port a program may listen on (1024 to 65535).
+pub(crate) fn check_port(
+    spec: &agent_spec::Spec,
+    deployment: &str,
+    port: Option<u16>,
+) -> Result<(), crate::AppError> {
+    let Some(port) = port else {
+        return Ok(());
+    };
+    let n = spec
+        .deployment(deployment)
+        .map_or(1, |d| d.processes().len().max(1));
+    let last = u32::from(port) + u32::try_from(n).unwrap_or(u32::MAX) - 1;
+    if port < 1024 || last > 65535 {
+        return Err(crate::AppError::invalid(format!(
+            "--port {port}: the deployment's {n} processes listen on ports {port} to {last}; they must lie within 1024-65535"
+        )));
+    }
+    Ok(())
+}

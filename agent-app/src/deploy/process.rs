@@ -1,0 +1,334 @@
+//! One process of a deployment: its components in real time, the others
+//! reached over Zenoh, until the run's limit, a stop from the launcher (or
+//! any participant), a signal, or the launcher's end. However it ends, it
+//! sends the launcher its last reports, finishes its recording and prints its
+//! timing and summary line.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use agent_core::{ExecConfig, OnError, Probes, RealTime, RtConfig};
+use agent_zenoh::{Member, MemberError, Options};
+
+use super::{NOTE, Note, SEEN};
+use crate::error::{AppError, Status};
+use crate::local::{PROBE_CAPACITY, halting_nodes};
+use crate::{Application, Common, Signals, Target, output, record};
+
+/// How long processes get to come up, agree on instant zero and start.
+const LEAD: Duration = Duration::from_millis(1000);
+
+/// The recording of start `incarnation` of `process`, from the pattern given
+/// to `--record` (`{process}` stands for the process's name): the first start
+/// records to the pattern, the `k`-th restart to `<stem>.<k>.<ext>` beside
+/// it, so that no start overwrites another's.
+pub(crate) fn part_path(pattern: &Path, process: &str, incarnation: u32) -> PathBuf {
+    let path = PathBuf::from(pattern.to_string_lossy().replace("{process}", process));
+    if incarnation == 0 {
+        return path;
+    }
+    let stem = path
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}.{incarnation}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.{incarnation}"),
+    };
+    path.with_file_name(name)
+}
+
+/// A launched child ends with its launcher: SIGTERM when the launcher dies
+/// (Linux's parent-death signal), and at once if it died already.
+fn tie_to_launcher(pid: u32) -> Result<(), AppError> {
+    use nix::sys::signal::Signal;
+    use nix::unistd::getppid;
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    nix::sys::prctl::set_pdeathsig(Signal::SIGTERM)
+        .map_err(|e| AppError::Run(format!("cannot tie this process to its launcher: {e}")))?;
+    let parent = getppid().as_raw();
+    if u32::try_from(parent).ok() != Some(pid) {
+        let _ = Signal::SIGTERM;
+        return Err(AppError::Run(format!(
+            "the launcher (pid {pid}) is gone before this process started (its parent is pid {parent})"
+        )));
+    }
+    Ok(())
+}
+
+/// Turn a failure to join into the error that names its cause: an endpoint
+/// another program holds is named with that program.
+fn joined(
+    e: MemberError,
+    spec: &agent_spec::Spec,
+    deployment: &str,
+    process: &str,
+    port: Option<u16>,
+) -> AppError {
+    if let MemberError::Zenoh { error, .. } = &e
+        && (error.contains("in use") || error.contains("os error 98"))
+        && let Some(endpoint) = super::endpoint_of(spec, deployment, process, port)
+    {
+        let holder = super::holder::port_of(&endpoint).and_then(super::holder::holder);
+        return AppError::EndpointTaken {
+            process: process.to_owned(),
+            endpoint,
+            holder,
+        };
+    }
+    AppError::Member(e)
+}
+
+/// Run process `--process` of `--deployment`.
+pub(crate) fn run<A: Application>(
+    app: &mut A,
+    config: A::Config,
+    common: &Common,
+) -> Result<Status, AppError> {
+    let signals = Signals::get();
+    let (Some(deployment), Some(process)) = (&common.deployment, &common.process) else {
+        return Err(AppError::invalid("--process needs --deployment"));
+    };
+    if let Some(pid) = common.launcher_pid {
+        tie_to_launcher(pid)?;
+    }
+    let spec = app.spec(&config)?;
+    if spec.spec.deployment(deployment).is_none() {
+        return Err(AppError::invalid(format!(
+            "spec `{}` has no deployment `{deployment}` (it has: {})",
+            spec.spec.name,
+            spec.spec.deployment_names()
+        )));
+    }
+    super::check_port(&spec.spec, deployment, common.port)?;
+    app.check_deployment(&config, deployment)?;
+    let limit = common.limit()?.unwrap_or_else(|| app.limit(&config));
+    let incarnation = common.incarnation.unwrap_or(0);
+    let boot = agent_core::link::remote::new_epoch();
+    let options = Options {
+        port: common.port,
+        timeout: common.wait()?,
+        credentials: common.credentials.clone(),
+        launch: common.launch_id.clone(),
+        launched: common.launcher_pid.is_some(),
+        cancel: Some(signals.flag()),
+    };
+    // A secure deployment: count what the access control refuses (before the
+    // session opens, so that nothing is missed).
+    let refusals = spec
+        .spec
+        .deployment(deployment)
+        .is_some_and(|d| d.secure)
+        .then(agent_zenoh::security::Refusals::watch);
+    let mut member = Member::join(&spec.spec, deployment, process, &options)
+        .map_err(|e| joined(e, &spec.spec, deployment, process, common.port))?;
+    let target = Target::Process {
+        deployment,
+        process,
+        incarnation,
+        boot,
+    };
+    let system = app.build(&config, &target)?;
+    let runs = member.runs().to_vec();
+    let here = |n: &str| runs.iter().any(|r| r == n);
+    // The end rule's subsystems that run here: each one's halt is told.
+    let halting: Vec<_> = halting_nodes(&system, &app.end(&config))?
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|(_, name)| here(name))
+        .collect();
+    let (mut probes, seen) = Probes::new(PROBE_CAPACITY);
+    app.probes(&mut probes, &here);
+    let recorder = match &common.record {
+        Some(pattern) => {
+            let file = part_path(pattern, process, incarnation);
+            record::check_target(&file)
+                .map_err(|e| AppError::invalid(format!("--record {}: {e}", file.display())))?;
+            let mut options = app.record_options(&config);
+            options
+                .metadata
+                .extend(crate::recorded_metadata::<A>(&spec, &config)?);
+            options.metadata.insert(
+                "process".into(),
+                [
+                    ("name", process.clone()),
+                    ("deployment", deployment.clone()),
+                    ("runs", runs.join(", ")),
+                    ("incarnation", incarnation.to_string()),
+                    ("boot", boot.to_string()),
+                    ("launch", member.launch().to_owned()),
+                ]
+                .into_iter()
+                .map(|(k, v)| (k.to_owned(), v))
+                .collect(),
+            );
+            Some(record::create(&file, &system, options)?)
+        }
+        None => None,
+    };
+    // A lost peer or a gap is reported and the run goes on: a deployment
+    // lives with processes that come and go.
+    let exec = ExecConfig {
+        on_error: OnError::Continue,
+        ..app.exec(&config)
+    };
+    let mut rt = RealTime::new(
+        system,
+        RtConfig {
+            exec,
+            ..RtConfig::realtime()
+        },
+    );
+    rt.watch(probes);
+    if let Some(r) = &recorder {
+        rt.observe(r.threads());
+    }
+    rt.place(member.placement()?)
+        .map_err(|e| AppError::invalid(e.to_string()))?;
+    let running = match rt.start_when(limit, || member.ready(LEAD)) {
+        Ok(r) => r,
+        Err(e) => {
+            if let Some(r) = recorder {
+                record::finish(r);
+            }
+            return Err(AppError::Run(e.to_string()));
+        }
+    };
+    let mut told = vec![false; halting.len()];
+    let mut undeliverable = 0u64;
+    let mut failing = record::FailWatch::new();
+    let mut stopped: Option<String> = None;
+    loop {
+        let finished = running.is_finished();
+        for m in seen.try_iter() {
+            observe(&member, SEEN, &m, &mut undeliverable);
+        }
+        for (k, (id, name)) in halting.iter().enumerate() {
+            if !told[k] && running.is_halted(*id) {
+                told[k] = true;
+                observe(
+                    &member,
+                    NOTE,
+                    &Note::Halted(name.clone()),
+                    &mut undeliverable,
+                );
+            }
+        }
+        if stopped.is_none() {
+            if let Some(sig) = signals.received() {
+                stopped = Some(format!("{sig} received"));
+            } else if member.launcher_gone() {
+                stopped = Some("its launcher is gone".into());
+            } else if member.stop_requested() {
+                stopped = Some(format!(
+                    "a stop from {}",
+                    member.stopped_by().unwrap_or_else(|| "this process".into())
+                ));
+            }
+            if stopped.is_some() {
+                running.stop();
+            }
+        }
+        if finished {
+            break;
+        }
+        failing.look(recorder.as_ref());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let finished = running.join().map_err(|e| AppError::Run(e.to_string()))?;
+    for m in app.finished(&finished) {
+        observe(&member, SEEN, &m, &mut undeliverable);
+    }
+    for m in seen.try_iter() {
+        observe(&member, SEEN, &m, &mut undeliverable);
+    }
+    let report = finished.report();
+    let overruns: u64 = report.nodes.iter().map(|n| n.overruns).sum();
+    observe(
+        &member,
+        NOTE,
+        &Note::Ended {
+            errors: report.error_count,
+            first_errors: report
+                .errors
+                .iter()
+                .take(5)
+                .map(ToString::to_string)
+                .collect(),
+            last_ns: report.last_instant.as_nanos(),
+            overruns,
+        },
+        &mut undeliverable,
+    );
+    if undeliverable > 0 {
+        output::warn(format_args!(
+            "{undeliverable} reports could not be sent to the launcher"
+        ));
+    }
+    if let Some(r) = &refusals {
+        if !r.counting() {
+            output::warn(format_args!(
+                "refusals of the access control cannot be counted (a tracing subscriber was installed before)"
+            ));
+        }
+        for (what, key, n) in r.counts() {
+            output::err(format_args!(
+                "{}: the access control refused {n} x {what} on `{key}`",
+                output::program()
+            ));
+        }
+    }
+    let sample_dropped = member.sample_dropped();
+    let left = member.close();
+    let recorded = recorder.is_none_or(record::finish);
+    if !common.quiet {
+        output::err(format_args!("{report}"));
+    }
+    output::out(format_args!(
+        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped}\n",
+        if report.rt_priority() { "yes" } else { "no" },
+        report.error_count,
+    ));
+    for e in report.errors.iter().take(5) {
+        output::error(e);
+    }
+    if let Some(why) = &stopped {
+        output::err(format_args!(
+            "{}: process `{process}` stopped: {why}",
+            output::program()
+        ));
+    }
+    if let Err(e) = &left {
+        output::error(e);
+    }
+    Ok(if recorded {
+        Status::Success
+    } else {
+        Status::Failed
+    })
+}
+
+/// Send one report to the launcher; count what cannot go.
+fn observe<T: serde::Serialize>(member: &Member, name: &str, value: &T, failed: &mut u64) {
+    let sent = postcard::to_allocvec(value)
+        .ok()
+        .is_some_and(|bytes| member.observe(name, bytes).is_ok());
+    if !sent {
+        *failed += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_start_of_a_process_records_to_a_file_of_its_own() {
+        let p = Path::new("/tmp/run.{process}.mcap");
+        assert_eq!(part_path(p, "world", 0), Path::new("/tmp/run.world.mcap"));
+        assert_eq!(part_path(p, "world", 2), Path::new("/tmp/run.world.2.mcap"));
+        assert_eq!(
+            part_path(Path::new("out/{process}"), "c", 1),
+            Path::new("out/c.1")
+        );
+    }
+}

@@ -1,0 +1,385 @@
+//! A run in this process: the deterministic executor (virtual time) or the
+//! real-time one (`--realtime`), recorded or not, watched through the
+//! application's probes, ended by its rule, its limit or a signal, and
+//! summarised the same way whichever ended it.
+
+use std::sync::mpsc::Receiver;
+use std::time::{Duration, Instant};
+
+use agent_core::{
+    ExecConfig, Executor, Finished, NoObserver, NodeId, Observer, Probes, RealTime, RtConfig,
+    System, Time,
+};
+use agent_mcap::McapRecorder;
+
+use crate::error::{AppError, Status};
+use crate::watch::{End, Ended, Mode, RunSummary, Watcher};
+use crate::{Application, Common, Signals, SpecFile, Target, output, record};
+
+/// Results a probe set's channel holds before results are dropped (counted):
+/// the deterministic run drains it after every instant, the real-time one
+/// every few milliseconds.
+pub(crate) const PROBE_CAPACITY: usize = 1 << 16;
+
+/// How often the status line is printed (wall-clock time).
+const STATUS_EVERY: Duration = Duration::from_secs(5);
+
+/// Run `config` in this process. The exit status and the run's figure line.
+pub(crate) fn run<A: Application>(
+    app: &mut A,
+    config: &A::Config,
+    common: &Common,
+) -> Result<(Status, String), AppError> {
+    let spec = app.spec(config)?;
+    let limit = common.limit()?.unwrap_or_else(|| app.limit(config));
+    let end = app.end(config);
+    let rule_stated = end.is_stated();
+    let exec = app.exec(config);
+    let record_to = common
+        .record
+        .clone()
+        .or_else(|| app.default_record(config, common));
+    let system = app.build(config, &Target::Whole)?;
+    let (mut probes, seen) = Probes::new(PROBE_CAPACITY);
+    app.probes(&mut probes, &|_| true);
+    let mut watcher = app.watcher(config, common);
+    let recorder = match &record_to {
+        Some(file) => {
+            let mut options = app.record_options(config);
+            options
+                .metadata
+                .extend(crate::recorded_metadata::<A>(&spec, config)?);
+            Some(record::create(file, &system, options)?)
+        }
+        None => None,
+    };
+    if !common.quiet
+        && let Some(line) = app.announce(config)
+    {
+        output::err(format_args!("{line}"));
+    }
+    let watched = Watched {
+        probes,
+        seen,
+        watcher: watcher.as_mut(),
+        end,
+        limit,
+        quiet: common.quiet,
+    };
+    let (ran, recorder, mode) = if common.realtime {
+        let config = RtConfig {
+            exec,
+            ..RtConfig::realtime()
+        };
+        let ran = watched.realtime(system, config, recorder.as_ref())?;
+        (ran, recorder, Mode::RealTime)
+    } else {
+        match recorder {
+            Some(r) => {
+                let (ran, r) = watched.simulate(system, exec, r)?;
+                (ran, Some(r), Mode::Simulated)
+            }
+            None => {
+                let (ran, _) = watched.simulate(system, exec, NoObserver)?;
+                (ran, None, Mode::Simulated)
+            }
+        }
+    };
+    conclude(
+        app,
+        common,
+        &spec,
+        (ran, mode, rule_stated),
+        watcher.as_mut(),
+        recorder,
+    )
+}
+
+/// A system's run watched to its end: the probes on it, their reports, the
+/// watcher that reads them, the end rule and the limit. For a program that
+/// drives the layer's loops itself ([`Watched::simulate`],
+/// [`Watched::realtime`]); the command line does the same for every run.
+pub struct Watched<'w, M> {
+    /// The probes on the system.
+    pub probes: Probes<M>,
+    /// Their reports.
+    pub seen: Receiver<M>,
+    /// What reads them, decides the end and judges.
+    pub watcher: &'w mut dyn Watcher<M>,
+    /// The layer's part of the end rule.
+    pub end: End,
+    /// The longest run: virtual time, or wall-clock time in real time.
+    pub limit: Duration,
+    /// No status line.
+    pub quiet: bool,
+}
+
+/// A run that ended: its nodes, how it ended, its wall-clock time.
+#[derive(Debug)]
+pub struct Ran {
+    /// The nodes, the environment, the links' counters and the report.
+    pub finished: Finished,
+    /// How it ended.
+    pub ended: Ended,
+    /// Wall-clock time of the run.
+    pub wall: Duration,
+}
+
+/// The stop signal, if the program installed the handlers ([`Signals::get`]).
+fn signalled() -> Option<&'static str> {
+    Signals::installed().and_then(Signals::received)
+}
+
+impl<M: Send + 'static> Watched<'_, M> {
+    /// Take the probes' reports in; whether the watcher says the run has
+    /// ended.
+    fn take(&mut self, finished: bool) -> bool {
+        for m in self.seen.try_iter() {
+            self.watcher.see(m);
+        }
+        self.watcher.ended(finished)
+    }
+
+    fn status(&self, at: Time) {
+        if !self.quiet
+            && let Some(s) = self.watcher.status()
+        {
+            output::err(format_args!("[{:9.2} s] {s}", at.as_secs_f64()));
+        }
+    }
+
+    /// Run `system` in the deterministic executor, observed by `observer`
+    /// (a recorder, say), until its end rule, its limit or a signal. The
+    /// reports of the last instant are taken in; [`Watcher::ended`] with
+    /// `finished` is the caller's to call, after its own last reports.
+    pub fn simulate<O: Observer + 'static>(
+        mut self,
+        system: System,
+        exec: ExecConfig,
+        observer: O,
+    ) -> Result<(Ran, O), AppError> {
+        let halting = halting_nodes(&system, &self.end)?;
+        let mut ex = Executor::with_observer(system, exec, observer);
+        ex.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
+        let end = Time::ZERO.saturating_add(self.limit);
+        let wall = Instant::now();
+        let mut next_status = wall + STATUS_EVERY;
+        let mut failing = record::FailWatch::new();
+        let ended = loop {
+            if let Some(sig) = signalled() {
+                break Ended::Stopped(format!("{sig} received"));
+            }
+            let Some(t) = ex.next_instant() else {
+                break Ended::AllHalted;
+            };
+            if t >= end {
+                break Ended::Limit;
+            }
+            if let Err(e) = ex.step() {
+                break Ended::Failed(e.to_string());
+            }
+            if self.take(false) {
+                break Ended::Rule("the application's end was reached".into());
+            }
+            if let Some(why) = all_halted(halting.as_deref(), |id| ex.is_halted(id)) {
+                break Ended::Rule(why);
+            }
+            if Instant::now() >= next_status {
+                next_status += STATUS_EVERY;
+                self.status(ex.now());
+                let any: &dyn std::any::Any = ex.observer();
+                failing.look(any.downcast_ref::<McapRecorder>());
+            }
+        };
+        let wall = wall.elapsed();
+        let (finished, observer) = ex.finish();
+        for m in self.seen.try_iter() {
+            self.watcher.see(m);
+        }
+        Ok((
+            Ran {
+                finished,
+                ended,
+                wall,
+            },
+            observer,
+        ))
+    }
+
+    /// Run `system` in the real-time executor (recorded by `recorder`, whose
+    /// threads' observers this installs) until its end rule, its limit or a
+    /// signal, watched from this thread.
+    pub fn realtime(
+        mut self,
+        system: System,
+        config: RtConfig,
+        recorder: Option<&McapRecorder>,
+    ) -> Result<Ran, AppError> {
+        let halting = halting_nodes(&system, &self.end)?;
+        let exec = config.exec;
+        let mut rt = RealTime::new(system, config);
+        rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
+        if let Some(r) = recorder {
+            rt.observe(r.threads());
+        }
+        let running = rt
+            .start(self.limit)
+            .map_err(|e| AppError::Run(e.to_string()))?;
+        let wall = Instant::now();
+        let mut next_status = wall + STATUS_EVERY;
+        let mut failing = record::FailWatch::new();
+        let mut ended = None;
+        loop {
+            let finished = running.is_finished();
+            if ended.is_none() {
+                if let Some(sig) = signalled() {
+                    ended = Some(Ended::Stopped(format!("{sig} received")));
+                } else if self.take(false) {
+                    ended = Some(Ended::Rule("the application's end was reached".into()));
+                } else if let Some(why) = all_halted(halting.as_deref(), |id| running.is_halted(id))
+                {
+                    ended = Some(Ended::Rule(why));
+                }
+                if ended.is_some() {
+                    running.stop();
+                }
+            }
+            if finished {
+                break;
+            }
+            if Instant::now() >= next_status {
+                next_status += STATUS_EVERY;
+                self.status(Time::ZERO.saturating_add(wall.elapsed()));
+                failing.look(recorder);
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let finished = running.join().map_err(|e| AppError::Run(e.to_string()))?;
+        let wall = wall.elapsed();
+        for m in self.seen.try_iter() {
+            self.watcher.see(m);
+        }
+        let report = finished.report();
+        let ended = ended.unwrap_or_else(|| {
+            if exec.on_error == agent_core::OnError::Stop && report.error_count > 0 {
+                Ended::Failed(
+                    report
+                        .errors
+                        .first()
+                        .map_or_else(|| "an executor error".to_owned(), ToString::to_string),
+                )
+            } else {
+                Ended::Limit
+            }
+        });
+        Ok(Ran {
+            finished,
+            ended,
+            wall,
+        })
+    }
+}
+
+/// Whether the end rule's subsystems have all halted: the rule's words.
+fn all_halted(
+    nodes: Option<&[(NodeId, String)]>,
+    is_halted: impl Fn(NodeId) -> bool,
+) -> Option<String> {
+    let nodes = nodes?;
+    nodes.iter().all(|(id, _)| is_halted(*id)).then(|| {
+        let names: Vec<&str> = nodes.iter().map(|(_, n)| n.as_str()).collect();
+        format!("{} halted", names.join(", "))
+    })
+}
+
+/// The nodes an [`End::Halted`] rule names, checked against the system.
+pub(crate) fn halting_nodes(
+    system: &System,
+    end: &End,
+) -> Result<Option<Vec<(NodeId, String)>>, AppError> {
+    match end {
+        End::Limit => Ok(None),
+        End::Halted(names) => names
+            .iter()
+            .map(|n| {
+                system.node(n).map(|id| (id, n.clone())).ok_or_else(|| {
+                    AppError::invalid(format!(
+                        "the end rule names `{n}`, which the system does not have (it has: {})",
+                        system
+                            .info()
+                            .nodes
+                            .iter()
+                            .map(|n| n.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some),
+    }
+}
+
+/// The end of every run in this process: the application's last reports, the
+/// recording finished, the timing table, the summary and the judgement.
+fn conclude<A: Application>(
+    app: &mut A,
+    common: &Common,
+    spec: &SpecFile,
+    (ran, mode, rule_stated): (Ran, Mode, bool),
+    watcher: &mut dyn Watcher<A::Seen>,
+    recorder: Option<McapRecorder>,
+) -> Result<(Status, String), AppError> {
+    let Ran {
+        finished,
+        ended,
+        wall,
+    } = ran;
+    for m in app.finished(&finished) {
+        watcher.see(m);
+    }
+    watcher.ended(true);
+    let report = finished.report();
+    if report.probe_dropped > 0 {
+        output::warn(format_args!(
+            "{} probe reports found their channel full and were dropped: the judgement lacks them",
+            report.probe_dropped
+        ));
+    }
+    let recorded = recorder.is_none_or(record::finish);
+    if mode == Mode::RealTime {
+        if !common.quiet {
+            output::err(format_args!("{report}"));
+        }
+        output::out(format_args!(
+            "rt_priority={} overruns={} executor_errors={}\n",
+            if report.rt_priority() { "yes" } else { "no" },
+            report.nodes.iter().map(|n| n.overruns).sum::<u64>(),
+            report.error_count
+        ));
+    }
+    let summary = RunSummary {
+        spec: spec.spec.name.clone(),
+        mode,
+        rule_stated,
+        ended,
+        last: report.last_instant,
+        wall,
+        errors: report.error_count,
+        first_errors: report
+            .errors
+            .iter()
+            .take(5)
+            .map(ToString::to_string)
+            .collect(),
+    };
+    let verdict = watcher.judge(&summary);
+    output::out(format_args!("{}", verdict.text));
+    let stopped = matches!(summary.ended, Ended::Stopped(_));
+    let status = if verdict.passed && recorded && !stopped {
+        Status::Success
+    } else {
+        Status::Failed
+    };
+    Ok((status, verdict.line))
+}

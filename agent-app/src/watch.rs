@@ -1,0 +1,204 @@
+//! How a run ends and is judged: the rule the application states, the watcher
+//! that reads what its probes report, and the summary every run ends with.
+
+use std::fmt;
+use std::time::Duration;
+
+use agent_core::Time;
+
+/// The layer's part of the rule that ends a run, beside the time limit and
+/// the watcher's own ([`Watcher::ended`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum End {
+    /// Only the time limit (or the watcher) ends the run.
+    #[default]
+    Limit,
+    /// The run has ended when every one of these subsystems has halted
+    /// (reached a final behaviour), wherever they run.
+    Halted(Vec<String>),
+}
+
+impl End {
+    /// [`End::Halted`] of `names`.
+    pub fn halted<I: IntoIterator<Item = S>, S: Into<String>>(names: I) -> End {
+        End::Halted(names.into_iter().map(Into::into).collect())
+    }
+
+    /// Whether the rule says more than the time limit.
+    pub fn is_stated(&self) -> bool {
+        !matches!(self, End::Limit)
+    }
+}
+
+/// How a run ended.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Ended {
+    /// By its rule: the subsystems named halted, or the watcher said so.
+    Rule(String),
+    /// At its time limit.
+    Limit,
+    /// Every node halted (nothing more can happen).
+    AllHalted,
+    /// Stopped before its end: a signal, a lost process, a spent restart
+    /// budget (the reason).
+    Stopped(String),
+    /// An executor stopped on an error (the error).
+    Failed(String),
+}
+
+impl Ended {
+    /// The word of the summary line (`rule`, `limit`, `halted`, `stopped`,
+    /// `failed`).
+    pub fn word(&self) -> &'static str {
+        match self {
+            Ended::Rule(_) => "rule",
+            Ended::Limit => "limit",
+            Ended::AllHalted => "halted",
+            Ended::Stopped(_) => "stopped",
+            Ended::Failed(_) => "failed",
+        }
+    }
+}
+
+impl fmt::Display for Ended {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Ended::Rule(why) => write!(f, "ended by its rule: {why}"),
+            Ended::Limit => f.write_str("reached its time limit"),
+            Ended::AllHalted => f.write_str("every node halted"),
+            Ended::Stopped(why) => write!(f, "stopped before its end: {why}"),
+            Ended::Failed(why) => write!(f, "failed: {why}"),
+        }
+    }
+}
+
+/// Where a run ran.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// The deterministic executor, in virtual time.
+    Simulated,
+    /// The real-time executor, in this process.
+    RealTime,
+    /// The processes of a deployment, started by `launch`.
+    Launched {
+        /// The deployment.
+        deployment: String,
+        /// Its processes.
+        processes: usize,
+        /// Restarts of crashed processes.
+        restarts: u32,
+    },
+}
+
+/// What every run ends with, whatever ended it.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    /// The spec's name.
+    pub spec: String,
+    /// Where it ran.
+    pub mode: Mode,
+    /// How it ended.
+    pub ended: Ended,
+    /// Whether the application stated an end rule beyond the time limit.
+    pub rule_stated: bool,
+    /// The last instant executed.
+    pub last: Time,
+    /// Wall-clock time of the run.
+    pub wall: Duration,
+    /// Errors the executors met (all of them, in every process).
+    pub errors: u64,
+    /// The first few, as text.
+    pub first_errors: Vec<String>,
+}
+
+impl RunSummary {
+    /// Run time per wall-clock second.
+    pub fn realtime_factor(&self) -> f64 {
+        self.last.as_secs_f64() / self.wall.as_secs_f64().max(1e-9)
+    }
+
+    /// The layer's own judgement: the run ended by its rule (or, with no rule
+    /// stated, at its limit or with every node halted) without an error.
+    pub fn passed(&self) -> bool {
+        let ended = match &self.ended {
+            Ended::Rule(_) | Ended::AllHalted => true,
+            Ended::Limit => !self.rule_stated,
+            Ended::Stopped(_) | Ended::Failed(_) => false,
+        };
+        ended && self.errors == 0
+    }
+
+    /// The layer's verdict ([`RunSummary::passed`]) with its lines.
+    pub fn verdict(&self) -> Verdict {
+        let mut text = format!(
+            "run of `{}` {} at t={:.3} s after {:.3} s of wall-clock time; {} executor errors\n",
+            self.spec,
+            self.ended,
+            self.last.as_secs_f64(),
+            self.wall.as_secs_f64(),
+            self.errors
+        );
+        for e in &self.first_errors {
+            text.push_str(&format!("error: {e}\n"));
+        }
+        if matches!(self.ended, Ended::Limit) && self.rule_stated {
+            text.push_str("the run did not end by its rule within its time limit\n");
+        }
+        Verdict {
+            passed: self.passed(),
+            text,
+            line: format!(
+                "run={} ended={} sim_s={:.3} realtime_factor={:.1} executor_errors={}",
+                self.spec,
+                self.ended.word(),
+                self.last.as_secs_f64(),
+                self.realtime_factor(),
+                self.errors
+            ),
+        }
+    }
+}
+
+/// A run judged.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Verdict {
+    /// Whether it succeeded (exit 0).
+    pub passed: bool,
+    /// The summary printed on standard output (lines, each ended by `\n`).
+    pub text: String,
+    /// The run's figures as one `key=value` line, printed last.
+    pub line: String,
+}
+
+/// What reads a run as it goes: every report of the application's probes (in
+/// a deployment, from every process), whether the run has reached its end,
+/// a status line, and the judgement.
+pub trait Watcher<M> {
+    /// One report of a probe (or of [`Application::finished`](crate::Application::finished)).
+    fn see(&mut self, seen: M);
+
+    /// After each batch of reports: whether the run has reached its end
+    /// (`finished`: the run is over and no report will follow).
+    fn ended(&mut self, finished: bool) -> bool {
+        let _ = finished;
+        false
+    }
+
+    /// A status line for the progress display.
+    fn status(&self) -> Option<String> {
+        None
+    }
+
+    /// Judge the run. By default the layer's judgement ([`RunSummary::verdict`]).
+    fn judge(&mut self, run: &RunSummary) -> Verdict {
+        run.verdict()
+    }
+}
+
+/// A watcher that reads nothing and judges as the layer does.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Quiet;
+
+impl<M> Watcher<M> for Quiet {
+    fn see(&mut self, _: M) {}
+}
