@@ -1,9 +1,14 @@
 //! Run the tank filling station: the operator agent sends orders, the station agent
-//! fills or drains its tank to each level and acknowledges.
+//! fills or drains its tank to each level and acknowledges. The command line is
+//! the application layer's (`embodied::app`): the deterministic run by default,
+//! `--realtime`, `--record FILE.mcap`, `replay`, `check`, `diagram`, and the
+//! spec's deployment `split` (the station and the operator in two processes
+//! over Zenoh) with `launch`.
 //!
 //! ```text
-//! cargo run --release --example tank -- [--levels 1.2,0.4,nan,1.8] [--seed N] [--trace FILE]
-//! cargo run --example tank -- --spec     # the spec of the macro-built twin, as RON
+//! cargo run --release --example tank --features app -- [--levels 1.2,0.4,nan,1.8] [--seed N]
+//! cargo run --release --example tank --features app,distributed -- launch --deployment split
+//! cargo run --example tank --features app -- --export-spec   # the macro-built twin's spec
 //! ```
 //!
 //! The last line is `orders_acked=<n>/<n> refused=<n> max_level_error_m=<...>
@@ -12,185 +17,244 @@
 mod agent;
 mod twin;
 
-use std::error::Error;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use agent::{Ack, Order, build, default_mission};
-use embodied::{ExecConfig, Executor, Observer, Recorder, SubsystemHandle, Time};
+use agent::{Ack, Order, Plant, build, default_mission};
+use embodied::app::{
+    AppError, Application, Common, End, Program, RunSummary, SpecFile, Target, Verdict, Watcher,
+};
+use embodied::{Probes, System};
+use serde::{Deserialize, Serialize};
 
-struct Args {
-    mission: Vec<Order>,
+/// The spec the station and the operator follow (its deployments place them).
+const SPEC: &str = include_str!("../../specs/tank.ron");
+
+/// The tank's own flags.
+#[derive(clap::Args, Clone, Debug, Default)]
+struct TankFlags {
+    /// The levels the operator orders, in metres, comma-separated (`nan` and
+    /// levels out of range are refused by the station).
+    #[arg(long, global = true, value_name = "L1,L2,...")]
+    levels: Option<String>,
+    /// The seed of the gauge's noise.
+    #[arg(long, global = true, default_value_t = 7)]
     seed: u64,
-    trace: Option<String>,
-    spec: bool,
+    /// Print the spec exported from the twin written with the macros, and exit.
+    #[arg(long)]
+    export_spec: bool,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut args = Args {
-        mission: default_mission(),
-        seed: 7,
-        trace: None,
-        spec: false,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
-        match flag.as_str() {
-            "--levels" => {
-                args.mission = value()?
-                    .split(',')
-                    .zip(1..)
-                    .map(|(s, id)| {
-                        s.trim()
-                            .parse::<f64>()
-                            .map(|level| Order { id, level })
-                            .map_err(|e| format!("bad level {s:?}: {e}"))
+/// One run: the orders (levels as written: a NaN stays one when recorded) and
+/// the seed.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct TankConfig {
+    levels: Vec<String>,
+    seed: u64,
+}
+
+impl TankConfig {
+    fn mission(&self) -> Result<Vec<Order>, AppError> {
+        self.levels
+            .iter()
+            .zip(1..)
+            .map(|(s, id)| {
+                s.trim()
+                    .parse::<f64>()
+                    .map(|level| Order { id, level })
+                    .map_err(|e| AppError::invalid(format!("--levels: `{s}`: {e}")))
+            })
+            .collect()
+    }
+}
+
+/// What the operator's probe reports: an acknowledgement and when it came.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Acked {
+    t: f64,
+    ack: Ack,
+}
+
+#[derive(Default)]
+struct Tank {
+    plant: Option<Plant>,
+}
+
+impl Application for Tank {
+    type Flags = TankFlags;
+    type Config = TankConfig;
+    type Seen = Vec<Acked>;
+
+    fn configure(&mut self, flags: &TankFlags, _: &Common) -> Result<Vec<TankConfig>, AppError> {
+        if flags.export_spec {
+            let (system, _) = twin::build(default_mission(), 0.2, flags.seed)
+                .map_err(|e| AppError::Build(Box::new(e)))?;
+            let spec = embodied::spec::export::spec_of("tank", system.info())
+                .map_err(AppError::invalid)?;
+            let text = embodied::spec::export::to_ron(&spec).map_err(AppError::invalid)?;
+            embodied::app::emit(format_args!("{text}"));
+            std::process::exit(0);
+        }
+        let levels = match &flags.levels {
+            Some(l) => l.split(',').map(str::to_owned).collect(),
+            None => default_mission()
+                .iter()
+                .map(|o| o.level.to_string())
+                .collect(),
+        };
+        let config = TankConfig {
+            levels,
+            seed: flags.seed,
+        };
+        config.mission()?;
+        Ok(vec![config])
+    }
+
+    fn spec(&self, _: &TankConfig) -> Result<SpecFile, AppError> {
+        SpecFile::parse("specs/tank.ron", SPEC)
+    }
+
+    fn build(&mut self, config: &TankConfig, _: &Target<'_>) -> Result<System, AppError> {
+        // Every process builds the whole system (the deployments run all of
+        // it); the layer runs each process's part.
+        let (system, plant) =
+            build(config.mission()?, 0.2, config.seed).map_err(|e| AppError::Build(Box::new(e)))?;
+        self.plant = Some(plant);
+        Ok(system)
+    }
+
+    fn probes(&mut self, probes: &mut Probes<Vec<Acked>>, here: &dyn Fn(&str) -> bool) {
+        if let Some(plant) = &self.plant
+            && here("c2")
+        {
+            // The acknowledgements new since the operator's last activation.
+            let mut seen = 0;
+            probes.subsystem(&plant.operator, move |p| {
+                let new: Vec<Acked> = p.memory.acks[seen.min(p.memory.acks.len())..]
+                    .iter()
+                    .map(|ack| Acked {
+                        t: p.time.as_secs_f64(),
+                        ack: ack.clone(),
                     })
-                    .collect::<Result<_, _>>()?;
-            }
-            "--seed" => {
-                let v = value()?;
-                args.seed = v.parse().map_err(|e| format!("bad seed {v:?}: {e}"))?;
-            }
-            "--trace" => args.trace = Some(value()?),
-            "--spec" => args.spec = true,
-            "-h" | "--help" => {
-                println!(
-                    "usage: tank [--levels L1,L2,...] [--seed N] [--trace FILE] | --spec\n\
-                     Runs the filling station until every order is acknowledged.\n\
-                     --spec prints the spec exported from the twin written with the macros."
-                );
-                std::process::exit(0);
-            }
-            other => return Err(format!("unknown argument {other:?} (try --help)")),
+                    .collect();
+                seen = p.memory.acks.len();
+                (!new.is_empty()).then_some(new)
+            });
         }
     }
-    Ok(args)
+
+    fn watcher(&mut self, config: &TankConfig, common: &Common) -> Box<dyn Watcher<Vec<Acked>>> {
+        Box::new(Orders {
+            mission: config.mission().unwrap_or_default(),
+            acked: Vec::new(),
+            refused: 0,
+            worst: 0.0,
+            quiet: common.quiet,
+        })
+    }
+
+    fn end(&self, _: &TankConfig) -> End {
+        // The operator halts once every order is acknowledged.
+        End::halted(["c2"])
+    }
+
+    fn limit(&self, _: &TankConfig) -> Duration {
+        Duration::from_secs(3600)
+    }
+
+    fn announce(&self, config: &TankConfig) -> Option<String> {
+        Some(format!(
+            "tank filling station: {} orders, tank at 0.20 m, seed {}",
+            config.levels.len(),
+            config.seed
+        ))
+    }
+}
+
+/// The operator's acknowledgements, as they arrive.
+struct Orders {
+    mission: Vec<Order>,
+    /// The orders acknowledged (each once, even if a restarted operator
+    /// asked again).
+    acked: Vec<u32>,
+    refused: usize,
+    worst: f64,
+    quiet: bool,
+}
+
+impl Watcher<Vec<Acked>> for Orders {
+    fn see(&mut self, acks: Vec<Acked>) {
+        for Acked { t, ack } in acks {
+            self.take(t, ack);
+        }
+    }
+
+    fn status(&self) -> Option<String> {
+        Some(format!(
+            "{}/{} orders acknowledged",
+            self.acked.len(),
+            self.mission.len()
+        ))
+    }
+
+    fn judge(&mut self, run: &RunSummary) -> Verdict {
+        let layer = run.verdict();
+        let all = self.acked.len() == self.mission.len();
+        Verdict {
+            passed: all && layer.passed,
+            text: if all {
+                layer.text
+            } else {
+                format!("{}not every order was acknowledged\n", layer.text)
+            },
+            line: format!(
+                "orders_acked={}/{} refused={} max_level_error_m={:.4} sim_s={:.1} realtime_factor={:.0}",
+                self.acked.len(),
+                self.mission.len(),
+                self.refused,
+                self.worst,
+                run.last.as_secs_f64(),
+                run.realtime_factor()
+            ),
+        }
+    }
+}
+
+impl Orders {
+    fn take(&mut self, t: f64, ack: Ack) {
+        if self.acked.contains(&ack.id()) {
+            return;
+        }
+        self.acked.push(ack.id());
+        let line = match (&ack, self.mission.iter().find(|o| o.id == ack.id())) {
+            (Ack::Done { id, level }, Some(o)) => {
+                let err = (level - o.level).abs();
+                self.worst = self.worst.max(err);
+                format!(
+                    "order {id}: level {:.3} m reached (filtered gauge {level:.3} m, error {:.1} mm)",
+                    o.level,
+                    err * 1e3
+                )
+            }
+            (Ack::Refused { id, reason }, _) => {
+                self.refused += 1;
+                format!("order {id}: refused: {reason}")
+            }
+            (Ack::Done { id, .. }, None) => format!("order {id}: acknowledged, but never sent"),
+        };
+        if !self.quiet {
+            eprintln!("[{t:>8.2} s] {line}");
+        }
+    }
 }
 
 fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run() -> Result<(), Box<dyn Error>> {
-    let args = parse_args()?;
-    if args.spec {
-        let (system, _) = twin::build(args.mission, 0.2, args.seed)?;
-        let spec = embodied::spec::export::spec_of("tank", system.info())?;
-        print!("{}", embodied::spec::export::to_ron(&spec)?);
-        return Ok(());
-    }
-    let (system, plant) = build(args.mission.clone(), 0.2, args.seed)?;
-    println!(
-        "tank filling station: {} orders, tank at 0.20 m, seed {}",
-        args.mission.len(),
-        args.seed
-    );
-    let (operator, filter) = (plant.operator, plant.filter);
-    let wall = Instant::now();
-    let (exec, summary) = if let Some(path) = &args.trace {
-        let mut exec =
-            Executor::with_observer(system, ExecConfig::default(), Recorder::with_text());
-        let summary = drive(&mut exec, &args.mission, operator)?;
-        std::fs::write(path, exec.observer().trace().to_string())?;
-        println!("trace written to {path}");
-        (Box::new(exec) as Box<dyn Inspect>, summary)
-    } else {
-        let mut exec = Executor::new(system, ExecConfig::default());
-        let summary = drive(&mut exec, &args.mission, operator)?;
-        (Box::new(exec) as Box<dyn Inspect>, summary)
-    };
-    let wall_s = wall.elapsed().as_secs_f64();
-    let sim_s = exec.now().as_secs_f64();
-    println!(
-        "summary: {} instants, {} implausible gauge readings rejected by r1",
-        exec.instants(),
-        exec.rejected(&filter)
-    );
-    println!(
-        "orders_acked={}/{} refused={} max_level_error_m={:.4} sim_s={sim_s:.1} realtime_factor={:.0}",
-        summary.acked,
-        args.mission.len(),
-        summary.refused,
-        summary.worst,
-        sim_s / wall_s.max(1e-9)
-    );
-    if summary.acked != args.mission.len() {
-        return Err("not every order was acknowledged".into());
-    }
-    Ok(())
-}
-
-/// What the example reads back from an executor, whatever its observer.
-trait Inspect {
-    fn now(&self) -> Time;
-    fn instants(&self) -> u64;
-    fn rejected(&self, filter: &SubsystemHandle<agent::LevelFilter>) -> u64;
-}
-
-impl<O: Observer> Inspect for Executor<O> {
-    fn now(&self) -> Time {
-        Executor::now(self)
-    }
-    fn instants(&self) -> u64 {
-        self.report().instants
-    }
-    fn rejected(&self, filter: &SubsystemHandle<agent::LevelFilter>) -> u64 {
-        self.memory(filter).map_or(0, |m| m.rejected)
-    }
-}
-
-struct Summary {
-    acked: usize,
-    refused: usize,
-    worst: f64,
-}
-
-/// Run until the operator's mission is over (or an hour of virtual time), printing
-/// each acknowledgement as it arrives.
-fn drive<O: Observer>(
-    exec: &mut Executor<O>,
-    mission: &[Order],
-    operator: SubsystemHandle<agent::Operator>,
-) -> Result<Summary, Box<dyn Error>> {
-    let limit = Time::from_nanos(3_600_000_000_000);
-    let mut summary = Summary {
-        acked: 0,
-        refused: 0,
-        worst: 0.0,
-    };
-    while !exec.is_halted(operator.id()) && exec.now() < limit {
-        exec.run_for(Duration::from_millis(100))?;
-        let acks = exec.memory(&operator).map_or(&[][..], |m| &m.acks[..]);
-        for ack in &acks[summary.acked..] {
-            let t = exec.now().as_secs_f64();
-            match (ack, mission.iter().find(|o| o.id == ack.id())) {
-                (Ack::Done { id, level }, Some(o)) => {
-                    let err = (level - o.level).abs();
-                    summary.worst = summary.worst.max(err);
-                    println!(
-                        "[{t:>8.2} s] order {id}: level {:.3} m reached (filtered gauge {level:.3} m, error {:.1} mm)",
-                        o.level,
-                        err * 1e3
-                    );
-                }
-                (Ack::Refused { id, reason }, _) => {
-                    summary.refused += 1;
-                    println!("[{t:>8.2} s] order {id}: refused: {reason}");
-                }
-                (Ack::Done { id, .. }, None) => {
-                    println!("[{t:>8.2} s] order {id}: acknowledged, but it was never sent")
-                }
-            }
-        }
-        summary.acked = acks.len();
-    }
-    Ok(summary)
+    embodied::app::main_with(
+        Tank::default(),
+        Program {
+            name: "tank",
+            version: env!("CARGO_PKG_VERSION"),
+            about: "Run the tank filling station: the operator agent sends orders, the station fills or drains its tank to each level and acknowledges.",
+        },
+    )
 }

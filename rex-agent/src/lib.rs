@@ -12,13 +12,16 @@
 //!   moving-horizon estimation, trajectory planners, stereo visual odometry. They
 //!   know nothing of the framework;
 //! * [`report`], the verdict on a run and its report folder; [`config`],
-//!   [`mission`], [`run`] and [`soak`], the glue of the `rex` binary and examples.
+//!   [`mission`], [`run`] and [`soak`], running missions for the `rex` binary,
+//!   the tests and the examples; [`app`], what is Rex's own in the `rex`
+//!   program (the rest is the application layer's, `embodied::app`).
 //!
 //! Everything is written against the public `embodied` API only, exactly as a
 //! user's crate would be.
 
 pub mod a1;
 pub mod algorithms;
+pub mod app;
 pub mod config;
 pub mod mission;
 pub mod record;

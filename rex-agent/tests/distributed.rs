@@ -312,7 +312,7 @@ fn recorded_in_parts_merged_and_replayed(record: &std::path::Path, stdout: &str)
         "in time order"
     );
     // c1 ran in `locomotion` with its own incarnation number, kept for the replay.
-    assert!(whole.metadata["process/locomotion"].contains_key("c1_boot"));
+    assert!(whole.metadata["process/locomotion"].contains_key("boot"));
     let end = &whole.metadata["end"];
     assert_eq!(end["processes"], "world, locomotion");
     // The same merge by the library gives the same file's content.

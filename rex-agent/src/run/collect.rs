@@ -6,16 +6,18 @@
 
 use std::collections::BTreeMap;
 
-use embodied::Time;
+use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
 use super::{Outcome, Progress, Sample};
-use crate::a1::RexConfig;
 use crate::a1::payload::{Ack, PlanOutcome};
+use crate::a1::{RexConfig, RexHandles};
+use crate::world::devices::{MotionCapture, Truth};
 
-/// One report of a probe.
+/// One report of a probe on Rex (or of a process at its end): what a run's
+/// watcher reads, in one process or from every process of a deployment.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub(crate) enum Seen {
+pub enum Seen {
     /// After an activation of e11.
     E11 {
         /// Its instant.
@@ -51,6 +53,9 @@ pub(crate) enum Seen {
     Mocap(Option<f64>),
     /// A process's counters at its end (its components' part of the run's).
     Counters(Box<super::Counters>),
+    /// The planner's, tracker's and estimator's names, from the process that
+    /// ran c1 (the planner) and e11 (the others).
+    Parts([Option<String>; 3]),
 }
 
 /// Turns what the probes report into an outcome.
@@ -93,17 +98,6 @@ impl Collector {
         }
     }
 
-    /// The latest instant of the world seen [s] (a distributed run's clock).
-    #[cfg(feature = "distributed")]
-    pub(crate) fn time(&self) -> f64 {
-        self.truths
-            .keys()
-            .next_back()
-            .copied()
-            .unwrap_or(self.last_e11)
-            .as_secs_f64()
-    }
-
     /// Take one report in.
     pub(crate) fn see(&mut self, seen: Seen, progress: &mut impl FnMut(Progress<'_>)) {
         match seen {
@@ -136,6 +130,13 @@ impl Collector {
             }
             Seen::Mocap(at) => self.delivered_at = at.or(self.delivered_at),
             Seen::Counters(c) => self.out.counters.absorb(*c),
+            Seen::Parts(parts) => {
+                for (mine, given) in self.out.parts.iter_mut().zip(parts) {
+                    if let Some(name) = given {
+                        *mine = name;
+                    }
+                }
+            }
         }
     }
 
@@ -195,5 +196,95 @@ impl Collector {
             self.out.completed = true;
         }
         self.out.completed
+    }
+}
+
+/// Probes on the components `here` says run in this process: e11 (what it
+/// tracks), c1 (its behaviour), a2 (acknowledgements), the world (the true
+/// pose) and the motion capture (deliveries).
+pub(crate) fn install_probes(
+    probes: &mut Probes<Seen>,
+    h: &RexHandles,
+    here: &dyn Fn(&str) -> bool,
+) {
+    if here("e11") {
+        probes.subsystem(&h.e11, |p| {
+            let m = p.memory;
+            let est = m.estym.estimate.x;
+            Some(Seen::E11 {
+                t: p.time,
+                sample: Sample {
+                    t: p.time.as_secs_f64(),
+                    truth: [f64::NAN; 3],
+                    estimate: [est[0], est[1], est[2]],
+                    reference: m.track.reference,
+                    executing: m.track.following.is_some(),
+                    tau: m.tau,
+                    behaviour: 0,
+                    fragment: m.track.following,
+                    mocap_for: 0.0,
+                    vo_lost: m.vo.lost,
+                    friction: m
+                        .estym
+                        .estimate
+                        .friction
+                        .map_or([f64::NAN; 3], |f| f.to_array()),
+                },
+                event: m.event.clone(),
+                idle: m.track.running.is_none()
+                    && m.track.queue.is_empty()
+                    && m.arrival.is_none()
+                    && m.outbox.is_empty(),
+            })
+        });
+    }
+    if here("c1") {
+        let mut last = None;
+        probes.subsystem(&h.c1, move |p| {
+            let b = match p.behaviour {
+                "B2" => 1u8,
+                "B3" => 2,
+                _ => 0,
+            };
+            // Only changes: c1's behaviour is a state, not a stream.
+            (last.replace(b) != Some(b)).then_some(Seen::C1(b))
+        });
+    }
+    if here("c2") {
+        let mut acks_sent = 0;
+        let mut sent = 0;
+        probes.subsystem(&h.c2, move |p| {
+            let new: Vec<Ack> = p.memory.acks.iter().skip(acks_sent).cloned().collect();
+            acks_sent = p.memory.acks.len();
+            let more = p.memory.next != sent;
+            sent = p.memory.next;
+            (!new.is_empty() || p.halted || more).then_some(Seen::C2 {
+                t: p.time,
+                acks: new,
+                halted: p.halted,
+                sent,
+            })
+        });
+    }
+    if here("E1") {
+        probes.environment(|_, w: &Truth| {
+            let s = &w.state;
+            // The truth after the world's step at `t` is the state at `w.time`.
+            let at = Time::from_nanos((w.time * 1e9).round().max(0.0) as u64);
+            Some(Seen::Truth {
+                at,
+                pose: [s.x, s.y, s.phi],
+            })
+        });
+    }
+    if here("R3") {
+        let mut last = None;
+        probes.driver(&h.map.mocap, move |_, m: &MotionCapture| {
+            let at = m.last_delivered().map(|(at, _)| at);
+            (at.is_some() && at != last).then(|| {
+                last = at;
+                Seen::Mocap(at)
+            })
+        });
     }
 }

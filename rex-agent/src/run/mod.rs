@@ -1,22 +1,25 @@
-//! Running a Rex mission in the deterministic executor and collecting what happened.
+//! Running a Rex mission and collecting what happened, on the application
+//! layer's loops ([`embodied::app::Watched`]): in the deterministic executor
+//! ([`run_mission`]) or in real time ([`run_mission_realtime`]).
 //!
-//! The executor is stepped one instant at a time. Whenever `e11` runs, a [`Sample`]
-//! pairs the reference it tracks in that iteration with the platform's true pose at
-//! the same instant (the platform integrates at 1 kHz, so before the instant is
-//! executed its state is the state at that instant): the tracking error is measured
-//! without the one-period lag that sampling between runs would add.
+//! Rex's probes report what e11 tracks after each of its activations and the
+//! platform's true pose after each of the world's instants; a [`Sample`] pairs
+//! e11's activation at `t` with the true pose at `t` (the platform integrates
+//! at 1 kHz, so the world's step before `t` left its state at `t`): the
+//! tracking error is measured without the one-period lag that sampling between
+//! runs would add. The same reports, from every process of a deployment, are
+//! what `rex launch` judges.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod collect;
-#[cfg(feature = "distributed")]
-pub mod distributed;
 mod realtime;
+pub use collect::Seen;
+pub(crate) use collect::{Collector, install_probes};
 pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
 
-use embodied::{
-    Driver, DriverHandle, ExecError, Executor, NoObserver, Subsystem, SubsystemHandle, Time,
-};
+use embodied::app::{End, Ran, Watched, Watcher};
+use embodied::{ExecError, Finished, NoObserver, Probes};
 
 use crate::a1::payload::{Ack, AckStatus, PlanOutcome};
 use crate::a1::{RexConfig, RexError, RexHandles, build};
@@ -323,6 +326,9 @@ pub enum RunError {
     /// The recording could not start.
     #[error(transparent)]
     Record(#[from] embodied::record::RecordError),
+    /// The run could not be made.
+    #[error(transparent)]
+    App(#[from] embodied::app::AppError),
 }
 
 /// What a run reports while it goes.
@@ -359,120 +365,104 @@ pub fn run_mission(
 /// [`run_mission`] with an observer of the executor, made by `observer` from
 /// the built system (a recorder, for example: [`embodied::record::McapRecorder`]);
 /// returns it with the outcome.
-pub fn run_mission_observed<O: embodied::Observer>(
+pub fn run_mission_observed<O: embodied::Observer + 'static>(
     config: &RexConfig,
     limit: Duration,
     tick: Duration,
     observer: impl FnOnce(&embodied::System) -> Result<O, RunError>,
-    mut progress: impl FnMut(Progress<'_>),
+    progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, O), RunError> {
     let (system, h) = build(config)?;
     let observer = observer(&system)?;
-    let mut exec: Executor<O> = Executor::with_observer(system, config.exec, observer);
-    let mut out = Outcome {
-        mission: config.mission.name.clone(),
-        plans: config.mission.plans.len(),
-        ..Outcome::default()
-    };
-    if let (Some(c1), Some(e11)) = (exec.memory(&h.c1), exec.memory(&h.e11)) {
-        out.parts = [
-            c1.trajgen.kind().name().to_owned(),
-            e11.track.tracker.name().to_owned(),
-            e11.estym.estimator.name().to_owned(),
-        ];
+    let (mut probes, seen) = Probes::new(PROBES);
+    install_probes(&mut probes, &h, &|_| true);
+    let mut watch = MissionWatch::new(config, tick, progress);
+    let (ran, observer) = Watched {
+        probes,
+        seen,
+        watcher: &mut watch,
+        end: End::Limit,
+        limit,
+        quiet: true,
     }
-    let wall = Instant::now();
-    let end = Time::ZERO.saturating_add(limit);
-    let tick_ns = tick.as_nanos().max(1);
-    let mut next_tick = tick_ns;
-    let mut acks_seen = 0;
-    let mut mocap_since: Option<f64> = None;
-    while let Some(t) = exec.next_instant() {
-        if t >= end {
-            break;
-        }
-        // The platform's state now, before the instant runs: the state at `t`.
-        let truth = exec.driver(&h.platform).map(|p| p.plant().state);
-        let e11_before = exec.iteration(h.e11.id());
-        exec.step()?;
-        if exec.iteration(h.e11.id()) == e11_before {
-            continue;
-        }
-        let ts = t.as_secs_f64();
-        if let Some(o) = exec.memory(&h.e11).and_then(|m| m.event.clone()) {
-            out.outcomes.push((ts, o));
-        }
-        // Poses come every 10 ms; a gap of 50 ms is a dropout.
-        let delivering = exec
-            .driver(&h.map.mocap)
-            .and_then(|m| m.last_delivered())
-            .is_some_and(|(at, _)| at >= ts - 0.05);
-        mocap_since = if delivering {
-            mocap_since.or(Some(ts))
-        } else {
-            None
-        };
-        if let Some(mut s) = sample(&exec, &h, ts, truth.map(|s| [s.x, s.y, s.phi])) {
-            s.mocap_for = mocap_since.map_or(0.0, |since| ts - since);
-            out.samples.push(s);
-            if u128::from(t.as_nanos()) >= next_tick {
-                next_tick += tick_ns;
-                progress(Progress::Tick { t: ts, sample: &s });
-            }
-        }
-        if let Some(m) = exec.memory(&h.c2) {
-            for ack in m.acks.iter().skip(acks_seen) {
-                progress(Progress::Ack { t: ts, ack });
-                out.acks.push((ts, ack.clone()));
-            }
-            acks_seen = m.acks.len();
-        }
-        let idle = exec.memory(&h.e11).is_some_and(|m| {
-            m.track.running.is_none()
-                && m.track.queue.is_empty()
-                && m.arrival.is_none()
-                && m.outbox.is_empty()
-        });
-        if exec.is_halted(h.c2.id()) && idle {
-            out.completed = true;
-            break;
-        }
-    }
-    out.wall_s = wall.elapsed().as_secs_f64();
-    out.sim_s = exec.now().as_secs_f64();
-    let sent = finish_counters(&exec, &h, &mut out.counters);
-    out.counters.executor_errors = exec.report().error_count;
-    out.reports = judge::judge(&out, config, sent);
-    Ok((out, exec.into_observer()))
+    .simulate(system, config.exec, observer)?;
+    Ok((watch.conclude(&ran, &h), observer))
 }
 
-/// What the end of a run is read from: the deterministic executor, or a finished
-/// real-time run.
-pub(crate) trait Inspect {
-    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory>;
-    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D>;
+/// Results a run's probes may hold before they are taken in.
+pub(crate) const PROBES: usize = 1 << 16;
+
+/// What reads a mission as it runs (through Rex's probes, in any executor and
+/// from every process of a deployment): the [`Collector`] that pairs e11's
+/// samples with the truth, and what it tells `progress`.
+pub(crate) struct MissionWatch<P> {
+    pub(crate) collect: Collector,
+    pub(crate) config: RexConfig,
+    pub(crate) progress: P,
 }
 
-impl<O: embodied::Observer> Inspect for Executor<O> {
-    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
-        Executor::memory(self, h)
+impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
+    pub(crate) fn new(config: &RexConfig, tick: Duration, progress: P) -> Self {
+        MissionWatch {
+            collect: Collector::new(config, tick),
+            config: config.clone(),
+            progress,
+        }
     }
-    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
-        Executor::driver(self, h)
+
+    /// The run's outcome, judged, once every report is in (`wall` and `sim`:
+    /// the run's wall-clock and simulated seconds).
+    pub(crate) fn outcome(&mut self, wall: f64, sim: f64) -> Outcome {
+        let mut out = std::mem::take(&mut self.collect.out);
+        out.wall_s = wall;
+        out.sim_s = sim;
+        out.reports = judge::judge(&out, &self.config, self.collect.sent);
+        out
+    }
+
+    /// The end of a run in this process: the last reports read off its
+    /// nodes, then the outcome.
+    pub(crate) fn conclude(&mut self, ran: &Ran, h: &RexHandles) -> Outcome {
+        for seen in last_reports(&ran.finished, h) {
+            self.see(seen);
+        }
+        self.ended(true);
+        self.outcome(
+            ran.wall.as_secs_f64(),
+            ran.finished.report().last_instant.as_secs_f64(),
+        )
     }
 }
 
-impl Inspect for embodied::Finished {
-    fn memory<S: Subsystem>(&self, h: &SubsystemHandle<S>) -> Option<&S::Memory> {
-        embodied::Finished::memory(self, h)
+impl<P: FnMut(Progress<'_>)> Watcher<Seen> for MissionWatch<P> {
+    fn see(&mut self, seen: Seen) {
+        self.collect.see(seen, &mut self.progress);
     }
-    fn driver<D: Driver>(&self, h: &DriverHandle<D>) -> Option<&D> {
-        embodied::Finished::driver(self, h)
+
+    fn ended(&mut self, finished: bool) -> bool {
+        self.collect.advance(finished, &mut self.progress)
     }
+}
+
+/// What a run's nodes say at its end (those this process ran): the counters,
+/// and the names of the planner, tracker and estimator.
+pub(crate) fn last_reports(run: &Finished, h: &RexHandles) -> Vec<Seen> {
+    let mut counters = Counters::default();
+    finish_counters(run, h, &mut counters);
+    counters.executor_errors = run.report().error_count;
+    let parts = [
+        run.memory(&h.c1)
+            .map(|c1| c1.trajgen.kind().name().to_owned()),
+        run.memory(&h.e11)
+            .map(|e11| e11.track.tracker.name().to_owned()),
+        run.memory(&h.e11)
+            .map(|e11| e11.estym.estimator.name().to_owned()),
+    ];
+    vec![Seen::Counters(Box::new(counters)), Seen::Parts(parts)]
 }
 
 /// The counters of a run, read at its end; returns how many plans `a2` sent.
-pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters) -> usize {
+pub(crate) fn finish_counters(x: &Finished, h: &RexHandles, c: &mut Counters) -> usize {
     if let Some(m) = x.memory(&h.e11) {
         c.fragments_received = m.track.received;
         c.fragments_completed = m.track.completed;
@@ -505,37 +495,5 @@ pub(crate) fn finish_counters(x: &impl Inspect, h: &RexHandles, c: &mut Counters
         c.plans_resent = m.resent;
         c.fragments_repeated = m.repeated;
         m.next
-    })
-}
-
-fn sample<O: embodied::Observer>(
-    exec: &Executor<O>,
-    h: &RexHandles,
-    t: f64,
-    truth: Option<[f64; 3]>,
-) -> Option<Sample> {
-    let e11 = exec.memory(&h.e11)?;
-    let est = e11.estym.estimate.x;
-    let behaviour = match exec.behaviour(&h.c1) {
-        Some("B2") => 1,
-        Some("B3") => 2,
-        _ => 0,
-    };
-    Some(Sample {
-        t,
-        truth: truth?,
-        estimate: [est[0], est[1], est[2]],
-        reference: e11.track.reference,
-        executing: e11.track.following.is_some(),
-        tau: e11.tau,
-        behaviour,
-        fragment: e11.track.following,
-        mocap_for: 0.0,
-        vo_lost: e11.vo.lost,
-        friction: e11
-            .estym
-            .estimate
-            .friction
-            .map_or([f64::NAN; 3], |f| f.to_array()),
     })
 }

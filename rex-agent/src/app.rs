@@ -1,0 +1,493 @@
+//! Rex on the application layer ([`embodied::app`]): what is Rex's own in the
+//! `rex` program. Its flags and run files (the configuration of a run is the
+//! run settings, made self-contained), its missions (`--mission all` runs the
+//! three shipped ones in turn), its probes and their pairing with the
+//! simulation's truth, the judgement of every plan against that truth, the
+//! report folder, and the check that a deployment keeps the simulated world in
+//! one process. Everything else (executors, recording, replay, deployments,
+//! the launcher, signals, exit status) is the layer's.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use embodied::app::{
+    AppError, Application, Common, Mode, RunSummary, SpecFile, Target, Verdict, Watcher,
+};
+use embodied::record::RecordOptions;
+use embodied::replay::ReplayOptions;
+use embodied::{ExecConfig, Finished, OffloadMode, Probes, System};
+
+use crate::a1::c1::trajgen::Runtime;
+use crate::a1::e11::{EstimatorKind, TrackerKind};
+use crate::a1::{RexConfig, RexHandles, RunSettings, build, build_deployment, deployment};
+use crate::algorithms::planner::PlannerKind;
+use crate::config;
+use crate::mission::Mission;
+use crate::run::{MissionWatch, Progress, Seen, install_probes, last_reports};
+
+/// Rex's own flags (the layer adds `--for/--limit`, `--realtime`, `--record`,
+/// `--quiet`, `--deployment`, `--process`, `--port`, `--wait`,
+/// `--credentials`). Every choice can also be written in a run file
+/// (`--config`, default `rex-agent/config/rex.ron`); a flag overrides the file.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct RexFlags {
+    /// Run file (RON): mission, world, surface, planner, tracker, estimator, limit.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Mission: `square`, `figure_eight`, `slalom`, a mission file, or `all` for the
+    /// three shipped missions one after the other.
+    #[arg(long, global = true, value_name = "NAME|FILE")]
+    pub mission: Option<String>,
+    /// World file (platform, surfaces, sensors, camera, room, motion capture).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub world: Option<PathBuf>,
+    /// The spec Rex is built from (default: `specs/rex.ron`): its components,
+    /// periods and links; checked before anything runs.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub spec: Option<PathBuf>,
+    /// One surface for the whole floor: a name from the world's `surfaces`
+    /// (shipped: concrete, grass, ice).
+    #[arg(long, global = true, value_name = "NAME")]
+    pub surface: Option<String>,
+    /// Trajectory planner of c1: `ecsa` (the paper's) or `polynomial`.
+    #[arg(long, global = true, value_name = "NAME")]
+    pub planner: Option<PlannerKind>,
+    /// Where the planner runs: `thread` (a concurrent planning process) or `inline`.
+    #[arg(long, global = true, value_name = "WHERE")]
+    pub planning: Option<Runtime>,
+    /// Tracker of e11: `nmpc` (the paper's) or `backstepping`.
+    #[arg(long, global = true, value_name = "NAME")]
+    pub tracker: Option<TrackerKind>,
+    /// State estimator of e11: `mhe` (the paper's) or `ekf`.
+    #[arg(long, global = true, value_name = "NAME")]
+    pub estimator: Option<EstimatorKind>,
+    /// Run without the virtual receptor r11 and the camera (no visual odometry:
+    /// the spec's deployment `simulation_without_vo`).
+    #[arg(long, global = true)]
+    pub no_vo: bool,
+    /// Where the camera renders and r11 runs its odometry: `worker` (threads of
+    /// their own, beside the rest of the system) or `inline` (in their steps). The
+    /// run is the same, bit for bit; only the wall-clock time differs.
+    #[arg(long, global = true, value_name = "WHERE")]
+    pub vision: Option<OffloadMode>,
+    /// Steps of r11 (20 ms) from a stereo pair to its motion, at most: the time the
+    /// odometry has to run beside the rest (the motion leaves sooner when the next
+    /// pair arrives); 0: in the step the pair arrives.
+    #[arg(long, global = true, value_name = "STEPS")]
+    pub vo_latency: Option<u32>,
+    /// Report folder; one sub-folder per mission.
+    #[arg(
+        long,
+        global = true,
+        value_name = "DIR",
+        default_value = "target/rex-report"
+    )]
+    pub out: PathBuf,
+    /// Do not write the report folder.
+    #[arg(long, global = true)]
+    pub no_report: bool,
+    /// Do not record the run into the report folder (`<out>/<mission>/run.mcap`,
+    /// made by default: it costs a few percent of the run's time with the
+    /// camera, about 160 MB for the figure-eight; see `--record`).
+    #[arg(long, global = true)]
+    pub no_record: bool,
+}
+
+/// What `rex --help` says above the flags.
+pub const ABOUT: &str = "\
+Run Rex, the skid-steer robot of Janiak & Zieliński, through a mission.
+
+The ontology agent a2 sends the plans of the mission, the locomotion agent a1
+plans trajectories (c1) and tracks them (e11) on the simulated platform E1, the
+map agent a3 supplies poses from motion capture.
+
+Exit status: 0 when every plan was achieved (acknowledged, reported reached by
+a1, and confirmed by the simulation's truth); 1 when a plan failed or the
+mission did not complete (the summary names each plan and how it ended); 2
+when the command line or a configuration file is invalid (nothing runs).";
+
+/// The drivers that act on or sense the simulated world: they share it, so a
+/// deployment must run them in one process.
+const WORLD_DRIVERS: [&str; 3] = ["E1", "R1", "R3"];
+
+/// Rex as an [`Application`] of the layer.
+#[derive(Debug, Default)]
+pub struct RexApp {
+    flags: RexFlags,
+    /// The handles of the system last built (for its probes and last reports).
+    handles: Option<RexHandles>,
+}
+
+impl RexApp {
+    /// The run file's settings with the command line's flags over them, and
+    /// the folder the file's relative paths are taken from.
+    fn settings(flags: &RexFlags, common: &Common) -> Result<(RunSettings, PathBuf), AppError> {
+        let (mut s, base) = match &flags.config {
+            Some(path) => (
+                RunSettings::load(path).map_err(AppError::invalid)?,
+                path.parent().map_or_else(PathBuf::new, Path::to_path_buf),
+            ),
+            None => (
+                RunSettings::shipped().map_err(AppError::invalid)?,
+                config::config_dir(),
+            ),
+        };
+        overrides(flags, common, &mut s)?;
+        Ok((s, base))
+    }
+
+    /// The configuration `s` describes (its paths absolute).
+    fn resolve(s: &RunSettings) -> Result<RexConfig, AppError> {
+        s.resolve(Path::new("/")).map_err(AppError::invalid)
+    }
+}
+
+/// The flags over the settings `s`.
+fn overrides(flags: &RexFlags, common: &Common, s: &mut RunSettings) -> Result<(), AppError> {
+    if let Some(m) = &flags.mission {
+        s.mission = m.clone();
+    }
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
+    // A file given on the command line is relative to the current folder.
+    if let Some(w) = &flags.world {
+        s.world = Some(absolute(w));
+    }
+    if let Some(spec) = &flags.spec {
+        s.spec = Some(absolute(spec));
+    }
+    if flags.surface.is_some() {
+        s.surface = flags.surface.clone();
+    }
+    s.planner = flags.planner.unwrap_or(s.planner);
+    s.planning = flags.planning.unwrap_or(s.planning);
+    s.tracker = flags.tracker.unwrap_or(s.tracker);
+    s.estimator = flags.estimator.unwrap_or(s.estimator);
+    s.vision = flags.vision.unwrap_or(s.vision);
+    s.vo_latency = flags.vo_latency.unwrap_or(s.vo_latency);
+    if let Some(limit) = common.limit()? {
+        s.limit_s = limit.as_secs_f64();
+    }
+    if flags.no_vo {
+        s.visual_odometry = false;
+    }
+    Ok(())
+}
+
+/// The settings `s` (paths relative to `base`) with every path made absolute,
+/// so that a recording's settings build the same Rex from any folder.
+fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings {
+    let mut s = s.clone();
+    let absolute = |p: &Path| std::path::absolute(base.join(p)).unwrap_or_else(|_| base.join(p));
+    s.world = s.world.as_deref().map(absolute);
+    s.spec = Some(absolute(
+        s.spec.as_deref().unwrap_or(&crate::a1::default_spec()),
+    ));
+    if !Mission::SHIPPED.contains(&s.mission.as_str()) {
+        // A mission file named on the command line is relative to the
+        // current folder; one in a run file, to the run file's.
+        let from = if flags.mission.is_some() {
+            std::env::current_dir().unwrap_or_default()
+        } else {
+            base.to_owned()
+        };
+        s.mission = absolute(&from.join(&s.mission)).display().to_string();
+    }
+    s
+}
+
+/// Whether a report folder can be made at `dir`: it is (or can be created as) a
+/// folder, and a file can be written in it.
+fn writable(dir: &Path) -> std::io::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            "exists and is not a folder",
+        ));
+    }
+    std::fs::create_dir_all(dir)?;
+    let probe = dir.join(".rex-write-test");
+    std::fs::write(&probe, b"")?;
+    std::fs::remove_file(&probe)
+}
+
+/// Check that `deployment` keeps the simulated world's drivers in one process.
+fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), AppError> {
+    let Some(dep) = spec.deployment(deployment) else {
+        return Ok(()); // the layer names a deployment the spec lacks
+    };
+    let mut places: Vec<(String, &str)> = WORLD_DRIVERS
+        .iter()
+        .filter_map(|d| Some((dep.process_of(d)?.name.clone(), *d)))
+        .collect();
+    places.sort();
+    if places.windows(2).any(|w| w[0].0 != w[1].0) {
+        return Err(AppError::invalid(format!(
+            "deployment `{deployment}`: the simulated world's drivers share one environment and must run in one process, but {}",
+            places
+                .iter()
+                .map(|(p, d)| format!("{d} runs in `{p}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
+    Ok(())
+}
+
+/// Prints acknowledgements and a line every few seconds (nothing when `quiet`).
+pub fn printer(quiet: bool) -> impl FnMut(Progress<'_>) + Send + 'static {
+    move |p: Progress<'_>| match p {
+        _ if quiet => {}
+        Progress::Ack { t, ack } => {
+            eprintln!(
+                "[{t:7.2} s] plan {} acknowledged: {:?}",
+                ack.plan, ack.status
+            )
+        }
+        Progress::Tick { t, sample } => eprintln!(
+            "[{t:7.2} s] c1 in B{}, e11 {}, tracking error {}",
+            sample.behaviour + 1,
+            sample
+                .fragment
+                .map_or("holding".to_owned(), |(p, i)| format!(
+                    "on fragment {p}.{i}"
+                )),
+            sample
+                .error()
+                .filter(|_| sample.executing)
+                .map_or("-".to_owned(), |e| format!("{:.1} mm", e * 1e3)),
+        ),
+    }
+}
+
+impl Application for RexApp {
+    type Flags = RexFlags;
+    type Config = RunSettings;
+    type Seen = Seen;
+
+    fn configure(
+        &mut self,
+        flags: &RexFlags,
+        common: &Common,
+    ) -> Result<Vec<RunSettings>, AppError> {
+        self.flags = flags.clone();
+        let (settings, base) = RexApp::settings(flags, common)?;
+        // The report folder is checked before the simulation, not after it.
+        if !flags.no_report {
+            writable(&flags.out)
+                .map_err(|e| AppError::invalid(format!("--out {}: {e}", flags.out.display())))?;
+        }
+        let missions: Vec<String> = if settings.mission == "all" {
+            Mission::SHIPPED.iter().map(|m| (*m).to_owned()).collect()
+        } else {
+            vec![settings.mission.clone()]
+        };
+        // Every mission's configuration is checked before anything runs.
+        let mut runs = Vec::new();
+        for mission in missions {
+            let s = self_contained(
+                flags,
+                &RunSettings {
+                    mission,
+                    ..settings.clone()
+                },
+                &base,
+            );
+            RexApp::resolve(&s)?;
+            self.spec(&s)?;
+            Duration::try_from_secs_f64(s.limit_s)
+                .map_err(|e| AppError::invalid(format!("limit_s = {}: {e}", s.limit_s)))?;
+            runs.push(s);
+        }
+        Ok(runs)
+    }
+
+    fn spec(&self, config: &RunSettings) -> Result<SpecFile, AppError> {
+        let path = config.spec.clone().unwrap_or_else(crate::a1::default_spec);
+        SpecFile::read(&path)
+    }
+
+    fn build(&mut self, config: &RunSettings, target: &Target<'_>) -> Result<System, AppError> {
+        let mut rex = RexApp::resolve(config)?;
+        let built = match target {
+            Target::Whole => build(&rex),
+            Target::Process {
+                deployment, boot, ..
+            } => {
+                // Each start of the process that runs c1 is a new incarnation
+                // of it: a2 tells a restart by it and sends the lost plans again.
+                rex.c1.boot = *boot;
+                build_deployment(&rex, deployment)
+            }
+        };
+        let (system, handles) = built.map_err(|e| AppError::Build(Box::new(e)))?;
+        self.handles = Some(handles);
+        Ok(system)
+    }
+
+    fn watcher(&mut self, config: &RunSettings, common: &Common) -> Box<dyn Watcher<Seen>> {
+        let rex = RexApp::resolve(config).ok();
+        match (rex, self.spec(config)) {
+            (Some(rex), Ok(spec)) => Box::new(RexWatch {
+                watch: MissionWatch::new(
+                    &rex,
+                    Duration::from_secs(5),
+                    Box::new(printer(common.quiet)),
+                ),
+                spec: spec.spec,
+                report: (!self.flags.no_report).then(|| self.flags.out.clone()),
+                limit_s: config.limit_s,
+            }),
+            // `configure` resolved it already: this does not happen.
+            _ => Box::new(embodied::app::Quiet),
+        }
+    }
+
+    fn probes(&mut self, probes: &mut Probes<Seen>, here: &dyn Fn(&str) -> bool) {
+        if let Some(h) = &self.handles {
+            install_probes(probes, h, here);
+        }
+    }
+
+    fn finished(&mut self, run: &Finished) -> Vec<Seen> {
+        self.handles
+            .as_ref()
+            .map_or_else(Vec::new, |h| last_reports(run, h))
+    }
+
+    fn limit(&self, config: &RunSettings) -> Duration {
+        Duration::try_from_secs_f64(config.limit_s).unwrap_or(Duration::from_secs(300))
+    }
+
+    fn exec(&self, _: &RunSettings) -> ExecConfig {
+        ExecConfig::default()
+    }
+
+    fn announce(&self, config: &RunSettings) -> Option<String> {
+        let c = RexApp::resolve(config).ok()?;
+        Some(format!(
+            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
+            c.mission.name,
+            c.mission.plans.len(),
+            c.planner.name(),
+            c.tracker,
+            c.estimator,
+            c.runtime,
+            if c.visual_odometry { "on" } else { "off" }
+        ))
+    }
+
+    fn record_options(&self, config: &RunSettings) -> RecordOptions {
+        let mut options = crate::record::options();
+        if let Ok(c) = RexApp::resolve(config) {
+            options.metadata.insert(
+                "run".into(),
+                [
+                    ("mission", c.mission.name.clone()),
+                    ("deployment", deployment(&c).to_owned()),
+                    ("planner", c.planner.name().to_owned()),
+                    ("tracker", format!("{:?}", c.tracker)),
+                    ("estimator", format!("{:?}", c.estimator)),
+                    ("rex", env!("CARGO_PKG_VERSION").to_owned()),
+                ]
+                .into_iter()
+                .map(|(k, v)| (k.to_owned(), v))
+                .collect(),
+            );
+        }
+        options
+    }
+
+    fn replay_options(&self, config: &RunSettings) -> ReplayOptions {
+        crate::record::replay_options(self.exec(config))
+    }
+
+    fn default_record(&self, config: &RunSettings, _: &Common) -> Option<PathBuf> {
+        if self.flags.no_report || self.flags.no_record {
+            return None;
+        }
+        let rex = RexApp::resolve(config).ok()?;
+        let dir = self.flags.out.join(&rex.mission.name);
+        std::fs::create_dir_all(&dir).ok()?;
+        Some(dir.join("run.mcap"))
+    }
+
+    fn reconfigure(
+        &mut self,
+        mut recorded: RunSettings,
+        flags: &RexFlags,
+        common: &Common,
+    ) -> Result<RunSettings, AppError> {
+        self.flags = flags.clone();
+        overrides(flags, common, &mut recorded)?;
+        Ok(recorded)
+    }
+
+    fn check_deployment(&self, config: &RunSettings, deployment: &str) -> Result<(), AppError> {
+        check_world(&self.spec(config)?.spec, deployment)
+    }
+}
+
+/// A progress printer that travels with the watcher.
+type Printer = Box<dyn FnMut(Progress<'_>) + Send>;
+
+/// Rex's watcher: the mission's reports paired with the truth, and the
+/// judgement of every plan, with the report folder.
+struct RexWatch {
+    watch: MissionWatch<Printer>,
+    spec: embodied::spec::Spec,
+    /// The report folder's root, unless `--no-report`.
+    report: Option<PathBuf>,
+    /// The run's time limit [s].
+    limit_s: f64,
+}
+
+impl Watcher<Seen> for RexWatch {
+    fn see(&mut self, seen: Seen) {
+        self.watch.see(seen);
+    }
+
+    fn ended(&mut self, finished: bool) -> bool {
+        self.watch.ended(finished)
+    }
+
+    fn judge(&mut self, run: &RunSummary) -> Verdict {
+        let out = self
+            .watch
+            .outcome(run.wall.as_secs_f64(), run.last.as_secs_f64());
+        let mut text = crate::report::summary(&out);
+        if let Some(root) = &self.report {
+            let dir = root.join(&out.mission);
+            match crate::report::write(&dir, &out, &self.watch.config, &self.spec) {
+                Ok(files) => {
+                    text.push_str(&format!(
+                        "report: {} ({} files)\n",
+                        dir.display(),
+                        files.len()
+                    ));
+                }
+                Err(e) => eprintln!("rex: report {}: {e}", dir.display()),
+            }
+        }
+        if !out.completed {
+            match run.mode {
+                Mode::Launched { .. } => text.push_str("the mission did not complete\n"),
+                _ => text.push_str(&format!(
+                    "the mission did not complete within {} s of simulated time\n",
+                    self.limit_s
+                )),
+            }
+        }
+        let failed = out.plans - out.plans_achieved();
+        if failed > 0 {
+            text.push_str(&format!(
+                "{failed} of {} plans not achieved (see the plan lines above)\n",
+                out.plans
+            ));
+        }
+        Verdict {
+            passed: out.succeeded(),
+            text,
+            line: out.summary_line(),
+        }
+    }
+}
