@@ -162,6 +162,32 @@ pub enum RemoteProblem {
         /// The process.
         process: String,
     },
+    /// A value from a second sender on the link's key while its sender runs
+    /// (a process that restarted is seen to go first): not a member of the
+    /// deployment's process that owns the buffer. Refused.
+    #[error(
+        "a value from a second sender (epoch {got:#x}) while the link's sender (epoch {current:#x}) runs: refused"
+    )]
+    Intruder {
+        /// The sender's epoch.
+        current: u64,
+        /// The other's.
+        got: u64,
+    },
+    /// A value stamped further ahead of the receiver's instant than any
+    /// sender of the deployment can be: refused, so that it cannot hold the
+    /// values behind it.
+    #[error(
+        "a value stamped {stamp}, more than {lead} s ahead of this activation's instant {now}: refused"
+    )]
+    Implausible {
+        /// Its stamp's instant.
+        stamp: Time,
+        /// The reader's instant.
+        now: Time,
+        /// The most a stamp may lead by [s].
+        lead: u64,
+    },
 }
 
 /// A problem found while building an FSM.

@@ -36,7 +36,6 @@ use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats};
 use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
 use crate::probe::{ProbeFn, Probes, Target};
-use crate::realtime::{Finished, RtReport};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
@@ -118,26 +117,26 @@ pub struct RunReport {
 /// the module docs. (The executor itself is not `Send`: its links share channels
 /// without locks. Move the [`System`] to another thread and build the executor there.)
 pub struct Executor<O: Observer = NoObserver> {
-    info: SystemInfo,
-    nodes: Vec<Box<dyn InProcessNode>>,
+    pub(crate) info: SystemInfo,
+    pub(crate) nodes: Vec<Box<dyn InProcessNode>>,
     periods: Vec<u64>,
     next: Vec<u64>,
     /// The order of the nodes within an instant (real receptors last).
     order: Vec<usize>,
     /// The system's environment, which drivers reach through their context.
-    environment: Option<Box<dyn Any + Send>>,
-    channels: Channels,
-    now: Time,
+    pub(crate) environment: Option<Box<dyn Any + Send>>,
+    pub(crate) channels: Channels,
+    pub(crate) now: Time,
     config: ExecConfig,
-    observer: O,
+    pub(crate) observer: O,
     started: bool,
     stopped: bool,
-    report: RunReport,
+    pub(crate) report: RunReport,
     /// Probes, by node index (`probes`), and of the environment.
     probes: Vec<Vec<ProbeFn>>,
     environment_probes: Vec<ProbeFn>,
     /// The counters of the probe sets' full channels.
-    probes_dropped: Vec<std::sync::Arc<std::sync::atomic::AtomicU64>>,
+    pub(crate) probes_dropped: Vec<std::sync::Arc<std::sync::atomic::AtomicU64>>,
 }
 
 impl<O: Observer> std::fmt::Debug for Executor<O> {
@@ -235,43 +234,6 @@ impl<O: Observer> Executor<O> {
             }
         }
         self
-    }
-
-    /// End the run: every node, the environment and the links' counters, as
-    /// the real-time executor returns them ([`Finished`]), with this run's
-    /// errors and last instant in its report; and the observer.
-    pub fn finish(self) -> (Finished, O) {
-        let Executor {
-            info,
-            nodes,
-            environment,
-            channels,
-            now,
-            observer,
-            report,
-            probes_dropped,
-            ..
-        } = self;
-        let links = channels.stats.iter().map(|c| *c.borrow().stats()).collect();
-        let cores = nodes
-            .into_iter()
-            .enumerate()
-            .map(|(i, n)| (i, n.into_core()))
-            .collect();
-        let report = RtReport {
-            errors: report.errors,
-            error_count: report.error_count,
-            last_instant: now,
-            probe_dropped: probes_dropped
-                .iter()
-                .map(|d| d.load(std::sync::atomic::Ordering::Relaxed))
-                .sum(),
-            ..RtReport::default()
-        };
-        (
-            Finished::new(info, cores, environment, links, report),
-            observer,
-        )
     }
 
     /// The current virtual time (the last instant executed).
@@ -507,6 +469,20 @@ impl<O: Observer> Executor<O> {
             if i != node.index() {
                 *next = u64::MAX;
             }
+        }
+    }
+
+    /// Let `node` run from instant `from` on (its first activation at or after
+    /// `from` on its period's grid), as a process started late in a running
+    /// deployment did: a replay of that start of it. A halted node stays
+    /// halted.
+    pub fn start_at(&mut self, node: crate::NodeId, from: Time) {
+        let i = node.index();
+        if let (Some(next), Some(&period)) = (self.next.get_mut(i), self.periods.get(i))
+            && *next != u64::MAX
+        {
+            let p = period.max(1);
+            *next = from.as_nanos().div_ceil(p).saturating_mul(p);
         }
     }
 

@@ -213,8 +213,116 @@ pub trait Observer: Send {
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// A node took a value from a link (before its activation's step).
     fn read(&mut self, _event: &ReadEvent) {}
+    /// A node took a value that came from another process (after its
+    /// [`Observer::read`]): the value itself, which no recorder of this
+    /// process saw sent (its sender's may not have kept it: a process killed
+    /// before its recording was written).
+    fn received(&mut self, _event: &ReadEvent, _value: &dyn ErasedPayload) {}
     /// An error occurred (whether the run stops or continues).
     fn error(&mut self, _time: Time, _error: &ExecError) {}
+}
+
+/// A boxed observer observes as the box's content does.
+impl<O: Observer + ?Sized> Observer for Box<O> {
+    fn enabled(&self) -> bool {
+        (**self).enabled()
+    }
+    fn start(&mut self, system: &SystemInfo) {
+        (**self).start(system);
+    }
+    fn transition(&mut self, event: &TransitionEvent) {
+        (**self).transition(event);
+    }
+    fn action(&mut self, event: &ActionEvent) {
+        (**self).action(event);
+    }
+    fn audit(&mut self, event: &AuditEvent) {
+        (**self).audit(event);
+    }
+    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
+        (**self).transfer(event, value);
+    }
+    fn read(&mut self, event: &ReadEvent) {
+        (**self).read(event);
+    }
+    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
+        (**self).received(event, value);
+    }
+    fn error(&mut self, time: Time, error: &ExecError) {
+        (**self).error(time, error);
+    }
+}
+
+/// Two observers of one run (a recorder and a printer, say): each event goes to
+/// the first, then to the second, to each only if it is enabled.
+impl<A: Observer, B: Observer> Observer for (A, B) {
+    fn enabled(&self) -> bool {
+        self.0.enabled() || self.1.enabled()
+    }
+    fn start(&mut self, system: &SystemInfo) {
+        if self.0.enabled() {
+            self.0.start(system);
+        }
+        if self.1.enabled() {
+            self.1.start(system);
+        }
+    }
+    fn transition(&mut self, event: &TransitionEvent) {
+        if self.0.enabled() {
+            self.0.transition(event);
+        }
+        if self.1.enabled() {
+            self.1.transition(event);
+        }
+    }
+    fn action(&mut self, event: &ActionEvent) {
+        if self.0.enabled() {
+            self.0.action(event);
+        }
+        if self.1.enabled() {
+            self.1.action(event);
+        }
+    }
+    fn audit(&mut self, event: &AuditEvent) {
+        if self.0.enabled() {
+            self.0.audit(event);
+        }
+        if self.1.enabled() {
+            self.1.audit(event);
+        }
+    }
+    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
+        if self.0.enabled() {
+            self.0.transfer(event, value);
+        }
+        if self.1.enabled() {
+            self.1.transfer(event, value);
+        }
+    }
+    fn read(&mut self, event: &ReadEvent) {
+        if self.0.enabled() {
+            self.0.read(event);
+        }
+        if self.1.enabled() {
+            self.1.read(event);
+        }
+    }
+    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
+        if self.0.enabled() {
+            self.0.received(event, value);
+        }
+        if self.1.enabled() {
+            self.1.received(event, value);
+        }
+    }
+    fn error(&mut self, time: Time, error: &ExecError) {
+        if self.0.enabled() {
+            self.0.error(time, error);
+        }
+        if self.1.enabled() {
+            self.1.error(time, error);
+        }
+    }
 }
 
 /// The observer that observes nothing.

@@ -61,6 +61,11 @@ pub struct LinkStats {
     pub overflowed: u64,
     /// Queue policy: the largest number of values waiting at once.
     pub max_pending: usize,
+    /// Between processes: messages refused on arrival or at the read (every
+    /// one counted, though only the first few wait to be reported as
+    /// errors): undecodable, of another payload type, a repeat, from a second
+    /// sender, stamped implausibly far ahead.
+    pub refused: u64,
 }
 
 /// How a [`Port`] reaches its field: a projection from the buffer struct `B` to the

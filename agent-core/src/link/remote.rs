@@ -32,6 +32,18 @@
 //! to the link's bound (more is [`RemoteProblem::Overflow`]). Problems reach the
 //! receiving node's executor at its next read, as [`LinkError::Remote`](crate::LinkError::Remote), and go
 //! through its error policy like any other error.
+//!
+//! No single message blocks or poisons a link: a value from a second sender
+//! ([`RemoteProblem::Intruder`]: of another epoch than the one the sending
+//! process announced, [`Inbox::expect`]; without an announcement, a new epoch is a
+//! restart only once the sender was seen to go, [`Inbox::peer_lost`]), a value
+//! stamped more than [`MAX_LEAD`] ahead of the reader's instant
+//! ([`RemoteProblem::Implausible`], which would otherwise hold every value
+//! behind it in a queue), and a body with bytes after the value are refused.
+//! Every refused message is counted in the link's [`LinkStats::refused`], though
+//! only the first few wait to be reported.
+//!
+//! [`LinkStats::refused`]: crate::LinkStats::refused
 
 use std::collections::VecDeque;
 use std::fmt;
@@ -48,6 +60,12 @@ use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, SystemInfo};
 
 use super::thread::SharedStats;
+
+/// How far ahead of the reading activation's instant a value's stamp may be:
+/// the processes of a deployment share instant zero and run on the same clock
+/// (across hosts, as well as their clocks agree), so a sender is ahead of a
+/// reader by a period or a clock's error, never by seconds.
+pub const MAX_LEAD: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// The wire format's version, first byte of every message.
 pub const WIRE_VERSION: u8 = 1;
@@ -300,6 +318,12 @@ struct InboxState {
     /// Whether a value from any sender was seen.
     heard: bool,
     first_gap: Option<RemoteProblem>,
+    /// The sender was seen to go (its process left the deployment): a new
+    /// epoch is its restart.
+    sender_gone: bool,
+    /// The epoch the sending process announced ([`Inbox::expect`]): the
+    /// only one whose values are taken, once known.
+    expected: Option<u64>,
 }
 
 impl fmt::Debug for Inbox {
@@ -387,6 +411,12 @@ impl Inbox {
         }
     }
 
+    /// A message refused: counted in the link's statistics, and reported.
+    fn refuse(&self, state: &mut InboxState, p: RemoteProblem) {
+        self.stats.refused.fetch_add(1, Ordering::Relaxed);
+        Self::problem(state, p);
+    }
+
     /// Every problem this inbox met (values refused, gaps, lost peers),
     /// including those beyond the few that wait to be reported at the reads.
     pub fn problem_count(&self) -> u64 {
@@ -398,10 +428,10 @@ impl Inbox {
         let mut state = self.lock();
         let header = match read_header(message) {
             Ok(h) => h,
-            Err(p) => return Self::problem(&mut state, p),
+            Err(p) => return self.refuse(&mut state, p),
         };
         if header.fingerprint != self.fingerprint {
-            return Self::problem(
+            return self.refuse(
                 &mut state,
                 RemoteProblem::Fingerprint {
                     expected: self.fingerprint,
@@ -411,9 +441,28 @@ impl Inbox {
             );
         }
         if header.epoch != state.epoch {
+            // The sending process announced its epoch: values of any other
+            // are not its own. Without an announcement, a new epoch is the
+            // sender's restart once it was seen to go; while it runs, another
+            // sender on its key is not its own.
+            let legitimate = match state.expected {
+                Some(e) => e == header.epoch,
+                None => state.epoch == 0 || state.sender_gone,
+            };
+            if !legitimate {
+                let current = state.epoch;
+                return self.refuse(
+                    &mut state,
+                    RemoteProblem::Intruder {
+                        current,
+                        got: header.epoch,
+                    },
+                );
+            }
             if state.epoch != 0 {
                 state.restarts += 1;
             }
+            state.sender_gone = false;
             state.epoch = header.epoch;
             // A sender's numbering starts at 1: a first value numbered later on
             // a queue link means values sent before this inbox listened (or
@@ -424,7 +473,7 @@ impl Inbox {
         if let Policy::Queue { .. } = self.policy {
             if header.seq < state.next {
                 let (expected, got) = (state.next, header.seq);
-                return Self::problem(&mut state, RemoteProblem::Duplicate { expected, got });
+                return self.refuse(&mut state, RemoteProblem::Duplicate { expected, got });
             }
             if header.seq != state.next {
                 let (expected, got) = (state.next, header.seq);
@@ -453,7 +502,7 @@ impl Inbox {
                 if state.values.len() >= bound.max(1) {
                     self.stats.overflowed.fetch_add(1, Ordering::Relaxed);
                     state.spare.push(body);
-                    Self::problem(&mut state, RemoteProblem::Overflow { bound });
+                    self.refuse(&mut state, RemoteProblem::Overflow { bound });
                 } else {
                     state.values.push_back((header.stamp, body));
                     self.stats
@@ -464,10 +513,19 @@ impl Inbox {
         }
     }
 
+    /// The sending process announced (or, restarted, announced again) the
+    /// epoch its values carry: values of any other epoch are refused as
+    /// another sender's ([`RemoteProblem::Intruder`]), and this one's are
+    /// taken, a restart if the link heard another before.
+    pub fn expect(&self, epoch: u64) {
+        self.lock().expected = Some(epoch);
+    }
+
     /// The sending process is gone (called by the transport or the runtime
     /// watching the processes).
     pub fn peer_lost(&self, process: &str) {
         let mut state = self.lock();
+        state.sender_gone = true;
         Self::problem(
             &mut state,
             RemoteProblem::PeerLost {
@@ -489,6 +547,25 @@ impl Inbox {
             x.age();
             return Err(p);
         }
+        // A value stamped implausibly far ahead would hold every value behind
+        // it: refused.
+        let lead = u64::try_from(MAX_LEAD.as_nanos()).unwrap_or(u64::MAX);
+        if let Some((stamp, _)) = state.values.front()
+            && stamp.time.as_nanos() > now.as_nanos().saturating_add(lead)
+        {
+            let stamp = stamp.time;
+            if let Some((_, body)) = state.values.pop_front() {
+                state.spare.push(body);
+            }
+            self.stats.refused.fetch_add(1, Ordering::Relaxed);
+            state.problem_count += 1;
+            x.age();
+            return Err(RemoteProblem::Implausible {
+                stamp,
+                now,
+                lead: MAX_LEAD.as_secs(),
+            });
+        }
         if state
             .values
             .front()
@@ -502,15 +579,29 @@ impl Inbox {
             return Ok(());
         };
         drop(state);
-        let decoded = postcard::from_bytes::<T>(&body);
-        self.lock().spare.push(body);
+        // The whole body is the value: bytes after it are not a value of
+        // this link (a value read from the start of a larger body).
+        let decoded = match postcard::take_from_bytes::<T>(&body) {
+            Ok((v, [])) => Ok(v),
+            Ok((_, rest)) => Err(format!(
+                "{} bytes after the value, of a body of {}",
+                rest.len(),
+                body.len()
+            )),
+            Err(e) => Err(e.to_string()),
+        };
+        let mut state = self.lock();
+        state.spare.push(body);
         match decoded {
             Ok(v) => {
+                drop(state);
                 x.swap_in(&mut Some(v), stamp);
                 self.stats.delivered.fetch_add(1, Ordering::Relaxed);
                 Ok(())
             }
             Err(e) => {
+                self.stats.refused.fetch_add(1, Ordering::Relaxed);
+                state.problem_count += 1;
                 x.age();
                 Err(RemoteProblem::Decode(format!(
                     "a `{}` that does not decode: {e}",

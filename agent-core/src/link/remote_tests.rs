@@ -222,16 +222,143 @@ fn a_flood_of_bad_messages_is_counted_in_bounded_memory() {
 fn a_restarted_sender_is_not_a_gap() {
     let (inbox, _) = inbox::<u32>(Policy::queue(8));
     let mut first = sender::<u32>(&inbox, 7);
-    first.put(&1, stamp(1)).unwrap();
-    first.put(&2, stamp(2)).unwrap();
+    first.put(&1u32, stamp(1)).unwrap();
+    first.put(&2u32, stamp(2)).unwrap();
+    // Its process was seen to go; the new one numbers from 1 again.
+    inbox.peer_lost("sender");
     let mut again = sender::<u32>(&inbox, 9);
-    again.put(&3, stamp(1)).unwrap();
-    let mut x = In::default();
-    for v in 1..=3 {
+    again.put(&3u32, stamp(1)).unwrap();
+    let mut x = In::<u32>::default();
+    // The loss is reported first (problems wait before values), then every
+    // value, in order.
+    assert!(matches!(
+        inbox.take_into(&mut x, Time::NEVER),
+        Err(RemoteProblem::PeerLost { .. })
+    ));
+    for v in 1..=3u32 {
         inbox.take_into(&mut x, Time::NEVER).unwrap();
         assert_eq!(x.fresh(), Some(&v));
     }
     assert_eq!(inbox.restarts(), 1);
+}
+
+#[test]
+fn a_second_sender_while_the_first_runs_is_refused_and_counted() {
+    let (inbox, stats) = inbox::<u32>(Policy::queue(8));
+    let mut owner = sender::<u32>(&inbox, 7);
+    let mut intruder = sender::<u32>(&inbox, 66);
+    owner.put(&1u32, stamp(1)).unwrap();
+    for v in 0..5u32 {
+        intruder.put(&(100 + v), stamp(2)).unwrap();
+    }
+    owner.put(&2u32, stamp(3)).unwrap();
+    let mut x = In::<u32>::default();
+    let mut values: Vec<u32> = Vec::new();
+    let mut intruders = 0;
+    for _ in 0..10 {
+        match inbox.take_into(&mut x, Time::NEVER) {
+            Ok(()) => values.extend(x.fresh().copied()),
+            Err(RemoteProblem::Intruder {
+                current: 7,
+                got: 66,
+            }) => intruders += 1,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert_eq!(values, [1, 2], "the owner's values, in order, none lost");
+    assert_eq!(intruders, 5);
+    assert_eq!(stats.snapshot().refused, 5);
+    assert_eq!(inbox.restarts(), 0);
+}
+
+#[test]
+fn an_announced_epoch_is_the_only_sender_whatever_comes_first() {
+    let (inbox, stats) = inbox::<u32>(Policy::queue(8));
+    inbox.expect(7);
+    // Another sender first: refused, though the link heard nobody yet.
+    sender::<u32>(&inbox, 66).put(&9u32, stamp(1)).unwrap();
+    let mut owner = sender::<u32>(&inbox, 7);
+    owner.put(&1u32, stamp(1)).unwrap();
+    // The owner restarts and announces its new epoch before its values come;
+    // its old epoch's values are no longer its own.
+    inbox.expect(8);
+    let mut again = sender::<u32>(&inbox, 8);
+    again.put(&2u32, stamp(2)).unwrap();
+    owner.put(&3u32, stamp(3)).unwrap();
+    let mut x = In::<u32>::default();
+    let mut values: Vec<u32> = Vec::new();
+    let mut refused = 0;
+    for _ in 0..6 {
+        match inbox.take_into(&mut x, Time::NEVER) {
+            Ok(()) => values.extend(x.fresh().copied()),
+            Err(RemoteProblem::Intruder { .. }) => refused += 1,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert_eq!(values, [1, 2]);
+    assert_eq!(refused, 2);
+    assert_eq!(stats.snapshot().refused, 2);
+    assert_eq!(inbox.restarts(), 1);
+}
+
+#[test]
+fn a_value_stamped_far_ahead_is_refused_and_holds_nothing_behind_it() {
+    let (inbox, stats) = inbox::<u32>(Policy::queue(8));
+    let mut tx = sender::<u32>(&inbox, 7);
+    tx.put(&77u32, Stamp::new(1, Time::from_nanos(1 << 63)))
+        .unwrap();
+    tx.put(&1u32, stamp(1)).unwrap();
+    let now = Time::from_nanos(1_000_000_000);
+    let mut x = In::<u32>::default();
+    assert!(matches!(
+        inbox.take_into(&mut x, now),
+        Err(RemoteProblem::Implausible { lead: 5, .. })
+    ));
+    inbox.take_into(&mut x, now).unwrap();
+    assert_eq!(x.fresh(), Some(&1), "the value behind it comes through");
+    assert_eq!(stats.snapshot().refused, 1);
+    // Ahead, but within the lead: it waits for its instant, as any value.
+    tx.put(&2u32, Stamp::new(2, Time::from_nanos(3_000_000_000)))
+        .unwrap();
+    inbox.take_into(&mut x, now).unwrap();
+    assert!(!x.is_new());
+    inbox
+        .take_into(&mut x, Time::from_nanos(3_000_000_000))
+        .unwrap();
+    assert_eq!(x.fresh(), Some(&2));
+}
+
+#[test]
+fn a_body_longer_than_its_value_is_refused() {
+    let (inbox, stats) = inbox::<[f64; 4]>(Policy::Sample);
+    let mut m = Vec::new();
+    write_header(
+        &mut m,
+        &Header {
+            fingerprint: fingerprint::<[f64; 4]>(),
+            epoch: 1,
+            seq: 1,
+            stamp: stamp(1),
+        },
+    );
+    // Torques from the first 32 bytes of a 10 MB body: not a value of this link.
+    m.resize(HEADER_LEN + (10 << 20), 0x3f);
+    inbox.deliver(&m);
+    let mut x = In::<[f64; 4]>::default();
+    let e = inbox.take_into(&mut x, Time::NEVER).expect_err("refused");
+    assert!(e.to_string().contains("bytes after the value"), "{e}");
+    assert!(!x.is_new());
+    assert_eq!(stats.snapshot().refused, 1);
+}
+
+#[test]
+fn every_refused_message_is_counted_though_few_wait_to_be_reported() {
+    let (inbox, stats) = inbox::<u32>(Policy::Sample);
+    for _ in 0..380 {
+        inbox.deliver(&[1, 2, 3]);
+    }
+    assert_eq!(stats.snapshot().refused, 380);
+    assert_eq!(inbox.problem_count(), 380);
 }
 
 #[test]

@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use crate::buffer::{In, Out, Payload};
 use crate::kinds::Policy;
 use crate::time::{Stamp, Time};
-use crate::trace::TransferEvent;
+use crate::trace::{ReadEvent, TransferEvent};
 
 use super::remote::{RemoteRx, RemoteTx};
 use super::{Access, Cause, InPort, LinkCx, LinkStats, OutPort, Port, Refused, observe_read};
@@ -41,6 +41,7 @@ pub(crate) struct SharedStats {
     pub(crate) overwritten: AtomicU64,
     pub(crate) overflowed: AtomicU64,
     pub(crate) max_pending: AtomicUsize,
+    pub(crate) refused: AtomicU64,
 }
 
 impl SharedStats {
@@ -51,6 +52,7 @@ impl SharedStats {
             overwritten: self.overwritten.load(Ordering::Relaxed),
             overflowed: self.overflowed.load(Ordering::Relaxed),
             max_pending: self.max_pending.load(Ordering::Relaxed),
+            refused: self.refused.load(Ordering::Relaxed),
         }
     }
 }
@@ -254,6 +256,19 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for ThreadIn<I, T, A
         let x = self.port.get(x);
         let taken = self.rx.take_into(x, cx.time);
         observe_read(x, self.link, cx);
+        // A value from another process: the observer keeps it too.
+        if let (ThreadRx::Remote(_), Some(obs), Some(v), Some(stamp)) =
+            (&self.rx, cx.observer.as_deref_mut(), x.fresh(), x.stamp())
+        {
+            obs.received(
+                &ReadEvent {
+                    time: cx.time,
+                    link: self.link,
+                    stamp,
+                },
+                v,
+            );
+        }
         taken.map_err(|(key, problem)| LinkError::Remote {
             link: cx
                 .links

@@ -5,10 +5,12 @@ use std::any::Any;
 use std::collections::BTreeMap;
 use std::fmt;
 
+use crate::executor::Executor;
 use crate::link::{LinkId, LinkStats};
 use crate::node::{DriverCore, subsystem_core};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle};
+use crate::trace::Observer;
 use crate::trace::SystemInfo;
 
 use super::RtReport;
@@ -105,5 +107,49 @@ impl Finished {
     /// Counters of a link.
     pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
         self.links.get(link.index()).copied()
+    }
+
+    /// Counters of every link, in the order of [`SystemInfo::links`].
+    pub fn links(&self) -> &[LinkStats] {
+        &self.links
+    }
+}
+
+impl<O: Observer> Executor<O> {
+    /// End the run: every node, the environment and the links' counters, as
+    /// the real-time executor returns them ([`Finished`]), with this run's
+    /// errors and last instant in its report; and the observer.
+    pub fn finish(self) -> (Finished, O) {
+        let Executor {
+            info,
+            nodes,
+            environment,
+            channels,
+            now,
+            observer,
+            report,
+            probes_dropped,
+            ..
+        } = self;
+        let links: Vec<LinkStats> = channels.stats.iter().map(|c| *c.borrow().stats()).collect();
+        let cores = nodes
+            .into_iter()
+            .enumerate()
+            .map(|(i, n)| (i, n.into_core()))
+            .collect();
+        let report = RtReport {
+            errors: report.errors,
+            error_count: report.error_count,
+            last_instant: now,
+            probe_dropped: probes_dropped
+                .iter()
+                .map(|d| d.load(std::sync::atomic::Ordering::Relaxed))
+                .sum(),
+            ..RtReport::default()
+        };
+        (
+            Finished::new(info, cores, environment, links, report),
+            observer,
+        )
     }
 }

@@ -111,6 +111,10 @@ pub struct Placement {
     pub prefix: String,
     /// How links leave the process.
     pub transport: Box<dyn Transport>,
+    /// The epoch this process's values carry on the links that leave it (a
+    /// number new at each start of the process, so that receivers tell a
+    /// restart from another sender: [`remote::new_epoch`]).
+    pub epoch: u64,
 }
 
 impl fmt::Debug for Placement {
@@ -361,11 +365,15 @@ impl RealTime {
         let mut stats: Vec<Arc<SharedStats>> = Vec::with_capacity(channels.len());
         let mut subscriptions: Vec<Box<dyn Any + Send>> = Vec::new();
         let mut inboxes: Vec<Arc<remote::Inbox>> = Vec::new();
+        let epoch = placement
+            .as_ref()
+            .map(|p| p.epoch)
+            .filter(|e| *e != 0)
+            .unwrap_or_else(remote::new_epoch);
         let mut transport = placement.map(|p| (p.prefix, p.transport));
         // One publisher per output buffer (key), made by its first remote link;
         // the policy of a key with a queue link among its links is the queue's.
         let mut published: HashSet<String> = HashSet::new();
-        let epoch = remote::new_epoch();
         for (l, plan) in channels.iter().enumerate() {
             let link = &info.links[l];
             match (here[link.from], here[link.to], transport.as_mut()) {
