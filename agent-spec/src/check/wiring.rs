@@ -392,7 +392,7 @@ impl<'a> Checker<'a> {
                                 proc_.name, dep.name
                             ),
                         )
-                        .help("write `tcp/<address>:<port>` (or `tls/<address>:<port>` for a secure deployment)"),
+                        .help("write `tcp/<address>:<port>` (a secure deployment's links go over QUIC on the same address and port)"),
                     );
                     continue;
                 }
@@ -473,13 +473,13 @@ impl<'a> Checker<'a> {
     }
 }
 
-/// Whether `endpoint` is `<tcp|tls>/<host>:<port>`, and why not.
+/// Whether `endpoint` is `<tcp|tls|quic>/<host>:<port>`, and why not.
 fn check_endpoint(endpoint: &str) -> Result<(), String> {
     let Some((proto, rest)) = endpoint.split_once('/') else {
-        return Err("no protocol (`tcp/` or `tls/`)".into());
+        return Err("no protocol (`tcp/`, `tls/` or `quic/`)".into());
     };
-    if !matches!(proto, "tcp" | "tls") {
-        return Err(format!("protocol `{proto}` is not `tcp` or `tls`"));
+    if !matches!(proto, "tcp" | "tls" | "quic") {
+        return Err(format!("protocol `{proto}` is not `tcp`, `tls` or `quic`"));
     }
     let Some((host, port)) = rest.rsplit_once(':') else {
         return Err("no `:<port>`".into());
