@@ -250,7 +250,7 @@ fn policy() -> AccessPolicy {
     }
 }
 
-/// A session of `who`: plain TCP, or (with `certs`) TLS and the policy.
+/// A session of `who`: plain TCP, or (with `certs`) QUIC (TLS 1.3) and the policy.
 fn session(who: &str, certs: Option<&std::path::Path>) -> agent_zenoh::zenoh::Session {
     let secured = certs.map(|dir| Secured {
         credentials: Credentials::in_dir(dir, who).unwrap(),
@@ -258,7 +258,7 @@ fn session(who: &str, certs: Option<&std::path::Path>) -> agent_zenoh::zenoh::Se
     });
     let endpoint = match certs {
         None => format!("tcp/127.0.0.1:{PORT}"),
-        Some(_) => format!("tls/127.0.0.1:{SECURE_PORT}"),
+        Some(_) => format!("quic/127.0.0.1:{SECURE_PORT}"),
     };
     if who == "echo" {
         open_secure_peer(Some(&endpoint), &[], secured.as_ref()).unwrap()

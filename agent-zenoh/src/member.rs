@@ -181,9 +181,12 @@ impl Layout {
         } else {
             None
         };
-        // A secure deployment's links are TLS.
-        let endpoint = |e: String| match (&secure, e.strip_prefix("tcp/")) {
-            (Some(_), Some(rest)) => format!("tls/{rest}"),
+        // A secure deployment's links are QUIC (TLS 1.3 with mutual
+        // authentication, on UDP): Zenoh's TLS link over TCP has a data race
+        // between its reader and writer (eclipse-zenoh/zenoh#2557), QUIC's
+        // streams do not share state that way. `tls/` says the same.
+        let endpoint = |e: String| match (&secure, e.split_once('/')) {
+            (Some(_), Some(("tcp" | "tls", rest))) => format!("quic/{rest}"),
             _ => e,
         };
         let launch = options
@@ -287,7 +290,7 @@ pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Sessio
 }
 
 /// [`open_peer`], with mutual TLS and an access control list if `secured`
-/// (the endpoints are then `tls/...`).
+/// (the endpoints are then `quic/...`: TLS 1.3 over QUIC).
 pub fn open_secure_peer(
     listen: Option<&str>,
     connect: &[&str],
@@ -359,6 +362,11 @@ fn json_list(items: &[&str]) -> String {
     format!("[{}]", items.join(","))
 }
 
+/// The process a presence token's key names (`<prefix><process>/<epoch>`).
+fn process_of<'k>(key: &'k str, prefix: &str) -> Option<&'k str> {
+    key.strip_prefix(prefix)?.split('/').next()
+}
+
 /// Poll `key` (a liveliness key expression) until `done` says the tokens seen
 /// suffice, or `timeout`. Returns the tokens' keys last seen.
 fn poll_tokens(
@@ -403,6 +411,13 @@ pub struct Member {
     process: String,
     session: zenoh::Session,
     transport: Option<ZenohTransport>,
+    /// The transport's inboxes, by receiving component.
+    senders: crate::transport::Senders,
+    /// The epoch each other process announced, and who runs what.
+    epochs: Arc<Mutex<HashMap<String, u64>>>,
+    runs: HashMap<String, Vec<String>>,
+    /// This process's epoch: on its values, and in its presence token.
+    epoch: u64,
     /// The transport's publishing thread, flushed before the session closes.
     outbox: Arc<Outbox>,
     stop: Arc<AtomicBool>,
@@ -477,18 +492,43 @@ impl Member {
         let stop = Arc::new(AtomicBool::new(false));
         let stopping = stop.clone();
         let process_prefix = layout.rt_key("process/");
+        // The epoch each process announced with its presence: its values are
+        // the only ones its inboxes here take (a new epoch is its restart).
+        let epochs: Arc<Mutex<HashMap<String, u64>>> = Arc::new(Mutex::new(HashMap::new()));
+        let known = epochs.clone();
+        let told = senders.clone();
+        let told_runs = runs.clone();
+        let all_runs = runs.clone();
         let watch = session
             .liveliness()
-            .declare_subscriber(layout.rt_key("process/*"))
+            .declare_subscriber(layout.rt_key("process/*/*"))
+            .history(true)
             .callback(move |sample| {
-                // Processes that end after a stop was asked are not lost.
-                if sample.kind() != SampleKind::Delete || stopping.load(Ordering::Relaxed) {
-                    return;
-                }
                 let key = sample.key_expr().as_str();
-                let Some(name) = key.strip_prefix(process_prefix.as_str()) else {
+                let Some((name, epoch)) = key
+                    .strip_prefix(process_prefix.as_str())
+                    .and_then(|rest| rest.split_once('/'))
+                    .and_then(|(n, e)| Some((n, e.parse::<u64>().ok()?)))
+                else {
                     return;
                 };
+                if sample.kind() == SampleKind::Put {
+                    known
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .insert(name.to_owned(), epoch);
+                    let senders = told.lock().unwrap_or_else(PoisonError::into_inner);
+                    for component in told_runs.get(name).into_iter().flatten() {
+                        for inbox in senders.get(component).into_iter().flatten() {
+                            inbox.expect(epoch);
+                        }
+                    }
+                    return;
+                }
+                // Processes that end after a stop was asked are not lost.
+                if stopping.load(Ordering::Relaxed) {
+                    return;
+                }
                 // A process that leaves because the deployment was asked to
                 // stop may be seen to go before the stop itself arrives here
                 // (they travel different ways): judge it a moment later.
@@ -562,6 +602,10 @@ impl Member {
             process: process.to_owned(),
             session,
             outbox: transport.outbox(),
+            senders: transport.senders(),
+            epochs,
+            runs: all_runs,
+            epoch: agent_core::link::remote::new_epoch(),
             transport: Some(transport),
             stop,
             stopped_by,
@@ -600,6 +644,7 @@ impl Member {
             here: self.runs().to_vec(),
             prefix: self.layout.system.clone(),
             transport: Box::new(transport),
+            epoch: self.epoch,
         })
     }
 
@@ -618,16 +663,12 @@ impl Member {
             others
                 .iter()
                 .copied()
-                .filter(|o| {
-                    !seen
-                        .iter()
-                        .any(|k| k.strip_prefix(prefix.as_str()) == Some(*o))
-                })
+                .filter(|o| !seen.iter().any(|k| process_of(k, &prefix) == Some(*o)))
                 .collect()
         };
         let (ok, seen) = poll_tokens(
             &self.session,
-            &self.layout.rt_key("process/*"),
+            &self.layout.rt_key("process/*/*"),
             self.layout.timeout,
             self.layout.cancel.as_deref(),
             |seen| missing_of(seen).is_empty(),
@@ -676,13 +717,30 @@ impl Member {
             let token = self
                 .session
                 .liveliness()
-                .declare_token(self.layout.rt_key(&format!("process/{}", self.process)))
+                .declare_token(
+                    self.layout
+                        .rt_key(&format!("process/{}/{}", self.process, self.epoch)),
+                )
                 .wait()
                 .map_err(|e| MemberError::Zenoh {
                     process: self.process.clone(),
                     error: e.to_string(),
                 })?;
             self._token = Some(token);
+            // The inboxes exist now: each takes the epoch its sender announced.
+            let epochs = self
+                .epochs
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone();
+            let senders = self.senders.lock().unwrap_or_else(PoisonError::into_inner);
+            for (process, epoch) in epochs {
+                for component in self.runs.get(&process).into_iter().flatten() {
+                    for inbox in senders.get(component).into_iter().flatten() {
+                        inbox.expect(epoch);
+                    }
+                }
+            }
         }
         let leader = self
             .layout
@@ -942,13 +1000,13 @@ impl Watch {
         let prefix = self.layout.rt_key("process/");
         let (_, seen) = poll_tokens(
             &self.session,
-            &self.layout.rt_key("process/*"),
+            &self.layout.rt_key("process/*/*"),
             Duration::ZERO,
             None,
             |_| true,
         );
         seen.iter()
-            .filter_map(|k| k.strip_prefix(prefix.as_str()).map(str::to_owned))
+            .filter_map(|k| process_of(k, &prefix).map(str::to_owned))
             .collect()
     }
 

@@ -492,13 +492,11 @@ impl Refusals {
     }
 }
 
-/// The decisions Zenoh makes when it caches a key's permissions (one per
-/// message kind of its access control).
-const CACHED_KINDS: u8 = 9;
-
 thread_local! {
-    /// Decisions still to come of a key's caching, on this thread.
-    static PRIMING: std::cell::Cell<u8> = const { std::cell::Cell::new(0) };
+    /// The key whose permissions Zenoh is caching on this thread, if it is:
+    /// the decisions that follow (every message kind, for every subject of
+    /// the link) are not messages.
+    static PRIMING: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
 }
 
 /// The layer that counts Zenoh's refusals.
@@ -517,25 +515,39 @@ impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Counter {
         let mut m = Message(String::new());
         event.record(&mut m);
         // Zenoh decides every kind of message at once when a key is first
-        // seen on a link (`caching permissions for ...`, then one decision
-        // per kind, on this thread): those are not messages. A message is
-        // decided by `Using cached result: <zid> is unauthorized to <what> on
-        // <key>`, or, uncached, `<zid> on <subject> is unauthorized to ...`.
-        if m.0.contains("caching permissions for") {
-            PRIMING.set(CACHED_KINDS);
+        // seen on a link (`caching permissions for `<key>` ...`, then a
+        // decision per kind and per subject of the link, on this thread, in
+        // the uncached form `<zid> on <subject> is (un)authorized to <what>
+        // on <key>`): those are not messages. A message is decided by `Using
+        // cached result: <zid> is unauthorized to <what> on <key>`, or,
+        // without a cache, in the uncached form.
+        if let Some(rest) = m.0.split_once("caching permissions for `").map(|(_, r)| r) {
+            let key = rest.split('`').next().unwrap_or_default().to_owned();
+            PRIMING.with(|p| *p.borrow_mut() = Some(key));
             return;
         }
-        let decided = m.0.contains(" is authorized to ") || m.0.contains(" is unauthorized to ");
-        if decided && !m.0.starts_with("Using cached result") && PRIMING.get() > 0 {
-            PRIMING.set(PRIMING.get() - 1);
-            return;
-        }
-        let Some((_, rest)) = m.0.split_once(" is unauthorized to ") else {
+        let cached = m.0.starts_with("Using cached result");
+        let decision =
+            m.0.split_once(" is unauthorized to ")
+                .map(|(_, rest)| (rest, false))
+                .or_else(|| {
+                    m.0.split_once(" is authorized to ")
+                        .map(|(_, rest)| (rest, true))
+                });
+        let Some((rest, allowed)) = decision else {
             return;
         };
         let Some((what, key)) = rest.rsplit_once(" on ") else {
             return;
         };
+        let key = key.trim_start_matches("Some(").trim_end_matches(')');
+        let priming = !cached && PRIMING.with(|p| p.borrow().as_deref() == Some(key));
+        if !priming {
+            PRIMING.with(|p| *p.borrow_mut() = None);
+        }
+        if priming || allowed {
+            return;
+        }
         // Zenoh offers every declaration to every peer, and the policy
         // withholds those a peer has no right to (`Declare Subscriber
         // (egress)`): that is the policy at work, not an attempt. Counted: what
@@ -547,7 +559,6 @@ impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Counter {
         if !(what.ends_with("(ingress)") || data) {
             return;
         }
-        let key = key.trim_start_matches("Some(").trim_end_matches(')');
         *self
             .0
             .lock()

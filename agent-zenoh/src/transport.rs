@@ -9,6 +9,9 @@ use zenoh::qos::CongestionControl;
 
 use crate::outbox::{Outbox, Sink, WhenFull};
 
+/// The inboxes of the links into this process, by receiving component.
+pub(crate) type Senders = Arc<Mutex<HashMap<String, Vec<Arc<Inbox>>>>>;
+
 /// Publishers and subscribers of one process's links, on its session.
 ///
 /// Sample links publish with `CongestionControl::Drop` (under congestion the
@@ -52,7 +55,7 @@ impl ZenohTransport {
 
     /// The inboxes fed by each sending component (shared with the member that
     /// watches the other processes).
-    pub(crate) fn senders(&self) -> Arc<Mutex<HashMap<String, Vec<Arc<Inbox>>>>> {
+    pub(crate) fn senders(&self) -> Senders {
         self.by_sender.clone()
     }
 
