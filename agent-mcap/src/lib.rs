@@ -39,5 +39,5 @@ pub use record::{
     raw_values,
 };
 pub use replay::{
-    Difference, Divergence, ReplayError, ReplayOptions, Replayed, replay, replay_file,
+    Difference, Divergence, ReplayError, ReplayOptions, Replayed, Window, replay, replay_file,
 };

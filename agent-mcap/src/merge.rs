@@ -1,5 +1,6 @@
 //! Merging the recordings of the processes of one distributed run into one
-//! file, in time order.
+//! file, in time order. A part cut short (its process killed) is kept up to
+//! where it ends, and said ([`MergeSummary::cut_short`]).
 //!
 //! Each process of a deployment records what its own nodes did (the values they
 //! sent, the values they read, their behaviour switches and errors) with the
@@ -9,9 +10,12 @@
 //! channel and schema once, and merges the metadata: records equal in every
 //! file once; `end` as the run's (finished if every process finished, the last
 //! instant of all, each node's iterations added up: a process counts only its
-//! own; each node's last instant); any other record that differs, once per file, named
-//! `<name>/<process>` (the file's `process` record names it, else its file
-//! name). The result replays as a recording of the whole run.
+//! own; each node's first and last instants); any other record that differs,
+//! once per file, named `<name>/<process>` (the file's `process` record names
+//! it, else its file name; a process's restart `<process>#<k>`). Each file's
+//! own `end` stays as `end/<process>`, and a run with restarts says which starts
+//! it holds (`restarts`). The result replays as a recording of the whole run,
+//! and each start of a restarted process replays on its own.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -31,6 +35,9 @@ pub struct MergeSummary {
     pub channels: usize,
     /// Whether every process finished its recording.
     pub finished: bool,
+    /// The parts cut short (a process killed while it recorded): each kept up
+    /// to where it ends, and said here (the file and where it ends).
+    pub cut_short: Vec<String>,
 }
 
 /// Why files could not be merged.
@@ -75,10 +82,13 @@ pub enum MergeError {
 /// Merge the recordings `inputs` (of the processes of one run) into `output`
 /// (see the module's documentation).
 pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeError> {
-    let files = inputs
-        .iter()
-        .map(|p| Recording::open(p))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut cut_short = Vec::new();
+    let mut files = Vec::with_capacity(inputs.len());
+    for p in inputs {
+        let (f, cut) = Recording::open_salvaging(p)?;
+        cut_short.extend(cut.map(|e| e.to_string()));
+        files.push(f);
+    }
     let first = files.first().ok_or(MergeError::Empty)?;
     for f in &files[1..] {
         if f.metadata.get("system") != first.metadata.get("system") {
@@ -203,13 +213,15 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeErr
         messages,
         channels: by_topic.len(),
         finished: files.iter().all(Recording::finished),
+        cut_short,
     })
 }
 
-/// The name of the process a file recorded.
+/// The name of the process a file recorded, and which start of it
+/// (`world`, `locomotion#1` for its first restart).
 fn process_of(f: &Recording) -> String {
-    f.metadata
-        .get("process")
+    let process = f.metadata.get("process");
+    let name = process
         .and_then(|m| m.get("name"))
         .cloned()
         .unwrap_or_else(|| {
@@ -217,7 +229,14 @@ fn process_of(f: &Recording) -> String {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default()
-        })
+        });
+    match process
+        .and_then(|m| m.get("incarnation"))
+        .filter(|k| *k != "0")
+    {
+        Some(k) => format!("{name}#{k}"),
+        None => name,
+    }
 }
 
 fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, String>> {
@@ -240,12 +259,27 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
             }
         }
     }
+    // Each part's own end, for a replay of one start of one process.
+    for f in files {
+        if let Some(end) = f.metadata.get("end") {
+            out.insert(format!("end/{}", process_of(f)), end.clone());
+        }
+    }
+    // The restarts, if any: which starts of which process the file holds.
+    let starts: Vec<String> = files.iter().map(process_of).collect();
+    if starts.iter().any(|s| s.contains('#')) {
+        out.insert(
+            "restarts".into(),
+            BTreeMap::from([("starts".to_owned(), starts.join(", "))]),
+        );
+    }
     // The run's end: only if every process finished.
     if files.iter().all(Recording::finished) {
         let mut end = BTreeMap::from([("finished".to_owned(), "true".to_owned())]);
         let mut time = 0u64;
         let mut iterations: BTreeMap<String, u64> = BTreeMap::new();
         let mut lasts: BTreeMap<String, u64> = BTreeMap::new();
+        let mut firsts: BTreeMap<String, u64> = BTreeMap::new();
         for f in files {
             let Some(e) = f.metadata.get("end") else {
                 continue;
@@ -257,6 +291,9 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
                 } else if k.starts_with("last/") {
                     let t = lasts.entry(k.clone()).or_default();
                     *t = (*t).max(n);
+                } else if k.starts_with("first/") {
+                    let t = firsts.entry(k.clone()).or_insert(n);
+                    *t = (*t).min(n);
                 } else if k.starts_with("iterations/") {
                     *iterations.entry(k.clone()).or_default() += n;
                 }
@@ -265,6 +302,7 @@ fn merged_metadata(files: &[Recording]) -> BTreeMap<String, BTreeMap<String, Str
         end.insert("time_ns".into(), time.to_string());
         end.extend(iterations.into_iter().map(|(k, v)| (k, v.to_string())));
         end.extend(lasts.into_iter().map(|(k, v)| (k, v.to_string())));
+        end.extend(firsts.into_iter().map(|(k, v)| (k, v.to_string())));
         end.insert(
             "processes".into(),
             files.iter().map(process_of).collect::<Vec<_>>().join(", "),

@@ -135,12 +135,47 @@ impl Recording {
         Recording::parse(path, &bytes, keep)
     }
 
+    /// Read every message of the file at `path` up to where it was cut short,
+    /// if it was (its writer killed: a file without its end, or ending inside
+    /// a record): the recording up to there, and the error that says where it
+    /// ends. A damaged file is still an error.
+    pub fn open_salvaging(path: &Path) -> Result<(Recording, Option<ReadError>), ReadError> {
+        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let mut salvaged = None;
+        let r = Recording::parse_with(path, &bytes, |_| true, Some(&mut salvaged))?;
+        Ok((r, salvaged))
+    }
+
     /// Read a file's bytes (`path` names it in errors).
     pub fn parse(
         path: &Path,
         bytes: &[u8],
-        mut keep: impl FnMut(&ChannelInfo) -> bool,
+        keep: impl FnMut(&ChannelInfo) -> bool,
     ) -> Result<Recording, ReadError> {
+        Recording::parse_with(path, bytes, keep, None)
+    }
+
+    /// [`Recording::parse`]; with `salvage`, a file cut short is what it holds
+    /// up to there, and the error goes into `salvage`.
+    fn parse_with(
+        path: &Path,
+        bytes: &[u8],
+        mut keep: impl FnMut(&ChannelInfo) -> bool,
+        salvage: Option<&mut Option<ReadError>>,
+    ) -> Result<Recording, ReadError> {
+        let mut salvage = salvage;
+        let mut cut = |r: Reader<'_>, e: ReadError| -> Result<Recording, ReadError> {
+            match salvage.take() {
+                Some(slot) if matches!(e, ReadError::Truncated { .. }) => {
+                    *slot = Some(e);
+                    Ok(r.out)
+                }
+                _ => Err(e),
+            }
+        };
         let mut r = Reader {
             path,
             out: Recording {
@@ -159,7 +194,7 @@ impl Recording {
         loop {
             let at = offset as u64;
             let Some(head) = bytes.get(offset..offset + 9) else {
-                return Err(r.truncated(
+                let e = r.truncated(
                     at,
                     if offset == bytes.len() {
                         "the file ends before its footer (the recording was not finished)".into()
@@ -169,7 +204,8 @@ impl Recording {
                             bytes.len()
                         )
                     },
-                ));
+                );
+                return cut(r, e);
             };
             let opcode = head[0];
             let mut len = [0u8; 8];
@@ -181,13 +217,14 @@ impl Recording {
                 .and_then(|l| body_start.checked_add(l))
                 .filter(|&end| end <= bytes.len());
             let Some(body_end) = body_end else {
-                return Err(r.truncated(
+                let e = r.truncated(
                     at,
                     format!(
                         "a record of {len} bytes, but the file ends at offset {}",
                         bytes.len()
                     ),
-                ));
+                );
+                return cut(r, e);
             };
             let record = mcap::parse_record(opcode, &bytes[body_start..body_end])
                 .map_err(|e| r.corrupt(at, e.to_string()))?;

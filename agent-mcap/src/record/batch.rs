@@ -7,7 +7,8 @@
 //! transfer the sender's iteration (`u64`), the length (`u64`) and the
 //! value's postcard bytes (encoded in place: the wire header a raw message
 //! carries is the writer's to make), for a read the stamp read (iteration,
-//! instant: `u64`s); little-endian.
+//! instant: `u64`s), for a value received from another process as for a
+//! transfer; little-endian.
 
 use agent_core::{Stamp, Time};
 
@@ -21,6 +22,7 @@ pub(super) const BATCH_CAPACITY: usize = BATCH_BYTES + 4 * 1024;
 
 const TRANSFER: u8 = 0;
 const READ: u8 = 1;
+const RECEIVED: u8 = 2;
 
 /// One event of a batch.
 #[derive(Debug, PartialEq, Eq)]
@@ -33,6 +35,13 @@ pub(super) enum Entry<'a> {
     },
     /// A value of `link` taken at `time` (the receiver's instant).
     Read { link: u32, time: Time, stamp: Stamp },
+    /// A value of `link` that came from another process, taken with `stamp`
+    /// (the sender's): its postcard bytes.
+    Received {
+        link: u32,
+        stamp: Stamp,
+        body: &'a [u8],
+    },
 }
 
 /// Append a transfer whose bytes `encode` appends to `out`; if it fails,
@@ -43,8 +52,29 @@ pub(super) fn push_transfer<E>(
     stamp: Stamp,
     encode: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
 ) -> Result<(), E> {
+    push_value(out, TRANSFER, link, stamp, encode)
+}
+
+/// Append a value received from another process, as [`push_transfer`] does a
+/// value sent.
+pub(super) fn push_received<E>(
+    out: &mut Vec<u8>,
+    link: u32,
+    stamp: Stamp,
+    encode: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
+) -> Result<(), E> {
+    push_value(out, RECEIVED, link, stamp, encode)
+}
+
+fn push_value<E>(
+    out: &mut Vec<u8>,
+    tag: u8,
+    link: u32,
+    stamp: Stamp,
+    encode: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
+) -> Result<(), E> {
     let start = out.len();
-    out.push(TRANSFER);
+    out.push(tag);
     out.extend_from_slice(&link.to_le_bytes());
     out.extend_from_slice(&stamp.time.as_nanos().to_le_bytes());
     out.extend_from_slice(&stamp.iteration.to_le_bytes());
@@ -77,12 +107,17 @@ pub(super) fn entries(batch: &[u8]) -> impl Iterator<Item = Entry<'_>> {
         let link = u32::from_le_bytes(r.get(..4)?.try_into().ok()?);
         let time = Time::from_nanos(u64_at(r, 4)?);
         let (entry, used) = match tag {
-            TRANSFER => {
+            TRANSFER | RECEIVED => {
                 let iteration = u64_at(r, 12)?;
                 let len = usize::try_from(u64_at(r, 20)?).ok()?;
                 let body = r.get(28..28usize.checked_add(len)?)?;
                 let stamp = Stamp::new(iteration, time);
-                (Entry::Transfer { link, stamp, body }, 28 + len)
+                let entry = if tag == TRANSFER {
+                    Entry::Transfer { link, stamp, body }
+                } else {
+                    Entry::Received { link, stamp, body }
+                };
+                (entry, 28 + len)
             }
             READ => {
                 let stamp = Stamp::new(u64_at(r, 12)?, Time::from_nanos(u64_at(r, 20)?));
@@ -117,6 +152,7 @@ mod tests {
         push_transfer(&mut b, 3, s(2, 10), bytes(b"abc")).expect("pushed");
         push_read(&mut b, 4, Time::from_nanos(20), s(7, 15));
         push_transfer(&mut b, u32::MAX, s(u64::MAX, u64::MAX), bytes(b"")).expect("pushed");
+        push_received(&mut b, 5, s(3, 30), bytes(b"rx")).expect("pushed");
         let all: Vec<_> = entries(&b).collect();
         assert_eq!(
             all,
@@ -136,11 +172,16 @@ mod tests {
                     stamp: s(u64::MAX, u64::MAX),
                     body: b""
                 },
+                Entry::Received {
+                    link: 5,
+                    stamp: s(3, 30),
+                    body: b"rx"
+                },
             ]
         );
         for cut in 0..b.len() {
             let n = entries(&b[..cut]).count();
-            assert!(n < 3, "a batch cut at {cut} yields only whole entries");
+            assert!(n < 4, "a batch cut at {cut} yields only whole entries");
         }
         assert_eq!(entries(&b[..32]).count(), 1, "the first entry is 32 bytes");
         assert_eq!(entries(&b[..31]).count(), 0);

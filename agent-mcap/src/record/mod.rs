@@ -27,6 +27,12 @@
 //!   [`RecordOptions::value_max_bytes`] is recorded here only;
 //! * channels derived from links ([`Derive`]): for example Foxglove's images
 //!   and poses;
+//! * `/received/links/...` for a link from another process, made when its
+//!   first value arrives (encoding [`WIRE_ENCODING`], the link's codec as on
+//!   its raw channel): each value this process took from it, as the raw
+//!   channel would carry it: what a replay feeds when the sender's recording
+//!   lacks it (a process killed before its recorder wrote it, or a value from
+//!   outside the deployment);
 //! * `/reads/links/...` for every link (encoding `embodied-read/1`): each
 //!   value its receiver took, at the receiver's instant (log time), as the
 //!   value's stamp (sender's iteration, then instant, each a little-endian
@@ -37,8 +43,8 @@
 //! * `/errors`: every error the executor met, with its time.
 //!
 //! Metadata `system`: the nodes, behaviours and links; `end`: when the run
-//! ended, how many iterations each node made and the instant of its last
-//! (`last/<node>`, ns) (written by
+//! ended, how many iterations each node made and the instants of its first
+//! and last (`first/<node>`, `last/<node>`, ns) (written by
 //! [`McapRecorder::finish`]: a file without it was not finished); and whatever
 //! the caller adds ([`RecordOptions::metadata`]: the spec, the deployment, the
 //! settings).
@@ -330,6 +336,8 @@ struct Counts {
     iterations: Vec<u64>,
     /// Per node: the instant of its last activation.
     last_of: Vec<Time>,
+    /// Per node: the instant of its first activation (`None`: none yet).
+    first_of: Vec<Option<Time>>,
     last: Time,
     waits: u64,
     encode_failures: u64,
@@ -348,6 +356,15 @@ impl Counts {
         }
         for (a, b) in self.last_of.iter_mut().zip(&other.last_of) {
             *a = (*a).max(*b);
+        }
+        if self.first_of.len() < other.first_of.len() {
+            self.first_of.resize(other.first_of.len(), None);
+        }
+        for (a, b) in self.first_of.iter_mut().zip(&other.first_of) {
+            *a = match (*a, *b) {
+                (Some(x), Some(y)) => Some(x.min(y)),
+                (x, y) => x.or(y),
+            };
         }
         self.last = self.last.max(other.last);
         self.waits += other.waits;
@@ -462,6 +479,7 @@ impl Part {
             counts: Counts {
                 iterations: vec![0; nodes],
                 last_of: vec![Time::ZERO; nodes],
+                first_of: vec![None; nodes],
                 ..Counts::default()
             },
         };
@@ -544,6 +562,9 @@ impl Observer for Part {
         if let Some(t) = self.counts.last_of.get_mut(e.node) {
             *t = (*t).max(e.time);
         }
+        if let Some(t) = self.counts.first_of.get_mut(e.node) {
+            t.get_or_insert(e.time);
+        }
         self.send(Record::Transition {
             node: small(e.node),
             time: e.time,
@@ -558,6 +579,9 @@ impl Observer for Part {
         }
         if let Some(t) = self.counts.last_of.get_mut(e.node) {
             *t = (*t).max(e.time);
+        }
+        if let Some(t) = self.counts.first_of.get_mut(e.node) {
+            t.get_or_insert(e.time);
         }
         self.counts.last = self.counts.last.max(e.time);
     }
@@ -588,6 +612,22 @@ impl Observer for Part {
         }
     }
 
+    fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
+        if self.tx.is_none() {
+            return;
+        }
+        let pushed = batch::push_received(&mut self.batch, small(e.link), e.stamp, |out| {
+            value.encode(out)
+        });
+        if pushed.is_err() {
+            self.counts.encode_failures += 1;
+            return;
+        }
+        if self.batch.len() >= BATCH_BYTES {
+            self.flush();
+        }
+    }
+
     fn error(&mut self, time: Time, error: &ExecError) {
         self.send(Record::Error {
             time,
@@ -598,6 +638,9 @@ impl Observer for Part {
 
 /// A link's channels and how to read its values.
 struct LinkChannels {
+    /// The link's topic (`/links/...`), and its raw channel's metadata.
+    topic: String,
+    raw_meta: BTreeMap<String, String>,
     /// The value's channel, and whether it is CDR (else JSON).
     value: u16,
     cdr: bool,
@@ -619,6 +662,10 @@ struct LinkChannels {
     pending_since: Time,
     /// Raw messages written: their MCAP sequence (wrapping).
     raw_messages: u32,
+    /// The channel of values received from another process (made with the
+    /// first), and how many.
+    received: Option<u16>,
+    received_count: u64,
 }
 
 impl McapRecorder {
@@ -767,6 +814,9 @@ impl Observer for McapRecorder {
     }
     fn read(&mut self, e: &ReadEvent) {
         self.part.read(e);
+    }
+    fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
+        self.part.received(e, value);
     }
     fn error(&mut self, time: Time, error: &ExecError) {
         self.part.error(time, error);

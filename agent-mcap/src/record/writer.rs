@@ -16,7 +16,7 @@ use serde_json::{Value, json};
 use super::batch::{Entry, entries};
 use super::{
     Backlog, Counts, Derive, FRAMES_ENCODING, LinkChannels, READ_ENCODING, Record, RecordError,
-    RecordOptions, RecordSummary, Values, encode_read, small,
+    RecordOptions, RecordSummary, Values, WIRE_ENCODING, encode_read, small,
 };
 use crate::cdr::{root_name, ros2msg_schema, write_cdr};
 use crate::codec::CODEC_KEY;
@@ -163,6 +163,10 @@ impl Output {
                 }
             }
             links.push(LinkChannels {
+                topic: topic.clone(),
+                raw_meta: raw_meta.clone(),
+                received: None,
+                received_count: 0,
                 value,
                 cdr: ros2.is_some(),
                 raw,
@@ -249,6 +253,9 @@ impl Output {
                                 self.transfer(link, shape, stamp, body)?;
                             }
                             Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
+                            Entry::Received { link, stamp, body } => {
+                                self.received(link, stamp, body)?;
+                            }
                         }
                     }
                     // One raw message per link and batch.
@@ -304,6 +311,11 @@ impl Output {
                     end.insert(format!("last/{}", n.name), t.as_nanos().to_string());
                 }
             }
+            for (n, t) in self.info.nodes.iter().zip(&counts.first_of) {
+                if let Some(t) = t {
+                    end.insert(format!("first/{}", n.name), t.as_nanos().to_string());
+                }
+            }
             self.w
                 .write_metadata(&mcap::records::Metadata {
                     name: "end".into(),
@@ -346,6 +358,48 @@ impl Output {
             })?;
         self.summary.messages += 1;
         Ok(())
+    }
+
+    /// A value received from another process: on the link's `/received`
+    /// channel (made with its first value), as its raw channel would carry it.
+    fn received(&mut self, link: u32, stamp: Stamp, body: &[u8]) -> Result<(), RecordError> {
+        let Some(l) = self.links.get(link as usize) else {
+            return Ok(());
+        };
+        let channel = match l.received {
+            Some(c) => c,
+            None => {
+                let mut meta = l.raw_meta.clone();
+                meta.insert("received".to_owned(), "true".to_owned());
+                let topic = format!("/received{}", l.topic);
+                let made = self.w.add_channel(0, &topic, WIRE_ENCODING, &meta);
+                let c = made.map_err(|e| self.fail(&e))?;
+                if let Some(l) = self.links.get_mut(link as usize) {
+                    l.received = Some(c);
+                }
+                c
+            }
+        };
+        let Some(l) = self.links.get_mut(link as usize) else {
+            return Ok(());
+        };
+        l.received_count += 1;
+        let sequence = (l.received_count - 1) as u32;
+        let mut raw = std::mem::take(&mut self.encoded);
+        WireHeader {
+            fingerprint: l.fingerprint,
+            epoch: 0,
+            seq: l.received_count,
+            stamp,
+        }
+        .write(&mut raw);
+        match &l.codec {
+            Some(codec) => codec.encode(body, &mut raw),
+            None => raw.extend_from_slice(body),
+        }
+        let written = self.write(channel, sequence, stamp.time, &raw);
+        self.encoded = raw;
+        written
     }
 
     fn read(&mut self, link: u32, time: Time, stamp: Stamp) -> Result<(), RecordError> {

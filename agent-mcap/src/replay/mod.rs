@@ -120,6 +120,42 @@ pub struct ReplayOptions {
     ///
     /// [`RecordOptions::codecs`]: crate::RecordOptions::codecs
     pub codecs: Vec<Arc<dyn Codec>>,
+    /// Replay only one start of the subsystem's process (a recording of a
+    /// run in which it was restarted holds several): its activations, from
+    /// its first to its last. `None`: the whole recording, from instant zero.
+    pub window: Option<Window>,
+}
+
+/// One start of a replayed subsystem's process in a recording: the instants
+/// of the subsystem's first and last activations then, and how many actions
+/// it made (as its part's `end` record says: `first/<node>`, `last/<node>`,
+/// `iterations/<node>`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// The first activation's instant.
+    pub first: Time,
+    /// The last activation's instant.
+    pub last: Time,
+    /// The elementary actions it made.
+    pub iterations: u64,
+}
+
+impl Window {
+    /// The window of `node` in an `end` record (a file's own, or one part's
+    /// `end/<process>` in a merged file), if the record names its first and
+    /// last activations.
+    pub fn of(end: &BTreeMap<String, String>, node: &str) -> Option<Window> {
+        let get = |k: &str| end.get(&format!("{k}/{node}"))?.parse::<u64>().ok();
+        Some(Window {
+            first: Time::from_nanos(get("first")?),
+            last: Time::from_nanos(get("last")?),
+            iterations: get("iterations").unwrap_or(0),
+        })
+    }
+
+    fn holds(&self, ns: u64) -> bool {
+        (self.first.as_nanos()..=self.last.as_nanos()).contains(&ns)
+    }
 }
 
 impl std::fmt::Debug for ReplayOptions {
@@ -130,6 +166,7 @@ impl std::fmt::Debug for ReplayOptions {
                 "codecs",
                 &self.codecs.iter().map(|c| c.name()).collect::<Vec<_>>(),
             )
+            .field("window", &self.window)
             .finish()
     }
 }
@@ -139,6 +176,7 @@ impl Default for ReplayOptions {
         ReplayOptions {
             exec: ExecConfig::continue_on_error(),
             codecs: Vec::new(),
+            window: None,
         }
     }
 }
@@ -253,7 +291,10 @@ pub fn replay(
             name: node.to_owned(),
             available: subsystems(),
         })?;
-    if !recording.finished() {
+    // One start of a restarted process is replayed from its part's own end
+    // record (another part may never have been finished: killed).
+    let window = options.window;
+    if window.is_none() && !recording.finished() {
         return Err(ReplayError::Unfinished(
             recording.path.display().to_string(),
         ));
@@ -261,17 +302,26 @@ pub fn replay(
     let end = recording.metadata.get("end");
     // The node's own last instant (the processes of a deployment stop at
     // different instants), else the run's.
-    let end_time = end
-        .and_then(|m| {
-            m.get(&format!("last/{node}"))
-                .or_else(|| m.get("time_ns"))?
-                .parse::<u64>()
-                .ok()
-        })
-        .map_or(Time::ZERO, Time::from_nanos);
-    let recorded_iterations = end
-        .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
-        .unwrap_or(0);
+    let end_time = match window {
+        Some(w) => w.last,
+        None => end
+            .and_then(|m| {
+                m.get(&format!("last/{node}"))
+                    .or_else(|| m.get("time_ns"))?
+                    .parse::<u64>()
+                    .ok()
+            })
+            .map_or(Time::ZERO, Time::from_nanos),
+    };
+    let recorded_iterations = match window {
+        Some(w) => w.iterations,
+        None => end
+            .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
+            .unwrap_or(0),
+    };
+    // What the node itself did is the window's; what others sent it is
+    // matched by its reads.
+    let own = |ns: u64| window.is_none_or(|w| w.holds(ns));
 
     // The raw and reads channels by link name.
     let by_encoding = |encoding: &str| -> BTreeMap<&str, &crate::read::ChannelInfo> {
@@ -282,9 +332,23 @@ pub fn replay(
             .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
             .collect()
     };
-    let mut by_link = by_encoding(WIRE_ENCODING);
+    let received = |c: &&crate::read::ChannelInfo| c.metadata.contains_key("received");
+    let mut by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
+        .channels
+        .values()
+        .filter(|c| c.message_encoding == WIRE_ENCODING && !received(c))
+        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
+        .collect();
     by_link.extend(by_encoding(FRAMES_ENCODING));
     let reads_by_link = by_encoding(READ_ENCODING);
+    // Values a process took from another: fed where the sender's recording
+    // lacks them (a sender killed before its recorder wrote them).
+    let received_by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
+        .channels
+        .values()
+        .filter(|c| c.message_encoding == WIRE_ENCODING && received(c))
+        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
+        .collect();
     let mut channel_link: BTreeMap<u16, (usize, &str)> = BTreeMap::new();
     let mut codecs: BTreeMap<u16, Arc<dyn Codec>> = BTreeMap::new();
     let mut read_channel_link: BTreeMap<u16, usize> = BTreeMap::new();
@@ -331,6 +395,12 @@ pub fn replay(
         if input && let Some(r) = reads_by_link.get(link.name.as_str()) {
             read_channel_link.insert(r.id, k);
         }
+        if input && let Some(r) = received_by_link.get(link.name.as_str()) {
+            channel_link.insert(r.id, (k, WIRE_ENCODING));
+            if let Some(codec) = codecs.get(&c.id).cloned() {
+                codecs.insert(r.id, codec);
+            }
+        }
         if output {
             shapes.insert(k, system.payload_shape(k));
         }
@@ -344,6 +414,9 @@ pub fn replay(
     let mut switches: VecDeque<(u64, Value)> = VecDeque::new();
     for m in &recording.messages {
         if Some(m.channel) == fsm_channel {
+            if !own(m.log_time) {
+                continue;
+            }
             let v: Value = serde_json::from_slice(&m.data).map_err(|e| ReplayError::BadValue {
                 link: format!("/fsm/{node}"),
                 sequence: m.sequence,
@@ -360,7 +433,9 @@ pub fn replay(
                 offset: m.offset,
                 message: format!("a read of {} bytes (16 expected)", m.data.len()),
             })?;
-            reads.entry(k).or_default().push((m.log_time, stamp, m));
+            if own(m.log_time) {
+                reads.entry(k).or_default().push((m.log_time, stamp, m));
+            }
             continue;
         }
         let Some(&(k, encoding)) = channel_link.get(&m.channel) else {
@@ -395,7 +470,9 @@ pub fn replay(
                 offset: m.offset,
             };
             if info.links[k].from == x {
-                outputs.entry(k).or_default().push_back(r);
+                if own(header.stamp.time.as_nanos()) {
+                    outputs.entry(k).or_default().push_back(r);
+                }
             } else {
                 sent.entry(k).or_default().push(r);
             }
@@ -442,6 +519,9 @@ pub fn replay(
         },
     );
     exec.isolate(id);
+    if let Some(w) = window {
+        exec.start_at(id, w.first);
+    }
     let mut fed = 0u64;
     let mut next_input = 0usize;
     while let Some(t) = exec.next_instant() {
@@ -510,13 +590,22 @@ fn feeds(
                     inputs.push((Time::from_nanos(*at), k, r));
                 }
             }
-            None => inputs.extend(values.into_iter().map(|r| {
-                (
-                    Time::from_nanos(r.stamp.time.as_nanos().saturating_add(1)),
-                    k,
-                    r,
-                )
-            })),
+            None => {
+                // A value recorded by its sender and by its receiver is fed once.
+                let mut seen = std::collections::BTreeSet::new();
+                inputs.extend(
+                    values
+                        .into_iter()
+                        .filter(|r| seen.insert((r.stamp.iteration, r.stamp.time.as_nanos())))
+                        .map(|r| {
+                            (
+                                Time::from_nanos(r.stamp.time.as_nanos().saturating_add(1)),
+                                k,
+                                r,
+                            )
+                        }),
+                );
+            }
         }
     }
     // Stable: a link's values stay in their order.
