@@ -49,8 +49,14 @@ pub use agent_mcap as record;
 #[cfg(feature = "record")]
 pub mod replay {
     pub use agent_mcap::replay::{
-        Difference, Divergence, ReplayError, ReplayOptions, Replayed, first_difference, replay,
-        replay_file,
+        Difference, Divergence, ReplayError, ReplayOptions, Replayed, Window, first_difference,
+        replay, replay_file,
     };
     pub use agent_mcap::{ReadError, Recording};
 }
+
+/// The guide to the application layer (`docs/application.md`): its examples are
+/// compiled with this crate's tests.
+#[cfg(all(doctest, feature = "app"))]
+#[doc = include_str!("../docs/application.md")]
+mod application_guide {}

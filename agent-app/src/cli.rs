@@ -60,6 +60,10 @@ pub struct Common {
     /// Print only the summary (no progress, no timing table).
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// Print every FSM transition as it happens (`t=0.100000 s c2: ask ->
+    /// wait (arc 0, when true)`), on standard output.
+    #[arg(long, global = true)]
+    pub transitions: bool,
     /// A deployment of the spec to run split into processes over Zenoh (with
     /// `--process`, or `launch`).
     #[arg(long, global = true, value_name = "NAME")]

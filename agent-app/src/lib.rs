@@ -57,6 +57,7 @@ mod replay;
 mod signals;
 mod simple;
 mod spec_cmd;
+mod transitions;
 mod watch;
 
 use std::collections::BTreeMap;
@@ -335,6 +336,20 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
         incarnation,
     } = &command
     {
+        // What a replay does not take: it runs as long and as its recording.
+        let run_only = [
+            (common.limit.is_some(), "--for/--limit"),
+            (common.realtime, "--realtime"),
+            (common.record.is_some(), "--record"),
+            (common.deployment.is_some(), "--deployment"),
+            (common.process.is_some(), "--process"),
+        ];
+        if let Some((_, flag)) = run_only.iter().find(|(given, _)| *given) {
+            return Err(AppError::invalid(format!(
+                "replay {}: {flag} is not for a replay (it runs as long as the recording, in the deterministic executor)",
+                file.display()
+            )));
+        }
         return replay::replay(app, &cli.flags, common, file, subsystem, *incarnation);
     }
     common.limit()?;

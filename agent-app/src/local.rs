@@ -13,6 +13,7 @@ use agent_core::{
 use agent_mcap::McapRecorder;
 
 use crate::error::{AppError, Status};
+use crate::transitions::Transitions;
 use crate::watch::{End, Ended, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
 
@@ -65,6 +66,7 @@ pub(crate) fn run<A: Application>(
         end,
         limit,
         quiet: common.quiet,
+        transitions: common.transitions,
     };
     let (ran, recorder, mode) = if common.realtime {
         let config = RtConfig {
@@ -112,6 +114,8 @@ pub struct Watched<'w, M> {
     pub limit: Duration,
     /// No status line.
     pub quiet: bool,
+    /// Print every FSM transition as it happens.
+    pub transitions: bool,
 }
 
 /// A run that ended: its nodes, how it ended, its wall-clock time.
@@ -159,6 +163,7 @@ impl<M: Send + 'static> Watched<'_, M> {
         observer: O,
     ) -> Result<(Ran, O), AppError> {
         let halting = halting_nodes(&system, &self.end)?;
+        let observer = (observer, Transitions::new(self.transitions));
         let mut ex = Executor::with_observer(system, exec, observer);
         ex.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
         let end = Time::ZERO.saturating_add(self.limit);
@@ -187,12 +192,12 @@ impl<M: Send + 'static> Watched<'_, M> {
             if Instant::now() >= next_status {
                 next_status += STATUS_EVERY;
                 self.status(ex.now());
-                let any: &dyn std::any::Any = ex.observer();
+                let any: &dyn std::any::Any = &ex.observer().0;
                 failing.look(any.downcast_ref::<McapRecorder>());
             }
         };
         let wall = wall.elapsed();
-        let (finished, observer) = ex.finish();
+        let (finished, (observer, _)) = ex.finish();
         for m in self.seen.try_iter() {
             self.watcher.see(m);
         }
@@ -219,8 +224,18 @@ impl<M: Send + 'static> Watched<'_, M> {
         let exec = config.exec;
         let mut rt = RealTime::new(system, config);
         rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
-        if let Some(r) = recorder {
-            rt.observe(r.threads());
+        let print = self.transitions;
+        match recorder {
+            Some(r) => {
+                let mut parts = r.threads();
+                rt.observe(move |thread, nodes| {
+                    Box::new((parts(thread, nodes), Transitions::new(print)))
+                });
+            }
+            None if print => {
+                rt.observe(|_, _| Box::new(Transitions::new(true)));
+            }
+            None => {}
         }
         let running = rt
             .start(self.limit)
@@ -375,6 +390,16 @@ fn conclude<A: Application>(
     };
     let verdict = watcher.judge(&summary);
     output::out(format_args!("{}", verdict.text));
+    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
+        output::out(format_args!(
+            "the run {} before its end: {why}\n",
+            if matches!(summary.ended, Ended::Failed(_)) {
+                "failed"
+            } else {
+                "was stopped"
+            }
+        ));
+    }
     let stopped = matches!(summary.ended, Ended::Stopped(_));
     let status = if verdict.passed && recorded && !stopped {
         Status::Success

@@ -101,15 +101,19 @@ pub(crate) fn said(path: &Path, result: Result<RecordSummary, RecordError>) -> b
             true
         }
         Err(e) => {
-            let size = std::fs::metadata(path).map_or(0, |m| m.len());
-            let removed = std::fs::remove_file(path).is_ok();
+            let meta = std::fs::metadata(path).ok();
+            let size = meta.as_ref().map_or(0, std::fs::Metadata::len);
+            // Only a file of ours: never a device (`/dev/full`) or a link.
+            let regular = std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file());
+            let what = if !regular {
+                "is not a regular file: left as it is"
+            } else if std::fs::remove_file(path).is_ok() {
+                "was removed (it could not be finished)"
+            } else {
+                "could not be removed"
+            };
             output::error(&format_args!(
-                "{e}; the recording reached {size} bytes and {}",
-                if removed {
-                    "was removed (it could not be finished)"
-                } else {
-                    "could not be removed"
-                }
+                "{e}; the recording reached {size} bytes and {what}"
             ));
             false
         }

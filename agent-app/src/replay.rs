@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use agent_mcap::{Recording, replay_file};
+use agent_mcap::{Recording, Window, replay_file};
 
 use crate::error::{AppError, Status};
 use crate::{Application, Common, Target, output};
@@ -90,59 +90,108 @@ pub(crate) fn replay<A: Application>(
         .into_iter()
         .filter(|r| r.runs.iter().any(|n| n == subsystem))
         .collect();
-    let chosen: Vec<&Recorded> = match incarnation {
-        None => starts.iter().collect(),
-        Some(k) => {
-            let one: Vec<&Recorded> = starts.iter().filter(|r| r.incarnation == k).collect();
-            if one.is_empty() {
-                return Err(AppError::invalid(format!(
-                    "--incarnation {k}: {} holds {} of the process that ran `{subsystem}`",
-                    file.display(),
-                    match starts.len() {
-                        0 => "no start".to_owned(),
-                        n => format!(
-                            "{n} start(s): {}",
-                            starts
-                                .iter()
-                                .map(|r| r.incarnation.to_string())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ),
-                    }
-                )));
-            }
-            one
-        }
-    };
-    if chosen.len() > 1 {
+    if starts.is_empty() {
+        // One process recorded the whole system.
+        let system = app.build(&config, &Target::Whole)?;
+        let verdict = once(file, system, subsystem, app.replay_options(&config), "")?;
+        return Ok(verdict);
+    }
+    let chosen: Vec<&Recorded> = starts
+        .iter()
+        .filter(|r| incarnation.is_none_or(|k| r.incarnation == k))
+        .collect();
+    if chosen.is_empty() {
         return Err(AppError::invalid(format!(
-            "{} holds {} starts of process `{}` (it was restarted); replay one with --incarnation K ({})",
+            "--incarnation {}: {} holds start(s) {} of process `{}`, which ran `{subsystem}`",
+            incarnation.unwrap_or(0),
             file.display(),
-            chosen.len(),
-            chosen[0].process,
-            chosen
+            starts
                 .iter()
                 .map(|r| r.incarnation.to_string())
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            starts[0].process,
         )));
     }
-    let target = match chosen.first() {
-        Some(r) => Target::Process {
-            deployment: &r.deployment,
-            process: &r.process,
-            incarnation: r.incarnation,
-            boot: r.boot,
-        },
-        None => Target::Whole,
-    };
-    let system = app.build(&config, &target)?;
+    // A process's own recording holds its `end`; a merged one each part's.
+    let own = head.metadata.contains_key("process");
+    let several = starts.len() > 1;
+    let mut status = Status::Success;
+    let mut replayed = 0;
+    for start in chosen {
+        let label = match start.incarnation {
+            0 => start.process.clone(),
+            k => format!("{}#{k}", start.process),
+        };
+        let end = if own {
+            head.metadata.get("end")
+        } else {
+            head.metadata.get(&format!("end/{label}"))
+        };
+        let which = if several || start.incarnation > 0 {
+            format!(
+                " (start {} of process `{}`)",
+                start.incarnation, start.process
+            )
+        } else {
+            String::new()
+        };
+        // A start after a restart runs from the instant it joined: replayed
+        // in its window, from its part's end record (a merged file's parts
+        // each have theirs; one part may never have been finished: killed).
+        let window = if several || start.incarnation > 0 || !own {
+            match end.and_then(|e| Window::of(e, subsystem)) {
+                Some(w) => Some(w),
+                // A merged file of an earlier layer: its own `end`.
+                None if !several && start.incarnation == 0 && !own => None,
+                None => {
+                    output::out(format_args!(
+                        "replay {subsystem}{which}: not replayed: its recording was not finished (the process was killed)\n"
+                    ));
+                    continue;
+                }
+            }
+        } else {
+            None
+        };
+        let target = Target::Process {
+            deployment: &start.deployment,
+            process: &start.process,
+            incarnation: start.incarnation,
+            boot: start.boot,
+        };
+        let system = app.build(&config, &target)?;
+        let options = agent_mcap::ReplayOptions {
+            window,
+            ..app.replay_options(&config)
+        };
+        status = status.and(once(file, system, subsystem, options, &which)?);
+        replayed += 1;
+    }
+    if replayed == 0 {
+        output::error(&format_args!(
+            "{}: no start of the process that ran `{subsystem}` can be replayed",
+            file.display()
+        ));
+        return Ok(Status::Failed);
+    }
+    Ok(status)
+}
+
+/// One replay, said: `replay S<which>: verdict` and its figures.
+fn once(
+    file: &Path,
+    system: agent_core::System,
+    subsystem: &str,
+    options: agent_mcap::ReplayOptions,
+    which: &str,
+) -> Result<Status, AppError> {
     let started = Instant::now();
-    let result = replay_file(file, system, subsystem, app.replay_options(&config));
+    let result = replay_file(file, system, subsystem, options);
     let ms = started.elapsed().as_secs_f64() * 1e3;
     match result {
         Ok(r) => {
-            output::out(format_args!("replay {subsystem}: {r}\n"));
+            output::out(format_args!("replay {subsystem}{which}: {r}\n"));
             output::out(format_args!(
                 "replay_ms={ms:.0} equivalent={}\n",
                 if r.is_equivalent() { "yes" } else { "no" }

@@ -75,6 +75,8 @@ fn launch_id() -> String {
 struct Gathered {
     halted: Vec<String>,
     errors: u64,
+    refused: u64,
+    acl_refused: u64,
     first_errors: Vec<String>,
     last_ns: u64,
     undecodable: u64,
@@ -184,6 +186,8 @@ pub(crate) fn launch<A: Application>(
     let mut gathered = Gathered {
         halted: Vec::new(),
         errors: 0,
+        refused: 0,
+        acl_refused: 0,
         first_errors: Vec::new(),
         last_ns: 0,
         undecodable: 0,
@@ -294,6 +298,28 @@ pub(crate) fn launch<A: Application>(
     };
     let verdict = watcher.judge(&summary);
     output::out(format_args!("{}", verdict.text));
+    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
+        output::out(format_args!(
+            "the run {} before its end: {why}\n",
+            if matches!(summary.ended, Ended::Failed(_)) {
+                "failed"
+            } else {
+                "was stopped"
+            }
+        ));
+    }
+    if gathered.acl_refused > 0 {
+        output::out(format_args!(
+            "security acl_refused={} (messages the access control refused; each process names them)\n",
+            gathered.acl_refused
+        ));
+    }
+    if gathered.refused > 0 {
+        output::out(format_args!(
+            "links refused={} (messages from outside the deployment, undecodable or implausible; each process names its links)\n",
+            gathered.refused
+        ));
+    }
     output::out(format_args!(
         "{} processes={} restarts={}\n",
         verdict.line, report.processes, report.restarts
@@ -365,9 +391,13 @@ fn take<M: serde::de::DeserializeOwned>(
                     errors,
                     first_errors,
                     last_ns,
+                    refused,
+                    acl_refused,
                     ..
                 }) => {
                     g.errors = g.errors.saturating_add(errors);
+                    g.refused = g.refused.saturating_add(refused);
+                    g.acl_refused = g.acl_refused.saturating_add(acl_refused);
                     g.first_errors.extend(
                         first_errors
                             .into_iter()
@@ -412,6 +442,11 @@ fn merge_parts(file: &Path, pattern: &Path, processes: &[(String, u32)]) -> bool
                     "; a process did not finish its part"
                 }
             ));
+            for cut in &m.cut_short {
+                output::out(format_args!(
+                    "record: a part cut short, kept up to there: {cut}\n"
+                ));
+            }
             true
         }
         Err(e) => {

@@ -22,12 +22,15 @@ pub(crate) enum Note {
     /// A subsystem of the process halted.
     Halted(String),
     /// The process's run ended: its errors, the first of them, its last
-    /// instant [ns], its overruns.
+    /// instant [ns], its overruns, the messages its links refused, and those
+    /// the access control refused (a secure deployment).
     Ended {
         errors: u64,
         first_errors: Vec<String>,
         last_ns: u64,
         overruns: u64,
+        refused: u64,
+        acl_refused: u64,
     },
 }
 
@@ -37,7 +40,8 @@ pub(crate) const SEEN: &str = "seen";
 pub(crate) const NOTE: &str = "_layer";
 
 /// The endpoint process `process` of `deployment` listens on, with the first
-/// port replaced by `port`.
+/// port replaced by `port` (a secure deployment's over QUIC, as
+/// `agent_zenoh::Member` opens it).
 pub(crate) fn endpoint_of(
     spec: &agent_spec::Spec,
     deployment: &str,
@@ -48,10 +52,15 @@ pub(crate) fn endpoint_of(
     if port.is_some() {
         dep.port = port;
     }
-    dep.processes()
+    let endpoint = dep
+        .processes()
         .into_iter()
         .find(|(_, p, _)| p.name == process)
-        .map(|(_, _, e)| e)
+        .map(|(_, _, e)| e)?;
+    Some(match endpoint.split_once('/') {
+        Some(("tcp" | "tls", rest)) if dep.secure => format!("quic/{rest}"),
+        _ => endpoint,
+    })
 }
 
 /// Check `--port` against the deployment: every process's port must be a

@@ -13,6 +13,7 @@ use agent_zenoh::{Member, MemberError, Options};
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
 use crate::local::{PROBE_CAPACITY, halting_nodes};
+use crate::transitions::Transitions;
 use crate::{Application, Common, Signals, Target, output, record};
 
 /// How long processes get to come up, agree on instant zero and start.
@@ -68,7 +69,7 @@ fn joined(
         && (error.contains("in use") || error.contains("os error 98"))
         && let Some(endpoint) = super::endpoint_of(spec, deployment, process, port)
     {
-        let holder = super::holder::port_of(&endpoint).and_then(super::holder::holder);
+        let holder = super::holder::holder(&endpoint);
         return AppError::EndpointTaken {
             process: process.to_owned(),
             endpoint,
@@ -179,12 +180,31 @@ pub(crate) fn run<A: Application>(
         },
     );
     rt.watch(probes);
-    if let Some(r) = &recorder {
-        rt.observe(r.threads());
+    let print = common.transitions;
+    match &recorder {
+        Some(r) => {
+            let mut parts = r.threads();
+            rt.observe(move |thread, nodes| {
+                Box::new((parts(thread, nodes), Transitions::new(print)))
+            });
+        }
+        None if print => {
+            rt.observe(|_, _| Box::new(Transitions::new(true)));
+        }
+        None => {}
     }
     rt.place(member.placement()?)
         .map_err(|e| AppError::invalid(e.to_string()))?;
-    let running = match rt.start_when(limit, || member.ready(LEAD)) {
+    let mut origin = None;
+    let started = rt.start_when(limit, || {
+        let zero = member.ready(LEAD)?;
+        origin = Some(zero);
+        Ok::<_, agent_zenoh::MemberError>(zero)
+    });
+    // The run's end on the wall clock: a process whose nodes all halted stays
+    // in the deployment until then (its going would read as a crash).
+    let end = origin.map(|zero| zero + limit);
+    let running = match started {
         Ok(r) => r,
         Err(e) => {
             if let Some(r) = recorder {
@@ -197,6 +217,7 @@ pub(crate) fn run<A: Application>(
     let mut undeliverable = 0u64;
     let mut failing = record::FailWatch::new();
     let mut stopped: Option<String> = None;
+    let mut idle_said = false;
     loop {
         let finished = running.is_finished();
         for m in seen.try_iter() {
@@ -229,7 +250,20 @@ pub(crate) fn run<A: Application>(
             }
         }
         if finished {
-            break;
+            let over =
+                stopped.is_some() || end.is_none_or(|end| std::time::SystemTime::now() >= end);
+            if over {
+                break;
+            }
+            if !idle_said {
+                idle_said = true;
+                output::err(format_args!(
+                    "{}: process `{process}`: every node here halted; it stays in the deployment until the run ends",
+                    output::program()
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+            continue;
         }
         failing.look(recorder.as_ref());
         std::thread::sleep(Duration::from_millis(2));
@@ -243,6 +277,19 @@ pub(crate) fn run<A: Application>(
     }
     let report = finished.report();
     let overruns: u64 = report.nodes.iter().map(|n| n.overruns).sum();
+    // Every message refused on a link from another process, link by link.
+    let mut refused = 0u64;
+    for (link, stats) in finished.info().links.iter().zip(finished.links()) {
+        if stats.refused > 0 {
+            refused += stats.refused;
+            output::err(format_args!(
+                "{}: link `{}`: {} messages refused (see the errors for why)",
+                output::program(),
+                link.name,
+                stats.refused
+            ));
+        }
+    }
     observe(
         &member,
         NOTE,
@@ -256,6 +303,8 @@ pub(crate) fn run<A: Application>(
                 .collect(),
             last_ns: report.last_instant.as_nanos(),
             overruns,
+            refused,
+            acl_refused: refusals.as_ref().map_or(0, |r| r.total()),
         },
         &mut undeliverable,
     );
@@ -284,7 +333,7 @@ pub(crate) fn run<A: Application>(
         output::err(format_args!("{report}"));
     }
     output::out(format_args!(
-        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped}\n",
+        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
         if report.rt_priority() { "yes" } else { "no" },
         report.error_count,
     ));

@@ -1,0 +1,90 @@
+//! `--transitions`: every FSM transition printed as it happens, in either
+//! executor:
+//!
+//! ```text
+//! t=0.100000 s c2: ask -> wait (arc 0, when true)
+//! ```
+
+use agent_core::{NodeInfo, Observer, Step, SystemInfo, TransitionEvent};
+
+use crate::output;
+
+/// An observer that prints each FSM transition (when enabled).
+#[derive(Debug, Default)]
+pub(crate) struct Transitions {
+    on: bool,
+    /// The subsystems and drivers, by node index.
+    nodes: Vec<Node>,
+}
+
+/// What a transition line names of one node.
+#[derive(Debug, Default)]
+struct Node {
+    name: String,
+    behaviours: Vec<String>,
+    /// The conditions of the arcs out of each behaviour, by behaviour and arc.
+    arcs: Vec<Vec<String>>,
+}
+
+impl Node {
+    fn of(n: &NodeInfo) -> Node {
+        Node {
+            name: n.name.clone(),
+            behaviours: n.behaviours.clone(),
+            arcs: n
+                .behaviours
+                .iter()
+                .map(|b| {
+                    n.fsm
+                        .iter()
+                        .flat_map(|fsm| &fsm.arcs)
+                        .filter(|(from, _, _)| from == b)
+                        .map(|(_, _, when)| when.clone())
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+}
+
+impl Transitions {
+    /// A printer that prints (`on`) or observes nothing.
+    pub(crate) fn new(on: bool) -> Transitions {
+        Transitions {
+            on,
+            nodes: Vec::new(),
+        }
+    }
+}
+
+impl Observer for Transitions {
+    fn enabled(&self) -> bool {
+        self.on
+    }
+
+    fn start(&mut self, system: &SystemInfo) {
+        self.nodes = system.nodes.iter().map(Node::of).collect();
+    }
+
+    fn transition(&mut self, event: &TransitionEvent) {
+        let Some(node) = self.nodes.get(event.node) else {
+            return;
+        };
+        let behaviour = |b: usize| node.behaviours.get(b).map_or("?", String::as_str);
+        let t = event.time;
+        match event.step {
+            Step::Entered { from, arc, to, .. } => {
+                let when = node.arcs.get(from).and_then(|arcs| arcs.get(arc));
+                output::out(format_args!(
+                    "t={t} {}: {} -> {} (arc {arc}, when {})\n",
+                    node.name,
+                    behaviour(from),
+                    behaviour(to),
+                    when.map_or("?", String::as_str)
+                ));
+            }
+            Step::Finished => output::out(format_args!("t={t} {}: finished\n", node.name)),
+            Step::Run => {}
+        }
+    }
+}
