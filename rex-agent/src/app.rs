@@ -198,6 +198,13 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
 /// Whether a report folder can be made at `dir`: it is (or can be created as) a
 /// folder, and a file can be written in it.
 fn writable(dir: &Path) -> std::io::Result<()> {
+    // A report is a folder per mission inside it: never the file system's root.
+    if std::path::absolute(dir).is_ok_and(|d| d.parent().is_none()) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "is the file system's root; name a folder for the reports",
+        ));
+    }
     if dir.exists() && !dir.is_dir() {
         return Err(std::io::Error::new(
             std::io::ErrorKind::NotADirectory,
@@ -423,7 +430,17 @@ impl Application for RexApp {
     }
 
     fn check_deployment(&self, config: &RunSettings, deployment: &str) -> Result<(), AppError> {
-        check_world(&self.spec(config)?.spec, deployment)
+        let spec = self.spec(config)?.spec;
+        if !config.visual_odometry
+            && spec
+                .deployment(deployment)
+                .is_some_and(|d| d.process_of("r11").is_some())
+        {
+            return Err(AppError::invalid(format!(
+                "--no-vo: deployment `{deployment}` runs the visual odometry (r11); choose one that omits it (split_without_vo, split_secure_without_vo)"
+            )));
+        }
+        check_world(&spec, deployment)
     }
 }
 

@@ -176,7 +176,7 @@ fn tokens(
         let mut seen = Vec::new();
         if let Ok(replies) = session
             .liveliness()
-            .get("rex/_rt/process/*")
+            .get("rex/_rt/*/process/**")
             .timeout(Duration::from_millis(300))
             .wait()
         {
@@ -216,7 +216,7 @@ fn intruders_reach_nothing_and_the_secure_mission_completes() {
     std::fs::write(&mission, MISSION).unwrap();
     let port: u16 = 17930;
     // world, partners, locomotion.
-    let endpoint = |k: u16| format!("tls/127.0.0.1:{}", port + k);
+    let endpoint = |k: u16| format!("quic/127.0.0.1:{}", port + k);
     let (world, locomotion) = (endpoint(0), endpoint(2));
     let endpoints = [endpoint(0), endpoint(1), endpoint(2)];
     let endpoints: Vec<&str> = endpoints.iter().map(String::as_str).collect();

@@ -59,6 +59,7 @@ pub fn replay_options(exec: ExecConfig) -> ReplayOptions {
     ReplayOptions {
         exec,
         codecs: codecs(),
+        ..ReplayOptions::default()
     }
 }
 

@@ -131,13 +131,6 @@ pub fn summary(o: &Outcome) -> String {
         c.mocap.0,
         c.mocap.1
     );
-    if c.acl_refused > 0 {
-        let _ = writeln!(
-            s,
-            "security acl_refused={} (messages the access control refused; each process names them)",
-            c.acl_refused
-        );
-    }
     if c.vo.0 > 0 {
         let _ = writeln!(
             s,
@@ -213,6 +206,10 @@ pub fn faults(o: &Outcome) -> String {
             "fragments refused as empty or not finite",
         ),
         (c.planner_failures as u32, "planner failures"),
+        (
+            c.plans_out_of_sequence,
+            "plans refused by c1 as numbered out of sequence (a plan lost, or a sender that is not a2)",
+        ),
     ];
     for (n, what) in counts {
         if n > 0 {

@@ -100,10 +100,6 @@ pub struct Counters {
     pub planner_failures: u64,
     /// Errors recorded by the executor (`OnError::Continue`).
     pub executor_errors: u64,
-    /// Messages the access control of a secure deployment refused (as the
-    /// processes' Zenoh saw them: publications and subscriptions to them that
-    /// the spec does not allow, and theirs to others).
-    pub acl_refused: u64,
     /// Motion-capture samples delivered and lost to dropouts.
     pub mocap: (u64, u64),
     /// Visual odometry: stereo pairs processed, motions sent, pairs without one.
@@ -119,6 +115,9 @@ pub struct Counters {
     pub fragments_repeated: u32,
     /// Times `e11` lost the visual odometry it was receiving.
     pub vo_outages: u32,
+    /// Plans `c1` refused as numbered out of sequence (a plan lost on the
+    /// way, or a sender that is not `a2`).
+    pub plans_out_of_sequence: u32,
 }
 
 impl Counters {
@@ -143,11 +142,13 @@ impl Counters {
         self.plans_resent = self.plans_resent.saturating_add(o.plans_resent);
         self.fragments_repeated = self.fragments_repeated.saturating_add(o.fragments_repeated);
         self.vo_outages = self.vo_outages.saturating_add(o.vo_outages);
+        self.plans_out_of_sequence = self
+            .plans_out_of_sequence
+            .saturating_add(o.plans_out_of_sequence);
         self.planned = self.planned.saturating_add(o.planned);
         self.planner_iterations = self.planner_iterations.saturating_add(o.planner_iterations);
         self.planner_failures = self.planner_failures.saturating_add(o.planner_failures);
         self.executor_errors = self.executor_errors.saturating_add(o.executor_errors);
-        self.acl_refused = self.acl_refused.saturating_add(o.acl_refused);
         self.mocap = (
             self.mocap.0.saturating_add(o.mocap.0),
             self.mocap.1.saturating_add(o.mocap.1),
@@ -384,6 +385,7 @@ pub fn run_mission_observed<O: embodied::Observer + 'static>(
         end: End::Limit,
         limit,
         quiet: true,
+        transitions: false,
     }
     .simulate(system, config.exec, observer)?;
     Ok((watch.conclude(&ran, &h), observer))
@@ -483,6 +485,7 @@ pub(crate) fn finish_counters(x: &Finished, h: &RexHandles, c: &mut Counters) ->
         c.planned = t.fragments;
         c.planner_iterations = t.iterations;
         c.planner_failures = t.failures;
+        c.plans_out_of_sequence = m.out_of_sequence;
     }
     if let Some(m) = x.driver(&h.map.mocap) {
         c.mocap = m.counts();

@@ -81,6 +81,7 @@ fn realtime(
         end: End::Limit,
         limit,
         quiet: true,
+        transitions: false,
     }
     .realtime(
         system,

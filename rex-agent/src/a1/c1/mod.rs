@@ -121,6 +121,11 @@ pub struct C1Memory {
     /// Plans replaced by a newer one while waiting in `pending` (never acknowledged;
     /// `a2` sends one plan at a time, so this stays 0 in Rex).
     pub superseded: u32,
+    /// Plans refused as numbered out of sequence: more than one past the
+    /// newest this incarnation has taken or holds (a plan lost on the way, or a
+    /// sender that is not `a2`). Taking one would make `c1` ignore every real
+    /// plan numbered below it.
+    pub out_of_sequence: u32,
     /// `e11`'s stop count when the plan being served was taken.
     pub plan_epoch: u32,
     /// Why the plan being served failed after planning began (a fragment that
@@ -178,6 +183,7 @@ impl C1Memory {
             handed: 0,
             pending: None,
             superseded: 0,
+            out_of_sequence: 0,
             plan_epoch: 0,
             failure: None,
             restart: false,
@@ -448,7 +454,7 @@ fn relay(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
     }
     y.alive.set(Alive {
         boot: m.params.boot,
-        newest: m.taken.max(m.pending.as_ref().map_or(0, |(p, _)| p.id)),
+        newest: newest(m),
     });
 }
 
@@ -513,9 +519,27 @@ pub fn cc_1_tp(m: &mut C1Memory, x: &C1Input) {
     latch(m, x, false);
 }
 
+/// The newest plan id `c1` has taken or holds.
+fn newest(m: &C1Memory) -> u32 {
+    m.taken.max(m.pending.as_ref().map_or(0, |(p, _)| p.id))
+}
+
 /// Whether `plan` is new to `c1`: not a copy of one taken or waiting.
 fn unseen(m: &C1Memory, plan: &Plan) -> bool {
     plan.id > m.taken && m.pending.as_ref().is_none_or(|(p, _)| p.id != plan.id)
+}
+
+/// Whether `plan` is numbered out of sequence: past the next after the newest
+/// this incarnation has (its first plan may have any number: after a restart
+/// `a2` sends again those it lost).
+fn out_of_sequence(m: &C1Memory, plan: &Plan) -> bool {
+    let newest = newest(m);
+    newest > 0 && plan.id > newest.saturating_add(1)
+}
+
+/// A plan `c1` takes: new to it, and in sequence.
+fn acceptable(m: &C1Memory, plan: &Plan) -> bool {
+    unseen(m, plan) && !out_of_sequence(m, plan)
 }
 
 /// Algorithm 5 (`c,T f_1,1,tp`): a new plan sets `ack` to false; plan outcomes
@@ -525,7 +549,7 @@ fn unseen(m: &C1Memory, plan: &Plan) -> bool {
     reason = "the paper's name: the target is the transmission buffer T"
 )]
 pub fn cT_1_tp(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
-    if let Some(plan) = x.c2.desired_plan.fresh().filter(|p| unseen(m, p)) {
+    if let Some(plan) = x.c2.desired_plan.fresh().filter(|p| acceptable(m, p)) {
         y.ack.set(Ack {
             plan: plan.id,
             status: AckStatus::Received,
@@ -545,9 +569,17 @@ pub fn cT_2(m: &C1Memory, x: &C1Input, y: &mut C1ToC2) {
 
 /// Keep a plan that arrives, whatever the behaviour: `B1` takes it (a plan sent
 /// during `B2` or `B3` is taken after the current one is acknowledged, never lost).
-/// A copy of a plan taken or waiting is ignored.
+/// A copy of a plan taken or waiting is ignored; one numbered out of sequence is
+/// refused and counted (reported at the end of the run).
 fn keep_incoming(m: &mut C1Memory, x: &C1Input) {
-    if let Some(desired) = x.c2.desired_plan.fresh().filter(|p| unseen(m, p)) {
+    if let Some(plan) = x.c2.desired_plan.fresh()
+        && unseen(m, plan)
+        && out_of_sequence(m, plan)
+    {
+        m.out_of_sequence += 1;
+        return;
+    }
+    if let Some(desired) = x.c2.desired_plan.fresh().filter(|p| acceptable(m, p)) {
         if m.pending.is_some() {
             m.superseded += 1;
         }
