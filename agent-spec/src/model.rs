@@ -266,13 +266,15 @@ pub struct Deployment {
     /// [`Deployment::DEFAULT_TIMEOUT_MS`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub timeout_ms: Option<u64>,
-    /// Secure the links between its processes: mutual TLS (each process proves
-    /// itself with a certificate of the deployment's authority) and an access
-    /// control list generated from the spec (a process may publish only the
-    /// output buffers of the components it runs, and subscribe only to their
-    /// inputs).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub secure: bool,
+    /// Whether the links between its processes are secured: mutual
+    /// authentication over QUIC (TLS 1.3; each process proves itself with a
+    /// certificate of the deployment's authority) and an access control list
+    /// generated from the spec (a process may publish only the output buffers
+    /// of the components it runs, and subscribe only to their inputs). Secure
+    /// unless the spec says `secure: false`: an unprotected deployment is one
+    /// asked for by name ([`Deployment::is_secure`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub secure: Option<bool>,
 }
 
 /// A machine.
@@ -446,6 +448,11 @@ impl Deployment {
             .iter()
             .flat_map(|h| &h.processes)
             .find(|p| p.runs.iter().any(|r| r == component))
+    }
+
+    /// Whether its links are secured: unless the spec says `secure: false`.
+    pub fn is_secure(&self) -> bool {
+        self.secure != Some(false)
     }
 
     /// How long to wait for the other processes.

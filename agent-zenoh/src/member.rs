@@ -173,7 +173,7 @@ impl Layout {
         if let Some(port) = options.port {
             dep.port = Some(port);
         }
-        let secure = if dep.secure {
+        let secure = if dep.is_secure() {
             Some((
                 crate::security::AccessPolicy::of(spec, &dep.name)?,
                 options.credentials.clone(),
@@ -355,6 +355,24 @@ fn open_session(
     zenoh::open(config).wait().map_err(|e| e.to_string())
 }
 
+/// Close `session`, waiting at most `bound`: best effort (Zenoh's own bound
+/// is unstable API, and its default, 10 s, is spent whole on a QUIC link whose
+/// peer has already exited); the peers see the session go by its presence
+/// tokens and their links' leases either way, and a close still under way ends
+/// with the process.
+fn close_within(session: zenoh::Session, bound: Duration) {
+    let (closed, done) = std::sync::mpsc::channel();
+    let closing = std::thread::Builder::new()
+        .name("zenoh-close".into())
+        .spawn(move || {
+            let _ = session.close().wait();
+            let _ = closed.send(());
+        });
+    if closing.is_ok() {
+        let _ = done.recv_timeout(bound);
+    }
+}
+
 /// A JSON list of strings (endpoints have no characters that need more than
 /// Rust's `Debug` quoting).
 fn json_list(items: &[&str]) -> String {
@@ -446,6 +464,11 @@ impl std::fmt::Debug for Member {
 impl Member {
     /// How long [`Member::close`] waits for what the run put to be published.
     pub const FLUSH: Duration = Duration::from_secs(5);
+
+    /// How long [`Member::close`] (and a [`Watch`] dropped) waits for Zenoh to
+    /// close the session's links, once what it put is flushed: a process that
+    /// ended after the others took 10 s more to go, Zenoh's default.
+    pub const CLOSE: Duration = Duration::from_millis(500);
 
     /// How long after a process is seen to go it is reported lost, unless a
     /// stop of the deployment arrives meanwhile (the stop and the departure
@@ -889,7 +912,7 @@ impl Member {
             ..
         } = self;
         let flushed = outbox.flush(Member::FLUSH);
-        let _ = session.close().wait();
+        close_within(session, Member::CLOSE);
         if flushed {
             Ok(())
         } else {
@@ -940,6 +963,12 @@ pub struct Watch {
     _presence: zenoh::liveliness::LivelinessToken,
     observations:
         zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+}
+
+impl Drop for Watch {
+    fn drop(&mut self) {
+        close_within(self.session.clone(), Member::CLOSE);
+    }
 }
 
 impl std::fmt::Debug for Watch {

@@ -32,15 +32,15 @@ fn spec(timeout_ms: u64) -> Spec {
         .from_str(&format!(
             r#"(name: "relay", agents: [], deployments: [
             (
-                name: "two", timeout_ms: {timeout_ms},
+                name: "two", timeout_ms: {timeout_ms}, secure: false,
                 hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
             ),
             (
-                name: "routed", timeout_ms: {timeout_ms}, router: "{ROUTER}",
+                name: "routed", timeout_ms: {timeout_ms}, router: "{ROUTER}", secure: false,
                 hosts: [(name: "local", processes: [(name: "p1", runs: ["c"]), (name: "p2", runs: ["e"])])],
             ),
             (
-                name: "hosts", timeout_ms: {timeout_ms},
+                name: "hosts", timeout_ms: {timeout_ms}, secure: false,
                 hosts: [
                     (name: "h1", address: "{A1}", processes: [(name: "p1", runs: ["c"])]),
                     (name: "h2", address: "{A2}", processes: [(name: "p2", runs: ["e"])]),

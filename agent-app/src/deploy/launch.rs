@@ -111,6 +111,7 @@ pub(crate) fn launch<A: Application>(
     }
     super::check_port(&spec.spec, deployment, common.port)?;
     app.check_deployment(&config, deployment)?;
+    super::say_unprotected(&spec.spec, deployment);
     let processes = dep.processes();
     if let Some((p, _)) = kill
         .iter()
@@ -146,16 +147,19 @@ pub(crate) fn launch<A: Application>(
         launched: false,
         cancel: Some(signals.flag()),
     };
-    if dep.secure && options.credentials.is_none() {
-        let dir = dev_credentials(&spec.spec, deployment)?;
+    // Held to the launch's end, which removes them.
+    let mut _dev = None;
+    if dep.is_secure() && options.credentials.is_none() {
+        let dev = DevCredentials::make(&spec.spec, deployment, &id)?;
         output::err(format_args!(
-            "{}: deployment `{deployment}` is secure: a development authority and certificates in {}",
+            "{}: deployment `{deployment}` is secure: a development authority and certificates for this launch in {} (removed at its end)",
             output::program(),
-            dir.display()
+            dev.dir.display()
         ));
         args.push("--credentials".into());
-        args.push(dir.to_string_lossy().into_owned());
-        options.credentials = Some(dir);
+        args.push(dev.dir.to_string_lossy().into_owned());
+        options.credentials = Some(dev.dir.clone());
+        _dev = Some(dev);
     }
     let watch = Watch::open(&spec.spec, deployment, &options)?;
     let children: Vec<Child> = processes
@@ -456,20 +460,76 @@ fn merge_parts(file: &Path, pattern: &Path, processes: &[(String, u32)]) -> bool
     }
 }
 
-/// A development authority and certificates for `deployment`, in the run's
-/// folder (`target/<program>-credentials/<deployment>`).
-fn dev_credentials(spec: &agent_spec::Spec, deployment: &str) -> Result<PathBuf, AppError> {
-    use agent_zenoh::security::{AccessPolicy, create_dev_authority};
-    let dir = PathBuf::from("target")
-        .join(format!("{}-credentials", output::program()))
-        .join(deployment);
-    let policy = AccessPolicy::of(spec, deployment).map_err(AppError::invalid)?;
-    let hosts: Vec<String> = spec
-        .deployment(deployment)
-        .into_iter()
-        .flat_map(|d| &d.hosts)
-        .filter_map(|h| h.address.clone())
-        .collect();
-    create_dev_authority(&dir, &policy, &hosts).map_err(|e| AppError::Run(e.to_string()))?;
-    Ok(dir)
+/// A development authority and certificates made for one launch of a
+/// deployment, in the run's folder
+/// (`target/<program>-credentials/<deployment>/<launch>/`), removed when the
+/// launch ends. Each launch its own: two launches of one deployment at once do
+/// not overwrite each other's keys under their running processes (a process
+/// restarted would read the other's and no longer be trusted), and a process
+/// of one launch cannot even connect to another's.
+struct DevCredentials {
+    dir: PathBuf,
+}
+
+impl DevCredentials {
+    /// The file naming a launch's launcher in its folder.
+    const LAUNCHER: &'static str = "launcher.pid";
+
+    fn make(spec: &agent_spec::Spec, deployment: &str, launch: &str) -> Result<Self, AppError> {
+        use agent_zenoh::security::{AccessPolicy, create_dev_authority};
+        let parent = PathBuf::from("target")
+            .join(format!("{}-credentials", output::program()))
+            .join(deployment);
+        Self::sweep(&parent);
+        let dir = parent.join(launch);
+        let policy = AccessPolicy::of(spec, deployment).map_err(AppError::invalid)?;
+        let hosts: Vec<String> = spec
+            .deployment(deployment)
+            .into_iter()
+            .flat_map(|d| &d.hosts)
+            .filter_map(|h| h.address.clone())
+            .collect();
+        // From here the folder is this launch's: removed on any way out.
+        let made = DevCredentials { dir };
+        create_dev_authority(&made.dir, &policy, &hosts)
+            .map_err(|e| AppError::Run(e.to_string()))?;
+        std::fs::write(
+            made.dir.join(Self::LAUNCHER),
+            std::process::id().to_string(),
+        )
+        .map_err(|e| {
+            AppError::Run(format!(
+                "cannot write {}: {e}",
+                made.dir.join(Self::LAUNCHER).display()
+            ))
+        })?;
+        Ok(made)
+    }
+
+    /// Remove the folders of launches whose launcher is gone (killed before
+    /// it could remove them).
+    fn sweep(parent: &Path) {
+        let Ok(entries) = std::fs::read_dir(parent) else {
+            return;
+        };
+        for entry in entries.flatten() {
+            let dir = entry.path();
+            let pid = std::fs::read_to_string(dir.join(Self::LAUNCHER))
+                .ok()
+                .and_then(|text| text.trim().parse::<i32>().ok());
+            let gone = pid.is_some_and(|pid| {
+                nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None)
+                    == Err(nix::errno::Errno::ESRCH)
+            });
+            if gone {
+                let _ = std::fs::remove_dir_all(&dir);
+            }
+        }
+    }
+}
+
+impl Drop for DevCredentials {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
 }

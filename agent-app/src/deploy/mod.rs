@@ -58,7 +58,7 @@ pub(crate) fn endpoint_of(
         .find(|(_, p, _)| p.name == process)
         .map(|(_, _, e)| e)?;
     Some(match endpoint.split_once('/') {
-        Some(("tcp" | "tls", rest)) if dep.secure => format!("quic/{rest}"),
+        Some(("tcp" | "tls", rest)) if dep.is_secure() => format!("quic/{rest}"),
         _ => endpoint,
     })
 }
@@ -83,4 +83,14 @@ pub(crate) fn check_port(
         )));
     }
     Ok(())
+}
+
+/// Say at start that `deployment` runs unprotected (the spec asked for it by
+/// name, `secure: false`).
+pub(crate) fn say_unprotected(spec: &agent_spec::Spec, deployment: &str) {
+    if spec.deployment(deployment).is_some_and(|d| !d.is_secure()) {
+        crate::output::warn(format_args!(
+            "deployment `{deployment}` is unprotected (`secure: false` in the spec): whoever reaches its endpoints may read and write its links"
+        ));
+    }
 }

@@ -102,6 +102,9 @@ pub(crate) fn run<A: Application>(
     }
     super::check_port(&spec.spec, deployment, common.port)?;
     app.check_deployment(&config, deployment)?;
+    if common.launch_id.is_none() {
+        super::say_unprotected(&spec.spec, deployment);
+    }
     let limit = common.limit()?.unwrap_or_else(|| app.limit(&config));
     let incarnation = common.incarnation.unwrap_or(0);
     let boot = agent_core::link::remote::new_epoch();
@@ -118,7 +121,7 @@ pub(crate) fn run<A: Application>(
     let refusals = spec
         .spec
         .deployment(deployment)
-        .is_some_and(|d| d.secure)
+        .is_some_and(|d| d.is_secure())
         .then(agent_zenoh::security::Refusals::watch);
     let mut member = Member::join(&spec.spec, deployment, process, &options)
         .map_err(|e| joined(e, &spec.spec, deployment, process, common.port))?;
