@@ -269,6 +269,7 @@ fn new_writes_the_files_of_a_spec() {
             "src/main.rs",
             "src/system.rs",
             "src/types.rs",
+            "tests/app.rs",
             "tests/properties/main.rs",
         ]
         .into_iter()
@@ -294,16 +295,24 @@ fn new_writes_the_files_of_a_spec() {
             });
         }
         let manifest = std::fs::read_to_string(dir.join("Cargo.toml")).unwrap();
-        assert!(manifest.contains("\nembodied = \"0.1\"\n"), "{manifest}");
+        assert!(
+            manifest.contains(
+                "\nembodied = { version = \"0.1\", features = [\"app\", \"distributed\"] }\n"
+            ),
+            "{manifest}"
+        );
     }
 }
 
 /// `embodied new` makes a crate from Rex's spec (three agents, devices, links
 /// between agents) that its user can work in at once: a driver given a field
 /// compiles (drivers are made with `Default`), its tests pass (the termination
-/// tests too: on stubs, they say what they could not check), it is clean under
-/// `cargo clippy --all-targets -- -D warnings`, `cargo run` runs the system and
-/// prints its FSM transitions, and it compiles neither clap nor miette. Its code is
+/// tests too: on stubs, they say what they could not check; and the program's:
+/// real time, a recording replayed, the spec's largest deployment launched and
+/// one of its processes killed and restarted), it is clean under `cargo clippy
+/// --all-targets -- -D warnings`, `cargo run -- --transitions` runs the system
+/// and prints its FSM transitions, and it compiles the application layer's
+/// command line (clap) but not the checker's drawing (miette). Its code is
 /// formatted as rustfmt would.
 #[test]
 fn new_makes_a_crate_that_builds_runs_and_passes_clippy() {
@@ -343,6 +352,10 @@ fn new_makes_a_crate_that_builds_runs_and_passes_clippy() {
         "structure, run, six action properties and eight termination properties: {stdout}"
     );
     assert!(
+        stdout.contains("4 passed; 0 failed; 0 ignored"),
+        "real time, record and replay, a launch, a killed process restarted: {stdout}"
+    );
+    assert!(
         !stderr.contains("warning"),
         "the crate builds without warnings: {stderr}"
     );
@@ -352,31 +365,40 @@ fn new_makes_a_crate_that_builds_runs_and_passes_clippy() {
     let (ok, diff) = formatted(&dir);
     assert!(ok, "rustfmt: {diff}");
 
-    let (ok, stdout, stderr) = cargo(&dir, "run", &["--quiet", "--", "3"]);
+    let (ok, stdout, stderr) = cargo(
+        &dir,
+        "run",
+        &["--quiet", "--", "--for", "3", "--transitions", "--quiet"],
+    );
     assert!(ok, "{stdout}\n{stderr}");
     assert!(
         stdout.contains("t=0.000000 s c2: next_plan -> settle (arc 1, when !more)\n"),
         "every transition is printed: {stdout}"
     );
     assert!(
-        stdout.ends_with("ran 3.000000 s of virtual time: 1 transitions\n"),
+        stdout
+            .lines()
+            .last()
+            .is_some_and(|l| l.starts_with("run=rex ended=limit sim_s=2.999")),
         "{stdout}"
     );
-    let (ok, _, stderr) = cargo(&dir, "run", &["--quiet", "--", "soon"]);
+    let (ok, _, stderr) = cargo(&dir, "run", &["--quiet", "--", "--for", "soon"]);
     assert!(
-        !ok && stderr.contains("usage: rex-app [SECONDS]"),
+        !ok && stderr.contains("invalid value 'soon' for '--for <SECONDS>'"),
         "{stderr}"
     );
 
     let (ok, stdout, stderr) = cargo(&dir, "tree", &["-e", "normal", "--prefix", "none"]);
     assert!(ok, "{stderr}");
     assert!(stdout.contains("embodied v0.1.0"), "{stdout}");
-    for cli_only in ["clap", "miette"] {
-        assert!(
-            !stdout.lines().any(|l| l.starts_with(cli_only)),
-            "{cli_only} is the CLI's, not the user's: {stdout}"
-        );
-    }
+    assert!(
+        stdout.lines().any(|l| l.starts_with("clap ")),
+        "the program's command line: {stdout}"
+    );
+    assert!(
+        !stdout.lines().any(|l| l.starts_with("miette")),
+        "miette draws the `embodied` tool's reports, not the user's: {stdout}"
+    );
 }
 
 /// The smallest system: one agent, one control subsystem without buffers, no
@@ -433,7 +455,16 @@ fn new_handles_a_system_without_devices_links_or_buffers() {
     );
     let (ok, stdout, stderr) = cargo(&crate_dir, "test", &["--quiet"]);
     assert!(ok, "{stdout}\n{stderr}");
-    assert!(stdout.contains("4 passed; 0 failed; 0 ignored"), "{stdout}");
+    assert_eq!(
+        stdout.matches("4 passed; 0 failed; 0 ignored").count(),
+        2,
+        "the properties, and the program (one process launched, killed, restarted): {stdout}"
+    );
+    let spec_ron = std::fs::read_to_string(crate_dir.join("spec.ron")).unwrap();
+    assert!(
+        spec_ron.contains("(name: \"solo\", runs: [\"c1\"]),"),
+        "a deployment added: {spec_ron}"
+    );
     assert!(!stderr.contains("warning"), "no warning: {stderr}");
     let (ok, stdout, stderr) = cargo(
         &crate_dir,

@@ -127,6 +127,12 @@ pub(crate) fn generate(file: &str, source: &str, options: &Options) -> Result<Ve
         _ => return Err(NewError::Spec(Box::new(report))),
     };
     check_names(&spec, &lib)?;
+    // A spec without a deployment gets one of two processes, so that the
+    // crate launches one from the start.
+    let (spec_text, spec) = match with_deployment(file, source, &spec) {
+        Some((text, with)) => (text, with),
+        None => (source.to_owned(), spec),
+    };
     let crate_ = Crate {
         spec: &spec,
         lib: &lib,
@@ -137,7 +143,7 @@ pub(crate) fn generate(file: &str, source: &str, options: &Options) -> Result<Ve
         File::new("Cargo.toml", crate_.cargo_toml()?),
         File::new(".gitignore", files::GITIGNORE.fill(&[])?),
         File::new("README.md", crate_.readme()?),
-        File::new("spec.ron", source.to_owned()),
+        File::new("spec.ron", spec_text),
         File::new("src/lib.rs", crate_.lib_rs()?),
         File::new("src/main.rs", crate_.main_rs()?),
         File::new("src/types.rs", crate_.types_rs()?),
@@ -145,6 +151,7 @@ pub(crate) fn generate(file: &str, source: &str, options: &Options) -> Result<Ve
         File::new("src/devices.rs", crate_.devices_rs()?),
         File::new("src/system.rs", crate_.system_rs()?),
         File::new("tests/properties/main.rs", crate_.tests_rs()?),
+        File::new("tests/app.rs", crate_.app_tests_rs()?),
     ];
     if let Some(path) = &options.embodied_path {
         out.push(File::new(".cargo/config.toml", crate_.cargo_config(path)?));
@@ -166,6 +173,85 @@ pub(crate) fn generate(file: &str, source: &str, options: &Options) -> Result<Ve
         f.contents.push('\n');
     }
     Ok(out)
+}
+
+/// The name of the deployment `embodied new` adds to a spec without one.
+const LOCAL: &str = "local";
+
+/// `source` with a deployment of two processes on this machine (by agent, or
+/// the control subsystems apart from the rest), if `spec` has none: the text
+/// and the spec it reads as. `None` when it has one, or the text could not be
+/// extended (the crate is made with the spec as given).
+fn with_deployment(file: &str, source: &str, spec: &Spec) -> Option<(String, Spec)> {
+    if !spec.deployments.is_empty() {
+        return None;
+    }
+    let names = |a: &Agent| -> Vec<String> {
+        a.subsystems
+            .iter()
+            .map(|s| s.name.clone())
+            .chain(a.devices.iter().map(|d| d.name.clone()))
+            .collect()
+    };
+    let processes: Vec<(String, Vec<String>)> = match spec.agents.as_slice() {
+        [] => return None,
+        [one] => {
+            let (control, rest): (Vec<String>, Vec<String>) =
+                names(one).into_iter().partition(|n| {
+                    spec.subsystem(n)
+                        .is_some_and(|s| s.kind == embodied::SubsystemKind::Control)
+                });
+            if control.is_empty() || rest.is_empty() {
+                vec![(one.name.clone(), names(one))]
+            } else {
+                vec![("control".into(), control), ("devices".into(), rest)]
+            }
+        }
+        [first, rest @ ..] => {
+            let name = match rest {
+                [second] => second.name.clone(),
+                _ => "others".into(),
+            };
+            vec![
+                (first.name.clone(), names(first)),
+                (name, rest.iter().flat_map(names).collect()),
+            ]
+        }
+    };
+    let mut lines = String::new();
+    for (name, runs) in &processes {
+        let runs: Vec<String> = runs.iter().map(|r| format!("{r:?}")).collect();
+        lines += &format!(
+            "                (name: {name:?}, runs: [{}]),\n",
+            runs.join(", ")
+        );
+    }
+    let block = format!(
+        "    // Added by `embodied new` (the spec had no deployment): {} on this\n    \
+         // machine, each a process of this program, linked over Zenoh:\n    \
+         //   cargo run -- launch --deployment {LOCAL}\n    \
+         // Write your own here (hosts and their addresses, `restarts`, `secure`).\n    \
+         deployments: [\n        (\n            name: {LOCAL:?},\n            \
+         hosts: [(name: \"localhost\", processes: [\n{lines}            ])],\n        ),\n    ],\n",
+        if processes.len() == 1 {
+            "one process"
+        } else {
+            "two processes"
+        }
+    );
+    let end = source.rfind(')')?;
+    let before = source[..end].trim_end();
+    let comma = if before.ends_with(',') || before.ends_with('(') {
+        ""
+    } else {
+        ","
+    };
+    let text = format!("{before}{comma}\n{block}{}", &source[end..]);
+    let (with, report) = embodied::spec::check_source(file, text.clone());
+    match with {
+        Some(with) if report.is_ok() && with.deployments.len() == 1 => Some((text, with)),
+        _ => None,
+    }
 }
 
 /// Refuses names of the spec that would clash in the crate: an agent's module
@@ -248,6 +334,26 @@ fn params(head: &str, params: &[String], tail: &str) -> String {
         }
         out + "    "
     }
+}
+
+/// `Ok(assembly.<method>(<args>)?)` in a function's body, as rustfmt writes it:
+/// on one line if it fits in 100 columns, else one argument per line.
+fn call(method: &str, args: &[String]) -> String {
+    let line = format!("    Ok(assembly.{method}({})?)", args.join(", "));
+    if line.len() <= 100 {
+        return line;
+    }
+    let mut out = format!("    Ok(assembly.{method}(\n");
+    for a in args {
+        out += &format!("        {a},\n");
+    }
+    out + "    )?)"
+}
+
+/// A shell command of a doc comment and what it does, its `#` in the column of
+/// the others (or one space after a longer command).
+fn aligned(command: &str, comment: &str) -> String {
+    format!("{command:<42} # {comment}")
 }
 
 /// A TOML basic string.
@@ -380,7 +486,124 @@ impl Crate<'_> {
     }
 
     fn main_rs(&self) -> Result<String, NewError> {
-        Ok(files::MAIN.fill(&[("bin", &self.options.name), ("lib", self.lib)])?)
+        let halting: Vec<String> = self
+            .spec
+            .subsystems()
+            .filter(|(_, s)| !s.fsm.finals.is_empty())
+            .map(|(_, s)| format!("{:?}", s.name))
+            .collect();
+        let ends = if halting.is_empty() {
+            "        // A run ends at its time limit: no subsystem of spec.ron has a final\n        \
+             // behaviour that could end it sooner (`.ends_when(...)` states such a rule).\n"
+                .to_owned()
+        } else {
+            files::parts::ENDS.fill(&[("halting", &halting.join(", "))])?
+        };
+        Ok(files::MAIN.fill(&[
+            ("lib", self.lib),
+            (
+                "replay",
+                &aligned(
+                    &format!(
+                        "cargo run -- replay run.mcap --subsystem {}",
+                        self.first_subsystem()
+                    ),
+                    "its subsystem replayed alone",
+                ),
+            ),
+            (
+                "launch",
+                &aligned(
+                    &format!(
+                        "cargo run -- launch --deployment {}",
+                        self.first_deployment()
+                    ),
+                    "its processes, over Zenoh",
+                ),
+            ),
+            ("ends", &ends),
+        ])?)
+    }
+
+    /// The first subsystem of the spec (the checker makes sure there is one).
+    fn first_subsystem(&self) -> &str {
+        self.spec
+            .subsystems()
+            .next()
+            .map_or("c1", |(_, s)| s.name.as_str())
+    }
+
+    /// The deployment the crate's tests and docs launch: the spec's first
+    /// with the most processes (every generated spec has one).
+    fn deployment(&self) -> Option<&embodied::spec::model::Deployment> {
+        let most = self
+            .spec
+            .deployments
+            .iter()
+            .map(|d| d.processes().len())
+            .max()?;
+        self.spec
+            .deployments
+            .iter()
+            .find(|d| d.processes().len() == most)
+    }
+
+    fn first_deployment(&self) -> &str {
+        self.deployment().map_or(LOCAL, |d| d.name.as_str())
+    }
+
+    /// `tests/app.rs`: the program run as a user runs it (real time, a launch
+    /// of a deployment, a process killed and restarted, a recording replayed).
+    fn app_tests_rs(&self) -> Result<String, NewError> {
+        let deployment = self.deployment();
+        let (processes, victim) = match deployment {
+            Some(d) => {
+                let ps = d.processes();
+                let victim = ps
+                    .iter()
+                    .rev()
+                    .find(|(_, p, _)| p.restart_budget() > 0)
+                    .map_or_else(String::new, |(_, p, _)| p.name.clone());
+                (ps.len(), victim)
+            }
+            None => (0, String::new()),
+        };
+        let subsystems: Vec<String> = self
+            .spec
+            .subsystems()
+            .map(|(_, s)| format!("{:?}", s.name))
+            .collect();
+        let (mut kill, mut kill_summary) = (String::new(), String::new());
+        if !victim.is_empty() {
+            kill = files::parts::TEST_APP_KILL.fill(&[
+                ("deployment", self.first_deployment()),
+                ("processes", &processes.to_string()),
+                ("victim", &victim),
+            ])?;
+            kill_summary = format!(",\n//! with `{victim}` killed and restarted");
+        }
+        let launch = match deployment {
+            None => String::new(),
+            Some(d) => {
+                files::parts::TEST_APP_LAUNCH.fill(&[
+                    ("deployment", &d.name),
+                    ("processes", &processes.to_string()),
+                ])? + &kill
+            }
+        };
+        Ok(files::TESTS_APP.fill(&[
+            ("summary", &match deployment {
+                None => String::new(),
+                Some(d) => format!(
+                    ", and its deployment\n//! `{}` launched over Zenoh (each process a child of the launcher){kill_summary}",
+                    d.name
+                ),
+            }),
+            ("net", if deployment.is_some() { "use std::net::{TcpListener, UdpSocket};\n" } else { "" }),
+            ("bin", &self.options.name),
+            ("subsystems", &subsystems.join(", ")),
+            ("launch", &launch),
+        ])?)
     }
 
     fn types_rs(&self) -> Result<String, NewError> {
@@ -556,35 +779,84 @@ impl Crate<'_> {
 
     fn system_rs(&self) -> Result<String, NewError> {
         let (mut fields, mut values) = (String::new(), String::new());
+        let (mut deployed, mut adders) = (String::new(), String::new());
         for a in &self.spec.agents {
             let agent_ident = ident(&a.name);
             for s in &a.subsystems {
-                let slots = [
-                    ("component", s.name.as_str()),
+                let id = ident(&s.name);
+                let adder = format!("add_{id}");
+                let ty = type_name(&s.name);
+                fields += &parts::HANDLE_SUBSYSTEM.fill(&[
+                    ("component", &s.name),
                     ("agent", &a.name),
                     ("agent_ident", &agent_ident),
-                    ("ident", &ident(&s.name)),
-                ];
-                let ty = type_name(&s.name);
-                let mut with_type = slots.to_vec();
-                with_type.push(("type", &ty));
-                fields += &parts::HANDLE_SUBSYSTEM.fill(&with_type)?;
-                values += &parts::ADD_SUBSYSTEM.fill(&[slots[0], slots[2], slots[3]])?;
+                    ("ident", &id),
+                    ("type", &ty),
+                ])?;
+                let ret = format!(
+                    ") -> Result<SubsystemHandle<crate::{agent_ident}::{id}::{ty}>, Error> {{"
+                );
+                adders += &self.adder(
+                    &parts::ADD_SUBSYSTEM,
+                    &adder,
+                    &ret,
+                    &[
+                        ("component", &s.name),
+                        ("agent", &a.name),
+                        ("agent_ident", &agent_ident),
+                        ("ident", &id),
+                        ("type", &ty),
+                        (
+                            "call",
+                            &call(
+                                "subsystem",
+                                &[
+                                    format!("{:?}", s.name),
+                                    format!("crate::{agent_ident}::{id}::Memory::default()"),
+                                    format!(
+                                        "crate::{agent_ident}::{id}::fsm::<crate::logic::{id}::Logic>()?"
+                                    ),
+                                ],
+                            ),
+                        ),
+                    ],
+                )?;
+                values += &format!("        {id}: {adder}(&mut assembly)?,\n");
+                deployed += &parts::DEPLOYED.fill(&[("component", &s.name), ("adder", &adder)])?;
             }
             for d in &a.devices {
                 let driver = format!("{}Driver", type_name(&d.name));
                 let id = ident(&d.name);
+                let adder = format!("add_{id}");
                 fields += &parts::HANDLE_DRIVER.fill(&[
                     ("component", &d.name),
                     ("agent", &a.name),
                     ("ident", &id),
                     ("driver", &driver),
                 ])?;
-                values += &parts::ADD_DRIVER.fill(&[
-                    ("component", &d.name),
-                    ("ident", &id),
-                    ("driver", &driver),
-                ])?;
+                let ret = format!(") -> Result<DriverHandle<crate::devices::{driver}>, Error> {{");
+                adders += &self.adder(
+                    &parts::ADD_DRIVER,
+                    &adder,
+                    &ret,
+                    &[
+                        ("component", &d.name),
+                        ("agent", &a.name),
+                        ("driver", &driver),
+                        (
+                            "call",
+                            &call(
+                                "driver",
+                                &[
+                                    format!("{:?}", d.name),
+                                    format!("crate::devices::{driver}::default()"),
+                                ],
+                            ),
+                        ),
+                    ],
+                )?;
+                values += &format!("        {id}: {adder}(&mut assembly)?,\n");
+                deployed += &parts::DEPLOYED.fill(&[("component", &d.name), ("adder", &adder)])?;
             }
         }
         let components = self.spec.agents.iter().flat_map(|a| {
@@ -598,20 +870,42 @@ impl Crate<'_> {
         if self.spec.subsystems().next().is_some() {
             names.push("SubsystemHandle");
         }
-        // In rustfmt's order: `embodied::System` before `embodied::spec`, a list after.
-        let imports = match names.as_slice() {
-            [] => "use embodied::System;\nuse embodied::spec::Assembly;\n".to_owned(),
-            some => format!(
-                "use embodied::spec::Assembly;\nuse embodied::{{{}, System}};\n",
-                some.join(", ")
-            ),
-        };
+        names.push("System");
+        // In rustfmt's order: `embodied::spec` items, then `embodied::{...}`.
+        let imports = format!(
+            "use embodied::spec::{{Assembly, Spec}};\nuse embodied::{}{}{};\n",
+            if names.len() > 1 { "{" } else { "" },
+            names.join(", "),
+            if names.len() > 1 { "}" } else { "" },
+        );
         Ok(files::SYSTEM.fill(&[
             ("imports", &imports),
             ("allow", allow_case(components)),
             ("fields", &fields),
             ("values", &values),
+            ("deployed", &deployed),
+            ("adders", &adders),
         ])?)
+    }
+
+    /// The function that adds one component: `template` filled with its name
+    /// `adder` and its parameter laid out as rustfmt would before `ret`.
+    fn adder(
+        &self,
+        template: &files::Template,
+        adder: &str,
+        ret: &str,
+        slots: &[(&str, &str)],
+    ) -> Result<String, NewError> {
+        let head = format!("fn {adder}(");
+        let params = params(&head, &["assembly: &mut Assembly<'_>".to_owned()], ret);
+        let mut all = vec![("adder", adder), ("params", params.as_str())];
+        all.extend_from_slice(slots);
+        let text = template.fill(&all)?;
+        Ok(match allow_case([adder]) {
+            "" => text,
+            allow => text.replacen("\nfn ", &format!("\n{allow}fn "), 1),
+        })
     }
 
     fn tests_rs(&self) -> Result<String, NewError> {

@@ -43,6 +43,7 @@ pub(super) const DEVICES: Template = template!("src/devices.rs.tmpl");
 pub(super) const SYSTEM: Template = template!("src/system.rs.tmpl");
 pub(super) const TESTS: Template = template!("tests/properties/main.rs.tmpl");
 pub(super) const TESTS_SUBSYSTEM: Template = template!("tests/properties/subsystem.rs.tmpl");
+pub(super) const TESTS_APP: Template = template!("tests/app.rs.tmpl");
 
 /// Pieces of files, repeated or chosen by the spec.
 pub(super) mod parts {
@@ -59,6 +60,11 @@ pub(super) mod parts {
     pub(in super::super) const HANDLE_DRIVER: Template = template!("parts/handle-driver.rs.tmpl");
     pub(in super::super) const ADD_SUBSYSTEM: Template = template!("parts/add-subsystem.rs.tmpl");
     pub(in super::super) const ADD_DRIVER: Template = template!("parts/add-driver.rs.tmpl");
+    pub(in super::super) const DEPLOYED: Template = template!("parts/deployed.rs.tmpl");
+    pub(in super::super) const ENDS: Template = template!("parts/ends.rs.tmpl");
+    pub(in super::super) const TEST_APP_KILL: Template = template!("parts/test-app-kill.rs.tmpl");
+    pub(in super::super) const TEST_APP_LAUNCH: Template =
+        template!("parts/test-app-launch.rs.tmpl");
     pub(in super::super) const README_LOGIC_ROW: Template =
         template!("parts/readme-logic-row.md.tmpl");
     pub(in super::super) const README_TEST_ROW: Template =

@@ -39,12 +39,31 @@ fn a_crate_is_made_only_from_a_valid_spec_and_name() {
         "tests/properties/main.rs",
         "tests/properties/c1.rs",
         "tests/properties/c2.rs",
+        "tests/app.rs",
     ] {
         assert!(paths.contains(&p), "{p} in {paths:?}");
     }
     assert!(!paths.contains(&".cargo/config.toml"), "only when asked");
     assert_eq!(file(&files, "spec.ron"), TANK);
-    assert!(file(&files, "Cargo.toml").contains("\nembodied = \"0.1\"\n"));
+    assert!(
+        file(&files, "Cargo.toml").contains(
+            "\nembodied = { version = \"0.1\", features = [\"app\", \"distributed\"] }\n"
+        )
+    );
+    // The program is the application layer; the tests launch the deployment
+    // with the most processes, and kill one the spec lets be restarted.
+    let main = file(&files, "src/main.rs");
+    assert!(
+        main.contains("App::new(\"spec.ron\", my_tank::system::SPEC)")
+            && main.contains("my_tank::system::build_for(target.deployment())")
+            && main.contains("// .ends_when(embodied::app::End::halted([\"c2\"]))"),
+        "{main}"
+    );
+    let app = file(&files, "tests/app.rs");
+    assert!(
+        app.contains("\"split\"") && app.contains("\"operator@1.5\""),
+        "the station may not be restarted (`restarts: 0`): {app}"
+    );
     let types = file(&files, "src/types.rs");
     assert!(types.contains("pub struct Order;") && types.contains("pub struct StationParams;"));
     // The links come from the spec, not from a list in the code.
@@ -182,4 +201,34 @@ fn a_driver_is_made_with_default_and_has_room_for_state() {
         assert!(c1.contains(&format!("fn {behaviour}_terminates()")), "{c1}");
     }
     assert!(file(&files, "tests/properties/main.rs").contains("fn verdict("));
+}
+
+#[test]
+fn a_spec_without_a_deployment_gets_one_of_two_processes() {
+    let minimal = include_str!("../../../tests/specs/valid/minimal.ron");
+    let start = minimal
+        .find("    deployments: [")
+        .expect("minimal.ron has one");
+    let end = start + minimal[start..].find("    ],\n").expect("its end") + "    ],\n".len();
+    let without = format!("{}{}", &minimal[..start], &minimal[end..]);
+    let files = generate("m.ron", &without, &options("app")).expect("a crate");
+    let spec = file(&files, "spec.ron");
+    assert!(
+        spec.starts_with(without.trim_end().trim_end_matches(')').trim_end()),
+        "{spec}"
+    );
+    assert!(
+        spec.contains("name: \"local\"")
+            && spec.contains("(name: \"a1\", runs: [\"c1\", \"e1\", \"E1\"]),")
+            && spec.contains("(name: \"a2\", runs: [\"c2\"]),"),
+        "one process per agent: {spec}"
+    );
+    let (parsed, report) = embodied::spec::check_source("spec.ron", spec.to_owned());
+    assert!(report.is_ok(), "{}", report.short());
+    assert_eq!(parsed.map(|s| s.deployments.len()), Some(1));
+    assert!(file(&files, "tests/app.rs").contains("\"local\""));
+    assert!(file(&files, "src/main.rs").contains("launch --deployment local"));
+    // A spec with one: kept as given.
+    let files = generate("m.ron", minimal, &options("app")).expect("a crate");
+    assert_eq!(file(&files, "spec.ron"), minimal);
 }
