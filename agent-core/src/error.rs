@@ -132,8 +132,9 @@ pub enum RemoteProblem {
         /// The one received.
         got: u64,
     },
-    /// A value of a queue link numbered before the one expected (a repeat, or
-    /// out of order): refused, not delivered twice.
+    /// A value numbered before the one expected (a repeat, a message replayed
+    /// by whoever saw it, or out of order): refused, not delivered twice (on a
+    /// sample link, not put back as the latest).
     #[error("value {got} arrived again or out of order (expected {expected}): refused")]
     Duplicate {
         /// The sequence number expected.

@@ -21,8 +21,9 @@
 //!
 //! The receiver ([`Inbox`]) checks the fingerprint (a process built from
 //! different code is refused: [`RemoteProblem::Fingerprint`]), and on a queue link
-//! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss, and a
-//! repeat is refused ([`RemoteProblem::Duplicate`]). A new epoch is a restarted
+//! the sequence: a gap is [`RemoteProblem::Gap`], never a silent loss; on
+//! every link a repeat (or a value numbered before one taken) is refused
+//! ([`RemoteProblem::Duplicate`]). A new epoch is a restarted
 //! sender, numbering again from 1; a first value numbered later (values sent
 //! before this receiver listened, or while its process was down) is a gap,
 //! except for a receiver that joined a running deployment late (its process
@@ -470,20 +471,22 @@ impl Inbox {
             state.next = 1;
         }
         let first = !std::mem::replace(&mut state.heard, true);
-        if let Policy::Queue { .. } = self.policy {
-            if header.seq < state.next {
-                let (expected, got) = (state.next, header.seq);
-                return self.refuse(&mut state, RemoteProblem::Duplicate { expected, got });
-            }
-            if header.seq != state.next {
-                let (expected, got) = (state.next, header.seq);
-                let gap = RemoteProblem::Gap { expected, got };
-                match (first, state.started, state.late) {
-                    // A late joiner's first value: nothing was lost for it.
-                    (true, true, true) => {}
-                    (true, false, _) => state.first_gap = Some(gap),
-                    _ => Self::problem(&mut state, gap),
-                }
+        // A value numbered before one already taken is a repeat (a message
+        // replayed by someone who saw it) or out of order, on any link: on a
+        // sample link it would put an old value back as the latest.
+        if header.seq < state.next {
+            let (expected, got) = (state.next, header.seq);
+            return self.refuse(&mut state, RemoteProblem::Duplicate { expected, got });
+        }
+        // A gap matters on a queue (a sample keeps only the latest anyway).
+        if matches!(self.policy, Policy::Queue { .. }) && header.seq != state.next {
+            let (expected, got) = (state.next, header.seq);
+            let gap = RemoteProblem::Gap { expected, got };
+            match (first, state.started, state.late) {
+                // A late joiner's first value: nothing was lost for it.
+                (true, true, true) => {}
+                (true, false, _) => state.first_gap = Some(gap),
+                _ => Self::problem(&mut state, gap),
             }
         }
         state.next = header.seq.wrapping_add(1);

@@ -68,6 +68,52 @@ fn a_sample_keeps_the_latest() {
     assert_eq!(stats.snapshot().overwritten, 4);
 }
 
+/// A publisher that hands its messages to an inbox and keeps a copy of each,
+/// as an eavesdropper on the network would.
+struct Tap(Arc<Inbox>, Arc<Mutex<Vec<Vec<u8>>>>);
+impl Publisher for Tap {
+    fn put(&mut self, message: &[u8]) -> Result<(), TransportError> {
+        self.1
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .push(message.to_vec());
+        self.0.deliver(message);
+        Ok(())
+    }
+}
+
+#[test]
+fn a_sample_replayed_is_refused_not_put_back_as_the_latest() {
+    let (inbox, stats) = inbox::<f64>(Policy::Sample);
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut tx = RemoteTx::new(
+        Some(Box::new(Tap(inbox.clone(), seen.clone()))),
+        "k".into(),
+        fingerprint::<f64>(),
+        7,
+        Arc::new(SharedStats::default()),
+    );
+    tx.put(&1.0, stamp(1)).unwrap();
+    tx.put(&2.0, stamp(2)).unwrap();
+    let mut x = In::default();
+    inbox.take_into(&mut x, Time::NEVER).unwrap();
+    assert_eq!(x.fresh(), Some(&2.0));
+    // The first message again, sent by whoever saw it go by.
+    let first = seen.lock().unwrap()[0].clone();
+    inbox.deliver(&first);
+    assert_eq!(
+        inbox.take_into(&mut x, Time::NEVER),
+        Err(RemoteProblem::Duplicate {
+            expected: 3,
+            got: 1
+        })
+    );
+    inbox.take_into(&mut x, Time::NEVER).unwrap();
+    assert!(!x.is_new(), "the old value is not taken again");
+    assert_eq!(x.get(), Some(&2.0));
+    assert_eq!(stats.snapshot().refused, 1);
+}
+
 #[test]
 fn a_value_stamped_after_the_reading_instant_waits_for_it() {
     // stamp(i) is at 10·i ns.
