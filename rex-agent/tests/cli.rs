@@ -194,11 +194,19 @@ fn a_recording_is_written_or_refused_with_the_reason() {
         bytes.ends_with(b"\x89MCAP0\r\n"),
         "finished, with its footer"
     );
-    // Into a folder that does not exist: the file is named.
-    let bad = d.0.join("missing/run.mcap").display().to_string();
-    let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "1", "--record", &bad]);
-    assert_ne!(code, Some(0), "{text}");
-    assert!(text.contains(&bad), "{text}");
+    // Into a folder that does not exist, or onto a folder: invalid input, the
+    // path named, before anything runs.
+    let missing = d.0.join("missing/run.mcap").display().to_string();
+    let folder = d.0.display().to_string();
+    for bad in [&missing, &folder] {
+        let (code, text) = rex(&["--no-report", "--no-vo", "--limit", "1", "--record", bad]);
+        assert_eq!(code, Some(2), "{text}");
+        assert!(text.contains(bad.as_str()), "{text}");
+        assert!(
+            !text.contains("run=") && !text.contains("mission="),
+            "{text}"
+        );
+    }
     // By default the report folder holds the run's recording; `--no-record`
     // leaves it out.
     let out = d.0.join("report").display().to_string();
@@ -229,4 +237,41 @@ fn a_recording_is_written_or_refused_with_the_reason() {
     assert!(!text.contains("record: "), "{text}");
     assert!(!recorded.exists());
     assert!(d.0.join("report/square/summary.txt").exists());
+}
+
+#[test]
+fn a_replay_with_a_changed_spec_says_the_spec_differs() {
+    let d = Dir::new("spec-differs");
+    let spec_text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs/rex.ron"))
+            .unwrap();
+    let spec = d.file("rex.ron", &spec_text);
+    let file = d.0.join("run.mcap").display().to_string();
+    let (code, text) = rex(&[
+        "--no-report",
+        "--no-vo",
+        "--limit",
+        "1",
+        "--spec",
+        &spec,
+        "--record",
+        &file,
+    ]);
+    assert_eq!(code, Some(1), "a mission cut short: {text}");
+    // The same spec: no word about it.
+    let (code, text) = rex(&["replay", &file, "--subsystem", "c1"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("replay c1: equivalent"), "{text}");
+    assert!(!text.contains("differs from the one recorded"), "{text}");
+    // The spec file changed since (a comment is enough): the replay says so,
+    // naming both files, since a divergence may come from there.
+    d.file("rex.ron", &format!("// changed after the run\n{spec_text}"));
+    let (code, text) = rex(&["replay", &file, "--subsystem", "c1"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(
+        text.contains(&format!(
+            "the spec {spec} differs from the one recorded in {file}"
+        )),
+        "{text}"
+    );
 }

@@ -146,6 +146,11 @@ fn every_message_of_an_outside_peer_is_refused_counted_and_blocks_nothing() {
     assert_eq!(sent, 20 + 20 + 20 + 2 + 40 + 20 + 20, "{said}");
 
     assert!(launched.status.success(), "{stdout}\n{stderr}");
+    // Rex says at start that the deployment is unprotected.
+    assert!(
+        stderr.contains("deployment `split_without_vo` is unprotected"),
+        "{stderr}"
+    );
     let last = stdout.lines().last().unwrap_or_default();
     assert!(
         last.starts_with("mission=short plans_acked=2/2"),
