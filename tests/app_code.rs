@@ -30,6 +30,15 @@ fn the_spec_of_a_system_built_in_code_is_exported_and_checked() {
         check(App::from_code("lamp", lamp::system).deployment(lamp::SPLIT)),
         Status::Success
     );
+    // Written as in a spec file: `secure: false`, not `secure: Some(false)`.
+    assert_eq!(
+        check(
+            App::from_code("lamp", lamp::system)
+                .deployment(lamp::SPLIT)
+                .deployment(lamp::OPEN)
+        ),
+        Status::Success
+    );
 }
 
 #[test]

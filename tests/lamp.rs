@@ -1,5 +1,5 @@
 //! The lamp walk-through of `docs/application.md` ("A system built in code"),
-//! run command by command as the guide gives them. The lamp of the README's
+//! run command by command as the guide gives them. The lamp of the guide's
 //! macros walk-through, built in code, has the application layer's whole
 //! command line from one call in its `main` (`examples/lamp/main.rs`): this
 //! test is that program too (the same file), so that its commands, and the
@@ -59,14 +59,29 @@ fn main() -> ExitCode {
     let commands = walkthrough();
     assert!(commands.len() >= 7, "{commands:?}");
     let (mut recorded, mut replayed, mut launched, mut killed) = (false, 0, false, false);
+    let mut by_hand = false;
+    // A command that ends with `&` runs in the background, as in a shell,
+    // until the next command has ended; it must then end with status 0 too.
+    let mut background: Vec<(String, std::process::Child)> = Vec::new();
     for args in &commands {
         let line = args.join(" ");
-        let out = Command::new(std::env::current_exe().unwrap())
-            .args(args)
-            .env(PROGRAM, "1")
-            .current_dir(&scratch)
-            .output()
-            .unwrap();
+        let lamp = || {
+            let mut c = Command::new(std::env::current_exe().unwrap());
+            c.env(PROGRAM, "1").current_dir(&scratch);
+            c
+        };
+        if let Some((&_, args)) = args.split_last().filter(|(last, _)| *last == "&") {
+            let child = lamp()
+                .args(args)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            println!("started: lamp {line}");
+            background.push((line, child));
+            continue;
+        }
+        let out = lamp().args(args).output().unwrap();
         let (code, stdout, stderr) = (
             out.status.code(),
             String::from_utf8_lossy(&out.stdout),
@@ -104,20 +119,54 @@ fn main() -> ExitCode {
             }
             flags => {
                 assert_eq!(code, Some(0), "{said}");
-                assert!(last.starts_with("run=lamp ended=limit"), "{said}");
+                match flags.iter().position(|f| *f == "--process") {
+                    // One process of a deployment, started by hand: its summary,
+                    // and a word that the deployment is unprotected.
+                    Some(i) => {
+                        let process = flags.get(i + 1).copied().unwrap_or_default();
+                        assert!(last.starts_with(&format!("process={process} ")), "{said}");
+                        assert!(stderr.contains("is unprotected"), "{said}");
+                    }
+                    None => assert!(last.starts_with("run=lamp ended=limit"), "{said}"),
+                }
                 if flags.contains(&"--realtime") {
                     assert!(stdout.contains("rt_priority="), "{said}");
                 }
-                if flags.contains(&"--record") {
-                    assert!(stdout.contains("record: lamp.mcap ("), "{said}");
+                if let Some(file) = flags
+                    .iter()
+                    .position(|f| *f == "--record")
+                    .and_then(|i| flags.get(i + 1))
+                {
+                    assert!(stdout.contains(&format!("record: {file} (")), "{said}");
+                    if flags.contains(&"--process") {
+                        // What came from the other process is in this one's file.
+                        let bytes = std::fs::read(scratch.join(file)).unwrap();
+                        let received = b"/received/links/";
+                        assert!(
+                            bytes.windows(received.len()).any(|w| w == received),
+                            "{file} has no /received channel"
+                        );
+                    }
                     recorded = true;
                 }
             }
         }
         println!("ok: lamp {line}");
+        for (line, child) in background.drain(..) {
+            let out = child.wait_with_output().unwrap();
+            assert_eq!(
+                out.status.code(),
+                Some(0),
+                "lamp {line}\n--- stdout\n{}\n--- stderr\n{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            by_hand = true;
+            println!("ok: lamp {line}");
+        }
     }
     assert!(
-        recorded && replayed >= 2 && launched && killed,
+        recorded && replayed >= 3 && launched && killed && by_hand,
         "{commands:?}"
     );
     println!("the lamp walk-through: {} commands ok", commands.len());

@@ -110,12 +110,14 @@ impl App {
         let mut spec = agent_spec::export::spec_of(&code.name, system.info())
             .map_err(|e| AppError::invalid(format!("the spec of the system built in code: {e}")))?;
         for (k, text) in code.deployments.iter().enumerate() {
-            let deployment: agent_spec::model::Deployment = ron::from_str(text).map_err(|e| {
-                AppError::invalid(format!(
-                    "deployment {} given to App::deployment: {e}",
-                    k + 1
-                ))
-            })?;
+            // As in a spec file: optional fields without `Some(...)`.
+            let deployment: agent_spec::model::Deployment =
+                agent_spec::options().from_str(text).map_err(|e| {
+                    AppError::invalid(format!(
+                        "deployment {} given to App::deployment: {e}",
+                        k + 1
+                    ))
+                })?;
             if !deployment.omit.is_empty() {
                 return Err(AppError::invalid(format!(
                     "deployment `{}` omits {}: a system built in code runs whole in every process (give a spec file with App::new to omit components)",

@@ -1,13 +1,15 @@
-//! The blinking lamp of the README's macros walk-through ("In Rust with the
-//! macros"): c1 blinks, e1 ramps the brightness, E1 is the lamp. Built in code
-//! (no spec file): the application layer exports its spec from what was built.
+// The blinking lamp of the guide's macros walk-through (docs/writing-an-agent.md,
+// "In Rust with the macros"): c1 blinks, e1 ramps the brightness, E1 is the
+// lamp. Built in code (no spec file): the application layer exports its spec from
+// what was built. (Plain comments, not `//!`: the guide's examples `include!` this
+// file.)
 
 use embodied::*;
 
 // c1, the blinker.
-#[derive(Debug, Default, Memory)]
+#[derive(Debug, Default, Clone, Memory)]
 pub(crate) struct Count {
-    actions: u32,
+    pub(crate) actions: u32,
 }
 
 #[derive(Debug, Default, Group)]
@@ -18,7 +20,7 @@ pub(crate) struct ToDimmer {
 
 #[derive(Debug, Default, Buffers)]
 pub(crate) struct BlinkerOutput {
-    dimmer: ToDimmer,
+    e1: ToDimmer,
 }
 
 #[derive(Subsystem)]
@@ -41,7 +43,7 @@ fn three(n: &Count, _: &()) -> bool {
 // e1, the dimmer, between c1 and the lamp.
 #[derive(Debug, Default, Memory)]
 pub(crate) struct Level {
-    brightness: f64,
+    pub(crate) brightness: f64,
 }
 
 #[derive(Debug, Default, Group)]
@@ -52,7 +54,7 @@ pub(crate) struct FromBlinker {
 
 #[derive(Debug, Default, Buffers)]
 pub(crate) struct DimmerInput {
-    blinker: FromBlinker,
+    c1: FromBlinker,
 }
 
 #[derive(Debug, Default, Group)]
@@ -62,8 +64,12 @@ pub(crate) struct ToLamp {
 }
 
 #[derive(Debug, Default, Buffers)]
+#[expect(
+    non_snake_case,
+    reason = "a group is named after its peer: the paper's E1"
+)]
 pub(crate) struct DimmerOutput {
-    lamp: ToLamp,
+    E1: ToLamp,
 }
 
 #[derive(Subsystem)]
@@ -72,7 +78,7 @@ pub(crate) struct Dimmer;
 
 /// Common part: the new brightness, a quarter step at a time.
 fn ramp(l: &mut Level, x: &DimmerInput) {
-    let target = if x.blinker.on.get() == Some(&true) {
+    let target = if x.c1.on.get() == Some(&true) {
         1.0
     } else {
         0.0
@@ -86,12 +92,18 @@ fn drive(l: &Level, _: &DimmerInput, y: &mut ToLamp) {
 // E1: the lamp, a real effector (simulated here).
 #[derive(Default)]
 pub(crate) struct Lamp {
-    brightness: f64,
+    pub(crate) brightness: f64,
+}
+
+#[derive(Debug, Default, Group)]
+#[group(peer = VirtualEffector)]
+pub(crate) struct FromDimmer {
+    brightness: In<f64>,
 }
 
 #[derive(Debug, Default, Buffers)]
 pub(crate) struct LampInput {
-    brightness: In<f64>,
+    e1: FromDimmer,
 }
 
 impl Driver for Lamp {
@@ -101,8 +113,11 @@ impl Driver for Lamp {
     fn shape() -> Option<Shape> {
         Some(Shape::of_driver::<Self>())
     }
+    fn ports() -> Option<PortTable> {
+        Some(PortTable::of::<Self::Input, Self::Output>())
+    }
     fn step(&mut self, _: DriverContext<'_>, x: &LampInput, _: &mut ()) -> Result<(), DriverError> {
-        match x.brightness.get() {
+        match x.e1.brightness.get() {
             Some(b) if b.is_finite() => self.brightness = b.clamp(0.0, 1.0),
             Some(b) => return Err(DriverError::new(format!("refusing brightness {b}"))),
             None => {}
@@ -111,22 +126,50 @@ impl Driver for Lamp {
     }
 }
 
-/// The lamp's system: c1 every 100 ms, e1 and E1 every 10 ms.
-pub(crate) fn system() -> Result<System, Box<dyn std::error::Error + Send + Sync>> {
-    let blinker = fsm! {
+/// c1's FSM: three actions on, three off.
+pub(crate) fn blinker() -> Result<Fsm<Blinker>, FsmBuildError> {
+    fsm! {
         subsystem Blinker;
         predicates { three }
-        repeat on until three { dimmer <- switch_on, memory <- count }
-        repeat off until three { dimmer <- switch_off, memory <- count }
+        repeat on until three { e1 <- switch_on, memory <- count }
+        repeat off until three { e1 <- switch_off, memory <- count }
         initial on;
         on -> off;
         off -> on;
-    }?;
-    let dimmer = fsm! {
+    }
+}
+
+/// e1's FSM: one behaviour that never ends.
+pub(crate) fn dimmer() -> Result<Fsm<Dimmer>, FsmBuildError> {
+    fsm! {
         subsystem Dimmer;
-        while ramp until false { common <- ramp, lamp <- drive }
+        while ramp until false { common <- ramp, E1 <- drive }
         initial ramp;
-    }?;
+    }
+}
+
+/// The lamp's system: c1 every 100 ms, e1 and E1 every 10 ms.
+pub(crate) fn system() -> Result<System, Box<dyn std::error::Error + Send + Sync>> {
+    Ok(parts()?.system)
+}
+
+/// The lamp's system with the handles of its parts, to look at them in a run.
+#[allow(
+    dead_code,
+    reason = "the guide's examples use the handles (docs/runtime.md)"
+)]
+pub(crate) struct Parts {
+    pub(crate) system: System,
+    pub(crate) c1: SubsystemHandle<Blinker>,
+    pub(crate) e1: SubsystemHandle<Dimmer>,
+    pub(crate) lamp: DriverHandle<Lamp>,
+    /// e1's brightness to the lamp.
+    pub(crate) brightness: LinkId,
+}
+
+/// [`system`], with the handles of its parts.
+pub(crate) fn parts() -> Result<Parts, Box<dyn std::error::Error + Send + Sync>> {
+    let (blinker, dimmer) = (blinker()?, dimmer()?);
     let mut sys = SystemBuilder::new();
     let a1 = sys.agent("a1");
     let c1 = sys.subsystem(
@@ -139,16 +182,22 @@ pub(crate) fn system() -> Result<System, Box<dyn std::error::Error + Send + Sync
     let e1 = sys.subsystem(a1, "e1", Period::from_millis(10)?, Level::default(), dimmer);
     let lamp = sys.driver(a1, "E1", Period::from_millis(10)?, Lamp::default());
     sys.connect(
-        c1.output(port!(BlinkerOutput, dimmer.on)),
-        e1.input(port!(DimmerInput, blinker.on)),
+        c1.output(port!(BlinkerOutput, e1.on)),
+        e1.input(port!(DimmerInput, c1.on)),
         Policy::Sample,
     );
-    sys.connect(
-        e1.output(port!(DimmerOutput, lamp.brightness)),
-        lamp.input(port!(LampInput, brightness)),
+    let brightness = sys.connect(
+        e1.output(port!(DimmerOutput, E1.brightness)),
+        lamp.input(port!(LampInput, e1.brightness)),
         Policy::Sample,
     );
-    Ok(sys.build()?)
+    Ok(Parts {
+        system: sys.build()?,
+        c1,
+        e1,
+        lamp,
+        brightness,
+    })
 }
 
 /// A deployment of the lamp in two processes on this machine: the blinker
@@ -159,4 +208,15 @@ pub(crate) const SPLIT: &str = r#"(
         (name: "blinker", runs: ["c1"]),
         (name: "lamp", runs: ["e1", "E1"]),
     ])],
+)"#;
+
+/// The same two processes unprotected (asked for by name), so that one process
+/// can be started alone, by hand, without the launch's certificates.
+pub(crate) const OPEN: &str = r#"(
+    name: "open",
+    hosts: [(name: "localhost", processes: [
+        (name: "blinker", runs: ["c1"]),
+        (name: "lamp", runs: ["e1", "E1"]),
+    ])],
+    secure: false,
 )"#;

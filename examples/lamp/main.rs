@@ -9,5 +9,6 @@ mod lamp;
 pub(crate) fn main() -> std::process::ExitCode {
     embodied::app::App::from_code("lamp", lamp::system)
         .deployment(lamp::SPLIT)
+        .deployment(lamp::OPEN)
         .main()
 }
