@@ -55,8 +55,31 @@ pub mod replay {
     pub use agent_mcap::{ReadError, Recording};
 }
 
-/// The guide to the application layer (`docs/application.md`): its examples are
-/// compiled with this crate's tests.
-#[cfg(all(doctest, feature = "app"))]
-#[doc = include_str!("../docs/application.md")]
-mod application_guide {}
+/// The guide (`docs/`): each page with Rust examples is a module of the doctests,
+/// so that its examples are compiled (and run, unless marked `no_run`) with this
+/// crate's tests; `tests/docs.rs` checks that every page with Rust is here and that
+/// none is ignored.
+#[cfg(doctest)]
+mod guide {
+    #[doc = include_str!("../docs/concepts.md")]
+    mod concepts {}
+    #[doc = include_str!("../docs/writing-an-agent.md")]
+    mod writing_an_agent {}
+    #[cfg(feature = "app")]
+    #[doc = include_str!("../docs/application.md")]
+    mod application {}
+    #[cfg(feature = "distributed")]
+    #[doc = include_str!("../docs/runtime.md")]
+    mod runtime {}
+    #[doc = include_str!("../docs/specs.md")]
+    mod specs {}
+    #[doc = include_str!("../docs/spec-reference.md")]
+    mod spec_reference {}
+    #[cfg(feature = "record")]
+    #[doc = include_str!("../docs/rex.md")]
+    mod rex {}
+    #[doc = include_str!("../docs/nmpc-mhe.md")]
+    mod nmpc_mhe {}
+    #[doc = include_str!("../docs/visual-odometry.md")]
+    mod visual_odometry {}
+}

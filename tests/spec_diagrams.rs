@@ -1,5 +1,5 @@
 //! The three diagram kinds of Rex in the three formats, snapshot-tested; and the
-//! README's Mermaid FSM is the one the tool draws.
+//! guide's Mermaid FSM (docs/specs.md) is the one the tool draws.
 
 #![allow(
     clippy::unwrap_used,
@@ -77,13 +77,13 @@ fn one_subsystem_and_its_content() {
 }
 
 #[test]
-fn the_readme_shows_the_rex_fsm_as_drawn() {
+fn the_guide_shows_the_rex_fsm_as_drawn() {
     let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/specs.md")).unwrap();
     let drawn = render(&rex(), Kind::Fsm, Some("c1"), Format::Mermaid).unwrap();
     let block = format!("```mermaid\n{drawn}```");
     assert!(
         readme.contains(&block),
-        "the README's Mermaid block of c1 is out of date; it should read:\n{block}"
+        "docs/specs.md's Mermaid block of c1 is out of date; it should read:\n{block}"
     );
 }

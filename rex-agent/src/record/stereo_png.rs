@@ -12,7 +12,7 @@
 //! PNG (8-bit grayscale, fast compression) predicts each pixel from its
 //! neighbours: the camera's noisy images shrink to ~41% of their size, where
 //! the file's zstd chunks made ~61% of them, in less time (measured on the
-//! figure-eight's pairs: README, `bench_record`).
+//! figure-eight's pairs: docs/figures.md, `bench_record`).
 
 use embodied::record::Codec;
 use serde_bytes::Bytes;

@@ -276,7 +276,7 @@ pub struct Features {
     /// matches by an amount proportional to the inverse depth: a spurious
     /// translation. Measured on the ideal-camera tuning tour (seed 21, VGA):
     /// t_err 0.121 % at the corner, 0.057 % one pixel further, 0.254 % one pixel
-    /// back, 0.046 % at the peak (README, visual odometry).
+    /// back, 0.046 % at the peak (docs/visual-odometry.md).
     pub peak: Vec<(f32, f32)>,
 }
 

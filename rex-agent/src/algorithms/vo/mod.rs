@@ -38,20 +38,14 @@ use matching::{Circle, Indexed, Ranges, Search};
 
 use crate::algorithms::rng::Rng;
 
-/// Settings of the odometry: libviso2's defaults, except three measured on the
-/// simulator's 640 × 480 sequences (`bench_vo`): photometric refinement
-/// (Lucas–Kanade alignment at full resolution from the matching positions; with a
-/// parabolic fit before it, rotational drift went 0.155 → 0.022 deg/m; without
-/// the fit, measured 2026-11-26 on the tuning tours, translational drift 0.046 →
-/// 0.036 % and 0.034 → 0.021 %, and 20 % less time),
-/// 8 matches per bucket instead of 2 (libviso2's 2 suit 1241 × 376 images), and no
-/// reweighting towards the centre column (it guards against calibration errors at
-/// the image borders, which a simulated camera does not have, at the cost of
-/// accuracy: 0.55 → 0.26 % of translational drift; turn it on for real cameras;
-/// on long smooth tours with a noisy camera it lowers the drift instead, see the
-/// README). The Lucas–Kanade step's tolerance (0.01 px) was chosen on those
-/// sequences and on two noisy tuning tours (seeds 21 and 22), not on `bench_vo`'s
-/// held-out tours.
+/// Settings of the odometry: libviso2's defaults, except three chosen on the
+/// simulator's 640 × 480 tuning sequences (never on `bench_vo`'s held-out
+/// tours): photometric refinement (Lucas–Kanade alignment at full resolution
+/// from the matching positions: less drift, less time), 8 matches per bucket
+/// instead of 2 (libviso2's 2 suit 1241 × 376 images), and no reweighting
+/// towards the centre column (it guards against calibration errors at the image
+/// borders, which a simulated camera does not have; turn it on for real
+/// cameras). The measurements: docs/measurements.md, "The odometry's settings".
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VoSettings {
@@ -90,14 +84,14 @@ pub struct VoSettings {
     /// the last motion predicts where a point appears, and a candidate's cost
     /// grows by `motion_prior_weight` per pixel from there (0: off; libviso2: 4).
     /// Off by default: on the tuning sequences it helped some and hurt others
-    /// (README, visual odometry), where no pair fails to match without it.
+    /// (docs/visual-odometry.md), where no pair fails to match without it.
     pub motion_prior_weight: f32,
     /// libviso2's outlier pre-filter ([`outliers`]): a circular match whose
     /// neighbours (Delaunay) disagree with its disparity or flow by 5 px or more
     /// is dropped, in the sparse pass before it sets the search ranges and in the
     /// dense pass before refinement. Off by default: on four of the five tuning
-    /// sequences the odometry drifted more with it, and it costs time (README,
-    /// visual odometry). On, a pair allocates its triangulation.
+    /// sequences the odometry drifted more with it, and it costs time
+    /// (docs/visual-odometry.md). On, a pair allocates its triangulation.
     pub outlier_filter: bool,
     /// Fewest inliers of an estimate.
     pub min_inliers: usize,

@@ -17,7 +17,7 @@
 //! and 80 ms on ice at 80 % of the bound, against the MHE's 50 ms samples. On
 //! ice the settled slip was wrong often enough to bias the MHE's friction
 //! (`μ_x` 5-8 % high on average, the rolling resistance `μ_r` 11-30 % low; the
-//! README's "NMPC and MHE" has the measurements): the encoders, read at the end
+//! docs/nmpc-mhe.md has the measurements): the encoders, read at the end
 //! of a sample, still show part of the slip of the torque before.
 //!
 //! So the MHE predicts each encoder from the slip its previous reading showed,
@@ -29,7 +29,7 @@
 //! to nearly all of what was left of the MHE's average `μ_r` error (−7.2 /
 //! −7.4 / −10.2 % -> −0.6 / −0.8 / −8.2 % in the square / figure eight /
 //! slalom, one comparison: the closed loop moves such figures by a few points
-//! between builds; the README's "NMPC and MHE").
+//! between builds; docs/nmpc-mhe.md).
 
 use super::dynamics::{sg, sg_inverse, sg_prime};
 

@@ -45,23 +45,15 @@ struct Settling {
 ///   tightening with the time the platform has moved (time constant
 ///   [`FrictionWalk::SETTLE_S`]; standing still teaches nothing of the ground).
 /// * Then relative, [`FrictionWalk::RELATIVE`] of the estimate a sample (not
-///   below [`FrictionWalk::FLOOR`]): a step of 0.01, right on concrete (1 %),
-///   is 10 % of ice's `μ_x` and let the estimate on ice wander by up to 28 %
-///   in single samples. The rolling resistance's was an absolute 0.002 until
-///   its model took its direction from the wheels' spin (2026-11-28): 20 % of
-///   ice's value, and single samples 37-93 % off; relative (and with the
-///   encoders' counting window predicted), within 16 % on ice and 7.2 %
-///   elsewhere (the README's "NMPC and MHE").
+///   below [`FrictionWalk::FLOOR`]): an absolute step right for concrete is
+///   too large for ice, whose coefficients are ten times smaller.
 /// * Widened while the encoders disagree with the model: by `1 + GAIN · s`,
 ///   where `s` is the mean square of the encoders' normalised innovation
 ///   ([`Innovation`]; a wheel spinning beyond any friction counts as
-///   [`FrictionWalk::SPINNING`]) smoothed over [`FrictionWalk::SURPRISE_S`].
-///   On a uniform ground `s` stays below 1 (0.27-0.81 on every mission and
-///   ground after the first 5 s); when the ground changes under the robot it
-///   reaches 3 to 400 and the estimate follows within seconds (see the
-///   README's "NMPC and MHE" for the measurements: a purely relative walk
-///   followed changes of ground so slowly that a third of the plans on split
-///   grounds failed).
+///   [`FrictionWalk::SPINNING`]) smoothed over [`FrictionWalk::SURPRISE_S`]:
+///   `s` stays below 1 on a uniform ground and rises when the ground changes,
+///   which a purely relative walk followed too slowly. (The measurements
+///   behind these choices: docs/measurements.md, "The friction's walk".)
 #[derive(Clone, Copy, Debug, Default)]
 struct FrictionWalk {
     /// The smoothed mean square innovation `s`.

@@ -476,7 +476,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
 /// multiplier positive. The least ratio `v / −dv` over the decreasing ones is
 /// tracked as a fraction (compared by cross-multiplying: both denominators are
 /// positive) and divided once, instead of once per decreasing value (divisions
-/// are slow; `bench_nmpc` measured in the README, "NMPC and MHE").
+/// are slow; `bench_nmpc` measured in docs/nmpc-mhe.md).
 fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f64) -> f64 {
     // The least ratio `num / den`, starting at `1 / fraction` (the step 1).
     let (mut num, mut den) = (1.0f64, fraction);

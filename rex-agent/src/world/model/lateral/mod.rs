@@ -61,7 +61,7 @@
 //! [`super::settling`]), single samples after 5 s within 16 % on ice and
 //! 7.2 % elsewhere, 4-16 % low on average on ice; with the wheels' spin-up
 //! read too, within 9.7 % on ice and 6.5 % elsewhere, 1-9 % low on average
-//! on ice (the README's "NMPC and MHE").
+//! on ice (docs/nmpc-mhe.md).
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
