@@ -28,11 +28,11 @@
 use std::path::Path;
 use std::time::Duration;
 
-use rex_agent::a1::RunSettings;
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
-use rex_agent::report::judge::Verdict;
+use rex_agent::model::{Friction, Patch, Region, SurfaceMap};
+use rex_agent::run::judge::Verdict;
 use rex_agent::run::{Outcome, run_mission};
-use rex_agent::world::model::{Friction, Patch, Region, SurfaceMap};
+use rex_agent::system::RunSettings;
 
 const MISSIONS: [&str; 3] = ["square", "figure_eight", "slalom"];
 const SURFACES: [&str; 3] = ["concrete", "grass", "ice"];

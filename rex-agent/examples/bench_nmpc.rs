@@ -37,7 +37,7 @@ use stats::{Stats, percentile};
 
 use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
 use rex_agent::algorithms::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
-use rex_agent::world::model::SlipParams;
+use rex_agent::model::SlipParams;
 
 #[derive(Clone, Debug, Default)]
 struct Run {

@@ -22,10 +22,10 @@
 use std::time::Instant;
 
 use rex_agent::a1::c1::{C1Params, proc};
-use rex_agent::a1::payload::Plan;
 use rex_agent::algorithms::planner::ecsa::Ecsa;
 use rex_agent::algorithms::planner::{Planner, PlannerSettings, Waypoint};
 use rex_agent::mission::Mission;
+use rex_agent::payload::Plan;
 
 const REPEAT: usize = 30;
 

@@ -37,7 +37,7 @@ use stats::{Stats, percentile};
 
 use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
 use rex_agent::algorithms::mpc::{FrozenQp, Nmpc, NmpcSettings, SparseQp};
-use rex_agent::world::model::{Reduced, SlipParams};
+use rex_agent::model::{Reduced, SlipParams};
 
 const TOL: f64 = 1e-6;
 

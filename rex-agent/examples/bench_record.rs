@@ -25,8 +25,8 @@ use std::time::{Duration, Instant};
 use embodied::NoObserver;
 use embodied::record::McapRecorder;
 use embodied::replay::replay_file;
-use rex_agent::a1::{RexConfig, RunSettings, build};
 use rex_agent::run::{Outcome, RunError, run_mission_observed};
+use rex_agent::system::{RexConfig, RunSettings, build};
 
 const LIMIT: Duration = Duration::from_secs(120);
 

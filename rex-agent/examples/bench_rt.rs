@@ -16,8 +16,8 @@ use std::time::Duration;
 
 use embodied::prelude::*;
 use embodied::{RealTime, RtConfig};
-use rex_agent::a1::{RexConfig, RunSettings};
 use rex_agent::run::run_mission_realtime;
+use rex_agent::system::{RexConfig, RunSettings};
 
 /// A control subsystem that does nothing but keep its period.
 struct Tick;

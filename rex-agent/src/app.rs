@@ -19,11 +19,11 @@ use embodied::{ExecConfig, Finished, OffloadMode, Probes, System};
 
 use crate::a1::c1::trajgen::Runtime;
 use crate::a1::e11::{EstimatorKind, TrackerKind};
-use crate::a1::{RexConfig, RexHandles, RunSettings, build, build_deployment, deployment};
 use crate::algorithms::planner::PlannerKind;
 use crate::config;
 use crate::mission::Mission;
 use crate::run::{MissionWatch, Progress, Seen, install_probes, last_reports};
+use crate::system::{RexConfig, RexHandles, RunSettings, build, build_deployment, deployment};
 
 /// Rex's own flags (the layer adds `--for/--limit`, `--realtime`, `--record`,
 /// `--quiet`, `--deployment`, `--process`, `--port`, `--wait`,
@@ -180,7 +180,7 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
     let absolute = |p: &Path| std::path::absolute(base.join(p)).unwrap_or_else(|_| base.join(p));
     s.world = s.world.as_deref().map(absolute);
     s.spec = Some(absolute(
-        s.spec.as_deref().unwrap_or(&crate::a1::default_spec()),
+        s.spec.as_deref().unwrap_or(&crate::system::default_spec()),
     ));
     if !Mission::SHIPPED.contains(&s.mission.as_str()) {
         // A mission file named on the command line is relative to the
@@ -309,7 +309,10 @@ impl Application for RexApp {
     }
 
     fn spec(&self, config: &RunSettings) -> Result<SpecFile, AppError> {
-        let path = config.spec.clone().unwrap_or_else(crate::a1::default_spec);
+        let path = config
+            .spec
+            .clone()
+            .unwrap_or_else(crate::system::default_spec);
         SpecFile::read(&path)
     }
 

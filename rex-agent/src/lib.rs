@@ -1,20 +1,24 @@
 //! Rex, the skid-steer mobile platform of Janiak & Zieliński, as an embodied agent.
 //!
-//! The folders follow the paper's Fig. 2/3:
+//! The folders follow the paper's Fig. 2/3, in layers that import downward only (`tests/layout.rs` checks it):
 //!
-//! * [`a1`], the locomotion agent: its control subsystem `c1`, virtual effector
-//!   `e1,1` and virtual receptor `r1,1`, the payloads of their buffers, the map they
-//!   check plans and poses against, and the system built from `specs/rex.ron`;
-//! * [`world`], the simulated world: the platform model, the real effector `E1` and
-//!   receptors `R1` (stereo camera) and `R3` (motion capture) as drivers, the
-//!   rendered scene, and the partner agents `a2` (ontology) and `a3` (map);
-//! * [`algorithms`], what a1 computes with: model predictive control and
-//!   moving-horizon estimation, trajectory planners, stereo visual odometry. They
-//!   know nothing of the framework;
-//! * [`report`], the verdict on a run and its report folder; [`config`],
-//!   [`mission`], [`run`] and [`soak`], running missions for the `rex` binary,
-//!   the tests and the examples; [`app`], what is Rex's own in the `rex`
-//!   program (the rest is the application layer's, `embodied::app`).
+//! 1. [`math`] (linear solves, geometry, the seeded generator) and [`config`] (RON
+//!    files);
+//! 2. [`model`], the skid-steer platform (parameters, the reduced model of the
+//!    controllers, the full model of the plant); [`payload`], what the buffers
+//!    carry; [`mission`], a2's plans;
+//! 3. [`algorithms`], what a1 computes with: model predictive control and
+//!    moving-horizon estimation, trajectory planners, stereo visual odometry. They
+//!    know nothing of the framework;
+//! 4. [`a1`], the locomotion agent (its control subsystem `c1`, virtual effector
+//!    `e1,1`, virtual receptor `r1,1`, the map they check plans and poses
+//!    against), and [`world`], the simulated world (the real effector `E1` and
+//!    receptors `R1` and `R3` as drivers, the rendered scene, the partner agents
+//!    `a2` and `a3`), neither knowing the other;
+//! 5. the composition root: [`system`] (a1 in the world, built from
+//!    `specs/rex.ron`), [`run`] (missions in either executor, judged), [`report`],
+//!    [`record`], [`soak`], and [`app`], what is Rex's own in the `rex` program (the
+//!    rest is the application layer's, `embodied::app`).
 //!
 //! Everything is written against the public `embodied` API only, exactly as a
 //! user's crate would be.
@@ -23,9 +27,13 @@ pub mod a1;
 pub mod algorithms;
 pub mod app;
 pub mod config;
+pub mod math;
 pub mod mission;
+pub mod model;
+pub mod payload;
 pub mod record;
 pub mod report;
 pub mod run;
 pub mod soak;
+pub mod system;
 pub mod world;

@@ -14,8 +14,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::a1::payload::{Plan, Point2};
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
+use crate::payload::{Plan, Point2};
 
 /// A mission: plans sent one after the other, each after the previous was acknowledged.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

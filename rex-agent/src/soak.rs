@@ -4,14 +4,14 @@
 
 use std::time::Duration;
 
-use crate::a1::RexConfig;
 use crate::a1::e11::{EstimatorKind, TrackerKind};
 use crate::a1::map::Map;
-use crate::a1::payload::Point2;
-use crate::algorithms::geometry::wrap;
-use crate::algorithms::rng::Rng;
+use crate::math::geometry::wrap;
+use crate::math::rng::Rng;
 use crate::mission::Mission;
+use crate::payload::Point2;
 use crate::run::{RunError, Sample, run_mission};
+use crate::system::RexConfig;
 use crate::world::WorldConfig;
 
 /// One way of running Rex through a soak.
@@ -148,7 +148,7 @@ pub fn run_case(
     camera_scale: f64,
 ) -> Result<SoakResult, RunError> {
     let mut world = WorldConfig::shipped()
-        .map_err(|e| RunError::Build(crate::a1::RexError::World(e.into())))?;
+        .map_err(|e| RunError::Build(crate::system::RexError::World(e.into())))?;
     // The camera's resolution changes; its calibration follows from it.
     world.surfaces.default = "concrete".into();
     world.surfaces.patches.clear();

@@ -15,14 +15,14 @@ use proptest::prelude::*;
 use rex_agent::a1::c1::trajgen::{Runtime, TrajGen};
 use rex_agent::a1::c1::{C1, C1Input, C1Memory, C1Output, C1Params, c1_fsm};
 use rex_agent::a1::e11::{EstimatorKind, TrackerKind};
-use rex_agent::a1::payload::{Ack, AckStatus, Execution, Plan, Point2, State};
-use rex_agent::a1::{RexConfig, RunSettings, build};
 use rex_agent::algorithms::planner::{PlannerKind, PlannerSettings};
 use rex_agent::mission::Mission;
-use rex_agent::report::judge::Verdict;
+use rex_agent::model::{Friction, Patch, Region};
+use rex_agent::payload::{Ack, AckStatus, Execution, Plan, Point2, State};
+use rex_agent::run::judge::Verdict;
 use rex_agent::run::{Outcome, run_mission, run_mission_observed};
+use rex_agent::system::{RexConfig, RunSettings, build};
 use rex_agent::world::WorldConfig;
-use rex_agent::world::model::{Friction, Patch, Region};
 
 // ---------------------------------------------------------------------------
 // c1 alone, driven by a model of e11 and a2.

@@ -17,8 +17,8 @@ use std::time::Duration;
 
 use embodied::spec::model::{Spec, Subsystem as SpecSubsystem, Target};
 use embodied::{AuditEvent, ExecConfig, Executor, Observer, SystemInfo};
-use rex_agent::a1::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::mission::Mission;
+use rex_agent::system::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::world::WorldConfig;
 
 /// `(component, function)` -> (inputs read, outputs written), as `group.buffer`.

@@ -110,7 +110,7 @@ fn bad_configuration_values_name_their_file_and_field() {
     // A period that rounds to zero nanoseconds. Before: `a period must be
     // positive, got zero`, naming neither file nor field. The periods are the
     // spec's now (the world file had a copy of them).
-    let spec_text = std::fs::read_to_string(rex_agent::a1::default_spec()).unwrap();
+    let spec_text = std::fs::read_to_string(rex_agent::system::default_spec()).unwrap();
     let spec = d.file(
         "rex.ron",
         &spec_text.replacen("period_ms: 1.0,", "period_ms: 1e-7,", 1),

@@ -24,9 +24,9 @@
 use std::process::Command;
 use std::time::Duration;
 
-use rex_agent::a1::RexConfig;
 use rex_agent::mission::Mission;
 use rex_agent::run::run_mission;
+use rex_agent::system::RexConfig;
 use rex_agent::world::WorldConfig;
 
 const MISSION: &str = r#"(

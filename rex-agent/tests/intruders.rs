@@ -21,8 +21,8 @@ use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 
 use embodied::link::shape::fingerprint;
-use rex_agent::a1::payload::Plan;
-use rex_agent::world::model::reduced::Torques;
+use rex_agent::model::reduced::Torques;
+use rex_agent::payload::Plan;
 
 const MISSION: &str = r#"(
     name: "short",

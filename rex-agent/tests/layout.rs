@@ -1,14 +1,25 @@
-//! The crate's layout keeps what `ARCHITECTURE.md` says of it:
+//! The crate's layout keeps what `ARCHITECTURE.md` says of it. Its folders import
+//! downward only, as the paper stacks them:
 //!
-//! * the algorithms (`src/algorithms/`) use nothing of the framework (`embodied`,
-//!   `agent_core`, `agent_spec`), of agent a1 (`crate::a1`) or of the simulated world
-//!   (`crate::world`), except the platform model (`crate::world::model`: parameters
-//!   and the reduced model, pure math);
-//! * no source file is longer than 800 lines.
+//! 1. `math` (linear solves, geometry, the random generator) and `config` (RON
+//!    files): nothing of the crate;
+//! 2. `model` (the skid-steer platform), then `payload` (what the buffers carry)
+//!    and `mission` (a2's plans) over it;
+//! 3. `algorithms` (NMPC, MHE, planners, visual odometry) over `model`, `math` and
+//!    `config` only, and nothing of the framework (`embodied`, `agent_core`,
+//!    `agent_spec`): they are plain Rust an agent calls;
+//! 4. `world` (the plant, devices, camera, partner agents) and `a1` (c1, e11,
+//!    r11, the map) over those, neither importing the other;
+//! 5. the composition root (`system`, `run`, `report`, `record`, `app`, `soak`,
+//!    `main.rs`) over everything.
+//!
+//! Unit tests (`tests.rs` files and what follows `#[cfg(test)]`) may use any
+//! layer, as the crate's integration tests do. No source file is longer than 800
+//! lines.
 //!
 //! Both are read from the sources as text: comments are skipped, paths are found
 //! wherever they stand (`use` lines, grouped imports, paths in expressions), and a
-//! chain of `super::` that climbs out of `algorithms` counts as a path from the crate
+//! chain of `super::` that climbs out of a layer counts as a path from the crate
 //! root.
 
 use std::fs;
@@ -128,38 +139,64 @@ fn first_segments(rest: &str) -> Vec<String> {
         .collect()
 }
 
-/// `a1`, `world::model`, `world::camera`...: the first segment, and the second for
-/// `world` (the one place the algorithms may use).
+/// The first segment of the path at `rest` (`a1` for `a1::map::Map`).
 fn path_of(rest: &str) -> String {
-    let segs: Vec<&str> = rest
-        .trim_start()
-        .split("::")
-        .map(|s| {
-            let end = s
-                .find(|c: char| !(c.is_alphanumeric() || c == '_'))
-                .unwrap_or(s.len());
-            &s[..end]
-        })
-        .take(2)
-        .collect();
-    match segs.as_slice() {
-        ["world", second, ..] => format!("world::{second}"),
-        [first, ..] => (*first).to_owned(),
-        [] => String::new(),
-    }
+    let rest = rest.trim_start();
+    let end = rest
+        .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .unwrap_or(rest.len());
+    rest[..end].to_owned()
 }
 
-/// Whether a crate-root path (its first segments, as [`path_of`] gives them) is
-/// forbidden to the algorithms.
-fn forbidden(path: &str) -> bool {
-    path == "a1" || (path.starts_with("world") && path != "world::model")
-}
+/// The layers: each top-level module of the crate and the modules it may use.
+/// A module not listed is the composition root, which may use anything.
+const LAYERS: [(&str, &[&str]); 8] = [
+    ("math", &[]),
+    ("config", &[]),
+    ("model", &["math", "config"]),
+    ("payload", &["model", "math", "config"]),
+    ("mission", &["payload", "model", "math", "config"]),
+    ("algorithms", &["model", "math", "config"]),
+    (
+        "world",
+        &[
+            "algorithms",
+            "mission",
+            "payload",
+            "model",
+            "math",
+            "config",
+        ],
+    ),
+    (
+        "a1",
+        &[
+            "algorithms",
+            "mission",
+            "payload",
+            "model",
+            "math",
+            "config",
+        ],
+    ),
+];
 
-/// What `code` (comments removed) of a file at `depth` names that the algorithms
-/// must not: each with its byte offset in `code`.
-fn violations(code: &str, depth: usize) -> Vec<(usize, String)> {
+/// What the algorithms may use of the crate.
+const ALGORITHMS: &[&str] = &["model", "math", "config"];
+
+/// What `code` (comments removed) of a file at `depth` in module `layer` names
+/// outside `allowed` (and the framework, when `framework` is false): each with
+/// its byte offset in `code`.
+fn violations(
+    code: &str,
+    depth: usize,
+    layer: &str,
+    allowed: &[&str],
+    framework: bool,
+) -> Vec<(usize, String)> {
+    let forbidden = |path: &str| path != layer && !allowed.contains(&path);
     let mut found = Vec::new();
-    for name in FRAMEWORK {
+    for name in FRAMEWORK.iter().filter(|_| !framework) {
         let mut from = 0;
         while let Some(i) = code[from..].find(name).map(|i| i + from) {
             let before = code[..i].chars().next_back();
@@ -196,7 +233,7 @@ fn violations(code: &str, depth: usize) -> Vec<(usize, String)> {
                 found.push((
                     i,
                     format!(
-                        "`{}{path}` (a `super::` chain that climbs out of `algorithms`)",
+                        "`{}{path}` (a `super::` chain that climbs out of `{layer}`)",
                         "super::".repeat(climbs)
                     ),
                 ));
@@ -221,7 +258,7 @@ fn the_algorithms_import_nothing_of_the_framework_of_a1_or_of_the_world() {
         let text = fs::read_to_string(file).unwrap();
         let (code, starts) = code_of(&text);
         let lines: Vec<&str> = text.lines().collect();
-        for (at, what) in violations(&code, module_depth(file)) {
+        for (at, what) in violations(&code, module_depth(file), "algorithms", ALGORITHMS, false) {
             let n = starts.partition_point(|&s| s <= at) - 1;
             problems.push(format!(
                 "{}:{}: uses {what}: {}",
@@ -233,10 +270,100 @@ fn the_algorithms_import_nothing_of_the_framework_of_a1_or_of_the_world() {
     }
     assert!(
         problems.is_empty(),
-        "the algorithms must not use the framework, agent a1 or the simulated world \
-         (except `crate::world::model`); move the glue to `a1` or `world`, or give the \
-         algorithm a plain type of its own:\n{}",
+        "the algorithms must not use the framework, agent a1, the payloads or the simulated \
+         world (only `crate::model`, `math`, `config`); move the glue to `a1` or `world`, \
+         or give the algorithm a plain type of its own:\n{}",
         problems.join("\n")
+    );
+}
+
+/// The code of a file without its unit tests (what follows `#[cfg(test)]`; a
+/// `tests.rs` file is all tests).
+fn without_tests(file: &Path, code: &str) -> String {
+    let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
+    if name.is_some_and(|n| n == "tests.rs" || n.ends_with("_tests.rs")) {
+        return String::new();
+    }
+    code.find("#[cfg(test)]")
+        .map_or(code, |i| &code[..i])
+        .to_owned()
+}
+
+#[test]
+fn every_layer_imports_only_the_layers_below_it() {
+    let mut problems = Vec::new();
+    let mut seen = Vec::new();
+    for file in rust_files(&src()) {
+        let rel = file.strip_prefix(src()).unwrap();
+        let top = rel
+            .components()
+            .next()
+            .map(|c| {
+                c.as_os_str()
+                    .to_string_lossy()
+                    .trim_end_matches(".rs")
+                    .to_owned()
+            })
+            .unwrap_or_default();
+        let Some((layer, allowed)) = LAYERS.iter().find(|(name, _)| *name == top) else {
+            continue; // the composition root
+        };
+        seen.push(*layer);
+        let text = fs::read_to_string(&file).unwrap();
+        let (code, starts) = code_of(&text);
+        let code = without_tests(&file, &code);
+        let lines: Vec<&str> = text.lines().collect();
+        for (at, what) in violations(&code, module_depth(&file), layer, allowed, true) {
+            let n = starts.partition_point(|&s| s <= at) - 1;
+            problems.push(format!(
+                "{}:{}: `{layer}` uses {what}: {}",
+                shown(&file),
+                n + 1,
+                lines[n].trim()
+            ));
+        }
+    }
+    for (layer, _) in LAYERS {
+        assert!(seen.contains(&layer), "no source file of layer `{layer}`");
+    }
+    assert!(
+        problems.is_empty(),
+        "a layer may use only the layers below it (see this file's header); move the \
+         code that joins two layers up to the composition root (`system`):\n{}",
+        problems.join("\n")
+    );
+}
+
+#[test]
+fn the_layer_check_sees_what_it_looks_for() {
+    let allowed = LAYERS.iter().find(|(n, _)| *n == "a1").unwrap().1;
+    for (line, depth) in [
+        ("use crate::world::camera::SceneConfig;", 2),
+        ("use crate::system::RexConfig;", 2),
+        ("use super::super::world::devices::Truth;", 2),
+    ] {
+        assert!(
+            !violations(line, depth, "a1", allowed, true).is_empty(),
+            "the layer check lets a1 `{line}`"
+        );
+    }
+    for (line, depth) in [
+        ("use crate::payload::Plan;", 2),
+        ("use crate::{model::Friction, math::geometry::wrap};", 3),
+        ("use super::map::Map;", 2),
+        ("use embodied::{In, Out};", 2),
+    ] {
+        assert!(
+            violations(line, depth, "a1", allowed, true).is_empty(),
+            "the layer check refuses a1 `{line}`"
+        );
+    }
+    let test_file = Path::new("src/a1/c1/tests.rs");
+    assert_eq!(without_tests(test_file, "use crate::world::x;"), "");
+    let module = "use crate::payload::Plan;\n#[cfg(test)]\nmod tests { use crate::world::x; }";
+    assert_eq!(
+        without_tests(Path::new("src/a1/r11.rs"), module),
+        "use crate::payload::Plan;\n"
     );
 }
 
@@ -263,29 +390,27 @@ fn the_checks_see_what_they_look_for() {
     let caught = [
         ("use embodied::{Group, In};", 2),
         ("fn f(x: &agent_core::Time) {}", 2),
-        ("use crate::a1::payload::State;", 2),
+        ("use crate::payload::State;", 2),
         ("use crate::world::camera::kitti::Pose34;", 2),
         ("use crate::{a1::payload::State, world::model::Reduced};", 2),
         ("let s: crate::world::devices::Truth = t;", 3),
         ("use super::super::a1::payload::State;", 2),
         ("use super::super::super::world::camera::Renderer;", 3),
         (
-            "use crate::{\n    algorithms::rng::Rng,\n    a1::map::Map,\n};",
+            "use crate::{\n    math::rng::Rng,\n    a1::map::Map,\n};",
             2,
         ),
+        ("use crate::mission::Mission;", 2),
     ];
     for (line, depth) in caught {
         assert!(
-            !violations(line, depth).is_empty(),
+            !violations(line, depth, "algorithms", ALGORITHMS, false).is_empty(),
             "the layout check misses `{line}` at depth {depth}"
         );
     }
     let passed = [
-        ("use crate::world::model::{Reduced, SlipParams};", 2),
-        (
-            "use crate::{algorithms::rng::Rng, world::model::State5};",
-            3,
-        ),
+        ("use crate::model::{Reduced, SlipParams};", 2),
+        ("use crate::{math::rng::Rng, model::State5};", 3),
         ("use super::super::geometry::wrap;", 3),
         ("use super::linalg::Mat;", 3),
         ("let embodied_energy = 1.0;", 2),
@@ -293,9 +418,9 @@ fn the_checks_see_what_they_look_for() {
     ];
     for (line, depth) in passed {
         assert!(
-            violations(line, depth).is_empty(),
+            violations(line, depth, "algorithms", ALGORITHMS, false).is_empty(),
             "the layout check refuses `{line}` at depth {depth}: {:?}",
-            violations(line, depth)
+            violations(line, depth, "algorithms", ALGORITHMS, false)
         );
     }
 }

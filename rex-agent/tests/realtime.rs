@@ -12,10 +12,10 @@
 use std::time::Duration;
 
 use embodied::RtConfig;
-use rex_agent::a1::RexConfig;
-use rex_agent::a1::payload::Point2;
 use rex_agent::mission::Mission;
+use rex_agent::payload::Point2;
 use rex_agent::run::{run_mission, run_mission_realtime};
+use rex_agent::system::RexConfig;
 use rex_agent::world::WorldConfig;
 
 fn short() -> RexConfig {

@@ -17,9 +17,9 @@ use std::time::Duration;
 use embodied::Executor;
 use embodied::record::mcap;
 use embodied::record::{self, McapRecorder, RecordOptions};
-use rex_agent::a1::payload::State;
-use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;
+use rex_agent::payload::State;
+use rex_agent::system::{RexConfig, build};
 use rex_agent::world::WorldConfig;
 
 /// The shipped figure-eight without the camera: the recording tests' mission.

@@ -18,9 +18,9 @@ use embodied::WireHeader;
 use embodied::record::{McapRecorder, ReadError, Recording};
 use embodied::replay::{Difference, ReplayOptions, Replayed, replay, replay_file};
 use proptest::prelude::*;
-use rex_agent::a1::payload::StereoPair;
-use rex_agent::a1::{RexConfig, build};
 use rex_agent::mission::Mission;
+use rex_agent::payload::StereoPair;
+use rex_agent::system::{RexConfig, build};
 use rex_agent::world::WorldConfig;
 
 /// e11's estimates to c1.

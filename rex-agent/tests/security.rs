@@ -23,8 +23,8 @@ use embodied::distributed::security::{
 use embodied::distributed::zenoh::Wait;
 use embodied::distributed::{open_peer, open_secure_client, open_secure_peer};
 use embodied::spec::model::Spec;
-use rex_agent::a1::{RexConfig, build_deployment, load_spec};
 use rex_agent::mission::Mission;
+use rex_agent::system::{RexConfig, build_deployment, load_spec};
 use rex_agent::world::WorldConfig;
 
 fn spec_path() -> PathBuf {

@@ -9,9 +9,9 @@
 )]
 
 use embodied::record::json::{json_schema, to_json};
-use rex_agent::a1::payload::{Ack, AckStatus, Execution, PlanOutcome};
-use rex_agent::a1::{RexConfig, build_deployment};
 use rex_agent::mission::Mission;
+use rex_agent::payload::{Ack, AckStatus, Execution, PlanOutcome};
+use rex_agent::system::{RexConfig, build_deployment};
 use rex_agent::world::WorldConfig;
 
 #[test]

@@ -1,5 +1,5 @@
 //! The spec is the structure of Rex: for every deployment of `specs/rex.ron`, the
-//! spec exported from the system `a1::build_deployment` builds equals the spec's
+//! spec exported from the system `system::build_deployment` builds equals the spec's
 //! own, restricted to the components the deployment runs: agents, components,
 //! kinds, periods, memory, groups, buffers and their types, predicates, functions
 //! and their targets, behaviours with their kinds, functions and terminal
@@ -22,8 +22,8 @@
 
 use embodied::spec::export::{difference, spec_of, to_ron};
 use embodied::spec::model::Spec;
-use rex_agent::a1::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::mission::Mission;
+use rex_agent::system::{RexConfig, build_deployment, default_spec, load_spec};
 use rex_agent::world::WorldConfig;
 
 /// `spec` as deployment `name` runs it: without the omitted components and the

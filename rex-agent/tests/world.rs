@@ -17,8 +17,8 @@ use rex_agent::world::devices::{MocapParams, Platform, StereoCamera};
 // The stand-ins have a1's real buffers: the spec's links reach them by name.
 use rex_agent::a1::c1::{C1Input as StubC1Input, C1Output as StubC1Output, C1ToC2, C1ToC3};
 use rex_agent::a1::e11::{E11Input as StubE11Input, E11Output as StubE11Output, E11ToE1};
-use rex_agent::a1::payload::*;
 use rex_agent::a1::r11::{R11Input as StubR11Input, R11Output as StubR11Output, R11ToR1};
+use rex_agent::payload::*;
 use rex_agent::world::{self, WorldConfig};
 
 // ---------------------------------------------------------------------------
@@ -289,7 +289,7 @@ impl Default for Stubs {
 
 /// The period of component `name` in `specs/rex.ron` [s].
 fn spec_period(name: &str) -> f64 {
-    let spec = rex_agent::a1::load_spec(&rex_agent::a1::default_spec()).unwrap();
+    let spec = rex_agent::system::load_spec(&rex_agent::system::default_spec()).unwrap();
     spec::Assembly::all(&spec)
         .period(name)
         .unwrap()
@@ -301,7 +301,7 @@ fn build(config: &WorldConfig) -> (System, Handles) {
 }
 
 fn build_with(config: &WorldConfig, stubs: Stubs) -> (System, Handles) {
-    let spec = rex_agent::a1::load_spec(&rex_agent::a1::default_spec()).unwrap();
+    let spec = rex_agent::system::load_spec(&rex_agent::system::default_spec()).unwrap();
     let mut sys = spec::Assembly::new(&spec, "simulation").unwrap();
     sys.set_period("r11", Period::from_millis(stubs.r11_ms).unwrap())
         .unwrap();
@@ -561,7 +561,7 @@ fn a_bad_command_is_counted_once_and_a_bad_reset_is_rejected() {
     let p = exec.driver(&h.platform).unwrap();
     assert_eq!(
         p.command_stats(),
-        rex_agent::world::model::CommandStats {
+        rex_agent::model::CommandStats {
             not_finite: 1,
             out_of_bounds: 1
         },

@@ -31,6 +31,7 @@ mod by_name;
 pub mod endpoint;
 pub mod remote;
 pub mod shape;
+mod stats;
 pub(crate) mod thread;
 
 /// The halves of links between threads, by link index: each thread of the

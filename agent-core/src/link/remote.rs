@@ -60,7 +60,7 @@ use crate::kinds::Policy;
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, SystemInfo};
 
-use super::thread::SharedStats;
+use super::stats::SharedStats;
 
 /// How far ahead of the reading activation's instant a value's stamp may be:
 /// the processes of a deployment share instant zero and run on the same clock

@@ -21,7 +21,7 @@
 //! value from its own future, as in the deterministic executor.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
 
 use crate::buffer::{In, Out, Payload};
 use crate::kinds::Policy;
@@ -29,33 +29,9 @@ use crate::time::{Stamp, Time};
 use crate::trace::{ReadEvent, TransferEvent};
 
 use super::remote::{RemoteRx, RemoteTx};
-use super::{Access, Cause, InPort, LinkCx, LinkStats, OutPort, Port, Refused, observe_read};
+pub(crate) use super::stats::SharedStats;
+use super::{Access, Cause, InPort, LinkCx, OutPort, Port, Refused, observe_read};
 use crate::error::LinkError;
-
-/// The counters of one link, shared by its two threads (relaxed atomics: they
-/// are statistics, read after the threads are joined or while they run).
-#[derive(Debug, Default)]
-pub(crate) struct SharedStats {
-    pub(crate) sent: AtomicU64,
-    pub(crate) delivered: AtomicU64,
-    pub(crate) overwritten: AtomicU64,
-    pub(crate) overflowed: AtomicU64,
-    pub(crate) max_pending: AtomicUsize,
-    pub(crate) refused: AtomicU64,
-}
-
-impl SharedStats {
-    pub(crate) fn snapshot(&self) -> LinkStats {
-        LinkStats {
-            sent: self.sent.load(Ordering::Relaxed),
-            delivered: self.delivered.load(Ordering::Relaxed),
-            overwritten: self.overwritten.load(Ordering::Relaxed),
-            overflowed: self.overflowed.load(Ordering::Relaxed),
-            max_pending: self.max_pending.load(Ordering::Relaxed),
-            refused: self.refused.load(Ordering::Relaxed),
-        }
-    }
-}
 
 /// What a sample link's triple buffer holds.
 #[derive(Clone)]

@@ -5,8 +5,6 @@
 
 use std::fmt;
 
-use crate::world::camera::SceneConfig;
-
 /// An axis-aligned rectangle `[x0, x1] × [y0, y1]` [m].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rect {
@@ -73,30 +71,6 @@ impl Default for Map {
 }
 
 impl Map {
-    /// The map of the scene the camera renders (the same room and boxes).
-    pub fn of_scene(scene: &SceneConfig, clearance: f64) -> Map {
-        let r = &scene.room;
-        Map {
-            room: Rect {
-                x0: r.x0,
-                y0: r.y0,
-                x1: r.x1,
-                y1: r.y1,
-            },
-            obstacles: scene
-                .obstacles
-                .iter()
-                .map(|o| Rect {
-                    x0: o.x0,
-                    y0: o.y0,
-                    x1: o.x1,
-                    y1: o.y1,
-                })
-                .collect(),
-            clearance,
-        }
-    }
-
     /// Whether `(x, y)` is free space: inside the room and at least `clearance`
     /// from its walls and from every obstacle.
     pub fn check(&self, x: f64, y: f64) -> Result<(), Blocked> {
@@ -134,6 +108,7 @@ impl Map {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::world::camera::SceneConfig;
 
     #[test]
     fn free_space_keeps_the_clearance_from_walls_and_obstacles() {

@@ -27,11 +27,11 @@ use embodied::{
     Subsystem,
 };
 
-use crate::a1::payload::{AcquireCommand, StereoPair, Transform};
-use crate::algorithms::geometry::{isometry, pose34};
 use crate::algorithms::vo::{
     Calibration, NoEstimate, StereoOdometry, VoError, VoMotion, VoSettings, VoStats,
 };
+use crate::math::geometry::{isometry, pose34};
+use crate::payload::{AcquireCommand, StereoPair, Transform};
 
 /// What the odometry makes of a pair (the pair's storage comes back with it).
 type VoAnswer = (StereoPair, Result<Option<VoMotion>, NoEstimate>);

@@ -7,17 +7,12 @@
 //! * [`planner`]: trajectory fragments between plan points, and the planning process
 //!   behind the paper's `trajgen` API;
 //! * [`vo`]: stereo visual odometry and the KITTI drift metric (section 3.3);
-//! * [`geometry`]: plane angles and rigid transforms; [`rng`]: seeded random
-//!   numbers (RANSAC, ECSA, and the simulated sensors' noise); `linsolve`: the
-//!   small linear solves (nalgebra's LU and Cholesky, with the refusals they share).
 //!
-//! The only module of the crate they use is the platform model
-//! ([`crate::world::model`]: parameters and the reduced model, pure math); a test
-//! (`tests/layout.rs`) keeps it so.
+//! Of the crate they use only the layers below them: the platform model
+//! ([`crate::model`]: parameters and the reduced model), the numerics
+//! ([`crate::math`]: linear solves, geometry, the seeded generator) and
+//! [`crate::config`]; a test (`tests/layout.rs`) keeps it so.
 
-pub mod geometry;
-pub(crate) mod linsolve;
 pub mod mpc;
 pub mod planner;
-pub mod rng;
 pub mod vo;

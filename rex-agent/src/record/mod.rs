@@ -27,8 +27,8 @@ use embodied::replay::ReplayOptions;
 use embodied::trace::LinkInfo;
 use serde_json::{Value, json};
 
-use crate::a1::payload::{MapPose, State, StereoPair};
 use crate::algorithms::planner::Fragment;
+use crate::payload::{MapPose, State, StereoPair};
 
 mod stereo_png;
 

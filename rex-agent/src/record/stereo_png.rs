@@ -17,7 +17,7 @@
 use embodied::record::Codec;
 use serde_bytes::Bytes;
 
-use crate::a1::payload::StereoPair;
+use crate::payload::StereoPair;
 use crate::world::camera::kitti::MAX_PNG_SIDE;
 
 /// The codec of [`StereoPair`] (see the module's documentation).

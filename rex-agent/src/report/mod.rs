@@ -12,7 +12,6 @@
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
 //! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
 
-pub mod judge;
 pub mod plot;
 
 use std::fmt::Write as _;
@@ -22,8 +21,8 @@ use std::path::{Path, PathBuf};
 use embodied::spec::Spec;
 use embodied::spec::diagram::{self, Format, Kind};
 
-use crate::a1::RexConfig;
 use crate::run::{Outcome, Sample};
+use crate::system::RexConfig;
 use plot::{Marker, PALETTE, Plot, Row, Series, timeline};
 
 /// Write the report of `outcome` into `dir` (created if needed); returns the files

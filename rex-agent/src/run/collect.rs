@@ -10,8 +10,8 @@ use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
 use super::{Outcome, Progress, Sample};
-use crate::a1::payload::{Ack, PlanOutcome};
-use crate::a1::{RexConfig, RexHandles};
+use crate::payload::{Ack, PlanOutcome};
+use crate::system::{RexConfig, RexHandles};
 use crate::world::devices::{MotionCapture, Truth};
 
 /// One report of a probe on Rex (or of a process at its end): what a run's

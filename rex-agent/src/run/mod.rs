@@ -13,6 +13,7 @@
 use std::time::Duration;
 
 mod collect;
+pub mod judge;
 mod realtime;
 pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes};
@@ -21,9 +22,9 @@ pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_record
 use embodied::app::{End, Ran, Watched, Watcher};
 use embodied::{ExecError, Finished, NoObserver, Probes};
 
-use crate::a1::payload::{Ack, AckStatus, PlanOutcome};
-use crate::a1::{RexConfig, RexError, RexHandles, build};
-use crate::report::judge::{self, PlanReport, Verdict};
+use crate::payload::{Ack, AckStatus, PlanOutcome};
+use crate::system::{RexConfig, RexError, RexHandles, build};
+use judge::{PlanReport, Verdict};
 
 /// One sample of a run, at every activation of `e11`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]

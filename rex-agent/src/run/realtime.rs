@@ -13,7 +13,7 @@ use embodied::record::{McapRecorder, RecordOptions, RecordSummary};
 use embodied::{Probes, RtConfig, RtReport};
 
 use super::{MissionWatch, Outcome, PROBES, Progress, RunError, install_probes};
-use crate::a1::{RexConfig, build};
+use crate::system::{RexConfig, build};
 
 /// Why the real-time run failed to start or ended badly.
 #[derive(Debug, thiserror::Error)]

@@ -1,8 +1,8 @@
 //! Rex's simulated world, configured from RON (`rex-agent/config/world.ron`), and the
 //! functions that add its devices and the partner agents to a system.
 //!
-//! * [`model`]: the skid-steer platform: parameters and surfaces, the reduced model
-//!   (for a1's controllers and estimators) and the full model (the plant);
+//! * the plant: the full model of the skid-steer platform ([`crate::model`], which
+//!   a1's controllers share in its reduced form);
 //! * [`devices`]: the real effector `E1` (the platform) and receptors `R1` (stereo
 //!   camera) and `R3` (motion capture), as framework drivers;
 //! * [`camera`]: the stereo rig, the room it sees, the ray-cast renderer, KITTI
@@ -12,7 +12,6 @@
 
 pub mod camera;
 pub mod devices;
-pub mod model;
 pub mod partners;
 
 use std::path::Path;
@@ -21,12 +20,12 @@ use embodied::spec::{Assembly, AssemblyError};
 use embodied::{DriverHandle, SubsystemHandle};
 use serde::{Deserialize, Serialize};
 
-use crate::a1::payload::Pose2;
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
 use crate::mission::Mission;
+use crate::model::{Plant, PlatformParams, SurfaceMap};
+use crate::payload::Pose2;
 use camera::{CameraConfig, Renderer, SceneConfig};
 use devices::{MocapParams, MotionCapture, Platform, SensorParams, StereoCamera, Truth};
-use model::{Plant, PlatformParams, SurfaceMap};
 use partners::{
     MapAgent, MapMemory, MocapMemory, MocapReceptor, Ontology, OntologyMemory, map_fsm,
     mocap_receptor_fsm, ontology_fsm,
@@ -214,7 +213,7 @@ mod tests {
             .surfaces
             .surfaces
             .push(config.surfaces.surfaces[0].clone());
-        let spec = crate::a1::load_spec(&crate::a1::default_spec()).unwrap();
+        let spec = crate::system::load_spec(&crate::system::default_spec()).unwrap();
         let mut rex = Assembly::new(&spec, "simulation").unwrap();
         let err = add_camera(&mut rex, &config, embodied::OffloadMode::Inline).unwrap_err();
         assert!(

@@ -50,12 +50,12 @@ use std::collections::VecDeque;
 use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
 
 use crate::a1::map::Map;
-use crate::a1::payload::{
-    Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
-};
 use crate::algorithms::planner::ground::GroundTiming;
 use crate::algorithms::planner::{Fragment, Waypoint, nearest_angle};
-use crate::world::model::Friction;
+use crate::model::Friction;
+use crate::payload::{
+    Ack, AckStatus, Alive, Execution, MapPose, Plan, PlanOutcome, Progress, State, Transform,
+};
 use trajgen::{Status, TrajGen};
 
 /// Settings of `c1`.

@@ -2,8 +2,8 @@
 
 use super::*;
 use crate::a1::c1::trajgen::Runtime;
-use crate::a1::payload::Point2;
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
+use crate::payload::Point2;
 
 fn pts(p: &[(f64, f64)]) -> Plan {
     Plan {

@@ -193,7 +193,7 @@ impl TrajGen {
     /// current state instead would make the platform jump back along the path.
     ///
     /// `first` is the number of the plan's first fragment: 0, or the point a
-    /// resumed plan starts from (see [`crate::a1::payload::Plan::first`]).
+    /// resumed plan starts from (see [`crate::payload::Plan::first`]).
     pub fn init(&mut self, pose: [f64; 3], plan: u32, first: u32) {
         self.abandon();
         if self.totals.fragments == 0 {

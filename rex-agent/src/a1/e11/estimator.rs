@@ -3,12 +3,10 @@
 
 use std::collections::VecDeque;
 
-use crate::a1::payload::{Encoders, Ground, Imu, MapPose, State, Transform, WheelLoads};
-use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::MheError;
-use crate::world::model::{
-    Dynamics, Friction, PlatformParams, Reduced, SlipParams, Torques, Vector,
-};
+use crate::math::geometry::wrap;
+use crate::model::{Dynamics, Friction, PlatformParams, Reduced, SlipParams, Torques, Vector};
+use crate::payload::{Encoders, Ground, Imu, MapPose, State, Transform, WheelLoads};
 
 mod mhe;
 pub use mhe::MheEstimator;
@@ -493,8 +491,8 @@ impl Estimator for Ekf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::a1::payload::Pose2;
     use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM};
+    use crate::payload::Pose2;
 
     /// Run the EKF over the peer's data set (poses, gyro, encoders, and an IMU
     /// heading `φ + offset(k)`); `edit` may change each sample. Returns the

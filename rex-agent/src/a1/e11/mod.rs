@@ -40,11 +40,11 @@ pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
 pub use tracker::{Tracker, TrackerKind};
 
 use crate::a1::map::Map;
-use crate::a1::payload::{
+use crate::algorithms::planner::Fragment;
+use crate::payload::{
     Encoders, Execution, Imu, ImuCommand, MapPose, PlanOutcome, Progress, State, Torques,
     Transform, WheelLoads,
 };
-use crate::algorithms::planner::Fragment;
 
 /// How `e11` keeps the platform safe and judges the end of a plan.
 #[derive(Clone, Debug, PartialEq)]

@@ -2,7 +2,7 @@
 //! safety monitor's stops and epochs, and each plan's outcome.
 
 use super::*;
-use crate::world::model::{Friction, PlatformParams, SlipParams};
+use crate::model::{Friction, PlatformParams, SlipParams};
 use embodied::{Stamp, Time};
 
 fn fragment(index: u32, x0: f64, n: usize) -> Fragment {
@@ -53,7 +53,7 @@ fn run(
         if it == 0 {
             // Localise the estimator at the origin.
             let pose = MapPose {
-                pose: crate::a1::payload::Pose2::default(),
+                pose: crate::payload::Pose2::default(),
                 time: 0.0,
             };
             x.c1.pose.deliver(pose, stamp);
@@ -96,7 +96,7 @@ fn drive(
         x.c1.notify.age();
         let (px, py) = pose(it);
         let p = MapPose {
-            pose: crate::a1::payload::Pose2 {
+            pose: crate::payload::Pose2 {
                 x: px,
                 y: py,
                 phi: 0.0,

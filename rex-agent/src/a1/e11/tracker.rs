@@ -5,7 +5,7 @@ use super::estimator::Estimate;
 use crate::algorithms::mpc::nmpc::{DisturbanceObserver, DisturbanceSettings};
 use crate::algorithms::mpc::{LateralNmpc, NmpcError, NmpcSettings};
 use crate::algorithms::planner::nearest_angle;
-use crate::world::model::{Friction, Lateral, PlatformParams, Reduced, Torques};
+use crate::model::{Friction, Lateral, PlatformParams, Reduced, Torques};
 
 /// A trajectory tracker: wheel torques from the estimate and the reference.
 pub trait Tracker: Send + std::fmt::Debug {
@@ -436,7 +436,7 @@ impl Tracker for Backstepping {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::SlipParams;
+    use crate::model::SlipParams;
 
     #[test]
     fn drives_the_reduced_model_onto_a_reference_forwards_and_backwards() {

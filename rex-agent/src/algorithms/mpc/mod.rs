@@ -1,6 +1,6 @@
 //! Model-based control and estimation for e1,1 (the paper's section 3.2): nonlinear
 //! model predictive control ([`nmpc`]) and moving-horizon estimation ([`mhe`]) on a
-//! skid-steer prediction model ([`crate::world::model::Dynamics`]: the peers'
+//! skid-steer prediction model ([`crate::model::Dynamics`]: the peers'
 //! reduced model, or the lateral-slip model Rex runs with), by Gauss–Newton SQP
 //! with exact sensitivities, QPs solved by exploiting the stage structure and by
 //! Clarabel when bounds are active. The small dense algebra is nalgebra's.
@@ -10,7 +10,7 @@ pub mod nmpc;
 pub mod peer;
 pub mod sparse;
 
-pub(crate) use crate::algorithms::linsolve::spd_cholesky;
+pub(crate) use crate::math::linsolve::spd_cholesky;
 
 pub use mhe::{
     Innovation, LateralMhe, Mhe, MheError, MheEstimate, MheSettings, MheStats, Motion, ReducedMhe,

@@ -6,8 +6,8 @@
 
 use super::mhe::{Sample, TimedPose};
 use super::nmpc::{Nmpc, NmpcError, NmpcSettings};
-use crate::algorithms::rng::Rng;
-use crate::world::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
+use crate::math::rng::Rng;
+use crate::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
 
 /// Interval [s] (`DT`).
 pub const DT: f64 = 0.05;

@@ -19,8 +19,8 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use nalgebra::{Const, DimMin, SMatrix, SVector};
 
 use super::{Fragment, PlanError, PlanStats, Planner, PlannerSettings, Waypoint};
-use crate::algorithms::linsolve;
-use crate::algorithms::rng::Rng;
+use crate::math::linsolve;
+use crate::math::rng::Rng;
 
 /// Harmonics per control channel.
 pub const HARMONICS: usize = 3;

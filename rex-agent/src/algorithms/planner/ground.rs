@@ -8,7 +8,7 @@
 //! duration allowed cannot be executed on that ground: an error that says why.
 
 use super::Fragment;
-use crate::world::model::{Friction, Lateral};
+use crate::model::{Friction, Lateral};
 
 /// How fragments are timed for the ground.
 #[derive(Clone, Debug, PartialEq)]
@@ -169,7 +169,7 @@ impl Fragment {
 mod tests {
     use super::*;
     use crate::algorithms::planner::{PlannerKind, PlannerSettings, Waypoint};
-    use crate::world::model::PlatformParams;
+    use crate::model::PlatformParams;
 
     fn timing() -> GroundTiming {
         GroundTiming {

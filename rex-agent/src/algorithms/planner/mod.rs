@@ -13,7 +13,7 @@ pub mod poly;
 
 use serde::{Deserialize, Serialize};
 
-use crate::world::model::SlipParams;
+use crate::model::SlipParams;
 
 /// A configuration to reach: a position, and a heading if it matters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -10,8 +10,8 @@ use nalgebra::{
     Vector4, Vector6,
 };
 
-use crate::algorithms::linsolve;
-use crate::algorithms::rng::Rng;
+use crate::math::linsolve;
+use crate::math::rng::Rng;
 
 /// Rectified stereo intrinsics.
 #[derive(Clone, Copy, Debug, PartialEq)]

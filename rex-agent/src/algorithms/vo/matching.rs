@@ -6,7 +6,7 @@
 //! its candidates at full resolution until it holds its quota.
 
 use super::features::{CLASSES, DESCRIPTOR, Features, sad};
-use crate::algorithms::rng::Rng;
+use crate::math::rng::Rng;
 
 /// Features indexed by class and by square bins of their position.
 #[derive(Clone, Debug, Default)]

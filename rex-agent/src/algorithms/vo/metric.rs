@@ -10,7 +10,7 @@
 //! the peer's `kitti_eval.py` does (so the two can be compared on the simulator's
 //! sequences). Lengths that no segment reaches are dropped.
 
-use crate::algorithms::geometry::{Pose34, compose, invert};
+use crate::math::geometry::{Pose34, compose, invert};
 
 /// KITTI's segment lengths [m].
 pub const KITTI_LENGTHS: [f64; 8] = [100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0];

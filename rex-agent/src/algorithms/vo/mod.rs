@@ -36,7 +36,7 @@ pub use refine::Refinement;
 use features::{Gradients, Gray, Responses};
 use matching::{Circle, Indexed, Ranges, Search};
 
-use crate::algorithms::rng::Rng;
+use crate::math::rng::Rng;
 
 /// Settings of the odometry: libviso2's defaults, except three chosen on the
 /// simulator's 640 × 480 tuning sequences (never on `bench_vo`'s held-out
@@ -704,7 +704,7 @@ mod tests {
     fn the_dispatched_features_are_the_baseline_code() {
         // `features` runs its AVX2 clone where the machine has AVX2; the filters
         // and the suppression called here are compiled at the baseline level.
-        let mut rng = crate::algorithms::rng::Rng::new(5);
+        let mut rng = crate::math::rng::Rng::new(5);
         let (w, h) = (160, 120);
         let noise: Vec<u8> = (0..w * h).map(|_| (rng.next_u64() % 256) as u8).collect();
         // Smoothed noise: blobs and corners of every size.

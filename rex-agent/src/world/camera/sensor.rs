@@ -28,8 +28,8 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use super::CameraConfig;
-use crate::algorithms::rng::Rng;
 use crate::config::{Invalid, Validate, non_negative, positive};
+use crate::math::rng::Rng;
 
 /// The sensor of both cameras of the pair (see the [module docs](self)).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

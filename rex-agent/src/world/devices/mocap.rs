@@ -9,10 +9,10 @@ use embodied::{
 use serde::{Deserialize, Serialize};
 
 use super::Truth;
-use crate::a1::payload::{MapPose, Pose2};
-use crate::algorithms::geometry::wrap;
-use crate::algorithms::rng::Rng;
 use crate::config::{self, ConfigError, Invalid, Validate, non_negative};
+use crate::math::geometry::wrap;
+use crate::math::rng::Rng;
+use crate::payload::{MapPose, Pose2};
 
 /// Characteristics of the motion-capture system.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -11,7 +11,7 @@
 //! both see the pose of that instant whatever the order of declaration; nothing
 //! is shared between drivers behind the framework's back.
 
-use crate::world::model::FullState;
+use crate::model::FullState;
 
 mod mocap;
 mod platform;

@@ -8,11 +8,11 @@ use embodied::{
 use serde::{Deserialize, Serialize};
 
 use super::Truth;
-use crate::a1::payload::{Encoders, Imu, ImuCommand, Torques, WheelLoads};
-use crate::algorithms::geometry::wrap;
-use crate::algorithms::rng::Rng;
 use crate::config::{self, ConfigError, Invalid, Validate, non_negative, positive};
-use crate::world::model::{CommandStats, Plant};
+use crate::math::geometry::wrap;
+use crate::math::rng::Rng;
+use crate::model::{CommandStats, Plant};
+use crate::payload::{Encoders, Imu, ImuCommand, Torques, WheelLoads};
 
 /// Sensor characteristics of the platform.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -9,7 +9,7 @@ use embodied::{
 use nalgebra::{UnitComplex, Vector2};
 
 use super::Truth;
-use crate::a1::payload::{AcquireCommand, StereoPair};
+use crate::payload::{AcquireCommand, StereoPair};
 use crate::world::camera::kitti::SequenceWriter;
 use crate::world::camera::{Exposure, Renderer};
 

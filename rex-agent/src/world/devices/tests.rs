@@ -3,8 +3,8 @@
 //! parameters.
 
 use super::*;
-use crate::a1::payload::{Imu, ImuCommand, Torques};
-use crate::world::model::{CommandStats, Plant, PlatformParams, SurfaceMap};
+use crate::model::{CommandStats, Plant, PlatformParams, SurfaceMap};
+use crate::payload::{Imu, ImuCommand, Torques};
 use embodied::{Driver, DriverContext, Period, Stamp, Time};
 
 fn platform(params: SensorParams) -> Platform {

@@ -20,8 +20,8 @@ use embodied::{
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use crate::a1::payload::{Ack, AckStatus, Alive, MapPose, Plan, PlanOutcome, Progress, State};
 use crate::mission::Mission;
+use crate::payload::{Ack, AckStatus, Alive, MapPose, Plan, PlanOutcome, Progress, State};
 
 // ---------------------------------------------------------------------------
 // a2: the ontology agent

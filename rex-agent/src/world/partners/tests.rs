@@ -2,7 +2,7 @@
 //! plausibility checks.
 
 use super::*;
-use crate::a1::payload::{AckStatus, Execution, Point2, Pose2};
+use crate::payload::{AckStatus, Execution, Point2, Pose2};
 use embodied::testing::{Environment, Termination};
 use embodied::{Stamp, Time};
 use proptest::prelude::*;

@@ -6,11 +6,11 @@ use std::collections::VecDeque;
 use super::{
     DISAGREEMENT_SPAN_S, Estimate, Estimator, EstimatorHealth, Measurements, forget_before,
 };
-use crate::a1::payload::Transform;
 use crate::algorithms::mpc::{
     Innovation, LateralMhe, MheError, MheSettings, Motion, Sample, TimedPose,
 };
-use crate::world::model::{Friction, Lateral, PlatformParams, SlipParams, Torques};
+use crate::model::{Friction, Lateral, PlatformParams, SlipParams, Torques};
+use crate::payload::Transform;
 
 /// The MHE of [`crate::algorithms::mpc::mhe`] on the lateral-slip model as e1,1's
 /// estimator. Every iteration of e1,1 is a sample: the encoder rates, the

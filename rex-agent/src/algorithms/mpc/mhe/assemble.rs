@@ -5,9 +5,9 @@
 //! parameter bounds.
 
 use super::{Blocks, Mhe, MheError};
-use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::QpStrategy;
-use crate::world::model::{Dynamics, Matrix, Measured, NU, SpinRead, Vector, WheelSpin};
+use crate::math::geometry::wrap;
+use crate::model::{Dynamics, Matrix, Measured, NU, SpinRead, Vector, WheelSpin};
 
 /// One scalar residual `r` with standard deviation `sigma` and gradients `h`
 /// (states of one stage) and `hp` (parameters), added to the normal equations.

@@ -3,8 +3,8 @@
 //! relocalisation after a run of rejected poses.
 
 use super::{Mhe, Sample, Stage};
-use crate::algorithms::geometry::wrap;
-use crate::world::model::Dynamics;
+use crate::math::geometry::wrap;
+use crate::model::Dynamics;
 
 impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// Attach the measurements of a sample to their stages, rejecting bad ones.

@@ -59,7 +59,7 @@
 use std::collections::VecDeque;
 
 use super::nmpc::QpStrategy;
-use crate::world::model::{
+use crate::model::{
     Dynamics, EarlierReading, Friction, Lateral, Matrix, Measured, NOT_READ, NU, Reduced,
     SlipParams, Torques, Vector, WheelSpin,
 };

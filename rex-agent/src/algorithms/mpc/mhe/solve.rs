@@ -11,7 +11,7 @@ use clarabel::solver::{
 use super::{Blocks, Mhe, MheError};
 use crate::algorithms::mpc::sparse::Pattern;
 use crate::algorithms::mpc::spd_cholesky;
-use crate::world::model::{Dynamics, Matrix, Vector};
+use crate::model::{Dynamics, Matrix, Vector};
 
 /// The states' steps and the parameters' step.
 type Step<const NX: usize, const NP: usize> = (Vec<Vector<NX>>, Vector<NP>);

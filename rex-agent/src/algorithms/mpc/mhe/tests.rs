@@ -3,8 +3,8 @@
 //! increments, relocalisation.
 
 use super::*;
-use crate::algorithms::geometry::wrap;
 use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
+use crate::math::geometry::wrap;
 
 type Settings = MheSettings<5, 3>;
 

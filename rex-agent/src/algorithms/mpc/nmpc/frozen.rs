@@ -5,7 +5,7 @@
 
 use super::qp::ClarabelQp;
 use super::{Nmpc, NmpcError};
-use crate::world::model::{Dynamics, NU, Vector};
+use crate::model::{Dynamics, NU, Vector};
 
 /// The QP that [`Nmpc::feedback`] would solve after the last
 /// [`Nmpc::prepare`], with its `Δx_0`; see [`Nmpc::freeze_qp`].

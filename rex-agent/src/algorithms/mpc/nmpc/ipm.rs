@@ -21,7 +21,7 @@
 //! in [`MAX_ITERATIONS`] returns `None`, and Clarabel solves the QP.
 
 use super::{Nmpc, UuFactor, spd_cholesky};
-use crate::world::model::{Dynamics, Matrix, NU, Vector};
+use crate::model::{Dynamics, Matrix, NU, Vector};
 
 /// Bounded components per stage: the torques of `Δu_k`, then the speed and
 /// yaw rate of `Δx_{k+1}` (the model's [`Dynamics::SPEED`] and

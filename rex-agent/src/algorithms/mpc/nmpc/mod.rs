@@ -61,9 +61,7 @@
 use nalgebra::Cholesky;
 
 use super::spd_cholesky;
-use crate::world::model::{
-    Dynamics, Lateral, Matrix, NU, PlatformParams, Reduced, Torques, Vector,
-};
+use crate::model::{Dynamics, Lateral, Matrix, NU, PlatformParams, Reduced, Torques, Vector};
 
 mod frozen;
 mod ipm;

@@ -11,7 +11,7 @@
 //! steady state the model predicts what the platform does.
 
 use super::Nmpc;
-use crate::world::model::{Dynamics, Torques};
+use crate::model::{Dynamics, Torques};
 
 /// Settings of the [`DisturbanceObserver`] of a model of `NX` states.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -118,7 +118,7 @@ mod tests {
     use super::*;
     use crate::algorithms::mpc::NmpcSettings;
     use crate::algorithms::mpc::nmpc::ReducedNmpc;
-    use crate::world::model::{PlatformParams, Reduced, SlipParams, State5};
+    use crate::model::{PlatformParams, Reduced, SlipParams, State5};
 
     const NX: usize = 5;
 

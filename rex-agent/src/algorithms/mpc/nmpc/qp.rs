@@ -10,7 +10,7 @@ use clarabel::solver::{
 
 use super::{Nmpc, NmpcError, NmpcSettings, QpStrategy, spd_cholesky};
 use crate::algorithms::mpc::sparse::Pattern;
-use crate::world::model::{Dynamics, Matrix, NU, Vector};
+use crate::model::{Dynamics, Matrix, NU, Vector};
 
 impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
     /// Linearise every stage.

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
-use crate::world::model::{Reduced, SlipParams, State5};
+use crate::model::{Reduced, SlipParams, State5};
 
 const NX: usize = 5;
 

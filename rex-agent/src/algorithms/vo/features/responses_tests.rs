@@ -130,7 +130,7 @@ fn assert_same(ours: &Features, reference: &Features, what: &str) {
 
 #[test]
 fn the_filters_and_the_dilations_keep_what_the_window_scan_keeps() {
-    let mut rng = crate::algorithms::rng::Rng::new(17);
+    let mut rng = crate::math::rng::Rng::new(17);
     let mut found = 0;
     let mut r = Responses::default();
     let mut g = Gradients::default();

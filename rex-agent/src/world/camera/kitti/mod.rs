@@ -42,9 +42,9 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::{CameraConfig, CameraPose};
-use crate::algorithms::geometry::{IDENTITY, Pose34, compose, invert};
 use crate::algorithms::vo::{Calibration, NoEstimate, StereoOdometry, VoSettings, VoStats};
 use crate::config::{self, ConfigError};
+use crate::math::geometry::{IDENTITY, Pose34, compose, invert};
 
 /// A problem with a sequence folder, naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -333,7 +333,7 @@ impl ScriptedPath {
 /// The first term's speed exceeds the others' together by at least 0.85 m/s, so
 /// the platform always moves forward.
 fn tour(seed: u64) -> ([f64; 2], [[f64; 3]; 3]) {
-    let mut rng = crate::algorithms::rng::Rng::stream(seed, "tour");
+    let mut rng = crate::math::rng::Rng::stream(seed, "tour");
     let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
     let centre = [u(-0.3, 0.3), u(-0.3, 0.3)];
     let mut terms = [[0.0; 3]; 3];

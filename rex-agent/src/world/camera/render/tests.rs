@@ -143,7 +143,7 @@ fn the_blocked_walls_are_the_one_pixel_path_bit_for_bit() {
     // The rows of random camera poses in the shipped room and in a room of 1 km
     // (texel coordinates beyond `texel_fixed`'s range), with the row's floor or
     // ceiling distance as rendered and random ones (walls behind the plane).
-    let mut rng = crate::algorithms::rng::Rng::new(17);
+    let mut rng = crate::math::rng::Rng::new(17);
     let big = SceneConfig {
         room: Room {
             x0: -500.0,

@@ -161,8 +161,8 @@ impl Wheel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::dynamics::{EarlierReading, NOT_READ, check};
-    use crate::world::model::{Dynamics, Lateral, PlatformParams, Vector};
+    use crate::model::dynamics::{EarlierReading, NOT_READ, check};
+    use crate::model::{Dynamics, Lateral, PlatformParams, Vector};
 
     const KS: f64 = 20.0;
     /// The peers' platform: `J_w / r²` = 1 kg; ice's bound on a wheel.

@@ -3,8 +3,8 @@
 //! spin-up read.
 
 use super::*;
-use crate::world::model::dynamics::check;
-use crate::world::model::{Plant, Surface, SurfaceMap, WheelSpin};
+use crate::model::dynamics::check;
+use crate::model::{Plant, Surface, SurfaceMap, WheelSpin};
 
 fn model() -> Lateral {
     Lateral::new(PlatformParams::peer_default())
@@ -259,7 +259,7 @@ fn the_rolling_resistance_opposes_the_wheels_spin_read() {
 
 /// The plant on ice from rest under torques `tau` held: its state at the
 /// step, after `first` seconds and `interval` seconds later.
-fn plant_on_ice(tau: [f64; 4], first: f64, interval: f64) -> [crate::world::model::FullState; 2] {
+fn plant_on_ice(tau: [f64; 4], first: f64, interval: f64) -> [crate::model::FullState; 2] {
     let ice = Surface {
         name: "ice".into(),
         mu_long: 0.1,

@@ -1,6 +1,8 @@
-//! The whole Rex system of the paper's Fig. 3: the locomotion agent a1 (c1, e11 and
-//! the platform E1; r11 and the camera R1 join with visual odometry), the ontology
-//! agent a2 and the map agent a3, linked as in `specs/rex.ron`.
+//! The composition root: the whole Rex system of the paper's Fig. 3, the locomotion
+//! agent a1 (c1, e11 and the platform E1; r11 and the camera R1 join with visual
+//! odometry) in the simulated world with the ontology agent a2 and the map agent
+//! a3, linked as in `specs/rex.ron`, and the settings of a run. The only module
+//! below the runs and the program that knows both a1 and the world.
 //!
 //! Periods come from the spec, and a test checks that every link built here is a link
 //! of the spec with the same policy, and that every spec link between deployed
@@ -16,15 +18,16 @@ use serde::{Deserialize, Serialize};
 use crate::a1::c1::trajgen::{Runtime, TrajGen};
 use crate::a1::c1::{C1, C1Memory, C1Params, c1_fsm};
 use crate::a1::e11::{E11, E11Memory, EstimatorKind, Safety, TrackerKind, e11_fsm};
-use crate::a1::map::Map;
+use crate::a1::map::{Map, Rect};
 use crate::a1::r11::{Odometry, R11, R11Memory, r11_fsm};
 use crate::algorithms::planner::ground::GroundTiming;
 use crate::algorithms::planner::{PlannerKind, PlannerSettings};
 use crate::algorithms::vo::VoSettings;
 use crate::config::{self, ConfigError, Invalid, Validate};
 use crate::mission::Mission;
+use crate::model::{Friction, Lateral};
+use crate::world::camera::SceneConfig;
 use crate::world::devices::{Platform, StereoCamera};
-use crate::world::model::{Friction, Lateral};
 use crate::world::partners::Ontology;
 use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 
@@ -580,4 +583,33 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
             vision,
         },
     ))
+}
+
+/// The map a1 is given: the scene the camera renders (the same room and boxes).
+/// Here, in the composition root, because a1 knows its map and not the
+/// simulated world it is made from.
+impl Map {
+    /// The map of the scene the camera renders (the same room and boxes).
+    pub fn of_scene(scene: &SceneConfig, clearance: f64) -> Map {
+        let r = &scene.room;
+        Map {
+            room: Rect {
+                x0: r.x0,
+                y0: r.y0,
+                x1: r.x1,
+                y1: r.y1,
+            },
+            obstacles: scene
+                .obstacles
+                .iter()
+                .map(|o| Rect {
+                    x0: o.x0,
+                    y0: o.y0,
+                    x1: o.x1,
+                    y1: o.y1,
+                })
+                .collect(),
+            clearance,
+        }
+    }
 }

@@ -11,9 +11,9 @@
 
 use std::fmt;
 
-use crate::a1::RexConfig;
-use crate::a1::payload::{AckStatus, Execution};
-use crate::run::Outcome;
+use super::Outcome;
+use crate::payload::{AckStatus, Execution};
+use crate::system::RexConfig;
 
 /// How a plan went.
 #[derive(Clone, Debug, PartialEq)]

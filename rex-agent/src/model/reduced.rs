@@ -251,7 +251,7 @@ impl Dynamics<5, 3> for Reduced {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::dynamics::check;
+    use crate::model::dynamics::check;
 
     /// Golden values of notes §1.6 (`python3 peers/casadi_nmpc.py --check-model`).
     #[test]

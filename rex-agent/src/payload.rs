@@ -105,9 +105,9 @@ impl State {
 }
 
 /// The ground's friction (in [`State`]).
-pub use crate::world::model::Friction;
+pub use crate::model::Friction;
 /// Wheel torques (`tau`, e1,1 to E1): the platform model's [`Torques`].
-pub use crate::world::model::Torques;
+pub use crate::model::Torques;
 
 /// A command for the inertial measurement unit (`cmd_E1,1`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -44,8 +44,8 @@ use nalgebra::{Isometry2, Point2, SMatrix, SVector, UnitComplex, Vector2};
 use super::dynamics::sg4;
 use super::params::{PlatformParams, SurfaceMap};
 use super::reduced::{sg, sg_prime};
-use crate::algorithms::linsolve;
 use crate::config::{self, ConfigError, Invalid, Validate, finite};
+use crate::math::linsolve;
 
 /// A start pose `(x, y, φ)`, checked for finite values.
 struct StartPose([f64; 3]);
@@ -455,7 +455,7 @@ fn solve7(a: [[f64; 7]; 7], b: [f64; 7]) -> Option<[f64; 7]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::model::params::Surface;
+    use crate::model::params::Surface;
 
     fn p_half_track() -> f64 {
         PlatformParams::peer_default().half_track
