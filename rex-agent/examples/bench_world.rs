@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 // Shared with the other benches; this one prints no ratios.
-#[allow(dead_code)]
+#[allow(dead_code, reason = "the module is shared; this bench uses part of it")]
 #[path = "common/stats.rs"]
 mod stats;
 

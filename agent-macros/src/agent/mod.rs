@@ -325,7 +325,10 @@ fn doc_attr(doc: Option<&String>, extra: &str) -> TokenStream {
 
 /// The groups of one direction of a component: struct definitions and the
 /// input or output struct holding them.
-#[allow(clippy::too_many_arguments)]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the parts of one direction of a component, each from a different place of the spec"
+)]
 fn groups(
     found: &Found,
     file: &LitStr,

@@ -450,7 +450,10 @@ pub struct BucketScratch {
 /// replaced) is grouped by bucket (in the order of their first candidate after the
 /// shuffle), each group in shuffled order; the same for any number of `threads`.
 /// On one thread nothing is allocated once `scratch` and `out` have grown.
-#[allow(clippy::too_many_arguments)]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the candidates, the bucketing, its seeded shuffle, the threads, reused storage and the refinement: one pass"
+)]
 pub fn bucket_refined(
     candidates: &mut [[(f64, f64); 4]],
     size: f64,
