@@ -31,7 +31,25 @@ pub trait Codec: Send + Sync {
     fn encode(&self, body: &[u8], out: &mut Vec<u8>);
     /// Decode `data` (what `encode` wrote) into `out` (empty): the value's
     /// postcard bytes. An error says what in `data` is wrong.
-    fn decode(&self, data: &[u8], out: &mut Vec<u8>) -> Result<(), String>;
+    fn decode(&self, data: &[u8], out: &mut Vec<u8>) -> Result<(), DecodeError>;
+}
+
+/// What in a codec's data is wrong: data that `encode` did not write (a
+/// damaged or foreign file).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{reason}")]
+pub struct DecodeError {
+    /// What is wrong, in words.
+    pub reason: String,
+}
+
+impl DecodeError {
+    /// An error saying `reason`.
+    pub fn new(reason: impl Into<String>) -> DecodeError {
+        DecodeError {
+            reason: reason.into(),
+        }
+    }
 }
 
 /// The metadata key of a raw channel that names its codec.

@@ -30,7 +30,7 @@ pub mod record;
 pub mod replay;
 
 /// The MCAP crate this one writes with (to read recordings back).
-pub use codec::Codec;
+pub use codec::{Codec, DecodeError};
 pub use mcap;
 pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};

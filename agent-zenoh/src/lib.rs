@@ -38,7 +38,7 @@ mod transport;
 
 pub use launch::{Child, Control, LaunchError, LaunchReport, Launcher, Line};
 pub use member::{
-    Member, MemberError, Observation, Options, Watch, open_peer, open_secure_client,
+    Member, MemberError, Observation, Options, SessionError, Watch, open_peer, open_secure_client,
     open_secure_peer,
 };
 

@@ -275,7 +275,7 @@ impl Layout {
         };
         open_secure_peer(listen, &connect, secured.as_ref()).map_err(|error| MemberError::Zenoh {
             process: me.to_owned(),
-            error,
+            error: error.to_string(),
         })
     }
 }
@@ -285,7 +285,7 @@ impl Layout {
 /// often unavailable between network namespaces and hosts). Peers that are not
 /// up yet are retried in the background: the caller's own waits decide when to
 /// give up.
-pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Session, String> {
+pub fn open_peer(listen: Option<&str>, connect: &[&str]) -> Result<zenoh::Session, SessionError> {
     open_secure_peer(listen, connect, None)
 }
 
@@ -295,7 +295,7 @@ pub fn open_secure_peer(
     listen: Option<&str>,
     connect: &[&str],
     secured: Option<&crate::security::Secured>,
-) -> Result<zenoh::Session, String> {
+) -> Result<zenoh::Session, SessionError> {
     open_session("peer", listen, connect, secured)
 }
 
@@ -305,7 +305,7 @@ pub fn open_secure_peer(
 pub fn open_secure_client(
     connect: &[&str],
     secured: Option<&crate::security::Secured>,
-) -> Result<zenoh::Session, String> {
+) -> Result<zenoh::Session, SessionError> {
     open_session("client", None, connect, secured)
 }
 
@@ -314,7 +314,7 @@ fn open_session(
     listen: Option<&str>,
     connect: &[&str],
     secured: Option<&crate::security::Secured>,
-) -> Result<zenoh::Session, String> {
+) -> Result<zenoh::Session, SessionError> {
     let mut config = zenoh::Config::default();
     let mut settings: Vec<(&str, String)> = vec![
         ("mode", format!("{mode:?}")),
@@ -350,9 +350,39 @@ fn open_session(
     for (key, value) in settings {
         config
             .insert_json5(key, &value)
-            .map_err(|e| format!("setting `{key}` to {value}: {e}"))?;
+            .map_err(|e| SessionError::Setting {
+                key: key.to_owned(),
+                value: value.clone(),
+                reason: e.to_string(),
+            })?;
     }
-    zenoh::open(config).wait().map_err(|e| e.to_string())
+    zenoh::open(config).wait().map_err(|e| SessionError::Open {
+        reason: e.to_string(),
+    })
+}
+
+/// Why a Zenoh session did not open.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SessionError {
+    /// Zenoh refused a setting of its configuration (an endpoint it cannot
+    /// read, a credential's path, the access control list).
+    #[error("zenoh refused setting `{key}` to {value}: {reason}")]
+    Setting {
+        /// The configuration's key.
+        key: String,
+        /// The value given (JSON5).
+        value: String,
+        /// Zenoh's message.
+        reason: String,
+    },
+    /// Zenoh could not open the session (a port taken, a certificate it cannot
+    /// load, ...).
+    #[error("zenoh could not open the session: {reason}")]
+    Open {
+        /// Zenoh's message.
+        reason: String,
+    },
 }
 
 /// Close `session`, waiting at most `bound`: best effort (Zenoh's own bound

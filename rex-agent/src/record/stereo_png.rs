@@ -14,7 +14,7 @@
 //! the file's zstd chunks made ~61% of them, in less time (measured on the
 //! figure-eight's pairs: docs/figures.md, `bench_record`).
 
-use embodied::record::Codec;
+use embodied::record::{Codec, DecodeError};
 use serde_bytes::Bytes;
 
 use crate::payload::StereoPair;
@@ -173,30 +173,34 @@ impl Codec for StereoPng {
         out.extend_from_slice(body);
     }
 
-    fn decode(&self, data: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
-        match data.first() {
-            Some(&VERBATIM) => {
-                out.extend_from_slice(&data[1..]);
-                Ok(())
-            }
-            Some(&PNG) => {
-                let Parts {
-                    prefix,
-                    head: (_, _, w, h),
-                    left,
-                    right,
-                } = parts(data).ok_or("a PNG form cut short")?;
-                let left = decode_png(left, w, h).map_err(|e| format!("left image: {e}"))?;
-                let right = decode_png(right, w, h).map_err(|e| format!("right image: {e}"))?;
-                out.extend_from_slice(prefix);
-                let images = (Bytes::new(&left), Bytes::new(&right));
-                *out =
-                    postcard::to_extend(&images, std::mem::take(out)).map_err(|e| e.to_string())?;
-                Ok(())
-            }
-            Some(tag) => Err(format!("form {tag} (0 or 1 expected)")),
-            None => Err("no bytes".into()),
+    fn decode(&self, data: &[u8], out: &mut Vec<u8>) -> Result<(), DecodeError> {
+        decode_pair(data, out).map_err(DecodeError::new)
+    }
+}
+
+/// [`StereoPng`]'s decoding, its error in words.
+fn decode_pair(data: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
+    match data.first() {
+        Some(&VERBATIM) => {
+            out.extend_from_slice(&data[1..]);
+            Ok(())
         }
+        Some(&PNG) => {
+            let Parts {
+                prefix,
+                head: (_, _, w, h),
+                left,
+                right,
+            } = parts(data).ok_or("a PNG form cut short")?;
+            let left = decode_png(left, w, h).map_err(|e| format!("left image: {e}"))?;
+            let right = decode_png(right, w, h).map_err(|e| format!("right image: {e}"))?;
+            out.extend_from_slice(prefix);
+            let images = (Bytes::new(&left), Bytes::new(&right));
+            *out = postcard::to_extend(&images, std::mem::take(out)).map_err(|e| e.to_string())?;
+            Ok(())
+        }
+        Some(tag) => Err(format!("form {tag} (0 or 1 expected)")),
+        None => Err("no bytes".into()),
     }
 }
 
