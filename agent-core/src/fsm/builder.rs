@@ -106,6 +106,27 @@ impl<S: Subsystem> FsmBuilder<S> {
     /// Check the FSM and build it.
     pub fn build(self) -> Result<Fsm<S>, FsmBuildError> {
         let mut problems = Vec::new();
+        self.check_behaviours(&mut problems);
+        let preds = self.index_predicates(&mut problems);
+        let terminals = self.resolve_terminals(&preds, &mut problems);
+        let conditions = self.resolve_arc_conditions(&preds, &mut problems);
+        let shape = self.check_shape(&terminals, &mut problems);
+        if !problems.is_empty() {
+            return Err(FsmBuildError { problems });
+        }
+        let (Some(initial), Some(terminals), Some(conditions)) = (
+            shape.initial,
+            terminals.into_iter().collect::<Option<Vec<_>>>(),
+            conditions.into_iter().collect::<Option<Vec<_>>>(),
+        ) else {
+            // Unreachable: every `None` above recorded a problem.
+            return Err(FsmBuildError { problems });
+        };
+        Ok(self.assemble(initial, shape, terminals, conditions))
+    }
+
+    /// Record an empty FSM, duplicate behaviour names and ill-formed actions.
+    fn check_behaviours(&self, problems: &mut Vec<FsmProblem>) {
         if self.behaviours.is_empty() {
             problems.push(FsmProblem::Empty);
         }
@@ -121,6 +142,11 @@ impl<S: Subsystem> FsmBuilder<S> {
                 });
             }
         }
+    }
+
+    /// The predicates' indices by name, recording duplicates and relations
+    /// that name an unknown predicate.
+    fn index_predicates(&self, problems: &mut Vec<FsmProblem>) -> HashMap<&str, usize> {
         let mut preds: HashMap<&str, usize> = HashMap::new();
         for (i, p) in self.predicates.iter().enumerate() {
             if preds.insert(&p.name, i).is_some() {
@@ -137,28 +163,52 @@ impl<S: Subsystem> FsmBuilder<S> {
                 }
             }
         }
-        let terminals: Vec<Option<Expr<usize>>> = self
-            .behaviours
+        preds
+    }
+
+    /// Each behaviour's terminal condition, parsed and resolved (`None` where
+    /// a problem was recorded).
+    fn resolve_terminals(
+        &self,
+        preds: &HashMap<&str, usize>,
+        problems: &mut Vec<FsmProblem>,
+    ) -> Vec<Option<Expr<usize>>> {
+        self.behaviours
             .iter()
             .map(|b| {
                 resolve(
-                    &preds,
-                    &mut problems,
+                    preds,
+                    problems,
                     format!("terminal condition of `{}`", b.name),
                     &b.terminal,
                 )
             })
-            .collect();
-        let conditions: Vec<Option<Expr<usize>>> = self
-            .arcs
+            .collect()
+    }
+
+    /// Each arc's initial condition, parsed and resolved (`None` where a
+    /// problem was recorded).
+    fn resolve_arc_conditions(
+        &self,
+        preds: &HashMap<&str, usize>,
+        problems: &mut Vec<FsmProblem>,
+    ) -> Vec<Option<Expr<usize>>> {
+        self.arcs
             .iter()
             .map(|(from, to, cond)| {
                 let place = format!("initial condition of arc `{from}` -> `{to}`");
-                resolve(&preds, &mut problems, place, cond)
+                resolve(preds, problems, place, cond)
             })
-            .collect();
+            .collect()
+    }
 
-        // The shape rules, shared with the spec checker.
+    /// The graph resolved by the shape rules (shared with the spec checker),
+    /// recording their problems and each behaviour that can end with no way out.
+    fn check_shape(
+        &self,
+        terminals: &[Option<Expr<usize>>],
+        problems: &mut Vec<FsmProblem>,
+    ) -> rules::Resolved {
         let graph = rules::Graph {
             behaviours: self.behaviours.iter().map(|b| b.name.as_ref()).collect(),
             initial: self.initial.as_deref(),
@@ -171,26 +221,7 @@ impl<S: Subsystem> FsmBuilder<S> {
         };
         let (shape, broken) = graph.check();
         for p in broken {
-            problems.push(match p {
-                ShapeProblem::NoInitial => FsmProblem::NoInitial,
-                ShapeProblem::UnknownBehaviour { place, name } => FsmProblem::UnknownBehaviour {
-                    place: match place {
-                        Place::Initial => "the initial declaration".to_owned(),
-                        Place::ArcFrom(k) | Place::ArcTo(k) => {
-                            let (from, to, _) = &self.arcs[k];
-                            format!("arc `{from}` -> `{to}`")
-                        }
-                        Place::Final(_) => "a final declaration".to_owned(),
-                    },
-                    name,
-                },
-                ShapeProblem::Unreachable(b) => {
-                    FsmProblem::Unreachable(self.behaviours[b].name.to_string())
-                }
-                ShapeProblem::FinalWithArcs(b) => {
-                    FsmProblem::FinalWithArcs(self.behaviours[b].name.to_string())
-                }
-            });
+            problems.push(self.shape_problem(p));
         }
         for (b, behaviour) in self.behaviours.iter().enumerate() {
             let never_ends = terminals[b].as_ref().is_some_and(Expr::is_const_false);
@@ -198,17 +229,42 @@ impl<S: Subsystem> FsmBuilder<S> {
                 problems.push(FsmProblem::NoWayOut(behaviour.name.to_string()));
             }
         }
-        if !problems.is_empty() {
-            return Err(FsmBuildError { problems });
+        shape
+    }
+
+    /// A shape rule's problem in the builder's terms (names, not indices).
+    fn shape_problem(&self, problem: ShapeProblem) -> FsmProblem {
+        match problem {
+            ShapeProblem::NoInitial => FsmProblem::NoInitial,
+            ShapeProblem::UnknownBehaviour { place, name } => FsmProblem::UnknownBehaviour {
+                place: match place {
+                    Place::Initial => "the initial declaration".to_owned(),
+                    Place::ArcFrom(k) | Place::ArcTo(k) => {
+                        let (from, to, _) = &self.arcs[k];
+                        format!("arc `{from}` -> `{to}`")
+                    }
+                    Place::Final(_) => "a final declaration".to_owned(),
+                },
+                name,
+            },
+            ShapeProblem::Unreachable(b) => {
+                FsmProblem::Unreachable(self.behaviours[b].name.to_string())
+            }
+            ShapeProblem::FinalWithArcs(b) => {
+                FsmProblem::FinalWithArcs(self.behaviours[b].name.to_string())
+            }
         }
-        let (Some(initial), Some(terminals), Some(conditions)) = (
-            shape.initial,
-            terminals.into_iter().collect::<Option<Vec<_>>>(),
-            conditions.into_iter().collect::<Option<Vec<_>>>(),
-        ) else {
-            // Unreachable: every `None` above recorded a problem.
-            return Err(FsmBuildError { problems });
-        };
+    }
+
+    /// The checked FSM: each behaviour a node with its resolved terminal
+    /// condition and its outgoing arcs.
+    fn assemble(
+        self,
+        initial: usize,
+        shape: rules::Resolved,
+        terminals: Vec<Expr<usize>>,
+        conditions: Vec<Expr<usize>>,
+    ) -> Fsm<S> {
         let mut arcs: Vec<Vec<FsmArc>> = self.behaviours.iter().map(|_| Vec::new()).collect();
         for (((_, _, text), condition), ends) in
             self.arcs.into_iter().zip(conditions).zip(shape.arcs)
@@ -236,12 +292,12 @@ impl<S: Subsystem> FsmBuilder<S> {
                 is_final,
             })
             .collect();
-        Ok(Fsm {
+        Fsm {
             predicates: self.predicates,
             relations: self.relations,
             nodes,
             initial,
-        })
+        }
     }
 }
 
