@@ -54,11 +54,12 @@ mod clock;
 mod config;
 mod finished;
 mod report;
+mod start;
 mod timing;
 mod worker;
 
 use std::any::Any;
-use std::collections::{BTreeMap, HashSet};
+use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -66,10 +67,9 @@ use std::sync::mpsc::Receiver;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::kinds::NodeKind;
-use crate::link::remote::{self, Transport};
+use crate::link::remote::Transport;
 use crate::link::thread::SharedStats;
-use crate::link::{LinkId, LinkStats, ThreadHalves};
+use crate::link::{LinkId, LinkStats};
 use crate::probe::{ProbeFn, Probes, Target};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
@@ -113,7 +113,7 @@ pub struct Placement {
     pub transport: Box<dyn Transport>,
     /// The epoch this process's values carry on the links that leave it (a
     /// number new at each start of the process, so that receivers tell a
-    /// restart from another sender: [`remote::new_epoch`]).
+    /// restart from another sender: [`remote::new_epoch`](crate::link::remote::new_epoch)).
     pub epoch: u64,
 }
 
@@ -286,298 +286,6 @@ impl RealTime {
         };
         self.start_inner(limit, Some(&mut call))
     }
-
-    fn start_inner(
-        self,
-        limit: Duration,
-        sync: Option<&mut dyn FnMut() -> Option<Result<SystemTime, RtError>>>,
-    ) -> Result<Running, RtError> {
-        let RealTime {
-            system,
-            config,
-            probes,
-            dropped,
-            placement,
-            mut observers,
-        } = self;
-        let System {
-            info,
-            nodes,
-            outs,
-            ins,
-            channels,
-            environment,
-        } = system;
-        let n = nodes.len();
-        let here: Vec<bool> = match &placement {
-            None => vec![true; n],
-            Some(p) => info
-                .nodes
-                .iter()
-                .map(|node| p.here.contains(&node.name))
-                .collect(),
-        };
-        // Threads: one per subsystem; the drivers together if they share an
-        // environment, else one each.
-        let has_env = environment.is_some();
-        let mut thread_of = vec![usize::MAX; n];
-        let mut names: Vec<String> = Vec::new();
-        let mut world = None;
-        for (i, node) in info.nodes.iter().enumerate() {
-            if !here[i] {
-                continue;
-            }
-            let is_driver = matches!(node.kind, NodeKind::RealEffector | NodeKind::RealReceptor);
-            thread_of[i] = if is_driver && has_env {
-                *world.get_or_insert_with(|| {
-                    names.push("world".to_owned());
-                    names.len() - 1
-                })
-            } else {
-                names.push(node.name.clone());
-                names.len() - 1
-            };
-        }
-        let threads = names.len();
-        // Rate-monotonic priorities: the shortest period of a thread ranks it.
-        let mut shortest = vec![u64::MAX; threads];
-        for (i, node) in info.nodes.iter().enumerate() {
-            if let Some(s) = shortest.get_mut(thread_of[i]) {
-                *s = (*s).min(node.period.as_nanos());
-            }
-        }
-        let mut distinct: Vec<u64> = shortest.clone();
-        distinct.sort_unstable();
-        distinct.dedup();
-        let priority_of = |th: usize| {
-            config.priority.map(|top| {
-                let rank = distinct
-                    .iter()
-                    .position(|p| *p == shortest[th])
-                    .unwrap_or(0);
-                let rank = u8::try_from(rank).unwrap_or(u8::MAX);
-                top.saturating_sub(rank).max(1)
-            })
-        };
-        // Link halves, to the threads of their ends.
-        let mut txs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
-        let mut rxs: Vec<ThreadHalves> = (0..threads).map(|_| empty(channels.len())).collect();
-        let mut stats: Vec<Arc<SharedStats>> = Vec::with_capacity(channels.len());
-        let mut subscriptions: Vec<Box<dyn Any + Send>> = Vec::new();
-        let mut inboxes: Vec<Arc<remote::Inbox>> = Vec::new();
-        let epoch = placement
-            .as_ref()
-            .map(|p| p.epoch)
-            .filter(|e| *e != 0)
-            .unwrap_or_else(remote::new_epoch);
-        let mut transport = placement.map(|p| (p.prefix, p.transport));
-        // One publisher per output buffer (key), made by its first remote link;
-        // the policy of a key with a queue link among its links is the queue's.
-        let mut published: HashSet<String> = HashSet::new();
-        for (l, plan) in channels.iter().enumerate() {
-            let link = &info.links[l];
-            match (here[link.from], here[link.to], transport.as_mut()) {
-                (true, true, _) | (_, _, None) => {
-                    let (tx, rx, s) = plan.threaded();
-                    txs[thread_of[link.from]][l] = Some(tx);
-                    rxs[thread_of[link.to]][l] = Some(rx);
-                    stats.push(s);
-                }
-                (true, false, Some((prefix, transport))) => {
-                    let key = remote::link_key(prefix, &info, link);
-                    let s = Arc::new(SharedStats::default());
-                    let publisher = if published.insert(key.clone()) {
-                        let policy = info
-                            .links
-                            .iter()
-                            .filter(|k| k.from == link.from && k.from_port == link.from_port)
-                            .map(|k| k.policy)
-                            .find(|p| matches!(p, crate::Policy::Queue { .. }))
-                            .unwrap_or(link.policy);
-                        let made = transport.publisher(&key, policy).map_err(|error| {
-                            RtError::Transport {
-                                link: link.name.clone(),
-                                key: key.clone(),
-                                error,
-                            }
-                        })?;
-                        Some(made)
-                    } else {
-                        None
-                    };
-                    let tx = remote::RemoteTx::new(
-                        publisher,
-                        key.into(),
-                        plan.fingerprint(),
-                        epoch,
-                        s.clone(),
-                    );
-                    txs[thread_of[link.from]][l] = Some(plan.remote_tx(tx));
-                    stats.push(s);
-                }
-                (false, true, Some((prefix, transport))) => {
-                    let key = remote::link_key(prefix, &info, link);
-                    let (rx, inbox, s) = plan.remote_rx(key.as_str().into());
-                    // Whether this process joins late is known at `sync`.
-                    inbox.defer_start();
-                    inboxes.push(inbox.clone());
-                    let guard =
-                        transport
-                            .subscribe(&key, inbox)
-                            .map_err(|error| RtError::Transport {
-                                link: link.name.clone(),
-                                key: key.clone(),
-                                error,
-                            })?;
-                    subscriptions.push(guard);
-                    rxs[thread_of[link.to]][l] = Some(rx);
-                    stats.push(s);
-                }
-                (false, false, Some(_)) => stats.push(Arc::new(SharedStats::default())),
-            }
-        }
-        let mut works: Vec<worker::Work> = names
-            .iter()
-            .enumerate()
-            .map(|(th, name)| worker::Work {
-                name: name.clone(),
-                nodes: Vec::new(),
-                seeds: Vec::new(),
-                outs: Vec::new(),
-                ins: Vec::new(),
-                txs: std::mem::take(&mut txs[th]),
-                rxs: std::mem::take(&mut rxs[th]),
-                environment: None,
-                priority: priority_of(th),
-                probes: Vec::new(),
-                observer: None,
-            })
-            .collect();
-        // Nodes in stepping order: declaration order, real receptors last.
-        let mut seeds: Vec<Option<Box<dyn crate::node::NodeSeed>>> =
-            nodes.into_iter().map(Some).collect();
-        let (mut order, receptors): (Vec<usize>, Vec<usize>) =
-            (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
-        order.extend(receptors);
-        for i in order {
-            if let (Some(seed), Some(w)) = (seeds[i].take(), works.get_mut(thread_of[i])) {
-                w.nodes.push(i);
-                w.seeds.push(seed);
-            }
-        }
-        for (node, plan) in outs {
-            if let Some(w) = works.get_mut(thread_of[node]) {
-                w.outs.push((node, plan));
-            }
-        }
-        for (node, plan) in ins {
-            if let Some(w) = works.get_mut(thread_of[node]) {
-                w.ins.push((node, plan));
-            }
-        }
-        if let Some(w) = world {
-            works[w].environment = environment;
-        }
-        if let Some(make) = observers.as_mut() {
-            for w in &mut works {
-                w.observer = Some(make(&w.name, &w.nodes));
-            }
-        }
-        for (target, probe) in probes {
-            let th = match target {
-                Target::Node(i) => thread_of.get(i).copied().unwrap_or(usize::MAX),
-                Target::Environment => world.unwrap_or(usize::MAX),
-            };
-            if let Some(w) = works.get_mut(th) {
-                w.probes.push((target, probe));
-            }
-        }
-        let memory_locked = config.lock_memory.then(clock::lock_memory);
-        let stop = Arc::new(AtomicBool::new(false));
-        // Whether this process joins a deployment whose instant zero is past.
-        let mut joining = false;
-        let clock = match sync.and_then(|f| f()) {
-            Some(Ok(at)) => {
-                // Instant zero in the past: this process joins a running
-                // deployment (it was restarted). Across hosts this reads
-                // another host's clock: they must agree well within the lead
-                // the first process gives the others (a second in Rex).
-                let late = at <= SystemTime::now();
-                joining = late;
-                for inbox in &inboxes {
-                    inbox.start(late);
-                }
-                clock::Clock::at_wall(at)
-            }
-            Some(Err(e)) => {
-                if memory_locked.as_ref().is_some_and(Result::is_ok) {
-                    clock::unlock_memory();
-                }
-                return Err(e);
-            }
-            None => {
-                for inbox in &inboxes {
-                    inbox.start(false);
-                }
-                clock::Clock::starting_in(config.lead)
-            }
-        };
-        let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
-        // Decided once for every thread: a thread spawned late on a loaded
-        // machine still runs from instant zero (its deadlines catch up).
-        let first = if joining { clock.now() } else { 0 };
-        let shared = Arc::new(worker::Shared {
-            info: info.clone(),
-            clock,
-            stop: stop.clone(),
-            first,
-            end,
-            config: config.exec,
-            errors: AtomicU64::new(0),
-            halted: (0..n).map(|_| AtomicBool::new(false)).collect(),
-        });
-        let mut handles = Vec::with_capacity(works.len());
-        for work in works {
-            let name = work.name.clone();
-            let shared = shared.clone();
-            let spawned = std::thread::Builder::new()
-                .name(format!("rt-{name}"))
-                .spawn(move || worker::run(work, &shared));
-            match spawned {
-                Ok(h) => handles.push((name, h)),
-                Err(source) => {
-                    stop.store(true, Ordering::Relaxed);
-                    for (_, h) in handles {
-                        let _ = h.join();
-                    }
-                    if memory_locked.is_some() {
-                        clock::unlock_memory();
-                    }
-                    return Err(RtError::Spawn {
-                        thread: name,
-                        source,
-                    });
-                }
-            }
-        }
-        Ok(Running {
-            info,
-            handles,
-            stop: StopHandle(stop),
-            shared,
-            stats,
-            dropped,
-            memory_locked,
-            started: Instant::now(),
-            lead: config.lead,
-            _subscriptions: subscriptions,
-            _transport: transport,
-        })
-    }
-}
-
-fn empty(n: usize) -> ThreadHalves {
-    (0..n).map(|_| None).collect()
 }
 
 /// A real-time run in progress.

@@ -10,7 +10,7 @@ use std::any::Any;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
-use crate::error::ExecError;
+use crate::error::{ExecError, LinkError};
 use crate::executor::{ExecConfig, OnError, halts_under_continue};
 use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves};
 use crate::node::{InProcessNode, NodeSeed, NodeStep};
@@ -72,6 +72,8 @@ pub(crate) struct Done {
     pub(crate) last: Time,
 }
 
+/// Run a thread's work: build its nodes, run their instants until the end, a
+/// stop, or every node halted, and hand back what it holds.
 pub(crate) fn run(work: Work, shared: &Shared) -> Done {
     let Work {
         name,
@@ -81,9 +83,9 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         ins,
         mut txs,
         mut rxs,
-        mut environment,
+        environment,
         priority,
-        mut probes,
+        probes,
         observer,
     } = work;
     let mut observer = observer.filter(|o| o.enabled());
@@ -91,180 +93,282 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         o.start(&shared.info);
     }
     let priority = priority.map(|p| (p, clock::set_fifo_priority(p)));
-    let info = &shared.info;
-    let position = |global: usize| ids.iter().position(|&g| g == global);
     let mut nodes: Vec<Box<dyn InProcessNode>> = seeds
         .into_iter()
         .map(|s| s.into_in_process(shared.config.audit))
         .collect();
+    install_ports(&ids, &mut nodes, &outs, &ins, &mut txs, &mut rxs);
+    let mut thread = Thread::new(shared, ids, nodes, environment, observer, probes);
+    while let Some(t) = thread.next_instant() {
+        thread.run_instant(t);
+    }
+    thread.finish(name, priority)
+}
+
+/// Give each node the thread-link ports of its outputs, then of its inputs.
+fn install_ports(
+    ids: &[usize],
+    nodes: &mut [Box<dyn InProcessNode>],
+    outs: &[(usize, Box<dyn OutPlan>)],
+    ins: &[(usize, Box<dyn InPlan>)],
+    txs: &mut ThreadHalves,
+    rxs: &mut ThreadHalves,
+) {
+    let position = |global: usize| ids.iter().position(|&g| g == global);
     // Handles and payload types were checked when the links were declared, and
     // the halves were made from the same plans: installation cannot fail.
-    for (global, plan) in &outs {
+    for (global, plan) in outs {
         let installed = position(*global).is_some_and(|k| {
-            plan.threaded(&mut txs)
+            plan.threaded(txs)
                 .is_some_and(|port| nodes[k].install_out(port))
         });
         debug_assert!(installed, "output port type checked at connect()");
     }
-    for (global, plan) in &ins {
+    for (global, plan) in ins {
         let installed = position(*global).is_some_and(|k| {
-            plan.threaded(&mut rxs)
+            plan.threaded(rxs)
                 .is_some_and(|port| nodes[k].install_in(port))
         });
         debug_assert!(installed, "input port type checked at connect()");
     }
-    let periods: Vec<u64> = ids
-        .iter()
-        .map(|&g| info.nodes[g].period.as_nanos())
-        .collect();
-    // A process joining a running deployment begins at each node's next
-    // instant; otherwise every node begins at instant zero, however late this
-    // thread was spawned.
-    let mut next: Vec<u64> = periods
-        .iter()
-        .map(|&p| shared.first.div_ceil(p.max(1)).saturating_mul(p))
-        .collect();
-    let mut recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
-    let mut errors = Vec::new();
-    let mut last = Time::ZERO;
-    let clock = shared.clock;
-    loop {
-        if shared.stop.load(Ordering::Relaxed) {
-            break;
+}
+
+/// A running thread: its nodes (in stepping order), when each runs next, and
+/// what it records.
+struct Thread<'a> {
+    shared: &'a Shared,
+    /// Global node indices, in stepping order.
+    ids: Vec<usize>,
+    nodes: Vec<Box<dyn InProcessNode>>,
+    /// Per node: its period (ns).
+    periods: Vec<u64>,
+    /// Per node: its next instant (ns), `u64::MAX` once it runs no more.
+    next: Vec<u64>,
+    recorders: Vec<Recorder>,
+    errors: Vec<ExecError>,
+    /// The virtual time of the last instant executed.
+    last: Time,
+    environment: Option<Box<dyn Any + Send>>,
+    // The observer is dropped before the probes, as it always was.
+    observer: Option<Box<dyn Observer>>,
+    probes: Vec<(Target, ProbeFn)>,
+}
+
+impl<'a> Thread<'a> {
+    /// The thread before its first instant: each node due at its first
+    /// instant.
+    fn new(
+        shared: &'a Shared,
+        ids: Vec<usize>,
+        nodes: Vec<Box<dyn InProcessNode>>,
+        environment: Option<Box<dyn Any + Send>>,
+        observer: Option<Box<dyn Observer>>,
+        probes: Vec<(Target, ProbeFn)>,
+    ) -> Self {
+        let periods: Vec<u64> = ids
+            .iter()
+            .map(|&g| shared.info.nodes[g].period.as_nanos())
+            .collect();
+        // A process joining a running deployment begins at each node's next
+        // instant; otherwise every node begins at instant zero, however late this
+        // thread was spawned.
+        let next: Vec<u64> = periods
+            .iter()
+            .map(|&p| shared.first.div_ceil(p.max(1)).saturating_mul(p))
+            .collect();
+        let recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
+        Thread {
+            shared,
+            ids,
+            nodes,
+            periods,
+            next,
+            recorders,
+            errors: Vec::new(),
+            last: Time::ZERO,
+            environment,
+            observer,
+            probes,
         }
-        let Some(t) = next.iter().copied().min().filter(|t| *t != u64::MAX) else {
-            break;
-        };
-        if t >= shared.end {
-            break;
+    }
+
+    /// The next instant to run (ns), or `None` when the run is stopped, every
+    /// node has halted, or the next instant is past the end.
+    fn next_instant(&self) -> Option<u64> {
+        if self.shared.stop.load(Ordering::Relaxed) {
+            return None;
         }
+        let t = self.next.iter().copied().min().filter(|t| *t != u64::MAX)?;
+        (t < self.shared.end).then_some(t)
+    }
+
+    /// Run instant `t` at its deadline: the nodes due read, then step in order,
+    /// then the environment's probes see it.
+    fn run_instant(&mut self, t: u64) {
+        let clock = self.shared.clock;
         clock.sleep_until(t);
         let woke = clock.now();
         let jitter = woke.saturating_sub(t);
         let now = Time::from_nanos(t);
-        last = now;
+        self.last = now;
+        let unread = self.read_due(t, now);
+        for (k, e) in unread {
+            self.link_failed(k, now, e);
+        }
+        let mut started = clock.now();
+        for k in 0..self.nodes.len() {
+            if self.next[k] != t {
+                continue;
+            }
+            started = self.step(k, t, now, jitter, started);
+        }
+        self.probe_environment(now);
+    }
+
+    /// Read the inputs of the nodes due at `t`; the nodes whose read failed,
+    /// with the error.
+    fn read_due(&mut self, t: u64, now: Time) -> Vec<(usize, LinkError)> {
         let mut cx = LinkCx {
             time: now,
-            observer: observer.as_deref_mut().map(|o| o as &mut dyn Observer),
-            links: &info.links,
+            observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
+            links: &self.shared.info.links,
             environment: None,
         };
         let mut unread = Vec::new();
-        for (k, (node, due)) in nodes.iter_mut().zip(&next).enumerate() {
+        for (k, (node, due)) in self.nodes.iter_mut().zip(&self.next).enumerate() {
             if *due == t
                 && let Err(e) = node.read(&mut cx)
             {
                 unread.push((k, e));
             }
         }
-        // A link between processes that failed to deliver: the error goes
-        // through the policy (under `Continue` the node still runs, its buffer
-        // aged; under `Stop` the run ends).
-        for (k, e) in unread {
-            shared.errors.fetch_add(1, Ordering::Relaxed);
-            let e = ExecError::Link(e);
-            if let Some(o) = observer.as_deref_mut() {
-                o.error(now, &e);
+        unread
+    }
+
+    /// A link between processes that failed to deliver to node `k`: the error
+    /// goes through the policy (under `Continue` the node still runs, its
+    /// buffer aged; under `Stop` the run ends).
+    fn link_failed(&mut self, k: usize, now: Time, e: LinkError) {
+        self.shared.errors.fetch_add(1, Ordering::Relaxed);
+        let e = ExecError::Link(e);
+        if let Some(o) = self.observer.as_deref_mut() {
+            o.error(now, &e);
+        }
+        match self.shared.config.on_error {
+            OnError::Stop => {
+                self.shared.stop.store(true, Ordering::Relaxed);
+                self.errors.push(e);
+                self.next[k] = u64::MAX;
             }
-            match shared.config.on_error {
-                OnError::Stop => {
-                    shared.stop.store(true, Ordering::Relaxed);
-                    errors.push(e);
-                    next[k] = u64::MAX;
-                }
-                OnError::Continue => {
-                    if errors.len() < shared.config.max_recorded_errors {
-                        errors.push(e);
-                    }
+            OnError::Continue => {
+                if self.errors.len() < self.shared.config.max_recorded_errors {
+                    self.errors.push(e);
                 }
             }
         }
-        let mut started = clock.now();
-        for k in 0..nodes.len() {
-            if next[k] != t {
-                continue;
+    }
+
+    /// Step node `k` at instant `t` (its activation timed from `started`),
+    /// schedule its next instant, and let its probes see it; when the step
+    /// ended.
+    fn step(&mut self, k: usize, t: u64, now: Time, jitter: u64, started: u64) -> u64 {
+        let shared = self.shared;
+        let mut cx = LinkCx {
+            time: now,
+            observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
+            links: &shared.info.links,
+            environment: self.environment.as_deref_mut(),
+        };
+        let result = self.nodes[k].step(now, self.ids[k], &mut cx);
+        let ended = shared.clock.now();
+        self.recorders[k].record(jitter, ended.saturating_sub(started));
+        match result {
+            Ok(NodeStep::Ran) => self.next[k] = t.saturating_add(self.periods[k]),
+            Ok(NodeStep::Halted) => self.next[k] = u64::MAX,
+            Err(e) => self.step_failed(k, t, now, e),
+        }
+        if self.next[k] != u64::MAX && ended > self.next[k] {
+            self.recorders[k].overruns += 1;
+        }
+        if self.nodes[k].is_halted()
+            && let Some(h) = shared.halted.get(self.ids[k])
+        {
+            h.store(true, Ordering::Relaxed);
+        }
+        for (target, f) in &mut self.probes {
+            if matches!(target, Target::Node(g) if *g == self.ids[k]) {
+                f(now, self.nodes[k].core());
             }
-            let mut cx = LinkCx {
-                time: now,
-                observer: observer.as_deref_mut().map(|o| o as &mut dyn Observer),
-                links: &info.links,
-                environment: environment.as_deref_mut(),
-            };
-            let result = nodes[k].step(now, ids[k], &mut cx);
-            let ended = clock.now();
-            recorders[k].record(jitter, ended.saturating_sub(started));
-            started = ended;
-            match result {
-                Ok(NodeStep::Ran) => next[k] = t.saturating_add(periods[k]),
-                Ok(NodeStep::Halted) => next[k] = u64::MAX,
-                Err(e) => {
-                    shared.errors.fetch_add(1, Ordering::Relaxed);
-                    if let Some(o) = observer.as_deref_mut() {
-                        o.error(now, &e);
-                    }
-                    match shared.config.on_error {
-                        OnError::Stop => {
-                            shared.stop.store(true, Ordering::Relaxed);
-                            errors.push(*e);
-                            next[k] = u64::MAX;
-                        }
-                        OnError::Continue => {
-                            if halts_under_continue(&e) {
-                                nodes[k].halt();
-                                next[k] = u64::MAX;
-                            } else {
-                                next[k] = t.saturating_add(periods[k]);
-                            }
-                            if errors.len() < shared.config.max_recorded_errors {
-                                errors.push(*e);
-                            }
-                        }
-                    }
+        }
+        ended
+    }
+
+    /// Node `k` failed at instant `t`: the error goes through the policy
+    /// (under `Continue` the node runs on, unless the error halts it).
+    fn step_failed(&mut self, k: usize, t: u64, now: Time, e: Box<ExecError>) {
+        self.shared.errors.fetch_add(1, Ordering::Relaxed);
+        if let Some(o) = self.observer.as_deref_mut() {
+            o.error(now, &e);
+        }
+        match self.shared.config.on_error {
+            OnError::Stop => {
+                self.shared.stop.store(true, Ordering::Relaxed);
+                self.errors.push(*e);
+                self.next[k] = u64::MAX;
+            }
+            OnError::Continue => {
+                if halts_under_continue(&e) {
+                    self.nodes[k].halt();
+                    self.next[k] = u64::MAX;
+                } else {
+                    self.next[k] = t.saturating_add(self.periods[k]);
                 }
-            }
-            if next[k] != u64::MAX && ended > next[k] {
-                recorders[k].overruns += 1;
-            }
-            if nodes[k].is_halted()
-                && let Some(h) = shared.halted.get(ids[k])
-            {
-                h.store(true, Ordering::Relaxed);
-            }
-            for (target, f) in &mut probes {
-                if matches!(target, Target::Node(g) if *g == ids[k]) {
-                    f(now, nodes[k].core());
+                if self.errors.len() < self.shared.config.max_recorded_errors {
+                    self.errors.push(*e);
                 }
             }
         }
-        if let Some(env) = environment.as_deref() {
-            for (target, f) in &mut probes {
+    }
+
+    /// Let the environment's probes see it after the instant `now`.
+    fn probe_environment(&mut self, now: Time) {
+        if let Some(env) = self.environment.as_deref() {
+            for (target, f) in &mut self.probes {
                 if matches!(target, Target::Environment) {
                     f(now, env);
                 }
             }
         }
     }
-    let timings = ids
-        .iter()
-        .zip(&recorders)
-        .map(|(&g, r)| {
-            let n = &info.nodes[g];
-            (g, r.finish(n.name.clone(), name.clone(), n.period))
-        })
-        .collect();
-    let cores = ids
-        .iter()
-        .copied()
-        .zip(nodes)
-        .map(|(g, n)| (g, n.into_core()))
-        .collect();
-    Done {
-        name,
-        cores,
-        environment,
-        timings,
-        errors,
-        priority,
-        last,
+
+    /// What the thread hands back: its nodes' timings and cores, the
+    /// environment, the errors recorded.
+    fn finish(self, name: String, priority: Option<(u8, Result<(), String>)>) -> Done {
+        let info = &self.shared.info;
+        let timings = self
+            .ids
+            .iter()
+            .zip(&self.recorders)
+            .map(|(&g, r)| {
+                let n = &info.nodes[g];
+                (g, r.finish(n.name.clone(), name.clone(), n.period))
+            })
+            .collect();
+        let cores = self
+            .ids
+            .iter()
+            .copied()
+            .zip(self.nodes)
+            .map(|(g, n)| (g, n.into_core()))
+            .collect();
+        Done {
+            name,
+            cores,
+            environment: self.environment,
+            timings,
+            errors: self.errors,
+            priority,
+            last: self.last,
+        }
     }
 }
