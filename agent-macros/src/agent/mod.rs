@@ -18,8 +18,9 @@ use quote::{format_ident, quote};
 use syn::parse::{Parse, ParseStream};
 use syn::{Ident, LitStr, Token};
 
-use crate::chain::{self, Chain};
 use crate::util::runtime;
+
+mod subsystem;
 
 /// The arguments.
 pub(crate) struct AgentArgs {
@@ -423,208 +424,6 @@ fn groups(
     })
 }
 
-fn subsystem(
-    found: &Found,
-    args: &AgentArgs,
-    s: usize,
-    sub: &model::Subsystem,
-) -> syn::Result<TokenStream> {
-    let rt = runtime();
-    let file = &args.spec;
-    let base = [
-        Seg::Field("agents"),
-        Seg::Item(found.agent),
-        Seg::Field("subsystems"),
-        Seg::Item(s),
-    ];
-    let module = ident(&sub.name);
-    let marker = format_ident!("{}", camel(&sub.name));
-    let kind = format_ident!("{}", node_kind_name(sub.kind.into()));
-    let mut memory = Vec::new();
-    for (k, m) in sub.memory.iter().enumerate() {
-        let path: Vec<Seg<'_>> = base
-            .iter()
-            .copied()
-            .chain([Seg::Field("memory"), Seg::Item(k), Seg::Field("type")])
-            .collect();
-        let ty = rust_type(found, file, &m.ty, &path, &format!("memory `{}`", m.name))?;
-        let name = ident(&m.name);
-        let doc = doc_attr(m.doc.as_ref(), &format!("Spec type: `{}`.", m.ty));
-        memory.push(quote!(#doc pub #name: #ty));
-    }
-    let inputs = groups(found, file, &sub.inputs, &base, "inputs", true)?;
-    let outputs = groups(found, file, &sub.outputs, &base, "outputs", false)?;
-    let extra = &args.memory_derive;
-
-    // The trait: one method per function and predicate.
-    let mut methods = Vec::new();
-    let mut seen: Vec<&str> = Vec::new();
-    for (k, f) in sub.functions.iter().enumerate() {
-        seen.push(&f.name);
-        let name = ident(&f.name);
-        let at = location(
-            found,
-            &[
-                &base[..],
-                &[Seg::Field("functions"), Seg::Item(k), Seg::Field("name")],
-            ]
-            .concat(),
-        );
-        let reads = if f.reads.is_empty() {
-            String::new()
-        } else {
-            format!(" Reads {}.", f.reads.join(", "))
-        };
-        let doc = doc_attr(
-            f.doc.as_ref(),
-            &format!(" Transition function `{}` ({at}).{reads}", f.name),
-        );
-        methods.push(match &f.target {
-            model::Target::Memory | model::Target::Common => quote! {
-                #doc
-                fn #name(memory: &mut Memory, input: &Input) -> ::core::result::Result<(), #rt::ActionError>;
-            },
-            model::Target::Output(peer) => {
-                let group = format_ident!("To{}", camel(peer));
-                quote! {
-                    #doc
-                    fn #name(memory: &Memory, input: &Input, output: &mut #group) -> ::core::result::Result<(), #rt::ActionError>;
-                }
-            }
-        });
-    }
-    for (k, p) in sub.predicates.iter().enumerate() {
-        let name = ident(&p.name);
-        if seen.contains(&p.name.as_str()) {
-            return Err(syn::Error::new(
-                file.span(),
-                format!(
-                    "{}: `{}` is both a function and a predicate of `{}`; the generated trait needs distinct names",
-                    location(
-                        found,
-                        &[
-                            &base[..],
-                            &[Seg::Field("predicates"), Seg::Item(k), Seg::Field("name")]
-                        ]
-                        .concat()
-                    ),
-                    p.name,
-                    sub.name
-                ),
-            ));
-        }
-        let at = location(
-            found,
-            &[
-                &base[..],
-                &[Seg::Field("predicates"), Seg::Item(k), Seg::Field("name")],
-            ]
-            .concat(),
-        );
-        let doc = doc_attr(p.doc.as_ref(), &format!(" Predicate `{}` ({at}).", p.name));
-        methods.push(quote! {
-            #doc
-            fn #name(memory: &Memory, input: &Input) -> bool;
-        });
-    }
-
-    // The FSM over an implementation `F`.
-    let fsm = Chain {
-        subsystem: quote!(#marker),
-        predicates: sub
-            .predicates
-            .iter()
-            .map(|p| {
-                let f = ident(&p.name);
-                (p.name.clone(), quote!(F::#f))
-            })
-            .collect(),
-        relations: sub.relations.clone(),
-        behaviours: sub
-            .behaviours
-            .iter()
-            .map(|b| chain::Behaviour {
-                name: b.name.clone(),
-                repeat: b.kind == model::BehaviourKind::Repeat,
-                terminal: b.terminal.clone(),
-                parts: b
-                    .functions
-                    .iter()
-                    .filter_map(|name| {
-                        let f = sub.functions.iter().find(|f| &f.name == name)?;
-                        let id = ident(name);
-                        Some(chain::Part {
-                            name: name.clone(),
-                            target: match &f.target {
-                                model::Target::Memory => chain::Target::Memory,
-                                model::Target::Common => chain::Target::Common,
-                                model::Target::Output(peer) => chain::Target::Output(ident(peer)),
-                            },
-                            function: quote!(F::#id),
-                        })
-                    })
-                    .collect(),
-            })
-            .collect(),
-        initial: sub.fsm.initial.clone(),
-        arcs: sub
-            .fsm
-            .arcs
-            .iter()
-            .map(|a| (a.from.clone(), a.to.clone(), a.when.clone()))
-            .collect(),
-        finals: sub.fsm.finals.clone(),
-    }
-    .generate();
-
-    let name = &sub.name;
-    let period = sub.period_ms;
-    let spec_file = &found.loaded.file;
-    let module_doc = doc_attr(
-        sub.doc.as_ref(),
-        &format!(" Subsystem `{name}` of `{spec_file}`, generated by `agent!`."),
-    );
-    let marker_doc = format!(" The subsystem `{name}` (implements `Subsystem`).");
-    let trait_doc = format!(
-        " The transition functions and predicates of `{name}`, as the spec names them. Implement it on a type of yours and build the FSM with [`fsm`]."
-    );
-    Ok(quote! {
-        #module_doc
-        #[allow(non_snake_case, dead_code, clippy::module_name_repetitions)]
-        pub mod #module {
-            #[allow(unused_imports)]
-            use super::*;
-
-            /// The component's name in the spec.
-            pub const NAME: &str = #name;
-            /// Its period in the spec [ms].
-            pub const PERIOD_MS: f64 = #period;
-
-            /// The internal memory.
-            #[derive(Debug, Clone, #rt::Memory #(, #extra)*)]
-            pub struct Memory { #(#memory),* }
-
-            #inputs
-            #outputs
-
-            #[doc = #marker_doc]
-            #[derive(Debug, Clone, Copy, Default, #rt::Subsystem)]
-            #[subsystem(kind = #kind, memory = Memory, input = Input, output = Output)]
-            pub struct #marker;
-
-            #[doc = #trait_doc]
-            pub trait Functions: 'static {
-                #(#methods)*
-            }
-
-            /// The spec's FSM of this subsystem, over the functions of `F`.
-            pub fn fsm<F: Functions>() -> ::core::result::Result<#rt::Fsm<#marker>, #rt::FsmBuildError> {
-                #fsm
-            }
-        }
-    })
-}
-
 fn device(found: &Found, file: &LitStr, d: usize, dev: &model::Device) -> syn::Result<TokenStream> {
     let base = [
         Seg::Field("agents"),
@@ -725,7 +524,7 @@ pub(crate) fn generate(
     }
     let mut items = Vec::new();
     for (s, sub) in agent.subsystems.iter().enumerate() {
-        items.push(subsystem(found, args, s, sub)?);
+        items.push(subsystem::subsystem(found, args, s, sub)?);
     }
     for (d, dev) in agent.devices.iter().enumerate() {
         items.push(device(found, &args.spec, d, dev)?);
