@@ -336,132 +336,141 @@ pub(crate) fn parse_buffers(input: DeriveInput) -> syn::Result<BuffersModel> {
 }
 
 pub(crate) fn generate_buffers(m: &BuffersModel) -> TokenStream {
-    let rt = runtime();
     match m {
-        BuffersModel::Groups { input, groups } => {
-            let name = &input.ident;
-            let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
-            let shapes = groups.iter().map(|g| {
-                let (field, ty) = (g.ident.unraw().to_string(), &g.ty);
-                let ty_text = type_text(ty);
-                quote_spanned! {ty.span()=>
-                    #rt::GroupShape {
-                        name: #field,
-                        peer: ::core::option::Option::Some(<#ty as #rt::Group>::PEER),
-                        ty: #ty_text,
-                        direction: <#ty as #rt::Buffers>::GROUPS[0].direction,
-                        buffers: <#ty as #rt::Fields>::FIELDS,
-                    }
-                }
-            });
-            // Bit offset of each group: the buffers of the groups before it.
-            let mut offset = quote!(0usize);
-            let mut fresh = Vec::new();
-            let mut reads = Vec::new();
-            for g in groups {
-                let (ident, ty) = (&g.ident, &g.ty);
-                // `checked_shl`: an empty group may start at bit 128.
-                fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
-                reads.push(quote!(| #rt::Buffers::take_reads(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
-                offset = quote!(#offset + <#ty as #rt::Fields>::FIELDS.len());
-            }
-            let lookup = input.generics.params.is_empty().then(|| {
-                let arms = groups.iter().map(|g| {
-                    let (ident, ty) = (&g.ident, &g.ty);
-                    let n = ident.unraw().to_string();
-                    quote!(#n => <#ty as #rt::Group>::buffer_port::<Self>(#n, |s: &mut Self| &mut s.#ident, buffer))
-                });
-                quote! {
-                    fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
-                        let (group, buffer) = path.split_once('.')?;
-                        match group {
-                            #(#arms,)*
-                            _ => ::core::option::Option::None,
-                        }
-                    }
-                }
-            });
-            // An inline `const` block may use the struct's generic parameters.
-            quote! {
-                impl #impl_g #rt::Buffers for #name #ty_g #where_g {
-                    #lookup
-                    const GROUPS: &'static [#rt::GroupShape] = &[#(#shapes),*];
-                    #[inline]
-                    fn fresh(&self) -> #rt::Fresh {
-                        const {
-                            ::core::assert!(
-                                #offset <= #rt::describe::MAX_BUFFERS,
-                                "an input or output struct has at most 128 buffers"
-                            )
-                        };
-                        #rt::Fresh(0 #(#fresh)*)
-                    }
-                    fn take_reads(&self) -> #rt::Fresh {
-                        #rt::Fresh(0 #(#reads)*)
-                    }
-                }
-            }
-        }
+        BuffersModel::Groups { input, groups } => generate_group_buffers(input, groups),
         BuffersModel::Flat {
             input,
             dir,
             buffers,
-        } => {
-            let name = &input.ident;
-            let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
-            let fields = buffers.iter().map(|(ident, ty)| {
-                let (n, t) = (ident.unraw().to_string(), type_text(ty));
-                quote!(#rt::Field { name: #n, ty: #t })
-            });
-            let fresh = buffers.iter().enumerate().map(|(k, (ident, _))| {
-                quote!(| (#rt::describe::Buffer::is_fresh(&self.#ident) as u128) << #k)
-            });
-            let reads = buffers.iter().enumerate().map(|(k, (ident, _))| {
-                quote!(| (#rt::describe::Buffer::take_read(&self.#ident) as u128) << #k)
-            });
-            let guard = (buffers.len() > rt_max_buffers()).then(|| {
-                quote_spanned!(name.span()=> compile_error!("a struct of buffers has at most 128 buffers");)
-            });
-            let lookup = input.generics.params.is_empty().then(|| {
-                let maker = match dir {
-                    Dir::In => quote!(input),
-                    Dir::Out => quote!(output),
+        } => generate_flat_buffers(input, *dir, buffers),
+    }
+}
+
+/// `Buffers` for a subsystem's struct of groups: the groups' shapes, and the
+/// freshness and read bits of each group shifted past the groups before it.
+fn generate_group_buffers(input: &DeriveInput, groups: &[NamedField]) -> TokenStream {
+    let rt = runtime();
+    let name = &input.ident;
+    let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
+    let shapes = groups.iter().map(|g| {
+        let (field, ty) = (g.ident.unraw().to_string(), &g.ty);
+        let ty_text = type_text(ty);
+        quote_spanned! {ty.span()=>
+            #rt::GroupShape {
+                name: #field,
+                peer: ::core::option::Option::Some(<#ty as #rt::Group>::PEER),
+                ty: #ty_text,
+                direction: <#ty as #rt::Buffers>::GROUPS[0].direction,
+                buffers: <#ty as #rt::Fields>::FIELDS,
+            }
+        }
+    });
+    // Bit offset of each group: the buffers of the groups before it.
+    let mut offset = quote!(0usize);
+    let mut fresh = Vec::new();
+    let mut reads = Vec::new();
+    for g in groups {
+        let (ident, ty) = (&g.ident, &g.ty);
+        // `checked_shl`: an empty group may start at bit 128.
+        fresh.push(quote!(| #rt::Buffers::fresh(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
+        reads.push(quote!(| #rt::Buffers::take_reads(&self.#ident).0.checked_shl((#offset) as u32).unwrap_or(0)));
+        offset = quote!(#offset + <#ty as #rt::Fields>::FIELDS.len());
+    }
+    let lookup = input.generics.params.is_empty().then(|| {
+        let arms = groups.iter().map(|g| {
+            let (ident, ty) = (&g.ident, &g.ty);
+            let n = ident.unraw().to_string();
+            quote!(#n => <#ty as #rt::Group>::buffer_port::<Self>(#n, |s: &mut Self| &mut s.#ident, buffer))
+        });
+        quote! {
+            fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
+                let (group, buffer) = path.split_once('.')?;
+                match group {
+                    #(#arms,)*
+                    _ => ::core::option::Option::None,
+                }
+            }
+        }
+    });
+    // An inline `const` block may use the struct's generic parameters.
+    quote! {
+        impl #impl_g #rt::Buffers for #name #ty_g #where_g {
+            #lookup
+            const GROUPS: &'static [#rt::GroupShape] = &[#(#shapes),*];
+            #[inline]
+            fn fresh(&self) -> #rt::Fresh {
+                const {
+                    ::core::assert!(
+                        #offset <= #rt::describe::MAX_BUFFERS,
+                        "an input or output struct has at most 128 buffers"
+                    )
                 };
-                let arms = buffers.iter().map(|(ident, _)| {
-                    let n = ident.unraw().to_string();
-                    quote!(#n => ::core::option::Option::Some(#rt::BufferPort::#maker(
-                        #rt::Port::new(#n, |s: &mut Self| &mut s.#ident, ::core::option::Option::None)
-                    )))
-                });
-                quote! {
-                    fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
-                        match path {
-                            #(#arms,)*
-                            _ => ::core::option::Option::None,
-                        }
-                    }
+                #rt::Fresh(0 #(#fresh)*)
+            }
+            fn take_reads(&self) -> #rt::Fresh {
+                #rt::Fresh(0 #(#reads)*)
+            }
+        }
+    }
+}
+
+/// `Buffers` for a driver's flat struct of buffers of one direction: one
+/// unnamed group, one bit per buffer.
+fn generate_flat_buffers(input: &DeriveInput, dir: Dir, buffers: &[(Ident, Type)]) -> TokenStream {
+    let rt = runtime();
+    let name = &input.ident;
+    let (impl_g, ty_g, where_g) = input.generics.split_for_impl();
+    let fields = buffers.iter().map(|(ident, ty)| {
+        let (n, t) = (ident.unraw().to_string(), type_text(ty));
+        quote!(#rt::Field { name: #n, ty: #t })
+    });
+    let fresh = buffers.iter().enumerate().map(
+        |(k, (ident, _))| quote!(| (#rt::describe::Buffer::is_fresh(&self.#ident) as u128) << #k),
+    );
+    let reads = buffers.iter().enumerate().map(
+        |(k, (ident, _))| quote!(| (#rt::describe::Buffer::take_read(&self.#ident) as u128) << #k),
+    );
+    let guard = (buffers.len() > rt_max_buffers()).then(|| {
+        quote_spanned!(name.span()=> compile_error!("a struct of buffers has at most 128 buffers");)
+    });
+    let lookup = input.generics.params.is_empty().then(|| {
+        let maker = match dir {
+            Dir::In => quote!(input),
+            Dir::Out => quote!(output),
+        };
+        let arms = buffers.iter().map(|(ident, _)| {
+            let n = ident.unraw().to_string();
+            quote!(#n => ::core::option::Option::Some(#rt::BufferPort::#maker(
+                #rt::Port::new(#n, |s: &mut Self| &mut s.#ident, ::core::option::Option::None)
+            )))
+        });
+        quote! {
+            fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
+                match path {
+                    #(#arms,)*
+                    _ => ::core::option::Option::None,
                 }
-            });
-            let dir = dir.tokens(&rt);
-            quote! {
-                #guard
-                impl #impl_g #rt::Buffers for #name #ty_g #where_g {
-                    #lookup
-                    const GROUPS: &'static [#rt::GroupShape] = &[#rt::GroupShape {
-                        name: "",
-                        peer: ::core::option::Option::None,
-                        ty: "",
-                        direction: #dir,
-                        buffers: &[#(#fields),*],
-                    }];
-                    #[inline]
-                    fn fresh(&self) -> #rt::Fresh {
-                        #rt::Fresh(0 #(#fresh)*)
-                    }
-                    fn take_reads(&self) -> #rt::Fresh {
-                        #rt::Fresh(0 #(#reads)*)
-                    }
-                }
+            }
+        }
+    });
+    let dir = dir.tokens(&rt);
+    quote! {
+        #guard
+        impl #impl_g #rt::Buffers for #name #ty_g #where_g {
+            #lookup
+            const GROUPS: &'static [#rt::GroupShape] = &[#rt::GroupShape {
+                name: "",
+                peer: ::core::option::Option::None,
+                ty: "",
+                direction: #dir,
+                buffers: &[#(#fields),*],
+            }];
+            #[inline]
+            fn fresh(&self) -> #rt::Fresh {
+                #rt::Fresh(0 #(#fresh)*)
+            }
+            fn take_reads(&self) -> #rt::Fresh {
+                #rt::Fresh(0 #(#reads)*)
             }
         }
     }

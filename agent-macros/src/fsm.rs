@@ -211,6 +211,56 @@ impl Parse for RelationDecl {
     }
 }
 
+/// A behaviour from its keyword (`while` or `repeat`) to its closing brace.
+impl Parse for BehaviourDecl {
+    fn parse(input: ParseStream<'_>) -> syn::Result<Self> {
+        let kind = if input.peek(Token![while]) {
+            input.parse::<Token![while]>()?;
+            Kind::While
+        } else {
+            input.parse::<kw::repeat>()?;
+            Kind::Repeat
+        };
+        let name: Ident = input.parse()?;
+        input.parse::<kw::until>().map_err(|e| {
+            syn::Error::new(
+                e.span(),
+                format!(
+                    "expected `until <terminal condition>` after the behaviour's name: `{} {name} until done {{ ... }}`",
+                    if kind == Kind::While { "while" } else { "repeat" }
+                ),
+            )
+        })?;
+        let terminal = Cond::new(condition_tokens(input, true)?);
+        let content;
+        braced!(content in input);
+        let parts = Punctuated::<PartDecl, Token![,]>::parse_terminated(&content)?;
+        Ok(BehaviourDecl {
+            kind,
+            name,
+            terminal,
+            parts: parts.into_iter().collect(),
+        })
+    }
+}
+
+/// An arc, up to and including its `;`.
+impl Parse for ArcDecl {
+    fn parse(input: ParseStream<'_>) -> syn::Result<Self> {
+        let from: Ident = input.parse()?;
+        input.parse::<Token![->]>()?;
+        let to: Ident = input.parse()?;
+        let when = if input.peek(kw::when) {
+            input.parse::<kw::when>()?;
+            Some(Cond::new(condition_tokens(input, false)?))
+        } else {
+            None
+        };
+        input.parse::<Token![;]>()?;
+        Ok(ArcDecl { from, to, when })
+    }
+}
+
 impl Parse for FsmDecl {
     fn parse(input: ParseStream<'_>) -> syn::Result<Self> {
         let mut subsystem = None;
@@ -249,33 +299,7 @@ impl Parse for FsmDecl {
                         &content,
                     )?);
             } else if look.peek(Token![while]) || look.peek(kw::repeat) {
-                let kind = if input.peek(Token![while]) {
-                    input.parse::<Token![while]>()?;
-                    Kind::While
-                } else {
-                    input.parse::<kw::repeat>()?;
-                    Kind::Repeat
-                };
-                let name: Ident = input.parse()?;
-                input.parse::<kw::until>().map_err(|e| {
-                    syn::Error::new(
-                        e.span(),
-                        format!(
-                            "expected `until <terminal condition>` after the behaviour's name: `{} {name} until done {{ ... }}`",
-                            if kind == Kind::While { "while" } else { "repeat" }
-                        ),
-                    )
-                })?;
-                let terminal = Cond::new(condition_tokens(input, true)?);
-                let content;
-                braced!(content in input);
-                let parts = Punctuated::<PartDecl, Token![,]>::parse_terminated(&content)?;
-                d.behaviours.push(BehaviourDecl {
-                    kind,
-                    name,
-                    terminal,
-                    parts: parts.into_iter().collect(),
-                });
+                d.behaviours.push(input.parse()?);
             } else if look.peek(kw::initial) {
                 let k: kw::initial = input.parse()?;
                 if d.initial.is_some() {
@@ -292,17 +316,7 @@ impl Parse for FsmDecl {
                 d.finals.extend(names);
                 input.parse::<Token![;]>()?;
             } else if look.peek(Ident) && input.peek2(Token![->]) {
-                let from: Ident = input.parse()?;
-                input.parse::<Token![->]>()?;
-                let to: Ident = input.parse()?;
-                let when = if input.peek(kw::when) {
-                    input.parse::<kw::when>()?;
-                    Some(Cond::new(condition_tokens(input, false)?))
-                } else {
-                    None
-                };
-                input.parse::<Token![;]>()?;
-                d.arcs.push(ArcDecl { from, to, when });
+                d.arcs.push(input.parse()?);
             } else {
                 let mut e = look.error();
                 e.combine(syn::Error::new(

@@ -254,12 +254,31 @@ fn subsystem_name(ty: &TokenStream) -> String {
         .unwrap_or_else(|| "subsystem".into())
 }
 
+/// The one-subsystem spec of `fsm`, with the subsystem named `name`.
 fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
     let mut t = Text::default();
     let none = TokenStream::new();
     t.raw("(name: \"fsm\", agents: [(name: \"fsm\", subsystems: [(\n  name: ");
     t.string(name, &none);
     t.raw(", kind: Control, period_ms: 1.0,\n  outputs: [");
+    write_outputs(&mut t, fsm);
+    t.raw("],\n  predicates: [");
+    write_predicates(&mut t, fsm);
+    t.raw("],\n  relations: [");
+    write_relations(&mut t, fsm);
+    t.raw("],\n  functions: [");
+    write_functions(&mut t, fsm);
+    t.raw("],\n  behaviours: [\n");
+    write_behaviours(&mut t, fsm);
+    t.raw("  ],\n  fsm: (");
+    write_graph(&mut t, fsm);
+    t.raw("]),\n)])])\n");
+    t
+}
+
+/// One output group (with no buffers) per field the parts write, in first-use
+/// order.
+fn write_outputs(t: &mut Text, fsm: &SynthFsm) {
     let mut peers: Vec<&str> = Vec::new();
     for b in &fsm.behaviours {
         for p in &b.parts {
@@ -273,13 +292,19 @@ fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
     for p in &peers {
         let _ = write!(t.s, "(peer: \"{p}\", buffers: []), ");
     }
-    t.raw("],\n  predicates: [");
+}
+
+/// The predicates, by name.
+fn write_predicates(t: &mut Text, fsm: &SynthFsm) {
     for (n, tok) in &fsm.predicates {
         t.raw("(name: ");
         t.string(n, tok);
         t.raw("), ");
     }
-    t.raw("],\n  relations: [");
+}
+
+/// The relations between predicates.
+fn write_relations(t: &mut Text, fsm: &SynthFsm) {
     for r in &fsm.relations {
         match r {
             Relation::Exclusive(v) => {
@@ -299,7 +324,10 @@ fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
             }
         }
     }
-    t.raw("],\n  functions: [");
+}
+
+/// One function per distinct part name, with its target.
+fn write_functions(t: &mut Text, fsm: &SynthFsm) {
     let mut defined: Vec<&str> = Vec::new();
     for b in &fsm.behaviours {
         for p in &b.parts {
@@ -320,7 +348,10 @@ fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
             t.raw("), ");
         }
     }
-    t.raw("],\n  behaviours: [\n");
+}
+
+/// The behaviours: kind, functions and terminal condition.
+fn write_behaviours(t: &mut Text, fsm: &SynthFsm) {
     for b in &fsm.behaviours {
         t.raw("    (name: ");
         t.string(&b.name.0, &b.name.1);
@@ -337,7 +368,11 @@ fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
         t.cond(&b.terminal);
         t.raw("),\n");
     }
-    t.raw("  ],\n  fsm: (");
+}
+
+/// The FSM's graph: the initial behaviour, the arcs (each marked as a whole
+/// with its tokens) and the finals.
+fn write_graph(t: &mut Text, fsm: &SynthFsm) {
     if let Some((n, tok)) = &fsm.initial {
         t.raw("initial: ");
         t.string(n, tok);
@@ -364,8 +399,6 @@ fn write_spec(fsm: &SynthFsm, name: &str) -> Text {
         t.string(n, tok);
         t.raw(", ");
     }
-    t.raw("]),\n)])])\n");
-    t
 }
 
 /// Run the spec checker on the declaration; `Err` holds one compile error per FSM
