@@ -496,50 +496,15 @@ impl Writer<'_, '_> {
                 let b = self.c.array::<8>()?;
                 self.put(b);
             }
-            Format::Char => {
-                let n = self.c.len()?;
-                let at = self.c.at;
-                let s = self.c.take(n)?;
-                let mut cs = std::str::from_utf8(s).ok().map(str::chars);
-                match cs.as_mut().map(|cs| (cs.next(), cs.next())) {
-                    Some((Some(ch), None)) => self.put(u32::from(ch).to_le_bytes()),
-                    _ => {
-                        return Err(DecodeError {
-                            offset: at,
-                            what: "a char that is not one UTF-8 character".into(),
-                        });
-                    }
-                }
-            }
-            Format::Str => {
-                let n = self.c.len()?;
-                let at = self.c.at;
-                let s = self.c.take(n)?;
-                std::str::from_utf8(s).map_err(|e| DecodeError {
-                    offset: at,
-                    what: format!("a string that is not UTF-8: {e}"),
-                })?;
-                self.count(n + 1)?;
-                self.out.extend_from_slice(s);
-                self.out.push(0);
-            }
+            Format::Char => self.char()?,
+            Format::Str => self.string()?,
             Format::Bytes => {
                 let n = self.c.len()?;
                 let s = self.c.take(n)?;
                 self.count(n)?;
                 self.out.extend_from_slice(s);
             }
-            Format::Option(inner) => match self.c.byte()? {
-                0 => self.count(0)?,
-                1 => {
-                    self.count(1)?;
-                    self.value(inner)?;
-                }
-                b => {
-                    self.c.at -= 1;
-                    return Err(self.c.fail(format!("an option tag of {b}")));
-                }
-            },
+            Format::Option(inner) => self.option(inner)?,
             Format::Seq(inner) => {
                 let n = self.c.len()?;
                 self.count(n)?;
@@ -567,6 +532,56 @@ impl Writer<'_, '_> {
             }
             Format::Variable(_) => {
                 return Err(self.c.fail("a format left unknown by the tracer".into()));
+            }
+        }
+        Ok(())
+    }
+
+    /// A char (postcard: its UTF-8 bytes behind their length) as CDR's
+    /// 32-bit code point.
+    fn char(&mut self) -> Result<(), DecodeError> {
+        let n = self.c.len()?;
+        let at = self.c.at;
+        let s = self.c.take(n)?;
+        let mut cs = std::str::from_utf8(s).ok().map(str::chars);
+        match cs.as_mut().map(|cs| (cs.next(), cs.next())) {
+            Some((Some(ch), None)) => self.put(u32::from(ch).to_le_bytes()),
+            _ => {
+                return Err(DecodeError {
+                    offset: at,
+                    what: "a char that is not one UTF-8 character".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// A string as CDR's: its length counting a closing NUL, its bytes, the NUL.
+    fn string(&mut self) -> Result<(), DecodeError> {
+        let n = self.c.len()?;
+        let at = self.c.at;
+        let s = self.c.take(n)?;
+        std::str::from_utf8(s).map_err(|e| DecodeError {
+            offset: at,
+            what: format!("a string that is not UTF-8: {e}"),
+        })?;
+        self.count(n + 1)?;
+        self.out.extend_from_slice(s);
+        self.out.push(0);
+        Ok(())
+    }
+
+    /// An option as a sequence of at most one element.
+    fn option(&mut self, inner: &Format) -> Result<(), DecodeError> {
+        match self.c.byte()? {
+            0 => self.count(0)?,
+            1 => {
+                self.count(1)?;
+                self.value(inner)?;
+            }
+            b => {
+                self.c.at -= 1;
+                return Err(self.c.fail(format!("an option tag of {b}")));
             }
         }
         Ok(())

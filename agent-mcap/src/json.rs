@@ -134,31 +134,8 @@ impl Reader<'_> {
                 let b = self.c.array::<8>()?;
                 emit(self.out, &f64::from_le_bytes(b));
             }
-            Format::Char | Format::Str => {
-                let n = self.c.len()?;
-                let at = self.c.at;
-                self.c.take(n)?;
-                let bytes: &[u8] = self.c.bytes;
-                let s = std::str::from_utf8(&bytes[at..at + n]).map_err(|e| DecodeError {
-                    offset: at,
-                    what: format!("a string that is not UTF-8: {e}"),
-                })?;
-                emit(self.out, s);
-            }
-            Format::Bytes => {
-                let n = self.c.len()?;
-                let at = self.c.at;
-                self.c.take(n)?;
-                self.out.push(b'[');
-                for k in 0..n {
-                    if k > 0 {
-                        self.out.push(b',');
-                    }
-                    let b = self.c.bytes[at + k];
-                    emit(self.out, &b);
-                }
-                self.out.push(b']');
-            }
+            Format::Char | Format::Str => self.string()?,
+            Format::Bytes => self.bytes()?,
             Format::Option(inner) => match self.c.byte()? {
                 0 => self.out.extend_from_slice(b"null"),
                 1 => self.value(inner)?,
@@ -171,27 +148,7 @@ impl Reader<'_> {
                 let n = self.c.len()?;
                 self.array(std::iter::repeat_n(&**inner, n))?;
             }
-            Format::Map { key, value } => {
-                let n = self.c.len()?;
-                self.out.push(b'{');
-                for k in 0..n {
-                    if k > 0 {
-                        self.out.push(b',');
-                    }
-                    // The key as an object key must be: a string as it is,
-                    // anything else as its JSON text, quoted.
-                    let start = self.out.len();
-                    self.value(key)?;
-                    if self.out.get(start) != Some(&b'"') {
-                        let text = String::from_utf8_lossy(&self.out[start..]).into_owned();
-                        self.out.truncate(start);
-                        emit(self.out, &text);
-                    }
-                    self.out.push(b':');
-                    self.value(value)?;
-                }
-                self.out.push(b'}');
-            }
+            Format::Map { key, value } => self.map(key, value)?,
             Format::Tuple(items) => self.array(items.iter())?,
             Format::TupleArray { content, size } => {
                 self.array(std::iter::repeat_n(&**content, *size))?;
@@ -204,6 +161,61 @@ impl Reader<'_> {
                 return Err(self.c.fail("a format left unknown by the tracer".into()));
             }
         }
+        Ok(())
+    }
+
+    /// A char or a string as a JSON string.
+    fn string(&mut self) -> Result<(), DecodeError> {
+        let n = self.c.len()?;
+        let at = self.c.at;
+        self.c.take(n)?;
+        let bytes: &[u8] = self.c.bytes;
+        let s = std::str::from_utf8(&bytes[at..at + n]).map_err(|e| DecodeError {
+            offset: at,
+            what: format!("a string that is not UTF-8: {e}"),
+        })?;
+        emit(self.out, s);
+        Ok(())
+    }
+
+    /// Bytes as a JSON array of numbers.
+    fn bytes(&mut self) -> Result<(), DecodeError> {
+        let n = self.c.len()?;
+        let at = self.c.at;
+        self.c.take(n)?;
+        self.out.push(b'[');
+        for k in 0..n {
+            if k > 0 {
+                self.out.push(b',');
+            }
+            let b = self.c.bytes[at + k];
+            emit(self.out, &b);
+        }
+        self.out.push(b']');
+        Ok(())
+    }
+
+    /// A map as a JSON object.
+    fn map(&mut self, key: &Format, value: &Format) -> Result<(), DecodeError> {
+        let n = self.c.len()?;
+        self.out.push(b'{');
+        for k in 0..n {
+            if k > 0 {
+                self.out.push(b',');
+            }
+            // The key as an object key must be: a string as it is,
+            // anything else as its JSON text, quoted.
+            let start = self.out.len();
+            self.value(key)?;
+            if self.out.get(start) != Some(&b'"') {
+                let text = String::from_utf8_lossy(&self.out[start..]).into_owned();
+                self.out.truncate(start);
+                emit(self.out, &text);
+            }
+            self.out.push(b':');
+            self.value(value)?;
+        }
+        self.out.push(b'}');
         Ok(())
     }
 
