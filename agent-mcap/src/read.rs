@@ -193,84 +193,19 @@ impl Recording {
         let mut offset = MAGIC.len();
         loop {
             let at = offset as u64;
-            let Some(head) = bytes.get(offset..offset + 9) else {
-                let e = r.truncated(
-                    at,
-                    if offset == bytes.len() {
-                        "the file ends before its footer (the recording was not finished)".into()
-                    } else {
-                        format!(
-                            "a record header of 9 bytes, but the file ends at offset {}",
-                            bytes.len()
-                        )
-                    },
-                );
-                return cut(r, e);
+            let (opcode, body) = match r.record_at(bytes, offset) {
+                Ok(record) => record,
+                Err(e) => return cut(r, e),
             };
-            let opcode = head[0];
-            let mut len = [0u8; 8];
-            len.copy_from_slice(&head[1..9]);
-            let len = u64::from_le_bytes(len);
-            let body_start = offset + 9;
-            let body_end = usize::try_from(len)
-                .ok()
-                .and_then(|l| body_start.checked_add(l))
-                .filter(|&end| end <= bytes.len());
-            let Some(body_end) = body_end else {
-                let e = r.truncated(
-                    at,
-                    format!(
-                        "a record of {len} bytes, but the file ends at offset {}",
-                        bytes.len()
-                    ),
-                );
-                return cut(r, e);
-            };
-            let record = mcap::parse_record(opcode, &bytes[body_start..body_end])
-                .map_err(|e| r.corrupt(at, e.to_string()))?;
-            offset = body_end;
+            let record =
+                mcap::parse_record(opcode, body).map_err(|e| r.corrupt(at, e.to_string()))?;
+            offset += 9 + body.len();
             match record {
                 Record::Footer(_) => {
-                    return match bytes.get(offset..) {
-                        Some(tail) if tail == MAGIC => Ok(r.out),
-                        Some(tail) if tail.len() < MAGIC.len() => Err(r.truncated(
-                            offset as u64,
-                            "the closing magic bytes after the footer".into(),
-                        )),
-                        _ => Err(r.corrupt(
-                            offset as u64,
-                            "the footer is not followed by MCAP's closing magic bytes".into(),
-                        )),
-                    };
+                    r.closing_magic(bytes, offset)?;
+                    return Ok(r.out);
                 }
-                Record::Chunk { header, data } => {
-                    // A damaged size must not make the reader allocate it.
-                    if header.uncompressed_size > MAX_CHUNK {
-                        return Err(r.corrupt(
-                            at,
-                            format!(
-                                "a chunk that says it holds {} bytes (more than {MAX_CHUNK}: a damaged size)",
-                                header.uncompressed_size
-                            ),
-                        ));
-                    }
-                    let inner = decompress(&header, &data)
-                        .map_err(|message| r.corrupt(at, format!("in the chunk: {message}")))?;
-                    let mut pos = 0usize;
-                    while pos < inner.len() {
-                        let (opcode, body) = frame(&inner, pos).map_err(|message| {
-                            r.corrupt(
-                                at,
-                                format!("in the chunk, at byte {pos} of its data: {message}"),
-                            )
-                        })?;
-                        let record = mcap::parse_record(opcode, body).map_err(|e| {
-                            r.corrupt(at, format!("in the chunk, at byte {pos} of its data: {e}"))
-                        })?;
-                        r.take(at, record, &mut keep)?;
-                        pos += 9 + body.len();
-                    }
-                }
+                Record::Chunk { header, data } => r.chunk(at, &header, &data, &mut keep)?,
                 // The summary repeats the data section's schemas and
                 // channels, and indexes it: what is read is the data.
                 Record::DataEnd(_) => r.summary = true,
@@ -370,6 +305,98 @@ impl Reader<'_> {
             offset,
             message,
         }
+    }
+
+    /// The record at `offset` of the file: its opcode and body, or where the
+    /// file ends before it does.
+    fn record_at<'b>(&self, bytes: &'b [u8], offset: usize) -> Result<(u8, &'b [u8]), ReadError> {
+        let at = offset as u64;
+        let Some(head) = bytes.get(offset..offset + 9) else {
+            return Err(self.truncated(
+                at,
+                if offset == bytes.len() {
+                    "the file ends before its footer (the recording was not finished)".into()
+                } else {
+                    format!(
+                        "a record header of 9 bytes, but the file ends at offset {}",
+                        bytes.len()
+                    )
+                },
+            ));
+        };
+        let opcode = head[0];
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&head[1..9]);
+        let len = u64::from_le_bytes(len);
+        let body_start = offset + 9;
+        let body_end = usize::try_from(len)
+            .ok()
+            .and_then(|l| body_start.checked_add(l))
+            .filter(|&end| end <= bytes.len());
+        let Some(body_end) = body_end else {
+            return Err(self.truncated(
+                at,
+                format!(
+                    "a record of {len} bytes, but the file ends at offset {}",
+                    bytes.len()
+                ),
+            ));
+        };
+        Ok((opcode, &bytes[body_start..body_end]))
+    }
+
+    /// What follows the footer at `offset`: MCAP's closing magic bytes, and
+    /// nothing more.
+    fn closing_magic(&self, bytes: &[u8], offset: usize) -> Result<(), ReadError> {
+        match bytes.get(offset..) {
+            Some(tail) if tail == MAGIC => Ok(()),
+            Some(tail) if tail.len() < MAGIC.len() => Err(self.truncated(
+                offset as u64,
+                "the closing magic bytes after the footer".into(),
+            )),
+            _ => Err(self.corrupt(
+                offset as u64,
+                "the footer is not followed by MCAP's closing magic bytes".into(),
+            )),
+        }
+    }
+
+    /// The records of the chunk at `at`, decompressed and checked, each taken
+    /// as a record of the data section.
+    fn chunk(
+        &mut self,
+        at: u64,
+        header: &mcap::records::ChunkHeader,
+        data: &[u8],
+        keep: &mut impl FnMut(&ChannelInfo) -> bool,
+    ) -> Result<(), ReadError> {
+        // A damaged size must not make the reader allocate it.
+        if header.uncompressed_size > MAX_CHUNK {
+            return Err(self.corrupt(
+                at,
+                format!(
+                    "a chunk that says it holds {} bytes (more than {MAX_CHUNK}: a damaged size)",
+                    header.uncompressed_size
+                ),
+            ));
+        }
+        let inner = decompress(header, data)
+            .map_err(|message| self.corrupt(at, format!("in the chunk: {message}")))?;
+        let mut pos = 0usize;
+        while pos < inner.len() {
+            let (opcode, body) = frame(&inner, pos).map_err(|message| {
+                self.corrupt(
+                    at,
+                    format!("in the chunk, at byte {pos} of its data: {message}"),
+                )
+            })?;
+            let record = mcap::parse_record(opcode, body).map_err(|e| {
+                self.corrupt(at, format!("in the chunk, at byte {pos} of its data: {e}"))
+            })?;
+            self.take(at, record, keep)?;
+            pos += 9 + body.len();
+        }
+        Ok(())
     }
 
     fn take(
