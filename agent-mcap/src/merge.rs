@@ -82,6 +82,28 @@ pub enum MergeError {
 /// Merge the recordings `inputs` (of the processes of one run) into `output`
 /// (see the module's documentation).
 pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeError> {
+    let (files, cut_short) = read_parts(inputs)?;
+    one_system(&files)?;
+    let mut out = Merged::create(output)?;
+    let ids = out.channels(&files)?;
+    for (name, entries) in merged_metadata(&files) {
+        out.metadata(name, entries)?;
+    }
+    let messages = out.messages(&files, &ids)?;
+    let channels = out.channels_written();
+    out.finish()?;
+    Ok(MergeSummary {
+        files: files.len(),
+        messages,
+        channels,
+        finished: files.iter().all(Recording::finished),
+        cut_short,
+    })
+}
+
+/// Every part, each read up to where it ends, and the parts cut short (each
+/// said as the error that says where it ends).
+fn read_parts(inputs: &[PathBuf]) -> Result<(Vec<Recording>, Vec<String>), MergeError> {
     let mut cut_short = Vec::new();
     let mut files = Vec::with_capacity(inputs.len());
     for p in inputs {
@@ -89,6 +111,11 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeErr
         cut_short.extend(cut.map(|e| e.to_string()));
         files.push(f);
     }
+    Ok((files, cut_short))
+}
+
+/// Refuses no file, and files of different systems.
+fn one_system(files: &[Recording]) -> Result<(), MergeError> {
     let first = files.first().ok_or(MergeError::Empty)?;
     for f in &files[1..] {
         if f.metadata.get("system") != first.metadata.get("system") {
@@ -98,123 +125,190 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeErr
             });
         }
     }
-    let fail = |e: mcap::McapError| MergeError::Write {
-        path: output.to_owned(),
-        message: e.to_string(),
-    };
-    let file = File::create(output).map_err(|e| MergeError::Write {
-        path: output.to_owned(),
-        message: e.to_string(),
-    })?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .profile("")
-        .library(concat!(
-            "embodied-agents agent-mcap ",
-            env!("CARGO_PKG_VERSION"),
-            " (merge)"
-        ))
-        .create(BufWriter::new(file))
-        .map_err(fail)?;
+    Ok(())
+}
 
-    // Channels by topic: (encoding, schema, metadata) -> the merged id; each
-    // file's channel ids mapped to it.
-    type Key = (
-        String,
-        Option<(String, String, Vec<u8>)>,
-        BTreeMap<String, String>,
-    );
-    let mut by_topic: BTreeMap<String, (Key, u16, PathBuf)> = BTreeMap::new();
-    let mut schema_ids: BTreeMap<(String, String, Vec<u8>), u16> = BTreeMap::new();
-    let mut ids: Vec<BTreeMap<u16, u16>> = Vec::with_capacity(files.len());
-    for f in &files {
-        let mut map = BTreeMap::new();
-        for c in f.channels.values() {
-            let schema = f
-                .schemas
-                .get(&c.schema_id)
-                .map(|s| (s.name.clone(), s.encoding.clone(), s.data.clone()));
-            let key: Key = (c.message_encoding.clone(), schema, c.metadata.clone());
-            let id = match by_topic.get(&c.topic) {
-                Some((k, id, _)) if *k == key => *id,
-                Some((_, _, seen)) => {
-                    return Err(MergeError::Channel {
-                        topic: c.topic.clone(),
-                        first: seen.clone(),
-                        file: f.path.clone(),
-                    });
-                }
+/// A channel as merged: its encoding, its schema (name, encoding, data) and
+/// its metadata; a topic declared with another is refused.
+type ChannelKey = (
+    String,
+    Option<(String, String, Vec<u8>)>,
+    BTreeMap<String, String>,
+);
+
+/// The merged file being written.
+struct Merged<'p> {
+    w: mcap::Writer<BufWriter<File>>,
+    path: &'p Path,
+    /// Channels by topic: their key, the merged id, the file that first
+    /// declared it.
+    by_topic: BTreeMap<String, (ChannelKey, u16, PathBuf)>,
+    /// Schemas written, by (name, encoding, data).
+    schema_ids: BTreeMap<(String, String, Vec<u8>), u16>,
+}
+
+impl<'p> Merged<'p> {
+    /// Create the file at `path` and start it.
+    fn create(path: &'p Path) -> Result<Merged<'p>, MergeError> {
+        let file = File::create(path).map_err(|e| MergeError::Write {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .library(concat!(
+                "embodied-agents agent-mcap ",
+                env!("CARGO_PKG_VERSION"),
+                " (merge)"
+            ))
+            .create(BufWriter::new(file))
+            .map_err(|e| write_failed(path, &e))?;
+        Ok(Merged {
+            w,
+            path,
+            by_topic: BTreeMap::new(),
+            schema_ids: BTreeMap::new(),
+        })
+    }
+
+    fn fail(&self, e: &mcap::McapError) -> MergeError {
+        write_failed(self.path, e)
+    }
+
+    /// Every file's channels, each topic once: per file, its channel ids
+    /// mapped to the merged ones.
+    fn channels(&mut self, files: &[Recording]) -> Result<Vec<BTreeMap<u16, u16>>, MergeError> {
+        let mut ids = Vec::with_capacity(files.len());
+        for f in files {
+            let mut map = BTreeMap::new();
+            for c in f.channels.values() {
+                let schema = f
+                    .schemas
+                    .get(&c.schema_id)
+                    .map(|s| (s.name.clone(), s.encoding.clone(), s.data.clone()));
+                let key: ChannelKey = (c.message_encoding.clone(), schema, c.metadata.clone());
+                let id = match self.by_topic.get(&c.topic) {
+                    Some((k, id, _)) if *k == key => *id,
+                    Some((_, _, seen)) => {
+                        return Err(MergeError::Channel {
+                            topic: c.topic.clone(),
+                            first: seen.clone(),
+                            file: f.path.clone(),
+                        });
+                    }
+                    None => self.channel(f, c, key)?,
+                };
+                map.insert(c.id, id);
+            }
+            ids.push(map);
+        }
+        Ok(ids)
+    }
+
+    /// A channel first seen in file `f` (and its schema, if not yet written):
+    /// its merged id.
+    fn channel(
+        &mut self,
+        f: &Recording,
+        c: &crate::read::ChannelInfo,
+        key: ChannelKey,
+    ) -> Result<u16, MergeError> {
+        let schema_id = match &key.1 {
+            None => 0,
+            Some(s) => match self.schema_ids.get(s) {
+                Some(id) => *id,
                 None => {
-                    let schema_id = match &key.1 {
-                        None => 0,
-                        Some(s) => match schema_ids.get(s) {
-                            Some(id) => *id,
-                            None => {
-                                let id = w.add_schema(&s.0, &s.1, &s.2).map_err(fail)?;
-                                schema_ids.insert(s.clone(), id);
-                                id
-                            }
-                        },
-                    };
-                    let id = w
-                        .add_channel(schema_id, &c.topic, &c.message_encoding, &c.metadata)
-                        .map_err(fail)?;
-                    by_topic.insert(c.topic.clone(), (key, id, f.path.clone()));
+                    let id = self
+                        .w
+                        .add_schema(&s.0, &s.1, &s.2)
+                        .map_err(|e| self.fail(&e))?;
+                    self.schema_ids.insert(s.clone(), id);
                     id
                 }
-            };
-            map.insert(c.id, id);
-        }
-        ids.push(map);
-    }
-
-    // Metadata.
-    for (name, entries) in merged_metadata(&files) {
-        w.write_metadata(&mcap::records::Metadata {
-            name,
-            metadata: entries,
-        })
-        .map_err(fail)?;
-    }
-
-    // Messages in time order; stable, so each channel keeps its order.
-    let mut order: Vec<(u64, usize, usize)> = files
-        .iter()
-        .enumerate()
-        .flat_map(|(i, f)| {
-            f.messages
-                .iter()
-                .enumerate()
-                .map(move |(k, m)| (m.log_time, i, k))
-        })
-        .collect();
-    order.sort_by_key(|&(t, _, _)| t);
-    let mut messages = 0u64;
-    for (_, i, k) in order {
-        let m = &files[i].messages[k];
-        let Some(&channel_id) = ids[i].get(&m.channel) else {
-            continue;
-        };
-        w.write_to_known_channel(
-            &mcap::records::MessageHeader {
-                channel_id,
-                sequence: m.sequence,
-                log_time: m.log_time,
-                publish_time: m.log_time,
             },
-            &m.data,
-        )
-        .map_err(fail)?;
-        messages += 1;
+        };
+        let id = self
+            .w
+            .add_channel(schema_id, &c.topic, &c.message_encoding, &c.metadata)
+            .map_err(|e| self.fail(&e))?;
+        self.by_topic
+            .insert(c.topic.clone(), (key, id, f.path.clone()));
+        Ok(id)
     }
-    w.finish().map_err(fail)?;
-    Ok(MergeSummary {
-        files: files.len(),
-        messages,
-        channels: by_topic.len(),
-        finished: files.iter().all(Recording::finished),
-        cut_short,
-    })
+
+    /// One metadata record.
+    fn metadata(
+        &mut self,
+        name: String,
+        entries: BTreeMap<String, String>,
+    ) -> Result<(), MergeError> {
+        self.w
+            .write_metadata(&mcap::records::Metadata {
+                name,
+                metadata: entries,
+            })
+            .map_err(|e| self.fail(&e))
+    }
+
+    /// Every file's messages, in time order (stable, so each channel keeps
+    /// its order): how many.
+    fn messages(
+        &mut self,
+        files: &[Recording],
+        ids: &[BTreeMap<u16, u16>],
+    ) -> Result<u64, MergeError> {
+        let mut order: Vec<(u64, usize, usize)> = files
+            .iter()
+            .enumerate()
+            .flat_map(|(i, f)| {
+                f.messages
+                    .iter()
+                    .enumerate()
+                    .map(move |(k, m)| (m.log_time, i, k))
+            })
+            .collect();
+        order.sort_by_key(|&(t, _, _)| t);
+        let mut messages = 0u64;
+        for (_, i, k) in order {
+            let m = &files[i].messages[k];
+            let Some(&channel_id) = ids[i].get(&m.channel) else {
+                continue;
+            };
+            self.w
+                .write_to_known_channel(
+                    &mcap::records::MessageHeader {
+                        channel_id,
+                        sequence: m.sequence,
+                        log_time: m.log_time,
+                        publish_time: m.log_time,
+                    },
+                    &m.data,
+                )
+                .map_err(|e| self.fail(&e))?;
+            messages += 1;
+        }
+        Ok(messages)
+    }
+
+    /// The channels written (one per topic).
+    fn channels_written(&self) -> usize {
+        self.by_topic.len()
+    }
+
+    /// Close the file (its summary and index).
+    fn finish(mut self) -> Result<(), MergeError> {
+        self.w.finish().map_err(|e| self.fail(&e))?;
+        Ok(())
+    }
+}
+
+/// The MCAP writer's failure, writing the merged file at `path`.
+fn write_failed(path: &Path, e: &mcap::McapError) -> MergeError {
+    MergeError::Write {
+        path: path.to_owned(),
+        message: e.to_string(),
+    }
 }
 
 /// The name of the process a file recorded, and which start of it
