@@ -22,22 +22,23 @@
 //! and the behaviour each run was in.
 
 mod compare;
+mod tape;
 mod verdict;
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use agent_core::trace::{ErasedPayload, Observer, TransferEvent, TransitionEvent};
 use agent_core::{
-    ExecConfig, Executor, InjectError, NodeKind, Stamp, Step, System, Time, TypeShape, WireHeader,
+    ExecConfig, Executor, InjectError, NodeKind, Stamp, Step, System, SystemInfo, Time, TypeShape,
 };
-use serde_json::Value;
 
-use crate::codec::{CODEC_KEY, Codec};
+use crate::codec::Codec;
 use crate::read::Recording;
-use crate::record::{FRAMES_ENCODING, READ_ENCODING, WIRE_ENCODING, decode_read, raw_values};
+use crate::record::{FRAMES_ENCODING, READ_ENCODING, WIRE_ENCODING};
 use compare::Compare;
 pub use compare::first_difference;
+use tape::{Expected, Routes, Tape};
 pub use verdict::{Difference, Divergence, Replayed};
 
 /// Why a replay could not be made (a replay that runs and differs is not an
@@ -273,24 +274,7 @@ pub fn replay(
     options: ReplayOptions,
 ) -> Result<Replayed, ReplayError> {
     let info = system.info().clone();
-    let subsystems = || {
-        info.nodes
-            .iter()
-            .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
-            .map(|n| n.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let x = info
-        .nodes
-        .iter()
-        .position(|n| {
-            n.name == node && !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor)
-        })
-        .ok_or_else(|| ReplayError::NoSubsystem {
-            name: node.to_owned(),
-            available: subsystems(),
-        })?;
+    let x = subsystem_index(&info, node)?;
     // One start of a restarted process is replayed from its part's own end
     // record (another part may never have been finished: killed).
     let window = options.window;
@@ -299,216 +283,13 @@ pub fn replay(
             recording.path.display().to_string(),
         ));
     }
-    let end = recording.metadata.get("end");
-    // The node's own last instant (the processes of a deployment stop at
-    // different instants), else the run's.
-    let end_time = match window {
-        Some(w) => w.last,
-        None => end
-            .and_then(|m| {
-                m.get(&format!("last/{node}"))
-                    .or_else(|| m.get("time_ns"))?
-                    .parse::<u64>()
-                    .ok()
-            })
-            .map_or(Time::ZERO, Time::from_nanos),
-    };
-    let recorded_iterations = match window {
-        Some(w) => w.iterations,
-        None => end
-            .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
-            .unwrap_or(0),
-    };
-    // What the node itself did is the window's; what others sent it is
-    // matched by its reads.
-    let own = |ns: u64| window.is_none_or(|w| w.holds(ns));
-
-    // The raw and reads channels by link name.
-    let by_encoding = |encoding: &str| -> BTreeMap<&str, &crate::read::ChannelInfo> {
-        recording
-            .channels
-            .values()
-            .filter(|c| c.message_encoding == encoding)
-            .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
-            .collect()
-    };
-    let received = |c: &&crate::read::ChannelInfo| c.metadata.contains_key("received");
-    let mut by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
-        .channels
-        .values()
-        .filter(|c| c.message_encoding == WIRE_ENCODING && !received(c))
-        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
-        .collect();
-    by_link.extend(by_encoding(FRAMES_ENCODING));
-    let reads_by_link = by_encoding(READ_ENCODING);
-    // Values a process took from another: fed where the sender's recording
-    // lacks them (a sender killed before its recorder wrote them).
-    let received_by_link: BTreeMap<&str, &crate::read::ChannelInfo> = recording
-        .channels
-        .values()
-        .filter(|c| c.message_encoding == WIRE_ENCODING && received(c))
-        .filter_map(|c| Some((c.metadata.get("link")?.as_str(), c)))
-        .collect();
-    let mut channel_link: BTreeMap<u16, (usize, &str)> = BTreeMap::new();
-    let mut codecs: BTreeMap<u16, Arc<dyn Codec>> = BTreeMap::new();
-    let mut read_channel_link: BTreeMap<u16, usize> = BTreeMap::new();
-    let mut shapes: BTreeMap<usize, Option<TypeShape>> = BTreeMap::new();
-    for (k, link) in info.links.iter().enumerate() {
-        let input = link.to == x && link.from != x;
-        let output = link.from == x;
-        if !(input || output) {
-            continue;
-        }
-        let c = by_link
-            .get(link.name.as_str())
-            .ok_or_else(|| ReplayError::Unrecorded {
-                link: link.name.clone(),
-            })?;
-        let built = system.payload_fingerprint(k).unwrap_or(0);
-        let recorded = c.metadata.get("fingerprint").cloned().unwrap_or_default();
-        if recorded != format!("{built:016x}") {
-            return Err(ReplayError::Fingerprint {
-                link: link.name.clone(),
-                type_name: link.payload.to_owned(),
-                built,
-                recorded,
-            });
-        }
-        if let Some(name) = c.metadata.get(CODEC_KEY) {
-            let codec = options
-                .codecs
-                .iter()
-                .find(|codec| codec.name() == name)
-                .ok_or_else(|| ReplayError::Codec {
-                    link: link.name.clone(),
-                    codec: name.clone(),
-                    given: options
-                        .codecs
-                        .iter()
-                        .map(|c| format!("`{}`", c.name()))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                })?;
-            codecs.insert(c.id, codec.clone());
-        }
-        channel_link.insert(c.id, (k, c.message_encoding.as_str()));
-        if input && let Some(r) = reads_by_link.get(link.name.as_str()) {
-            read_channel_link.insert(r.id, k);
-        }
-        if input && let Some(r) = received_by_link.get(link.name.as_str()) {
-            channel_link.insert(r.id, (k, WIRE_ENCODING));
-            if let Some(codec) = codecs.get(&c.id).cloned() {
-                codecs.insert(r.id, codec);
-            }
-        }
-        if output {
-            shapes.insert(k, system.payload_shape(k));
-        }
-    }
-    let fsm_channel = recording.channel(&format!("/fsm/{node}")).map(|c| c.id);
-
-    // The recorded values: inputs to feed, outputs and switches to compare.
-    let mut sent: BTreeMap<usize, Vec<Recorded>> = BTreeMap::new();
-    let mut reads: BTreeMap<usize, Vec<(u64, Stamp, &crate::read::Message)>> = BTreeMap::new();
-    let mut outputs: BTreeMap<usize, VecDeque<Recorded>> = BTreeMap::new();
-    let mut switches: VecDeque<(u64, Value)> = VecDeque::new();
-    for m in &recording.messages {
-        if Some(m.channel) == fsm_channel {
-            if !own(m.log_time) {
-                continue;
-            }
-            let v: Value = serde_json::from_slice(&m.data).map_err(|e| ReplayError::BadValue {
-                link: format!("/fsm/{node}"),
-                sequence: m.sequence,
-                offset: m.offset,
-                message: e.to_string(),
-            })?;
-            switches.push_back((m.log_time, v));
-            continue;
-        }
-        if let Some(&k) = read_channel_link.get(&m.channel) {
-            let stamp = decode_read(&m.data).ok_or_else(|| ReplayError::BadValue {
-                link: info.links[k].name.clone(),
-                sequence: m.sequence,
-                offset: m.offset,
-                message: format!("a read of {} bytes (16 expected)", m.data.len()),
-            })?;
-            if own(m.log_time) {
-                reads.entry(k).or_default().push((m.log_time, stamp, m));
-            }
-            continue;
-        }
-        let Some(&(k, encoding)) = channel_link.get(&m.channel) else {
-            continue;
-        };
-        let bad = |sequence: u32, message: String| ReplayError::BadValue {
-            link: info.links[k].name.clone(),
-            sequence,
-            offset: m.offset,
-            message,
-        };
-        for value in raw_values(encoding, &m.data) {
-            let value = value.map_err(|e| bad(m.sequence, format!("raw message: {e}")))?;
-            let (header, body) =
-                WireHeader::read(value).map_err(|e| bad(m.sequence, e.to_string()))?;
-            // The value's number on its link, from 0 (the header's count is from 1).
-            let sequence = header.seq.wrapping_sub(1) as u32;
-            let body = match codecs.get(&m.channel) {
-                Some(codec) => {
-                    let mut decoded = Vec::new();
-                    codec
-                        .decode(body, &mut decoded)
-                        .map_err(|e| bad(sequence, format!("codec `{}`: {e}", codec.name())))?;
-                    decoded
-                }
-                None => body.to_vec(),
-            };
-            let r = Recorded {
-                stamp: header.stamp,
-                body,
-                sequence,
-                offset: m.offset,
-            };
-            if info.links[k].from == x {
-                if own(header.stamp.time.as_nanos()) {
-                    outputs.entry(k).or_default().push_back(r);
-                }
-            } else {
-                sent.entry(k).or_default().push(r);
-            }
-        }
-    }
-    for k in read_channel_link.values() {
-        reads.entry(*k).or_default();
-    }
-    let inputs = feeds(&info, sent, reads)?;
-    let out_links: Vec<usize> = info
-        .links
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| l.from == x && l.to != x)
-        .map(|(k, _)| k)
-        .collect();
-
-    let n = &info.nodes[x];
-    let initial = n.fsm.as_ref().map_or_else(
-        || n.behaviours.first().cloned().unwrap_or_default(),
-        |f| f.initial.clone(),
-    );
-    let mut cmp = Compare {
-        node: &info.nodes[x],
-        info: &info,
-        shapes: &shapes,
-        recorded_behaviour: initial.clone(),
-        replayed_behaviour: initial,
-        compared: 0,
-        switched: 0,
-    };
-
-    let id = system.node(node).ok_or_else(|| ReplayError::NoSubsystem {
-        name: node.to_owned(),
-        available: subsystems(),
-    })?;
+    let end = recorded_end(recording, node, window);
+    let routes = Routes::of(recording, &system, x, &options.codecs)?;
+    let tape = Tape::read(recording, &info, x, node, &routes, window)?;
+    let inputs = feeds(&info, tape.sent, tape.reads)?;
+    let mut expected = tape.expected;
+    let mut cmp = compare_from_start(&info, x, &routes.shapes);
+    let id = system.node(node).ok_or_else(|| no_subsystem(&info, node))?;
     let mut exec = Executor::with_observer(
         system,
         options.exec,
@@ -522,10 +303,115 @@ pub fn replay(
     if let Some(w) = window {
         exec.start_at(id, w.first);
     }
+    drive(&mut exec, &info, x, &inputs, end, &mut cmp, &mut expected)
+}
+
+/// Why there is no subsystem `node` to replay: the subsystems there are.
+fn no_subsystem(info: &SystemInfo, node: &str) -> ReplayError {
+    ReplayError::NoSubsystem {
+        name: node.to_owned(),
+        available: info
+            .nodes
+            .iter()
+            .filter(|n| !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+            .map(|n| n.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
+}
+
+/// The index of subsystem `node` among the system's nodes (a real device is
+/// not a subsystem to replay).
+fn subsystem_index(info: &SystemInfo, node: &str) -> Result<usize, ReplayError> {
+    info.nodes
+        .iter()
+        .position(|n| {
+            n.name == node && !matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor)
+        })
+        .ok_or_else(|| no_subsystem(info, node))
+}
+
+/// Where the recorded run of `node` ends, and the elementary actions it made
+/// up to there.
+#[derive(Clone, Copy)]
+struct RecordedEnd {
+    time: Time,
+    iterations: u64,
+}
+
+/// The recorded end of `node`: its window's, else the `end` record's.
+fn recorded_end(recording: &Recording, node: &str, window: Option<Window>) -> RecordedEnd {
+    let end = recording.metadata.get("end");
+    // The node's own last instant (the processes of a deployment stop at
+    // different instants), else the run's.
+    let time = match window {
+        Some(w) => w.last,
+        None => end
+            .and_then(|m| {
+                m.get(&format!("last/{node}"))
+                    .or_else(|| m.get("time_ns"))?
+                    .parse::<u64>()
+                    .ok()
+            })
+            .map_or(Time::ZERO, Time::from_nanos),
+    };
+    let iterations = match window {
+        Some(w) => w.iterations,
+        None => end
+            .and_then(|m| m.get(&format!("iterations/{node}"))?.parse::<u64>().ok())
+            .unwrap_or(0),
+    };
+    RecordedEnd { time, iterations }
+}
+
+/// The comparison before the first instant: both runs in the subsystem's
+/// initial behaviour.
+fn compare_from_start<'a>(
+    info: &'a SystemInfo,
+    x: usize,
+    shapes: &'a BTreeMap<usize, Option<TypeShape>>,
+) -> Compare<'a> {
+    let n = &info.nodes[x];
+    let initial = n.fsm.as_ref().map_or_else(
+        || n.behaviours.first().cloned().unwrap_or_default(),
+        |f| f.initial.clone(),
+    );
+    Compare {
+        node: n,
+        info,
+        shapes,
+        recorded_behaviour: initial.clone(),
+        replayed_behaviour: initial,
+        compared: 0,
+        switched: 0,
+    }
+}
+
+/// Run the isolated subsystem `x` instant by instant up to the recorded end,
+/// feeding each input just before the activation that reads it and comparing
+/// each instant with the recording: the verdict.
+fn drive(
+    exec: &mut Executor<Watch>,
+    info: &SystemInfo,
+    x: usize,
+    inputs: &[(Time, usize, Recorded)],
+    end: RecordedEnd,
+    cmp: &mut Compare<'_>,
+    expected: &mut Expected,
+) -> Result<Replayed, ReplayError> {
+    // The links out of it: no isolated node reads them, so their values are
+    // dropped after each instant.
+    let out_links: Vec<usize> = info
+        .links
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.from == x && l.to != x)
+        .map(|(k, _)| k)
+        .collect();
     let mut fed = 0u64;
     let mut next_input = 0usize;
     while let Some(t) = exec.next_instant() {
-        if t > end_time {
+        if t > end.time {
             break;
         }
         while let Some((due, k, r)) = inputs.get(next_input) {
@@ -533,7 +419,7 @@ pub fn replay(
                 break;
             }
             exec.inject(*k, &r.body, r.stamp)
-                .map_err(|e| bad_input(&info, *k, r, &e))?;
+                .map_err(|e| bad_input(info, *k, r, &e))?;
             next_input += 1;
             fed += 1;
         }
@@ -543,16 +429,22 @@ pub fn replay(
             exec.discard(k);
         }
         let events = std::mem::take(&mut exec.observer_mut().events);
-        if let Some(d) = cmp.instant(t, iteration, events, &mut outputs, &mut switches) {
+        if let Some(d) = cmp.instant(
+            t,
+            iteration,
+            events,
+            &mut expected.outputs,
+            &mut expected.switches,
+        ) {
             return Ok(Replayed::Diverged(Box::new(d)));
         }
     }
     let replayed = exec.observer().actions;
     Ok(cmp.end(
-        (end_time, replayed, recorded_iterations),
+        (end.time, replayed, end.iterations),
         fed,
-        &mut outputs,
-        &mut switches,
+        &mut expected.outputs,
+        &mut expected.switches,
     ))
 }
 
