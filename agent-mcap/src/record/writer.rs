@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use std::time::Duration;
 
@@ -14,13 +15,11 @@ use agent_core::{Stamp, Step, Time, TypeShape, WireHeader};
 use serde_json::{Value, json};
 
 use super::batch::{Entry, entries};
-use super::{
-    Backlog, Counts, Derive, FRAMES_ENCODING, LinkChannels, READ_ENCODING, Record, RecordError,
-    RecordOptions, RecordSummary, Values, WIRE_ENCODING, encode_read, small,
-};
-use crate::cdr::{root_name, ros2msg_schema, write_cdr};
-use crate::codec::CODEC_KEY;
-use crate::json::{json_schema, write_json};
+use super::part::{Backlog, Counts, Record};
+use super::{Derive, RecordError, RecordSummary, WIRE_ENCODING, encode_read, small};
+use crate::cdr::write_cdr;
+use crate::codec::Codec;
+use crate::json::write_json;
 
 /// The writer thread's side.
 pub(super) struct Output {
@@ -39,199 +38,7 @@ pub(super) struct Output {
     pub(super) summary: RecordSummary,
 }
 
-/// What the writer thread makes the file from: what needed the system, taken
-/// on the caller's thread.
-pub(super) struct Plan {
-    pub(super) file: File,
-    pub(super) path: PathBuf,
-    pub(super) info: SystemInfo,
-    /// Per link: the payload's shape as JSON text (`serde-reflection`'s
-    /// formats cannot cross threads), and its fingerprint.
-    pub(super) shapes: Vec<Option<String>>,
-    pub(super) fingerprints: Vec<u64>,
-    pub(super) options: RecordOptions,
-}
-
 impl Output {
-    /// Start the file: its header, schemas, channels and metadata. Returns
-    /// the writer and the links' shapes.
-    pub(super) fn open(plan: Plan) -> Result<(Output, Vec<Option<TypeShape>>), RecordError> {
-        let Plan {
-            file,
-            path,
-            info,
-            shapes,
-            fingerprints,
-            mut options,
-        } = plan;
-        let fail = |e: mcap::McapError| RecordError::Write {
-            path: path.clone(),
-            message: e.to_string(),
-        };
-        let shapes: Vec<Option<TypeShape>> = shapes
-            .iter()
-            .map(|text| {
-                let (root, registry) = serde_json::from_str(text.as_deref()?).ok()?;
-                Some(TypeShape { root, registry })
-            })
-            .collect();
-        let mut w = mcap::WriteOptions::new()
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_level(1)
-            // On the writer thread: Zstd's default worker per CPU takes the
-            // executor's core (measured: 1.47 -> 1.38 the wall time of a
-            // recorded run without images, `bench_record`).
-            .compression_threads(0)
-            .profile("")
-            .library(concat!(
-                "embodied-agents agent-mcap ",
-                env!("CARGO_PKG_VERSION")
-            ))
-            .create(BufWriter::new(file))
-            .map_err(fail)?;
-        let mut links = Vec::with_capacity(info.links.len());
-        let mut json_values = Vec::new();
-        let none = BTreeMap::new();
-        let mut topics = std::collections::BTreeSet::new();
-        for (k, link) in info.links.iter().enumerate() {
-            let from = &info.nodes[link.from].name;
-            let to = &info.nodes[link.to].name;
-            let mut topic = format!("/links/{from}/{}/to/{to}", link.from_port.replace('.', "/"));
-            if !topics.insert(topic.clone()) {
-                topic = format!("{topic}/{}", link.to_port.replace('.', "/"));
-                topics.insert(topic.clone());
-            }
-            let shape = shapes.get(k).and_then(Option::as_ref);
-            let ros2 = match (shape, options.values) {
-                (Some(s), Values::Cdr) => match ros2msg_schema(s, root_name(link.payload)) {
-                    Ok(r) => Some(r),
-                    Err(why) => {
-                        json_values.push(format!("{}: {why}", link.name));
-                        None
-                    }
-                },
-                _ => None,
-            };
-            let (schema, encoding) = match (shape, &ros2) {
-                (_, Some(r)) => (
-                    w.add_schema(&r.name, "ros2msg", r.text.as_bytes())
-                        .map_err(fail)?,
-                    "cdr",
-                ),
-                (Some(s), None) => {
-                    let text = json_schema(s, link.payload).to_string();
-                    let id = w
-                        .add_schema(link.payload, "jsonschema", text.as_bytes())
-                        .map_err(fail)?;
-                    (id, "json")
-                }
-                (None, None) => (0, "json"),
-            };
-            let value = w
-                .add_channel(schema, &topic, encoding, &none)
-                .map_err(fail)?;
-            let fingerprint = fingerprints.get(k).copied().unwrap_or(0);
-            let read_meta = BTreeMap::from([
-                ("link".to_owned(), link.name.clone()),
-                ("fingerprint".to_owned(), format!("{fingerprint:016x}")),
-            ]);
-            let codec = options
-                .codecs
-                .iter()
-                .find(|c| c.payload() == link.payload)
-                .cloned();
-            let mut raw_meta = read_meta.clone();
-            if let Some(c) = &codec {
-                raw_meta.insert(CODEC_KEY.to_owned(), c.name().to_owned());
-            }
-            let raw = w
-                .add_channel(0, &format!("/raw{topic}"), FRAMES_ENCODING, &raw_meta)
-                .map_err(fail)?;
-            let reads = w
-                .add_channel(0, &format!("/reads{topic}"), READ_ENCODING, &read_meta)
-                .map_err(fail)?;
-            let mut derived = Vec::new();
-            for (d, derive) in options.derived.iter_mut().enumerate() {
-                if let Some(c) = derive.channel(k, link) {
-                    let schema = w
-                        .add_schema(&c.schema_name, &c.schema_encoding, &c.schema)
-                        .map_err(fail)?;
-                    let id = w
-                        .add_channel(schema, &c.topic, &c.message_encoding, &none)
-                        .map_err(fail)?;
-                    derived.push((d, id));
-                }
-            }
-            links.push(LinkChannels {
-                topic: topic.clone(),
-                raw_meta: raw_meta.clone(),
-                received: None,
-                received_count: 0,
-                value,
-                cdr: ros2.is_some(),
-                raw,
-                reads,
-                read_sequence: 0,
-                fingerprint,
-                count: 0,
-                derived,
-                codec,
-                pending: Vec::new(),
-                pending_since: Time::ZERO,
-                raw_messages: 0,
-            });
-        }
-        let fsm_schema = w
-            .add_schema(
-                "embodied.Transition",
-                "jsonschema",
-                TRANSITION_SCHEMA.as_bytes(),
-            )
-            .map_err(fail)?;
-        let mut fsm = Vec::with_capacity(info.nodes.len());
-        for node in &info.nodes {
-            fsm.push(
-                w.add_channel(fsm_schema, &format!("/fsm/{}", node.name), "json", &none)
-                    .map_err(fail)?,
-            );
-        }
-        let error_schema = w
-            .add_schema("embodied.Error", "jsonschema", ERROR_SCHEMA.as_bytes())
-            .map_err(fail)?;
-        let errors = w
-            .add_channel(error_schema, "/errors", "json", &none)
-            .map_err(fail)?;
-        let mut metadata = std::mem::take(&mut options.metadata);
-        metadata.insert("system".into(), describe(&info));
-        for (name, entries) in metadata {
-            w.write_metadata(&mcap::records::Metadata {
-                name,
-                metadata: entries,
-            })
-            .map_err(fail)?;
-        }
-        let channels =
-            links.len() * 3 + links.iter().map(|l| l.derived.len()).sum::<usize>() + fsm.len() + 1;
-        let out = Output {
-            w,
-            path,
-            info,
-            links,
-            fsm,
-            errors,
-            derived: options.derived,
-            value_max_bytes: options.value_max_bytes,
-            scratch: Vec::new(),
-            encoded: Vec::new(),
-            summary: RecordSummary {
-                channels,
-                json_values,
-                ..RecordSummary::default()
-            },
-        };
-        Ok((out, shapes))
-    }
-
     pub(super) fn run(
         mut self,
         rx: &Receiver<Record>,
@@ -576,6 +383,38 @@ impl Output {
     }
 }
 
+/// A link's channels and how to read its values.
+pub(super) struct LinkChannels {
+    /// The link's topic (`/links/...`), and its raw channel's metadata.
+    pub(super) topic: String,
+    pub(super) raw_meta: BTreeMap<String, String>,
+    /// The value's channel, and whether it is CDR (else JSON).
+    pub(super) value: u16,
+    pub(super) cdr: bool,
+    pub(super) raw: u16,
+    pub(super) reads: u16,
+    pub(super) read_sequence: u32,
+    /// The payload's fingerprint, for the raw messages' wire header.
+    pub(super) fingerprint: u64,
+    /// Values recorded: the MCAP sequence (wrapping) and, from 1, the wire
+    /// header's.
+    pub(super) count: u64,
+    /// Derived channels: (the derive, its channel).
+    pub(super) derived: Vec<(usize, u16)>,
+    /// The codec of the raw channel.
+    pub(super) codec: Option<Arc<dyn Codec>>,
+    /// Values not yet written to the raw channel ([`FRAMES_ENCODING`]), and
+    /// the first one's instant.
+    pub(super) pending: Vec<u8>,
+    pub(super) pending_since: Time,
+    /// Raw messages written: their MCAP sequence (wrapping).
+    pub(super) raw_messages: u32,
+    /// The channel of values received from another process (made with the
+    /// first), and how many.
+    pub(super) received: Option<u16>,
+    pub(super) received_count: u64,
+}
+
 /// A behaviour switch of node `n` as recorded on its `/fsm/<node>` channel
 /// (and as a replay compares it).
 pub(crate) fn transition_json(n: &NodeInfo, time: Time, iteration: u64, step: Step) -> Value {
@@ -629,34 +468,6 @@ pub(crate) fn transition_json(n: &NodeInfo, time: Time, iteration: u64, step: St
 /// The length at which a link's pending raw values are written at once,
 /// not at the end of the batch (one camera image is longer).
 const PENDING_BYTES: usize = 64 * 1024;
-
-/// The system's nodes, behaviours and links, for the metadata record.
-pub(super) fn describe(info: &SystemInfo) -> BTreeMap<String, String> {
-    let mut m = BTreeMap::new();
-    for n in &info.nodes {
-        m.insert(
-            format!("node/{}", n.name),
-            format!(
-                "agent {}, {:?}, period {}, behaviours [{}]",
-                n.agent,
-                n.kind,
-                n.period,
-                n.behaviours.join(", ")
-            ),
-        );
-    }
-    for (k, l) in info.links.iter().enumerate() {
-        m.insert(
-            format!("link/{k}"),
-            format!("{} ({:?}, {})", l.name, l.policy, l.payload),
-        );
-    }
-    m
-}
-
-pub(super) const TRANSITION_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Transition","type":"object","properties":{"time_s":{"type":"number"},"iteration":{"type":"integer"},"from":{"type":"string"},"to":{"type":"string"},"arc":{"type":"integer"},"condition":{"type":"string"},"predicates":{"type":"object","additionalProperties":{"type":"boolean"}},"finished":{"type":"boolean"}}}"#;
-
-pub(super) const ERROR_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Error","type":"object","properties":{"time_s":{"type":"number"},"message":{"type":"string"}},"required":["time_s","message"]}"#;
 
 /// The records of a queue, taken by polling: the writer sleeps while the queue
 /// is empty instead of blocking in `recv`, so that a sender never has to wake
