@@ -52,6 +52,7 @@ mod deploy;
 mod error;
 mod local;
 mod output;
+pub mod plot;
 mod record;
 mod replay;
 mod signals;

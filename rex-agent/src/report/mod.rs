@@ -12,8 +12,6 @@
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
 //! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
 
-pub mod plot;
-
 use std::fmt::Write as _;
 use std::io;
 use std::path::{Path, PathBuf};
@@ -23,7 +21,7 @@ use embodied::spec::diagram::{self, Format, Kind};
 
 use crate::run::{Outcome, Sample};
 use crate::system::RexConfig;
-use plot::{Marker, PALETTE, Plot, Row, Series, timeline};
+use embodied::app::plot::{Marker, PALETTE, Plot, Row, Series, timeline};
 
 /// Write the report of `outcome` into `dir` (created if needed); returns the files
 /// written.

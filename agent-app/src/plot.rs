@@ -1,5 +1,10 @@
-//! A small SVG line plot: axes with round tick values, a legend, lines broken at
-//! missing values. Output is a pure function of the data (byte-stable).
+//! Plots for the report of a run, as SVG: line plots (axes with round tick values,
+//! a legend, lines broken at missing values) and timelines (labelled intervals per
+//! row, such as the behaviours of each subsystem over time). Output is a pure
+//! function of the data (byte-stable), so a report can be compared across runs.
+//!
+//! Written here rather than taken from a plotting crate: the report needs two kinds
+//! of chart, without fonts or a rasteriser, and byte-stable text.
 
 use std::fmt::Write;
 
@@ -146,13 +151,26 @@ impl Plot {
     /// The plot as an SVG document.
     pub fn to_svg(&self) -> String {
         let (x0, x1, y0, y1) = self.bounds();
-        let (w, h) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
-        let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * w;
-        let py = |y: f64| TOP + h - (y - y0) / (y1 - y0) * h;
-        let mut s = svg_start(HEIGHT, LEFT + w / 2.0, &self.title);
-        // Grid and ticks.
-        for t in ticks(x0, x1, 8) {
-            let x = px(t);
+        let area = Area {
+            x: (x0, x1),
+            y: (y0, y1),
+            w: WIDTH - LEFT - RIGHT,
+            h: HEIGHT - TOP - BOTTOM,
+        };
+        let mut s = svg_start(HEIGHT, LEFT + area.w / 2.0, &self.title);
+        self.grid(&mut s, &area);
+        self.lines(&mut s, &area);
+        self.markers(&mut s, &area);
+        self.legend(&mut s, &area);
+        s.push_str("</svg>\n");
+        s
+    }
+
+    /// Grid lines at the ticks with their values, the frame and the axis labels.
+    fn grid(&self, s: &mut String, a: &Area) {
+        let (w, h) = (a.w, a.h);
+        for t in ticks(a.x.0, a.x.1, 8) {
+            let x = a.px(t);
             let _ = writeln!(
                 s,
                 r##"<line x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{:.1}" stroke="#e0e0e0"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
@@ -161,8 +179,8 @@ impl Plot {
                 fmt_tick(t)
             );
         }
-        for t in ticks(y0, y1, 6) {
-            let y = py(t);
+        for t in ticks(a.y.0, a.y.1, 6) {
+            let y = a.py(t);
             let _ = writeln!(
                 s,
                 r##"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#e0e0e0"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
@@ -189,13 +207,11 @@ impl Plot {
             TOP + h / 2.0,
             escape(&self.y_label)
         );
-        // Lines.
+    }
+
+    /// Each series as one path, lifted at missing or non-finite points.
+    fn lines(&self, s: &mut String, a: &Area) {
         for series in &self.series {
-            let dash = if series.dashed {
-                r#" stroke-dasharray="6,4""#
-            } else {
-                ""
-            };
             let mut d = String::new();
             let mut pen_down = false;
             for p in &series.points {
@@ -205,8 +221,8 @@ impl Plot {
                             d,
                             "{}{:.1},{:.1} ",
                             if pen_down { "L" } else { "M" },
-                            px(*x),
-                            py(*y)
+                            a.px(*x),
+                            a.py(*y)
                         );
                         pen_down = true;
                     }
@@ -216,14 +232,19 @@ impl Plot {
             if !d.is_empty() {
                 let _ = writeln!(
                     s,
-                    r#"<path d="{}" fill="none" stroke="{}" stroke-width="1.5"{dash}/>"#,
+                    r#"<path d="{}" fill="none" stroke="{}" stroke-width="1.5"{}/>"#,
                     d.trim_end(),
-                    series.color
+                    series.color,
+                    series.dash()
                 );
             }
         }
+    }
+
+    /// The markers, each a dot with its label.
+    fn markers(&self, s: &mut String, a: &Area) {
         for m in &self.markers {
-            let (x, y) = (px(m.at.0), py(m.at.1));
+            let (x, y) = (a.px(m.at.0), a.py(m.at.1));
             let _ = writeln!(
                 s,
                 r#"<circle cx="{x:.1}" cy="{y:.1}" r="4" fill="black"/><text x="{:.1}" y="{:.1}">{}</text>"#,
@@ -232,27 +253,55 @@ impl Plot {
                 escape(&m.label)
             );
         }
-        // Legend.
+    }
+
+    /// The legend, right of the plot area: a stroke sample and the name per series.
+    fn legend(&self, s: &mut String, a: &Area) {
         for (i, series) in self.series.iter().enumerate() {
             let y = TOP + 10.0 + 18.0 * i as f64;
-            let x = LEFT + w + 12.0;
-            let dash = if series.dashed {
-                r#" stroke-dasharray="6,4""#
-            } else {
-                ""
-            };
+            let x = LEFT + a.w + 12.0;
             let _ = writeln!(
                 s,
-                r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2"{dash}/><text x="{:.1}" y="{:.1}">{}</text>"#,
+                r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2"{}/><text x="{:.1}" y="{:.1}">{}</text>"#,
                 x + 24.0,
                 series.color,
+                series.dash(),
                 x + 30.0,
                 y + 4.0,
                 escape(&series.name)
             );
         }
-        s.push_str("</svg>\n");
-        s
+    }
+}
+
+/// The plot area: the data ranges and the size they are drawn at.
+struct Area {
+    x: (f64, f64),
+    y: (f64, f64),
+    w: f64,
+    h: f64,
+}
+
+impl Area {
+    /// The horizontal position of `x`.
+    fn px(&self, x: f64) -> f64 {
+        LEFT + (x - self.x.0) / (self.x.1 - self.x.0) * self.w
+    }
+
+    /// The vertical position of `y` (up is up).
+    fn py(&self, y: f64) -> f64 {
+        TOP + self.h - (y - self.y.0) / (self.y.1 - self.y.0) * self.h
+    }
+}
+
+impl Series {
+    /// The stroke attribute of a dashed series (empty for a solid one).
+    fn dash(&self) -> &'static str {
+        if self.dashed {
+            r#" stroke-dasharray="6,4""#
+        } else {
+            ""
+        }
     }
 }
 
