@@ -49,6 +49,9 @@ pub(crate) fn recorded_processes(
     out
 }
 
+/// `replay FILE --subsystem S`: every recorded start of the process that ran
+/// `S` (or the one `--incarnation` names), each rebuilt and replayed in its
+/// window; a file one process recorded whole, replayed whole.
 pub(crate) fn replay<A: Application>(
     app: &mut A,
     flags: &A::Flags,
@@ -59,23 +62,7 @@ pub(crate) fn replay<A: Application>(
 ) -> Result<Status, AppError> {
     // The metadata first (no message kept): the configuration to build from.
     let head = Recording::open_filtered(file, |_| false).map_err(AppError::invalid)?;
-    let text = head
-        .metadata
-        .get("app")
-        .and_then(|m| m.get("config"))
-        .ok_or_else(|| {
-            AppError::invalid(format!(
-                "{} does not say the configuration of its run (not recorded by this program with --record?)",
-                file.display()
-            ))
-        })?;
-    let recorded: A::Config = serde_json::from_str(text).map_err(|e| {
-        AppError::invalid(format!(
-            "the configuration recorded in {} does not read: {e} (recorded by another version of this program?)",
-            file.display()
-        ))
-    })?;
-    let config = app.reconfigure(recorded, flags, common)?;
+    let config = recorded_config(app, flags, common, file, &head)?;
     let spec = app.spec(&config)?;
     if let Some(text) = head.metadata.get("spec").and_then(|m| m.get("text"))
         && *text != spec.text
@@ -96,63 +83,23 @@ pub(crate) fn replay<A: Application>(
         let verdict = once(file, system, subsystem, app.replay_options(&config), "")?;
         return Ok(verdict);
     }
-    let chosen: Vec<&Recorded> = starts
-        .iter()
-        .filter(|r| incarnation.is_none_or(|k| r.incarnation == k))
-        .collect();
-    if chosen.is_empty() {
-        return Err(AppError::invalid(format!(
-            "--incarnation {}: {} holds start(s) {} of process `{}`, which ran `{subsystem}`",
-            incarnation.unwrap_or(0),
-            file.display(),
-            starts
-                .iter()
-                .map(|r| r.incarnation.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            starts[0].process,
-        )));
-    }
-    // A process's own recording holds its `end`; a merged one each part's.
-    let own = head.metadata.contains_key("process");
-    let several = starts.len() > 1;
+    let chosen = chosen_starts(&starts, incarnation, file, subsystem)?;
+    let parts = Parts {
+        head: &head,
+        subsystem,
+        // A process's own recording holds its `end`; a merged one each part's.
+        own: head.metadata.contains_key("process"),
+        several: starts.len() > 1,
+    };
     let mut status = Status::Success;
     let mut replayed = 0;
     for start in chosen {
-        let label = match start.incarnation {
-            0 => start.process.clone(),
-            k => format!("{}#{k}", start.process),
-        };
-        let end = if own {
-            head.metadata.get("end")
-        } else {
-            head.metadata.get(&format!("end/{label}"))
-        };
-        let which = if several || start.incarnation > 0 {
-            format!(
-                " (start {} of process `{}`)",
-                start.incarnation, start.process
-            )
-        } else {
-            String::new()
-        };
-        // A start after a restart runs from the instant it joined: replayed
-        // in its window, from its part's end record (a merged file's parts
-        // each have theirs; one part may never have been finished: killed).
-        let window = if several || start.incarnation > 0 || !own {
-            match end.and_then(|e| Window::of(e, subsystem)) {
-                Some(w) => Some(w),
-                // A merged file of an earlier layer: its own `end`.
-                None if !several && start.incarnation == 0 && !own => None,
-                None => {
-                    output::out(format_args!(
-                        "replay {subsystem}{which}: not replayed: its recording was not finished (the process was killed)\n"
-                    ));
-                    continue;
-                }
-            }
-        } else {
-            None
+        let which = parts.which(start);
+        let Some(window) = parts.window(start) else {
+            output::out(format_args!(
+                "replay {subsystem}{which}: not replayed: its recording was not finished (the process was killed)\n"
+            ));
+            continue;
         };
         let target = Target::Process {
             deployment: &start.deployment,
@@ -176,6 +123,114 @@ pub(crate) fn replay<A: Application>(
         return Ok(Status::Failed);
     }
     Ok(status)
+}
+
+/// The configuration recorded in `head` (the file's metadata), as this run's
+/// flags change it.
+fn recorded_config<A: Application>(
+    app: &mut A,
+    flags: &A::Flags,
+    common: &Common,
+    file: &Path,
+    head: &Recording,
+) -> Result<A::Config, AppError> {
+    let text = head
+        .metadata
+        .get("app")
+        .and_then(|m| m.get("config"))
+        .ok_or_else(|| {
+            AppError::invalid(format!(
+                "{} does not say the configuration of its run (not recorded by this program with --record?)",
+                file.display()
+            ))
+        })?;
+    let recorded: A::Config = serde_json::from_str(text).map_err(|e| {
+        AppError::invalid(format!(
+            "the configuration recorded in {} does not read: {e} (recorded by another version of this program?)",
+            file.display()
+        ))
+    })?;
+    app.reconfigure(recorded, flags, common)
+}
+
+/// The starts to replay: those of `--incarnation`, else all; none is
+/// invalid input that names the starts there are.
+fn chosen_starts<'s>(
+    starts: &'s [Recorded],
+    incarnation: Option<u32>,
+    file: &Path,
+    subsystem: &str,
+) -> Result<Vec<&'s Recorded>, AppError> {
+    let chosen: Vec<&Recorded> = starts
+        .iter()
+        .filter(|r| incarnation.is_none_or(|k| r.incarnation == k))
+        .collect();
+    if chosen.is_empty() {
+        return Err(AppError::invalid(format!(
+            "--incarnation {}: {} holds start(s) {} of process `{}`, which ran `{subsystem}`",
+            incarnation.unwrap_or(0),
+            file.display(),
+            starts
+                .iter()
+                .map(|r| r.incarnation.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            starts[0].process,
+        )));
+    }
+    Ok(chosen)
+}
+
+/// The recorded starts of the process that ran the replayed subsystem.
+struct Parts<'a> {
+    /// The file's metadata.
+    head: &'a Recording,
+    subsystem: &'a str,
+    /// Whether the file is the process's own recording (else a merged one).
+    own: bool,
+    /// Whether the file holds several starts of the process.
+    several: bool,
+}
+
+impl Parts<'_> {
+    /// How the replay of `start` is said after the subsystem's name: which
+    /// start of which process, where there is more than the first.
+    fn which(&self, start: &Recorded) -> String {
+        if self.several || start.incarnation > 0 {
+            format!(
+                " (start {} of process `{}`)",
+                start.incarnation, start.process
+            )
+        } else {
+            String::new()
+        }
+    }
+
+    /// The window `start` is replayed in (`Some(None)`: the whole file), or
+    /// `None` if its part was never finished.
+    fn window(&self, start: &Recorded) -> Option<Option<Window>> {
+        let label = match start.incarnation {
+            0 => start.process.clone(),
+            k => format!("{}#{k}", start.process),
+        };
+        let end = if self.own {
+            self.head.metadata.get("end")
+        } else {
+            self.head.metadata.get(&format!("end/{label}"))
+        };
+        // A start after a restart runs from the instant it joined: replayed
+        // in its window, from its part's end record (a merged file's parts
+        // each have theirs; one part may never have been finished: killed).
+        if !(self.several || start.incarnation > 0 || !self.own) {
+            return Some(None);
+        }
+        match end.and_then(|e| Window::of(e, self.subsystem)) {
+            Some(w) => Some(Some(w)),
+            // A merged file of an earlier layer: its own `end`.
+            None if !self.several && start.incarnation == 0 && !self.own => Some(None),
+            None => None,
+        }
+    }
 }
 
 /// One replay, said: `replay S<which>: verdict` and its figures.
