@@ -91,91 +91,13 @@ pub(crate) fn launch<A: Application>(
 ) -> Result<Status, AppError> {
     let signals = Signals::get();
     let spec = app.spec(&config)?;
-    let Some(deployment) = &common.deployment else {
-        return Err(AppError::invalid(format!(
-            "`launch` needs `--deployment NAME` (the spec's deployments: {})",
-            spec.spec.deployment_names()
-        )));
-    };
-    let Some(dep) = spec.spec.deployment(deployment) else {
-        return Err(AppError::invalid(format!(
-            "spec `{}` has no deployment `{deployment}` (it has: {})",
-            spec.spec.name,
-            spec.spec.deployment_names()
-        )));
-    };
-    if common.process.is_some() {
-        return Err(AppError::invalid(
-            "`launch` starts every process; `--process` runs one without it",
-        ));
-    }
-    super::check_port(&spec.spec, deployment, common.port)?;
-    app.check_deployment(&config, deployment)?;
-    super::say_unprotected(&spec.spec, deployment);
+    let (deployment, dep) = launched_deployment(app, &config, &spec, common, kill)?;
     let processes = dep.processes();
-    if let Some((p, _)) = kill
-        .iter()
-        .find(|(p, _)| !processes.iter().any(|(_, q, _)| q.name == *p))
-    {
-        return Err(AppError::invalid(format!(
-            "--kill: deployment `{deployment}` has no process `{p}`"
-        )));
-    }
-    let program = std::env::current_exe().map_err(|e| {
-        AppError::Run(format!(
-            "cannot find this program to start the processes: {e}"
-        ))
-    })?;
-    let id = launch_id();
-    let mut args = child_args();
-    let pattern = common.record.as_deref().map(parts_pattern);
-    if let Some(p) = &pattern {
-        args.push("--record".into());
-        args.push(p.to_string_lossy().into_owned());
-    }
-    args.extend([
-        "--launch-id".to_owned(),
-        id.clone(),
-        "--launcher-pid".to_owned(),
-        std::process::id().to_string(),
-    ]);
-    let mut options = Options {
-        port: common.port,
-        timeout: common.wait()?,
-        credentials: common.credentials.clone(),
-        launch: Some(id.clone()),
-        launched: false,
-        cancel: Some(signals.flag()),
-    };
-    // Held to the launch's end, which removes them.
-    let mut _dev = None;
-    if dep.is_secure() && options.credentials.is_none() {
-        let dev = DevCredentials::make(&spec.spec, deployment, &id)?;
-        output::err(format_args!(
-            "{}: deployment `{deployment}` is secure: a development authority and certificates for this launch in {} (removed at its end)",
-            output::program(),
-            dev.dir.display()
-        ));
-        args.push("--credentials".into());
-        args.push(dev.dir.to_string_lossy().into_owned());
-        options.credentials = Some(dev.dir.clone());
-        _dev = Some(dev);
-    }
-    let watch = Watch::open(&spec.spec, deployment, &options)?;
+    let command = ChildCommand::make(&spec.spec, deployment, dep.is_secure(), common, signals)?;
+    let watch = Watch::open(&spec.spec, deployment, &command.options)?;
     let children: Vec<Child> = processes
         .iter()
-        .map(|(_, p, _)| Child {
-            restarts: Some(p.restart_budget()),
-            incarnation_flag: Some("--incarnation".into()),
-            ..Child::new(
-                p.name.clone(),
-                program.clone(),
-                args.iter()
-                    .cloned()
-                    .chain(["--process".to_owned(), p.name.clone()])
-                    .collect(),
-            )
-        })
+        .map(|(_, p, _)| command.child(&p.name, p.restart_budget()))
         .collect();
     let budgets: Vec<(String, u32)> = processes
         .iter()
@@ -187,81 +109,16 @@ pub(crate) fn launch<A: Application>(
         crate::End::Halted(names) => names.clone(),
     };
     let mut watcher = app.watcher(&config, common);
-    let mut gathered = Gathered {
-        halted: Vec::new(),
-        errors: 0,
-        refused: 0,
-        acl_refused: 0,
-        first_errors: Vec::new(),
-        last_ns: 0,
-        undecodable: 0,
-    };
+    let mut monitor = Monitor::new(&watch, rule, kill.to_vec());
     let wall = Instant::now();
-    let mut origin: Option<SystemTime> = None;
-    let mut next_origin_look = Instant::now();
-    let mut ended: Option<(Ended, Instant)> = None;
-    let mut faults: Vec<(String, f64)> = kill.to_vec();
     let report = Launcher::new(children)
         .fatal_codes([2])
-        .run(&signals.flag(), |line| {
-            match line {
-                Line::Output { process, text } => {
-                    output::err(format_args!("[{process}] {text}"));
-                }
-                Line::Exited {
-                    process,
-                    code,
-                    restarting,
-                } => output::err(format_args!(
-                    "[{process}] exited ({}){}",
-                    code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
-                    if *restarting { "; restarting it" } else { "" }
-                )),
-                Line::Idle => {}
-            }
-            take(&watch, watcher.as_mut(), &mut gathered, Duration::ZERO);
-            if ended.is_none() {
-                let by_rule = !rule.is_empty() && rule.iter().all(|r| gathered.halted.contains(r));
-                if watcher.ended(false) {
-                    ended = Some((
-                        Ended::Rule("the application's end was reached".into()),
-                        Instant::now(),
-                    ));
-                } else if by_rule {
-                    ended = Some((
-                        Ended::Rule(format!("{} halted", rule.join(", "))),
-                        Instant::now(),
-                    ));
-                }
-                if ended.is_some() {
-                    watch.stop();
-                }
-            }
-            if let Some((_, since)) = &ended
-                && since.elapsed() > STOP_GRACE
-            {
-                return Control::Stop;
-            }
-            if origin.is_none() && Instant::now() >= next_origin_look {
-                origin = watch.origin();
-                next_origin_look = Instant::now() + Duration::from_millis(500);
-            }
-            let now = origin
-                .and_then(|o| SystemTime::now().duration_since(o).ok())
-                .map_or(0.0, |d| d.as_secs_f64());
-            if let Some(k) = faults
-                .iter()
-                .position(|(_, at)| origin.is_some() && now >= *at)
-            {
-                let (process, at) = faults.remove(k);
-                output::err(format_args!(
-                    "{}: killing `{process}` at {now:.2} s (--kill {process}@{at})",
-                    output::program()
-                ));
-                return Control::Kill(process);
-            }
-            Control::Continue
-        })?;
+        .run(&signals.flag(), |line| monitor.on(line, watcher.as_mut()))?;
+    let Monitor {
+        mut gathered,
+        ended,
+        ..
+    } = monitor;
     // What arrived after the processes ended.
     take(
         &watch,
@@ -282,7 +139,7 @@ pub(crate) fn launch<A: Application>(
         )));
     }
     let ended = launch_end(&report, ended.map(|(e, _)| e), &budgets, signals);
-    let recorded = match (&common.record, &pattern) {
+    let recorded = match (&common.record, &command.pattern) {
         (Some(file), Some(pattern)) => merge_parts(file, pattern, &budgets),
         _ => true,
     };
@@ -298,9 +155,289 @@ pub(crate) fn launch<A: Application>(
         last: agent_core::Time::from_nanos(gathered.last_ns),
         wall: wall.elapsed(),
         errors: gathered.errors,
-        first_errors: gathered.first_errors,
+        first_errors: std::mem::take(&mut gathered.first_errors),
     };
-    let verdict = watcher.judge(&summary);
+    Ok(say_verdict(
+        watcher.as_mut(),
+        &summary,
+        &gathered,
+        &report,
+        recorded,
+    ))
+}
+
+/// The deployment `--deployment` names, checked for a launch: `--process` not
+/// given, its port, the application's own checks, the processes `--kill`
+/// names (an unprotected deployment is said).
+fn launched_deployment<'s, A: Application>(
+    app: &A,
+    config: &A::Config,
+    spec: &'s crate::SpecFile,
+    common: &'s Common,
+    kill: &[(String, f64)],
+) -> Result<(&'s String, &'s agent_spec::model::Deployment), AppError> {
+    let Some(deployment) = &common.deployment else {
+        return Err(AppError::invalid(format!(
+            "`launch` needs `--deployment NAME` (the spec's deployments: {})",
+            spec.spec.deployment_names()
+        )));
+    };
+    let Some(dep) = spec.spec.deployment(deployment) else {
+        return Err(AppError::invalid(format!(
+            "spec `{}` has no deployment `{deployment}` (it has: {})",
+            spec.spec.name,
+            spec.spec.deployment_names()
+        )));
+    };
+    if common.process.is_some() {
+        return Err(AppError::invalid(
+            "`launch` starts every process; `--process` runs one without it",
+        ));
+    }
+    super::check_port(&spec.spec, deployment, common.port)?;
+    app.check_deployment(config, deployment)?;
+    super::say_unprotected(&spec.spec, deployment);
+    let processes = dep.processes();
+    if let Some((p, _)) = kill
+        .iter()
+        .find(|(p, _)| !processes.iter().any(|(_, q, _)| q.name == *p))
+    {
+        return Err(AppError::invalid(format!(
+            "--kill: deployment `{deployment}` has no process `{p}`"
+        )));
+    }
+    Ok((deployment, dep))
+}
+
+/// How the children are started: this program, with this program's arguments
+/// less the launcher's own and plus the launch's, and the launch's options.
+struct ChildCommand {
+    program: PathBuf,
+    args: Vec<String>,
+    /// The pattern of the recording's parts, if `--record` was given.
+    pattern: Option<PathBuf>,
+    options: Options,
+    /// Held to the launch's end, which removes them.
+    _dev: Option<DevCredentials>,
+}
+
+impl ChildCommand {
+    /// The command of a new launch of `deployment` (with credentials of its
+    /// own for a secure one given none).
+    fn make(
+        spec: &agent_spec::Spec,
+        deployment: &str,
+        secure: bool,
+        common: &Common,
+        signals: &Signals,
+    ) -> Result<ChildCommand, AppError> {
+        let program = std::env::current_exe().map_err(|e| {
+            AppError::Run(format!(
+                "cannot find this program to start the processes: {e}"
+            ))
+        })?;
+        let id = launch_id();
+        let mut args = child_args();
+        let pattern = common.record.as_deref().map(parts_pattern);
+        if let Some(p) = &pattern {
+            args.push("--record".into());
+            args.push(p.to_string_lossy().into_owned());
+        }
+        args.extend([
+            "--launch-id".to_owned(),
+            id.clone(),
+            "--launcher-pid".to_owned(),
+            std::process::id().to_string(),
+        ]);
+        let mut options = Options {
+            port: common.port,
+            timeout: common.wait()?,
+            credentials: common.credentials.clone(),
+            launch: Some(id.clone()),
+            launched: false,
+            cancel: Some(signals.flag()),
+        };
+        let mut dev = None;
+        if secure && options.credentials.is_none() {
+            let made = DevCredentials::make(spec, deployment, &id)?;
+            output::err(format_args!(
+                "{}: deployment `{deployment}` is secure: a development authority and certificates for this launch in {} (removed at its end)",
+                output::program(),
+                made.dir.display()
+            ));
+            args.push("--credentials".into());
+            args.push(made.dir.to_string_lossy().into_owned());
+            options.credentials = Some(made.dir.clone());
+            dev = Some(made);
+        }
+        Ok(ChildCommand {
+            program,
+            args,
+            pattern,
+            options,
+            _dev: dev,
+        })
+    }
+
+    /// The child that runs process `name`, restarted at most `restarts` times.
+    fn child(&self, name: &str, restarts: u32) -> Child {
+        Child {
+            restarts: Some(restarts),
+            incarnation_flag: Some("--incarnation".into()),
+            ..Child::new(
+                name.to_owned(),
+                self.program.clone(),
+                self.args
+                    .iter()
+                    .cloned()
+                    .chain(["--process".to_owned(), name.to_owned()])
+                    .collect(),
+            )
+        }
+    }
+}
+
+/// The launcher's view of the run while the processes run: what they
+/// report, whether the run has reached its end, instant zero, the kills
+/// `--kill` asked for.
+struct Monitor<'w> {
+    watch: &'w Watch,
+    /// The end rule's subsystems: the run ends once all have halted.
+    rule: Vec<String>,
+    gathered: Gathered,
+    /// How the run ended and when it was seen, once it has.
+    ended: Option<(Ended, Instant)>,
+    /// The deployment's instant zero once known, and when to look next.
+    origin: Option<SystemTime>,
+    next_origin_look: Instant,
+    /// The kills not yet made: the process and when (s from instant zero).
+    faults: Vec<(String, f64)>,
+}
+
+impl<'w> Monitor<'w> {
+    fn new(watch: &'w Watch, rule: Vec<String>, faults: Vec<(String, f64)>) -> Self {
+        Monitor {
+            watch,
+            rule,
+            gathered: Gathered {
+                halted: Vec::new(),
+                errors: 0,
+                refused: 0,
+                acl_refused: 0,
+                first_errors: Vec::new(),
+                last_ns: 0,
+                undecodable: 0,
+            },
+            ended: None,
+            origin: None,
+            next_origin_look: Instant::now(),
+            faults,
+        }
+    }
+
+    /// One line or exit of a child (or a moment idle): said, the reports
+    /// taken in, and what the launcher does next.
+    fn on<M: serde::de::DeserializeOwned>(
+        &mut self,
+        line: &Line,
+        watcher: &mut dyn Watcher<M>,
+    ) -> Control {
+        say_line(line);
+        take(self.watch, watcher, &mut self.gathered, Duration::ZERO);
+        self.look_for_end(watcher);
+        if let Some((_, since)) = &self.ended
+            && since.elapsed() > STOP_GRACE
+        {
+            return Control::Stop;
+        }
+        self.look_for_origin();
+        self.fault_due()
+    }
+
+    /// Whether the run has reached its end (the application's, or the end
+    /// rule's subsystems all halted): then every process is asked to stop.
+    fn look_for_end<M>(&mut self, watcher: &mut dyn Watcher<M>) {
+        if self.ended.is_some() {
+            return;
+        }
+        let by_rule =
+            !self.rule.is_empty() && self.rule.iter().all(|r| self.gathered.halted.contains(r));
+        if watcher.ended(false) {
+            self.ended = Some((
+                Ended::Rule("the application's end was reached".into()),
+                Instant::now(),
+            ));
+        } else if by_rule {
+            self.ended = Some((
+                Ended::Rule(format!("{} halted", self.rule.join(", "))),
+                Instant::now(),
+            ));
+        }
+        if self.ended.is_some() {
+            self.watch.stop();
+        }
+    }
+
+    /// The deployment's instant zero, looked for every 500 ms until known.
+    fn look_for_origin(&mut self) {
+        if self.origin.is_none() && Instant::now() >= self.next_origin_look {
+            self.origin = self.watch.origin();
+            self.next_origin_look = Instant::now() + Duration::from_millis(500);
+        }
+    }
+
+    /// The kill `--kill` asks for now, if any (said), else go on.
+    fn fault_due(&mut self) -> Control {
+        let now = self
+            .origin
+            .and_then(|o| SystemTime::now().duration_since(o).ok())
+            .map_or(0.0, |d| d.as_secs_f64());
+        let origin = self.origin;
+        if let Some(k) = self
+            .faults
+            .iter()
+            .position(|(_, at)| origin.is_some() && now >= *at)
+        {
+            let (process, at) = self.faults.remove(k);
+            output::err(format_args!(
+                "{}: killing `{process}` at {now:.2} s (--kill {process}@{at})",
+                output::program()
+            ));
+            return Control::Kill(process);
+        }
+        Control::Continue
+    }
+}
+
+/// A child's line, prefixed with its name, or its exit.
+fn say_line(line: &Line) {
+    match line {
+        Line::Output { process, text } => {
+            output::err(format_args!("[{process}] {text}"));
+        }
+        Line::Exited {
+            process,
+            code,
+            restarting,
+        } => output::err(format_args!(
+            "[{process}] exited ({}){}",
+            code.map_or("killed by a signal".to_owned(), |c| format!("status {c}")),
+            if *restarting { "; restarting it" } else { "" }
+        )),
+        Line::Idle => {}
+    }
+}
+
+/// The judgement of the whole deployment's run, said with what the
+/// processes refused and the launch's figures: its status.
+fn say_verdict<M>(
+    watcher: &mut dyn Watcher<M>,
+    summary: &RunSummary,
+    gathered: &Gathered,
+    report: &LaunchReport,
+    recorded: bool,
+) -> Status {
+    let verdict = watcher.judge(summary);
     output::out(format_args!("{}", verdict.text));
     if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
         output::out(format_args!(
@@ -329,11 +466,11 @@ pub(crate) fn launch<A: Application>(
         verdict.line, report.processes, report.restarts
     ));
     let stopped = matches!(summary.ended, Ended::Stopped(_));
-    Ok(if verdict.passed && recorded && !stopped {
+    if verdict.passed && recorded && !stopped {
         Status::Success
     } else {
         Status::Failed
-    })
+    }
 }
 
 /// How a launch ended.
