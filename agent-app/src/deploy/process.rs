@@ -4,17 +4,19 @@
 //! sends the launcher its last reports, finishes its recording and prints its
 //! timing and summary line.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::sync::mpsc::Receiver;
+use std::time::{Duration, SystemTime};
 
-use agent_core::{ExecConfig, OnError, Probes, RealTime, RtConfig};
+use agent_core::{ExecConfig, NodeId, OnError, Probes, RealTime, RtConfig, Running};
 use agent_zenoh::{Member, MemberError, Options};
 
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
 use crate::local::{PROBE_CAPACITY, halting_nodes};
 use crate::transitions::Transitions;
-use crate::{Application, Common, Signals, Target, output, record};
+use crate::{Application, Common, Signals, SpecFile, Target, output, record};
 
 /// How long processes get to come up, agree on instant zero and start.
 const LEAD: Duration = Duration::from_millis(1000);
@@ -86,52 +88,11 @@ pub(crate) fn run<A: Application>(
     common: &Common,
 ) -> Result<Status, AppError> {
     let signals = Signals::get();
-    let (Some(deployment), Some(process)) = (&common.deployment, &common.process) else {
-        return Err(AppError::invalid("--process needs --deployment"));
-    };
-    if let Some(pid) = common.launcher_pid {
-        tie_to_launcher(pid)?;
-    }
-    let spec = app.spec(&config)?;
-    if spec.spec.deployment(deployment).is_none() {
-        return Err(AppError::invalid(format!(
-            "spec `{}` has no deployment `{deployment}` (it has: {})",
-            spec.spec.name,
-            spec.spec.deployment_names()
-        )));
-    }
-    super::check_port(&spec.spec, deployment, common.port)?;
-    app.check_deployment(&config, deployment)?;
-    if common.launch_id.is_none() {
-        super::say_unprotected(&spec.spec, deployment);
-    }
+    let (start, spec) = this_start(app, &config, common)?;
+    let process = start.process;
     let limit = common.limit()?.unwrap_or_else(|| app.limit(&config));
-    let incarnation = common.incarnation.unwrap_or(0);
-    let boot = agent_core::link::remote::new_epoch();
-    let options = Options {
-        port: common.port,
-        timeout: common.wait()?,
-        credentials: common.credentials.clone(),
-        launch: common.launch_id.clone(),
-        launched: common.launcher_pid.is_some(),
-        cancel: Some(signals.flag()),
-    };
-    // A secure deployment: count what the access control refuses (before the
-    // session opens, so that nothing is missed).
-    let refusals = spec
-        .spec
-        .deployment(deployment)
-        .is_some_and(|d| d.is_secure())
-        .then(agent_zenoh::security::Refusals::watch);
-    let mut member = Member::join(&spec.spec, deployment, process, &options)
-        .map_err(|e| joined(e, &spec.spec, deployment, process, common.port))?;
-    let target = Target::Process {
-        deployment,
-        process,
-        incarnation,
-        boot,
-    };
-    let system = app.build(&config, &target)?;
+    let (mut member, refusals) = join(&spec.spec, &start, common, signals)?;
+    let system = app.build(&config, &start.target())?;
     let runs = member.runs().to_vec();
     let here = |n: &str| runs.iter().any(|r| r == n);
     // The end rule's subsystems that run here: each one's halt is told.
@@ -142,192 +103,56 @@ pub(crate) fn run<A: Application>(
         .collect();
     let (mut probes, seen) = Probes::new(PROBE_CAPACITY);
     app.probes(&mut probes, &here);
-    let recorder = match &common.record {
+    let mut recorder = match &common.record {
         Some(pattern) => {
-            let file = part_path(pattern, process, incarnation);
-            record::check_target(&file)
-                .map_err(|e| AppError::invalid(format!("--record {}: {e}", file.display())))?;
-            let mut options = app.record_options(&config);
-            options
-                .metadata
-                .extend(crate::recorded_metadata::<A>(&spec, &config)?);
-            options.metadata.insert(
-                "process".into(),
-                [
-                    ("name", process.clone()),
-                    ("deployment", deployment.clone()),
-                    ("runs", runs.join(", ")),
-                    ("incarnation", incarnation.to_string()),
-                    ("boot", boot.to_string()),
-                    ("launch", member.launch().to_owned()),
-                ]
-                .into_iter()
-                .map(|(k, v)| (k.to_owned(), v))
-                .collect(),
-            );
-            Some(record::create(&file, &system, options)?)
+            let file = part_path(pattern, process, start.incarnation);
+            let metadata = start.metadata(&runs, member.launch());
+            Some(start_recording(
+                app, &config, &spec, &file, metadata, &system,
+            )?)
         }
         None => None,
     };
-    // A lost peer or a gap is reported and the run goes on: a deployment
-    // lives with processes that come and go.
-    let exec = ExecConfig {
-        on_error: OnError::Continue,
-        ..app.exec(&config)
-    };
-    let mut rt = RealTime::new(
+    let rt = real_time(
+        app,
+        &config,
         system,
-        RtConfig {
-            exec,
-            ..RtConfig::realtime()
-        },
+        probes,
+        recorder.as_ref(),
+        common.transitions,
     );
-    rt.watch(probes);
-    let print = common.transitions;
-    match &recorder {
-        Some(r) => {
-            let mut parts = r.threads();
-            rt.observe(move |thread, nodes| {
-                Box::new((parts(thread, nodes), Transitions::new(print)))
-            });
-        }
-        None if print => {
-            rt.observe(|_, _| Box::new(Transitions::new(true)));
-        }
-        None => {}
-    }
-    rt.place(member.placement()?)
-        .map_err(|e| AppError::invalid(e.to_string()))?;
-    let mut origin = None;
-    let started = rt.start_when(limit, || {
-        let zero = member.ready(LEAD)?;
-        origin = Some(zero);
-        Ok::<_, agent_zenoh::MemberError>(zero)
-    });
-    // The run's end on the wall clock: a process whose nodes all halted stays
-    // in the deployment until then (its going would read as a crash).
-    let end = origin.map(|zero| zero + limit);
-    let running = match started {
-        Ok(r) => r,
-        Err(e) => {
-            if let Some(r) = recorder {
-                record::finish(r);
-            }
-            return Err(AppError::Run(e.to_string()));
-        }
+    let (running, end) = start_run(rt, &mut member, limit, &mut recorder)?;
+    let mut vigil = Vigil {
+        member: &member,
+        signals,
+        process,
+        undeliverable: 0,
+        stopped: None,
     };
-    let mut told = vec![false; halting.len()];
-    let mut undeliverable = 0u64;
-    let mut failing = record::FailWatch::new();
-    let mut stopped: Option<String> = None;
-    let mut idle_said = false;
-    loop {
-        let finished = running.is_finished();
-        for m in seen.try_iter() {
-            observe(&member, SEEN, &m, &mut undeliverable);
-        }
-        for (k, (id, name)) in halting.iter().enumerate() {
-            if !told[k] && running.is_halted(*id) {
-                told[k] = true;
-                observe(
-                    &member,
-                    NOTE,
-                    &Note::Halted(name.clone()),
-                    &mut undeliverable,
-                );
-            }
-        }
-        if stopped.is_none() {
-            if let Some(sig) = signals.received() {
-                stopped = Some(format!("{sig} received"));
-            } else if member.launcher_gone() {
-                stopped = Some("its launcher is gone".into());
-            } else if member.stop_requested() {
-                stopped = Some(format!(
-                    "a stop from {}",
-                    member.stopped_by().unwrap_or_else(|| "this process".into())
-                ));
-            }
-            if stopped.is_some() {
-                running.stop();
-            }
-        }
-        if finished {
-            let over =
-                stopped.is_some() || end.is_none_or(|end| std::time::SystemTime::now() >= end);
-            if over {
-                break;
-            }
-            if !idle_said {
-                idle_said = true;
-                output::err(format_args!(
-                    "{}: process `{process}`: every node here halted; it stays in the deployment until the run ends",
-                    output::program()
-                ));
-            }
-            std::thread::sleep(Duration::from_millis(20));
-            continue;
-        }
-        failing.look(recorder.as_ref());
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    vigil.until_over(&running, &seen, &halting, end, recorder.as_ref());
     let finished = running.join().map_err(|e| AppError::Run(e.to_string()))?;
     for m in app.finished(&finished) {
-        observe(&member, SEEN, &m, &mut undeliverable);
+        vigil.send(SEEN, &m);
     }
     for m in seen.try_iter() {
-        observe(&member, SEEN, &m, &mut undeliverable);
+        vigil.send(SEEN, &m);
     }
     let report = finished.report();
     let overruns: u64 = report.nodes.iter().map(|n| n.overruns).sum();
-    // Every message refused on a link from another process, link by link.
-    let mut refused = 0u64;
-    for (link, stats) in finished.info().links.iter().zip(finished.links()) {
-        if stats.refused > 0 {
-            refused += stats.refused;
-            output::err(format_args!(
-                "{}: link `{}`: {} messages refused (see the errors for why)",
-                output::program(),
-                link.name,
-                stats.refused
-            ));
-        }
-    }
-    observe(
-        &member,
-        NOTE,
-        &Note::Ended {
-            errors: report.error_count,
-            first_errors: report
-                .errors
-                .iter()
-                .take(5)
-                .map(ToString::to_string)
-                .collect(),
-            last_ns: report.last_instant.as_nanos(),
-            overruns,
-            refused,
-            acl_refused: refusals.as_ref().map_or(0, |r| r.total()),
-        },
-        &mut undeliverable,
-    );
+    let refused = say_refused_links(&finished);
+    vigil.send_end(report, overruns, refused, refusals.as_ref());
+    let Vigil {
+        undeliverable,
+        stopped,
+        ..
+    } = vigil;
     if undeliverable > 0 {
         output::warn(format_args!(
             "{undeliverable} reports could not be sent to the launcher"
         ));
     }
     if let Some(r) = &refusals {
-        if !r.counting() {
-            output::warn(format_args!(
-                "refusals of the access control cannot be counted (a tracing subscriber was installed before)"
-            ));
-        }
-        for (what, key, n) in r.counts() {
-            output::err(format_args!(
-                "{}: the access control refused {n} x {what} on `{key}`",
-                output::program()
-            ));
-        }
+        say_refusals(r);
     }
     let sample_dropped = member.sample_dropped();
     let left = member.close();
@@ -357,6 +182,347 @@ pub(crate) fn run<A: Application>(
     } else {
         Status::Failed
     })
+}
+
+/// Join the deployment as this start of its process: the member, and the
+/// count of what the access control refuses in a secure deployment.
+fn join(
+    spec: &agent_spec::Spec,
+    start: &ThisStart<'_>,
+    common: &Common,
+    signals: &Signals,
+) -> Result<(Member, Option<agent_zenoh::security::Refusals>), AppError> {
+    let (deployment, process) = (start.deployment, start.process);
+    let options = Options {
+        port: common.port,
+        timeout: common.wait()?,
+        credentials: common.credentials.clone(),
+        launch: common.launch_id.clone(),
+        launched: common.launcher_pid.is_some(),
+        cancel: Some(signals.flag()),
+    };
+    // A secure deployment: count what the access control refuses (before the
+    // session opens, so that nothing is missed).
+    let refusals = spec
+        .deployment(deployment)
+        .is_some_and(|d| d.is_secure())
+        .then(agent_zenoh::security::Refusals::watch);
+    let member = Member::join(spec, deployment, process, &options)
+        .map_err(|e| joined(e, spec, deployment, process, common.port))?;
+    Ok((member, refusals))
+}
+
+/// This start of a process of a deployment.
+struct ThisStart<'a> {
+    deployment: &'a String,
+    process: &'a String,
+    /// Its restarts before it (0: the first start).
+    incarnation: u32,
+    /// This start's epoch (unique among starts).
+    boot: u64,
+}
+
+impl ThisStart<'_> {
+    /// What the application builds for it.
+    fn target(&self) -> Target<'_> {
+        Target::Process {
+            deployment: self.deployment,
+            process: self.process,
+            incarnation: self.incarnation,
+            boot: self.boot,
+        }
+    }
+
+    /// The `process` metadata record of its recording (`runs`: the
+    /// subsystems it runs; `launch`: the launch's identity).
+    fn metadata(&self, runs: &[String], launch: &str) -> BTreeMap<String, String> {
+        [
+            ("name", self.process.clone()),
+            ("deployment", self.deployment.clone()),
+            ("runs", runs.join(", ")),
+            ("incarnation", self.incarnation.to_string()),
+            ("boot", self.boot.to_string()),
+            ("launch", launch.to_owned()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_owned(), v))
+        .collect()
+    }
+}
+
+/// The process `--process` and `--deployment` name, checked (tied to its
+/// launcher first, if launched; an unprotected deployment is said when not),
+/// and the spec.
+fn this_start<'c, A: Application>(
+    app: &A,
+    config: &A::Config,
+    common: &'c Common,
+) -> Result<(ThisStart<'c>, SpecFile), AppError> {
+    let (Some(deployment), Some(process)) = (&common.deployment, &common.process) else {
+        return Err(AppError::invalid("--process needs --deployment"));
+    };
+    if let Some(pid) = common.launcher_pid {
+        tie_to_launcher(pid)?;
+    }
+    let spec = app.spec(config)?;
+    if spec.spec.deployment(deployment).is_none() {
+        return Err(AppError::invalid(format!(
+            "spec `{}` has no deployment `{deployment}` (it has: {})",
+            spec.spec.name,
+            spec.spec.deployment_names()
+        )));
+    }
+    super::check_port(&spec.spec, deployment, common.port)?;
+    app.check_deployment(config, deployment)?;
+    if common.launch_id.is_none() {
+        super::say_unprotected(&spec.spec, deployment);
+    }
+    let start = ThisStart {
+        deployment,
+        process,
+        incarnation: common.incarnation.unwrap_or(0),
+        boot: agent_core::link::remote::new_epoch(),
+    };
+    Ok((start, spec))
+}
+
+/// The recorder of this start's part of the recording, into `file`, with
+/// the application's metadata and this process's (`process`).
+fn start_recording<A: Application>(
+    app: &A,
+    config: &A::Config,
+    spec: &SpecFile,
+    file: &Path,
+    process: BTreeMap<String, String>,
+    system: &agent_core::System,
+) -> Result<agent_mcap::McapRecorder, AppError> {
+    record::check_target(file)
+        .map_err(|e| AppError::invalid(format!("--record {}: {e}", file.display())))?;
+    let mut options = app.record_options(config);
+    options
+        .metadata
+        .extend(crate::recorded_metadata::<A>(spec, config)?);
+    options.metadata.insert("process".into(), process);
+    record::create(file, system, options)
+}
+
+/// The real-time run of `system`, watched by `probes`, observed by the
+/// recorder's parts and, if `print`, by a printer of transitions.
+fn real_time<A: Application>(
+    app: &A,
+    config: &A::Config,
+    system: agent_core::System,
+    probes: Probes<A::Seen>,
+    recorder: Option<&agent_mcap::McapRecorder>,
+    print: bool,
+) -> RealTime {
+    // A lost peer or a gap is reported and the run goes on: a deployment
+    // lives with processes that come and go.
+    let exec = ExecConfig {
+        on_error: OnError::Continue,
+        ..app.exec(config)
+    };
+    let mut rt = RealTime::new(
+        system,
+        RtConfig {
+            exec,
+            ..RtConfig::realtime()
+        },
+    );
+    rt.watch(probes);
+    match recorder {
+        Some(r) => {
+            let mut parts = r.threads();
+            rt.observe(move |thread, nodes| {
+                Box::new((parts(thread, nodes), Transitions::new(print)))
+            });
+        }
+        None if print => {
+            rt.observe(|_, _| Box::new(Transitions::new(true)));
+        }
+        None => {}
+    }
+    rt
+}
+
+/// Start the run, placed as the deployment says, at the instant zero its
+/// processes agree on: the run, and its end on the wall clock. A run that
+/// cannot start finishes the recording.
+fn start_run(
+    mut rt: RealTime,
+    member: &mut Member,
+    limit: Duration,
+    recorder: &mut Option<agent_mcap::McapRecorder>,
+) -> Result<(Running, Option<SystemTime>), AppError> {
+    rt.place(member.placement()?)
+        .map_err(|e| AppError::invalid(e.to_string()))?;
+    let mut origin = None;
+    let started = rt.start_when(limit, || {
+        let zero = member.ready(LEAD)?;
+        origin = Some(zero);
+        Ok::<_, agent_zenoh::MemberError>(zero)
+    });
+    // The run's end on the wall clock: a process whose nodes all halted stays
+    // in the deployment until then (its going would read as a crash).
+    let end = origin.map(|zero| zero + limit);
+    match started {
+        Ok(running) => Ok((running, end)),
+        Err(e) => {
+            if let Some(r) = recorder.take() {
+                record::finish(r);
+            }
+            Err(AppError::Run(e.to_string()))
+        }
+    }
+}
+
+/// The process watching its run for the launcher: what it reports, and why
+/// it was stopped.
+struct Vigil<'m> {
+    member: &'m Member,
+    signals: &'m Signals,
+    process: &'m str,
+    /// Reports that could not be sent.
+    undeliverable: u64,
+    /// Why the run was stopped before its end, if it was.
+    stopped: Option<String>,
+}
+
+impl Vigil<'_> {
+    /// Send one report to the launcher; count what cannot go.
+    fn send<T: serde::Serialize>(&mut self, name: &str, value: &T) {
+        observe(self.member, name, value, &mut self.undeliverable);
+    }
+
+    /// Tell the launcher the run here ended: its errors, last instant,
+    /// overruns and refusals.
+    fn send_end(
+        &mut self,
+        report: &agent_core::RtReport,
+        overruns: u64,
+        refused: u64,
+        refusals: Option<&agent_zenoh::security::Refusals>,
+    ) {
+        self.send(
+            NOTE,
+            &Note::Ended {
+                errors: report.error_count,
+                first_errors: report
+                    .errors
+                    .iter()
+                    .take(5)
+                    .map(ToString::to_string)
+                    .collect(),
+                last_ns: report.last_instant.as_nanos(),
+                overruns,
+                refused,
+                acl_refused: refusals.map_or(0, |r| r.total()),
+            },
+        );
+    }
+
+    /// Until the run is over (stopped, or every node here finished and the
+    /// run's `end` passed): the probes' reports and the halts of the
+    /// `halting` nodes sent, a stop (a signal, the launcher gone, a stop
+    /// asked) acted on, the recorder watched.
+    fn until_over<M: serde::Serialize>(
+        &mut self,
+        running: &Running,
+        seen: &Receiver<M>,
+        halting: &[(NodeId, String)],
+        end: Option<SystemTime>,
+        recorder: Option<&agent_mcap::McapRecorder>,
+    ) {
+        let mut told = vec![false; halting.len()];
+        let mut failing = record::FailWatch::new();
+        let mut idle_said = false;
+        loop {
+            let finished = running.is_finished();
+            for m in seen.try_iter() {
+                self.send(SEEN, &m);
+            }
+            for (k, (id, name)) in halting.iter().enumerate() {
+                if !told[k] && running.is_halted(*id) {
+                    told[k] = true;
+                    self.send(NOTE, &Note::Halted(name.clone()));
+                }
+            }
+            if self.stopped.is_none() {
+                self.look_for_stop(running);
+            }
+            if finished {
+                let over = self.stopped.is_some() || end.is_none_or(|end| SystemTime::now() >= end);
+                if over {
+                    break;
+                }
+                if !idle_said {
+                    idle_said = true;
+                    output::err(format_args!(
+                        "{}: process `{}`: every node here halted; it stays in the deployment until the run ends",
+                        output::program(),
+                        self.process
+                    ));
+                }
+                std::thread::sleep(Duration::from_millis(20));
+                continue;
+            }
+            failing.look(recorder);
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// Whether the run is to stop (a signal, the launcher gone, a stop from
+    /// a participant): then it is stopped, and why is kept.
+    fn look_for_stop(&mut self, running: &Running) {
+        let member = self.member;
+        if let Some(sig) = self.signals.received() {
+            self.stopped = Some(format!("{sig} received"));
+        } else if member.launcher_gone() {
+            self.stopped = Some("its launcher is gone".into());
+        } else if member.stop_requested() {
+            self.stopped = Some(format!(
+                "a stop from {}",
+                member.stopped_by().unwrap_or_else(|| "this process".into())
+            ));
+        }
+        if self.stopped.is_some() {
+            running.stop();
+        }
+    }
+}
+
+/// Every message refused on a link from another process, said link by link:
+/// how many in all.
+fn say_refused_links(finished: &agent_core::Finished) -> u64 {
+    let mut refused = 0u64;
+    for (link, stats) in finished.info().links.iter().zip(finished.links()) {
+        if stats.refused > 0 {
+            refused += stats.refused;
+            output::err(format_args!(
+                "{}: link `{}`: {} messages refused (see the errors for why)",
+                output::program(),
+                link.name,
+                stats.refused
+            ));
+        }
+    }
+    refused
+}
+
+/// What the access control refused, by what and key (or that it could not
+/// be counted).
+fn say_refusals(r: &agent_zenoh::security::Refusals) {
+    if !r.counting() {
+        output::warn(format_args!(
+            "refusals of the access control cannot be counted (a tracing subscriber was installed before)"
+        ));
+    }
+    for (what, key, n) in r.counts() {
+        output::err(format_args!(
+            "{}: the access control refused {n} x {what} on `{key}`",
+            output::program()
+        ));
+    }
 }
 
 /// Send one report to the launcher; count what cannot go.
