@@ -4,7 +4,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
 use std::process::{Command, ExitStatus, Stdio};
-use std::sync::mpsc::{Sender, channel};
+use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::{Duration, Instant};
 
 /// One process to start.
@@ -218,15 +218,59 @@ impl Launcher {
         interrupted: &std::sync::atomic::AtomicBool,
         mut on: impl FnMut(&Line) -> Control,
     ) -> Result<LaunchReport, LaunchError> {
+        let mut launch = Launch::start(&self)?;
+        loop {
+            launch.take_lines(&mut on);
+            let stop = launch.take_answers();
+            launch.kill_asked();
+            if (stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
+                && launch.stopping.is_none()
+            {
+                launch.stop();
+            }
+            launch.restart_due()?;
+            launch.kill_after_grace();
+            launch.reap(&mut on);
+            if launch.all_ended() {
+                launch.last_lines(&mut on);
+                break;
+            }
+        }
+        Ok(launch.report())
+    }
+}
+
+/// A launch under way: its children running or waiting to be restarted, the
+/// caller's answers, and how the launch is ending.
+struct Launch<'l> {
+    launcher: &'l Launcher,
+    /// The children's lines, each with the child's index.
+    tx: Sender<(usize, String)>,
+    rx: Receiver<(usize, String)>,
+    running: Vec<Option<Running>>,
+    report: LaunchReport,
+    /// How each child ended last, if it has (`Some(None)`: by a signal).
+    exits: Vec<Option<Option<i32>>>,
+    /// When the children were asked to stop, and whether the grace period
+    /// is over (they were killed).
+    stopping: Option<Instant>,
+    killed: bool,
+    /// Children to start again, when, and their restarts so far.
+    due: Vec<Option<(Instant, u32)>>,
+    /// The caller's answers not yet acted on, and the kills asked for.
+    answers: Vec<Control>,
+    kills: Vec<usize>,
+}
+
+impl<'l> Launch<'l> {
+    /// Start every child of `launcher`; if one cannot start, those started
+    /// are killed.
+    fn start(launcher: &'l Launcher) -> Result<Launch<'l>, LaunchError> {
         let (tx, rx) = channel::<(usize, String)>();
+        let n = launcher.children.len();
         let mut running: Vec<Option<Running>> = Vec::new();
-        let mut report = LaunchReport {
-            processes: self.children.len(),
-            ..LaunchReport::default()
-        };
-        let mut exits: Vec<Option<Option<i32>>> = vec![None; self.children.len()];
-        for k in 0..self.children.len() {
-            match self.spawn(k, 0, &tx) {
+        for k in 0..n {
+            match launcher.spawn(k, 0, &tx) {
                 Ok(child) => running.push(Some(Running { child, restarts: 0 })),
                 Err(e) => {
                     for r in running.iter_mut().flatten() {
@@ -237,149 +281,208 @@ impl Launcher {
                 }
             }
         }
-        let mut stopping: Option<Instant> = None;
-        let mut killed = false;
-        // Children to start again, when, and their restarts so far.
-        let mut due: Vec<Option<(Instant, u32)>> = vec![None; self.children.len()];
-        // The caller's answers not yet acted on, and the kills asked for.
-        let mut answers: Vec<Control> = Vec::new();
-        let mut kills: Vec<usize> = Vec::new();
-        loop {
-            if let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(50)) {
-                answers.push(on(&Line::Output {
-                    process: self.children[k].name.clone(),
+        Ok(Launch {
+            launcher,
+            tx,
+            rx,
+            running,
+            report: LaunchReport {
+                processes: n,
+                ..LaunchReport::default()
+            },
+            exits: vec![None; n],
+            stopping: None,
+            killed: false,
+            due: vec![None; n],
+            answers: Vec::new(),
+            kills: Vec::new(),
+        })
+    }
+
+    fn name(&self, k: usize) -> String {
+        self.launcher.children[k].name.clone()
+    }
+
+    /// The children's lines (waiting at most 50 ms for the first), then
+    /// `Idle`, each shown to `on`.
+    fn take_lines(&mut self, on: &mut impl FnMut(&Line) -> Control) {
+        if let Ok((k, text)) = self.rx.recv_timeout(Duration::from_millis(50)) {
+            self.answers.push(on(&Line::Output {
+                process: self.name(k),
+                text,
+            }));
+            // Drain what else is waiting before looking at the children.
+            while let Ok((k, text)) = self.rx.try_recv() {
+                self.answers.push(on(&Line::Output {
+                    process: self.name(k),
                     text,
                 }));
-                // Drain what else is waiting before looking at the children.
-                while let Ok((k, text)) = rx.try_recv() {
-                    answers.push(on(&Line::Output {
-                        process: self.children[k].name.clone(),
-                        text,
-                    }));
-                }
-            }
-            answers.push(on(&Line::Idle));
-            let mut stop = false;
-            for answer in answers.drain(..) {
-                match answer {
-                    Control::Continue => {}
-                    Control::Stop => stop = true,
-                    Control::Kill(name) => {
-                        kills.extend(self.children.iter().position(|c| c.name == name));
-                    }
-                }
-            }
-            kills.retain(|&k| match running[k].as_mut() {
-                Some(r) => {
-                    let _ = r.child.kill();
-                    false
-                }
-                // Waiting to be restarted: killed once it runs again.
-                None => due[k].is_some() && stopping.is_none(),
-            });
-            if (stop || interrupted.load(std::sync::atomic::Ordering::Relaxed))
-                && stopping.is_none()
-            {
-                stopping = Some(Instant::now());
-                report.stopped = true;
-                for r in running.iter().flatten() {
-                    terminate(&r.child);
-                }
-                due.fill(None);
-            }
-            for k in 0..due.len() {
-                let Some((at, restarts)) = due[k] else {
-                    continue;
-                };
-                if Instant::now() < at {
-                    continue;
-                }
-                due[k] = None;
-                match self.spawn(k, restarts, &tx) {
-                    Ok(child) => {
-                        report.restarts += 1;
-                        running[k] = Some(Running { child, restarts });
-                    }
-                    Err(e) => {
-                        // Leave nothing running behind an error.
-                        self.stop_all(&mut running);
-                        return Err(e);
-                    }
-                }
-            }
-            if let Some(since) = stopping
-                && !killed
-                && since.elapsed() > self.grace
-            {
-                killed = true;
-                for r in running.iter_mut().flatten() {
-                    kill_group(&mut r.child);
-                }
-            }
-            for k in 0..running.len() {
-                let Some(r) = running[k].as_mut() else {
-                    continue;
-                };
-                let status: ExitStatus = match r.child.try_wait() {
-                    Ok(Some(s)) => s,
-                    Ok(None) => continue,
-                    Err(_) => continue,
-                };
-                let code = status.code();
-                let fatal = code.is_some_and(|c| self.fatal.contains(&c));
-                let crashed = !status.success() && stopping.is_none();
-                let budget = self.children[k].restarts.unwrap_or(self.max_restarts);
-                let restarting = crashed && !fatal && r.restarts < budget;
-                if fatal && stopping.is_none() {
-                    report.fatal = code.map(|c| (self.children[k].name.clone(), c));
-                }
-                // A crash that may not be restarted ends the launch.
-                let lost = crashed && !fatal && !restarting;
-                if lost {
-                    report.lost = Some((self.children[k].name.clone(), code, r.restarts));
-                }
-                if (fatal || lost) && stopping.is_none() {
-                    stopping = Some(Instant::now());
-                    for (j, other) in running.iter().enumerate() {
-                        if let (true, Some(o)) = (j != k, other) {
-                            terminate(&o.child);
-                        }
-                    }
-                    due.fill(None);
-                }
-                let Some(r) = running[k].as_mut() else {
-                    continue;
-                };
-                let restarts = r.restarts;
-                answers.push(on(&Line::Exited {
-                    process: self.children[k].name.clone(),
-                    code,
-                    restarting,
-                }));
-                exits[k] = Some(code);
-                running[k] = None;
-                if restarting {
-                    due[k] = Some((Instant::now() + self.restart_delay, restarts + 1));
-                }
-            }
-            if running.iter().all(Option::is_none) && due.iter().all(Option::is_none) {
-                // The last lines of the children that ended.
-                while let Ok((k, text)) = rx.recv_timeout(Duration::from_millis(100)) {
-                    on(&Line::Output {
-                        process: self.children[k].name.clone(),
-                        text,
-                    });
-                }
-                break;
             }
         }
+        self.answers.push(on(&Line::Idle));
+    }
+
+    /// The caller's answers taken: the kills asked for noted; whether one
+    /// asked to stop.
+    fn take_answers(&mut self) -> bool {
+        let mut stop = false;
+        for answer in self.answers.drain(..) {
+            match answer {
+                Control::Continue => {}
+                Control::Stop => stop = true,
+                Control::Kill(name) => {
+                    self.kills
+                        .extend(self.launcher.children.iter().position(|c| c.name == name));
+                }
+            }
+        }
+        stop
+    }
+
+    /// Kill the children asked for that run; one waiting to be restarted
+    /// is killed once it runs again.
+    fn kill_asked(&mut self) {
+        let (running, due, stopping) = (&mut self.running, &self.due, self.stopping);
+        self.kills.retain(|&k| match running[k].as_mut() {
+            Some(r) => {
+                let _ = r.child.kill();
+                false
+            }
+            // Waiting to be restarted: killed once it runs again.
+            None => due[k].is_some() && stopping.is_none(),
+        });
+    }
+
+    /// Ask every child to stop (SIGTERM), and restart none.
+    fn stop(&mut self) {
+        self.stopping = Some(Instant::now());
+        self.report.stopped = true;
+        for r in self.running.iter().flatten() {
+            terminate(&r.child);
+        }
+        self.due.fill(None);
+    }
+
+    /// Start again the children whose restart is due; if one cannot start,
+    /// every child is stopped.
+    fn restart_due(&mut self) -> Result<(), LaunchError> {
+        for k in 0..self.due.len() {
+            let Some((at, restarts)) = self.due[k] else {
+                continue;
+            };
+            if Instant::now() < at {
+                continue;
+            }
+            self.due[k] = None;
+            match self.launcher.spawn(k, restarts, &self.tx) {
+                Ok(child) => {
+                    self.report.restarts += 1;
+                    self.running[k] = Some(Running { child, restarts });
+                }
+                Err(e) => {
+                    // Leave nothing running behind an error.
+                    self.launcher.stop_all(&mut self.running);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// SIGKILL to every child once the grace period after the stop is over.
+    fn kill_after_grace(&mut self) {
+        if let Some(since) = self.stopping
+            && !self.killed
+            && since.elapsed() > self.launcher.grace
+        {
+            self.killed = true;
+            for r in self.running.iter_mut().flatten() {
+                kill_group(&mut r.child);
+            }
+        }
+    }
+
+    /// The children that ended, each shown to `on`: restarted if it crashed
+    /// and may be; a fatal exit or a crash that may not be restarted stops
+    /// the others.
+    fn reap(&mut self, on: &mut impl FnMut(&Line) -> Control) {
+        for k in 0..self.running.len() {
+            let Some(r) = self.running[k].as_mut() else {
+                continue;
+            };
+            let status: ExitStatus = match r.child.try_wait() {
+                Ok(Some(s)) => s,
+                Ok(None) => continue,
+                Err(_) => continue,
+            };
+            let restarts = r.restarts;
+            let code = status.code();
+            let child = &self.launcher.children[k];
+            let fatal = code.is_some_and(|c| self.launcher.fatal.contains(&c));
+            let crashed = !status.success() && self.stopping.is_none();
+            let budget = child.restarts.unwrap_or(self.launcher.max_restarts);
+            let restarting = crashed && !fatal && restarts < budget;
+            if fatal && self.stopping.is_none() {
+                self.report.fatal = code.map(|c| (child.name.clone(), c));
+            }
+            // A crash that may not be restarted ends the launch.
+            let lost = crashed && !fatal && !restarting;
+            if lost {
+                self.report.lost = Some((child.name.clone(), code, restarts));
+            }
+            if (fatal || lost) && self.stopping.is_none() {
+                self.stop_others(k);
+            }
+            self.answers.push(on(&Line::Exited {
+                process: self.name(k),
+                code,
+                restarting,
+            }));
+            self.exits[k] = Some(code);
+            self.running[k] = None;
+            if restarting {
+                self.due[k] = Some((Instant::now() + self.launcher.restart_delay, restarts + 1));
+            }
+        }
+    }
+
+    /// Ask every child but `k` to stop (SIGTERM), and restart none.
+    fn stop_others(&mut self, k: usize) {
+        self.stopping = Some(Instant::now());
+        for (j, other) in self.running.iter().enumerate() {
+            if let (true, Some(o)) = (j != k, other) {
+                terminate(&o.child);
+            }
+        }
+        self.due.fill(None);
+    }
+
+    /// Whether every child has ended and none is to be restarted.
+    fn all_ended(&self) -> bool {
+        self.running.iter().all(Option::is_none) && self.due.iter().all(Option::is_none)
+    }
+
+    /// The last lines of the children that ended, shown to `on`.
+    fn last_lines(&mut self, on: &mut impl FnMut(&Line) -> Control) {
+        while let Ok((k, text)) = self.rx.recv_timeout(Duration::from_millis(100)) {
+            on(&Line::Output {
+                process: self.name(k),
+                text,
+            });
+        }
+    }
+
+    /// The report, with how each child ended last.
+    fn report(self) -> LaunchReport {
+        let mut report = self.report;
         report.exits = self
+            .launcher
             .children
             .iter()
-            .zip(exits)
+            .zip(self.exits)
             .map(|(c, e)| (c.name.clone(), e.flatten()))
             .collect();
-        Ok(report)
+        report
     }
 }
 
