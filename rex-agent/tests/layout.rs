@@ -148,6 +148,17 @@ fn path_of(rest: &str) -> String {
     rest[..end].to_owned()
 }
 
+/// What the world and the agent both stand on: the algorithms and every layer
+/// below them (they do not use each other).
+const UNDER_WORLD_AND_AGENT: &[&str] = &[
+    "algorithms",
+    "mission",
+    "payload",
+    "model",
+    "math",
+    "config",
+];
+
 /// The layers: each top-level module of the crate and the modules it may use.
 /// A module not listed is the composition root, which may use anything.
 const LAYERS: [(&str, &[&str]); 8] = [
@@ -157,28 +168,8 @@ const LAYERS: [(&str, &[&str]); 8] = [
     ("payload", &["model", "math", "config"]),
     ("mission", &["payload", "model", "math", "config"]),
     ("algorithms", &["model", "math", "config"]),
-    (
-        "world",
-        &[
-            "algorithms",
-            "mission",
-            "payload",
-            "model",
-            "math",
-            "config",
-        ],
-    ),
-    (
-        "a1",
-        &[
-            "algorithms",
-            "mission",
-            "payload",
-            "model",
-            "math",
-            "config",
-        ],
-    ),
+    ("world", UNDER_WORLD_AND_AGENT),
+    ("a1", UNDER_WORLD_AND_AGENT),
 ];
 
 /// What `layer` may use of the crate.
