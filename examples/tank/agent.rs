@@ -640,45 +640,7 @@ pub fn build(
     let station_agent = sys.agent("station");
     let operator_agent = sys.agent("operator");
 
-    let station = sys.subsystem(
-        station_agent,
-        "c1",
-        Period::from_millis(50)?,
-        StationMemory::new(StationParams::default()),
-        station_fsm()?,
-    );
-    let pump_control = sys.subsystem(
-        station_agent,
-        "e1",
-        Period::from_millis(10)?,
-        PumpMemory {
-            duty: 0.0,
-            slew: 0.2,
-            max_flow: params.max_flow,
-        },
-        pump_control_fsm()?,
-    );
-    let filter = sys.subsystem(
-        station_agent,
-        "r1",
-        Period::from_millis(10)?,
-        FilterMemory::default(),
-        filter_fsm()?,
-    );
-    let pump = sys.driver(
-        station_agent,
-        "E1",
-        Period::from_millis(1)?,
-        Pump { rejected: 0 },
-    );
-    let gauge = sys.driver(
-        station_agent,
-        "R1",
-        Period::from_millis(10)?,
-        Gauge {
-            noise: Noise::new(seed),
-        },
-    );
+    let station = StationParts::add(&mut sys, station_agent, params, seed)?;
     let operator = sys.subsystem(
         operator_agent,
         "c2",
@@ -689,8 +651,128 @@ pub fn build(
         },
         operator_fsm()?,
     );
+    connect_agents(&mut sys, &station.c1, &operator);
+    station.connect(&mut sys);
 
-    // Transmission buffers between the agents: lossless queues.
+    Ok((
+        sys.build()?,
+        Plant {
+            station: station.c1,
+            operator,
+            filter: station.r1,
+            pump: station.pump,
+        },
+    ))
+}
+
+/// The components of agent `station`.
+struct StationParts {
+    c1: SubsystemHandle<Station>,
+    e1: SubsystemHandle<PumpControl>,
+    r1: SubsystemHandle<LevelFilter>,
+    pump: DriverHandle<Pump>,
+    gauge: DriverHandle<Gauge>,
+}
+
+impl StationParts {
+    /// Add the station's subsystems and drivers to `agent`.
+    fn add(
+        sys: &mut SystemBuilder,
+        agent: AgentId,
+        params: TankParams,
+        seed: u64,
+    ) -> Result<StationParts, SetupError> {
+        let c1 = sys.subsystem(
+            agent,
+            "c1",
+            Period::from_millis(50)?,
+            StationMemory::new(StationParams::default()),
+            station_fsm()?,
+        );
+        let e1 = sys.subsystem(
+            agent,
+            "e1",
+            Period::from_millis(10)?,
+            PumpMemory {
+                duty: 0.0,
+                slew: 0.2,
+                max_flow: params.max_flow,
+            },
+            pump_control_fsm()?,
+        );
+        let r1 = sys.subsystem(
+            agent,
+            "r1",
+            Period::from_millis(10)?,
+            FilterMemory::default(),
+            filter_fsm()?,
+        );
+        let pump = sys.driver(agent, "E1", Period::from_millis(1)?, Pump { rejected: 0 });
+        let gauge = sys.driver(
+            agent,
+            "R1",
+            Period::from_millis(10)?,
+            Gauge {
+                noise: Noise::new(seed),
+            },
+        );
+        Ok(StationParts {
+            c1,
+            e1,
+            r1,
+            pump,
+            gauge,
+        })
+    }
+
+    /// Inside the station agent: data ports.
+    fn connect(&self, sys: &mut SystemBuilder) {
+        let StationParts {
+            c1: station,
+            e1: pump_control,
+            r1: filter,
+            pump,
+            gauge,
+        } = self;
+        sys.connect(
+            station.output(port!(StationOutput, pump.flow)),
+            pump_control.input(port!(PumpControlInput, control.flow)),
+            Policy::Sample,
+        );
+        sys.connect(
+            pump_control.output(port!(PumpControlOutput, control.flow)),
+            station.input(port!(StationInput, pump.flow)),
+            Policy::Sample,
+        );
+        sys.connect(
+            pump_control.output(port!(PumpControlOutput, pump.duty)),
+            pump.input(port!(PumpInput, duty)),
+            Policy::Sample,
+        );
+        sys.connect(
+            pump.output(port!(PumpOutput, flow)),
+            pump_control.input(port!(PumpControlInput, pump.flow)),
+            Policy::Sample,
+        );
+        sys.connect(
+            gauge.output(port!(GaugeOutput, level)),
+            filter.input(port!(FilterInput, gauge.level)),
+            Policy::Sample,
+        );
+        sys.connect(
+            filter.output(port!(FilterOutput, control.level)),
+            station.input(port!(StationInput, filter.level)),
+            Policy::Sample,
+        );
+    }
+}
+
+/// Transmission buffers between the agents: lossless queues.
+fn connect_agents(
+    sys: &mut SystemBuilder,
+    station: &SubsystemHandle<Station>,
+    operator: &SubsystemHandle<Operator>,
+) {
     sys.connect(
         operator.output(port!(OperatorOutput, station.order)),
         station.input(port!(StationInput, operator.order)),
@@ -701,49 +783,7 @@ pub fn build(
         operator.input(port!(OperatorInput, station.ack)),
         Policy::queue(4),
     );
-    // Inside the station agent: data ports.
-    sys.connect(
-        station.output(port!(StationOutput, pump.flow)),
-        pump_control.input(port!(PumpControlInput, control.flow)),
-        Policy::Sample,
-    );
-    sys.connect(
-        pump_control.output(port!(PumpControlOutput, control.flow)),
-        station.input(port!(StationInput, pump.flow)),
-        Policy::Sample,
-    );
-    sys.connect(
-        pump_control.output(port!(PumpControlOutput, pump.duty)),
-        pump.input(port!(PumpInput, duty)),
-        Policy::Sample,
-    );
-    sys.connect(
-        pump.output(port!(PumpOutput, flow)),
-        pump_control.input(port!(PumpControlInput, pump.flow)),
-        Policy::Sample,
-    );
-    sys.connect(
-        gauge.output(port!(GaugeOutput, level)),
-        filter.input(port!(FilterInput, gauge.level)),
-        Policy::Sample,
-    );
-    sys.connect(
-        filter.output(port!(FilterOutput, control.level)),
-        station.input(port!(StationInput, filter.level)),
-        Policy::Sample,
-    );
-
-    Ok((
-        sys.build()?,
-        Plant {
-            station,
-            operator,
-            filter,
-            pump,
-        },
-    ))
 }
-
 /// The default mission: four levels and one refused order.
 pub fn default_mission() -> Vec<Order> {
     [1.2, 0.4, f64::NAN, 1.8, 0.9]
