@@ -100,18 +100,64 @@ fn show(r: &Rect) -> String {
 
 /// Every rule broken by the scene.
 fn violations(s: &Scene) -> Vec<Violation> {
-    let mut out = Vec::new();
-    let mut v = |rule, what: String| out.push(Violation { rule, what });
-    let label = |i: usize| format!("label {:?} {}", s.labels[i].text, show(&s.labels[i].rect));
-    let edge_name = |e: usize| {
+    let mut c = Checker::new(s);
+    c.labels_over_labels();
+    for i in 0..s.labels.len() {
+        c.label_in_canvas(i);
+        c.label_and_boxes(i);
+        c.label_and_frames(i);
+    }
+    for e in 0..s.edges.len() {
+        c.edge_through_boxes(e);
+        c.edge_through_frames(e);
+        c.edge_in_canvas(e);
+        c.edge_through_labels(e);
+        c.label_on_edge(e);
+    }
+    c.out
+}
+
+/// The rules judged on one scene: the violations found so far.
+struct Checker<'s> {
+    s: &'s Scene,
+    /// The canvas, with the tolerance.
+    canvas: Rect,
+    /// Each edge's path, sampled every [`STEP`].
+    samples: Vec<Vec<Point>>,
+    out: Vec<Violation>,
+}
+
+impl<'s> Checker<'s> {
+    fn new(s: &'s Scene) -> Self {
+        Checker {
+            s,
+            canvas: Rect::new(0.0, 0.0, s.width, s.height).inflate(TOL),
+            samples: s.edges.iter().map(|e| e.path.sample(STEP)).collect(),
+            out: Vec::new(),
+        }
+    }
+
+    fn v(&mut self, rule: Rule, what: String) {
+        self.out.push(Violation { rule, what });
+    }
+
+    fn label(&self, i: usize) -> String {
+        let s = self.s;
+        format!("label {:?} {}", s.labels[i].text, show(&s.labels[i].rect))
+    }
+
+    fn edge_name(&self, e: usize) -> String {
+        let s = self.s;
         let ed = &s.edges[e];
         match ed.label {
             Some(l) => format!("edge {e} ({:?})", s.labels[l].text),
             None => format!("edge {e} (box {:?} -> box {:?})", ed.from, ed.to),
         }
-    };
-    // The frames of an edge's ends.
-    let end_frames = |e: usize| -> Vec<usize> {
+    }
+
+    /// The frames of an edge's ends.
+    fn end_frames(&self, e: usize) -> Vec<usize> {
+        let s = self.s;
         let ed = &s.edges[e];
         let mut fs: Vec<usize> = [ed.from, ed.to]
             .into_iter()
@@ -120,51 +166,60 @@ fn violations(s: &Scene) -> Vec<Violation> {
             .collect();
         fs.dedup();
         fs
-    };
-    // Whether all the (drawn) ends of edge `e` are in frame `f`.
-    let inside_frame = |e: usize, f: usize| {
+    }
+
+    /// Whether all the (drawn) ends of edge `e` are in frame `f`.
+    fn inside_frame(&self, e: usize, f: usize) -> bool {
+        let s = self.s;
         let ed = &s.edges[e];
         [ed.from, ed.to]
             .into_iter()
             .flatten()
             .all(|b| s.boxes[b].frame == Some(f))
-    };
-    let canvas = Rect::new(0.0, 0.0, s.width, s.height).inflate(TOL);
-    let samples: Vec<Vec<Point>> = s.edges.iter().map(|e| e.path.sample(STEP)).collect();
+    }
 
-    // (a) labels over labels
-    for i in 0..s.labels.len() {
-        for j in i + 1..s.labels.len() {
-            if s.labels[i].rect.inflate(-TOL).overlaps(&s.labels[j].rect) {
-                v(
-                    Rule::LabelOverLabel,
-                    format!("{} overlaps {}", label(i), label(j)),
-                );
+    /// (a) labels over labels
+    fn labels_over_labels(&mut self) {
+        let s = self.s;
+        for i in 0..s.labels.len() {
+            for j in i + 1..s.labels.len() {
+                if s.labels[i].rect.inflate(-TOL).overlaps(&s.labels[j].rect) {
+                    let what = format!("{} overlaps {}", self.label(i), self.label(j));
+                    self.v(Rule::LabelOverLabel, what);
+                }
             }
         }
     }
-    for (i, l) in s.labels.iter().enumerate() {
-        let r = l.rect.inflate(-TOL);
-        if !canvas.contains(&l.rect) {
-            v(Rule::OutsideCanvas, label(i));
+
+    fn label_in_canvas(&mut self, i: usize) {
+        if !self.canvas.contains(&self.s.labels[i].rect) {
+            let what = self.label(i);
+            self.v(Rule::OutsideCanvas, what);
         }
-        // (b) labels over boxes
+    }
+
+    /// (b) labels over boxes
+    fn label_and_boxes(&mut self, i: usize) {
+        let s = self.s;
+        let l = &s.labels[i];
+        let r = l.rect.inflate(-TOL);
         for (b, bx) in s.boxes.iter().enumerate() {
             if l.owner == Owner::Box(b) {
                 if !bx.rect.contains(&r) {
-                    v(
-                        Rule::LabelOverBox,
-                        format!("{} leaves its box {}", label(i), show(&bx.rect)),
-                    );
+                    let what = format!("{} leaves its box {}", self.label(i), show(&bx.rect));
+                    self.v(Rule::LabelOverBox, what);
                 }
             } else if r.overlaps(&bx.rect) {
-                v(
-                    Rule::LabelOverBox,
-                    format!("{} overlaps box {b} {}", label(i), show(&bx.rect)),
-                );
+                let what = format!("{} overlaps box {b} {}", self.label(i), show(&bx.rect));
+                self.v(Rule::LabelOverBox, what);
             }
         }
-        // (b, e) labels and frames
+    }
+
+    /// (b, e) labels and frames
+    fn label_and_frames(&mut self, i: usize) {
+        let s = self.s;
+        let l = &s.labels[i];
         for (f, fr) in s.frames.iter().enumerate() {
             let inner = fr.rect.inflate(-BORDER);
             let inside = inner.contains(&l.rect);
@@ -173,8 +228,8 @@ fn violations(s: &Scene) -> Vec<Violation> {
             let belongs = match l.owner {
                 Owner::Frame(g) => Some(g == f),
                 Owner::Box(b) => Some(s.boxes[b].frame == Some(f)),
-                Owner::Edge(e) if inside_frame(e, f) => Some(true),
-                Owner::Edge(e) if end_frames(e).contains(&f) => None,
+                Owner::Edge(e) if self.inside_frame(e, f) => Some(true),
+                Owner::Edge(e) if self.end_frames(e).contains(&f) => None,
                 Owner::Edge(_) => Some(false),
             };
             let ok = match belongs {
@@ -193,106 +248,120 @@ fn violations(s: &Scene) -> Vec<Violation> {
                     Some(false) => "is not outside",
                     None => "lies on the border of",
                 };
-                v(
-                    rule,
-                    format!("{} {how} frame {f} {}", label(i), show(&fr.rect)),
-                );
+                let what = format!("{} {how} frame {f} {}", self.label(i), show(&fr.rect));
+                self.v(rule, what);
             }
         }
     }
-    for (e, ed) in s.edges.iter().enumerate() {
-        let pts = &samples[e];
-        // (c) edges through boxes
+
+    /// (c) edges through boxes
+    fn edge_through_boxes(&mut self, e: usize) {
+        let s = self.s;
         for (b, bx) in s.boxes.iter().enumerate() {
             let inner = bx.rect.inflate(-TOL);
-            if let Some(p) = pts.iter().find(|p| inner.has_inside(**p)) {
-                v(
-                    Rule::EdgeThroughBox,
-                    format!(
-                        "{} passes through box {b} {} at ({:.1},{:.1})",
-                        edge_name(e),
-                        show(&bx.rect),
-                        p.x,
-                        p.y
-                    ),
+            if let Some(p) = self.samples[e].iter().find(|p| inner.has_inside(**p)) {
+                let what = format!(
+                    "{} passes through box {b} {} at ({:.1},{:.1})",
+                    self.edge_name(e),
+                    show(&bx.rect),
+                    p.x,
+                    p.y
                 );
+                self.v(Rule::EdgeThroughBox, what);
             }
         }
-        let ends = end_frames(e);
+    }
+
+    /// (c) edges through frames that hold neither end, or out of the frame
+    /// that holds both
+    fn edge_through_frames(&mut self, e: usize) {
+        let s = self.s;
+        let ends = self.end_frames(e);
         for (f, fr) in s.frames.iter().enumerate() {
+            let pts = &self.samples[e];
             let bad = if !ends.contains(&f) {
                 let inner = fr.rect.inflate(-TOL);
                 pts.iter().find(|p| inner.has_inside(**p))
-            } else if inside_frame(e, f) {
+            } else if self.inside_frame(e, f) {
                 let outer = fr.rect.inflate(TOL);
                 pts.iter().find(|p| outer.distance(**p) > 0.0)
             } else {
                 None
             };
             if let Some(p) = bad {
-                v(
-                    Rule::EdgeThroughFrame,
-                    format!(
-                        "{} crosses frame {f} {} at ({:.1},{:.1})",
-                        edge_name(e),
-                        show(&fr.rect),
-                        p.x,
-                        p.y
-                    ),
+                let what = format!(
+                    "{} crosses frame {f} {} at ({:.1},{:.1})",
+                    self.edge_name(e),
+                    show(&fr.rect),
+                    p.x,
+                    p.y
                 );
+                self.v(Rule::EdgeThroughFrame, what);
             }
         }
-        if let Some(p) = pts.iter().find(|p| canvas.distance(**p) > 0.0) {
-            v(
-                Rule::OutsideCanvas,
-                format!("{} at ({:.1},{:.1})", edge_name(e), p.x, p.y),
-            );
+    }
+
+    fn edge_in_canvas(&mut self, e: usize) {
+        let canvas = self.canvas;
+        if let Some(p) = self.samples[e].iter().find(|p| canvas.distance(**p) > 0.0) {
+            let what = format!("{} at ({:.1},{:.1})", self.edge_name(e), p.x, p.y);
+            self.v(Rule::OutsideCanvas, what);
         }
-        // (c') edges through other labels (box lines are covered by (c))
+    }
+
+    /// (c') edges through other labels (box lines are covered by (c))
+    fn edge_through_labels(&mut self, e: usize) {
+        let s = self.s;
         for (i, l) in s.labels.iter().enumerate() {
             if matches!(l.owner, Owner::Box(_)) || l.owner == Owner::Edge(e) {
                 continue;
             }
             let inner = l.rect.inflate(-TOL);
-            if pts.iter().any(|p| inner.has_inside(*p)) {
-                v(
-                    Rule::EdgeThroughLabel,
-                    format!("{} passes through {}", edge_name(e), label(i)),
-                );
-            }
-        }
-        // (d) the label on its edge
-        if let Some(i) = ed.label {
-            let r = &s.labels[i].rect;
-            let dist = |e: usize| {
-                samples[e]
-                    .iter()
-                    .map(|p| r.distance(*p))
-                    .fold(f64::INFINITY, f64::min)
-            };
-            let own = dist(e);
-            if own > TOUCH {
-                v(
-                    Rule::LabelOffEdge,
-                    format!("{} is {own:.1} px from its edge", label(i)),
-                );
-            }
-            for o in (0..s.edges.len()).filter(|&o| o != e) {
-                let d = dist(o);
-                if d + TOL < own {
-                    v(
-                        Rule::LabelNearerOtherEdge,
-                        format!(
-                            "{} is {d:.1} px from {}, {own:.1} px from its own",
-                            label(i),
-                            edge_name(o)
-                        ),
-                    );
-                }
+            if self.samples[e].iter().any(|p| inner.has_inside(*p)) {
+                let what = format!("{} passes through {}", self.edge_name(e), self.label(i));
+                self.v(Rule::EdgeThroughLabel, what);
             }
         }
     }
-    out
+
+    /// (d) the label on its edge, and no other edge nearer to it
+    fn label_on_edge(&mut self, e: usize) {
+        let s = self.s;
+        let Some(i) = s.edges[e].label else {
+            return;
+        };
+        let r = &s.labels[i].rect;
+        let dist = |e: usize| {
+            self.samples[e]
+                .iter()
+                .map(|p| r.distance(*p))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let own = dist(e);
+        let mut found = Vec::new();
+        if own > TOUCH {
+            found.push((
+                Rule::LabelOffEdge,
+                format!("{} is {own:.1} px from its edge", self.label(i)),
+            ));
+        }
+        for o in (0..s.edges.len()).filter(|&o| o != e) {
+            let d = dist(o);
+            if d + TOL < own {
+                found.push((
+                    Rule::LabelNearerOtherEdge,
+                    format!(
+                        "{} is {d:.1} px from {}, {own:.1} px from its own",
+                        self.label(i),
+                        self.edge_name(o)
+                    ),
+                ));
+            }
+        }
+        for (rule, what) in found {
+            self.v(rule, what);
+        }
+    }
 }
 
 /// The recorded scene is what the SVG draws: the same texts at the same places, the

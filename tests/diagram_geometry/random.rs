@@ -227,14 +227,39 @@ pub(crate) fn add_to_group(groups: &mut Vec<Group>, peer: &str, buf: &str) {
 /// Build the spec a plan describes. It need not pass the checker: the diagrams draw
 /// whatever resolves.
 pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
+    let (mut agents, comps) = planned_agents(&plan.agents);
+    let links = planned_links(&mut agents, &comps, &plan.links);
+    let mut subs: Vec<&mut Subsystem> = agents
+        .iter_mut()
+        .flat_map(|a| a.subsystems.iter_mut())
+        .collect();
+    add_memory(&mut subs, &plan.memory);
+    add_functions(&mut subs, &plan.functions);
+    add_behaviours(&mut subs, &plan.behaviours);
+    Spec {
+        name: "system".to_owned(),
+        doc: None,
+        agents,
+        links,
+        deployments: Vec::new(),
+    }
+}
+
+/// A component of a planned system: its agent, its index among the agent's
+/// subsystems or among its devices, its name.
+type Component = (usize, Option<usize>, Option<usize>, String);
+
+/// The agents a plan describes, each subsystem in one behaviour `idle`, and
+/// their components in order.
+fn planned_agents(plans: &[AgentPlan]) -> (Vec<Agent>, Vec<Component>) {
     let kinds = [
         SubsystemKind::Control,
         SubsystemKind::VirtualEffector,
         SubsystemKind::VirtualReceptor,
     ];
     let mut agents: Vec<Agent> = Vec::new();
-    let mut comps: Vec<(usize, Option<usize>, Option<usize>, String)> = Vec::new();
-    for (a, (subs, devs)) in plan.agents.iter().enumerate() {
+    let mut comps: Vec<Component> = Vec::new();
+    for (a, (subs, devs)) in plans.iter().enumerate() {
         let mut agent = Agent {
             name: format!("a{a}"),
             doc: None,
@@ -278,8 +303,18 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
         }
         agents.push(agent);
     }
+    (agents, comps)
+}
+
+/// The links a plan describes between `comps` (a link of a component to
+/// itself is left out), each buffer added to both ends' groups.
+fn planned_links(
+    agents: &mut [Agent],
+    comps: &[Component],
+    plans: &[(usize, usize, String, Option<usize>)],
+) -> Vec<Link> {
     let mut links = Vec::new();
-    for (f, t, buf, queue) in &plan.links {
+    for (f, t, buf, queue) in plans {
         let (f, t) = (f % comps.len(), t % comps.len());
         if f == t {
             continue;
@@ -302,18 +337,39 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
             policy: queue.map_or(Policy::Sample, |bound| Policy::Queue { bound }),
         });
     }
-    let mut subs: Vec<&mut Subsystem> = agents
-        .iter_mut()
-        .flat_map(|a| a.subsystems.iter_mut())
-        .collect();
+    links
+}
+
+/// The memory buffers a plan describes, each once.
+fn add_memory(subs: &mut [&mut Subsystem], plans: &[(usize, String)]) {
     let n = subs.len();
-    for (s, name) in &plan.memory {
+    for (s, name) in plans {
         let sub = &mut subs[s % n];
         if !sub.memory.iter().any(|b| &b.name == name) {
             sub.memory.push(buffer(name));
         }
     }
-    for (k, (s, reads, target, writes)) in plan.functions.iter().enumerate() {
+}
+
+/// The distinct elements of `list` that `idx` selects (none of an empty list).
+fn pick(list: &[String], idx: &[usize]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    if !list.is_empty() {
+        for i in idx {
+            let x = &list[i % list.len()];
+            if !out.contains(x) {
+                out.push(x.clone());
+            }
+        }
+    }
+    out
+}
+
+/// The functions a plan describes, reading and writing what their subsystem
+/// has.
+fn add_functions(subs: &mut [&mut Subsystem], plans: &[(usize, Vec<usize>, usize, Vec<usize>)]) {
+    let n = subs.len();
+    for (k, (s, reads, target, writes)) in plans.iter().enumerate() {
         let sub = &mut subs[s % n];
         let readable: Vec<String> = sub
             .memory
@@ -325,18 +381,6 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
                     .flat_map(|g| g.buffers.iter().map(|b| format!("{}.{}", g.peer, b.name))),
             )
             .collect();
-        let pick = |list: &[String], idx: &[usize]| -> Vec<String> {
-            let mut out: Vec<String> = Vec::new();
-            if !list.is_empty() {
-                for i in idx {
-                    let x = &list[i % list.len()];
-                    if !out.contains(x) {
-                        out.push(x.clone());
-                    }
-                }
-            }
-            out
-        };
         let (target, writable) = match target % (2 + sub.outputs.len()) {
             0 => (
                 Target::Memory,
@@ -362,18 +406,16 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
             doc: None,
         });
     }
-    for (k, (s, fs, terminal)) in plan.behaviours.iter().enumerate() {
+}
+
+/// The behaviours a plan describes, each reached from `idle` when its
+/// terminal condition holds.
+fn add_behaviours(subs: &mut [&mut Subsystem], plans: &[(usize, Vec<usize>, String)]) {
+    let n = subs.len();
+    for (k, (s, fs, terminal)) in plans.iter().enumerate() {
         let sub = &mut subs[s % n];
         let names: Vec<String> = sub.functions.iter().map(|f| f.name.clone()).collect();
-        let mut functions: Vec<String> = Vec::new();
-        if !names.is_empty() {
-            for i in fs {
-                let x = &names[i % names.len()];
-                if !functions.contains(x) {
-                    functions.push(x.clone());
-                }
-            }
-        }
+        let functions = pick(&names, fs);
         let name = format!("b{k}");
         sub.fsm.arcs.push(FsmArc {
             from: "idle".to_owned(),
@@ -387,12 +429,5 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
             terminal: terminal.clone(),
             doc: None,
         });
-    }
-    Spec {
-        name: "system".to_owned(),
-        doc: None,
-        agents,
-        links,
-        deployments: Vec::new(),
     }
 }
