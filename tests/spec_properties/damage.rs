@@ -217,11 +217,18 @@ pub(crate) fn damage() -> impl Strategy<Value = Damage> {
     ]
 }
 
+/// The range `i` selects among `v` (none of an empty list).
+fn pick(v: &[Range<usize>], i: usize) -> Option<Range<usize>> {
+    (!v.is_empty()).then(|| v[i % v.len()].clone())
+}
+
+/// Two ranges, the earlier first.
+fn ordered(a: Range<usize>, b: Range<usize>) -> (Range<usize>, Range<usize>) {
+    if a.start <= b.start { (a, b) } else { (b, a) }
+}
+
 /// Apply `d` to `text`.
 pub(crate) fn apply_damage(text: &mut String, d: &Damage) {
-    let pick = |v: &[Range<usize>], i: usize| (!v.is_empty()).then(|| v[i % v.len()].clone());
-    let ordered =
-        |a: Range<usize>, b: Range<usize>| if a.start <= b.start { (a, b) } else { (b, a) };
     match *d {
         Damage::DeleteBytes { at, len } => {
             let start = floor(text, at % (text.len() + 1));
@@ -264,25 +271,7 @@ pub(crate) fn apply_damage(text: &mut String, d: &Damage) {
                 swap(text, a, b);
             }
         }
-        Damage::CopyToken { to, from } => {
-            // Among the tokens of the same first byte (strings for strings, words for
-            // words), so that the result often still parses.
-            let ts = tokens(text);
-            if let Some(t) = pick(&ts, to) {
-                let first = text.as_bytes()[t.start];
-                let alike: Vec<Range<usize>> = ts
-                    .into_iter()
-                    .filter(|u| {
-                        let f = text.as_bytes()[u.start];
-                        f == first || (f.is_ascii_alphanumeric() && first.is_ascii_alphanumeric())
-                    })
-                    .collect();
-                if let Some(u) = pick(&alike, from) {
-                    let copy = text[u].to_owned();
-                    text.replace_range(t, &copy);
-                }
-            }
-        }
+        Damage::CopyToken { to, from } => copy_token(text, to, from),
         Damage::InsertBeforeToken { at, what } => {
             if let Some(t) = pick(&tokens(text), at) {
                 text.insert_str(t.start, what);
@@ -299,18 +288,7 @@ pub(crate) fn apply_damage(text: &mut String, d: &Damage) {
                 text.insert_str(l.start, &copy);
             }
         }
-        Damage::DeleteEntry(i) => {
-            if let Some(e) = pick(&entries(text, true), i) {
-                let rest = &text[e.end..];
-                let blank = rest.len() - rest.trim_start().len();
-                let end = if rest.trim_start().starts_with(',') {
-                    e.end + blank + 1
-                } else {
-                    e.end
-                };
-                text.replace_range(e.start..end, "");
-            }
-        }
+        Damage::DeleteEntry(i) => delete_entry(text, i),
         Damage::DuplicateItem(i) => {
             if let Some(e) = pick(&entries(text, false), i) {
                 let copy = format!("{}, ", &text[e.clone()]);
@@ -324,16 +302,54 @@ pub(crate) fn apply_damage(text: &mut String, d: &Damage) {
                 swap(text, a, b);
             }
         }
-        Damage::SwapLines(i, j) => {
-            let ls = lines(text);
-            if let (Some(a), Some(b)) = (pick(&ls, i), pick(&ls, j)) {
-                let (a, b) = ordered(a, b);
-                // The last line may lack its newline: keep lines apart.
-                let (ta, tb) = (text[a.clone()].to_owned(), text[b.clone()].to_owned());
-                if ta.ends_with('\n') && tb.ends_with('\n') {
-                    swap(text, a, b);
-                }
-            }
+        Damage::SwapLines(i, j) => swap_lines(text, i, j),
+    }
+}
+
+/// Token `to` replaced by a copy of token `from` among the tokens of the same
+/// first byte (strings for strings, words for words), so that the result often
+/// still parses.
+fn copy_token(text: &mut String, to: usize, from: usize) {
+    let ts = tokens(text);
+    if let Some(t) = pick(&ts, to) {
+        let first = text.as_bytes()[t.start];
+        let alike: Vec<Range<usize>> = ts
+            .into_iter()
+            .filter(|u| {
+                let f = text.as_bytes()[u.start];
+                f == first || (f.is_ascii_alphanumeric() && first.is_ascii_alphanumeric())
+            })
+            .collect();
+        if let Some(u) = pick(&alike, from) {
+            let copy = text[u].to_owned();
+            text.replace_range(t, &copy);
+        }
+    }
+}
+
+/// Entry `i` deleted, with the comma after it.
+fn delete_entry(text: &mut String, i: usize) {
+    if let Some(e) = pick(&entries(text, true), i) {
+        let rest = &text[e.end..];
+        let blank = rest.len() - rest.trim_start().len();
+        let end = if rest.trim_start().starts_with(',') {
+            e.end + blank + 1
+        } else {
+            e.end
+        };
+        text.replace_range(e.start..end, "");
+    }
+}
+
+/// Lines `i` and `j` swapped, if both end with their newline.
+fn swap_lines(text: &mut String, i: usize, j: usize) {
+    let ls = lines(text);
+    if let (Some(a), Some(b)) = (pick(&ls, i), pick(&ls, j)) {
+        let (a, b) = ordered(a, b);
+        // The last line may lack its newline: keep lines apart.
+        let (ta, tb) = (text[a.clone()].to_owned(), text[b.clone()].to_owned());
+        if ta.ends_with('\n') && tb.ends_with('\n') {
+            swap(text, a, b);
         }
     }
 }
