@@ -23,8 +23,7 @@
 //! counted; the next usable pair starts again.
 
 use embodied::{
-    Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Offload, OffloadMode, Out,
-    Subsystem,
+    Buffers, Fsm, FsmBuildError, Group, In, Memory, Offload, OffloadMode, Out, Subsystem, fsm,
 };
 
 use crate::algorithms::vo::{
@@ -335,15 +334,11 @@ pub fn rr_k(m: &mut R11Memory, _: &R11Input) {
 
 /// `r11`'s FSM: the single behaviour `vo`.
 pub fn r11_fsm() -> Result<Fsm<R11>, FsmBuildError> {
-    Fsm::single(Behaviour::while_loop(
-        "vo",
-        Action::<R11>::new()
-            .common(rr_vo)
-            .output(|y| &mut y.c1, rc)
-            .output(|y| &mut y.R1, rR)
-            .memory(rr_k),
-        "false",
-    ))
+    fsm! {
+        subsystem R11;
+        while vo until false { common <- rr_vo, c1 <- rc, R1 <- rR, memory <- rr_k }
+        initial vo;
+    }
 }
 
 #[cfg(test)]

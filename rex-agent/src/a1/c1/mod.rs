@@ -47,7 +47,7 @@ pub mod trajgen;
 
 use std::collections::VecDeque;
 
-use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
+use embodied::{Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem, fsm};
 
 use crate::a1::map::Map;
 use crate::algorithms::planner::ground::GroundTiming;
@@ -729,54 +729,31 @@ pub fn cT_q(_: &C1Memory, x: &C1Input, y: &mut C1ToC3) {
 
 /// `c1`'s FSM (Fig. 5, with the refusal arc `B1 → B3`).
 pub fn c1_fsm() -> Result<Fsm<C1>, FsmBuildError> {
-    Fsm::builder()
-        .predicate("plan_new", |m: &C1Memory, _| m.new)
-        .predicate("plan_valid", |m: &C1Memory, _| m.refusal.is_none())
-        .predicate("plan_sent", |m: &C1Memory, _| {
-            !m.new
-                && m.plan.is_empty()
-                && m.traj.is_empty()
-                && *m.trajgen.status() == Status::Stopped
-        })
-        .predicate("planner_failed", |m: &C1Memory, _| {
-            m.trajgen.failed().is_some() || m.failure.is_some()
-        })
-        .predicate("stopped", |m: &C1Memory, x: &C1Input| {
-            stopped(m, x).is_some()
-        })
-        .behaviour(Behaviour::repeat_loop(
-            "B1",
-            Action::<C1>::new()
-                .output(|y| &mut y.c2, cT_1_tp)
-                .output(|y| &mut y.e11, ce_1)
-                .output(|y| &mut y.c3, cT_q)
-                .memory(cc_1_tp),
-            "plan_new",
-        ))
-        .behaviour(Behaviour::repeat_loop(
-            "B2",
-            Action::<C1>::new()
-                .output(|y| &mut y.e11, ce_2_tp)
-                .output(|y| &mut y.c2, cT_2)
-                .output(|y| &mut y.c3, cT_q)
-                .memory(cc_2_tp),
-            "plan_sent || planner_failed || stopped",
-        ))
-        .behaviour(Behaviour::repeat_loop(
-            "B3",
-            Action::<C1>::new()
-                .output(|y| &mut y.c2, cT_3_tp)
-                .output(|y| &mut y.e11, ce_1)
-                .output(|y| &mut y.c3, cT_q)
-                .memory(cc_3),
-            "true",
-        ))
-        .initial("B1")
-        .arc("B1", "B2", "plan_valid")
-        .arc("B1", "B3", "!plan_valid")
-        .arc("B2", "B3", "true")
-        .arc("B3", "B1", "true")
-        .build()
+    fsm! {
+        subsystem C1;
+        predicates {
+            plan_new: |m: &C1Memory, _| m.new,
+            plan_valid: |m: &C1Memory, _| m.refusal.is_none(),
+            plan_sent: |m: &C1Memory, _| {
+                !m.new
+                    && m.plan.is_empty()
+                    && m.traj.is_empty()
+                    && *m.trajgen.status() == Status::Stopped
+            },
+            planner_failed: |m: &C1Memory, _| m.trajgen.failed().is_some() || m.failure.is_some(),
+            stopped: |m: &C1Memory, x: &C1Input| stopped(m, x).is_some(),
+        }
+        repeat B1 until plan_new { c2 <- cT_1_tp, e11 <- ce_1, c3 <- cT_q, memory <- cc_1_tp }
+        repeat B2 until plan_sent || planner_failed || stopped {
+            e11 <- ce_2_tp, c2 <- cT_2, c3 <- cT_q, memory <- cc_2_tp
+        }
+        repeat B3 until true { c2 <- cT_3_tp, e11 <- ce_1, c3 <- cT_q, memory <- cc_3 }
+        initial B1;
+        B1 -> B2 when plan_valid;
+        B1 -> B3 when !plan_valid;
+        B2 -> B3;
+        B3 -> B1;
+    }
 }
 
 #[cfg(test)]

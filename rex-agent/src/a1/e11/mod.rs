@@ -34,7 +34,7 @@ pub mod tracker;
 
 use std::collections::{BTreeSet, VecDeque};
 
-use embodied::{Action, Behaviour, Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem};
+use embodied::{Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem, fsm};
 
 pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
 pub use tracker::{Tracker, TrackerKind};
@@ -699,15 +699,13 @@ pub fn ee_steps(m: &mut E11Memory, x: &E11Input) {
 
 /// `e11`'s FSM: the single behaviour `track`.
 pub fn e11_fsm() -> Result<Fsm<E11>, FsmBuildError> {
-    Fsm::single(Behaviour::while_loop(
-        "track",
-        Action::<E11>::new()
-            .common(ee_estimate_track)
-            .output(|y| &mut y.E1, eE)
-            .output(|y| &mut y.c1, ec)
-            .memory(ee_steps),
-        "false",
-    ))
+    fsm! {
+        subsystem E11;
+        while track until false {
+            common <- ee_estimate_track, E1 <- eE, c1 <- ec, memory <- ee_steps
+        }
+        initial track;
+    }
 }
 
 #[cfg(test)]
