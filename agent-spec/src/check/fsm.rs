@@ -2,6 +2,20 @@
 
 use super::*;
 
+/// What the proof of one subsystem's behaviours works from.
+struct Graph<'s> {
+    base: &'s [Seg<'static>],
+    sub: &'s Subsystem,
+    /// The relations as assumptions.
+    relations: Vec<Expr<usize>>,
+    /// Whether every relation named declared predicates only.
+    relations_resolve: bool,
+    shape: rules::Resolved,
+    /// Per behaviour, its outgoing arcs with their conditions (`None`: did not
+    /// resolve, reported).
+    arcs: Vec<Vec<(usize, Option<Expr<usize>>)>>,
+}
+
 impl<'a> Checker<'a> {
     pub(super) fn fsm(
         &mut self,
@@ -11,29 +25,41 @@ impl<'a> Checker<'a> {
         terminals: &[Option<Expr<usize>>],
         used: &mut HashSet<usize>,
     ) {
-        let at = |rest: &[Seg<'static>]| join(base, rest);
-        let unknown = |this: &mut Self, name: &str, path: Path, place: &str| {
-            let known = this.list(&sub.behaviours, Hint::Behaviours, || {
-                sub.behaviours.iter().map(|b| b.name.clone()).collect()
-            });
-            let guess = this.guess(name, sub.behaviours.iter().map(|b| b.name.as_str()));
-            this.push(
-                Finding::new(
-                    Code::UnknownBehaviour,
-                    this.span(&path),
-                    "no such behaviour",
-                    format!(
-                        "{place} names behaviour `{name}`, which `{}` does not define",
-                        sub.name
-                    ),
-                )
-                .help(format!("{guess}behaviours: {known}")),
-            );
+        let (relations, relations_resolve) = self.relations(base, sub, preds, used);
+        let shape = self.shape_rules(base, sub);
+        let arcs = self.arc_conditions(base, sub, preds, &shape, used);
+        let graph = Graph {
+            base,
+            sub,
+            relations,
+            relations_resolve,
+            shape,
+            arcs,
         };
+        for (i, terminal) in terminals.iter().enumerate() {
+            let Some(terminal) = terminal else {
+                continue;
+            };
+            if !self.prove {
+                continue;
+            }
+            self.ways_out(&graph, i, terminal);
+        }
+    }
 
-        // Relations. If one names an undeclared predicate (reported here), the arc proof
-        // would miss an assumption and report arcs that the relation may well make
-        // sound: it is skipped, like the proof of arcs whose conditions do not resolve.
+    /// The relations as assumptions of the arc proof, and whether they all
+    /// resolved. If one names an undeclared predicate (reported here), the arc
+    /// proof would miss an assumption and report arcs that the relation may well
+    /// make sound: it is skipped, like the proof of arcs whose conditions do not
+    /// resolve.
+    fn relations(
+        &mut self,
+        base: &[Seg<'static>],
+        sub: &Subsystem,
+        preds: &HashMap<&str, usize>,
+        used: &mut HashSet<usize>,
+    ) -> (Vec<Expr<usize>>, bool) {
+        let at = |rest: &[Seg<'static>]| join(base, rest);
         let mut relations = Vec::new();
         let mut relations_resolve = true;
         for (i, r) in sub.relations.iter().enumerate() {
@@ -59,45 +85,39 @@ impl<'a> Checker<'a> {
                     }
                     None => {
                         relations_resolve = false;
-                        let known = self.list(&sub.predicates, Hint::Predicates, || {
-                            sorted(sub.predicates.iter().map(|p| p.name.clone()))
-                        });
-                        let guess = self.guess(n, sub.predicates.iter().map(|p| p.name.as_str()));
-                        self.push(
-                            Finding::new(
-                                Code::UnknownPredicate,
-                                self.span(path),
-                                "not declared",
-                                format!("relation names predicate `{n}`, which is not declared"),
-                            )
-                            .help(format!(
-                                "{guess}relations are between predicates declared under `predicates`; declared: {known}"
-                            )),
-                        );
+                        self.unknown_relation_predicate(sub, n, path);
                     }
                 }
             }
             if ok.len() == names.len() {
-                match r {
-                    Relation::Exclusive(_) => {
-                        for x in 0..ok.len() {
-                            for y in x + 1..ok.len() {
-                                relations.push(Expr::Not(Box::new(Expr::And(vec![
-                                    Expr::Atom(ok[x]),
-                                    Expr::Atom(ok[y]),
-                                ]))));
-                            }
-                        }
-                    }
-                    Relation::Implies(..) => relations.push(Expr::Or(vec![
-                        Expr::Not(Box::new(Expr::Atom(ok[0]))),
-                        Expr::Atom(ok[1]),
-                    ])),
-                }
+                assume(r, &ok, &mut relations);
             }
         }
+        (relations, relations_resolve)
+    }
 
-        // The shape rules (agent-core's, shared with `FsmBuilder`), with spans.
+    /// A relation names predicate `name`, which is not declared.
+    fn unknown_relation_predicate(&mut self, sub: &Subsystem, name: &str, path: &Path) {
+        let known = self.list(&sub.predicates, Hint::Predicates, || {
+            sorted(sub.predicates.iter().map(|p| p.name.clone()))
+        });
+        let guess = self.guess(name, sub.predicates.iter().map(|p| p.name.as_str()));
+        self.push(
+            Finding::new(
+                Code::UnknownPredicate,
+                self.span(path),
+                "not declared",
+                format!("relation names predicate `{name}`, which is not declared"),
+            )
+            .help(format!(
+                "{guess}relations are between predicates declared under `predicates`; declared: {known}"
+            )),
+        );
+    }
+
+    /// The shape rules (agent-core's, shared with `FsmBuilder`), each problem
+    /// reported with its span; the graph they resolved.
+    fn shape_rules(&mut self, base: &[Seg<'static>], sub: &Subsystem) -> rules::Resolved {
         let graph = rules::Graph {
             behaviours: sub.behaviours.iter().map(|b| b.name.as_str()).collect(),
             initial: sub.fsm.initial.as_deref(),
@@ -111,129 +131,171 @@ impl<'a> Checker<'a> {
         };
         let (shape, broken) = graph.check();
         for problem in broken {
-            match problem {
-                ShapeProblem::NoInitial => self.push(
+            self.shape_problem(base, sub, &shape, problem);
+        }
+        shape
+    }
+
+    /// The finding of one problem of the FSM's shape.
+    fn shape_problem(
+        &mut self,
+        base: &[Seg<'static>],
+        sub: &Subsystem,
+        shape: &rules::Resolved,
+        problem: ShapeProblem,
+    ) {
+        let at = |rest: &[Seg<'static>]| join(base, rest);
+        match problem {
+            ShapeProblem::NoInitial => self.push(
+                Finding::new(
+                    Code::NoInitial,
+                    self.key_span(&at(&[F("fsm")])),
+                    "no `initial`",
+                    format!("the FSM of `{}` has no initial behaviour", sub.name),
+                )
+                .help("add `initial: \"<behaviour>\"` to `fsm`"),
+            ),
+            ShapeProblem::UnknownBehaviour { place, name } => {
+                let (path, what) = match place {
+                    Place::Initial => (at(&[F("fsm"), F("initial")]), "the initial declaration"),
+                    Place::ArcFrom(k) => (at(&[F("fsm"), F("arcs"), I(k), F("from")]), "an arc"),
+                    Place::ArcTo(k) => (at(&[F("fsm"), F("arcs"), I(k), F("to")]), "an arc"),
+                    Place::Final(k) => (at(&[F("fsm"), F("finals"), I(k)]), "a final declaration"),
+                };
+                self.unknown_behaviour(sub, &name, path, what);
+            }
+            ShapeProblem::Unreachable(i) => {
+                let start = shape.initial.map_or("", |s| sub.behaviours[s].name.as_str());
+                self.push(
                     Finding::new(
-                        Code::NoInitial,
-                        self.key_span(&at(&[F("fsm")])),
-                        "no `initial`",
-                        format!("the FSM of `{}` has no initial behaviour", sub.name),
-                    )
-                    .help("add `initial: \"<behaviour>\"` to `fsm`"),
-                ),
-                ShapeProblem::UnknownBehaviour { place, name } => {
-                    let (path, what) = match place {
-                        Place::Initial => (at(&[F("fsm"), F("initial")]), "the initial declaration"),
-                        Place::ArcFrom(k) => (at(&[F("fsm"), F("arcs"), I(k), F("from")]), "an arc"),
-                        Place::ArcTo(k) => (at(&[F("fsm"), F("arcs"), I(k), F("to")]), "an arc"),
-                        Place::Final(k) => (at(&[F("fsm"), F("finals"), I(k)]), "a final declaration"),
-                    };
-                    unknown(self, &name, path, what);
-                }
-                ShapeProblem::Unreachable(i) => {
-                    let start = shape.initial.map_or("", |s| sub.behaviours[s].name.as_str());
-                    self.push(
-                        Finding::new(
-                            Code::Unreachable,
-                            self.span(&at(&[F("behaviours"), I(i), F("name")])),
-                            "unreachable",
-                            format!(
-                                "behaviour `{}` of `{}` cannot be reached from `{start}`",
-                                sub.behaviours[i].name, sub.name
-                            ),
-                        )
-                        .help("add an arc into it, or remove it"),
-                    );
-                }
-                ShapeProblem::FinalWithArcs(i) => self.push(
-                    Finding::new(
-                        Code::FinalWithArcs,
+                        Code::Unreachable,
                         self.span(&at(&[F("behaviours"), I(i), F("name")])),
-                        "declared final",
+                        "unreachable",
                         format!(
-                            "behaviour `{}` is declared final but has outgoing arcs",
-                            sub.behaviours[i].name
+                            "behaviour `{}` of `{}` cannot be reached from `{start}`",
+                            sub.behaviours[i].name, sub.name
                         ),
                     )
-                    .help("a final behaviour halts the subsystem when it ends; remove the arcs or the final declaration"),
-                ),
+                    .help("add an arc into it, or remove it"),
+                );
             }
+            ShapeProblem::FinalWithArcs(i) => self.push(
+                Finding::new(
+                    Code::FinalWithArcs,
+                    self.span(&at(&[F("behaviours"), I(i), F("name")])),
+                    "declared final",
+                    format!(
+                        "behaviour `{}` is declared final but has outgoing arcs",
+                        sub.behaviours[i].name
+                    ),
+                )
+                .help("a final behaviour halts the subsystem when it ends; remove the arcs or the final declaration"),
+            ),
         }
-        // The arcs' conditions, for the proof.
+    }
+
+    /// `place` (at `path`) names behaviour `name`, which `sub` does not define.
+    fn unknown_behaviour(&mut self, sub: &Subsystem, name: &str, path: Path, place: &str) {
+        let known = self.list(&sub.behaviours, Hint::Behaviours, || {
+            sub.behaviours.iter().map(|b| b.name.clone()).collect()
+        });
+        let guess = self.guess(name, sub.behaviours.iter().map(|b| b.name.as_str()));
+        self.push(
+            Finding::new(
+                Code::UnknownBehaviour,
+                self.span(&path),
+                "no such behaviour",
+                format!(
+                    "{place} names behaviour `{name}`, which `{}` does not define",
+                    sub.name
+                ),
+            )
+            .help(format!("{guess}behaviours: {known}")),
+        );
+    }
+
+    /// Each arc's condition resolved (reporting those that do not), by the
+    /// behaviour it leaves, for the proof.
+    fn arc_conditions(
+        &mut self,
+        base: &[Seg<'static>],
+        sub: &Subsystem,
+        preds: &HashMap<&str, usize>,
+        shape: &rules::Resolved,
+        used: &mut HashSet<usize>,
+    ) -> Vec<Vec<(usize, Option<Expr<usize>>)>> {
         let mut arcs: Vec<Vec<(usize, Option<Expr<usize>>)>> =
             vec![Vec::new(); sub.behaviours.len()];
         for (k, arc) in sub.fsm.arcs.iter().enumerate() {
-            let apath = at(&[F("fsm"), F("arcs"), I(k)]);
+            let apath = join(base, &[F("fsm"), F("arcs"), I(k)]);
             let cond = self.condition(sub, &arc.when, preds, &join(&apath, &[F("when")]), used);
             if let Some((f, _)) = shape.arcs[k] {
                 arcs[f].push((k, cond));
             }
         }
-        let finals = &shape.finals;
+        arcs
+    }
 
-        // Ways out and the arc proof.
-        for (i, b) in sub.behaviours.iter().enumerate() {
-            let name_span = self.span(&at(&[F("behaviours"), I(i), F("name")]));
-            let literal_false = b.terminal.trim() == "false";
-            let Some(terminal) = &terminals[i] else {
-                continue;
-            };
-            if !self.prove {
-                continue;
-            }
-            let conds: Vec<(usize, &Expr<usize>)> = arcs[i]
-                .iter()
-                .filter_map(|(k, c)| c.as_ref().map(|c| (*k, c)))
-                .collect();
-            // Arcs are proven when each condition and relation resolved (the others
-            // were reported), and the behaviour is not final.
-            let prove_arcs = !arcs[i].is_empty()
-                && conds.len() == arcs[i].len()
-                && relations_resolve
-                && !finals[i];
-            let mut assumed: Vec<&Expr<usize>> = relations.iter().collect();
-            assumed.push(terminal);
-            let question = Question {
-                predicates: sub.predicates.len(),
-                assumed,
-                arcs: if prove_arcs {
-                    conds.iter().map(|(_, c)| *c).collect()
-                } else {
-                    Vec::new()
-                },
-            };
-            let answer = proof::answer(&question, &mut self.budget);
-            let can_end = answer.can_end.unwrap_or(true);
-            let tpath = at(&[F("behaviours"), I(i), F("terminal")]);
-            let runs_forever = literal_false && arcs[i].is_empty();
-            if answer.can_end == Some(false) && !runs_forever {
+    /// Behaviour `i` (whose terminal condition resolved to `terminal`): its
+    /// terminal condition can hold, it has a way out when it does, and the arcs
+    /// leaving it are exclusive and complete (proven when each condition and
+    /// relation resolved, and the behaviour is not final).
+    fn ways_out(&mut self, g: &Graph<'_>, i: usize, terminal: &Expr<usize>) {
+        let (sub, arcs) = (g.sub, &g.arcs[i]);
+        let b = &sub.behaviours[i];
+        let at = |rest: &[Seg<'static>]| join(g.base, rest);
+        let name_span = self.span(&at(&[F("behaviours"), I(i), F("name")]));
+        let literal_false = b.terminal.trim() == "false";
+        let conds: Vec<(usize, &Expr<usize>)> = arcs
+            .iter()
+            .filter_map(|(k, c)| c.as_ref().map(|c| (*k, c)))
+            .collect();
+        let prove_arcs = !arcs.is_empty()
+            && conds.len() == arcs.len()
+            && g.relations_resolve
+            && !g.shape.finals[i];
+        let mut assumed: Vec<&Expr<usize>> = g.relations.iter().collect();
+        assumed.push(terminal);
+        let question = Question {
+            predicates: sub.predicates.len(),
+            assumed,
+            arcs: if prove_arcs {
+                conds.iter().map(|(_, c)| *c).collect()
+            } else {
+                Vec::new()
+            },
+        };
+        let answer = proof::answer(&question, &mut self.budget);
+        let can_end = answer.can_end.unwrap_or(true);
+        let tpath = at(&[F("behaviours"), I(i), F("terminal")]);
+        let runs_forever = literal_false && arcs.is_empty();
+        if answer.can_end == Some(false) && !runs_forever {
+            self.push(
+                Finding::new(
+                    Code::TerminalNever,
+                    self.span(&tpath),
+                    "never holds",
+                    format!("the terminal condition of `{}` can never hold{}", b.name, if arcs.is_empty() { "" } else { ", so its arcs are never taken" }),
+                )
+                .help("a behaviour with a constant-false terminal condition runs forever; write `false` if that is meant"),
+            );
+        }
+        if arcs.is_empty() {
+            if g.shape.lacks_way_out(i, can_end) {
                 self.push(
                     Finding::new(
-                        Code::TerminalNever,
-                        self.span(&tpath),
-                        "never holds",
-                        format!("the terminal condition of `{}` can never hold{}", b.name, if arcs[i].is_empty() { "" } else { ", so its arcs are never taken" }),
+                        Code::NoWayOut,
+                        name_span,
+                        "no outgoing arc",
+                        format!("behaviour `{}` can end (terminal `{}`) but has no outgoing arc and is not final", b.name, abbreviate(&b.terminal, 80)),
                     )
-                    .help("a behaviour with a constant-false terminal condition runs forever; write `false` if that is meant"),
+                    .help("add an arc from it, declare it in `fsm.finals`, or make its terminal condition `false`"),
                 );
             }
-            if arcs[i].is_empty() {
-                if shape.lacks_way_out(i, can_end) {
-                    self.push(
-                        Finding::new(
-                            Code::NoWayOut,
-                            name_span,
-                            "no outgoing arc",
-                            format!("behaviour `{}` can end (terminal `{}`) but has no outgoing arc and is not final", b.name, abbreviate(&b.terminal, 80)),
-                        )
-                        .help("add an arc from it, declare it in `fsm.finals`, or make its terminal condition `false`"),
-                    );
-                }
-                continue;
-            }
-            if prove_arcs {
-                self.arc_findings(sub, base, i, &conds, &answer);
-            }
+            return;
+        }
+        if prove_arcs {
+            self.arc_findings(sub, g.base, i, &conds, &answer);
         }
     }
 
@@ -315,4 +377,26 @@ impl<'a> Checker<'a> {
 
     // -----------------------------------------------------------------------
     // Links
+}
+
+/// Add relation `r`'s assumptions over its predicates `ok` (resolved, in
+/// order) to `relations`: no two of an exclusive set hold at once; the first of
+/// an implication implies the second.
+fn assume(r: &Relation, ok: &[usize], relations: &mut Vec<Expr<usize>>) {
+    match r {
+        Relation::Exclusive(_) => {
+            for x in 0..ok.len() {
+                for y in x + 1..ok.len() {
+                    relations.push(Expr::Not(Box::new(Expr::And(vec![
+                        Expr::Atom(ok[x]),
+                        Expr::Atom(ok[y]),
+                    ]))));
+                }
+            }
+        }
+        Relation::Implies(..) => relations.push(Expr::Or(vec![
+            Expr::Not(Box::new(Expr::Atom(ok[0]))),
+            Expr::Atom(ok[1]),
+        ])),
+    }
 }

@@ -4,8 +4,27 @@ use super::*;
 
 impl<'a> Checker<'a> {
     pub(super) fn subsystem(&mut self, base: &[Seg<'static>], sub: &'a Subsystem) {
+        self.period(sub.period_ms, &join(base, &[F("period_ms")]));
+        self.unique_names(base, sub);
+        self.reads_and_writes(base, sub);
+        let pred_index: HashMap<&str, usize> = sub
+            .predicates
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.name.as_str(), i))
+            .collect();
+        let mut used_functions = HashSet::new();
+        let mut used_preds = HashSet::new();
+        let terminals =
+            self.behaviours(base, sub, &pred_index, &mut used_functions, &mut used_preds);
+        self.fsm(base, sub, &pred_index, &terminals, &mut used_preds);
+        self.unused(base, sub, &used_functions, &used_preds);
+    }
+
+    /// The names of the memory buffers, predicates, functions and behaviours
+    /// are each unique.
+    fn unique_names(&mut self, base: &[Seg<'static>], sub: &'a Subsystem) {
         let at = |rest: &[Seg<'static>]| join(base, rest);
-        self.period(sub.period_ms, &at(&[F("period_ms")]));
         self.unique(
             "memory buffer",
             sub.memory
@@ -38,8 +57,11 @@ impl<'a> Checker<'a> {
                 .map(|(i, b)| (b.name.as_str(), at(&[F("behaviours"), I(i), F("name")])))
                 .collect::<Vec<_>>(),
         );
+    }
 
-        // Reads of predicates and functions.
+    /// The reads of predicates and functions, and the functions' writes.
+    fn reads_and_writes(&mut self, base: &[Seg<'static>], sub: &Subsystem) {
+        let at = |rest: &[Seg<'static>]| join(base, rest);
         for (i, p) in sub.predicates.iter().enumerate() {
             for (k, r) in p.reads.iter().enumerate() {
                 self.read(sub, r, &at(&[F("predicates"), I(i), F("reads"), I(k)]));
@@ -52,75 +74,99 @@ impl<'a> Checker<'a> {
             }
             self.writes(sub, i, &fpath);
         }
+    }
 
-        // Behaviours.
-        let pred_index: HashMap<&str, usize> = sub
-            .predicates
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.name.as_str(), i))
-            .collect();
-        let mut used_functions = HashSet::new();
-        let mut used_preds = HashSet::new();
+    /// Each behaviour's functions and terminal condition; the terminal
+    /// conditions resolved (`None` where one does not), by behaviour.
+    fn behaviours(
+        &mut self,
+        base: &[Seg<'static>],
+        sub: &Subsystem,
+        pred_index: &HashMap<&str, usize>,
+        used_functions: &mut HashSet<usize>,
+        used_preds: &mut HashSet<usize>,
+    ) -> Vec<Option<Expr<usize>>> {
         let mut terminals = Vec::new();
         for (i, b) in sub.behaviours.iter().enumerate() {
-            let bpath = at(&[F("behaviours"), I(i)]);
-            let mut targets: HashMap<&Target, usize> = HashMap::new();
-            for (k, fname) in b.functions.iter().enumerate() {
-                let fp = join(&bpath, &[F("functions"), I(k)]);
-                match sub.functions.iter().position(|f| &f.name == fname) {
-                    None => {
-                        let known = self.list(&sub.functions, Hint::Functions, || {
-                            sub.functions.iter().map(|f| f.name.clone()).collect()
-                        });
-                        let guess =
-                            self.guess(fname, sub.functions.iter().map(|f| f.name.as_str()));
-                        self.push(
-                            Finding::new(
-                                Code::UnknownFunction,
-                                self.span(&fp),
-                                "not defined",
-                                format!("behaviour `{}` uses function `{fname}`, which `{}` does not define", b.name, sub.name),
-                            )
-                            .help(format!("{guess}define it under `functions`; defined: {known}")),
-                        );
-                    }
-                    Some(fi) => {
-                        used_functions.insert(fi);
-                        let target = &sub.functions[fi].target;
-                        if let Some(&other) = targets.get(target) {
-                            let other_span = self.span(&join(&bpath, &[F("functions"), I(other)]));
-                            self.push(
-                                Finding::new(
-                                    Code::DuplicateTarget,
-                                    self.span(&fp),
-                                    "writes the same target",
-                                    format!(
-                                        "behaviour `{}` has two functions writing {}",
-                                        b.name,
-                                        target_text(target)
-                                    ),
-                                )
-                                .label(other_span, "also written by this one")
-                                .help("the transition function is decomposed by target: one function per target per behaviour; merge them"),
-                            );
-                        } else {
-                            targets.insert(target, k);
-                        }
-                    }
-                }
-            }
+            let bpath = join(base, &[F("behaviours"), I(i)]);
+            self.behaviour_functions(sub, b, &bpath, used_functions);
             let t = self.condition(
                 sub,
                 &b.terminal,
-                &pred_index,
+                pred_index,
                 &join(&bpath, &[F("terminal")]),
-                &mut used_preds,
+                used_preds,
             );
             terminals.push(t);
         }
-        self.fsm(base, sub, &pred_index, &terminals, &mut used_preds);
+        terminals
+    }
 
+    /// Behaviour `b` (at `bpath`) uses functions `sub` defines, at most one per
+    /// target.
+    fn behaviour_functions(
+        &mut self,
+        sub: &Subsystem,
+        b: &crate::model::Behaviour,
+        bpath: &[Seg<'static>],
+        used_functions: &mut HashSet<usize>,
+    ) {
+        let mut targets: HashMap<&Target, usize> = HashMap::new();
+        for (k, fname) in b.functions.iter().enumerate() {
+            let fp = join(bpath, &[F("functions"), I(k)]);
+            match sub.functions.iter().position(|f| &f.name == fname) {
+                None => {
+                    let known = self.list(&sub.functions, Hint::Functions, || {
+                        sub.functions.iter().map(|f| f.name.clone()).collect()
+                    });
+                    let guess = self.guess(fname, sub.functions.iter().map(|f| f.name.as_str()));
+                    self.push(
+                        Finding::new(
+                            Code::UnknownFunction,
+                            self.span(&fp),
+                            "not defined",
+                            format!("behaviour `{}` uses function `{fname}`, which `{}` does not define", b.name, sub.name),
+                        )
+                        .help(format!("{guess}define it under `functions`; defined: {known}")),
+                    );
+                }
+                Some(fi) => {
+                    used_functions.insert(fi);
+                    let target = &sub.functions[fi].target;
+                    if let Some(&other) = targets.get(target) {
+                        let other_span = self.span(&join(bpath, &[F("functions"), I(other)]));
+                        self.push(
+                            Finding::new(
+                                Code::DuplicateTarget,
+                                self.span(&fp),
+                                "writes the same target",
+                                format!(
+                                    "behaviour `{}` has two functions writing {}",
+                                    b.name,
+                                    target_text(target)
+                                ),
+                            )
+                            .label(other_span, "also written by this one")
+                            .help("the transition function is decomposed by target: one function per target per behaviour; merge them"),
+                        );
+                    } else {
+                        targets.insert(target, k);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The functions no behaviour uses, and the predicates no condition or
+    /// relation uses.
+    fn unused(
+        &mut self,
+        base: &[Seg<'static>],
+        sub: &Subsystem,
+        used_functions: &HashSet<usize>,
+        used_preds: &HashSet<usize>,
+    ) {
+        let at = |rest: &[Seg<'static>]| join(base, rest);
         for (i, f) in sub.functions.iter().enumerate() {
             if !used_functions.contains(&i) {
                 self.push(

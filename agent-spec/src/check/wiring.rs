@@ -1,7 +1,7 @@
 //! Links between buffers and deployments of components.
 
 use super::*;
-use crate::model::Deployment;
+use crate::model::{Deployment, Link};
 
 impl<'a> Checker<'a> {
     /// Find `comp.group.buffer`: (component, group peer, buffer type) on `outputs` or
@@ -35,82 +35,112 @@ impl<'a> Checker<'a> {
 
     pub(super) fn links(&mut self) {
         let spec = self.spec;
-        let mut writers: HashMap<(String, String, String), Vec<usize>> = HashMap::new();
-        let mut read_outputs: HashSet<(String, String, String)> = HashSet::new();
+        let mut feeds = Feeds::default();
         for (k, link) in spec.links.iter().enumerate() {
-            let lpath = vec![F("links"), I(k)];
-            let from = self.endpoint(&link.from, true);
-            let to = self.endpoint(&link.to, false);
-            for (res, text, field, outputs) in [
-                (&from, &link.from, "from", true),
-                (&to, &link.to, "to", false),
-            ] {
-                if let Err(e) = res {
-                    self.endpoint_error(e, text, &join(&lpath, &[F(field)]), outputs);
-                }
-            }
-            if let Policy::Queue { bound: 0 } = link.policy {
-                self.push(
-                    Finding::new(
-                        Code::QueueBound,
-                        self.span(&join(&lpath, &[F("policy")])),
-                        "capacity 0",
-                        format!(
-                            "link `{} -> {}` is a queue of capacity 0",
-                            link.from, link.to
-                        ),
-                    )
-                    .help("a queue holds at least one value; use Queue(n) with n >= 1, or Sample"),
-                );
-            }
-            if let Ok((c, g, _)) = &from {
-                read_outputs.insert((c.to_string(), g.to_string(), last(&link.from)));
-            }
-            let (Ok((fc, fg, fty)), Ok((tc, tg, tty))) = (from, to) else {
-                continue;
-            };
-            writers
-                .entry((tc.to_owned(), tg.to_owned(), last(&link.to)))
-                .or_default()
-                .push(k);
-            if fg != tc || tg != fc {
-                self.push(
-                    Finding::new(
-                        Code::PeerMismatch,
-                        self.span(&join(&lpath, &[F("to")])),
-                        format!("a buffer of `{tc}` for peer `{tg}`"),
-                        format!("link `{} -> {}` joins groups that do not name each other: `{fc}`'s group is for `{fg}`, `{tc}`'s group is for `{tg}`", link.from, link.to),
-                    )
-                    .label(self.span(&join(&lpath, &[F("from")])), format!("a buffer of `{fc}` for peer `{fg}`"))
-                    .help(format!("link `{fc}.{tc}.<buffer>` to `{tc}.{fc}.<buffer>`")),
-                );
-            }
-            let (sc, dc) = (&self.comps[fc], &self.comps[tc]);
-            if let Some(reason) = structure_violation(sc.kind, dc.kind, sc.agent == dc.agent) {
-                self.push(
-                    Finding::new(
-                        Code::Structure,
-                        self.span(&lpath),
-                        format!("{} -> {}", sc.kind, dc.kind),
-                        format!("link `{} -> {}` breaks the agent structure: {reason}", link.from, link.to),
-                    )
-                    .help("see Fig. 2 of the paper: c talks to its e, r and other agents' c; e to its E; r to its R"),
-                );
-            }
-            if normalize_type(fty) != normalize_type(tty) {
-                self.push(
-                    Finding::new(
-                        Code::TypeMismatch,
-                        self.span(&join(&lpath, &[F("to")])),
-                        format!("`{tty}`"),
-                        format!("link `{} -> {}` joins a `{fty}` output to a `{tty}` input", link.from, link.to),
-                    )
-                    .label(self.span(&join(&lpath, &[F("from")])), format!("`{fty}`"))
-                    .help("both ends of a link carry the same type; change one of the buffer declarations"),
-                );
-            }
+            self.link(k, link, &mut feeds);
         }
         // Inputs: exactly one writer. Outputs: somebody reads.
+        let found = self.feed_findings(&feeds);
+        self.findings.extend(found);
+    }
+
+    /// Link `k`: its ends exist (recording the output it reads and, when both
+    /// ends exist, the input it writes), a queue holds at least one value, and
+    /// the buffers it joins agree.
+    fn link(&mut self, k: usize, link: &Link, feeds: &mut Feeds) {
+        let lpath = vec![F("links"), I(k)];
+        let from = self.endpoint(&link.from, true);
+        let to = self.endpoint(&link.to, false);
+        for (res, text, field, outputs) in [
+            (&from, &link.from, "from", true),
+            (&to, &link.to, "to", false),
+        ] {
+            if let Err(e) = res {
+                self.endpoint_error(e, text, &join(&lpath, &[F(field)]), outputs);
+            }
+        }
+        if let Policy::Queue { bound: 0 } = link.policy {
+            self.push(
+                Finding::new(
+                    Code::QueueBound,
+                    self.span(&join(&lpath, &[F("policy")])),
+                    "capacity 0",
+                    format!(
+                        "link `{} -> {}` is a queue of capacity 0",
+                        link.from, link.to
+                    ),
+                )
+                .help("a queue holds at least one value; use Queue(n) with n >= 1, or Sample"),
+            );
+        }
+        if let Ok((c, g, _)) = &from {
+            feeds
+                .read_outputs
+                .insert((c.to_string(), g.to_string(), last(&link.from)));
+        }
+        let (Ok(from), Ok(to)) = (from, to) else {
+            return;
+        };
+        let (tc, tg, _) = to;
+        feeds
+            .writers
+            .entry((tc.to_owned(), tg.to_owned(), last(&link.to)))
+            .or_default()
+            .push(k);
+        self.joined_buffers(&lpath, link, from, to);
+    }
+
+    /// The two buffers (component, group peer, type) that the link at `lpath`
+    /// joins: their groups name each other, the agent structure allows the
+    /// link, and they carry one type.
+    fn joined_buffers(
+        &mut self,
+        lpath: &[Seg<'static>],
+        link: &Link,
+        (fc, fg, fty): (&str, &str, &str),
+        (tc, tg, tty): (&str, &str, &str),
+    ) {
+        if fg != tc || tg != fc {
+            self.push(
+                Finding::new(
+                    Code::PeerMismatch,
+                    self.span(&join(lpath, &[F("to")])),
+                    format!("a buffer of `{tc}` for peer `{tg}`"),
+                    format!("link `{} -> {}` joins groups that do not name each other: `{fc}`'s group is for `{fg}`, `{tc}`'s group is for `{tg}`", link.from, link.to),
+                )
+                .label(self.span(&join(lpath, &[F("from")])), format!("a buffer of `{fc}` for peer `{fg}`"))
+                .help(format!("link `{fc}.{tc}.<buffer>` to `{tc}.{fc}.<buffer>`")),
+            );
+        }
+        let (sc, dc) = (&self.comps[fc], &self.comps[tc]);
+        if let Some(reason) = structure_violation(sc.kind, dc.kind, sc.agent == dc.agent) {
+            self.push(
+                Finding::new(
+                    Code::Structure,
+                    self.span(lpath),
+                    format!("{} -> {}", sc.kind, dc.kind),
+                    format!("link `{} -> {}` breaks the agent structure: {reason}", link.from, link.to),
+                )
+                .help("see Fig. 2 of the paper: c talks to its e, r and other agents' c; e to its E; r to its R"),
+            );
+        }
+        if normalize_type(fty) != normalize_type(tty) {
+            self.push(
+                Finding::new(
+                    Code::TypeMismatch,
+                    self.span(&join(lpath, &[F("to")])),
+                    format!("`{tty}`"),
+                    format!("link `{} -> {}` joins a `{fty}` output to a `{tty}` input", link.from, link.to),
+                )
+                .label(self.span(&join(lpath, &[F("from")])), format!("`{fty}`"))
+                .help("both ends of a link carry the same type; change one of the buffer declarations"),
+            );
+        }
+    }
+
+    /// The outputs no link reads and the inputs not fed by exactly one link,
+    /// component by component in the spec's order.
+    fn feed_findings(&self, feeds: &Feeds) -> Vec<Finding> {
         let mut comps: Vec<&Comp<'a>> = self.comps.values().collect();
         comps.sort_by_key(|c| c.path.clone().into_iter().map(seg_key).collect::<Vec<_>>());
         let mut found = Vec::new();
@@ -120,57 +150,99 @@ impl<'a> Checker<'a> {
             {
                 for (g, group) in groups.iter().enumerate() {
                     for (b, buffer) in group.buffers.iter().enumerate() {
-                        let key = (c.name.to_owned(), group.peer.clone(), buffer.name.clone());
                         let bpath = join(&c.path, &[F(side), I(g), F("buffers"), I(b), F("name")]);
-                        let dotted = format!("{}.{}.{}", c.name, group.peer, buffer.name);
-                        if outgoing {
-                            if !read_outputs.contains(&key) {
-                                found.push(
-                                    Finding::new(Code::UnreadOutput, self.span(&bpath), "read by nobody", format!("output `{dotted}` is linked to no input"))
-                                        .help(format!("link it: `(from: \"{dotted}\", to: \"{}.{}.{}\")`, or remove it", group.peer, c.name, buffer.name)),
-                                );
-                            }
-                            continue;
-                        }
-                        match writers.get(&key).map(Vec::as_slice) {
-                            None | Some([]) => found.push(
-                                Finding::new(
-                                    Code::UnfedInput,
-                                    self.span(&bpath),
-                                    "fed by no output",
-                                    format!("input `{dotted}` is fed by no output"),
-                                )
-                                .help(self.feeding_help(
-                                    c.name,
-                                    group,
-                                    buffer,
-                                    &dotted,
-                                    &read_outputs,
-                                )),
-                            ),
-                            Some([_]) => {}
-                            Some(ks) => {
-                                let mut f = Finding::new(
-                                    Code::MultipleWriters,
-                                    self.span(&bpath),
-                                    format!("fed by {} outputs", ks.len()),
-                                    format!("input `{dotted}` is fed by {} outputs", ks.len()),
-                                )
-                                .help("an input buffer has exactly one writer; remove all links to it but one");
-                                for &k in ks {
-                                    f = f.label(
-                                        self.span(&[F("links"), I(k), F("from")]),
-                                        "writes it",
-                                    );
-                                }
-                                found.push(f);
-                            }
-                        }
+                        found.extend(if outgoing {
+                            self.unread_output(feeds, c.name, group, buffer, &bpath)
+                        } else {
+                            self.input_feed(feeds, c.name, group, buffer, &bpath)
+                        });
                     }
                 }
             }
         }
-        self.findings.extend(found);
+        found
+    }
+
+    /// The finding about output `buffer` of `component`'s group `group` (at
+    /// `bpath`) if no link reads it.
+    fn unread_output(
+        &self,
+        feeds: &Feeds,
+        component: &str,
+        group: &Group,
+        buffer: &Buffer,
+        bpath: &[Seg<'static>],
+    ) -> Option<Finding> {
+        let key = (
+            component.to_owned(),
+            group.peer.clone(),
+            buffer.name.clone(),
+        );
+        let dotted = format!("{}.{}.{}", component, group.peer, buffer.name);
+        if feeds.read_outputs.contains(&key) {
+            return None;
+        }
+        Some(
+            Finding::new(
+                Code::UnreadOutput,
+                self.span(bpath),
+                "read by nobody",
+                format!("output `{dotted}` is linked to no input"),
+            )
+            .help(format!(
+                "link it: `(from: \"{dotted}\", to: \"{}.{}.{}\")`, or remove it",
+                group.peer, component, buffer.name
+            )),
+        )
+    }
+
+    /// The finding about input `buffer` of `component`'s group `group` (at
+    /// `bpath`) unless exactly one link writes it.
+    fn input_feed(
+        &self,
+        feeds: &Feeds,
+        component: &str,
+        group: &Group,
+        buffer: &Buffer,
+        bpath: &[Seg<'static>],
+    ) -> Option<Finding> {
+        let key = (
+            component.to_owned(),
+            group.peer.clone(),
+            buffer.name.clone(),
+        );
+        let dotted = format!("{}.{}.{}", component, group.peer, buffer.name);
+        match feeds.writers.get(&key).map(Vec::as_slice) {
+            None | Some([]) => Some(
+                Finding::new(
+                    Code::UnfedInput,
+                    self.span(bpath),
+                    "fed by no output",
+                    format!("input `{dotted}` is fed by no output"),
+                )
+                .help(self.feeding_help(
+                    component,
+                    group,
+                    buffer,
+                    &dotted,
+                    &feeds.read_outputs,
+                )),
+            ),
+            Some([_]) => None,
+            Some(ks) => {
+                let mut f = Finding::new(
+                    Code::MultipleWriters,
+                    self.span(bpath),
+                    format!("fed by {} outputs", ks.len()),
+                    format!("input `{dotted}` is fed by {} outputs", ks.len()),
+                )
+                .help("an input buffer has exactly one writer; remove all links to it but one");
+                for &k in ks {
+                    f = f.label(self.span(&[F("links"), I(k), F("from")]), "writes it");
+                }
+                Some(f)
+            }
+        }
     }
 
     pub(super) fn endpoint_error(
@@ -259,90 +331,10 @@ impl<'a> Checker<'a> {
         let mut all: Vec<&str> = self.comps.keys().copied().collect();
         all.sort_unstable();
         for (d, dep) in spec.deployments.iter().enumerate() {
-            let dpath = vec![F("deployments"), I(d)];
-            self.unique(
-                "host",
-                dep.hosts
-                    .iter()
-                    .enumerate()
-                    .map(|(h, x)| {
-                        (
-                            x.name.as_str(),
-                            join(&dpath, &[F("hosts"), I(h), F("name")]),
-                        )
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            self.unique(
-                "process",
-                dep.hosts
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(h, host)| {
-                        let dpath = dpath.clone();
-                        host.processes.iter().enumerate().map(move |(p, x)| {
-                            (
-                                x.name.as_str(),
-                                join(&dpath, &[F("hosts"), I(h), F("processes"), I(p), F("name")]),
-                            )
-                        })
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            let mut placed: HashMap<&str, Path> = HashMap::new();
-            let mut place = |this: &mut Self, name: &'a str, path: Path, what: &str| {
-                if !this.comps.contains_key(name) {
-                    let known = this.known_components();
-                    let guess = this.guess_component(name);
-                    this.push(
-                        Finding::new(
-                            Code::UnknownComponent,
-                            this.span(&path),
-                            "no such component",
-                            format!(
-                                "deployment `{}` {what} `{name}`, which is not a component",
-                                dep.name
-                            ),
-                        )
-                        .help(format!("{guess}components: {known}")),
-                    );
-                    return;
-                }
-                if let Some(first) = placed.get(name) {
-                    let first = this.span(first);
-                    this.push(
-                        Finding::new(
-                            Code::DeployTwice,
-                            this.span(&path),
-                            "placed again",
-                            format!("deployment `{}` places `{name}` twice", dep.name),
-                        )
-                        .label(first, "first placed here")
-                        .help("a component runs in exactly one process, or is omitted"),
-                    );
-                } else {
-                    placed.insert(name, path);
-                }
-            };
-            for (h, host) in dep.hosts.iter().enumerate() {
-                for (p, proc_) in host.processes.iter().enumerate() {
-                    for (k, name) in proc_.runs.iter().enumerate() {
-                        place(
-                            self,
-                            name,
-                            join(
-                                &dpath,
-                                &[F("hosts"), I(h), F("processes"), I(p), F("runs"), I(k)],
-                            ),
-                            "runs",
-                        );
-                    }
-                }
-            }
-            for (k, name) in dep.omit.iter().enumerate() {
-                place(self, name, join(&dpath, &[F("omit"), I(k)]), "omits");
-            }
+            self.unique_hosts_and_processes(d, dep);
+            let placed = self.placements(d, dep);
             self.endpoints(d, dep);
+            let dpath = vec![F("deployments"), I(d)];
             for name in &all {
                 if !placed.contains_key(name) {
                     self.push(
@@ -351,6 +343,118 @@ impl<'a> Checker<'a> {
                     );
                 }
             }
+        }
+    }
+
+    /// The hosts of deployment `d` have unique names, and so have its
+    /// processes.
+    fn unique_hosts_and_processes(&mut self, d: usize, dep: &'a Deployment) {
+        let dpath = vec![F("deployments"), I(d)];
+        self.unique(
+            "host",
+            dep.hosts
+                .iter()
+                .enumerate()
+                .map(|(h, x)| {
+                    (
+                        x.name.as_str(),
+                        join(&dpath, &[F("hosts"), I(h), F("name")]),
+                    )
+                })
+                .collect::<Vec<_>>(),
+        );
+        self.unique(
+            "process",
+            dep.hosts
+                .iter()
+                .enumerate()
+                .flat_map(|(h, host)| {
+                    let dpath = dpath.clone();
+                    host.processes.iter().enumerate().map(move |(p, x)| {
+                        (
+                            x.name.as_str(),
+                            join(&dpath, &[F("hosts"), I(h), F("processes"), I(p), F("name")]),
+                        )
+                    })
+                })
+                .collect::<Vec<_>>(),
+        );
+    }
+
+    /// Where deployment `d` places each component it runs or omits, reporting
+    /// names that are no component and components placed twice.
+    fn placements(&mut self, d: usize, dep: &'a Deployment) -> HashMap<&'a str, Path> {
+        let dpath = vec![F("deployments"), I(d)];
+        let mut placed: HashMap<&str, Path> = HashMap::new();
+        for (h, host) in dep.hosts.iter().enumerate() {
+            for (p, proc_) in host.processes.iter().enumerate() {
+                for (k, name) in proc_.runs.iter().enumerate() {
+                    self.place(
+                        dep,
+                        &mut placed,
+                        name,
+                        join(
+                            &dpath,
+                            &[F("hosts"), I(h), F("processes"), I(p), F("runs"), I(k)],
+                        ),
+                        "runs",
+                    );
+                }
+            }
+        }
+        for (k, name) in dep.omit.iter().enumerate() {
+            self.place(
+                dep,
+                &mut placed,
+                name,
+                join(&dpath, &[F("omit"), I(k)]),
+                "omits",
+            );
+        }
+        placed
+    }
+
+    /// Place component `name` (at `path`, which deployment `dep` `what`s: runs
+    /// or omits), unless it is no component or is placed already.
+    fn place(
+        &mut self,
+        dep: &Deployment,
+        placed: &mut HashMap<&'a str, Path>,
+        name: &'a str,
+        path: Path,
+        what: &str,
+    ) {
+        if !self.comps.contains_key(name) {
+            let known = self.known_components();
+            let guess = self.guess_component(name);
+            self.push(
+                Finding::new(
+                    Code::UnknownComponent,
+                    self.span(&path),
+                    "no such component",
+                    format!(
+                        "deployment `{}` {what} `{name}`, which is not a component",
+                        dep.name
+                    ),
+                )
+                .help(format!("{guess}components: {known}")),
+            );
+            return;
+        }
+        if let Some(first) = placed.get(name) {
+            let first = self.span(first);
+            self.push(
+                Finding::new(
+                    Code::DeployTwice,
+                    self.span(&path),
+                    "placed again",
+                    format!("deployment `{}` places `{name}` twice", dep.name),
+                )
+                .label(first, "first placed here")
+                .help("a component runs in exactly one process, or is omitted"),
+            );
+        } else {
+            placed.insert(name, path);
         }
     }
 
@@ -491,4 +595,13 @@ fn check_endpoint(endpoint: &str) -> Result<(), String> {
         Ok(p) if p > 0 => Ok(()),
         _ => Err(format!("`{port}` is not a port (1-65535)")),
     }
+}
+
+/// The buffers that links read and write, gathered over every link.
+#[derive(Default)]
+struct Feeds {
+    /// Per input `(component, group, buffer)`: the links that write it.
+    writers: HashMap<(String, String, String), Vec<usize>>,
+    /// The outputs `(component, group, buffer)` that some link reads.
+    read_outputs: HashSet<(String, String, String)>,
 }
