@@ -265,127 +265,168 @@ fn layers(v: &View<'_>) -> Vec<usize> {
 /// The SVG, and what it placed.
 pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
     let views: Vec<View<'_>> = subs.iter().map(|s| View::new(s)).collect();
+    let mut doc = Svg::new();
+    let mut y = MARGIN;
+    let mut width: f64 = 0.0;
+    for v in &views {
+        let (frame_w, frame_h) = draw_view(&mut doc, v, y);
+        width = width.max(frame_w + 2.0 * MARGIN);
+        y += frame_h + MARGIN;
+    }
+    doc.finish(width.max(200.0), y, &format!("{} — FSM", spec.name))
+}
+
+/// One subsystem's FSM in a frame whose top is at `y`: laid out, then drawn;
+/// the frame's width and height.
+fn draw_view(doc: &mut Svg, v: &View<'_>, y: f64) -> (f64, f64) {
     let spacing = Spacing {
         node_gap: 40.0,
         gap: 10.0,
         group_gap: 40.0,
         rank_gap: 24.0,
     };
-    let mut doc = Svg::new();
-    let mut y = MARGIN;
-    let mut width: f64 = 0.0;
-    for v in &views {
-        let title = format!("{} — FSM of the {}", v.sub.name, kind_name(v.sub.kind));
-        // Room for the title, then for the start dot.
-        let top = y + LINE_H + 3.0 + 30.0;
-        let layer = layers(v);
-        let n = v.sub.behaviours.len();
-        let mut g = Graph::default();
-        let mut boxes = Vec::with_capacity(n);
-        let mut slot_of = Vec::with_capacity(n);
-        for i in 0..n {
-            let (name, detail) = v.node_text(i);
-            let mut b = Boxed::new(vec![name, detail]);
-            b.double = v.finals[i];
-            let loops: Vec<&str> = v
-                .arcs
-                .iter()
-                .filter(|&&(a, c, _)| a == i && c == i)
-                .map(|a| a.2)
-                .collect();
-            let mut extra = 0.0;
-            if !loops.is_empty() {
-                b.h = b.h.max(EAR_TOP + EAR_PITCH * loops.len() as f64 + 2.0);
-                extra = EAR_LABEL + loops.iter().map(|w| label_w(w)).fold(0.0, f64::max) + 2.0;
-            }
-            slot_of.push(g.slot(SlotKind::Node, 2 * layer[i], 0, (b.w + extra, b.h), b.w));
-            boxes.push(b);
-        }
-        let mut chain_of = vec![None; v.arcs.len()];
-        for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
-            if a == b {
-                continue;
-            }
-            let (ra, rb) = (2 * layer[a], 2 * layer[b]);
-            let between: Vec<usize> = if rb > ra {
-                (ra + 1..rb).collect()
-            } else {
-                (rb + 1..ra).rev().collect()
-            };
-            // The label goes in the odd rank nearest the middle (nearer the source
-            // on a tie).
-            let mid = (ra + rb) as f64 / 2.0;
-            let label_rank = between
-                .iter()
-                .copied()
-                .filter(|r| r % 2 == 1)
-                .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
-            let mut slots = vec![slot_of[a]];
-            for r in between {
-                slots.push(if Some(r) == label_rank && !when.is_empty() {
-                    let w = label_w(when);
-                    g.slot(SlotKind::Label, r, 0, (w + 2.0, LABEL_H), w)
-                } else {
-                    g.slot(SlotKind::Dummy, r, 0, (0.0, 0.0), 0.0)
-                });
-            }
-            slots.push(slot_of[b]);
-            chain_of[k] = Some(g.chain(slots, None));
-        }
-        g.place(MARGIN + PAD, top, spacing);
-        for (b, &i) in boxes.iter_mut().zip(&slot_of) {
-            b.x = g.slots[i].x;
-            b.y = g.slots[i].y;
-        }
-        let right = g.right().max(MARGIN + PAD + text_w(&title)) + PAD;
-        let frame_w = right - MARGIN;
-        let frame_h = g.bottom().max(top) + PAD - y;
-        let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
-        let first = doc.next_box();
-        if let Some(i) = v.initial {
-            let b = &boxes[i];
-            doc.dot(b.cx(), b.y - 20.0, 5.0);
-            doc.edge(
-                &Path::line(Point::new(b.cx(), b.y - 15.0), Point::new(b.cx(), b.y)),
-                None,
-                (None, Some(first + i)),
-                Some(f),
-            );
-        }
-        for b in &boxes {
-            doc.boxed(b, Some(f));
-        }
-        let mut ears = vec![0usize; n];
-        for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
-            let ends = (Some(first + a), Some(first + b));
-            match chain_of[k] {
-                Some(c) => {
-                    let at = g.label_at(c);
-                    let path = g.route(c, None);
-                    doc.edge(&path, at.as_ref().map(|at| (when, at)), ends, Some(f));
-                }
-                None => {
-                    // A self-loop.
-                    let bx = &boxes[a];
-                    let (x, y0) = (bx.x + bx.w, bx.y + EAR_TOP + EAR_PITCH * ears[a] as f64);
-                    ears[a] += 1;
-                    let p = Point::new;
-                    let path = Path::cubic(
-                        p(x, y0),
-                        p(x + 22.0, y0 - 2.0),
-                        p(x + 22.0, y0 + EAR_H + 2.0),
-                        p(x, y0 + EAR_H),
-                    );
-                    let at = LabelAt {
-                        x: x + EAR_LABEL,
-                        y: y0 + EAR_H / 2.0,
-                    };
-                    doc.edge(&path, Some((when, &at)), ends, Some(f));
-                }
-            }
-        }
-        width = width.max(frame_w + 2.0 * MARGIN);
-        y += frame_h + MARGIN;
+    let title = format!("{} — FSM of the {}", v.sub.name, kind_name(v.sub.kind));
+    // Room for the title, then for the start dot.
+    let top = y + LINE_H + 3.0 + 30.0;
+    let layer = layers(v);
+    let mut g = Graph::default();
+    let (mut boxes, slot_of) = behaviour_slots(&mut g, v, &layer);
+    let chain_of = arc_chains(&mut g, v, &layer, &slot_of);
+    g.place(MARGIN + PAD, top, spacing);
+    for (b, &i) in boxes.iter_mut().zip(&slot_of) {
+        b.x = g.slots[i].x;
+        b.y = g.slots[i].y;
     }
-    doc.finish(width.max(200.0), y, &format!("{} — FSM", spec.name))
+    let right = g.right().max(MARGIN + PAD + text_w(&title)) + PAD;
+    let frame_w = right - MARGIN;
+    let frame_h = g.bottom().max(top) + PAD - y;
+    let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
+    let first = doc.next_box();
+    if let Some(i) = v.initial {
+        let b = &boxes[i];
+        doc.dot(b.cx(), b.y - 20.0, 5.0);
+        doc.edge(
+            &Path::line(Point::new(b.cx(), b.y - 15.0), Point::new(b.cx(), b.y)),
+            None,
+            (None, Some(first + i)),
+            Some(f),
+        );
+    }
+    for b in &boxes {
+        doc.boxed(b, Some(f));
+    }
+    draw_arcs(doc, v, &g, &boxes, &chain_of, (first, f));
+    (frame_w, frame_h)
+}
+
+/// Each behaviour's box (double for a final one, taller and wider for its
+/// self-loops' ears) and its slot in the layout, on the even rank of its layer.
+fn behaviour_slots(g: &mut Graph, v: &View<'_>, layer: &[usize]) -> (Vec<Boxed>, Vec<usize>) {
+    let n = v.sub.behaviours.len();
+    let mut boxes = Vec::with_capacity(n);
+    let mut slot_of = Vec::with_capacity(n);
+    for i in 0..n {
+        let (name, detail) = v.node_text(i);
+        let mut b = Boxed::new(vec![name, detail]);
+        b.double = v.finals[i];
+        let loops: Vec<&str> = v
+            .arcs
+            .iter()
+            .filter(|&&(a, c, _)| a == i && c == i)
+            .map(|a| a.2)
+            .collect();
+        let mut extra = 0.0;
+        if !loops.is_empty() {
+            b.h = b.h.max(EAR_TOP + EAR_PITCH * loops.len() as f64 + 2.0);
+            extra = EAR_LABEL + loops.iter().map(|w| label_w(w)).fold(0.0, f64::max) + 2.0;
+        }
+        slot_of.push(g.slot(SlotKind::Node, 2 * layer[i], 0, (b.w + extra, b.h), b.w));
+        boxes.push(b);
+    }
+    (boxes, slot_of)
+}
+
+/// Each arc between two behaviours as a chain of slots through the ranks
+/// between them, its label in the odd rank nearest the middle; `None` for a
+/// self-loop.
+fn arc_chains(
+    g: &mut Graph,
+    v: &View<'_>,
+    layer: &[usize],
+    slot_of: &[usize],
+) -> Vec<Option<usize>> {
+    let mut chain_of = vec![None; v.arcs.len()];
+    for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
+        if a == b {
+            continue;
+        }
+        let (ra, rb) = (2 * layer[a], 2 * layer[b]);
+        let between: Vec<usize> = if rb > ra {
+            (ra + 1..rb).collect()
+        } else {
+            (rb + 1..ra).rev().collect()
+        };
+        // The label goes in the odd rank nearest the middle (nearer the source
+        // on a tie).
+        let mid = (ra + rb) as f64 / 2.0;
+        let label_rank = between
+            .iter()
+            .copied()
+            .filter(|r| r % 2 == 1)
+            .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+        let mut slots = vec![slot_of[a]];
+        for r in between {
+            slots.push(if Some(r) == label_rank && !when.is_empty() {
+                let w = label_w(when);
+                g.slot(SlotKind::Label, r, 0, (w + 2.0, LABEL_H), w)
+            } else {
+                g.slot(SlotKind::Dummy, r, 0, (0.0, 0.0), 0.0)
+            });
+        }
+        slots.push(slot_of[b]);
+        chain_of[k] = Some(g.chain(slots, None));
+    }
+    chain_of
+}
+
+/// The arcs, each with its condition: routed along its chain, or a self-loop
+/// as an ear on its box's right side. `first` is the document's index of the
+/// first box, `frame` the frame's.
+fn draw_arcs(
+    doc: &mut Svg,
+    v: &View<'_>,
+    g: &Graph,
+    boxes: &[Boxed],
+    chain_of: &[Option<usize>],
+    (first, frame): (usize, usize),
+) {
+    let mut ears = vec![0usize; v.sub.behaviours.len()];
+    for (k, &(a, b, when)) in v.arcs.iter().enumerate() {
+        let ends = (Some(first + a), Some(first + b));
+        match chain_of[k] {
+            Some(c) => {
+                let at = g.label_at(c);
+                let path = g.route(c, None);
+                doc.edge(&path, at.as_ref().map(|at| (when, at)), ends, Some(frame));
+            }
+            None => {
+                // A self-loop.
+                let bx = &boxes[a];
+                let (x, y0) = (bx.x + bx.w, bx.y + EAR_TOP + EAR_PITCH * ears[a] as f64);
+                ears[a] += 1;
+                let p = Point::new;
+                let path = Path::cubic(
+                    p(x, y0),
+                    p(x + 22.0, y0 - 2.0),
+                    p(x + 22.0, y0 + EAR_H + 2.0),
+                    p(x, y0 + EAR_H),
+                );
+                let at = LabelAt {
+                    x: x + EAR_LABEL,
+                    y: y0 + EAR_H / 2.0,
+                };
+                doc.edge(&path, Some((when, &at)), ends, Some(frame));
+            }
+        }
+    }
 }

@@ -326,44 +326,9 @@ impl Graph {
 
     /// Step 2: x of every slot.
     fn assign_x(&mut self, ranks: &[Vec<usize>], nbrs: &[Vec<usize>], x0: f64, sp: Spacing) {
-        let sep = |a: &Slot, b: &Slot| {
-            if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
-                sp.node_gap
-            } else {
-                sp.gap
-            }
-        };
-        // Each group packed to the left to start with (the groups are put side by
-        // side at the end).
-        for r in ranks {
-            let mut x = x0;
-            for (k, &i) in r.iter().enumerate() {
-                if k > 0 {
-                    let p = &self.slots[r[k - 1]];
-                    if p.group == self.slots[i].group {
-                        x += sep(p, &self.slots[i]);
-                    } else {
-                        x = x0;
-                    }
-                }
-                self.slots[i].x = x;
-                x += self.slots[i].w;
-            }
-        }
+        self.pack_left(ranks, x0, sp);
         // Straight runs through dummies matter most. Each group is laid out on its
         // own (joins across groups are left out), then the groups side by side.
-        let weight = |a: &Slot, b: &Slot| match (a.kind, b.kind) {
-            (SlotKind::Node, SlotKind::Node) => 1.0,
-            (SlotKind::Node, _) | (_, SlotKind::Node) => 2.0,
-            _ => 8.0,
-        };
-        let group_left = |slots: &[Slot], g: usize| {
-            slots
-                .iter()
-                .filter(|t| t.group == g && t.kind != SlotKind::Title)
-                .map(|t| t.x)
-                .fold(f64::INFINITY, f64::min)
-        };
         let n_ranks = ranks.len();
         for sweep in 0..16 {
             let order: Vec<usize> = if sweep % 2 == 0 {
@@ -376,65 +341,109 @@ impl Graph {
                 if row.is_empty() {
                     continue;
                 }
-                // Desired left ends and weights.
-                let mut target = Vec::with_capacity(row.len());
-                let mut wts = Vec::with_capacity(row.len());
-                for &i in row {
-                    let s = &self.slots[i];
-                    let (mut sum, mut wsum) = (0.0, 0.0);
-                    for &j in nbrs[i].iter().filter(|&&j| self.slots[j].group == s.group) {
-                        let t = &self.slots[j];
-                        let w = weight(s, t);
-                        sum += w * (t.x + t.anchor());
-                        wsum += w;
-                    }
-                    if wsum > 0.0 {
-                        target.push(sum / wsum - s.anchor());
-                        wts.push(wsum);
-                    } else {
-                        // Unjoined: next to its left neighbour in the group, else at the
-                        // group's left (a title heads its group).
-                        let k = target.len();
-                        let left = group_left(&self.slots, s.group);
-                        let x = match k.checked_sub(1).map(|p| &self.slots[row[p]]) {
-                            Some(p) if p.group == s.group && s.kind != SlotKind::Title => {
-                                p.x + p.w + sep(p, s)
-                            }
-                            _ if left.is_finite() => left,
-                            _ => s.x,
-                        };
-                        target.push(x);
-                        wts.push(if s.kind == SlotKind::Title { 1.0 } else { 0.01 });
-                    }
-                }
-                // Each group's part of the rank on its own: offsets turn the
-                // separations into x_k <= x_k+1.
-                let mut start = 0;
-                while start < row.len() {
-                    let g = self.slots[row[start]].group;
-                    let end = (start..row.len())
-                        .find(|&k| self.slots[row[k]].group != g)
-                        .unwrap_or(row.len());
-                    let part = &row[start..end];
-                    let mut off = vec![0.0; part.len()];
-                    for k in 1..part.len() {
-                        let (a, b) = (&self.slots[part[k - 1]], &self.slots[part[k]]);
-                        off[k] = off[k - 1] + a.w + sep(a, b);
-                    }
-                    let t: Vec<f64> = target[start..end]
-                        .iter()
-                        .zip(&off)
-                        .map(|(t, o)| t - o)
-                        .collect();
-                    let y = isotonic(&t, &wts[start..end]);
-                    for (k, &i) in part.iter().enumerate() {
-                        self.slots[i].x = y[k] + off[k];
-                    }
-                    start = end;
-                }
+                let (target, wts) = self.row_targets(row, nbrs, sp);
+                self.fit_row(row, &target, &wts, sp);
             }
         }
-        // The groups side by side, each `group_gap` right of the one before.
+        self.groups_side_by_side(sp);
+        // Start at x0.
+        let min = self.slots.iter().map(|s| s.x).fold(f64::INFINITY, f64::min);
+        if min.is_finite() {
+            for s in &mut self.slots {
+                s.x += x0 - min;
+            }
+        }
+    }
+
+    /// Each group of each rank packed to the left, to start with (the groups are
+    /// put side by side at the end).
+    fn pack_left(&mut self, ranks: &[Vec<usize>], x0: f64, sp: Spacing) {
+        for r in ranks {
+            let mut x = x0;
+            for (k, &i) in r.iter().enumerate() {
+                if k > 0 {
+                    let p = &self.slots[r[k - 1]];
+                    if p.group == self.slots[i].group {
+                        x += sep(p, &self.slots[i], sp);
+                    } else {
+                        x = x0;
+                    }
+                }
+                self.slots[i].x = x;
+                x += self.slots[i].w;
+            }
+        }
+    }
+
+    /// The desired left end of each slot of `row`, and its weight: the weighted
+    /// mean of where its joins in its group meet it, or for an unjoined slot the
+    /// place next to its left neighbour in the group (else the group's left),
+    /// lightly held.
+    fn row_targets(&self, row: &[usize], nbrs: &[Vec<usize>], sp: Spacing) -> (Vec<f64>, Vec<f64>) {
+        let mut target = Vec::with_capacity(row.len());
+        let mut wts = Vec::with_capacity(row.len());
+        for &i in row {
+            let s = &self.slots[i];
+            let (mut sum, mut wsum) = (0.0, 0.0);
+            for &j in nbrs[i].iter().filter(|&&j| self.slots[j].group == s.group) {
+                let t = &self.slots[j];
+                let w = weight(s, t);
+                sum += w * (t.x + t.anchor());
+                wsum += w;
+            }
+            if wsum > 0.0 {
+                target.push(sum / wsum - s.anchor());
+                wts.push(wsum);
+            } else {
+                // Unjoined: next to its left neighbour in the group, else at the
+                // group's left (a title heads its group).
+                let k = target.len();
+                let left = group_left(&self.slots, s.group);
+                let x = match k.checked_sub(1).map(|p| &self.slots[row[p]]) {
+                    Some(p) if p.group == s.group && s.kind != SlotKind::Title => {
+                        p.x + p.w + sep(p, s, sp)
+                    }
+                    _ if left.is_finite() => left,
+                    _ => s.x,
+                };
+                target.push(x);
+                wts.push(if s.kind == SlotKind::Title { 1.0 } else { 0.01 });
+            }
+        }
+        (target, wts)
+    }
+
+    /// Place each group's part of `row` as near its targets as the separations
+    /// allow (a weighted isotonic fit: offsets turn the separations into
+    /// x_k <= x_k+1).
+    fn fit_row(&mut self, row: &[usize], target: &[f64], wts: &[f64], sp: Spacing) {
+        let mut start = 0;
+        while start < row.len() {
+            let g = self.slots[row[start]].group;
+            let end = (start..row.len())
+                .find(|&k| self.slots[row[k]].group != g)
+                .unwrap_or(row.len());
+            let part = &row[start..end];
+            let mut off = vec![0.0; part.len()];
+            for k in 1..part.len() {
+                let (a, b) = (&self.slots[part[k - 1]], &self.slots[part[k]]);
+                off[k] = off[k - 1] + a.w + sep(a, b, sp);
+            }
+            let t: Vec<f64> = target[start..end]
+                .iter()
+                .zip(&off)
+                .map(|(t, o)| t - o)
+                .collect();
+            let y = isotonic(&t, &wts[start..end]);
+            for (k, &i) in part.iter().enumerate() {
+                self.slots[i].x = y[k] + off[k];
+            }
+            start = end;
+        }
+    }
+
+    /// The groups side by side, each `group_gap` right of the one before.
+    fn groups_side_by_side(&mut self, sp: Spacing) {
         let max_group = self.slots.iter().map(|s| s.group).max().unwrap_or(0);
         let mut right_of_prev: Option<f64> = None;
         for g in 0..=max_group {
@@ -460,13 +469,6 @@ impl Graph {
                     .map(|&i| self.slots[i].x + self.slots[i].w)
                     .fold(f64::NEG_INFINITY, f64::max),
             );
-        }
-        // Start at x0.
-        let min = self.slots.iter().map(|s| s.x).fold(f64::INFINITY, f64::min);
-        if min.is_finite() {
-            for s in &mut self.slots {
-                s.x += x0 - min;
-            }
         }
     }
 
@@ -644,6 +646,34 @@ impl Graph {
             },
         })
     }
+}
+
+/// The room between two neighbours of a rank.
+fn sep(a: &Slot, b: &Slot, sp: Spacing) -> f64 {
+    if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
+        sp.node_gap
+    } else {
+        sp.gap
+    }
+}
+
+/// How strongly a join pulls its two slots into line: straight runs through
+/// dummies matter most.
+fn weight(a: &Slot, b: &Slot) -> f64 {
+    match (a.kind, b.kind) {
+        (SlotKind::Node, SlotKind::Node) => 1.0,
+        (SlotKind::Node, _) | (_, SlotKind::Node) => 2.0,
+        _ => 8.0,
+    }
+}
+
+/// The left end of group `g` (its title aside), infinite if it has no slot.
+fn group_left(slots: &[Slot], g: usize) -> f64 {
+    slots
+        .iter()
+        .filter(|t| t.group == g && t.kind != SlotKind::Title)
+        .map(|t| t.x)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Weighted isotonic regression (pool adjacent violators): the non-decreasing `y`

@@ -319,31 +319,46 @@ fn assign_tracks(arches: &mut [Arch]) {
     }
 }
 
+/// The column of a component: its agent's place in the drawing.
+fn column(agents: &[usize], c: &Comp<'_>) -> usize {
+    agents.iter().position(|&a| a == c.agent).unwrap_or(0)
+}
+
+/// The rank of a component's box.
+fn rank_of(c: &Comp<'_>) -> usize {
+    1 + 2 * c.row
+}
+
+/// The y of arch track `t` over frames whose top is at `frame_top`.
+fn track_y(frame_top: f64, t: usize) -> f64 {
+    frame_top - 14.0 - TRACK_PITCH * t as f64
+}
+
+/// The structure laid out and placed.
+struct Placed {
+    g: Graph,
+    /// Per component, its box's slot.
+    slot_of: Vec<usize>,
+    /// Per link, its chain.
+    chains: Vec<usize>,
+    /// The links between agents that are not neighbours.
+    arches: Vec<Arch>,
+    /// The frames' top before the drawing moved down by `dy` to make room
+    /// for the arches.
+    frame_top: f64,
+    dy: f64,
+}
+
 fn draw(
     spec: &Spec,
     agents: &[usize],
     comps: &[Comp<'_>],
     links: &[(usize, usize, String)],
 ) -> (String, Scene) {
-    let spacing = Spacing {
-        node_gap: 40.0,
-        gap: 12.0,
-        group_gap: 2.0 * PAD + 24.0,
-        rank_gap: 26.0,
-    };
-    // Ranks: 0 the agents' titles, then each row of components (control; virtual
-    // effectors and receptors; devices) followed by a rank for labels. Groups: 2k
-    // the agent in column k, 2k + 1 the space between it and the next.
-    let col = |c: &Comp<'_>| agents.iter().position(|&a| a == c.agent).unwrap_or(0);
-    let rank_of = |c: &Comp<'_>| 1 + 2 * c.row;
-    let mut g = Graph::default();
     let titles: Vec<String> = agents
         .iter()
         .map(|&a| format!("agent {}", spec.agents[a].name))
         .collect();
-    for (k, t) in titles.iter().enumerate() {
-        g.slot(SlotKind::Title, 0, 2 * k, (text_w(t), LINE_H + 1.0), 0.0);
-    }
     let mut boxes: Vec<Boxed> = comps
         .iter()
         .map(|c| {
@@ -352,56 +367,100 @@ fn draw(
             b
         })
         .collect();
+    let p = lay_out(agents, comps, links, &titles, &boxes);
+    let frame_top = p.frame_top + p.dy;
+    let bottom = p.g.bottom() + PAD;
+    for (b, &i) in boxes.iter_mut().zip(&p.slot_of) {
+        b.x = p.g.slots[i].x;
+        b.y = p.g.slots[i].y;
+    }
+    let mut doc = Svg::new();
+    let mut extent: f64 = 0.0;
+    let frame_ids = draw_frames(&mut doc, &p.g, &titles, (frame_top, bottom), &mut extent);
+    let ids: Vec<usize> = boxes
+        .iter()
+        .zip(comps)
+        .map(|(b, c)| doc.boxed(b, Some(frame_ids[column(agents, c)])))
+        .collect();
+    draw_links(&mut doc, &p, links, &ids, &mut extent);
+    doc.finish(
+        extent + MARGIN,
+        bottom + MARGIN,
+        &format!("{} — structure", spec.name),
+    )
+}
+
+/// The layout of titles, boxes and links, placed, with room above the frames
+/// for the arches.
+///
+/// Ranks: 0 the agents' titles, then each row of components (control; virtual
+/// effectors and receptors; devices) followed by a rank for labels. Groups: 2k
+/// the agent in column k, 2k + 1 the space between it and the next.
+fn lay_out(
+    agents: &[usize],
+    comps: &[Comp<'_>],
+    links: &[(usize, usize, String)],
+    titles: &[String],
+    boxes: &[Boxed],
+) -> Placed {
+    let spacing = Spacing {
+        node_gap: 40.0,
+        gap: 12.0,
+        group_gap: 2.0 * PAD + 24.0,
+        rank_gap: 26.0,
+    };
+    let mut g = Graph::default();
+    for (k, t) in titles.iter().enumerate() {
+        g.slot(SlotKind::Title, 0, 2 * k, (text_w(t), LINE_H + 1.0), 0.0);
+    }
     let slot_of: Vec<usize> = comps
         .iter()
-        .zip(&boxes)
-        .map(|(c, b)| g.slot(SlotKind::Node, rank_of(c), 2 * col(c), (b.w, b.h), b.w))
+        .zip(boxes)
+        .map(|(c, b)| {
+            g.slot(
+                SlotKind::Node,
+                rank_of(c),
+                2 * column(agents, c),
+                (b.w, b.h),
+                b.w,
+            )
+        })
         .collect();
-    let label_slot = |g: &mut Graph, rank: usize, group: usize, text: &str| {
-        let w = label_w(text);
-        g.slot(SlotKind::Label, rank, group, (w + 2.0, LABEL_H), w)
-    };
+    let (chains, mut arches) = link_chains(&mut g, agents, comps, links, &slot_of);
+    g.place(MARGIN + PAD, 0.0, spacing);
+    let (frame_top, dy) = lift_for_arches(&mut g, &mut arches);
+    Placed {
+        g,
+        slot_of,
+        chains,
+        arches,
+        frame_top,
+        dy,
+    }
+}
+
+/// Each link as a chain of slots: between the same or neighbouring agents
+/// through the ranks between its ends (a turn between boxes of one rank);
+/// between agents further apart, up to the titles' rank in the source's agent,
+/// over the top (an arch), and down in the target's.
+fn link_chains(
+    g: &mut Graph,
+    agents: &[usize],
+    comps: &[Comp<'_>],
+    links: &[(usize, usize, String)],
+    slot_of: &[usize],
+) -> (Vec<usize>, Vec<Arch>) {
     let mut chains = Vec::with_capacity(links.len());
     let mut arches: Vec<Arch> = Vec::new();
     for (a, b, label) in links {
-        let (ca, cb) = (col(&comps[*a]), col(&comps[*b]));
+        let (ca, cb) = (column(agents, &comps[*a]), column(agents, &comps[*b]));
         let (ra, rb) = (rank_of(&comps[*a]), rank_of(&comps[*b]));
         let mut slots = vec![slot_of[*a]];
         let mut arch = None;
         if ca.abs_diff(cb) <= 1 {
             let group = if ca == cb { 2 * ca } else { 2 * ca.min(cb) + 1 };
-            if ra == rb {
-                let w = label_w(label);
-                slots.push(g.slot(
-                    SlotKind::Turn,
-                    ra + 1,
-                    group,
-                    (w + 4.0, TURN_DEPTH + 1.0 + LABEL_H),
-                    w,
-                ));
-            } else {
-                let between: Vec<usize> = if rb > ra {
-                    (ra + 1..rb).collect()
-                } else {
-                    (rb + 1..ra).rev().collect()
-                };
-                let mid = (ra + rb) as f64 / 2.0;
-                let label_rank = between
-                    .iter()
-                    .copied()
-                    .filter(|r| r % 2 == 0)
-                    .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
-                for r in between {
-                    slots.push(if Some(r) == label_rank {
-                        label_slot(&mut g, r, group, label)
-                    } else {
-                        g.slot(SlotKind::Dummy, r, group, (0.0, 0.0), 0.0)
-                    });
-                }
-            }
+            near_link_slots(g, &mut slots, (ra, rb), group, label);
         } else {
-            // Up to the titles' rank in the source's agent, over the top, and down in
-            // the target's.
             for r in (0..ra).rev() {
                 slots.push(g.slot(SlotKind::Dummy, r, 2 * ca, (0.0, 0.0), 0.0));
             }
@@ -412,7 +471,7 @@ fn draw(
         }
         slots.push(slot_of[*b]);
         let c = g.chain(slots, arch);
-        if let Some(k) = arch {
+        if arch.is_some() {
             arches.push(Arch {
                 chain: c,
                 xa: 0.0,
@@ -421,35 +480,84 @@ fn draw(
                 track: 0,
                 label_x: 0.0,
             });
-            let _ = k;
         }
         chains.push(c);
     }
-    g.place(MARGIN + PAD, 0.0, spacing);
-    // The arches over the frames.
-    for arch in &mut arches {
+    (chains, arches)
+}
+
+/// The slots of a link in `group` between boxes of ranks `ra` and `rb`: a turn
+/// under their rank if it is one, else a run through the ranks between, its
+/// label in the label rank nearest the middle.
+fn near_link_slots(
+    g: &mut Graph,
+    slots: &mut Vec<usize>,
+    (ra, rb): (usize, usize),
+    group: usize,
+    label: &str,
+) {
+    if ra == rb {
+        let w = label_w(label);
+        slots.push(g.slot(
+            SlotKind::Turn,
+            ra + 1,
+            group,
+            (w + 4.0, TURN_DEPTH + 1.0 + LABEL_H),
+            w,
+        ));
+        return;
+    }
+    let between: Vec<usize> = if rb > ra {
+        (ra + 1..rb).collect()
+    } else {
+        (rb + 1..ra).rev().collect()
+    };
+    let mid = (ra + rb) as f64 / 2.0;
+    let label_rank = between
+        .iter()
+        .copied()
+        .filter(|r| r % 2 == 0)
+        .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+    for r in between {
+        slots.push(if Some(r) == label_rank {
+            let w = label_w(label);
+            g.slot(SlotKind::Label, r, group, (w + 2.0, LABEL_H), w)
+        } else {
+            g.slot(SlotKind::Dummy, r, group, (0.0, 0.0), 0.0)
+        });
+    }
+}
+
+/// The arches over the frames: their runs and tracks; then everything moved
+/// down so that the highest fits. The frames' top before the move, and the
+/// move.
+fn lift_for_arches(g: &mut Graph, arches: &mut [Arch]) -> (f64, f64) {
+    for arch in arches.iter_mut() {
         let k = g.chains[arch.chain].arch.unwrap_or(0);
         arch.xa = g.run_at(arch.chain, k);
         arch.xb = g.run_at(arch.chain, k + 1);
     }
-    assign_tracks(&mut arches);
+    assign_tracks(arches);
     let frame_top = g.bands.first().map_or(0.0, |b| b.0) - 4.0;
-    let track_y = |t: usize| frame_top - 14.0 - TRACK_PITCH * t as f64;
     let highest = arches
         .iter()
-        .map(|a| track_y(a.track) - LABEL_H - 2.0)
+        .map(|a| track_y(frame_top, a.track) - LABEL_H - 2.0)
         .fold(frame_top, f64::min);
     let dy = MARGIN - highest;
     g.shift_y(dy);
-    let frame_top = frame_top + dy;
-    let bottom = g.bottom() + PAD;
-    for (b, &i) in boxes.iter_mut().zip(&slot_of) {
-        b.x = g.slots[i].x;
-        b.y = g.slots[i].y;
-    }
-    let mut doc = Svg::new();
-    let mut extent: f64 = 0.0;
-    let frame_ids: Vec<usize> = titles
+    (frame_top, dy)
+}
+
+/// Each agent's frame around its slots, from `top` to `bottom`, widening
+/// `extent`; the frames' ids.
+fn draw_frames(
+    doc: &mut Svg,
+    g: &Graph,
+    titles: &[String],
+    (top, bottom): (f64, f64),
+    extent: &mut f64,
+) -> Vec<usize> {
+    titles
         .iter()
         .enumerate()
         .map(|(k, title)| {
@@ -457,26 +565,27 @@ fn draw(
             let (l, r) = members.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, r), s| {
                 (l.min(s.x), r.max(s.x + s.w))
             });
-            extent = extent.max(r + PAD);
-            doc.frame(
-                l - PAD,
-                frame_top,
-                r - l + 2.0 * PAD,
-                bottom - frame_top,
-                title,
-            )
+            *extent = extent.max(r + PAD);
+            doc.frame(l - PAD, top, r - l + 2.0 * PAD, bottom - top, title)
         })
-        .collect();
-    let ids: Vec<usize> = boxes
-        .iter()
-        .zip(comps)
-        .map(|(b, c)| doc.boxed(b, Some(frame_ids[col(c)])))
-        .collect();
-    for ((a, b, label), &c) in links.iter().zip(&chains) {
-        let arch = arches.iter().find(|x| x.chain == c);
+        .collect()
+}
+
+/// Each link between the boxes `ids`, routed along its chain (an arch over
+/// its track, its label on it), widening `extent`.
+fn draw_links(
+    doc: &mut Svg,
+    p: &Placed,
+    links: &[(usize, usize, String)],
+    ids: &[usize],
+    extent: &mut f64,
+) {
+    let g = &p.g;
+    for ((a, b, label), &c) in links.iter().zip(&p.chains) {
+        let arch = p.arches.iter().find(|x| x.chain == c);
         let (path, at) = match arch {
             Some(x) => {
-                let y = track_y(x.track) + dy;
+                let y = track_y(p.frame_top, x.track) + p.dy;
                 let at = LabelAt {
                     x: x.label_x,
                     y: y - LABEL_H / 2.0 - 1.0,
@@ -486,9 +595,9 @@ fn draw(
             None => (g.route(c, None), g.label_at(c)),
         };
         if let Some(at) = &at {
-            extent = extent.max(at.right(label));
+            *extent = extent.max(at.right(label));
         }
-        extent = extent.max(g.right());
+        *extent = extent.max(g.right());
         doc.edge(
             &path,
             at.as_ref().map(|at| (label.as_str(), at)),
@@ -496,9 +605,4 @@ fn draw(
             None,
         );
     }
-    doc.finish(
-        extent + MARGIN,
-        bottom + MARGIN,
-        &format!("{} — structure", spec.name),
-    )
 }
