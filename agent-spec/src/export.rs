@@ -23,7 +23,9 @@
 
 use std::collections::HashMap;
 
-use agent_core::{GroupShape, LinkInfo, NodeInfo, NodeKind, PartTarget, Shape, SystemInfo};
+use agent_core::{
+    FsmShape, GroupShape, LinkInfo, NodeInfo, NodeKind, PartTarget, Shape, SystemInfo,
+};
 
 use crate::model::{
     self, Agent, Behaviour, Buffer, Device, DeviceKind, Fsm, Function, Group, Link, Predicate,
@@ -224,74 +226,7 @@ fn subsystem(
     let Some(fsm) = &node.fsm else {
         return Err(ExportError::Undescribed(node.name.clone()));
     };
-    let mut functions: Vec<Function> = Vec::new();
-    let mut behaviours = Vec::new();
-    for b in &fsm.behaviours {
-        let mut names = Vec::new();
-        for part in &b.parts {
-            let (target, suffix) = match &part.target {
-                PartTarget::Common => (Target::Common, "common".to_owned()),
-                PartTarget::Memory => (Target::Memory, "memory".to_owned()),
-                PartTarget::Output { group, field, .. } => {
-                    let candidates: Vec<(usize, &GroupShape)> = shape
-                        .outputs
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, g)| match field {
-                            Some(f) => g.name == *f,
-                            None => last_segment(g.ty) == last_segment(group),
-                        })
-                        .collect();
-                    let [(k, g)] = candidates[..] else {
-                        return Err(ExportError::UnknownTarget {
-                            node: node.name.clone(),
-                            behaviour: b.name.clone(),
-                            group: (*group).to_owned(),
-                        });
-                    };
-                    let peer = outputs.get(k).map(|o| o.peer.clone()).unwrap_or_default();
-                    (Target::Output(peer), g.name.to_owned())
-                }
-            };
-            let name = part
-                .name
-                .as_ref()
-                .map_or_else(|| format!("{}_{suffix}", b.name), |n| n.to_string());
-            match functions.iter().find(|f| f.name == name) {
-                Some(f) if f.target == target => {}
-                Some(_) => {
-                    // One name, two targets: a spec function has one target.
-                    let renamed = format!("{name}_{suffix}");
-                    if !functions.iter().any(|f| f.name == renamed) {
-                        functions.push(Function {
-                            name: renamed.clone(),
-                            target,
-                            reads: Vec::new(),
-                            writes: Vec::new(),
-                            doc: None,
-                        });
-                    }
-                    names.push(renamed);
-                    continue;
-                }
-                None => functions.push(Function {
-                    name: name.clone(),
-                    target,
-                    reads: Vec::new(),
-                    writes: Vec::new(),
-                    doc: None,
-                }),
-            }
-            names.push(name);
-        }
-        behaviours.push(Behaviour {
-            name: b.name.clone(),
-            kind: b.kind,
-            functions: names,
-            terminal: b.terminal.clone(),
-            doc: None,
-        });
-    }
+    let (functions, behaviours) = functions_and_behaviours(node, shape, fsm, &outputs)?;
     Ok(Subsystem {
         name: node.name.clone(),
         kind,
@@ -312,20 +247,124 @@ fn subsystem(
         relations: fsm.relations.clone(),
         functions,
         behaviours,
-        fsm: Fsm {
-            initial: Some(fsm.initial.clone()),
-            arcs: fsm
-                .arcs
-                .iter()
-                .map(|(from, to, when)| model::FsmArc {
-                    from: from.clone(),
-                    to: to.clone(),
-                    when: when.clone(),
-                })
-                .collect(),
-            finals: fsm.finals.clone(),
-        },
+        fsm: spec_fsm(fsm),
     })
+}
+
+/// The functions, one per part name and target, and the behaviours that name
+/// them (a part without a name is `<behaviour>_<target>`).
+fn functions_and_behaviours(
+    node: &NodeInfo,
+    shape: &Shape,
+    fsm: &FsmShape,
+    outputs: &[Group],
+) -> Result<(Vec<Function>, Vec<Behaviour>), ExportError> {
+    let mut functions: Vec<Function> = Vec::new();
+    let mut behaviours = Vec::new();
+    for b in &fsm.behaviours {
+        let mut names = Vec::new();
+        for part in &b.parts {
+            let (target, suffix) = part_target(node, &b.name, &part.target, shape, outputs)?;
+            let name = part
+                .name
+                .as_ref()
+                .map_or_else(|| format!("{}_{suffix}", b.name), |n| n.to_string());
+            names.push(add_function(&mut functions, name, target, &suffix));
+        }
+        behaviours.push(Behaviour {
+            name: b.name.clone(),
+            kind: b.kind,
+            functions: names,
+            terminal: b.terminal.clone(),
+            doc: None,
+        });
+    }
+    Ok((functions, behaviours))
+}
+
+/// The spec target of a part of behaviour `behaviour`, and the suffix that
+/// names it (`common`, `memory`, or the output group's field): an output
+/// group is found by its field, else by its type.
+fn part_target(
+    node: &NodeInfo,
+    behaviour: &str,
+    target: &PartTarget,
+    shape: &Shape,
+    outputs: &[Group],
+) -> Result<(Target, String), ExportError> {
+    Ok(match target {
+        PartTarget::Common => (Target::Common, "common".to_owned()),
+        PartTarget::Memory => (Target::Memory, "memory".to_owned()),
+        PartTarget::Output { group, field, .. } => {
+            let candidates: Vec<(usize, &GroupShape)> = shape
+                .outputs
+                .iter()
+                .enumerate()
+                .filter(|(_, g)| match field {
+                    Some(f) => g.name == *f,
+                    None => last_segment(g.ty) == last_segment(group),
+                })
+                .collect();
+            let [(k, g)] = candidates[..] else {
+                return Err(ExportError::UnknownTarget {
+                    node: node.name.clone(),
+                    behaviour: behaviour.to_owned(),
+                    group: (*group).to_owned(),
+                });
+            };
+            let peer = outputs.get(k).map(|o| o.peer.clone()).unwrap_or_default();
+            (Target::Output(peer), g.name.to_owned())
+        }
+    })
+}
+
+/// The name under which a behaviour uses function `name` writing `target`,
+/// adding the function unless it is there: one name with two targets gets
+/// `_<suffix>` for the second (a spec function has one target).
+fn add_function(
+    functions: &mut Vec<Function>,
+    name: String,
+    target: Target,
+    suffix: &str,
+) -> String {
+    let function = |name: String, target: Target| Function {
+        name,
+        target,
+        reads: Vec::new(),
+        writes: Vec::new(),
+        doc: None,
+    };
+    match functions.iter().find(|f| f.name == name) {
+        Some(f) if f.target == target => name,
+        Some(_) => {
+            let renamed = format!("{name}_{suffix}");
+            if !functions.iter().any(|f| f.name == renamed) {
+                functions.push(function(renamed.clone(), target));
+            }
+            renamed
+        }
+        None => {
+            functions.push(function(name.clone(), target));
+            name
+        }
+    }
+}
+
+/// The FSM's graph as a spec writes it.
+fn spec_fsm(fsm: &FsmShape) -> Fsm {
+    Fsm {
+        initial: Some(fsm.initial.clone()),
+        arcs: fsm
+            .arcs
+            .iter()
+            .map(|(from, to, when)| model::FsmArc {
+                from: from.clone(),
+                to: to.clone(),
+                when: when.clone(),
+            })
+            .collect(),
+        finals: fsm.finals.clone(),
+    }
 }
 
 /// The spec of a built system, named `name`.
