@@ -24,6 +24,9 @@ use super::{MakeObserver, Placement, RealTime, RtError, Running, StopHandle, clo
 type Away = (String, Box<dyn Transport>);
 
 impl RealTime {
+    /// [`RealTime::start`] and [`RealTime::start_when`]: the threads assigned,
+    /// the links made, each thread's work handed out, memory locked, the clock
+    /// agreed (with `sync`, if given), the threads spawned.
     pub(super) fn start_inner(
         self,
         limit: Duration,

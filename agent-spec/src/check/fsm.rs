@@ -17,6 +17,8 @@ struct Graph<'s> {
 }
 
 impl<'a> Checker<'a> {
+    /// The FSM of `sub`: its relations, shape and arc conditions, then for each
+    /// behaviour whose terminal condition resolved, its ways out and arc proof.
     pub(super) fn fsm(
         &mut self,
         base: &[Seg<'static>],

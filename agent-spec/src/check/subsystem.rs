@@ -3,6 +3,8 @@
 use super::*;
 
 impl<'a> Checker<'a> {
+    /// Subsystem `sub` at `base`: its period, names, reads and writes,
+    /// behaviours and FSM, and what goes unused.
     pub(super) fn subsystem(&mut self, base: &[Seg<'static>], sub: &'a Subsystem) {
         self.period(sub.period_ms, &join(base, &[F("period_ms")]));
         self.unique_names(base, sub);

@@ -33,6 +33,8 @@ impl<'a> Checker<'a> {
         }
     }
 
+    /// Every link, then the buffers they feed: each input has exactly one
+    /// writer, each output a reader.
     pub(super) fn links(&mut self) {
         let spec = self.spec;
         let mut feeds = Feeds::default();
@@ -318,6 +320,8 @@ impl<'a> Checker<'a> {
     // -----------------------------------------------------------------------
     // Deployments
 
+    /// Each deployment: unique names, every component run or omitted exactly
+    /// once, usable endpoints.
     pub(super) fn deployments(&mut self) {
         let spec = self.spec;
         self.unique(

@@ -349,6 +349,8 @@ struct Placed {
     dy: f64,
 }
 
+/// The SVG of the agents' frames, the components' boxes and the links, and
+/// what it placed.
 fn draw(
     spec: &Spec,
     agents: &[usize],
