@@ -66,7 +66,8 @@ pub use link::{Access, InjectError, LinkId, LinkStats, Port};
 pub use offload::{Offload, OffloadError, OffloadMode};
 pub use probe::Probes;
 pub use realtime::{
-    Finished, Placement, Probed, RealTime, RtConfig, RtError, RtReport, Running, StopHandle,
+    Finished, Placement, Probed, RealTime, Refused, RtConfig, RtError, RtReport, Running,
+    StopHandle, ThreadReport,
 };
 /// The tracer of payload types' shapes ([`reflect`]), for reading [`TypeShape`]s.
 pub use serde_reflection;

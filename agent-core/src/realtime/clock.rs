@@ -11,6 +11,8 @@
 
 use std::time::{Duration, Instant};
 
+use super::Refused;
+
 /// The common origin of every thread's deadlines: instant `t` of a node is
 /// `origin + t` on the monotonic clock.
 #[derive(Clone, Copy, Debug)]
@@ -93,42 +95,53 @@ fn fallback_sleep_until(deadline: Instant) {
 }
 
 /// Give the calling thread FIFO real-time priority `priority` (1–99).
-pub(crate) fn set_fifo_priority(priority: u8) -> Result<(), String> {
+pub(crate) fn set_fifo_priority(priority: u8) -> Result<(), Refused> {
     #[cfg(unix)]
     {
         use thread_priority::{
             RealtimeThreadSchedulePolicy, ThreadPriority, ThreadPriorityValue,
             ThreadSchedulePolicy, set_thread_priority_and_policy, thread_native_id,
         };
-        let value = ThreadPriorityValue::try_from(priority)
-            .map_err(|e| format!("priority {priority}: {e}"))?;
+        let value =
+            ThreadPriorityValue::try_from(priority).map_err(|e| Refused::PriorityOutOfRange {
+                priority,
+                reason: e.to_string(),
+            })?;
         set_thread_priority_and_policy(
             thread_native_id(),
             ThreadPriority::Crossplatform(value),
             ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
         )
-        .map_err(|e| format!("SCHED_FIFO {priority} refused: {e:?}"))
+        .map_err(|e| Refused::Priority {
+            priority,
+            reason: format!("{e:?}"),
+        })
     }
     #[cfg(not(unix))]
     {
-        Err(format!(
-            "SCHED_FIFO {priority}: no real-time scheduling on this platform"
-        ))
+        Err(Refused::Unsupported {
+            what: format!("SCHED_FIFO {priority}"),
+        })
     }
 }
 
 /// Lock the process's memory (current and future) so that no page fault delays a
 /// period.
-pub(crate) fn lock_memory() -> Result<(), String> {
+pub(crate) fn lock_memory() -> Result<(), Refused> {
     #[cfg(target_os = "linux")]
     {
         use nix::sys::mman::{MlockAllFlags, mlockall};
-        mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE)
-            .map_err(|e| format!("mlockall refused: {e}"))
+        mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE).map_err(|e| {
+            Refused::LockMemory {
+                reason: e.to_string(),
+            }
+        })
     }
     #[cfg(not(target_os = "linux"))]
     {
-        Err("mlockall: not on this platform".to_owned())
+        Err(Refused::Unsupported {
+            what: "mlockall".to_owned(),
+        })
     }
 }
 

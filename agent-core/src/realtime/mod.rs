@@ -79,7 +79,7 @@ use crate::trace::{Observer, SystemInfo};
 pub use crate::probe::Probed;
 pub use config::{RtConfig, RtError};
 pub use finished::Finished;
-pub use report::{RtReport, ThreadReport};
+pub use report::{Refused, RtReport, ThreadReport};
 pub use timing::{NodeTiming, Spread};
 
 /// A system prepared for a real-time run: add probes, then [`RealTime::start`].
@@ -296,7 +296,7 @@ pub struct Running {
     shared: Arc<worker::Shared>,
     stats: Vec<Arc<SharedStats>>,
     dropped: Vec<Arc<AtomicU64>>,
-    memory_locked: Option<Result<(), String>>,
+    memory_locked: Option<Result<(), Refused>>,
     started: Instant,
     lead: Duration,
     /// Links from other processes stay subscribed while the run goes on.

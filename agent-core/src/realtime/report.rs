@@ -16,7 +16,42 @@ pub struct ThreadReport {
     /// The FIFO priority asked for, if any.
     pub priority_asked: Option<u8>,
     /// Why it was refused, if it was.
-    pub priority_refused: Option<String>,
+    pub priority_refused: Option<Refused>,
+}
+
+/// What the OS refused a real-time run: the run goes on without it (at ordinary
+/// priority, or with memory that may page), and the report says so.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Refused {
+    /// A FIFO priority outside what the scheduler accepts (1–99 on Linux).
+    #[error("priority {priority}: {reason}")]
+    PriorityOutOfRange {
+        /// The priority asked for.
+        priority: u8,
+        /// What the scheduler's interface said.
+        reason: String,
+    },
+    /// The OS refused `SCHED_FIFO` (on Linux: no `CAP_SYS_NICE` and an
+    /// `RLIMIT_RTPRIO` below the priority).
+    #[error("SCHED_FIFO {priority} refused: {reason}")]
+    Priority {
+        /// The priority asked for.
+        priority: u8,
+        /// What the OS said.
+        reason: String,
+    },
+    /// The OS refused `mlockall` (on Linux: `RLIMIT_MEMLOCK` too small).
+    #[error("mlockall refused: {reason}")]
+    LockMemory {
+        /// What the OS said.
+        reason: String,
+    },
+    /// The platform has no such facility.
+    #[error("{what}: not on this platform")]
+    Unsupported {
+        /// What was asked (`SCHED_FIFO 80`, `mlockall`).
+        what: String,
+    },
 }
 
 /// What a real-time run measured.
@@ -27,7 +62,7 @@ pub struct RtReport {
     /// Each thread and its priority.
     pub threads: Vec<ThreadReport>,
     /// `Some(Ok)`: memory was locked; `Some(Err(why))`: refused; `None`: not asked.
-    pub memory_locked: Option<Result<(), String>>,
+    pub memory_locked: Option<Result<(), Refused>>,
     /// Errors met (all of them under `OnError::Stop`, the first ones under
     /// `Continue`).
     pub errors: Vec<ExecError>,

@@ -18,7 +18,9 @@ use crate::probe::{ProbeFn, Target};
 use crate::system::System;
 use crate::trace::SystemInfo;
 
-use super::{MakeObserver, Placement, RealTime, RtError, Running, StopHandle, clock, worker};
+use super::{
+    MakeObserver, Placement, RealTime, Refused, RtError, Running, StopHandle, clock, worker,
+};
 
 /// A transport and the first part of its keys.
 type Away = (String, Box<dyn Transport>);
@@ -431,7 +433,7 @@ fn give_probes(works: &mut [worker::Work], threads: &Threads, probes: Vec<(Targe
 fn start_clock(
     sync: Option<&mut dyn FnMut() -> Option<Result<SystemTime, RtError>>>,
     inboxes: &[Arc<remote::Inbox>],
-    memory_locked: Option<&Result<(), String>>,
+    memory_locked: Option<&Result<(), Refused>>,
     lead: Duration,
 ) -> Result<(clock::Clock, bool), RtError> {
     match sync.and_then(|f| f()) {
@@ -467,7 +469,7 @@ fn spawn(
     works: Vec<worker::Work>,
     shared: &Arc<worker::Shared>,
     stop: &AtomicBool,
-    memory_locked: Option<&Result<(), String>>,
+    memory_locked: Option<&Result<(), Refused>>,
 ) -> Result<Vec<(String, JoinHandle<worker::Done>)>, RtError> {
     let mut handles = Vec::with_capacity(works.len());
     for work in works {

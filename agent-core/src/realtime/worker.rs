@@ -19,6 +19,7 @@ use crate::trace::{Observer, SystemInfo};
 
 use crate::probe::{ProbeFn, Target};
 
+use super::Refused;
 use super::clock::{self, Clock};
 use super::timing::{NodeTiming, Recorder};
 
@@ -67,7 +68,7 @@ pub(crate) struct Done {
     pub(crate) timings: Vec<(usize, NodeTiming)>,
     pub(crate) errors: Vec<ExecError>,
     /// The priority asked for and what the OS said.
-    pub(crate) priority: Option<(u8, Result<(), String>)>,
+    pub(crate) priority: Option<(u8, Result<(), Refused>)>,
     /// The virtual time of the last instant executed.
     pub(crate) last: Time,
 }
@@ -343,7 +344,7 @@ impl<'a> Thread<'a> {
 
     /// What the thread hands back: its nodes' timings and cores, the
     /// environment, the errors recorded.
-    fn finish(self, name: String, priority: Option<(u8, Result<(), String>)>) -> Done {
+    fn finish(self, name: String, priority: Option<(u8, Result<(), Refused>)>) -> Done {
         let info = &self.shared.info;
         let timings = self
             .ids
