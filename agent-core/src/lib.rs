@@ -63,7 +63,7 @@ pub use link::remote::{
     Inbox, Publisher, Transport, TransportError, TypeShape, WireHeader, reflect,
 };
 pub use link::{Access, InjectError, LinkId, LinkStats, Port};
-pub use offload::{Offload, OffloadError, OffloadMode};
+pub use offload::{Offload, OffloadError, OffloadMode, UnknownOffloadMode};
 pub use probe::Probes;
 pub use realtime::{
     Finished, Placement, Probed, RealTime, Refused, RtConfig, RtError, RtReport, Running,

@@ -49,15 +49,20 @@ pub enum OffloadMode {
 }
 
 impl std::str::FromStr for OffloadMode {
-    type Err = String;
+    type Err = UnknownOffloadMode;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "worker" => Ok(OffloadMode::Worker),
             "inline" => Ok(OffloadMode::Inline),
-            _ => Err(format!("unknown offload mode `{s}` (worker, inline)")),
+            _ => Err(UnknownOffloadMode(s.to_owned())),
         }
     }
 }
+
+/// A name that is not an [`OffloadMode`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown offload mode `{0}` (worker, inline)")]
+pub struct UnknownOffloadMode(pub String);
 
 /// Why an [`Offload`] refused a call.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -355,6 +360,11 @@ mod tests {
     fn the_mode_parses_from_its_name() {
         assert_eq!("worker".parse(), Ok(OffloadMode::Worker));
         assert_eq!("inline".parse(), Ok(OffloadMode::Inline));
-        assert!("threads".parse::<OffloadMode>().is_err());
+        let unknown = "threads".parse::<OffloadMode>().unwrap_err();
+        assert_eq!(unknown, UnknownOffloadMode("threads".into()));
+        assert_eq!(
+            unknown.to_string(),
+            "unknown offload mode `threads` (worker, inline)"
+        );
     }
 }
