@@ -148,26 +148,56 @@ impl<'a> DriverContext<'a> {
 /// A driver exchanges buffers with its agent's virtual effectors or receptors like a
 /// subsystem does, but it has no FSM: the executor calls [`Driver::step`] once per
 /// period, between reading its inputs and sending its outputs.
+///
+/// Its input and output structs describe their buffers (`#[derive(Buffers)]` on a
+/// struct of `In<T>` or `Out<T>` buffers or of groups, or `()` for none), so a
+/// driver is described by its types alone: [`Driver::shape`] and [`Driver::ports`]
+/// are provided, for spec export and for links made by name. A struct that does
+/// not describe its buffers is a compile error at `type Input = ...`.
+///
+/// ```
+/// use agent_core::{DeviceKind, Driver, DriverContext, DriverError};
+///
+/// /// A receptor that senses nothing (a driver with buffers derives `Buffers` on
+/// /// its input or output struct).
+/// struct Clock {
+///     ticks: u64,
+/// }
+///
+/// impl Driver for Clock {
+///     const KIND: DeviceKind = DeviceKind::Receptor;
+///     type Input = ();
+///     type Output = ();
+///     fn step(&mut self, _: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+///         self.ticks += 1;
+///         Ok(())
+///     }
+/// }
+/// let shape = Clock::shape().expect("every driver is described");
+/// assert!(shape.inputs.is_empty() && shape.outputs.is_empty() && shape.memory.is_none());
+/// assert!(Clock::ports().is_some());
+/// ```
 pub trait Driver: Send + 'static {
     /// Real effector or real receptor.
     const KIND: DeviceKind;
-    /// Commands received from virtual effectors or receptors (`_x E`).
-    type Input: Default + Send + 'static;
-    /// Readings sent to virtual effectors or receptors (`_y E`).
-    type Output: Default + Send + 'static;
+    /// Commands received from virtual effectors or receptors (`_x E`): a struct of
+    /// `In<T>` buffers (or of groups) with `#[derive(Buffers)]`, or `()`.
+    type Input: Buffers + Default + Send + 'static;
+    /// Readings sent to virtual effectors or receptors (`_y E`): a struct of
+    /// `Out<T>` buffers (or of groups) with `#[derive(Buffers)]`, or `()`.
+    type Output: Buffers + Default + Send + 'static;
 
-    /// The names and types of the buffers, for spec export and checks; `None` if
-    /// they are not described. With `#[derive(Buffers)]` on the input and output
-    /// structs: `Some(Shape::of_driver::<Self>())`.
+    /// The names and types of the buffers, for spec export and checks: provided,
+    /// from the descriptions of `Input` and `Output` ([`Shape::of_driver`]). Always
+    /// `Some` (the `Option` is that of [`Subsystem::shape`], where it is optional).
     fn shape() -> Option<Shape> {
-        None
+        Some(Shape::of_driver::<Self>())
     }
 
-    /// How its buffers are found by name, for links made from a spec:
-    /// `fn ports() -> Option<PortTable> { Some(PortTable::of::<Self::Input, Self::Output>()) }`
-    /// with `#[derive(Buffers)]` on the input and output structs.
+    /// How its buffers are found by name, for links made from a spec: provided,
+    /// from the descriptions of `Input` and `Output` ([`PortTable::of`]).
     fn ports() -> Option<PortTable> {
-        None
+        Some(PortTable::of::<Self::Input, Self::Output>())
     }
 
     /// Advance the device by one period: act on `input`, write readings to `output`.
@@ -197,14 +227,9 @@ impl Shape {
         }
     }
 
-    /// The shape of a driver whose inputs and outputs are described:
-    /// `fn shape() -> Option<Shape> { Some(Shape::of_driver::<Self>()) }`.
-    pub const fn of_driver<D>() -> Shape
-    where
-        D: Driver,
-        D::Input: Buffers,
-        D::Output: Buffers,
-    {
+    /// The shape of a driver (what [`Driver::shape`] returns): its input and output
+    /// buffers, no memory.
+    pub const fn of_driver<D: Driver + ?Sized>() -> Shape {
         Shape {
             memory: None,
             inputs: <D::Input as Buffers>::GROUPS,

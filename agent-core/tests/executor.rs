@@ -355,6 +355,24 @@ struct FlakyOut {
     value: Out<u64>,
 }
 
+// What `#[derive(Buffers)]` writes for a driver's flat struct (the derive's code
+// names the `embodied` facade, which this crate's tests do not have).
+impl Buffers for FlakyOut {
+    const GROUPS: &'static [GroupShape] = &[GroupShape {
+        name: "",
+        peer: None,
+        ty: "",
+        direction: Direction::Out,
+        buffers: &[Field {
+            name: "value",
+            ty: "u64",
+        }],
+    }];
+    fn fresh(&self) -> Fresh {
+        Fresh(u128::from(self.value.is_written()))
+    }
+}
+
 impl Driver for Flaky {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
