@@ -153,12 +153,6 @@ impl Driver for Echo {
     const KIND: DeviceKind = DeviceKind::Effector;
     type Input = EIn;
     type Output = EOut;
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-    fn ports() -> Option<PortTable> {
-        Some(PortTable::of::<Self::Input, Self::Output>())
-    }
     fn step(&mut self, _: DriverContext<'_>, x: &EIn, y: &mut EOut) -> Result<(), DriverError> {
         if let Some(v) = x.e.cmd.fresh() {
             self.got.fetch_add(1, std::sync::atomic::Ordering::Relaxed);

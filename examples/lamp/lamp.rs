@@ -110,12 +110,6 @@ impl Driver for Lamp {
     const KIND: DeviceKind = DeviceKind::Effector;
     type Input = LampInput;
     type Output = ();
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-    fn ports() -> Option<PortTable> {
-        Some(PortTable::of::<Self::Input, Self::Output>())
-    }
     fn step(&mut self, _: DriverContext<'_>, x: &LampInput, _: &mut ()) -> Result<(), DriverError> {
         match x.e1.brightness.get() {
             Some(b) if b.is_finite() => self.brightness = b.clamp(0.0, 1.0),

@@ -104,10 +104,6 @@ impl Driver for Pump {
     type Input = PumpInput;
     type Output = PumpOutput;
 
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-
     fn step(
         &mut self,
         mut cx: DriverContext<'_>,
@@ -154,10 +150,6 @@ impl Driver for Gauge {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
     type Output = GaugeOutput;
-
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
 
     fn step(
         &mut self,

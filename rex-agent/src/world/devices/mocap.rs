@@ -3,9 +3,7 @@
 
 use std::collections::VecDeque;
 
-use embodied::{
-    Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, Out, PortTable, Shape,
-};
+use embodied::{Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, Out};
 use serde::{Deserialize, Serialize};
 
 use super::Truth;
@@ -120,14 +118,6 @@ impl Driver for MotionCapture {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = ();
     type Output = MocapOutput;
-
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-
-    fn ports() -> Option<PortTable> {
-        Some(PortTable::of::<Self::Input, Self::Output>())
-    }
 
     fn step(
         &mut self,

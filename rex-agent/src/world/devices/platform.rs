@@ -2,9 +2,7 @@
 //! torques, with its sensors (wheel encoders, IMU, force sensors) and their noise.
 //! It writes the ground truth every step.
 
-use embodied::{
-    Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out, PortTable, Shape,
-};
+use embodied::{Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out};
 use serde::{Deserialize, Serialize};
 
 use super::Truth;
@@ -251,14 +249,6 @@ impl Driver for Platform {
     const KIND: DeviceKind = DeviceKind::Effector;
     type Input = PlatformInput;
     type Output = PlatformOutput;
-
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-
-    fn ports() -> Option<PortTable> {
-        Some(PortTable::of::<Self::Input, Self::Output>())
-    }
 
     fn step(
         &mut self,

@@ -4,7 +4,6 @@
 
 use embodied::{
     Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Offload, OffloadMode, Out,
-    PortTable, Shape,
 };
 use nalgebra::{UnitComplex, Vector2};
 
@@ -160,14 +159,6 @@ impl Driver for StereoCamera {
     const KIND: DeviceKind = DeviceKind::Receptor;
     type Input = CameraInput;
     type Output = CameraOutput;
-
-    fn shape() -> Option<Shape> {
-        Some(Shape::of_driver::<Self>())
-    }
-
-    fn ports() -> Option<PortTable> {
-        Some(PortTable::of::<Self::Input, Self::Output>())
-    }
 
     fn step(
         &mut self,
