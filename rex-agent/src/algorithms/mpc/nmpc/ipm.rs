@@ -286,7 +286,10 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             self.factor(w)?;
             // Predictor: the affine direction (complementarity target 0).
             let mut aff = std::mem::take(&mut w.aff);
-            self.direction(dx0, w, None, &mut aff)?;
+            if self.direction(dx0, w, None, &mut aff).is_none() {
+                w.aff = aff;
+                return None;
+            }
             let a_aff = step_length(&w.bounds, &aff, 1.0);
             let mu_aff = w
                 .bounds
@@ -304,7 +307,10 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             let mut dir = std::mem::take(&mut w.dir);
             let solved = self.direction(dx0, w, Some((&aff.slacks, sigma * mu)), &mut dir);
             w.aff = aff;
-            solved?;
+            if solved.is_none() {
+                w.dir = dir;
+                return None;
+            }
             let alpha = step_length(&w.bounds, &dir, 0.995);
             if alpha < 1e-10 {
                 w.dir = dir;
@@ -494,4 +500,25 @@ fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f
         }
     }
     (fraction * num / den).min(1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::algorithms::mpc::NmpcSettings;
+    use crate::algorithms::mpc::nmpc::ReducedNmpc;
+    use crate::model::{PlatformParams, Reduced, SlipParams, Vector};
+
+    #[test]
+    fn a_direction_that_is_not_finite_leaves_the_memory_usable() {
+        let model = Reduced::new(PlatformParams::peer_default());
+        let mut nmpc = ReducedNmpc::new(model, NmpcSettings::default()).expect("valid settings");
+        let reference = vec![[0.0; 5]; 21];
+        nmpc.prepare(&reference, &SlipParams::NOMINAL.to_array())
+            .expect("valid problem");
+        // A start that is not finite: its direction is not either.
+        assert_eq!(nmpc.ipm(&Vector::from([f64::NAN; 5])), None);
+        // The next solve finds its direction buffers (it indexed empty ones
+        // when they were dropped with the failed direction).
+        nmpc.ipm(&Vector::zeros());
+    }
 }
