@@ -32,7 +32,7 @@ use stats::Stats;
 
 use rex_agent::algorithms::mpc::QpStrategy;
 use rex_agent::algorithms::mpc::mhe::{Mhe, MheSettings};
-use rex_agent::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
+use rex_bench::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
 struct Run {
     step: Stats,

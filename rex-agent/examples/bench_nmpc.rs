@@ -35,9 +35,9 @@ mod stats;
 
 use stats::{Stats, percentile};
 
-use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
 use rex_agent::algorithms::mpc::{Nmpc, NmpcSettings, QpStrategy, Status};
 use rex_agent::model::SlipParams;
+use rex_bench::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS, SS_SKIP_S};
 
 #[derive(Clone, Debug, Default)]
 struct Run {

@@ -35,9 +35,9 @@ mod stats;
 
 use stats::{Stats, percentile};
 
-use rex_agent::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
 use rex_agent::algorithms::mpc::{FrozenQp, Nmpc, NmpcSettings, SparseQp};
 use rex_agent::model::{Reduced, SlipParams};
+use rex_bench::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
 
 const TOL: f64 = 1e-6;
 

@@ -7,7 +7,6 @@
 
 pub mod mhe;
 pub mod nmpc;
-pub mod peer;
 pub mod sparse;
 
 pub(crate) use crate::math::linsolve::spd_cholesky;

@@ -761,6 +761,3 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         self.estimate()
     }
 }
-
-#[cfg(test)]
-mod tests;

@@ -74,6 +74,11 @@ pub use offset::{DisturbanceObserver, DisturbanceSettings};
 use ipm::{IpmStart, IpmWork};
 use qp::ClarabelQp;
 
+/// The most iterations the structured interior-point method takes on one QP
+/// ([`FrozenQp::solve_structured`] too); without convergence by then, Clarabel
+/// solves the QP.
+pub const IPM_MAX_ITERATIONS: usize = ipm::MAX_ITERATIONS;
+
 /// The NMPC on the peers' reduced model `(X, Y, φ, v, ω)`.
 pub type ReducedNmpc = Nmpc<Reduced, 5, 3>;
 /// The NMPC on the lateral-slip model `(X, Y, φ, v_x, v_y, ω)`.
@@ -664,6 +669,3 @@ fn check_finite<const N: usize>(x: &[f64; N], what: &'static str) -> Result<(), 
 
 /// The Cholesky factor of a stage's `H_uu` (see [`spd_cholesky`]).
 type UuFactor = Cholesky<f64, nalgebra::Const<NU>>;
-
-#[cfg(test)]
-mod tests;

@@ -1,9 +1,13 @@
-//! Unit tests of the NMPC: the peer's figure eight, structured and Clarabel QPs alike,
-//! converged SQP on the dynamics and bounds, fallbacks and braking, bad input.
+//! The NMPC on the peers' problem (were its unit tests in rex-agent): the peer's
+//! figure eight, structured and Clarabel QPs alike, converged SQP on the dynamics
+//! and bounds, fallbacks and braking, bad input.
 
-use super::*;
-use crate::algorithms::mpc::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
-use crate::model::{Reduced, SlipParams, State5};
+use rex_agent::algorithms::mpc::nmpc::{
+    Control, FrozenQp, IPM_MAX_ITERATIONS, Nmpc, NmpcError, NmpcSettings, NmpcStats, QpStrategy,
+    Status,
+};
+use rex_agent::model::{Dynamics, NU, Reduced, SlipParams, State5, Vector};
+use rex_bench::peer::{self, DT, INIT_OFFSET, N_SIM, PLANT_RK4_STEPS};
 
 const NX: usize = 5;
 
@@ -145,7 +149,7 @@ fn the_structured_interior_point_method_solves_each_qp_as_clarabel_does() {
     });
     assert!(compared > 50, "{compared} QPs with an active bound");
     assert!(violation < 1e-8, "constraint violation {violation}");
-    assert!(iterations < super::ipm::MAX_ITERATIONS, "{iterations}");
+    assert!(iterations < IPM_MAX_ITERATIONS, "{iterations}");
     // The same optimum: the objectives agree to 1e-9, the state trajectories
     // to 1e-6 (measured: 3.5e-7). The torques, which the cost weighs by 1e-3
     // only, sit in a valley of the objective so flat that two solutions 1e-10

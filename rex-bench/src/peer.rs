@@ -4,10 +4,11 @@
 //! notes §1.2), the closed loop (plant = the same model with 10 RK4 steps per
 //! interval), the start offset, the measurement noise levels.
 
-use super::mhe::{Sample, TimedPose};
-use super::nmpc::{Nmpc, NmpcError, NmpcSettings};
-use crate::math::rng::Rng;
-use crate::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
+use rex_agent::algorithms::mpc::mhe::{Sample, TimedPose};
+use rex_agent::algorithms::mpc::nmpc::{Nmpc, NmpcError, NmpcSettings};
+use rex_agent::algorithms::planner::nearest_angle;
+use rex_agent::math::rng::Rng;
+use rex_agent::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
 
 /// Interval [s] (`DT`).
 pub const DT: f64 = 0.05;
@@ -49,7 +50,7 @@ pub fn reference_run(n: usize) -> Vec<State5> {
     let mut out: Vec<State5> = (0..n).map(|k| reference(k as f64 * DT)).collect();
     for k in 1..out.len() {
         let prev = out[k - 1][2];
-        out[k][2] = crate::algorithms::planner::nearest_angle(out[k][2], prev);
+        out[k][2] = nearest_angle(out[k][2], prev);
     }
     out
 }

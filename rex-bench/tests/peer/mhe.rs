@@ -1,10 +1,13 @@
-//! Unit tests of the MHE: the peer's problem, structured and Clarabel solutions alike,
-//! dropouts, garbage, late poses, parameter bounds, visual odometry and IMU heading
-//! increments, relocalisation.
+//! The MHE on the peer's problem (were its unit tests in rex-agent): structured and
+//! Clarabel solutions alike, dropouts, garbage, late poses, parameter bounds,
+//! visual odometry and IMU heading increments, relocalisation.
 
-use super::*;
-use crate::algorithms::mpc::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
-use crate::math::geometry::wrap;
+use rex_agent::algorithms::mpc::mhe::{
+    Innovation, Mhe, MheError, MheSettings, Motion, ReducedMhe, Sample, TimedPose,
+};
+use rex_agent::algorithms::mpc::nmpc::QpStrategy;
+use rex_agent::math::geometry::wrap;
+use rex_bench::peer::{self, DT, MheData, N_SIM, P_TRUE_MHE};
 
 type Settings = MheSettings<5, 3>;
 
