@@ -417,7 +417,7 @@ pub enum BuildProblem {
     },
     /// A link by name to a component whose buffers cannot be found by name.
     #[error(
-        "link `{link}`: the buffers of `{node}` cannot be found by name: derive `Subsystem` (or implement `Driver::ports` as `Some(PortTable::of::<Self::Input, Self::Output>())`) with `#[derive(Buffers)]` and `#[derive(Group)]` on its buffer structs"
+        "link `{link}`: the buffers of `{node}` cannot be found by name: derive `Subsystem` with `#[derive(Buffers)]` and `#[derive(Group)]` on its buffer structs (a driver is described by its `Input` and `Output`; do not override `Driver::ports` with `None`)"
     )]
     NoPorts {
         /// The link.

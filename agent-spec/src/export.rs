@@ -37,7 +37,7 @@ use crate::model::{
 pub enum ExportError {
     /// A component's types do not describe its memory and buffers.
     #[error(
-        "`{0}` does not describe its buffers: derive `Subsystem` (with `Memory`, `Buffers` and `Group` on its types), or implement `Driver::shape` as `Some(Shape::of_driver::<Self>())`"
+        "`{0}` does not describe its buffers: derive `Subsystem` (with `Memory`, `Buffers` and `Group` on its types); a driver is described by its `Input` and `Output` (do not override `Driver::shape` with `None`)"
     )]
     Undescribed(String),
     /// A driver's buffer has no link, so the peer of its group is unknown.
