@@ -84,13 +84,14 @@ pub(super) fn toml_string(text: &str) -> String {
     out + "\""
 }
 
-/// `#[allow(non_snake_case)]` before an item named by a component with capitals.
+/// `#[allow(non_snake_case)]` (with its reason) before an item named by a component
+/// with capitals.
 pub(super) fn allow_case<'a>(names: impl IntoIterator<Item = &'a str>) -> &'static str {
     if names
         .into_iter()
         .any(|n| n.chars().any(|c| c.is_ascii_uppercase()))
     {
-        "#[allow(non_snake_case)]\n"
+        "#[allow(non_snake_case, reason = \"named as the spec names its components (E1)\")]\n"
     } else {
         ""
     }
