@@ -213,19 +213,37 @@ pub enum DiagramFormat {
 }
 
 /// `PROCESS@SECONDS` of `--kill`.
-pub fn parse_fault(s: &str) -> Result<(String, f64), String> {
+pub fn parse_fault(s: &str) -> Result<(String, f64), BadFault> {
     let (process, at) = s
         .split_once('@')
-        .ok_or_else(|| format!("`{s}`: expected PROCESS@SECONDS, e.g. locomotion@8"))?;
-    let at: f64 = at
-        .parse()
-        .map_err(|e| format!("`{at}` is not a number of seconds: {e}"))?;
+        .ok_or_else(|| BadFault::NoTime(s.to_owned()))?;
+    let at: f64 = at.parse().map_err(|e| BadFault::NotSeconds {
+        given: at.to_owned(),
+        why: format!("{e}"),
+    })?;
     if process.is_empty() || !(at.is_finite() && (0.0..=MAX_SECONDS).contains(&at)) {
-        return Err(format!(
-            "`{s}`: expected a process name and a time of at least 0 s"
-        ));
+        return Err(BadFault::OutOfRange(s.to_owned()));
     }
     Ok((process.to_owned(), at))
+}
+
+/// A `--kill` argument that is not `PROCESS@SECONDS`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BadFault {
+    /// No `@`.
+    #[error("`{0}`: expected PROCESS@SECONDS, e.g. locomotion@8")]
+    NoTime(String),
+    /// The time is not a number.
+    #[error("`{given}` is not a number of seconds: {why}")]
+    NotSeconds {
+        /// What was given after the `@`.
+        given: String,
+        /// Why it does not parse.
+        why: String,
+    },
+    /// No process name, or a time that is negative, not finite or beyond a run.
+    #[error("`{0}`: expected a process name and a time of at least 0 s")]
+    OutOfRange(String),
 }
 
 #[cfg(test)]
@@ -252,8 +270,15 @@ mod tests {
     #[test]
     fn faults_name_a_process_and_a_time() {
         assert_eq!(parse_fault("world@5"), Ok(("world".to_owned(), 5.0)));
-        for bad in ["world", "@5", "world@-1", "world@nan", "world@x"] {
-            assert!(parse_fault(bad).is_err(), "{bad}");
+        for bad in ["@5", "world@-1", "world@nan", "world@inf"] {
+            assert_eq!(parse_fault(bad), Err(BadFault::OutOfRange(bad.into())));
         }
+        assert_eq!(parse_fault("world"), Err(BadFault::NoTime("world".into())));
+        let e = parse_fault("world@x").expect_err("not seconds");
+        assert!(matches!(&e, BadFault::NotSeconds { given, .. } if given == "x"));
+        assert!(
+            e.to_string().starts_with("`x` is not a number of seconds"),
+            "{e}"
+        );
     }
 }

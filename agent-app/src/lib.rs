@@ -71,7 +71,7 @@ use agent_core::{ExecConfig, Finished, Probes, System};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-pub use cli::{Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, parse_fault};
+pub use cli::{BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, parse_fault};
 pub use error::{AppError, BoxError, Status};
 pub use local::{Ran, Watched};
 pub use output::emit;
