@@ -7,7 +7,7 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use embodied::spec::diagram::{Format, Kind, render};
+use embodied::spec::diagram::{Format, Kind, render, render_all};
 use embodied::spec::{Spec, check_file};
 
 fn rex() -> Spec {
@@ -30,6 +30,34 @@ fn rex_diagrams_are_stable() {
             });
         }
     }
+}
+
+/// A folder of diagrams holds each subsystem's FSM and data flow, drawn as one
+/// subsystem's, and the structure of the whole system.
+#[test]
+fn every_diagram_of_a_spec_is_named_for_a_folder() {
+    let spec = rex();
+    let files = render_all(&spec);
+    let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
+    let subsystems: Vec<String> = spec.subsystems().map(|(_, s)| s.name.clone()).collect();
+    assert_eq!(files.len(), 3 * subsystems.len() + 1, "{names:?}");
+    for sub in &subsystems {
+        let one = Some(sub.as_str());
+        for (name, kind, format) in [
+            (format!("fsm_{sub}.svg"), Kind::Fsm, Format::Svg),
+            (format!("fsm_{sub}.mmd"), Kind::Fsm, Format::Mermaid),
+            (format!("dataflow_{sub}.svg"), Kind::Dataflow, Format::Svg),
+        ] {
+            let text = files.iter().find(|(n, _)| *n == name).map(|(_, t)| t);
+            assert_eq!(
+                text,
+                Some(&render(&spec, kind, one, format).unwrap()),
+                "{name}"
+            );
+        }
+    }
+    let structure = render(&spec, Kind::Structure, None, Format::Svg).unwrap();
+    assert!(files.contains(&("structure.svg".to_owned(), structure)));
 }
 
 #[test]

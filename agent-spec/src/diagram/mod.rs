@@ -166,6 +166,36 @@ fn agents_of(spec: &Spec, subsystem: Option<&str>) -> Vec<usize> {
         .collect()
 }
 
+/// Every diagram of `spec`, as `(file name, text)` for a folder of them: the
+/// structure (`structure.svg`), and for each subsystem `NAME` its FSM
+/// (`fsm_NAME.svg`, and `fsm_NAME.mmd` for Markdown) and its data flow
+/// (`dataflow_NAME.svg`), subsystems in the spec's order.
+pub fn render_all(spec: &Spec) -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    for (_, sub) in spec.subsystems() {
+        let one = std::slice::from_ref(&sub);
+        files.push((
+            format!("fsm_{}.svg", sub.name),
+            fsm::render(spec, one, Format::Svg),
+        ));
+        files.push((
+            format!("fsm_{}.mmd", sub.name),
+            fsm::render(spec, one, Format::Mermaid),
+        ));
+    }
+    files.push((
+        "structure.svg".to_owned(),
+        structure::render(spec, &agents_of(spec, None), Format::Svg),
+    ));
+    for (_, sub) in spec.subsystems() {
+        files.push((
+            format!("dataflow_{}.svg", sub.name),
+            dataflow::render(spec, std::slice::from_ref(&sub), Format::Svg),
+        ));
+    }
+    files
+}
+
 fn select<'a>(spec: &'a Spec, name: Option<&str>) -> Result<Vec<&'a Subsystem>, DiagramError> {
     let all: Vec<&Subsystem> = spec.subsystems().map(|(_, s)| s).collect();
     match name {

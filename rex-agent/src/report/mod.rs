@@ -10,14 +10,14 @@
 //! | `torques.svg` | the four wheel torques over time |
 //! | `friction.svg` | the estimator's friction of the ground `(μ_x, μ_y, μ_r)` over time (the MHE's; the EKF estimates none) |
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
-//! | `diagrams/` | FSM of `c1` (SVG and Mermaid), agent structure, data flow of `c1`, `e11`, `r11` |
+//! | `diagrams/` | every subsystem's FSM (SVG and Mermaid) and data flow, the agents' structure ([`diagram::render_all`]) |
 
 use std::fmt::Write as _;
 use std::io;
 use std::path::{Path, PathBuf};
 
 use embodied::spec::Spec;
-use embodied::spec::diagram::{self, Format, Kind};
+use embodied::spec::diagram;
 
 use crate::run::{Outcome, Sample};
 use crate::system::RexConfig;
@@ -46,38 +46,8 @@ pub fn write(
     put("torques.svg", torques(outcome).to_svg())?;
     put("friction.svg", friction(outcome).to_svg())?;
     put("timeline.svg", behaviour_timeline(outcome))?;
-    let diagrams: [(&str, Kind, Option<&str>, Format); 6] = [
-        ("diagrams/fsm_c1.svg", Kind::Fsm, Some("c1"), Format::Svg),
-        (
-            "diagrams/fsm_c1.mmd",
-            Kind::Fsm,
-            Some("c1"),
-            Format::Mermaid,
-        ),
-        ("diagrams/structure.svg", Kind::Structure, None, Format::Svg),
-        (
-            "diagrams/dataflow_c1.svg",
-            Kind::Dataflow,
-            Some("c1"),
-            Format::Svg,
-        ),
-        (
-            "diagrams/dataflow_e11.svg",
-            Kind::Dataflow,
-            Some("e11"),
-            Format::Svg,
-        ),
-        (
-            "diagrams/dataflow_r11.svg",
-            Kind::Dataflow,
-            Some("r11"),
-            Format::Svg,
-        ),
-    ];
-    for (name, kind, subsystem, format) in diagrams {
-        let text = diagram::render(spec, kind, subsystem, format)
-            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
-        put(name, text)?;
+    for (name, text) in diagram::render_all(spec) {
+        put(&format!("diagrams/{name}"), text)?;
     }
     Ok(files)
 }
