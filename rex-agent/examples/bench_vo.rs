@@ -38,10 +38,10 @@ use std::process::Command;
 use rex_agent::algorithms::vo::VoSettings;
 use rex_agent::algorithms::vo::metric::evaluate;
 use rex_agent::world::WorldConfig;
-use rex_agent::world::camera::kitti::{
+use rex_agent::world::camera::{Renderer, SensorConfig};
+use rex_bench::kitti::{
     ScriptedPath, Sequence, is_current, read_poses, run_sequence, write_scripted,
 };
-use rex_agent::world::camera::{Renderer, SensorConfig};
 
 type Error = Box<dyn std::error::Error>;
 

@@ -17,8 +17,8 @@ use std::process::ExitCode;
 
 use rex_agent::config;
 use rex_agent::world::WorldConfig;
-use rex_agent::world::camera::kitti::{ScriptedPath, write_scripted};
 use rex_agent::world::camera::{Renderer, SensorConfig};
+use rex_bench::kitti::{ScriptedPath, write_scripted};
 
 fn main() -> ExitCode {
     match run() {

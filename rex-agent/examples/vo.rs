@@ -18,7 +18,7 @@
 
 use rex_agent::algorithms::vo::metric::evaluate;
 use rex_agent::algorithms::vo::{VoSettings, median};
-use rex_agent::world::camera::kitti::{Sequence, run_sequence};
+use rex_bench::kitti::{Sequence, run_sequence};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;

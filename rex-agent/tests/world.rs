@@ -653,7 +653,8 @@ fn the_world_is_deterministic() {
 
 #[test]
 fn the_camera_writes_what_it_renders_as_a_kitti_sequence() {
-    use rex_agent::world::camera::kitti::{Sequence, SequenceWriter};
+    use rex_agent::world::camera::kitti::SequenceWriter;
+    use rex_bench::kitti::Sequence;
     let dir = std::env::temp_dir().join(format!("rex-kitti-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let config = world_config();

@@ -1,8 +1,11 @@
 //! Unit tests of `kitti`: calib.txt read by KITTI tools, sequences written and read
-//! back, damaged files and PNG headers.
+//! back, damaged files, scripted paths and sequences (were rex-agent's
+//! `world::camera::kitti` tests; its PNG and transform tests stay there).
 
 use super::*;
-use crate::world::camera::{Obstacle, Renderer, Room, SceneConfig};
+use rex_agent::world::WorldConfig;
+use rex_agent::world::camera::kitti::write_png;
+use rex_agent::world::camera::{CameraConfig, Obstacle, Room, SceneConfig, SensorConfig};
 use std::collections::HashMap;
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -284,103 +287,6 @@ fn a_point_projected_with_calib_txt_is_on_that_pixel_of_the_rendered_images() {
     fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A PNG file with a header (IHDR) of `width × height` 8-bit gray, an image data
-/// chunk (IDAT) holding an empty zlib stream, and IEND.
-fn png_header_only(width: u32, height: u32) -> Vec<u8> {
-    fn crc32(bytes: &[u8]) -> u32 {
-        let mut crc = !0u32;
-        for &b in bytes {
-            crc ^= u32::from(b);
-            for _ in 0..8 {
-                crc = if crc & 1 == 1 {
-                    (crc >> 1) ^ 0xEDB8_8320
-                } else {
-                    crc >> 1
-                };
-            }
-        }
-        !crc
-    }
-    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
-        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
-        let start = out.len();
-        out.extend_from_slice(kind);
-        out.extend_from_slice(data);
-        let crc = crc32(&out[start..]);
-        out.extend_from_slice(&crc.to_be_bytes());
-    }
-    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
-    let mut ihdr = Vec::new();
-    ihdr.extend_from_slice(&width.to_be_bytes());
-    ihdr.extend_from_slice(&height.to_be_bytes());
-    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8 bits, gray, deflate, no filter, no interlace
-    chunk(&mut out, b"IHDR", &ihdr);
-    chunk(
-        &mut out,
-        b"IDAT",
-        &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
-    );
-    chunk(&mut out, b"IEND", &[]);
-    out
-}
-
-#[test]
-fn crafted_png_headers_are_errors_not_panics_or_huge_allocations() {
-    let dir = temp_dir("png");
-    fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("crafted.png");
-    // w·h overflows u32 (65536² = 2³², 100000² > 2³²), or is merely too large.
-    for (w, h) in [
-        (65_536, 65_536),
-        (100_000, 100_000),
-        (70_000, 70_000),
-        (16_385, 1),
-        (1, 16_385),
-    ] {
-        fs::write(&path, png_header_only(w, h)).unwrap();
-        let err = read_png(&path).unwrap_err().to_string();
-        assert!(
-            err.contains("crafted.png")
-                && err.contains(&format!("{w}x{h}"))
-                && err.contains("16384"),
-            "{w}x{h}: {err}"
-        );
-    }
-    // Wider than the decoder's own limits: its error, naming the file.
-    fs::write(&path, png_header_only(2_000_000_000, 3)).unwrap();
-    let err = read_png(&path).unwrap_err().to_string();
-    assert!(err.contains("crafted.png"), "{err}");
-    // A plausible size but no image data: a decoding error.
-    fs::write(&path, png_header_only(640, 480)).unwrap();
-    let err = read_png(&path).unwrap_err().to_string();
-    assert!(
-        err.contains("crafted.png") && err.contains("cannot decode"),
-        "{err}"
-    );
-    // Not a PNG at all.
-    fs::write(&path, b"P5 640 480 255\n").unwrap();
-    let err = read_png(&path).unwrap_err().to_string();
-    assert!(err.contains("not a PNG"), "{err}");
-    // A real one round-trips.
-    let data: Vec<u8> = (0..=255u8).cycle().take(37 * 11).collect();
-    write_png(&path, 37, 11, &data).unwrap();
-    assert_eq!(read_png(&path).unwrap(), (37, 11, data));
-    fs::remove_dir_all(&dir).unwrap();
-}
-
-#[test]
-fn transforms_invert() {
-    let cam = CameraConfig::default();
-    let p = cam.left_pose([1.0, -2.0, 0.7]).matrix();
-    let id = compose(&invert(&p), &p);
-    for i in 0..3 {
-        for j in 0..4 {
-            let e = if i == j { 1.0 } else { 0.0 };
-            assert!((id[i][j] - e).abs() < 1e-12);
-        }
-    }
-}
-
 #[test]
 fn tours_stay_in_the_room_move_forward_and_differ_by_seed() {
     let dt = 0.01;
@@ -428,7 +334,7 @@ fn tours_stay_in_the_room_move_forward_and_differ_by_seed() {
 
 #[test]
 fn a_noisy_blurred_sequence_is_seeded_and_differs_from_the_ideal_one() {
-    let scene = crate::world::WorldConfig::shipped().unwrap().scene;
+    let scene = WorldConfig::shipped().unwrap().scene;
     let ideal = CameraConfig {
         width: 96,
         height: 64,
@@ -436,7 +342,7 @@ fn a_noisy_blurred_sequence_is_seeded_and_differs_from_the_ideal_one() {
         ..CameraConfig::default()
     };
     let noisy = CameraConfig {
-        sensor: crate::world::camera::SensorConfig::realistic(5),
+        sensor: SensorConfig::realistic(5),
         ..ideal.clone()
     };
     let write = |camera: &CameraConfig, name: &str| {
@@ -471,12 +377,12 @@ fn a_noisy_blurred_sequence_is_seeded_and_differs_from_the_ideal_one() {
 
 #[test]
 fn a_stored_sequence_is_current_only_for_the_renderer_camera_and_length_that_made_it() {
-    let scene = crate::world::WorldConfig::shipped().unwrap().scene;
+    let scene = WorldConfig::shipped().unwrap().scene;
     let camera = CameraConfig {
         width: 96,
         height: 64,
         focal: 60.0,
-        sensor: crate::world::camera::SensorConfig::realistic(3),
+        sensor: SensorConfig::realistic(3),
         ..CameraConfig::default()
     };
     let dir = temp_dir("current");
@@ -506,7 +412,7 @@ fn a_stored_sequence_is_current_only_for_the_renderer_camera_and_length_that_mad
     assert!(!is_current(&seq, &mut pitched, path, 4).unwrap());
     let mut reseeded = Renderer::new(
         CameraConfig {
-            sensor: crate::world::camera::SensorConfig::realistic(4),
+            sensor: SensorConfig::realistic(4),
             ..camera.clone()
         },
         scene,
