@@ -167,7 +167,7 @@ const LAYERS: [(&str, &[&str]); 8] = [
     ("model", &["math", "config"]),
     ("payload", &["model", "math", "config"]),
     ("mission", &["payload", "model", "math", "config"]),
-    ("algorithms", &["model", "math", "config"]),
+    ("algorithms", &["payload", "model", "math", "config"]),
     ("world", UNDER_WORLD_AND_AGENT),
     ("a1", UNDER_WORLD_AND_AGENT),
 ];
@@ -392,7 +392,7 @@ fn the_checks_see_what_they_look_for() {
     let caught = [
         ("use embodied::{Group, In};", 2),
         ("fn f(x: &agent_core::Time) {}", 2),
-        ("use crate::payload::State;", 2),
+        ("use crate::system::RexConfig;", 2),
         ("use crate::world::camera::kitti::Pose34;", 2),
         ("use crate::{a1::payload::State, world::model::Reduced};", 2),
         ("let s: crate::world::devices::Truth = t;", 3),
@@ -412,6 +412,7 @@ fn the_checks_see_what_they_look_for() {
     }
     let passed = [
         ("use crate::model::{Reduced, SlipParams};", 2),
+        ("use crate::payload::State;", 2),
         ("use crate::{math::rng::Rng, model::State5};", 3),
         ("use super::super::geometry::wrap;", 3),
         ("use super::linalg::Mat;", 3),

@@ -90,7 +90,7 @@ pub struct Counters {
     /// Command timeouts of the platform's watchdog (steps at zero torque).
     pub watchdog_steps: u64,
     /// What the estimator rejected, and its relocalisations.
-    pub estimator: crate::a1::e11::estimator::EstimatorHealth,
+    pub estimator: crate::algorithms::estimation::EstimatorHealth,
     /// Torque commands clamped or rejected by the platform.
     pub clamped_torques: u64,
     /// Fragments planned.
@@ -106,7 +106,7 @@ pub struct Counters {
     /// Visual odometry: stereo pairs processed, motions sent, pairs without one.
     pub vo: (u64, u64, u64),
     /// What the tracker reports (solves, failures, fallbacks...).
-    pub tracker: crate::a1::e11::tracker::TrackerReport,
+    pub tracker: crate::algorithms::tracking::TrackerReport,
     /// Restarts of `c1` that `a2` heard of (its process crashed and was
     /// started again).
     pub c1_restarts: u32,

@@ -1,9 +1,9 @@
 //! The EKF of e11 on the peer's MHE data set (were unit tests of
-//! `a1::e11::estimator`): an IMU heading that drifts, poses that contradict the
+//! `algorithms::estimation`): an IMU heading that drifts, poses that contradict the
 //! estimate for long.
 
 use rex_agent::a1::e11::Measurements;
-use rex_agent::a1::e11::estimator::{Ekf, Estimator};
+use rex_agent::algorithms::estimation::{Ekf, Estimator};
 use rex_agent::math::geometry::wrap;
 use rex_agent::model::SlipParams;
 use rex_agent::payload::{Encoders, Imu, MapPose, Pose2};

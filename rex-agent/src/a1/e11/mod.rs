@@ -29,15 +29,12 @@
 //! the early acknowledgement `Done` of `c1` says that the plan was handed over,
 //! this says whether it was achieved.
 
-pub mod estimator;
-pub mod tracker;
-
 use std::collections::{BTreeSet, VecDeque};
 
 use embodied::{Buffers, Fsm, FsmBuildError, Group, In, Memory, Out, Subsystem, fsm};
 
-pub use estimator::{Estimate, Estimator, EstimatorKind, Measurements};
-pub use tracker::{Tracker, TrackerKind};
+pub use crate::algorithms::estimation::{Estimate, Estimator, EstimatorKind, Measurements};
+pub use crate::algorithms::tracking::{Tracker, TrackerKind};
 
 use crate::a1::map::Map;
 use crate::algorithms::planner::Fragment;

@@ -1,5 +1,6 @@
-//! State estimators for `e11`, behind [`Estimator`]: the baseline extended Kalman
-//! filter here; the moving-horizon estimator of the paper slots in the same way.
+//! State estimators of the platform (used by `e11`), behind [`Estimator`]: the
+//! baseline extended Kalman filter here; the moving-horizon estimator of the paper
+//! ([`MheEstimator`], over [`crate::algorithms::mpc`]) slots in the same way.
 
 use std::collections::VecDeque;
 

@@ -1,7 +1,7 @@
-//! Trajectory trackers for `e11`, behind [`Tracker`]: a baseline (Kanayama's law over
+//! Trajectory trackers of the platform (used by `e11`), behind [`Tracker`]: a baseline (Kanayama's law over
 //! a computed-torque loop) and the paper's NMPC ([`NmpcTracker`]).
 
-use super::estimator::Estimate;
+use super::estimation::Estimate;
 use crate::algorithms::mpc::nmpc::{DisturbanceObserver, DisturbanceSettings};
 use crate::algorithms::mpc::{LateralNmpc, NmpcError, NmpcSettings};
 use crate::algorithms::planner::nearest_angle;
