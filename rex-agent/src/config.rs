@@ -52,6 +52,30 @@ pub enum ConfigError {
     },
 }
 
+/// A name on the command line or in a run file that names none of a choice's
+/// options: `unknown tracker `pid` (backstepping, nmpc)`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown {what} `{given}` ({options})")]
+pub struct UnknownChoice {
+    /// What was chosen (`tracker`).
+    pub what: &'static str,
+    /// The name given.
+    pub given: String,
+    /// The names it may be, comma-separated.
+    pub options: &'static str,
+}
+
+impl UnknownChoice {
+    /// `given` is not one of `options` for `what`.
+    pub fn new(what: &'static str, given: &str, options: &'static str) -> Self {
+        UnknownChoice {
+            what,
+            given: given.to_owned(),
+            options,
+        }
+    }
+}
+
 /// Something that can check its own values.
 pub trait Validate {
     /// `Err((field, value, reason))` for the first invalid value.

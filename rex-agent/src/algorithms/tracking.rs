@@ -65,12 +65,16 @@ pub enum TrackerKind {
 }
 
 impl std::str::FromStr for TrackerKind {
-    type Err = String;
+    type Err = crate::config::UnknownChoice;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "backstepping" | "baseline" => Ok(TrackerKind::Backstepping),
             "nmpc" => Ok(TrackerKind::Nmpc),
-            _ => Err(format!("unknown tracker `{s}` (backstepping, nmpc)")),
+            _ => Err(crate::config::UnknownChoice::new(
+                "tracker",
+                s,
+                "backstepping, nmpc",
+            )),
         }
     }
 }
@@ -437,6 +441,15 @@ impl Tracker for Backstepping {
 mod tests {
     use super::*;
     use crate::model::SlipParams;
+
+    #[test]
+    fn a_tracker_is_chosen_by_name_and_an_unknown_name_lists_the_options() {
+        assert_eq!("nmpc".parse(), Ok(TrackerKind::Nmpc));
+        assert_eq!("baseline".parse(), Ok(TrackerKind::Backstepping));
+        let e = "pid".parse::<TrackerKind>().unwrap_err();
+        assert_eq!(e.given, "pid");
+        assert_eq!(e.to_string(), "unknown tracker `pid` (backstepping, nmpc)");
+    }
 
     #[test]
     fn drives_the_reduced_model_onto_a_reference_forwards_and_backwards() {

@@ -127,12 +127,16 @@ impl Clone for TrajGen {
 }
 
 impl std::str::FromStr for Runtime {
-    type Err = String;
+    type Err = crate::config::UnknownChoice;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "thread" => Ok(Runtime::Thread),
             "inline" => Ok(Runtime::Inline),
-            _ => Err(format!("unknown planning runtime `{s}` (thread, inline)")),
+            _ => Err(crate::config::UnknownChoice::new(
+                "planning runtime",
+                s,
+                "thread, inline",
+            )),
         }
     }
 }

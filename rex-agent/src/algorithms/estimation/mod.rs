@@ -148,12 +148,16 @@ pub enum EstimatorKind {
 }
 
 impl std::str::FromStr for EstimatorKind {
-    type Err = String;
+    type Err = crate::config::UnknownChoice;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "ekf" => Ok(EstimatorKind::Ekf),
             "mhe" => Ok(EstimatorKind::Mhe),
-            _ => Err(format!("unknown estimator `{s}` (ekf, mhe)")),
+            _ => Err(crate::config::UnknownChoice::new(
+                "estimator",
+                s,
+                "ekf, mhe",
+            )),
         }
     }
 }

@@ -241,12 +241,16 @@ pub enum PlannerKind {
 }
 
 impl std::str::FromStr for PlannerKind {
-    type Err = String;
+    type Err = crate::config::UnknownChoice;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "ecsa" => Ok(PlannerKind::Ecsa),
             "polynomial" | "poly" => Ok(PlannerKind::Polynomial),
-            _ => Err(format!("unknown planner `{s}` (ecsa, polynomial)")),
+            _ => Err(crate::config::UnknownChoice::new(
+                "planner",
+                s,
+                "ecsa, polynomial",
+            )),
         }
     }
 }
