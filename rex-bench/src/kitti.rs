@@ -269,34 +269,34 @@ fn parse_numbers(path: &Path, line_no: usize, text: &str) -> Result<Vec<f64>, Ki
         .collect()
 }
 
-impl Sequence {
-    /// Open a sequence folder: reads `calib.txt`, `times.txt` and the ground truth if
-    /// there is one; checks that every image exists.
-    pub fn open(dir: &Path) -> Result<Sequence, KittiError> {
-        let calib_path = dir.join("calib.txt");
-        let calib = fs::read_to_string(&calib_path).map_err(io(&calib_path))?;
+/// What a sequence's `calib.txt` says of the left camera and the stereo pair.
+struct CalibFile {
+    focal: f64,
+    principal: (f64, f64),
+    baseline: f64,
+    body_to_camera: Option<Pose34>,
+}
+
+impl CalibFile {
+    /// Read `P0`, `P1` and the optional `Tr` (each a 3×4 matrix) from `path`.
+    fn read(path: &Path) -> Result<CalibFile, KittiError> {
+        let calib = fs::read_to_string(path).map_err(io(path))?;
         let mut matrices = std::collections::HashMap::new();
         for (i, line) in calib.lines().enumerate() {
             if let Some((key, rest)) = line.split_once(':') {
-                matrices.insert(
-                    key.trim().to_owned(),
-                    parse_numbers(&calib_path, i + 1, rest)?,
-                );
+                matrices.insert(key.trim().to_owned(), parse_numbers(path, i + 1, rest)?);
             }
         }
         let get = |k: &str| -> Result<&Vec<f64>, KittiError> {
             matrices
                 .get(k)
                 .filter(|m| m.len() == 12)
-                .ok_or_else(|| format_err(&calib_path, format!("no 3×4 matrix `{k}:`")))
+                .ok_or_else(|| format_err(path, format!("no 3×4 matrix `{k}:`")))
         };
         let (p0, p1) = (get("P0")?, get("P1")?);
         let focal = p0[0];
         if focal.is_nan() || focal <= 0.0 || p1[3].is_nan() || p1[3] >= 0.0 {
-            return Err(format_err(
-                &calib_path,
-                "P0 needs f > 0 and P1 a negative −f·b",
-            ));
+            return Err(format_err(path, "P0 needs f > 0 and P1 a negative −f·b"));
         }
         let baseline = -p1[3] / p1[0];
         let body_to_camera = match matrices.get("Tr") {
@@ -308,78 +308,109 @@ impl Sequence {
             ]),
             Some(v) => {
                 return Err(format_err(
-                    &calib_path,
+                    path,
                     format!("`Tr:` has {} numbers, expected 12", v.len()),
                 ));
             }
         };
-        let times_path = dir.join("times.txt");
-        let times_text = fs::read_to_string(&times_path).map_err(io(&times_path))?;
-        let times = times_text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty())
-            .map(|(i, l)| {
-                l.trim().parse::<f64>().map_err(|_| {
-                    format_err(
-                        &times_path,
-                        format!("line {}: `{}` is not a time", i + 1, l.trim()),
-                    )
-                })
-            })
-            .collect::<Result<Vec<f64>, _>>()?;
-        // Times are finite and increase (a pair's motion is over its interval).
-        for (k, t) in times.iter().enumerate() {
-            if !t.is_finite() {
-                return Err(format_err(
-                    &times_path,
-                    format!("frame {k}: the time {t} is not a finite number"),
-                ));
-            }
-            if k > 0 && *t <= times[k - 1] {
-                return Err(format_err(
-                    &times_path,
-                    format!(
-                        "frame {k}: the time {t} does not come after frame {}'s, {}",
-                        k - 1,
-                        times[k - 1]
-                    ),
-                ));
-            }
-        }
-        for k in 0..times.len() {
-            for cam in ["image_0", "image_1"] {
-                let p = dir.join(cam).join(format!("{k:06}.png"));
-                if !p.is_file() {
-                    return Err(format_err(
-                        &p,
-                        format!("missing (times.txt lists {} frames)", times.len()),
-                    ));
-                }
-            }
-        }
-        let candidates = [
-            Some(dir.join("poses.txt")),
-            dir.file_name().and_then(|n| {
-                Some(
-                    dir.parent()?
-                        .parent()?
-                        .join("poses")
-                        .join(format!("{}.txt", n.to_str()?)),
+        Ok(CalibFile {
+            focal,
+            principal: (p0[2], p0[6]),
+            baseline,
+            body_to_camera,
+        })
+    }
+}
+
+/// The frames' times from `times.txt` at `path`: finite and increasing (a pair's
+/// motion is over its interval).
+fn read_times(path: &Path) -> Result<Vec<f64>, KittiError> {
+    let text = fs::read_to_string(path).map_err(io(path))?;
+    let times = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            l.trim().parse::<f64>().map_err(|_| {
+                format_err(
+                    path,
+                    format!("line {}: `{}` is not a time", i + 1, l.trim()),
                 )
-            }),
-        ];
-        let mut poses = None;
-        if let Some(path) = candidates.into_iter().flatten().find(|p| p.is_file()) {
-            let list = read_poses(&path)?;
-            if list.len() != times.len() {
+            })
+        })
+        .collect::<Result<Vec<f64>, _>>()?;
+    for (k, t) in times.iter().enumerate() {
+        if !t.is_finite() {
+            return Err(format_err(
+                path,
+                format!("frame {k}: the time {t} is not a finite number"),
+            ));
+        }
+        if k > 0 && *t <= times[k - 1] {
+            return Err(format_err(
+                path,
+                format!(
+                    "frame {k}: the time {t} does not come after frame {}'s, {}",
+                    k - 1,
+                    times[k - 1]
+                ),
+            ));
+        }
+    }
+    Ok(times)
+}
+
+/// Check that both images of each of the `frames` frames exist in `dir`.
+fn check_images(dir: &Path, frames: usize) -> Result<(), KittiError> {
+    for k in 0..frames {
+        for cam in ["image_0", "image_1"] {
+            let p = dir.join(cam).join(format!("{k:06}.png"));
+            if !p.is_file() {
                 return Err(format_err(
-                    &path,
-                    format!("{} poses for {} frames", list.len(), times.len()),
+                    &p,
+                    format!("missing (times.txt lists {frames} frames)"),
                 ));
             }
-            poses = Some(list);
         }
+    }
+    Ok(())
+}
+
+/// The ground truth of the sequence in `dir`, if it has one: its `poses.txt`, or
+/// KITTI's layout `../../poses/NAME.txt`; one pose per frame.
+fn read_ground_truth(dir: &Path, frames: usize) -> Result<Option<Vec<Pose34>>, KittiError> {
+    let candidates = [
+        Some(dir.join("poses.txt")),
+        dir.file_name().and_then(|n| {
+            Some(
+                dir.parent()?
+                    .parent()?
+                    .join("poses")
+                    .join(format!("{}.txt", n.to_str()?)),
+            )
+        }),
+    ];
+    let Some(path) = candidates.into_iter().flatten().find(|p| p.is_file()) else {
+        return Ok(None);
+    };
+    let list = read_poses(&path)?;
+    if list.len() != frames {
+        return Err(format_err(
+            &path,
+            format!("{} poses for {} frames", list.len(), frames),
+        ));
+    }
+    Ok(Some(list))
+}
+
+impl Sequence {
+    /// Open a sequence folder: reads `calib.txt`, `times.txt` and the ground truth if
+    /// there is one; checks that every image exists.
+    pub fn open(dir: &Path) -> Result<Sequence, KittiError> {
+        let calib = CalibFile::read(&dir.join("calib.txt"))?;
+        let times = read_times(&dir.join("times.txt"))?;
+        check_images(dir, times.len())?;
+        let poses = read_ground_truth(dir, times.len())?;
         let size = if times.is_empty() {
             (0, 0)
         } else {
@@ -387,10 +418,10 @@ impl Sequence {
         };
         Ok(Sequence {
             dir: dir.to_owned(),
-            focal,
-            principal: (p0[2], p0[6]),
-            baseline,
-            body_to_camera,
+            focal: calib.focal,
+            principal: calib.principal,
+            baseline: calib.baseline,
+            body_to_camera: calib.body_to_camera,
             times,
             poses,
             size,
