@@ -220,31 +220,10 @@ open({times:?}, "w").write("\n".join("%.6f" % m for m in ms))
     score(seq, &poses, &ms)
 }
 
-fn main() -> Result<(), Error> {
-    let args: Vec<String> = std::env::args().collect();
-    let arg = |name: &str| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-    };
-    let flag = |name: &str| args.iter().any(|a| a == name);
-    let dir = arg("--dir").map_or_else(|| PathBuf::from("target/vo-bench"), PathBuf::from);
-    let peers = arg("--peer").map_or_else(|| PathBuf::from("../shared/peers"), PathBuf::from);
-    let quick = flag("--quick");
-    let with_peer = !flag("--no-peer");
-    let python = if with_peer {
-        match peer_python() {
-            Ok(p) => Some(p),
-            Err(e) => {
-                eprintln!("the peer cannot run: {e}");
-                None
-            }
-        }
-    } else {
-        None
-    };
+/// The four sequences: two tuned on, two held out (KITTI's size among them).
+fn cases() -> [Case; 4] {
     let kitti = (1241, 376, 718.856);
-    let cases = [
+    [
         Case {
             name: "sim_640x480",
             width: 640,
@@ -285,10 +264,76 @@ fn main() -> Result<(), Error> {
             sensor: SensorConfig::realistic(12),
             held_out: true,
         },
-    ];
-    let (mut time_ratios, mut drift_ratios) = (Vec::new(), Vec::new());
+    ]
+}
+
+/// The ratios ours / peer over the sequences, as the figure lines report them.
+#[derive(Default)]
+struct Ratios {
+    /// Mean time per frame, every sequence the peer ran.
+    time: Vec<f64>,
+    /// Translation drift, the held-out sequences.
+    drift: Vec<f64>,
+}
+
+/// Run the peer on `seq` (at `path`) and print its figures beside ours, `o`.
+fn compare(
+    python: &Path,
+    peers: &Path,
+    seq: &Sequence,
+    path: &Path,
+    case: &Case,
+    o: &Figures,
+    ratios: &mut Ratios,
+) {
+    match peer(python, peers, seq, path) {
+        Ok(p) => {
+            println!(
+                "#   peer (OpenCV, one thread): {}, t_err {:.3} %, r_err {:.5} deg/m",
+                p.ms, p.t_err, p.r_err
+            );
+            println!(
+                "#   ours / peer: time (mean) {:.3}, time (median) {:.3}, t_err {:.3}, r_err {:.3}",
+                o.ms.mean / p.ms.mean,
+                o.ms.median / p.ms.median,
+                o.t_err / p.t_err,
+                o.r_err / p.r_err
+            );
+            ratios.time.push(o.ms.mean / p.ms.mean);
+            if case.held_out {
+                ratios.drift.push(o.t_err / p.t_err);
+            }
+        }
+        Err(e) => println!("#   peer: no figures ({e})"),
+    }
+}
+
+fn main() -> Result<(), Error> {
+    let args: Vec<String> = std::env::args().collect();
+    let arg = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+    };
+    let flag = |name: &str| args.iter().any(|a| a == name);
+    let dir = arg("--dir").map_or_else(|| PathBuf::from("target/vo-bench"), PathBuf::from);
+    let peers = arg("--peer").map_or_else(|| PathBuf::from("../shared/peers"), PathBuf::from);
+    let quick = flag("--quick");
+    let with_peer = !flag("--no-peer");
+    let python = if with_peer {
+        match peer_python() {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!("the peer cannot run: {e}");
+                None
+            }
+        }
+    } else {
+        None
+    };
+    let mut ratios = Ratios::default();
     let mut old = None;
-    for case in &cases {
+    for case in &cases() {
         let path = dir.join(if quick && case.held_out {
             format!("{}_quick", case.name)
         } else {
@@ -313,26 +358,7 @@ fn main() -> Result<(), Error> {
             o.ms, o.t_err, o.r_err
         );
         if let Some(python) = &python {
-            match peer(python, &peers, &seq, &path) {
-                Ok(p) => {
-                    println!(
-                        "#   peer (OpenCV, one thread): {}, t_err {:.3} %, r_err {:.5} deg/m",
-                        p.ms, p.t_err, p.r_err
-                    );
-                    println!(
-                        "#   ours / peer: time (mean) {:.3}, time (median) {:.3}, t_err {:.3}, r_err {:.3}",
-                        o.ms.mean / p.ms.mean,
-                        o.ms.median / p.ms.median,
-                        o.t_err / p.t_err,
-                        o.r_err / p.r_err
-                    );
-                    time_ratios.push(o.ms.mean / p.ms.mean);
-                    if case.held_out {
-                        drift_ratios.push(o.t_err / p.t_err);
-                    }
-                }
-                Err(e) => println!("#   peer: no figures ({e})"),
-            }
+            compare(python, &peers, &seq, &path, case, &o, &mut ratios);
         }
         if case.name == "sim_640x480" {
             old = Some(o);
@@ -353,8 +379,8 @@ fn main() -> Result<(), Error> {
     };
     println!(
         "vo_ms_ratio={:.3} t_err_ratio={:.3}",
-        mean(&time_ratios),
-        mean(&drift_ratios)
+        mean(&ratios.time),
+        mean(&ratios.drift)
     );
     Ok(())
 }
