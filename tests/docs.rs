@@ -1,5 +1,5 @@
 //! The documentation holds together: the README stays a short start (at most 400
-//! lines), no Rust example of the README or the guide is ignored, every page of
+//! lines), no Rust example of the README, the guide or a doc comment is ignored, every page of
 //! the guide with Rust examples is compiled by the doctests (a module of
 //! `src/lib.rs`), and every relative link points to a file of the repository.
 
@@ -66,11 +66,57 @@ fn the_readme_is_a_short_start() {
     }
 }
 
+/// Every Rust source of the workspace's crates (their `src/` folders).
+fn sources() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(root()).unwrap() {
+        let src = entry.unwrap().path().join("src");
+        if src.is_dir() && src.parent().unwrap().join("Cargo.toml").is_file() {
+            walk(&src, &mut out);
+        }
+    }
+    walk(&root().join("src"), &mut out);
+    out.sort();
+    out
+}
+
+/// The documentation comments of a Rust source (`///` and `//!`), each line in
+/// its place and every other line empty, so that fences keep their line numbers.
+fn doc_comments(source: &str) -> String {
+    source
+        .lines()
+        .map(|l| {
+            let l = l.trim_start();
+            l.strip_prefix("///")
+                .or_else(|| l.strip_prefix("//!"))
+                .map_or("", |d| d.strip_prefix(' ').unwrap_or(d))
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 #[test]
 fn no_rust_example_is_ignored() {
     let mut ignored = Vec::new();
-    for page in pages() {
-        let text = std::fs::read_to_string(&page).unwrap();
+    let docs = pages()
+        .into_iter()
+        .map(|p| (std::fs::read_to_string(&p).unwrap(), p));
+    let comments = sources()
+        .into_iter()
+        .map(|p| (doc_comments(&std::fs::read_to_string(&p).unwrap()), p));
+    let all: Vec<(String, PathBuf)> = docs.chain(comments).collect();
+    assert!(all.len() > 100, "the sources were not found");
+    for (text, page) in all {
         for (line, info) in fences(&text) {
             if is_rust(info) && info.split(',').any(|a| a.trim() == "ignore") {
                 ignored.push(format!("{}:{line}: ```{info}", page.display()));

@@ -31,10 +31,16 @@ use proc_macro::TokenStream;
 /// of component at the other end (`Control`, `VirtualEffector`, `VirtualReceptor`,
 /// `RealEffector`, `RealReceptor`):
 ///
-/// ```ignore
+/// ```
+/// use embodied::prelude::*;
+///
 /// #[derive(Debug, Default, Group)]
 /// #[group(peer = VirtualEffector)]
-/// struct ToValve { flow: Out<f64> }
+/// struct ToValve {
+///     flow: Out<f64>,
+/// }
+///
+/// assert_eq!(<ToValve as Group>::PEER, NodeKind::VirtualEffector);
 /// ```
 ///
 /// Implements `Group` (the peer kind), `Fields` (each buffer's name and payload type)
@@ -75,10 +81,30 @@ pub fn derive_memory(input: TokenStream) -> TokenStream {
 
 /// Implement `Subsystem` on a marker type, with its shape:
 ///
-/// ```ignore
+/// ```
+/// use embodied::prelude::*;
+///
+/// #[derive(Debug, Default, Group)]
+/// #[group(peer = RealEffector)]
+/// struct ToPump {
+///     flow: Out<f64>,
+/// }
+///
+/// #[derive(Debug, Default, Buffers)]
+/// struct StationOutput {
+///     pump: ToPump,
+/// }
+///
+/// #[derive(Clone, Debug, Default, Memory)]
+/// struct StationMemory {
+///     order: Option<f64>,
+/// }
+///
 /// #[derive(Subsystem)]
-/// #[subsystem(kind = Control, memory = StationMemory, input = StationInput, output = StationOutput)]
+/// #[subsystem(kind = Control, memory = StationMemory, input = (), output = StationOutput)]
 /// struct Station;
+///
+/// assert_eq!(Station::KIND, SubsystemKind::Control);
 /// ```
 ///
 /// The memory must derive `Memory` and the input and output structs `Buffers`.
@@ -95,22 +121,57 @@ pub fn derive_subsystem(input: TokenStream) -> TokenStream {
 /// `Result<Fsm<S>, FsmBuildError>`: exactly the `FsmBuilder` chain one would write
 /// by hand, so the FSM runs with no cost added by the macro.
 ///
-/// ```ignore
+/// ```
+/// # use embodied::prelude::*;
+/// # #[derive(Debug, Default, Group)]
+/// # #[group(peer = RealEffector)]
+/// # struct ToPump { flow: Out<f64> }
+/// # #[derive(Debug, Default, Buffers)]
+/// # struct StationOutput { pump: ToPump }
+/// # #[derive(Clone, Debug, Default, Memory)]
+/// # struct StationMemory { order: Option<f64>, filled: f64 }
+/// # #[derive(Subsystem)]
+/// # #[subsystem(kind = Control, memory = StationMemory, input = (), output = StationOutput)]
+/// # struct Station;
+/// // Transition functions (memory, inputs -> a part of the outputs or the memory)
+/// // and predicates (memory, inputs -> bool).
+/// fn stop_pump(_: &StationMemory, _: &(), y: &mut ToPump) {
+///     y.flow.set(0.0);
+/// }
+/// fn take_order(m: &mut StationMemory, _: &()) {
+///     m.order.get_or_insert(2.0);
+/// }
+/// fn fill_flow(m: &StationMemory, _: &(), y: &mut ToPump) {
+///     y.flow.set(m.order.unwrap_or(0.0) - m.filled);
+/// }
+/// fn order_valid(m: &StationMemory, _: &()) -> bool {
+///     m.order.is_some_and(|o| o > 0.0)
+/// }
+/// fn reached(m: &StationMemory, _: &()) -> bool {
+///     m.filled >= m.order.unwrap_or(0.0)
+/// }
+///
+/// # fn main() -> Result<(), embodied::FsmBuildError> {
 /// let fsm = fsm! {
 ///     subsystem Station;
 ///     predicates {
 ///         has_order: |m: &StationMemory, _| m.order.is_some(),
 ///         order_valid,                       // a function `order_valid` in scope
+///         reached,
 ///     }
 ///     // B(f, f^τ): kind, name, terminal condition, the parts of f by target.
 ///     while idle until has_order { pump <- stop_pump, memory <- take_order }
 ///     repeat fill until reached { pump <- fill_flow }
+///     repeat refuse until true { pump <- stop_pump }
 ///     initial idle;
 ///     idle -> fill when order_valid;       // arcs with initial conditions
-///     idle -> report when !order_valid;
-///     fill -> settle;                      // `when true`
-///     final done;
+///     idle -> refuse when !order_valid;
+///     refuse -> idle;                      // `when true`
+///     final fill;                          // the FSM ends when `fill` ends
 /// }?;
+/// assert_eq!(fsm.behaviour(1).map(|b| b.name()), Some("fill"));
+/// # Ok(())
+/// # }
 /// ```
 ///
 /// A part `target <- function` writes `memory`, `common`, or the output group in
@@ -129,8 +190,15 @@ pub fn fsm(input: TokenStream) -> TokenStream {
 
 /// Types and traits generated from a RON spec, checked at compile time.
 ///
-/// ```ignore
-/// embodied::agent!(spec = "specs/tank.ron", agent = "station");
+/// ```
+/// use embodied::prelude::*;
+///
+/// // A spec of this repository's tests, from the folder of agent-macros' Cargo.toml.
+/// embodied::agent!(spec = "../tests/specs/valid/minimal.ron", agent = "a1");
+///
+/// assert_eq!(c1::C1::KIND, SubsystemKind::Control);
+/// let memory = c1::Memory { count: 3 };
+/// assert_eq!(memory.count, 3);
 /// ```
 ///
 /// The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`), or else
