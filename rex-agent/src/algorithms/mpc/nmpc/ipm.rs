@@ -159,6 +159,23 @@ impl<const NX: usize> IpmWork<NX> {
             chol: vec![UuFactor::pack_dirty(Matrix::identity()); n],
         }
     }
+
+    /// Move the trajectory, the slacks and the multipliers `alpha` along
+    /// `self.dir`.
+    fn take_step(&mut self, alpha: f64) {
+        let dir = &self.dir;
+        for k in 0..self.du.len() {
+            self.du[k] += dir.du[k] * alpha;
+            self.dx[k + 1] += dir.dx[k + 1] * alpha;
+        }
+        for (b, d) in self.bounds.iter_mut().zip(&dir.slacks) {
+            let b = &mut b.at;
+            b.s_l += alpha * d.s_l;
+            b.s_u += alpha * d.s_u;
+            b.l_l += alpha * d.l_l;
+            b.l_u += alpha * d.l_u;
+        }
+    }
 }
 
 /// The bounded components of stage `k`'s variables: the torques of `du[k]`,
@@ -205,22 +222,60 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         start.valid = true;
     }
 
+    /// The iterations from the equality-constrained solution: each one the
+    /// residuals and the convergence test, the factorisation, the predictor and
+    /// corrector directions, and the step along the latter.
     fn ipm_with(&mut self, dx0: &Vector<NX>, w: &mut IpmWork<NX>) -> Option<usize> {
-        let n = self.s.horizon;
         let tol = self.s.qp_tolerance;
-        let bounded = Self::BOUNDED;
-        for k in 0..n {
+        self.cost_gradient(w);
+        self.start(w);
+        let m = (2 * self.s.horizon * NB) as f64;
+        // The stationarity's residual (module docs).
+        let mut stationarity = (w.bounds.iter())
+            .map(|b| (b.at.l_u - b.at.l_l).abs())
+            .fold(0.0f64, f64::max);
+        for iteration in 0..MAX_ITERATIONS {
+            let mu = mean_complementarity(&w.bounds, m);
+            let residual = Self::slack_residual(w);
+            if !(mu.is_finite() && residual.is_finite()) {
+                return None;
+            }
+            // The torques' multipliers are small (the torque weight is
+            // 1e-3), so the complementarity must go far below the tolerance
+            // for the solution to be within it (measured against Clarabel at
+            // 1e-10: 2e-6 apart with `μ ≤ 1e-8`, within 1e-8 with `μ ≤ 1e-12`).
+            if mu <= tol * 1e-6 && residual <= tol * 1e-2 && stationarity <= tol * 1e-2 {
+                self.du.copy_from_slice(&w.du);
+                self.dx.copy_from_slice(&w.dx);
+                return Some(iteration);
+            }
+            invert_slacks(&mut w.bounds);
+            self.factor(w)?;
+            let sigma = self.predictor(dx0, w, mu, m)?;
+            let alpha = self.corrector(dx0, w, sigma * mu)?;
+            stationarity *= 1.0 - alpha;
+            w.take_step(alpha);
+        }
+        None
+    }
+
+    /// The cost's own gradient at the current iterate, into `w`.
+    fn cost_gradient(&self, w: &mut IpmWork<NX>) {
+        for k in 0..self.s.horizon {
             w.r_grad[k] = self.gradient_u(k);
             w.q_grad[k + 1] = self.gradient_x(k + 1);
         }
-        // The boxes, in deltas from the current iterate; the start: the
-        // equality-constrained solution, slacks at least a tenth of the box
-        // from zero, the multipliers of `self.ipm_start` (the stationarity is
-        // then off by `λ_u − λ_l`: module docs).
+    }
+
+    /// The boxes, in deltas from the current iterate, and the start: the
+    /// equality-constrained solution, slacks at least a tenth of the box from
+    /// zero, the multipliers of `self.ipm_start` (the stationarity is then off
+    /// by `λ_u − λ_l`: module docs).
+    fn start(&self, w: &mut IpmWork<NX>) {
         w.du.copy_from_slice(&self.du);
         w.dx.copy_from_slice(&self.dx);
         for (k, stage) in w.bounds.chunks_exact_mut(NB).enumerate() {
-            let z = values(&w.du, &w.dx, bounded, k);
+            let z = values(&w.du, &w.dx, Self::BOUNDED, k);
             for (b, bound) in stage.iter_mut().enumerate() {
                 let (limit, at) = if b < NU {
                     (self.limits[b], self.us[k][b])
@@ -246,91 +301,61 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
                 };
             }
         }
-        let m = (2 * n * NB) as f64;
-        // The stationarity's residual (module docs).
-        let mut stationarity = (w.bounds.iter())
-            .map(|b| (b.at.l_u - b.at.l_l).abs())
-            .fold(0.0f64, f64::max);
-        for iteration in 0..MAX_ITERATIONS {
-            let mu = w
-                .bounds
-                .iter()
-                .map(|b| b.at.s_l * b.at.l_l + b.at.s_u * b.at.l_u)
-                .sum::<f64>()
-                / m;
-            let mut residual = 0.0f64;
-            for (k, stage) in w.bounds.chunks_exact(NB).enumerate() {
-                let z = values(&w.du, &w.dx, bounded, k);
-                for (z, b) in z.iter().zip(stage) {
-                    residual = residual
-                        .max((z - b.at.s_l - b.lb).abs())
-                        .max((b.ub - z - b.at.s_u).abs());
-                }
+    }
+
+    /// The largest residual of the slacks' definitions `s_l = z − lb`,
+    /// `s_u = ub − z` at `(w.du, w.dx)`.
+    fn slack_residual(w: &IpmWork<NX>) -> f64 {
+        let mut residual = 0.0f64;
+        for (k, stage) in w.bounds.chunks_exact(NB).enumerate() {
+            let z = values(&w.du, &w.dx, Self::BOUNDED, k);
+            for (z, b) in z.iter().zip(stage) {
+                residual = residual
+                    .max((z - b.at.s_l - b.lb).abs())
+                    .max((b.ub - z - b.at.s_u).abs());
             }
-            if !(mu.is_finite() && residual.is_finite()) {
-                return None;
-            }
-            // The torques' multipliers are small (the torque weight is
-            // 1e-3), so the complementarity must go far below the tolerance
-            // for the solution to be within it (measured against Clarabel at
-            // 1e-10: 2e-6 apart with `μ ≤ 1e-8`, within 1e-8 with `μ ≤ 1e-12`).
-            if mu <= tol * 1e-6 && residual <= tol * 1e-2 && stationarity <= tol * 1e-2 {
-                self.du.copy_from_slice(&w.du);
-                self.dx.copy_from_slice(&w.dx);
-                return Some(iteration);
-            }
-            for b in &mut w.bounds {
-                b.inv_l = 1.0 / b.at.s_l;
-                b.inv_u = 1.0 / b.at.s_u;
-            }
-            self.factor(w)?;
-            // Predictor: the affine direction (complementarity target 0).
-            let mut aff = std::mem::take(&mut w.aff);
-            if self.direction(dx0, w, None, &mut aff).is_none() {
-                w.aff = aff;
-                return None;
-            }
-            let a_aff = step_length(&w.bounds, &aff, 1.0);
-            let mu_aff = w
-                .bounds
-                .iter()
-                .zip(&aff.slacks)
-                .map(|(b, d)| {
-                    let b = &b.at;
-                    (b.s_l + a_aff * d.s_l) * (b.l_l + a_aff * d.l_l)
-                        + (b.s_u + a_aff * d.s_u) * (b.l_u + a_aff * d.l_u)
-                })
-                .sum::<f64>()
-                / m;
-            let sigma = (mu_aff / mu).clamp(0.0, 1.0).powi(3);
-            // Corrector: centred, with the predictor's second-order term.
-            let mut dir = std::mem::take(&mut w.dir);
-            let solved = self.direction(dx0, w, Some((&aff.slacks, sigma * mu)), &mut dir);
-            w.aff = aff;
-            if solved.is_none() {
-                w.dir = dir;
-                return None;
-            }
-            let alpha = step_length(&w.bounds, &dir, 0.995);
-            if alpha < 1e-10 {
-                w.dir = dir;
-                return None;
-            }
-            stationarity *= 1.0 - alpha;
-            for k in 0..n {
-                w.du[k] += dir.du[k] * alpha;
-                w.dx[k + 1] += dir.dx[k + 1] * alpha;
-            }
-            for (b, d) in w.bounds.iter_mut().zip(&dir.slacks) {
-                let b = &mut b.at;
-                b.s_l += alpha * d.s_l;
-                b.s_u += alpha * d.s_u;
-                b.l_l += alpha * d.l_l;
-                b.l_u += alpha * d.l_u;
-            }
-            w.dir = dir;
         }
-        None
+        residual
+    }
+
+    /// The predictor: the affine direction (complementarity target 0) into
+    /// `w.aff`, and the centring `σ` its complementarity suggests; `None` if
+    /// it is not finite.
+    fn predictor(&mut self, dx0: &Vector<NX>, w: &mut IpmWork<NX>, mu: f64, m: f64) -> Option<f64> {
+        let mut aff = std::mem::take(&mut w.aff);
+        let solved = self.direction(dx0, w, None, &mut aff);
+        w.aff = aff;
+        solved?;
+        let a_aff = step_length(&w.bounds, &w.aff, 1.0);
+        let mu_aff = w
+            .bounds
+            .iter()
+            .zip(&w.aff.slacks)
+            .map(|(b, d)| {
+                let b = &b.at;
+                (b.s_l + a_aff * d.s_l) * (b.l_l + a_aff * d.l_l)
+                    + (b.s_u + a_aff * d.s_u) * (b.l_u + a_aff * d.l_u)
+            })
+            .sum::<f64>()
+            / m;
+        Some((mu_aff / mu).clamp(0.0, 1.0).powi(3))
+    }
+
+    /// The corrector: the direction centred on `target` (`σ μ`), with the
+    /// predictor's second-order term, into `w.dir`, and the step along it;
+    /// `None` if it is not finite or the step stalls.
+    fn corrector(&mut self, dx0: &Vector<NX>, w: &mut IpmWork<NX>, target: f64) -> Option<f64> {
+        let aff = std::mem::take(&mut w.aff);
+        let mut dir = std::mem::take(&mut w.dir);
+        let solved = self.direction(dx0, w, Some((&aff.slacks, target)), &mut dir);
+        w.aff = aff;
+        w.dir = dir;
+        solved?;
+        let alpha = step_length(&w.bounds, &w.dir, 0.995);
+        if alpha < 1e-10 {
+            return None;
+        }
+        Some(alpha)
     }
 
     /// The backward Riccati recursion's matrices for the stage weights with
@@ -475,6 +500,25 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
             .chain(out.slacks.iter().flat_map(|d| [d.s_l, d.s_u, d.l_l, d.l_u]))
             .all(f64::is_finite);
         finite.then_some(())
+    }
+}
+
+/// The complementarity `μ`: the mean of the `m` products of a slack and its
+/// multiplier.
+fn mean_complementarity(bounds: &[Bound], m: f64) -> f64 {
+    bounds
+        .iter()
+        .map(|b| b.at.s_l * b.at.l_l + b.at.s_u * b.at.l_u)
+        .sum::<f64>()
+        / m
+}
+
+/// The slacks' inverses of the iteration, which its factorisation and both
+/// its directions use.
+fn invert_slacks(bounds: &mut [Bound]) {
+    for b in bounds {
+        b.inv_l = 1.0 / b.at.s_l;
+        b.inv_u = 1.0 / b.at.s_u;
     }
 }
 
