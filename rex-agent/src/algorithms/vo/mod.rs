@@ -338,6 +338,8 @@ impl StereoOdometry {
         result
     }
 
+    /// One pair: its images checked, its features, whether they can give a
+    /// motion, then the matches with the previous pair and the motion.
     fn step(
         &mut self,
         left: &[u8],
@@ -346,6 +348,32 @@ impl StereoOdometry {
         h: usize,
     ) -> Result<Option<VoMotion>, NoEstimate> {
         self.curr.usable = false;
+        self.check_images(left, right, w, h)?;
+        self.pair_features(left, right, w, h);
+        self.check_textured()?;
+        self.check_not_swapped()?;
+        self.curr.usable = true;
+        if !self.prev.usable {
+            let first = !self.had_usable;
+            self.had_usable = true;
+            return if first {
+                Ok(None)
+            } else {
+                Err(NoEstimate::NoReference)
+            };
+        }
+        self.matches(w, h);
+        self.motion().map(Some)
+    }
+
+    /// The images' sizes checked; a new size leaves nothing to match against.
+    fn check_images(
+        &mut self,
+        left: &[u8],
+        right: &[u8],
+        w: usize,
+        h: usize,
+    ) -> Result<(), NoEstimate> {
         let min = 4 * (self.s.margin + 2 * self.s.nms_n + 8);
         if left.len() != w * h || right.len() != w * h {
             return Err(NoEstimate::BadImages(format!(
@@ -364,6 +392,12 @@ impl StereoOdometry {
             self.prev.usable = false;
         }
         self.size = Some((w, h));
+        Ok(())
+    }
+
+    /// The features of both images into `self.curr`, on two threads if the
+    /// settings allow.
+    fn pair_features(&mut self, left: &[u8], right: &[u8], w: usize, h: usize) {
         let mut curr = std::mem::take(&mut self.curr);
         let [sl, sr] = &mut self.scratch.images;
         let (s, (cl, cr)) = (&self.s, (&mut curr.left, &mut curr.right));
@@ -399,12 +433,16 @@ impl StereoOdometry {
             features(s, left, w, h, sl, cl);
             features(s, right, w, h, sr, cr);
         }
+        self.curr = curr;
+    }
+
+    /// Enough features in both images of the current pair.
+    fn check_textured(&self) -> Result<(), NoEstimate> {
         let (nl, nr) = (
-            curr.left.dense.features.len(),
-            curr.right.dense.features.len(),
+            self.curr.left.dense.features.len(),
+            self.curr.right.dense.features.len(),
         );
         let needed = self.s.min_features;
-        self.curr = curr;
         if nl < needed || nr < needed {
             return Err(NoEstimate::Textureless {
                 left: nl,
@@ -412,8 +450,14 @@ impl StereoOdometry {
                 needed,
             });
         }
-        // A swapped pair would be matched in the wrong direction only, giving wrong
-        // motions without a word: look along the rows both ways first.
+        Ok(())
+    }
+
+    /// The current pair's stereo matches mostly of positive disparity.
+    ///
+    /// A swapped pair would be matched in the wrong direction only, giving wrong
+    /// motions without a word: this looks along the rows both ways first.
+    fn check_not_swapped(&self) -> Result<(), NoEstimate> {
         let scale = if self.s.half_resolution { 2 } else { 1 };
         let (negative, positive) = matching::disparity_signs(
             &self.curr.left.dense,
@@ -425,17 +469,12 @@ impl StereoOdometry {
         if negative >= 20 && negative > 2 * positive {
             return Err(NoEstimate::SwappedStereo { negative, positive });
         }
-        self.curr.usable = true;
-        if !self.prev.usable {
-            let first = !self.had_usable;
-            self.had_usable = true;
-            return if first {
-                Ok(None)
-            } else {
-                Err(NoEstimate::NoReference)
-            };
-        }
-        self.matches(w, h);
+        Ok(())
+    }
+
+    /// The motion from `scratch.matches`: RANSAC and Gauss–Newton on their
+    /// reprojection errors; it becomes the prior of the next pair.
+    fn motion(&mut self) -> Result<VoMotion, NoEstimate> {
         let sc = &mut self.scratch;
         egomotion::observations_into(
             &self.calib,
@@ -453,11 +492,11 @@ impl StereoOdometry {
             &mut sc.ransac,
         )?;
         self.last = Some(e.theta);
-        Ok(Some(VoMotion {
+        Ok(VoMotion {
             tr: egomotion::transform(&e.theta),
             matches: sc.matches.len(),
             inliers: e.inliers,
-        }))
+        })
     }
 
     /// Circular matches of the previous and current pairs, refined, bucketed, at
