@@ -230,12 +230,26 @@ impl Plant {
         self.available(clean)
     }
 
-    /// Advance by `h` seconds with wheel torques `tau` (already limited).
+    /// Advance by `h` seconds with wheel torques `tau` (already limited): the
+    /// normal loads and the ground under the wheels, the velocities by backward
+    /// Euler (module docs), then the angles and the pose with them.
     pub fn step(&mut self, tau: [f64; 4], h: f64) {
+        let n = self.normal_loads();
+        self.loads = n;
+        let mu = self.ground();
+        let euler = self.backward_euler(tau, n, mu, h);
+        let (w, end) = euler.solve();
+        match end {
+            NewtonEnd::Converged => {}
+            NewtonEnd::Singular => self.integration.singular += 1,
+            NewtonEnd::Unconverged => self.integration.unconverged += 1,
+        }
+        self.advance(&w, &euler.w_n, h);
+    }
+
+    /// The normal loads with the load transfer of the last accelerations.
+    fn normal_loads(&self) -> [f64; 4] {
         let p = &self.params;
-        let s = self.state;
-        let (k, r) = (p.sign_smoothing, p.wheel_radius);
-        // Normal loads with the load transfer of the last accelerations.
         let long = p.mass * self.accel[0] * p.cog_height / (2.0 * (p.front + p.rear));
         let lat = p.mass * self.accel[1] * p.cog_height / (4.0 * p.half_track);
         let mut n = self.n_static;
@@ -244,8 +258,12 @@ impl Plant {
             let left = if self.d[i][1] > 0.0 { -1.0 } else { 1.0 };
             n[i] = (n[i] + front * long + left * lat).max(0.0);
         }
-        self.loads = n;
-        // Ground under each wheel.
+        n
+    }
+
+    /// The friction `(μ_x, μ_y, μ_r)` of the ground under each wheel.
+    fn ground(&self) -> [[f64; 3]; 4] {
+        let s = &self.state;
         let body = Isometry2::new(Vector2::new(s.x, s.y), s.phi);
         let mut mu = [[0.0; 3]; 4];
         for i in 0..4 {
@@ -256,95 +274,57 @@ impl Plant {
                 .at(contact.x, contact.y)
                 .map_or([0.0; 3], |g| [g.mu_long, g.mu_lat, g.rolling]);
         }
-        // Backward Euler on the velocities, w = (vx, vy, ω, θ̇1..4):
-        //   M (w − w_n) − h G(w) = 0,
-        // solved by Newton's method with the analytic Jacobian, damped by halving
-        // the step while the residual does not decrease. The first iteration is the
-        // linearly implicit (Rosenbrock) Euler step; more are needed only when a
-        // friction force crosses its steep region within the step. A singular system
-        // stops the iterations with the last iterate (counted; see the module docs).
-        let m = [
-            p.mass,
-            p.mass,
-            p.inertia,
-            p.wheel_inertia,
-            p.wheel_inertia,
-            p.wheel_inertia,
-            p.wheel_inertia,
-        ];
-        let w_n = [
-            s.vx,
-            s.vy,
-            s.omega,
-            s.theta_dot[0],
-            s.theta_dot[1],
-            s.theta_dot[2],
-            s.theta_dot[3],
-        ];
-        let forces = Forces {
-            d: self.d,
-            n,
-            mu,
-            mass: p.mass,
-            r,
-            k,
-            tau,
-        };
-        let residual = |w: &[f64; 7], g: &[f64; 7]| -> [f64; 7] {
-            let mut f = [0.0; 7];
-            for i in 0..7 {
-                f[i] = m[i] * (w[i] - w_n[i]) - h * g[i];
-            }
-            f
-        };
-        let norm = |f: &[f64; 7]| (0..7).map(|i| (f[i] / m[i]).powi(2)).sum::<f64>().sqrt();
-        let mut w = w_n;
-        let (g0, mut jac) = forces.eval(&w);
-        let mut f = residual(&w, &g0);
-        let mut fnorm = norm(&f);
-        // Whether the iterations ended before the last one (converged, or singular).
-        let mut ended = false;
-        for _ in 0..MAX_NEWTON {
-            let mut a = [[0.0; 7]; 7];
-            let mut rhs = [0.0; 7];
-            for row in 0..7 {
-                for col in 0..7 {
-                    a[row][col] = -h * jac[row][col];
-                }
-                a[row][row] += m[row];
-                rhs[row] = -f[row];
-            }
-            let Some(dw) = solve7(a, rhs) else {
-                self.integration.singular += 1;
-                ended = true;
-                break;
-            };
-            let mut lambda = 1.0;
-            loop {
-                let mut trial = w;
-                for i in 0..7 {
-                    trial[i] += lambda * dw[i];
-                }
-                let (gt, jt) = forces.eval(&trial);
-                let ft = residual(&trial, &gt);
-                let nt = norm(&ft);
-                if nt < fnorm || lambda < 1.0 / 64.0 {
-                    w = trial;
-                    jac = jt;
-                    f = ft;
-                    fnorm = nt;
-                    break;
-                }
-                lambda *= 0.5;
-            }
-            if fnorm < NEWTON_TOL {
-                ended = true;
-                break;
-            }
+        mu
+    }
+
+    /// The velocities' implicit step from the current state, with the normal
+    /// loads `n`, the ground `mu` and the torques `tau`.
+    fn backward_euler(
+        &self,
+        tau: [f64; 4],
+        n: [f64; 4],
+        mu: [[f64; 3]; 4],
+        h: f64,
+    ) -> BackwardEuler {
+        let p = &self.params;
+        let s = &self.state;
+        BackwardEuler {
+            m: [
+                p.mass,
+                p.mass,
+                p.inertia,
+                p.wheel_inertia,
+                p.wheel_inertia,
+                p.wheel_inertia,
+                p.wheel_inertia,
+            ],
+            w_n: [
+                s.vx,
+                s.vy,
+                s.omega,
+                s.theta_dot[0],
+                s.theta_dot[1],
+                s.theta_dot[2],
+                s.theta_dot[3],
+            ],
+            h,
+            forces: Forces {
+                d: self.d,
+                n,
+                mu,
+                mass: p.mass,
+                r: p.wheel_radius,
+                k: p.sign_smoothing,
+                tau,
+            },
         }
-        if !ended {
-            self.integration.unconverged += 1;
-        }
+    }
+
+    /// The state after the step from the new velocities `w` (the old ones
+    /// `w_n`): the wheel angles and the pose advanced with them (the pose with
+    /// the mid-step heading), and the body-frame acceleration.
+    fn advance(&mut self, w: &[f64; 7], w_n: &[f64; 7], h: f64) {
+        let s = self.state;
         let delta: [f64; 7] = std::array::from_fn(|i| w[i] - w_n[i]);
         let mut next = s;
         next.vx += delta[0];
@@ -444,6 +424,113 @@ impl Forces {
     }
 }
 
+/// Backward Euler on the velocities `w = (vx, vy, ω, θ̇1..4)`:
+/// `M (w − w_n) − h G(w) = 0`, solved by Newton's method with the analytic
+/// Jacobian, damped by halving the update while the residual does not
+/// decrease. The first iteration is the linearly implicit (Rosenbrock) Euler
+/// step; more are needed only when a friction force crosses its steep region
+/// within the step.
+struct BackwardEuler {
+    /// The diagonal of `M`.
+    m: [f64; 7],
+    w_n: [f64; 7],
+    h: f64,
+    forces: Forces,
+}
+
+/// How the Newton iterations of a step ended.
+enum NewtonEnd {
+    /// The residual is below [`NEWTON_TOL`].
+    Converged,
+    /// The Newton system could not be solved: the last iterate is kept.
+    Singular,
+    /// Every iteration used, the residual still above the tolerance.
+    Unconverged,
+}
+
+/// A Newton iterate: the velocities, `∂G/∂w` there, the residual and its norm.
+struct Iterate {
+    w: [f64; 7],
+    jac: [[f64; 7]; 7],
+    f: [f64; 7],
+    norm: f64,
+}
+
+impl BackwardEuler {
+    /// The new velocities, and how the iterations ended (the last iterate when
+    /// the system is singular or the iterations run out).
+    fn solve(&self) -> ([f64; 7], NewtonEnd) {
+        let mut it = self.at(self.w_n);
+        for _ in 0..MAX_NEWTON {
+            let Some(dw) = self.newton_update(&it) else {
+                return (it.w, NewtonEnd::Singular);
+            };
+            it = self.damped(&it, &dw);
+            if it.norm < NEWTON_TOL {
+                return (it.w, NewtonEnd::Converged);
+            }
+        }
+        (it.w, NewtonEnd::Unconverged)
+    }
+
+    /// The iterate at `w`.
+    fn at(&self, w: [f64; 7]) -> Iterate {
+        let (g, jac) = self.forces.eval(&w);
+        let f = self.residual(&w, &g);
+        let norm = self.norm(&f);
+        Iterate { w, jac, f, norm }
+    }
+
+    /// The residual `F(w) = M (w − w_n) − h G(w)`.
+    fn residual(&self, w: &[f64; 7], g: &[f64; 7]) -> [f64; 7] {
+        let mut f = [0.0; 7];
+        for i in 0..7 {
+            f[i] = self.m[i] * (w[i] - self.w_n[i]) - self.h * g[i];
+        }
+        f
+    }
+
+    /// The residual's norm in velocity units.
+    fn norm(&self, f: &[f64; 7]) -> f64 {
+        (0..7)
+            .map(|i| (f[i] / self.m[i]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Newton's update `Δw` from `(M − h ∂G/∂w) Δw = −F(w)`; `None` if the
+    /// system is singular.
+    fn newton_update(&self, it: &Iterate) -> Option<[f64; 7]> {
+        let mut a = [[0.0; 7]; 7];
+        let mut rhs = [0.0; 7];
+        for row in 0..7 {
+            for col in 0..7 {
+                a[row][col] = -self.h * it.jac[row][col];
+            }
+            a[row][row] += self.m[row];
+            rhs[row] = -it.f[row];
+        }
+        solve7(a, rhs)
+    }
+
+    /// The iterate along `dw`, halved while the residual does not decrease
+    /// (to 1/64 of it at worst).
+    fn damped(&self, it: &Iterate, dw: &[f64; 7]) -> Iterate {
+        let mut lambda = 1.0;
+        loop {
+            let mut trial = it.w;
+            for i in 0..7 {
+                trial[i] += lambda * dw[i];
+            }
+            let next = self.at(trial);
+            if next.norm < it.norm || lambda < 1.0 / 64.0 {
+                return next;
+            }
+            lambda *= 0.5;
+        }
+    }
+}
+
 /// Solve the 7×7 Newton system `a x = b` (`a` row-major) by nalgebra's LU with
 /// partial pivoting: `None` when it is singular (a pivot of magnitude at most
 /// 1e-300) or not finite.
@@ -453,302 +540,4 @@ fn solve7(a: [[f64; 7]; 7], b: [f64; 7]) -> Option<[f64; 7]> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::model::params::Surface;
-
-    fn p_half_track() -> f64 {
-        PlatformParams::peer_default().half_track
-    }
-
-    fn plant() -> Plant {
-        Plant::new(
-            PlatformParams::peer_default(),
-            SurfaceMap::concrete(),
-            [0.0, 0.0, 0.0],
-        )
-        .unwrap()
-    }
-
-    fn run(p: &mut Plant, tau: [f64; 4], seconds: f64, h: f64) {
-        for _ in 0..(seconds / h).round() as usize {
-            let t = p.limit(tau);
-            p.step(t, h);
-        }
-    }
-
-    #[test]
-    fn solver_matches_a_known_system() {
-        let mut a = [[0.0; 7]; 7];
-        for i in 0..7 {
-            a[i][i] = 2.0 + i as f64;
-            a[i][(i + 3) % 7] = 1.0;
-        }
-        let x_true = [1.0, -2.0, 3.0, 0.5, 0.0, -1.0, 2.0];
-        let mut b = [0.0; 7];
-        for i in 0..7 {
-            b[i] = (0..7).map(|k| a[i][k] * x_true[k]).sum();
-        }
-        let x = solve7(a, b).unwrap();
-        for i in 0..7 {
-            assert!((x[i] - x_true[i]).abs() < 1e-12);
-        }
-        assert!(solve7([[0.0; 7]; 7], b).is_none());
-    }
-
-    #[test]
-    fn straight_driving_reaches_the_speed_where_torque_balances_rolling_resistance() {
-        let mut p = plant();
-        run(&mut p, [1.0; 4], 5.0, 1e-3);
-        let s = p.state;
-        assert!(s.vx > 0.5, "drives forward: {s:?}");
-        assert!(s.vy.abs() < 1e-9 && s.omega.abs() < 1e-9, "straight: {s:?}");
-        // Steady state: τ = r F_x + r μ_r N sg(r θ̇) per wheel and Σ F_x = 0 ... at
-        // steady speed the net force is small: the acceleration has died down.
-        let before = s.vx;
-        run(&mut p, [1.0; 4], 1.0, 1e-3);
-        assert!(
-            (p.state.vx - before).abs() < 0.3 * before,
-            "approaching a steady speed"
-        );
-        // Wheels roll with small positive slip.
-        let slip = p.params().wheel_radius * p.state.theta_dot[0] - p.state.vx;
-        assert!(slip > 0.0 && slip < 0.05, "slip {slip}");
-    }
-
-    #[test]
-    fn turning_is_torque_hungry_and_the_icr_moves() {
-        // Driving straight at a given speed needs little torque; spinning in place at
-        // a comparable wheel speed needs much more (lateral friction).
-        let turn = |tau: f64| {
-            let mut p = plant();
-            run(&mut p, [-tau, -tau, tau, tau], 3.0, 1e-3);
-            p.state.omega
-        };
-        let drive = |tau: f64| {
-            let mut p = plant();
-            run(&mut p, [tau; 4], 3.0, 1e-3);
-            p.state.vx / p.params().wheel_radius
-        };
-        let (slow, fast) = (turn(3.0), turn(8.0));
-        eprintln!(
-            "turn rate at 3 N m {slow}, at 8 N m {fast}; wheel rate driving at 3 N m {}",
-            drive(3.0)
-        );
-        // Below the lateral friction moment (≈ 4 N m per wheel) the platform creeps
-        // round in the smooth part of the friction sign; above it, it spins up.
-        assert!(
-            slow < 0.5 && fast > 4.0 * slow,
-            "3 N m: {slow} rad/s, 8 N m: {fast} rad/s"
-        );
-        // The same 3 N m driving straight spins the wheels far faster than turning does.
-        let wheel_when_turning =
-            slow * p_half_track() / PlatformParams::peer_default().wheel_radius;
-        assert!(drive(3.0) > 10.0 * wheel_when_turning);
-        // A curve: the ICR is not at the centre of mass and depends on the speed.
-        let icr = |tau: [f64; 4]| {
-            let mut curve = plant();
-            run(&mut curve, tau, 1.0, 1e-3);
-            curve.icr_x().expect("turning")
-        };
-        let (gentle, hard) = (icr([1.0, 1.0, 4.0, 4.0]), icr([1.0, 1.0, 8.0, 8.0]));
-        assert!(
-            gentle.abs() > 1e-4,
-            "the ICR is shifted from the COM: {gentle}"
-        );
-        assert!(
-            (gentle - hard).abs() > 1e-4,
-            "and moves with the manoeuvre: {gentle} vs {hard}"
-        );
-    }
-
-    #[test]
-    fn stable_for_stiff_wheels() {
-        // Wheel inertia 100× smaller and a near-Coulomb friction sign: eigenvalues
-        // of 10⁵–10⁶ s⁻¹, way beyond any explicit method at 1 kHz.
-        let params = PlatformParams {
-            wheel_inertia: 1e-4,
-            sign_smoothing: 500.0,
-            ..PlatformParams::peer_default()
-        };
-        let mut p = Plant::new(params, SurfaceMap::concrete(), [0.0; 3]).unwrap();
-        run(&mut p, [5.0, 5.0, 6.0, 6.0], 2.0, 1e-3);
-        let s = p.state;
-        let all = [s.x, s.y, s.vx, s.vy, s.omega];
-        assert!(
-            all.iter().all(|v| v.is_finite() && v.abs() < 100.0),
-            "{s:?}"
-        );
-        assert!(
-            s.theta_dot.iter().all(|w| w.is_finite() && w.abs() < 100.0),
-            "{s:?}"
-        );
-    }
-
-    #[test]
-    fn one_millisecond_agrees_with_a_fine_reference() {
-        // The same manoeuvre at h = 1 ms and h = 0.01 ms: positions within 1 cm after 2 s.
-        let tau = [3.0, 3.0, 5.0, 5.0];
-        let mut coarse = plant();
-        run(&mut coarse, tau, 2.0, 1e-3);
-        let mut fine = plant();
-        run(&mut fine, tau, 2.0, 1e-5);
-        let dx = coarse.state.x - fine.state.x;
-        let dy = coarse.state.y - fine.state.y;
-        assert!(
-            (dx * dx + dy * dy).sqrt() < 0.01,
-            "{:?} vs {:?}",
-            coarse.state,
-            fine.state
-        );
-        assert!((coarse.state.phi - fine.state.phi).abs() < 0.01);
-    }
-
-    #[test]
-    fn ice_under_the_wheels_makes_them_spin() {
-        let mut map = SurfaceMap::concrete();
-        map.surfaces.push(Surface {
-            name: "ice".into(),
-            mu_long: 0.08,
-            mu_lat: 0.05,
-            rolling: 0.01,
-        });
-        map.default = "ice".into();
-        let mut ice = Plant::new(PlatformParams::peer_default(), map, [0.0; 3]).unwrap();
-        let mut concrete = plant();
-        run(&mut ice, [4.0; 4], 1.0, 1e-3);
-        run(&mut concrete, [4.0; 4], 1.0, 1e-3);
-        let slip = |p: &Plant| p.params().wheel_radius * p.state.theta_dot[0] - p.state.vx;
-        assert!(
-            slip(&ice) > 10.0 * slip(&concrete).max(1e-3),
-            "ice {} concrete {}",
-            slip(&ice),
-            slip(&concrete)
-        );
-        assert!(ice.state.vx < concrete.state.vx);
-    }
-
-    #[test]
-    fn bad_commands_are_clamped_and_counted_once_per_command() {
-        let mut p = plant();
-        let t = p.clean([f64::NAN, 100.0, -100.0, 1.0]);
-        assert_eq!(t, [0.0, 10.0, -10.0, 1.0]);
-        assert_eq!(
-            p.command_stats(),
-            CommandStats {
-                not_finite: 1,
-                out_of_bounds: 1
-            },
-            "one command with a NaN and two torques beyond the bounds"
-        );
-        assert_eq!(p.clean([f64::INFINITY; 4]), [0.0; 4]);
-        assert_eq!(p.clean([f64::NEG_INFINITY, 0.0, 0.0, 0.0]), [0.0; 4]);
-        assert_eq!(p.clean([10.0, -10.0, 0.0, 3.0]), [10.0, -10.0, 0.0, 3.0]);
-        assert_eq!(
-            p.command_stats(),
-            CommandStats {
-                not_finite: 3,
-                out_of_bounds: 1
-            },
-            "infinities are not finite; ±torque_max is within bounds"
-        );
-        // The motor curve applies at every step and counts nothing.
-        p.state.theta_dot = [30.0; 4];
-        assert_eq!(
-            p.available([5.0; 4]),
-            [0.0; 4],
-            "no drive torque at the no-load speed"
-        );
-        assert_eq!(p.available([-5.0; 4]), [-5.0; 4], "braking is not limited");
-        p.state.theta_dot = [15.0; 4];
-        assert_eq!(
-            p.available([8.0, -8.0, f64::NAN, 50.0]),
-            [5.0, -8.0, 0.0, 5.0]
-        );
-        assert_eq!(
-            p.command_stats().not_finite,
-            3,
-            "available() counts nothing"
-        );
-        assert_eq!(p.command_stats().out_of_bounds, 1);
-        assert_eq!(p.limit([f64::NAN; 4]), [0.0; 4]);
-        assert_eq!(
-            p.command_stats().not_finite,
-            4,
-            "limit() cleans, and counts"
-        );
-    }
-
-    #[test]
-    fn invalid_parameters_ground_or_pose_are_errors() {
-        let bad = PlatformParams {
-            mass: -1.0,
-            ..PlatformParams::peer_default()
-        };
-        let err = Plant::new(bad, SurfaceMap::concrete(), [0.0; 3]).unwrap_err();
-        assert!(err.to_string().contains("<platform>: mass = -1"), "{err}");
-        // A centre of mass over an axle leaves the other axle's wheels without
-        // load, which the prediction models divide by.
-        let over_the_axle = PlatformParams {
-            rear: 0.0,
-            ..PlatformParams::peer_default()
-        };
-        let err = Plant::new(over_the_axle, SurfaceMap::concrete(), [0.0; 3]).unwrap_err();
-        assert!(err.to_string().contains("<platform>: rear = 0"), "{err}");
-        let empty = SurfaceMap {
-            surfaces: Vec::new(),
-            ..SurfaceMap::concrete()
-        };
-        let err = Plant::new(PlatformParams::peer_default(), empty, [0.0; 3]).unwrap_err();
-        assert!(err.to_string().contains("<surfaces>: surfaces"), "{err}");
-        let mut twice = SurfaceMap::concrete();
-        twice.surfaces.push(twice.surfaces[0].clone());
-        let err = Plant::new(PlatformParams::peer_default(), twice, [0.0; 3]).unwrap_err();
-        assert!(err.to_string().contains("surfaces[1].name"), "{err}");
-        let err = Plant::new(
-            PlatformParams::peer_default(),
-            SurfaceMap::concrete(),
-            [0.0, f64::NAN, 0.0],
-        )
-        .unwrap_err();
-        assert!(err.to_string().contains("<start pose>: y = NaN"), "{err}");
-    }
-
-    #[test]
-    fn a_failed_newton_solve_is_counted() {
-        // A normal run: every step converges.
-        let mut p = plant();
-        run(&mut p, [3.0, 3.0, 6.0, 6.0], 2.0, 1e-3);
-        assert_eq!(p.integration_stats(), IntegrationStats::default());
-        // A NaN velocity makes the Newton system unsolvable: the step keeps the
-        // velocities it started with, and is counted.
-        p.state.vy = f64::NAN;
-        let before = p.state;
-        p.step([1.0; 4], 1e-3);
-        assert_eq!(
-            p.integration_stats(),
-            IntegrationStats {
-                singular: 1,
-                unconverged: 0
-            }
-        );
-        assert_eq!(p.state.vx, before.vx, "frozen");
-        assert_eq!(p.state.theta_dot, before.theta_dot, "frozen");
-        p.step([1.0; 4], 1e-3);
-        assert_eq!(p.integration_stats().singular, 2);
-    }
-
-    #[test]
-    fn load_transfer_shows_on_the_wheels() {
-        let mut p = plant();
-        run(&mut p, [6.0; 4], 0.1, 1e-3);
-        let n = p.loads();
-        assert!(
-            n[1] > n[0] && n[3] > n[2],
-            "accelerating forward loads the rear wheels: {n:?}"
-        );
-        let total: f64 = n.iter().sum();
-        let weight = p.params().mass * p.params().gravity;
-        assert!((total - weight).abs() < 1e-6);
-    }
-}
+mod tests;
