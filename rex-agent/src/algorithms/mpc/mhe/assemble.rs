@@ -27,6 +27,49 @@ fn add_scalar<const NX: usize, const NP: usize>(
     *hpp += m.p * m.p.transpose() * w;
 }
 
+/// The measurement of state component `k` itself (a pose or gyro reading;
+/// its value and sigma unused).
+fn unit<const NX: usize, const NP: usize>(k: usize) -> Measured<NX, NP> {
+    Measured {
+        value: 0.0,
+        sigma: 0.0,
+        x: Vector::<NX>::from_fn(|j, _| f64::from(u8::from(j == k))),
+        p: Vector::<NP>::zeros(),
+    }
+}
+
+/// The motion from `a` to `b` in the frame of `a` minus the measured `rel`,
+/// and its Jacobians in `a` and `b` (pose components only).
+fn relative_motion<const NX: usize>(
+    a: &Vector<NX>,
+    b: &Vector<NX>,
+    rel: &[f64; 3],
+) -> ([f64; 3], Matrix<3, NX>, Matrix<3, NX>) {
+    let (sn, c) = a[2].sin_cos();
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let r = [
+        c * dx + sn * dy - rel[0],
+        -sn * dx + c * dy - rel[1],
+        b[2] - a[2] - rel[2],
+    ];
+    // Rows of ∂r/∂x_i and ∂r/∂x_{i+1}.
+    let mut ja = Matrix::<3, NX>::zeros();
+    let mut jb = Matrix::<3, NX>::zeros();
+    ja[(0, 0)] = -c;
+    ja[(0, 1)] = -sn;
+    ja[(0, 2)] = -sn * dx + c * dy;
+    ja[(1, 0)] = sn;
+    ja[(1, 1)] = -c;
+    ja[(1, 2)] = -c * dx - sn * dy;
+    ja[(2, 2)] = -1.0;
+    jb[(0, 0)] = c;
+    jb[(0, 1)] = sn;
+    jb[(1, 0)] = -sn;
+    jb[(1, 1)] = c;
+    jb[(2, 2)] = 1.0;
+    (r, ja, jb)
+}
+
 impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     /// One Gauss–Newton step on the whole window.
     pub(super) fn gauss_newton(&mut self) -> Result<(), MheError> {
@@ -54,17 +97,32 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
         Ok(())
     }
 
-    /// Build the blocks of `JᵀJ` and `Jᵀr` at the current window.
+    /// Build the blocks of `JᵀJ` and `Jᵀr` at the current window: the arrival
+    /// cost, each stage's measurements, the visual odometry, the IMU heading
+    /// and the dynamics, in this order.
     fn assemble(&mut self) -> Result<(), MheError> {
         let n = self.window.len() - 1;
-        let s = &self.s;
-        let p = self.p;
         for b in &mut self.blocks[..=n] {
             *b = Blocks::default();
         }
         let mut hpp = Matrix::<NP, NP>::zeros();
         let mut gp = Vector::<NP>::zeros();
-        // Arrival cost.
+        self.add_arrival_cost(&mut hpp, &mut gp);
+        for i in 0..=n {
+            self.add_measurements(i, &mut hpp, &mut gp);
+        }
+        self.add_odometry();
+        self.add_heading();
+        self.add_dynamics(&mut hpp, &mut gp)?;
+        self.hpp = hpp;
+        self.gp = gp;
+        Ok(())
+    }
+
+    /// The arrival cost: the first state and the parameters against their
+    /// priors.
+    fn add_arrival_cost(&mut self, hpp: &mut Matrix<NP, NP>, gp: &mut Vector<NP>) {
+        let s = &self.s;
         let x0 = self.window[0].x;
         for k in 0..NX {
             let w = 1.0 / s.sigma_x0[k].powi(2);
@@ -81,91 +139,72 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             hpp[(k, k)] += w;
             gp[k] += w * (self.p[k] - self.p_bar[k]);
         }
-        // Measurements.
-        let unit = |k: usize| Measured {
-            value: 0.0,
-            sigma: 0.0,
-            x: Vector::<NX>::from_fn(|j, _| f64::from(u8::from(j == k))),
-            p: Vector::<NP>::zeros(),
-        };
-        for i in 0..=n {
-            let st = self.window[i];
-            // The torques of the interval that ends here: what the encoders and
-            // the force sensors saw just before this instant.
-            let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
-            let loads = st.loads.map(|l| {
-                // The wheels' spin read here, with their accelerations over
-                // that interval.
-                let spin = match i.checked_sub(1).map(|k| &self.window[k]) {
-                    Some(before) => WheelSpin {
-                        start: before.spin,
-                        end: st.spin,
-                    }
-                    .read_at(1.0, st.t - before.t),
-                    None => SpinRead::rates(st.spin),
-                };
-                (l, self.load_model(&st.x, &u_in, &p, &spin))
-            });
-            let encoders = st.encoders.map(|e| (e, self.encoder_prediction(i, &p)));
-            let b = &mut self.blocks[i];
-            if let Some(pose) = st.pose {
-                for k in 0..3 {
-                    let sigma = st.pose_sigma[usize::from(k == 2)];
-                    add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - pose[k], sigma);
+    }
+
+    /// Stage `i`'s measurements: the pose, the gyro, the encoders and the
+    /// force sensors.
+    fn add_measurements(&mut self, i: usize, hpp: &mut Matrix<NP, NP>, gp: &mut Vector<NP>) {
+        let s = &self.s;
+        let p = self.p;
+        let st = self.window[i];
+        // The torques of the interval that ends here: what the encoders and
+        // the force sensors saw just before this instant.
+        let u_in = if i > 0 { self.window[i - 1].u } else { st.u };
+        let loads = st.loads.map(|l| {
+            // The wheels' spin read here, with their accelerations over
+            // that interval.
+            let spin = match i.checked_sub(1).map(|k| &self.window[k]) {
+                Some(before) => WheelSpin {
+                    start: before.spin,
+                    end: st.spin,
                 }
+                .read_at(1.0, st.t - before.t),
+                None => SpinRead::rates(st.spin),
+            };
+            (l, self.load_model(&st.x, &u_in, &p, &spin))
+        });
+        let encoders = st.encoders.map(|e| (e, self.encoder_prediction(i, &p)));
+        let b = &mut self.blocks[i];
+        if let Some(pose) = st.pose {
+            for k in 0..3 {
+                let sigma = st.pose_sigma[usize::from(k == 2)];
+                add_scalar(b, hpp, gp, &unit(k), st.x[k] - pose[k], sigma);
             }
-            if let Some(g) = st.gyro {
-                let k = M::YAW_RATE;
-                add_scalar(b, &mut hpp, &mut gp, &unit(k), st.x[k] - g, s.sigma_gyro);
-            }
-            if let Some((e, predicted)) = encoders {
-                for (reading, m) in e.iter().zip(predicted) {
-                    // A wheel the model cannot predict (spinning) or one gated
-                    // out when it arrived (NaN) is left out.
-                    if !reading.is_finite() {
-                        continue;
-                    }
-                    if let Some(m) = m {
-                        let sigma = s.sigma_encoder.hypot(m.sigma);
-                        add_scalar(b, &mut hpp, &mut gp, &m, m.value - reading, sigma);
-                    }
+        }
+        if let Some(g) = st.gyro {
+            let k = M::YAW_RATE;
+            add_scalar(b, hpp, gp, &unit(k), st.x[k] - g, s.sigma_gyro);
+        }
+        if let Some((e, predicted)) = encoders {
+            for (reading, m) in e.iter().zip(predicted) {
+                // A wheel the model cannot predict (spinning) or one gated
+                // out when it arrived (NaN) is left out.
+                if !reading.is_finite() {
+                    continue;
                 }
-            }
-            if let Some((l, predicted)) = loads {
-                for (k, m) in predicted.iter().enumerate() {
-                    let sigma = s.sigma_load.hypot(m.sigma);
-                    add_scalar(b, &mut hpp, &mut gp, m, m.value - l[k], sigma);
+                if let Some(m) = m {
+                    let sigma = s.sigma_encoder.hypot(m.sigma);
+                    add_scalar(b, hpp, gp, &m, m.value - reading, sigma);
                 }
             }
         }
-        // Visual odometry: r = motion from x_i to x_{i+1} in the frame of x_i − measured.
-        for i in 0..n {
+        if let Some((l, predicted)) = loads {
+            for (k, m) in predicted.iter().enumerate() {
+                let sigma = s.sigma_load.hypot(m.sigma);
+                add_scalar(b, hpp, gp, m, m.value - l[k], sigma);
+            }
+        }
+    }
+
+    /// Visual odometry: `r` = the motion from `x_i` to `x_{i+1}` in the frame
+    /// of `x_i` − the measured one.
+    fn add_odometry(&mut self) {
+        let s = &self.s;
+        for i in 0..self.window.len() - 1 {
             let Some(rel) = self.window[i].rel else {
                 continue;
             };
-            let (a, b) = (self.window[i].x, self.window[i + 1].x);
-            let (sn, c) = a[2].sin_cos();
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            let r = [
-                c * dx + sn * dy - rel[0],
-                -sn * dx + c * dy - rel[1],
-                b[2] - a[2] - rel[2],
-            ];
-            // Rows of ∂r/∂x_i and ∂r/∂x_{i+1} (pose components only).
-            let mut ja = Matrix::<3, NX>::zeros();
-            let mut jb = Matrix::<3, NX>::zeros();
-            ja[(0, 0)] = -c;
-            ja[(0, 1)] = -sn;
-            ja[(0, 2)] = -sn * dx + c * dy;
-            ja[(1, 0)] = sn;
-            ja[(1, 1)] = -c;
-            ja[(1, 2)] = -c * dx - sn * dy;
-            ja[(2, 2)] = -1.0;
-            jb[(0, 0)] = c;
-            jb[(0, 1)] = sn;
-            jb[(1, 0)] = -sn;
-            jb[(1, 1)] = c;
-            jb[(2, 2)] = 1.0;
+            let (r, ja, jb) = relative_motion(&self.window[i].x, &self.window[i + 1].x, &rel);
             let w = Vector::<3>::new(
                 1.0 / s.sigma_vo_step.powi(2),
                 1.0 / s.sigma_vo_step.powi(2),
@@ -180,9 +219,13 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             self.blocks[i + 1].d += jb.tr_mul(&wjb);
             self.blocks[i].o += ja.tr_mul(&wjb);
         }
-        // IMU heading: r = (φ_{i+1} − φ_i) − (h_{i+1} − h_i), the integrated gyro.
-        let w = 1.0 / s.sigma_heading_step.powi(2);
-        for i in 0..n {
+    }
+
+    /// The IMU heading: `r = (φ_{i+1} − φ_i) − (h_{i+1} − h_i)`, the
+    /// integrated gyro.
+    fn add_heading(&mut self) {
+        let w = 1.0 / self.s.sigma_heading_step.powi(2);
+        for i in 0..self.window.len() - 1 {
             let (Some(h0), Some(h1)) = (self.window[i].heading, self.window[i + 1].heading) else {
                 continue;
             };
@@ -193,9 +236,19 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
             self.blocks[i].g[2] -= w * r;
             self.blocks[i + 1].g[2] += w * r;
         }
-        // Dynamics: r = x_{i+1} − F(x_i, u_i, p), weights 1/σ_w².
+    }
+
+    /// The dynamics: `r = x_{i+1} − F(x_i, u_i, p)`, weights `1/σ_w²`; an
+    /// error if a prediction is not finite.
+    fn add_dynamics(
+        &mut self,
+        hpp: &mut Matrix<NP, NP>,
+        gp: &mut Vector<NP>,
+    ) -> Result<(), MheError> {
+        let s = &self.s;
+        let p = self.p;
         let w = Vector::<NX>::from(s.sigma_w.map(|v| 1.0 / (v * v)));
-        for i in 0..n {
+        for i in 0..self.window.len() - 1 {
             let st = self.window[i];
             let spin = WheelSpin {
                 start: st.spin,
@@ -225,11 +278,9 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
                 b.g += wr;
                 b.c -= wp.transpose();
             }
-            hpp += j.p.tr_mul(&wp);
-            gp -= j.p.tr_mul(&wr);
+            *hpp += j.p.tr_mul(&wp);
+            *gp -= j.p.tr_mul(&wr);
         }
-        self.hpp = hpp;
-        self.gp = gp;
         Ok(())
     }
 
