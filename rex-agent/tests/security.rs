@@ -14,13 +14,18 @@
 )]
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use embodied::distributed::security::{
     AccessPolicy, Credentials, Secured, common_name, create_dev_authority,
 };
+use embodied::distributed::zenoh::Session;
 use embodied::distributed::zenoh::Wait;
+use embodied::distributed::zenoh::pubsub::Subscriber;
+use embodied::distributed::zenoh::sample::Sample;
 use embodied::distributed::{open_peer, open_secure_client, open_secure_peer};
 use embodied::spec::model::Spec;
 use rex_agent::mission::Mission;
@@ -166,11 +171,7 @@ fn moving_a_component_to_another_process_moves_its_rights() {
 
 /// Liveliness tokens of the deployment's processes that `session` sees
 /// within `wait` (once it sees `enough`).
-fn tokens(
-    session: &embodied::distributed::zenoh::Session,
-    enough: usize,
-    wait: Duration,
-) -> Vec<String> {
+fn tokens(session: &Session, enough: usize, wait: Duration) -> Vec<String> {
     let start = Instant::now();
     loop {
         let mut seen = Vec::new();
@@ -198,6 +199,184 @@ const MISSION: &str = r#"(
     plans: [[(x: 1.0, y: 0.0), (x: 1.5, y: 0.5)], [(x: 1.0, y: 1.0), (x: 0.0, y: 1.0)]],
 )"#;
 
+/// c1's plan input (c2's, in partners) and E1's torques (e11's, in
+/// locomotion): what the intruders put on.
+const PLAN_KEY: &str = "rex/a2/c2/c1/desired_plan";
+const TORQUE_KEY: &str = "rex/a1/e11/E1/tau";
+
+/// `who`'s certificate in `dir` and its access control.
+fn secured(policy: &AccessPolicy, dir: &Path, who: &str) -> Secured {
+    Secured {
+        credentials: Credentials::in_dir(dir, who).unwrap(),
+        acl: policy.acl(who).unwrap(),
+    }
+}
+
+/// `rex launch` of `deployment` without the camera, on the ports from `port`,
+/// with the processes' certificates in `certs`.
+fn launch(deployment: &str, port: u16, mission: &Path, certs: &Path) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_rex"))
+        .args(["launch", "--deployment", deployment, "--no-vo"])
+        .args(["--quiet", "--no-report"])
+        .args(["--port", &port.to_string(), "--limit", "90", "--mission"])
+        .arg(mission)
+        .arg("--credentials")
+        .arg(certs)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Wait until `monitor` sees the three processes; if they are not up in 30 s,
+/// stop the launch and fail with its output.
+fn wait_until_up(launch: Child, monitor: &Session) -> Child {
+    let seen = tokens(monitor, 3, Duration::from_secs(30));
+    if seen.len() != 3 {
+        let mut launch = launch;
+        let _ = launch.kill();
+        let out = launch.wait_with_output().unwrap();
+        panic!(
+            "the deployment is not up: {seen:?}\n{}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    launch
+}
+
+/// Without a certificate (plain TCP to the TLS endpoints) and with one of
+/// another authority (`stranger`, refused by mutual TLS), nothing of the
+/// deployment is seen.
+fn outsiders_see_nothing(port: u16, endpoints: &[&str], stranger: &Secured) {
+    let plain: Vec<String> = (0..3)
+        .map(|k| format!("tcp/127.0.0.1:{}", port + k))
+        .collect();
+    let plain: Vec<&str> = plain.iter().map(String::as_str).collect();
+    let nobody = open_peer(None, &plain).unwrap();
+    assert!(tokens(&nobody, 1, Duration::from_secs(2)).is_empty());
+    drop(nobody);
+    let stranger = open_secure_peer(None, endpoints, Some(stranger)).unwrap();
+    assert!(tokens(&stranger, 1, Duration::from_secs(2)).is_empty());
+    drop(stranger);
+}
+
+/// Intruders with valid certificates of other processes (clients: they take
+/// no part in routing): world's at c1's process puts on c1's plan input,
+/// partners' at the world's puts on E1's torques, and a spy with partners'
+/// certificate subscribes to the torques at locomotion. A witness with
+/// world's certificate (world reads the torques) hears them there: the spy's
+/// silence is the access control's doing. Connected until dropped.
+struct Intruders {
+    at_c1: Session,
+    at_e1: Session,
+    /// The torques the spy and the witness heard.
+    spied: Arc<AtomicU64>,
+    heard: Arc<AtomicU64>,
+    /// The spy's and the witness's sessions and subscriptions.
+    _listening: [(Session, Subscriber<()>); 2],
+}
+
+impl Intruders {
+    /// The intruders and the witness, with certificates from `certs`, at the
+    /// world's and locomotion's endpoints.
+    fn connect(policy: &AccessPolicy, certs: &Path, world: &str, locomotion: &str) -> Intruders {
+        // The keys are the processes' own.
+        let publishes = |p: &str, key: &str| policy.process(p).unwrap().publishes.contains(key);
+        assert!(publishes("partners", PLAN_KEY));
+        assert!(publishes("locomotion", TORQUE_KEY));
+        let client = |at: &str, who: &str| {
+            open_secure_client(&[at], Some(&secured(policy, certs, who))).unwrap()
+        };
+        let listen = |session: Session, n: &Arc<AtomicU64>| {
+            let n = n.clone();
+            let subscriber = session
+                .declare_subscriber(TORQUE_KEY)
+                .callback(move |_: Sample| {
+                    n.fetch_add(1, Ordering::Relaxed);
+                })
+                .wait()
+                .unwrap();
+            (session, subscriber)
+        };
+        let (at_c1, at_e1) = (client(locomotion, "world"), client(world, "partners"));
+        let (spy, witness) = (client(locomotion, "partners"), client(locomotion, "world"));
+        let spied = Arc::new(AtomicU64::new(0));
+        let heard = Arc::new(AtomicU64::new(0));
+        let spying = listen(spy, &spied);
+        let witnessing = listen(witness, &heard);
+        Intruders {
+            at_c1,
+            at_e1,
+            spied,
+            heard,
+            _listening: [spying, witnessing],
+        }
+    }
+
+    /// 100 puts on each key, every 20 ms.
+    fn put(&self) {
+        for _ in 0..100 {
+            self.at_c1.put(PLAN_KEY, vec![0xffu8; 64]).wait().unwrap();
+            self.at_e1.put(TORQUE_KEY, vec![0xffu8; 64]).wait().unwrap();
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+/// Nothing reached c1 or E1: every plan achieved, and no link reported a
+/// message it could not read (the intruders' bytes are no value of any type);
+/// the only link errors are of the processes ending one after the other.
+fn assert_untouched(out: &Output, stdout: &str, stderr: &str) {
+    let last = stdout.lines().last().unwrap_or_default();
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert!(last.starts_with("mission=short plans_acked=2/2"), "{last}");
+    let link_errors: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("] rex: link `"))
+        .collect();
+    assert!(
+        link_errors.iter().all(|l| l.ends_with(" is gone")),
+        "{link_errors:#?}"
+    );
+}
+
+/// The refusals are reported: by the processes that refused them, and in the
+/// launcher's summary.
+fn assert_refusals_reported(stdout: &str, stderr: &str) {
+    let refused = stdout
+        .lines()
+        .find(|l| l.starts_with("security acl_refused="))
+        .unwrap_or_else(|| panic!("no refusals reported:\n{stdout}\n{stderr}"));
+    let n: u64 = refused["security acl_refused=".len()..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(n > 0, "{refused}");
+    // Each intruder put once (the first decides the key's permissions as Zenoh
+    // caches them, which is not counted); a process names every refused one.
+    for (process, key) in [("locomotion", PLAN_KEY), ("world", TORQUE_KEY)] {
+        let prefix = format!("[{process}] rex: the access control refused ");
+        let named: u64 = stderr
+            .lines()
+            .filter(|l| l.contains("Put (ingress)") && l.contains(key))
+            .filter_map(|l| {
+                l.strip_prefix(&prefix)?
+                    .split(" x ")
+                    .next()?
+                    .parse::<u64>()
+                    .ok()
+            })
+            .sum();
+        assert!(
+            (99..=100).contains(&named),
+            "{process} names {named} refused puts on {key}:\n{stderr}"
+        );
+    }
+}
+
 #[test]
 fn intruders_reach_nothing_and_the_secure_mission_completes() {
     // Without the camera (its images through TLS in a debug build load the
@@ -221,155 +400,21 @@ fn intruders_reach_nothing_and_the_secure_mission_completes() {
     let endpoints = [endpoint(0), endpoint(1), endpoint(2)];
     let endpoints: Vec<&str> = endpoints.iter().map(String::as_str).collect();
 
-    let launch = Command::new(env!("CARGO_BIN_EXE_rex"))
-        .args(["launch", "--deployment", deployment, "--no-vo"])
-        .args(["--quiet", "--no-report"])
-        .args(["--port", &port.to_string(), "--limit", "90", "--mission"])
-        .arg(&mission)
-        .arg("--credentials")
-        .arg(&certs)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-
-    let secured = |dir: &Path, who: &str| Secured {
-        credentials: Credentials::in_dir(dir, who).unwrap(),
-        acl: policy.acl(who).unwrap(),
-    };
+    let launch = launch(deployment, port, &mission, &certs);
     // The launcher's credentials see the three processes (waiting for them
     // to be up).
-    let monitor = open_secure_peer(None, &endpoints, Some(&secured(&certs, "launcher"))).unwrap();
-    let seen = tokens(&monitor, 3, Duration::from_secs(30));
-    if seen.len() != 3 {
-        let mut launch = launch;
-        let _ = launch.kill();
-        let out = launch.wait_with_output().unwrap();
-        panic!(
-            "the deployment is not up: {seen:?}\n{}\n{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-
-    // No certificate: plain TCP to the TLS endpoints reaches nobody.
-    let plain: Vec<String> = (0..3)
-        .map(|k| format!("tcp/127.0.0.1:{}", port + k))
-        .collect();
-    let plain: Vec<&str> = plain.iter().map(String::as_str).collect();
-    let nobody = open_peer(None, &plain).unwrap();
-    assert!(tokens(&nobody, 1, Duration::from_secs(2)).is_empty());
-    drop(nobody);
-    // A certificate of another authority: refused by mutual TLS.
-    let stranger =
-        open_secure_peer(None, &endpoints, Some(&secured(&foreign, "launcher"))).unwrap();
-    assert!(tokens(&stranger, 1, Duration::from_secs(2)).is_empty());
-    drop(stranger);
-
-    // Intruders with valid certificates of other processes (clients: they take
-    // no part in routing): world's at c1's process puts on c1's plan input
-    // (c2's, in partners), partners' at the world's puts on E1's torques (e11's,
-    // in locomotion), and a spy with partners' certificate subscribes to the
-    // torques at locomotion. A witness with world's certificate (world reads
-    // the torques) hears them there: the spy's silence is the access control's
-    // doing.
-    let plan_key = "rex/a2/c2/c1/desired_plan";
-    let torque_key = "rex/a1/e11/E1/tau";
-    assert!(
-        policy
-            .process("partners")
-            .unwrap()
-            .publishes
-            .contains(plan_key)
-    );
-    assert!(
-        policy
-            .process("locomotion")
-            .unwrap()
-            .publishes
-            .contains(torque_key)
-    );
-    let client =
-        |at: &str, who: &str| open_secure_client(&[at], Some(&secured(&certs, who))).unwrap();
-    let at_c1 = client(&locomotion, "world");
-    let at_e1 = client(&world, "partners");
-    let spy = client(&locomotion, "partners");
-    let witness = client(&locomotion, "world");
-    let counter = |n: &std::sync::Arc<std::sync::atomic::AtomicU64>| {
-        let n = n.clone();
-        move |_: embodied::distributed::zenoh::sample::Sample| {
-            n.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        }
-    };
-    let spied = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
-    let _spy = spy
-        .declare_subscriber(torque_key)
-        .callback(counter(&spied))
-        .wait()
-        .unwrap();
-    let heard = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
-    let _witness = witness
-        .declare_subscriber(torque_key)
-        .callback(counter(&heard))
-        .wait()
-        .unwrap();
-    for _ in 0..100 {
-        at_c1.put(plan_key, vec![0xffu8; 64]).wait().unwrap();
-        at_e1.put(torque_key, vec![0xffu8; 64]).wait().unwrap();
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let launcher = secured(&policy, &certs, "launcher");
+    let monitor = open_secure_peer(None, &endpoints, Some(&launcher)).unwrap();
+    let launch = wait_until_up(launch, &monitor);
+    outsiders_see_nothing(port, &endpoints, &secured(&policy, &foreign, "launcher"));
+    let intruders = Intruders::connect(&policy, &certs, &world, &locomotion);
+    intruders.put();
 
     let out = launch.wait_with_output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    let last = stdout.lines().last().unwrap_or_default();
-    assert!(out.status.success(), "{stdout}\n{stderr}");
-    // Nothing reached c1 or E1: every plan achieved, and no link reported a
-    // message it could not read (the intruders' bytes are no value of any
-    // type); the only link errors are of the processes ending one after the
-    // other.
-    assert!(last.starts_with("mission=short plans_acked=2/2"), "{last}");
-    let link_errors: Vec<&str> = stderr
-        .lines()
-        .filter(|l| l.contains("] rex: link `"))
-        .collect();
-    assert!(
-        link_errors.iter().all(|l| l.ends_with(" is gone")),
-        "{link_errors:#?}"
-    );
-    assert!(heard.load(std::sync::atomic::Ordering::Relaxed) > 20);
-    assert_eq!(spied.load(std::sync::atomic::Ordering::Relaxed), 0);
-    // The refusals are reported: by the processes that refused them, and in
-    // the launcher's summary.
-    let refused = stdout
-        .lines()
-        .find(|l| l.starts_with("security acl_refused="))
-        .unwrap_or_else(|| panic!("no refusals reported:\n{stdout}\n{stderr}"));
-    let n: u64 = refused["security acl_refused=".len()..]
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
-    assert!(n > 0, "{refused}");
-    // Each intruder put once (the first decides the key's permissions as Zenoh
-    // caches them, which is not counted); a process names every refused one.
-    for (process, key) in [("locomotion", plan_key), ("world", torque_key)] {
-        let prefix = format!("[{process}] rex: the access control refused ");
-        let named: u64 = stderr
-            .lines()
-            .filter(|l| l.contains("Put (ingress)") && l.contains(key))
-            .filter_map(|l| {
-                l.strip_prefix(&prefix)?
-                    .split(" x ")
-                    .next()?
-                    .parse::<u64>()
-                    .ok()
-            })
-            .sum();
-        assert!(
-            (99..=100).contains(&named),
-            "{process} names {named} refused puts on {key}:\n{stderr}"
-        );
-    }
+    assert_untouched(&out, &stdout, &stderr);
+    assert!(intruders.heard.load(Ordering::Relaxed) > 20);
+    assert_eq!(intruders.spied.load(Ordering::Relaxed), 0);
+    assert_refusals_reported(&stdout, &stderr);
 }
