@@ -334,8 +334,28 @@ fn the_world_runs_inside_the_framework() {
     let config = world_config();
     let (system, h) = build(&config);
     let mut exec = Executor::new(system, ExecConfig::default());
-    // Instant by instant, to see each pose the motion capture sends when it sends it.
-    let end = Time::from_nanos(6_000_000_000);
+    let mocap_ages = run_watching_the_mocap(&mut exec, &h, Time::from_nanos(6_000_000_000));
+    the_platform_moved_under_e11s_torques(&exec, &h, &config);
+    images_come_only_when_asked(&exec, &h);
+    poses_reach_c1_late_with_dropouts(&exec, &h, &config, &mocap_ages);
+    // The ontology agent sent both plans of the square and finished.
+    let ids: Vec<u32> = exec
+        .memory(&h.c1)
+        .unwrap()
+        .plans
+        .iter()
+        .map(|p| p.1)
+        .collect();
+    assert_eq!(ids, vec![1, 2]);
+    assert_eq!(exec.memory(&h.c2).unwrap().acks.len(), 2);
+    assert_eq!(exec.behaviour(&h.c2), Some("done"));
+    assert!(exec.is_halted(h.c2.id()));
+    assert!(exec.report().errors.is_empty());
+}
+
+/// Run until `end` instant by instant, to see each pose the motion capture
+/// sends when it sends it: their ages then [s].
+fn run_watching_the_mocap(exec: &mut Executor, h: &Handles, end: Time) -> Vec<f64> {
     let mut mocap_sent = 0;
     let mut mocap_ages = Vec::new();
     while exec.next_instant().is_some_and(|t| t < end) {
@@ -347,8 +367,12 @@ fn the_world_runs_inside_the_framework() {
             mocap_ages.push(sent_at - pose.time);
         }
     }
+    mocap_ages
+}
 
-    // The platform moved under e11's torques and its sensors reached e11.
+/// The platform moved under e11's torques and its sensors reached e11; the
+/// IMU obeyed the reset command.
+fn the_platform_moved_under_e11s_torques(exec: &Executor, h: &Handles, config: &WorldConfig) {
     let plant = exec.driver(&h.platform).unwrap().plant();
     let s = plant.state;
     assert!(
@@ -382,8 +406,11 @@ fn the_world_runs_inside_the_framework() {
         imu.yaw,
         s.phi
     );
+}
 
-    // Images come only when asked, one camera step later at the earliest.
+/// Images come only when asked, one camera step later at the earliest, every
+/// request answered in order.
+fn images_come_only_when_asked(exec: &Executor, h: &Handles) {
     let r = exec.memory(&h.r11).unwrap();
     assert!(r.got.len() >= 50, "{} pairs", r.got.len());
     for &(at, seq, time) in &r.got {
@@ -404,8 +431,17 @@ fn the_world_runs_inside_the_framework() {
         exec.driver(&h.camera).unwrap().frames(),
         r.asked.len() as u64
     );
+}
 
-    // The map agent: poses reach c1 late, with dropouts.
+/// The map agent: poses reach c1 late, with dropouts, each between `latency`
+/// and `latency` plus a period old when sent (`mocap_ages`); c3 keeps a1's
+/// estimate.
+fn poses_reach_c1_late_with_dropouts(
+    exec: &Executor,
+    h: &Handles,
+    config: &WorldConfig,
+    mocap_ages: &[f64],
+) {
     let c1 = exec.memory(&h.c1).unwrap();
     assert!(c1.poses.len() > 100);
     for (arrived, p) in &c1.poses {
@@ -419,7 +455,7 @@ fn the_world_runs_inside_the_framework() {
     // plus one of its periods (and the platform's 1 ms step) old.
     let mocap_period = spec_period("R3");
     assert!(mocap_ages.len() > 100, "{} poses", mocap_ages.len());
-    for &age in &mocap_ages {
+    for &age in mocap_ages {
         assert!(
             age >= config.mocap.latency - 1e-9
                 && age <= config.mocap.latency + mocap_period + 1e-3 + 1e-9,
@@ -437,14 +473,6 @@ fn the_world_runs_inside_the_framework() {
         exec.memory(&h.map.c3).unwrap().estimate.is_some(),
         "c3 keeps a1's estimate"
     );
-
-    // The ontology agent sent both plans of the square and finished.
-    let ids: Vec<u32> = c1.plans.iter().map(|p| p.1).collect();
-    assert_eq!(ids, vec![1, 2]);
-    assert_eq!(exec.memory(&h.c2).unwrap().acks.len(), 2);
-    assert_eq!(exec.behaviour(&h.c2), Some("done"));
-    assert!(exec.is_halted(h.c2.id()));
-    assert!(exec.report().errors.is_empty());
 }
 
 #[test]
