@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use embodied::Executor;
 use embodied::record::mcap;
-use embodied::record::{self, McapRecorder, RecordOptions};
+use embodied::record::{self, McapRecorder, RecordOptions, RecordSummary};
 use rex_agent::mission::Mission;
 use rex_agent::payload::State;
 use rex_agent::system::{RexConfig, build};
@@ -58,136 +58,193 @@ fn a_rex_run_recorded_to_mcap_reads_back_with_schemas_switches_and_exact_values(
     assert_eq!(summary.background, cfg!(target_os = "linux"), "{summary:?}");
 
     let bytes = std::fs::read(&path).unwrap();
-    let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
-    let mut switches = Vec::new();
-    let mut estimates = (0, 0);
-    let mut raw_q = Vec::new();
-    let mut cdr_q = Vec::new();
-    let mut raw_counts = BTreeMap::new();
-    let mut raw_iterations = Vec::new();
-    let mut raw_messages = BTreeMap::new();
-    let mut values_per_raw_message = (0u64, 0u64);
-    for m in mcap::MessageStream::new(&bytes).unwrap() {
-        let m = m.unwrap();
-        *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
+    let read = ReadBack::of(&bytes);
+    read.raw_channels_are_the_value_channels(&summary, links);
+    read.cdr_is_ros2s_layout_and_raw_is_exact();
+    read.c1_took_the_first_plan();
+    the_metadata_is_the_systems_and_the_callers(&bytes);
+}
+
+/// What a recording reads back as: each message's channel checked (its
+/// encoding and schema, and a raw channel's framing), and what the test then
+/// compares counted or kept.
+#[derive(Default)]
+struct ReadBack {
+    per_topic: BTreeMap<String, u64>,
+    /// c1's behaviour switches.
+    switches: Vec<serde_json::Value>,
+    /// e11's estimates on their value channel and on their raw one.
+    estimates: (u64, u64),
+    raw_q: Vec<State>,
+    cdr_q: Vec<Vec<u8>>,
+    /// Values per raw channel.
+    raw_counts: BTreeMap<String, u64>,
+    /// e11's iterations, from the estimates' stamps.
+    raw_iterations: Vec<u64>,
+    /// Messages per raw channel.
+    raw_messages: BTreeMap<u16, u32>,
+    /// Values and messages on the raw channels.
+    values_per_raw_message: (u64, u64),
+}
+
+impl ReadBack {
+    /// Read every message of the recording `bytes`.
+    fn of(bytes: &[u8]) -> ReadBack {
+        let mut read = ReadBack::default();
+        for m in mcap::MessageStream::new(bytes).unwrap() {
+            let m = m.unwrap();
+            *read.per_topic.entry(m.channel.topic.clone()).or_default() += 1;
+            let topic = m.channel.topic.as_str();
+            check_channel(&m);
+            if topic == "/fsm/c1" {
+                read.switches
+                    .push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
+            }
+            if topic == "/links/e11/c1/q_est/to/c1" {
+                read.estimates.0 += 1;
+                read.cdr_q.push(m.data.to_vec());
+            }
+            if topic.starts_with("/raw/") {
+                read.raw(&m);
+            }
+        }
+        read
+    }
+
+    /// A raw message: several values, each framed with the wire header a link
+    /// between processes would carry: the type's fingerprint (as the channel
+    /// says), the link's count from 1, and the sender's stamp (the first
+    /// value's instant the message's log time).
+    fn raw(&mut self, m: &mcap::Message<'_>) {
         let topic = m.channel.topic.as_str();
-        if topic.starts_with("/reads/") {
-            assert_eq!(m.channel.message_encoding, "embodied-read/1", "{topic}");
-            assert_eq!(m.data.len(), 16, "{topic}");
-        } else if topic.starts_with("/links/") {
-            // Every Rex payload has a ROS 2 message: CDR, as Foxglove reads.
-            assert_eq!(m.channel.message_encoding, "cdr", "{topic}");
-            let schema = m.channel.schema.as_ref().expect(topic);
-            assert_eq!(schema.encoding, "ros2msg", "{topic}");
-            assert!(schema.name.starts_with("embodied/msg/"), "{topic}");
-        } else if !topic.starts_with("/raw/") {
-            assert_eq!(m.channel.message_encoding, "json", "{topic}");
-            let schema = m.channel.schema.as_ref().expect(topic);
-            assert_eq!(schema.encoding, "jsonschema", "{topic}");
-            serde_json::from_slice::<serde_json::Value>(&schema.data).unwrap();
-        }
-        if topic == "/fsm/c1" {
-            switches.push(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap());
-        }
-        if topic == "/links/e11/c1/q_est/to/c1" {
-            estimates.0 += 1;
-            cdr_q.push(m.data.to_vec());
-        }
-        if topic.starts_with("/raw/") {
-            // Several values a message, each framed: the wire header a link
-            // between processes would carry: the type's fingerprint (as the
-            // channel says), the link's count from 1, and the sender's stamp
-            // (the first value's instant the message's log time).
-            assert_eq!(m.channel.message_encoding, "embodied-wire-frames/1");
-            let raw = raw_messages.entry(m.channel.id).or_insert(0u32);
-            assert_eq!(m.sequence, *raw, "{topic}");
-            *raw += 1;
-            let mut last_time = 0;
-            for (k, value) in record::raw_values(&m.channel.message_encoding, &m.data).enumerate() {
-                let (header, body) = embodied::WireHeader::read(value.unwrap()).unwrap();
-                let fingerprint = &m.channel.metadata["fingerprint"];
-                assert_eq!(&format!("{:016x}", header.fingerprint), fingerprint);
-                let count = raw_counts.entry(topic.to_owned()).or_insert(0u64);
-                *count += 1;
-                assert_eq!((header.seq, header.epoch), (*count, 0), "{topic}");
-                let time = header.stamp.time.as_nanos();
-                if k == 0 {
-                    assert_eq!(time, m.log_time, "{topic}");
-                }
-                assert!(time >= last_time, "{topic}");
-                last_time = time;
-                values_per_raw_message.0 += 1;
-                if topic == "/raw/links/e11/c1/q_est/to/c1" {
-                    estimates.1 += 1;
-                    raw_q.push(postcard::from_bytes::<State>(body).unwrap());
-                    raw_iterations.push(header.stamp.iteration);
-                }
+        assert_eq!(m.channel.message_encoding, "embodied-wire-frames/1");
+        let raw = self.raw_messages.entry(m.channel.id).or_insert(0u32);
+        assert_eq!(m.sequence, *raw, "{topic}");
+        *raw += 1;
+        let mut last_time = 0;
+        for (k, value) in record::raw_values(&m.channel.message_encoding, &m.data).enumerate() {
+            let (header, body) = embodied::WireHeader::read(value.unwrap()).unwrap();
+            let fingerprint = &m.channel.metadata["fingerprint"];
+            assert_eq!(&format!("{:016x}", header.fingerprint), fingerprint);
+            let count = self.raw_counts.entry(topic.to_owned()).or_insert(0u64);
+            *count += 1;
+            assert_eq!((header.seq, header.epoch), (*count, 0), "{topic}");
+            let time = header.stamp.time.as_nanos();
+            if k == 0 {
+                assert_eq!(time, m.log_time, "{topic}");
             }
-            values_per_raw_message.1 += 1;
-        }
-    }
-    // The 1 kHz sensor links fill a raw message with many values.
-    assert!(
-        values_per_raw_message.0 > 10 * values_per_raw_message.1,
-        "{values_per_raw_message:?}"
-    );
-    // Every value of a link is on its raw channel as on its value channel
-    // (no value here is too long for the latter).
-    assert_eq!(summary.raw_only, 0);
-    for (topic, values) in &raw_counts {
-        let value_topic = topic.strip_prefix("/raw").unwrap();
-        assert_eq!(Some(values), per_topic.get(value_topic), "{topic}");
-    }
-    assert!(raw_counts.len() > links / 2, "{raw_counts:?}");
-    // The stamps carry e11's iterations, one value per iteration at most.
-    assert!(
-        raw_iterations.windows(2).all(|w| w[1] > w[0]),
-        "{raw_iterations:?}"
-    );
-    // Every link's two channels carried something in 6 s, but the camera's
-    // (no visual odometry here) and those that wait for events.
-    assert!(per_topic.len() > links, "{per_topic:?}");
-    assert_eq!(estimates.0, estimates.1);
-    assert!(estimates.0 > 100, "{estimates:?}");
-    // Each value's CDR is its fields as ROS 2 lays them out (`float64[7] q`,
-    // `float64[7] q_dot`, `Ground[<=1] ground`: the header, 14 little-endian
-    // doubles, the bounded sequence's length, then (aligned to 8) the friction's
-    // three doubles and the `settled` byte); the raw bytes are exact.
-    let mut grounds = 0;
-    for (c, q) in cdr_q.iter().zip(&raw_q) {
-        let mut expected = vec![0, 1, 0, 0];
-        for x in q.q.iter().chain(&q.q_dot) {
-            expected.extend(x.to_le_bytes());
-        }
-        match q.ground {
-            None => expected.extend(0u32.to_le_bytes()),
-            Some(g) => {
-                grounds += 1;
-                expected.extend(1u32.to_le_bytes());
-                expected.extend([0; 4]);
-                for x in g.friction.to_array() {
-                    expected.extend(x.to_le_bytes());
-                }
-                expected.push(u8::from(g.settled));
+            assert!(time >= last_time, "{topic}");
+            last_time = time;
+            self.values_per_raw_message.0 += 1;
+            if topic == "/raw/links/e11/c1/q_est/to/c1" {
+                self.estimates.1 += 1;
+                self.raw_q
+                    .push(postcard::from_bytes::<State>(body).unwrap());
+                self.raw_iterations.push(header.stamp.iteration);
             }
         }
-        assert_eq!(c, &expected);
+        self.values_per_raw_message.1 += 1;
     }
-    // The MHE estimates the ground from its first estimate on.
-    assert_eq!(grounds, cdr_q.len());
-    // c1 took the first plan: B1 -> B2 by `plan_valid`, with `plan_new` true.
-    let first = &switches[0];
-    assert_eq!(
-        (first["from"].as_str(), first["to"].as_str()),
-        (Some("B1"), Some("B2")),
-        "{switches:?}"
-    );
-    assert_eq!(first["condition"], "plan_valid");
-    assert_eq!(first["predicates"]["plan_new"], true);
-    assert_eq!(first["predicates"]["plan_valid"], true);
-    // The metadata: the system and the caller's.
+
+    /// Every value of a link is on its raw channel as on its value channel,
+    /// the 1 kHz sensor links fill a raw message with many values, and the
+    /// stamps carry e11's iterations.
+    fn raw_channels_are_the_value_channels(&self, summary: &RecordSummary, links: usize) {
+        let values_per_raw_message = self.values_per_raw_message;
+        assert!(
+            values_per_raw_message.0 > 10 * values_per_raw_message.1,
+            "{values_per_raw_message:?}"
+        );
+        // (No value here is too long for its value channel.)
+        assert_eq!(summary.raw_only, 0);
+        for (topic, values) in &self.raw_counts {
+            let value_topic = topic.strip_prefix("/raw").unwrap();
+            assert_eq!(Some(values), self.per_topic.get(value_topic), "{topic}");
+        }
+        assert!(self.raw_counts.len() > links / 2, "{:?}", self.raw_counts);
+        // One value per iteration at most.
+        assert!(
+            self.raw_iterations.windows(2).all(|w| w[1] > w[0]),
+            "{:?}",
+            self.raw_iterations
+        );
+        // Every link's two channels carried something in 6 s, but the camera's
+        // (no visual odometry here) and those that wait for events.
+        assert!(self.per_topic.len() > links, "{:?}", self.per_topic);
+        assert_eq!(self.estimates.0, self.estimates.1);
+        assert!(self.estimates.0 > 100, "{:?}", self.estimates);
+    }
+
+    /// Each estimate's CDR is its fields as ROS 2 lays them out (`float64[7]
+    /// q`, `float64[7] q_dot`, `Ground[<=1] ground`: the header, 14
+    /// little-endian doubles, the bounded sequence's length, then (aligned to
+    /// 8) the friction's three doubles and the `settled` byte); the raw bytes
+    /// are exact.
+    fn cdr_is_ros2s_layout_and_raw_is_exact(&self) {
+        let mut grounds = 0;
+        for (c, q) in self.cdr_q.iter().zip(&self.raw_q) {
+            let mut expected = vec![0, 1, 0, 0];
+            for x in q.q.iter().chain(&q.q_dot) {
+                expected.extend(x.to_le_bytes());
+            }
+            match q.ground {
+                None => expected.extend(0u32.to_le_bytes()),
+                Some(g) => {
+                    grounds += 1;
+                    expected.extend(1u32.to_le_bytes());
+                    expected.extend([0; 4]);
+                    for x in g.friction.to_array() {
+                        expected.extend(x.to_le_bytes());
+                    }
+                    expected.push(u8::from(g.settled));
+                }
+            }
+            assert_eq!(c, &expected);
+        }
+        // The MHE estimates the ground from its first estimate on.
+        assert_eq!(grounds, self.cdr_q.len());
+    }
+
+    /// c1 took the first plan: B1 -> B2 by `plan_valid`, with `plan_new` true.
+    fn c1_took_the_first_plan(&self) {
+        let first = &self.switches[0];
+        assert_eq!(
+            (first["from"].as_str(), first["to"].as_str()),
+            (Some("B1"), Some("B2")),
+            "{:?}",
+            self.switches
+        );
+        assert_eq!(first["condition"], "plan_valid");
+        assert_eq!(first["predicates"]["plan_new"], true);
+        assert_eq!(first["predicates"]["plan_valid"], true);
+    }
+}
+
+/// A message's channel: reads are 16 bytes; every Rex payload has a ROS 2
+/// message, CDR as Foxglove reads; the other channels but the raw ones are
+/// JSON with a JSON schema.
+fn check_channel(m: &mcap::Message<'_>) {
+    let topic = m.channel.topic.as_str();
+    if topic.starts_with("/reads/") {
+        assert_eq!(m.channel.message_encoding, "embodied-read/1", "{topic}");
+        assert_eq!(m.data.len(), 16, "{topic}");
+    } else if topic.starts_with("/links/") {
+        assert_eq!(m.channel.message_encoding, "cdr", "{topic}");
+        let schema = m.channel.schema.as_ref().expect(topic);
+        assert_eq!(schema.encoding, "ros2msg", "{topic}");
+        assert!(schema.name.starts_with("embodied/msg/"), "{topic}");
+    } else if !topic.starts_with("/raw/") {
+        assert_eq!(m.channel.message_encoding, "json", "{topic}");
+        let schema = m.channel.schema.as_ref().expect(topic);
+        assert_eq!(schema.encoding, "jsonschema", "{topic}");
+        serde_json::from_slice::<serde_json::Value>(&schema.data).unwrap();
+    }
+}
+
+/// The metadata: the system's and the caller's.
+fn the_metadata_is_the_systems_and_the_callers(bytes: &[u8]) {
     let mut names = Vec::new();
-    for record in mcap::read::LinearReader::new(&bytes).unwrap() {
+    for record in mcap::read::LinearReader::new(bytes).unwrap() {
         if let mcap::records::Record::Metadata(m) = record.unwrap() {
             names.push(m.name.clone());
             if m.name == "system" {
