@@ -113,8 +113,67 @@ fn seeds() -> Result<Vec<u64>, Error> {
     }
 }
 
-fn main() -> Result<(), Error> {
-    let seeds = seeds()?;
+/// The friction estimate's errors on a uniform floor from `from` on: against
+/// `plant`, the largest relative error of `μ_x` or `μ_y`, the mean relative
+/// errors of `μ_x` and `μ_y`, and `μ_r`'s mean and largest.
+struct UniformErrors {
+    max: f64,
+    mean_x: f64,
+    mean_y: f64,
+    rolling_mean: f64,
+    rolling_max: f64,
+}
+
+impl UniformErrors {
+    fn of(out: &Outcome, plant: &Friction, from: f64) -> UniformErrors {
+        let after: Vec<Friction> = out
+            .samples
+            .iter()
+            .filter(|s| s.t >= from)
+            .map(|s| Friction::from_array(s.friction))
+            .collect();
+        let max = after
+            .iter()
+            .map(|e| e.friction_error(plant))
+            .fold(0.0, f64::max);
+        let n = after.len().max(1) as f64;
+        let mean_x = after
+            .iter()
+            .map(|e| e.mu_long / plant.mu_long - 1.0)
+            .sum::<f64>()
+            / n;
+        let mean_y = after
+            .iter()
+            .map(|e| e.mu_lat / plant.mu_lat - 1.0)
+            .sum::<f64>()
+            / n;
+        let rolling = after
+            .iter()
+            .map(|e| e.rolling / plant.rolling - 1.0)
+            .collect::<Vec<_>>();
+        let rolling_mean = rolling.iter().sum::<f64>() / n;
+        let rolling_max = rolling.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        UniformErrors {
+            max,
+            mean_x,
+            mean_y,
+            rolling_mean,
+            rolling_max,
+        }
+    }
+}
+
+/// The largest errors on the uniform floors: of `μ_x` or `μ_y`, the same on
+/// ice, of `μ_r`.
+struct UniformWorst {
+    worst: f64,
+    worst_ice: f64,
+    rolling_max_all: f64,
+}
+
+/// Every mission on every uniform floor for each seed: the table of the
+/// errors of `μ_x` and `μ_y`, then the lines of `μ_r`'s.
+fn uniform_floors(seeds: &[u64]) -> Result<UniformWorst, Error> {
     println!("Friction estimate on uniform floors, every sample 5 s after the start:");
     println!("largest relative error of mu_long or mu_lat (mean error of mu_long, of mu_lat)");
     println!("| seed | surface | {} |", MISSIONS.join(" | "));
@@ -122,7 +181,7 @@ fn main() -> Result<(), Error> {
     let (mut worst, mut worst_ice) = (0.0f64, 0.0f64);
     let mut rolling_worst = Vec::new();
     let mut rolling_max_all = 0.0f64;
-    for &seed in &seeds {
+    for &seed in seeds {
         for surface in SURFACES {
             let mut cells = Vec::new();
             for mission in MISSIONS {
@@ -134,33 +193,13 @@ fn main() -> Result<(), Error> {
                     .find(|s| s.name == surface)
                     .ok_or("no such surface")?
                     .friction();
-                let after: Vec<Friction> = out
-                    .samples
-                    .iter()
-                    .filter(|s| s.t >= from)
-                    .map(|s| Friction::from_array(s.friction))
-                    .collect();
-                let max = after
-                    .iter()
-                    .map(|e| e.friction_error(&plant))
-                    .fold(0.0, f64::max);
-                let n = after.len().max(1) as f64;
-                let mean_x = after
-                    .iter()
-                    .map(|e| e.mu_long / plant.mu_long - 1.0)
-                    .sum::<f64>()
-                    / n;
-                let mean_y = after
-                    .iter()
-                    .map(|e| e.mu_lat / plant.mu_lat - 1.0)
-                    .sum::<f64>()
-                    / n;
-                let rolling = after
-                    .iter()
-                    .map(|e| e.rolling / plant.rolling - 1.0)
-                    .collect::<Vec<_>>();
-                let rolling_mean = rolling.iter().sum::<f64>() / n;
-                let rolling_max = rolling.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+                let UniformErrors {
+                    max,
+                    mean_x,
+                    mean_y,
+                    rolling_mean,
+                    rolling_max,
+                } = UniformErrors::of(&out, &plant, from);
                 rolling_max_all = rolling_max_all.max(rolling_max);
                 rolling_worst.push(format!(
                     "{seed} {surface} {mission}: {rolling_mean:+.3} mean, {rolling_max:.3} max"
@@ -178,11 +217,58 @@ fn main() -> Result<(), Error> {
     for line in &rolling_worst {
         println!("  {line}");
     }
+    Ok(UniformWorst {
+        worst,
+        worst_ice,
+        rolling_max_all,
+    })
+}
+
+/// The split floors' totals: plans achieved of those run, crossings followed
+/// of those made, plans reported reached that the truth did not confirm.
+#[derive(Default)]
+struct SplitTotals {
+    achieved: usize,
+    plans: usize,
+    followed: usize,
+    crossings: usize,
+    false_successes: usize,
+}
+
+/// The crossings of the robot's centre onto the other ground from `from` on
+/// (`(followed, crossings)`): followed when the estimate came within 15 % of
+/// the new ground before the next crossing.
+fn crossings_followed(out: &Outcome, map: &SurfaceMap, from: f64) -> Result<(usize, usize), Error> {
+    let (mut f, mut c) = (0, 0);
+    let mut ground: Option<String> = None;
+    let mut pending = false;
+    for (t, name, error) in errors(out, map)? {
+        if t < from {
+            continue;
+        }
+        if ground.as_deref() != Some(name.as_str()) {
+            if ground.is_some() {
+                c += 1;
+                pending = true;
+            }
+            ground = Some(name);
+        }
+        if pending && error <= 0.15 {
+            f += 1;
+            pending = false;
+        }
+    }
+    Ok((f, c))
+}
+
+/// Every mission on every split floor, for `X0` of 0, 1 and 2 m on every seed
+/// and of 0.5, 1.5 and 3 m on seed 1: a table row per seed and `X0`, a line
+/// per false success.
+fn split_floors(seeds: &[u64]) -> Result<SplitTotals, Error> {
     println!("Split floors (ground | ground beyond x = X0): plans achieved, crossings followed");
     println!("| seed | X0 [m] | plans achieved | crossings followed |");
     println!("|---|---|---|---|");
-    let (mut achieved, mut plans, mut followed, mut crossings) = (0, 0, 0, 0);
-    let mut false_successes = 0;
+    let mut totals = SplitTotals::default();
     let sets = seeds
         .iter()
         .map(|&s| (s, [0.0, 1.0, 2.0]))
@@ -194,7 +280,7 @@ fn main() -> Result<(), Error> {
                 for mission in MISSIONS {
                     let (out, map) = run(mission, (floor, Some((other, x0))), seed)?;
                     a += out.plans_achieved();
-                    false_successes += out.false_done();
+                    totals.false_successes += out.false_done();
                     for r in out
                         .reports
                         .iter()
@@ -205,32 +291,35 @@ fn main() -> Result<(), Error> {
                         );
                     }
                     p += out.plans;
-                    let from = start(&out);
-                    let mut ground: Option<String> = None;
-                    let mut pending = false;
-                    for (t, name, error) in errors(&out, &map)? {
-                        if t < from {
-                            continue;
-                        }
-                        if ground.as_deref() != Some(name.as_str()) {
-                            if ground.is_some() {
-                                c += 1;
-                                pending = true;
-                            }
-                            ground = Some(name);
-                        }
-                        if pending && error <= 0.15 {
-                            f += 1;
-                            pending = false;
-                        }
-                    }
+                    let (followed, crossed) = crossings_followed(&out, &map, start(&out))?;
+                    f += followed;
+                    c += crossed;
                 }
             }
             println!("| {seed} | {x0} | {a}/{p} | {f}/{c} |");
-            (achieved, plans, followed, crossings) =
-                (achieved + a, plans + p, followed + f, crossings + c);
+            totals.achieved += a;
+            totals.plans += p;
+            totals.followed += f;
+            totals.crossings += c;
         }
     }
+    Ok(totals)
+}
+
+fn main() -> Result<(), Error> {
+    let seeds = seeds()?;
+    let UniformWorst {
+        worst,
+        worst_ice,
+        rolling_max_all,
+    } = uniform_floors(&seeds)?;
+    let SplitTotals {
+        achieved,
+        plans,
+        followed,
+        crossings,
+        false_successes,
+    } = split_floors(&seeds)?;
     println!(
         "friction_err_max={worst:.3} friction_err_max_ice={worst_ice:.3} \
          split_achieved={achieved}/{plans} split_followed={followed}/{crossings} \
