@@ -215,22 +215,46 @@ fn osqp(qps: &[SparseQp], repeat: usize) -> Result<Vec<OsqpAnswer>, Box<dyn std:
     Ok(out)
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
-    let value = |flag: &str, default: usize| -> Result<usize, String> {
-        args.iter()
-            .position(|a| a == flag)
-            .map_or(Ok(default), |i| {
-                args.get(i + 1)
-                    .and_then(|v| v.parse().ok())
-                    .ok_or(format!("{flag} needs a number"))
-            })
-    };
-    let horizon = value("--horizon", 20)?;
-    let repeat = value("--repeat", 5)?.max(1);
-    let with_osqp = !args.iter().any(|a| a == "--no-osqp");
+/// The command line: `--horizon N`, `--repeat K`, `--no-osqp`.
+struct Args {
+    horizon: usize,
+    repeat: usize,
+    with_osqp: bool,
+}
 
-    let mut qps = record(horizon)?;
+impl Args {
+    fn parse() -> Result<Args, String> {
+        let args: Vec<String> = std::env::args().collect();
+        let value = |flag: &str, default: usize| -> Result<usize, String> {
+            args.iter()
+                .position(|a| a == flag)
+                .map_or(Ok(default), |i| {
+                    args.get(i + 1)
+                        .and_then(|v| v.parse().ok())
+                        .ok_or(format!("{flag} needs a number"))
+                })
+        };
+        Ok(Args {
+            horizon: value("--horizon", 20)?,
+            repeat: value("--repeat", 5)?.max(1),
+            with_osqp: !args.iter().any(|a| a == "--no-osqp"),
+        })
+    }
+}
+
+/// The lap's QPs solved by ours and by Clarabel: per QP whether a bound is
+/// active, its sparse form and Clarabel's solution at 1e-10 (the reference).
+struct Lap {
+    active: Vec<bool>,
+    sparse: Vec<SparseQp>,
+    references: Vec<Vec<f64>>,
+    ours: Solver,
+    clarabel: Solver,
+}
+
+/// Every QP of `qps` solved `repeat` times by ours and by Clarabel (at
+/// [`TOL`], set up once), timed and compared with the reference.
+fn ours_and_clarabel(qps: &mut [Frozen], repeat: usize) -> Result<Lap, Box<dyn std::error::Error>> {
     let first = qps.first().ok_or("the lap gave no QPs")?;
     let mut fast = first.clarabel(TOL)?;
     let mut tight = first.clarabel(1e-10)?;
@@ -239,7 +263,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut references = Vec::new();
     let (mut ours, mut clarabel) = (Solver::new("ours"), Solver::new("clarabel"));
     let (mut ipm_iters, mut clarabel_iters) = (0usize, 0usize);
-    for qp in &mut qps {
+    for qp in qps.iter_mut() {
         active.push(qp.active()?);
         let reference = qp.solve_clarabel(&mut tight)?.step;
         let s = qp.sparse();
@@ -275,40 +299,51 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{:.1} iterations per QP",
         clarabel_iters as f64 / (repeat * qps.len()) as f64
     );
-    let mut solvers = vec![ours, clarabel];
-    if with_osqp {
-        let mut s = Solver::new("osqp");
-        let results = osqp(&sparse, repeat)?;
-        let (mut iters, mut unsolved, mut wall) = (0, 0, Vec::new());
-        for (a, (qp, reference)) in results.into_iter().zip(sparse.iter().zip(&references)) {
-            s.us.push(a.own_us);
-            wall.push(a.wall_us);
-            iters += a.iterations;
-            let status = a.status.to_lowercase();
-            if !status.contains("solved") || status.contains("inaccurate") {
-                unsolved += 1;
-            }
-            s.compare(qp, &a.x, reference);
-        }
-        s.note = format!(
-            "{:.1} ADMM iterations per QP, {unsolved} not solved to tolerance; Python wall time p50 {:.1} µs, p99 {:.1}",
-            iters as f64 / qps.len() as f64,
-            percentile(&mut wall.clone(), 0.5),
-            percentile(&mut wall, 0.99),
-        );
-        solvers.push(s);
-    }
+    Ok(Lap {
+        active,
+        sparse,
+        references,
+        ours,
+        clarabel,
+    })
+}
 
-    println!(
-        "# {} QPs of the figure-eight lap (N={horizon}, {} variables, {} rows), {n_active} with an active bound; each solved {repeat} times, the median kept; µs",
-        qps.len(),
-        sparse[0].n,
-        sparse[0].m
+/// OSQP on the lap's QPs, its times by its own timers, compared with the
+/// references.
+fn osqp_solver(
+    sparse: &[SparseQp],
+    references: &[Vec<f64>],
+    repeat: usize,
+) -> Result<Solver, Box<dyn std::error::Error>> {
+    let mut s = Solver::new("osqp");
+    let results = osqp(sparse, repeat)?;
+    let (mut iters, mut unsolved, mut wall) = (0, 0, Vec::new());
+    for (a, (qp, reference)) in results.into_iter().zip(sparse.iter().zip(references)) {
+        s.us.push(a.own_us);
+        wall.push(a.wall_us);
+        iters += a.iterations;
+        let status = a.status.to_lowercase();
+        if !status.contains("solved") || status.contains("inaccurate") {
+            unsolved += 1;
+        }
+        s.compare(qp, &a.x, reference);
+    }
+    s.note = format!(
+        "{:.1} ADMM iterations per QP, {unsolved} not solved to tolerance; Python wall time p50 {:.1} µs, p99 {:.1}",
+        iters as f64 / sparse.len() as f64,
+        percentile(&mut wall.clone(), 0.5),
+        percentile(&mut wall, 0.99),
     );
+    Ok(s)
+}
+
+/// Per solver its times (all QPs, those with an active bound, the others)
+/// and accuracy, ours against each other, then the last line.
+fn report(solvers: &[Solver], active: &[bool]) {
     let all: Vec<Stats> = solvers.iter().map(|s| Stats::of(&s.us)).collect();
     for (s, a) in solvers.iter().zip(&all) {
-        let (p50, p99, max, n) = s.quantiles(&active, true);
-        let (f50, f99, fmax, m) = s.quantiles(&active, false);
+        let (p50, p99, max, n) = s.quantiles(active, true);
+        let (f50, f99, fmax, m) = s.quantiles(active, false);
         println!(
             "# {:9} all: p50 {:.1} p99 {:.1} max {:.1} | active bound ({n}): p50 {p50:.1} p99 {p99:.1} max {max:.1} | none ({m}): p50 {f50:.1} p99 {f99:.1} max {fmax:.1}",
             s.name, a.median, a.p99, a.max,
@@ -334,5 +369,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     println!("{}", line.join(" "));
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let Args {
+        horizon,
+        repeat,
+        with_osqp,
+    } = Args::parse()?;
+    let mut qps = record(horizon)?;
+    let Lap {
+        active,
+        sparse,
+        references,
+        ours,
+        clarabel,
+    } = ours_and_clarabel(&mut qps, repeat)?;
+    let mut solvers = vec![ours, clarabel];
+    if with_osqp {
+        solvers.push(osqp_solver(&sparse, &references, repeat)?);
+    }
+    let n_active = active.iter().filter(|a| **a).count();
+    println!(
+        "# {} QPs of the figure-eight lap (N={horizon}, {} variables, {} rows), {n_active} with an active bound; each solved {repeat} times, the median kept; µs",
+        qps.len(),
+        sparse[0].n,
+        sparse[0].m
+    );
+    report(&solvers, &active);
     Ok(())
 }
