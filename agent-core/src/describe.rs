@@ -197,8 +197,8 @@ impl fmt::Debug for PortTable {
 }
 
 impl PortTable {
-    /// The lookups of input struct `I` and output struct `O`:
-    /// `fn ports() -> Option<PortTable> { Some(PortTable::of::<Self::Input, Self::Output>()) }`.
+    /// The lookups of input struct `I` and output struct `O` (what the provided
+    /// `Driver::ports` and a derived `Subsystem` return).
     pub fn of<I: Buffers, O: Buffers>() -> PortTable {
         PortTable {
             inputs: I::port,

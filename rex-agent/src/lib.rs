@@ -8,8 +8,9 @@
 //!    controllers, the full model of the plant); [`payload`], what the buffers
 //!    carry; [`mission`], a2's plans;
 //! 3. [`algorithms`], what a1 computes with: model predictive control and
-//!    moving-horizon estimation, trajectory planners, stereo visual odometry. They
-//!    know nothing of the framework;
+//!    moving-horizon estimation, state estimators and trajectory trackers,
+//!    trajectory planners, stereo visual odometry. They know nothing of the
+//!    framework;
 //! 4. [`a1`], the locomotion agent (its control subsystem `c1`, virtual effector
 //!    `e1,1`, virtual receptor `r1,1`, the map they check plans and poses
 //!    against), and [`world`], the simulated world (the real effector `E1` and

@@ -273,8 +273,9 @@ struct Intruders {
     /// The torques the spy and the witness heard.
     spied: Arc<AtomicU64>,
     heard: Arc<AtomicU64>,
-    /// The spy's and the witness's sessions and subscriptions.
-    _listening: [(Session, Subscriber<()>); 2],
+    /// The spy's and the witness's subscriptions and sessions (a subscription is
+    /// dropped before its session).
+    _listening: [(Subscriber<()>, Session); 2],
 }
 
 impl Intruders {
@@ -297,7 +298,7 @@ impl Intruders {
                 })
                 .wait()
                 .unwrap();
-            (session, subscriber)
+            (subscriber, session)
         };
         let (at_c1, at_e1) = (client(locomotion, "world"), client(world, "partners"));
         let (spy, witness) = (client(locomotion, "partners"), client(locomotion, "world"));

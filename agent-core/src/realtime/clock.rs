@@ -121,6 +121,7 @@ pub(crate) fn set_fifo_priority(priority: u8) -> Result<(), Refused> {
     {
         Err(Refused::Unsupported {
             what: format!("SCHED_FIFO {priority}"),
+            why: "no real-time scheduling on this platform",
         })
     }
 }
@@ -141,6 +142,7 @@ pub(crate) fn lock_memory() -> Result<(), Refused> {
     {
         Err(Refused::Unsupported {
             what: "mlockall".to_owned(),
+            why: "not on this platform",
         })
     }
 }

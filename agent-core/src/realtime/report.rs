@@ -47,10 +47,12 @@ pub enum Refused {
         reason: String,
     },
     /// The platform has no such facility.
-    #[error("{what}: not on this platform")]
+    #[error("{what}: {why}")]
     Unsupported {
         /// What was asked (`SCHED_FIFO 80`, `mlockall`).
         what: String,
+        /// What the platform lacks.
+        why: &'static str,
     },
 }
 

@@ -166,10 +166,10 @@ fn agents_of(spec: &Spec, subsystem: Option<&str>) -> Vec<usize> {
         .collect()
 }
 
-/// Every diagram of `spec`, as `(file name, text)` for a folder of them: the
-/// structure (`structure.svg`), and for each subsystem `NAME` its FSM
-/// (`fsm_NAME.svg`, and `fsm_NAME.mmd` for Markdown) and its data flow
-/// (`dataflow_NAME.svg`), subsystems in the spec's order.
+/// Every diagram of `spec`, as `(file name, text)` for a folder of them: each
+/// subsystem's FSM (`fsm_NAME.svg`, and `fsm_NAME.mmd` for Markdown), the structure
+/// (`structure.svg`), and each subsystem's data flow (`dataflow_NAME.svg`),
+/// subsystems in the spec's order.
 pub fn render_all(spec: &Spec) -> Vec<(String, String)> {
     let mut files = Vec::new();
     for (_, sub) in spec.subsystems() {

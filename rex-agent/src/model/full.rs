@@ -513,8 +513,8 @@ impl BackwardEuler {
         solve7(a, rhs)
     }
 
-    /// The iterate along `dw`, halved while the residual does not decrease
-    /// (to 1/64 of it at worst).
+    /// The iterate along `dw`, the step halved while the residual does not
+    /// decrease; a step of 1/128 of `dw` is taken whatever its residual.
     fn damped(&self, it: &Iterate, dw: &[f64; 7]) -> Iterate {
         let mut lambda = 1.0;
         loop {

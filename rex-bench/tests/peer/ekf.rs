@@ -1,5 +1,5 @@
-//! The EKF of e11 on the peer's MHE data set (were unit tests of
-//! `algorithms::estimation`): an IMU heading that drifts, poses that contradict the
+//! The baseline EKF (`algorithms::estimation`, which e11 runs) on the peer's MHE
+//! data set (were unit tests of `a1::e11::estimator`): an IMU heading that drifts, poses that contradict the
 //! estimate for long.
 
 use rex_agent::a1::e11::Measurements;

@@ -1,6 +1,6 @@
 //! Rex's controllers and estimators on the peers' problem ([`rex_bench::peer`]),
-//! through rex-agent's public API: the NMPC (`nmpc`), the MHE (`mhe`) and e11's
-//! EKF (`ekf`). One test binary for the three (each links all of Rex).
+//! through rex-agent's public API: the NMPC (`nmpc`), the MHE (`mhe`) and the
+//! baseline EKF (`ekf`). One test binary for the three (each links all of Rex).
 
 #![allow(
     clippy::unwrap_used,
