@@ -91,7 +91,7 @@ pub(super) fn allow_case<'a>(names: impl IntoIterator<Item = &'a str>) -> &'stat
         .into_iter()
         .any(|n| n.chars().any(|c| c.is_ascii_uppercase()))
     {
-        "#[allow(non_snake_case, reason = \"named as the spec names its components (E1)\")]\n"
+        "#[allow(non_snake_case, reason = \"the spec's component names (E1)\")]\n"
     } else {
         ""
     }
