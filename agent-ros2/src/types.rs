@@ -1,0 +1,1 @@
+//! ROS 2 message types as data (REP 2011).

@@ -1,0 +1,1 @@
+//! rmw_zenoh's wire format.
