@@ -99,7 +99,7 @@ pub struct Common {
     pub incarnation: Option<u32>,
 }
 
-/// The longest run the layer accepts [s].
+/// The longest run the layer accepts \[s\].
 pub(crate) const MAX_SECONDS: f64 = 1e7;
 
 impl Common {

@@ -186,7 +186,7 @@ pub enum RemoteProblem {
         stamp: Time,
         /// The reader's instant.
         now: Time,
-        /// The most a stamp may lead by [s].
+        /// The most a stamp may lead by \[s\].
         lead: u64,
     },
 }

@@ -77,7 +77,7 @@ pub enum PeriodError {
     /// A positive period that rounds to zero nanoseconds.
     #[error("a period of {0} s rounds to 0 ns (periods are whole nanoseconds)")]
     BelowResolution(f64),
-    /// The period does not fit in 64-bit nanoseconds (about 584 years) [s].
+    /// The period does not fit in 64-bit nanoseconds (about 584 years) \[s\].
     #[error("a period of {0} s is too long (at most 2^64 ns, about 584 years)")]
     TooLong(f64),
 }

@@ -37,7 +37,7 @@ pub use world::*;
 pub struct Order {
     /// Order number.
     pub id: u32,
-    /// Target level [m].
+    /// Target level \[m\].
     pub level: f64,
 }
 
@@ -66,7 +66,7 @@ pub struct LevelFilter;
 
 #[derive(Clone, Debug, Default)]
 pub struct FilterMemory {
-    /// Filtered level [m], once a valid reading arrived.
+    /// Filtered level \[m\], once a valid reading arrived.
     pub estimate: Option<f64>,
     /// Readings rejected as implausible (NaN, outside the tank).
     pub rejected: u64,
@@ -151,7 +151,7 @@ pub struct PumpMemory {
     pub duty: f64,
     /// Largest duty change per iteration.
     pub slew: f64,
-    /// Pump flow at full duty [m³/s].
+    /// Pump flow at full duty \[m³/s\].
     pub max_flow: f64,
 }
 
@@ -249,16 +249,16 @@ pub struct Station;
 /// Station settings.
 #[derive(Clone, Copy, Debug)]
 pub struct StationParams {
-    /// Accepted target levels [m].
+    /// Accepted target levels \[m\].
     pub min_level: f64,
     pub max_level: f64,
-    /// `fill` ends when the level is this close to the target [m].
+    /// `fill` ends when the level is this close to the target \[m\].
     pub reach: f64,
-    /// After settling, the order is done if the level is this close [m].
+    /// After settling, the order is done if the level is this close \[m\].
     pub tolerance: f64,
     /// Iterations of `settle`.
     pub settle_iterations: u32,
-    /// Proportional gain [m³/s per m of level error] and flow limit [m³/s].
+    /// Proportional gain [m³/s per m of level error] and flow limit \[m³/s\].
     pub gain: f64,
     pub max_flow: f64,
 }

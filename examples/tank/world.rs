@@ -6,15 +6,15 @@ use embodied::*;
 /// Tank and pump parameters.
 #[derive(Clone, Copy, Debug)]
 pub struct TankParams {
-    /// Cross-section [m²].
+    /// Cross-section \[m²\].
     pub area: f64,
-    /// Height [m]; the level is clamped to [0, height].
+    /// Height \[m\]; the level is clamped to [0, height].
     pub height: f64,
-    /// Pump flow at full duty [m³/s].
+    /// Pump flow at full duty \[m³/s\].
     pub max_flow: f64,
-    /// Pump time constant [s].
+    /// Pump time constant \[s\].
     pub pump_tau: f64,
-    /// Gauge noise, standard deviation [m].
+    /// Gauge noise, standard deviation \[m\].
     pub gauge_sigma: f64,
     /// Probability that a gauge reading is garbage (NaN).
     pub gauge_glitch: f64,
@@ -39,9 +39,9 @@ impl Default for TankParams {
 pub struct Tank {
     /// Parameters.
     pub params: TankParams,
-    /// Level [m].
+    /// Level \[m\].
     pub level: f64,
-    /// Flow into the tank [m³/s] (negative: out).
+    /// Flow into the tank \[m³/s\] (negative: out).
     pub flow: f64,
 }
 

@@ -74,7 +74,7 @@ fn record(horizon: usize) -> Result<Vec<Frozen>, Box<dyn std::error::Error>> {
     Ok(qps)
 }
 
-/// Per QP: the median time of `repeat` solves [µs], and the last solution.
+/// Per QP: the median time of `repeat` solves \[µs\], and the last solution.
 fn timed<F: FnMut() -> Result<Vec<f64>, String>>(
     repeat: usize,
     mut solve: F,
@@ -143,9 +143,9 @@ impl Solver {
 
 /// OSQP's answer to one QP.
 struct OsqpAnswer {
-    /// The median of its own timers over the repeats [µs].
+    /// The median of its own timers over the repeats \[µs\].
     own_us: f64,
-    /// The median Python wall time of the same calls [µs].
+    /// The median Python wall time of the same calls \[µs\].
     wall_us: f64,
     iterations: usize,
     status: String,

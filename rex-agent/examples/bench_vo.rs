@@ -57,7 +57,7 @@ struct Figures {
     path_m: f64,
 }
 
-/// Time per pair [ms].
+/// Time per pair \[ms\].
 #[derive(Clone, Copy)]
 struct Timing {
     median: f64,

@@ -4,24 +4,24 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-/// A point on the map [m].
+/// A point on the map \[m\].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Point2 {
-    /// x [m].
+    /// x \[m\].
     pub x: f64,
-    /// y [m].
+    /// y \[m\].
     pub y: f64,
 }
 
-/// A pose on the map: position [m] and heading [rad].
+/// A pose on the map: position \[m\] and heading \[rad\].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pose2 {
-    /// x [m].
+    /// x \[m\].
     pub x: f64,
-    /// y [m].
+    /// y \[m\].
     pub y: f64,
-    /// Heading [rad].
+    /// Heading \[rad\].
     pub phi: f64,
 }
 
@@ -37,7 +37,7 @@ impl Pose2 {
 pub struct MapPose {
     /// The pose.
     pub pose: Pose2,
-    /// Simulation time the pose describes [s].
+    /// Simulation time the pose describes \[s\].
     pub time: f64,
 }
 
@@ -112,7 +112,7 @@ pub use crate::model::Torques;
 /// A command for the inertial measurement unit (`cmd_E1,1`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum ImuCommand {
-    /// Set the integrated heading to `yaw` [rad] (align it with the map).
+    /// Set the integrated heading to `yaw` \[rad\] (align it with the map).
     Reset {
         /// The heading to restart from.
         yaw: f64,
@@ -122,15 +122,15 @@ pub enum ImuCommand {
 /// A reading of the inertial measurement unit (α, α̇ in the paper, planar).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Imu {
-    /// Heading integrated from the gyroscope since the last reset [rad], in (−π, π].
+    /// Heading integrated from the gyroscope since the last reset \[rad\], in (−π, π].
     pub yaw: f64,
-    /// Yaw rate [rad/s] (with bias and noise).
+    /// Yaw rate \[rad/s\] (with bias and noise).
     pub yaw_rate: f64,
-    /// Body-frame acceleration `(a_x, a_y)` [m/s²].
+    /// Body-frame acceleration `(a_x, a_y)` \[m/s²\].
     pub accel: [f64; 2],
 }
 
-/// Normal loads measured by the force sensors between the body and each wheel unit [N].
+/// Normal loads measured by the force sensors between the body and each wheel unit \[N\].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct WheelLoads {
     /// Load per wheel.
@@ -140,11 +140,11 @@ pub struct WheelLoads {
 /// Wheel encoders: angles and rates.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Encoders {
-    /// Angle per wheel [rad], quantised to the encoder's resolution.
+    /// Angle per wheel \[rad\], quantised to the encoder's resolution.
     pub theta: [f64; 4],
-    /// Rate per wheel [rad/s], from the counts over the speed window.
+    /// Rate per wheel \[rad/s\], from the counts over the speed window.
     pub rate: [f64; 4],
-    /// The platform's clock when the counts were read [s] (the time stamp a
+    /// The platform's clock when the counts were read \[s\] (the time stamp a
     /// real motor controller puts on its messages).
     pub time: f64,
 }
@@ -161,11 +161,11 @@ pub struct AcquireCommand {
 pub struct StereoPair {
     /// Sequence number (from the acquisition command).
     pub seq: u64,
-    /// Simulation time of the exposure [s].
+    /// Simulation time of the exposure \[s\].
     pub time: f64,
-    /// Width [px].
+    /// Width \[px\].
     pub width: u32,
-    /// Height [px].
+    /// Height \[px\].
     pub height: u32,
     /// Left image, row-major, 8 bits per pixel.
     #[serde(with = "serde_bytes")]
@@ -299,13 +299,13 @@ pub struct PlanOutcome {
 pub enum Execution {
     /// The platform reached the plan's last point, `error_m` from it (estimated).
     Reached {
-        /// Distance to the last point [m].
+        /// Distance to the last point \[m\].
         error_m: f64,
     },
     /// The last fragment ended, but the platform did not come within the
     /// tolerance of its end point.
     Missed {
-        /// Distance to the last point when `e11` gave up waiting [m].
+        /// Distance to the last point when `e11` gave up waiting \[m\].
         error_m: f64,
     },
     /// `e11` stopped the platform (it left the free space, headed out of it, or
@@ -343,9 +343,9 @@ impl fmt::Display for Execution {
 pub struct Transform {
     /// The homogeneous transform.
     pub matrix: [[f64; 4]; 4],
-    /// Time of the earlier pair [s].
+    /// Time of the earlier pair \[s\].
     pub from: f64,
-    /// Time of the later pair [s].
+    /// Time of the later pair \[s\].
     pub to: f64,
 }
 

@@ -118,14 +118,14 @@ pub struct SoakResult {
     /// Simulated minutes.
     pub sim_min: f64,
     /// Largest error of the estimated position while the motion capture
-    /// delivered [m].
+    /// delivered \[m\].
     pub max_est_err_m: f64,
     /// Largest error of the estimated position otherwise: in dropouts and the
-    /// second after them [m].
+    /// second after them \[m\].
     pub max_est_err_dropout_m: f64,
-    /// Largest tracking error while following fragments [m].
+    /// Largest tracking error while following fragments \[m\].
     pub max_track_err_m: f64,
-    /// RMS tracking error [m].
+    /// RMS tracking error \[m\].
     pub rms_m: f64,
     /// Plans reported reached whose end point was not reached.
     pub false_done: usize,

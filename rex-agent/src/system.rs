@@ -57,7 +57,7 @@ pub struct RunSettings {
     pub tracker: TrackerKind,
     /// The estimator of `e11`.
     pub estimator: EstimatorKind,
-    /// Longest simulated time [s].
+    /// Longest simulated time \[s\].
     pub limit_s: f64,
     /// Run the virtual receptor r11 (stereo visual odometry on the camera R1).
     pub visual_odometry: bool,
@@ -83,27 +83,27 @@ pub struct Limits {
     /// footprint. `e11` stops the platform closer; the run fails a plan during
     /// which the true pose came closer.
     pub clearance_m: f64,
-    /// Plan points and planned fragments keep this much more [m].
+    /// Plan points and planned fragments keep this much more \[m\].
     pub plan_margin_m: f64,
     /// `e11` stops the platform when its estimate is farther than this from the
-    /// reference [m]; the run fails a plan whose true tracking error exceeded it.
+    /// reference \[m\]; the run fails a plan whose true tracking error exceeded it.
     pub tracking_m: f64,
-    /// A plan's last point is reached within this distance [m].
+    /// A plan's last point is reached within this distance \[m\].
     pub final_m: f64,
     /// What `e11` allows for its estimate's own error when it reports a plan
     /// reached: only when the estimate is within `final_m − final_margin_m` of
     /// the last point, and within `final_margin_m` of the map poses of the last
-    /// half second [m] (a success it reports is then one the truth confirms
+    /// half second \[m\] (a success it reports is then one the truth confirms
     /// unless the estimate is off by more than this).
     pub final_margin_m: f64,
     /// How long `e11` waits, holding a plan's last point, for the platform to
-    /// come within `final_m` [s].
+    /// come within `final_m` \[s\].
     pub settle_s: f64,
-    /// `e11` stops the platform when braking at this deceleration [m/s²] would end
+    /// `e11` stops the platform when braking at this deceleration \[m/s²\] would end
     /// outside the free space.
     pub brake_decel: f64,
     /// The run fails a plan during which the estimate was farther than this from
-    /// the true position while the motion capture delivered [m].
+    /// the true position while the motion capture delivered \[m\].
     pub estimate_m: f64,
     /// `c1` slows each fragment down until it asks at most this share of a
     /// wheel's traction on the ground `e11` estimates (the rest is left to the

@@ -34,9 +34,9 @@ struct StubC1;
 #[derive(Clone, Debug, Default, Memory)]
 struct StubC1Memory {
     pending: Option<(u32, u32)>,
-    /// Plan ids with their arrival time [s].
+    /// Plan ids with their arrival time \[s\].
     plans: Vec<(f64, u32)>,
-    /// Acknowledgements sent, with the time [s].
+    /// Acknowledgements sent, with the time \[s\].
     acks: Vec<(f64, Ack)>,
     poses: Vec<(f64, MapPose)>,
     iteration: u64,
@@ -264,7 +264,7 @@ fn world_config() -> WorldConfig {
 
 /// What the stand-ins do, beyond their defaults.
 struct Stubs {
-    /// r11's period [ms] and memory (what it asks for).
+    /// r11's period \[ms\] and memory (what it asks for).
     r11_ms: u64,
     r11: StubR11Memory,
     /// e11's memory (its bad commands).
@@ -287,7 +287,7 @@ impl Default for Stubs {
     }
 }
 
-/// The period of component `name` in `specs/rex.ron` [s].
+/// The period of component `name` in `specs/rex.ron` \[s\].
 fn spec_period(name: &str) -> f64 {
     let spec = rex_agent::system::load_spec(&rex_agent::system::default_spec()).unwrap();
     spec::Assembly::all(&spec)
@@ -354,7 +354,7 @@ fn the_world_runs_inside_the_framework() {
 }
 
 /// Run until `end` instant by instant, to see each pose the motion capture
-/// sends when it sends it: their ages then [s].
+/// sends when it sends it: their ages then \[s\].
 fn run_watching_the_mocap(exec: &mut Executor, h: &Handles, end: Time) -> Vec<f64> {
     let mut mocap_sent = 0;
     let mut mocap_ages = Vec::new();

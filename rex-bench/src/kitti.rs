@@ -234,19 +234,19 @@ pub fn read_poses(path: &Path) -> Result<Vec<Pose34>, KittiError> {
 pub struct Sequence {
     /// The folder.
     pub dir: PathBuf,
-    /// Focal length [px].
+    /// Focal length \[px\].
     pub focal: f64,
-    /// Principal point [px].
+    /// Principal point \[px\].
     pub principal: (f64, f64),
-    /// Baseline [m].
+    /// Baseline \[m\].
     pub baseline: f64,
     /// `Tr:` of `calib.txt`, if there is one: body (Velodyne in KITTI) to left camera.
     pub body_to_camera: Option<Pose34>,
-    /// Timestamps [s].
+    /// Timestamps \[s\].
     pub times: Vec<f64>,
     /// Ground-truth poses, if present.
     pub poses: Option<Vec<Pose34>>,
-    /// Size of the images (of the first left image) [px].
+    /// Size of the images (of the first left image) \[px\].
     pub size: (u32, u32),
 }
 
@@ -467,7 +467,7 @@ impl Sequence {
 pub struct SequenceRun {
     /// Estimated pose of each left camera in the frame of the first (KITTI's).
     pub poses: Vec<Pose34>,
-    /// Processing time of each pair [ms] (reading the images excluded).
+    /// Processing time of each pair \[ms\] (reading the images excluded).
     pub ms: Vec<f64>,
     /// The odometry's counters.
     pub stats: VoStats,

@@ -10,19 +10,19 @@ use rex_agent::algorithms::planner::nearest_angle;
 use rex_agent::math::rng::Rng;
 use rex_agent::model::{PlatformParams, Reduced, SlipParams, State5, Torques};
 
-/// Interval [s] (`DT`).
+/// Interval \[s\] (`DT`).
 pub const DT: f64 = 0.05;
 /// Closed-loop steps: one lap (`N_SIM`).
 pub const N_SIM: usize = 200;
 /// RK4 steps per interval of the simulated plant (`RK4_STEPS_PLANT`).
 pub const PLANT_RK4_STEPS: usize = 10;
-/// Half-width of the lemniscate [m] (`REF_A`).
+/// Half-width of the lemniscate \[m\] (`REF_A`).
 pub const REF_A: f64 = 1.0;
-/// One lap [s] (`REF_PERIOD`).
+/// One lap \[s\] (`REF_PERIOD`).
 pub const REF_PERIOD: f64 = 10.0;
 /// Initial state = reference at 0 plus this (`INIT_OFFSET`).
 pub const INIT_OFFSET: State5 = [0.10, -0.10, 0.0, 0.0, 0.0];
-/// The transient excluded from the steady RMS [s] (`SS_SKIP_S`).
+/// The transient excluded from the steady RMS \[s\] (`SS_SKIP_S`).
 pub const SS_SKIP_S: f64 = 2.0;
 
 /// The figure-eight reference `(X, Y, φ, v, ω)` at `t`, with the heading and

@@ -22,7 +22,7 @@ pub(crate) enum Note {
     /// A subsystem of the process halted.
     Halted(String),
     /// The process's run ended: its errors, the first of them, its last
-    /// instant [ns], its overruns, the messages its links refused, and those
+    /// instant \[ns\], its overruns, the messages its links refused, and those
     /// the access control refused (a secure deployment).
     Ended {
         errors: u64,

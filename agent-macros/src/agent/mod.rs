@@ -452,7 +452,7 @@ fn device(found: &Found, file: &LitStr, d: usize, dev: &model::Device) -> syn::R
 
             /// The component's name in the spec.
             pub const NAME: &str = #name;
-            /// Its period in the spec [ms].
+            /// Its period in the spec \[ms\].
             pub const PERIOD_MS: f64 = #period;
 
             #inputs

@@ -58,7 +58,7 @@ pub(super) fn subsystem(
 
             /// The component's name in the spec.
             pub const NAME: &str = #name;
-            /// Its period in the spec [ms].
+            /// Its period in the spec \[ms\].
             pub const PERIOD_MS: f64 = #period;
 
             /// The internal memory.

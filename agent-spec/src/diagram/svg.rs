@@ -7,15 +7,15 @@ use std::fmt::Write as _;
 
 use super::geometry::{self, Owner, Path, Point, Rect, Scene};
 
-/// Font size of labels [px].
+/// Font size of labels \[px\].
 pub(crate) const FONT: f64 = 12.0;
-/// Width of one character of the monospace font at [`FONT`] [px].
+/// Width of one character of the monospace font at [`FONT`] \[px\].
 pub(crate) const CHAR_W: f64 = 7.3;
-/// Height of one line of text [px].
+/// Height of one line of text \[px\].
 pub(crate) const LINE_H: f64 = 15.0;
-/// Padding inside boxes [px].
+/// Padding inside boxes \[px\].
 pub(crate) const PAD: f64 = 8.0;
-/// Margin around a drawing [px].
+/// Margin around a drawing \[px\].
 pub(crate) const MARGIN: f64 = 20.0;
 /// Stroke and text colour.
 pub(crate) const INK: &str = "#222222";
@@ -42,22 +42,22 @@ pub(crate) fn esc(s: &str) -> String {
     out
 }
 
-/// Width of a text line [px].
+/// Width of a text line \[px\].
 pub(crate) fn text_w(s: &str) -> f64 {
     s.chars().count() as f64 * CHAR_W
 }
 
-/// Height of an edge label (its white background) [px].
+/// Height of an edge label (its white background) \[px\].
 pub(crate) const LABEL_H: f64 = 16.0;
 
-/// Width of an edge label of `s` (its white background) [px].
+/// Width of an edge label of `s` (its white background) \[px\].
 pub(crate) fn label_w(s: &str) -> f64 {
     text_w(s) + 6.0
 }
 
-/// Height of the glyphs above the baseline [px].
+/// Height of the glyphs above the baseline \[px\].
 pub(crate) const ASCENT: f64 = 0.8 * FONT;
-/// Depth of the glyphs below the baseline [px].
+/// Depth of the glyphs below the baseline \[px\].
 pub(crate) const DESCENT: f64 = 0.25 * FONT;
 
 /// The extent of a line of text whose baseline starts at `(x, y)`.

@@ -66,9 +66,9 @@ pub enum MemberError {
     Origin {
         /// This process.
         process: String,
-        /// How far ahead [s].
+        /// How far ahead \[s\].
         ahead: f64,
-        /// The most expected: the start lead and the deployment's timeout [s].
+        /// The most expected: the start lead and the deployment's timeout \[s\].
         allowed: f64,
     },
     /// The spec has no such deployment.

@@ -5,7 +5,7 @@
 
 use std::fmt;
 
-/// An axis-aligned rectangle `[x0, x1] × [y0, y1]` [m].
+/// An axis-aligned rectangle `[x0, x1] × [y0, y1]` \[m\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rect {
     /// Lower x.

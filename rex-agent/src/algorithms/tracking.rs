@@ -89,7 +89,7 @@ impl TrackerKind {
     }
 }
 
-/// Below this speed along the path [m/s] its direction is the planner's
+/// Below this speed along the path \[m/s\] its direction is the planner's
 /// heading (finite differences of positions a few millimetres apart say little).
 const MOVING: f64 = 0.02;
 
@@ -302,23 +302,23 @@ impl Tracker for NmpcTracker {
 /// Gains of [`Backstepping`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gains {
-    /// Along-track position gain [1/s].
+    /// Along-track position gain \[1/s\].
     pub kx: f64,
-    /// Cross-track gain [1/m²].
+    /// Cross-track gain \[1/m²\].
     pub ky: f64,
-    /// Heading gain [1/m].
+    /// Heading gain \[1/m\].
     pub kphi: f64,
-    /// Heading gain at standstill [1/s].
+    /// Heading gain at standstill \[1/s\].
     pub kphi_rest: f64,
-    /// Speed loop gain [1/s].
+    /// Speed loop gain \[1/s\].
     pub kv: f64,
-    /// Turn-rate loop gain [1/s].
+    /// Turn-rate loop gain \[1/s\].
     pub kw: f64,
-    /// Integral gain of the speed loop [1/s²].
+    /// Integral gain of the speed loop \[1/s²\].
     pub ki_v: f64,
-    /// Integral gain of the turn-rate loop [1/s²].
+    /// Integral gain of the turn-rate loop \[1/s²\].
     pub ki_w: f64,
-    /// Bound of each integral term (as an acceleration) [m/s², rad/s²].
+    /// Bound of each integral term (as an acceleration) \[m/s², rad/s²\].
     pub i_max: f64,
 }
 

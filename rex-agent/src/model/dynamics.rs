@@ -64,8 +64,8 @@ pub struct Measured<const NX: usize, const NP: usize> {
 pub const NOT_READ: [f64; 4] = [f64::NAN; 4];
 
 /// What the wheels' encoders tell a model at an instant of an interval
-/// ([`WheelSpin`]): each wheel's rate [rad/s] and its acceleration over the
-/// interval [rad/s²], NaN where not read. A model whose state does not hold
+/// ([`WheelSpin`]): each wheel's rate \[rad/s\] and its acceleration over the
+/// interval \[rad/s²\], NaN where not read. A model whose state does not hold
 /// the wheels' spin (the lateral model) takes from the rates the direction of
 /// the rolling resistance, and from the accelerations the share of a wheel's
 /// torque that spins the wheel up.
@@ -162,9 +162,9 @@ impl WheelSpin {
 pub struct EarlierReading<const NX: usize> {
     /// The state then.
     pub x: Vector<NX>,
-    /// The rates read then [rad/s] (NaN where a wheel was not read).
+    /// The rates read then \[rad/s\] (NaN where a wheel was not read).
     pub rates: [f64; 4],
-    /// How long before [s].
+    /// How long before \[s\].
     pub h: f64,
 }
 
@@ -279,7 +279,7 @@ pub trait Dynamics<const NX: usize, const NP: usize>:
         self.encoder_rates(x, u, p)
     }
 
-    /// Whether wheel `i`'s encoder `reading` [rad/s] is one the model can
+    /// Whether wheel `i`'s encoder `reading` \[rad/s\] is one the model can
     /// represent at state `x` with some parameters (a wheel spinning far faster
     /// than the ground moves under it is not: its slip has no bound the model
     /// knows). The default: every reading.

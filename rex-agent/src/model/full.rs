@@ -61,21 +61,21 @@ impl Validate for StartPose {
 /// State of the full model.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FullState {
-    /// World position of the centre of mass [m].
+    /// World position of the centre of mass \[m\].
     pub x: f64,
-    /// World position of the centre of mass [m].
+    /// World position of the centre of mass \[m\].
     pub y: f64,
-    /// Heading [rad] (not wrapped).
+    /// Heading \[rad\] (not wrapped).
     pub phi: f64,
-    /// Body-frame forward velocity [m/s].
+    /// Body-frame forward velocity \[m/s\].
     pub vx: f64,
-    /// Body-frame lateral velocity [m/s].
+    /// Body-frame lateral velocity \[m/s\].
     pub vy: f64,
-    /// Yaw rate [rad/s].
+    /// Yaw rate \[rad/s\].
     pub omega: f64,
-    /// Wheel angles [rad].
+    /// Wheel angles \[rad\].
     pub theta: [f64; 4],
-    /// Wheel rates [rad/s].
+    /// Wheel rates \[rad/s\].
     pub theta_dot: [f64; 4],
 }
 
@@ -111,7 +111,7 @@ pub struct Plant {
     /// Current state.
     pub state: FullState,
     loads: [f64; 4],
-    /// Body-frame acceleration `(a_x, a_y)` of the last step [m/s²].
+    /// Body-frame acceleration `(a_x, a_y)` of the last step \[m/s²\].
     accel: [f64; 2],
     stats: CommandStats,
     integration: IntegrationStats,
@@ -158,12 +158,12 @@ impl Plant {
         &self.surfaces
     }
 
-    /// Normal load of each wheel in the last step [N].
+    /// Normal load of each wheel in the last step \[N\].
     pub fn loads(&self) -> [f64; 4] {
         self.loads
     }
 
-    /// Body-frame acceleration `(a_x, a_y)` in the last step [m/s²].
+    /// Body-frame acceleration `(a_x, a_y)` in the last step \[m/s²\].
     pub fn accel(&self) -> [f64; 2] {
         self.accel
     }

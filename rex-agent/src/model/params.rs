@@ -12,33 +12,33 @@ use crate::config::{Invalid, Validate, finite, non_negative, positive};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlatformParams {
-    /// Mass [kg], wheels included.
+    /// Mass \[kg\], wheels included.
     pub mass: f64,
-    /// Yaw inertia about the centre of mass [kg m²].
+    /// Yaw inertia about the centre of mass \[kg m²\].
     pub inertia: f64,
-    /// Effective wheel rolling radius r [m].
+    /// Effective wheel rolling radius r \[m\].
     pub wheel_radius: f64,
-    /// Half track c: centre of mass to the left/right wheel plane [m].
+    /// Half track c: centre of mass to the left/right wheel plane \[m\].
     pub half_track: f64,
-    /// a: centre of mass to the front axle [m].
+    /// a: centre of mass to the front axle \[m\].
     pub front: f64,
-    /// b: centre of mass to the rear axle [m].
+    /// b: centre of mass to the rear axle \[m\].
     pub rear: f64,
-    /// Spin inertia of one wheel with the reflected rotor J_w [kg m²].
+    /// Spin inertia of one wheel with the reflected rotor J_w \[kg m²\].
     pub wheel_inertia: f64,
-    /// Height of the centre of mass [m] (load transfer onto the force sensors).
+    /// Height of the centre of mass \[m\] (load transfer onto the force sensors).
     pub cog_height: f64,
-    /// Gravity [m/s²].
+    /// Gravity \[m/s²\].
     pub gravity: f64,
-    /// Smoothing of the friction sign, `sg(s) = 2/π atan(k_s s)` [s/m].
+    /// Smoothing of the friction sign, `sg(s) = 2/π atan(k_s s)` \[s/m\].
     pub sign_smoothing: f64,
-    /// Torque bound per wheel [N m].
+    /// Torque bound per wheel \[N m\].
     pub torque_max: f64,
-    /// Wheel speed at which the motor torque falls to zero [rad/s].
+    /// Wheel speed at which the motor torque falls to zero \[rad/s\].
     pub wheel_speed_max: f64,
-    /// Bound on the forward speed used by controllers [m/s].
+    /// Bound on the forward speed used by controllers \[m/s\].
     pub speed_max: f64,
-    /// Bound on the yaw rate used by controllers [rad/s].
+    /// Bound on the yaw rate used by controllers \[rad/s\].
     pub yaw_rate_max: f64,
 }
 
@@ -69,7 +69,7 @@ impl PlatformParams {
         [[a, c], [-b, c], [a, -c], [-b, -c]]
     }
 
-    /// Static normal load of each wheel [N].
+    /// Static normal load of each wheel \[N\].
     pub fn static_loads(&self) -> [f64; 4] {
         let (a, b) = (self.front, self.rear);
         let front = self.mass * self.gravity * b / (2.0 * (a + b));
@@ -109,7 +109,7 @@ impl Validate for PlatformParams {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SlipParams {
-    /// x-coordinate of the instantaneous centre of rotation [m].
+    /// x-coordinate of the instantaneous centre of rotation \[m\].
     pub x_icr: f64,
     /// Longitudinal rolling resistance μ_s.
     pub mu_s: f64,
@@ -226,7 +226,7 @@ impl Validate for Surface {
 /// A region of the floor.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Region {
-    /// Axis-aligned rectangle `[x0, x1] × [y0, y1]` [m].
+    /// Axis-aligned rectangle `[x0, x1] × [y0, y1]` \[m\].
     Rect {
         /// Lower x.
         x0: f64,
@@ -237,7 +237,7 @@ pub enum Region {
         /// Upper y.
         y1: f64,
     },
-    /// Disc of radius `r` around `(x, y)` [m].
+    /// Disc of radius `r` around `(x, y)` \[m\].
     Disc {
         /// Centre x.
         x: f64,

@@ -8,7 +8,7 @@ use super::params::{PlatformParams, SlipParams};
 
 /// Reduced state `(X, Y, φ, v, ω)`.
 pub type State5 = [f64; 5];
-/// Wheel torques `(τ_1, τ_2, τ_3, τ_4)` [N m], wheels 1 front-left, 2 rear-left,
+/// Wheel torques `(τ_1, τ_2, τ_3, τ_4)` \[N m\], wheels 1 front-left, 2 rear-left,
 /// 3 front-right, 4 rear-right.
 pub type Torques = [f64; 4];
 

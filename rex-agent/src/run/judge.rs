@@ -53,14 +53,14 @@ pub struct PlanReport {
     pub plan: u32,
     /// a1's final acknowledgement (`Done`, `Refused`, `Failed`).
     pub ack: Option<AckStatus>,
-    /// How `e11` reported the execution ended, and when [s].
+    /// How `e11` reported the execution ended, and when \[s\].
     pub outcome: Option<(f64, Execution)>,
-    /// True distance to the plan's last point when `e11` reported the outcome [m].
+    /// True distance to the plan's last point when `e11` reported the outcome \[m\].
     pub end_error_m: Option<f64>,
-    /// Largest true tracking error while the plan's fragments ran [m].
+    /// Largest true tracking error while the plan's fragments ran \[m\].
     pub max_tracking_m: f64,
     /// Largest error of the estimated position meanwhile, while the motion
-    /// capture delivered (see [`crate::run::Sample::with_mocap`]) [m].
+    /// capture delivered (see [`crate::run::Sample::with_mocap`]) \[m\].
     pub max_estimate_m: f64,
     /// The verdict.
     pub verdict: Verdict,

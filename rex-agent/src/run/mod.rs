@@ -29,7 +29,7 @@ use judge::{PlanReport, Verdict};
 /// One sample of a run, at every activation of `e11`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sample {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub t: f64,
     /// True pose `(X, Y, φ)`.
     pub truth: [f64; 3],
@@ -45,7 +45,7 @@ pub struct Sample {
     pub behaviour: u8,
     /// The fragment being executed: `(plan, index)`.
     pub fragment: Option<(u32, u32)>,
-    /// How long the motion capture has been delivering poses without a gap [s]
+    /// How long the motion capture has been delivering poses without a gap \[s\]
     /// (0 during a dropout).
     pub mocap_for: f64,
     /// Whether `e11` had lost the visual odometry it was receiving.
@@ -85,7 +85,7 @@ pub struct Counters {
     pub fragments_rejected: u32,
     /// Fragments refused by `e11` because they were handed over before a stop.
     pub fragments_stale: u32,
-    /// Stops of the platform by `e11`'s safety monitor, with their time [s].
+    /// Stops of the platform by `e11`'s safety monitor, with their time \[s\].
     pub stops: Vec<(f64, String)>,
     /// Command timeouts of the platform's watchdog (steps at zero torque).
     pub watchdog_steps: u64,
@@ -177,17 +177,17 @@ pub struct Outcome {
     pub mission: String,
     /// Plans in the mission.
     pub plans: usize,
-    /// Final acknowledgements received by `a2`, with their arrival time [s].
+    /// Final acknowledgements received by `a2`, with their arrival time \[s\].
     pub acks: Vec<(f64, Ack)>,
-    /// Plan outcomes reported by `e11`, with the time it reported them [s].
+    /// Plan outcomes reported by `e11`, with the time it reported them \[s\].
     pub outcomes: Vec<(f64, PlanOutcome)>,
     /// Each plan of the mission, judged against the simulation's truth.
     pub reports: Vec<PlanReport>,
     /// Samples at every activation of `e11`.
     pub samples: Vec<Sample>,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub sim_s: f64,
-    /// Wall-clock time [s].
+    /// Wall-clock time \[s\].
     pub wall_s: f64,
     /// Counters.
     pub counters: Counters,
@@ -215,7 +215,7 @@ impl Outcome {
     }
 
     /// When `e11` lost the visual odometry it was receiving, and when it came
-    /// back (`None`: not before the end) [s].
+    /// back (`None`: not before the end) \[s\].
     pub fn vo_outages(&self) -> Vec<(f64, Option<f64>)> {
         let mut out: Vec<(f64, Option<f64>)> = Vec::new();
         let mut lost = false;
@@ -272,7 +272,7 @@ impl Outcome {
             .filter_map(Sample::error)
     }
 
-    /// RMS of the tracking error over the samples that follow a fragment [m].
+    /// RMS of the tracking error over the samples that follow a fragment \[m\].
     pub fn rms(&self) -> f64 {
         let (n, sum) = self
             .tracking_errors()
@@ -280,12 +280,12 @@ impl Outcome {
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
-    /// Largest tracking error while following fragments [m].
+    /// Largest tracking error while following fragments \[m\].
     pub fn max_error(&self) -> f64 {
         self.tracking_errors().fold(0.0, f64::max)
     }
 
-    /// RMS of the estimator's position error over the whole run [m].
+    /// RMS of the estimator's position error over the whole run \[m\].
     pub fn estimate_rms(&self) -> f64 {
         let n = self.samples.len().max(1) as f64;
         (self
@@ -338,14 +338,14 @@ pub enum RunError {
 pub enum Progress<'a> {
     /// `a2` received the final acknowledgement of a plan.
     Ack {
-        /// Simulation time [s].
+        /// Simulation time \[s\].
         t: f64,
         /// The acknowledgement.
         ack: &'a Ack,
     },
     /// Another `every` seconds of simulated time passed.
     Tick {
-        /// Simulation time [s].
+        /// Simulation time \[s\].
         t: f64,
         /// The latest sample.
         sample: &'a Sample,

@@ -66,7 +66,7 @@ pub struct C1Params {
     pub map: Map,
     /// The most points a plan may have.
     pub max_points: usize,
-    /// How long before the end of a fragment `e11` reports ready [s].
+    /// How long before the end of a fragment `e11` reports ready \[s\].
     pub notify_lead: f64,
     /// How many iterations a plan may wait for the first state estimate of `e11`
     /// before it is refused (or, after a stop, for the platform to come to rest

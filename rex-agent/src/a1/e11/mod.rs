@@ -48,20 +48,20 @@ use crate::payload::{
 pub struct Safety {
     /// The free space (its clearance: the platform's footprint).
     pub map: Map,
-    /// The largest distance between the estimate and the reference [m]; beyond
+    /// The largest distance between the estimate and the reference \[m\]; beyond
     /// it `e11` stops the platform.
     pub max_tracking_error: f64,
-    /// A plan's last point is reached within this distance [m].
+    /// A plan's last point is reached within this distance \[m\].
     pub final_tolerance: f64,
     /// The estimate's own error allowed for: a plan is reported reached only
     /// when the estimate is within `final_tolerance − final_margin` of its
     /// last point, and within `final_margin` of the map poses of the last
-    /// half second ([`Estimate::pose_disagreement`]) [m].
+    /// half second ([`Estimate::pose_disagreement`]) \[m\].
     pub final_margin: f64,
     /// How long `e11` waits, holding the last point, for the platform to come
-    /// within the tolerance [s].
+    /// within the tolerance \[s\].
     pub settle: f64,
-    /// The deceleration the platform is assumed to brake with [m/s²].
+    /// The deceleration the platform is assumed to brake with \[m/s²\].
     pub brake_decel: f64,
 }
 
@@ -85,7 +85,7 @@ pub struct Arrival {
     pub plan: u32,
     /// Its last point.
     pub end: [f64; 2],
-    /// When the last fragment ended [s].
+    /// When the last fragment ended \[s\].
     pub since: f64,
 }
 
@@ -206,7 +206,7 @@ pub struct E11Memory {
     /// (its process restarted) keeps the time of the map poses and visual
     /// odometry it fuses.
     pub start: Option<u64>,
-    /// The period [s].
+    /// The period \[s\].
     pub dt: f64,
     /// Iteration at which the IMU reset was sent.
     pub imu_reset_at: Option<u64>,
@@ -226,7 +226,7 @@ pub struct E11Memory {
     pub event: Option<PlanOutcome>,
     /// Whether the platform was stopped in this iteration.
     pub stopped_now: bool,
-    /// Why each stop happened, with its time [s].
+    /// Why each stop happened, with its time \[s\].
     pub stops: Vec<(f64, String)>,
     /// The fragment completed in the last iteration (reported as `progress`).
     pub completed_now: Option<Progress>,
@@ -289,7 +289,7 @@ impl E11Memory {
         self
     }
 
-    /// Simulation time of this iteration [s].
+    /// Simulation time of this iteration \[s\].
     fn now(&self) -> f64 {
         (self.iteration + self.start.unwrap_or(0)) as f64 * self.dt
     }

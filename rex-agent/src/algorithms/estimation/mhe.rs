@@ -62,14 +62,14 @@ struct FrictionWalk {
 
 impl FrictionWalk {
     const START: [f64; 3] = [0.3, 0.3, 0.05];
-    /// [s]
+    /// \[s\]
     const SETTLE_S: f64 = 1.0;
     const RELATIVE: f64 = 0.01;
     /// Half a percent of ice's friction, one percent of its rolling
     /// resistance (whose lower bound is 0).
     const FLOOR: [f64; 3] = [5e-4, 5e-4, 1e-4];
     const GAIN: f64 = 2.0;
-    /// [s]
+    /// \[s\]
     const SURPRISE_S: f64 = 0.25;
     /// A reading left out as a spinning wheel counts as a residual of 5 σ
     /// (squared): the ground takes less than the model thought.

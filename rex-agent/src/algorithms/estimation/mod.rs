@@ -34,7 +34,7 @@ pub struct Estimate {
     /// Whether a pose measurement has been fused (before, the pose is a guess).
     pub localised: bool,
     /// How far the estimate was from the map poses of the last
-    /// [`DISAGREEMENT_SPAN_S`] [m], the largest distance: the MHE's fit at the
+    /// [`DISAGREEMENT_SPAN_S`] \[m\], the largest distance: the MHE's fit at the
     /// poses' times, the EKF's estimate once corrected by each pose (a pose
     /// gated out: the whole innovation). Beyond the poses' own noise it says
     /// the estimate cannot follow them (a model the data contradict, a new
@@ -43,7 +43,7 @@ pub struct Estimate {
     pub pose_disagreement: Option<f64>,
 }
 
-/// The span of map poses [`Estimate::pose_disagreement`] looks back over [s].
+/// The span of map poses [`Estimate::pose_disagreement`] looks back over \[s\].
 pub const DISAGREEMENT_SPAN_S: f64 = 0.5;
 
 /// Drop the entries of a time-ordered queue stamped before `t`.
@@ -108,7 +108,7 @@ pub struct Measurements {
     pub transform: Option<Transform>,
     /// Whether the IMU heading has been aligned with the map.
     pub imu_aligned: bool,
-    /// Current time [s].
+    /// Current time \[s\].
     pub now: f64,
 }
 
@@ -184,24 +184,24 @@ impl EstimatorKind {
 /// Noise settings of the EKF.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EkfNoise {
-    /// Process noise densities of `(X, Y, φ, v, ω)` [unit/√s].
+    /// Process noise densities of `(X, Y, φ, v, ω)` \[unit/√s\].
     pub process: [f64; 5],
-    /// Map pose: position [m] and heading [rad].
+    /// Map pose: position \[m\] and heading \[rad\].
     pub map_position: f64,
-    /// Map heading [rad].
+    /// Map heading \[rad\].
     pub map_heading: f64,
-    /// Speed from the encoders [m/s].
+    /// Speed from the encoders \[m/s\].
     pub encoder_speed: f64,
-    /// Gyroscope rate [rad/s].
+    /// Gyroscope rate \[rad/s\].
     pub gyro: f64,
-    /// IMU heading reading [rad] (about its offset from the map heading).
+    /// IMU heading reading \[rad\] (about its offset from the map heading).
     pub imu_heading: f64,
     /// Random walk of the IMU heading's offset from the map heading [rad/√s]: the
     /// IMU integrates a biased gyroscope.
     pub imu_offset_walk: f64,
     /// Gate: innovations beyond this many standard deviations are rejected.
     pub gate: f64,
-    /// Map poses gated out for this long [s] restart the estimate from the latest
+    /// Map poses gated out for this long \[s\] restart the estimate from the latest
     /// one (a relocalisation).
     pub relocalise_after: f64,
 }

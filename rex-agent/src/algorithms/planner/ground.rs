@@ -18,7 +18,7 @@ pub struct GroundTiming {
     /// The largest fraction of a wheel's traction bound a fragment may ask for
     /// (the rest is the tracker's, to correct errors).
     pub margin: f64,
-    /// The longest a fragment may become [s].
+    /// The longest a fragment may become \[s\].
     pub max_duration: f64,
     /// The ground fragments are timed for while the estimate has not settled
     /// (the slipperiest one expected): the platform starts carefully on a
@@ -42,12 +42,12 @@ pub enum GroundError {
         mu_long: f64,
         /// The ground's lateral friction.
         mu_lat: f64,
-        /// What it asks at the longest duration [%] (infinite: a turn the
+        /// What it asks at the longest duration \[%\] (infinite: a turn the
         /// ground cannot carry at any speed the samples have).
         demand: f64,
-        /// The margin [%].
+        /// The margin \[%\].
         margin: f64,
-        /// The longest duration [s].
+        /// The longest duration \[s\].
         max_duration: f64,
     },
     /// The ground estimate is not finite or not positive.

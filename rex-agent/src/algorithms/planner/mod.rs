@@ -18,11 +18,11 @@ use crate::model::SlipParams;
 /// A configuration to reach: a position, and a heading if it matters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Waypoint {
-    /// x [m].
+    /// x \[m\].
     pub x: f64,
-    /// y [m].
+    /// y \[m\].
     pub y: f64,
-    /// Desired heading [rad]; `None` leaves it free.
+    /// Desired heading \[rad\]; `None` leaves it free.
     pub phi: Option<f64>,
 }
 
@@ -33,7 +33,7 @@ pub struct Fragment {
     pub plan: u32,
     /// Its position in the plan (0-based).
     pub index: u32,
-    /// Sample interval [s].
+    /// Sample interval \[s\].
     pub dt: f64,
     /// Reference `(X, Y, φ, v, ω)` at `k · dt`, `k = 0..=n`.
     pub states: Vec<[f64; 5]>,
@@ -82,20 +82,20 @@ impl Fragment {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlannerSettings {
-    /// Sample interval of fragments [s] (the period of `e11`).
+    /// Sample interval of fragments \[s\] (the period of `e11`).
     pub dt: f64,
-    /// Cruising speed used to choose a fragment's duration [m/s].
+    /// Cruising speed used to choose a fragment's duration \[m/s\].
     pub cruise_speed: f64,
-    /// Turn rate used to choose a fragment's duration [rad/s].
+    /// Turn rate used to choose a fragment's duration \[rad/s\].
     pub cruise_turn_rate: f64,
-    /// Shortest fragment [s].
+    /// Shortest fragment \[s\].
     pub min_duration: f64,
     /// Longest fragment [s]: a fragment that would need longer to respect the
     /// velocity bounds is refused ([`PlanError::TooLong`]).
     pub max_duration: f64,
-    /// Speed bound the fragment must respect [m/s].
+    /// Speed bound the fragment must respect \[m/s\].
     pub speed_max: f64,
-    /// Turn-rate bound the fragment must respect [rad/s].
+    /// Turn-rate bound the fragment must respect \[rad/s\].
     pub turn_rate_max: f64,
     /// Nominal slip parameters of the kinematic model (the ICR offset matters).
     pub slip: SlipParams,
@@ -202,9 +202,9 @@ pub enum PlanError {
         "the fragment would need {duration:.1} s to respect the velocity bounds, more than the {max:.1} s allowed"
     )]
     TooLong {
-        /// The duration needed [s].
+        /// The duration needed \[s\].
         duration: f64,
-        /// `max_duration` [s].
+        /// `max_duration` \[s\].
         max: f64,
     },
 }

@@ -16,22 +16,22 @@ use crate::math::rng::Rng;
 /// Rectified stereo intrinsics.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Calibration {
-    /// Focal length [px].
+    /// Focal length \[px\].
     pub f: f64,
-    /// Principal point, column [px].
+    /// Principal point, column \[px\].
     pub cu: f64,
-    /// Principal point, row [px].
+    /// Principal point, row \[px\].
     pub cv: f64,
-    /// Baseline [m].
+    /// Baseline \[m\].
     pub baseline: f64,
 }
 
 /// One match: the point in the previous frame and its observations now.
 #[derive(Clone, Copy, Debug)]
 pub struct Observation {
-    /// Triangulated in the previous left camera frame [m].
+    /// Triangulated in the previous left camera frame \[m\].
     pub p: [f64; 3],
-    /// `(u_left, v_left, u_right, v_right)` in the current pair [px].
+    /// `(u_left, v_left, u_right, v_right)` in the current pair \[px\].
     pub obs: [f64; 4],
     /// Weight of its residuals.
     pub w: f64,

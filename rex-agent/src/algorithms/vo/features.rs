@@ -14,9 +14,9 @@ pub const DESCRIPTOR: usize = 32;
 /// A grey image, row-major, one byte per pixel.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Gray {
-    /// Width [px].
+    /// Width \[px\].
     pub w: usize,
-    /// Height [px].
+    /// Height \[px\].
     pub h: usize,
     /// Pixels.
     pub data: Vec<u8>,
@@ -60,9 +60,9 @@ impl Gray {
 /// border.
 #[derive(Clone, Debug, Default)]
 pub struct Gradients {
-    /// Width [px].
+    /// Width \[px\].
     pub w: usize,
-    /// Height [px].
+    /// Height \[px\].
     pub h: usize,
     /// `∂/∂u`.
     pub du: Vec<u8>,
@@ -258,7 +258,7 @@ pub const CLASSES: usize = 4;
 /// Features of one image at one NMS scale, struct of arrays.
 #[derive(Clone, Debug, Default)]
 pub struct Features {
-    /// Column [px, matching resolution].
+    /// Column \[px, matching resolution\].
     pub u: Vec<i32>,
     /// Row.
     pub v: Vec<i32>,

@@ -137,7 +137,7 @@ impl Bins {
 pub struct MotionPrior {
     /// The last motion, `p_curr = r · p_prev + t` (left-camera frames).
     pub r: nalgebra::Matrix3<f64>,
-    /// Its translation [m].
+    /// Its translation \[m\].
     pub t: nalgebra::Vector3<f64>,
     /// The calibration at matching resolution.
     pub calib: super::Calibration,
@@ -210,9 +210,9 @@ pub fn disparity_signs(
 /// Search settings of one pass.
 #[derive(Clone, Copy, Debug)]
 pub struct Search {
-    /// Half-width of the temporal search window [px, matching resolution].
+    /// Half-width of the temporal search window \[px, matching resolution\].
     pub radius: i32,
-    /// Row tolerance of the stereo legs [px].
+    /// Row tolerance of the stereo legs \[px\].
     pub row_tolerance: i32,
 }
 

@@ -12,21 +12,21 @@
 
 use crate::math::geometry::{Pose34, compose, invert};
 
-/// KITTI's segment lengths [m].
+/// KITTI's segment lengths \[m\].
 pub const KITTI_LENGTHS: [f64; 8] = [100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0];
 
 /// The drift of an estimated trajectory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Drift {
-    /// Mean translational error [%].
+    /// Mean translational error \[%\].
     pub t_err_pct: f64,
-    /// Mean rotational error [deg/m].
+    /// Mean rotational error \[deg/m\].
     pub r_err_deg_per_m: f64,
     /// Segments evaluated.
     pub segments: usize,
-    /// The segment lengths that some segment reached [m].
+    /// The segment lengths that some segment reached \[m\].
     pub lengths: Vec<f64>,
-    /// Length of the ground-truth path [m].
+    /// Length of the ground-truth path \[m\].
     pub path_length: f64,
 }
 
@@ -49,12 +49,12 @@ pub enum MetricError {
     NoSegment {
         /// Lengths tried.
         lengths: Vec<f64>,
-        /// Path length [m].
+        /// Path length \[m\].
         path: f64,
     },
 }
 
-/// The shortest segment length [m] (shorter ones measure noise, and divide by
+/// The shortest segment length \[m\] (shorter ones measure noise, and divide by
 /// almost nothing).
 pub const MIN_LENGTH: f64 = 0.1;
 

@@ -56,27 +56,27 @@ pub struct VoSettings {
     pub nms_n: usize,
     /// Least filter response of a feature.
     pub nms_tau: i32,
-    /// Border without features [px, matching resolution].
+    /// Border without features \[px, matching resolution\].
     pub margin: usize,
     /// Match sparse features first to bound the search of the dense ones.
     pub multi_stage: bool,
-    /// Bin size of the candidate index and of the search ranges [px, full res.].
+    /// Bin size of the candidate index and of the search ranges \[px, full res.\].
     pub match_binsize: usize,
-    /// Half-width of the temporal search window [px, full res.].
+    /// Half-width of the temporal search window \[px, full res.\].
     pub match_radius: i32,
-    /// Row tolerance of the stereo legs [px, matching res.].
+    /// Row tolerance of the stereo legs \[px, matching res.\].
     pub match_disp_tolerance: i32,
-    /// Least width of a search range of the dense pass [px, full res.].
+    /// Least width of a search range of the dense pass \[px, full res.\].
     pub range_min_width: i32,
     /// Refinement of the matches at full resolution.
     pub refinement: Refinement,
-    /// Bucket size [px, full res.].
+    /// Bucket size \[px, full res.\].
     pub bucket_size: f64,
     /// Matches kept per bucket.
     pub bucket_max: usize,
     /// RANSAC iterations.
     pub ransac_iterations: usize,
-    /// Inlier threshold on the reprojection error [px].
+    /// Inlier threshold on the reprojection error \[px\].
     pub inlier_threshold: f64,
     /// Weight residuals towards the image's centre column.
     pub reweighting: bool,

@@ -130,7 +130,7 @@ pub struct Lateral {
     n: [f64; 4],
     m_eff: f64,
     i_eff: f64,
-    /// How long the encoders count ticks for a rate [s] (0: an instant).
+    /// How long the encoders count ticks for a rate \[s\] (0: an instant).
     encoder_window: f64,
 }
 
@@ -185,7 +185,7 @@ impl Lateral {
     }
 
     /// The traction bound of wheel `i` on a ground of longitudinal friction
-    /// `mu_long`, as a torque: `r μ_x N_i` [N m].
+    /// `mu_long`, as a torque: `r μ_x N_i` \[N m\].
     pub fn traction_torque(&self, i: usize, mu_long: f64) -> f64 {
         self.params.wheel_radius * mu_long.max(MU_MIN) * self.n[i]
     }

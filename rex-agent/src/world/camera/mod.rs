@@ -32,19 +32,19 @@ pub use sensor::{Exposure, SensorConfig, Side};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraConfig {
-    /// Image width [px].
+    /// Image width \[px\].
     pub width: u32,
-    /// Image height [px].
+    /// Image height \[px\].
     pub height: u32,
-    /// Focal length [px].
+    /// Focal length \[px\].
     pub focal: f64,
-    /// Baseline between the left and right optical centres [m].
+    /// Baseline between the left and right optical centres \[m\].
     pub baseline: f64,
-    /// Height of the optical centres above the floor [m].
+    /// Height of the optical centres above the floor \[m\].
     pub mount_height: f64,
-    /// Distance of the optical centres ahead of the platform's centre of mass [m].
+    /// Distance of the optical centres ahead of the platform's centre of mass \[m\].
     pub mount_forward: f64,
-    /// Downward pitch of the optical axis [rad].
+    /// Downward pitch of the optical axis \[rad\].
     pub pitch: f64,
     /// What the sensor adds to the ideal image: noise, gains, vignetting, motion
     /// blur (default: the ideal sensor).
@@ -97,7 +97,7 @@ impl Validate for CameraConfig {
 /// A rigid transform: `world = rotation · camera + center`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraPose {
-    /// Optical centre in the world [m].
+    /// Optical centre in the world \[m\].
     pub center: [f64; 3],
     /// Columns are the camera axes (x right, y down, z forward) in world coordinates.
     pub rotation: [[f64; 3]; 3],

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::{Invalid, Validate, finite, positive};
 use crate::math::rng::Rng;
 
-/// The room: an axis-aligned box `[x0, x1] × [y0, y1] × [0, height]` [m].
+/// The room: an axis-aligned box `[x0, x1] × [y0, y1] × [0, height]` \[m\].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Room {

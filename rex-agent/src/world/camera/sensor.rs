@@ -49,7 +49,7 @@ pub struct SensorConfig {
     pub gain_jitter: f64,
     /// Gain of the right camera relative to the left (1: matched).
     pub right_gain: f64,
-    /// Offset of the right camera relative to the left [grey levels].
+    /// Offset of the right camera relative to the left \[grey levels\].
     pub right_offset: f64,
     /// Brightness lost at the image's corners, relative (0: none; 0.3: the
     /// corners get 70 % of the light the centre gets), falling off with the

@@ -16,15 +16,15 @@ use crate::payload::{MapPose, Pose2};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MocapParams {
-    /// Position noise [m].
+    /// Position noise \[m\].
     pub position_noise: f64,
-    /// Heading noise [rad].
+    /// Heading noise \[rad\].
     pub heading_noise: f64,
-    /// How old a pose is when it is delivered [s].
+    /// How old a pose is when it is delivered \[s\].
     pub latency: f64,
     /// Probability per sample that a dropout starts.
     pub dropout_rate: f64,
-    /// Length of a dropout [s].
+    /// Length of a dropout \[s\].
     pub dropout_length: f64,
     /// Noise seed.
     pub seed: u64,
@@ -108,7 +108,7 @@ impl MotionCapture {
         (self.delivered, self.dropped)
     }
 
-    /// The last pose delivered, with the time it was sent [s].
+    /// The last pose delivered, with the time it was sent \[s\].
     pub fn last_delivered(&self) -> Option<(f64, MapPose)> {
         self.last
     }

@@ -27,7 +27,7 @@ pub use stereo_camera::{CameraFromR11, CameraInput, CameraOutput, CameraToR11, S
 /// simulated system.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Truth {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub time: f64,
     /// The platform's full state.
     pub state: FullState,

@@ -20,17 +20,17 @@ pub struct SensorParams {
     pub encoder_ticks: u32,
     /// Samples over which the wheel rate is computed from the counts.
     pub speed_window: u32,
-    /// Gyroscope white noise [rad/s].
+    /// Gyroscope white noise \[rad/s\].
     pub gyro_noise: f64,
-    /// Gyroscope bias at start [rad/s].
+    /// Gyroscope bias at start \[rad/s\].
     pub gyro_bias: f64,
-    /// Random walk of the gyroscope bias [rad/s per √s].
+    /// Random walk of the gyroscope bias \[rad/s per √s\].
     pub gyro_bias_walk: f64,
-    /// Accelerometer noise [m/s²].
+    /// Accelerometer noise \[m/s²\].
     pub accel_noise: f64,
-    /// Force sensor noise [N].
+    /// Force sensor noise \[N\].
     pub load_noise: f64,
-    /// A torque command older than this is replaced by zero torque [s] (the motor
+    /// A torque command older than this is replaced by zero torque \[s\] (the motor
     /// controllers' watchdog).
     pub command_timeout: f64,
     /// Seed of all sensor noise.
@@ -54,7 +54,7 @@ impl Default for SensorParams {
 }
 
 impl SensorParams {
-    /// How long the encoders count ticks for a rate [s], sampled every
+    /// How long the encoders count ticks for a rate \[s\], sampled every
     /// `step` seconds (the platform's period).
     pub fn encoder_window(&self, step: f64) -> f64 {
         f64::from(self.speed_window) * step
@@ -176,7 +176,7 @@ impl Platform {
     }
 
     /// The torque command in force: the last one received, cleaned (NaN torques
-    /// zeroed, the others clamped to `±torque_max`), and when it arrived [s].
+    /// zeroed, the others clamped to `±torque_max`), and when it arrived \[s\].
     pub fn command(&self) -> Option<(Torques, f64)> {
         self.last_command
     }

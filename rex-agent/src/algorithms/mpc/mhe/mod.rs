@@ -81,7 +81,7 @@ pub type LateralMhe = Mhe<Lateral, 6, 3>;
 pub struct MheSettings<const NX: usize, const NP: usize> {
     /// Window length `N` (intervals).
     pub horizon: usize,
-    /// Interval [s].
+    /// Interval \[s\].
     pub dt: f64,
     /// RK4 steps per interval.
     pub rk4_steps: usize,
@@ -97,32 +97,32 @@ pub struct MheSettings<const NX: usize, const NP: usize> {
     pub p_lb: [f64; NP],
     /// Upper parameter bounds.
     pub p_ub: [f64; NP],
-    /// Map pose position noise [m].
+    /// Map pose position noise \[m\].
     pub sigma_pos: f64,
-    /// Map pose heading noise [rad].
+    /// Map pose heading noise \[rad\].
     pub sigma_phi: f64,
-    /// Gyroscope noise [rad/s].
+    /// Gyroscope noise \[rad/s\].
     pub sigma_gyro: f64,
-    /// Noise of the IMU heading's increment between two consecutive stages [rad]
+    /// Noise of the IMU heading's increment between two consecutive stages \[rad\]
     /// (its absolute value is not used: it drifts with the gyroscope's bias).
     pub sigma_heading_step: f64,
-    /// Encoder rate noise [rad/s].
+    /// Encoder rate noise \[rad/s\].
     pub sigma_encoder: f64,
-    /// Force sensor noise [N] (0 leaves the loads out).
+    /// Force sensor noise \[N\] (0 leaves the loads out).
     pub sigma_load: f64,
-    /// Visual odometry: noise of the displacement between consecutive stages [m].
+    /// Visual odometry: noise of the displacement between consecutive stages \[m\].
     pub sigma_vo_step: f64,
-    /// Visual odometry: noise of the turn between consecutive stages [rad].
+    /// Visual odometry: noise of the turn between consecutive stages \[rad\].
     pub sigma_vo_turn: f64,
-    /// Plausible speed [m/s] (measurements beyond 3 times are rejected).
+    /// Plausible speed \[m/s\] (measurements beyond 3 times are rejected).
     pub max_speed: f64,
-    /// Plausible turn rate [rad/s] (the same).
+    /// Plausible turn rate \[rad/s\] (the same).
     pub max_yaw_rate: f64,
     /// Gate on pose innovations, in standard deviations.
     pub gate: f64,
-    /// Widening of the pose gate per second without an accepted pose [m/s].
+    /// Widening of the pose gate per second without an accepted pose \[m/s\].
     pub drift_rate: f64,
-    /// Poses rejected by the gate for this long [s] restart the window from the
+    /// Poses rejected by the gate for this long \[s\] restart the window from the
     /// latest one (a relocalisation).
     pub relocalise_after: f64,
     /// Gauss–Newton iterations per sample (1: real-time iteration).
@@ -265,7 +265,7 @@ pub enum MheError {
     Solve(String),
 }
 
-/// A pose on the map and the time it describes [s].
+/// A pose on the map and the time it describes \[s\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimedPose {
     /// Simulation time the pose describes.
@@ -278,9 +278,9 @@ pub struct TimedPose {
 /// `to`, in the body frame at `from` (`dx` forward, `dy` left, `dphi`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Motion {
-    /// Start time [s].
+    /// Start time \[s\].
     pub from: f64,
-    /// End time [s].
+    /// End time \[s\].
     pub to: f64,
     /// `(dx, dy, dφ)`.
     pub delta: [f64; 3],
@@ -293,13 +293,13 @@ pub struct Sample {
     pub pose: Option<TimedPose>,
     /// Visual odometry.
     pub motion: Option<Motion>,
-    /// Gyroscope yaw rate [rad/s].
+    /// Gyroscope yaw rate \[rad/s\].
     pub gyro: Option<f64>,
     /// IMU heading [rad]: only its change from the previous sample's is used.
     pub heading: Option<f64>,
-    /// Encoder rates [rad/s].
+    /// Encoder rates \[rad/s\].
     pub encoders: Option<[f64; 4]>,
-    /// Wheel loads [N].
+    /// Wheel loads \[N\].
     pub loads: Option<[f64; 4]>,
 }
 
@@ -525,7 +525,7 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Mhe<M, NX, NP> {
     }
 
     /// How far the fitted states are from the map poses attached in the last
-    /// `span` seconds of the window: the largest distance [m] (position only).
+    /// `span` seconds of the window: the largest distance \[m\] (position only).
     /// The poses' own noise aside, a fit that cannot follow them (a model the
     /// data contradict) shows here. `None` without such a pose.
     pub fn pose_residual(&self, span: f64) -> Option<f64> {

@@ -102,7 +102,7 @@ pub enum QpStrategy {
 pub struct NmpcSettings<const NX: usize> {
     /// Horizon `N` (shooting intervals).
     pub horizon: usize,
-    /// Interval length [s].
+    /// Interval length \[s\].
     pub dt: f64,
     /// RK4 steps per interval.
     pub rk4_steps: usize,
@@ -112,11 +112,11 @@ pub struct NmpcSettings<const NX: usize> {
     pub q_terminal: [f64; NX],
     /// Torque weights `R`.
     pub r: [f64; 4],
-    /// Torque bound per wheel [N m].
+    /// Torque bound per wheel \[N m\].
     pub torque_max: f64,
-    /// Speed bound [m/s].
+    /// Speed bound \[m/s\].
     pub speed_max: f64,
-    /// Yaw-rate bound [rad/s].
+    /// Yaw-rate bound \[rad/s\].
     pub yaw_rate_max: f64,
     /// How QPs are solved.
     pub qp: QpStrategy,
@@ -135,7 +135,7 @@ pub struct NmpcSettings<const NX: usize> {
     pub qp_max_iterations: u32,
     /// Samples on the shifted previous solution after a failed QP, before braking.
     pub fallback_steps: usize,
-    /// Time constant of the safe stop [s].
+    /// Time constant of the safe stop \[s\].
     pub brake_time: f64,
 }
 
