@@ -504,7 +504,7 @@ pub enum ExecError {
         #[source]
         source: DriverError,
     },
-    /// The executor stopped on an earlier error (with [`OnError::Stop`]).
+    /// The executor stopped on an earlier error (with [`OnError::Stop`](crate::OnError::Stop)).
     #[error("the executor stopped after an error; build a new executor to run again")]
     Stopped,
 }

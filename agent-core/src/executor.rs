@@ -73,7 +73,7 @@ pub struct ExecConfig {
     pub max_recorded_errors: usize,
     /// Observe every transition function: which inputs it reads and which outputs
     /// it writes, reported part by part to the observer
-    /// ([`Observer::audit`](crate::Observer::audit)), for checking the code
+    /// ([`Observer::audit`]), for checking the code
     /// against a spec's `reads` and `writes`. Off by default. Reads are observed
     /// only with the `audit` feature of agent-core (`embodied`'s `audit`), which
     /// makes input buffers record them; without it they come back empty. An

@@ -15,7 +15,7 @@
 //!   token, declared once its links are made, that the others watch: a process
 //!   that vanishes is reported on every link it fed), the shared instant zero,
 //!   the stop signal, and observations published for a launcher or a monitor.
-//! * [`launch`] starts every process of a deployment as a child, prefixes and
+//! * [`Launcher`] starts every process of a deployment as a child, prefixes and
 //!   collects their output, restarts a crashed one, and stops them together.
 //!
 //! ```text
