@@ -2,6 +2,7 @@
 //! its observer sees into batches and queues them, with the switches, errors
 //! and counts, to the writer thread, within the `Backlog`'s bound.
 
+use std::convert::Infallible;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel};
@@ -230,6 +231,22 @@ impl Part {
         }
     }
 
+    /// Append one entry to the batch with `push` (nothing without a writer),
+    /// count it as an encode failure if `push` fails (it leaves the batch as it
+    /// was), and send the batch once it is [`BATCH_BYTES`] long.
+    fn push<E>(&mut self, push: impl FnOnce(&mut Vec<u8>) -> Result<(), E>) {
+        if self.tx.is_none() {
+            return;
+        }
+        if push(&mut self.batch).is_err() {
+            self.counts.encode_failures += 1;
+            return;
+        }
+        if self.batch.len() >= BATCH_BYTES {
+            self.flush();
+        }
+    }
+
     /// Hand the counts to the writer (then, if `end`, say the run finished)
     /// and let the writer go.
     pub(super) fn close(&mut self, end: bool) {
@@ -281,45 +298,18 @@ impl Observer for Part {
     }
 
     fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
-        if self.tx.is_none() {
-            return;
-        }
-        let pushed = batch::push_transfer(&mut self.batch, small(e.link), e.stamp, |out| {
-            value.encode(out)
-        });
-        if pushed.is_err() {
-            self.counts.encode_failures += 1;
-            return;
-        }
-        if self.batch.len() >= BATCH_BYTES {
-            self.flush();
-        }
+        self.push(|out| batch::push_transfer(out, small(e.link), e.stamp, |b| value.encode(b)));
     }
 
     fn read(&mut self, e: &ReadEvent) {
-        if self.tx.is_none() {
-            return;
-        }
-        batch::push_read(&mut self.batch, small(e.link), e.time, e.stamp);
-        if self.batch.len() >= BATCH_BYTES {
-            self.flush();
-        }
+        self.push(|out| {
+            batch::push_read(out, small(e.link), e.time, e.stamp);
+            Ok::<(), Infallible>(())
+        });
     }
 
     fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
-        if self.tx.is_none() {
-            return;
-        }
-        let pushed = batch::push_received(&mut self.batch, small(e.link), e.stamp, |out| {
-            value.encode(out)
-        });
-        if pushed.is_err() {
-            self.counts.encode_failures += 1;
-            return;
-        }
-        if self.batch.len() >= BATCH_BYTES {
-            self.flush();
-        }
+        self.push(|out| batch::push_received(out, small(e.link), e.stamp, |b| value.encode(b)));
     }
 
     fn error(&mut self, time: Time, error: &ExecError) {
