@@ -79,7 +79,7 @@ pub struct RunSettings {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
-    /// How close the platform's centre may come to a wall or an obstacle [m]: its
+    /// How close the platform's centre may come to a wall or an obstacle \[m\]: its
     /// footprint. `e11` stops the platform closer; the run fails a plan during
     /// which the true pose came closer.
     pub clearance_m: f64,

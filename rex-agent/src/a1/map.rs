@@ -49,7 +49,7 @@ pub struct Map {
     pub room: Rect,
     /// Obstacles standing in it.
     pub obstacles: Vec<Rect>,
-    /// How far the platform's centre keeps from walls and obstacles [m]: its
+    /// How far the platform's centre keeps from walls and obstacles \[m\]: its
     /// footprint's radius and a margin.
     pub clearance: f64,
 }

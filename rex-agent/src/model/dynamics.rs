@@ -94,7 +94,7 @@ impl SpinRead {
     }
 }
 
-/// The wheels' rates over one interval as their encoders read them [rad/s]:
+/// The wheels' rates over one interval as their encoders read them \[rad/s\]:
 /// at its start and at its end, NaN where a wheel was not read. A model whose
 /// state does not hold the wheels' spin (the lateral model) takes from them the
 /// direction of the rolling resistance, which opposes the wheel's spin and not
@@ -131,7 +131,7 @@ impl WheelSpin {
         })
     }
 
-    /// Each wheel's mean acceleration over an interval of `dt` seconds [rad/s²]:
+    /// Each wheel's mean acceleration over an interval of `dt` seconds \[rad/s²\]:
     /// its two readings' difference over `dt`; NaN for a wheel not read at
     /// both ends, and for every wheel unless `dt` is positive and finite.
     pub fn accelerations(&self, dt: f64) -> [f64; 4] {

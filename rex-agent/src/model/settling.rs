@@ -41,7 +41,7 @@ const STEPS: usize = 5;
 
 /// The slip `h` seconds after `start` \[m/s\] of a wheel whose ground is asked
 /// for the fraction `zeta` (`|ζ| < 1`) of its traction bound `cap = μ_x N`
-/// \[N\], the wheel's spin inertia at its rim being `kappa = J_w / r²` [kg]:
+/// \[N\], the wheel's spin inertia at its rim being `kappa = J_w / r²` \[kg\]:
 /// `κ ṡ = cap (ζ − sg(s))` by backward Euler in five steps; with a `window`
 /// \[s\], the slip's mean over the last `window` seconds of the `h` (an encoder
 /// counts its ticks over such a window: the plant's over 10 ms, a fifth of the

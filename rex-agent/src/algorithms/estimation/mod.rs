@@ -196,7 +196,7 @@ pub struct EkfNoise {
     pub gyro: f64,
     /// IMU heading reading \[rad\] (about its offset from the map heading).
     pub imu_heading: f64,
-    /// Random walk of the IMU heading's offset from the map heading [rad/√s]: the
+    /// Random walk of the IMU heading's offset from the map heading \[rad/√s\]: the
     /// IMU integrates a biased gyroscope.
     pub imu_offset_walk: f64,
     /// Gate: innovations beyond this many standard deviations are rejected.

@@ -90,7 +90,7 @@ pub struct PlannerSettings {
     pub cruise_turn_rate: f64,
     /// Shortest fragment \[s\].
     pub min_duration: f64,
-    /// Longest fragment [s]: a fragment that would need longer to respect the
+    /// Longest fragment \[s\]: a fragment that would need longer to respect the
     /// velocity bounds is refused ([`PlanError::TooLong`]).
     pub max_duration: f64,
     /// Speed bound the fragment must respect \[m/s\].

@@ -129,7 +129,7 @@ impl CameraPose {
 }
 
 impl CameraConfig {
-    /// Principal point `(c_u, c_v)` [px]: the image centre, `((w − 1)/2, (h − 1)/2)`
+    /// Principal point `(c_u, c_v)` \[px\]: the image centre, `((w − 1)/2, (h − 1)/2)`
     /// with pixel centres at integer coordinates (KITTI and OpenCV convention).
     pub fn principal_point(&self) -> (f64, f64) {
         (

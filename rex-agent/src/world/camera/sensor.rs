@@ -55,7 +55,7 @@ pub struct SensorConfig {
     /// corners get 70 % of the light the centre gets), falling off with the
     /// square of the distance from the principal point.
     pub vignetting: f64,
-    /// How long the shutter is open [s]: the image is blurred by the motion
+    /// How long the shutter is open \[s\]: the image is blurred by the motion
     /// meanwhile (0: no blur).
     pub exposure_s: f64,
     /// Most sub-frames rendered for one blurred image (a sub-frame per pixel the

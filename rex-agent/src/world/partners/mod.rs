@@ -295,7 +295,7 @@ pub struct MocapMemory {
     pub last: Option<MapPose>,
     /// Poses rejected.
     pub rejected: u64,
-    /// Largest plausible speed [m/s]: a faster jump is rejected.
+    /// Largest plausible speed \[m/s\]: a faster jump is rejected.
     pub max_speed: f64,
     /// The latest pose rejected as a jump, and how many consistent ones in a row.
     pub candidate: Option<(MapPose, u32)>,

@@ -295,7 +295,7 @@ pub struct Sample {
     pub motion: Option<Motion>,
     /// Gyroscope yaw rate \[rad/s\].
     pub gyro: Option<f64>,
-    /// IMU heading [rad]: only its change from the previous sample's is used.
+    /// IMU heading \[rad\]: only its change from the previous sample's is used.
     pub heading: Option<f64>,
     /// Encoder rates \[rad/s\].
     pub encoders: Option<[f64; 4]>,
