@@ -27,19 +27,17 @@ use crate::model::{Dynamics, Matrix, NU, Vector};
 /// yaw rate of `Δx_{k+1}` (the model's [`Dynamics::SPEED`] and
 /// [`Dynamics::YAW_RATE`]).
 const NB: usize = NU + 2;
-/// The multipliers' start. Measured on the peers' lap (`bench_nmpc`, mean
-/// iterations at N = 20 / 50): 1.0 -> 8.0 / 7.8, 0.1 -> 6.8 / 6.5, 0.01 ->
-/// 7.5 / 7.4, 0.001 -> 7.5 / 7.4.
+/// The multipliers' start: of the values tried, the one that took the fewest
+/// iterations on the peers' lap at N = 20 and 50 (`bench_nmpc`; the sweep is in
+/// docs/measurements.md, "The interior point's start").
 const START_MULTIPLIER: f64 = 0.1;
 /// Iterations before giving the QP to Clarabel.
 pub(super) const MAX_ITERATIONS: usize = 40;
-/// The least multiplier of a warm start (below, [`IpmStart`]). Measured on
-/// the peers' lap (`bench_nmpc`, the real-time iteration's interior-point
-/// solves, iterations mean / max at N = 20 and 50): cold 6.7 / 10 and 6.5 / 8;
-/// warm with 0.001 5.7 / 8, 5.8 / 9; 0.01 5.5 / 8, 5.4 / 8; 0.03 6.1 / 7,
-/// 6.2 / 8; 0.1 6.5 and 6.3 on average. The slacks' floor of a cold start (a
-/// tenth of the box) was best for a warm one too (0.01, 0.03 and 0.3 of it
-/// tried: means up to 6.2, maxima up to 9).
+/// The least multiplier of a warm start (below, [`IpmStart`]): of the floors
+/// tried, the one with the fewest iterations on the peers' lap, fewer than a
+/// cold start's. The slacks keep a cold start's floor (a tenth of the box),
+/// which was best for a warm start too. The sweeps: docs/measurements.md, "The
+/// interior point's start".
 const WARM_FLOOR: f64 = 0.01;
 
 /// Where the next solve starts its multipliers: the last converged solve's,
