@@ -31,18 +31,28 @@
 //! (`Vec<Vec<f64>>`, `Option<[u8; 4]>`) has a message of one field `value` as
 //! its element, which CDR encodes as the field itself.
 //!
+//! The messages are made as data first ([`messages`]: [`Messages`] of a
+//! package the caller names, `embodied` for recordings, each [`Message`]'s
+//! fields with their ROS 2 [`FieldType`]s), then rendered as `.msg` text;
+//! REP 2011's type descriptions and hashes are made from the same data.
+//!
 //! What cannot be a ROS 2 message gives [`Unsupported`] when the schema is
 //! made, never a wrong message: a type that contains itself, a field name
 //! `ros2msg` does not allow (`^[a-z][a-z0-9_]*$`, no `__`, no trailing `_`),
 //! or formats left unknown by the tracer. The recorder then writes JSON.
 
-use std::collections::{BTreeMap, BTreeSet};
-use std::fmt::Write as _;
-
 use agent_core::TypeShape;
-use agent_core::serde_reflection::{ContainerFormat, Format, Named, VariantFormat};
+use agent_core::serde_reflection::{ContainerFormat, Format, VariantFormat};
 
 use crate::postcard::{Cursor, DecodeError, MAX_DEPTH};
+
+mod model;
+mod shape;
+
+pub use model::{
+    Arity, BaseType, Constant, Field, FieldType, Message, Messages, MsgName, Primitive,
+};
+pub use shape::messages;
 
 /// The package of the messages made for a recording.
 pub const PACKAGE: &str = "embodied";
@@ -63,36 +73,15 @@ pub struct Ros2Schema {
     pub text: String,
 }
 
-/// The `ros2msg` schema of the values [`write_cdr`] makes for `shape`; `root`
-/// names the root message when the type is not a named struct or enum itself
-/// (a sequence, a primitive).
+/// The `ros2msg` schema of the values [`write_cdr`] makes for `shape`, in the
+/// recordings' package [`PACKAGE`]: [`messages`] rendered; `root` names the
+/// root message when the type is not a named struct or enum itself (a
+/// sequence, a primitive).
 pub fn ros2msg_schema(shape: &TypeShape, root: &str) -> Result<Ros2Schema, Unsupported> {
-    let mut g = Gen {
-        shape,
-        defs: Vec::new(),
-        taken: BTreeSet::new(),
-        named: BTreeMap::new(),
-        open: BTreeSet::new(),
-    };
-    let name = match g.ty(&shape.root)? {
-        Ty::Msg(name) => name,
-        other => {
-            let name = g.fresh(&message_name(root));
-            g.define(&name, format!("{} value\n", other.field_type()));
-            name
-        }
-    };
-    // The root first, then the others as they were met.
-    let mut text = String::new();
-    if let Some((_, def)) = g.defs.iter().find(|(n, _)| *n == name) {
-        text.push_str(def);
-    }
-    for (n, def) in g.defs.iter().filter(|(n, _)| *n != name) {
-        let _ = write!(text, "{}\nMSG: {PACKAGE}/{n}\n{def}", "=".repeat(80));
-    }
+    let messages = messages(shape, PACKAGE, root)?;
     Ok(Ros2Schema {
-        name: format!("{PACKAGE}/msg/{name}"),
-        text,
+        name: messages.name().to_string(),
+        text: messages.msg_text(),
     })
 }
 
@@ -114,294 +103,11 @@ pub fn write_cdr(shape: &TypeShape, bytes: &[u8], out: &mut Vec<u8>) -> Result<(
     w.c.end()
 }
 
-/// A field's type in `ros2msg`.
-#[derive(Clone, Debug)]
-enum Ty {
-    Prim(&'static str),
-    Msg(String),
-    /// Elements (a primitive or a message), and the array's kind.
-    Array(Box<Ty>, Arr),
-}
-
-#[derive(Clone, Copy, Debug)]
-enum Arr {
-    Unbounded,
-    AtMostOne,
-    Fixed(usize),
-}
-
-impl Ty {
-    fn field_type(&self) -> String {
-        match self {
-            Ty::Prim(p) => (*p).to_owned(),
-            Ty::Msg(m) => format!("{PACKAGE}/{m}"),
-            Ty::Array(e, a) => {
-                let e = e.field_type();
-                match a {
-                    Arr::Unbounded => format!("{e}[]"),
-                    Arr::AtMostOne => format!("{e}[<=1]"),
-                    Arr::Fixed(n) => format!("{e}[{n}]"),
-                }
-            }
-        }
-    }
-}
-
-struct Gen<'a> {
-    shape: &'a TypeShape,
-    /// (message name, definition), in the order made.
-    defs: Vec<(String, String)>,
-    taken: BTreeSet<String>,
-    /// Named types already made, by serde name.
-    named: BTreeMap<&'a str, Ty>,
-    /// Named types being made (a type met inside itself is recursive).
-    open: BTreeSet<&'a str>,
-}
-
-impl<'a> Gen<'a> {
-    /// `base`, or `base2`, `base3`, ... whichever is free.
-    fn fresh(&mut self, base: &str) -> String {
-        let mut name = base.to_owned();
-        let mut k = 2;
-        while self.taken.contains(&name) {
-            name = format!("{base}{k}");
-            k += 1;
-        }
-        self.taken.insert(name.clone());
-        name
-    }
-
-    fn define(&mut self, name: &str, def: String) {
-        self.defs.push((name.to_owned(), def));
-    }
-
-    /// A message of these fields (an empty one if there are none).
-    fn message(&mut self, base: &str, fields: &[(String, Ty)]) -> Result<Ty, Unsupported> {
-        let name = self.fresh(base);
-        let mut def = String::new();
-        let mut seen = BTreeSet::new();
-        for (field, ty) in fields {
-            if !field_name_ok(field) || !seen.insert(field.as_str()) {
-                return Err(Unsupported(format!(
-                    "the field `{field}` of `{name}` (ROS 2 field names are lower case \
-                     letters, digits and single underscores, unique)"
-                )));
-            }
-            let _ = writeln!(def, "{} {field}", ty.field_type());
-        }
-        self.define(&name, def);
-        Ok(Ty::Msg(name))
-    }
-
-    /// The type of an array's elements: arrays wrapped in a message.
-    fn element(&mut self, f: &'a Format) -> Result<Ty, Unsupported> {
-        match self.ty(f)? {
-            t @ Ty::Array(..) => self.message("Item", &[("value".to_owned(), t)]),
-            t => Ok(t),
-        }
-    }
-
-    fn items(&mut self, fs: &'a [Format]) -> Result<Vec<(String, Ty)>, Unsupported> {
-        fs.iter()
-            .enumerate()
-            .map(|(k, f)| Ok((format!("item{k}"), self.ty(f)?)))
-            .collect()
-    }
-
-    fn fields(&mut self, fs: &'a [Named<Format>]) -> Result<Vec<(String, Ty)>, Unsupported> {
-        fs.iter()
-            .map(|f| Ok((f.name.clone(), self.ty(&f.value)?)))
-            .collect()
-    }
-
-    fn ty(&mut self, f: &'a Format) -> Result<Ty, Unsupported> {
-        Ok(match f {
-            Format::Unit => self.message("Unit", &[])?,
-            Format::Bool => Ty::Prim("bool"),
-            Format::U8 => Ty::Prim("uint8"),
-            Format::U16 => Ty::Prim("uint16"),
-            Format::U32 | Format::Char => Ty::Prim("uint32"),
-            Format::U64 => Ty::Prim("uint64"),
-            Format::I8 => Ty::Prim("int8"),
-            Format::I16 => Ty::Prim("int16"),
-            Format::I32 => Ty::Prim("int32"),
-            Format::I64 => Ty::Prim("int64"),
-            Format::U128 | Format::I128 => Ty::Array(Box::new(Ty::Prim("uint8")), Arr::Fixed(16)),
-            Format::F32 => Ty::Prim("float32"),
-            Format::F64 => Ty::Prim("float64"),
-            Format::Str => Ty::Prim("string"),
-            Format::Bytes => Ty::Array(Box::new(Ty::Prim("uint8")), Arr::Unbounded),
-            Format::Option(inner) => Ty::Array(Box::new(self.element(inner)?), Arr::AtMostOne),
-            Format::Seq(inner) => Ty::Array(Box::new(self.element(inner)?), Arr::Unbounded),
-            Format::TupleArray { content, size } => {
-                Ty::Array(Box::new(self.element(content)?), Arr::Fixed(*size))
-            }
-            Format::Map { key, value } => {
-                let fields = [
-                    ("key".to_owned(), self.ty(key)?),
-                    ("value".to_owned(), self.ty(value)?),
-                ];
-                let entry = self.message("Entry", &fields)?;
-                Ty::Array(Box::new(entry), Arr::Unbounded)
-            }
-            Format::Tuple(items) => {
-                let fields = self.items(items)?;
-                self.message("Tuple", &fields)?
-            }
-            Format::TypeName(name) => self.named(name)?,
-            Format::Variable(_) => {
-                return Err(Unsupported("a format left unknown by the tracer".into()));
-            }
-        })
-    }
-
-    fn named(&mut self, name: &'a str) -> Result<Ty, Unsupported> {
-        if let Some(t) = self.named.get(name) {
-            return Ok(t.clone());
-        }
-        let shape = self.shape;
-        let c = shape
-            .registry
-            .get(name)
-            .ok_or_else(|| Unsupported(format!("`{name}` is not in the shape")))?;
-        if !self.open.insert(name) {
-            return Err(Unsupported(format!("`{name}` contains itself")));
-        }
-        let base = message_name(name);
-        let t = match c {
-            ContainerFormat::UnitStruct => self.message(&base, &[]),
-            ContainerFormat::NewTypeStruct(f) => self.ty(f),
-            ContainerFormat::TupleStruct(fs) => self
-                .items(fs)
-                .and_then(|fields| self.message(&base, &fields)),
-            ContainerFormat::Struct(fs) => self
-                .fields(fs)
-                .and_then(|fields| self.message(&base, &fields)),
-            ContainerFormat::Enum(variants) => self.enumeration(&base, variants),
-        };
-        self.open.remove(name);
-        let t = t?;
-        self.named.insert(name, t.clone());
-        Ok(t)
-    }
-
-    fn enumeration(
-        &mut self,
-        base: &str,
-        variants: &'a BTreeMap<u32, Named<VariantFormat>>,
-    ) -> Result<Ty, Unsupported> {
-        let mut constants = String::new();
-        let mut names = BTreeSet::new();
-        let mut fields = vec![("variant".to_owned(), Ty::Prim("uint32"))];
-        for (k, v) in variants {
-            let constant = constant_name(&v.name);
-            if !constant_name_ok(&constant) || !names.insert(constant.clone()) {
-                return Err(Unsupported(format!(
-                    "the variant `{}` of `{base}` as the constant `{constant}` (ROS 2 \
-                     constant names are upper case letters, digits and single \
-                     underscores, unique)",
-                    v.name
-                )));
-            }
-            let _ = writeln!(constants, "uint32 {constant}={k}");
-            let data = match &v.value {
-                VariantFormat::Unit => continue,
-                VariantFormat::NewType(f) => self.element(f)?,
-                VariantFormat::Tuple(fs) => {
-                    let items = self.items(fs)?;
-                    self.message(&format!("{base}{}", message_name(&v.name)), &items)?
-                }
-                VariantFormat::Struct(fs) => {
-                    let named = self.fields(fs)?;
-                    self.message(&format!("{base}{}", message_name(&v.name)), &named)?
-                }
-                VariantFormat::Variable(_) => {
-                    return Err(Unsupported("a variant left unknown by the tracer".into()));
-                }
-            };
-            fields.push((snake(&v.name), Ty::Array(Box::new(data), Arr::AtMostOne)));
-        }
-        let t = self.message(base, &fields)?;
-        // The constants go before the fields.
-        if let Some((_, def)) = self.defs.last_mut() {
-            def.insert_str(0, &constants);
-        }
-        Ok(t)
-    }
-}
-
 /// The name of a payload type's root message when the type is not a named
 /// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`).
 pub(crate) fn root_name(payload: &str) -> &str {
     let head = payload.split('<').next().unwrap_or(payload);
     head.rsplit("::").next().unwrap_or(head)
-}
-
-/// A ROS 2 message name (`^[A-Z][A-Za-z0-9]*$`) from a Rust type name.
-fn message_name(name: &str) -> String {
-    let mut out: String = name
-        .split(|c: char| !c.is_ascii_alphanumeric())
-        .filter(|p| !p.is_empty())
-        .map(|p| {
-            let mut cs = p.chars();
-            cs.next()
-                .map(|c| c.to_ascii_uppercase().to_string() + cs.as_str())
-                .unwrap_or_default()
-        })
-        .collect();
-    if !out.starts_with(|c: char| c.is_ascii_uppercase()) {
-        out.insert(0, 'T');
-    }
-    out
-}
-
-/// `NoEstimate` -> `no_estimate`.
-fn snake(name: &str) -> String {
-    let mut out = String::new();
-    for (k, c) in name.chars().enumerate() {
-        if c.is_ascii_uppercase() {
-            if k > 0 && !out.ends_with('_') {
-                out.push('_');
-            }
-            out.push(c.to_ascii_lowercase());
-        } else if c.is_ascii_alphanumeric() {
-            out.push(c);
-        } else if !out.ends_with('_') {
-            out.push('_');
-        }
-    }
-    out
-}
-
-/// `NoEstimate` -> `NO_ESTIMATE`.
-fn constant_name(name: &str) -> String {
-    let s = snake(name).to_ascii_uppercase();
-    if s.starts_with(|c: char| c.is_ascii_uppercase()) {
-        s
-    } else {
-        format!("V{s}")
-    }
-}
-
-/// ROS 2's constant names: `^[A-Z]([A-Z0-9_]?[A-Z0-9]+)*$`.
-fn constant_name_ok(name: &str) -> bool {
-    ros_name_ok(name, |c| c.is_ascii_uppercase())
-}
-
-/// ROS 2's field names: `^[a-z]([a-z0-9_]?[a-z0-9]+)*$`.
-fn field_name_ok(name: &str) -> bool {
-    ros_name_ok(name, |c| c.is_ascii_lowercase())
-}
-
-/// A name of `letter`s, digits and single underscores, starting with a letter
-/// and not ending with an underscore.
-fn ros_name_ok(name: &str, letter: fn(&char) -> bool) -> bool {
-    name.starts_with(|c: char| letter(&c))
-        && name
-            .chars()
-            .all(|c| letter(&c) || c.is_ascii_digit() || c == '_')
-        && !name.contains("__")
-        && !name.ends_with('_')
 }
 
 struct Writer<'a, 'o> {

@@ -7,6 +7,7 @@
 use proptest::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::shape::{constant_name, field_name_ok, message_name, snake};
 use super::*;
 use crate::json::tests::{Kind, everything, kind, shape};
 
@@ -252,4 +253,58 @@ fn names_are_made_valid_for_ros_2() {
     assert_eq!(snake("NoEstimate"), "no_estimate");
     assert_eq!(constant_name("NoEstimate"), "NO_ESTIMATE");
     assert!(field_name_ok("q_est") && !field_name_ok("q__est") && !field_name_ok("q_"));
+}
+
+#[test]
+fn the_schema_is_the_model_rendered_and_the_package_is_a_parameter() {
+    let shape = agent_core::reflect::<Kind>().unwrap();
+    let ours = messages(&shape, "rex_msgs", "Kind").unwrap();
+    assert_eq!(ours.name().to_string(), "rex_msgs/msg/Kind");
+    let pair = MsgName::new("rex_msgs", "KindPair");
+    let drive = MsgName::new("rex_msgs", "KindDrive");
+    let names: Vec<_> = ours.referenced.iter().map(|m| &m.name).collect();
+    assert_eq!(names, [&pair, &drive]);
+    let constants: Vec<_> = ours
+        .root
+        .constants
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
+    assert_eq!(constants, ["IDLE", "WAIT", "PAIR", "DRIVE"]);
+    assert_eq!(
+        ours.root.fields,
+        [
+            Field::new("variant", FieldType::primitive(Primitive::Uint32)),
+            Field::new("wait", FieldType::primitive(Primitive::Int16).bounded(1)),
+            Field::new("pair", FieldType::message(pair.clone()).bounded(1)),
+            Field::new("drive", FieldType::message(drive).bounded(1)),
+        ]
+    );
+    assert_eq!(ours.root.uses().len(), 2);
+    assert_eq!(ours.get(&pair).map(|m| m.fields.len()), Some(2), "{ours:?}");
+    // The recordings' package, rendered: the schema the recorder writes.
+    let recorded = messages(&shape, PACKAGE, "Kind").unwrap();
+    let schema = ros2msg_schema(&shape, "Kind").unwrap();
+    assert_eq!(schema.text, recorded.msg_text());
+    assert_eq!(schema.name, recorded.name().to_string());
+    assert!(ours.msg_text().contains("rex_msgs/KindPair[<=1] pair\n"));
+    assert!(ours.msg_text().contains("\nMSG: rex_msgs/KindDrive\n"));
+}
+
+#[test]
+fn field_types_are_written_as_msg_files_write_them() {
+    let header = MsgName::new("std_msgs", "Header");
+    assert_eq!(header.to_string(), "std_msgs/msg/Header");
+    assert_eq!(FieldType::message(header).to_string(), "std_msgs/Header");
+    let f64s = FieldType::primitive(Primitive::Float64);
+    assert_eq!(f64s.clone().array(9).to_string(), "float64[9]");
+    assert_eq!(f64s.unbounded().to_string(), "float64[]");
+    let short = FieldType {
+        base: BaseType::String(Some(8)),
+        arity: Arity::Bounded(2),
+    };
+    assert_eq!(short.to_string(), "string<=8[<=2]");
+    assert_eq!(FieldType::primitive(Primitive::Byte).to_string(), "byte");
+    let empty = Message::new(MsgName::new("p", "Empty"), Vec::new());
+    assert_eq!(empty.msg_text(), "");
 }
