@@ -24,8 +24,8 @@
 //! **How the QP is solved.** The QP has `N (NX + 4)` variables (`Δx_0` is fixed by
 //! the measurement; 180 for the peers' problem), `N NX` equality rows and `12 N`
 //! inequality rows. Solved by Clarabel (interior point, no warm start) it costs
-//! about nine iterations whatever the starting point: 0.8–0.9 ms here, twice the
-//! whole budget. But the inequality rows are rarely active once the platform is on
+//! about nine iterations whatever the starting point, more than the whole step's
+//! budget. But the inequality rows are rarely active once the platform is on
 //! its path. So [`QpStrategy::Structured`] first solves the equality-constrained QP
 //! by a Riccati recursion over the stages (linear in `N`, a few microseconds); if
 //! that solution satisfies every bound, it *is* the solution of the whole QP (the
@@ -33,17 +33,16 @@
 //! violated, a primal-dual interior-point method whose Newton steps are the same
 //! Riccati recursion with the barrier's diagonal added to the stage weights
 //! (`ipm.rs`, as HPIPM does; Mehrotra's predictor-corrector, one factorisation for
-//! both solves) solves the QP with its bounds in about seven iterations: on the
-//! peers' closed loop the step's p99 went from 0.52 ms (Clarabel for these QPs)
-//! to 0.16 ms. Clarabel stays the reference the tests compare it with, and the
-//! fallback should it not converge: it solves the full sparse QP, on a solver
-//! built once whose data are updated in place (`update_q`, `update_A`,
+//! both solves) solves the QP with its bounds in about seven iterations, in a
+//! fraction of Clarabel's time. Clarabel stays the reference the tests compare it
+//! with, and the fallback should it not converge: it solves the full sparse QP, on
+//! a solver built once whose data are updated in place (`update_q`, `update_A`,
 //! `update_b`; the sparsity never changes).
 //! Clarabel's defaults are tuned for hard problems; this QP is small and well
-//! scaled, and measured on the peers' closed loop (`bench_nmpc`, Clarabel for every
-//! QP) a solve took 0.77 ms with the defaults, 0.53 ms without iterative refinement,
-//! 0.39 ms with tolerance 1e-6 and without equilibration and iterative refinement
-//! as well, with the same closed loop to 1e-6: those are the defaults here.
+//! scaled, so here it runs at tolerance 1e-6 without equilibration and iterative
+//! refinement: about half the time of its defaults, with the same closed loop to
+//! 1e-6. The measurements behind this paragraph: docs/measurements.md, "The NMPC's
+//! QPs".
 //! [`QpStrategy::Clarabel`] sends every QP to Clarabel, for comparison.
 //!
 //! The small dense algebra of the stages (products, the 4 × 4 Cholesky
@@ -129,7 +128,7 @@ pub struct NmpcSettings<const NX: usize> {
     /// Clarabel's equilibration of the data (off: the QP is well scaled).
     pub qp_equilibrate: bool,
     /// Clarabel's iterative refinement of each KKT solve (off: this QP does not
-    /// need it, and it costs 40 % of a solve).
+    /// need it, and it costs a large share of a solve).
     pub qp_iterative_refinement: bool,
     /// Clarabel's iteration bound.
     pub qp_max_iterations: u32,
