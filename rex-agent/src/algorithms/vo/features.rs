@@ -274,9 +274,8 @@ pub struct Features {
     /// feature, and aligning a patch whose anchor is off its texture's centre by
     /// a translation, across the scale change of a forward motion, shifted the
     /// matches by an amount proportional to the inverse depth: a spurious
-    /// translation. Measured on the ideal-camera tuning tour (seed 21, VGA):
-    /// t_err 0.121 % at the corner, 0.057 % one pixel further, 0.254 % one pixel
-    /// back, 0.046 % at the peak (docs/visual-odometry.md).
+    /// translation. Of the anchors tried, the peak drifted least (the
+    /// measurements: docs/measurements.md, "The odometry's kernels").
     pub peak: Vec<(f32, f32)>,
 }
 

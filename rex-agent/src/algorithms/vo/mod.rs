@@ -604,9 +604,9 @@ const OUTLIER_TOLERANCES: outliers::Tolerances = outliers::Tolerances {
 /// Features of one image (both scales), its full-resolution gradients.
 ///
 /// Compiled for AVX2 as well, chosen at run time, with the filters, the
-/// suppression and the gradients inlined into it (callgrind, 20 pairs of tour
-/// 21: 535 M -> 431 M instructions). The same features on any machine: all
-/// integer arithmetic.
+/// suppression and the gradients inlined into it: fewer instructions (the
+/// counts: docs/measurements.md, "The odometry's kernels"). The same features
+/// on any machine: all integer arithmetic.
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn features(
     s: &VoSettings,

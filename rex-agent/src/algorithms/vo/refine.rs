@@ -308,10 +308,10 @@ pub fn refine(
 /// with the current left one by [`lucas_kanade`] (9 × 9 patches); `None` drops it.
 ///
 /// Compiled for AVX2 as well, chosen at run time, with the template and the
-/// alignment inlined (callgrind, 20 pairs of tour 21: 432 M -> 365 M
-/// instructions). The same positions on any machine: Rust never fuses a
-/// multiply and an add, so each operation rounds as IEEE 754 says whatever
-/// the vector width.
+/// alignment inlined: fewer instructions (the counts: docs/measurements.md,
+/// "The odometry's kernels"). The same positions on any machine: Rust never
+/// fuses a multiply and an add, so each operation rounds as IEEE 754 says
+/// whatever the vector width.
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 pub fn photometric(
     p: [(f64, f64); 4],
