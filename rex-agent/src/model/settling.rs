@@ -16,8 +16,7 @@
 //! `κ / (μ_x N sg′(s))`: a millisecond on concrete at no slip, 8 ms on ice,
 //! and 80 ms on ice at 80 % of the bound, against the MHE's 50 ms samples. On
 //! ice the settled slip was wrong often enough to bias the MHE's friction
-//! (`μ_x` 5-8 % high on average, the rolling resistance `μ_r` 11-30 % low; the
-//! docs/nmpc-mhe.md has the measurements): the encoders, read at the end
+//! (`μ_x` high, the rolling resistance `μ_r` low): the encoders, read at the end
 //! of a sample, still show part of the slip of the torque before.
 //!
 //! So the MHE predicts each encoder from the slip its previous reading showed,
@@ -25,18 +24,15 @@
 //! backward Euler, stable at any stiffness; the slip of the previous reading
 //! enters as data), and as the encoder counts it: the mean over its counting
 //! window (the plant's 10 ms; [`super::Lateral::with_encoder_window`]), not
-//! the slip at the sample's instant. On ice, sensor seed 1, it took a fifth
-//! to nearly all of what was left of the MHE's average `μ_r` error (−7.2 /
-//! −7.4 / −10.2 % -> −0.6 / −0.8 / −8.2 % in the square / figure eight /
-//! slalom, one comparison: the closed loop moves such figures by a few points
-//! between builds; docs/nmpc-mhe.md).
+//! the slip at the sample's instant. On ice it took most of what was left of
+//! the MHE's average `μ_r` error. The measurements of this module's choices:
+//! docs/measurements.md, "The lateral-slip model's friction".
 
 use super::dynamics::{sg, sg_inverse, sg_prime};
 
 /// Backward Euler steps over one sample. With a counting window the last one
 /// crosses the window (two inside it leave fewer before it, whose lag
-/// dominates: 6.1 % of the way against 5.1 % in the test against the finely
-/// integrated equation).
+/// dominates: a larger error against the finely integrated equation).
 const STEPS: usize = 5;
 
 /// The slip `h` seconds after `start` \[m/s\] of a wheel whose ground is asked

@@ -33,9 +33,9 @@
 //! 4 J_w c² / r²`): below the traction bound the body moves exactly so, and the
 //! force on the ground is the torque's less the spin-up's share (a tenth of it
 //! for this platform: taking the whole torque's force as the ground's, as this
-//! model did before, made the MHE's `μ_x` on ice 13 % high on average; with the
-//! share taken off, 5-9 %). The force is bounded by what the ground can take,
-//! `μ_x N`: `sat` is the identity up to 0.9 and bends smoothly onto ±1 by 1.1
+//! model did before, biased the MHE's `μ_x` on ice high). The force is bounded
+//! by what the ground can take, `μ_x N`: `sat` is the identity up to 0.9 and
+//! bends smoothly onto ±1 by 1.1
 //! (a wheel asked for more spins, as the plant's does, and gives the body its
 //! bound whatever its torque). The longitudinal slip is then a quasi-static
 //! function of the traction the wheel transmits, `μ_x N sg(s) = F_x`, which is
@@ -56,12 +56,11 @@
 //! it from their encoders where it is given them ([`super::WheelSpin`],
 //! [`Dynamics::linearise_spinning`]; the MHE gives every interval its two
 //! readings), and `sg(v_ix)` otherwise (the NMPC's prediction). On ice the
-//! MHE's `μ_r` came out 7-19 % low on average with `sg(v_ix)`; with the spin
-//! read (and the encoders predicted over their counting window,
-//! [`super::settling`]), single samples after 5 s within 16 % on ice and
-//! 7.2 % elsewhere, 4-16 % low on average on ice; with the wheels' spin-up
-//! read too, within 9.7 % on ice and 6.5 % elsewhere, 1-9 % low on average
-//! on ice (docs/nmpc-mhe.md).
+//! MHE's `μ_r` came out low with `sg(v_ix)`; reading the spin (and predicting
+//! the encoders over their counting window, [`super::settling`]), then the
+//! wheels' spin-up too, each took part of that bias away. The measurements of
+//! this paragraph and the one before: docs/measurements.md, "The lateral-slip
+//! model's friction".
 //!
 //! Stiffness: the lateral mode's eigenvalue is about `−Σ μ_y N (2/π) k_s / m`,
 //! −75 s⁻¹ on concrete for the 40 kg platform; RK4 over 50 ms needs at least
@@ -97,8 +96,9 @@ const ENCODER_FRACTION_MAX: f64 = 0.97;
 /// the wheels' spin-up lags the torque, which near the bound moves the slip
 /// much more) and absolute. Through the slip law's slope it is the encoder
 /// prediction's own uncertainty, which grows steeply towards the bound. The
-/// relative part was chosen on the figure eight on ice, where the MHE's `μ_x`
-/// came out 20 % high on average with 0.05, 16 % with 0.15, 13 % with 0.3.
+/// relative part was chosen on the figure eight on ice: of the values tried, the
+/// largest biased the MHE's `μ_x` least (the sweep: docs/measurements.md, "The
+/// lateral-slip model's friction").
 const FRACTION_SIGMA: (f64, f64) = (0.3, 0.01);
 
 /// A force fraction bounded smoothly by 1: the identity on `[−0.9, 0.9]`, a
