@@ -4,9 +4,9 @@
 //! A raw channel records each value exactly as a link carries it, and the
 //! chunks of the file are compressed (zstd) as a whole. That suits small
 //! values; a camera's images are better and more cheaply compressed by an
-//! image codec (PNG: a sensor's noisy images shrink 2.4x against zstd's 1.6x,
-//! in a third less time, measured on Rex's camera). A codec does that for one
-//! payload type: the recorder writes `codec.encode(body)` after the wire
+//! image codec (PNG shrinks a sensor's noisy images more than zstd, in less
+//! time: docs/measurements.md, "The recorder's encodings"). A codec does that
+//! for one payload type: the recorder writes `codec.encode(body)` after the wire
 //! header, names the codec in the raw channel's metadata (`codec`), and a
 //! replay given the same codec ([`crate::ReplayOptions::codecs`]) decodes each
 //! value back to the exact bytes the link carried. A replay that is not given

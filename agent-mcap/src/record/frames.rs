@@ -6,9 +6,9 @@
 /// [`agent_core::WireHeader`], then the value's postcard bytes or its codec's
 /// encoding). A raw message holds the values the writer took from one batch
 /// of the executor's (about 64 KiB): a link sending at 1 kHz costs tens of
-/// messages a second, not a thousand (measured on Rex's figure-eight without
-/// images: 250 k messages to 134 k, see `bench_record`). Its log time is its
-/// first value's instant; each value's own is in its header.
+/// messages a second, not a thousand (docs/measurements.md, "The recorder's
+/// encodings"). Its log time is its first value's instant; each value's own is
+/// in its header.
 pub const FRAMES_ENCODING: &str = "embodied-wire-frames/1";
 
 /// The message encoding of the raw channels of earlier recordings: one value

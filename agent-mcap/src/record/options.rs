@@ -62,9 +62,9 @@ pub enum Values {
     /// ROS 2 CDR with a `ros2msg` schema made from the type
     /// ([`cdr`](crate::cdr)): a value's bytes, aligned, with no field names
     /// and no number formatting. A type with no ROS 2 message is recorded as
-    /// [`Values::Json`]. Measured recording Rex's figure-eight without images
-    /// (`bench_record`): 9.0 MB instead of 13.0, and the recorded run 1.06x
-    /// the plain one's wall time instead of 1.35x (the writer now keeps up).
+    /// [`Values::Json`]. Smaller and faster to write than JSON, so that the
+    /// writer keeps up with the run (`bench_record`; docs/measurements.md, "The
+    /// recorder's encodings").
     #[default]
     Cdr,
     /// JSON with the JSON schema of the type ([`json`](crate::json)): text

@@ -472,9 +472,9 @@ const PENDING_BYTES: usize = 64 * 1024;
 /// The records of a queue, taken by polling: the writer sleeps while the queue
 /// is empty instead of blocking in `recv`, so that a sender never has to wake
 /// it. A send to a blocked receiver is a futex wake-up, a system call on the
-/// executor's thread for every batch (measured: 3 % of the executor thread's
-/// time in `futex_wake`, recording Rex's figure-eight without images); a send
-/// to a sleeping poller is a store. The sleep doubles from [`Polled::FIRST`]
+/// executor's thread for every batch (a visible share of its time:
+/// docs/measurements.md, "The recorder's encodings"); a send to a sleeping
+/// poller is a store. The sleep doubles from [`Polled::FIRST`]
 /// up to [`Polled::LONGEST`] while the queue stays empty, so an idle recording
 /// costs a few wake-ups a second and a busy one lags the run by about a
 /// millisecond. A full queue still wakes its waiting sender at once (`try_recv`

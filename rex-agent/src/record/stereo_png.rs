@@ -10,9 +10,9 @@
 //!   disagree, bytes that are not a pair).
 //!
 //! PNG (8-bit grayscale, fast compression) predicts each pixel from its
-//! neighbours: the camera's noisy images shrink to ~41% of their size, where
-//! the file's zstd chunks made ~61% of them, in less time (measured on the
-//! figure-eight's pairs: docs/figures.md, `bench_record`).
+//! neighbours: the camera's noisy images shrink more than in the file's zstd
+//! chunks, in less time (docs/measurements.md, "The recorder's encodings";
+//! `bench_record`).
 
 use embodied::record::{Codec, DecodeError};
 use serde_bytes::Bytes;
