@@ -4,8 +4,9 @@
 //! block it: on the locks its transmission pipeline shares with Zenoh's own
 //! threads (which run at normal priority, so a busy machine preempts them while
 //! they hold one: a priority inversion), and, for a reliable publisher, until
-//! the pipeline has room. Measured on a loaded 2-core machine, Rex's plant
-//! (1 kHz) blocked in `put` for up to 83 ms. So a publisher hands each message
+//! the pipeline has room: on a loaded machine Rex's 1 kHz plant blocked in
+//! `put` for many of its periods (docs/measurements.md, "Publishing off the
+//! node's thread"). So a publisher hands each message
 //! to a wait-free bounded ring (`rtrb`) and wakes the transport's one publishing
 //! thread (`Thread::unpark`: an atomic swap, a futex wake only when the thread
 //! sleeps), which hands the messages to Zenoh in the order each ring received
