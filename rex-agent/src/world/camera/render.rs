@@ -594,10 +594,6 @@ impl Renderer {
     }
 }
 
-/// The wall texture's coordinates at world point `p` of a wall of constant x
-/// (`wall_x`) or of constant y, and the face's gain in 256ths (0.85 on the walls
-/// of constant y, so that walls meeting at a corner differ; their texture is
-/// shifted too).
 /// [`Renderer::render_with`], compiled for AVX2 as well and chosen at run time
 /// (the same pixels on any machine: Rust never fuses a multiply and an add).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
@@ -605,6 +601,10 @@ fn render_multiversioned(r: &Renderer, pose: &CameraPose, rects: &[(usize, Rect)
     r.render_with(pose, rects, out);
 }
 
+/// The wall texture's coordinates at world point `p` of a wall of constant x
+/// (`wall_x`) or of constant y, and the face's gain in 256ths (0.85 on the walls
+/// of constant y, so that walls meeting at a corner differ; their texture is
+/// shifted too).
 #[inline(always)]
 fn wall_face(p: V3, wall_x: bool) -> (f32, f32, u32) {
     if wall_x {
