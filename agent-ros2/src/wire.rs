@@ -1,1 +1,0 @@
-//! rmw_zenoh's wire format.
