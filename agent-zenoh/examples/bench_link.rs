@@ -21,9 +21,9 @@
 //! The Zenoh figures alternate in rounds of 1000 so that the machine's drift
 //! affects them alike. With two cores or more, this process (both pings) runs
 //! on the first and the echo processes on the second: a round trip between
-//! two processes on one core and one between two cores differ by about 2x,
-//! and left to the scheduler, the plain and the secure pair did not always
-//! get the same placement (secure/plain ratios from 0.81 to 2.0 in six runs).
+//! two processes on one core and one between two cores differ widely, and left
+//! to the scheduler, the plain and the secure pair did not always get the same
+//! placement (docs/measurements.md, "Pinning bench_link's processes").
 //! The last line is the figures line.
 
 #![allow(
