@@ -4,6 +4,8 @@
 //!
 //! - [`key`]: the key expression of a topic's data ([`TopicKey`]), with the
 //!   type in its DDS form ([`TypeName`]) and the REP 2011 hash ([`TypeHash`]);
+//! - [`attachment`]: the 33 bytes beside every sample ([`Attachment`]);
+//! - [`gid`]: the GID of a publisher, the hash of its token ([`Gid`]);
 //! - [`names`]: name checks, qualification and mangling.
 //!
 //! # Which rmw_zenoh
@@ -11,9 +13,14 @@
 //! read in its `docs/design.md` and its sources; the unit tests are the design
 //! document's own examples.
 
+pub mod attachment;
+pub mod gid;
 pub mod key;
 pub mod names;
+mod xxh3;
 
+pub use attachment::{ATTACHMENT_LEN, Attachment, AttachmentError};
+pub use gid::{GID_LEN, Gid};
 pub use key::{
     Interface, KeyError, NumberError, TopicKey, TypeHash, TypeHashError, TypeName, TypeNameError,
 };
