@@ -6,6 +6,7 @@
 //!   type in its DDS form ([`TypeName`]) and the REP 2011 hash ([`TypeHash`]);
 //! - [`attachment`]: the 33 bytes beside every sample ([`Attachment`]);
 //! - [`gid`]: the GID of a publisher, the hash of its token ([`Gid`]);
+//! - [`qos`]: the QoS profile and its compact string in tokens ([`Qos`]);
 //! - [`names`]: name checks, qualification and mangling.
 //!
 //! # Which rmw_zenoh
@@ -17,6 +18,7 @@ pub mod attachment;
 pub mod gid;
 pub mod key;
 pub mod names;
+pub mod qos;
 mod xxh3;
 
 pub use attachment::{ATTACHMENT_LEN, Attachment, AttachmentError};
@@ -28,3 +30,4 @@ pub use names::{
     NameError, NameKind, demangle, mangle, qualify_topic, validate_enclave, validate_namespace,
     validate_node_name, validate_topic_name,
 };
+pub use qos::{Durability, History, Liveliness, Qos, QosDuration, QosError, Reliability};
