@@ -352,6 +352,21 @@ impl TopicKey {
         })
     }
 
+    /// The key of a topic name already checked by [`validate_topic_name`].
+    pub(crate) fn from_checked(
+        domain: u32,
+        topic: String,
+        type_name: TypeName,
+        type_hash: TypeHash,
+    ) -> Self {
+        Self {
+            domain,
+            topic,
+            type_name,
+            type_hash,
+        }
+    }
+
     /// The ROS domain id.
     pub fn domain(&self) -> u32 {
         self.domain
