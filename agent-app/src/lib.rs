@@ -74,7 +74,7 @@ use serde::de::DeserializeOwned;
 pub use cli::{BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, parse_fault};
 pub use error::{AppError, BoxError, Status};
 pub use local::{Ran, Watched};
-pub use output::emit;
+pub use output::{emit, writable_folder};
 pub use signals::Signals;
 pub use simple::App;
 pub use watch::{End, Ended, Mode, Quiet, RunSummary, Verdict, Watcher};

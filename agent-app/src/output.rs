@@ -3,6 +3,9 @@
 //! prefixed with the program's name where it is a message.
 
 use std::io::Write;
+use std::path::Path;
+
+use crate::AppError;
 
 /// The program's name as invoked (`rex`), for messages.
 pub(crate) fn program() -> String {
@@ -41,4 +44,64 @@ pub(crate) fn warn(text: std::fmt::Arguments<'_>) {
 /// `<program>: ...` (an error) on standard error.
 pub(crate) fn error(e: &dyn std::fmt::Display) {
     err(format_args!("{}: {e}", program()));
+}
+
+/// Check, before a run, that the folder `dir` that a flag (`flag`, for example
+/// `--out`) names can take the files the run will write at its end: it is, or
+/// can be made as, a folder other than the file system's root, and a file can
+/// be written in it. An application calls it from
+/// [`Application::configure`](crate::Application::configure), so that a run of
+/// minutes does not end in an error it could have named at once (an
+/// invalid-input error: exit status 2).
+pub fn writable_folder(flag: &str, dir: &Path) -> Result<(), AppError> {
+    check_folder(dir).map_err(|e| AppError::invalid(format!("{flag} {}: {e}", dir.display())))
+}
+
+fn check_folder(dir: &Path) -> std::io::Result<()> {
+    if std::path::absolute(dir).is_ok_and(|d| d.parent().is_none()) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "is the file system's root; name a folder for the run's files",
+        ));
+    }
+    if dir.exists() && !dir.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            "exists and is not a folder",
+        ));
+    }
+    std::fs::create_dir_all(dir)?;
+    let probe = dir.join(format!(".write-test-{}", std::process::id()));
+    std::fs::write(&probe, b"")?;
+    std::fs::remove_file(&probe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::writable_folder;
+
+    fn message(flag: &str, dir: &std::path::Path) -> String {
+        writable_folder(flag, dir).map_or_else(|e| e.to_string(), |()| "ok".to_owned())
+    }
+
+    #[test]
+    fn a_folder_is_made_and_left_empty() {
+        let root = std::env::temp_dir().join(format!("writable-{}", std::process::id()));
+        let dir = root.join("a/b");
+        assert_eq!(message("--out", &dir), "ok");
+        assert!(dir.is_dir());
+        assert_eq!(std::fs::read_dir(&dir).map(Iterator::count).ok(), Some(0));
+        let _ = std::fs::remove_dir_all(root);
+    }
+
+    #[test]
+    fn a_file_and_the_root_are_refused_naming_the_flag() {
+        let file = std::env::temp_dir().join(format!("writable-file-{}", std::process::id()));
+        assert!(std::fs::write(&file, b"x").is_ok());
+        let said = message("--out", &file);
+        assert!(said.starts_with("--out ") && said.ends_with("exists and is not a folder"), "{said}");
+        let _ = std::fs::remove_file(file);
+        let said = message("--reports", std::path::Path::new("/"));
+        assert!(said.contains("--reports /: is the file system's root"), "{said}");
+    }
 }
