@@ -152,11 +152,12 @@ impl<'a> Checker<'a> {
             {
                 for (g, group) in groups.iter().enumerate() {
                     for (b, buffer) in group.buffers.iter().enumerate() {
-                        let bpath = join(&c.path, &[F(side), I(g), F("buffers"), I(b), F("name")]);
+                        let path = join(&c.path, &[F(side), I(g), F("buffers"), I(b), F("name")]);
+                        let at = BufferRef::new(c.name, group, buffer, path);
                         found.extend(if outgoing {
-                            self.unread_output(feeds, c.name, group, buffer, &bpath)
+                            self.unread_output(feeds, &at)
                         } else {
-                            self.input_feed(feeds, c.name, group, buffer, &bpath)
+                            self.input_feed(feeds, &at)
                         });
                     }
                 }
@@ -165,68 +166,42 @@ impl<'a> Checker<'a> {
         found
     }
 
-    /// The finding about output `buffer` of `component`'s group `group` (at
-    /// `bpath`) if no link reads it.
-    fn unread_output(
-        &self,
-        feeds: &Feeds,
-        component: &str,
-        group: &Group,
-        buffer: &Buffer,
-        bpath: &[Seg<'static>],
-    ) -> Option<Finding> {
-        let key = (
-            component.to_owned(),
-            group.peer.clone(),
-            buffer.name.clone(),
-        );
-        let dotted = format!("{}.{}.{}", component, group.peer, buffer.name);
-        if feeds.read_outputs.contains(&key) {
+    /// The finding about output `at` if no link reads it.
+    fn unread_output(&self, feeds: &Feeds, at: &BufferRef<'_>) -> Option<Finding> {
+        if feeds.read_outputs.contains(&at.key) {
             return None;
         }
+        let dotted = &at.dotted;
         Some(
             Finding::new(
                 Code::UnreadOutput,
-                self.span(bpath),
+                self.span(&at.path),
                 "read by nobody",
                 format!("output `{dotted}` is linked to no input"),
             )
             .help(format!(
                 "link it: `(from: \"{dotted}\", to: \"{}.{}.{}\")`, or remove it",
-                group.peer, component, buffer.name
+                at.group.peer, at.component, at.buffer.name
             )),
         )
     }
 
-    /// The finding about input `buffer` of `component`'s group `group` (at
-    /// `bpath`) unless exactly one link writes it.
-    fn input_feed(
-        &self,
-        feeds: &Feeds,
-        component: &str,
-        group: &Group,
-        buffer: &Buffer,
-        bpath: &[Seg<'static>],
-    ) -> Option<Finding> {
-        let key = (
-            component.to_owned(),
-            group.peer.clone(),
-            buffer.name.clone(),
-        );
-        let dotted = format!("{}.{}.{}", component, group.peer, buffer.name);
-        match feeds.writers.get(&key).map(Vec::as_slice) {
+    /// The finding about input `at` unless exactly one link writes it.
+    fn input_feed(&self, feeds: &Feeds, at: &BufferRef<'_>) -> Option<Finding> {
+        let dotted = &at.dotted;
+        match feeds.writers.get(&at.key).map(Vec::as_slice) {
             None | Some([]) => Some(
                 Finding::new(
                     Code::UnfedInput,
-                    self.span(bpath),
+                    self.span(&at.path),
                     "fed by no output",
                     format!("input `{dotted}` is fed by no output"),
                 )
                 .help(self.feeding_help(
-                    component,
-                    group,
-                    buffer,
-                    &dotted,
+                    at.component,
+                    at.group,
+                    at.buffer,
+                    dotted,
                     &feeds.read_outputs,
                 )),
             ),
@@ -234,7 +209,7 @@ impl<'a> Checker<'a> {
             Some(ks) => {
                 let mut f = Finding::new(
                     Code::MultipleWriters,
-                    self.span(bpath),
+                    self.span(&at.path),
                     format!("fed by {} outputs", ks.len()),
                     format!("input `{dotted}` is fed by {} outputs", ks.len()),
                 )
@@ -608,4 +583,36 @@ struct Feeds {
     writers: HashMap<(String, String, String), Vec<usize>>,
     /// The outputs `(component, group, buffer)` that some link reads.
     read_outputs: HashSet<(String, String, String)>,
+}
+
+/// One buffer of a component as the feed findings speak of it: the key under
+/// which [`Feeds`] holds it, the name a link gives it, and where the spec
+/// declares it.
+struct BufferRef<'b> {
+    component: &'b str,
+    group: &'b Group,
+    buffer: &'b Buffer,
+    /// `(component, group, buffer)`, as in [`Feeds`].
+    key: (String, String, String),
+    /// `component.group.buffer`, as a link's end names it.
+    dotted: String,
+    /// Where the spec names the buffer.
+    path: Path,
+}
+
+impl<'b> BufferRef<'b> {
+    fn new(component: &'b str, group: &'b Group, buffer: &'b Buffer, path: Path) -> Self {
+        BufferRef {
+            component,
+            group,
+            buffer,
+            key: (
+                component.to_owned(),
+                group.peer.clone(),
+                buffer.name.clone(),
+            ),
+            dotted: format!("{}.{}.{}", component, group.peer, buffer.name),
+            path,
+        }
+    }
 }
