@@ -433,6 +433,7 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
         agents,
         links,
         deployments: Vec::new(),
+        ros2: None,
     })
 }
 

@@ -14,7 +14,9 @@
 //! relations between predicates, and prints the counterexample when they do not.
 //!
 //! The same loader and checker serve the `embodied` CLI, the diagrams and the macros:
-//! there is one parser.
+//! there is one parser. A spec's `ros2` sections say what a system shows to ROS 2;
+//! [`ros2`] holds ROS 2's name rules (shared with the ROS 2 bridge) and the
+//! interface a system or deployment shows, every default applied.
 
 pub mod check;
 pub mod deploy;
@@ -24,6 +26,7 @@ pub mod export;
 pub mod model;
 pub mod names;
 mod proof;
+pub mod ros2;
 pub mod span;
 
 use std::path::Path;

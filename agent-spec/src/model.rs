@@ -38,6 +38,10 @@ pub struct Spec {
     /// Ways to place the components on hosts and processes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub deployments: Vec<Deployment>,
+    /// The buffers the system shows to ROS 2, under which topics: in every
+    /// deployment that has no `ros2` section of its own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ros2: Option<Ros2>,
 }
 
 /// An embodied agent: one control subsystem, virtual effectors and receptors, and
@@ -275,6 +279,91 @@ pub struct Deployment {
     /// asked for by name ([`Deployment::is_secure`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub secure: Option<bool>,
+    /// What this deployment shows to ROS 2, in place of the system's `ros2`
+    /// section (the whole section is replaced, not merged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ros2: Option<Ros2>,
+}
+
+/// What a system (or one deployment) shows to ROS 2: the node the bridge
+/// presents, the buffers it publishes and the input buffers ROS 2 topics may
+/// feed. Names follow ROS 2's rules ([`crate::ros2`]); defaults are applied by
+/// [`crate::ros2::interface`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ros2 {
+    /// `ROS_DOMAIN_ID`, 0 to [`crate::ros2::DOMAIN_MAX`]; default 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub domain: Option<u32>,
+    /// The node's name; default the system's name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node: Option<String>,
+    /// The node's namespace (absolute); default `/`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub namespace: Option<String>,
+    /// The package of the messages made from buffer types; default
+    /// `<system name>_msgs`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub package: Option<String>,
+    /// Output buffers published on ROS 2 topics.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub publish: Vec<Ros2Topic>,
+    /// Input buffers fed by ROS 2 topics.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subscribe: Vec<Ros2Topic>,
+}
+
+/// One buffer shown to ROS 2 under one topic.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ros2Topic {
+    /// `component.group.buffer`, as in a link: an output to publish, an input
+    /// to feed.
+    pub buffer: String,
+    /// The topic: relative to the node's namespace (`pose`), absolute
+    /// (`/pose`) or private to the node (`~/pose`).
+    pub topic: String,
+    /// A standard message (`geometry_msgs/msg/PoseStamped`) the bridge
+    /// converts the buffer's values to and from; default the message made
+    /// from the buffer's type, in the section's `package`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
+    /// Quality of service; what it leaves out comes from the buffer's link.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub qos: Option<Qos>,
+}
+
+/// A topic's quality of service as a spec writes it: every field optional.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Qos {
+    /// Whether lost samples are sent again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reliability: Option<Reliability>,
+    /// How many samples are kept (keep-last), at least 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth: Option<u32>,
+    /// Whether late subscribers get the samples kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub durability: Option<Durability>,
+}
+
+/// ROS 2's reliability policy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Reliability {
+    /// Every sample is delivered (sent again if lost).
+    Reliable,
+    /// Samples may be lost; none is sent again.
+    BestEffort,
+}
+
+/// ROS 2's durability policy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Durability {
+    /// Only subscribers present when a sample is published get it.
+    Volatile,
+    /// The publisher keeps its last `depth` samples for late subscribers.
+    TransientLocal,
 }
 
 /// A machine.
@@ -349,8 +438,8 @@ impl Spec {
     }
 
     /// The structure without what a person writes for people and what code cannot
-    /// tell: docs, the `reads` and `writes` of functions and predicates, and
-    /// deployments; without functions no behaviour uses (dead entries, a warning of
+    /// tell: docs, the `reads` and `writes` of functions and predicates,
+    /// deployments and the ROS 2 section; without functions no behaviour uses (dead entries, a warning of
     /// the checker, that an FSM built from the spec does not hold); and without
     /// orders that mean nothing: functions and predicates are sorted by name, and so
     /// are the functions of each behaviour (their evaluation order is fixed by their
@@ -361,6 +450,7 @@ impl Spec {
         let mut spec = self.clone();
         spec.doc = None;
         spec.deployments.clear();
+        spec.ros2 = None;
         let clear_groups = |groups: &mut Vec<Group>| {
             for g in groups {
                 g.buffers.iter_mut().for_each(|b| b.doc = None);

@@ -134,6 +134,7 @@ pub(crate) fn random_fsms() -> impl Strategy<Value = Spec> {
             }],
             links: Vec::new(),
             deployments: Vec::new(),
+            ros2: None,
         })
 }
 
@@ -242,6 +243,7 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
         agents,
         links,
         deployments: Vec::new(),
+        ros2: None,
     }
 }
 
