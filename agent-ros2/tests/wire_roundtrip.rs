@@ -2,6 +2,11 @@
 //! write parses back to the same value (keys, tokens, QoS, attachments), and a
 //! parse of anything, valid or damaged, returns an error rather than panics.
 
+#![allow(
+    clippy::expect_used,
+    reason = "the strategies build valid values: a failing expect is a failing test"
+)]
+
 use agent_ros2::wire::{
     ATTACHMENT_LEN, Attachment, AttachmentError, Durability, EndpointKind, EntityToken, Gid,
     History, Interface, Liveliness, LivelinessToken, NodeToken, Qos, QosDuration, Reliability,
