@@ -93,6 +93,8 @@ pub struct Message {
     pub sequence: u32,
     /// Its log time, in ns (the sender's instant).
     pub log_time: u64,
+    /// Its publish time, in ns (the recorder writes the log time).
+    pub publish_time: u64,
     /// The offset of the record in the file (of its chunk, for a message
     /// inside a chunk).
     pub offset: u64,
@@ -140,12 +142,21 @@ impl Recording {
     /// a record): the recording up to there, and the error that says where it
     /// ends. A damaged file is still an error.
     pub fn open_salvaging(path: &Path) -> Result<(Recording, Option<ReadError>), ReadError> {
+        Recording::open_salvaging_filtered(path, |_| true)
+    }
+
+    /// [`Recording::open_salvaging`], keeping the messages of the channels
+    /// `keep` accepts (every record is still read and checked).
+    pub fn open_salvaging_filtered(
+        path: &Path,
+        keep: impl FnMut(&ChannelInfo) -> bool,
+    ) -> Result<(Recording, Option<ReadError>), ReadError> {
         let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
             path: path.to_owned(),
             source,
         })?;
         let mut salvaged = None;
-        let r = Recording::parse_with(path, &bytes, |_| true, Some(&mut salvaged))?;
+        let r = Recording::parse_with(path, &bytes, keep, Some(&mut salvaged))?;
         Ok((r, salvaged))
     }
 
@@ -433,6 +444,7 @@ impl Reader<'_> {
                     channel: header.channel_id,
                     sequence: header.sequence,
                     log_time: header.log_time,
+                    publish_time: header.publish_time,
                     offset,
                     data: data.into_owned(),
                 }),
