@@ -15,6 +15,8 @@
 //!   their raw channels (a camera's images as PNG);
 //! * [`read`]: [`Recording`], a file read back, with errors that name the
 //!   offset of a truncated or damaged part;
+//! * [`export`](mod@export): a recording as an MCAP file of profile `ros2`
+//!   with its ROS 2 channels only, for ROS 2 tools (rosbags, `ros2 bag`);
 //! * [`merge`](mod@merge): the recordings of the processes of a distributed run
 //!   made one, in time order;
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
@@ -22,6 +24,7 @@
 
 pub mod cdr;
 pub mod codec;
+pub mod export;
 pub mod json;
 pub mod merge;
 mod postcard;
@@ -31,6 +34,7 @@ pub mod replay;
 
 /// The MCAP crate this one writes with (to read recordings back).
 pub use codec::{Codec, DecodeError};
+pub use export::{ExportError, ExportOptions, ExportSummary, LeftOut, LeftOutReason, export_ros2};
 pub use mcap;
 pub use merge::{MergeError, MergeSummary, merge};
 pub use read::{ReadError, Recording};
