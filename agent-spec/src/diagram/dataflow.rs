@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use super::geometry::Scene;
 use super::layout::{Graph, SlotKind, Spacing};
-use super::svg::{self, Boxed, LINE_H, MARGIN, PAD, Svg};
+use super::svg::{Boxed, LINE_H, MARGIN, PAD, Svg};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Behaviour, Spec, Subsystem, Target};
 
@@ -320,14 +320,8 @@ pub(crate) fn draw(spec: &Spec, subs: &[&Subsystem]) -> (String, Scene) {
                 .map(|&(a, b)| g.chain(vec![slots[a], slots[b]], None))
                 .collect();
             g.place(MARGIN + PAD, top, spacing);
-            for (b, &i) in boxes.iter_mut().zip(&slots) {
-                b.x = g.slots[i].x;
-                b.y = g.slots[i].y;
-            }
-            let right = g.right().max(MARGIN + PAD + svg::text_w(&title)) + PAD;
-            let frame_w = right - MARGIN;
-            let frame_h = g.bottom().max(top) + PAD - y;
-            let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
+            g.put(&mut boxes, &slots);
+            let (f, frame_w, frame_h) = doc.frame_around((y, top), (g.right(), g.bottom()), &title);
             let first = doc.next_box();
             for b in &boxes {
                 doc.boxed(b, Some(f));

@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use super::geometry::{Path, Point, Scene};
-use super::layout::{Graph, SlotKind, Spacing};
-use super::svg::{Boxed, LABEL_H, LINE_H, LabelAt, MARGIN, PAD, Svg, label_w, text_w};
+use super::layout::{Graph, SlotKind, Spacing, ranks_between};
+use super::svg::{Boxed, LABEL_H, LINE_H, LabelAt, MARGIN, PAD, Svg, label_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{BehaviourKind, Spec, Subsystem, SubsystemKind};
 
@@ -293,14 +293,8 @@ fn draw_view(doc: &mut Svg, v: &View<'_>, y: f64) -> (f64, f64) {
     let (mut boxes, slot_of) = behaviour_slots(&mut g, v, &layer);
     let chain_of = arc_chains(&mut g, v, &layer, &slot_of);
     g.place(MARGIN + PAD, top, spacing);
-    for (b, &i) in boxes.iter_mut().zip(&slot_of) {
-        b.x = g.slots[i].x;
-        b.y = g.slots[i].y;
-    }
-    let right = g.right().max(MARGIN + PAD + text_w(&title)) + PAD;
-    let frame_w = right - MARGIN;
-    let frame_h = g.bottom().max(top) + PAD - y;
-    let f = doc.frame(MARGIN, y, frame_w, frame_h, &title);
+    g.put(&mut boxes, &slot_of);
+    let (f, frame_w, frame_h) = doc.frame_around((y, top), (g.right(), g.bottom()), &title);
     let first = doc.next_box();
     if let Some(i) = v.initial {
         let b = &boxes[i];
@@ -360,20 +354,8 @@ fn arc_chains(
         if a == b {
             continue;
         }
-        let (ra, rb) = (2 * layer[a], 2 * layer[b]);
-        let between: Vec<usize> = if rb > ra {
-            (ra + 1..rb).collect()
-        } else {
-            (rb + 1..ra).rev().collect()
-        };
-        // The label goes in the odd rank nearest the middle (nearer the source
-        // on a tie).
-        let mid = (ra + rb) as f64 / 2.0;
-        let label_rank = between
-            .iter()
-            .copied()
-            .filter(|r| r % 2 == 1)
-            .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+        // The label goes in the odd rank nearest the middle.
+        let (between, label_rank) = ranks_between(2 * layer[a], 2 * layer[b], 1);
         let mut slots = vec![slot_of[a]];
         for r in between {
             slots.push(if Some(r) == label_rank && !when.is_empty() {

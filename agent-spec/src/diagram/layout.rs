@@ -18,7 +18,7 @@
 //! 3. stack the bands; 4. route each chain through its slots.
 
 use super::geometry::{Path, Point, Segment};
-use super::svg::LabelAt;
+use super::svg::{Boxed, LabelAt};
 
 /// What a slot holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -211,6 +211,14 @@ impl Graph {
     /// The x of the run of chain `c` through its `k`-th slot.
     pub(crate) fn run_at(&self, c: usize, k: usize) -> f64 {
         self.run_x(c, k)
+    }
+
+    /// Move each box to its slot (`slot_of[i]` holds `boxes[i]`), once placed.
+    pub(crate) fn put(&self, boxes: &mut [Boxed], slot_of: &[usize]) {
+        for (b, &i) in boxes.iter_mut().zip(slot_of) {
+            b.x = self.slots[i].x;
+            b.y = self.slots[i].y;
+        }
     }
 
     /// Right end of the placed slots.
@@ -649,6 +657,28 @@ impl Graph {
 }
 
 /// The room between two neighbours of a rank.
+/// The ranks an edge from rank `from` to rank `to` crosses, in its order, and
+/// the one of them of parity `label_parity` (the ranks that take labels)
+/// nearest the middle, nearer `from` on a tie: where the edge's label goes.
+pub(crate) fn ranks_between(
+    from: usize,
+    to: usize,
+    label_parity: usize,
+) -> (Vec<usize>, Option<usize>) {
+    let between: Vec<usize> = if to > from {
+        (from + 1..to).collect()
+    } else {
+        (to + 1..from).rev().collect()
+    };
+    let mid = (from + to) as f64 / 2.0;
+    let label_rank = between
+        .iter()
+        .copied()
+        .filter(|r| r % 2 == label_parity)
+        .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+    (between, label_rank)
+}
+
 fn sep(a: &Slot, b: &Slot, sp: Spacing) -> f64 {
     if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
         sp.node_gap

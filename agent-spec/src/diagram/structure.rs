@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 
 use super::geometry::Scene;
-use super::layout::{Graph, SlotKind, Spacing, TURN_DEPTH};
+use super::layout::{Graph, SlotKind, Spacing, TURN_DEPTH, ranks_between};
 use super::svg::{Boxed, LABEL_H, LINE_H, LabelAt, MARGIN, PAD, Svg, label_w, text_w};
 use super::{Format, dot_esc, mermaid_esc, mermaid_id};
 use crate::model::{Agent, DeviceKind, Group, Policy, Spec, SubsystemKind};
@@ -372,10 +372,7 @@ fn draw(
     let p = lay_out(agents, comps, links, &titles, &boxes);
     let frame_top = p.frame_top + p.dy;
     let bottom = p.g.bottom() + PAD;
-    for (b, &i) in boxes.iter_mut().zip(&p.slot_of) {
-        b.x = p.g.slots[i].x;
-        b.y = p.g.slots[i].y;
-    }
+    p.g.put(&mut boxes, &p.slot_of);
     let mut doc = Svg::new();
     let mut extent: f64 = 0.0;
     let frame_ids = draw_frames(&mut doc, &p.g, &titles, (frame_top, bottom), &mut extent);
@@ -509,17 +506,7 @@ fn near_link_slots(
         ));
         return;
     }
-    let between: Vec<usize> = if rb > ra {
-        (ra + 1..rb).collect()
-    } else {
-        (rb + 1..ra).rev().collect()
-    };
-    let mid = (ra + rb) as f64 / 2.0;
-    let label_rank = between
-        .iter()
-        .copied()
-        .filter(|r| r % 2 == 0)
-        .min_by(|x, y| (*x as f64 - mid).abs().total_cmp(&(*y as f64 - mid).abs()));
+    let (between, label_rank) = ranks_between(ra, rb, 0);
     for r in between {
         slots.push(if Some(r) == label_rank {
             let w = label_w(label);

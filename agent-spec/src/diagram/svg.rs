@@ -176,6 +176,21 @@ impl Svg {
         i
     }
 
+    /// A titled frame at the left margin from `y` down, around content that
+    /// starts at `top` and ends at `right` and `bottom` (with [`PAD`] to spare),
+    /// at least as wide as its title: its index in the scene, width and height.
+    pub(crate) fn frame_around(
+        &mut self,
+        (y, top): (f64, f64),
+        (right, bottom): (f64, f64),
+        title: &str,
+    ) -> (usize, f64, f64) {
+        let right = right.max(MARGIN + PAD + text_w(title)) + PAD;
+        let w = right - MARGIN;
+        let h = bottom.max(top) + PAD - y;
+        (self.frame(MARGIN, y, w, h, title), w, h)
+    }
+
     /// A box in `frame`; returns its index in the scene.
     pub(crate) fn boxed(&mut self, b: &Boxed, frame: Option<usize>) -> usize {
         let id = self.scene.boxes.len();
