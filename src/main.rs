@@ -1,5 +1,6 @@
 //! `embodied`: check specifications, draw their diagrams, make agent crates
-//! from them, and merge the recordings of a distributed run. Built with the `cli` feature (`cargo install embodied --features
+//! from them, merge the recordings of a distributed run and export one for ROS 2
+//! tools. Built with the `cli` feature (`cargo install embodied --features
 //! cli`, or `cargo run --features cli --bin embodied -- ...` in this workspace).
 //!
 //! This file is the command line (clap); each command is a module of `cli`.
@@ -88,6 +89,27 @@ enum Command {
         #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
     },
+    /// Export a recording (MCAP) for ROS 2 tools: an MCAP file of profile `ros2`
+    /// with the recording's ROS 2 channels only (CDR with a `ros2msg` schema:
+    /// every buffer recorded as CDR, the default), which rosbags and `ros2 bag`
+    /// read. Prints every channel left out (JSON, raw copies, reads) and why,
+    /// every topic and type renamed to what ROS 2 allows. Exit 0 exported, 1
+    /// failed (no ROS 2 channel, or the export could not be written), 2 invalid
+    /// input (a missing or unreadable file, not an MCAP recording).
+    Export {
+        /// The recording.
+        file: PathBuf,
+        /// The export.
+        #[arg(short, long, value_name = "FILE")]
+        output: PathBuf,
+        /// Export for ROS 2 (profile `ros2`): the only form so far, required.
+        #[arg(long, required = true)]
+        ros2: bool,
+        /// Leave out the recording's metadata records (kept by default; ROS 2
+        /// readers skip them).
+        #[arg(long)]
+        no_metadata: bool,
+    },
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -161,5 +183,11 @@ fn main() -> ExitCode {
             output.as_deref(),
         ),
         Command::Merge { files, output } => cli::merge::run(&files, &output),
+        Command::Export {
+            file,
+            output,
+            ros2: _,
+            no_metadata,
+        } => cli::export::run(&file, &output, !no_metadata),
     }
 }

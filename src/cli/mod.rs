@@ -1,10 +1,12 @@
 //! The commands of the `embodied` binary, one module each: [`check`] runs the
 //! checker over spec files, [`diagram`] draws a spec, [`new`] makes an agent crate
-//! from a spec, [`merge`] merges the recordings of a distributed run.
+//! from a spec, [`merge`] merges the recordings of a distributed run, [`export`]
+//! exports a recording for ROS 2 tools.
 //! `src/main.rs` parses the command line (clap) and calls them.
 
 pub(crate) mod check;
 pub(crate) mod diagram;
+pub(crate) mod export;
 pub(crate) mod merge;
 pub(crate) mod new;
 
