@@ -44,11 +44,12 @@
 use agent_core::TypeShape;
 use agent_core::serde_reflection::{ContainerFormat, Format, VariantFormat};
 
-use crate::postcard::{Cursor, DecodeError, MAX_DEPTH};
+use crate::postcard::{Cursor, MAX_DEPTH};
 
 mod model;
 mod shape;
 
+pub use crate::postcard::DecodeError;
 pub use model::{
     Arity, BaseType, Constant, Field, FieldType, Message, Messages, MsgName, Primitive,
 };

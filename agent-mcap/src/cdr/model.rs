@@ -302,4 +302,33 @@ impl Messages {
         }
         text
     }
+
+    /// These messages with every name, theirs and their fields' nested
+    /// types', replaced by `rename`'s (to put a message made from a Rust type
+    /// into the package and name ROS 2 knows it by).
+    pub fn renamed(&self, rename: impl Fn(&MsgName) -> MsgName) -> Messages {
+        let message = |m: &Message| Message {
+            name: rename(&m.name),
+            constants: m.constants.clone(),
+            fields: m
+                .fields
+                .iter()
+                .map(|f| {
+                    let base = match &f.ty.base {
+                        BaseType::Message(n) => BaseType::Message(rename(n)),
+                        other => other.clone(),
+                    };
+                    let ty = FieldType {
+                        base,
+                        arity: f.ty.arity,
+                    };
+                    Field::new(f.name.clone(), ty)
+                })
+                .collect(),
+        };
+        Messages {
+            root: message(&self.root),
+            referenced: self.referenced.iter().map(message).collect(),
+        }
+    }
 }
