@@ -195,28 +195,6 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
     s
 }
 
-/// Whether a report folder can be made at `dir`: it is (or can be created as) a
-/// folder, and a file can be written in it.
-fn writable(dir: &Path) -> std::io::Result<()> {
-    // A report is a folder per mission inside it: never the file system's root.
-    if std::path::absolute(dir).is_ok_and(|d| d.parent().is_none()) {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "is the file system's root; name a folder for the reports",
-        ));
-    }
-    if dir.exists() && !dir.is_dir() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::NotADirectory,
-            "exists and is not a folder",
-        ));
-    }
-    std::fs::create_dir_all(dir)?;
-    let probe = dir.join(".rex-write-test");
-    std::fs::write(&probe, b"")?;
-    std::fs::remove_file(&probe)
-}
-
 /// Check that `deployment` keeps the simulated world's drivers in one process.
 fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), AppError> {
     let Some(dep) = spec.deployment(deployment) else {
@@ -280,8 +258,7 @@ impl Application for RexApp {
         let (settings, base) = RexApp::settings(flags, common)?;
         // The report folder is checked before the simulation, not after it.
         if !flags.no_report {
-            writable(&flags.out)
-                .map_err(|e| AppError::invalid(format!("--out {}: {e}", flags.out.display())))?;
+            embodied::app::writable_folder("--out", &flags.out)?;
         }
         let missions: Vec<String> = if settings.mission == "all" {
             Mission::SHIPPED.iter().map(|m| (*m).to_owned()).collect()
@@ -457,7 +434,7 @@ struct RexWatch {
     spec: embodied::spec::Spec,
     /// The report folder's root, unless `--no-report`.
     report: Option<PathBuf>,
-    /// The run's time limit [s].
+    /// The run's time limit \[s\].
     limit_s: f64,
 }
 
