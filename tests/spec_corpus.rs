@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use embodied::spec::diag::offset_of;
-use embodied::spec::model::Relation;
+use embodied::spec::model::{Relation, Reliability};
 use embodied::spec::{Code, Report, Severity, check_file, check_source};
 
 fn corpus() -> &'static Path {
@@ -43,6 +43,18 @@ const EXTRA_CASES: &[(&str, Code, &[&str])] = &[
     ),
     // An undeclared predicate in an arc's condition, `ack` after `acked`.
     ("unknown_predicate_in_arc", Code::UnknownPredicate, &["ack"]),
+    // A ROS 2 entry naming a buffer its component does not have (`akc`), and one
+    // naming a component that does not exist.
+    ("ros2_unknown_buffer", Code::UnknownBuffer, &["c1.c2.akc"]),
+    (
+        "ros2_unknown_component",
+        Code::UnknownComponent,
+        &["c3.c2.order"],
+    ),
+    // The default package made from the system's name `Mini`, pointed at the
+    // section; a private topic whose full name, `/mini__1/ack`, breaks the rules.
+    ("ros2_default_package", Code::Ros2Name, &["ros2"]),
+    ("ros2_private_topic", Code::Ros2Name, &["~/ack"]),
 ];
 
 /// Every label of every finding covers a non-empty range of whole characters of the
@@ -349,4 +361,108 @@ fn the_reference_page_example_is_the_tested_minimal_spec_and_lists_every_code() 
         );
         assert!(page.contains(&row), "missing or outdated row: {row}");
     }
+}
+
+#[test]
+fn the_systems_ros2_section_shows_in_each_deployment_what_it_runs() {
+    // e1's buffer in the system's section: a deployment that omits e1 leaves it out,
+    // and that is no finding; in the deployment's own section it is one.
+    let text = std::fs::read_to_string(corpus().join("valid/minimal.ron")).unwrap();
+    let one = r#"(name: "one", hosts: [(name: "pc", processes: [(name: "all", runs: ["c1", "e1", "E1", "c2"])])]),"#;
+    let without_e1 = r#"(name: "without_e1", hosts: [(name: "pc", processes: [(name: "all", runs: ["c1", "E1", "c2"])])], omit: ["e1"]),"#;
+    let section = r#"ros2: (publish: [(buffer: "e1.c1.done", topic: "done")]),"#;
+    assert_eq!(text.matches(one).count(), 1);
+    let system = text
+        .replace(one, &format!("{one}\n        {without_e1}"))
+        .replace(
+            "    deployments: [",
+            &format!("    {section}\n    deployments: ["),
+        );
+    let (spec, report) = check_source("system.ron", system);
+    assert!(report.findings.is_empty(), "{}", report.render(100));
+    let spec = spec.unwrap();
+    let shown = |name: &str| {
+        let deployment = spec.deployment(name);
+        let interface = embodied::spec::ros2::interface(&spec, deployment).unwrap();
+        interface
+            .publish
+            .iter()
+            .map(|t| t.name.clone())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(shown("one"), ["/done"]);
+    assert!(shown("without_e1").is_empty());
+
+    let own = text.replace(
+        one,
+        &format!(
+            "{one}\n        {}",
+            without_e1.replace("omit:", &format!("{section} omit:"))
+        ),
+    );
+    let (_, report) = check_source("own.ron", own);
+    let codes: Vec<Code> = report.findings.iter().map(|f| f.code).collect();
+    assert_eq!(codes, [Code::Ros2NotDeployed], "{}", report.render(100));
+}
+
+#[test]
+fn rex_shows_itself_to_ros2() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/rex.ron");
+    let (spec, report) = check_file(&path).unwrap();
+    assert!(report.findings.is_empty(), "{}", report.render(100));
+    let spec = spec.unwrap();
+    let shown = |deployment: &str| {
+        embodied::spec::ros2::interface(&spec, spec.deployment(deployment)).unwrap()
+    };
+    let rex = shown("simulation");
+    assert_eq!(
+        (
+            rex.domain,
+            rex.node.as_str(),
+            rex.namespace.as_str(),
+            rex.package.as_str()
+        ),
+        (0, "rex", "/rex", "rex_msgs")
+    );
+    let topics: Vec<(&str, Option<&str>)> = rex
+        .publish
+        .iter()
+        .map(|t| (t.name.as_str(), t.message.as_deref()))
+        .collect();
+    assert_eq!(
+        topics,
+        [
+            ("/rex/pose", Some("geometry_msgs/msg/PoseStamped")),
+            ("/rex/estimate", None),
+            ("/rex/reference_path", Some("nav_msgs/msg/Path")),
+            ("/rex/imu", Some("sensor_msgs/msg/Imu")),
+            (
+                "/rex/camera/image/compressed",
+                Some("sensor_msgs/msg/CompressedImage")
+            ),
+            ("/rex/ack", None),
+            ("/rex/outcome", None),
+        ]
+    );
+    // Plans come in as the queue link delivers them: reliable, four kept.
+    let plan = &rex.subscribe[0];
+    assert_eq!(
+        (plan.name.as_str(), plan.buffer.as_str()),
+        ("/rex/plan", "c1.c2.desired_plan")
+    );
+    assert_eq!(
+        (plan.qos.reliability, plan.qos.depth),
+        (Reliability::Reliable, 4)
+    );
+    // The camera's sample link: best effort; the pose's, made reliable by the spec.
+    let qos = |name: &str| rex.publish.iter().find(|t| t.name == name).unwrap().qos;
+    assert_eq!(
+        qos("/rex/camera/image/compressed").reliability,
+        Reliability::BestEffort
+    );
+    assert_eq!(qos("/rex/pose").reliability, Reliability::Reliable);
+    // Without visual odometry, R1 does not run: no camera.
+    let without = shown("simulation_without_vo");
+    assert_eq!(without.publish.len(), rex.publish.len() - 1);
+    assert!(without.publish.iter().all(|t| t.component != "R1"));
 }

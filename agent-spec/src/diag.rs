@@ -134,6 +134,20 @@ codes! {
     /// A process's endpoint that is not `tcp/<host>:<port>` (or `tls/...`), or one
     /// that two processes share.
     DeployEndpoint = "spec::deploy_endpoint", Error;
+    /// A ROS 2 name (topic, node, namespace, package or message type) that breaks ROS 2's rules.
+    Ros2Name = "spec::ros2_name", Error;
+    /// A ROS 2 domain id above 232.
+    Ros2Domain = "spec::ros2_domain", Error;
+    /// A ROS 2 topic's quality of service that keeps no sample (depth 0).
+    Ros2Qos = "spec::ros2_qos", Error;
+    /// A ROS 2 publish of an input buffer, or a subscribe into an output buffer.
+    Ros2Direction = "spec::ros2_direction", Error;
+    /// A ROS 2 topic given twice in one section, or an input buffer fed by two topics.
+    Ros2Duplicate = "spec::ros2_duplicate", Error;
+    /// A deployment's `ros2` section names a buffer of a component the deployment does not run.
+    Ros2NotDeployed = "spec::ros2_not_deployed", Error;
+    /// A ROS 2 topic feeds an input that a running component also writes over a sample link: each overwrites the other.
+    Ros2Overwritten = "spec::ros2_overwritten", Warning;
 }
 
 impl Code {
@@ -162,6 +176,10 @@ impl Code {
                 | Code::Period
                 | Code::QueueBound
                 | Code::LinkDirection
+                | Code::Ros2Name
+                | Code::Ros2Domain
+                | Code::Ros2Qos
+                | Code::Ros2Direction
         )
     }
 }

@@ -13,6 +13,7 @@ use crate::span::{SNode, Seg};
 
 mod components;
 mod fsm;
+mod ros2;
 mod subsystem;
 mod wiring;
 
@@ -150,6 +151,7 @@ impl<'a> Checker<'a> {
         }
         self.links();
         self.deployments();
+        self.ros2();
         self.findings
     }
 
