@@ -10,16 +10,17 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use agent_core::Placement;
 use agent_spec::model::Spec;
 use zenoh::Wait;
-use zenoh::sample::SampleKind;
 
 use crate::outbox::Outbox;
 use crate::transport::ZenohTransport;
 
 mod layout;
+mod presence;
 mod session;
 mod watch;
 
 use layout::Layout;
+use presence::{Presence, StoppedBy, watch_launcher, watch_stop};
 pub use session::{SessionError, open_peer, open_secure_client, open_secure_peer};
 use session::{close_within, poll_tokens, process_of};
 pub use watch::{Observation, Watch};
@@ -153,6 +154,16 @@ pub enum MemberError {
     },
 }
 
+impl MemberError {
+    /// Zenoh's error in `process` as [`MemberError::Zenoh`], for `map_err`.
+    fn zenoh(process: &str) -> impl Fn(zenoh::Error) -> MemberError + Copy {
+        move |e| MemberError::Zenoh {
+            process: process.to_owned(),
+            error: e.to_string(),
+        }
+    }
+}
+
 /// This process in its running deployment.
 pub struct Member {
     layout: Layout,
@@ -170,7 +181,7 @@ pub struct Member {
     outbox: Arc<Outbox>,
     stop: Arc<AtomicBool>,
     /// Who asked the deployment to stop, as the stop signal says.
-    stopped_by: Arc<Mutex<Option<String>>>,
+    stopped_by: StoppedBy,
     /// Whether the launcher's presence went away.
     launcher_gone: Arc<AtomicBool>,
     gone: Arc<Mutex<Vec<String>>>,
@@ -206,8 +217,9 @@ impl Member {
     pub const STOP_SKEW: Duration = Duration::from_millis(300);
 
     /// Join deployment `deployment` of `spec` as process `process`: open the
-    /// session on the process's endpoint, connect to the others, announce
-    /// presence, and watch for processes that vanish and for the stop signal.
+    /// session on the process's endpoint, connect to the others, and follow
+    /// their presence (processes that come and vanish), the stop signal and,
+    /// if launched, the launcher. [`Member::ready`] announces this process.
     pub fn join(
         spec: &Spec,
         deployment: &str,
@@ -215,155 +227,30 @@ impl Member {
         options: &Options,
     ) -> Result<Member, MemberError> {
         let layout = Layout::of(spec, deployment, options)?;
-        let Some(listen) = layout.endpoint(process).map(str::to_owned) else {
-            return Err(MemberError::UnknownProcess {
-                deployment: layout.deployment.clone(),
-                name: process.to_owned(),
-                known: layout
-                    .processes
-                    .iter()
-                    .map(|(p, _, _)| p.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            });
-        };
+        let listen = listen_endpoint(&layout, process)?;
         let session = layout.open(process, Some(&listen))?;
-        let zerr = |e: zenoh::Error| MemberError::Zenoh {
-            process: process.to_owned(),
-            error: e.to_string(),
-        };
+        let zerr = MemberError::zenoh(process);
         let transport = ZenohTransport::new(session.clone(), layout.system.clone());
-        let senders = transport.senders();
-        // Who runs what: to tell the inboxes fed by a process that vanished.
-        let runs: HashMap<String, Vec<String>> = layout
-            .processes
-            .iter()
-            .map(|(p, _, r)| (p.clone(), r.clone()))
-            .collect();
-        let gone = Arc::new(Mutex::new(Vec::new()));
-        let watch_gone = gone.clone();
-        let stop = Arc::new(AtomicBool::new(false));
-        let stopping = stop.clone();
-        let process_prefix = layout.rt_key("process/");
-        // The epoch each process announced with its presence: its values are
-        // the only ones its inboxes here take (a new epoch is its restart).
-        let epochs: Arc<Mutex<HashMap<String, u64>>> = Arc::new(Mutex::new(HashMap::new()));
-        let known = epochs.clone();
-        let told = senders.clone();
-        let told_runs = runs.clone();
-        let all_runs = runs.clone();
-        let watch = session
-            .liveliness()
-            .declare_subscriber(layout.rt_key("process/*/*"))
-            .history(true)
-            .callback(move |sample| {
-                let key = sample.key_expr().as_str();
-                let Some((name, epoch)) = key
-                    .strip_prefix(process_prefix.as_str())
-                    .and_then(|rest| rest.split_once('/'))
-                    .and_then(|(n, e)| Some((n, e.parse::<u64>().ok()?)))
-                else {
-                    return;
-                };
-                if sample.kind() == SampleKind::Put {
-                    known
-                        .lock()
-                        .unwrap_or_else(PoisonError::into_inner)
-                        .insert(name.to_owned(), epoch);
-                    let senders = told.lock().unwrap_or_else(PoisonError::into_inner);
-                    for component in told_runs.get(name).into_iter().flatten() {
-                        for inbox in senders.get(component).into_iter().flatten() {
-                            inbox.expect(epoch);
-                        }
-                    }
-                    return;
-                }
-                // Processes that end after a stop was asked are not lost.
-                if stopping.load(Ordering::Relaxed) {
-                    return;
-                }
-                // A process that leaves because the deployment was asked to
-                // stop may be seen to go before the stop itself arrives here
-                // (they travel different ways): judge it a moment later.
-                let (name, senders, runs, gone, stopping) = (
-                    name.to_owned(),
-                    senders.clone(),
-                    runs.clone(),
-                    watch_gone.clone(),
-                    stopping.clone(),
-                );
-                std::thread::spawn(move || {
-                    std::thread::sleep(Member::STOP_SKEW);
-                    if stopping.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    let senders = senders.lock().unwrap_or_else(PoisonError::into_inner);
-                    for component in runs.get(&name).into_iter().flatten() {
-                        for inbox in senders.get(component).into_iter().flatten() {
-                            inbox.peer_lost(&name);
-                        }
-                    }
-                    gone.lock()
-                        .unwrap_or_else(PoisonError::into_inner)
-                        .push(name);
-                });
-            })
-            .wait()
-            .map_err(zerr)?;
-        let stop_flag = stop.clone();
-        let stopped_by = Arc::new(Mutex::new(None));
-        let by = stopped_by.clone();
-        let stop_sub = session
-            .declare_subscriber(layout.rt_key("stop"))
-            .callback(move |sample| {
-                // The sender names itself (at most a line of it is kept).
-                let who: String = String::from_utf8_lossy(&sample.payload().to_bytes())
-                    .chars()
-                    .take(200)
-                    .filter(|c| !c.is_control())
-                    .collect();
-                by.lock()
-                    .unwrap_or_else(PoisonError::into_inner)
-                    .get_or_insert(who);
-                stop_flag.store(true, Ordering::Relaxed);
-            })
-            .wait()
-            .map_err(zerr)?;
-        // A launched process ends with its launcher: when the launcher's
-        // presence goes (killed, its host lost), the run stops.
-        let launcher_gone = Arc::new(AtomicBool::new(false));
-        let launcher = if options.launched {
-            let (gone_flag, stop_flag) = (launcher_gone.clone(), stop.clone());
-            Some(
-                session
-                    .liveliness()
-                    .declare_subscriber(layout.rt_key("launcher"))
-                    .callback(move |sample| {
-                        if sample.kind() == SampleKind::Delete {
-                            gone_flag.store(true, Ordering::Relaxed);
-                            stop_flag.store(true, Ordering::Relaxed);
-                        }
-                    })
-                    .wait()
-                    .map_err(zerr)?,
-            )
-        } else {
-            None
-        };
+        // Followed for as long as the member lives (the subscribers are its own).
+        let presence = Presence::new(&layout, transport.senders());
+        let watch = presence.clone().watch(&session, &layout).map_err(zerr)?;
+        let (stop_sub, stopped_by) = watch_stop(&session, &layout, &presence.stop).map_err(zerr)?;
+        let (launcher, launcher_gone) =
+            watch_launcher(&session, &layout, options.launched, &presence.stop).map_err(zerr)?;
         Ok(Member {
             layout,
             process: process.to_owned(),
             session,
             outbox: transport.outbox(),
             senders: transport.senders(),
-            epochs,
-            runs: all_runs,
+            epochs: presence.epochs,
+            runs: presence.runs,
             epoch: agent_core::link::remote::new_epoch(),
             transport: Some(transport),
-            stop,
+            stop: presence.stop,
             stopped_by,
             launcher_gone,
-            gone,
+            gone: presence.gone,
             _token: None,
             _launcher: launcher,
             _origin_token: None,
@@ -683,4 +570,21 @@ impl Member {
                 error: e.to_string(),
             })
     }
+}
+
+/// The endpoint `process` listens on, as the deployment says.
+fn listen_endpoint(layout: &Layout, process: &str) -> Result<String, MemberError> {
+    layout
+        .endpoint(process)
+        .map(str::to_owned)
+        .ok_or_else(|| MemberError::UnknownProcess {
+            deployment: layout.deployment.clone(),
+            name: process.to_owned(),
+            known: layout
+                .processes
+                .iter()
+                .map(|(p, _, _)| p.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        })
 }
