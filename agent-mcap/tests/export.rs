@@ -223,13 +223,19 @@ fn record(name: &str, values: agent_mcap::Values) -> PathBuf {
     path
 }
 
+/// A schema: name, encoding, text.
+type Schema = (String, String, String);
+
+/// A message: log time, publish time, sequence, bytes.
+type Message = (u64, u64, u32, Vec<u8>);
+
 /// A file read with the `mcap` crate: its profile, each channel's encoding
 /// and schema (name, encoding, text) by topic (from its summary), its messages per topic (log
 /// time, publish time, sequence, bytes) and its metadata records' names.
 struct File {
     profile: String,
-    channels: BTreeMap<String, (String, Option<(String, String, String)>)>,
-    messages: BTreeMap<String, Vec<(u64, u64, u32, Vec<u8>)>>,
+    channels: BTreeMap<String, (String, Option<Schema>)>,
+    messages: BTreeMap<String, Vec<Message>>,
     metadata: Vec<String>,
 }
 
