@@ -362,10 +362,7 @@ impl Member {
                         .rt_key(&format!("process/{}/{}", self.process, self.epoch)),
                 )
                 .wait()
-                .map_err(|e| MemberError::Zenoh {
-                    process: self.process.clone(),
-                    error: e.to_string(),
-                })?;
+                .map_err(MemberError::zenoh(&self.process))?;
             self._token = Some(token);
             // The inboxes exist now: each takes the epoch its sender announced.
             let epochs = self
@@ -470,10 +467,7 @@ impl Member {
                 .liveliness()
                 .declare_token(self.layout.rt_key(&format!("origin/{ns}")))
                 .wait()
-                .map_err(|e| MemberError::Zenoh {
-                    process: self.process.clone(),
-                    error: e.to_string(),
-                })?;
+                .map_err(MemberError::zenoh(&self.process))?;
             self._origin_token = Some(token);
         }
         Ok(())
@@ -565,10 +559,7 @@ impl Member {
             )
             .congestion_control(zenoh::qos::CongestionControl::Block)
             .wait()
-            .map_err(|e| MemberError::Zenoh {
-                process: self.process.clone(),
-                error: e.to_string(),
-            })
+            .map_err(MemberError::zenoh(&self.process))
     }
 }
 

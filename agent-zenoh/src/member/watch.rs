@@ -42,10 +42,7 @@ impl Watch {
     pub fn open(spec: &Spec, deployment: &str, options: &Options) -> Result<Watch, MemberError> {
         let layout = Layout::of(spec, deployment, options)?;
         let session = layout.open("launcher", None)?;
-        let zerr = |e: zenoh::Error| MemberError::Zenoh {
-            process: "launcher".into(),
-            error: e.to_string(),
-        };
+        let zerr = MemberError::zenoh("launcher");
         let observations = session
             .declare_subscriber(layout.rt_key("probe/**"))
             .with(zenoh::handlers::FifoChannel::new(1 << 16))
@@ -78,17 +75,24 @@ impl Watch {
         ))
     }
 
-    /// The processes present now.
-    pub fn present(&self) -> Vec<String> {
-        let prefix = self.layout.rt_key("process/");
+    /// The keys of the liveliness tokens under runtime key `key` now (one
+    /// query, no wait).
+    fn tokens_now(&self, key: &str) -> Vec<String> {
         let (_, seen) = poll_tokens(
             &self.session,
-            &self.layout.rt_key("process/*/*"),
+            &self.layout.rt_key(key),
             Duration::ZERO,
             None,
             |_| true,
         );
-        seen.iter()
+        seen
+    }
+
+    /// The processes present now.
+    pub fn present(&self) -> Vec<String> {
+        let prefix = self.layout.rt_key("process/");
+        self.tokens_now("process/*/*")
+            .iter()
             .filter_map(|k| process_of(k, &prefix).map(str::to_owned))
             .collect()
     }
@@ -96,14 +100,8 @@ impl Watch {
     /// The deployment's instant zero, once a process has announced it (a
     /// query of up to 300 ms: ask until it is known, not in a hot loop).
     pub fn origin(&self) -> Option<SystemTime> {
-        let (_, seen) = poll_tokens(
-            &self.session,
-            &self.layout.rt_key("origin/*"),
-            Duration::ZERO,
-            None,
-            |_| true,
-        );
-        seen.iter()
+        self.tokens_now("origin/*")
+            .iter()
             .filter_map(|k| k.rsplit('/').next()?.parse::<u64>().ok())
             .max()
             .map(|ns| UNIX_EPOCH + Duration::from_nanos(ns))
