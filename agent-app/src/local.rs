@@ -13,8 +13,8 @@ use agent_core::{
 use agent_mcap::McapRecorder;
 
 use crate::error::{AppError, Status};
-use crate::transitions::Transitions;
-use crate::watch::{End, Ended, Mode, RunSummary, Watcher};
+use crate::transitions::{self, Transitions};
+use crate::watch::{self, End, Ended, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
 
 /// Results a probe set's channel holds before results are dropped (counted):
@@ -224,19 +224,7 @@ impl<M: Send + 'static> Watched<'_, M> {
         let exec = config.exec;
         let mut rt = RealTime::new(system, config);
         rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
-        let print = self.transitions;
-        match recorder {
-            Some(r) => {
-                let mut parts = r.threads();
-                rt.observe(move |thread, nodes| {
-                    Box::new((parts(thread, nodes), Transitions::new(print)))
-                });
-            }
-            None if print => {
-                rt.observe(|_, _| Box::new(Transitions::new(true)));
-            }
-            None => {}
-        }
+        transitions::observe(&mut rt, recorder, self.transitions);
         let running = rt
             .start(self.limit)
             .map_err(|e| AppError::Run(e.to_string()))?;
@@ -381,30 +369,8 @@ fn conclude<A: Application>(
         last: report.last_instant,
         wall,
         errors: report.error_count,
-        first_errors: report
-            .errors
-            .iter()
-            .take(5)
-            .map(ToString::to_string)
-            .collect(),
+        first_errors: watch::first_errors(&report.errors),
     };
-    let verdict = watcher.judge(&summary);
-    output::out(format_args!("{}", verdict.text));
-    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
-        output::out(format_args!(
-            "the run {} before its end: {why}\n",
-            if matches!(summary.ended, Ended::Failed(_)) {
-                "failed"
-            } else {
-                "was stopped"
-            }
-        ));
-    }
-    let stopped = matches!(summary.ended, Ended::Stopped(_));
-    let status = if verdict.passed && recorded && !stopped {
-        Status::Success
-    } else {
-        Status::Failed
-    };
-    Ok((status, verdict.line))
+    let verdict = output::judgement(watcher, &summary);
+    Ok((summary.status(verdict.passed, recorded), verdict.line))
 }

@@ -6,6 +6,7 @@ use std::io::Write;
 use std::path::Path;
 
 use crate::AppError;
+use crate::watch::{Ended, RunSummary, Verdict, Watcher};
 
 /// The program's name as invoked (`rex`), for messages.
 pub(crate) fn program() -> String {
@@ -76,6 +77,24 @@ fn check_folder(dir: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&probe)
 }
 
+/// Judge the run `summary` tells of with `watcher`, and print the verdict's
+/// text and, if the run was stopped or failed before its end, why.
+pub(crate) fn judgement<M>(watcher: &mut dyn Watcher<M>, summary: &RunSummary) -> Verdict {
+    let verdict = watcher.judge(summary);
+    out(format_args!("{}", verdict.text));
+    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
+        out(format_args!(
+            "the run {} before its end: {why}\n",
+            if matches!(summary.ended, Ended::Failed(_)) {
+                "failed"
+            } else {
+                "was stopped"
+            }
+        ));
+    }
+    verdict
+}
+
 #[cfg(test)]
 mod tests {
     use super::writable_folder;
@@ -99,9 +118,15 @@ mod tests {
         let file = std::env::temp_dir().join(format!("writable-file-{}", std::process::id()));
         assert!(std::fs::write(&file, b"x").is_ok());
         let said = message("--out", &file);
-        assert!(said.starts_with("--out ") && said.ends_with("exists and is not a folder"), "{said}");
+        assert!(
+            said.starts_with("--out ") && said.ends_with("exists and is not a folder"),
+            "{said}"
+        );
         let _ = std::fs::remove_file(file);
         let said = message("--reports", std::path::Path::new("/"));
-        assert!(said.contains("--reports /: is the file system's root"), "{said}");
+        assert!(
+            said.contains("--reports /: is the file system's root"),
+            "{said}"
+        );
     }
 }

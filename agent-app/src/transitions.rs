@@ -5,7 +5,8 @@
 //! t=0.100000 s c2: ask -> wait (arc 0, when true)
 //! ```
 
-use agent_core::{NodeInfo, Observer, Step, SystemInfo, TransitionEvent};
+use agent_core::{NodeInfo, Observer, RealTime, Step, SystemInfo, TransitionEvent};
+use agent_mcap::McapRecorder;
 
 use crate::output;
 
@@ -86,5 +87,23 @@ impl Observer for Transitions {
             Step::Finished => output::out(format_args!("t={t} {}: finished\n", node.name)),
             Step::Run => {}
         }
+    }
+}
+
+/// Give a real-time run its observers: on each thread its part of
+/// `recorder`'s recording beside a transition printer (printing if `print`);
+/// without a recording, a printer only if it prints.
+pub(crate) fn observe(rt: &mut RealTime, recorder: Option<&McapRecorder>, print: bool) {
+    match recorder {
+        Some(r) => {
+            let mut parts = r.threads();
+            rt.observe(move |thread, nodes| {
+                Box::new((parts(thread, nodes), Transitions::new(print)))
+            });
+        }
+        None if print => {
+            rt.observe(|_, _| Box::new(Transitions::new(true)));
+        }
+        None => {}
     }
 }

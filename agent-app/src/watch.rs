@@ -4,7 +4,9 @@
 use std::fmt;
 use std::time::Duration;
 
-use agent_core::Time;
+use agent_core::{ExecError, Time};
+
+use crate::error::Status;
 
 /// The layer's part of the rule that ends a run, beside the time limit and
 /// the watcher's own ([`Watcher::ended`]).
@@ -111,7 +113,30 @@ pub struct RunSummary {
     pub first_errors: Vec<String>,
 }
 
+/// How many of a run's errors its summary names.
+pub(crate) const FIRST_ERRORS: usize = 5;
+
+/// The first [`FIRST_ERRORS`] of a run's `errors`, as text, for its summary.
+pub(crate) fn first_errors(errors: &[ExecError]) -> Vec<String> {
+    errors
+        .iter()
+        .take(FIRST_ERRORS)
+        .map(ToString::to_string)
+        .collect()
+}
+
 impl RunSummary {
+    /// The exit status of this run, judged `passed` or not: success only if
+    /// it passed, its recording (if any) was finished and no stop cut it short.
+    pub(crate) fn status(&self, passed: bool, recorded: bool) -> Status {
+        let stopped = matches!(self.ended, Ended::Stopped(_));
+        if passed && recorded && !stopped {
+            Status::Success
+        } else {
+            Status::Failed
+        }
+    }
+
     /// Run time per wall-clock second.
     pub fn realtime_factor(&self) -> f64 {
         self.last.as_secs_f64() / self.wall.as_secs_f64().max(1e-9)

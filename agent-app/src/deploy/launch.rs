@@ -12,7 +12,7 @@ use agent_zenoh::{Child, Control, LaunchReport, Launcher, Line, Options, Watch};
 use super::process::part_path;
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
-use crate::watch::{Ended, Mode, RunSummary, Watcher};
+use crate::watch::{Ended, FIRST_ERRORS, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, output};
 
 /// How long processes get to end by themselves after the launcher asked them
@@ -437,18 +437,7 @@ fn say_verdict<M>(
     report: &LaunchReport,
     recorded: bool,
 ) -> Status {
-    let verdict = watcher.judge(summary);
-    output::out(format_args!("{}", verdict.text));
-    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
-        output::out(format_args!(
-            "the run {} before its end: {why}\n",
-            if matches!(summary.ended, Ended::Failed(_)) {
-                "failed"
-            } else {
-                "was stopped"
-            }
-        ));
-    }
+    let verdict = output::judgement(watcher, summary);
     if gathered.acl_refused > 0 {
         output::out(format_args!(
             "security acl_refused={} (messages the access control refused; each process names them)\n",
@@ -465,12 +454,7 @@ fn say_verdict<M>(
         "{} processes={} restarts={}\n",
         verdict.line, report.processes, report.restarts
     ));
-    let stopped = matches!(summary.ended, Ended::Stopped(_));
-    if verdict.passed && recorded && !stopped {
-        Status::Success
-    } else {
-        Status::Failed
-    }
+    summary.status(verdict.passed, recorded)
 }
 
 /// How a launch ended.
@@ -543,7 +527,7 @@ fn take<M: serde::de::DeserializeOwned>(
                         first_errors
                             .into_iter()
                             .map(|e| format!("{process}: {e}"))
-                            .take(5usize.saturating_sub(g.first_errors.len())),
+                            .take(FIRST_ERRORS.saturating_sub(g.first_errors.len())),
                     );
                     g.last_ns = g.last_ns.max(last_ns);
                 }

@@ -15,8 +15,8 @@ use agent_zenoh::{Member, MemberError, Options};
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
 use crate::local::{PROBE_CAPACITY, halting_nodes};
-use crate::transitions::Transitions;
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
+use crate::{transitions, watch};
 
 /// How long processes get to come up, agree on instant zero and start.
 const LEAD: Duration = Duration::from_millis(1000);
@@ -165,7 +165,7 @@ pub(crate) fn run<A: Application>(
         if report.rt_priority() { "yes" } else { "no" },
         report.error_count,
     ));
-    for e in report.errors.iter().take(5) {
+    for e in report.errors.iter().take(watch::FIRST_ERRORS) {
         output::error(e);
     }
     if let Some(why) = &stopped {
@@ -330,18 +330,7 @@ fn real_time<A: Application>(
         },
     );
     rt.watch(probes);
-    match recorder {
-        Some(r) => {
-            let mut parts = r.threads();
-            rt.observe(move |thread, nodes| {
-                Box::new((parts(thread, nodes), Transitions::new(print)))
-            });
-        }
-        None if print => {
-            rt.observe(|_, _| Box::new(Transitions::new(true)));
-        }
-        None => {}
-    }
+    transitions::observe(&mut rt, recorder, print);
     rt
 }
 
@@ -407,12 +396,7 @@ impl Vigil<'_> {
             NOTE,
             &Note::Ended {
                 errors: report.error_count,
-                first_errors: report
-                    .errors
-                    .iter()
-                    .take(5)
-                    .map(ToString::to_string)
-                    .collect(),
+                first_errors: watch::first_errors(&report.errors),
                 last_ns: report.last_instant.as_nanos(),
                 overruns,
                 refused,
