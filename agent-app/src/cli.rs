@@ -105,28 +105,26 @@ pub(crate) const MAX_SECONDS: f64 = 1e7;
 impl Common {
     /// `--for`, checked: `None` when not given.
     pub fn limit(&self) -> Result<Option<Duration>, AppError> {
-        match self.limit {
-            None => Ok(None),
-            Some(s) if s.is_finite() && s > 0.0 && s <= MAX_SECONDS => {
-                Ok(Duration::try_from_secs_f64(s).ok())
-            }
-            Some(s) => Err(AppError::invalid(format!(
-                "--for/--limit {s}: must be a positive number of seconds, at most 10,000,000"
-            ))),
-        }
+        seconds("--for/--limit", self.limit)
     }
 
     /// `--wait`, checked.
     pub fn wait(&self) -> Result<Option<Duration>, AppError> {
-        match self.wait {
-            None => Ok(None),
-            Some(s) if s.is_finite() && s > 0.0 && s <= MAX_SECONDS => {
-                Ok(Duration::try_from_secs_f64(s).ok())
-            }
-            Some(s) => Err(AppError::invalid(format!(
-                "--wait {s}: must be a positive number of seconds, at most 10,000,000"
-            ))),
+        seconds("--wait", self.wait)
+    }
+}
+
+/// The seconds `flag` gave, checked: `None` when not given; else a positive
+/// number of at most [`MAX_SECONDS`].
+fn seconds(flag: &str, value: Option<f64>) -> Result<Option<Duration>, AppError> {
+    match value {
+        None => Ok(None),
+        Some(s) if s.is_finite() && s > 0.0 && s <= MAX_SECONDS => {
+            Ok(Duration::try_from_secs_f64(s).ok())
         }
+        Some(s) => Err(AppError::invalid(format!(
+            "{flag} {s}: must be a positive number of seconds, at most 10,000,000"
+        ))),
     }
 }
 
