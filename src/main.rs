@@ -91,8 +91,8 @@ enum Command {
     },
     /// Export a recording (MCAP) for ROS 2 tools: an MCAP file of profile `ros2`
     /// with the recording's ROS 2 channels only (CDR with a `ros2msg` schema:
-    /// every buffer recorded as CDR, the default), which rosbags and `ros2 bag`
-    /// read. Prints every channel left out (JSON, raw copies, reads) and why,
+    /// every buffer recorded as CDR, the default), as a ROS 2 bag's MCAP file
+    /// holds them (rosbags' MCAP reader reads it). Prints every channel left out (JSON, raw copies, reads) and why,
     /// every topic and type renamed to what ROS 2 allows. Exit 0 exported, 1
     /// failed (no ROS 2 channel, or the export could not be written), 2 invalid
     /// input (a missing or unreadable file, not an MCAP recording).

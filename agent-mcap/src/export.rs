@@ -1,6 +1,8 @@
 //! A recording exported for ROS 2 tools: [`export_ros2`] writes an MCAP file
-//! of profile `ros2` that holds the recording's ROS 2 channels only, which
-//! rosbags, `ros2 bag` and Foxglove's ROS 2 mode read as a ROS 2 bag.
+//! of profile `ros2` that holds the recording's ROS 2 channels only: the form
+//! of a ROS 2 bag's MCAP file, which rosbags' MCAP storage reader reads whole
+//! (its `AnyReader` opens bag folders, with a `metadata.yaml` beside the
+//! file, which the export does not write).
 //!
 //! A channel is ROS 2 when its messages are CDR (`cdr`) with a `ros2msg`
 //! schema: by default every buffer's values, and derived channels in a ROS 2
@@ -17,9 +19,14 @@
 //! - one definition per type name across the file (the recorder names each
 //!   payload type's helper messages on its own, so `embodied/Item` can have
 //!   two definitions, and rosbags' single type store then decodes a channel
-//!   with the other's): a second definition is renamed (`Item2`), see
-//!   [`types`]; names are made ones ROS 2 allows, schema names `pkg/msg/Name`;
-//! - topic names valid in ROS 2 (see [`topics`] for the rule);
+//!   with the other's): a second definition of a name gets it with the first
+//!   free number (`Item2`), and the fields that use it follow; names are made
+//!   ones ROS 2 allows (package `^[a-z][a-z0-9_]*$`, message
+//!   `^[A-Z][A-Za-z0-9]*$`), schema names `pkg/msg/Name`;
+//! - topic names valid in ROS 2: a leading `/`, characters other than ASCII
+//!   letters, digits, `_` and `/` made `_`, runs of `_` one, empty tokens
+//!   gone, a token that starts with a digit given a leading `_`, a name
+//!   already taken numbered (`_2`); a valid topic is kept;
 //!
 //! and every change is said ([`ExportSummary::renamed_types`],
 //! [`ExportSummary::renamed_topics`]). The recording's metadata records are

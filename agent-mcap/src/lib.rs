@@ -16,7 +16,7 @@
 //! * [`read`]: [`Recording`], a file read back, with errors that name the
 //!   offset of a truncated or damaged part;
 //! * [`export`](mod@export): a recording as an MCAP file of profile `ros2`
-//!   with its ROS 2 channels only, for ROS 2 tools (rosbags, `ros2 bag`);
+//!   with its ROS 2 channels only, for ROS 2 tools (rosbags reads it);
 //! * [`merge`](mod@merge): the recordings of the processes of a distributed run
 //!   made one, in time order;
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs

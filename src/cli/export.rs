@@ -1,5 +1,5 @@
 //! `embodied export --ros2`: a recording as an MCAP file of profile `ros2`
-//! with its ROS 2 channels only, which ROS 2 tools (rosbags, `ros2 bag`) read.
+//! with its ROS 2 channels only, for ROS 2 tools (rosbags reads it whole).
 //! Prints what it wrote, and every channel it left out and why, every topic
 //! and type it renamed: nothing is dropped or changed silently.
 
