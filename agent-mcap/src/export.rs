@@ -162,8 +162,12 @@ pub fn export_ros2(
             channels: recording.channels.len(),
         });
     }
-    let written = write(&recording, &plan, output, options).inspect_err(|_| {
-        // A file cut short by the failure would read as an export.
+    let file = File::create(output).map_err(|e| ExportError::Write {
+        path: output.to_owned(),
+        message: e.to_string(),
+    })?;
+    let written = write(file, &recording, &plan, output, options).inspect_err(|_| {
+        // The file this made, cut short by the failure, would read as an export.
         let _ = std::fs::remove_file(output);
     })?;
     Ok(ExportSummary {
@@ -275,8 +279,10 @@ struct Written {
     metadata: usize,
 }
 
-/// Write the export of `recording` that `plan` says to `path`.
+/// Write the export of `recording` that `plan` says to `file`, just
+/// created at `path`.
 fn write(
+    file: File,
     recording: &Recording,
     plan: &Plan,
     path: &Path,
@@ -286,7 +292,6 @@ fn write(
         path: path.to_owned(),
         message: e.to_string(),
     };
-    let file = File::create(path).map_err(|e| fail(&e))?;
     let mut w = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
         .profile("ros2")
