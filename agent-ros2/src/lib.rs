@@ -8,6 +8,10 @@
 //!   expects (`geometry_msgs/msg/PoseStamped`, `nav_msgs/msg/Path`, ...).
 //! - [`wire`]: rmw_zenoh's wire format: key expressions, the attachment of
 //!   every sample, liveliness tokens for discovery, QoS, name mangling.
+//! - [`bridge`]: the buffers a spec publishes, put on their topics from a
+//!   run's observer without blocking its nodes, with the tokens that make
+//!   ROS 2 tools discover them.
 
+pub mod bridge;
 pub mod types;
 pub mod wire;

@@ -1,0 +1,163 @@
+//! Adapters: how a buffer type becomes a standard ROS 2 message, said in
+//! code. A spec names the message (`message: "geometry_msgs/msg/PoseStamped"`);
+//! the code that knows the buffer type says how to fill it.
+
+use std::fmt;
+use std::sync::Arc;
+
+use agent_core::link::remote::fingerprint;
+use agent_core::{Payload, TypeShape, reflect};
+
+use crate::types::standard::StandardMessage;
+use crate::types::standard::builtin_interfaces::Time;
+use crate::types::{DecodeError, EncodeError, Messages, encode_cdr};
+
+/// Why a value did not become a message's CDR on the publishing thread.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TranscodeError {
+    /// The value's bytes are not a value of the buffer type.
+    #[error("the value's bytes are not a value of its type: {0}")]
+    Decode(String),
+    /// The message (own or adapted) has no CDR form for the value.
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+    /// The bytes do not have the buffer type's shape.
+    #[error("the value does not have its type's shape: {0}")]
+    Shape(#[from] DecodeError),
+}
+
+/// A value's postcard bytes and its ROS stamp to the adapted message's CDR,
+/// appended to the output. It holds the message's shape, which is not `Send`:
+/// each is made on the thread that uses it.
+pub(crate) type Transcode = dyn Fn(&[u8], Time, &mut Vec<u8>) -> Result<(), TranscodeError>;
+
+/// Makes a [`Transcode`] (on the publishing thread); `None` when the
+/// message type's shape cannot be traced.
+pub(crate) type MakeTranscode = dyn Fn() -> Option<Box<Transcode>> + Send + Sync;
+
+/// One registered conversion from a buffer type to a standard message.
+#[derive(Clone)]
+pub(crate) struct Adapter {
+    /// The buffer type's fingerprint, as the system's links report it.
+    pub(crate) payload: u64,
+    /// The buffer type's Rust name (for errors).
+    pub(crate) payload_name: &'static str,
+    /// The message, with every message it uses.
+    pub(crate) messages: Messages,
+    /// Whether the message type's shape can be traced (else the plan
+    /// refuses it).
+    pub(crate) traceable: bool,
+    /// The conversion's maker.
+    pub(crate) make: Arc<MakeTranscode>,
+}
+
+/// The conversions from buffer types to standard ROS 2 messages a bridge may
+/// use: the spec names a topic's message, and the plan picks the adapter of
+/// that message for the buffer's type (a standard message without one is an
+/// error before anything runs).
+///
+/// ```
+/// use agent_ros2::bridge::Adapters;
+/// use agent_ros2::types::standard::geometry_msgs::{Point, Pose, PoseStamped};
+/// use agent_ros2::types::standard::std_msgs::Header;
+///
+/// #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+/// struct MapPose { x: f64, y: f64 }
+///
+/// let adapters = Adapters::new().publish::<MapPose, PoseStamped>(|pose, stamp| PoseStamped {
+///     header: Header { stamp, frame_id: "map".into() },
+///     pose: Pose {
+///         position: Point { x: pose.x, y: pose.y, z: 0.0 },
+///         ..Pose::default()
+///     },
+/// });
+/// assert_eq!(adapters.len(), 1);
+/// ```
+#[derive(Clone, Default)]
+pub struct Adapters {
+    list: Vec<Adapter>,
+}
+
+impl fmt::Debug for Adapters {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list()
+            .entries(
+                self.list
+                    .iter()
+                    .map(|a| format!("{} -> {}", a.payload_name, a.messages.name())),
+            )
+            .finish()
+    }
+}
+
+impl Adapters {
+    /// No adapter: every published buffer is its own message.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Publish values of buffer type `B` as the standard message `M`, made by
+    /// `adapt` from the value and its stamp (the instant the value stands for,
+    /// on the wall clock: for the message's header). A later adapter for the
+    /// same `B` and `M` replaces this one.
+    pub fn publish<B, M>(mut self, adapt: impl Fn(&B, Time) -> M + Send + Sync + 'static) -> Self
+    where
+        B: Payload,
+        M: StandardMessage,
+    {
+        let payload = fingerprint::<B>();
+        let messages = M::messages();
+        let traceable = reflect::<M>().is_some();
+        let adapt = Arc::new(adapt);
+        let make = move || -> Option<Box<Transcode>> {
+            let shape: TypeShape = reflect::<M>()?;
+            let adapt = adapt.clone();
+            Some(Box::new(
+                move |bytes: &[u8], stamp: Time, out: &mut Vec<u8>| {
+                    let value: B = postcard::from_bytes(bytes)
+                        .map_err(|e| TranscodeError::Decode(e.to_string()))?;
+                    encode_cdr(&adapt(&value, stamp), &shape, out)?;
+                    Ok(())
+                },
+            ))
+        };
+        self.list
+            .retain(|a| !(a.payload == payload && a.messages.name() == messages.name()));
+        self.list.push(Adapter {
+            payload,
+            payload_name: std::any::type_name::<B>(),
+            messages,
+            traceable,
+            make: Arc::new(make),
+        });
+        self
+    }
+
+    /// The number of adapters.
+    pub fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// The adapter of the buffer type whose fingerprint is `payload` to the
+    /// message named `message` (`geometry_msgs/msg/PoseStamped`).
+    pub(crate) fn find(&self, payload: u64, message: &str) -> Option<&Adapter> {
+        self.list
+            .iter()
+            .find(|a| a.payload == payload && a.messages.name().to_string() == message)
+    }
+
+    /// The messages some adapter makes of the buffer type `payload` (for an
+    /// error that says what is there).
+    pub(crate) fn messages_of(&self, payload: u64) -> Vec<String> {
+        self.list
+            .iter()
+            .filter(|a| a.payload == payload)
+            .map(|a| a.messages.name().to_string())
+            .collect()
+    }
+}

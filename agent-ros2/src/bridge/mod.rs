@@ -1,0 +1,398 @@
+//! The ROS 2 bridge, outbound: the buffers a spec's `ros2` section publishes
+//! become topics of a ROS 2 node over rmw_zenoh, discovered by ROS 2 tools
+//! and decoded by them, without blocking the nodes that send the values.
+//!
+//! 1. [`Plan::new`] reads the spec's (or a deployment's) `ros2` section
+//!    against a built system: per published buffer the link whose values it
+//!    takes, the fully qualified topic, the message (the one made from the
+//!    buffer type in the section's package, or the standard one the spec
+//!    names, made by an adapter of [`Adapters`]), its `RIHS01_` hash and the
+//!    QoS (the spec's, else the link's: a queue of `n` is reliable keep-last
+//!    `n`, a sample best effort keep-last 1). What cannot be published is a
+//!    [`PlanError`] naming the buffer and topic, before anything runs.
+//! 2. [`Bridge::start`] opens a Zenoh session ([`SessionOptions`]: a client
+//!    of rmw_zenohd at `tcp/localhost:7447` by default; or
+//!    [`Bridge::on_session`] takes one), declares a publisher per topic and
+//!    the liveliness tokens of the node and of each publisher (`MP`), and
+//!    starts the publishing thread.
+//! 3. The bridge is the run's [`Observer`] (the deterministic executor's; a
+//!    real-time run takes [`Bridge::threads`]): each value sent into a
+//!    published link is copied (its postcard bytes) into a slot of a
+//!    wait-free ring and the publishing thread woken; a full ring drops the
+//!    value and counts it; the node never blocks and, once the ring's buffers
+//!    have grown to the values' size, never allocates.
+//! 4. The publishing thread transcodes each value to CDR (the 4-byte header
+//!    `00 01 00 00`, then the body): the recorder's transcoder for the
+//!    buffer type's own message, or the adapter for a standard message (the
+//!    stamp of its header is the bridge's epoch plus the value's instant),
+//!    and puts it on the topic's key with the attachment (sequence number
+//!    from 1, the wall-clock time the value was sent, the publisher's GID,
+//!    the hash of its token as rmw_zenoh makes it). Every topic puts with
+//!    Zenoh's blocking congestion control, best-effort ones too: only this
+//!    thread waits, and a value lost is then lost in a tap's full ring,
+//!    counted, not silently in Zenoh's queue (which may drop a sample of
+//!    dropping congestion control when no batch is free soon enough: with
+//!    it on best-effort topics, the interoperability test once lost one
+//!    sample of 20 on a loaded machine).
+//! 5. [`Bridge::finish`] publishes what the rings still hold, undeclares the
+//!    tokens (ROS 2 tools see the node go), closes a session it opened, and
+//!    returns the counts per topic ([`BridgeReport`]): published, dropped
+//!    (ring full), failed to encode, refused by Zenoh.
+//!
+//! # Inbound, not done yet
+//! Subscribing (a ROS 2 topic feeding an input buffer, `subscribe:` in the
+//! spec) will need: an `MS` token per subscribed topic; a Zenoh subscriber on
+//! the topic's key (any GID), checking each sample's attachment (sequence gaps
+//! counted as lost) and decoding its CDR into the buffer type (the inverse of
+//! `write_cdr`, or an adapter's inverse for standard messages), refusing and
+//! counting what fails to decode or check, never acting on it; the value put
+//! into the input buffer through the link machinery that remote links use
+//! (`agent_core::Inbox`, whose stamps and sequence checks a value from ROS 2
+//! must pass as a value of another process does), so a real-time node reads
+//! it without waiting; and for secure deployments, access control rules that
+//! allow exactly the subscribed keys and tokens.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use agent_core::trace::{ErasedPayload, Observer, TransferEvent};
+use zenoh::Wait;
+use zenoh::qos::CongestionControl;
+
+mod adapter;
+mod plan;
+mod publish;
+mod report;
+mod session;
+mod tap;
+
+pub use adapter::{Adapters, TranscodeError};
+pub use plan::{Plan, PlanError, PublishedTopic};
+pub use report::{BridgeReport, TopicReport};
+pub use session::{Mode, ROUTER_ENDPOINT, SessionOptions};
+
+use crate::wire::{EndpointKind, EntityToken, NameError, NodeToken, Zid};
+use publish::Outgoing;
+use tap::{Counts, Shared, Tap};
+
+/// Why a bridge did not start or finish cleanly.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    /// Zenoh refused a setting of the session's configuration.
+    #[error("zenoh refused setting `{key}` to {value}: {reason}")]
+    Setting {
+        /// The configuration's key.
+        key: String,
+        /// The value given (JSON5).
+        value: String,
+        /// Zenoh's reason.
+        reason: String,
+    },
+    /// The session did not open (as a client: no router at the endpoints).
+    #[error("the bridge's Zenoh session (connecting to {endpoints}) did not open: {reason}")]
+    Session {
+        /// The endpoints it connects to.
+        endpoints: String,
+        /// Zenoh's reason.
+        reason: String,
+    },
+    /// The node's or a topic's token has a name ROS 2 refuses.
+    #[error("a liveliness token: {0}")]
+    Name(#[from] NameError),
+    /// Zenoh refused to declare (or undeclare) a publisher or a token.
+    #[error("zenoh refused {what}: {reason}")]
+    Declare {
+        /// What was declared.
+        what: String,
+        /// Zenoh's reason.
+        reason: String,
+    },
+    /// The publishing thread did not start.
+    #[error("the bridge's publishing thread did not start: {0}")]
+    Thread(#[from] std::io::Error),
+    /// The publishing thread panicked (a bug); its counts are lost.
+    #[error("the bridge's publishing thread panicked")]
+    Panicked,
+}
+
+/// How a bridge runs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BridgeOptions {
+    /// The session it opens ([`Bridge::start`]).
+    pub session: SessionOptions,
+    /// The slots of each tap's ring: how many values the publishing thread
+    /// may fall behind by, per executor thread, before values are dropped.
+    pub slots: usize,
+    /// The wall-clock time of the run's instant zero, for the stamps of
+    /// standard messages' headers; default when the bridge starts.
+    pub epoch: Option<SystemTime>,
+}
+
+impl Default for BridgeOptions {
+    fn default() -> Self {
+        Self {
+            session: SessionOptions::default(),
+            slots: 256,
+            epoch: None,
+        }
+    }
+}
+
+/// Node and entity ids, unique in the process (so in any session of it).
+static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+
+fn next_id() -> u64 {
+    NEXT_ID.fetch_add(1, Ordering::Relaxed)
+}
+
+/// A running bridge (see the module's documentation): an [`Observer`] of the
+/// run whose published values it puts on ROS 2 topics.
+pub struct Bridge {
+    plan: Plan,
+    shared: Arc<Shared>,
+    tap: Tap,
+    thread: Option<JoinHandle<()>>,
+    node: NodeToken,
+    entities: Vec<EntityToken>,
+    tokens: Vec<zenoh::liveliness::LivelinessToken>,
+    publishers: Vec<Arc<zenoh::pubsub::Publisher<'static>>>,
+    session: zenoh::Session,
+    /// Whether the bridge opened the session (and closes it).
+    owns_session: bool,
+}
+
+impl std::fmt::Debug for Bridge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bridge")
+            .field("node", &self.node.key_expr())
+            .field("topics", &self.plan.topics)
+            .finish()
+    }
+}
+
+impl Bridge {
+    /// Start publishing `plan` on a session opened as `options` say.
+    pub fn start(plan: Plan, options: BridgeOptions) -> Result<Bridge, BridgeError> {
+        let session = options.session.open()?;
+        Self::begin(plan, session, true, &options)
+    }
+
+    /// Start publishing `plan` on `session` (left open at the end).
+    pub fn on_session(
+        plan: Plan,
+        session: zenoh::Session,
+        options: &BridgeOptions,
+    ) -> Result<Bridge, BridgeError> {
+        Self::begin(plan, session, false, options)
+    }
+
+    fn begin(
+        plan: Plan,
+        session: zenoh::Session,
+        owns_session: bool,
+        options: &BridgeOptions,
+    ) -> Result<Bridge, BridgeError> {
+        let zid = Zid::from_le_bytes(session.zid().to_le_bytes());
+        let node = NodeToken::new(plan.domain, zid, next_id(), &plan.namespace, &plan.node)?;
+        let mut entities = Vec::with_capacity(plan.topics.len());
+        let mut publishers = Vec::with_capacity(plan.topics.len());
+        let mut outgoing = Vec::with_capacity(plan.topics.len());
+        for topic in &plan.topics {
+            let key = topic.key.clone();
+            let entity = EntityToken::new(
+                node.clone(),
+                next_id(),
+                EndpointKind::Publisher,
+                key.topic(),
+                key.type_name().clone(),
+                *key.type_hash(),
+                topic.qos,
+            )?;
+            let publisher = session
+                .declare_publisher(key.to_string())
+                .congestion_control(CongestionControl::Block)
+                .express(true)
+                .wait()
+                .map_err(|e| BridgeError::Declare {
+                    what: format!("the publisher of `{key}`"),
+                    reason: e.to_string(),
+                })?;
+            let publisher = Arc::new(publisher);
+            outgoing.push(Outgoing {
+                publisher: publisher.clone(),
+                gid: entity.gid(),
+                encoder: topic.encoder.clone(),
+                sequence: 0,
+                scratch: Vec::new(),
+            });
+            publishers.push(publisher);
+            entities.push(entity);
+        }
+        let tokens = declare_tokens(&session, &node, &entities)?;
+        let shared = Arc::new(shared_of(&plan, options.slots));
+        let epoch = options.epoch.unwrap_or_else(SystemTime::now);
+        let epoch_ns = epoch
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+        let theirs = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("ros2-out".into())
+            .spawn(move || publish::run(&theirs, outgoing, epoch_ns))?;
+        let tap = Tap::new(shared.clone(), thread.thread().clone());
+        Ok(Bridge {
+            plan,
+            shared,
+            tap,
+            thread: Some(thread),
+            node,
+            entities,
+            tokens,
+            publishers,
+            session,
+            owns_session,
+        })
+    }
+
+    /// What the bridge publishes.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// The node's liveliness token.
+    pub fn node_token(&self) -> &NodeToken {
+        &self.node
+    }
+
+    /// The publishers' liveliness tokens, in the plan's order.
+    pub fn publisher_tokens(&self) -> &[EntityToken] {
+        &self.entities
+    }
+
+    /// The observers of a real-time run, one per thread, for
+    /// `RealTime::observe`: each hands its thread's values to this bridge's
+    /// publishing thread through rings of its own. Finish the bridge after
+    /// the run's `join`.
+    pub fn threads(&self) -> impl FnMut(&str, &[usize]) -> Box<dyn Observer> + Send + 'static {
+        let shared = self.shared.clone();
+        let thread = self.thread.as_ref().map(|t| t.thread().clone());
+        move |_thread: &str, _nodes: &[usize]| -> Box<dyn Observer> {
+            match &thread {
+                Some(t) => Box::new(Tap::new(shared.clone(), t.clone())),
+                None => Box::new(agent_core::NoObserver),
+            }
+        }
+    }
+
+    /// Wait until every topic has a subscriber in the Zenoh network (a ROS 2
+    /// node's, or any other's), for at most `timeout`; whether all have.
+    /// Samples put before a subscriber is known are not delivered to it.
+    pub fn wait_for_subscribers(&self, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let all = self.publishers.iter().all(|p| {
+                p.matching_status()
+                    .wait()
+                    .is_ok_and(|status| status.matching())
+            });
+            if all {
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// The counts so far.
+    pub fn report(&self) -> BridgeReport {
+        BridgeReport::of(&self.plan, &self.shared.counts)
+    }
+
+    /// Publish what the rings still hold (values sent after this call are
+    /// not published), undeclare the tokens and publishers, close the
+    /// session if the bridge opened it, and say what was published.
+    pub fn finish(mut self) -> Result<BridgeReport, BridgeError> {
+        self.stop()?;
+        let report = self.report();
+        for token in std::mem::take(&mut self.tokens).into_iter().rev() {
+            token.undeclare().wait().map_err(|e| BridgeError::Declare {
+                what: "undeclaring a liveliness token".to_owned(),
+                reason: e.to_string(),
+            })?;
+        }
+        self.publishers.clear();
+        if self.owns_session {
+            self.session
+                .close()
+                .wait()
+                .map_err(|e| BridgeError::Declare {
+                    what: "closing the session".to_owned(),
+                    reason: e.to_string(),
+                })?;
+        }
+        Ok(report)
+    }
+
+    /// End the publishing thread after its last drain.
+    fn stop(&mut self) -> Result<(), BridgeError> {
+        self.shared.stop.store(true, Ordering::Release);
+        let Some(thread) = self.thread.take() else {
+            return Ok(());
+        };
+        thread.thread().unpark();
+        thread.join().map_err(|_| BridgeError::Panicked)
+    }
+}
+
+/// The node's token, then each publisher's, declared.
+fn declare_tokens(
+    session: &zenoh::Session,
+    node: &NodeToken,
+    entities: &[EntityToken],
+) -> Result<Vec<zenoh::liveliness::LivelinessToken>, BridgeError> {
+    let keys = std::iter::once(node.key_expr()).chain(entities.iter().map(EntityToken::key_expr));
+    keys.map(|key| {
+        session
+            .liveliness()
+            .declare_token(key.clone())
+            .wait()
+            .map_err(|e| BridgeError::Declare {
+                what: format!("the liveliness token `{key}`"),
+                reason: e.to_string(),
+            })
+    })
+    .collect()
+}
+
+/// What the taps and the publishing thread of `plan` share.
+fn shared_of(plan: &Plan, slots: usize) -> Shared {
+    let links = plan.topics.iter().map(|t| t.link + 1).max().unwrap_or(0);
+    let mut by_link = vec![Vec::new(); links];
+    for (k, topic) in plan.topics.iter().enumerate() {
+        by_link[topic.link].push(k);
+    }
+    Shared {
+        by_link,
+        counts: plan.topics.iter().map(|_| Counts::default()).collect(),
+        new: std::sync::Mutex::new(Vec::new()),
+        stop: std::sync::atomic::AtomicBool::new(false),
+        slots,
+    }
+}
+
+impl Observer for Bridge {
+    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
+        self.tap.transfer(event, value);
+    }
+}
+
+impl Drop for Bridge {
+    fn drop(&mut self) {
+        // Not finished: end the thread; the tokens and publishers undeclare
+        // themselves when dropped.
+        let _ = self.stop();
+    }
+}

@@ -1,0 +1,388 @@
+//! The plan of a bridge: from a spec's `ros2` section and a built system,
+//! which link carries each published buffer's values, under which topic, as
+//! which message (its type hash) and with which QoS. Everything that can be
+//! wrong is found here, before anything runs.
+
+use std::sync::Arc;
+
+use agent_core::{System, SystemInfo, TypeShape};
+use agent_spec::model::{Deployment, Durability, Reliability, Spec};
+use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
+
+use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
+use crate::types::standard::builtin_interfaces::Time;
+use crate::types::{Messages, messages, type_hash};
+use crate::wire::{
+    Interface, NameError, Qos, TopicKey, TypeHash, TypeName, validate_namespace, validate_node_name,
+};
+
+/// Why a spec's `ros2` section cannot be published from a system.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum PlanError {
+    /// Neither the deployment nor the system has a `ros2` section.
+    #[error("the spec has no `ros2` section: it shows nothing to ROS 2")]
+    NoSection,
+    /// The node's name or namespace breaks ROS 2's rules.
+    #[error("the ROS 2 node `{node}` in `{namespace}`: {source}")]
+    Node {
+        /// The node's name.
+        node: String,
+        /// Its namespace.
+        namespace: String,
+        /// The rule broken.
+        source: NameError,
+    },
+    /// A published buffer that is no output of the spec.
+    #[error("buffer `{buffer}` (topic `{topic}`) is no output of the spec")]
+    UnknownBuffer {
+        /// The buffer, `component.peer.buffer`.
+        buffer: String,
+        /// The topic as the spec writes it.
+        topic: String,
+    },
+    /// A published buffer no link of the system carries: the bridge sees
+    /// values only as they are sent into links.
+    #[error(
+        "buffer `{buffer}` (topic `{topic}`) has no link in the system: no value of it is ever sent"
+    )]
+    NoLink {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+    },
+    /// The buffer's type cannot be a ROS 2 message.
+    #[error(
+        "buffer `{buffer}` (topic `{topic}`) of type `{payload}` cannot be a ROS 2 message: {reason}"
+    )]
+    NotAMessage {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+        /// The buffer's Rust type.
+        payload: String,
+        /// Why not.
+        reason: String,
+    },
+    /// The spec names a standard message, and no adapter makes it of the
+    /// buffer's type.
+    #[error(
+        "buffer `{buffer}` (topic `{topic}`) of type `{payload}` is published as `{message}`, and no adapter makes one of that type{}",
+        if available.is_empty() { String::new() } else { format!(" (adapters of the type make: {})", available.join(", ")) }
+    )]
+    NoAdapter {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+        /// The buffer's Rust type.
+        payload: String,
+        /// The message the spec names.
+        message: String,
+        /// The messages adapters do make of the type.
+        available: Vec<String>,
+    },
+    /// Transient local durability: late joiners would need a publisher
+    /// cache, which this bridge does not keep yet.
+    #[error(
+        "topic `{topic}` (buffer `{buffer}`) asks for transient local durability, which the bridge does not provide yet (volatile only)"
+    )]
+    TransientLocal {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+    },
+}
+
+/// How the publishing thread turns a value's postcard bytes into CDR, as the
+/// plan keeps it (a type's shape is not `Send`: it is made again there).
+#[derive(Clone)]
+pub(crate) enum Encoder {
+    /// The message made from the buffer type: the recorder's transcoder, on
+    /// the type's shape (as JSON).
+    Own(String),
+    /// A standard message, through an adapter.
+    Adapted(Arc<MakeTranscode>),
+}
+
+/// An [`Encoder`] made ready on the publishing thread.
+pub(crate) enum Ready {
+    /// The buffer type's shape.
+    Own(TypeShape),
+    /// The adapter's conversion.
+    Adapted(Box<Transcode>),
+}
+
+impl Encoder {
+    /// The encoder with its shape, on the thread that uses it; `None` when
+    /// the shape cannot be made (the plan checked that it can).
+    pub(crate) fn ready(&self) -> Option<Ready> {
+        match self {
+            Encoder::Own(json) => {
+                let (root, registry) = serde_json::from_str(json).ok()?;
+                Some(Ready::Own(TypeShape { root, registry }))
+            }
+            Encoder::Adapted(make) => make().map(Ready::Adapted),
+        }
+    }
+}
+
+impl Ready {
+    /// The value's CDR (with its encapsulation header) appended to `out`.
+    pub(crate) fn encode(
+        &self,
+        bytes: &[u8],
+        stamp: Time,
+        out: &mut Vec<u8>,
+    ) -> Result<(), TranscodeError> {
+        match self {
+            Ready::Own(shape) => Ok(agent_mcap::cdr::write_cdr(shape, bytes, out)?),
+            Ready::Adapted(transcode) => transcode(bytes, stamp, out),
+        }
+    }
+}
+
+/// One buffer published on one topic.
+#[derive(Clone)]
+pub struct PublishedTopic {
+    /// The buffer, `component.peer.buffer`.
+    pub buffer: String,
+    /// The link whose values are published (the first of the buffer's).
+    pub link: usize,
+    /// The buffer's Rust type.
+    pub payload: &'static str,
+    /// The message and every message it uses (their `.msg` texts).
+    pub messages: Messages,
+    /// The data key: domain, fully qualified topic, type and type hash.
+    pub key: TopicKey,
+    /// The quality of service the publisher announces.
+    pub qos: Qos,
+    pub(crate) encoder: Encoder,
+}
+
+impl std::fmt::Debug for PublishedTopic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PublishedTopic")
+            .field("buffer", &self.buffer)
+            .field("link", &self.link)
+            .field("key", &self.key.to_string())
+            .field("qos", &self.qos.to_compact())
+            .finish()
+    }
+}
+
+/// What a bridge publishes: the node it presents and its topics.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// `ROS_DOMAIN_ID`.
+    pub domain: u32,
+    /// The node's name.
+    pub node: String,
+    /// The node's namespace (`/` for the root).
+    pub namespace: String,
+    /// The package of the messages made from buffer types.
+    pub package: String,
+    /// The published buffers, in the spec's order.
+    pub topics: Vec<PublishedTopic>,
+}
+
+impl Plan {
+    /// The plan of what `spec` shows to ROS 2 when `deployment` runs (`None`:
+    /// the system's section) from `system` (built from the spec), standard
+    /// messages made by `adapters`. Buffers of components the deployment does
+    /// not run are left out.
+    pub fn new(
+        spec: &Spec,
+        deployment: Option<&Deployment>,
+        system: &System,
+        adapters: &Adapters,
+    ) -> Result<Plan, PlanError> {
+        let section = spec_ros2::section(spec, deployment).ok_or(PlanError::NoSection)?;
+        if let Some(entry) = section
+            .publish
+            .iter()
+            .find(|e| spec_ros2::buffer_type(spec, &e.buffer, true).is_none())
+        {
+            return Err(PlanError::UnknownBuffer {
+                buffer: entry.buffer.clone(),
+                topic: entry.topic.clone(),
+            });
+        }
+        let interface = spec_ros2::interface(spec, deployment).ok_or(PlanError::NoSection)?;
+        let node_error = |source| PlanError::Node {
+            node: interface.node.clone(),
+            namespace: interface.namespace.clone(),
+            source,
+        };
+        validate_node_name(&interface.node).map_err(node_error)?;
+        validate_namespace(&interface.namespace).map_err(node_error)?;
+        let topics = interface
+            .publish
+            .iter()
+            .map(|t| published(t, &interface, system, adapters))
+            .collect::<Result<_, _>>()?;
+        Ok(Plan {
+            domain: interface.domain,
+            node: interface.node,
+            namespace: interface.namespace,
+            package: interface.package,
+            topics,
+        })
+    }
+}
+
+/// The plan of one published buffer.
+fn published(
+    t: &Topic,
+    interface: &SpecInterface,
+    system: &System,
+    adapters: &Adapters,
+) -> Result<PublishedTopic, PlanError> {
+    let info = system.info();
+    let link = link_of(info, &t.buffer).ok_or_else(|| PlanError::NoLink {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+    })?;
+    let payload = info.links[link].payload;
+    let not_a_message = |reason: String| PlanError::NotAMessage {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+        payload: payload.to_owned(),
+        reason,
+    };
+    let (messages, encoder) = match &t.message {
+        None => {
+            let shape = system
+                .payload_shape(link)
+                .ok_or_else(|| not_a_message("its type's shape cannot be traced".to_owned()))?;
+            let made = messages(&shape, &interface.package, root_name(payload))
+                .map_err(|e| not_a_message(e.to_string()))?;
+            let json = serde_json::to_string(&(&shape.root, &shape.registry))
+                .map_err(|e| not_a_message(format!("its shape: {e}")))?;
+            (made, Encoder::Own(json))
+        }
+        Some(message) => {
+            let fingerprint = system.payload_fingerprint(link).unwrap_or(0);
+            let adapter =
+                adapters
+                    .find(fingerprint, message)
+                    .ok_or_else(|| PlanError::NoAdapter {
+                        buffer: t.buffer.clone(),
+                        topic: t.name.clone(),
+                        payload: payload.to_owned(),
+                        message: message.clone(),
+                        available: adapters.messages_of(fingerprint),
+                    })?;
+            if !adapter.traceable {
+                return Err(not_a_message(format!(
+                    "the shape of `{message}`'s Rust type cannot be traced"
+                )));
+            }
+            (
+                adapter.messages.clone(),
+                Encoder::Adapted(adapter.make.clone()),
+            )
+        }
+    };
+    let name = messages.name();
+    let type_name = TypeName::new(&name.package, Interface::Msg, &name.name)
+        .map_err(|e| not_a_message(e.to_string()))?;
+    let hash = type_hash(&messages).map_err(|e| not_a_message(e.to_string()))?;
+    let key = TopicKey::new(
+        interface.domain,
+        &t.name,
+        type_name,
+        TypeHash::Rihs01(hash.0),
+    )
+    .map_err(|e| not_a_message(format!("the topic: {e}")))?;
+    let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+    })?;
+    Ok(PublishedTopic {
+        buffer: t.buffer.clone(),
+        link,
+        payload,
+        messages,
+        key,
+        qos,
+        encoder,
+    })
+}
+
+/// The first link whose values come from output `component.peer.buffer`.
+fn link_of(info: &SystemInfo, buffer: &str) -> Option<usize> {
+    let (component, port) = buffer.split_once('.')?;
+    let node = info.nodes.iter().position(|n| n.name == component)?;
+    info.links
+        .iter()
+        .position(|l| l.from == node && l.from_port == port)
+}
+
+/// The name of a payload type's root message when the type is not a named
+/// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`),
+/// as the recorder names it.
+fn root_name(payload: &str) -> &str {
+    let head = payload.split('<').next().unwrap_or(payload);
+    head.rsplit("::").next().unwrap_or(head)
+}
+
+/// The wire's QoS of a spec's profile; `None` for transient local, which the
+/// bridge does not provide.
+fn qos_of(profile: QosProfile) -> Option<Qos> {
+    let qos = Qos::keep_last(u64::from(profile.depth));
+    let qos = match profile.reliability {
+        Reliability::Reliable => qos,
+        Reliability::BestEffort => qos.best_effort(),
+    };
+    match profile.durability {
+        Durability::Volatile => Some(qos),
+        Durability::TransientLocal => None,
+    }
+}
+
+/// A ROS time \[s, ns\] of `ns` nanoseconds since the UNIX epoch (seconds
+/// saturate at `i32::MAX`, in 2038).
+pub(crate) fn ros_time(ns: u64) -> Time {
+    let sec = i32::try_from(ns / 1_000_000_000).unwrap_or(i32::MAX);
+    let nanosec = u32::try_from(ns % 1_000_000_000).unwrap_or(0);
+    Time { sec, nanosec }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn root_names_are_the_last_path_segment() {
+        assert_eq!(root_name("rex::MapPose"), "MapPose");
+        assert_eq!(root_name("alloc::vec::Vec<f64>"), "Vec");
+        assert_eq!(root_name("f64"), "f64");
+    }
+
+    #[test]
+    fn qos_follows_the_profile() {
+        let queue = QosProfile::of_link(Some(agent_core::Policy::queue(8)));
+        assert_eq!(qos_of(queue), Some(Qos::keep_last(8)));
+        let sample = QosProfile::of_link(Some(agent_core::Policy::Sample));
+        assert_eq!(qos_of(sample), Some(Qos::keep_last(1).best_effort()));
+        let late = QosProfile {
+            durability: Durability::TransientLocal,
+            ..queue
+        };
+        assert_eq!(qos_of(late), None);
+    }
+
+    #[test]
+    fn ros_times_split_seconds_and_nanoseconds() {
+        assert_eq!(
+            ros_time(1_700_000_000_123_456_789),
+            Time {
+                sec: 1_700_000_000,
+                nanosec: 123_456_789
+            }
+        );
+    }
+}

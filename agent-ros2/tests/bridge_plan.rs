@@ -1,0 +1,131 @@
+//! The bridge's plan from a spec and a built system: the keys, types, hashes
+//! and QoS it will publish, and each reason it refuses to, said before
+//! anything runs, naming the buffer and topic.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+mod common;
+
+use agent_ros2::bridge::{Adapters, Plan, PlanError};
+use agent_ros2::types::standard::StandardMessage;
+use agent_ros2::types::standard::geometry_msgs::PoseStamped;
+use agent_ros2::types::standard::sensor_msgs::Imu;
+use agent_ros2::types::type_hash;
+use agent_ros2::wire::Qos;
+use common::{MapPose, adapters, spec, system};
+
+#[test]
+fn the_plan_names_each_topic_with_its_key_message_hash_and_qos() {
+    let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
+    assert_eq!(
+        (plan.domain, plan.node.as_str(), plan.namespace.as_str()),
+        (0, "bridge", "/test")
+    );
+    let [pose, status] = &plan.topics[..] else {
+        panic!("{plan:?}")
+    };
+    let pose_hash = type_hash(&PoseStamped::messages()).unwrap();
+    assert_eq!(
+        pose.key.to_string(),
+        format!("0/test/pose/geometry_msgs::msg::dds_::PoseStamped_/{pose_hash}")
+    );
+    // A sample link: best effort, keep-last 1.
+    assert_eq!(pose.qos, Qos::keep_last(1).best_effort());
+    assert_eq!(pose.buffer, "c.e.pose");
+    let status_hash = type_hash(&status.messages).unwrap();
+    assert_eq!(
+        status.key.to_string(),
+        format!("0/test/bridge/status/bridge_test_msgs::msg::dds_::Status_/{status_hash}")
+    );
+    // A queue of 8: reliable, keep-last 8.
+    assert_eq!(status.qos, Qos::keep_last(8));
+    assert_eq!(
+        status.messages.msg_text(),
+        "uint32 step\nstring label\nfloat32[] speeds\nbool ready\n"
+    );
+}
+
+#[test]
+fn the_spec_overrides_the_links_qos() {
+    let section = r#"(publish: [(buffer: "c.e.pose", topic: "pose", message: "geometry_msgs/msg/PoseStamped", qos: (reliability: Reliable, depth: 5))])"#;
+    let plan = Plan::new(&spec(section), None, &system(), &adapters()).unwrap();
+    assert_eq!(plan.topics[0].qos, Qos::keep_last(5));
+    // The defaults: the system's name, the root namespace, `<name>_msgs`.
+    assert_eq!(plan.node, "bridge_test");
+    assert_eq!(plan.namespace, "/");
+    assert_eq!(plan.package, "bridge_test_msgs");
+    assert_eq!(plan.topics[0].key.topic(), "/pose");
+}
+
+#[test]
+fn a_standard_message_without_an_adapter_is_refused_naming_buffer_and_topic() {
+    let error = Plan::new(&spec(common::ROS2), None, &system(), &Adapters::new()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::NoAdapter {
+            buffer: "c.e.pose".into(),
+            topic: "/test/pose".into(),
+            payload: std::any::type_name::<MapPose>().into(),
+            message: "geometry_msgs/msg/PoseStamped".into(),
+            available: vec![],
+        }
+    );
+    // An adapter of the type to another message is named.
+    let imu = Adapters::new().publish::<MapPose, Imu>(|_, _| Imu::default());
+    let error = Plan::new(&spec(common::ROS2), None, &system(), &imu).unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.contains("c.e.pose") && text.contains("/test/pose"),
+        "{text}"
+    );
+    assert!(text.contains("sensor_msgs/msg/Imu"), "{text}");
+}
+
+#[test]
+fn an_adapter_of_another_type_does_not_serve() {
+    // The same message, made of `f64`: not the pose's type.
+    let other = Adapters::new().publish::<f64, PoseStamped>(|_, _| PoseStamped::default());
+    let error = Plan::new(&spec(common::ROS2), None, &system(), &other).unwrap_err();
+    assert!(matches!(error, PlanError::NoAdapter { .. }), "{error}");
+}
+
+#[test]
+fn a_buffer_without_link_or_spec_entry_is_refused() {
+    let unlinked = r#"(publish: [(buffer: "c.e.extra", topic: "extra")])"#;
+    let error = Plan::new(&spec(unlinked), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::NoLink {
+            buffer: "c.e.extra".into(),
+            topic: "/extra".into()
+        }
+    );
+    let unknown = r#"(publish: [(buffer: "c.e.nothing", topic: "nothing")])"#;
+    let error = Plan::new(&spec(unknown), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::UnknownBuffer {
+            buffer: "c.e.nothing".into(),
+            topic: "nothing".into()
+        }
+    );
+}
+
+#[test]
+fn transient_local_and_a_missing_section_are_refused() {
+    let late = r#"(publish: [(buffer: "c.e.status", topic: "status", qos: (durability: TransientLocal))])"#;
+    let error = Plan::new(&spec(late), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::TransientLocal {
+            buffer: "c.e.status".into(),
+            topic: "/status".into()
+        }
+    );
+    let error = Plan::new(&spec("None"), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(error, PlanError::NoSection);
+}
