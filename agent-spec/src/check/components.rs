@@ -66,13 +66,8 @@ impl<'a> Checker<'a> {
         // The system's name becomes a crate name (`embodied new`) and a key of the
         // network transport: the same rule.
         self.name_rules(&spec.name, &[F("name")], "system");
-        self.unique(
-            "agent",
-            spec.agents
-                .iter()
-                .enumerate()
-                .map(|(a, x)| (x.name.as_str(), vec![F("agents"), I(a), F("name")])),
-        );
+        let agents = spec.agents.iter().map(|x| x.name.as_str());
+        self.unique("agent", names_at(&[], "agents", agents));
         let mut all = Vec::new();
         for (a, agent) in spec.agents.iter().enumerate() {
             for (s, sub) in agent.subsystems.iter().enumerate() {
@@ -185,20 +180,8 @@ impl<'a> Checker<'a> {
             );
             for (g, group) in groups.iter().enumerate() {
                 let gpath = join(&path, &[F(side), I(g)]);
-                self.unique(
-                    "buffer",
-                    group
-                        .buffers
-                        .iter()
-                        .enumerate()
-                        .map(|(b, x)| {
-                            (
-                                x.name.as_str(),
-                                join(&gpath, &[F("buffers"), I(b), F("name")]),
-                            )
-                        })
-                        .collect::<Vec<_>>(),
-                );
+                let buffers = group.buffers.iter().map(|x| x.name.as_str());
+                self.unique("buffer", names_at(&gpath, "buffers", buffers));
                 let peer_path = join(&gpath, &[F("peer")]);
                 match self.comps.get(group.peer.as_str()) {
                     None => {
@@ -251,4 +234,18 @@ impl<'a> Checker<'a> {
 
     // -----------------------------------------------------------------------
     // Subsystems
+}
+
+/// Each of `names` (the items of list `field` under `base`, in order) with
+/// the path of its `name` field: what [`Checker::unique`] takes.
+pub(super) fn names_at<'n>(
+    base: &[Seg<'static>],
+    field: &'static str,
+    names: impl IntoIterator<Item = &'n str>,
+) -> Vec<(&'n str, Path)> {
+    names
+        .into_iter()
+        .enumerate()
+        .map(|(i, name)| (name, join(base, &[F(field), I(i), F("name")])))
+        .collect()
 }

@@ -1,5 +1,6 @@
 //! A subsystem's memory, functions, reads and writes, predicates and conditions.
 
+use super::components::names_at;
 use super::*;
 
 impl<'a> Checker<'a> {
@@ -26,39 +27,14 @@ impl<'a> Checker<'a> {
     /// The names of the memory buffers, predicates, functions and behaviours
     /// are each unique.
     fn unique_names(&mut self, base: &[Seg<'static>], sub: &'a Subsystem) {
-        let at = |rest: &[Seg<'static>]| join(base, rest);
-        self.unique(
-            "memory buffer",
-            sub.memory
-                .iter()
-                .enumerate()
-                .map(|(i, b)| (b.name.as_str(), at(&[F("memory"), I(i), F("name")])))
-                .collect::<Vec<_>>(),
-        );
-        self.unique(
-            "predicate",
-            sub.predicates
-                .iter()
-                .enumerate()
-                .map(|(i, p)| (p.name.as_str(), at(&[F("predicates"), I(i), F("name")])))
-                .collect::<Vec<_>>(),
-        );
-        self.unique(
-            "function",
-            sub.functions
-                .iter()
-                .enumerate()
-                .map(|(i, f)| (f.name.as_str(), at(&[F("functions"), I(i), F("name")])))
-                .collect::<Vec<_>>(),
-        );
-        self.unique(
-            "behaviour",
-            sub.behaviours
-                .iter()
-                .enumerate()
-                .map(|(i, b)| (b.name.as_str(), at(&[F("behaviours"), I(i), F("name")])))
-                .collect::<Vec<_>>(),
-        );
+        let memory = sub.memory.iter().map(|b| b.name.as_str());
+        self.unique("memory buffer", names_at(base, "memory", memory));
+        let predicates = sub.predicates.iter().map(|p| p.name.as_str());
+        self.unique("predicate", names_at(base, "predicates", predicates));
+        let functions = sub.functions.iter().map(|f| f.name.as_str());
+        self.unique("function", names_at(base, "functions", functions));
+        let behaviours = sub.behaviours.iter().map(|b| b.name.as_str());
+        self.unique("behaviour", names_at(base, "behaviours", behaviours));
     }
 
     /// The reads of predicates and functions, and the functions' writes.

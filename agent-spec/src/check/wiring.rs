@@ -1,5 +1,6 @@
 //! Links between buffers and deployments of components.
 
+use super::components::names_at;
 use super::*;
 use crate::model::{Deployment, Link};
 
@@ -299,14 +300,8 @@ impl<'a> Checker<'a> {
     /// once, usable endpoints.
     pub(super) fn deployments(&mut self) {
         let spec = self.spec;
-        self.unique(
-            "deployment",
-            spec.deployments
-                .iter()
-                .enumerate()
-                .map(|(d, x)| (x.name.as_str(), vec![F("deployments"), I(d), F("name")]))
-                .collect::<Vec<_>>(),
-        );
+        let names = spec.deployments.iter().map(|x| x.name.as_str());
+        self.unique("deployment", names_at(&[], "deployments", names));
         let mut all: Vec<&str> = self.comps.keys().copied().collect();
         all.sort_unstable();
         for (d, dep) in spec.deployments.iter().enumerate() {
@@ -329,35 +324,13 @@ impl<'a> Checker<'a> {
     /// processes.
     fn unique_hosts_and_processes(&mut self, d: usize, dep: &'a Deployment) {
         let dpath = vec![F("deployments"), I(d)];
-        self.unique(
-            "host",
-            dep.hosts
-                .iter()
-                .enumerate()
-                .map(|(h, x)| {
-                    (
-                        x.name.as_str(),
-                        join(&dpath, &[F("hosts"), I(h), F("name")]),
-                    )
-                })
-                .collect::<Vec<_>>(),
-        );
-        self.unique(
-            "process",
-            dep.hosts
-                .iter()
-                .enumerate()
-                .flat_map(|(h, host)| {
-                    let dpath = dpath.clone();
-                    host.processes.iter().enumerate().map(move |(p, x)| {
-                        (
-                            x.name.as_str(),
-                            join(&dpath, &[F("hosts"), I(h), F("processes"), I(p), F("name")]),
-                        )
-                    })
-                })
-                .collect::<Vec<_>>(),
-        );
+        let hosts = dep.hosts.iter().map(|x| x.name.as_str());
+        self.unique("host", names_at(&dpath, "hosts", hosts));
+        let processes = dep.hosts.iter().enumerate().flat_map(|(h, host)| {
+            let processes = host.processes.iter().map(|x| x.name.as_str());
+            names_at(&join(&dpath, &[F("hosts"), I(h)]), "processes", processes)
+        });
+        self.unique("process", processes);
     }
 
     /// Where deployment `d` places each component it runs or omits, reporting
