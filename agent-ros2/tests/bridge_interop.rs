@@ -1,7 +1,8 @@
 //! The bridge against a ROS 2 listener we did not write: Eclipse Zenoh's
 //! Python API (PyPI `eclipse-zenoh` 1.10.2) as the router, rosbags' Kilted
 //! type store decoding the CDR (tests/bridge_interop.py). A small system runs
-//! in the deterministic executor with the bridge as its observer; the
+//! in the deterministic executor with the bridge as its observer (and in the
+//! real-time one, each thread with its own tap); the
 //! listener must discover the node and each publisher (topic, type, hash as
 //! rosbags computes it, QoS), see them vanish at the end, and decode every
 //! value sent, numbered 1..n without a gap, each with a 33-byte attachment
@@ -23,8 +24,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::{Duration, SystemTime};
 
-use agent_core::{ExecConfig, Executor};
-use agent_ros2::bridge::{Bridge, BridgeOptions, Plan, SessionOptions};
+use agent_core::{ExecConfig, Executor, RealTime, RtConfig, System};
+use agent_ros2::bridge::{Bridge, BridgeOptions, BridgeReport, Plan, SessionOptions};
 use agent_ros2::types::standard::builtin_interfaces::Time;
 use common::{adapters, pose_at, spec, status_at, system};
 use serde_json::{Value, json};
@@ -55,9 +56,61 @@ const EPOCH_S: u64 = 1_700_000_000;
 #[test]
 fn a_ros_2_listener_discovers_the_publishers_and_decodes_every_value() {
     let Some(python) = python() else { return };
-    let spec = spec(common::ROS2);
+    let seen = exchange(&python, |system, bridge| {
+        let mut exec = Executor::with_observer(system, ExecConfig::default(), bridge);
+        exec.run_for(Duration::from_millis(200)).unwrap();
+        exec.into_observer().finish().unwrap()
+    });
+    for (k, value) in seen.values[0].iter().enumerate() {
+        assert_eq!(value, &pose_message(u32::try_from(k).unwrap()), "pose {k}");
+    }
+    statuses_in_order(&seen.values[1]);
+}
+
+/// The same from a real-time run: the nodes' threads each hand their values
+/// to the bridge through a tap of their own.
+#[test]
+fn a_real_time_run_is_published_from_its_threads() {
+    let Some(python) = python() else { return };
+    let seen = exchange(&python, |system, bridge| {
+        let mut rt = RealTime::new(system, RtConfig::default());
+        rt.observe(bridge.threads());
+        rt.start(Duration::from_millis(300))
+            .unwrap()
+            .join()
+            .unwrap();
+        bridge.finish().unwrap()
+    });
+    for (k, value) in seen.values[0].iter().enumerate() {
+        let expected = pose_message(u32::try_from(k).unwrap());
+        assert_eq!(value["pose"], expected["pose"], "pose {k}");
+        assert_eq!(value["header"]["frame_id"], "map");
+        assert!(value["header"]["stamp"]["sec"].as_u64() >= Some(EPOCH_S));
+    }
+    statuses_in_order(&seen.values[1]);
+}
+
+/// The status messages are `status_at(0..)`, in order.
+fn statuses_in_order(values: &[Value]) {
+    for (k, value) in values.iter().enumerate() {
+        let k = u32::try_from(k).unwrap();
+        let expected = serde_json::to_value(status_at(k)).unwrap();
+        assert_eq!(value, &expected, "status {k}");
+    }
+}
+
+/// What the listener decoded, per topic of the plan (pose, status).
+struct Seen {
+    values: Vec<Vec<Value>>,
+}
+
+/// Start the listener and a bridge connected to it, `run` the system with
+/// the bridge, and check what the listener saw: our tokens, with their names,
+/// types, hashes and QoS, gone at the end; on each topic every value
+/// published, numbered 1..n, from the topic's GID, stamped within the run.
+fn exchange(python: &Path, run: impl FnOnce(System, Bridge) -> BridgeReport) -> Seen {
     let system = system();
-    let plan = Plan::new(&spec, None, &system, &adapters()).unwrap();
+    let plan = Plan::new(&spec(common::ROS2), None, &system, &adapters()).unwrap();
     let register: Vec<Value> = plan
         .topics
         .iter()
@@ -65,8 +118,7 @@ fn a_ros_2_listener_discovers_the_publishers_and_decodes_every_value() {
         .map(|t| json!([t.messages.name().to_string(), t.messages.msg_text()]))
         .collect();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let listener = Listener::start(&python, &endpoint, &register);
-
+    let listener = Listener::start(python, &endpoint, &register);
     let options = BridgeOptions {
         session: SessionOptions::client(&endpoint),
         epoch: Some(SystemTime::UNIX_EPOCH + Duration::from_secs(EPOCH_S)),
@@ -78,20 +130,14 @@ fn a_ros_2_listener_discovers_the_publishers_and_decodes_every_value() {
     let tokens: Vec<String> = std::iter::once(bridge.node_token().key_expr())
         .chain(bridge.publisher_tokens().iter().map(|t| t.key_expr()))
         .collect();
-    let gids: Vec<String> = bridge
-        .publisher_tokens()
-        .iter()
-        .map(|t| t.gid().to_string())
-        .collect();
-    let keys: Vec<String> = bridge
+    let topics: Vec<(String, String)> = bridge
         .plan()
         .topics
         .iter()
-        .map(|t| t.key.to_string())
+        .zip(bridge.publisher_tokens())
+        .map(|(t, token)| (t.key.to_string(), token.gid().to_string()))
         .collect();
-    let mut exec = Executor::with_observer(system, ExecConfig::default(), bridge);
-    exec.run_for(Duration::from_millis(200)).unwrap();
-    let report = exec.into_observer().finish().unwrap();
+    let report = run(system, bridge);
     let after = wall_ns();
     eprintln!("{report:?}");
     assert_eq!(report.dropped(), 0);
@@ -99,30 +145,20 @@ fn a_ros_2_listener_discovers_the_publishers_and_decodes_every_value() {
     assert_eq!(report.put_failures(), 0);
     let counts: Vec<u64> = report.topics.iter().map(|t| t.published).collect();
     assert!(counts.iter().all(|&n| n >= 20), "{counts:?}");
-
-    let expect: serde_json::Map<String, Value> = keys
+    let expect: serde_json::Map<String, Value> = topics
         .iter()
-        .cloned()
+        .map(|(key, _)| key.clone())
         .zip(counts.iter().map(|&n| json!(n)))
         .collect();
     let answer = listener.end(&json!({"expect": expect, "tokens": tokens.len()}));
     assert_eq!(answer["problems"], json!([]), "{answer}");
-
     discovered(&answer, &tokens);
-    let samples = &answer["samples"];
-    let poses = received(&samples[&keys[0]], counts[0], &gids[0], (before, after));
-    for (k, value) in poses.iter().enumerate() {
-        assert_eq!(value, &pose_message(u32::try_from(k).unwrap()), "pose {k}");
-    }
-    let statuses = received(&samples[&keys[1]], counts[1], &gids[1], (before, after));
-    for (k, value) in statuses.iter().enumerate() {
-        let k = u32::try_from(k).unwrap();
-        assert_eq!(
-            value,
-            &serde_json::to_value(status_at(k)).unwrap(),
-            "status {k}"
-        );
-    }
+    let values = topics
+        .iter()
+        .zip(&counts)
+        .map(|((key, gid), &n)| received(&answer["samples"][key], n, gid, (before, after)))
+        .collect();
+    Seen { values }
 }
 
 /// The listener (tests/bridge_interop.py), running.
