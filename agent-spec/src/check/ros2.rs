@@ -401,18 +401,7 @@ impl<'a> Checker<'a> {
         output: bool,
     ) -> Finding {
         let (component, rest) = text.split_once('.').unwrap_or((text, ""));
-        let groups = self
-            .comps
-            .get(component)
-            .map_or(&[][..], |c| if output { c.outputs } else { c.inputs });
-        let have: Vec<String> = groups
-            .iter()
-            .flat_map(|g| {
-                g.buffers
-                    .iter()
-                    .map(move |b| format!("{}.{}", g.peer, b.name))
-            })
-            .collect();
+        let have = self.buffers_on_side(component, output);
         let guess = self.guess(rest, have.iter().map(String::as_str));
         let list = list_or_none(&have.iter().map(String::as_str).collect::<Vec<_>>());
         Finding::new(

@@ -187,6 +187,23 @@ impl<'a> Checker<'a> {
         )
     }
 
+    /// The buffers `component` has on one side (its outputs or its inputs),
+    /// as `peer.buffer`: what a finding on an unknown buffer lists and guesses from.
+    pub(super) fn buffers_on_side(&self, component: &str, outputs: bool) -> Vec<String> {
+        let groups = self
+            .comps
+            .get(component)
+            .map_or(&[][..], |c| if outputs { c.outputs } else { c.inputs });
+        groups
+            .iter()
+            .flat_map(|g| {
+                g.buffers
+                    .iter()
+                    .map(move |b| format!("{}.{}", g.peer, b.name))
+            })
+            .collect()
+    }
+
     /// The finding about input `at` unless exactly one link writes it.
     fn input_feed(&self, feeds: &Feeds, at: &BufferRef<'_>) -> Option<Finding> {
         let dotted = &at.dotted;
@@ -263,18 +280,7 @@ impl<'a> Checker<'a> {
             EndpointError::Buffer => {
                 // `component.group.buffer`: the buffers it has on that side.
                 let (component, rest) = text.split_once('.').unwrap_or((text, ""));
-                let groups = self
-                    .comps
-                    .get(component)
-                    .map_or(&[][..], |c| if outputs { c.outputs } else { c.inputs });
-                let have: Vec<String> = groups
-                    .iter()
-                    .flat_map(|g| {
-                        g.buffers
-                            .iter()
-                            .map(move |b| format!("{}.{}", g.peer, b.name))
-                    })
-                    .collect();
+                let have = self.buffers_on_side(component, outputs);
                 let guess = self.guess(rest, have.iter().map(String::as_str));
                 Finding::new(
                     Code::UnknownBuffer,
