@@ -129,3 +129,95 @@ fn transient_local_and_a_missing_section_are_refused() {
     let error = Plan::new(&spec("None"), None, &system(), &adapters()).unwrap_err();
     assert_eq!(error, PlanError::NoSection);
 }
+
+/// A field named as Rust allows and ROS 2 does not (a trailing `_`).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+struct Odd {
+    type_: u8,
+}
+
+#[derive(Debug, Default)]
+struct ToE {
+    odd: agent_core::Out<Odd>,
+}
+impl agent_core::Group for ToE {
+    const PEER: agent_core::NodeKind = agent_core::NodeKind::VirtualEffector;
+}
+
+#[derive(Debug, Default)]
+struct GOut {
+    e: ToE,
+}
+
+struct G;
+impl agent_core::Subsystem for G {
+    const KIND: agent_core::SubsystemKind = agent_core::SubsystemKind::Control;
+    type Memory = ();
+    type Input = ();
+    type Output = GOut;
+}
+
+#[derive(Debug, Default, Clone)]
+struct FromG {
+    odd: agent_core::In<Odd>,
+}
+impl agent_core::Group for FromG {
+    const PEER: agent_core::NodeKind = agent_core::NodeKind::Control;
+}
+
+#[derive(Debug, Default, Clone)]
+struct FIn {
+    c: FromG,
+}
+
+struct F;
+impl agent_core::Subsystem for F {
+    const KIND: agent_core::SubsystemKind = agent_core::SubsystemKind::VirtualEffector;
+    type Memory = ();
+    type Input = FIn;
+    type Output = ();
+}
+
+#[test]
+fn a_buffer_type_that_cannot_be_a_message_is_refused_with_the_reason() {
+    use agent_core::{Action, Behaviour, Fsm, Period, Policy, SystemBuilder, port};
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let period = Period::from_millis(10).unwrap();
+    let idle = |name| Fsm::single(Behaviour::while_loop(name, Action::<G>::new(), "false"));
+    let keep = Fsm::single(Behaviour::while_loop("keep", Action::<F>::new(), "false"));
+    let c = b.subsystem(a, "c", period, (), idle("go").unwrap());
+    let e = b.subsystem(a, "e", period, (), keep.unwrap());
+    b.connect(
+        c.output(port!(GOut, e.odd)),
+        e.input(port!(FIn, c.odd)),
+        Policy::Sample,
+    );
+    let system = b.build().unwrap();
+    let text = r#"(
+        name: "odd",
+        agents: [(name: "a", subsystems: [
+            (name: "c", kind: Control, period_ms: 10.0,
+             outputs: [(peer: "e", buffers: [(name: "odd", type: "Odd")])],
+             behaviours: [(name: "go", kind: While, terminal: "false")], fsm: (initial: "go")),
+            (name: "e", kind: VirtualEffector, period_ms: 10.0,
+             inputs: [(peer: "c", buffers: [(name: "odd", type: "Odd")])],
+             behaviours: [(name: "keep", kind: While, terminal: "false")], fsm: (initial: "keep")),
+        ])],
+        links: [(from: "c.e.odd", to: "e.c.odd", policy: Sample)],
+        ros2: (publish: [(buffer: "c.e.odd", topic: "odd")]),
+    )"#;
+    let spec = agent_spec::options().from_str(text).unwrap();
+    let error = Plan::new(&spec, None, &system, &Adapters::new()).unwrap_err();
+    let PlanError::NotAMessage {
+        buffer,
+        topic,
+        reason,
+        ..
+    } = &error
+    else {
+        panic!("{error}")
+    };
+    assert_eq!((buffer.as_str(), topic.as_str()), ("c.e.odd", "/odd"));
+    assert!(reason.contains("type_"), "{error}");
+}
