@@ -43,6 +43,13 @@ pub use agent_app as app;
 #[cfg(feature = "record")]
 pub use agent_mcap as record;
 
+/// Agents on ROS 2 over rmw_zenoh (the `agent-ros2` crate): the buffers a
+/// spec's `ros2` section names, published as ROS 2 topics with their standard
+/// or derived message types and REP 2011 type hashes (`bridge`), the types
+/// (`types`) and rmw_zenoh's wire format (`wire`). Behind the feature `ros2`.
+#[cfg(feature = "ros2")]
+pub use agent_ros2 as ros2;
+
 /// Replaying one subsystem against a recording, bit for bit: `replay(&recording,
 /// system, "c1", options)` says `Equivalent` or gives the first `Divergence`.
 /// Behind the feature `record`.

@@ -34,6 +34,8 @@ pub mod model;
 pub mod payload;
 pub mod record;
 pub mod report;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod run;
 pub mod soak;
 pub mod system;

@@ -10,8 +10,8 @@
 //!    `agent_spec`): they are plain Rust an agent calls;
 //! 4. `world` (the plant, devices, camera, partner agents) and `a1` (c1, e11,
 //!    r11, the map) over those, neither importing the other;
-//! 5. the composition root (`system`, `run`, `report`, `record`, `app`, `soak`,
-//!    `main.rs`) over everything.
+//! 5. the composition root (`system`, `run`, `report`, `record`, `ros2`, `app`,
+//!    `soak`, `main.rs`) over everything.
 //!
 //! Unit tests (`tests.rs` files and what follows `#[cfg(test)]`) may use any
 //! layer, as the crate's integration tests do. No source file is longer than 800

@@ -30,7 +30,7 @@ use serde_json::{Value, json};
 use crate::algorithms::planner::Fragment;
 use crate::payload::{MapPose, State, StereoPair};
 
-mod stereo_png;
+pub(crate) mod stereo_png;
 
 pub use stereo_png::StereoPng;
 

@@ -79,7 +79,7 @@ fn varint_len(n: usize) -> usize {
 }
 
 /// `image` (`w x h`, 8-bit gray) as a PNG, appended to `out`.
-pub(super) fn encode_png(image: &[u8], w: u32, h: u32, out: &mut Vec<u8>) -> bool {
+pub(crate) fn encode_png(image: &[u8], w: u32, h: u32, out: &mut Vec<u8>) -> bool {
     let mut encoder = png::Encoder::new(out, w, h);
     encoder.set_color(png::ColorType::Grayscale);
     encoder.set_depth(png::BitDepth::Eight);
