@@ -221,3 +221,13 @@ fn a_buffer_type_that_cannot_be_a_message_is_refused_with_the_reason() {
     assert_eq!((buffer.as_str(), topic.as_str()), ("c.e.odd", "/odd"));
     assert!(reason.contains("type_"), "{error}");
 }
+
+#[test]
+fn a_process_publishes_the_buffers_of_the_components_it_runs() {
+    let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
+    assert_eq!(plan.clone().only_components(&["c"]).topics.len(), 2);
+    assert!(plan.clone().only_components(&["e"]).topics.is_empty());
+    let named = plan.named("bridge_e").unwrap();
+    assert_eq!(named.node, "bridge_e");
+    assert!(matches!(named.named("2nd"), Err(PlanError::Node { .. })));
+}

@@ -9,7 +9,10 @@
 //!    names, made by an adapter of [`Adapters`]), its `RIHS01_` hash and the
 //!    QoS (the spec's, else the link's: a queue of `n` is reliable keep-last
 //!    `n`, a sample best effort keep-last 1). What cannot be published is a
-//!    [`PlanError`] naming the buffer and topic, before anything runs.
+//!    [`PlanError`] naming the buffer and topic, before anything runs. A
+//!    process of a deployment publishes the buffers of the components it
+//!    runs ([`Plan::only_components`]), under a node name of its own if
+//!    wanted ([`Plan::named`]).
 //! 2. [`Bridge::start`] opens a Zenoh session ([`SessionOptions`]: a client
 //!    of rmw_zenohd at `tcp/localhost:7447` by default; or
 //!    [`Bridge::on_session`] takes one), declares a publisher per topic and

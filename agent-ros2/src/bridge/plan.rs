@@ -233,6 +233,32 @@ impl Plan {
     }
 }
 
+impl Plan {
+    /// This plan for one process of a deployment: only the buffers of the
+    /// components it runs (`runs`, as the deployment's process lists them),
+    /// since a process sees only the values its own nodes send. The node's
+    /// name stays: give each process's bridge its own with [`Plan::named`]
+    /// if ROS 2 should tell them apart.
+    pub fn only_components<S: AsRef<str>>(mut self, runs: &[S]) -> Plan {
+        self.topics.retain(|t| {
+            let component = t.buffer.split('.').next().unwrap_or_default();
+            runs.iter().any(|r| r.as_ref() == component)
+        });
+        self
+    }
+
+    /// This plan with the node named `node` (a ROS 2 node name).
+    pub fn named(mut self, node: &str) -> Result<Plan, PlanError> {
+        validate_node_name(node).map_err(|source| PlanError::Node {
+            node: node.to_owned(),
+            namespace: self.namespace.clone(),
+            source,
+        })?;
+        node.clone_into(&mut self.node);
+        Ok(self)
+    }
+}
+
 /// The plan of one published buffer.
 fn published(
     t: &Topic,
