@@ -345,7 +345,7 @@ fn write(
             .map_err(|e| fail(&e))?;
         *per_topic.entry(topic.to_owned()).or_default() += 1;
     }
-    w.finish().map_err(|e| fail(&e))?;
+    crate::close::close(w).map_err(|e| fail(&e))?;
     Ok(Written {
         per_topic,
         metadata,

@@ -23,6 +23,7 @@
 //!   and behaviour switches compared bit for bit with the recording.
 
 pub mod cdr;
+mod close;
 pub mod codec;
 pub mod export;
 pub mod json;

@@ -297,9 +297,9 @@ impl<'p> Merged<'p> {
     }
 
     /// Close the file (its summary and index).
-    fn finish(mut self) -> Result<(), MergeError> {
-        self.w.finish().map_err(|e| self.fail(&e))?;
-        Ok(())
+    fn finish(self) -> Result<(), MergeError> {
+        let path = self.path;
+        crate::close::close(self.w).map_err(|e| write_failed(path, &e))
     }
 }
 

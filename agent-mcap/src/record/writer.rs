@@ -130,11 +130,17 @@ impl Output {
                 })
                 .map_err(|e| self.fail(&e))?;
         }
-        self.w.finish().map_err(|e| self.fail(&e))?;
         self.summary.waits = counts.waits;
         self.summary.backlog_peak_bytes = backlog.peak.load(std::sync::atomic::Ordering::Relaxed);
         self.summary.undecodable += counts.encode_failures;
-        Ok(self.summary)
+        let Output {
+            w, path, summary, ..
+        } = self;
+        crate::close::close(w).map_err(|e| RecordError::Write {
+            path,
+            message: e.to_string(),
+        })?;
+        Ok(summary)
     }
 
     fn fail(&self, e: &mcap::McapError) -> RecordError {
