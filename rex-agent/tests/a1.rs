@@ -680,7 +680,7 @@ fn the_mhe_learns_the_friction_of_each_ground_within_five_seconds() {
     // before the wheels' spin-up was read from their encoders, 3.5% before the
     // rolling resistance took its direction from the wheels' spin, 6.1% and
     // single samples 10.4% before the encoders were predicted from the slip of
-    // the reading before: see docs/nmpc-mhe.md); the average is
+    // the reading before: see docs/measurements.md); the average is
     // asserted within 5% there. The rolling resistance (a force of 2-8 N on a
     // 40 kg platform): on average −0.8%, −0.3%, −4.3%, single samples within
     // 1.3%, 2.4%, 5.1% (on ice 6.4% before the spin-up was read, up to 53% off

@@ -84,14 +84,14 @@ pub struct VoSettings {
     /// the last motion predicts where a point appears, and a candidate's cost
     /// grows by `motion_prior_weight` per pixel from there (0: off; libviso2: 4).
     /// Off by default: on the tuning sequences it helped some and hurt others
-    /// (docs/visual-odometry.md), where no pair fails to match without it.
+    /// (docs/measurements.md), where no pair fails to match without it.
     pub motion_prior_weight: f32,
     /// libviso2's outlier pre-filter ([`outliers`]): a circular match whose
     /// neighbours (Delaunay) disagree with its disparity or flow by 5 px or more
     /// is dropped, in the sparse pass before it sets the search ranges and in the
     /// dense pass before refinement. Off by default: on four of the five tuning
     /// sequences the odometry drifted more with it, and it costs time
-    /// (docs/visual-odometry.md). On, a pair allocates its triangulation.
+    /// (docs/measurements.md). On, a pair allocates its triangulation.
     pub outlier_filter: bool,
     /// Fewest inliers of an estimate.
     pub min_inliers: usize,

@@ -16,7 +16,7 @@ pub enum Refinement {
     Subpixel,
     /// Lucas–Kanade alignment of the intensities ([`photometric`]), from the
     /// matching positions. (A subpixel pass before it drifted more and took
-    /// longer: docs/visual-odometry.md.)
+    /// longer: docs/measurements.md.)
     Photometric,
 }
 
@@ -163,7 +163,7 @@ impl Template {
             }
             // Converged at a hundredth of a pixel (below the noise of real pixels):
             // a thousandth dropped more matches that had not settled in ten steps,
-            // and drifted more on every tuning sequence (docs/visual-odometry.md).
+            // and drifted more on every tuning sequence (docs/measurements.md).
             if du.abs() < 1e-2 && dv.abs() < 1e-2 {
                 return Some(q);
             }
@@ -359,7 +359,7 @@ mod tests {
         let (du, dv) = (0.4, -0.3);
         // (A gain between the images biases it: 0.1 px at 0.8. Scaling the
         // target's contrast to the template's removed that here but drifted
-        // more on the held-out tours of bench_vo; see docs/visual-odometry.md.)
+        // more on the held-out tours of bench_vo; see docs/measurements.md.)
         for (gain, offset) in [(1.0, 0.0), (1.0, 20.0), (1.0, -15.0)] {
             let target = scene(du, dv, gain, offset);
             // Started at the integer position, as the subpixel pass leaves it.

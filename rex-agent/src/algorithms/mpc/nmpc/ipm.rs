@@ -524,7 +524,7 @@ fn invert_slacks(bounds: &mut [Bound]) {
 /// multiplier positive. The least ratio `v / −dv` over the decreasing ones is
 /// tracked as a fraction (compared by cross-multiplying: both denominators are
 /// positive) and divided once, instead of once per decreasing value (divisions
-/// are slow; `bench_nmpc` measured in docs/nmpc-mhe.md).
+/// are slow; `bench_nmpc` measured in docs/measurements.md).
 fn step_length<const NX: usize>(bounds: &[Bound], d: &Direction<NX>, fraction: f64) -> f64 {
     // The least ratio `num / den`, starting at `1 / fraction` (the step 1).
     let (mut num, mut den) = (1.0f64, fraction);
