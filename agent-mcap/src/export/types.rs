@@ -203,7 +203,11 @@ impl Types {
         for k in 0..sections.len() {
             self.intern(&sections, k, &mut ids, 0)?;
         }
-        let ids = ids.into_iter().flatten().collect();
+        // `intern` gave every definition its id or returned an error.
+        let ids = ids
+            .into_iter()
+            .collect::<Option<Vec<usize>>>()
+            .ok_or_else(|| format!("`{name}`: a definition was left without an id"))?;
         self.schemas.insert(id, (sections, ids));
         Ok(())
     }
@@ -223,6 +227,15 @@ impl Types {
         let section = &sections[k];
         if depth > sections.len() {
             return Err(format!("`{}` contains itself", section.name.short()));
+        }
+        // Bounded recursion: a crafted schema of thousands of chained
+        // definitions is refused, not a stack overflow.
+        if depth > crate::postcard::MAX_DEPTH {
+            return Err(format!(
+                "`{}` nests messages more than {} deep",
+                section.name.short(),
+                crate::postcard::MAX_DEPTH
+            ));
         }
         let mut key = String::new();
         for line in &section.lines {
@@ -419,6 +432,20 @@ mod tests {
             .take(5, "a/msg/A", "B b\n====\nfloat64 x\n")
             .unwrap_err();
         assert!(e.contains("not `MSG: package/Name`"), "{e}");
+    }
+
+    #[test]
+    fn a_chain_of_definitions_deeper_than_the_bound_is_refused_not_a_stack_overflow() {
+        // a/A uses a/T1, which uses a/T2, ... 1,000 deep (tens of thousands,
+        // without the bound, would take the thread's stack).
+        let n = 1_000;
+        let mut text = String::from("T1 t\n");
+        for k in 1..n {
+            text.push_str(&format!("====\nMSG: a/T{k}\nT{} t\n", k + 1));
+        }
+        text.push_str(&format!("====\nMSG: a/T{n}\nfloat64 x\n"));
+        let e = Types::default().take(1, "a/msg/A", &text).unwrap_err();
+        assert!(e.contains("nests messages more than 128 deep"), "{e}");
     }
 
     #[test]

@@ -656,7 +656,6 @@ impl Graph {
     }
 }
 
-/// The room between two neighbours of a rank.
 /// The ranks an edge from rank `from` to rank `to` crosses, in its order, and
 /// the one of them of parity `label_parity` (the ranks that take labels)
 /// nearest the middle, nearer `from` on a tie: where the edge's label goes.
@@ -679,6 +678,7 @@ pub(crate) fn ranks_between(
     (between, label_rank)
 }
 
+/// The room between two neighbours of a rank.
 fn sep(a: &Slot, b: &Slot, sp: Spacing) -> f64 {
     if a.kind == SlotKind::Node && b.kind == SlotKind::Node {
         sp.node_gap

@@ -75,8 +75,8 @@ impl Watch {
         ))
     }
 
-    /// The keys of the liveliness tokens under runtime key `key` now (one
-    /// query, no wait).
+    /// The keys of the liveliness tokens under runtime key `key` now: one
+    /// query, not repeated (its replies take up to 300 ms to gather).
     fn tokens_now(&self, key: &str) -> Vec<String> {
         let (_, seen) = poll_tokens(
             &self.session,
