@@ -106,7 +106,8 @@ pub fn write_cdr(shape: &TypeShape, bytes: &[u8], out: &mut Vec<u8>) -> Result<(
 
 /// The name of a payload type's root message when the type is not a named
 /// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`).
-pub(crate) fn root_name(payload: &str) -> &str {
+/// The recorder names schemas so, and the ROS 2 bridge its own messages.
+pub fn root_name(payload: &str) -> &str {
     let head = payload.split('<').next().unwrap_or(payload);
     head.rsplit("::").next().unwrap_or(head)
 }

@@ -28,7 +28,7 @@ pub use agent_mcap::cdr::{
 };
 pub use description::{
     DescriptionError, EMPTY_MESSAGE_FIELD, FieldDescription, FieldTypeDescription,
-    IndividualTypeDescription, TypeDescription, TypeHash, type_hash,
+    IndividualTypeDescription, TypeDescription, type_hash,
 };
 
 /// Why a value has no CDR form.

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use agent_core::{System, SystemInfo, TypeShape};
+use agent_mcap::cdr::root_name;
 use agent_spec::model::{Deployment, Durability, Reliability, Spec};
 use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
 
@@ -13,7 +14,7 @@ use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
 use crate::types::standard::builtin_interfaces::Time;
 use crate::types::{Messages, messages, type_hash};
 use crate::wire::{
-    Interface, NameError, Qos, TopicKey, TypeHash, TypeName, validate_namespace, validate_node_name,
+    Interface, NameError, Qos, TopicKey, TypeName, validate_namespace, validate_node_name,
 };
 
 /// Why a spec's `ros2` section cannot be published from a system.
@@ -316,13 +317,7 @@ fn published(
     let type_name = TypeName::new(&name.package, Interface::Msg, &name.name)
         .map_err(|e| not_a_message(e.to_string()))?;
     let hash = type_hash(&messages).map_err(|e| not_a_message(e.to_string()))?;
-    let key = TopicKey::new(
-        interface.domain,
-        &t.name,
-        type_name,
-        TypeHash::Rihs01(hash.0),
-    )
-    .map_err(|e| not_a_message(format!("the topic: {e}")))?;
+    let key = TopicKey::new(interface.domain, &t.name, type_name, hash).map_err(|e| not_a_message(format!("the topic: {e}")))?;
     let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
         buffer: t.buffer.clone(),
         topic: t.name.clone(),
@@ -345,14 +340,6 @@ fn link_of(info: &SystemInfo, buffer: &str) -> Option<usize> {
     info.links
         .iter()
         .position(|l| l.from == node && l.from_port == port)
-}
-
-/// The name of a payload type's root message when the type is not a named
-/// struct or enum: its last path segment (`alloc::vec::Vec<f64>` -> `Vec`),
-/// as the recorder names it.
-fn root_name(payload: &str) -> &str {
-    let head = payload.split('<').next().unwrap_or(payload);
-    head.rsplit("::").next().unwrap_or(head)
 }
 
 /// The wire's QoS of a spec's profile; `None` for transient local, which the
@@ -380,13 +367,6 @@ pub(crate) fn ros_time(ns: u64) -> Time {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn root_names_are_the_last_path_segment() {
-        assert_eq!(root_name("rex::MapPose"), "MapPose");
-        assert_eq!(root_name("alloc::vec::Vec<f64>"), "Vec");
-        assert_eq!(root_name("f64"), "f64");
-    }
 
     #[test]
     fn qos_follows_the_profile() {

@@ -10,12 +10,13 @@
 //! `rosidl_generator_type_description` calls it).
 
 use std::collections::BTreeSet;
-use std::fmt;
 use std::fmt::Write as _;
 
 use agent_mcap::cdr::{Arity, BaseType, Field, FieldType, Message, Messages, MsgName, Primitive};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+
+use crate::wire::TypeHash;
 
 /// The field ROS 2 gives a message without fields, so that every structure
 /// has one (`uint8`, as CDR's one byte for an empty message).
@@ -80,22 +81,6 @@ pub struct TypeDescription {
     pub referenced_type_descriptions: Vec<IndividualTypeDescription>,
 }
 
-/// A REP 2011 type hash, version 1: the SHA-256 of a type description's
-/// canonical JSON.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct TypeHash(pub [u8; 32]);
-
-/// `RIHS01_` and the 64 lower-case hex digits, as ROS 2 writes it.
-impl fmt::Display for TypeHash {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("RIHS01_")?;
-        for b in self.0 {
-            write!(f, "{b:02x}")?;
-        }
-        Ok(())
-    }
-}
-
 impl TypeDescription {
     /// The description of `messages`' root: it and the messages reachable
     /// from it through their fields, found among `messages`.
@@ -144,9 +129,9 @@ impl TypeDescription {
         out
     }
 
-    /// The `RIHS01_` hash of this description.
+    /// The `RIHS01_` hash of this description ([`TypeHash::Rihs01`]).
     pub fn hash(&self) -> TypeHash {
-        TypeHash(Sha256::digest(self.canonical_json().as_bytes()).into())
+        TypeHash::Rihs01(Sha256::digest(self.canonical_json().as_bytes()).into())
     }
 }
 
