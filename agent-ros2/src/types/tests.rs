@@ -217,3 +217,26 @@ fn a_standard_value_encodes_as_ros_2_lays_it_out() {
     // The identity is ROS 2's default orientation.
     assert_eq!(Quaternion::default().w, 1.0);
 }
+
+/// Published test vectors, pinned so that `cargo test` checks our hashes
+/// against ROS 2's offline (the interop test compares every standard message
+/// with the official wheels at run time).
+#[test]
+fn the_published_type_hashes_are_ours() {
+    // rmw_zenoh's design document (docs/design.md of rmw_zenoh 0.6.7): the
+    // hash in its example keys and tokens of `std_msgs/msg/String`.
+    let string = Message::new(
+        MsgName::new("std_msgs", "String"),
+        vec![Field::new("data", FieldType::string())],
+    );
+    assert_eq!(
+        type_hash(&with_references(string, &[])).unwrap().to_string(),
+        "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+    );
+    // The official ROS 2 Kilted wheel `ros-builtin-interfaces` 2.3.0, its
+    // `share/builtin_interfaces/msg/Time.json` (`type_hashes`).
+    assert_eq!(
+        type_hash(&Time::messages()).unwrap().to_string(),
+        "RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197"
+    );
+}
