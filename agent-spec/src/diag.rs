@@ -148,6 +148,8 @@ codes! {
     Ros2NotDeployed = "spec::ros2_not_deployed", Error;
     /// A ROS 2 topic feeds an input that a running component also writes over a sample link: each overwrites the other.
     Ros2Overwritten = "spec::ros2_overwritten", Warning;
+    /// A ROS 2 publish of an output that no link carries: its values reach no one, the bridge included.
+    Ros2Unlinked = "spec::ros2_unlinked", Error;
 }
 
 impl Code {

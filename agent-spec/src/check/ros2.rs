@@ -148,6 +148,9 @@ impl<'a> Checker<'a> {
                 if let Some(component) = component.filter(|_| !output) {
                     self.ros2_overwritten(s, entry, &path, component);
                 }
+                if component.is_some() && output {
+                    self.ros2_unlinked(entry, &path);
+                }
             }
         }
         self.ros2_duplicates(&shown);
@@ -583,6 +586,32 @@ impl<'a> Checker<'a> {
             .label(self.span(&[F("links"), I(k), F("from")]), "a sample link")
             .help(format!(
                 "make the link a queue (`policy: Queue(n)`) to deliver both, omit `{producer}` where ROS 2 feeds the input, or feed another input"
+            )),
+        );
+    }
+
+    /// The finding about published output `entry` (at `path`) if no link
+    /// carries its values: the bridge publishes what is sent into a link, and
+    /// a value written to an unlinked output is sent nowhere.
+    fn ros2_unlinked(&mut self, entry: &Ros2Topic, path: &[Seg<'static>]) {
+        if self.spec.links.iter().any(|l| l.from == entry.buffer) {
+            return;
+        }
+        let (component, rest) = entry.buffer.split_once('.').unwrap_or((&entry.buffer, ""));
+        let peer = rest.split('.').next().unwrap_or_default();
+        self.push(
+            Finding::new(
+                Code::Ros2Unlinked,
+                self.span(&join(path, &[F("buffer")])),
+                "no link carries it",
+                format!(
+                    "topic `{}` would publish output `{}`, but no link carries that output's values: ROS 2 would see none",
+                    entry.topic, entry.buffer
+                ),
+            )
+            .help(format!(
+                "link the output to the input that reads it (`(from: \"{}\", to: \"{peer}.{component}.…\")`), or publish a linked output",
+                entry.buffer
             )),
         );
     }
