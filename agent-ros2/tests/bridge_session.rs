@@ -153,3 +153,29 @@ fn on_a_session_of_ours_the_tokens_and_samples_are_rmw_zenohs() {
         assert_eq!(payload, &cdr, "status {k}");
     }
 }
+
+/// The caller closes its session under the bridge: the values in the rings
+/// are counted as refused, and finishing still undeclares what it holds
+/// (Zenoh 1.10 accepts undeclarations on a closed session, so nothing is in
+/// `close_errors`) and returns the counts.
+#[test]
+fn finishing_on_a_closed_session_keeps_the_counts() {
+    let session = SessionOptions {
+        mode: Mode::Peer,
+        connect: vec![],
+        listen: vec![],
+    }
+    .open()
+    .unwrap();
+    let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
+    let bridge = Bridge::on_session(plan, session.clone(), &BridgeOptions::default()).unwrap();
+    let mut exec = Executor::with_observer(system(), ExecConfig::default(), bridge);
+    exec.run_for(Duration::from_millis(50)).unwrap();
+    let bridge = exec.into_observer();
+    session.close().wait().unwrap();
+    let report = bridge.finish().unwrap();
+    for topic in &report.topics {
+        assert_eq!(topic.published + topic.put_failures, 5, "{report:?}");
+    }
+    assert!(report.close_errors.is_empty(), "{report:?}");
+}

@@ -38,9 +38,10 @@
 //!    it on best-effort topics, the interoperability test once lost one
 //!    sample of 20 on a loaded machine).
 //! 5. [`Bridge::finish`] publishes what the rings still hold, undeclares the
-//!    tokens (ROS 2 tools see the node go), closes a session it opened, and
-//!    returns the counts per topic ([`BridgeReport`]): published, dropped
-//!    (ring full), failed to encode, refused by Zenoh.
+//!    tokens (ROS 2 tools see the node go) and publishers, closes a session
+//!    it opened, each even if an earlier one fails, and returns the counts
+//!    per topic ([`BridgeReport`]): published, dropped (ring full), failed
+//!    to encode, refused by Zenoh; and what Zenoh refused to close.
 //!
 //! # Inbound, not done yet
 //! Subscribing (a ROS 2 topic feeding an input buffer, `subscribe:` in the
@@ -73,7 +74,7 @@ mod tap;
 
 pub use adapter::{Adapters, TranscodeError};
 pub use plan::{Plan, PlanError, PublishedTopic};
-pub use report::{BridgeReport, TopicReport};
+pub use report::{BridgeReport, CloseError, TopicReport};
 pub use session::{Mode, ROUTER_ENDPOINT, SessionOptions};
 
 use crate::wire::{EndpointKind, EntityToken, NameError, NodeToken, Zid};
@@ -104,7 +105,8 @@ pub enum BridgeError {
     /// The node's or a topic's token has a name ROS 2 refuses.
     #[error("a liveliness token: {0}")]
     Name(#[from] NameError),
-    /// Zenoh refused to declare (or undeclare) a publisher or a token.
+    /// Zenoh refused to declare a publisher or a token (what it refuses when
+    /// the bridge finishes is a [`CloseError`] in the report).
     #[error("zenoh refused {what}: {reason}")]
     Declare {
         /// What was declared.
@@ -115,7 +117,8 @@ pub enum BridgeError {
     /// The publishing thread did not start.
     #[error("the bridge's publishing thread did not start: {0}")]
     Thread(#[from] std::io::Error),
-    /// The publishing thread panicked (a bug); its counts are lost.
+    /// The publishing thread panicked (a bug); the counts of the values it
+    /// was publishing then are lost.
     #[error("the bridge's publishing thread panicked")]
     Panicked,
 }
@@ -316,27 +319,48 @@ impl Bridge {
 
     /// Publish what the rings still hold (values sent after this call are
     /// not published), undeclare the tokens and publishers, close the
-    /// session if the bridge opened it, and say what was published.
+    /// session if the bridge opened it, and say what was published. Each of
+    /// these steps is taken even when an earlier one fails; what Zenoh
+    /// refused is in the report's [`BridgeReport::close_errors`]. An error
+    /// only when the publishing thread panicked (the tokens and session are
+    /// closed all the same).
     pub fn finish(mut self) -> Result<BridgeReport, BridgeError> {
-        self.stop()?;
-        let report = self.report();
-        for token in std::mem::take(&mut self.tokens).into_iter().rev() {
-            token.undeclare().wait().map_err(|e| BridgeError::Declare {
-                what: "undeclaring a liveliness token".to_owned(),
-                reason: e.to_string(),
-            })?;
-        }
-        self.publishers.clear();
-        if self.owns_session {
-            self.session
-                .close()
-                .wait()
-                .map_err(|e| BridgeError::Declare {
-                    what: "closing the session".to_owned(),
+        let stopped = self.stop();
+        let mut report = self.report();
+        let keys = std::iter::once(self.node.key_expr())
+            .chain(self.entities.iter().map(EntityToken::key_expr))
+            .collect::<Vec<_>>();
+        let tokens = std::mem::take(&mut self.tokens);
+        for (token, key) in tokens.into_iter().zip(keys).rev() {
+            if let Err(e) = token.undeclare().wait() {
+                report.close_errors.push(CloseError::Token {
+                    key,
                     reason: e.to_string(),
-                })?;
+                });
+            }
         }
-        Ok(report)
+        for publisher in std::mem::take(&mut self.publishers) {
+            // The publishing thread has ended, so the bridge holds the last
+            // reference; otherwise dropping it undeclares it.
+            let Ok(publisher) = Arc::try_unwrap(publisher) else {
+                continue;
+            };
+            let key = publisher.key_expr().to_string();
+            if let Err(e) = publisher.undeclare().wait() {
+                report.close_errors.push(CloseError::Publisher {
+                    key,
+                    reason: e.to_string(),
+                });
+            }
+        }
+        if self.owns_session
+            && let Err(e) = self.session.close().wait()
+        {
+            report.close_errors.push(CloseError::Session {
+                reason: e.to_string(),
+            });
+        }
+        stopped.map(|()| report)
     }
 
     /// End the publishing thread after its last drain.

@@ -24,11 +24,42 @@ pub struct TopicReport {
     pub put_failures: u64,
 }
 
-/// Every topic's counts, in the plan's order.
+/// What Zenoh refused when the bridge finished: ROS 2 tools may still see
+/// the node or a publisher until its token's session ends.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CloseError {
+    /// Undeclaring a liveliness token.
+    #[error("zenoh refused to undeclare the liveliness token `{key}`: {reason}")]
+    Token {
+        /// The token's key expression.
+        key: String,
+        /// Zenoh's reason.
+        reason: String,
+    },
+    /// Undeclaring a topic's publisher.
+    #[error("zenoh refused to undeclare the publisher of `{key}`: {reason}")]
+    Publisher {
+        /// The topic's key expression.
+        key: String,
+        /// Zenoh's reason.
+        reason: String,
+    },
+    /// Closing the session the bridge opened.
+    #[error("zenoh refused to close the bridge's session: {reason}")]
+    Session {
+        /// Zenoh's reason.
+        reason: String,
+    },
+}
+
+/// Every topic's counts, in the plan's order, and what did not close.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct BridgeReport {
     /// Per topic.
     pub topics: Vec<TopicReport>,
+    /// What Zenoh refused when the bridge finished, in the order tried
+    /// (tokens, publishers, session); empty before and after a clean finish.
+    pub close_errors: Vec<CloseError>,
 }
 
 impl BridgeReport {
@@ -46,7 +77,10 @@ impl BridgeReport {
                 put_failures: c.put_failures.load(Ordering::Relaxed),
             })
             .collect();
-        Self { topics }
+        Self {
+            topics,
+            close_errors: Vec::new(),
+        }
     }
 
     /// Values published, over every topic.
