@@ -10,7 +10,7 @@
 
 mod common;
 
-use agent_ros2::bridge::{Adapters, Plan, PlanError};
+use agent_ros2::bridge::{Adapters, INBOUND_NOT_SUPPORTED, Plan, PlanError};
 use agent_ros2::types::standard::StandardMessage;
 use agent_ros2::types::standard::geometry_msgs::PoseStamped;
 use agent_ros2::types::standard::sensor_msgs::Imu;
@@ -230,4 +230,31 @@ fn a_process_publishes_the_buffers_of_the_components_it_runs() {
     let named = plan.named("bridge_e").unwrap();
     assert_eq!(named.node, "bridge_e");
     assert!(matches!(named.named("2nd"), Err(PlanError::Node { .. })));
+}
+
+#[test]
+fn subscribed_topics_are_listed_as_unserved_with_the_reason() {
+    let section = r#"(node: "bridge", publish: [(buffer: "c.e.status", topic: "status")],
+        subscribe: [(buffer: "e.c.pose", topic: "~/pose_in")])"#;
+    let plan = Plan::new(&spec(section), None, &system(), &adapters()).unwrap();
+    assert_eq!(plan.topics.len(), 1);
+    let [unserved] = plan.unserved() else {
+        panic!("{:?}", plan.unserved())
+    };
+    assert_eq!(
+        (unserved.buffer.as_str(), unserved.topic.as_str()),
+        ("e.c.pose", "/bridge/pose_in")
+    );
+    assert_eq!(unserved.reason, INBOUND_NOT_SUPPORTED);
+    assert_eq!(
+        unserved.to_string(),
+        "topic `/bridge/pose_in` (buffer `e.c.pose`) is not subscribed: \
+         inbound topics are not supported yet"
+    );
+    // A process that does not run `e` has nothing unserved.
+    assert!(plan.clone().only_components(&["c"]).unserved().is_empty());
+    assert_eq!(plan.only_components(&["e"]).unserved().len(), 1);
+    // Without `subscribe` entries, nothing.
+    let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
+    assert!(plan.unserved().is_empty());
 }

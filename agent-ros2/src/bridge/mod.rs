@@ -44,8 +44,10 @@
 //!    to encode, refused by Zenoh; and what Zenoh refused to close.
 //!
 //! # Inbound, not done yet
-//! Subscribing (a ROS 2 topic feeding an input buffer, `subscribe:` in the
-//! spec) will need: an `MS` token per subscribed topic; a Zenoh subscriber on
+//! A plan serves no `subscribe:` entry of the spec: it lists them, with the
+//! reason, in [`Plan::unserved`], and neither it nor the bridge logs them (a
+//! caller warns). Subscribing (a ROS 2 topic feeding an input buffer) will
+//! need: an `MS` token per subscribed topic; a Zenoh subscriber on
 //! the topic's key (any GID), checking each sample's attachment (sequence gaps
 //! counted as lost) and decoding its CDR into the buffer type (the inverse of
 //! `write_cdr`, or an adapter's inverse for standard messages), refusing and
@@ -73,7 +75,7 @@ mod session;
 mod tap;
 
 pub use adapter::{Adapters, TranscodeError};
-pub use plan::{Plan, PlanError, PublishedTopic};
+pub use plan::{INBOUND_NOT_SUPPORTED, Plan, PlanError, PublishedTopic, UnservedTopic};
 pub use report::{BridgeReport, CloseError, TopicReport};
 pub use session::{Mode, ROUTER_ENDPOINT, SessionOptions};
 

@@ -174,6 +174,32 @@ impl std::fmt::Debug for PublishedTopic {
     }
 }
 
+/// Why the plan serves no `subscribe` entry.
+pub const INBOUND_NOT_SUPPORTED: &str = "inbound topics are not supported yet";
+
+/// A topic of the spec's `subscribe` entries that the plan does not serve
+/// ([`Plan::unserved`]), and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnservedTopic {
+    /// The input buffer, `component.peer.buffer`.
+    pub buffer: String,
+    /// The fully qualified topic.
+    pub topic: String,
+    /// Why it is not served ([`INBOUND_NOT_SUPPORTED`]).
+    pub reason: &'static str,
+}
+
+/// `topic `/x` (buffer `e.c.x`) is not subscribed: <reason>`, for a warning.
+impl std::fmt::Display for UnservedTopic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "topic `{}` (buffer `{}`) is not subscribed: {}",
+            self.topic, self.buffer, self.reason
+        )
+    }
+}
+
 /// What a bridge publishes: the node it presents and its topics.
 #[derive(Clone, Debug)]
 pub struct Plan {
@@ -187,13 +213,16 @@ pub struct Plan {
     pub package: String,
     /// The published buffers, in the spec's order.
     pub topics: Vec<PublishedTopic>,
+    /// The subscribed topics not served, in the spec's order.
+    unserved: Vec<UnservedTopic>,
 }
 
 impl Plan {
     /// The plan of what `spec` shows to ROS 2 when `deployment` runs (`None`:
     /// the system's section) from `system` (built from the spec), standard
     /// messages made by `adapters`. Buffers of components the deployment does
-    /// not run are left out.
+    /// not run are left out. `subscribe` entries are not served (see
+    /// [`Plan::unserved`]); nothing is logged, the caller may warn.
     pub fn new(
         spec: &Spec,
         deployment: Option<&Deployment>,
@@ -224,13 +253,32 @@ impl Plan {
             .iter()
             .map(|t| published(t, &interface, system, adapters))
             .collect::<Result<_, _>>()?;
+        let unserved = interface
+            .subscribe
+            .iter()
+            .map(|t| UnservedTopic {
+                buffer: t.buffer.clone(),
+                topic: t.name.clone(),
+                reason: INBOUND_NOT_SUPPORTED,
+            })
+            .collect();
         Ok(Plan {
             domain: interface.domain,
             node: interface.node,
             namespace: interface.namespace,
             package: interface.package,
             topics,
+            unserved,
         })
+    }
+
+    /// The topics of the section's `subscribe` entries (of the components
+    /// run) that this plan does not serve, each with the reason
+    /// ([`INBOUND_NOT_SUPPORTED`]: the bridge publishes only); empty when
+    /// the spec subscribes to nothing. The bridge logs nothing: a caller
+    /// prints them as warnings if it wants.
+    pub fn unserved(&self) -> &[UnservedTopic] {
+        &self.unserved
     }
 }
 
@@ -241,10 +289,12 @@ impl Plan {
     /// name stays: give each process's bridge its own with [`Plan::named`]
     /// if ROS 2 should tell them apart.
     pub fn only_components<S: AsRef<str>>(mut self, runs: &[S]) -> Plan {
-        self.topics.retain(|t| {
-            let component = t.buffer.split('.').next().unwrap_or_default();
+        let run = |buffer: &str| {
+            let component = buffer.split('.').next().unwrap_or_default();
             runs.iter().any(|r| r.as_ref() == component)
-        });
+        };
+        self.topics.retain(|t| run(&t.buffer));
+        self.unserved.retain(|t| run(&t.buffer));
         self
     }
 
