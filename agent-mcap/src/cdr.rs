@@ -1,6 +1,8 @@
 //! A buffer value's postcard bytes as ROS 2 CDR, and the `ros2msg` schema of
 //! its type, both read off the type's [`TypeShape`]: the binary form Foxglove
-//! (and every ROS 2 tool) decodes and plots without a line of the user's code.
+//! (and every ROS 2 tool) decodes and plots without a line of the user's code;
+//! and back ([`read_cdr`]: a CDR message from outside, checked, as the value's
+//! postcard bytes).
 //!
 //! Against [`json`](crate::json) it costs no float formatting and no field
 //! names per message: a value of `f64` fields is its bytes, aligned (recording
@@ -47,12 +49,14 @@ use agent_core::serde_reflection::{ContainerFormat, Format, VariantFormat};
 use crate::postcard::{Cursor, MAX_DEPTH};
 
 mod model;
+mod read;
 mod shape;
 
 pub use crate::postcard::DecodeError;
 pub use model::{
     Arity, BaseType, Constant, Field, FieldType, Message, Messages, MsgName, Primitive,
 };
+pub use read::read_cdr;
 pub use shape::messages;
 
 /// The package of the messages made for a recording.
