@@ -230,7 +230,9 @@ fn the_published_type_hashes_are_ours() {
         vec![Field::new("data", FieldType::string())],
     );
     assert_eq!(
-        type_hash(&with_references(string, &[])).unwrap().to_string(),
+        type_hash(&with_references(string, &[]))
+            .unwrap()
+            .to_string(),
         "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
     );
     // The official ROS 2 Kilted wheel `ros-builtin-interfaces` 2.3.0, its
