@@ -229,7 +229,7 @@ fn a_process_publishes_the_buffers_of_the_components_it_runs() {
     assert!(plan.clone().only_components(&["e"]).topics.is_empty());
     let named = plan.named("bridge_e").unwrap();
     assert_eq!(named.node, "bridge_e");
-    assert!(matches!(named.named("2nd"), Err(PlanError::Node { .. })));
+    assert!(matches!(named.named("2nd"), Err(PlanError::Name { .. })));
 }
 
 #[test]
@@ -257,4 +257,46 @@ fn subscribed_topics_are_listed_as_unserved_with_the_reason() {
     // Without `subscribe` entries, nothing.
     let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
     assert!(plan.unserved().is_empty());
+}
+
+/// The entry and name a plan of `section` is refused for.
+fn refused(section: &str) -> (String, String) {
+    match Plan::new(&spec(section), None, &system(), &adapters()) {
+        Err(PlanError::Name { entry, name, .. }) => (entry, name),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn names_the_spec_checker_refuses_are_refused_naming_the_entry() {
+    // Each breaks a rule of the checker's that the wire's checks lack.
+    let status = |topic: &str| format!(r#"(publish: [(buffer: "c.e.status", topic: "{topic}")]"#);
+    let (entry, name) = refused(&(status("a__b") + ")"));
+    assert_eq!(
+        (entry.as_str(), name.as_str()),
+        ("topic of buffer `c.e.status`", "/a__b")
+    );
+    let (entry, name) = refused(&(status("a_/b") + ")"));
+    assert_eq!(
+        (entry.as_str(), name.as_str()),
+        ("topic of buffer `c.e.status`", "/a_/b")
+    );
+    let long = "x".repeat(250);
+    assert_eq!(refused(&(status(&long) + ")")).1, format!("/{long}"));
+    let (entry, _) = refused(&(status("s") + r#", namespace: "/ns_")"#));
+    assert_eq!(entry, "namespace");
+    let (entry, _) = refused(&(status("s") + r#", package: "Bad_msgs")"#));
+    assert_eq!(entry, "package");
+    let (entry, _) = refused(&(status("s") + &format!(r#", node: "{}")"#, "n".repeat(256))));
+    assert_eq!(entry, "node name");
+    // A subscribed topic too, though not served.
+    let (entry, name) =
+        refused(&(status("s") + r#", subscribe: [(buffer: "e.c.pose", topic: "in__put")])"#));
+    assert_eq!(
+        (entry.as_str(), name.as_str()),
+        ("topic of buffer `e.c.pose`", "/in__put")
+    );
+    let error =
+        Plan::new(&spec(&(status("a__b") + ")")), None, &system(), &adapters()).unwrap_err();
+    assert!(error.to_string().contains("`__`"), "{error}");
 }

@@ -15,7 +15,8 @@
 //!
 //! The same loader and checker serve the `embodied` CLI, the diagrams and the macros:
 //! there is one parser. A spec's `ros2` sections say what a system shows to ROS 2;
-//! [`ros2`] holds ROS 2's name rules (shared with the ROS 2 bridge) and the
+//! [`ros2`] holds ROS 2's name rules (which the ROS 2 bridge's plan applies too,
+//! to the node, namespace, package and full topic names it announces) and the
 //! interface a system or deployment shows, every default applied.
 
 pub mod check;

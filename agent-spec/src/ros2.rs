@@ -4,8 +4,13 @@
 //! mapping to DDS" (design.ros2.org/articles/topic_and_service_names.html), of
 //! `rcl`'s and `rmw`'s validators (lengths, namespaces, node names), of REP 144
 //! (package names) and of `rosidl` (message type names). The checker applies
-//! them to a spec's `ros2` sections; the ROS 2 bridge applies them again to what
-//! it is given at run time, so both agree on what a valid name is.
+//! them to a spec's `ros2` sections. The ROS 2 bridge's plan
+//! (`agent_ros2::bridge::Plan::new`) applies the same functions to the node,
+//! namespace and package of the section it is given and to each topic's
+//! fully qualified name ([`check_node`], [`check_namespace`],
+//! [`check_package`], [`check_full_topic`]), so a plan made from an unchecked
+//! spec announces no name the checker refuses. (The bridge's wire layer
+//! checks only what a Zenoh key needs, and is laxer.)
 //!
 //! Where the design article is stricter than `rcl`'s validator, these rules
 //! follow the article: a topic token has single underscores only (no `__`), and

@@ -13,9 +13,7 @@ use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile
 use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
 use crate::types::standard::builtin_interfaces::Time;
 use crate::types::{Messages, messages, type_hash};
-use crate::wire::{
-    Interface, NameError, Qos, TopicKey, TypeName, validate_namespace, validate_node_name,
-};
+use crate::wire::{Interface, Qos, TopicKey, TypeName};
 
 /// Why a spec's `ros2` section cannot be published from a system.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -23,15 +21,18 @@ pub enum PlanError {
     /// Neither the deployment nor the system has a `ros2` section.
     #[error("the spec has no `ros2` section: it shows nothing to ROS 2")]
     NoSection,
-    /// The node's name or namespace breaks ROS 2's rules.
-    #[error("the ROS 2 node `{node}` in `{namespace}`: {source}")]
-    Node {
-        /// The node's name.
-        node: String,
-        /// Its namespace.
-        namespace: String,
+    /// A name of the section (the node's, its namespace, the package, a
+    /// topic's full name) breaks ROS 2's rules as the spec checker applies
+    /// them ([`agent_spec::ros2`]).
+    #[error("the ROS 2 {entry} `{name}`: {source}")]
+    Name {
+        /// What the name names: `node name`, `namespace`, `package`, or
+        /// ``topic of buffer `c.e.pose` ``.
+        entry: String,
+        /// The name (a topic's fully qualified).
+        name: String,
         /// The rule broken.
-        source: NameError,
+        source: spec_ros2::NameError,
     },
     /// A published buffer that is no output of the spec.
     #[error("buffer `{buffer}` (topic `{topic}`) is no output of the spec")]
@@ -221,8 +222,11 @@ impl Plan {
     /// The plan of what `spec` shows to ROS 2 when `deployment` runs (`None`:
     /// the system's section) from `system` (built from the spec), standard
     /// messages made by `adapters`. Buffers of components the deployment does
-    /// not run are left out. `subscribe` entries are not served (see
-    /// [`Plan::unserved`]); nothing is logged, the caller may warn.
+    /// not run are left out. The node, namespace, package and every topic's
+    /// full name are held to the spec checker's rules ([`agent_spec::ros2`]),
+    /// so a plan of an unchecked spec announces no name the checker refuses.
+    /// `subscribe` entries are not served (see [`Plan::unserved`]); nothing
+    /// is logged, the caller may warn.
     pub fn new(
         spec: &Spec,
         deployment: Option<&Deployment>,
@@ -241,13 +245,7 @@ impl Plan {
             });
         }
         let interface = spec_ros2::interface(spec, deployment).ok_or(PlanError::NoSection)?;
-        let node_error = |source| PlanError::Node {
-            node: interface.node.clone(),
-            namespace: interface.namespace.clone(),
-            source,
-        };
-        validate_node_name(&interface.node).map_err(node_error)?;
-        validate_namespace(&interface.namespace).map_err(node_error)?;
+        check_names(&interface)?;
         let topics = interface
             .publish
             .iter()
@@ -298,16 +296,44 @@ impl Plan {
         self
     }
 
-    /// This plan with the node named `node` (a ROS 2 node name).
+    /// This plan with the node named `node` (a ROS 2 node name, as the spec
+    /// checker's [`check_node`](agent_spec::ros2::check_node) accepts).
     pub fn named(mut self, node: &str) -> Result<Plan, PlanError> {
-        validate_node_name(node).map_err(|source| PlanError::Node {
-            node: node.to_owned(),
-            namespace: self.namespace.clone(),
-            source,
-        })?;
+        checked("node name", node, spec_ros2::check_node)?;
         node.clone_into(&mut self.node);
         Ok(self)
     }
+}
+
+/// `name` checked by `check`, one of the spec checker's rules; the error
+/// names `entry`.
+fn checked(
+    entry: &str,
+    name: &str,
+    check: fn(&str) -> Result<(), spec_ros2::NameError>,
+) -> Result<(), PlanError> {
+    check(name).map_err(|source| PlanError::Name {
+        entry: entry.to_owned(),
+        name: name.to_owned(),
+        source,
+    })
+}
+
+/// The interface's node, namespace, package and every topic's full name
+/// (published or subscribed), by the spec checker's rules.
+fn check_names(interface: &SpecInterface) -> Result<(), PlanError> {
+    checked("node name", &interface.node, spec_ros2::check_node)?;
+    checked(
+        "namespace",
+        &interface.namespace,
+        spec_ros2::check_namespace,
+    )?;
+    checked("package", &interface.package, spec_ros2::check_package)?;
+    for t in interface.publish.iter().chain(&interface.subscribe) {
+        let entry = format!("topic of buffer `{}`", t.buffer);
+        checked(&entry, &t.name, spec_ros2::check_full_topic)?;
+    }
+    Ok(())
 }
 
 /// The plan of one published buffer.
@@ -367,7 +393,8 @@ fn published(
     let type_name = TypeName::new(&name.package, Interface::Msg, &name.name)
         .map_err(|e| not_a_message(e.to_string()))?;
     let hash = type_hash(&messages).map_err(|e| not_a_message(e.to_string()))?;
-    let key = TopicKey::new(interface.domain, &t.name, type_name, hash).map_err(|e| not_a_message(format!("the topic: {e}")))?;
+    let key = TopicKey::new(interface.domain, &t.name, type_name, hash)
+        .map_err(|e| not_a_message(format!("the topic: {e}")))?;
     let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
         buffer: t.buffer.clone(),
         topic: t.name.clone(),

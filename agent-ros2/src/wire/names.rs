@@ -5,7 +5,8 @@
 //! The rules are those of `rmw`'s validation of fully qualified topic names,
 //! namespaces and node names (letters, digits and `_`; tokens separated by one
 //! `/`; no token starting with a digit). Length limits and the `__` rule are
-//! left to the spec checker, which reports them with spans.
+//! left to the spec checker (`agent_spec::ros2`), which reports them with
+//! spans and whose rules the bridge's plan applies to the names it announces.
 
 use std::fmt;
 
