@@ -97,7 +97,25 @@ pub struct Common {
     /// Which start of this process this is (0 first; given by `launch`).
     #[arg(long, global = true, value_name = "K", hide = true)]
     pub incarnation: Option<u32>,
+    /// Show the spec's `ros2` section's buffers as ROS 2 topics over
+    /// rmw_zenoh, through a Zenoh router such as rmw_zenohd listening on
+    /// ENDPOINT (default tcp/localhost:7447), for the whole run. With
+    /// `--process`, this process's buffers, as node `<node>_<process>`;
+    /// `launch` gives it to every process. Exit 2 when the router cannot be
+    /// reached. Topics ROS 2 would feed (`subscribe`) are not served yet.
+    #[arg(
+        long,
+        global = true,
+        value_name = "ENDPOINT",
+        num_args = 0..=1,
+        default_missing_value = ROS2_ENDPOINT
+    )]
+    pub ros2: Option<String>,
 }
+
+/// Where `--ros2` finds its Zenoh router when given no endpoint: where
+/// rmw_zenohd listens by default.
+pub const ROS2_ENDPOINT: &str = "tcp/localhost:7447";
 
 /// The longest run the layer accepts \[s\].
 pub(crate) const MAX_SECONDS: f64 = 1e7;

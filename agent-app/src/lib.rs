@@ -17,6 +17,8 @@
 //!   process, restarted as the spec allows, one summary;
 //! * `replay FILE.mcap --subsystem NAME`: the equivalence verdict or the first
 //!   divergence;
+//! * `--ros2 [ENDPOINT]` (feature `ros2`): the spec's `ros2` section's
+//!   buffers published as ROS 2 topics over rmw_zenoh during any run;
 //! * `check` and `diagram` of the crate's spec.
 //!
 //! Exit status: 0 the run succeeded, 1 it failed (or was stopped before its
@@ -55,6 +57,7 @@ mod output;
 pub mod plot;
 mod record;
 mod replay;
+mod ros2;
 mod signals;
 mod simple;
 mod spec_cmd;
@@ -71,7 +74,9 @@ use agent_core::{ExecConfig, Finished, Probes, System};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-pub use cli::{BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, parse_fault};
+pub use cli::{
+    BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, ROS2_ENDPOINT, parse_fault,
+};
 pub use error::{AppError, BoxError, Status};
 pub use local::{Ran, Watched};
 pub use output::{emit, writable_folder};
@@ -263,6 +268,13 @@ pub trait Application {
         let _ = (config, deployment);
         Ok(())
     }
+
+    /// The adapters that make the standard ROS 2 messages the spec's `ros2`
+    /// section names from buffer values (`--ros2`). None by default.
+    #[cfg(feature = "ros2")]
+    fn ros2_adapters(&self) -> agent_ros2::bridge::Adapters {
+        agent_ros2::bridge::Adapters::new()
+    }
 }
 
 /// What `--help` and `--version` say of a program.
@@ -344,6 +356,7 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
             (common.record.is_some(), "--record"),
             (common.deployment.is_some(), "--deployment"),
             (common.process.is_some(), "--process"),
+            (common.ros2.is_some(), "--ros2"),
         ];
         if let Some((_, flag)) = run_only.iter().find(|(given, _)| *given) {
             return Err(AppError::invalid(format!(

@@ -13,6 +13,7 @@ use agent_core::{
 use agent_mcap::McapRecorder;
 
 use crate::error::{AppError, Status};
+use crate::ros2::{Ros2Out, Threads};
 use crate::transitions::{self, Transitions};
 use crate::watch::{self, End, Ended, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
@@ -44,6 +45,7 @@ pub(crate) fn run<A: Application>(
     let (mut probes, seen) = Probes::new(PROBE_CAPACITY);
     app.probes(&mut probes, &|_| true);
     let mut watcher = app.watcher(config, common);
+    let ros2 = Ros2Out::start(app, common, &spec, &system, None)?;
     let recorder = match &record_to {
         Some(file) => {
             let mut options = app.record_options(config);
@@ -68,25 +70,27 @@ pub(crate) fn run<A: Application>(
         quiet: common.quiet,
         transitions: common.transitions,
     };
-    let (ran, recorder, mode) = if common.realtime {
+    let (ran, recorder, ros2, mode) = if common.realtime {
         let config = RtConfig {
             exec,
             ..RtConfig::realtime()
         };
-        let ran = watched.realtime(system, config, recorder.as_ref())?;
-        (ran, recorder, Mode::RealTime)
+        let threads = ros2.threads();
+        let ran = watched.realtime_observed(system, config, recorder.as_ref(), threads);
+        (ran?, recorder, ros2, Mode::RealTime)
     } else {
         match recorder {
             Some(r) => {
-                let (ran, r) = watched.simulate(system, exec, r)?;
-                (ran, Some(r), Mode::Simulated)
+                let (ran, (r, ros2)) = watched.simulate(system, exec, (r, ros2))?;
+                (ran, Some(r), ros2, Mode::Simulated)
             }
             None => {
-                let (ran, _) = watched.simulate(system, exec, NoObserver)?;
-                (ran, None, Mode::Simulated)
+                let (ran, (_, ros2)) = watched.simulate(system, exec, (NoObserver, ros2))?;
+                (ran, None, ros2, Mode::Simulated)
             }
         }
     };
+    let bridged = ros2.finish();
     conclude(
         app,
         common,
@@ -94,6 +98,7 @@ pub(crate) fn run<A: Application>(
         (ran, mode, rule_stated),
         watcher.as_mut(),
         recorder,
+        bridged,
     )
 }
 
@@ -193,7 +198,10 @@ impl<M: Send + 'static> Watched<'_, M> {
                 next_status += STATUS_EVERY;
                 self.status(ex.now());
                 let any: &dyn std::any::Any = &ex.observer().0;
-                failing.look(any.downcast_ref::<McapRecorder>());
+                failing.look(any.downcast_ref::<McapRecorder>().or_else(|| {
+                    any.downcast_ref::<(McapRecorder, Ros2Out)>()
+                        .map(|(r, _)| r)
+                }));
             }
         };
         let wall = wall.elapsed();
@@ -215,16 +223,28 @@ impl<M: Send + 'static> Watched<'_, M> {
     /// threads' observers this installs) until its end rule, its limit or a
     /// signal, watched from this thread.
     pub fn realtime(
+        self,
+        system: System,
+        config: RtConfig,
+        recorder: Option<&McapRecorder>,
+    ) -> Result<Ran, AppError> {
+        self.realtime_observed(system, config, recorder, None)
+    }
+
+    /// [`Watched::realtime`], its threads observed by the ROS 2 bridge's
+    /// observers (`ros2`) too.
+    pub(crate) fn realtime_observed(
         mut self,
         system: System,
         config: RtConfig,
         recorder: Option<&McapRecorder>,
+        ros2: Option<Threads>,
     ) -> Result<Ran, AppError> {
         let halting = halting_nodes(&system, &self.end)?;
         let exec = config.exec;
         let mut rt = RealTime::new(system, config);
         rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
-        transitions::observe(&mut rt, recorder, self.transitions);
+        transitions::observe(&mut rt, recorder, self.transitions, ros2);
         let running = rt
             .start(self.limit)
             .map_err(|e| AppError::Run(e.to_string()))?;
@@ -324,7 +344,9 @@ pub(crate) fn halting_nodes(
 }
 
 /// The end of every run in this process: the application's last reports, the
-/// recording finished, the timing table, the summary and the judgement.
+/// recording finished, the timing table, the summary and the judgement
+/// (`bridged`: whether the ROS 2 bridge finished cleanly; if not, the run
+/// fails).
 fn conclude<A: Application>(
     app: &mut A,
     common: &Common,
@@ -332,6 +354,7 @@ fn conclude<A: Application>(
     (ran, mode, rule_stated): (Ran, Mode, bool),
     watcher: &mut dyn Watcher<A::Seen>,
     recorder: Option<McapRecorder>,
+    bridged: bool,
 ) -> Result<(Status, String), AppError> {
     let Ran {
         finished,
@@ -349,7 +372,7 @@ fn conclude<A: Application>(
             report.probe_dropped
         ));
     }
-    let recorded = recorder.is_none_or(record::finish);
+    let recorded = recorder.is_none_or(record::finish) && bridged;
     if mode == Mode::RealTime {
         if !common.quiet {
             output::err(format_args!("{report}"));

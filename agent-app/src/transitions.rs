@@ -5,10 +5,11 @@
 //! t=0.100000 s c2: ask -> wait (arc 0, when true)
 //! ```
 
-use agent_core::{NodeInfo, Observer, RealTime, Step, SystemInfo, TransitionEvent};
+use agent_core::{NoObserver, NodeInfo, Observer, RealTime, Step, SystemInfo, TransitionEvent};
 use agent_mcap::McapRecorder;
 
 use crate::output;
+use crate::ros2::Threads;
 
 /// An observer that prints each FSM transition (when enabled).
 #[derive(Debug, Default)]
@@ -91,19 +92,35 @@ impl Observer for Transitions {
 }
 
 /// Give a real-time run its observers: on each thread its part of
-/// `recorder`'s recording beside a transition printer (printing if `print`);
-/// without a recording, a printer only if it prints.
-pub(crate) fn observe(rt: &mut RealTime, recorder: Option<&McapRecorder>, print: bool) {
-    match recorder {
-        Some(r) => {
+/// `recorder`'s recording and of the ROS 2 bridge's (`ros2`) beside a
+/// transition printer (printing if `print`); with neither, a printer only if
+/// it prints.
+pub(crate) fn observe(
+    rt: &mut RealTime,
+    recorder: Option<&McapRecorder>,
+    print: bool,
+    ros2: Option<Threads>,
+) {
+    match (recorder, ros2) {
+        (Some(r), None) => {
             let mut parts = r.threads();
             rt.observe(move |thread, nodes| {
                 Box::new((parts(thread, nodes), Transitions::new(print)))
             });
         }
-        None if print => {
+        (recorder, Some(mut bridge)) => {
+            let mut parts = recorder.map(McapRecorder::threads);
+            rt.observe(move |thread, nodes| {
+                let part: Box<dyn Observer> = match &mut parts {
+                    Some(parts) => parts(thread, nodes),
+                    None => Box::new(NoObserver),
+                };
+                Box::new(((part, bridge(thread, nodes)), Transitions::new(print)))
+            });
+        }
+        (None, None) if print => {
             rt.observe(|_, _| Box::new(Transitions::new(true)));
         }
-        None => {}
+        (None, None) => {}
     }
 }

@@ -15,6 +15,7 @@ use agent_zenoh::{Member, MemberError, Options};
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
 use crate::local::{PROBE_CAPACITY, halting_nodes};
+use crate::ros2::{Part, Ros2Out, Threads};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
 use crate::{transitions, watch};
 
@@ -95,6 +96,7 @@ pub(crate) fn run<A: Application>(
     let system = app.build(&config, &start.target())?;
     let runs = member.runs().to_vec();
     let here = |n: &str| runs.iter().any(|r| r == n);
+    let ros2 = Ros2Out::start(app, common, &spec, &system, Some(start.part(&runs)))?;
     // The end rule's subsystems that run here: each one's halt is told.
     let halting: Vec<_> = halting_nodes(&system, &app.end(&config))?
         .unwrap_or_default()
@@ -120,6 +122,7 @@ pub(crate) fn run<A: Application>(
         probes,
         recorder.as_ref(),
         common.transitions,
+        ros2.threads(),
     );
     let (running, end) = start_run(rt, &mut member, limit, &mut recorder)?;
     let mut vigil = Vigil {
@@ -130,7 +133,9 @@ pub(crate) fn run<A: Application>(
         stopped: None,
     };
     vigil.until_over(&running, &seen, &halting, end, recorder.as_ref());
-    let finished = running.join().map_err(|e| AppError::Run(e.to_string()))?;
+    let finished = running.join().map_err(|e| AppError::Run(e.to_string()));
+    let bridged = ros2.finish();
+    let finished = finished?;
     for m in app.finished(&finished) {
         vigil.send(SEEN, &m);
     }
@@ -177,7 +182,7 @@ pub(crate) fn run<A: Application>(
     if let Err(e) = &left {
         output::error(e);
     }
-    Ok(if recorded {
+    Ok(if recorded && bridged {
         Status::Success
     } else {
         Status::Failed
@@ -230,6 +235,15 @@ impl ThisStart<'_> {
             process: self.process,
             incarnation: self.incarnation,
             boot: self.boot,
+        }
+    }
+
+    /// Its part of the deployment, running the components `runs`.
+    fn part<'r>(&'r self, runs: &'r [String]) -> Part<'r> {
+        Part {
+            deployment: self.deployment,
+            process: self.process,
+            runs,
         }
     }
 
@@ -307,7 +321,8 @@ fn start_recording<A: Application>(
 }
 
 /// The real-time run of `system`, watched by `probes`, observed by the
-/// recorder's parts and, if `print`, by a printer of transitions.
+/// recorder's parts, the ROS 2 bridge's (`ros2`) and, if `print`, by a
+/// printer of transitions.
 fn real_time<A: Application>(
     app: &A,
     config: &A::Config,
@@ -315,6 +330,7 @@ fn real_time<A: Application>(
     probes: Probes<A::Seen>,
     recorder: Option<&agent_mcap::McapRecorder>,
     print: bool,
+    ros2: Option<Threads>,
 ) -> RealTime {
     // A lost peer or a gap is reported and the run goes on: a deployment
     // lives with processes that come and go.
@@ -330,7 +346,7 @@ fn real_time<A: Application>(
         },
     );
     rt.watch(probes);
-    transitions::observe(&mut rt, recorder, print);
+    transitions::observe(&mut rt, recorder, print, ros2);
     rt
 }
 
