@@ -6,7 +6,9 @@
 //!    against a built system: per published buffer the link whose values it
 //!    takes, the fully qualified topic, the message (the one made from the
 //!    buffer type in the section's package, or the standard one the spec
-//!    names, made by an adapter of [`Adapters`]), its `RIHS01_` hash and the
+//!    names, made by an adapter of [`Adapters`]; across the plan one
+//!    definition per message name, a helper or root that two buffer types
+//!    define differently being numbered, `Item2`), its `RIHS01_` hash and the
 //!    QoS (the spec's, else the link's: a queue of `n` is reliable keep-last
 //!    `n`, a sample best effort keep-last 1). What cannot be published is a
 //!    [`PlanError`] naming the buffer and topic, before anything runs. A
@@ -68,6 +70,7 @@ use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 mod adapter;
+mod intern;
 mod plan;
 mod publish;
 mod report;

@@ -1,7 +1,9 @@
 //! The plan of a bridge: from a spec's `ros2` section and a built system,
 //! which link carries each published buffer's values, under which topic, as
 //! which message (its type hash) and with which QoS. Everything that can be
-//! wrong is found here, before anything runs.
+//! wrong is found here, before anything runs. Across the plan, each message
+//! name has one definition (`intern`: a helper or root defined differently
+//! by two topics is numbered, `Item2`).
 
 use std::sync::Arc;
 
@@ -11,6 +13,7 @@ use agent_spec::model::{Deployment, Durability, Reliability, Spec};
 use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
 
 use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
+use super::intern::one_definition_per_name;
 use crate::types::standard::builtin_interfaces::Time;
 use crate::types::{Messages, messages, type_hash};
 use crate::wire::{Interface, Qos, TopicKey, TypeName};
@@ -246,11 +249,12 @@ impl Plan {
         }
         let interface = spec_ros2::interface(spec, deployment).ok_or(PlanError::NoSection)?;
         check_names(&interface)?;
-        let topics = interface
+        let mut topics: Vec<PublishedTopic> = interface
             .publish
             .iter()
             .map(|t| published(t, &interface, system, adapters))
             .collect::<Result<_, _>>()?;
+        consistent(interface.domain, &mut topics)?;
         let unserved = interface
             .subscribe
             .iter()
@@ -389,12 +393,7 @@ fn published(
             )
         }
     };
-    let name = messages.name();
-    let type_name = TypeName::new(&name.package, Interface::Msg, &name.name)
-        .map_err(|e| not_a_message(e.to_string()))?;
-    let hash = type_hash(&messages).map_err(|e| not_a_message(e.to_string()))?;
-    let key = TopicKey::new(interface.domain, &t.name, type_name, hash)
-        .map_err(|e| not_a_message(format!("the topic: {e}")))?;
+    let key = key_of(interface.domain, &t.name, &messages).map_err(not_a_message)?;
     let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
         buffer: t.buffer.clone(),
         topic: t.name.clone(),
@@ -408,6 +407,38 @@ fn published(
         qos,
         encoder,
     })
+}
+
+/// The data key of `topic` carrying `messages`' root, with its hash; the
+/// reason when there is none.
+fn key_of(domain: u32, topic: &str, messages: &Messages) -> Result<TopicKey, String> {
+    let name = messages.name();
+    let type_name =
+        TypeName::new(&name.package, Interface::Msg, &name.name).map_err(|e| e.to_string())?;
+    let hash = type_hash(messages).map_err(|e| e.to_string())?;
+    TopicKey::new(domain, topic, type_name, hash).map_err(|e| format!("the topic: {e}"))
+}
+
+/// `topics` with one definition per message name across them all
+/// ([`one_definition_per_name`]; standard messages, through adapters, keep
+/// their names first), each key made again with its message's name and hash.
+fn consistent(domain: u32, topics: &mut [PublishedTopic]) -> Result<(), PlanError> {
+    let mut order: Vec<usize> = (0..topics.len()).collect();
+    order.sort_by_key(|&k| matches!(topics[k].encoder, Encoder::Own(_)));
+    let sets: Vec<&Messages> = order.iter().map(|&k| &topics[k].messages).collect();
+    let made = one_definition_per_name(&sets);
+    for (k, messages) in order.into_iter().zip(made) {
+        let t = &mut topics[k];
+        t.key =
+            key_of(domain, t.key.topic(), &messages).map_err(|reason| PlanError::NotAMessage {
+                buffer: t.buffer.clone(),
+                topic: t.key.topic().to_owned(),
+                payload: t.payload.to_owned(),
+                reason,
+            })?;
+        t.messages = messages;
+    }
+    Ok(())
 }
 
 /// The first link whose values come from output `component.peer.buffer`.
