@@ -97,15 +97,21 @@ impl Ros2Out {
         };
         let invalid =
             |e: &dyn std::fmt::Display| AppError::invalid(format!("--ros2 {endpoint}: {e}"));
+        let (spec, absent) = in_the_system(&spec.spec, part.map(|p| p.deployment), system);
+        if !absent.is_empty() {
+            crate::output::warn(format_args!(
+                "--ros2: not published, their components are not in this run: {}",
+                absent.join(", ")
+            ));
+        }
         let deployment = match part {
-            Some(p) => Some(spec.spec.deployment(p.deployment).ok_or_else(|| {
+            Some(p) => Some(spec.deployment(p.deployment).ok_or_else(|| {
                 invalid(&format_args!("spec has no deployment `{}`", p.deployment))
             })?),
             None => None,
         };
         let adapters = app.ros2_adapters();
-        let mut plan =
-            Plan::new(&spec.spec, deployment, system, &adapters).map_err(|e| invalid(&e))?;
+        let mut plan = Plan::new(&spec, deployment, system, &adapters).map_err(|e| invalid(&e))?;
         if let Some(p) = part {
             let node = format!("{}_{}", plan.node, node_name_part(p.process));
             plan = plan
@@ -113,8 +119,15 @@ impl Ros2Out {
                 .named(&node)
                 .map_err(|e| invalid(&e))?;
         }
-        let unserved: Vec<String> = agent_spec::ros2::interface(&spec.spec, deployment)
-            .map(|i| i.subscribe.into_iter().map(|t| t.name).collect())
+        let here = |c: &str| part.is_none_or(|p| p.runs.iter().any(|r| r == c));
+        let unserved: Vec<String> = agent_spec::ros2::interface(&spec, deployment)
+            .map(|i| {
+                i.subscribe
+                    .into_iter()
+                    .filter(|t| here(&t.component))
+                    .map(|t| t.name)
+                    .collect()
+            })
             .unwrap_or_default();
         if !unserved.is_empty() {
             crate::output::warn(format_args!(
@@ -166,6 +179,39 @@ impl Ros2Out {
     fn observer(&mut self) -> Option<&mut dyn Observer> {
         self.bridge.as_mut().map(|b| b as &mut dyn Observer)
     }
+}
+
+/// `spec` without the `publish` entries whose component `system` does not
+/// have (a run built without some of the spec's components, as Rex's
+/// `--no-vo`), and the buffers of those that `deployment`'s section (or the
+/// system's) names.
+#[cfg(feature = "ros2")]
+fn in_the_system(
+    spec: &agent_spec::Spec,
+    deployment: Option<&str>,
+    system: &System,
+) -> (agent_spec::Spec, Vec<String>) {
+    let info = system.info();
+    let has = |buffer: &str| {
+        let component = buffer.split('.').next().unwrap_or_default();
+        info.nodes.iter().any(|n| n.name == component)
+    };
+    let section = agent_spec::ros2::section(spec, deployment.and_then(|d| spec.deployment(d)));
+    let absent = section
+        .map(|s| s.publish.iter().filter(|t| !has(&t.buffer)))
+        .into_iter()
+        .flatten()
+        .map(|t| t.buffer.clone())
+        .collect();
+    let mut spec = spec.clone();
+    let sections = spec
+        .ros2
+        .iter_mut()
+        .chain(spec.deployments.iter_mut().filter_map(|d| d.ros2.as_mut()));
+    for section in sections {
+        section.publish.retain(|t| has(&t.buffer));
+    }
+    (spec, absent)
 }
 
 /// `process` as part of a ROS 2 node name: what is not a letter, digit or
