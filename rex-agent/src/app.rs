@@ -409,6 +409,11 @@ impl Application for RexApp {
         Ok(recorded)
     }
 
+    #[cfg(feature = "ros2")]
+    fn ros2_adapters(&self) -> embodied::ros2::bridge::Adapters {
+        crate::ros2::adapters()
+    }
+
     fn check_deployment(&self, config: &RunSettings, deployment: &str) -> Result<(), AppError> {
         let spec = self.spec(config)?.spec;
         if !config.visual_odometry
