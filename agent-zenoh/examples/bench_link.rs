@@ -1,6 +1,7 @@
 //! One hop of a 64-byte buffer: in-process, between threads, and between two
-//! processes over Zenoh on loopback, beside raw Zenoh publish/subscribe between
-//! the same two processes in the same run.
+//! processes over Zenoh on loopback, beside raw Zenoh publish/subscribe and
+//! ROS 2 messages over rmw_zenoh between the same two processes in the same
+//! run.
 //!
 //! `cargo run --release -p agent-zenoh --example bench_link`
 //!
@@ -17,6 +18,18 @@
 //!   use mutual TLS and the access control a secure deployment gets
 //!   ([`agent_zenoh::security`]: each side may publish only its own keys and
 //!   subscribe only to the other's).
+//!
+//! * `ros2_us`: the same half round trip as ROS 2 messages over rmw_zenoh,
+//!   between the processes of `zenoh_us` on the same sessions ("publish to
+//!   decode"). Each side sends through agent-ros2's bridge as it runs: the
+//!   bridge's observer (postcard bytes into its wait-free ring, its
+//!   publishing thread woken), that thread (CDR with the 4-byte header, the
+//!   33-byte attachment, a put on the topic's data key); the other side takes
+//!   the sample from a subscriber to that key and decodes the attachment, the
+//!   CDR (`read_cdr`) and the postcard bytes into the value. `zenoh_us`
+//!   includes the counterparts: our link's outbox ring and publishing thread
+//!   (postcard and header, a put), and on receipt the inbox's checks and
+//!   postcard. `ros2_over_zenoh` is the ratio of their p50s.
 //!
 //! The Zenoh figures alternate in rounds of 1000 so that the machine's drift
 //! affects them alike. With two cores or more, this process (both pings) runs
@@ -37,6 +50,9 @@ use std::time::{Duration, Instant};
 
 use agent_core::link::endpoint::{self, Receiver, Sender};
 use agent_core::prelude::*;
+use agent_core::trace::{Observer, TransferEvent};
+use agent_ros2::bridge::{Adapters, Bridge, BridgeOptions, Plan};
+use agent_ros2::wire::Attachment;
 use agent_zenoh::security::{
     AccessPolicy, Credentials, LAUNCHER, ProcessAccess, Secured, common_name, create_dev_authority,
 };
@@ -226,6 +242,153 @@ fn raw_recv(raw: &Raw) -> Option<Vec<u8>> {
         .map(|s| s.payload().to_bytes().into_owned())
 }
 
+// ---------------------------------------------------------------------------
+// ROS 2 over rmw_zenoh: the bridge's publishing path, a subscriber's decoding.
+
+/// The value of the ROS 2 hop: `Payload64` (the same postcard bytes) in a
+/// struct, so that its message has a name: `bench_msgs/msg/Ping64`.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+struct Ping64 {
+    values: Payload64,
+}
+
+struct Pinger;
+#[derive(Debug, Default)]
+struct ToPonger {
+    ping: Out<Ping64>,
+}
+impl Group for ToPonger {
+    const PEER: NodeKind = NodeKind::VirtualEffector;
+}
+#[derive(Debug, Default)]
+struct PingerOut {
+    q: ToPonger,
+}
+impl Subsystem for Pinger {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = ();
+    type Input = ();
+    type Output = PingerOut;
+}
+
+struct Ponger;
+#[derive(Debug, Default, Clone)]
+struct FromPinger {
+    ping: In<Ping64>,
+}
+impl Group for FromPinger {
+    const PEER: NodeKind = NodeKind::Control;
+}
+#[derive(Debug, Default, Clone)]
+struct PongerIn {
+    p: FromPinger,
+}
+impl Subsystem for Ponger {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = ();
+    type Input = PongerIn;
+    type Output = ();
+}
+
+/// The system whose link `p.q.ping` the bridge publishes (it never runs:
+/// the bridge takes its plan from it, and values through its observer).
+fn ros_system() -> System {
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let period = Period::from_millis(1).unwrap();
+    let go = Fsm::single(Behaviour::while_loop(
+        "go",
+        Action::<Pinger>::new(),
+        "false",
+    ));
+    let keep = Fsm::single(Behaviour::while_loop(
+        "keep",
+        Action::<Ponger>::new(),
+        "false",
+    ));
+    let p = b.subsystem(a, "p", period, (), go.unwrap());
+    let q = b.subsystem(a, "q", period, (), keep.unwrap());
+    b.connect(
+        p.output(port!(PingerOut, q.ping)),
+        q.input(port!(PongerIn, p.ping)),
+        Policy::queue(64),
+    );
+    b.build().unwrap()
+}
+
+/// The plan publishing `p.q.ping` on topic `/<topic>` from node `<topic>`.
+fn ros_plan(system: &System, topic: &str) -> Plan {
+    let text = format!(
+        r#"(
+    name: "bench",
+    agents: [(name: "a", subsystems: [
+        (name: "p", kind: Control, period_ms: 1.0,
+         outputs: [(peer: "q", buffers: [(name: "ping", type: "Ping64")])],
+         behaviours: [(name: "go", kind: While, terminal: "false")], fsm: (initial: "go")),
+        (name: "q", kind: VirtualEffector, period_ms: 1.0,
+         inputs: [(peer: "p", buffers: [(name: "ping", type: "Ping64")])],
+         behaviours: [(name: "keep", kind: While, terminal: "false")], fsm: (initial: "keep")),
+    ])],
+    links: [(from: "p.q.ping", to: "q.p.ping", policy: Queue(64))],
+    ros2: (node: "{topic}", publish: [(buffer: "p.q.ping", topic: "{topic}")]),
+)"#
+    );
+    let spec = agent_spec::options().from_str(&text).unwrap();
+    Plan::new(&spec, None, system, &Adapters::new()).unwrap()
+}
+
+/// One end of the ROS 2 hop: a bridge publishing on `/<send>` (its observer,
+/// ring and publishing thread) and a subscriber to `/<recv>`'s data key.
+struct Ros {
+    bridge: Bridge,
+    link: usize,
+    shape: agent_core::TypeShape,
+    subscriber: agent_zenoh::zenoh::pubsub::Subscriber<
+        agent_zenoh::zenoh::handlers::FifoChannelHandler<agent_zenoh::zenoh::sample::Sample>,
+    >,
+    /// The postcard bytes of the value being decoded.
+    bytes: Vec<u8>,
+}
+
+fn ros_ends(session: &agent_zenoh::zenoh::Session, send: &str, recv: &str) -> Ros {
+    let system = ros_system();
+    let plan = ros_plan(&system, send);
+    let link = plan.topics[0].link;
+    let key = ros_plan(&system, recv).topics[0].key.to_string();
+    let subscriber = session.declare_subscriber(key).wait().unwrap();
+    let options = BridgeOptions::default();
+    Ros {
+        bridge: Bridge::on_session(plan, session.clone(), &options).unwrap(),
+        link,
+        shape: system.payload_shape(link).unwrap(),
+        subscriber,
+        bytes: Vec::new(),
+    }
+}
+
+impl Ros {
+    /// Publish `v` as the bridge publishes a value sent into its link.
+    fn send(&mut self, v: Payload64, i: usize) {
+        let event = TransferEvent {
+            link: self.link,
+            stamp: stamp(i),
+        };
+        self.bridge.transfer(&event, &Ping64 { values: v });
+    }
+
+    /// The next value received, if any: its attachment and CDR decoded.
+    fn recv(&mut self) -> Option<Payload64> {
+        let sample = self.subscriber.try_recv().ok().flatten()?;
+        let attachment = sample.attachment().expect("rmw_zenoh's attachment");
+        let attachment = Attachment::decode(&attachment.to_bytes()).unwrap();
+        assert!(attachment.sequence_number > 0);
+        self.bytes.clear();
+        agent_mcap::cdr::read_cdr(&self.shape, &sample.payload().to_bytes(), &mut self.bytes)
+            .unwrap();
+        Some(postcard::from_bytes::<Ping64>(&self.bytes).unwrap().values)
+    }
+}
+
 /// The policy of the two benchmark processes: `main` pings, `echo` pongs.
 fn policy() -> AccessPolicy {
     let keys = |a: &str| {
@@ -285,6 +448,8 @@ fn echo_main(certs: Option<&std::path::Path>) {
     pin(1);
     let session = session("echo", certs);
     let (mut ours, raw) = ends(&session, "pong", "ping");
+    // ROS 2 keys are not in the secure pair's access control.
+    let mut ros = certs.is_none().then(|| ros_ends(&session, "pong", "ping"));
     let ready = session.declare_publisher("bench/_rt/ready").wait().unwrap();
     let end = Instant::now() + Duration::from_secs(300);
     let mut i = 0;
@@ -303,8 +468,21 @@ fn echo_main(certs: Option<&std::path::Path>) {
             raw.publisher.put(bytes).wait().unwrap();
             idle = false;
         }
+        if let Some(ros) = ros.as_mut()
+            && let Some(v) = ros.recv()
+        {
+            ros.send(v, i);
+            idle = false;
+        }
         if idle {
-            if last_ready.elapsed() > Duration::from_millis(100) {
+            // Ready once the pongs of ROS 2 have their subscriber too (asked
+            // only when it is time to say so: asking is not free).
+            let due = last_ready.elapsed() > Duration::from_millis(100);
+            let matched = || {
+                ros.as_ref()
+                    .is_none_or(|r| r.bridge.wait_for_subscribers(Duration::ZERO))
+            };
+            if due && matched() {
                 ready.put("ready").wait().unwrap();
                 last_ready = Instant::now();
             }
@@ -318,6 +496,8 @@ struct Pair {
     child: std::process::Child,
     ours: Ours,
     raw: Raw,
+    /// The ROS 2 ends (the plain pair only).
+    ros: Option<Ros>,
     _session: agent_zenoh::zenoh::Session,
 }
 
@@ -330,6 +510,7 @@ fn pair(certs: Option<&std::path::Path>) -> Pair {
     let child = cmd.stdout(Stdio::null()).spawn().unwrap();
     let session = session("main", certs);
     let (ours, raw) = ends(&session, "ping", "pong");
+    let ros = certs.is_none().then(|| ros_ends(&session, "ping", "pong"));
     // The echo process is up and its subscriptions reach us.
     let ready = session
         .declare_subscriber("bench/_rt/ready")
@@ -339,21 +520,40 @@ fn pair(certs: Option<&std::path::Path>) -> Pair {
         .recv_timeout(Duration::from_secs(30))
         .unwrap()
         .expect("the echo process is ready");
+    if let Some(ros) = &ros {
+        assert!(ros.bridge.wait_for_subscribers(Duration::from_secs(30)));
+    }
     Pair {
         child,
         ours,
         raw,
+        ros,
         _session: session,
     }
 }
 
-/// Half round trips through our links and through raw Zenoh, plain and
-/// secure, alternating in rounds.
-fn zenoh_us(certs: &std::path::Path) -> [Vec<f64>; 3] {
+/// Half round trips of `n` values through the ROS 2 ends, numbered from
+/// `*seq + 1`, pushed to `out` if `count`.
+fn ros_round(ros: &mut Ros, seq: &mut u64, n: usize, count: bool, out: &mut Vec<f64>) {
+    for _ in 0..n {
+        *seq += 1;
+        let t = Instant::now();
+        ros.send([*seq, 0, 0, 0, 0, 0, 0, 0], *seq as usize);
+        let v = spin(|| ros.recv());
+        assert_eq!(v[0], *seq);
+        if count {
+            out.push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
+        }
+    }
+}
+
+/// Half round trips through our links, raw Zenoh and ROS 2 (plain), and our
+/// links secure, alternating in rounds: ours, secure, raw, ROS 2.
+fn zenoh_us(certs: &std::path::Path) -> [Vec<f64>; 4] {
     let mut plain = pair(None);
     let mut secure = pair(Some(certs));
     std::thread::sleep(Duration::from_millis(300));
-    let mut out: [Vec<f64>; 3] = Default::default();
+    let mut out: [Vec<f64>; 4] = Default::default();
     let mut seq = 0u64;
     for round in 0..ROUNDS + 1 {
         // The first round warms every path up and is not counted.
@@ -384,7 +584,18 @@ fn zenoh_us(certs: &std::path::Path) -> [Vec<f64>; 3] {
                 out[1].push(t.elapsed().as_secs_f64() * 1e6 / 2.0);
             }
         }
+        let ros = plain.ros.as_mut().unwrap();
+        ros_round(ros, &mut seq, PER_ROUND, count, &mut out[3]);
     }
+    let report = plain.ros.take().unwrap().bridge.finish().unwrap();
+    assert_eq!(
+        (
+            report.dropped(),
+            report.encode_failures(),
+            report.put_failures()
+        ),
+        (0, 0, 0)
+    );
     for p in [&mut plain, &mut secure] {
         p.ours
             .tx
@@ -418,11 +629,12 @@ fn main() {
     create_dev_authority(&certs, &policy(), &[]).unwrap();
     let (inproc, _) = report("inproc", "ns", &mut inproc_ns());
     let (thread, _) = report("thread", "us", &mut thread_us());
-    let [mut ours, mut raw, mut secure] = zenoh_us(&certs);
+    let [mut ours, mut raw, mut secure, mut ros2] = zenoh_us(&certs);
     let _ = std::fs::remove_dir_all(&certs);
     let (zenoh_p50, zenoh_p99) = report("zenoh", "us", &mut ours);
     let (raw_p50, _) = report("raw_zenoh", "us", &mut raw);
     let (secure_p50, secure_p99) = report("secure", "us", &mut secure);
+    let (ros2_p50, ros2_p99) = report("ros2", "us", &mut ros2);
     println!(
         "zenoh_p50 / raw_zenoh_p50 = {:.2} (aim <= 1.2)",
         zenoh_p50 / raw_p50
@@ -431,7 +643,9 @@ fn main() {
         "zenoh_secure_p50 / zenoh_p50 = {:.2} (TLS and access control; aim <= 1.3)",
         secure_p50 / zenoh_p50
     );
+    let ros2_over_zenoh = ros2_p50 / zenoh_p50;
+    println!("ros2_p50 / zenoh_p50 = {ros2_over_zenoh:.2} (ROS 2 over rmw_zenoh; aim <= 1.2)");
     println!(
-        "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1} zenoh_secure_us_p50={secure_p50:.1} zenoh_secure_us_p99={secure_p99:.1}"
+        "inproc_ns_p50={inproc:.0} thread_us_p50={thread:.2} zenoh_us_p50={zenoh_p50:.1} zenoh_us_p99={zenoh_p99:.1} raw_zenoh_us_p50={raw_p50:.1} zenoh_secure_us_p50={secure_p50:.1} zenoh_secure_us_p99={secure_p99:.1} ros2_us_p50={ros2_p50:.1} ros2_us_p99={ros2_p99:.1} ros2_over_zenoh={ros2_over_zenoh:.2}"
     );
 }
