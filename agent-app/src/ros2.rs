@@ -119,20 +119,11 @@ impl Ros2Out {
                 .named(&node)
                 .map_err(|e| invalid(&e))?;
         }
-        let here = |c: &str| part.is_none_or(|p| p.runs.iter().any(|r| r == c));
-        let unserved: Vec<String> = agent_spec::ros2::interface(&spec, deployment)
-            .map(|i| {
-                i.subscribe
-                    .into_iter()
-                    .filter(|t| here(&t.component))
-                    .map(|t| t.name)
-                    .collect()
-            })
-            .unwrap_or_default();
-        if !unserved.is_empty() {
+        if !plan.unserved().is_empty() {
+            let topics: Vec<&str> = plan.unserved().iter().map(|t| t.topic.as_str()).collect();
             crate::output::warn(format_args!(
                 "--ros2: the spec's subscribe topics are not served yet (nothing is taken from ROS 2): {}",
-                unserved.join(", ")
+                topics.join(", ")
             ));
         }
         let mut options = BridgeOptions {
@@ -170,6 +161,9 @@ impl Ros2Out {
                     report.encode_failures(),
                     report.put_failures()
                 ));
+                for e in &report.close_errors {
+                    crate::output::warn(format_args!("ros2: {e}"));
+                }
                 true
             }
             Err(e) => {
