@@ -287,6 +287,12 @@ impl<T> In<T> {
         self.new = false;
     }
 
+    /// Runtime side: whether the last read brought a value (without counting
+    /// as the node's read of the buffer, as [`In::is_new`] does).
+    pub(crate) fn took(&self) -> bool {
+        self.new
+    }
+
     /// Runtime side of a read: swap the slot with `incoming` (recycling storage) and
     /// mark it new.
     pub(crate) fn swap_in(&mut self, incoming: &mut Option<T>, stamp: Stamp) {

@@ -393,3 +393,96 @@ fn a_thread_running_late_never_reads_a_value_stamped_after_its_instant() {
         }
     }
 }
+
+/// A wire message of `value` for an inbox of `fingerprint`: the header, then
+/// the value's postcard bytes (what a bridge from another middleware writes).
+fn wire(fingerprint: u64, epoch: u64, seq: u64, at: Time, value: u64) -> Vec<u8> {
+    let mut message = Vec::new();
+    WireHeader {
+        fingerprint,
+        epoch,
+        seq,
+        stamp: Stamp::new(0, at),
+    }
+    .write(&mut message);
+    postcard::to_extend(&value, message).unwrap()
+}
+
+#[test]
+fn a_fed_input_takes_the_feeds_values_beside_its_links_in_order_and_neither_starves() {
+    // c sends every millisecond on a queue; a feeder from outside the system
+    // sends 1000, 1001, ... into the same input, all at once, while it runs.
+    let p = pair(1, 1, 1, Policy::queue(1024), false);
+    let mut rt = RealTime::new(p.system, RtConfig::default());
+    let inbox = rt.feed(p.down, "outside/count").unwrap();
+    assert_eq!(
+        rt.feed(p.down, "again").unwrap_err().to_string(),
+        "link `c.e.count -> e.c.count` cannot be fed from outside the system: the link is fed already"
+    );
+    assert_eq!(inbox.key(), "outside/count");
+    let running = rt.start(Duration::from_millis(300)).unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    for k in 0..20 {
+        inbox.deliver(&wire(inbox.fingerprint(), 7, k + 1, Time::ZERO, 1000 + k));
+    }
+    let f = running.join().unwrap();
+    let got: Vec<u64> = f.memory(&p.e).unwrap().got.iter().map(|g| g.1).collect();
+    let (fed, own): (Vec<u64>, Vec<u64>) = got.iter().partition(|v| **v >= 1000);
+    assert_eq!(
+        fed,
+        (1000..1020).collect::<Vec<_>>(),
+        "every fed value, in order"
+    );
+    assert_eq!(own, (0..own.len() as u64).collect::<Vec<_>>(), "c's too");
+    // Taken in turn: the first fed values arrive between c's, not after them.
+    let first_fed = got.iter().position(|v| *v >= 1000).unwrap();
+    let last_fed = got.iter().rposition(|v| *v >= 1000).unwrap();
+    let between = got[first_fed..=last_fed]
+        .iter()
+        .filter(|v| **v < 1000)
+        .count();
+    assert!(
+        between >= 19,
+        "c's values alternate with the feed's: {got:?}"
+    );
+    let s = inbox.stats();
+    assert_eq!((s.delivered, s.refused), (20, 0), "{s:?}");
+    assert_eq!(f.link_stats(p.down).unwrap().delivered, own.len() as u64);
+    assert!(f.report().errors.is_empty(), "{:?}", f.report().errors);
+}
+
+#[test]
+fn a_fed_value_from_its_future_or_of_another_type_is_not_taken() {
+    // Refused values are errors of e's reads: reported, and the run goes on.
+    let p = pair(1, 1, 1_000_000, Policy::queue(8), false);
+    let config = RtConfig {
+        exec: ExecConfig {
+            on_error: OnError::Continue,
+            ..ExecConfig::default()
+        },
+        ..RtConfig::default()
+    };
+    let mut rt = RealTime::new(p.system, config);
+    let inbox = rt.feed(p.down, "outside/count").unwrap();
+    let running = rt.start(Duration::from_millis(200)).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    // Another type's fingerprint: refused, and reported at e's read.
+    inbox.deliver(&wire(inbox.fingerprint() ^ 1, 7, 1, Time::ZERO, 5));
+    inbox.deliver(&wire(inbox.fingerprint(), 7, 1, Time::ZERO, 1001));
+    // Stamped an hour ahead: refused at the read, never taken.
+    inbox.deliver(&wire(
+        inbox.fingerprint(),
+        7,
+        2,
+        Time::from_nanos(3_600_000_000_000),
+        1002,
+    ));
+    let f = running.join().unwrap();
+    let got: Vec<u64> = f.memory(&p.e).unwrap().got.iter().map(|g| g.1).collect();
+    assert!(got.contains(&1001), "{got:?}");
+    assert!(!got.contains(&5) && !got.contains(&1002), "{got:?}");
+    assert_eq!(inbox.stats().refused, 2);
+    let errors: Vec<String> = f.report().errors.iter().map(ToString::to_string).collect();
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(errors[0].contains("outside/count"), "{errors:?}");
+}

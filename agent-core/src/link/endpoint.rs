@@ -128,6 +128,32 @@ pub fn from_process<T: Payload>(
     })
 }
 
+/// An inbox for values of `T` from outside any system, under `key` (a name
+/// for errors), and the receiving end that takes them: for a feeder's tests
+/// (a bridge from another middleware writes the messages of the wire format
+/// into the inbox, as it would into one from
+/// [`RealTime::feed`](crate::RealTime::feed)).
+pub fn fed<T: Payload>(key: &str, policy: Policy) -> (Arc<Inbox>, Receiver<T>) {
+    let stats = Arc::new(SharedStats::default());
+    let inbox = Arc::new(Inbox::new(
+        key.into(),
+        remote::fingerprint::<T>(),
+        std::any::type_name::<T>(),
+        policy,
+        stats.clone(),
+    ));
+    let receiver = Receiver {
+        rx: ThreadRx::Remote(RemoteRx {
+            inbox: inbox.clone(),
+        }),
+        buffer: In::default(),
+        name: key.to_owned(),
+        stats,
+        _subscription: None,
+    };
+    (inbox, receiver)
+}
+
 impl<T: Payload> Sender<T> {
     /// Send `value` with `stamp`. A full queue or a failed transport is an
     /// error (the value is not sent).

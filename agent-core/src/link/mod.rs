@@ -624,6 +624,16 @@ pub(crate) trait ChannelPlan: Send {
         std::sync::Arc<remote::Inbox>,
         std::sync::Arc<thread::SharedStats>,
     );
+    /// An inbox for values of the link's type and policy from outside the
+    /// system, with counters of its own.
+    fn feed_inbox(&self, key: std::sync::Arc<str>) -> std::sync::Arc<remote::Inbox>;
+    /// `rx` (a receiving half made by this plan) with `feed` beside it;
+    /// `None` if `rx` is not of this plan's type.
+    fn fed(
+        &self,
+        rx: Box<dyn Any + Send>,
+        feed: std::sync::Arc<remote::Inbox>,
+    ) -> Option<Box<dyn Any + Send>>;
     /// The payload type's fingerprint.
     fn fingerprint(&self) -> u64;
     /// The payload type's shape.
@@ -674,6 +684,30 @@ impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
             inbox: inbox.clone(),
         });
         (Box::new(rx), inbox, stats)
+    }
+    fn feed_inbox(&self, key: std::sync::Arc<str>) -> std::sync::Arc<remote::Inbox> {
+        std::sync::Arc::new(remote::Inbox::new(
+            key,
+            remote::fingerprint::<T>(),
+            std::any::type_name::<T>(),
+            self.policy,
+            std::sync::Arc::new(thread::SharedStats::default()),
+        ))
+    }
+    fn fed(
+        &self,
+        rx: Box<dyn Any + Send>,
+        feed: std::sync::Arc<remote::Inbox>,
+    ) -> Option<Box<dyn Any + Send>> {
+        let link = *rx.downcast::<thread::ThreadRx<T>>().ok()?;
+        Some(Box::new(thread::ThreadRx::<T>::Fed(Box::new(
+            thread::Fed {
+                link,
+                feed: remote::RemoteRx { inbox: feed },
+                feed_first: true,
+                from_feed: false,
+            },
+        ))))
     }
     fn fingerprint(&self) -> u64 {
         remote::fingerprint::<T>()

@@ -391,6 +391,19 @@ impl Inbox {
         self.key.clone()
     }
 
+    /// The fingerprint of the payload type its values must carry
+    /// ([`fingerprint`]): what a feeder from outside the system writes in
+    /// each message's header.
+    pub fn fingerprint(&self) -> u64 {
+        self.fingerprint
+    }
+
+    /// The counters of the values this inbox took in: delivered to the
+    /// reader, refused, overwritten (sample), overflowed (queue).
+    pub fn stats(&self) -> crate::LinkStats {
+        self.stats.snapshot()
+    }
+
     /// The link's policy.
     pub fn policy(&self) -> Policy {
         self.policy

@@ -56,6 +56,20 @@ pub(crate) enum ThreadRx<T: Send> {
     Queue(rtrb::Consumer<(T, Stamp)>, Arc<SharedStats>),
     /// From another process.
     Remote(RemoteRx),
+    /// The link's own half, and a feed from outside the system (another
+    /// middleware: [`RealTime::feed`](crate::RealTime::feed)), read in turn
+    /// when both hold a value.
+    Fed(Box<Fed<T>>),
+}
+
+/// A link's receiving half with a feed beside it.
+pub(crate) struct Fed<T: Send> {
+    pub(crate) link: ThreadRx<T>,
+    pub(crate) feed: RemoteRx,
+    /// The feed is tried first at the next read (it was not taken last).
+    pub(crate) feed_first: bool,
+    /// The last read's value came from the feed.
+    pub(crate) from_feed: bool,
 }
 
 /// The two halves and the counters of a new link between threads.
@@ -179,6 +193,54 @@ impl<T: Payload> ThreadRx<T> {
                     .take_into(x, now)
                     .map_err(|p| (rx.inbox.key_arc(), p));
             }
+            ThreadRx::Fed(fed) => return fed.take_into(x, now),
+        }
+        Ok(())
+    }
+
+    /// Whether the value the last read brought came from another process or
+    /// from outside the system (the observer keeps such values: a replay
+    /// needs them).
+    pub(crate) fn took_from_away(&self) -> bool {
+        match self {
+            ThreadRx::Remote(_) => true,
+            ThreadRx::Fed(fed) => fed.from_feed || fed.link.took_from_away(),
+            ThreadRx::Sample(..) | ThreadRx::Queue(..) => false,
+        }
+    }
+}
+
+impl<T: Payload> Fed<T> {
+    /// One value from the link or the feed: the one whose turn it is if it
+    /// holds a value due at `now`, else the other's. Neither starves the
+    /// other: after a value from one, the other is tried first.
+    fn take_into(
+        &mut self,
+        x: &mut In<T>,
+        now: Time,
+    ) -> Result<(), (Arc<str>, crate::error::RemoteProblem)> {
+        let inbox = &self.feed.inbox;
+        let from_feed = |x: &mut In<T>| inbox.take_into(x, now).map_err(|p| (inbox.key_arc(), p));
+        self.from_feed = false;
+        if self.feed_first {
+            from_feed(x)?;
+            if x.took() {
+                self.feed_first = false;
+                self.from_feed = true;
+                return Ok(());
+            }
+            self.link.take_into(x, now)?;
+        } else {
+            self.link.take_into(x, now)?;
+            if x.took() {
+                self.feed_first = true;
+                return Ok(());
+            }
+            from_feed(x)?;
+            self.from_feed = x.took();
+        }
+        if x.took() {
+            self.feed_first = !self.from_feed;
         }
         Ok(())
     }
@@ -232,10 +294,14 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for ThreadIn<I, T, A
         let x = self.port.get(x);
         let taken = self.rx.take_into(x, cx.time);
         observe_read(x, self.link, cx);
-        // A value from another process: the observer keeps it too.
-        if let (ThreadRx::Remote(_), Some(obs), Some(v), Some(stamp)) =
-            (&self.rx, cx.observer.as_deref_mut(), x.fresh(), x.stamp())
-        {
+        // A value from another process (or fed from outside the system):
+        // the observer keeps it too.
+        if let (true, Some(obs), Some(v), Some(stamp)) = (
+            self.rx.took_from_away(),
+            cx.observer.as_deref_mut(),
+            x.fresh(),
+            x.stamp(),
+        ) {
             obs.received(
                 &ReadEvent {
                     time: cx.time,

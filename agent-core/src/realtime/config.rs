@@ -74,6 +74,14 @@ pub enum RtError {
     /// The processes of a deployment could not agree on instant zero.
     #[error("cannot start in step with the other processes: {0}")]
     Sync(String),
+    /// A link cannot be fed from outside the system ([`RealTime::feed`](crate::RealTime::feed)).
+    #[error("link `{link}` cannot be fed from outside the system: {reason}")]
+    Feed {
+        /// The link.
+        link: String,
+        /// Why not.
+        reason: String,
+    },
     /// The transport could not publish or subscribe a link's key.
     #[error("link `{link}` over key `{key}`: {error}")]
     Transport {

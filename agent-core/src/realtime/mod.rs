@@ -67,7 +67,7 @@ use std::sync::mpsc::Receiver;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::link::remote::Transport;
+use crate::link::remote::{Inbox, Transport};
 use crate::link::thread::SharedStats;
 use crate::link::{LinkId, LinkStats};
 use crate::probe::{ProbeFn, Probes, Target};
@@ -91,6 +91,8 @@ pub struct RealTime {
     dropped: Vec<Arc<AtomicU64>>,
     placement: Option<Placement>,
     observers: Option<MakeObserver>,
+    /// Input buffers fed from outside the system: (link, inbox).
+    feeds: Vec<(usize, Arc<Inbox>)>,
 }
 
 /// Makes the observer of one thread (see [`RealTime::observe`]).
@@ -162,7 +164,47 @@ impl RealTime {
             dropped: Vec::new(),
             placement: None,
             observers: None,
+            feeds: Vec::new(),
         }
+    }
+
+    /// Feed the input buffer at the receiving end of `link` from outside the
+    /// system as well (a bridge to another middleware: a ROS 2 topic):
+    /// values delivered to the returned inbox, as messages of the wire format
+    /// between processes under `key` (a name for errors), are taken by the
+    /// buffer's reads beside the link's own, each checked as a value from
+    /// another process is (the payload's fingerprint, the feeder's epoch and
+    /// numbering, a queue's bound: see [`Inbox`]) and its problems reported
+    /// at the reads through the node's error policy. When the link and the
+    /// feed both hold a value, the reads take them in turn: neither starves
+    /// the other. The observer sees a fed value as one received from another
+    /// process ([`Observer::received`]), so a recording keeps it.
+    ///
+    /// The receiving node must run in this process (checked when the run
+    /// starts); a link is fed once.
+    pub fn feed(&mut self, link: LinkId, key: &str) -> Result<Arc<Inbox>, RtError> {
+        let l = link.index();
+        let feed_error = |reason: String| RtError::Feed {
+            link: self
+                .system
+                .info
+                .links
+                .get(l)
+                .map_or_else(|| format!("#{l}"), |k| k.name.clone()),
+            reason,
+        };
+        let Some(plan) = self.system.channels.get(l) else {
+            return Err(feed_error(format!(
+                "the system has {} links",
+                self.system.channels.len()
+            )));
+        };
+        if self.feeds.iter().any(|(k, _)| *k == l) {
+            return Err(feed_error("the link is fed already".into()));
+        }
+        let inbox = plan.feed_inbox(key.into());
+        self.feeds.push((l, inbox.clone()));
+        Ok(inbox)
     }
 
     /// Observe the run as the deterministic executor's observer does: `make` is

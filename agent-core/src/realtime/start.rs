@@ -41,6 +41,7 @@ impl RealTime {
             dropped,
             placement,
             observers,
+            feeds,
         } = self;
         let System {
             info,
@@ -66,6 +67,7 @@ impl RealTime {
             subscriptions,
             inboxes,
         } = make_links(&info, &channels, &here, &threads, epoch, transport.as_mut())?;
+        let rxs = feed_links(&info, &channels, &here, &threads, rxs, feeds)?;
         let mut works = threads.empty_works(txs, rxs, priorities);
         give_nodes(&mut works, &threads, &info, nodes, outs, ins);
         if let Some(w) = threads.world {
@@ -268,6 +270,42 @@ fn make_links(
         }
     }
     Ok(maker.links)
+}
+
+/// The receiving halves of the fed links with their feeds beside them
+/// ([`RealTime::feed`]); a fed link whose receiver does not run here is an
+/// error.
+fn feed_links(
+    info: &SystemInfo,
+    channels: &[Box<dyn ChannelPlan>],
+    here: &[bool],
+    threads: &Threads,
+    mut rxs: Vec<ThreadHalves>,
+    feeds: Vec<(usize, Arc<remote::Inbox>)>,
+) -> Result<Vec<ThreadHalves>, RtError> {
+    for (l, inbox) in feeds {
+        let (Some(link), Some(plan)) = (info.links.get(l), channels.get(l)) else {
+            continue;
+        };
+        let refuse = |reason: String| RtError::Feed {
+            link: link.name.clone(),
+            reason,
+        };
+        if !here.get(link.to).copied().unwrap_or(false) {
+            return Err(refuse(format!(
+                "its receiver `{}` does not run in this process",
+                info.nodes[link.to].name
+            )));
+        }
+        let bug = || refuse("its receiving half was not made (a bug)".into());
+        let slot = rxs
+            .get_mut(threads.thread_of[link.to])
+            .and_then(|halves| halves.get_mut(l))
+            .ok_or_else(bug)?;
+        let fed = slot.take().and_then(|rx| plan.fed(rx, inbox));
+        *slot = Some(fed.ok_or_else(bug)?);
+    }
+    Ok(rxs)
 }
 
 fn empty(n: usize) -> ThreadHalves {
