@@ -39,6 +39,18 @@ impl Clock {
         Clock { origin }
     }
 
+    /// The wall-clock time of instant zero (as this host's clock reads it
+    /// now).
+    pub(crate) fn zero_on_wall(&self) -> std::time::SystemTime {
+        let (now, wall) = (Instant::now(), std::time::SystemTime::now());
+        match self.origin.checked_duration_since(now) {
+            Some(ahead) => wall.checked_add(ahead).unwrap_or(wall),
+            None => wall
+                .checked_sub(now.duration_since(self.origin))
+                .unwrap_or(wall),
+        }
+    }
+
     /// Nanoseconds since the origin (0 before it).
     #[inline]
     pub(crate) fn now(&self) -> u64 {

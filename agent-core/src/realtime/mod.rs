@@ -360,6 +360,14 @@ impl Running {
         self.stop.clone()
     }
 
+    /// The wall-clock time of the run's instant zero: what code outside the
+    /// run stamps its values against (a bridge feeding an input:
+    /// [`RealTime::feed`]; a value's instant is the wall-clock time minus
+    /// this).
+    pub fn zero(&self) -> SystemTime {
+        self.shared.clock.zero_on_wall()
+    }
+
     /// Ask every thread to end after its current instant.
     pub fn stop(&self) {
         self.stop.stop();
