@@ -13,5 +13,6 @@
 //!   ROS 2 tools discover them.
 
 pub mod bridge;
+pub mod package;
 pub mod types;
 pub mod wire;
