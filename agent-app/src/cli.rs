@@ -99,15 +99,19 @@ pub struct Common {
     pub incarnation: Option<u32>,
     /// Show the spec's `ros2` section's buffers as ROS 2 topics over
     /// rmw_zenoh, through a Zenoh router such as rmw_zenohd listening on
-    /// ENDPOINT (default tcp/localhost:7447), for the whole run. With
-    /// `--process`, this process's buffers, as node `<node>_<process>`;
-    /// `launch` gives it to every process. Exit 2 when the router cannot be
-    /// reached. Topics ROS 2 would feed (`subscribe`) are not served yet.
+    /// ENDPOINT (default tcp/localhost:7447; given as `--ros2=ENDPOINT`, so
+    /// that `--ros2 launch` is the flag and the command), for the whole run.
+    /// With `--realtime` (and in every process of a deployment) the topics
+    /// the section subscribes to feed their input buffers too; a
+    /// deterministic run only publishes. With `--process`, this process's
+    /// buffers, as node `<node>_<process>`; `launch` gives it to every
+    /// process. Exit 2 when the router cannot be reached.
     #[arg(
         long,
         global = true,
         value_name = "ENDPOINT",
         num_args = 0..=1,
+        require_equals = true,
         default_missing_value = ROS2_ENDPOINT
     )]
     pub ros2: Option<String>,

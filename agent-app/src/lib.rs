@@ -17,7 +17,7 @@
 //!   process, restarted as the spec allows, one summary;
 //! * `replay FILE.mcap --subsystem NAME`: the equivalence verdict or the first
 //!   divergence;
-//! * `--ros2 [ENDPOINT]` (feature `ros2`): the spec's `ros2` section's
+//! * `--ros2[=ENDPOINT]` (feature `ros2`): the spec's `ros2` section's
 //!   buffers published as ROS 2 topics over rmw_zenoh during any run;
 //! * `check` and `diagram` of the crate's spec.
 //!

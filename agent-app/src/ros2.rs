@@ -1,4 +1,4 @@
-//! `--ros2 [ENDPOINT]`: while a run goes, the buffers the spec's `ros2`
+//! `--ros2[=ENDPOINT]`: while a run goes, the buffers the spec's `ros2`
 //! section publishes are ROS 2 topics over rmw_zenoh (agent-ros2's outbound
 //! bridge, a client of the Zenoh router at ENDPOINT, such as rmw_zenohd); at
 //! the end, what it published is said on standard error:

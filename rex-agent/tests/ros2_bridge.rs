@@ -87,7 +87,7 @@ fn a_ros_2_listener_discovers_rexs_topics_and_decodes_them() {
     let listener = Listener::start(&python, &endpoint, &own_messages());
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args(["--no-vo", "--mission", "square", "--no-report", "--quiet"])
-        .args(["--ros2", &endpoint])
+        .arg(format!("--ros2={endpoint}"))
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -152,8 +152,16 @@ fn the_flag_takes_an_endpoint_or_the_routers_default() {
         Some(crate::ROS2_ENDPOINT)
     );
     assert_eq!(
-        cli(&["--ros2", "tcp/10.0.0.2:7447"]).common.ros2.as_deref(),
+        cli(&["--ros2=tcp/10.0.0.2:7447"]).common.ros2.as_deref(),
         Some("tcp/10.0.0.2:7447")
+    );
+    // Followed by a command, the flag takes no value: `launch` is the command.
+    let launch = cli(&["--ros2", "launch"]);
+    assert_eq!(launch.common.ros2.as_deref(), Some(crate::ROS2_ENDPOINT));
+    assert!(
+        matches!(launch.command, Some(crate::Command::Launch { .. })),
+        "{:?}",
+        launch.command
     );
 }
 
@@ -167,14 +175,15 @@ fn a_run_without_the_flag_runs_without_a_bridge() {
 fn no_router_at_the_endpoint_is_invalid_input_naming_it() {
     let endpoint = free_endpoint();
     for realtime in [false, true] {
-        let mut args = vec!["--ros2", endpoint.as_str()];
+        let flag = format!("--ros2={endpoint}");
+        let mut args = vec![flag.as_str()];
         if realtime {
             args.push("--realtime");
         }
         assert_eq!(crate::run(&mut app(SECTION), &cli(&args)), Exit::Invalid);
     }
     let spec = SpecFile::parse("small.ron", spec(SECTION)).unwrap();
-    let common = cli(&["--ros2", &endpoint]).common;
+    let common = cli(&[&format!("--ros2={endpoint}")]).common;
     let e = Ros2Out::start(&app(SECTION), &common, &spec, &system(), None).unwrap_err();
     assert_eq!(e.status(), Exit::Invalid);
     let message = e.to_string();
@@ -194,17 +203,17 @@ fn a_spec_that_shows_nothing_to_ros_2_is_invalid_input() {
     let endpoint = free_endpoint();
     let none = app("None");
     assert_eq!(
-        crate::run(&mut app("None"), &cli(&["--ros2", &endpoint])),
+        crate::run(&mut app("None"), &cli(&[&format!("--ros2={endpoint}")])),
         Exit::Invalid
     );
     let spec = SpecFile::parse("small.ron", spec("None")).unwrap();
-    let common = cli(&["--ros2", &endpoint]).common;
+    let common = cli(&[&format!("--ros2={endpoint}")]).common;
     let e = Ros2Out::start(&none, &common, &spec, &system(), None).unwrap_err();
     assert!(e.to_string().contains("no `ros2` section"), "{e}");
     // A buffer the system does not send on: named.
     let ghost = r#"(publish: [(buffer: "c.e.ghost", topic: "ghost")])"#;
     assert_eq!(
-        crate::run(&mut app(ghost), &cli(&["--ros2", &endpoint])),
+        crate::run(&mut app(ghost), &cli(&[&format!("--ros2={endpoint}")])),
         Exit::Invalid
     );
 }
@@ -214,7 +223,7 @@ fn a_spec_that_shows_nothing_to_ros_2_is_invalid_input() {
 fn without_the_feature_the_flag_is_refused() {
     let endpoint = free_endpoint();
     assert_eq!(
-        crate::run(&mut app(SECTION), &cli(&["--ros2", &endpoint])),
+        crate::run(&mut app(SECTION), &cli(&[&format!("--ros2={endpoint}")])),
         Exit::Invalid
     );
 }
