@@ -10,13 +10,13 @@
 
 mod common;
 
-use agent_ros2::bridge::{Adapters, INBOUND_NOT_SUPPORTED, Plan, PlanError};
+use agent_ros2::bridge::{Adapters, Plan, PlanError};
 use agent_ros2::types::standard::StandardMessage;
 use agent_ros2::types::standard::geometry_msgs::PoseStamped;
 use agent_ros2::types::standard::sensor_msgs::Imu;
 use agent_ros2::types::type_hash;
 use agent_ros2::wire::Qos;
-use common::{MapPose, adapters, spec, system};
+use common::{MapPose, Status, adapters, spec, system};
 
 #[test]
 fn the_plan_names_each_topic_with_its_key_message_hash_and_qos() {
@@ -233,10 +233,118 @@ fn a_process_publishes_the_buffers_of_the_components_it_runs() {
 }
 
 #[test]
-fn subscribed_topics_are_listed_as_unserved_with_the_reason() {
+fn a_subscribed_topic_feeds_the_input_through_its_link() {
+    let section = r#"(node: "bridge", publish: [(buffer: "c.e.status", topic: "status")],
+        subscribe: [(buffer: "e.c.status", topic: "~/status_in", qos: (depth: 3))])"#;
+    let plan = Plan::new(&spec(section), None, &system(), &adapters()).unwrap();
+    assert!(plan.unserved().is_empty());
+    let [status] = &plan.subscriptions[..] else {
+        panic!("{plan:?}")
+    };
+    assert_eq!(status.buffer, "e.c.status");
+    // The status link, declared second, feeds `e`'s input `c.status`.
+    assert_eq!(status.link, 1);
+    assert_eq!(status.payload, std::any::type_name::<Status>());
+    assert_eq!(
+        status.fingerprint,
+        agent_core::link::remote::fingerprint::<Status>()
+    );
+    // The link's queue of 8, its depth overridden by the spec.
+    assert_eq!(status.qos, Qos::keep_last(3));
+    // The same type published and subscribed: one message, one name and hash.
+    assert_eq!(status.key.topic(), "/bridge/status_in");
+    assert_eq!(status.key.type_name(), plan.topics[0].key.type_name());
+    assert_eq!(status.key.type_hash(), plan.topics[0].key.type_hash());
+    assert_eq!(status.messages, plan.topics[0].messages);
+}
+
+#[test]
+fn a_standard_message_in_needs_an_adapter_into_the_buffer_type() {
+    let section = r#"(subscribe: [(buffer: "e.c.pose", topic: "pose_in", message: "geometry_msgs/msg/PoseStamped")])"#;
+    // An adapter out of the type does not read the message in.
+    let error = Plan::new(&spec(section), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::NoInboundAdapter {
+            buffer: "e.c.pose".into(),
+            topic: "/pose_in".into(),
+            payload: std::any::type_name::<MapPose>().into(),
+            message: "geometry_msgs/msg/PoseStamped".into(),
+            available: vec![],
+        }
+    );
+    let imu = Adapters::new().subscribe::<Imu, MapPose>(|_| Ok(MapPose::default()));
+    let error = Plan::new(&spec(section), None, &system(), &imu).unwrap_err();
+    assert!(error.to_string().contains("sensor_msgs/msg/Imu"), "{error}");
+    let reads = Adapters::new().subscribe::<PoseStamped, MapPose>(|m| {
+        Ok(MapPose {
+            x: m.pose.position.x,
+            y: m.pose.position.y,
+            heading: 0.0,
+        })
+    });
+    let plan = Plan::new(&spec(section), None, &system(), &reads).unwrap();
+    let pose_hash = type_hash(&PoseStamped::messages()).unwrap();
+    assert_eq!(
+        plan.subscriptions[0].key.to_string(),
+        format!("0/pose_in/geometry_msgs::msg::dds_::PoseStamped_/{pose_hash}")
+    );
+    // A sample link: best effort, keep-last 1.
+    assert_eq!(plan.subscriptions[0].qos, Qos::keep_last(1).best_effort());
+}
+
+#[test]
+fn a_subscribed_buffer_that_is_no_linked_input_is_refused() {
+    // An output is no input.
+    let output = r#"(subscribe: [(buffer: "c.e.pose", topic: "pose_in")])"#;
+    let error = Plan::new(&spec(output), None, &system(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::UnknownInput {
+            buffer: "c.e.pose".into(),
+            topic: "pose_in".into()
+        }
+    );
+    // The spec's input, in a system without its link.
+    let section = r#"(subscribe: [(buffer: "e.c.status", topic: "status_in")])"#;
+    let error = Plan::new(&spec(section), None, &only_pose(), &adapters()).unwrap_err();
+    assert_eq!(
+        error,
+        PlanError::NoInputLink {
+            buffer: "e.c.status".into(),
+            topic: "/status_in".into()
+        }
+    );
+}
+
+/// The test system with its pose link only.
+fn only_pose() -> agent_core::System {
+    use agent_core::{Action, Behaviour, Fsm, Period, Policy, SystemBuilder, port};
+    use common::{C, COut, E, EIn};
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let period = Period::from_millis(10).unwrap();
+    let go = Fsm::single(Behaviour::while_loop("go", Action::<C>::new(), "false")).unwrap();
+    let keep = Fsm::single(Behaviour::while_loop("keep", Action::<E>::new(), "false")).unwrap();
+    let c = b.subsystem(a, "c", period, 0u32, go);
+    let e = b.subsystem(a, "e", period, (), keep);
+    b.connect(
+        c.output(port!(COut, e.pose)),
+        e.input(port!(EIn, c.pose)),
+        Policy::Sample,
+    );
+    b.build().unwrap()
+}
+
+#[test]
+fn subscriptions_a_run_cannot_serve_are_listed_as_unserved_with_the_reason() {
     let section = r#"(node: "bridge", publish: [(buffer: "c.e.status", topic: "status")],
         subscribe: [(buffer: "e.c.pose", topic: "~/pose_in")])"#;
     let plan = Plan::new(&spec(section), None, &system(), &adapters()).unwrap();
+    assert_eq!(plan.subscriptions.len(), 1);
+    let reason = "a deterministic run is not on the wall clock";
+    let plan = plan.unserve_subscriptions(reason);
+    assert!(plan.subscriptions.is_empty());
     assert_eq!(plan.topics.len(), 1);
     let [unserved] = plan.unserved() else {
         panic!("{:?}", plan.unserved())
@@ -245,18 +353,26 @@ fn subscribed_topics_are_listed_as_unserved_with_the_reason() {
         (unserved.buffer.as_str(), unserved.topic.as_str()),
         ("e.c.pose", "/bridge/pose_in")
     );
-    assert_eq!(unserved.reason, INBOUND_NOT_SUPPORTED);
+    assert_eq!(unserved.reason, reason);
     assert_eq!(
         unserved.to_string(),
         "topic `/bridge/pose_in` (buffer `e.c.pose`) is not subscribed: \
-         inbound topics are not supported yet"
+         a deterministic run is not on the wall clock"
     );
     // A process that does not run `e` has nothing unserved.
     assert!(plan.clone().only_components(&["c"]).unserved().is_empty());
     assert_eq!(plan.only_components(&["e"]).unserved().len(), 1);
-    // Without `subscribe` entries, nothing.
-    let plan = Plan::new(&spec(common::ROS2), None, &system(), &adapters()).unwrap();
-    assert!(plan.unserved().is_empty());
+}
+
+#[test]
+fn a_process_feeds_the_inputs_of_the_components_it_runs() {
+    let section = r#"(publish: [(buffer: "c.e.status", topic: "status")],
+        subscribe: [(buffer: "e.c.pose", topic: "pose_in")])"#;
+    let plan = Plan::new(&spec(section), None, &system(), &adapters()).unwrap();
+    let c = plan.clone().only_components(&["c"]);
+    assert_eq!((c.topics.len(), c.subscriptions.len()), (1, 0));
+    let e = plan.only_components(&["e"]);
+    assert_eq!((e.topics.len(), e.subscriptions.len()), (0, 1));
 }
 
 /// The entry and name a plan of `section` is refused for.
@@ -289,7 +405,7 @@ fn names_the_spec_checker_refuses_are_refused_naming_the_entry() {
     assert_eq!(entry, "package");
     let (entry, _) = refused(&(status("s") + &format!(r#", node: "{}")"#, "n".repeat(256))));
     assert_eq!(entry, "node name");
-    // A subscribed topic too, though not served.
+    // A subscribed topic too.
     let (entry, name) =
         refused(&(status("s") + r#", subscribe: [(buffer: "e.c.pose", topic: "in__put")])"#));
     assert_eq!(

@@ -1,16 +1,19 @@
-//! Adapters: how a buffer type becomes a standard ROS 2 message, said in
-//! code. A spec names the message (`message: "geometry_msgs/msg/PoseStamped"`);
-//! the code that knows the buffer type says how to fill it.
+//! Adapters: how a buffer type becomes a standard ROS 2 message, and how a
+//! standard message received becomes a value of an input buffer's type, said
+//! in code. A spec names the message (`message: "geometry_msgs/msg/PoseStamped"`);
+//! the code that knows the buffer type says how to fill it, or how to read it.
 
 use std::fmt;
 use std::sync::Arc;
 
 use agent_core::link::remote::fingerprint;
+use agent_core::trace::ErasedPayload;
 use agent_core::{Payload, TypeShape, reflect};
 
 use crate::types::standard::StandardMessage;
 use crate::types::standard::builtin_interfaces::Time;
 use crate::types::{DecodeError, EncodeError, Messages, encode_cdr};
+use agent_mcap::cdr::read_cdr;
 
 /// Why a value did not become a message's CDR on the publishing thread.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -35,6 +38,42 @@ pub(crate) type Transcode = dyn Fn(&[u8], Time, &mut Vec<u8>) -> Result<(), Tran
 /// message type's shape cannot be traced.
 pub(crate) type MakeTranscode = dyn Fn() -> Option<Box<Transcode>> + Send + Sync;
 
+/// Why a message received did not become a value of its input buffer's type
+/// (on the bridge's inbound thread).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Refusal {
+    /// The CDR is not a message of the topic's type.
+    Undecodable(String),
+    /// The adapter refused the message (a value the buffer must not take).
+    Rejected(String),
+}
+
+/// A message's CDR (with its encapsulation header) to the postcard bytes of a
+/// value of the input buffer's type, appended to the output. It holds the
+/// message's shape, which is not `Send`: each is made on the thread that uses
+/// it.
+pub(crate) type Decode = dyn Fn(&[u8], &mut Vec<u8>) -> Result<(), Refusal>;
+
+/// Makes a [`Decode`] (on the inbound thread); `None` when the message
+/// type's shape cannot be traced.
+pub(crate) type MakeDecode = dyn Fn() -> Option<Box<Decode>> + Send + Sync;
+
+/// One registered conversion from a standard message to a buffer type.
+#[derive(Clone)]
+pub(crate) struct InboundAdapter {
+    /// The buffer type's fingerprint, as the system's links report it.
+    pub(crate) payload: u64,
+    /// The buffer type's Rust name (for errors).
+    pub(crate) payload_name: &'static str,
+    /// The message, with every message it uses.
+    pub(crate) messages: Messages,
+    /// Whether the message type's shape can be traced (else the plan
+    /// refuses it).
+    pub(crate) traceable: bool,
+    /// The conversion's maker.
+    pub(crate) make: Arc<MakeDecode>,
+}
+
 /// One registered conversion from a buffer type to a standard message.
 #[derive(Clone)]
 pub(crate) struct Adapter {
@@ -51,10 +90,11 @@ pub(crate) struct Adapter {
     pub(crate) make: Arc<MakeTranscode>,
 }
 
-/// The conversions from buffer types to standard ROS 2 messages a bridge may
-/// use: the spec names a topic's message, and the plan picks the adapter of
-/// that message for the buffer's type (a standard message without one is an
-/// error before anything runs).
+/// The conversions between buffer types and standard ROS 2 messages a bridge
+/// may use: the spec names a topic's message, and the plan picks the adapter
+/// of that message for the buffer's type, [`Adapters::publish`] for a
+/// published output, [`Adapters::subscribe`] for a subscribed input (a
+/// standard message without one is an error before anything runs).
 ///
 /// ```
 /// use agent_ros2::bridge::Adapters;
@@ -71,11 +111,20 @@ pub(crate) struct Adapter {
 ///         ..Pose::default()
 ///     },
 /// });
-/// assert_eq!(adapters.len(), 1);
+/// let adapters = adapters.subscribe::<PoseStamped, MapPose>(|pose| {
+///     let p = pose.pose.position;
+///     if p.x.is_finite() && p.y.is_finite() {
+///         Ok(MapPose { x: p.x, y: p.y })
+///     } else {
+///         Err(format!("a pose off the map: ({}, {})", p.x, p.y))
+///     }
+/// });
+/// assert_eq!(adapters.len(), 2);
 /// ```
 #[derive(Clone, Default)]
 pub struct Adapters {
     list: Vec<Adapter>,
+    inbound: Vec<InboundAdapter>,
 }
 
 impl fmt::Debug for Adapters {
@@ -84,14 +133,19 @@ impl fmt::Debug for Adapters {
             .entries(
                 self.list
                     .iter()
-                    .map(|a| format!("{} -> {}", a.payload_name, a.messages.name())),
+                    .map(|a| format!("{} -> {}", a.payload_name, a.messages.name()))
+                    .chain(
+                        self.inbound
+                            .iter()
+                            .map(|a| format!("{} -> {}", a.messages.name(), a.payload_name)),
+                    ),
             )
             .finish()
     }
 }
 
 impl Adapters {
-    /// No adapter: every published buffer is its own message.
+    /// No adapter: every published or subscribed buffer is its own message.
     pub fn new() -> Self {
         Self::default()
     }
@@ -133,14 +187,59 @@ impl Adapters {
         self
     }
 
-    /// The number of adapters.
+    /// Feed an input buffer of type `B` from a topic of the standard message
+    /// `M`: each message received is decoded from its CDR (by `M`'s shape,
+    /// every length and value checked) and given to `adapt`, whose value the
+    /// buffer takes; an `Err` refuses the message (a value the buffer must
+    /// not take, a NaN for example), with the reason, and the bridge counts
+    /// it. A later adapter for the same `M` and `B` replaces this one.
+    pub fn subscribe<M, B>(
+        mut self,
+        adapt: impl Fn(M) -> Result<B, String> + Send + Sync + 'static,
+    ) -> Self
+    where
+        M: StandardMessage,
+        B: Payload,
+    {
+        let payload = fingerprint::<B>();
+        let messages = M::messages();
+        let traceable = reflect::<M>().is_some();
+        let adapt = Arc::new(adapt);
+        let make = move || -> Option<Box<Decode>> {
+            let shape: TypeShape = reflect::<M>()?;
+            let adapt = adapt.clone();
+            Some(Box::new(move |cdr: &[u8], out: &mut Vec<u8>| {
+                let mut bytes = Vec::new();
+                read_cdr(&shape, cdr, &mut bytes)
+                    .map_err(|e| Refusal::Undecodable(e.to_string()))?;
+                let message: M = postcard::from_bytes(&bytes)
+                    .map_err(|e| Refusal::Undecodable(e.to_string()))?;
+                let value = adapt(message).map_err(Refusal::Rejected)?;
+                // On an error `out` is left as it was.
+                ErasedPayload::encode(&value, out)
+                    .map_err(|e| Refusal::Rejected(format!("the adapter's value: {e}")))
+            }))
+        };
+        self.inbound
+            .retain(|a| !(a.payload == payload && a.messages.name() == messages.name()));
+        self.inbound.push(InboundAdapter {
+            payload,
+            payload_name: std::any::type_name::<B>(),
+            messages,
+            traceable,
+            make: Arc::new(make),
+        });
+        self
+    }
+
+    /// The number of adapters, either way.
     pub fn len(&self) -> usize {
-        self.list.len()
+        self.list.len() + self.inbound.len()
     }
 
     /// Whether there is none.
     pub fn is_empty(&self) -> bool {
-        self.list.is_empty()
+        self.list.is_empty() && self.inbound.is_empty()
     }
 
     /// The adapter of the buffer type whose fingerprint is `payload` to the
@@ -155,6 +254,23 @@ impl Adapters {
     /// error that says what is there).
     pub(crate) fn messages_of(&self, payload: u64) -> Vec<String> {
         self.list
+            .iter()
+            .filter(|a| a.payload == payload)
+            .map(|a| a.messages.name().to_string())
+            .collect()
+    }
+
+    /// The adapter of the message named `message` to the buffer type whose
+    /// fingerprint is `payload`.
+    pub(crate) fn find_inbound(&self, payload: u64, message: &str) -> Option<&InboundAdapter> {
+        self.inbound
+            .iter()
+            .find(|a| a.payload == payload && a.messages.name().to_string() == message)
+    }
+
+    /// The messages some adapter reads into the buffer type `payload`.
+    pub(crate) fn inbound_messages_of(&self, payload: u64) -> Vec<String> {
+        self.inbound
             .iter()
             .filter(|a| a.payload == payload)
             .map(|a| a.messages.name().to_string())

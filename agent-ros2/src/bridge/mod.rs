@@ -1,7 +1,10 @@
-//! The ROS 2 bridge, outbound: the buffers a spec's `ros2` section publishes
-//! become topics of a ROS 2 node over rmw_zenoh, discovered by ROS 2 tools
-//! and decoded by them, without blocking the nodes that send the values.
+//! The ROS 2 bridge: the buffers a spec's `ros2` section publishes become
+//! topics of a ROS 2 node over rmw_zenoh, discovered by ROS 2 tools and
+//! decoded by them, without blocking the nodes that send the values; the
+//! topics it subscribes to feed input buffers, each value checked as a value
+//! from another process is.
 //!
+//! # Outbound
 //! 1. [`Plan::new`] reads the spec's (or a deployment's) `ros2` section
 //!    against a built system: per published buffer the link whose values it
 //!    takes, the fully qualified topic, the message (the one made from the
@@ -45,45 +48,82 @@
 //!    per topic ([`BridgeReport`]): published, dropped (ring full), failed
 //!    to encode, refused by Zenoh; and what Zenoh refused to close.
 //!
-//! # Inbound, not done yet
-//! A plan serves no `subscribe:` entry of the spec: it lists them, with the
-//! reason, in [`Plan::unserved`], and neither it nor the bridge logs them (a
-//! caller warns). Subscribing (a ROS 2 topic feeding an input buffer) will
-//! need: an `MS` token per subscribed topic; a Zenoh subscriber on
-//! the topic's key (any GID), checking each sample's attachment (sequence gaps
-//! counted as lost) and decoding its CDR into the buffer type (the inverse of
-//! `write_cdr`, or an adapter's inverse for standard messages), refusing and
-//! counting what fails to decode or check, never acting on it; the value put
-//! into the input buffer through the link machinery that remote links use
-//! (`agent_core::Inbox`, whose stamps and sequence checks a value from ROS 2
-//! must pass as a value of another process does), so a real-time node reads
-//! it without waiting; and for secure deployments, access control rules that
-//! allow exactly the subscribed keys and tokens.
+//! # Inbound
+//! 1. [`Plan::new`] resolves each `subscribe` entry ([`Plan::subscriptions`])
+//!    as it does a published one: the link into the input buffer
+//!    `component.peer.buffer` (the input's values come from `peer` through
+//!    it), the topic, the message (the buffer type's own, or the standard one
+//!    the spec names, read by an adapter of [`Adapters::subscribe`], which
+//!    may refuse a value), interned with the published ones, its hash and
+//!    QoS. A process of a deployment feeds the inputs of the components it
+//!    runs.
+//! 2. The run makes the input's inbox (`RealTime::feed` on the link: a
+//!    second source of the input beside the link's sender) and
+//!    [`Bridge::subscribe`] takes it: it declares a Zenoh subscriber on every
+//!    type of the topic (`<domain>/<topic>/*/*`) and the subscription's `MS`
+//!    token. Once the run started, [`Bridge::set_inbound_zero`] gives it the
+//!    run's instant zero.
+//! 3. Zenoh's callback counts each sample and hands it to the bridge's
+//!    inbound thread (a bounded backlog: beyond it, dropped and counted),
+//!    which refuses, counting each reason, a sample on the key of another
+//!    type or hash, one without rmw_zenoh's attachment or with a malformed
+//!    one, and one numbered at or before its publisher's last (publishers
+//!    are told apart by their GIDs; a gap in a publisher's numbering is
+//!    counted as lost, and its sample taken). It decodes the CDR into the
+//!    buffer type's postcard bytes (`read_cdr` by the type's shape, every
+//!    length and value checked, or the adapter), refusing what does not
+//!    decode, and delivers the value to the inbox as a message of the wire
+//!    format between processes: the buffer type's fingerprint, the bridge's
+//!    epoch, its own numbering from 1 (it is the inbox's one sender, whatever
+//!    the publishers), and the instant the value arrived, since the run's
+//!    instant zero. The inbox checks it as a value of another process (a
+//!    value stamped too far ahead, a full queue: [`SubscriptionReport`]'s
+//!    `inbox_problems`), and the node reads it without waiting.
+//! 4. [`Bridge::finish`] undeclares the subscribers first and lets the
+//!    thread deliver what it holds; the report counts, per subscribed topic,
+//!    what was received, delivered, dropped, refused (by reason) and lost.
+//!
+//! A deterministic run takes no value from ROS 2: its instants are not the
+//! wall clock's, so a value's arrival has no instant in it, and taking it
+//! would make the run depend on when messages happen to arrive. Its caller
+//! moves the subscriptions to [`Plan::unserved`] with
+//! [`Plan::unserve_subscriptions`], and says so.
+//!
+//! In a secure deployment, the router's access control lets each process's
+//! bridge subscribe to the topics that feed its components (their keys
+//! `<domain>/<topic>/*/*`, every type, as the bridge subscribes) and ROS 2
+//! nodes put only on those.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::SyncSender;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use agent_core::Inbox;
 use agent_core::trace::{ErasedPayload, Observer, TransferEvent};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 mod adapter;
+mod inbound;
 mod intern;
 mod plan;
 mod publish;
 mod report;
 mod session;
+mod subscribe;
 mod tap;
 
 pub use adapter::{Adapters, TranscodeError};
-pub use plan::{INBOUND_NOT_SUPPORTED, Plan, PlanError, PublishedTopic, UnservedTopic};
-pub use report::{BridgeReport, CloseError, TopicReport};
+pub use inbound::SubscribedTopic;
+pub use plan::{Plan, PlanError, PublishedTopic, UnservedTopic};
+pub use report::{BridgeReport, CloseError, SubscriptionReport, TopicReport};
 pub use session::{Mode, ROUTER_ENDPOINT, SessionOptions};
 
 use crate::wire::{EndpointKind, EntityToken, NameError, NodeToken, Zid};
 use publish::Outgoing;
+use subscribe::{BACKLOG, Clocks, InCounts, Inbound, Incoming};
 use tap::{Counts, Shared, Tap};
 
 /// Why a bridge did not start or finish cleanly.
@@ -126,6 +166,40 @@ pub enum BridgeError {
     /// was publishing then are lost.
     #[error("the bridge's publishing thread panicked")]
     Panicked,
+    /// The inbound thread panicked (a bug): no subscribed topic is fed.
+    #[error("the bridge's inbound thread panicked")]
+    InboundPanicked,
+    /// [`Bridge::subscribe`] was given an index the plan has no
+    /// subscription of.
+    #[error("the plan subscribes to {count} topics: there is no subscription {index}")]
+    NoSubscription {
+        /// The index given.
+        index: usize,
+        /// The plan's subscriptions.
+        count: usize,
+    },
+    /// [`Bridge::subscribe`] was called twice for one topic.
+    #[error("topic `{topic}` is subscribed already")]
+    Subscribed {
+        /// The fully qualified topic.
+        topic: String,
+    },
+    /// [`Bridge::subscribe`] was given an inbox of another type than the
+    /// subscribed buffer's (its fingerprint differs): every value would be
+    /// refused.
+    #[error(
+        "the inbox `{inbox}` given for topic `{topic}` (buffer `{buffer}`) does not take values of the buffer's type `{payload}`"
+    )]
+    WrongInbox {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+        /// The buffer's Rust type.
+        payload: String,
+        /// The inbox's key.
+        inbox: String,
+    },
 }
 
 /// How a bridge runs.
@@ -137,7 +211,9 @@ pub struct BridgeOptions {
     /// may fall behind by, per executor thread, before values are dropped.
     pub slots: usize,
     /// The wall-clock time of the run's instant zero, for the stamps of
-    /// standard messages' headers; default when the bridge starts.
+    /// standard messages' headers, and for the instants of the values taken
+    /// from ROS 2 (when each arrived, after it); default when the bridge
+    /// starts.
     pub epoch: Option<SystemTime>,
 }
 
@@ -159,7 +235,8 @@ fn next_id() -> u64 {
 }
 
 /// A running bridge (see the module's documentation): an [`Observer`] of the
-/// run whose published values it puts on ROS 2 topics.
+/// run whose published values it puts on ROS 2 topics, and the feeder of the
+/// inputs its subscribed topics feed ([`Bridge::subscribe`]).
 pub struct Bridge {
     plan: Plan,
     shared: Arc<Shared>,
@@ -172,6 +249,28 @@ pub struct Bridge {
     session: zenoh::Session,
     /// Whether the bridge opened the session (and closes it).
     owns_session: bool,
+    /// The subscribed side.
+    inlet: Inlet,
+}
+
+/// The subscribed side of a bridge.
+struct Inlet {
+    /// The wall clock of the run's instant zero \[ns since the UNIX
+    /// epoch\], for the instants of the values taken.
+    zero: Arc<AtomicU64>,
+    /// To the inbound thread (Zenoh's callbacks hold clones).
+    to_thread: SyncSender<Inbound>,
+    /// The inbound thread; `None` when the plan subscribes to nothing, or
+    /// once it ended.
+    thread: Option<JoinHandle<()>>,
+    /// The counts, per subscription.
+    counts: Arc<[InCounts]>,
+    /// The inbox each subscription feeds, once subscribed.
+    inboxes: Vec<Option<Arc<Inbox>>>,
+    /// The subscriptions' liveliness tokens, in the order subscribed.
+    entities: Vec<EntityToken>,
+    tokens: Vec<zenoh::liveliness::LivelinessToken>,
+    subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
 }
 
 impl std::fmt::Debug for Bridge {
@@ -252,6 +351,7 @@ impl Bridge {
             .name("ros2-out".into())
             .spawn(move || publish::run(&theirs, outgoing, epoch_ns))?;
         let tap = Tap::new(shared.clone(), thread.thread().clone());
+        let inlet = Inlet::start(&plan, epoch_ns)?;
         Ok(Bridge {
             plan,
             shared,
@@ -263,7 +363,85 @@ impl Bridge {
             publishers,
             session,
             owns_session,
+            inlet,
         })
+    }
+
+    /// Feed `inbox` (the input buffer's, from `RealTime::feed` on the
+    /// subscription's link) from the plan's subscription `index`: announce
+    /// the subscription (its `MS` token, with its QoS) and take every
+    /// sample put on the topic, by any publisher, of the plan's type and
+    /// hash, checked and decoded, into the inbox as the one sender of its
+    /// values (see the module's documentation). Call it after the bridge
+    /// starts and before the run does. An inbox of another type than the
+    /// buffer's, an unknown index and a topic subscribed already are
+    /// refused.
+    pub fn subscribe(&mut self, index: usize, inbox: Arc<Inbox>) -> Result<(), BridgeError> {
+        let count = self.plan.subscriptions.len();
+        let topic = self
+            .plan
+            .subscriptions
+            .get(index)
+            .ok_or(BridgeError::NoSubscription { index, count })?;
+        let key = &topic.key;
+        if self.inlet.inboxes.get(index).is_some_and(Option::is_some) {
+            return Err(BridgeError::Subscribed {
+                topic: key.topic().to_owned(),
+            });
+        }
+        if inbox.fingerprint() != topic.fingerprint {
+            return Err(BridgeError::WrongInbox {
+                buffer: topic.buffer.clone(),
+                topic: key.topic().to_owned(),
+                payload: topic.payload.to_owned(),
+                inbox: inbox.key().to_owned(),
+            });
+        }
+        let entity = EntityToken::new(
+            self.node.clone(),
+            next_id(),
+            EndpointKind::Subscription,
+            key.topic(),
+            key.type_name().clone(),
+            *key.type_hash(),
+            topic.qos,
+        )?;
+        // Before the subscriber: the thread knows the inbox before any sample.
+        self.inlet
+            .to_thread
+            .send(Inbound::Subscribe {
+                index,
+                inbox: inbox.clone(),
+            })
+            .map_err(|_| BridgeError::InboundPanicked)?;
+        // Every type on the topic: another type or hash is counted, not unseen.
+        let every_type = format!(
+            "{}/{}/*/*",
+            key.domain(),
+            key.topic().trim_start_matches('/')
+        );
+        let callback = subscribe::callback(
+            index,
+            self.inlet.to_thread.clone(),
+            self.inlet.counts.clone(),
+        );
+        let subscriber = self
+            .session
+            .declare_subscriber(every_type.clone())
+            .callback(callback)
+            .wait()
+            .map_err(|e| BridgeError::Declare {
+                what: format!("the subscriber of `{every_type}`"),
+                reason: e.to_string(),
+            })?;
+        let token = declare_token(&self.session, entity.key_expr())?;
+        self.inlet.subscribers.push(subscriber);
+        self.inlet.tokens.push(token);
+        self.inlet.entities.push(entity);
+        if let Some(slot) = self.inlet.inboxes.get_mut(index) {
+            *slot = Some(inbox);
+        }
+        Ok(())
     }
 
     /// What the bridge publishes.
@@ -279,6 +457,26 @@ impl Bridge {
     /// The publishers' liveliness tokens, in the plan's order.
     pub fn publisher_tokens(&self) -> &[EntityToken] {
         &self.entities
+    }
+
+    /// Count the instants of the values taken from ROS 2 from `zero`, the
+    /// wall-clock time of the run's instant zero (`Running::zero` once a
+    /// real-time run started: the run fixes it when it starts, after the
+    /// bridge subscribed); until then they count from
+    /// [`BridgeOptions::epoch`]. A value's instant is when it arrived: an
+    /// input's reads take it at their first activation at or after it. The
+    /// stamps of published standard messages keep counting from
+    /// [`BridgeOptions::epoch`].
+    pub fn set_inbound_zero(&self, zero: SystemTime) {
+        let ns = zero
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+        self.inlet.zero.store(ns, Ordering::Relaxed);
+    }
+
+    /// The subscriptions' liveliness tokens, in the order subscribed.
+    pub fn subscription_tokens(&self) -> &[EntityToken] {
+        &self.inlet.entities
     }
 
     /// The observers of a real-time run, one per thread, for
@@ -319,23 +517,44 @@ impl Bridge {
 
     /// The counts so far.
     pub fn report(&self) -> BridgeReport {
-        BridgeReport::of(&self.plan, &self.shared.counts)
+        BridgeReport::of(
+            &self.plan,
+            &self.shared.counts,
+            &self.inlet.counts,
+            &self.inlet.inboxes,
+        )
     }
 
-    /// Publish what the rings still hold (values sent after this call are
-    /// not published), undeclare the tokens and publishers, close the
-    /// session if the bridge opened it, and say what was published. Each of
-    /// these steps is taken even when an earlier one fails; what Zenoh
-    /// refused is in the report's [`BridgeReport::close_errors`]. An error
-    /// only when the publishing thread panicked (the tokens and session are
-    /// closed all the same).
+    /// Stop taking values from ROS 2 (undeclare the subscribers, let the
+    /// inbound thread deliver what it holds), publish what the rings still
+    /// hold (values sent after this call are not published), undeclare the
+    /// tokens and publishers, close the session if the bridge opened it, and
+    /// say what was published and received. Each of these steps is taken
+    /// even when an earlier one fails; what Zenoh refused is in the report's
+    /// [`BridgeReport::close_errors`]. An error only when the publishing or
+    /// the inbound thread panicked (the tokens and session are closed all
+    /// the same).
     pub fn finish(mut self) -> Result<BridgeReport, BridgeError> {
+        let mut close_errors = Vec::new();
+        for subscriber in std::mem::take(&mut self.inlet.subscribers) {
+            let key = subscriber.key_expr().to_string();
+            if let Err(e) = subscriber.undeclare().wait() {
+                close_errors.push(CloseError::Subscriber {
+                    key,
+                    reason: e.to_string(),
+                });
+            }
+        }
+        let inbound = self.inlet.stop();
         let stopped = self.stop();
         let mut report = self.report();
+        report.close_errors = close_errors;
         let keys = std::iter::once(self.node.key_expr())
             .chain(self.entities.iter().map(EntityToken::key_expr))
+            .chain(self.inlet.entities.iter().map(EntityToken::key_expr))
             .collect::<Vec<_>>();
-        let tokens = std::mem::take(&mut self.tokens);
+        let mut tokens = std::mem::take(&mut self.tokens);
+        tokens.append(&mut self.inlet.tokens);
         for (token, key) in tokens.into_iter().zip(keys).rev() {
             if let Err(e) = token.undeclare().wait() {
                 report.close_errors.push(CloseError::Token {
@@ -365,7 +584,7 @@ impl Bridge {
                 reason: e.to_string(),
             });
         }
-        stopped.map(|()| report)
+        stopped.and(inbound).map(|()| report)
     }
 
     /// End the publishing thread after its last drain.
@@ -386,17 +605,82 @@ fn declare_tokens(
     entities: &[EntityToken],
 ) -> Result<Vec<zenoh::liveliness::LivelinessToken>, BridgeError> {
     let keys = std::iter::once(node.key_expr()).chain(entities.iter().map(EntityToken::key_expr));
-    keys.map(|key| {
-        session
-            .liveliness()
-            .declare_token(key.clone())
-            .wait()
-            .map_err(|e| BridgeError::Declare {
-                what: format!("the liveliness token `{key}`"),
-                reason: e.to_string(),
-            })
-    })
-    .collect()
+    keys.map(|key| declare_token(session, key)).collect()
+}
+
+/// The liveliness token `key`, declared.
+fn declare_token(
+    session: &zenoh::Session,
+    key: String,
+) -> Result<zenoh::liveliness::LivelinessToken, BridgeError> {
+    session
+        .liveliness()
+        .declare_token(key.clone())
+        .wait()
+        .map_err(|e| BridgeError::Declare {
+            what: format!("the liveliness token `{key}`"),
+            reason: e.to_string(),
+        })
+}
+
+impl Inlet {
+    /// The inbound side of `plan`: its thread started if the plan subscribes
+    /// to anything; the instants of the values taken count from `zero_ns`
+    /// (until [`Bridge::set_inbound_zero`])
+    /// \[ns since the UNIX epoch\].
+    fn start(plan: &Plan, zero_ns: u64) -> Result<Inlet, BridgeError> {
+        let zero = Arc::new(AtomicU64::new(zero_ns));
+        let (to_thread, from_callbacks) = std::sync::mpsc::sync_channel(BACKLOG);
+        let counts: Arc<[InCounts]> = plan
+            .subscriptions
+            .iter()
+            .map(|_| InCounts::default())
+            .collect();
+        let thread = if plan.subscriptions.is_empty() {
+            None
+        } else {
+            let incoming: Vec<Incoming> = plan
+                .subscriptions
+                .iter()
+                .map(|t| Incoming {
+                    key: t.key.to_string(),
+                    decoder: t.decoder.clone(),
+                    fingerprint: t.fingerprint,
+                })
+                .collect();
+            let clocks = Clocks {
+                zero_ns: zero.clone(),
+                epoch: agent_core::link::remote::new_epoch(),
+            };
+            let theirs = counts.clone();
+            Some(
+                std::thread::Builder::new()
+                    .name("ros2-in".into())
+                    .spawn(move || subscribe::run(&from_callbacks, incoming, &theirs, clocks))?,
+            )
+        };
+        Ok(Inlet {
+            zero,
+            to_thread,
+            thread,
+            counts,
+            inboxes: vec![None; plan.subscriptions.len()],
+            entities: Vec::new(),
+            tokens: Vec::new(),
+            subscribers: Vec::new(),
+        })
+    }
+
+    /// End the inbound thread after what it holds (call once the
+    /// subscribers are undeclared).
+    fn stop(&mut self) -> Result<(), BridgeError> {
+        let Some(thread) = self.thread.take() else {
+            return Ok(());
+        };
+        // A thread that ended already (it panicked) has dropped its receiver.
+        let _ = self.to_thread.send(Inbound::Stop);
+        thread.join().map_err(|_| BridgeError::InboundPanicked)
+    }
 }
 
 /// What the taps and the publishing thread of `plan` share.
@@ -423,8 +707,10 @@ impl Observer for Bridge {
 
 impl Drop for Bridge {
     fn drop(&mut self) {
-        // Not finished: end the thread; the tokens and publishers undeclare
-        // themselves when dropped.
+        // Not finished: end the threads; the tokens, publishers and
+        // subscribers undeclare themselves when dropped.
+        self.inlet.subscribers.clear();
+        let _ = self.inlet.stop();
         let _ = self.stop();
     }
 }

@@ -1,9 +1,10 @@
 //! The plan of a bridge: from a spec's `ros2` section and a built system,
-//! which link carries each published buffer's values, under which topic, as
-//! which message (its type hash) and with which QoS. Everything that can be
-//! wrong is found here, before anything runs. Across the plan, each message
-//! name has one definition (`intern`: a helper or root defined differently
-//! by two topics is numbered, `Item2`).
+//! which link carries each published buffer's values (and which link's input
+//! each subscribed topic feeds: `inbound`), under which topic, as which
+//! message (its type hash) and with which QoS. Everything that can be wrong
+//! is found here, before anything runs. Across the plan, published and
+//! subscribed alike, each message name has one definition (`intern`: a
+//! helper or root defined differently by two topics is numbered, `Item2`).
 
 use std::sync::Arc;
 
@@ -13,6 +14,7 @@ use agent_spec::model::{Deployment, Durability, Reliability, Spec};
 use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
 
 use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
+use super::inbound::{SubscribedTopic, subscribed};
 use super::intern::one_definition_per_name;
 use crate::types::standard::builtin_interfaces::Time;
 use crate::types::{Messages, messages, type_hash};
@@ -44,6 +46,43 @@ pub enum PlanError {
         buffer: String,
         /// The topic as the spec writes it.
         topic: String,
+    },
+    /// A subscribed buffer that is no input of the spec.
+    #[error("buffer `{buffer}` (topic `{topic}`) is no input of the spec")]
+    UnknownInput {
+        /// The buffer, `component.peer.buffer`.
+        buffer: String,
+        /// The topic as the spec writes it.
+        topic: String,
+    },
+    /// A subscribed buffer no link of the system goes into: the bridge
+    /// feeds an input beside the link that carries its values.
+    #[error(
+        "buffer `{buffer}` (topic `{topic}`) has no link in the system: no input takes values from it"
+    )]
+    NoInputLink {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+    },
+    /// The spec feeds an input buffer from a standard message, and no
+    /// adapter reads one into the buffer's type.
+    #[error(
+        "buffer `{buffer}` (topic `{topic}`) of type `{payload}` is fed from `{message}`, and no adapter reads one into that type{}",
+        if available.is_empty() { String::new() } else { format!(" (adapters into the type read: {})", available.join(", ")) }
+    )]
+    NoInboundAdapter {
+        /// The buffer.
+        buffer: String,
+        /// The fully qualified topic.
+        topic: String,
+        /// The buffer's Rust type.
+        payload: String,
+        /// The message the spec names.
+        message: String,
+        /// The messages adapters do read into the type.
+        available: Vec<String>,
     },
     /// A published buffer no link of the system carries: the bridge sees
     /// values only as they are sent into links.
@@ -178,18 +217,15 @@ impl std::fmt::Debug for PublishedTopic {
     }
 }
 
-/// Why the plan serves no `subscribe` entry.
-pub const INBOUND_NOT_SUPPORTED: &str = "inbound topics are not supported yet";
-
 /// A topic of the spec's `subscribe` entries that the plan does not serve
-/// ([`Plan::unserved`]), and why.
+/// ([`Plan::unserve_subscriptions`]), and why.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct UnservedTopic {
     /// The input buffer, `component.peer.buffer`.
     pub buffer: String,
     /// The fully qualified topic.
     pub topic: String,
-    /// Why it is not served ([`INBOUND_NOT_SUPPORTED`]).
+    /// Why it is not served.
     pub reason: &'static str,
 }
 
@@ -204,7 +240,8 @@ impl std::fmt::Display for UnservedTopic {
     }
 }
 
-/// What a bridge publishes: the node it presents and its topics.
+/// What a bridge publishes and subscribes to: the node it presents and its
+/// topics.
 #[derive(Clone, Debug)]
 pub struct Plan {
     /// `ROS_DOMAIN_ID`.
@@ -217,19 +254,24 @@ pub struct Plan {
     pub package: String,
     /// The published buffers, in the spec's order.
     pub topics: Vec<PublishedTopic>,
+    /// The subscribed topics, each feeding an input buffer, in the spec's
+    /// order ([`Bridge::subscribe`](super::Bridge::subscribe) takes their
+    /// indices).
+    pub subscriptions: Vec<SubscribedTopic>,
     /// The subscribed topics not served, in the spec's order.
     unserved: Vec<UnservedTopic>,
 }
 
 impl Plan {
-    /// The plan of what `spec` shows to ROS 2 when `deployment` runs (`None`:
-    /// the system's section) from `system` (built from the spec), standard
-    /// messages made by `adapters`. Buffers of components the deployment does
-    /// not run are left out. The node, namespace, package and every topic's
-    /// full name are held to the spec checker's rules ([`agent_spec::ros2`]),
-    /// so a plan of an unchecked spec announces no name the checker refuses.
-    /// `subscribe` entries are not served (see [`Plan::unserved`]); nothing
-    /// is logged, the caller may warn.
+    /// The plan of what `spec` shows to ROS 2 and takes from it when
+    /// `deployment` runs (`None`: the system's section) from `system` (built
+    /// from the spec), standard messages made and read by `adapters`.
+    /// Buffers of components the deployment does not run are left out. The
+    /// node, namespace, package and every topic's full name are held to the
+    /// spec checker's rules ([`agent_spec::ros2`]), so a plan of an unchecked
+    /// spec announces no name the checker refuses. Every `subscribe` entry
+    /// is served ([`Plan::subscriptions`]) until the caller says otherwise
+    /// ([`Plan::unserve_subscriptions`]).
     pub fn new(
         spec: &Spec,
         deployment: Option<&Deployment>,
@@ -247,6 +289,16 @@ impl Plan {
                 topic: entry.topic.clone(),
             });
         }
+        if let Some(entry) = section
+            .subscribe
+            .iter()
+            .find(|e| spec_ros2::buffer_type(spec, &e.buffer, false).is_none())
+        {
+            return Err(PlanError::UnknownInput {
+                buffer: entry.buffer.clone(),
+                topic: entry.topic.clone(),
+            });
+        }
         let interface = spec_ros2::interface(spec, deployment).ok_or(PlanError::NoSection)?;
         check_names(&interface)?;
         let mut topics: Vec<PublishedTopic> = interface
@@ -254,40 +306,51 @@ impl Plan {
             .iter()
             .map(|t| published(t, &interface, system, adapters))
             .collect::<Result<_, _>>()?;
-        consistent(interface.domain, &mut topics)?;
-        let unserved = interface
+        let mut subscriptions: Vec<SubscribedTopic> = interface
             .subscribe
             .iter()
-            .map(|t| UnservedTopic {
-                buffer: t.buffer.clone(),
-                topic: t.name.clone(),
-                reason: INBOUND_NOT_SUPPORTED,
-            })
-            .collect();
+            .map(|t| subscribed(t, &interface, system, adapters))
+            .collect::<Result<_, _>>()?;
+        consistent(interface.domain, &mut topics, &mut subscriptions)?;
         Ok(Plan {
             domain: interface.domain,
             node: interface.node,
             namespace: interface.namespace,
             package: interface.package,
             topics,
-            unserved,
+            subscriptions,
+            unserved: Vec::new(),
         })
     }
 
     /// The topics of the section's `subscribe` entries (of the components
-    /// run) that this plan does not serve, each with the reason
-    /// ([`INBOUND_NOT_SUPPORTED`]: the bridge publishes only); empty when
-    /// the spec subscribes to nothing. The bridge logs nothing: a caller
-    /// prints them as warnings if it wants.
+    /// run) that this plan does not serve, each with the reason given to
+    /// [`Plan::unserve_subscriptions`]; empty when every one is served. The
+    /// bridge logs nothing: a caller prints them as warnings if it wants.
     pub fn unserved(&self) -> &[UnservedTopic] {
         &self.unserved
+    }
+
+    /// This plan serving no subscribed topic: each moves to
+    /// [`Plan::unserved`] with `reason` (a run that cannot take values from
+    /// ROS 2, as a deterministic one, which is not on the wall clock). Their
+    /// messages keep the names they were given beside the published ones.
+    pub fn unserve_subscriptions(mut self, reason: &'static str) -> Plan {
+        let moved = self.subscriptions.drain(..).map(|t| UnservedTopic {
+            topic: t.key.topic().to_owned(),
+            buffer: t.buffer,
+            reason,
+        });
+        self.unserved.extend(moved);
+        self
     }
 }
 
 impl Plan {
     /// This plan for one process of a deployment: only the buffers of the
     /// components it runs (`runs`, as the deployment's process lists them),
-    /// since a process sees only the values its own nodes send. The node's
+    /// since a process sees only the values its own nodes send, and feeds
+    /// only the inputs of its own nodes. The node's
     /// name stays: give each process's bridge its own with [`Plan::named`]
     /// if ROS 2 should tell them apart.
     pub fn only_components<S: AsRef<str>>(mut self, runs: &[S]) -> Plan {
@@ -296,6 +359,7 @@ impl Plan {
             runs.iter().any(|r| r.as_ref() == component)
         };
         self.topics.retain(|t| run(&t.buffer));
+        self.subscriptions.retain(|t| run(&t.buffer));
         self.unserved.retain(|t| run(&t.buffer));
         self
     }
@@ -411,7 +475,7 @@ fn published(
 
 /// The data key of `topic` carrying `messages`' root, with its hash; the
 /// reason when there is none.
-fn key_of(domain: u32, topic: &str, messages: &Messages) -> Result<TopicKey, String> {
+pub(crate) fn key_of(domain: u32, topic: &str, messages: &Messages) -> Result<TopicKey, String> {
     let name = messages.name();
     let type_name =
         TypeName::new(&name.package, Interface::Msg, &name.name).map_err(|e| e.to_string())?;
@@ -419,24 +483,57 @@ fn key_of(domain: u32, topic: &str, messages: &Messages) -> Result<TopicKey, Str
     TopicKey::new(domain, topic, type_name, hash).map_err(|e| format!("the topic: {e}"))
 }
 
-/// `topics` with one definition per message name across them all
-/// ([`one_definition_per_name`]; standard messages, through adapters, keep
-/// their names first), each key made again with its message's name and hash.
-fn consistent(domain: u32, topics: &mut [PublishedTopic]) -> Result<(), PlanError> {
-    let mut order: Vec<usize> = (0..topics.len()).collect();
-    order.sort_by_key(|&k| matches!(topics[k].encoder, Encoder::Own(_)));
-    let sets: Vec<&Messages> = order.iter().map(|&k| &topics[k].messages).collect();
+/// A topic of the plan, published or subscribed.
+#[derive(Clone, Copy)]
+enum Either {
+    Published(usize),
+    Subscribed(usize),
+}
+
+/// `topics` and `subscriptions` with one definition per message name across
+/// them all ([`one_definition_per_name`]; standard messages, through
+/// adapters, keep their names first, then published topics before
+/// subscribed ones), each key made again with its message's name and hash.
+fn consistent(
+    domain: u32,
+    topics: &mut [PublishedTopic],
+    subscriptions: &mut [SubscribedTopic],
+) -> Result<(), PlanError> {
+    let own = |e: &Either| match *e {
+        Either::Published(k) => matches!(topics[k].encoder, Encoder::Own(_)),
+        Either::Subscribed(k) => subscriptions[k].is_own(),
+    };
+    let mut order: Vec<Either> = (0..topics.len())
+        .map(Either::Published)
+        .chain((0..subscriptions.len()).map(Either::Subscribed))
+        .collect();
+    order.sort_by_key(own);
+    let sets: Vec<&Messages> = order
+        .iter()
+        .map(|e| match *e {
+            Either::Published(k) => &topics[k].messages,
+            Either::Subscribed(k) => &subscriptions[k].messages,
+        })
+        .collect();
     let made = one_definition_per_name(&sets);
-    for (k, messages) in order.into_iter().zip(made) {
-        let t = &mut topics[k];
-        t.key =
-            key_of(domain, t.key.topic(), &messages).map_err(|reason| PlanError::NotAMessage {
-                buffer: t.buffer.clone(),
-                topic: t.key.topic().to_owned(),
-                payload: t.payload.to_owned(),
-                reason,
-            })?;
-        t.messages = messages;
+    for (e, messages) in order.into_iter().zip(made) {
+        let (buffer, payload, key, slot) = match e {
+            Either::Published(k) => {
+                let t = &mut topics[k];
+                (&t.buffer, t.payload, &mut t.key, &mut t.messages)
+            }
+            Either::Subscribed(k) => {
+                let t = &mut subscriptions[k];
+                (&t.buffer, t.payload, &mut t.key, &mut t.messages)
+            }
+        };
+        *key = key_of(domain, key.topic(), &messages).map_err(|reason| PlanError::NotAMessage {
+            buffer: buffer.clone(),
+            topic: key.topic().to_owned(),
+            payload: payload.to_owned(),
+            reason,
+        })?;
+        *slot = messages;
     }
     Ok(())
 }
@@ -452,7 +549,7 @@ fn link_of(info: &SystemInfo, buffer: &str) -> Option<usize> {
 
 /// The wire's QoS of a spec's profile; `None` for transient local, which the
 /// bridge does not provide.
-fn qos_of(profile: QosProfile) -> Option<Qos> {
+pub(crate) fn qos_of(profile: QosProfile) -> Option<Qos> {
     let qos = Qos::keep_last(u64::from(profile.depth));
     let qos = match profile.reliability {
         Reliability::Reliable => qos,

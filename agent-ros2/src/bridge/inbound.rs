@@ -1,0 +1,222 @@
+//! The plan of a subscribed topic: from a spec's `subscribe` entry and a
+//! built system, the link whose input buffer the topic feeds, the message
+//! (the buffer type's own, or a standard one read by an adapter), its key
+//! and QoS, and how a message received becomes the buffer type's postcard
+//! bytes.
+
+use std::sync::Arc;
+
+use agent_core::{System, SystemInfo, TypeShape};
+use agent_mcap::cdr::{read_cdr, root_name};
+use agent_spec::ros2::{Interface as SpecInterface, Topic};
+
+use super::adapter::{Adapters, Decode, MakeDecode, Refusal};
+use super::plan::{PlanError, key_of, qos_of};
+use crate::types::{Messages, messages};
+use crate::wire::{Qos, TopicKey};
+
+/// How the inbound thread turns a message's CDR into the buffer type's
+/// postcard bytes, as the plan keeps it (a type's shape is not `Send`: it is
+/// made again there).
+#[derive(Clone)]
+pub(crate) enum Decoder {
+    /// The message made from the buffer type: read by the type's shape (as
+    /// JSON).
+    Own(String),
+    /// A standard message, through an adapter.
+    Adapted(Arc<MakeDecode>),
+}
+
+/// A [`Decoder`] made ready on the inbound thread.
+pub(crate) enum ReadyDecoder {
+    /// The buffer type's shape.
+    Own(TypeShape),
+    /// The adapter's conversion.
+    Adapted(Box<Decode>),
+}
+
+impl Decoder {
+    /// The decoder with its shape, on the thread that uses it; `None` when
+    /// the shape cannot be made (the plan checked that it can).
+    pub(crate) fn ready(&self) -> Option<ReadyDecoder> {
+        match self {
+            Decoder::Own(json) => {
+                let (root, registry) = serde_json::from_str(json).ok()?;
+                Some(ReadyDecoder::Own(TypeShape { root, registry }))
+            }
+            Decoder::Adapted(make) => make().map(ReadyDecoder::Adapted),
+        }
+    }
+}
+
+impl ReadyDecoder {
+    /// The postcard bytes of the value the CDR message `cdr` (with its
+    /// encapsulation header) stands for, appended to `out`; on an error
+    /// `out` may hold a part of it.
+    pub(crate) fn decode(&self, cdr: &[u8], out: &mut Vec<u8>) -> Result<(), Refusal> {
+        match self {
+            ReadyDecoder::Own(shape) => {
+                read_cdr(shape, cdr, out).map_err(|e| Refusal::Undecodable(e.to_string()))
+            }
+            ReadyDecoder::Adapted(decode) => decode(cdr, out),
+        }
+    }
+}
+
+/// One ROS 2 topic feeding one input buffer.
+#[derive(Clone)]
+pub struct SubscribedTopic {
+    /// The input buffer, `component.peer.buffer`: an input of `component`
+    /// fed by `peer`.
+    pub buffer: String,
+    /// The link into that input (its index in the system's links): the
+    /// topic's values are taken by the input's reads beside the link's own.
+    pub link: usize,
+    /// The buffer's Rust type.
+    pub payload: &'static str,
+    /// The buffer type's fingerprint: an inbox of another type is refused
+    /// ([`Bridge::subscribe`](super::Bridge::subscribe)).
+    pub fingerprint: u64,
+    /// The message and every message it uses (their `.msg` texts).
+    pub messages: Messages,
+    /// The data key: domain, fully qualified topic, type and type hash. A
+    /// message on the topic of another type or hash is refused.
+    pub key: TopicKey,
+    /// The quality of service the subscription announces.
+    pub qos: Qos,
+    pub(crate) decoder: Decoder,
+}
+
+impl std::fmt::Debug for SubscribedTopic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SubscribedTopic")
+            .field("buffer", &self.buffer)
+            .field("link", &self.link)
+            .field("key", &self.key.to_string())
+            .field("qos", &self.qos.to_compact())
+            .finish()
+    }
+}
+
+impl SubscribedTopic {
+    /// Whether the message is the buffer type's own (else a standard one,
+    /// read by an adapter).
+    pub(crate) fn is_own(&self) -> bool {
+        matches!(self.decoder, Decoder::Own(_))
+    }
+}
+
+/// The plan of one subscribed input buffer.
+pub(crate) fn subscribed(
+    t: &Topic,
+    interface: &SpecInterface,
+    system: &System,
+    adapters: &Adapters,
+) -> Result<SubscribedTopic, PlanError> {
+    let link = input_link_of(system.info(), &t.buffer).ok_or_else(|| PlanError::NoInputLink {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+    })?;
+    let payload = system.info().links[link].payload;
+    let fingerprint = system.payload_fingerprint(link).unwrap_or(0);
+    let not_a_message = |reason: String| PlanError::NotAMessage {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+        payload: payload.to_owned(),
+        reason,
+    };
+    let (messages, decoder) = match &t.message {
+        None => {
+            let shape = system
+                .payload_shape(link)
+                .ok_or_else(|| not_a_message("its type's shape cannot be traced".to_owned()))?;
+            let made = messages(&shape, &interface.package, root_name(payload))
+                .map_err(|e| not_a_message(e.to_string()))?;
+            let json = serde_json::to_string(&(&shape.root, &shape.registry))
+                .map_err(|e| not_a_message(format!("its shape: {e}")))?;
+            (made, Decoder::Own(json))
+        }
+        Some(message) => {
+            let adapter = adapters.find_inbound(fingerprint, message).ok_or_else(|| {
+                PlanError::NoInboundAdapter {
+                    buffer: t.buffer.clone(),
+                    topic: t.name.clone(),
+                    payload: payload.to_owned(),
+                    message: message.clone(),
+                    available: adapters.inbound_messages_of(fingerprint),
+                }
+            })?;
+            if !adapter.traceable {
+                return Err(not_a_message(format!(
+                    "the shape of `{message}`'s Rust type cannot be traced"
+                )));
+            }
+            (
+                adapter.messages.clone(),
+                Decoder::Adapted(adapter.make.clone()),
+            )
+        }
+    };
+    let key = key_of(interface.domain, &t.name, &messages).map_err(not_a_message)?;
+    let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
+        buffer: t.buffer.clone(),
+        topic: t.name.clone(),
+    })?;
+    Ok(SubscribedTopic {
+        buffer: t.buffer.clone(),
+        link,
+        payload,
+        fingerprint,
+        messages,
+        key,
+        qos,
+        decoder,
+    })
+}
+
+/// The first link whose values go into input `component.peer.buffer`.
+fn input_link_of(info: &SystemInfo, buffer: &str) -> Option<usize> {
+    let (component, port) = buffer.split_once('.')?;
+    let node = info.nodes.iter().position(|n| n.name == component)?;
+    info.links
+        .iter()
+        .position(|l| l.to == node && l.to_port == port)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use agent_core::reflect;
+
+    #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+    struct Point {
+        x: f64,
+        label: String,
+    }
+
+    /// The own decoder reads what the recorder's transcoder writes, and
+    /// refuses a message cut short, naming the offset.
+    #[test]
+    fn an_own_decoder_reads_the_cdr_of_its_type() {
+        let shape = reflect::<Point>().unwrap_or_else(|| panic!("no shape"));
+        let json = serde_json::to_string(&(&shape.root, &shape.registry))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let Some(ready) = Decoder::Own(json).ready() else {
+            panic!("not ready")
+        };
+        let value = Point {
+            x: 1.5,
+            label: "here".into(),
+        };
+        let mut cdr = Vec::new();
+        crate::types::encode_cdr(&value, &shape, &mut cdr).unwrap_or_else(|e| panic!("{e}"));
+        let mut out = Vec::new();
+        assert_eq!(ready.decode(&cdr, &mut out), Ok(()));
+        assert_eq!(postcard::from_bytes::<Point>(&out), Ok(value));
+        let mut out = Vec::new();
+        let Err(Refusal::Undecodable(why)) = ready.decode(&cdr[..cdr.len() - 3], &mut out) else {
+            panic!("a message cut short was read")
+        };
+        assert!(why.starts_with("byte "), "{why}");
+    }
+}
