@@ -358,6 +358,21 @@ pub fn create_dev_authority(
     policy: &AccessPolicy,
     hosts: &[String],
 ) -> Result<Vec<std::path::PathBuf>, CredentialError> {
+    create_dev_authority_with(dir, policy, hosts, &[])
+}
+
+/// [`create_dev_authority`], and a certificate and key for each of `others`
+/// too (`<name>.pem`, `<name>.key`, common name [`common_name`] of the
+/// deployment): parties beside the deployment's processes that the same
+/// authority vouches for, such as the ROS 2 side of a deployment and its
+/// router (`agent_ros2::access`). A name that is also a process's (or the
+/// launcher's), or given twice, is issued once.
+pub fn create_dev_authority_with(
+    dir: &std::path::Path,
+    policy: &AccessPolicy,
+    hosts: &[String],
+    others: &[&str],
+) -> Result<Vec<std::path::PathBuf>, CredentialError> {
     use rcgen::{
         BasicConstraints, CertificateParams, CertifiedIssuer, DnType, ExtendedKeyUsagePurpose,
         IsCa, KeyPair, KeyUsagePurpose,
@@ -399,20 +414,33 @@ pub fn create_dev_authority(
             names.push(h.clone());
         }
     }
-    for p in &policy.processes {
-        let key = KeyPair::generate().map_err(make(&p.name))?;
-        let mut params = CertificateParams::new(names.clone()).map_err(make(&p.name))?;
+    // (file name, common name): the processes and the launcher, then the
+    // others not among them.
+    let mut subjects: Vec<(String, String)> = policy
+        .processes
+        .iter()
+        .map(|p| (p.name.clone(), p.common_name.clone()))
+        .collect();
+    for name in others {
+        if !subjects.iter().any(|(n, _)| n == name) {
+            let cn = common_name(&policy.system, &policy.deployment, name);
+            subjects.push(((*name).to_owned(), cn));
+        }
+    }
+    for (name, cn) in &subjects {
+        let key = KeyPair::generate().map_err(make(name))?;
+        let mut params = CertificateParams::new(names.clone()).map_err(make(name))?;
         params
             .distinguished_name
-            .push(DnType::CommonName, p.common_name.clone());
+            .push(DnType::CommonName, cn.clone());
         params.key_usages = vec![KeyUsagePurpose::DigitalSignature];
         params.extended_key_usages = vec![
             ExtendedKeyUsagePurpose::ServerAuth,
             ExtendedKeyUsagePurpose::ClientAuth,
         ];
-        let cert = params.signed_by(&key, &issuer).map_err(make(&p.name))?;
-        write(&format!("{}.pem", p.name), &cert.pem(), false)?;
-        write(&format!("{}.key", p.name), &key.serialize_pem(), true)?;
+        let cert = params.signed_by(&key, &issuer).map_err(make(name))?;
+        write(&format!("{name}.pem"), &cert.pem(), false)?;
+        write(&format!("{name}.key"), &key.serialize_pem(), true)?;
     }
     Ok(written)
 }
@@ -626,6 +654,23 @@ mod tests {
         std::fs::remove_file(&c.key).unwrap();
         let e = Credentials::in_dir(&dir, "locomotion").unwrap_err();
         assert!(e.to_string().contains("locomotion.key is missing"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn others_beside_the_processes_get_certificates_of_the_same_authority() {
+        let dir = std::env::temp_dir().join(format!("agent-zenoh-others-{}", std::process::id()));
+        let p = AccessPolicy::of(&rex(), "split_secure").unwrap();
+        // `world` is a process already: issued once.
+        let files =
+            create_dev_authority_with(&dir, &p, &[], &["ros2", "ros2_router", "world", "ros2"])
+                .unwrap();
+        assert_eq!(files.len(), 2 + 2 * 4 + 2 * 2);
+        for name in ["ros2", "ros2_router", "world"] {
+            let c = Credentials::in_dir(&dir, name).unwrap();
+            let pem = std::fs::read_to_string(&c.certificate).unwrap();
+            assert!(pem.starts_with("-----BEGIN CERTIFICATE-----"), "{name}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
