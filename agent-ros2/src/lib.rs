@@ -12,6 +12,7 @@
 //!   run's observer without blocking its nodes, with the tokens that make
 //!   ROS 2 tools discover them.
 
+pub mod access;
 pub mod bridge;
 pub mod package;
 pub mod types;
