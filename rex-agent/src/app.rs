@@ -35,7 +35,10 @@ pub struct RexFlags {
     #[arg(long, global = true, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Mission: `square`, `figure_eight`, `slalom`, a mission file, or `all` for the
-    /// three shipped missions one after the other.
+    /// three shipped missions one after the other; `listen` (or a file with
+    /// `plans: []`): a2 sends no plan, c1 takes plans from elsewhere (with
+    /// `--realtime --ros2`: the ROS 2 topic /rex/plan) until `--for SECONDS`
+    /// or SIGINT/SIGTERM, and every plan it took is judged.
     #[arg(long, global = true, value_name = "NAME|FILE")]
     pub mission: Option<String>,
     /// World file (platform, surfaces, sensors, camera, room, motion capture).
@@ -101,10 +104,20 @@ The ontology agent a2 sends the plans of the mission, the locomotion agent a1
 plans trajectories (c1) and tracks them (e11) on the simulated platform E1, the
 map agent a3 supplies poses from motion capture.
 
+Plans from ROS 2: `--mission listen` sends none from a2; c1 takes the plans
+published on /rex/plan (`rex --realtime --ros2 --mission listen --for 300`): the
+first with any id, then each numbered newest + 1 (others are refused as out of
+sequence), acknowledged on /rex/ack and /rex/outcome. The run ends at --for or
+on SIGINT/SIGTERM; its summary judges every plan c1 took
+(`mission=listen plans_acked=N/M`, M the plans taken).
+
 Exit status: 0 when every plan was achieved (acknowledged, reported reached by
-a1, and confirmed by the simulation's truth); 1 when a plan failed or the
-mission did not complete (the summary names each plan and how it ended); 2
-when the command line or a configuration file is invalid (nothing runs).";
+a1, and confirmed by the simulation's truth); for `listen`, when the run
+reached --for with every plan c1 took achieved and none still executing (also
+when none came); 1 when a plan failed or the mission did not complete (the
+summary names each plan and how it ended), and after SIGINT/SIGTERM (a run
+stopped before its end; the summary is printed all the same); 2 when the
+command line or a configuration file is invalid (nothing runs).";
 
 /// The drivers that act on or sense the simulated world: they share it, so a
 /// deployment must run them in one process.
@@ -182,7 +195,7 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
     s.spec = Some(absolute(
         s.spec.as_deref().unwrap_or(&crate::system::default_spec()),
     ));
-    if !Mission::SHIPPED.contains(&s.mission.as_str()) {
+    if !Mission::is_shipped(&s.mission) {
         // A mission file named on the command line is relative to the
         // current folder; one in a run file, to the run file's.
         let from = if flags.mission.is_some() {
@@ -351,6 +364,17 @@ impl Application for RexApp {
 
     fn announce(&self, config: &RunSettings) -> Option<String> {
         let c = RexApp::resolve(config).ok()?;
+        if c.mission.listens() {
+            return Some(format!(
+                "rex: mission `{}` (no plans from a2: c1 takes plans from elsewhere, ROS 2 /rex/plan with --ros2, until the time limit), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
+                c.mission.name,
+                c.planner.name(),
+                c.tracker,
+                c.estimator,
+                c.runtime,
+                if c.visual_odometry { "on" } else { "off" }
+            ));
+        }
         Some(format!(
             "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
             c.mission.name,
@@ -470,7 +494,17 @@ impl Watcher<Seen> for RexWatch {
                 Err(e) => eprintln!("rex: report {}: {e}", dir.display()),
             }
         }
-        if !out.completed {
+        let listens = self.watch.config.mission.listens();
+        if listens {
+            text.push_str(&match out.foreign.len() {
+                0 => "listened: c1 took no plan\n".to_owned(),
+                1 => "listened: c1 took 1 plan from elsewhere\n".to_owned(),
+                n => format!("listened: c1 took {n} plans from elsewhere\n"),
+            });
+        }
+        if !out.completed && listens {
+            text.push_str("the run ended with a plan c1 took not yet executed to its end\n");
+        } else if !out.completed {
             match run.mode {
                 Mode::Launched { .. } => text.push_str("the mission did not complete\n"),
                 _ => text.push_str(&format!(

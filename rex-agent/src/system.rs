@@ -36,7 +36,8 @@ use crate::world::{self, MapAgentHandles, WorldConfig, WorldError};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunSettings {
-    /// A shipped mission (`square`, `figure_eight`, `slalom`) or a mission file.
+    /// A shipped mission (`square`, `figure_eight`, `slalom`, or `listen`: no
+    /// plans from a2, see [`Mission::listens`]) or a mission file.
     pub mission: String,
     /// The world file, relative to the run file; `None`: the shipped world.
     pub world: Option<PathBuf>,
@@ -285,7 +286,7 @@ impl RunSettings {
             world.surfaces.default = name.clone();
             world.surfaces.patches.clear();
         }
-        let (mission, mission_path) = if Mission::SHIPPED.contains(&self.mission.as_str()) {
+        let (mission, mission_path) = if Mission::is_shipped(&self.mission) {
             (
                 Mission::shipped(&self.mission)?,
                 config::missions_dir().join(format!("{}.ron", self.mission)),

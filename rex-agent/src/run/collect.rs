@@ -10,7 +10,7 @@ use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
 use super::{Outcome, Progress, Sample};
-use crate::payload::{Ack, PlanOutcome};
+use crate::payload::{Ack, PlanOutcome, Point2};
 use crate::system::{RexConfig, RexHandles};
 use crate::world::devices::{MotionCapture, Truth};
 
@@ -29,8 +29,15 @@ pub enum Seen {
         /// Nothing to execute and nothing to report.
         idle: bool,
     },
-    /// c1's behaviour (0 = B1, 1 = B2, 2 = B3).
-    C1(u8),
+    /// c1's behaviour (0 = B1, 1 = B2, 2 = B3) when it changed or c1 took a
+    /// plan.
+    C1 {
+        /// The behaviour.
+        behaviour: u8,
+        /// The plan c1 took in that activation, with its last point (`None`
+        /// for a plan refused as it was taken: its points are not kept).
+        took: Option<(u32, Option<Point2>)>,
+    },
     /// a2's new acknowledgements, whether it has ended, and the plans it sent.
     C2 {
         /// Its instant.
@@ -68,6 +75,12 @@ pub(crate) struct Collector {
     mocap_since: Option<f64>,
     a2_done: bool,
     idle: bool,
+    /// The mission listens ([`crate::mission::Mission::listens`]): the run
+    /// ends at its limit, never by the mission's end.
+    listen: bool,
+    /// The mission's plans (ids `1..=n`): c1's plans numbered after them came
+    /// from another sender.
+    own: u32,
     /// The latest instant of e11 seen: truths from it on may still be needed.
     last_e11: Time,
     pub(crate) sent: usize,
@@ -91,6 +104,8 @@ impl Collector {
             mocap_since: None,
             a2_done: false,
             idle: false,
+            listen: config.mission.listens(),
+            own: config.mission.plans.len() as u32,
             last_e11: Time::ZERO,
             sent: 0,
             tick_ns,
@@ -110,7 +125,19 @@ impl Collector {
                 self.last_e11 = self.last_e11.max(t);
                 self.pending.push((t, sample, event, idle));
             }
-            Seen::C1(b) => self.behaviour = b,
+            Seen::C1 { behaviour, took } => {
+                self.behaviour = behaviour;
+                // A plan numbered after the mission's is another sender's: it
+                // is counted and judged with them (once: after a restart of
+                // c1 it is taken again).
+                if let Some((plan, end)) = took
+                    && plan > self.own
+                    && !self.out.foreign.iter().any(|(p, _)| *p == plan)
+                {
+                    self.out.foreign.push((plan, end));
+                    self.out.plans += 1;
+                }
+            }
             Seen::C2 {
                 t,
                 acks,
@@ -142,7 +169,10 @@ impl Collector {
 
     /// Pair the samples whose instant the world has passed (all of them once
     /// the run is `finished`) with the truth. Returns whether the mission has
-    /// ended: a2 has every acknowledgement and e11 is idle.
+    /// ended: a2 has every acknowledgement and e11 is idle. A listening
+    /// mission never ends before the run does: once `finished`, it is
+    /// complete if every plan c1 took has its final acknowledgement and e11
+    /// is idle (nothing left executing).
     pub(crate) fn advance(
         &mut self,
         finished: bool,
@@ -192,10 +222,27 @@ impl Collector {
         // seen, is no longer needed (a sample's truth often arrives first).
         let keep_from = self.pending.first().map_or(self.last_e11, |p| p.0);
         self.truths = self.truths.split_off(&keep_from);
+        if self.listen {
+            if finished {
+                self.out.completed = self.idle && self.foreign_answered();
+            }
+            return false;
+        }
         if self.a2_done && self.idle && !self.out.completed {
             self.out.completed = true;
         }
         self.out.completed
+    }
+
+    /// Whether every plan c1 took from another sender has its final
+    /// acknowledgement.
+    fn foreign_answered(&self) -> bool {
+        self.out.foreign.iter().all(|(id, _)| {
+            self.out
+                .acks
+                .iter()
+                .any(|(_, a)| a.plan == *id && a.ready())
+        })
     }
 }
 
@@ -240,14 +287,23 @@ pub(crate) fn install_probes(
     }
     if here("c1") {
         let mut last = None;
+        let mut last_took = None;
         probes.subsystem(&h.c1, move |p| {
             let b = match p.behaviour {
                 "B2" => 1u8,
                 "B3" => 2,
                 _ => 0,
             };
+            // The activation that took a plan leaves `new` set (B2 or B3
+            // clears it), the plan's points processed in `plan`.
+            let m = p.memory;
+            let took = (m.new && last_took.replace(m.plan_id) != Some(m.plan_id)).then(|| {
+                let end = m.plan.back().map(|w| Point2 { x: w.x, y: w.y });
+                (m.plan_id, end)
+            });
             // Only changes: c1's behaviour is a state, not a stream.
-            (last.replace(b) != Some(b)).then_some(Seen::C1(b))
+            (last.replace(b) != Some(b) || took.is_some())
+                .then_some(Seen::C1 { behaviour: b, took })
         });
     }
     if here("c2") {

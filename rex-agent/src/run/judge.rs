@@ -12,8 +12,9 @@
 use std::fmt;
 
 use super::Outcome;
-use crate::payload::{AckStatus, Execution};
-use crate::system::RexConfig;
+use crate::a1::map::Map;
+use crate::payload::{AckStatus, Execution, Point2};
+use crate::system::{Limits, RexConfig};
 
 /// How a plan went.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,7 +30,7 @@ pub enum Verdict {
     Violated(String),
     /// No outcome before the run ended.
     Unfinished(String),
-    /// The mission ended before `a2` sent it.
+    /// The run ended before `a2` sent it.
     NotSent,
 }
 
@@ -49,8 +50,11 @@ impl fmt::Display for Verdict {
 /// One plan of a run, judged.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PlanReport {
-    /// The plan's id (1-based, the mission's order).
+    /// The plan's id (1-based, the mission's order; a plan from another
+    /// sender has its own, after the mission's).
     pub plan: u32,
+    /// Whether another sender than `a2` gave it to `c1` (ROS 2).
+    pub foreign: bool,
     /// a1's final acknowledgement (`Done`, `Refused`, `Failed`).
     pub ack: Option<AckStatus>,
     /// How `e11` reported the execution ended, and when \[s\].
@@ -68,7 +72,8 @@ pub struct PlanReport {
 
 impl fmt::Display for PlanReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "plan {}: {}", self.plan, self.verdict)?;
+        let from = if self.foreign { " (not a2's)" } else { "" };
+        write!(f, "plan {}{from}: {}", self.plan, self.verdict)?;
         if self.verdict != Verdict::NotSent {
             write!(
                 f,
@@ -84,105 +89,112 @@ impl fmt::Display for PlanReport {
     }
 }
 
-/// Judge every plan of `out`'s mission; `sent` plans were sent by `a2`.
+/// Judge every plan of `out`'s mission, `sent` of which `a2` sent, then every
+/// plan `c1` took from another sender ([`Outcome::foreign`]), each against
+/// its own last point.
 pub fn judge(out: &Outcome, config: &RexConfig, sent: usize) -> Vec<PlanReport> {
     let limits = &config.limits;
     let map = limits.safety_map(&config.world);
-    (1..=config.mission.plans.len())
-        .map(|k| {
-            let id = k as u32;
-            let ack = out
-                .acks
-                .iter()
-                .rev()
-                .find(|(_, a)| a.plan == id && a.ready())
-                .map(|(_, a)| a.status.clone());
-            let outcome = out
-                .outcomes
-                .iter()
-                .find(|(_, o)| o.plan == id)
-                .map(|(t, o)| (*t, o.result.clone()));
-            let samples: Vec<_> = out
-                .samples
-                .iter()
-                .filter(|s| s.fragment.is_some_and(|(p, _)| p == id))
-                .collect();
-            let max_tracking = samples
-                .iter()
-                .filter_map(|s| s.error())
-                .fold(0.0, f64::max);
-            let max_estimate = samples
-                .iter()
-                .filter(|s| s.with_mocap())
-                .map(|s| s.estimate_error())
-                .fold(0.0, f64::max);
-            let too_close = samples.iter().find_map(|s| {
-                map.explain(s.truth[0], s.truth[1])
-                    .err()
-                    .map(|why| format!("at {:.2} s the platform at {why}", s.t))
-            });
-            let last = config.mission.plans[k - 1].last();
-            let end_error = outcome.as_ref().and_then(|(t, o)| {
-                if matches!(o, Execution::Stopped(_)) {
-                    return None;
-                }
-                let s = out.samples.iter().find(|s| s.t >= *t)?;
-                let p = last?;
-                Some((s.truth[0] - p.x).hypot(s.truth[1] - p.y))
-            });
-            let verdict = if k > sent {
-                Verdict::NotSent
-            } else {
-                match (&ack, &outcome) {
-                    (Some(AckStatus::Refused(why)), _) => Verdict::Failed(format!("refused: {why}")),
-                    (Some(AckStatus::Failed(why)), _) => Verdict::Failed(why.clone()),
-                    (_, Some((_, Execution::Stopped(why)))) => {
-                        Verdict::Failed(format!("stopped: {why}"))
-                    }
-                    (_, Some((_, Execution::Missed { error_m }))) => Verdict::Failed(format!(
-                        "missed its last point by {error_m:.3} m (estimated; tolerance {:.2} m)",
-                        limits.final_m
-                    )),
-                    (_, Some((_, Execution::Reached { .. }))) => match end_error {
-                        Some(e) if e > limits.final_m => Verdict::FalseSuccess(format!(
-                            "reported reached, but the platform was {e:.3} m from the last point (tolerance {:.2} m)",
-                            limits.final_m
-                        )),
-                        None => Verdict::FalseSuccess(
-                            "reported reached, with no sample to confirm it".into(),
-                        ),
-                        Some(_) if max_tracking > limits.tracking_m => {
-                            Verdict::Violated(format!(
-                                "tracking error {max_tracking:.3} m (limit {:.2} m)",
-                                limits.tracking_m
-                            ))
-                        }
-                        Some(_) if max_estimate > limits.estimate_m => {
-                            Verdict::Violated(format!(
-                                "estimate error {max_estimate:.3} m (limit {:.2} m)",
-                                limits.estimate_m
-                            ))
-                        }
-                        Some(_) => match too_close {
-                            Some(why) => Verdict::Violated(why),
-                            None => Verdict::Achieved,
-                        },
-                    },
-                    (Some(_), None) => {
-                        Verdict::Unfinished("no outcome from e11 before the run ended".into())
-                    }
-                    (None, None) => Verdict::Unfinished("not acknowledged".into()),
-                }
-            };
-            PlanReport {
-                plan: id,
-                ack,
-                outcome,
-                end_error_m: end_error,
-                max_tracking_m: max_tracking,
-                max_estimate_m: max_estimate,
-                verdict,
-            }
-        })
+    let mission = config.mission.plans.iter().enumerate().map(|(k, points)| {
+        let id = k as u32 + 1;
+        (id, points.last().copied(), k < sent, false)
+    });
+    let foreign = out.foreign.iter().map(|&(id, last)| (id, last, true, true));
+    mission
+        .chain(foreign)
+        .map(|plan| judge_plan(out, limits, &map, plan))
         .collect()
+}
+
+/// Judge one plan of `out`: its id, last point, whether it was sent (a
+/// plan from another sender was), and whether it came from another sender.
+fn judge_plan(
+    out: &Outcome,
+    limits: &Limits,
+    map: &Map,
+    (id, last, was_sent, foreign): (u32, Option<Point2>, bool, bool),
+) -> PlanReport {
+    let ack = out
+        .acks
+        .iter()
+        .rev()
+        .find(|(_, a)| a.plan == id && a.ready())
+        .map(|(_, a)| a.status.clone());
+    let outcome = out
+        .outcomes
+        .iter()
+        .find(|(_, o)| o.plan == id)
+        .map(|(t, o)| (*t, o.result.clone()));
+    let samples: Vec<_> = out
+        .samples
+        .iter()
+        .filter(|s| s.fragment.is_some_and(|(p, _)| p == id))
+        .collect();
+    let max_tracking = samples.iter().filter_map(|s| s.error()).fold(0.0, f64::max);
+    let max_estimate = samples
+        .iter()
+        .filter(|s| s.with_mocap())
+        .map(|s| s.estimate_error())
+        .fold(0.0, f64::max);
+    let too_close = samples.iter().find_map(|s| {
+        map.explain(s.truth[0], s.truth[1])
+            .err()
+            .map(|why| format!("at {:.2} s the platform at {why}", s.t))
+    });
+    let end_error = outcome.as_ref().and_then(|(t, o)| {
+        if matches!(o, Execution::Stopped(_)) {
+            return None;
+        }
+        let s = out.samples.iter().find(|s| s.t >= *t)?;
+        let p = last?;
+        Some((s.truth[0] - p.x).hypot(s.truth[1] - p.y))
+    });
+    let verdict = if !was_sent {
+        Verdict::NotSent
+    } else {
+        match (&ack, &outcome) {
+            (Some(AckStatus::Refused(why)), _) => Verdict::Failed(format!("refused: {why}")),
+            (Some(AckStatus::Failed(why)), _) => Verdict::Failed(why.clone()),
+            (_, Some((_, Execution::Stopped(why)))) => Verdict::Failed(format!("stopped: {why}")),
+            (_, Some((_, Execution::Missed { error_m }))) => Verdict::Failed(format!(
+                "missed its last point by {error_m:.3} m (estimated; tolerance {:.2} m)",
+                limits.final_m
+            )),
+            (_, Some((_, Execution::Reached { .. }))) => match end_error {
+                Some(e) if e > limits.final_m => Verdict::FalseSuccess(format!(
+                    "reported reached, but the platform was {e:.3} m from the last point (tolerance {:.2} m)",
+                    limits.final_m
+                )),
+                None => {
+                    Verdict::FalseSuccess("reported reached, with no sample to confirm it".into())
+                }
+                Some(_) if max_tracking > limits.tracking_m => Verdict::Violated(format!(
+                    "tracking error {max_tracking:.3} m (limit {:.2} m)",
+                    limits.tracking_m
+                )),
+                Some(_) if max_estimate > limits.estimate_m => Verdict::Violated(format!(
+                    "estimate error {max_estimate:.3} m (limit {:.2} m)",
+                    limits.estimate_m
+                )),
+                Some(_) => match too_close {
+                    Some(why) => Verdict::Violated(why),
+                    None => Verdict::Achieved,
+                },
+            },
+            (Some(_), None) => {
+                Verdict::Unfinished("no outcome from e11 before the run ended".into())
+            }
+            (None, None) => Verdict::Unfinished("not acknowledged".into()),
+        }
+    };
+    PlanReport {
+        plan: id,
+        foreign,
+        ack,
+        outcome,
+        end_error_m: end_error,
+        max_tracking_m: max_tracking,
+        max_estimate_m: max_estimate,
+        verdict,
+    }
 }

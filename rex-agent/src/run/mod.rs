@@ -15,6 +15,8 @@ use std::time::Duration;
 mod collect;
 pub mod judge;
 mod realtime;
+#[cfg(test)]
+mod tests;
 pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes};
 pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
@@ -175,13 +177,19 @@ impl Counters {
 pub struct Outcome {
     /// The mission's name.
     pub mission: String,
-    /// Plans in the mission.
+    /// Plans in the mission, and those `c1` took from another sender
+    /// ([`Outcome::foreign`]).
     pub plans: usize,
+    /// Plans `c1` took that `a2` did not send (numbered after the mission's:
+    /// from the ROS 2 topic `/rex/plan`, say), in the order taken, with their
+    /// last point (`None`: refused as taken). Judged with the mission's.
+    pub foreign: Vec<(u32, Option<crate::payload::Point2>)>,
     /// Final acknowledgements received by `a2`, with their arrival time \[s\].
     pub acks: Vec<(f64, Ack)>,
     /// Plan outcomes reported by `e11`, with the time it reported them \[s\].
     pub outcomes: Vec<(f64, PlanOutcome)>,
-    /// Each plan of the mission, judged against the simulation's truth.
+    /// Each plan of the mission, then each plan from another sender, judged
+    /// against the simulation's truth.
     pub reports: Vec<PlanReport>,
     /// Samples at every activation of `e11`.
     pub samples: Vec<Sample>,
@@ -192,7 +200,10 @@ pub struct Outcome {
     /// Counters.
     pub counters: Counters,
     /// Whether the mission ended (every plan sent, its outcome reported to `a2`,
-    /// the last fragment executed) before the time limit.
+    /// the last fragment executed) before the time limit. For a mission that
+    /// listens ([`crate::mission::Mission::listens`]), which runs to its
+    /// limit: whether, when the run ended, every plan `c1` took had its final
+    /// acknowledgement and nothing was left executing.
     pub completed: bool,
     /// The names of the planner, tracker and estimator.
     pub parts: [String; 3],
@@ -260,7 +271,8 @@ impl Outcome {
             .count()
     }
 
-    /// Whether the run succeeded: it completed and achieved every plan.
+    /// Whether the run succeeded: it completed and achieved every plan (a
+    /// listening run that took none succeeds: it executed every plan it got).
     pub fn succeeded(&self) -> bool {
         self.completed && self.plans_achieved() == self.plans
     }
@@ -302,7 +314,8 @@ impl Outcome {
         self.sim_s / self.wall_s.max(1e-9)
     }
 
-    /// The summary line of the main job (`plans_acked`: the plans achieved).
+    /// The summary line of the main job (`plans_acked`: the plans achieved, of
+    /// the mission's and those taken from another sender).
     pub fn summary_line(&self) -> String {
         format!(
             "mission={} plans_acked={}/{} rms_m={:.4} max_m={:.4} realtime_factor={:.1}",

@@ -9,7 +9,14 @@
 //!   (`alive`): when `c1` restarts (its process crashed and was started again),
 //!   the plans not yet settled are sent again, in order, each from its first
 //!   point not known reached, so that no plan is lost and no fragment executed
-//!   to its end is driven again;
+//!   to its end is driven again. `c1` also takes plans from other senders
+//!   (the ROS 2 topic `/rex/plan`): `c2` keeps every acknowledgement and
+//!   outcome it receives (what the run's watcher reads), but counts as its
+//!   own only those of its mission's plans (ids `1..=n`): a plan it did not
+//!   send never ends a wait, settles the mission, or moves a resumption
+//!   point ([`OntologyMemory::owns`]). A mission with no plans
+//!   ([`Mission::listens`]) is never settled: `c2` does not halt, and keeps
+//!   receiving what `c1` sends about the plans of others;
 //! * `a3`, the map agent: the motion-capture system `R3` (a real receptor), its
 //!   virtual receptor `r31` that rejects implausible poses, and the control subsystem
 //!   `c3` that sends the pose on the map to `a1` and keeps `a1`'s state estimate.
@@ -79,6 +86,13 @@ impl OntologyMemory {
         }
     }
 
+    /// Whether plan `id` is one of the mission's (ids `1..=n`, as
+    /// [`Mission::plan`] numbers them): `c1` also takes plans from other
+    /// senders (ROS 2), numbered after the mission's.
+    pub fn owns(&self, id: u32) -> bool {
+        (1..=self.mission.plans.len()).contains(&(id as usize))
+    }
+
     /// Whether plan `id` has ended: refused, failed, or its execution reported.
     fn plan_settled(&self, id: u32) -> bool {
         self.outcomes.iter().any(|o| o.plan == id)
@@ -99,9 +113,12 @@ impl OntologyMemory {
     }
 
     /// Whether every plan sent has ended: refused, failed, or its execution
-    /// reported.
+    /// reported. Never for a mission that listens ([`Mission::listens`]):
+    /// `c2` then waits in `settle` for as long as the run goes, receiving
+    /// what `c1` says of the plans it takes from elsewhere (halted, it would
+    /// read none of it).
     pub fn settled(&self) -> bool {
-        (1..=self.next as u32).all(|id| self.plan_settled(id))
+        !self.mission.listens() && (1..=self.next as u32).all(|id| self.plan_settled(id))
     }
 
     /// The id of the last plan sent.
@@ -154,16 +171,21 @@ fn record(m: &mut OntologyMemory, x: &OntologyInput) {
     watch(m, x);
 }
 
-/// Keep a fresh final acknowledgement, a fresh outcome and progress.
+/// Keep a fresh final acknowledgement, a fresh outcome and progress. Those of
+/// a plan `c2` does not own (another sender's) are kept in `acks` and
+/// `outcomes` for the watcher, but never answer a wait, and their progress
+/// is not a resumption point ([`OntologyMemory::owns`]).
 fn keep(m: &mut OntologyMemory, x: &OntologyInput) {
     if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
-        m.answered.insert(ack.plan);
+        if m.owns(ack.plan) {
+            m.answered.insert(ack.plan);
+        }
         m.acks.push(ack.clone());
     }
     if let Some(o) = x.c1.outcome.fresh() {
         m.outcomes.push(o.clone());
     }
-    if let Some(p) = x.c1.progress.fresh() {
+    if let Some(p) = x.c1.progress.fresh().filter(|p| m.owns(p.plan)) {
         let points = m
             .mission
             .plans

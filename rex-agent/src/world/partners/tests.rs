@@ -309,6 +309,139 @@ fn a_plan_sent_again_that_c1_already_answered_ends_the_wait() {
     assert_eq!((m.restarts, m.resent), (0, 1));
 }
 
+/// What `c1` says of a plan another sender (ROS 2) gave it: its
+/// acknowledgements, progress and outcome, one kind per activation of `c2`,
+/// as the queue links deliver them.
+fn foreign_reports(id: u32) -> Vec<OntologyInput> {
+    let stamp = Stamp::new(0, Time::ZERO);
+    let mut xs = Vec::new();
+    let mut with = |f: &dyn Fn(&mut OntologyInput)| {
+        let mut x = OntologyInput::default();
+        x.c1.alive.deliver(
+            Alive {
+                boot: 0,
+                newest: id,
+            },
+            stamp,
+        );
+        f(&mut x);
+        xs.push(x);
+    };
+    let ack = |status: AckStatus| Ack { plan: id, status };
+    with(&|x| x.c1.ack.deliver(ack(AckStatus::Received), stamp));
+    with(&|x| x.c1.progress.deliver(Progress { plan: id, done: 1 }, stamp));
+    with(&|x| x.c1.ack.deliver(ack(AckStatus::Done), stamp));
+    // The same progress twice (a repeat, were the plan a2's).
+    with(&|x| x.c1.progress.deliver(Progress { plan: id, done: 1 }, stamp));
+    with(&|x| {
+        x.c1.outcome.deliver(
+            PlanOutcome {
+                plan: id,
+                epoch: 0,
+                result: Execution::Reached { error_m: 0.02 },
+            },
+            stamp,
+        );
+    });
+    xs
+}
+
+#[test]
+fn a_listening_c2_sends_nothing_never_halts_and_keeps_what_c1_says_of_others_plans() {
+    let fsm = ontology_fsm().unwrap();
+    let mut m = OntologyMemory::new(Mission::shipped(Mission::LISTEN).unwrap());
+    let mut st = fsm.start();
+    let quiet = OntologyInput::default();
+    let mut inputs: Vec<OntologyInput> = (0..5).map(|_| quiet.clone()).collect();
+    inputs.extend(foreign_reports(7));
+    inputs.extend((0..5).map(|_| quiet.clone()));
+    inputs.extend(foreign_reports(8));
+    inputs.extend((0..50).map(|_| quiet.clone()));
+    for (k, x) in inputs.iter().enumerate() {
+        let mut y = OntologyOutput::default();
+        fsm.activate(&mut st, &mut m, x, &mut y, |_| {}).unwrap();
+        assert_eq!(y.c1.desired_plan.written(), None, "activation {k}: {m:?}");
+        assert!(!st.is_halted(), "activation {k}: a listening c2 halted");
+        assert_eq!(
+            fsm.behaviour_name(st.behaviour()),
+            "settle",
+            "activation {k}"
+        );
+    }
+    // Kept for the watcher, in order (the final acknowledgements only)...
+    let acks: Vec<(u32, AckStatus)> = m.acks.iter().map(|a| (a.plan, a.status.clone())).collect();
+    assert_eq!(acks, [(7, AckStatus::Done), (8, AckStatus::Done)]);
+    let outcomes: Vec<u32> = m.outcomes.iter().map(|o| o.plan).collect();
+    assert_eq!(outcomes, [7, 8]);
+    // ... but never counted as a2's: no plan sent, answered, or to resume.
+    assert_eq!(m.next, 0);
+    assert!(m.answered.is_empty() && m.done.is_empty(), "{m:?}");
+    assert_eq!((m.repeated, m.restarts, m.resent), (0, 0, 0));
+    assert!(!m.lost && !m.settled());
+}
+
+#[test]
+fn a_foreign_plans_reports_do_not_end_a2s_wait_or_count_as_its_own() {
+    // a2 sends plan 1 of 2 and waits; c1 reports on plan 3, another sender's
+    // (the reports cross a2's wait): a2 still waits for plan 1, then sends
+    // plan 2 after plan 1's own acknowledgement, and settles on its own plans.
+    let fsm = ontology_fsm().unwrap();
+    let mut m = OntologyMemory::new(mission(2));
+    let mut st = fsm.start();
+    let stamp = Stamp::new(0, Time::ZERO);
+    let sent = std::cell::RefCell::new(Vec::new());
+    let step = |x: &OntologyInput, m: &mut OntologyMemory, st: &mut embodied::FsmState| {
+        let mut y = OntologyOutput::default();
+        fsm.activate(st, m, x, &mut y, |_| {}).unwrap();
+        sent.borrow_mut()
+            .extend(y.c1.desired_plan.written().map(|p| p.id));
+    };
+    step(&OntologyInput::default(), &mut m, &mut st); // plan 1 sent
+    for x in foreign_reports(3) {
+        step(&x, &mut m, &mut st);
+    }
+    assert_eq!(*sent.borrow(), [1], "a2 waits for plan 1: {m:?}");
+    assert!(m.answered.is_empty() && m.done.is_empty() && m.repeated == 0);
+    let own = |plan: u32| {
+        let mut x = OntologyInput::default();
+        x.c1.ack.deliver(
+            Ack {
+                plan,
+                status: AckStatus::Done,
+            },
+            stamp,
+        );
+        x
+    };
+    step(&own(1), &mut m, &mut st);
+    for _ in 0..3 {
+        step(&OntologyInput::default(), &mut m, &mut st);
+    }
+    assert_eq!(*sent.borrow(), [1, 2], "{m:?}");
+    // Plan 3's outcome is in, a2's are not: not settled.
+    assert!(!m.settled() && !st.is_halted());
+    step(&own(2), &mut m, &mut st);
+    for plan in [1, 2] {
+        let mut x = OntologyInput::default();
+        x.c1.outcome.deliver(
+            PlanOutcome {
+                plan,
+                epoch: 0,
+                result: Execution::Reached { error_m: 0.01 },
+            },
+            stamp,
+        );
+        step(&x, &mut m, &mut st);
+    }
+    for _ in 0..3 {
+        step(&OntologyInput::default(), &mut m, &mut st);
+    }
+    assert!(m.settled() && st.is_halted(), "{m:?}");
+    assert_eq!(m.answered, BTreeSet::from([1, 2]));
+    let acked: Vec<u32> = m.acks.iter().map(|a| a.plan).collect();
+    assert_eq!(acked, [3, 1, 2], "every final acknowledgement is kept");
+}
+
 /// A pose at `(x, 0, 0)` describing `time`.
 fn at(x: f64, time: f64) -> MapPose {
     MapPose {
