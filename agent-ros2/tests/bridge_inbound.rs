@@ -23,11 +23,15 @@ mod common;
 use std::io::{BufRead, BufReader, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
 use agent_core::link::endpoint::{self, Receiver};
-use agent_core::{Inbox, Payload, Policy};
+use agent_core::trace::{ErasedPayload, ReadEvent};
+use agent_core::{
+    Action, Behaviour, Fsm, Inbox, LinkId, Observer, Payload, Period, Policy, RealTime, RtConfig,
+    System, SystemBuilder, port,
+};
 use agent_ros2::bridge::{
     Adapters, Bridge, BridgeError, BridgeOptions, BridgeReport, Mode, Plan, SessionOptions,
 };
@@ -489,4 +493,120 @@ fn announced(answer: &Value) {
             (&json!("bridge"), &json!("/test"))
         );
     }
+}
+
+/// The values of the links fed from outside the system that a run's nodes
+/// took (`Observer::received`), as postcard bytes, over every thread.
+#[derive(Clone, Default)]
+struct Received(Arc<Mutex<Vec<Vec<u8>>>>);
+
+impl Observer for Received {
+    fn received(&mut self, _event: &ReadEvent, value: &dyn ErasedPayload) {
+        let mut bytes = Vec::new();
+        value.encode(&mut bytes).unwrap();
+        self.0.lock().unwrap().push(bytes);
+    }
+}
+
+/// The test system, as `common::system`, and its status link.
+fn system_and_status_link() -> (System, LinkId) {
+    use common::{C, COut, E, EIn, ToE};
+    let mut b = SystemBuilder::new();
+    let a = b.agent("a");
+    let period = Period::from_millis(10).unwrap();
+    let go = Fsm::single(Behaviour::while_loop(
+        "go",
+        Action::<C>::new()
+            .output(
+                |y| &mut y.e,
+                |k: &u32, _: &(), y: &mut ToE| {
+                    y.pose.set(pose_at(*k));
+                    y.status.set(status_at(*k));
+                },
+            )
+            .memory(|k: &mut u32, _: &()| *k += 1),
+        "false",
+    ))
+    .unwrap();
+    let keep = Fsm::single(Behaviour::while_loop("keep", Action::<E>::new(), "false")).unwrap();
+    let c = b.subsystem(a, "c", period, 0u32, go);
+    let e = b.subsystem(a, "e", period, (), keep);
+    b.connect(
+        c.output(port!(COut, e.pose)),
+        e.input(port!(EIn, c.pose)),
+        Policy::Sample,
+    );
+    let status = b.connect(
+        c.output(port!(COut, e.status)),
+        e.input(port!(EIn, c.status)),
+        Policy::queue(8),
+    );
+    (b.build().unwrap(), status)
+}
+
+/// A real-time run's input fed by the bridge (`RealTime::feed`) beside its
+/// link: the node takes every value put on the topic, and they are stamped
+/// against the run's instant zero (the bridge's epoch, an hour before, would
+/// stamp them an hour ahead: refused by the inbox).
+#[test]
+fn a_real_time_runs_input_takes_the_values_of_its_topic() {
+    let endpoint = free_endpoint();
+    let ours = peer(true, &endpoint);
+    let theirs = peer(false, &endpoint);
+    let (system, status_link) = system_and_status_link();
+    let section = r#"(namespace: "/test", node: "bridge", package: "bridge_test_msgs",
+        subscribe: [(buffer: "e.c.status", topic: "status_in")])"#;
+    let plan = Plan::new(&spec(section), None, &system, &Adapters::new()).unwrap();
+    let options = BridgeOptions {
+        epoch: Some(SystemTime::now() - Duration::from_secs(3600)),
+        ..BridgeOptions::default()
+    };
+    let mut bridge = Bridge::on_session(plan, ours, &options).unwrap();
+    let key = bridge.plan().subscriptions[0].key.to_string();
+    let mut rt = RealTime::new(system, RtConfig::default());
+    let inbox = rt.feed(status_link, "ros2 /test/status_in").unwrap();
+    bridge.subscribe(0, inbox.clone()).unwrap();
+    let received = Received::default();
+    let theirs_too = received.clone();
+    rt.observe(move |_, _| Box::new(theirs_too.clone()));
+    let running = rt.start(Duration::from_millis(400)).unwrap();
+    bridge.set_inbound_zero(running.zero());
+
+    let publisher = theirs.declare_publisher(key).wait().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !publisher.matching_status().wait().unwrap().matching() {
+        assert!(
+            Instant::now() < deadline,
+            "the bridge's subscriber is not seen"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let shape = agent_core::reflect::<Status>().unwrap();
+    for k in 0..5 {
+        let mut cdr = Vec::new();
+        encode_cdr(&status_at(100 + k), &shape, &mut cdr).unwrap();
+        let attachment = Attachment {
+            sequence_number: i64::from(k) + 1,
+            source_timestamp_ns: 0,
+            gid: Gid::from_bytes([3; 16]),
+        };
+        publisher
+            .put(cdr)
+            .attachment(attachment.encode().as_slice())
+            .wait()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    running.join().unwrap();
+    let report = bridge.finish().unwrap();
+    let s = &report.subscriptions[0];
+    assert_eq!(
+        (s.received, s.delivered, s.inbox_problems),
+        (5, 5, 0),
+        "{s:?}"
+    );
+    let expected: Vec<Vec<u8>> = (100..105)
+        .map(|k| postcard::to_allocvec(&status_at(k)).unwrap())
+        .collect();
+    assert_eq!(*received.0.lock().unwrap(), expected);
 }

@@ -278,6 +278,7 @@ impl std::fmt::Debug for Bridge {
         f.debug_struct("Bridge")
             .field("node", &self.node.key_expr())
             .field("topics", &self.plan.topics)
+            .field("subscriptions", &self.plan.subscriptions)
             .finish()
     }
 }

@@ -62,7 +62,8 @@ pub struct SubscriptionReport {
     /// Messages an adapter refused (a value the buffer must not take).
     pub rejected: u64,
     /// Samples a publisher numbered and the bridge never received (the gaps
-    /// in each publisher's sequence numbers), counted, not refused.
+    /// in each publisher's sequence numbers, from the first of its samples
+    /// received), counted, not refused.
     pub lost: u64,
     /// The problems the inbox met (values it refused, such as one stamped
     /// too far ahead or one past a full queue), as `Inbox::problem_count`
