@@ -106,8 +106,9 @@ map agent a3 supplies poses from motion capture.
 
 Plans from ROS 2: `--mission listen` sends none from a2; c1 takes the plans
 published on /rex/plan (`rex --realtime --ros2 --mission listen --for 300`): the
-first with any id, then each numbered newest + 1 (others are refused as out of
-sequence), acknowledged on /rex/ack and /rex/outcome. The run ends at --for or
+first with any id, then each numbered newest + 1 (a number beyond is refused
+as out of sequence, one already taken ignored as a copy), acknowledged on
+/rex/ack and /rex/outcome. The run ends at --for or
 on SIGINT/SIGTERM; its summary judges every plan c1 took
 (`mission=listen plans_acked=N/M`, M the plans taken).
 
