@@ -192,7 +192,10 @@ impl Adapters {
     /// every length and value checked) and given to `adapt`, whose value the
     /// buffer takes; an `Err` refuses the message (a value the buffer must
     /// not take, a NaN for example), with the reason, and the bridge counts
-    /// it. A later adapter for the same `M` and `B` replaces this one.
+    /// it. `adapt` runs on the bridge's inbound thread and must not panic: a
+    /// panic there ends the feeding of every subscribed topic
+    /// ([`Bridge::finish`](super::Bridge::finish) says so). A later adapter
+    /// for the same `M` and `B` replaces this one.
     pub fn subscribe<M, B>(
         mut self,
         adapt: impl Fn(M) -> Result<B, String> + Send + Sync + 'static,
