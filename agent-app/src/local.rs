@@ -13,7 +13,7 @@ use agent_core::{
 use agent_mcap::McapRecorder;
 
 use crate::error::{AppError, Status};
-use crate::ros2::{Ros2Out, Threads};
+use crate::ros2::Ros2Out;
 use crate::transitions::{self, Transitions};
 use crate::watch::{self, End, Ended, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
@@ -75,8 +75,8 @@ pub(crate) fn run<A: Application>(
             exec,
             ..RtConfig::realtime()
         };
-        let threads = ros2.threads();
-        let ran = watched.realtime_observed(system, config, recorder.as_ref(), threads);
+        let mut ros2 = ros2;
+        let ran = watched.realtime_observed(system, config, recorder.as_ref(), Some(&mut ros2));
         (ran?, recorder, ros2, Mode::RealTime)
     } else {
         match recorder {
@@ -231,23 +231,30 @@ impl<M: Send + 'static> Watched<'_, M> {
         self.realtime_observed(system, config, recorder, None)
     }
 
-    /// [`Watched::realtime`], its threads observed by the ROS 2 bridge's
-    /// observers (`ros2`) too.
+    /// [`Watched::realtime`] with the ROS 2 bridge (`ros2`): its observers
+    /// see the threads, and the topics it subscribes feed their inputs.
     pub(crate) fn realtime_observed(
         mut self,
         system: System,
         config: RtConfig,
         recorder: Option<&McapRecorder>,
-        ros2: Option<Threads>,
+        mut ros2: Option<&mut Ros2Out>,
     ) -> Result<Ran, AppError> {
         let halting = halting_nodes(&system, &self.end)?;
         let exec = config.exec;
         let mut rt = RealTime::new(system, config);
         rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
-        transitions::observe(&mut rt, recorder, self.transitions, ros2);
+        let threads = ros2.as_deref().and_then(Ros2Out::threads);
+        transitions::observe(&mut rt, recorder, self.transitions, threads);
+        if let Some(ros2) = ros2.as_deref_mut() {
+            ros2.feed(&mut rt)?;
+        }
         let running = rt
             .start(self.limit)
             .map_err(|e| AppError::Run(e.to_string()))?;
+        if let Some(ros2) = ros2.as_deref() {
+            ros2.started(&running);
+        }
         let wall = Instant::now();
         let mut next_status = wall + STATUS_EVERY;
         let mut failing = record::FailWatch::new();

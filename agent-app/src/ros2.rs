@@ -68,6 +68,19 @@ impl Ros2Out {
         None
     }
 
+    /// No inputs to feed.
+    #[allow(
+        clippy::unused_self,
+        clippy::unnecessary_wraps,
+        reason = "the bridge's signature, without the bridge"
+    )]
+    pub(crate) fn feed(&mut self, _rt: &mut agent_core::RealTime) -> Result<(), AppError> {
+        Ok(())
+    }
+
+    /// Nothing to stamp.
+    pub(crate) fn started(&self, _running: &agent_core::Running) {}
+
     /// Nothing to finish: whether it finished cleanly (yes).
     pub(crate) fn finish(self) -> bool {
         true
@@ -100,7 +113,7 @@ impl Ros2Out {
         let (spec, absent) = in_the_system(&spec.spec, part.map(|p| p.deployment), system);
         if !absent.is_empty() {
             crate::output::warn(format_args!(
-                "--ros2: not published, their components are not in this run: {}",
+                "--ros2: not shown to ROS 2, their components are not in this run: {}",
                 absent.join(", ")
             ));
         }
@@ -119,15 +132,20 @@ impl Ros2Out {
                 .named(&node)
                 .map_err(|e| invalid(&e))?;
         }
-        if !plan.unserved().is_empty() {
-            let topics: Vec<&str> = plan.unserved().iter().map(|t| t.topic.as_str()).collect();
-            crate::output::warn(format_args!(
-                "--ros2: the spec's subscribe topics are not served yet (nothing is taken from ROS 2): {}",
-                topics.join(", ")
-            ));
+        // A deterministic run is not on the wall clock: a value from ROS 2
+        // has no instant in it.
+        if part.is_none() && !common.realtime {
+            plan = plan.unserve_subscriptions(DETERMINISTIC);
         }
+        for topic in plan.unserved() {
+            crate::output::warn(format_args!("--ros2: {topic}"));
+        }
+        let session = match part {
+            Some(p) if secure(&spec, p.deployment) => secure_session(common, endpoint, p)?,
+            _ => SessionOptions::client(endpoint),
+        };
         let mut options = BridgeOptions {
-            session: SessionOptions::client(endpoint),
+            session,
             ..BridgeOptions::default()
         };
         if part.is_none() && !common.realtime {
@@ -146,6 +164,45 @@ impl Ros2Out {
             .map(|b| Box::new(b.threads()) as Threads)
     }
 
+    /// Feed the inputs of the topics the bridge subscribes to, in the
+    /// real-time run `rt` (before it starts).
+    pub(crate) fn feed(&mut self, rt: &mut agent_core::RealTime) -> Result<(), AppError> {
+        let Some(bridge) = self.bridge.as_mut() else {
+            return Ok(());
+        };
+        let wanted: Vec<(usize, usize, String)> = bridge
+            .plan()
+            .subscriptions
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (i, t.link, t.key.topic().to_owned()))
+            .collect();
+        for (index, link, topic) in wanted {
+            let refused = |e: &dyn std::fmt::Display| {
+                AppError::Run(format!(
+                    "--ros2: topic `{topic}` cannot feed its input: {e}"
+                ))
+            };
+            let id = rt
+                .info()
+                .link_id(link)
+                .ok_or_else(|| refused(&format_args!("the system has no link #{link}")))?;
+            let inbox = rt
+                .feed(id, &format!("ros2:{topic}"))
+                .map_err(|e| refused(&e))?;
+            bridge.subscribe(index, inbox).map_err(|e| refused(&e))?;
+        }
+        Ok(())
+    }
+
+    /// The run started: the values taken from ROS 2 count their instants
+    /// from its instant zero.
+    pub(crate) fn started(&self, running: &agent_core::Running) {
+        if let Some(bridge) = &self.bridge {
+            bridge.set_inbound_zero(running.zero());
+        }
+    }
+
     /// Finish the bridge (after the run) and say what it published; whether
     /// it finished cleanly (an error is said).
     pub(crate) fn finish(self) -> bool {
@@ -155,12 +212,38 @@ impl Ros2Out {
         match bridge.finish() {
             Ok(report) => {
                 crate::output::err(format_args!(
-                    "ros2: published={} dropped={} encode_failures={} put_failures={}",
+                    "ros2: published={} dropped={} encode_failures={} put_failures={} received={} delivered={} refused={} lost={}",
                     report.published(),
                     report.dropped(),
                     report.encode_failures(),
-                    report.put_failures()
+                    report.put_failures(),
+                    report.received(),
+                    report.delivered(),
+                    report.refused(),
+                    report.lost()
                 ));
+                for t in &report.subscriptions {
+                    if t.refused() + t.dropped + t.inbox_problems > 0 {
+                        crate::output::warn(format_args!(
+                            "ros2: {} (into {}): refused {} of {} received (wrong_type={} bad_attachment={} duplicate={} undecodable={} rejected={}), dropped={}, inbox_problems={}{}",
+                            t.topic,
+                            t.buffer,
+                            t.refused(),
+                            t.received,
+                            t.wrong_type,
+                            t.bad_attachment,
+                            t.duplicate,
+                            t.undecodable,
+                            t.rejected,
+                            t.dropped,
+                            t.inbox_problems,
+                            t.last_refusal
+                                .as_deref()
+                                .map(|why| format!("; the last refused: {why}"))
+                                .unwrap_or_default()
+                        ));
+                    }
+                }
                 for e in &report.close_errors {
                     crate::output::warn(format_args!("ros2: {e}"));
                 }
@@ -178,10 +261,10 @@ impl Ros2Out {
     }
 }
 
-/// `spec` without the `publish` entries whose component `system` does not
-/// have (a run built without some of the spec's components, as Rex's
-/// `--no-vo`), and the buffers of those that `deployment`'s section (or the
-/// system's) names.
+/// `spec` without the `publish` and `subscribe` entries whose component
+/// `system` does not have (a run built without some of the spec's
+/// components, as Rex's `--no-vo`), and the buffers of those that
+/// `deployment`'s section (or the system's) names.
 #[cfg(feature = "ros2")]
 fn in_the_system(
     spec: &agent_spec::Spec,
@@ -195,7 +278,12 @@ fn in_the_system(
     };
     let section = agent_spec::ros2::section(spec, deployment.and_then(|d| spec.deployment(d)));
     let absent = section
-        .map(|s| s.publish.iter().filter(|t| !has(&t.buffer)))
+        .map(|s| {
+            s.publish
+                .iter()
+                .chain(&s.subscribe)
+                .filter(|t| !has(&t.buffer))
+        })
         .into_iter()
         .flatten()
         .map(|t| t.buffer.clone())
@@ -207,8 +295,65 @@ fn in_the_system(
         .chain(spec.deployments.iter_mut().filter_map(|d| d.ros2.as_mut()));
     for section in sections {
         section.publish.retain(|t| has(&t.buffer));
+        section.subscribe.retain(|t| has(&t.buffer));
     }
     (spec, absent)
+}
+
+/// Why a deterministic run takes nothing from ROS 2.
+#[cfg(feature = "ros2")]
+const DETERMINISTIC: &str = "a deterministic run is not on the wall clock: run with --realtime (or a deployment) to take values from ROS 2";
+
+/// Whether `deployment` of `spec` is secure.
+#[cfg(feature = "ros2")]
+fn secure(spec: &agent_spec::Spec, deployment: &str) -> bool {
+    spec.deployment(deployment).is_some_and(|d| d.is_secure())
+}
+
+/// The bridge's session in a process of a secure deployment: over TLS, with
+/// the process's certificate (the ROS 2 router's access control, generated by
+/// `credentials`, knows it by its common name).
+#[cfg(all(feature = "ros2", feature = "distributed"))]
+fn secure_session(
+    common: &Common,
+    endpoint: &str,
+    part: Part<'_>,
+) -> Result<agent_ros2::bridge::SessionOptions, AppError> {
+    use agent_zenoh::security::Credentials;
+    let invalid = |why: &dyn std::fmt::Display| {
+        AppError::invalid(format!(
+            "--ros2={endpoint}: deployment `{}` is secure: {why}",
+            part.deployment
+        ))
+    };
+    if !endpoint.starts_with("tls/") {
+        return Err(invalid(
+            &"its bridges reach the ROS 2 router over mutual TLS: give a tls/HOST:PORT endpoint",
+        ));
+    }
+    let dir = common.credentials.as_deref().ok_or_else(|| {
+        invalid(&format_args!(
+            "the ROS 2 router must know its certificates: make them with `{} credentials --deployment {} DIR`, start the router with DIR/{}, and launch with --credentials DIR",
+            crate::output::program(),
+            part.deployment,
+            agent_ros2::access::ROUTER_CONFIG
+        ))
+    })?;
+    let credentials = Credentials::in_dir(dir, part.process).map_err(|e| invalid(&e))?;
+    agent_ros2::bridge::SessionOptions::tls_client(endpoint, &credentials).map_err(|e| invalid(&e))
+}
+
+/// Without deployments, no secure session.
+#[cfg(all(feature = "ros2", not(feature = "distributed")))]
+fn secure_session(
+    _common: &Common,
+    endpoint: &str,
+    part: Part<'_>,
+) -> Result<agent_ros2::bridge::SessionOptions, AppError> {
+    Err(AppError::invalid(format!(
+        "--ros2={endpoint}: deployment `{}` is secure, and this program is built without the feature `distributed`",
+        part.deployment
+    )))
 }
 
 /// The values the bridge's publishing thread may fall behind by in a

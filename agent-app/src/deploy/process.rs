@@ -96,7 +96,7 @@ pub(crate) fn run<A: Application>(
     let system = app.build(&config, &start.target())?;
     let runs = member.runs().to_vec();
     let here = |n: &str| runs.iter().any(|r| r == n);
-    let ros2 = Ros2Out::start(app, common, &spec, &system, Some(start.part(&runs)))?;
+    let mut ros2 = Ros2Out::start(app, common, &spec, &system, Some(start.part(&runs)))?;
     // The end rule's subsystems that run here: each one's halt is told.
     let halting: Vec<_> = halting_nodes(&system, &app.end(&config))?
         .unwrap_or_default()
@@ -115,7 +115,7 @@ pub(crate) fn run<A: Application>(
         }
         None => None,
     };
-    let rt = real_time(
+    let mut rt = real_time(
         app,
         &config,
         system,
@@ -124,7 +124,9 @@ pub(crate) fn run<A: Application>(
         common.transitions,
         ros2.threads(),
     );
+    ros2.feed(&mut rt)?;
     let (running, end) = start_run(rt, &mut member, limit, &mut recorder)?;
+    ros2.started(&running);
     let mut vigil = Vigil {
         member: &member,
         signals,
