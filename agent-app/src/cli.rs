@@ -193,6 +193,18 @@ pub enum Command {
     /// proof that arcs are exclusive and complete), periods and deployments.
     /// Exit 1 if it has an error.
     Check,
+    /// Write the ROS 2 interface package of the messages `--ros2` makes
+    /// from this program's buffer types (the spec's `ros2` section's
+    /// package: `DIR/<package>/msg/*.msg`, `package.xml`, `CMakeLists.txt`),
+    /// for ROS 2 users to build with colcon: their tools then decode and
+    /// publish those messages with the type hashes the bridge announces.
+    /// With `--deployment`, of that deployment's section.
+    #[command(name = "ros2-package")]
+    Ros2Package {
+        /// The folder to write the package's folder into.
+        #[arg(value_name = "DIR")]
+        dir: PathBuf,
+    },
     /// Draw a diagram of the spec without Graphviz.
     Diagram {
         /// What to draw.

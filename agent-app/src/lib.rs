@@ -388,6 +388,10 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
                 output.as_deref(),
             );
         }
+        Command::Ros2Package { dir } => {
+            let config = first.clone();
+            return ros2::package(app, &config, common, &dir);
+        }
         Command::Replay { .. } | Command::Run | Command::Launch { .. } => {}
     }
     let one = |what: &str| -> Result<&A::Config, AppError> {

@@ -300,6 +300,61 @@ fn in_the_system(
     (spec, absent)
 }
 
+/// `ros2-package DIR`: the ROS 2 interface package of the messages the
+/// bridge makes from the buffer types, written into `DIR/<package>/`.
+#[cfg(feature = "ros2")]
+pub(crate) fn package<A: Application>(
+    app: &mut A,
+    config: &A::Config,
+    common: &Common,
+    dir: &std::path::Path,
+) -> Result<crate::Status, AppError> {
+    use agent_ros2::bridge::Plan;
+    use agent_ros2::package::Package;
+    let spec = app.spec(config)?;
+    let system = app.build(config, &crate::Target::Whole)?;
+    let deployment = common.deployment.as_deref();
+    let (section, _) = in_the_system(&spec.spec, deployment, &system);
+    let invalid = |e: &dyn std::fmt::Display| AppError::invalid(format!("ros2-package: {e}"));
+    let chosen = match deployment {
+        Some(d) => Some(
+            section
+                .deployment(d)
+                .ok_or_else(|| invalid(&format_args!("the spec has no deployment `{d}`")))?,
+        ),
+        None => None,
+    };
+    let plan =
+        Plan::new(&section, chosen, &system, &app.ros2_adapters()).map_err(|e| invalid(&e))?;
+    let messages = plan
+        .topics
+        .iter()
+        .map(|t| &t.messages)
+        .chain(plan.subscriptions.iter().map(|t| &t.messages));
+    let package = Package::of(&plan.package, messages).map_err(|e| invalid(&e))?;
+    let written = package
+        .write(&dir.join(package.name()))
+        .map_err(|e| invalid(&e))?;
+    for path in written {
+        crate::output::out(format_args!("{}\n", path.display()));
+    }
+    Ok(crate::Status::Success)
+}
+
+/// Without the feature, no package.
+#[cfg(not(feature = "ros2"))]
+pub(crate) fn package<A: Application>(
+    _app: &mut A,
+    _config: &A::Config,
+    _common: &Common,
+    dir: &std::path::Path,
+) -> Result<crate::Status, AppError> {
+    Err(AppError::invalid(format!(
+        "ros2-package {}: built without the feature `ros2`",
+        dir.display()
+    )))
+}
+
 /// Why a deterministic run takes nothing from ROS 2.
 #[cfg(feature = "ros2")]
 const DETERMINISTIC: &str = "a deterministic run is not on the wall clock: run with --realtime (or a deployment) to take values from ROS 2";
