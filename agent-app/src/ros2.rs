@@ -150,6 +150,7 @@ impl Ros2Out {
         };
         if part.is_none() && !common.realtime {
             options.slots = DETERMINISTIC_SLOTS;
+            options.wait_when_full = Some(DETERMINISTIC_WAIT);
         }
         let bridge = Bridge::start(plan, options).map_err(|e| invalid(&e))?;
         Ok(Ros2Out {
@@ -414,10 +415,17 @@ fn secure_session(
 /// The values the bridge's publishing thread may fall behind by in a
 /// deterministic run, which goes as fast as it can (Rex's square mission,
 /// some 50 times faster than real time, sends some 36,000 published values
-/// in 0.7 s of wall-clock time; a ring of 256 dropped a third of them):
-/// beyond, values are dropped and counted.
+/// in 0.7 s of wall-clock time): beyond, the run waits for the publishing
+/// thread ([`DETERMINISTIC_WAIT`]) instead of dropping values, since its time
+/// is not the wall clock's.
 #[cfg(feature = "ros2")]
-const DETERMINISTIC_SLOTS: usize = 1 << 15;
+const DETERMINISTIC_SLOTS: usize = 4096;
+
+/// How long a deterministic run waits for the bridge's publishing thread to
+/// take a value before it drops it (and counts it): a stalled router, not a
+/// busy one.
+#[cfg(feature = "ros2")]
+const DETERMINISTIC_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// `process` as part of a ROS 2 node name: what is not a letter, digit or
 /// `_` becomes `_`.

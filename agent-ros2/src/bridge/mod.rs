@@ -208,8 +208,15 @@ pub struct BridgeOptions {
     /// The session it opens ([`Bridge::start`]).
     pub session: SessionOptions,
     /// The slots of each tap's ring: how many values the publishing thread
-    /// may fall behind by, per executor thread, before values are dropped.
+    /// may fall behind by, per executor thread, before values are dropped
+    /// (or, with [`BridgeOptions::wait_when_full`], waited for).
     pub slots: usize,
+    /// With a full ring, wait for the publishing thread to free a slot, for
+    /// at most this long per value, instead of dropping the value at once:
+    /// for a run that is not real time (the deterministic executor, which
+    /// goes faster than the wall clock and may wait), so that it loses no
+    /// value. `None` (the default, for real-time runs): never wait.
+    pub wait_when_full: Option<std::time::Duration>,
     /// The wall-clock time of the run's instant zero, for the stamps of
     /// standard messages' headers, and for the instants of the values taken
     /// from ROS 2 (when each arrived, after it); default when the bridge
@@ -222,6 +229,7 @@ impl Default for BridgeOptions {
         Self {
             session: SessionOptions::default(),
             slots: 256,
+            wait_when_full: None,
             epoch: None,
         }
     }
@@ -342,7 +350,7 @@ impl Bridge {
             entities.push(entity);
         }
         let tokens = declare_tokens(&session, &node, &entities)?;
-        let shared = Arc::new(shared_of(&plan, options.slots));
+        let shared = Arc::new(shared_of(&plan, options.slots, options.wait_when_full));
         let epoch = options.epoch.unwrap_or_else(SystemTime::now);
         let epoch_ns = epoch
             .duration_since(UNIX_EPOCH)
@@ -685,7 +693,7 @@ impl Inlet {
 }
 
 /// What the taps and the publishing thread of `plan` share.
-fn shared_of(plan: &Plan, slots: usize) -> Shared {
+fn shared_of(plan: &Plan, slots: usize, wait: Option<Duration>) -> Shared {
     let links = plan.topics.iter().map(|t| t.link + 1).max().unwrap_or(0);
     let mut by_link = vec![Vec::new(); links];
     for (k, topic) in plan.topics.iter().enumerate() {
@@ -697,6 +705,7 @@ fn shared_of(plan: &Plan, slots: usize) -> Shared {
         new: std::sync::Mutex::new(Vec::new()),
         stop: std::sync::atomic::AtomicBool::new(false),
         slots,
+        wait,
     }
 }
 

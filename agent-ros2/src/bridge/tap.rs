@@ -7,7 +7,10 @@
 //! each has grown to the size of the values it carries, a value costs no
 //! allocation on the node's thread (the first values into a fresh buffer, or a
 //! value larger than any before, do grow it). When no buffer is free (the
-//! publishing thread is a whole ring behind) the value is dropped and counted.
+//! publishing thread is a whole ring behind) the value is dropped and counted,
+//! or, for a run that is not real time ([`Shared::wait`]), waited for: the
+//! node's thread wakes the publishing thread and yields until a buffer comes
+//! back, for at most the time given (then it drops, and counts).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -56,6 +59,9 @@ pub(crate) struct Shared {
     pub(crate) stop: std::sync::atomic::AtomicBool,
     /// The byte buffers of each new tap's ring.
     pub(crate) slots: usize,
+    /// How long a tap waits for a free buffer before it drops a value
+    /// (`None`: not at all).
+    pub(crate) wait: Option<std::time::Duration>,
 }
 
 /// An [`Observer`] that hands the values of published links to the bridge's
@@ -102,8 +108,13 @@ impl Tap {
 
     /// Hand one value to the publishing thread for `topic`.
     fn hand(&mut self, topic: usize, stamp: Stamp, value: &dyn ErasedPayload) {
+        let bytes = self
+            .spare
+            .take()
+            .or_else(|| self.free.pop().ok())
+            .or_else(|| self.wait_for_buffer());
         let counts = &self.shared.counts[topic];
-        let Some(mut bytes) = self.spare.take().or_else(|| self.free.pop().ok()) else {
+        let Some(mut bytes) = bytes else {
             counts.dropped.fetch_add(1, Ordering::Relaxed);
             return;
         };
@@ -126,6 +137,27 @@ impl Tap {
                 counts.dropped.fetch_add(1, Ordering::Relaxed);
                 self.spare = Some(slot.bytes);
             }
+        }
+    }
+}
+
+impl Tap {
+    /// A buffer given back by the publishing thread within the tap's wait, if
+    /// it waits (see the module's documentation); `None` when it does not,
+    /// when the time is up, or when the bridge is finishing.
+    fn wait_for_buffer(&mut self) -> Option<Vec<u8>> {
+        let wait = self.shared.wait?;
+        let until = std::time::Instant::now() + wait;
+        loop {
+            self.thread.unpark();
+            std::thread::yield_now();
+            if let Ok(bytes) = self.free.pop() {
+                return Some(bytes);
+            }
+            if self.shared.stop.load(Ordering::Relaxed) || std::time::Instant::now() >= until {
+                return None;
+            }
+            std::thread::sleep(std::time::Duration::from_micros(50));
         }
     }
 }
@@ -168,6 +200,7 @@ mod tests {
             new: Mutex::new(Vec::new()),
             stop: AtomicBool::new(false),
             slots,
+            wait: None,
         })
     }
 
@@ -209,5 +242,61 @@ mod tests {
             .map(|s| s.bytes)
             .collect();
         assert_eq!(values, [vec![1], vec![0xac, 0x02]]);
+    }
+
+    /// A tap that waits: a full ring holds the node's thread until the
+    /// publishing thread (here another thread) gives a buffer back, and no
+    /// value is dropped; with nobody draining, it drops after its wait.
+    #[test]
+    fn a_waiting_tap_loses_nothing_while_the_publisher_drains() {
+        let mut waiting = shared(2);
+        if let Some(s) = Arc::get_mut(&mut waiting) {
+            s.wait = Some(std::time::Duration::from_secs(10));
+        }
+        let drainer = {
+            let shared = waiting.clone();
+            std::thread::spawn(move || {
+                let mut got = Vec::new();
+                while got.len() < 50 {
+                    let outlet = shared
+                        .new
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .pop();
+                    let Some(mut outlet) = outlet else {
+                        std::thread::park_timeout(std::time::Duration::from_millis(1));
+                        continue;
+                    };
+                    while got.len() < 50 {
+                        match outlet.full.pop() {
+                            Ok(slot) => {
+                                got.push(slot.stamp.iteration);
+                                let _ = outlet.free.push(slot.bytes);
+                            }
+                            Err(_) => {
+                                std::thread::park_timeout(std::time::Duration::from_millis(1))
+                            }
+                        }
+                    }
+                }
+                got
+            })
+        };
+        let mut tap = Tap::new(waiting.clone(), drainer.thread().clone());
+        for k in 0..50 {
+            send(&mut tap, 1, k);
+        }
+        let got = drainer.join().unwrap_or_default();
+        assert_eq!(got, (0..50).collect::<Vec<u64>>());
+        assert_eq!(waiting.counts[0].dropped.load(Ordering::Relaxed), 0);
+
+        let mut brief = shared(1);
+        if let Some(s) = Arc::get_mut(&mut brief) {
+            s.wait = Some(std::time::Duration::from_millis(20));
+        }
+        let mut tap = Tap::new(brief.clone(), std::thread::current());
+        send(&mut tap, 1, 0);
+        send(&mut tap, 1, 1);
+        assert_eq!(brief.counts[0].dropped.load(Ordering::Relaxed), 1);
     }
 }
