@@ -205,6 +205,28 @@ pub enum Command {
         #[arg(value_name = "DIR")]
         dir: PathBuf,
     },
+    /// Make development credentials for secure `--deployment D` in DIR, to
+    /// keep and give to `launch --credentials DIR`: an authority (`ca.pem`,
+    /// `ca.key`) and, for every process and the launcher, `<process>.pem` and
+    /// `<process>.key`. When D (or the system) has a `ros2` section, the ROS
+    /// 2 side's too: `ros2.pem`/`ros2.key` for ROS 2 nodes,
+    /// `ros2_router.pem`/`ros2_router.key` for their router, the router's
+    /// Zenoh configuration `ros2_router.json5` (mutual TLS, the access control
+    /// generated from the spec; rmw_zenohd's `ZENOH_ROUTER_CONFIG_URI`) and
+    /// the nodes' `ros2_session.json5` (`ZENOH_SESSION_CONFIG_URI`). Prints
+    /// the files and what to type next. Exit 2 for an unknown or unprotected
+    /// deployment, or a DIR that holds an authority already (never
+    /// overwritten).
+    Credentials {
+        /// The folder to write them into (made if missing).
+        #[arg(value_name = "DIR")]
+        dir: PathBuf,
+        /// Where the ROS 2 router listens: a `tls/HOST:PORT` endpoint (a
+        /// wildcard host is reached at `localhost`); default
+        /// `tls/localhost:7447`.
+        #[arg(long, value_name = "ENDPOINT")]
+        ros2_listen: Option<String>,
+    },
     /// Draw a diagram of the spec without Graphviz.
     Diagram {
         /// What to draw.

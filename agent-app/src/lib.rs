@@ -49,6 +49,7 @@
 //! judgement against the simulation's truth, its report folder).
 
 mod cli;
+mod credentials;
 #[cfg(feature = "distributed")]
 mod deploy;
 mod error;
@@ -77,6 +78,7 @@ use serde::de::DeserializeOwned;
 pub use cli::{
     BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, ROS2_ENDPOINT, parse_fault,
 };
+pub use credentials::ROS2_LISTEN;
 pub use error::{AppError, BoxError, Status};
 pub use local::{Ran, Watched};
 pub use output::{emit, writable_folder};
@@ -391,6 +393,10 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
         Command::Ros2Package { dir } => {
             let config = first.clone();
             return ros2::package(app, &config, common, &dir);
+        }
+        Command::Credentials { dir, ros2_listen } => {
+            let config = first.clone();
+            return credentials::credentials(app, &config, common, &dir, ros2_listen.as_deref());
         }
         Command::Replay { .. } | Command::Run | Command::Launch { .. } => {}
     }

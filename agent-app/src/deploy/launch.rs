@@ -194,6 +194,15 @@ fn launched_deployment<'s, A: Application>(
             "`launch` starts every process; `--process` runs one without it",
         ));
     }
+    if let Some(endpoint) = &common.ros2
+        && dep.is_secure()
+        && common.credentials.is_none()
+    {
+        return Err(AppError::invalid(format!(
+            "--ros2={endpoint}: deployment `{deployment}` is secure, and the ROS 2 router must know its certificates (credentials made for one launch would be unknown to it): make them with `{} credentials --deployment {deployment} DIR`, start the router with DIR/ros2_router.json5, and launch with --credentials DIR",
+            output::program()
+        )));
+    }
     super::check_port(&spec.spec, deployment, common.port)?;
     app.check_deployment(config, deployment)?;
     super::say_unprotected(&spec.spec, deployment);
