@@ -58,6 +58,90 @@ pub(crate) type Decode = dyn Fn(&[u8], &mut Vec<u8>) -> Result<(), Refusal>;
 /// type's shape cannot be traced.
 pub(crate) type MakeDecode = dyn Fn() -> Option<Box<Decode>> + Send + Sync;
 
+/// How a thread of the bridge converts one topic's values, as the plan keeps
+/// it: a type's shape is not `Send`, so it travels as what makes it, and is
+/// made again on the thread that uses it ([`Conversion::ready`]). `F` is the
+/// conversion itself: [`Transcode`] out to ROS 2, [`Decode`] in from it.
+pub(crate) enum Conversion<F: ?Sized> {
+    /// The message made from the buffer type: read or written by the type's
+    /// shape (kept as JSON).
+    Own(String),
+    /// A standard message, through an adapter.
+    Adapted(Arc<dyn Fn() -> Option<Box<F>> + Send + Sync>),
+}
+
+impl<F: ?Sized> Clone for Conversion<F> {
+    fn clone(&self) -> Self {
+        match self {
+            Conversion::Own(json) => Conversion::Own(json.clone()),
+            Conversion::Adapted(make) => Conversion::Adapted(make.clone()),
+        }
+    }
+}
+
+/// A [`Conversion`] made ready on the thread that uses it.
+pub(crate) enum Prepared<F: ?Sized> {
+    /// The buffer type's shape.
+    Own(TypeShape),
+    /// The adapter's conversion.
+    Adapted(Box<F>),
+}
+
+impl<F: ?Sized> Conversion<F> {
+    /// Whether the message is the buffer type's own (else a standard one).
+    pub(crate) fn is_own(&self) -> bool {
+        matches!(self, Conversion::Own(_))
+    }
+
+    /// The conversion with its shape, on the thread that uses it; `None`
+    /// when the shape cannot be made (the plan checked that it can).
+    pub(crate) fn ready(&self) -> Option<Prepared<F>> {
+        match self {
+            Conversion::Own(json) => {
+                let (root, registry) = serde_json::from_str(json).ok()?;
+                Some(Prepared::Own(TypeShape { root, registry }))
+            }
+            Conversion::Adapted(make) => make().map(Prepared::Adapted),
+        }
+    }
+}
+
+/// How the publishing thread turns a value's postcard bytes into CDR.
+pub(crate) type Encoder = Conversion<Transcode>;
+
+/// How the inbound thread turns a message's CDR into the buffer type's
+/// postcard bytes.
+pub(crate) type Decoder = Conversion<Decode>;
+
+impl Prepared<Transcode> {
+    /// The value's CDR (with its encapsulation header) appended to `out`.
+    pub(crate) fn encode(
+        &self,
+        bytes: &[u8],
+        stamp: Time,
+        out: &mut Vec<u8>,
+    ) -> Result<(), TranscodeError> {
+        match self {
+            Prepared::Own(shape) => Ok(agent_mcap::cdr::write_cdr(shape, bytes, out)?),
+            Prepared::Adapted(transcode) => transcode(bytes, stamp, out),
+        }
+    }
+}
+
+impl Prepared<Decode> {
+    /// The postcard bytes of the value the CDR message `cdr` (with its
+    /// encapsulation header) stands for, appended to `out`; on an error
+    /// `out` may hold a part of it.
+    pub(crate) fn decode(&self, cdr: &[u8], out: &mut Vec<u8>) -> Result<(), Refusal> {
+        match self {
+            Prepared::Own(shape) => {
+                read_cdr(shape, cdr, out).map_err(|e| Refusal::Undecodable(e.to_string()))
+            }
+            Prepared::Adapted(decode) => decode(cdr, out),
+        }
+    }
+}
+
 /// One registered conversion from a standard message to a buffer type.
 #[derive(Clone)]
 pub(crate) struct InboundAdapter {

@@ -4,64 +4,14 @@
 //! and QoS, and how a message received becomes the buffer type's postcard
 //! bytes.
 
-use std::sync::Arc;
-
-use agent_core::{System, SystemInfo, TypeShape};
-use agent_mcap::cdr::{read_cdr, root_name};
+use agent_core::{System, SystemInfo};
+use agent_mcap::cdr::root_name;
 use agent_spec::ros2::{Interface as SpecInterface, Topic};
 
-use super::adapter::{Adapters, Decode, MakeDecode, Refusal};
+use super::adapter::{Adapters, Decoder};
 use super::plan::{PlanError, key_of, qos_of};
 use crate::types::{Messages, messages};
 use crate::wire::{Qos, TopicKey};
-
-/// How the inbound thread turns a message's CDR into the buffer type's
-/// postcard bytes, as the plan keeps it (a type's shape is not `Send`: it is
-/// made again there).
-#[derive(Clone)]
-pub(crate) enum Decoder {
-    /// The message made from the buffer type: read by the type's shape (as
-    /// JSON).
-    Own(String),
-    /// A standard message, through an adapter.
-    Adapted(Arc<MakeDecode>),
-}
-
-/// A [`Decoder`] made ready on the inbound thread.
-pub(crate) enum ReadyDecoder {
-    /// The buffer type's shape.
-    Own(TypeShape),
-    /// The adapter's conversion.
-    Adapted(Box<Decode>),
-}
-
-impl Decoder {
-    /// The decoder with its shape, on the thread that uses it; `None` when
-    /// the shape cannot be made (the plan checked that it can).
-    pub(crate) fn ready(&self) -> Option<ReadyDecoder> {
-        match self {
-            Decoder::Own(json) => {
-                let (root, registry) = serde_json::from_str(json).ok()?;
-                Some(ReadyDecoder::Own(TypeShape { root, registry }))
-            }
-            Decoder::Adapted(make) => make().map(ReadyDecoder::Adapted),
-        }
-    }
-}
-
-impl ReadyDecoder {
-    /// The postcard bytes of the value the CDR message `cdr` (with its
-    /// encapsulation header) stands for, appended to `out`; on an error
-    /// `out` may hold a part of it.
-    pub(crate) fn decode(&self, cdr: &[u8], out: &mut Vec<u8>) -> Result<(), Refusal> {
-        match self {
-            ReadyDecoder::Own(shape) => {
-                read_cdr(shape, cdr, out).map_err(|e| Refusal::Undecodable(e.to_string()))
-            }
-            ReadyDecoder::Adapted(decode) => decode(cdr, out),
-        }
-    }
-}
 
 /// One ROS 2 topic feeding one input buffer.
 #[derive(Clone)]
@@ -102,7 +52,7 @@ impl SubscribedTopic {
     /// Whether the message is the buffer type's own (else a standard one,
     /// read by an adapter).
     pub(crate) fn is_own(&self) -> bool {
-        matches!(self.decoder, Decoder::Own(_))
+        self.decoder.is_own()
     }
 }
 
@@ -186,6 +136,7 @@ fn input_link_of(info: &SystemInfo, buffer: &str) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bridge::adapter::Refusal;
     use agent_core::reflect;
 
     #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -6,14 +6,12 @@
 //! subscribed alike, each message name has one definition (`intern`: a
 //! helper or root defined differently by two topics is numbered, `Item2`).
 
-use std::sync::Arc;
-
-use agent_core::{System, SystemInfo, TypeShape};
+use agent_core::{System, SystemInfo};
 use agent_mcap::cdr::root_name;
 use agent_spec::model::{Deployment, Durability, Reliability, Spec};
 use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
 
-use super::adapter::{Adapters, MakeTranscode, Transcode, TranscodeError};
+use super::adapter::{Adapters, Encoder};
 use super::inbound::{SubscribedTopic, subscribed};
 use super::intern::one_definition_per_name;
 use crate::types::standard::builtin_interfaces::Time;
@@ -138,54 +136,6 @@ pub enum PlanError {
         /// The fully qualified topic.
         topic: String,
     },
-}
-
-/// How the publishing thread turns a value's postcard bytes into CDR, as the
-/// plan keeps it (a type's shape is not `Send`: it is made again there).
-#[derive(Clone)]
-pub(crate) enum Encoder {
-    /// The message made from the buffer type: the recorder's transcoder, on
-    /// the type's shape (as JSON).
-    Own(String),
-    /// A standard message, through an adapter.
-    Adapted(Arc<MakeTranscode>),
-}
-
-/// An [`Encoder`] made ready on the publishing thread.
-pub(crate) enum Ready {
-    /// The buffer type's shape.
-    Own(TypeShape),
-    /// The adapter's conversion.
-    Adapted(Box<Transcode>),
-}
-
-impl Encoder {
-    /// The encoder with its shape, on the thread that uses it; `None` when
-    /// the shape cannot be made (the plan checked that it can).
-    pub(crate) fn ready(&self) -> Option<Ready> {
-        match self {
-            Encoder::Own(json) => {
-                let (root, registry) = serde_json::from_str(json).ok()?;
-                Some(Ready::Own(TypeShape { root, registry }))
-            }
-            Encoder::Adapted(make) => make().map(Ready::Adapted),
-        }
-    }
-}
-
-impl Ready {
-    /// The value's CDR (with its encapsulation header) appended to `out`.
-    pub(crate) fn encode(
-        &self,
-        bytes: &[u8],
-        stamp: Time,
-        out: &mut Vec<u8>,
-    ) -> Result<(), TranscodeError> {
-        match self {
-            Ready::Own(shape) => Ok(agent_mcap::cdr::write_cdr(shape, bytes, out)?),
-            Ready::Adapted(transcode) => transcode(bytes, stamp, out),
-        }
-    }
 }
 
 /// One buffer published on one topic.

@@ -7,7 +7,8 @@ use std::time::Duration;
 
 use zenoh::Wait;
 
-use super::plan::{Encoder, Ready, ros_time};
+use super::adapter::{Encoder, Prepared, Transcode};
+use super::plan::ros_time;
 use super::tap::{Outlet, Shared, Slot};
 use crate::wire::{Attachment, Gid};
 
@@ -64,7 +65,7 @@ pub(crate) fn run(shared: &Shared, outgoing: Vec<Outgoing>, epoch_ns: u64) {
 /// A topic on the publishing thread: its encoder made ready there.
 struct Topic {
     out: Outgoing,
-    encoder: Option<Ready>,
+    encoder: Option<Prepared<Transcode>>,
 }
 
 /// Transcode and put one value; its byte buffer back, for its tap.

@@ -17,7 +17,7 @@ use agent_core::{Inbox, Stamp, Time};
 use zenoh::sample::Sample;
 
 use super::adapter::Refusal;
-use super::inbound::{Decoder, ReadyDecoder};
+use super::adapter::{Decode, Decoder, Prepared};
 use super::tap::now_ns;
 use crate::wire::{Attachment, Gid};
 
@@ -116,7 +116,7 @@ pub(crate) struct Incoming {
 /// A subscribed topic on the inbound thread.
 struct Topic {
     key: String,
-    decoder: Option<ReadyDecoder>,
+    decoder: Option<Prepared<Decode>>,
     inbox: Option<Arc<Inbox>>,
     /// The header of the messages to the inbox: the bridge is its one
     /// sender, numbering them from 1 whichever publisher they come from.
