@@ -16,8 +16,7 @@ use agent_core::link::remote::WireHeader;
 use agent_core::{Inbox, Stamp, Time};
 use zenoh::sample::Sample;
 
-use super::adapter::Refusal;
-use super::adapter::{Decode, Decoder, Prepared};
+use super::adapter::{Decode, Decoder, Prepared, Refusal};
 use super::tap::now_ns;
 use crate::wire::{Attachment, Gid};
 
