@@ -150,6 +150,18 @@ codes! {
     Ros2Overwritten = "spec::ros2_overwritten", Warning;
     /// A ROS 2 publish of an output that no link carries: its values reach no one, the bridge included.
     Ros2Unlinked = "spec::ros2_unlinked", Error;
+    /// A contract or timing figure with a bad value (not a positive finite number, limits the wrong way round, a field path its buffer's type cannot have), or one that names no deployment or no queue link.
+    Contract = "spec::contract", Error;
+    /// A chain whose hops are not carried by links, do not connect, or do not run from a real receptor to a real effector.
+    Chain = "spec::chain", Error;
+    /// A figure the timing analysis needs is not declared: a component's worst-case execution time, the latency between a deployment's processes.
+    TimingMissing = "spec::timing_missing", Error;
+    /// A thread whose worst-case response time exceeds its period under rate-monotonic fixed priorities.
+    Unschedulable = "spec::unschedulable", Error;
+    /// A chain whose worst-case data age or reaction time exceeds its deadline.
+    ChainDeadline = "spec::chain_deadline", Error;
+    /// A queue link whose bound is below what its rates and response times need, or whose writer outpaces its reader.
+    QueueOverflow = "spec::queue_overflow", Error;
 }
 
 impl Code {
@@ -182,6 +194,7 @@ impl Code {
                 | Code::Ros2Domain
                 | Code::Ros2Qos
                 | Code::Ros2Direction
+                | Code::Contract
         )
     }
 }

@@ -434,6 +434,8 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
         links,
         deployments: Vec::new(),
         ros2: None,
+        contracts: None,
+        timing: None,
     })
 }
 

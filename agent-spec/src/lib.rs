@@ -20,6 +20,7 @@
 //! interface a system or deployment shows, every default applied.
 
 pub mod check;
+pub mod contracts;
 pub mod deploy;
 pub mod diag;
 pub mod diagram;
@@ -29,6 +30,7 @@ pub mod names;
 mod proof;
 pub mod ros2;
 pub mod span;
+pub mod timing;
 
 use std::path::Path;
 

@@ -16,6 +16,11 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::contracts::{
+    Bound, Chain, Contracts, Freshness, Invariant, Latency, Rate, Response, Timing, ValueRange,
+    Wcet, Writes,
+};
+
 /// The formalism's vocabulary, shared with the runtime (`agent-core`): the kinds of
 /// subsystems, devices and behaviours, link policies (`Sample`, `Queue(8)`) and the
 /// relations between predicates that the arc proof assumes.
@@ -42,6 +47,12 @@ pub struct Spec {
     /// deployment that has no `ros2` section of its own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ros2: Option<Ros2>,
+    /// What the system promises while it runs ([`crate::contracts`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contracts: Option<Contracts>,
+    /// What the timing analysis is given ([`crate::timing`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timing: Option<Timing>,
 }
 
 /// An embodied agent: one control subsystem, virtual effectors and receptors, and
@@ -439,7 +450,7 @@ impl Spec {
 
     /// The structure without what a person writes for people and what code cannot
     /// tell: docs, the `reads` and `writes` of functions and predicates,
-    /// deployments and the ROS 2 section; without functions no behaviour uses (dead entries, a warning of
+    /// deployments, the ROS 2 section, contracts and timing; without functions no behaviour uses (dead entries, a warning of
     /// the checker, that an FSM built from the spec does not hold); and without
     /// orders that mean nothing: functions and predicates are sorted by name, and so
     /// are the functions of each behaviour (their evaluation order is fixed by their
@@ -451,6 +462,8 @@ impl Spec {
         spec.doc = None;
         spec.deployments.clear();
         spec.ros2 = None;
+        spec.contracts = None;
+        spec.timing = None;
         let clear_groups = |groups: &mut Vec<Group>| {
             for g in groups {
                 g.buffers.iter_mut().for_each(|b| b.doc = None);

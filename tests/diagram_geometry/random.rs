@@ -135,6 +135,8 @@ pub(crate) fn random_fsms() -> impl Strategy<Value = Spec> {
             links: Vec::new(),
             deployments: Vec::new(),
             ros2: None,
+            contracts: None,
+            timing: None,
         })
 }
 
@@ -244,6 +246,8 @@ pub(crate) fn build_system(plan: &SystemPlan) -> Spec {
         links,
         deployments: Vec::new(),
         ros2: None,
+        contracts: None,
+        timing: None,
     }
 }
 

@@ -12,6 +12,7 @@ use crate::proof::{self, Budget, Question, Undecided, Witness};
 use crate::span::{SNode, Seg};
 
 mod components;
+mod contracts;
 mod fsm;
 mod ros2;
 mod subsystem;
@@ -152,6 +153,7 @@ impl<'a> Checker<'a> {
         self.links();
         self.deployments();
         self.ros2();
+        self.contracts();
         self.findings
     }
 

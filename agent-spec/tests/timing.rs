@@ -1,0 +1,379 @@
+//! The timing analysis against textbook task sets and hand-computed systems,
+//! seeded defects found where they are, and the contracts' checks.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use agent_spec::timing::{Analysis, analyse, liu_layland, queue_needs, response_time};
+use agent_spec::{Code, Report, load};
+use proptest::prelude::*;
+
+const MS: u64 = 1_000_000;
+
+/// A chain R1 -> r1 -> c1 -> e1 -> E1 in one agent; `{r1}`: r1's period,
+/// `{policy}`: the policy of `c1.e1.x`, `{e1}`: e1's period, `{contracts}`:
+/// more contract entries.
+fn system(r1: f64, policy: &str, e1: f64, chain_extra: &str, contracts: &str) -> String {
+    let sub = |name: &str, kind: &str, period: f64, ins: &str, outs: &str| {
+        format!(
+            "(name: \"{name}\", kind: {kind}, period_ms: {period:?}, inputs: [{ins}], outputs: [{outs}],
+              behaviours: [(name: \"run\", kind: While, terminal: \"false\")], fsm: (initial: \"run\")),"
+        )
+    };
+    let g = |peer: &str, ty: &str| {
+        format!("(peer: \"{peer}\", buffers: [(name: \"x\", type: \"{ty}\")])")
+    };
+    format!(
+        "(
+    name: \"chainy\",
+    agents: [(
+        name: \"a1\",
+        subsystems: [
+            {r1s}
+            {c1s}
+            {e1s}
+        ],
+        devices: [
+            (name: \"R1\", kind: Receptor, period_ms: 10.0, outputs: [{R1o}]),
+            (name: \"E1\", kind: Effector, period_ms: 1.0, inputs: [{E1i}]),
+        ],
+    )],
+    links: [
+        (from: \"R1.r1.x\", to: \"r1.R1.x\"),
+        (from: \"r1.c1.x\", to: \"c1.r1.x\"),
+        (from: \"c1.e1.x\", to: \"e1.c1.x\", policy: {policy}),
+        (from: \"e1.E1.x\", to: \"E1.e1.x\"),
+    ],
+    deployments: [
+        (name: \"two\", hosts: [
+            (name: \"pc\", processes: [(name: \"sense\", runs: [\"R1\", \"r1\"]), (name: \"act\", runs: [\"c1\", \"e1\", \"E1\"])]),
+        ]),
+        (name: \"apart\", hosts: [
+            (name: \"pc1\", processes: [(name: \"sense\", runs: [\"R1\", \"r1\"])]),
+            (name: \"pc2\", processes: [(name: \"act\", runs: [\"c1\", \"e1\", \"E1\"])]),
+        ]),
+    ],
+    contracts: (
+        chains: [(name: \"sense_to_act\", path: [\"R1.r1.x\", \"r1.c1.x\", \"c1.e1.x\", \"e1.E1.x\"], max_age_ms: 60.0, max_reaction_ms: 60.0{chain_extra})],
+        {contracts}
+    ),
+    timing: (
+        wcet: [
+            (component: \"R1\", ms: 1.0), (component: \"r1\", ms: 1.0), (component: \"c1\", ms: 1.0),
+            (component: \"e1\", ms: 1.0), (component: \"E1\", ms: 0.1),
+        ],
+        latency: [(deployment: \"two\", ms: 2.0), (deployment: \"apart\", ms: 2.0)],
+    ),
+)",
+        r1s = sub("r1", "VirtualReceptor", r1, &g("R1", "f64"), &g("c1", "[f64; 2]")),
+        c1s = sub("c1", "Control", 10.0, &g("r1", "[f64; 2]"), &g("e1", "f64")),
+        e1s = sub("e1", "VirtualEffector", e1, &format!("{}, {}", g("c1", "f64"), g("E1", "f64")).replacen("(peer: \"E1\", buffers: [(name: \"x\", type: \"f64\")])", "(peer: \"E1\", buffers: [(name: \"y\", type: \"f64\")])", 1), &g("E1", "f64")),
+        R1o = g("r1", "f64"),
+        E1i = g("e1", "f64"),
+    )
+    .replace("(from: \"e1.E1.x\", to: \"E1.e1.x\"),", "(from: \"e1.E1.x\", to: \"E1.e1.x\"),\n        (from: \"E1.e1.y\", to: \"e1.E1.y\"),")
+    .replace(
+        "(name: \"E1\", kind: Effector, period_ms: 1.0, inputs: [",
+        "(name: \"E1\", kind: Effector, period_ms: 1.0, outputs: [(peer: \"e1\", buffers: [(name: \"y\", type: \"f64\")])], inputs: [",
+    )
+}
+
+/// Check `text`; the report, and the analysis of `deployment`.
+fn run(text: &str, deployment: Option<&str>) -> (Report, Analysis) {
+    let loaded = load("t.ron", text).unwrap_or_else(|r| panic!("{}", r.render(100)));
+    let report = agent_spec::check(&loaded);
+    let analysis = analyse(&loaded.spec, loaded.index.as_ref(), deployment).expect("analysable");
+    (report, analysis)
+}
+
+fn under(report: &Report, code: Code) -> Vec<&str> {
+    report
+        .findings
+        .iter()
+        .filter(|f| f.code == code)
+        .map(|f| &report.source[f.labels[0].span.clone()])
+        .collect()
+}
+
+fn errors(report: &Report) -> Vec<Code> {
+    report
+        .findings
+        .iter()
+        .filter(|f| f.severity() == agent_spec::Severity::Error)
+        .map(|f| f.code)
+        .collect()
+}
+
+#[test]
+fn response_times_of_a_textbook_task_set() {
+    // Burns & Wellings, "Real-Time Systems and Programming Languages" (4th ed.,
+    // §11.5): a (T 7, C 3), b (T 12, C 3), c (T 20, C 5): R = 3, 6, 20; U = 0.929
+    // passes no Liu & Layland test (0.780 for 3 tasks), yet every task is schedulable.
+    assert_eq!(response_time(3, &[], 7), Some(3));
+    assert_eq!(response_time(3, &[(7, 3)], 12), Some(6));
+    assert_eq!(response_time(5, &[(7, 3), (12, 3)], 20), Some(20));
+    let u = 3.0 / 7.0 + 3.0 / 12.0 + 5.0 / 20.0;
+    assert!(u > liu_layland(3));
+    // T 4 C 2 above T 6 C 3: R = 3, 5, 7 > 6: not schedulable.
+    assert_eq!(response_time(3, &[(4, 2)], 6), None);
+}
+
+#[test]
+fn queue_needs_follows_its_formula() {
+    // ⌈(T_r + J_r + 2 (J_w + L)) / I⌉
+    assert_eq!(queue_needs(10, 0, 0, 0, 10), Some(1));
+    assert_eq!(queue_needs(10, 1, 0, 0, 10), Some(2));
+    assert_eq!(queue_needs(10, 4, 2, 0, 10), Some(2));
+    assert_eq!(queue_needs(50, 4, 2, 1, 55), Some(2));
+    assert_eq!(queue_needs(50, 0, 0, 0, 100), Some(1));
+    // A writer faster than its reader fills any queue.
+    assert_eq!(queue_needs(50, 0, 0, 0, 10), None);
+}
+
+#[test]
+fn a_sound_system_gets_a_certificate_with_hand_computed_figures() {
+    let (report, a) = run(&system(20.0, "Sample", 5.0, "", ""), None);
+    assert!(report.is_ok(), "{}", report.render(100));
+    assert!(a.is_certified(), "{:?}", a.findings);
+    // One host; priorities E1 80, e1 79, R1 and c1 78, r1 77.
+    let r = |c: &str| a.threads.iter().find(|t| t.component == c).unwrap();
+    assert_eq!(
+        (
+            r("E1").priority,
+            r("e1").priority,
+            r("c1").priority,
+            r("R1").priority,
+            r("r1").priority
+        ),
+        (80, 79, 78, 78, 77)
+    );
+    // R_E1 = 0.1; R_e1 = 1 + 2·0.1; R_R1 = R_c1 = 1 + 4·0.1 + 1 + 1; R_r1 = 1 + 5·0.1 + 3.
+    assert_eq!(r("E1").response, Some(MS / 10));
+    assert_eq!(r("e1").response, Some(12 * MS / 10));
+    assert_eq!(r("c1").response, Some(34 * MS / 10));
+    assert_eq!(r("R1").response, Some(34 * MS / 10));
+    assert_eq!(r("r1").response, Some(45 * MS / 10));
+    let c = &a.chains[0];
+    // Data age: (10 + 3.4) + (20 + 4.5) + (10 + 3.4) + (5 + 1.2) + R_E1 0.1 = 57.6.
+    assert_eq!(c.age, 576 * MS / 10);
+    // Reaction: T_R1 10 + (3.4 + 20) + (4.5 + 10) + (3.4 + 5) + (1.2 + 1) + 0.1 = 58.6.
+    assert_eq!(c.reaction, 586 * MS / 10);
+    let text = a.to_string();
+    assert!(
+        text.contains("certified") && text.contains("chain `sense_to_act`"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_queue_hop_adds_the_writers_jitter_and_its_queue_is_sized() {
+    let (report, a) = run(&system(20.0, "Queue(1)", 5.0, "", ""), None);
+    let hop = &a.chains[0].hops[2];
+    // R_c1 3.4 + J_c1 (3.4 - 1) + T_e1 5 = 10.8, both for age and reaction.
+    assert_eq!((hop.age, hop.reaction), (108 * MS / 10, 108 * MS / 10));
+    // ⌈(T_r 5 + J_r 0.2 + 2 J_w 4.8) / I 10⌉ = 1: Queue(1) suffices, exactly.
+    assert_eq!(a.queues[0].needs, Some(1));
+    // Age 13.4 + 24.5 + 10.8 + 6.2 + 0.1 = 55 holds; the reaction time
+    // 10 + 23.4 + 14.5 + 10.8 + 2.2 + 0.1 = 61 passes 60, at the queue's hop.
+    assert_eq!((a.chains[0].age, a.chains[0].reaction), (55 * MS, 61 * MS));
+    let f: Vec<_> = report
+        .findings
+        .iter()
+        .filter(|f| f.code == Code::ChainDeadline)
+        .collect();
+    assert_eq!(f.len(), 1, "{}", report.render(100));
+    assert!(
+        f[0].message.contains("reaction time 61 ms passes 60 ms"),
+        "{}",
+        f[0].message
+    );
+    // The largest term: R_R1 3.4 + T_r1 20 at the first hop.
+    assert_eq!(&report.source[f[0].labels[1].span.clone()], "R1.r1.x");
+}
+
+#[test]
+fn seeded_defect_a_longer_period_breaks_the_chain_at_its_hop() {
+    // r1 at 40 ms instead of 20: the age grows by 20 ms to 77.6 > 60.
+    let (report, a) = run(&system(40.0, "Sample", 5.0, "", ""), None);
+    assert_eq!(a.chains[0].age, 776 * MS / 10);
+    assert_eq!(
+        errors(&report),
+        vec![Code::ChainDeadline, Code::ChainDeadline],
+        "{}",
+        report.render(100)
+    );
+    // Pointed at the deadline, with the hop of the largest term as second label.
+    assert_eq!(under(&report, Code::ChainDeadline), ["60.0", "60.0"]);
+    let f = &report.findings[0];
+    assert!(f.message.contains("chain `sense_to_act`"), "{}", f.message);
+    assert_eq!(&report.source[f.labels[1].span.clone()], "r1.c1.x");
+    assert!(
+        f.labels[1].text.contains("T_w 40") || f.labels[1].text.contains("M 40"),
+        "{}",
+        f.labels[1].text
+    );
+}
+
+#[test]
+fn seeded_defect_a_queue_too_small_is_named_at_its_policy() {
+    // e1 at 10 ms: J_e1 and J_c1 no longer fit one window: Queue(1) needs 2.
+    let (report, a) = run(&system(20.0, "Queue(1)", 10.0, "", ""), None);
+    assert_eq!(a.queues[0].needs, Some(2));
+    assert_eq!(
+        under(&report, Code::QueueOverflow),
+        ["Queue(1)"],
+        "{}",
+        report.render(100)
+    );
+    // And a reader slower than its writer: no bound holds.
+    let (report, a) = run(&system(20.0, "Queue(8)", 20.0, "", ""), None);
+    assert_eq!(a.queues[0].needs, None);
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| f.code == Code::QueueOverflow && f.message.contains("faster than its reader")),
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn a_deployment_adds_its_latency_between_processes() {
+    let (_, one) = run(&system(20.0, "Sample", 5.0, "", ""), None);
+    let (_, apart) = run(&system(20.0, "Sample", 5.0, "", ""), Some("apart"));
+    assert!(apart.is_certified(), "{apart}{:?}", apart.findings);
+    // Only r1 -> c1 crosses processes (sense -> act): + L 2 ms on that hop.
+    let hops: Vec<u64> = apart.chains[0].hops.iter().map(|h| h.latency).collect();
+    assert_eq!(hops, [0, 2 * MS, 0, 0]);
+    let c = &apart.chains[0];
+    assert_eq!(
+        c.age,
+        c.hops.iter().map(|h| h.age).sum::<u64>() + c.last_response
+    );
+    assert!(apart.to_string().contains("latency 2 ms"));
+    // Each host has fewer threads: shorter responses, and the hop's 2 ms on top.
+    let r = |c: &str| {
+        apart
+            .threads
+            .iter()
+            .find(|t| t.component == c)
+            .unwrap()
+            .response
+    };
+    assert_eq!(r("r1"), Some(2 * MS)); // 1 + R1's 1 (priority 80 in `sense`)
+    assert!(one.chains[0].age > 0);
+}
+
+#[test]
+fn processes_on_one_host_interfere_whatever_their_periods() {
+    // `two`: sense and act on one host. Priorities are per process, so R1 (10 ms)
+    // gets 80 in `sense` as E1 (1 ms) does in `act`: R1's 1 ms activation can
+    // delay E1 (C 0.1) past its 1 ms period on a core.
+    let (report, two) = run(&system(20.0, "Sample", 5.0, "", ""), Some("two"));
+    assert!(report.is_ok());
+    let e = two.threads.iter().find(|t| t.component == "E1").unwrap();
+    assert_eq!((e.priority, e.response), (80, None));
+    let f: Vec<_> = two
+        .findings
+        .iter()
+        .filter(|f| f.code == Code::Unschedulable)
+        .collect();
+    assert_eq!(f.len(), 1, "{two}");
+    assert_eq!(&report.source[f[0].labels[0].span.clone()], "0.1");
+    assert!(f[0].help.contains("`R1` (T=10 C=1)"), "{}", f[0].help);
+}
+
+#[test]
+fn contracts_name_what_exists_with_did_you_mean() {
+    let contracts = r#"
+        freshness: [(input: "e1.c1.xx", max_age_ms: 5.0), (input: "e1.c1.x", max_age_ms: -1.0)],
+        bounds: [(behaviour: "c1.runn", max_s: 1.0), (behaviour: "c9.run", max_iterations: 3)],
+        invariants: [(name: "i", subsystem: "c1", holds: "ready && !done")],
+        ranges: [
+            (name: "ok", buffer: "r1.c1.x", field: "1", min: -1.0, max: 1.0),
+            (name: "out", buffer: "r1.c1.x", field: "2", max: 1.0),
+            (name: "ok", buffer: "e1.E1.x", min: 2.0, max: 1.0),
+        ],
+        responses: [(name: "r", trigger: "c1.e1.x", response: "e1.c1.x", within_s: 0.0)],
+    "#;
+    let (report, _) = run(&system(20.0, "Sample", 5.0, "", contracts), None);
+    assert_eq!(
+        under(&report, Code::UnknownBuffer),
+        ["e1.c1.xx"],
+        "{}",
+        report.render(100)
+    );
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| f.code == Code::UnknownBehaviour && f.help.contains("did you mean `run`?"))
+    );
+    assert_eq!(under(&report, Code::UnknownComponent), ["c9.run"]);
+    assert_eq!(under(&report, Code::UnknownPredicate), ["ready", "done"]);
+    assert_eq!(under(&report, Code::DuplicateName), ["ok"]);
+    // -1, a field past the array's end, limits the wrong way round, a zero deadline.
+    assert_eq!(
+        under(&report, Code::Contract),
+        ["-1.0", "2", "1.0", "0.0"],
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn a_chain_that_does_not_connect_is_named_at_its_hop() {
+    let text = system(20.0, "Sample", 5.0, "", "").replace(
+        r#"path: ["R1.r1.x", "r1.c1.x", "c1.e1.x", "e1.E1.x"]"#,
+        r#"path: ["r1.c1.x", "c1.e1.x", "E1.e1.y"]"#,
+    );
+    let loaded = load("t.ron", text).unwrap_or_else(|r| panic!("{}", r.render(100)));
+    let report = agent_spec::check(&loaded);
+    // Starts at r1 (not a receptor), jumps from e1 to E1, ends at e1 (not an effector).
+    assert_eq!(
+        under(&report, Code::Chain),
+        ["r1.c1.x", "E1.e1.y", "E1.e1.y"],
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn a_missing_wcet_is_said_and_nothing_is_certified() {
+    let text = system(20.0, "Sample", 5.0, "", "").replace(r#"(component: "r1", ms: 1.0), "#, "");
+    let (report, a) = run(&text, None);
+    assert!(!a.is_certified());
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| f.code == Code::TimingMissing && f.message.contains("`r1`")),
+        "{}",
+        report.render(100)
+    );
+}
+
+proptest! {
+    /// The response time is a fixed point of the recurrence, at least C, and
+    /// a schedulable thread stays schedulable with a smaller WCET.
+    #[test]
+    fn response_time_is_a_fixed_point(
+        c in 1u64..50,
+        higher in proptest::collection::vec((1u64..200, 1u64..20), 0..5),
+        shrink in 0u64..50,
+    ) {
+        let deadline = 1_000;
+        if let Some(r) = response_time(c, &higher, deadline) {
+            prop_assert!(r >= c && r <= deadline);
+            let again = c + higher.iter().map(|&(t, cj)| r.div_ceil(t) * cj).sum::<u64>();
+            prop_assert_eq!(again, r);
+            let smaller = c.saturating_sub(shrink).max(1);
+            let r2 = response_time(smaller, &higher, deadline);
+            prop_assert!(r2.is_some_and(|r2| r2 <= r));
+        }
+    }
+}
