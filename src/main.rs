@@ -56,6 +56,15 @@ enum Command {
         /// How to print the findings.
         #[arg(long, value_enum, default_value_t = Style::Human)]
         style: Style,
+        /// Also analyse the timing (docs/spec-reference.md, Timing analysis): response
+        /// times per process and host, the chains' data age and reaction time, the
+        /// queue links' bounds; prints a certificate, or what breaks it (status 1).
+        #[arg(long)]
+        timing: bool,
+        /// With --timing: the deployment whose placement to analyse (default: the
+        /// whole system as one process).
+        #[arg(long, requires = "timing")]
+        deployment: Option<String>,
     },
     /// Draw a diagram of a spec without Graphviz: the FSM of a subsystem (Fig. 5),
     /// the agent structure with its buffers and links (Figs. 2, 4), or the data flow
@@ -154,12 +163,18 @@ fn main() -> ExitCode {
             path,
             embodied_path,
         }),
-        Command::Check { files, style } => cli::check::run(
+        Command::Check {
+            files,
+            style,
+            timing,
+            deployment,
+        } => cli::check::run(
             &files,
             match style {
                 Style::Human => cli::check::Style::Human,
                 Style::Short => cli::check::Style::Short,
             },
+            timing.then_some(deployment.as_deref()),
         ),
         Command::Diagram {
             file,
