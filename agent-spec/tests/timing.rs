@@ -377,3 +377,108 @@ proptest! {
         }
     }
 }
+
+/// One hop simulated as the executor runs it: the writer's activations
+/// released at least `interval` apart (sporadically), each ending within
+/// `[C_w, R_w]` of its release, in order, its value delivered up to `latency`
+/// later (in order); the reader released every `T_r`, reading at most
+/// `J_r` after its release the oldest value delivered before its read and
+/// stamped at or before its release. Returns the most values in the queue
+/// when one is delivered (it included) and the longest time from a value's
+/// writer release to the release of the reader activation that takes it.
+/// The reader is first released at `reader_phase`, the writer not before.
+#[allow(clippy::too_many_arguments, reason = "the hop's figures, named")]
+fn simulate_queue_hop(
+    seed: u64,
+    (cw, rw): (u64, u64),
+    interval: u64,
+    extra_gap: u64,
+    (tr, jr): (u64, u64),
+    latency: u64,
+    reader_phase: u64,
+) -> (usize, u64) {
+    // A small xorshift: the same runs for the same seed.
+    let mut state = seed | 1;
+    let mut rand = move |n: u64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        if n == 0 { 0 } else { state % (n + 1) }
+    };
+    // Writer: release, delivery.
+    let mut values = Vec::new();
+    // Both start on the common clock: the writer's first release is not
+    // before the reader's first.
+    let (mut a, mut last_f, mut last_d) = (reader_phase + rand(interval), 0, 0);
+    while a < 200 * interval.max(tr) {
+        let f = (a + cw + rand(rw - cw)).max(last_f);
+        let d = (f + rand(latency)).max(last_d);
+        values.push((a, d));
+        (last_f, last_d) = (f, d);
+        a += interval + rand(extra_gap);
+    }
+    let (mut queue, mut most, mut wait) = (std::collections::VecDeque::new(), 0, 0);
+    let mut next = 0;
+    let mut b = reader_phase;
+    let end = values.last().map_or(0, |v| v.1) + 4 * tr;
+    while b < end {
+        let s = b + rand(jr);
+        // Deliveries before this read, each counted as it enters.
+        while next < values.len() && values[next].1 < s {
+            queue.push_back(values[next]);
+            most = most.max(queue.len());
+            next += 1;
+        }
+        if let Some(&(stamp, _)) = queue.front()
+            && stamp <= b
+        {
+            queue.pop_front();
+            wait = wait.max(b - stamp);
+        }
+        b += tr;
+    }
+    (most, wait)
+}
+
+proptest! {
+    /// The queue bound and the queue hop's term hold in a simulation of the
+    /// executor's read and write points, for writers no faster than their reader.
+    #[test]
+    fn queue_bound_and_hop_term_hold_in_simulation(
+        seed in 1u64..u64::MAX,
+        cw in 1u64..20,
+        jitter_w in 0u64..30,
+        tr in 5u64..60,
+        jr in 0u64..20,
+        faster_by in 0u64..40,
+        extra_gap in 0u64..20,
+        latency in 0u64..15,
+        reader_phase in 0u64..60,
+    ) {
+        let rw = cw + jitter_w;
+        let interval = tr + faster_by; // I >= T_r
+        let needs = queue_needs(tr, jr, rw - cw, latency, interval).unwrap();
+        let (most, wait) =
+            simulate_queue_hop(seed, (cw, rw), interval, extra_gap, (tr, jr), latency, reader_phase);
+        prop_assert!(most as u64 <= needs, "held {most} > needs {needs}");
+        // Age term of a queue hop: R_w + J_w + 2L + T_r.
+        let term = rw + (rw - cw) + 2 * latency + tr;
+        prop_assert!(wait <= term, "waited {wait} > term {term}");
+    }
+}
+
+#[test]
+fn the_queue_bound_is_reached_or_nearly_in_simulation() {
+    // A writer with a large jitter at the reader's rate: needs
+    // ⌈(10 + 5 + 2·9) / 10⌉ = 4; the worst of many runs holds within one of it.
+    let needs = queue_needs(10, 5, 9, 0, 10).unwrap();
+    assert_eq!(needs, 4);
+    let most = (1..2000u64)
+        .map(|seed| simulate_queue_hop(seed, (1, 10), 10, 0, (10, 5), 0, seed % 10).0)
+        .max()
+        .unwrap();
+    assert!(
+        most as u64 <= needs && most as u64 + 1 >= needs,
+        "held at most {most}"
+    );
+}
