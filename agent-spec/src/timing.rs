@@ -242,6 +242,18 @@ pub struct QueueFigures {
     pub terms: [u64; 5],
 }
 
+/// A freshness contract as far as the periods tell.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FreshnessFigures {
+    /// The input buffer.
+    pub input: String,
+    /// The largest age of a value its reader takes \[ns\]; `None`: its writer
+    /// is not schedulable.
+    pub bound: Option<u64>,
+    /// The contract's largest age \[ns\].
+    pub max_age: u64,
+}
+
 /// The analysis of one deployment (or of the system as one process).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Analysis {
@@ -257,6 +269,10 @@ pub struct Analysis {
     pub skipped: Vec<(String, String)>,
     /// Every queue link whose two ends run.
     pub queues: Vec<QueueFigures>,
+    /// The freshness contracts: proven from the periods where the bound is
+    /// within the contract, else left to the monitors (not a violation here:
+    /// a freshness contract speaks of runs).
+    pub freshness: Vec<FreshnessFigures>,
     /// Violations and missing figures, in the checker's format.
     pub findings: Vec<Finding>,
 }
@@ -307,6 +323,7 @@ pub fn analyse(
             chains: Vec::new(),
             skipped: Vec::new(),
             queues: Vec::new(),
+            freshness: Vec::new(),
             findings,
         });
     };
@@ -320,6 +337,7 @@ pub fn analyse(
     };
     let (queues, crossing_queues) = placed.queues(&mut findings);
     let (chains, skipped, crossing_chains) = placed.chains(&mut findings);
+    let freshness = placed.freshness();
     let latency_needed = crossing_queues || crossing_chains;
     let latency_declared = latency.is_some();
     if latency_needed && !latency_declared {
@@ -343,6 +361,7 @@ pub fn analyse(
         chains,
         skipped,
         queues,
+        freshness,
         findings,
     })
 }
@@ -392,6 +411,63 @@ impl<'s> Placed<'s> {
             .writes
             .iter()
             .find(|w| w.link == from || Some(w.link.as_str()) == to)
+    }
+
+    /// A hop's age and reaction terms: from the writer's release to the
+    /// release of the reader activation that takes the value (or reacts).
+    fn terms(
+        &self,
+        from: &str,
+        policy: Policy,
+        w: &Thread,
+        r: &Thread,
+        (rw, jw): (u64, u64),
+        l: u64,
+    ) -> (u64, u64) {
+        // M: the greatest time between two writing activations' releases
+        // (the period unless declared); M - T_w the wait for the next one.
+        let m = self.gap_of(from, w);
+        match policy {
+            Policy::Sample => (m + rw + l, (m - w.period) + rw + l + r.period),
+            Policy::Queue { .. } => {
+                let t = rw + jw + 2 * l + r.period;
+                (t, (m - w.period) + t)
+            }
+        }
+    }
+
+    /// Each freshness contract whose input's link runs here: the largest age
+    /// of a value its reader takes (the reader's release minus the writer's
+    /// release that stamped it), which is the hop's age term.
+    fn freshness(&self) -> Vec<FreshnessFigures> {
+        let Some(c) = &self.spec.contracts else {
+            return Vec::new();
+        };
+        c.freshness
+            .iter()
+            .filter_map(|f| {
+                let link = self.spec.links.iter().find(|l| l.to == f.input)?;
+                let writer = link.from.split('.').next()?;
+                let reader = f.input.split('.').next()?;
+                let (w, r) = (self.thread(writer)?, self.thread(reader)?);
+                let bound = w.response.zip(w.jitter()).map(|rj| {
+                    self.terms(
+                        &link.from,
+                        link.policy,
+                        w,
+                        r,
+                        rj,
+                        self.hop_latency(writer, reader),
+                    )
+                    .0
+                });
+                Some(FreshnessFigures {
+                    input: f.input.clone(),
+                    bound,
+                    max_age: ns(f.max_age_ms),
+                })
+            })
+            .collect()
     }
 
     /// `I`: the least time between two writing activations' releases.
@@ -519,16 +595,7 @@ impl<'s> Placed<'s> {
                 if self.place.get(writer).map(|p| &p.0) != self.place.get(reader).map(|p| &p.0) {
                     latency_needed = true;
                 }
-                // M: the greatest time between two writing activations' releases
-                // (the period unless declared); M - T_w the wait for the next one.
-                let m = self.gap_of(hop, w);
-                let (age, reaction) = match policy {
-                    Policy::Sample => (m + rw + l, (m - w.period) + rw + l + r.period),
-                    Policy::Queue { .. } => {
-                        let t = rw + jw + 2 * l + r.period;
-                        (t, (m - w.period) + t)
-                    }
-                };
+                let (age, reaction) = self.terms(hop, policy, w, r, (rw, jw), l);
                 if hi == 0 {
                     first = Some(w.period);
                 }
@@ -882,43 +949,23 @@ impl fmt::Display for Analysis {
             }
         }
         for c in &self.chains {
-            writeln!(f, "chain `{}`:", c.name)?;
-            for h in &c.hops {
-                writeln!(
-                    f,
-                    "  {:<24} {:<10} age +{} ms, reaction +{} ms{}",
-                    h.buffer,
-                    h.policy.to_string(),
-                    ms(h.age),
-                    ms(h.reaction),
-                    if h.latency > 0 {
-                        format!(" (latency {} ms)", ms(h.latency))
-                    } else {
-                        String::new()
-                    }
-                )?;
-            }
-            let vs = |v: u64, l: Option<u64>| match l {
-                Some(l) if v <= l => format!("{} ms <= {} ms ok", ms(v), ms(l)),
-                Some(l) => format!("{} ms > {} ms MISSED", ms(v), ms(l)),
-                None => format!("{} ms (no deadline)", ms(v)),
-            };
-            writeln!(
-                f,
-                "  data age      = Σ + R_n {} = {}",
-                ms(c.last_response),
-                vs(c.age, c.max_age)
-            )?;
-            writeln!(
-                f,
-                "  reaction time = T_0 {} + Σ + R_n {} = {}",
-                ms(c.first_period),
-                ms(c.last_response),
-                vs(c.reaction, c.max_reaction)
-            )?;
+            write_chain(f, c)?;
         }
         for (name, why) in &self.skipped {
             writeln!(f, "chain `{name}`: not analysed here ({why})")?;
+        }
+        for x in &self.freshness {
+            let (verdict, bound) = match x.bound {
+                Some(b) if b <= x.max_age => ("proven", format!("< {} ms", ms(b))),
+                Some(b) => ("not proven: left to the monitor", format!("< {} ms", ms(b))),
+                None => ("not proven: left to the monitor", "unbounded".into()),
+            };
+            writeln!(
+                f,
+                "freshness {}: age {bound}, contract {} ms: {verdict}",
+                x.input,
+                ms(x.max_age)
+            )?;
         }
         for q in &self.queues {
             let needs = q
@@ -979,6 +1026,45 @@ fn unschedulable(
             );
         }
     }
+}
+
+/// A chain's lines of the certificate.
+fn write_chain(f: &mut fmt::Formatter<'_>, c: &ChainFigures) -> fmt::Result {
+    writeln!(f, "chain `{}`:", c.name)?;
+    for h in &c.hops {
+        writeln!(
+            f,
+            "  {:<24} {:<10} age +{} ms, reaction +{} ms{}",
+            h.buffer,
+            h.policy.to_string(),
+            ms(h.age),
+            ms(h.reaction),
+            if h.latency > 0 {
+                format!(" (latency {} ms)", ms(h.latency))
+            } else {
+                String::new()
+            }
+        )?;
+    }
+    let vs = |v: u64, l: Option<u64>| match l {
+        Some(l) if v <= l => format!("{} ms <= {} ms ok", ms(v), ms(l)),
+        Some(l) => format!("{} ms > {} ms MISSED", ms(v), ms(l)),
+        None => format!("{} ms (no deadline)", ms(v)),
+    };
+    writeln!(
+        f,
+        "  data age      = Σ + R_n {} = {}",
+        ms(c.last_response),
+        vs(c.age, c.max_age)
+    )?;
+    writeln!(
+        f,
+        "  reaction time = T_0 {} + Σ + R_n {} = {}",
+        ms(c.first_period),
+        ms(c.last_response),
+        vs(c.reaction, c.max_reaction)
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]

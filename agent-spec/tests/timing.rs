@@ -482,3 +482,99 @@ fn the_queue_bound_is_reached_or_nearly_in_simulation() {
         "held at most {most}"
     );
 }
+
+#[test]
+fn freshness_is_proven_from_the_periods_where_it_can_be() {
+    let contracts = r#"freshness: [(input: "e1.c1.x", max_age_ms: 20.0), (input: "c1.r1.x", max_age_ms: 20.0)],"#;
+    let (report, a) = run(&system(20.0, "Sample", 5.0, "", contracts), None);
+    assert!(report.is_ok(), "{}", report.render(100));
+    // e1 reads c1's value: age < T_c1 10 + R_c1 3.4 = 13.4 <= 20: proven.
+    // c1 reads r1's: < T_r1 20 + R_r1 4.5 = 24.5 > 20: left to the monitor.
+    let bound = |i: &str| a.freshness.iter().find(|f| f.input == i).unwrap().bound;
+    assert_eq!(bound("e1.c1.x"), Some(134 * MS / 10));
+    assert_eq!(bound("c1.r1.x"), Some(245 * MS / 10));
+    let text = a.to_string();
+    assert!(
+        text.contains("freshness e1.c1.x: age < 13.4 ms, contract 20 ms: proven"),
+        "{text}"
+    );
+    assert!(
+        text.contains("freshness c1.r1.x: age < 24.5 ms, contract 20 ms: not proven"),
+        "{text}"
+    );
+    assert!(
+        a.is_certified(),
+        "a freshness contract speaks of runs: not a violation here"
+    );
+}
+
+/// A sample hop simulated as the executor runs it: the writer released every
+/// `T_w` (from a phase not before the reader's), ending within `[C_w, R_w]`,
+/// delivered up to `latency` later; the reader released every `T_r` takes
+/// the newest value delivered before its read (at most `J_r` late) and
+/// stamped at or before its release. The largest age (reader release minus
+/// the stamp of the value it takes) once the writer's first value is in.
+fn simulate_sample_hop(
+    seed: u64,
+    (tw, cw, rw): (u64, u64, u64),
+    (tr, jr): (u64, u64),
+    latency: u64,
+    phase: u64,
+) -> u64 {
+    let mut state = seed | 1;
+    let mut rand = move |n: u64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        if n == 0 { 0 } else { state % (n + 1) }
+    };
+    let mut values = Vec::new();
+    let (mut a, mut last_f, mut last_d) = (phase, 0, 0);
+    while a < 300 * tw.max(tr) {
+        let f = (a + cw + rand(rw - cw)).max(last_f);
+        let d = (f + rand(latency)).max(last_d);
+        values.push((a, d));
+        (last_f, last_d) = (f, d);
+        a += tw;
+    }
+    let mut worst = 0;
+    // From the first value's latest delivery on (before it, the reader holds
+    // nothing the writer wrote).
+    let mut b = 0;
+    while b < phase + rw + latency {
+        b += tr;
+    }
+    while b < 299 * tw.max(tr) {
+        let s = b + rand(jr);
+        let held = values
+            .iter()
+            .filter(|(stamp, d)| *d < s && *stamp <= b)
+            .map(|(stamp, _)| *stamp)
+            .max();
+        if let Some(stamp) = held {
+            worst = worst.max(b - stamp);
+        }
+        b += tr;
+    }
+    worst
+}
+
+proptest! {
+    /// The sample hop's age term `T_w + R_w + L` holds in simulation.
+    #[test]
+    fn sample_hop_age_holds_in_simulation(
+        seed in 1u64..u64::MAX,
+        tw in 2u64..50,
+        cw in 1u64..10,
+        jitter_w in 0u64..20,
+        tr in 2u64..50,
+        jr in 0u64..20,
+        latency in 0u64..10,
+        phase in 0u64..50,
+    ) {
+        let rw = (cw + jitter_w).min(tw); // a schedulable writer: R_w <= T_w
+        let cw = cw.min(rw);
+        let worst = simulate_sample_hop(seed, (tw, cw, rw), (tr, jr), latency, phase);
+        prop_assert!(worst <= tw + rw + latency, "age {worst} > T_w + R_w + L = {}", tw + rw + latency);
+    }
+}
