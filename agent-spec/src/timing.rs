@@ -664,13 +664,14 @@ impl<'s> Placed<'s> {
             let Some(limit) = limit.filter(|l| value > *l) else {
                 continue;
             };
-            let (hi, worst) = figures
+            let Some((hi, worst)) = figures
                 .hops
                 .iter()
                 .enumerate()
                 .max_by_key(|(_, h)| if pick == 0 { h.age } else { h.reaction })
-                .map(|(i, h)| (i, h.clone()))
-                .unwrap_or((0, figures.hops[0].clone()));
+            else {
+                continue;
+            };
             let term = if pick == 0 { worst.age } else { worst.reaction };
             let terms = figures
                 .hops
@@ -701,7 +702,7 @@ impl<'s> Placed<'s> {
             )
             .label(
                 self.spans.at(&[at[0], at[1], at[2], F("path"), I(hi)]),
-                format!("largest term: {} ms ({})", ms(term), hop_formula(&worst, &self.threads)),
+                format!("largest term: {} ms ({})", ms(term), hop_formula(worst, &self.threads)),
             )
             .help(format!(
                 "{what} = {formula} ms; shorten the periods on the chain, or relax the deadline"
