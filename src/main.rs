@@ -5,6 +5,7 @@
 //!
 //! This file is the command line (clap); each command is a module of `cli`.
 
+#[macro_use]
 mod cli;
 
 use std::path::PathBuf;

@@ -565,3 +565,22 @@ fn new_refuses_bad_input_with_a_message() {
     assert!(!dir.join("x").exists(), "nothing is written");
     assert_eq!(files_under(&dir), ["a-file", "full/keep.txt"]);
 }
+
+#[test]
+fn a_reader_that_stops_early_ends_the_output_not_the_program() {
+    // `embodied check --timing specs/rex.ron | head -0`: the pipe is closed
+    // before the program writes; its output ends there, and nothing panics
+    // (`println!` would, on the broken pipe).
+    let mut child = Command::new(env!("CARGO_BIN_EXE_embodied"))
+        .args(["check", "--timing", "specs/rex.ron"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+}

@@ -37,21 +37,21 @@ pub(crate) fn run(files: &[PathBuf], style: Style, timing: Option<Option<&str>>)
         };
         match report {
             Err(e) => {
-                eprintln!("error: cannot read {}: {e}", path.display());
+                errln!("error: cannot read {}: {e}", path.display());
                 unreadable += 1;
             }
             Ok((report, certificate)) => {
                 match style {
-                    Style::Human => eprint!("{}", report.render(width)),
-                    Style::Short => eprint!("{}", report.short()),
+                    Style::Human => err!("{}", report.render(width)),
+                    Style::Short => err!("{}", report.short()),
                 }
                 if let Some(c) = certificate {
-                    print!("{c}");
+                    out!("{c}");
                 }
                 errors += report.errors();
                 warnings += report.warnings();
                 let verdict = if report.is_ok() { "ok" } else { "FAILED" };
-                println!(
+                outln!(
                     "{}: {verdict} ({} errors, {} warnings)",
                     path.display(),
                     report.errors(),
@@ -61,7 +61,7 @@ pub(crate) fn run(files: &[PathBuf], style: Style, timing: Option<Option<&str>>)
         }
     }
     if files.len() > 1 {
-        println!(
+        outln!(
             "{} files: {errors} errors, {warnings} warnings{}",
             files.len(),
             if unreadable > 0 {
@@ -112,7 +112,7 @@ fn with_timing(path: &Path, deployment: Option<&str>) -> std::io::Result<(Report
                 Some(analysis.to_string())
             }
             Err(why) => {
-                eprintln!("error: {}: {why}", path.display());
+                errln!("error: {}: {why}", path.display());
                 findings.push(Finding::new(
                     Code::TimingMissing,
                     0..0,

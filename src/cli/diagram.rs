@@ -19,17 +19,17 @@ pub(crate) fn run(
     let (spec, report) = match embodied::spec::check_file_structure(file) {
         Ok(x) => x,
         Err(e) => {
-            eprintln!("error: cannot read {}: {e}", file.display());
+            errln!("error: cannot read {}: {e}", file.display());
             return ExitCode::FAILURE;
         }
     };
     let Some(spec) = spec else {
-        eprint!("{}", report.render(super::width()));
+        err!("{}", report.render(super::width()));
         return ExitCode::FAILURE;
     };
     if !report.is_ok() {
-        eprint!("{}", report.render(super::width()));
-        eprintln!(
+        err!("{}", report.render(super::width()));
+        errln!(
             "warning: {} has errors; the diagram leaves out what does not resolve",
             file.display()
         );
@@ -37,19 +37,19 @@ pub(crate) fn run(
     let text = match diagram::render(&spec, kind, subsystem, format) {
         Ok(t) => t,
         Err(e) => {
-            eprintln!("error: {e}");
+            errln!("error: {e}");
             return ExitCode::FAILURE;
         }
     };
     match output {
         None => {
-            print!("{text}");
+            out!("{text}");
             ExitCode::SUCCESS
         }
         Some(path) => match std::fs::write(path, text) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("error: cannot write {}: {e}", path.display());
+                errln!("error: cannot write {}: {e}", path.display());
                 ExitCode::FAILURE
             }
         },

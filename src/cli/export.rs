@@ -15,11 +15,11 @@ use embodied::record::{ExportError, ExportOptions, ExportSummary, export_ros2};
 pub(crate) fn run(file: &Path, output: &Path, metadata: bool) -> ExitCode {
     match export_ros2(file, output, &ExportOptions { metadata }) {
         Ok(summary) => {
-            print!("{}", report(output, &summary));
+            out!("{}", report(output, &summary));
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("embodied export: {e}");
+            errln!("embodied export: {e}");
             match e {
                 ExportError::Read(_) | ExportError::SameFile { .. } => ExitCode::from(2),
                 _ => ExitCode::FAILURE,

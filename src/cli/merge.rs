@@ -7,7 +7,7 @@ use std::process::ExitCode;
 pub(crate) fn run(files: &[PathBuf], output: &Path) -> ExitCode {
     match embodied::record::merge(files, output) {
         Ok(m) => {
-            println!(
+            outln!(
                 "{}: {} files merged, {} messages on {} channels{}",
                 output.display(),
                 m.files,
@@ -22,7 +22,7 @@ pub(crate) fn run(files: &[PathBuf], output: &Path) -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("embodied merge: {e}");
+            errln!("embodied merge: {e}");
             ExitCode::FAILURE
         }
     }

@@ -55,17 +55,17 @@ fn embodied_version() -> String {
 pub(crate) fn run(args: Args) -> ExitCode {
     match make(&args) {
         Ok((dir, files)) => {
-            println!(
+            outln!(
                 "created {} ({files} files) from {}",
                 dir.display(),
                 args.spec.display()
             );
-            println!(
+            outln!(
                 "next: cd {} && cargo run, then fill in src/logic/ (see its README.md)",
                 dir.display()
             );
             if args.embodied_path.is_none() {
-                println!(
+                outln!(
                     "it depends on embodied = \"{}\" from crates.io; to build against a checkout \
                      instead, see README.md (\"Building against a local embodied\") or pass \
                      --embodied-path",
@@ -75,7 +75,7 @@ pub(crate) fn run(args: Args) -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(message) => {
-            eprint!("{message}");
+            err!("{message}");
             ExitCode::FAILURE
         }
     }
