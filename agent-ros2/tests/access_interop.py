@@ -24,33 +24,12 @@ import json
 import sys
 import threading
 import time
+from pathlib import Path
 
 import zenoh
 
-
-def router(args):
-    zenoh.init_log_from_env_or("error")
-    session = zenoh.open(zenoh.Config.from_file(args.config))
-    print("ready", flush=True)
-    sys.stdin.read()
-    session.close()
-    return 0
-
-
-def anonymous(connect, ca):
-    """A client of the router that trusts its authority but has no
-    certificate: the mutual TLS handshake must fail."""
-    conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps("client"))
-    conf.insert_json5("connect/endpoints", json.dumps([connect]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(ca))
-    try:
-        session = zenoh.open(conf)
-    except zenoh.ZError as e:
-        return f"refused: {e}"
-    session.close()
-    return "connected"
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import anonymous, serve_router  # noqa: E402
 
 
 def ros2(args):
@@ -103,7 +82,7 @@ def main():
     n.add_argument("--put", action="append", default=[])
     n.add_argument("--tokens", required=True)
     args = ap.parse_args()
-    return router(args) if args.command == "router" else ros2(args)
+    return serve_router(args.config) if args.command == "router" else ros2(args)
 
 
 if __name__ == "__main__":

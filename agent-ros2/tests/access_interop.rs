@@ -28,37 +28,25 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::io::{BufRead, BufReader, Write as _};
+#[path = "interop/python.rs"]
+mod python;
+#[path = "interop/router.rs"]
+mod router;
+#[path = "interop/script.rs"]
+mod script;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use agent_ros2::access::{create_dev_credentials, write_router_config, write_session_config};
 use agent_ros2::bridge::SessionOptions;
 use agent_zenoh::security::Credentials;
-use serde_json::Value;
+use python::python;
+use router::{Router, refusals};
+use script::{Script, free_port};
 use zenoh::Wait;
-
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and sets it)"
-        );
-    }
-    python
-}
-
-/// A localhost TCP port free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 fn rex() -> agent_spec::model::Spec {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../specs/rex.ron");
@@ -81,60 +69,6 @@ const LINK: &str = "rex/a2/c2/c1/desired_plan";
 /// `locomotion`'s node; a node of `vision`).
 const LOCOMOTION_TOKEN: &str = "@ros2_lv/0/1a/0/1/MS/%/%/locomotion/%rex%plan/rex_msgs::msg::dds_::Plan_/RIHS01_00ff/::,10:,:,:,,";
 const VISION_TOKEN: &str = "@ros2_lv/0/2b/0/0/NN/%/%/vision";
-
-/// The router (tests/access_interop.py router), running; its output
-/// collected.
-struct Router {
-    child: Child,
-    log: Arc<Mutex<Vec<String>>>,
-}
-
-impl Router {
-    fn start(python: &Path, config: &Path) -> Router {
-        let mut child = Command::new(python)
-            .args([SCRIPT, "router"])
-            .arg(config)
-            .env(
-                "RUST_LOG",
-                "error,zenoh::net::routing::interceptor::access_control=trace",
-            )
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let out = BufReader::new(child.stdout.take().unwrap());
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let (ready, started) = std::sync::mpsc::channel();
-        let lines = log.clone();
-        std::thread::spawn(move || {
-            for line in out.lines().map_while(Result::ok) {
-                if line.trim() == "ready" {
-                    let _ = ready.send(());
-                }
-                lines.lock().unwrap().push(line);
-            }
-        });
-        assert!(
-            started.recv_timeout(Duration::from_secs(20)).is_ok(),
-            "the router did not start: {:?}",
-            log.lock().unwrap()
-        );
-        Router { child, log }
-    }
-
-    /// Stop it; its log.
-    fn stop(mut self) -> Vec<String> {
-        drop(self.child.stdin.take());
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while self.child.try_wait().unwrap().is_none() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        self.log.lock().unwrap().clone()
-    }
-}
 
 /// A session of process `process`, as its bridge opens it.
 fn process_session(dir: &Path, process: &str, connect: &str) -> zenoh::Session {
@@ -180,7 +114,7 @@ fn ros_2_feeds_and_reads_only_what_the_spec_says() {
     let endpoint = format!("tls/127.0.0.1:{}", free_port());
     let router_config = write_router_config(&dir, &spec, DEPLOYMENT, &endpoint).unwrap();
     let session_config = write_session_config(&dir, &endpoint).unwrap();
-    let router = Router::start(&python, &router_config);
+    let router = Router::start(&python, SCRIPT, &router_config);
 
     // The processes, as their bridges connect.
     let locomotion = process_session(&dir, "locomotion", &endpoint);
@@ -209,26 +143,20 @@ fn ros_2_feeds_and_reads_only_what_the_spec_says() {
         format!("{POSE}=pose from ros2"),
         format!("{LINK}=link from ros2"),
     ];
-    let mut nodes = Command::new(&python)
-        .args([SCRIPT, "ros2", "--config"])
-        .arg(&session_config)
-        .args(["--connect", &endpoint, "--anonymous-ca", &ca])
-        .args(["--subscribe", "0/rex/pose/*/*"])
-        .args(["--subscribe", "0/rex/estimate/*/*"])
-        // Its own plans: not for it to read.
-        .args(["--subscribe", "0/rex/plan/*/*"])
-        .args(puts.iter().flat_map(|p| ["--put", p.as_str()]))
-        .args(["--tokens", "@ros2_lv/0/**"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut to = nodes.stdin.take().unwrap();
-    let mut from = BufReader::new(nodes.stdout.take().unwrap());
-    let mut line = String::new();
-    from.read_line(&mut line).unwrap();
-    assert_eq!(line.trim(), "ready", "the ROS 2 nodes did not start");
+    let mut nodes = Script::start(
+        Command::new(&python)
+            .args([SCRIPT, "ros2", "--config"])
+            .arg(&session_config)
+            .args(["--connect", &endpoint, "--anonymous-ca", &ca])
+            .args(["--subscribe", "0/rex/pose/*/*"])
+            .args(["--subscribe", "0/rex/estimate/*/*"])
+            // Its own plans: not for it to read.
+            .args(["--subscribe", "0/rex/plan/*/*"])
+            .args(puts.iter().flat_map(|p| ["--put", p.as_str()]))
+            .args(["--tokens", "@ros2_lv/0/**"]),
+        "the ROS 2 nodes",
+    );
+    nodes.ready();
     // Let every declaration reach the router and the other sessions.
     std::thread::sleep(Duration::from_millis(1500));
 
@@ -244,11 +172,7 @@ fn ros_2_feeds_and_reads_only_what_the_spec_says() {
         }
         std::thread::sleep(Duration::from_millis(100));
     }
-    writeln!(to, "go").unwrap();
-    line.clear();
-    from.read_line(&mut line).unwrap();
-    let answer: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"));
-    assert!(nodes.wait().unwrap().success());
+    let answer = nodes.end("go");
     // Let the last plans arrive.
     std::thread::sleep(Duration::from_millis(500));
     for s in [locomotion, world, vision] {
@@ -331,55 +255,4 @@ fn ros_2_feeds_and_reads_only_what_the_spec_says() {
 
 fn common_name(process: &str) -> String {
     agent_zenoh::security::common_name("rex", DEPLOYMENT, process)
-}
-
-/// The refusals in the router's log: (the common name of the certificate of
-/// the session refused, if it has a subject; what; key). Zenoh says
-/// `<zid> on ...+CertCommonName(<cn>)+... is unauthorized to <what> on
-/// <key>`, or `Using cached result: <zid> is unauthorized to ...`, and
-/// `<zid> did not match any configured ACL subject` for a certificate it
-/// does not know.
-fn refusals(log: &[String]) -> Vec<(Option<String>, String, String)> {
-    let plain: Vec<String> = log.iter().map(|l| strip_ansi(l)).collect();
-    let mut names = std::collections::HashMap::new();
-    let messages: Vec<&str> = plain
-        .iter()
-        .filter_map(|l| l.split_once("access_control: ").map(|(_, m)| m))
-        .collect();
-    for m in &messages {
-        if let (Some((zid, _)), Some((_, cn))) =
-            (m.split_once(" on "), m.split_once("CertCommonName("))
-        {
-            let cn = cn.split(')').next().unwrap_or_default();
-            names.insert(zid.to_owned(), cn.to_owned());
-        }
-    }
-    messages
-        .iter()
-        .filter_map(|m| {
-            let (who, rest) = m.split_once(" is unauthorized to ")?;
-            let (what, key) = rest.rsplit_once(" on ")?;
-            let zid = who.trim_start_matches("Using cached result: ");
-            let zid = zid.split(' ').next().unwrap_or_default();
-            Some((names.get(zid).cloned(), what.to_owned(), key.to_owned()))
-        })
-        .collect()
-}
-
-/// `line` without its terminal colours.
-fn strip_ansi(line: &str) -> String {
-    let mut out = String::new();
-    let mut chars = line.chars();
-    while let Some(c) = chars.next() {
-        if c == '\u{1b}' {
-            for c in chars.by_ref() {
-                if c.is_ascii_alphabetic() {
-                    break;
-                }
-            }
-        } else {
-            out.push(c);
-        }
-    }
-    out
 }

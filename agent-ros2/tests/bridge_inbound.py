@@ -4,7 +4,7 @@ the other side of agent-ros2/tests/bridge_inbound.rs.
 
 It is the router (listening on the endpoint of the request), finds each
 subscription's `MS` liveliness token as rmw_zenoh's design document lays it out
-(tokens parsed by bridge_interop.py's parse_token), and publishes on the
+(tokens parsed by tests/interop/ros2_side.py's parse_token), and publishes on the
 topic's data key, `<domain>/<topic>/<type>/<hash>` with the type and hash the
 token announces, each value serialized by rosbags' Kilted type store (our own
 messages registered from their .msg text), with rmw_zenoh's attachment
@@ -28,42 +28,15 @@ The odd cases, after n values (numbering on from n):
 """
 
 import json
-import struct
 import sys
 import threading
 import time
+from pathlib import Path
 
-import numpy as np
 import zenoh
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from rosbags.typesys.store import Nodetype
 
-from bridge_interop import parse_token, ros_type
-
-NUMPY = {"float32": np.float32, "float64": np.float64, "int8": np.int8, "uint8": np.uint8,
-         "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32,
-         "int64": np.int64, "uint64": np.uint64}
-
-
-def build(store, name, value):
-    """The rosbags message `name` of the plain JSON `value`."""
-    _, fields = store.fielddefs[name]
-    args = {}
-    for field, (kind, details) in fields:
-        v = value[field]
-        if kind == Nodetype.NAME:
-            args[field] = build(store, details, v)
-        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-            (inner, inner_details), _ = details
-            if inner == Nodetype.NAME:
-                args[field] = [build(store, inner_details, x) for x in v]
-            elif inner_details[0] in NUMPY:
-                args[field] = np.array(v, dtype=NUMPY[inner_details[0]])
-            else:
-                args[field] = list(v)
-        else:
-            args[field] = v
-    return store.types[name](**args)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import attachment, cdr, on_token, open_router, type_store  # noqa: E402
 
 
 def not_a_number(value):
@@ -75,33 +48,13 @@ def not_a_number(value):
 
 def main():
     request = json.loads(sys.stdin.readline())
-    store = get_typestore(Stores.ROS2_KILTED)
-    types = {}
-    for name, text in request["register"]:
-        types.update(get_types_from_msg(text, name))
-    store.register(types)
-
-    config = zenoh.Config()
-    config.insert_json5("mode", '"router"')
-    config.insert_json5("listen/endpoints", json.dumps([request["listen"]]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    store = type_store(request["register"])
+    session = open_router(request["listen"])
 
     lock = threading.Lock()
     tokens, vanished, problems = {}, set(), []
-
-    def on_token(sample):
-        key = str(sample.key_expr)
-        with lock:
-            if sample.kind == zenoh.SampleKind.PUT:
-                try:
-                    tokens[key] = parse_token(key, store)
-                except Exception as e:  # a token we cannot parse is a finding
-                    problems.append(f"token {key}: {e!r}")
-            else:
-                vanished.add(key)
-
-    liveliness = session.liveliness().declare_subscriber("@ros2_lv/**", on_token, history=True)
+    liveliness = session.liveliness().declare_subscriber(
+        "@ros2_lv/**", on_token(lock, tokens, vanished, problems, store), history=True)
     print("ready", flush=True)
 
     plan = json.loads(sys.stdin.readline())
@@ -118,21 +71,19 @@ def main():
             problems.append(f"no MS token for {topic['topic']}")
             continue
         name = token["type"]
-        dds = token["key"].split("/")[10]
-        base = f"{request['domain']}/{topic['topic'].lstrip('/')}/{dds}"
+        base = f"{request['domain']}/{topic['topic'].lstrip('/')}/{token['dds']}"
         publisher = session.declare_publisher(f"{base}/{token['hash']}",
                                               congestion_control=zenoh.CongestionControl.BLOCK)
         gid = bytes([k + 1]) * 16
 
         def put(payload, seq, on=publisher, attach=True):
-            attachment = struct.pack("<qqB16s", seq, time.time_ns(), 16, gid) if attach else None
-            on.put(payload, attachment=attachment)
+            on.put(payload, attachment=attachment(seq, gid) if attach else None)
 
-        values = [store.serialize_cdr(build(store, name, v), name) for v in topic["values"]]
-        for seq, cdr in enumerate(values, 1):
-            put(bytes(cdr), seq)
+        values = [cdr(store, name, v) for v in topic["values"]]
+        for seq, value in enumerate(values, 1):
+            put(value, seq)
         n = len(values)
-        first = bytes(values[0])
+        first = values[0]
         for case in topic.get("odd", []):
             if case == "malformed":
                 put(first[:8], n + 1)
@@ -147,7 +98,7 @@ def main():
             elif case == "skip":
                 put(first, n + 3)
             elif case == "nan":
-                put(bytes(store.serialize_cdr(build(store, name, not_a_number(topic["values"][0])), name)), n + 1)
+                put(cdr(store, name, not_a_number(topic["values"][0])), n + 1)
             else:
                 problems.append(f"unknown case {case}")
         published[topic["topic"]] = {"type": name, "hash": token["hash"], "gid": gid.hex()}

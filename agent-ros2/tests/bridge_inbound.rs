@@ -19,19 +19,18 @@
 )]
 
 mod common;
+#[path = "interop/python.rs"]
+mod python;
+#[path = "interop/script.rs"]
+mod script;
 
-use std::io::{BufRead, BufReader, Write as _};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
 use agent_core::link::endpoint::{self, Receiver};
 use agent_core::trace::{ErasedPayload, ReadEvent};
-use agent_core::{
-    Action, Behaviour, Fsm, Inbox, LinkId, Observer, Payload, Period, Policy, RealTime, RtConfig,
-    System, SystemBuilder, port,
-};
+use agent_core::{Inbox, Observer, Payload, Policy, RealTime, RtConfig};
 use agent_ros2::bridge::{
     Adapters, Bridge, BridgeError, BridgeOptions, BridgeReport, Mode, Plan, SessionOptions,
 };
@@ -39,7 +38,9 @@ use agent_ros2::types::encode_cdr;
 use agent_ros2::types::standard::geometry_msgs::{Point, Pose, PoseStamped, Quaternion};
 use agent_ros2::types::standard::std_msgs::Header;
 use agent_ros2::wire::{Attachment, Gid, Qos};
-use common::{MapPose, Status, pose_at, spec, status_at, system};
+use common::{MapPose, Status, pose_at, spec, status_at, system, system_and_status_link};
+use python::python;
+use script::{Script, free_port};
 use serde_json::{Value, json};
 use zenoh::Wait;
 
@@ -114,12 +115,19 @@ fn peer(listen: bool, endpoint: &str) -> zenoh::Session {
 
 /// A localhost TCP endpoint free a moment ago.
 fn free_endpoint() -> String {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    format!("tcp/127.0.0.1:{port}")
+    format!("tcp/127.0.0.1:{}", free_port())
+}
+
+/// Wait until `publisher` has a subscriber: the bridge's (10 s at most).
+fn matched(publisher: &zenoh::pubsub::Publisher<'_>) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !publisher.matching_status().wait().unwrap().matching() {
+        assert!(
+            Instant::now() < deadline,
+            "the bridge's subscriber is not seen"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
 }
 
 /// An inbox and its receiving end.
@@ -233,14 +241,7 @@ fn a_publisher_in_rmw_zenohs_format_feeds_the_input() {
     bridge.subscribe(0, status.clone()).unwrap();
     let key = bridge.plan().subscriptions[0].key.to_string();
     let publisher = theirs.declare_publisher(key.clone()).wait().unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !publisher.matching_status().wait().unwrap().matching() {
-        assert!(
-            Instant::now() < deadline,
-            "the bridge's subscriber is not seen"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    matched(&publisher);
     let shape = agent_core::reflect::<Status>().unwrap();
     let cdr = |k: u32| {
         let mut out = Vec::new();
@@ -318,61 +319,6 @@ fn a_publisher_in_rmw_zenohs_format_feeds_the_input() {
     assert_eq!(status.problem_count(), 0);
 }
 
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
-/// The publisher (tests/bridge_inbound.py), running.
-struct Talker {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
-
-impl Talker {
-    /// Start it as the router at `endpoint`, with our own messages
-    /// `register` (`[name, .msg text]`), and wait until it listens.
-    fn start(python: &Path, endpoint: &str, register: &[Value]) -> Self {
-        let mut child = Command::new(python)
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/bridge_inbound.py"
-            ))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut to = child.stdin.take().unwrap();
-        let from = BufReader::new(child.stdout.take().unwrap());
-        let request = json!({"listen": endpoint, "domain": 0, "register": register});
-        writeln!(to, "{request}").unwrap();
-        let mut talker = Self { child, to, from };
-        assert_eq!(talker.line(), Value::String("ready".into()));
-        talker
-    }
-
-    /// Its next line: JSON, or the bare word `ready` as a string.
-    fn line(&mut self) -> Value {
-        let mut line = String::new();
-        self.from.read_line(&mut line).unwrap();
-        serde_json::from_str(&line).unwrap_or_else(|_| Value::String(line.trim().to_owned()))
-    }
-
-    /// Send `request`; its answer.
-    fn ask(&mut self, request: &Value) -> Value {
-        writeln!(self.to, "{request}").unwrap();
-        self.line()
-    }
-}
-
 #[test]
 fn a_ros_2_publisher_feeds_the_inputs_and_odd_samples_are_refused() {
     let Some(python) = python() else { return };
@@ -380,7 +326,15 @@ fn a_ros_2_publisher_feeds_the_inputs_and_odd_samples_are_refused() {
     let own = &plan.subscriptions[0].messages;
     let register = [json!([own.name().to_string(), own.msg_text()])];
     let endpoint = free_endpoint();
-    let mut talker = Talker::start(&python, &endpoint, &register);
+    let mut talker = Script::start(
+        Command::new(&python).arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/bridge_inbound.py"
+        )),
+        "the talker",
+    );
+    talker.send(json!({"listen": endpoint, "domain": 0, "register": register}));
+    talker.ready();
     let options = BridgeOptions {
         session: SessionOptions::client(&endpoint),
         ..BridgeOptions::default()
@@ -400,7 +354,7 @@ fn a_ros_2_publisher_feeds_the_inputs_and_odd_samples_are_refused() {
         .map(|k| serde_json::to_value(pose_message(&pose_at(k))).unwrap())
         .collect();
     let odd = ["malformed", "wrong_hash", "repeat", "no_attachment", "skip"];
-    let answer = talker.ask(&json!({"topics": [
+    let answer = talker.ask(json!({"topics": [
         {"topic": "/test/status_in", "values": statuses, "odd": odd},
         {"topic": "/test/pose_in", "values": poses, "odd": ["nan"]},
     ]}));
@@ -448,7 +402,7 @@ fn a_ros_2_publisher_feeds_the_inputs_and_odd_samples_are_refused() {
     );
 
     bridge.finish().unwrap();
-    let answer = talker.ask(&json!({"end": true}));
+    let answer = talker.end(json!({"end": true}));
     let vanished: Vec<&str> = answer["vanished"]
         .as_array()
         .unwrap()
@@ -459,7 +413,6 @@ fn a_ros_2_publisher_feeds_the_inputs_and_odd_samples_are_refused() {
         tokens.iter().all(|k| vanished.contains(&k.as_str())),
         "{vanished:?}"
     );
-    assert!(talker.child.wait().unwrap().success());
 }
 
 /// The talker found our subscriptions as rmw_zenoh announces them: topics,
@@ -508,42 +461,6 @@ impl Observer for Received {
     }
 }
 
-/// The test system, as `common::system`, and its status link.
-fn system_and_status_link() -> (System, LinkId) {
-    use common::{C, COut, E, EIn, ToE};
-    let mut b = SystemBuilder::new();
-    let a = b.agent("a");
-    let period = Period::from_millis(10).unwrap();
-    let go = Fsm::single(Behaviour::while_loop(
-        "go",
-        Action::<C>::new()
-            .output(
-                |y| &mut y.e,
-                |k: &u32, _: &(), y: &mut ToE| {
-                    y.pose.set(pose_at(*k));
-                    y.status.set(status_at(*k));
-                },
-            )
-            .memory(|k: &mut u32, _: &()| *k += 1),
-        "false",
-    ))
-    .unwrap();
-    let keep = Fsm::single(Behaviour::while_loop("keep", Action::<E>::new(), "false")).unwrap();
-    let c = b.subsystem(a, "c", period, 0u32, go);
-    let e = b.subsystem(a, "e", period, (), keep);
-    b.connect(
-        c.output(port!(COut, e.pose)),
-        e.input(port!(EIn, c.pose)),
-        Policy::Sample,
-    );
-    let status = b.connect(
-        c.output(port!(COut, e.status)),
-        e.input(port!(EIn, c.status)),
-        Policy::queue(8),
-    );
-    (b.build().unwrap(), status)
-}
-
 /// A real-time run's input fed by the bridge (`RealTime::feed`) beside its
 /// link: the node takes every value put on the topic, and they are stamped
 /// against the run's instant zero (the bridge's epoch, an hour before, would
@@ -573,14 +490,7 @@ fn a_real_time_runs_input_takes_the_values_of_its_topic() {
     bridge.set_inbound_zero(running.zero());
 
     let publisher = theirs.declare_publisher(key).wait().unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !publisher.matching_status().wait().unwrap().matching() {
-        assert!(
-            Instant::now() < deadline,
-            "the bridge's subscriber is not seen"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    matched(&publisher);
     let shape = agent_core::reflect::<Status>().unwrap();
     for k in 0..5 {
         let mut cdr = Vec::new();

@@ -15,100 +15,34 @@ it waits until every key has its count and every token appeared and vanished
 (20 s at most), then prints one JSON line: tokens, samples, problems.
 """
 
-import dataclasses
 import json
-import struct
 import sys
 import threading
 import time
-
-import zenoh
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-
-QOS_DEFAULTS = {"reliability": 1, "durability": 2, "history": 1, "depth": 42}
+from pathlib import Path
 
 
-def plain(v):
-    if dataclasses.is_dataclass(v):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v) if not f.name.startswith("__")}
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [plain(x) for x in v]
-    return v
-
-
-def demangle(chunk):
-    return chunk.replace("%", "/")
-
-
-def ros_type(dds):
-    """`geometry_msgs::msg::dds_::PoseStamped_` -> `geometry_msgs/msg/PoseStamped`."""
-    package, rest = dds.split("::msg::dds_::")
-    return f"{package}/msg/{rest[:-1]}"
-
-
-def parse_qos(text):
-    """rmw_zenoh's compact QoS: empty fields are the defaults."""
-    parts = text.split(":")
-    history, depth = parts[2].split(",")
-    values = {"reliability": parts[0], "durability": parts[1], "history": history, "depth": depth}
-    return {k: int(v) if v else QOS_DEFAULTS[k] for k, v in values.items()}
-
-
-def parse_token(key, store):
-    c = key.split("/")
-    token = {
-        "key": key, "domain": int(c[1]), "zid": c[2], "node_id": int(c[3]), "id": int(c[4]),
-        "kind": c[5], "enclave": demangle(c[6]), "namespace": demangle(c[7]), "node": demangle(c[8]),
-    }
-    if token["kind"] != "NN":
-        name = ros_type(c[10])
-        token.update(topic=demangle(c[9]), type=name, hash=c[11], qos=parse_qos(c[12]),
-                     rosbags_hash=store.hash_rihs01(name))
-    return token
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import (check_cdr_header, finish, on_token, open_router, plain,  # noqa: E402
+                       read_attachment, ros_type, type_store)
 
 
 def main():
     request = json.loads(sys.stdin.readline())
-    store = get_typestore(Stores.ROS2_KILTED)
-    types = {}
-    for name, text in request["register"]:
-        types.update(get_types_from_msg(text, name))
-    store.register(types)
-
-    config = zenoh.Config()
-    config.insert_json5("mode", '"router"')
-    config.insert_json5("listen/endpoints", json.dumps([request["listen"]]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    store = type_store(request["register"])
+    session = open_router(request["listen"])
 
     lock = threading.Lock()
     tokens, vanished, samples, problems = {}, set(), {}, []
 
-    def on_token(sample):
-        key = str(sample.key_expr)
-        with lock:
-            if sample.kind == zenoh.SampleKind.PUT:
-                try:
-                    tokens[key] = parse_token(key, store)
-                except Exception as e:  # a token we cannot parse is a finding
-                    problems.append(f"token {key}: {e!r}")
-            else:
-                vanished.add(key)
-
     def on_data(sample):
         key = str(sample.key_expr)
         payload = sample.payload.to_bytes()
-        attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
         entry = {"len": len(payload)}
         try:
-            if len(attachment) != 33 or attachment[16] != 16:
-                raise ValueError(f"attachment of {len(attachment)} bytes: {attachment.hex()}")
-            seq, stamp, _, gid = struct.unpack("<qqB16s", attachment)
+            seq, stamp, gid = read_attachment(sample)
             entry.update(seq=seq, stamp=stamp, gid=gid.hex())
-            if payload[:4] != b"\x00\x01\x00\x00":
-                raise ValueError(f"CDR header {payload[:4].hex()}")
+            check_cdr_header(payload)
             chunks = key.split("/")
             name = ros_type(chunks[-2])
             entry["key_hash_ok"] = chunks[-1] == store.hash_rihs01(name)
@@ -118,7 +52,8 @@ def main():
         with lock:
             samples.setdefault(key, []).append(entry)
 
-    liveliness = session.liveliness().declare_subscriber("@ros2_lv/**", on_token, history=True)
+    liveliness = session.liveliness().declare_subscriber(
+        "@ros2_lv/**", on_token(lock, tokens, vanished, problems, store), history=True)
     data = session.declare_subscriber(f"{request['domain']}/**", on_data)
     print("ready", flush=True)
 
@@ -134,10 +69,7 @@ def main():
     with lock:
         answer = {"tokens": list(tokens.values()), "vanished": sorted(vanished),
                   "samples": samples, "problems": problems}
-    print(json.dumps(answer), flush=True)
-    liveliness.undeclare()
-    data.undeclare()
-    session.close()
+    finish(answer, session, liveliness, data)
 
 
 if __name__ == "__main__":

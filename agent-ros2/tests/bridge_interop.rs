@@ -18,37 +18,22 @@
 )]
 
 mod common;
+#[path = "interop/python.rs"]
+mod python;
+#[path = "interop/script.rs"]
+mod script;
 
-use std::io::{BufRead, BufReader, Write as _};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::path::Path;
+use std::process::Command;
 use std::time::{Duration, SystemTime};
 
 use agent_core::{ExecConfig, Executor, RealTime, RtConfig, System};
 use agent_ros2::bridge::{Bridge, BridgeOptions, BridgeReport, Plan, SessionOptions};
 use agent_ros2::types::standard::builtin_interfaces::Time;
 use common::{adapters, pose_at, spec, status_at, system};
+use python::python;
+use script::{Script, free_port};
 use serde_json::{Value, json};
-
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
-/// A localhost TCP port free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// The run's instant zero on the wall clock: 1.7e9 s after the epoch.
 const EPOCH_S: u64 = 1_700_000_000;
@@ -118,7 +103,15 @@ fn exchange(python: &Path, run: impl FnOnce(System, Bridge) -> BridgeReport) -> 
         .map(|t| json!([t.messages.name().to_string(), t.messages.msg_text()]))
         .collect();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let listener = Listener::start(python, &endpoint, &register);
+    let mut listener = Script::start(
+        Command::new(python).arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/bridge_interop.py"
+        )),
+        "the listener",
+    );
+    listener.send(json!({"listen": endpoint, "domain": 0, "register": register}));
+    listener.ready();
     let options = BridgeOptions {
         session: SessionOptions::client(&endpoint),
         epoch: Some(SystemTime::UNIX_EPOCH + Duration::from_secs(EPOCH_S)),
@@ -150,7 +143,7 @@ fn exchange(python: &Path, run: impl FnOnce(System, Bridge) -> BridgeReport) -> 
         .map(|(key, _)| key.clone())
         .zip(counts.iter().map(|&n| json!(n)))
         .collect();
-    let answer = listener.end(&json!({"expect": expect, "tokens": tokens.len()}));
+    let answer = listener.end(json!({"expect": expect, "tokens": tokens.len()}));
     assert_eq!(answer["problems"], json!([]), "{answer}");
     discovered(&answer, &tokens);
     let values = topics
@@ -159,48 +152,6 @@ fn exchange(python: &Path, run: impl FnOnce(System, Bridge) -> BridgeReport) -> 
         .map(|((key, gid), &n)| received(&answer["samples"][key], n, gid, (before, after)))
         .collect();
     Seen { values }
-}
-
-/// The listener (tests/bridge_interop.py), running.
-struct Listener {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
-
-impl Listener {
-    /// Start it as the router at `endpoint`, with our own messages
-    /// `register` (`[name, .msg text]`), and wait until it listens.
-    fn start(python: &Path, endpoint: &str, register: &[Value]) -> Self {
-        let mut child = Command::new(python)
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/bridge_interop.py"
-            ))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut to = child.stdin.take().unwrap();
-        let mut from = BufReader::new(child.stdout.take().unwrap());
-        let request = json!({"listen": endpoint, "domain": 0, "register": register});
-        writeln!(to, "{request}").unwrap();
-        let mut line = String::new();
-        from.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "ready", "the listener did not start");
-        Self { child, to, from }
-    }
-
-    /// Tell it what to wait for (`{"expect": {key: n}, "tokens": n}`); what
-    /// it saw.
-    fn end(mut self, request: &Value) -> Value {
-        writeln!(self.to, "{request}").unwrap();
-        let mut line = String::new();
-        self.from.read_line(&mut line).unwrap();
-        assert!(self.child.wait().unwrap().success());
-        serde_json::from_str(&line).unwrap()
-    }
 }
 
 /// The PoseStamped of step `k`: the adapter's, stamped with the epoch plus

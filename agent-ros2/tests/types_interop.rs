@@ -14,9 +14,12 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+#[path = "interop/python.rs"]
+mod python;
+
 use std::collections::BTreeMap;
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 use agent_ros2::types::standard::builtin_interfaces::Time;
@@ -26,31 +29,25 @@ use agent_ros2::types::standard::sensor_msgs::{CompressedImage, Imu};
 use agent_ros2::types::standard::std_msgs::Header;
 use agent_ros2::types::standard::{StandardMessage, standard_messages};
 use agent_ros2::types::{Messages, TypeDescription, encode_cdr, messages, with_references};
+use python::python;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
+
+/// The folder of tests/interop/ros2_side.py, our stand-in for a ROS 2 node.
+const INTEROP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/interop");
 
 /// Reads a request (JSON on stdin): messages to register in a Kilted type
 /// store (`register`: name and `.msg` text), types to hash (`hash`), CDR
 /// messages to decode (`decode`: type and hex); answers with the
 /// environment's prefix, rosbags' hashes, and each decoded value (as plain
-/// JSON) with its bytes serialized again by rosbags.
+/// JSON) with its bytes serialized again by rosbags; the folder of
+/// ros2_side.py as its argument.
 const PY_ROSBAGS: &str = r#"
-import dataclasses, json, sys
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from ros2_side import plain, type_store
 request = json.load(sys.stdin)
-store = get_typestore(Stores.ROS2_KILTED)
-types = {}
-for name, text in request["register"]:
-    types.update(get_types_from_msg(text, name))
-store.register(types)
-def plain(v):
-    if dataclasses.is_dataclass(v):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v) if not f.name.startswith("__")}
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [plain(x) for x in v]
-    return v
+store = type_store(request["register"])
 decoded = []
 for name, data in request["decode"]:
     message = store.deserialize_cdr(bytes.fromhex(data), name)
@@ -60,21 +57,10 @@ hashes = {name: store.hash_rihs01(name) for name in request["hash"]}
 print(json.dumps({"prefix": sys.prefix, "hashes": hashes, "decoded": decoded}))
 "#;
 
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs the official ROS 2 message wheels and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
 /// rosbags' answer to `request` (see [`PY_ROSBAGS`]).
 fn rosbags(python: &Path, request: &Value) -> Value {
     let mut child = Command::new(python)
-        .args(["-c", PY_ROSBAGS])
+        .args(["-c", PY_ROSBAGS, INTEROP])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

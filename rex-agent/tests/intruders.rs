@@ -16,11 +16,15 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+#[path = "../../agent-ros2/tests/interop/python.rs"]
+mod python;
+
 use std::net::{TcpListener, UdpSocket};
 use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 
 use embodied::link::shape::fingerprint;
+use python::python;
 use rex_agent::model::reduced::Torques;
 use rex_agent::payload::Plan;
 
@@ -31,17 +35,6 @@ const MISSION: &str = r#"(
 
 const PLAN_KEY: &str = "rex/a2/c2/c1/desired_plan";
 const TORQUE_KEY: &str = "rex/a1/e11/E1/tau";
-
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs the outside Zenoh peer and sets it)"
-        );
-    }
-    python
-}
 
 /// A folder of this test's own, with the short mission in it.
 fn scratch(name: &str) -> (PathBuf, String) {

@@ -5,8 +5,9 @@ code: the other side of rex-agent/tests/ros2_bridge.rs.
 It is the router (listening on the endpoint of the request), subscribes to
 rmw_zenoh's liveliness tokens (`@ros2_lv/**`) and to every data key of domain
 0, parses each publisher's token as rmw_zenoh's design document lays it out
-(topic, type, hash, hashed again with rosbags) and decodes each sample's CDR
-with rosbags (Rex's own messages registered from their .msg text).
+(tests/interop/ros2_side.py: topic, type, hash, hashed again with rosbags)
+and decodes each sample's CDR with rosbags (Rex's own messages registered
+from their .msg text).
 
 stdin, line 1: {"listen": endpoint, "register": [[name, text]]}; it prints
 "ready" once subscribed. Line 2 (any): it waits until every token it saw has
@@ -14,45 +15,23 @@ vanished (10 s at most), then prints one JSON line: publishers (tokens of kind
 MP), per topic the samples counted, the first value decoded and the problems.
 """
 
-import dataclasses
 import json
 import sys
 import threading
 import time
+from pathlib import Path
 
 import zenoh
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
-
-def plain(v):
-    if dataclasses.is_dataclass(v):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v) if not f.name.startswith("__")}
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [plain(x) for x in v]
-    return v
-
-
-def ros_type(dds):
-    """`geometry_msgs::msg::dds_::PoseStamped_` -> `geometry_msgs/msg/PoseStamped`."""
-    package, rest = dds.split("::msg::dds_::")
-    return f"{package}/msg/{rest[:-1]}"
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import (check_cdr_header, finish, open_router, parse_token,  # noqa: E402
+                       plain, ros_type, topic_of, type_store)
 
 
 def main():
     request = json.loads(sys.stdin.readline())
-    store = get_typestore(Stores.ROS2_KILTED)
-    types = {}
-    for name, text in request["register"]:
-        types.update(get_types_from_msg(text, name))
-    store.register(types)
-
-    config = zenoh.Config()
-    config.insert_json5("mode", '"router"')
-    config.insert_json5("listen/endpoints", json.dumps([request["listen"]]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    store = type_store(request["register"])
+    session = open_router(request["listen"])
 
     lock = threading.Lock()
     publishers, seen, vanished, topics, problems = [], set(), set(), {}, []
@@ -67,22 +46,18 @@ def main():
             c = key.split("/")
             if len(c) > 5 and c[5] == "MP":
                 try:
-                    name = ros_type(c[10])
-                    publishers.append({"topic": c[9].replace("%", "/"), "type": name, "hash": c[11],
-                                       "rosbags_hash": store.hash_rihs01(name)})
+                    publishers.append(parse_token(key, store))
                 except Exception as e:  # a token we cannot read is a finding
                     problems.append(f"token {key}: {e!r}")
 
     def on_data(sample):
         key = str(sample.key_expr)
-        chunks = key.split("/")
-        topic = "/" + "/".join(chunks[1:-2])
+        topic = topic_of(key)
         entry = None
         try:
             payload = sample.payload.to_bytes()
-            if payload[:4] != b"\x00\x01\x00\x00":
-                raise ValueError(f"CDR header {payload[:4].hex()}")
-            value = plain(store.deserialize_cdr(payload, ros_type(chunks[-2])))
+            check_cdr_header(payload)
+            value = plain(store.deserialize_cdr(payload, ros_type(key.split("/")[-2])))
         except Exception as e:
             entry = repr(e)
             value = None
@@ -108,10 +83,7 @@ def main():
     with lock:
         answer = {"publishers": publishers, "topics": topics, "problems": problems,
                   "all_vanished": bool(seen) and seen <= vanished}
-    print(json.dumps(answer), flush=True)
-    liveliness.undeclare()
-    data.undeclare()
-    session.close()
+    finish(answer, session, liveliness, data)
 
 
 if __name__ == "__main__":

@@ -20,35 +20,18 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::io::{BufRead, BufReader, Write as _};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+mod common;
+#[path = "../../agent-ros2/tests/interop/python.rs"]
+mod python;
+#[path = "../../agent-ros2/tests/interop/script.rs"]
+mod script;
 
-use embodied::ros2::bridge::Plan;
-use rex_agent::mission::Mission;
-use rex_agent::system::{RexConfig, build};
-use rex_agent::world::WorldConfig;
-use serde_json::{Value, json};
+use std::process::Command;
 
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
-/// A localhost TCP port free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
+use common::{bridge_plan, own_messages};
+use python::python;
+use script::{Script, free_port};
+use serde_json::json;
 
 /// The topics Rex publishes without the camera, with their types.
 const TOPICS: [(&str, &str); 6] = [
@@ -60,32 +43,17 @@ const TOPICS: [(&str, &str); 6] = [
     ("/rex/outcome", "rex_msgs/msg/"),
 ];
 
-/// Rex's own messages (`[name, .msg text]`), from the plan of its shipped
-/// spec without the camera, for the listener to register.
-fn own_messages() -> Vec<Value> {
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("square").unwrap(),
-    );
-    config.visual_odometry = false;
-    let (system, _) = build(&config).unwrap();
-    let text = std::fs::read_to_string(&config.spec).unwrap();
-    let mut spec: embodied::spec::Spec = embodied::spec::options().from_str(&text).unwrap();
-    let section = spec.ros2.as_mut().unwrap();
-    section.publish.retain(|t| !t.buffer.starts_with("R1."));
-    let plan = Plan::new(&spec, None, &system, &rex_agent::ros2::adapters()).unwrap();
-    plan.topics
-        .iter()
-        .filter(|t| t.messages.name().package == "rex_msgs")
-        .map(|t| json!([t.messages.name().to_string(), t.messages.msg_text()]))
-        .collect()
-}
-
 #[test]
 fn a_ros_2_listener_discovers_rexs_topics_and_decodes_them() {
     let Some(python) = python() else { return };
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let listener = Listener::start(&python, &endpoint, &own_messages());
+    let (plan, _) = bridge_plan("square", false);
+    let mut listener = Script::start(
+        Command::new(&python).arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2_bridge.py")),
+        "the listener",
+    );
+    listener.send(json!({"listen": endpoint, "register": own_messages(&plan)}));
+    listener.ready();
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args(["--no-vo", "--mission", "square", "--no-report", "--quiet"])
         .arg(format!("--ros2={endpoint}"))
@@ -111,7 +79,7 @@ fn a_ros_2_listener_discovers_rexs_topics_and_decodes_them() {
             && stderr.contains("a deterministic run is not on the wall clock"),
         "{stderr}"
     );
-    let answer = listener.end();
+    let answer = listener.end("end");
     assert_eq!(answer["problems"], json!([]), "{answer}");
     assert_eq!(answer["all_vanished"], json!(true), "{answer}");
     for (topic, ty) in TOPICS {
@@ -133,49 +101,4 @@ fn a_ros_2_listener_discovers_rexs_topics_and_decodes_them() {
     assert_eq!(pose["header"]["frame_id"], "map", "{pose}");
     let path = &answer["topics"]["/rex/reference_path"]["first"];
     assert!(!path["poses"].as_array().unwrap().is_empty(), "{path}");
-}
-
-/// The listener (tests/ros2_bridge.py), running; killed if the test fails
-/// before its end.
-struct Listener {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
-
-impl Listener {
-    /// Start it as the router at `endpoint`, with Rex's own messages
-    /// `register` (`[name, .msg text]`), and wait until it listens.
-    fn start(python: &Path, endpoint: &str, register: &[Value]) -> Self {
-        let mut child = Command::new(python)
-            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2_bridge.py"))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut to = child.stdin.take().unwrap();
-        let mut from = BufReader::new(child.stdout.take().unwrap());
-        writeln!(to, "{}", json!({"listen": endpoint, "register": register})).unwrap();
-        let mut line = String::new();
-        from.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "ready", "the listener did not start");
-        Self { child, to, from }
-    }
-
-    /// Tell it Rex is done; what it saw.
-    fn end(mut self) -> Value {
-        writeln!(self.to, "end").unwrap();
-        let mut line = String::new();
-        self.from.read_line(&mut line).unwrap();
-        assert!(self.child.wait().unwrap().success());
-        serde_json::from_str(&line).unwrap()
-    }
-}
-
-impl Drop for Listener {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }

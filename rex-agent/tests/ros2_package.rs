@@ -13,26 +13,18 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-use embodied::ros2::bridge::Plan;
-use rex_agent::mission::Mission;
-use rex_agent::system::{RexConfig, build};
-use rex_agent::world::WorldConfig;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use common::bridge_plan;
 use serde_json::{Value, json};
 
 /// The root messages of Rex's own package among the bridge's topics, with
 /// the type hash each key carries: `[name, hash]`.
 fn own_roots() -> Vec<Value> {
-    let config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped("square").unwrap(),
-    );
-    let (system, _) = build(&config).unwrap();
-    let text = std::fs::read_to_string(&config.spec).unwrap();
-    let spec: embodied::spec::Spec = embodied::spec::options().from_str(&text).unwrap();
-    let plan = Plan::new(&spec, None, &system, &rex_agent::ros2::adapters()).unwrap();
+    let (plan, _) = bridge_plan("square", true);
     let published = plan.topics.iter().map(|t| (&t.messages, &t.key));
     let taken = plan.subscriptions.iter().map(|t| (&t.messages, &t.key));
     published
@@ -42,19 +34,25 @@ fn own_roots() -> Vec<Value> {
         .collect()
 }
 
-#[test]
-fn the_package_holds_every_own_message_with_the_hashes_the_bridge_announces() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("ros2_package");
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = Command::new(env!("CARGO_BIN_EXE_rex"))
-        .arg("ros2-package")
-        .arg(&dir)
-        .output()
-        .unwrap();
+/// `command`'s output, once it has exited 0.
+fn succeeded(command: &mut Command) -> Output {
+    let out = command.output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn the_package_holds_every_own_message_with_the_hashes_the_bridge_announces() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("ros2_package");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = succeeded(
+        Command::new(env!("CARGO_BIN_EXE_rex"))
+            .arg("ros2-package")
+            .arg(&dir),
     );
     let package = dir.join("rex_msgs");
     let listed: Vec<PathBuf> = String::from_utf8(out.stdout)
@@ -97,16 +95,11 @@ for msg in sorted((package / "msg").glob("*.msg")):
 store.register(types)
 print(json.dumps([[name, store.hash_rihs01(name)] for name, _ in roots]))
 "#;
-    let out = Command::new(python)
-        .args(["-c", script])
-        .arg(&package)
-        .arg(Value::Array(roots.clone()).to_string())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeeded(
+        Command::new(python)
+            .args(["-c", script])
+            .arg(&package)
+            .arg(Value::Array(roots.clone()).to_string()),
     );
     let hashed: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(hashed, Value::Array(roots));

@@ -4,7 +4,7 @@ against this project's code: the other side of rex-agent/tests/ros2_plans.rs.
 
 It is the router (listening on the endpoint of the request). It finds Rex's
 subscription to the plan topic by its `MS` liveliness token (laid out as
-rmw_zenoh's design document says) and hashes the type the token names with
+rmw_zenoh's design document says, parsed by tests/interop/ros2_side.py) and hashes the type the token names with
 rosbags. Once Rex publishes its first estimate (the run is going), it puts on
 the plan topic's data key (`<domain>/<topic>/<type>/<hash>`, CDR serialized by
 rosbags, rmw_zenoh's attachment: sequence i64 LE, timestamp i64 LE, 16, GID):
@@ -31,71 +31,18 @@ received: bytes in hex, type, sequence number, decoded value), the seconds from
 every token vanished, and the problems.
 """
 
-import dataclasses
 import json
-import struct
 import sys
 import threading
 import time
+from pathlib import Path
 
-import numpy as np
 import zenoh
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from rosbags.typesys.store import Nodetype
 
-NUMPY = {"float32": np.float32, "float64": np.float64, "int8": np.int8, "uint8": np.uint8,
-         "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32,
-         "int64": np.int64, "uint64": np.uint64}
-
-
-def plain(v):
-    """A rosbags message as plain JSON values."""
-    if dataclasses.is_dataclass(v):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v) if not f.name.startswith("__")}
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [plain(x) for x in v]
-    return v
-
-
-def build(store, name, value):
-    """The rosbags message `name` of the plain JSON `value`."""
-    _, fields = store.fielddefs[name]
-    args = {}
-    for field, (kind, details) in fields:
-        v = value[field]
-        if kind == Nodetype.NAME:
-            args[field] = build(store, details, v)
-        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-            (inner, inner_details), _ = details
-            if inner == Nodetype.NAME:
-                args[field] = [build(store, inner_details, x) for x in v]
-            elif inner_details[0] in NUMPY:
-                args[field] = np.array(v, dtype=NUMPY[inner_details[0]])
-            else:
-                args[field] = list(v)
-        else:
-            args[field] = v
-    return store.types[name](**args)
-
-
-def ros_type(dds):
-    """`rex_msgs::msg::dds_::Plan_` -> `rex_msgs/msg/Plan`."""
-    package, rest = dds.split("::msg::dds_::")
-    return f"{package}/msg/{rest[:-1]}"
-
-
-def parse_token(key, store):
-    """An entity's liveliness token: `@ros2_lv/<domain>/<zid>/<node id>/<id>/<kind>/
-    <enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>`."""
-    c = key.split("/")
-    token = {"key": key, "kind": c[5]}
-    if c[5] in ("MP", "MS"):
-        name = ros_type(c[10])
-        token.update(topic=c[9].replace("%", "/"), dds=c[10], type=name, hash=c[11],
-                     rosbags_hash=store.hash_rihs01(name))
-    return token
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import (attachment, cdr, check_cdr_header, data_key, finish,  # noqa: E402
+                       on_token, open_router, plain, read_attachment, ros_type, topic_of,
+                       type_store)
 
 
 def is_done(ack):
@@ -108,18 +55,9 @@ def is_done(ack):
 
 def main():
     request = json.loads(sys.stdin.readline())
-    store = get_typestore(Stores.ROS2_KILTED)
-    types = {}
-    for name, text in request["register"]:
-        types.update(get_types_from_msg(text, name))
-    store.register(types)
+    store = type_store(request["register"])
     plan_id = request["plan"]["id"]
-
-    config = zenoh.Config()
-    config.insert_json5("mode", '"router"')
-    config.insert_json5("listen/endpoints", json.dumps([request["listen"]]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    session = open_router(request["listen"])
 
     lock = threading.Lock()
     tokens, vanished, problems = {}, set(), []
@@ -127,20 +65,9 @@ def main():
     estimates = [0]
     done_at = [None]
 
-    def on_token(sample):
-        key = str(sample.key_expr)
-        with lock:
-            if sample.kind == zenoh.SampleKind.PUT:
-                try:
-                    tokens[key] = parse_token(key, store)
-                except Exception as e:  # a token we cannot parse is a finding
-                    problems.append(f"token {key}: {e!r}")
-            else:
-                vanished.add(key)
-
     def on_data(sample):
-        chunks = str(sample.key_expr).split("/")
-        topic = "/" + "/".join(chunks[1:-2])
+        key = str(sample.key_expr)
+        topic = topic_of(key)
         if topic == request["estimate_topic"]:
             with lock:
                 estimates[0] += 1
@@ -148,15 +75,11 @@ def main():
         if topic not in samples:
             return
         payload = sample.payload.to_bytes()
-        entry = {"hex": payload.hex(), "type": ros_type(chunks[-2])}
+        entry = {"hex": payload.hex(), "type": ros_type(key.split("/")[-2])}
         try:
-            if payload[:4] != b"\x00\x01\x00\x00":
-                raise ValueError(f"CDR header {payload[:4].hex()}")
+            check_cdr_header(payload)
             entry["value"] = plain(store.deserialize_cdr(payload, entry["type"]))
-            attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
-            if len(attachment) != 33 or attachment[16] != 16:
-                raise ValueError(f"attachment {attachment.hex()}")
-            entry["seq"] = struct.unpack_from("<q", attachment)[0]
+            entry["seq"] = read_attachment(sample)[0]
         except Exception as e:
             entry["problem"] = repr(e)
         with lock:
@@ -169,7 +92,8 @@ def main():
                         and any(o.get("plan") == plan_id for o in outcomes)):
                     done_at[0] = time.monotonic()
 
-    liveliness = session.liveliness().declare_subscriber("@ros2_lv/**", on_token, history=True)
+    liveliness = session.liveliness().declare_subscriber(
+        "@ros2_lv/**", on_token(lock, tokens, vanished, problems, store), history=True)
     data = session.declare_subscriber(f"{request['domain']}/**", on_data)
     print("ready", flush=True)
     ready_at = time.monotonic()
@@ -195,26 +119,24 @@ def main():
         problems.append(f"nothing on {request['estimate_topic']}")
     else:
         name = token["type"]
-        base = f"{request['domain']}/{request['plan_topic'].lstrip('/')}/{token['dds']}"
-        a = session.declare_publisher(f"{base}/{token['hash']}",
-                                      congestion_control=zenoh.CongestionControl.BLOCK)
-        b = session.declare_publisher(f"{base}/RIHS01_{'0' * 64}",
-                                      congestion_control=zenoh.CongestionControl.BLOCK)
+        a = session.declare_publisher(
+            data_key(request["domain"], request["plan_topic"], token["dds"], token["hash"]),
+            congestion_control=zenoh.CongestionControl.BLOCK)
+        b = session.declare_publisher(
+            data_key(request["domain"], request["plan_topic"], token["dds"], f"RIHS01_{'0' * 64}"),
+            congestion_control=zenoh.CongestionControl.BLOCK)
         gid_a, gid_b = bytes([0xA1]) * 16, bytes([0xB2]) * 16
 
-        def attachment(seq, gid):
-            return struct.pack("<qqB16s", seq, time.time_ns(), 16, gid)
-
-        def cdr(value):
-            return bytes(store.serialize_cdr(build(store, name, value), name))
+        def plan_cdr(value):
+            return cdr(store, name, value)
 
         malformed_id, wrong_hash_id, no_attachment_id = request["odd_ids"]
         odd = dict(request["plan"])
-        malformed = cdr(dict(odd, id=malformed_id))[:8]
+        malformed = plan_cdr(dict(odd, id=malformed_id))[:8]
         a.put(malformed, attachment=attachment(1, gid_a))
-        b.put(cdr(dict(odd, id=wrong_hash_id)), attachment=attachment(1, gid_b))
-        a.put(cdr(dict(odd, id=no_attachment_id)))
-        plan = cdr(request["plan"])
+        b.put(plan_cdr(dict(odd, id=wrong_hash_id)), attachment=attachment(1, gid_b))
+        a.put(plan_cdr(dict(odd, id=no_attachment_id)))
+        plan = plan_cdr(request["plan"])
         put_at = time.monotonic()
         a.put(plan, attachment=attachment(2, gid_a))
         published = {"type": name, "hash": token["hash"], "rosbags_hash": token["rosbags_hash"],
@@ -243,10 +165,7 @@ def main():
             "plan_to_done_s": None if done_at[0] is None or put_at is None else done_at[0] - put_at,
             "all_vanished": bool(tokens) and set(tokens) <= vanished, "problems": problems,
         }
-    print(json.dumps(answer), flush=True)
-    liveliness.undeclare()
-    data.undeclare()
-    session.close()
+    finish(answer, session, liveliness, data)
 
 
 if __name__ == "__main__":

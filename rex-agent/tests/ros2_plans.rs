@@ -24,38 +24,27 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::io::{BufRead, BufReader, Write as _};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+mod common;
+#[path = "common/listen.rs"]
+mod listen;
+#[path = "../../agent-ros2/tests/interop/python.rs"]
+mod python;
+#[path = "../../agent-ros2/tests/interop/script.rs"]
+mod script;
+
+use std::path::Path;
+use std::process::Command;
 use std::time::Instant;
 
+use common::{bridge_plan, own_messages};
 use embodied::record::{mcap, raw_values};
-use embodied::ros2::bridge::Plan;
+use listen::listened;
+use python::python;
 use rex_agent::mission::Mission;
 use rex_agent::payload::{self, Point2};
-use rex_agent::system::{RexConfig, build};
 use rex_agent::world::WorldConfig;
+use script::{Script, free_port};
 use serde_json::{Value, json};
-
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
-/// A localhost TCP port free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// How long Rex runs \[s\]: the node puts the plan a fraction of a second
 /// after Rex starts, and sees its final ack and outcome about 5.5 s later;
@@ -78,41 +67,6 @@ const ODD_IDS: [u32; 3] = [7, 8, 9];
 const ACK_LINK: &str = "/links/c1/c2/ack/to/c2";
 const PLAN_LINK: &str = "/links/c2/c1/desired_plan/to/c1";
 
-/// The shipped spec's plan of the bridge for the listen mission without the
-/// camera, and the distance within which a plan's last point is reached.
-fn bridge_plan() -> (Plan, f64) {
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped(Mission::LISTEN).unwrap(),
-    );
-    config.visual_odometry = false;
-    let (system, _) = build(&config).unwrap();
-    let text = std::fs::read_to_string(&config.spec).unwrap();
-    let mut spec: embodied::spec::Spec = embodied::spec::options().from_str(&text).unwrap();
-    let section = spec.ros2.as_mut().unwrap();
-    section.publish.retain(|t| !t.buffer.starts_with("R1."));
-    let plan = Plan::new(&spec, None, &system, &rex_agent::ros2::adapters()).unwrap();
-    (plan, config.limits.final_m)
-}
-
-/// Rex's own messages (`[name, .msg text]`) the bridge publishes and
-/// subscribes to, for the node to register.
-fn own_messages(plan: &Plan) -> Vec<Value> {
-    let mut own: Vec<Value> = Vec::new();
-    let messages = plan
-        .topics
-        .iter()
-        .map(|t| &t.messages)
-        .chain(plan.subscriptions.iter().map(|t| &t.messages));
-    for m in messages.filter(|m| m.name().package == "rex_msgs") {
-        let entry = json!([m.name().to_string(), m.msg_text()]);
-        if !own.contains(&entry) {
-            own.push(entry);
-        }
-    }
-    own
-}
-
 #[test]
 fn a_ros_2_node_publishes_a_plan_that_rex_executes_and_acknowledges() {
     let Some(python) = python() else { return };
@@ -122,26 +76,29 @@ fn a_ros_2_node_publishes_a_plan_that_rex_executes_and_acknowledges() {
         (0.0, 0.0, 0.0),
         "the plan drives ahead of the start"
     );
-    let (plan, final_m) = bridge_plan();
+    let (plan, config) = bridge_plan(Mission::LISTEN, false);
+    let final_m = config.limits.final_m;
     let subscribed: Vec<&str> = plan.subscriptions.iter().map(|s| s.key.topic()).collect();
     assert_eq!(subscribed, ["/rex/plan"]);
     let register = own_messages(&plan);
     let points: Vec<Value> = PLAN.iter().map(|(x, y)| json!({"x": x, "y": y})).collect();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut node = Node::start(
-        &python,
-        &json!({
-            "listen": endpoint,
-            "domain": 0,
-            "register": register,
-            "plan_topic": "/rex/plan",
-            "ack_topic": "/rex/ack",
-            "outcome_topic": "/rex/outcome",
-            "estimate_topic": "/rex/estimate",
-            "plan": {"id": PLAN_ID, "points": points, "first": 0},
-            "odd_ids": ODD_IDS,
-        }),
+    let mut node = Script::start(
+        Command::new(&python).arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2_plans.py")),
+        "the node",
     );
+    node.send(json!({
+        "listen": endpoint,
+        "domain": 0,
+        "register": register,
+        "plan_topic": "/rex/plan",
+        "ack_topic": "/rex/ack",
+        "outcome_topic": "/rex/outcome",
+        "estimate_topic": "/rex/estimate",
+        "plan": {"id": PLAN_ID, "points": points, "first": 0},
+        "odd_ids": ODD_IDS,
+    }));
+    node.ready();
     let recording = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros2_plans_listen.mcap");
     let _ = std::fs::remove_file(&recording);
     let started = Instant::now();
@@ -154,24 +111,9 @@ fn a_ros_2_node_publishes_a_plan_that_rex_executes_and_acknowledges() {
         .output()
         .unwrap();
     let took = started.elapsed();
-    let answer = node.end();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    eprintln!(
-        "rex ran {:.1} s; the node put the plan {} s after it started, saw its final ack and outcome {} s later\n{stderr}",
-        took.as_secs_f64(),
-        answer["ready_to_put_s"],
-        answer["plan_to_done_s"]
-    );
-    let context = format!("{stdout}\n{stderr}\n{answer}");
-
+    let answer = node.end("end");
     // Rex executed the plan and only it.
-    assert!(out.status.success(), "{context}");
-    let summary = stdout.lines().last().unwrap_or_default();
-    assert!(
-        summary.starts_with("mission=listen plans_acked=1/1 "),
-        "{context}"
-    );
+    let (stderr, context) = listened("rex", &out, took, &answer);
 
     announced(&answer);
     counted(&stderr);
@@ -345,48 +287,4 @@ fn recorded(path: &Path) -> (Vec<String>, Vec<payload::Plan>) {
 
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// The node (tests/ros2_plans.py), running; killed if the test fails before
-/// its end.
-struct Node {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
-
-impl Node {
-    /// Start it with `request` and wait until it listens.
-    fn start(python: &Path, request: &Value) -> Self {
-        let mut child = Command::new(python)
-            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2_plans.py"))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut to = child.stdin.take().unwrap();
-        let mut from = BufReader::new(child.stdout.take().unwrap());
-        writeln!(to, "{request}").unwrap();
-        let mut line = String::new();
-        from.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "ready", "the node did not start");
-        Self { child, to, from }
-    }
-
-    /// Tell it Rex has ended; what it saw.
-    fn end(&mut self) -> Value {
-        writeln!(self.to, "end").unwrap();
-        let mut line = String::new();
-        self.from.read_line(&mut line).unwrap();
-        assert!(self.child.wait().unwrap().success());
-        serde_json::from_str(&line).unwrap()
-    }
-}
-
-impl Drop for Node {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }

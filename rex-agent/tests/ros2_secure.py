@@ -33,71 +33,19 @@ client fared, the seconds from "ready" to the plan's put and from the put to
 the plan's final ack, and the problems.
 """
 
-import dataclasses
 import json
-import struct
 import sys
 import threading
 import time
+from pathlib import Path
 
-import numpy as np
 import zenoh
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from rosbags.typesys.store import Nodetype
 
-NUMPY = {"float32": np.float32, "float64": np.float64, "int8": np.int8, "uint8": np.uint8,
-         "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32,
-         "int64": np.int64, "uint64": np.uint64}
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "interop"))
+from ros2_side import (anonymous, attachment, cdr, data_key, on_token, plain,  # noqa: E402
+                       ros_type, serve_router, topic_of, type_store)
 
 FORGED = b"forged by the ROS 2 side"
-
-
-def plain(v):
-    """A rosbags message as plain JSON values."""
-    if dataclasses.is_dataclass(v):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v) if not f.name.startswith("__")}
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [plain(x) for x in v]
-    return v
-
-
-def build(store, name, value):
-    """The rosbags message `name` of the plain JSON `value`."""
-    _, fields = store.fielddefs[name]
-    args = {}
-    for field, (kind, details) in fields:
-        v = value[field]
-        if kind == Nodetype.NAME:
-            args[field] = build(store, details, v)
-        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-            (inner, inner_details), _ = details
-            if inner == Nodetype.NAME:
-                args[field] = [build(store, inner_details, x) for x in v]
-            elif inner_details[0] in NUMPY:
-                args[field] = np.array(v, dtype=NUMPY[inner_details[0]])
-            else:
-                args[field] = list(v)
-        else:
-            args[field] = v
-    return store.types[name](**args)
-
-
-def ros_type(dds):
-    """`rex_msgs::msg::dds_::Plan_` -> `rex_msgs/msg/Plan`."""
-    package, rest = dds.split("::msg::dds_::")
-    return f"{package}/msg/{rest[:-1]}"
-
-
-def parse_token(key):
-    """An entity's liveliness token: `@ros2_lv/<domain>/<zid>/<node id>/<id>/<kind>/
-    <enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>`."""
-    c = key.split("/")
-    token = {"key": key, "kind": c[5]}
-    if c[5] in ("MP", "MS"):
-        token.update(topic=c[9].replace("%", "/"), dds=c[10], type=ros_type(c[10]), hash=c[11])
-    return token
 
 
 def is_done(ack):
@@ -105,38 +53,9 @@ def is_done(ack):
     return "done" in json.dumps(ack).lower()
 
 
-def router(config):
-    zenoh.init_log_from_env_or("error")
-    session = zenoh.open(zenoh.Config.from_file(config))
-    print("ready", flush=True)
-    sys.stdin.read()
-    session.close()
-    return 0
-
-
-def anonymous(connect, ca):
-    """A client of the router that trusts its authority but has no
-    certificate: the mutual TLS handshake must fail."""
-    conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps("client"))
-    conf.insert_json5("connect/endpoints", json.dumps([connect]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(ca))
-    try:
-        session = zenoh.open(conf)
-    except zenoh.ZError as e:
-        return f"refused: {e}"
-    session.close()
-    return "connected"
-
-
 def node():
     request = json.loads(sys.stdin.readline())
-    store = get_typestore(Stores.ROS2_KILTED)
-    types = {}
-    for name, text in request["register"]:
-        types.update(get_types_from_msg(text, name))
-    store.register(types)
+    store = type_store(request["register"])
     plan_id = request["plan"]["id"]
     outcome = anonymous(request["connect"], request["ca"])
 
@@ -152,19 +71,9 @@ def node():
     forged_back = []
     done_at = [None]
 
-    def on_token(sample):
-        key = str(sample.key_expr)
-        if sample.kind != zenoh.SampleKind.PUT:
-            return
-        with lock:
-            try:
-                tokens[key] = parse_token(key)
-            except Exception as e:  # a token we cannot parse is a finding
-                problems.append(f"token {key}: {e!r}")
-
     def on_data(sample):
-        chunks = str(sample.key_expr).split("/")
-        topic = "/" + "/".join(chunks[1:-2])
+        key = str(sample.key_expr)
+        topic = topic_of(key)
         payload = sample.payload.to_bytes()
         if payload == FORGED:
             with lock:
@@ -176,7 +85,7 @@ def node():
             return
         if topic not in samples:
             return
-        entry = {"type": ros_type(chunks[-2])}
+        entry = {"type": ros_type(key.split("/")[-2])}
         try:
             entry["value"] = plain(store.deserialize_cdr(payload, entry["type"]))
         except Exception as e:
@@ -191,8 +100,8 @@ def node():
                 done_at[0] = time.monotonic()
 
     domain = request["domain"]
-    liveliness = session.liveliness().declare_subscriber(f"@ros2_lv/{domain}/**", on_token,
-                                                         history=True)
+    liveliness = session.liveliness().declare_subscriber(
+        f"@ros2_lv/{domain}/**", on_token(lock, tokens, None, problems), history=True)
     subscribers = [
         session.declare_subscriber(f"{domain}/{t.lstrip('/')}/*/*", on_data)
         for t in (request["ack_topic"], request["outcome_topic"], request["estimate_topic"],
@@ -231,21 +140,19 @@ def node():
         # What the access control must refuse: a pose (Rex only publishes
         # it) and a value on a link of the deployment.
         pose = token_of("MP", request["pose_topic"])
-        pose_key = (f"{domain}/{request['pose_topic'].lstrip('/')}/{pose['dds']}/{pose['hash']}"
-                    if pose else
-                    f"{domain}/{request['pose_topic'].lstrip('/')}/"
-                    f"geometry_msgs::msg::dds_::PoseStamped_/RIHS01_{'0' * 64}")
+        pose_key = (data_key(domain, request["pose_topic"], pose["dds"], pose["hash"]) if pose else
+                    data_key(domain, request["pose_topic"], "geometry_msgs::msg::dds_::PoseStamped_",
+                             f"RIHS01_{'0' * 64}"))
         forged = {"pose": pose_key, "link": request["link_key"]}
         for _ in range(3):
             talker.put(pose_key, FORGED, congestion_control=block)
             talker.put(request["link_key"], FORGED, congestion_control=block)
         name = token["type"]
-        key = f"{domain}/{request['plan_topic'].lstrip('/')}/{token['dds']}/{token['hash']}"
+        key = data_key(domain, request["plan_topic"], token["dds"], token["hash"])
         publisher = talker.declare_publisher(key, congestion_control=block)
-        plan = bytes(store.serialize_cdr(build(store, name, request["plan"]), name))
+        plan = cdr(store, name, request["plan"])
         put_at = time.monotonic()
-        publisher.put(plan, attachment=struct.pack("<qqB16s", 1, time.time_ns(), 16,
-                                                   bytes([0xA1]) * 16))
+        publisher.put(plan, attachment=attachment(1, bytes([0xA1]) * 16))
         deadline = put_at + 60.0
         while time.monotonic() < deadline and not ended.is_set():
             with lock:
@@ -274,7 +181,7 @@ def node():
 
 def main():
     if sys.argv[1:2] == ["router"] and len(sys.argv) == 3:
-        return router(sys.argv[2])
+        return serve_router(sys.argv[2])
     if sys.argv[1:] == ["node"]:
         return node()
     print(f"usage: {sys.argv[0]} router CONFIG | node", file=sys.stderr)

@@ -35,16 +35,27 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::io::{BufRead, BufReader, Write as _};
+mod common;
+#[path = "common/listen.rs"]
+mod listen;
+#[path = "../../agent-ros2/tests/interop/python.rs"]
+mod python;
+#[path = "../../agent-ros2/tests/interop/router.rs"]
+mod router;
+#[path = "../../agent-ros2/tests/interop/script.rs"]
+mod script;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Output, Stdio};
-use std::sync::{Arc, Mutex};
+use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use embodied::ros2::bridge::Plan;
+use common::{bridge_plan, own_messages};
+use listen::listened;
+use python::python;
 use rex_agent::mission::Mission;
-use rex_agent::system::{RexConfig, build};
 use rex_agent::world::WorldConfig;
+use router::{Router, refusals};
+use script::{Script, free_port};
 use serde_json::{Value, json};
 
 const DEPLOYMENT: &str = "split_secure";
@@ -53,26 +64,6 @@ const DEPLOYMENT: &str = "split_secure";
 /// launches (`split_secure` runs r11, which `--no-vo` leaves out).
 const WITHOUT_VO: &str = "split_secure_without_vo";
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2_secure.py");
-
-/// The interpreter of the interoperability environment, if installed.
-fn python() -> Option<PathBuf> {
-    let python = std::env::var_os("EMBODIED_INTEROP_PYTHON").map(PathBuf::from);
-    if python.is_none() {
-        eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (`scripts/test` installs eclipse-zenoh and rosbags, and sets it)"
-        );
-    }
-    python
-}
-
-/// A localhost TCP port free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// A folder of this test's own under the target's, not there yet.
 fn folder(name: &str) -> PathBuf {
@@ -205,35 +196,6 @@ fn a_launch_shown_to_ros_2_without_credentials_is_refused_before_anything_starts
     assert!(started.elapsed() < Duration::from_secs(5), "{stderr}");
 }
 
-/// The shipped spec's plan of the bridge for the listen mission without the
-/// camera: Rex's own messages for the node to register.
-fn own_messages() -> Vec<Value> {
-    let mut config = RexConfig::new(
-        WorldConfig::shipped().unwrap(),
-        Mission::shipped(Mission::LISTEN).unwrap(),
-    );
-    config.visual_odometry = false;
-    let (system, _) = build(&config).unwrap();
-    let text = std::fs::read_to_string(&config.spec).unwrap();
-    let mut spec: embodied::spec::Spec = embodied::spec::options().from_str(&text).unwrap();
-    let section = spec.ros2.as_mut().unwrap();
-    section.publish.retain(|t| !t.buffer.starts_with("R1."));
-    let plan = Plan::new(&spec, None, &system, &rex_agent::ros2::adapters()).unwrap();
-    let mut own: Vec<Value> = Vec::new();
-    let messages = plan
-        .topics
-        .iter()
-        .map(|t| &t.messages)
-        .chain(plan.subscriptions.iter().map(|t| &t.messages));
-    for m in messages.filter(|m| m.name().package == "rex_msgs") {
-        let entry = json!([m.name().to_string(), m.msg_text()]);
-        if !own.contains(&entry) {
-            own.push(entry);
-        }
-    }
-    own
-}
-
 #[test]
 fn a_ros_2_node_with_the_credentials_rex_made_drives_the_secure_deployment_and_nothing_more() {
     let Some(python) = python() else { return };
@@ -260,25 +222,25 @@ fn a_ros_2_node_with_the_credentials_rex_made_drives_the_secure_deployment_and_n
         String::from_utf8_lossy(&out.stderr)
     );
 
-    let router = Router::start(&python, &dir.join("ros2_router.json5"));
+    let router = Router::start(&python, SCRIPT, &dir.join("ros2_router.json5"));
     let points: Vec<Value> = PLAN.iter().map(|(x, y)| json!({"x": x, "y": y})).collect();
-    let mut node = Node::start(
-        &python,
-        &json!({
-            "session_config": dir.join("ros2_session.json5"),
-            "connect": endpoint,
-            "ca": dir.join("ca.pem"),
-            "domain": 0,
-            "register": own_messages(),
-            "plan_topic": "/rex/plan",
-            "ack_topic": "/rex/ack",
-            "outcome_topic": "/rex/outcome",
-            "estimate_topic": "/rex/estimate",
-            "pose_topic": "/rex/pose",
-            "plan": {"id": PLAN_ID, "points": points, "first": 0},
-            "link_key": LINK,
-        }),
-    );
+    let (plan, _) = bridge_plan(Mission::LISTEN, false);
+    let mut node = Script::start(Command::new(&python).args([SCRIPT, "node"]), "the node");
+    node.send(json!({
+        "session_config": dir.join("ros2_session.json5"),
+        "connect": endpoint,
+        "ca": dir.join("ca.pem"),
+        "domain": 0,
+        "register": own_messages(&plan),
+        "plan_topic": "/rex/plan",
+        "ack_topic": "/rex/ack",
+        "outcome_topic": "/rex/outcome",
+        "estimate_topic": "/rex/estimate",
+        "pose_topic": "/rex/pose",
+        "plan": {"id": PLAN_ID, "points": points, "first": 0},
+        "link_key": LINK,
+    }));
+    node.ready();
     let started = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_rex"))
         .args(["launch", "--deployment", WITHOUT_VO, "--credentials", &d])
@@ -288,26 +250,11 @@ fn a_ros_2_node_with_the_credentials_rex_made_drives_the_secure_deployment_and_n
         .output()
         .unwrap();
     let took = started.elapsed();
-    let answer = node.end();
+    let answer = node.end("end");
     let log = router.stop();
     std::fs::write(dir.join("router.log"), log.join("\n")).unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    eprintln!(
-        "rex launch ran {:.1} s; the launch's start to the plan's put: {} s, the put to its final ack and outcome: {} s\n{stderr}",
-        took.as_secs_f64(),
-        answer["ready_to_put_s"],
-        answer["plan_to_done_s"]
-    );
-    let context = format!("{stdout}\n{stderr}\n{answer}");
-
     // Rex executed the plan from ROS 2.
-    assert!(out.status.success(), "{context}");
-    let summary = stdout.lines().last().unwrap_or_default();
-    assert!(
-        summary.starts_with("mission=listen plans_acked=1/1 "),
-        "{context}"
-    );
+    let (_, context) = listened("rex launch", &out, took, &answer);
     assert_eq!(answer["problems"], json!([]), "{context}");
     assert_eq!(answer["token"]["kind"], "MS", "{context}");
 
@@ -389,155 +336,4 @@ fn refused(answer: &Value, log: &[String]) {
             "{cn}: {refusals:#?}"
         );
     }
-}
-
-/// The router (tests/ros2_secure.py router), running; its output collected.
-struct Router {
-    child: Child,
-    log: Arc<Mutex<Vec<String>>>,
-}
-
-impl Router {
-    fn start(python: &Path, config: &Path) -> Router {
-        let mut child = Command::new(python)
-            .args([SCRIPT, "router"])
-            .arg(config)
-            .env(
-                "RUST_LOG",
-                "error,zenoh::net::routing::interceptor::access_control=trace",
-            )
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let out = BufReader::new(child.stdout.take().unwrap());
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let (ready, started) = std::sync::mpsc::channel();
-        let lines = log.clone();
-        std::thread::spawn(move || {
-            for line in out.lines().map_while(Result::ok) {
-                if line.trim() == "ready" {
-                    let _ = ready.send(());
-                }
-                lines.lock().unwrap().push(line);
-            }
-        });
-        assert!(
-            started.recv_timeout(Duration::from_secs(20)).is_ok(),
-            "the router did not start: {:?}",
-            log.lock().unwrap()
-        );
-        Router { child, log }
-    }
-
-    /// Stop it; its log.
-    fn stop(mut self) -> Vec<String> {
-        drop(self.child.stdin.take());
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while self.child.try_wait().unwrap().is_none() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        self.log.lock().unwrap().clone()
-    }
-}
-
-impl Drop for Router {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The node (tests/ros2_secure.py node), running; killed if the test fails
-/// before its end.
-struct Node {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
-
-impl Node {
-    /// Start it with `request` and wait until it listens.
-    fn start(python: &Path, request: &Value) -> Self {
-        let mut child = Command::new(python)
-            .args([SCRIPT, "node"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut to = child.stdin.take().unwrap();
-        let mut from = BufReader::new(child.stdout.take().unwrap());
-        writeln!(to, "{request}").unwrap();
-        let mut line = String::new();
-        from.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "ready", "the node did not start");
-        Self { child, to, from }
-    }
-
-    /// Tell it Rex has ended; what it saw.
-    fn end(&mut self) -> Value {
-        writeln!(self.to, "end").unwrap();
-        let mut line = String::new();
-        self.from.read_line(&mut line).unwrap();
-        assert!(self.child.wait().unwrap().success());
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
-    }
-}
-
-impl Drop for Node {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The refusals in the router's log: (the common name of the certificate of
-/// the session refused, if it has a subject; what; key). Zenoh says
-/// `<zid> on ...+CertCommonName(<cn>)+... is unauthorized to <what> on
-/// <key>`, or `Using cached result: <zid> is unauthorized to ...`.
-fn refusals(log: &[String]) -> Vec<(Option<String>, String, String)> {
-    let plain: Vec<String> = log.iter().map(|l| strip_ansi(l)).collect();
-    let mut names = std::collections::HashMap::new();
-    let messages: Vec<&str> = plain
-        .iter()
-        .filter_map(|l| l.split_once("access_control: ").map(|(_, m)| m))
-        .collect();
-    for m in &messages {
-        if let (Some((zid, _)), Some((_, cn))) =
-            (m.split_once(" on "), m.split_once("CertCommonName("))
-        {
-            let cn = cn.split(')').next().unwrap_or_default();
-            names.insert(zid.to_owned(), cn.to_owned());
-        }
-    }
-    messages
-        .iter()
-        .filter_map(|m| {
-            let (who, rest) = m.split_once(" is unauthorized to ")?;
-            let (what, key) = rest.rsplit_once(" on ")?;
-            let zid = who.trim_start_matches("Using cached result: ");
-            let zid = zid.split(' ').next().unwrap_or_default();
-            Some((names.get(zid).cloned(), what.to_owned(), key.to_owned()))
-        })
-        .collect()
-}
-
-/// `line` without its terminal colours.
-fn strip_ansi(line: &str) -> String {
-    let mut out = String::new();
-    let mut chars = line.chars();
-    while let Some(c) = chars.next() {
-        if c == '\u{1b}' {
-            for c in chars.by_ref() {
-                if c.is_ascii_alphabetic() {
-                    break;
-                }
-            }
-        } else {
-            out.push(c);
-        }
-    }
-    out
 }

@@ -159,6 +159,11 @@ impl Subsystem for E {
 
 /// The system: `c` sends step `k`'s pose and status at `k` × 10 ms.
 pub fn system() -> System {
+    system_and_status_link().0
+}
+
+/// The system, as [`system`], and its status link.
+pub fn system_and_status_link() -> (System, LinkId) {
     let mut b = SystemBuilder::new();
     let a = b.agent("a");
     let period = Period::from_millis(10).unwrap();
@@ -184,10 +189,10 @@ pub fn system() -> System {
         e.input(port!(EIn, c.pose)),
         Policy::Sample,
     );
-    b.connect(
+    let status = b.connect(
         c.output(port!(COut, e.status)),
         e.input(port!(EIn, c.status)),
         Policy::queue(8),
     );
-    b.build().unwrap()
+    (b.build().unwrap(), status)
 }
