@@ -8,9 +8,11 @@
 //!
 //! `agent-core`'s real-time executor runs every node on a thread of its own
 //! (drivers sharing an environment share one thread: not modelled here, see
-//! below) and asks for `SCHED_FIFO` priorities: per process, the threads ranked
-//! by period, the shortest at priority 80, each longer period one lower, never
-//! below 1; equal periods share a priority ([`priorities`]). It does not pin
+//! below) and asks for `SCHED_FIFO` priorities: the threads ranked by period
+//! among the periods of the whole system (so every process of a deployment
+//! ranks alike, and a host's threads are rate-monotonic across its
+//! processes), the shortest at priority 80, each longer period one lower,
+//! never below 1; equal periods share a priority ([`priorities`]). It does not pin
 //! threads to cores. A thread's activation of instant `k·T` reads its inputs at
 //! its start (values stamped at or before `k·T` only), steps, and writes its
 //! outputs at its end; a sample link keeps the latest value, a queue link
@@ -90,8 +92,10 @@ pub fn liu_layland(n: usize) -> f64 {
     n * (2f64.powf(1.0 / n) - 1.0)
 }
 
-/// The executor's priorities for threads of the given periods in one process:
-/// distinct periods ranked from the shortest, `top` minus the rank, never below 1.
+/// The executor's priorities for threads of the given periods (every
+/// thread of the system: each process ranks its threads among the whole
+/// system's periods): distinct periods ranked from the shortest, `top` minus
+/// the rank, never below 1.
 pub fn priorities(periods: &[u64], top: u8) -> Vec<u8> {
     let mut distinct = periods.to_vec();
     distinct.sort_unstable();
@@ -818,17 +822,18 @@ fn schedule(
         );
         return None;
     }
-    // Priorities per process, as the executor assigns them.
+    // Priorities as the executor assigns them: each thread's period ranked
+    // among the periods of the whole system, in every process alike.
+    let periods: Vec<u64> = threads.iter().map(|t| t.period).collect();
+    for (t, p) in threads.iter_mut().zip(priorities(&periods, TOP_PRIORITY)) {
+        t.priority = p;
+    }
     let mut by_process: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for (i, t) in threads.iter().enumerate() {
         by_process.entry(t.process.clone()).or_default().push(i);
     }
     let mut processes = Vec::new();
     for (name, members) in &by_process {
-        let periods: Vec<u64> = members.iter().map(|&i| threads[i].period).collect();
-        for (&i, p) in members.iter().zip(priorities(&periods, TOP_PRIORITY)) {
-            threads[i].priority = p;
-        }
         let utilisation = members
             .iter()
             .map(|&i| threads[i].wcet as f64 / threads[i].period as f64)

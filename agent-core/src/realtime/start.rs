@@ -163,7 +163,11 @@ impl Threads {
     }
 
     /// Per thread, the FIFO priority to ask for below `top`: rate-monotonic,
-    /// the shortest period of a thread ranks it.
+    /// the shortest period of a thread ranks it among the periods of the
+    /// whole system, not only of the nodes run here, so that the processes of
+    /// a deployment sharing a host rank their threads alike (a process's own
+    /// ranking would put its slowest thread at `top` beside another's
+    /// fastest).
     fn priorities(&self, info: &SystemInfo, top: Option<u8>) -> Vec<Option<u8>> {
         let mut shortest = vec![u64::MAX; self.names.len()];
         for (i, node) in info.nodes.iter().enumerate() {
@@ -171,7 +175,7 @@ impl Threads {
                 *s = (*s).min(node.period.as_nanos());
             }
         }
-        let mut distinct: Vec<u64> = shortest.clone();
+        let mut distinct: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
         distinct.sort_unstable();
         distinct.dedup();
         (0..self.names.len())
