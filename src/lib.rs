@@ -36,6 +36,12 @@ pub use agent_zenoh as distributed;
 #[cfg(feature = "app")]
 pub use agent_app as app;
 
+/// Runtime monitors made from a spec's contracts (the `agent-monitor` crate):
+/// freshness, rates, behaviour bounds, ranges, responses and invariants, fed
+/// events in time order; with the feature `record` too, their evaluation over a recording. Behind the feature `monitor`.
+#[cfg(feature = "monitor")]
+pub use agent_monitor as monitor;
+
 /// Recording runs to MCAP for Foxglove (the `agent-mcap` crate): the
 /// `McapRecorder` observer, buffer values as JSON with their types' schemas,
 /// derived channels (Foxglove's images and poses), reading a recording back.

@@ -1,7 +1,8 @@
 //! `embodied`: check specifications, draw their diagrams, make agent crates
-//! from them, merge the recordings of a distributed run and export one for ROS 2
-//! tools. Built with the `cli` feature (`cargo install embodied --features
-//! cli`, or `cargo run --features cli --bin embodied -- ...` in this workspace).
+//! from them, merge the recordings of a distributed run, export one for ROS 2
+//! tools and evaluate a spec's contracts over one. Built with the `cli`
+//! feature (`cargo install embodied --features cli`, or `cargo run --features
+//! cli --bin embodied -- ...` in this workspace).
 //!
 //! This file is the command line (clap); each command is a module of `cli`.
 
@@ -98,6 +99,19 @@ enum Command {
         /// The merged file.
         #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
+    },
+    /// Evaluate a spec's contracts over a recording (MCAP): freshness, rates,
+    /// behaviour bounds, ranges (values recorded as JSON) and responses. Prints
+    /// each violation with its time, subsystem, contract and values, each
+    /// contract the recording cannot show and why, then
+    /// `contracts_checked=N contracts_violated=M contracts_not_evaluable=K`.
+    /// Exit 0 none violated, 1 violated, 2 unreadable recording or spec.
+    Monitor {
+        /// The recording.
+        file: PathBuf,
+        /// The spec (default: the one recorded in the file's metadata `spec`).
+        #[arg(long, value_name = "FILE")]
+        spec: Option<PathBuf>,
     },
     /// Export a recording (MCAP) for ROS 2 tools: an MCAP file of profile `ros2`
     /// with the recording's ROS 2 channels only (CDR with a `ros2msg` schema:
@@ -199,6 +213,7 @@ fn main() -> ExitCode {
             output.as_deref(),
         ),
         Command::Merge { files, output } => cli::merge::run(&files, &output),
+        Command::Monitor { file, spec } => cli::monitor::run(&file, spec.as_deref()),
         Command::Export {
             file,
             output,

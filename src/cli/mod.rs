@@ -1,7 +1,8 @@
 //! The commands of the `embodied` binary, one module each: [`check`] runs the
 //! checker over spec files, [`diagram`] draws a spec, [`new`] makes an agent crate
 //! from a spec, [`merge`] merges the recordings of a distributed run, [`export`]
-//! exports a recording for ROS 2 tools.
+//! exports a recording for ROS 2 tools, [`monitor`] evaluates a spec's
+//! contracts over a recording.
 //! `src/main.rs` parses the command line (clap) and calls them.
 
 /// `print!` that ends quietly on a closed standard output (`embodied check |
@@ -41,6 +42,7 @@ pub(crate) mod check;
 pub(crate) mod diagram;
 pub(crate) mod export;
 pub(crate) mod merge;
+pub(crate) mod monitor;
 pub(crate) mod new;
 
 /// The width at which reports are drawn: `$COLUMNS`, or 100.

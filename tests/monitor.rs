@@ -1,0 +1,332 @@
+//! `embodied monitor` over recordings of the tank example: contracts that
+//! hold, a range seeded to break (found at the first value out of it), a level
+//! sensor that stops sending (the rate and freshness found at the instants the
+//! recording implies), the contracts a recording cannot show, and the exit
+//! codes.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+#[path = "common/tank_run.rs"]
+#[allow(dead_code, reason = "shared with the tests that replay each subsystem")]
+mod tank_run;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use embodied::record::{McapRecorder, RecordOptions, Recording, Values, mcap};
+use embodied::spec::contracts::{
+    Bound, Contracts, Freshness, Invariant, Rate, Response, ValueRange,
+};
+use embodied::*;
+
+use tank_run::{system, tmp};
+
+/// The level filter's output, read by the station (c1) every 50 ms.
+const LEVEL: &str = "/links/r1/control/level/to/c1";
+
+/// The tank's spec with `contracts`, as RON.
+fn spec_text(contracts: Contracts) -> String {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/specs/tank.ron")).unwrap();
+    let mut spec = embodied::spec::load("tank.ron", text).unwrap().spec;
+    spec.contracts = Some(contracts);
+    embodied::spec::export::to_ron(&spec).unwrap()
+}
+
+/// Contracts the tank meets, one of each kind a recording shows.
+fn kept() -> Contracts {
+    Contracts {
+        // r1 sends every 10 ms; c1 reads every 50 ms.
+        freshness: vec![Freshness {
+            input: "c1.r1.level".into(),
+            max_age_ms: 20.0,
+        }],
+        rates: vec![Rate {
+            input: "c1.r1.level".into(),
+            min_hz: 50.0,
+        }],
+        bounds: vec![Bound {
+            behaviour: "c1.fill".into(),
+            max_s: Some(60.0),
+            max_iterations: Some(1200),
+        }],
+        ranges: vec![ValueRange {
+            name: "level_in_tank".into(),
+            buffer: "r1.c1.level".into(),
+            field: None,
+            min: Some(-0.1),
+            max: Some(3.0),
+        }],
+        responses: vec![Response {
+            name: "order_acknowledged".into(),
+            trigger: "c2.c1.order".into(),
+            response: "c1.c2.ack".into(),
+            within_s: 30.0,
+        }],
+        ..Contracts::default()
+    }
+}
+
+/// 20 s of the tank, values as JSON, the spec with [`kept`] in its metadata.
+fn recording() -> &'static Path {
+    static FILE: OnceLock<PathBuf> = OnceLock::new();
+    FILE.get_or_init(|| {
+        let path = tmp("monitor_tank.mcap");
+        let options = RecordOptions {
+            values: Values::Json,
+            metadata: BTreeMap::from([(
+                "spec".to_owned(),
+                BTreeMap::from([("text".to_owned(), spec_text(kept()))]),
+            )]),
+            ..RecordOptions::default()
+        };
+        let s = system();
+        let recorder = McapRecorder::create(&path, &s, options).unwrap();
+        let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
+        exec.run_for(Duration::from_secs(20)).unwrap();
+        exec.into_observer().finish().unwrap();
+        path
+    })
+}
+
+fn embodied(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn write(name: &str, text: &str) -> PathBuf {
+    let p = tmp(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Each message of `topic`: (log time, data).
+fn messages(file: &Path, topic: &str) -> Vec<(u64, Vec<u8>)> {
+    let r = Recording::open(file).unwrap();
+    let id = r.channels.values().find(|c| c.topic == topic).unwrap().id;
+    r.messages
+        .iter()
+        .filter(|m| m.channel == id)
+        .map(|m| (m.log_time, m.data.clone()))
+        .collect()
+}
+
+#[test]
+fn the_contracts_the_tank_keeps_pass_with_the_recorded_spec() {
+    let file = recording().to_str().unwrap();
+    let (code, out, err) = embodied(&["monitor", file]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.ends_with("contracts_checked=5 contracts_violated=0 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_range_seeded_to_break_is_found_at_the_first_value_out_of_it() {
+    let mut c = kept();
+    c.ranges[0].max = Some(0.9);
+    let spec = write("monitor_range.ron", &spec_text(c));
+    let (code, out, err) = embodied(&[
+        "monitor",
+        recording().to_str().unwrap(),
+        "--spec",
+        spec.to_str().unwrap(),
+    ]);
+    // The first level above 0.9, read from the recording independently.
+    let levels: Vec<_> = messages(recording(), LEVEL)
+        .into_iter()
+        .map(|(t, d)| (t, serde_json_number(&d)))
+        .collect();
+    let (t, v) = *levels
+        .iter()
+        .find(|(_, v)| *v > 0.9)
+        .expect("the mission fills above 0.9 m within 20 s");
+    assert_eq!(code, 1, "{out}{err}");
+    let line = out.lines().next().unwrap();
+    assert_eq!(
+        line,
+        format!(
+            "t={:.6}s subsystem=r1 contract=range:level_in_tank: value {v} outside [-0.1, 0.9]",
+            t as f64 / 1e9
+        )
+    );
+    assert!(
+        out.ends_with("contracts_checked=5 contracts_violated=1 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+}
+
+/// A JSON number as the recorder wrote it.
+fn serde_json_number(d: &[u8]) -> f64 {
+    std::str::from_utf8(d).unwrap().trim().parse().unwrap()
+}
+
+/// `from` rewritten as if r1 stopped sending the level after `stop` \[ns\]:
+/// its values after then dropped, and c1's reads after then of the last value
+/// sent (the stamp it keeps reading).
+fn stop_level_sensor(from: &Path, to: &Path, stop: u64) {
+    let r = Recording::open(from).unwrap();
+    let mut w =
+        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
+    let schemas: BTreeMap<u16, u16> = r
+        .schemas
+        .iter()
+        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
+        .collect();
+    let mut channels = BTreeMap::new();
+    for (&id, c) in &r.channels {
+        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
+        let new = w
+            .add_channel(schema, &c.topic, &c.message_encoding, &c.metadata)
+            .unwrap();
+        channels.insert(id, (new, c.topic.clone()));
+    }
+    for (name, metadata) in &r.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })
+        .unwrap();
+    }
+    let reads = format!("/reads{LEVEL}");
+    let mut last_stamp = None;
+    for m in &r.messages {
+        let (channel, topic) = &channels[&m.channel];
+        let mut data = m.data.clone();
+        if *topic == LEVEL && m.log_time > stop {
+            continue;
+        }
+        if *topic == LEVEL {
+            last_stamp = Some(m.log_time);
+        }
+        if *topic == reads && m.log_time > stop {
+            // The value read is the last one sent: its stamp (the sender's
+            // iteration is left as it was; only the instant is read).
+            data[8..16].copy_from_slice(&last_stamp.unwrap().to_le_bytes());
+        }
+        let header = mcap::records::MessageHeader {
+            channel_id: *channel,
+            sequence: m.sequence,
+            log_time: m.log_time,
+            publish_time: m.publish_time,
+        };
+        w.write_to_known_channel(&header, &data).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn a_sensor_that_stops_is_found_by_rate_and_freshness() {
+    let stopped = tmp("monitor_stopped.mcap");
+    stop_level_sensor(recording(), &stopped, 10_000_000_000);
+    let (code, out, err) = embodied(&["monitor", stopped.to_str().unwrap()]);
+    assert_eq!(code, 1, "{out}{err}");
+    let last = messages(recording(), LEVEL)
+        .into_iter()
+        .map(|(t, _)| t)
+        .filter(|&t| t <= 10_000_000_000)
+        .max()
+        .unwrap();
+    // The rate's window (20 ms) closes empty 20 ms after the last value.
+    let rate = format!(
+        "t={:.6}s subsystem=c1 contract=rate:c1.r1.level: no value for 20.000 ms since t={:.6}s",
+        (last + 20_000_000) as f64 / 1e9,
+        last as f64 / 1e9
+    );
+    assert!(out.lines().any(|l| l == rate), "{rate}\n{out}");
+    // The first read by c1 (every 50 ms) of a value older than 20 ms.
+    let read = messages(&stopped, &format!("/reads{LEVEL}"))
+        .into_iter()
+        .find(|(t, _)| *t > last + 20_000_000)
+        .unwrap()
+        .0;
+    let fresh = format!(
+        "t={:.6}s subsystem=c1 contract=freshness:c1.r1.level: age {:.3} ms > 20.000 ms",
+        read as f64 / 1e9,
+        (read - last) as f64 / 1e6
+    );
+    assert!(out.lines().any(|l| l == fresh), "{fresh}\n{out}");
+    // Nothing before the stop; after it, the one silence (the level never
+    // comes back) and every read of the stale value.
+    let lines: Vec<_> = out.lines().filter(|l| l.starts_with("t=")).collect();
+    assert_eq!(lines[..2], [rate.as_str(), fresh.as_str()], "{out}");
+    assert!(
+        lines[2..]
+            .iter()
+            .all(|l| l.contains("contract=freshness:c1.r1.level: age")),
+        "{out}"
+    );
+    let reads_after = messages(&stopped, &format!("/reads{LEVEL}"))
+        .iter()
+        .filter(|(t, _)| *t >= read)
+        .count();
+    assert_eq!(lines.len(), 1 + reads_after, "{out}");
+    assert!(
+        out.ends_with("contracts_checked=5 contracts_violated=2 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+}
+
+#[test]
+fn what_a_recording_cannot_show_is_named_not_passed() {
+    let mut c = kept();
+    c.invariants = vec![Invariant {
+        name: "order_means_valid".into(),
+        subsystem: "c1".into(),
+        holds: "!has_order || order_valid || !order_valid".into(),
+    }];
+    let spec = write("monitor_invariant.ron", &spec_text(c));
+    let (code, out, err) = embodied(&[
+        "monitor",
+        recording().to_str().unwrap(),
+        "--spec",
+        spec.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.contains(
+            "not evaluable offline: contract=invariant:order_means_valid subsystem=c1: invariants need"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.ends_with("contracts_checked=5 contracts_violated=0 contracts_not_evaluable=1\n"),
+        "{out}"
+    );
+}
+
+#[test]
+fn unreadable_files_and_specs_exit_2() {
+    let file = recording().to_str().unwrap();
+    let (code, _, err) = embodied(&["monitor", "/nonexistent/run.mcap"]);
+    assert_eq!(code, 2, "{err}");
+    let not_mcap = write("monitor_not.mcap", "not a recording");
+    let (code, _, err) = embodied(&["monitor", not_mcap.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("not an MCAP file"), "{err}");
+    let bad = write("monitor_bad.ron", "(name: ");
+    let (code, _, err) = embodied(&["monitor", file, "--spec", bad.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("does not load"), "{err}");
+    let mut c = kept();
+    c.bounds[0].behaviour = "c1.flying".into();
+    let unknown = write("monitor_unknown.ron", &spec_text(c));
+    let (code, _, err) = embodied(&["monitor", file, "--spec", unknown.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("no behaviour `flying`"), "{err}");
+}
