@@ -3,7 +3,7 @@
 //! [`Monitors::new`] compiles the contracts of a [`Spec`] once (names resolved
 //! to indices, bounds to nanoseconds, invariants to expressions over predicate
 //! indices); the monitors are then fed events in time order, from an executor
-//! or from a recording ([`recording`], feature `recording`), and hand each
+//! or from a recording (the module `recording`, feature `recording`), and hand each
 //! [`Violation`] to a sink. The core knows no executor: an event is an instant
 //! and a few numbers. Memory is fixed at construction (a few words per
 //! contract) and no event allocates ([`Violation`] is `Copy`; names are looked
@@ -194,7 +194,7 @@ pub struct Violation {
 }
 
 /// Why a spec's contracts do not make monitors (the checker,
-/// [`agent_spec::check`], reports the same with spans).
+/// [`agent_spec::check()`], reports the same with spans).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum BuildError {
     /// A name that is not in the spec.
@@ -284,7 +284,7 @@ struct SubsystemInfo {
     initial: Option<BehaviourId>,
 }
 
-/// The monitors of a spec's contracts (see the [crate](crate) documentation).
+/// The monitors of a spec's contracts (see the [crate] documentation).
 #[derive(Clone, Debug)]
 pub struct Monitors {
     contracts: Vec<ContractInfo>,
