@@ -330,3 +330,85 @@ fn unreadable_files_and_specs_exit_2() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("no behaviour `flying`"), "{err}");
 }
+
+/// A number field of a JSON object as the recorder writes it (`"key":1.5`).
+fn json_number(text: &str, key: &str) -> f64 {
+    let at = text.find(&format!("\"{key}\":")).unwrap() + key.len() + 3;
+    let rest = &text[at..];
+    let end = rest.find([',', '}']).unwrap();
+    rest[..end].parse().unwrap()
+}
+
+#[test]
+fn bounds_and_responses_seeded_to_break_are_found_at_their_deadlines() {
+    let mut c = kept();
+    c.bounds[0].max_s = Some(1.0);
+    c.bounds[0].max_iterations = None;
+    c.responses[0].within_s = 0.01;
+    let spec = write("monitor_deadlines.ron", &spec_text(c));
+    let (code, out, err) = embodied(&[
+        "monitor",
+        recording().to_str().unwrap(),
+        "--spec",
+        spec.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{out}{err}");
+    // c1's first run of `fill`, from its switches.
+    let switches: Vec<String> = messages(recording(), "/fsm/c1")
+        .into_iter()
+        .map(|(_, d)| String::from_utf8(d).unwrap())
+        .collect();
+    let entered = switches
+        .iter()
+        .position(|s| s.contains("\"to\":\"fill\""))
+        .unwrap();
+    let t_in = json_number(&switches[entered], "time_s");
+    // It ends at the next switch, or with the run (20 s).
+    let t_out = switches
+        .get(entered + 1)
+        .map_or(20.0, |s| json_number(s, "time_s"));
+    assert!(t_out - t_in > 1.0, "the first fill lasts over 1 s");
+    let bound = format!(
+        "t={:.6}s subsystem=c1 contract=bound:c1.fill: entered at t={t_in:.6}s, still running after 1.000 s",
+        t_in + 1.0
+    );
+    assert!(out.lines().any(|l| l == bound), "{bound}\n{out}");
+    // The operator's first order, unanswered 10 ms later.
+    let order = messages(recording(), "/links/c2/station/order/to/c1")[0].0;
+    let response = format!(
+        "t={:.6}s subsystem=c1 contract=response:order_acknowledged: trigger at t={:.6}s unanswered within 0.010 s",
+        (order + 10_000_000) as f64 / 1e9,
+        order as f64 / 1e9
+    );
+    assert!(out.lines().any(|l| l == response), "{response}\n{out}");
+    assert!(
+        out.ends_with("contracts_checked=5 contracts_violated=2 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+}
+
+#[test]
+fn ranges_over_cdr_values_are_named_not_evaluable() {
+    let path = tmp("monitor_cdr.mcap");
+    let s = system();
+    let recorder = McapRecorder::create(&path, &s, RecordOptions::default()).unwrap();
+    let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
+    exec.run_for(Duration::from_secs(2)).unwrap();
+    exec.into_observer().finish().unwrap();
+    let spec = write("monitor_cdr.ron", &spec_text(kept()));
+    let (code, out, err) = embodied(&[
+        "monitor",
+        path.to_str().unwrap(),
+        "--spec",
+        spec.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.contains("not evaluable offline: contract=range:level_in_tank subsystem=r1: `r1.c1.level` is recorded as CDR"),
+        "{out}"
+    );
+    assert!(
+        out.ends_with("contracts_checked=4 contracts_violated=0 contracts_not_evaluable=1\n"),
+        "{out}"
+    );
+}

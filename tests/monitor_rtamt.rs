@@ -15,7 +15,7 @@
 //!   the end, rtamt judges the missing future, ours does not judge a deadline
 //!   after the run).
 //!
-//! `scripts/test --test monitor_rtamt` installs rtamt and sets
+//! `scripts/test --features monitor --test monitor_rtamt` installs rtamt and sets
 //! `EMBODIED_INTEROP_PYTHON`; plain `cargo test` skips, saying so.
 
 #![allow(
@@ -251,7 +251,7 @@ fn rtamt(python: &str, cases: &[Case]) -> Vec<bool> {
 fn our_verdicts_are_rtamts_on_the_same_signals() {
     let Ok(python) = std::env::var("EMBODIED_INTEROP_PYTHON") else {
         eprintln!(
-            "skipped: EMBODIED_INTEROP_PYTHON is not set (scripts/test --test monitor_rtamt installs rtamt and sets it)"
+            "skipped: EMBODIED_INTEROP_PYTHON is not set (scripts/test --features monitor --test monitor_rtamt installs rtamt and sets it)"
         );
         return;
     };
