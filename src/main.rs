@@ -67,6 +67,12 @@ enum Command {
         /// whole system as one process).
         #[arg(long, requires = "timing")]
         deployment: Option<String>,
+        /// With --timing: take each component's WCET from a recording of a
+        /// real-time run (its `/timing` channel): the largest execution time
+        /// measured, times 1.2; a component the recording lacks keeps its
+        /// declared WCET.
+        #[arg(long, requires = "timing", value_name = "FILE.mcap")]
+        wcet_from: Option<PathBuf>,
     },
     /// Draw a diagram of a spec without Graphviz: the FSM of a subsystem (Fig. 5),
     /// the agent structure with its buffers and links (Figs. 2, 4), or the data flow
@@ -183,14 +189,28 @@ fn main() -> ExitCode {
             style,
             timing,
             deployment,
-        } => cli::check::run(
-            &files,
-            match style {
-                Style::Human => cli::check::Style::Human,
-                Style::Short => cli::check::Style::Short,
-            },
-            timing.then_some(deployment.as_deref()),
-        ),
+            wcet_from,
+        } => {
+            let measured = match wcet_from.as_deref().map(cli::check::measured_wcets) {
+                None => None,
+                Some(Ok(m)) => Some(m),
+                Some(Err(why)) => {
+                    errln!("error: {why}");
+                    return ExitCode::FAILURE;
+                }
+            };
+            cli::check::run(
+                &files,
+                match style {
+                    Style::Human => cli::check::Style::Human,
+                    Style::Short => cli::check::Style::Short,
+                },
+                timing.then_some(cli::check::Timing {
+                    deployment: deployment.as_deref(),
+                    measured: measured.as_ref(),
+                }),
+            )
+        }
         Command::Diagram {
             file,
             kind,

@@ -379,7 +379,12 @@ fn conclude<A: Application>(
             report.probe_dropped
         ));
     }
-    let recorded = recorder.is_none_or(record::finish) && bridged;
+    // A real-time run's recording gets its timing statistics; a deterministic
+    // run has no wall clock, and none.
+    let recorded = recorder.is_none_or(|r| match mode {
+        Mode::RealTime => record::finish_timed(r, report, "local"),
+        _ => record::finish(r),
+    }) && bridged;
     if mode == Mode::RealTime {
         if !common.quiet {
             output::err(format_args!("{report}"));

@@ -74,6 +74,30 @@ impl FailWatch {
     }
 }
 
+/// The name of the host this process runs on (`unknown` where the OS does
+/// not say).
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .map(|h| h.trim().to_owned())
+        .filter(|h| !h.is_empty())
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .unwrap_or_else(|| "unknown".to_owned())
+}
+
+/// [`finish`] the recording of a real-time run, its timing statistics
+/// (`report`, of process `process` on this host) written first on its
+/// `/timing` channel.
+pub(crate) fn finish_timed(
+    mut recorder: McapRecorder,
+    report: &agent_core::RtReport,
+    process: &str,
+) -> bool {
+    let stats = agent_mcap::TimingStats::from_report(report, &host_name(), process);
+    recorder.timing(report.last_instant, &stats);
+    finish(recorder)
+}
+
 /// Finish a recording and say so: `record: FILE (...)` on standard output, or
 /// the failure on standard error (the partial file removed). Whether it was
 /// finished.

@@ -19,6 +19,8 @@
 //!   with its ROS 2 channels only, for ROS 2 tools (rosbags reads it);
 //! * [`merge`](mod@merge): the recordings of the processes of a distributed run
 //!   made one, in time order;
+//! * [`timing`](mod@timing): the real-time executor's timing statistics
+//!   (the `/timing` channel) and the WCETs they measured;
 //! * [`replay`](mod@replay): one subsystem fed its recorded inputs, its outputs
 //!   and behaviour switches compared bit for bit with the recording.
 
@@ -32,6 +34,7 @@ mod postcard;
 pub mod read;
 pub mod record;
 pub mod replay;
+pub mod timing;
 
 /// The MCAP crate this one writes with (to read recordings back).
 pub use codec::{Codec, DecodeError};
@@ -46,3 +49,4 @@ pub use record::{
 pub use replay::{
     Difference, Divergence, ReplayError, ReplayOptions, Replayed, Window, replay, replay_file,
 };
+pub use timing::{TimingStats, measured_wcets, read_timing};

@@ -304,6 +304,95 @@ impl Spans<'_> {
     }
 }
 
+/// The margin a measured execution time is multiplied by to stand for a WCET
+/// (`--wcet-from`): a recording's largest time is what happened, not a worst
+/// case, so the analysis takes 20 % more.
+pub const WCET_MARGIN: f64 = 1.2;
+
+/// Where one component's WCET comes from, after [`use_measured_wcets`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct WcetSource {
+    /// The component.
+    pub component: String,
+    /// The WCET declared in the spec \[ms\], if any.
+    pub declared_ms: Option<f64>,
+    /// The largest execution time measured \[ms\], if the recording has it.
+    pub measured_ms: Option<f64>,
+    /// The WCET the analysis takes \[ms\]: measured × margin, else declared.
+    pub used_ms: Option<f64>,
+}
+
+impl fmt::Display for WcetSource {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let show = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.4}"));
+        let from = match (self.measured_ms, self.declared_ms) {
+            (Some(_), _) => "measured",
+            (None, Some(_)) => "declared (not in the recording)",
+            (None, None) => "none (not in the recording, not declared)",
+        };
+        write!(
+            f,
+            "wcet {:<10} declared_ms={} measured_max_ms={} used_ms={} from={from}",
+            self.component,
+            show(self.declared_ms),
+            show(self.measured_ms),
+            show(self.used_ms)
+        )
+    }
+}
+
+/// Replace the WCETs of `spec`'s `timing` section by the execution times
+/// `measured` \[ns\] (per component, the largest a recording holds) times
+/// `margin`; a declared component the recording lacks keeps its declaration.
+/// Measured nodes that are not components of the spec are ignored. Returns,
+/// per component, where its WCET came from; `None` when the spec has no
+/// `timing` section.
+pub fn use_measured_wcets(
+    spec: &mut Spec,
+    measured: &BTreeMap<String, u64>,
+    margin: f64,
+) -> Option<Vec<WcetSource>> {
+    let mut names: Vec<String> = spec
+        .timing
+        .as_ref()?
+        .wcet
+        .iter()
+        .map(|w| w.component.clone())
+        .collect();
+    for c in measured.keys() {
+        if component_period(spec, c).is_some() && !names.contains(c) {
+            names.push(c.clone());
+        }
+    }
+    let timing = spec.timing.as_mut()?;
+    let mut out = Vec::new();
+    for name in names {
+        let declared = timing
+            .wcet
+            .iter()
+            .find(|w| w.component == name)
+            .map(|w| w.ms);
+        let measured_ms = measured.get(&name).map(|&n| n as f64 / 1e6);
+        let used = measured_ms.map(|m| m * margin).or(declared);
+        if let Some(ms) = used {
+            match timing.wcet.iter_mut().find(|w| w.component == name) {
+                Some(w) => w.ms = ms,
+                None => timing.wcet.push(crate::contracts::Wcet {
+                    component: name.clone(),
+                    ms,
+                }),
+            }
+        }
+        out.push(WcetSource {
+            component: name,
+            declared_ms: declared,
+            measured_ms,
+            used_ms: used,
+        });
+    }
+    Some(out)
+}
+
 /// Analyse `spec` placed by `deployment` (`None`: the whole system as one
 /// process on one host). The spec must have passed the checker; a spec without
 /// a `timing` section gives an error.

@@ -2,6 +2,7 @@
 //! `--timing`, the timing analysis of each file's system (or one deployment of
 //! it) and its certificate.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -24,16 +25,53 @@ const TIMING: [Code; 4] = [
     Code::QueueOverflow,
 ];
 
+/// What `--timing` analyses: the deployment (`None`: the whole system as one
+/// process), and the WCETs measured in a recording (`--wcet-from`), per
+/// component \[ns\], if given.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Timing<'a> {
+    /// `--deployment`.
+    pub(crate) deployment: Option<&'a str>,
+    /// `--wcet-from`'s measurements.
+    pub(crate) measured: Option<&'a BTreeMap<String, u64>>,
+}
+
+/// The WCETs measured in the recording at `path` (its `/timing` channel): per
+/// component, the largest execution time \[ns\]; or why there are none.
+pub(crate) fn measured_wcets(path: &Path) -> Result<BTreeMap<String, u64>, String> {
+    use embodied::record::timing::{TIMING_TOPIC, measured_wcets, read_timing};
+    let recording = embodied::record::Recording::open_filtered(path, |c| c.topic == TIMING_TOPIC)
+        .map_err(|e| format!("--wcet-from {}: {e}", path.display()))?;
+    let stats = read_timing(&recording).map_err(|e| format!("--wcet-from: {e}"))?;
+    if stats.is_empty() {
+        return Err(format!(
+            "--wcet-from {}: the `/timing` channel has no message (a run that did not finish?)",
+            path.display()
+        ));
+    }
+    for s in &stats {
+        if !s.rt_priority {
+            errln!(
+                "warning: --wcet-from {}: process `{}` on `{}` ran without the real-time priorities it asked for: its times include preemption by other programs",
+                path.display(),
+                s.process,
+                s.host
+            );
+        }
+    }
+    Ok(measured_wcets(&stats))
+}
+
 /// Checks `files`: status 1 if any has an error or cannot be read, else 0.
 /// `timing`: also analyse their timing, of the deployment given or of the
 /// whole system as one process, and print the certificate.
-pub(crate) fn run(files: &[PathBuf], style: Style, timing: Option<Option<&str>>) -> ExitCode {
+pub(crate) fn run(files: &[PathBuf], style: Style, timing: Option<Timing<'_>>) -> ExitCode {
     let width = super::width();
     let (mut errors, mut warnings, mut unreadable) = (0, 0, 0);
     for path in files {
         let report = match timing {
             None => embodied::spec::check_file(path).map(|(_, r)| (r, None)),
-            Some(deployment) => with_timing(path, deployment),
+            Some(t) => with_timing(path, t),
         };
         match report {
             Err(e) => {
@@ -81,7 +119,8 @@ pub(crate) fn run(files: &[PathBuf], style: Style, timing: Option<Option<&str>>)
 /// The check's findings with the timing analysis of `deployment` in place of
 /// the whole system's, and the certificate (absent when the spec does not
 /// pass the other checks, or cannot be analysed: a finding says why).
-fn with_timing(path: &Path, deployment: Option<&str>) -> std::io::Result<(Report, Option<String>)> {
+fn with_timing(path: &Path, timing: Timing<'_>) -> std::io::Result<(Report, Option<String>)> {
+    let deployment = timing.deployment;
     let bytes = std::fs::read(path)?;
     let file = path.display().to_string();
     let source = match embodied::spec::decode(&file, bytes) {
@@ -105,11 +144,24 @@ fn with_timing(path: &Path, deployment: Option<&str>) -> std::io::Result<(Report
     {
         return Ok((Report::new(file, loaded.source.clone(), findings), None));
     }
+    let mut spec = loaded.spec.clone();
+    let mut sources = String::new();
+    if let Some(measured) = timing.measured {
+        use embodied::spec::timing::{WCET_MARGIN, use_measured_wcets};
+        if let Some(list) = use_measured_wcets(&mut spec, measured, WCET_MARGIN) {
+            sources.push_str(&format!(
+                "WCETs from the recording: measured max x {WCET_MARGIN} (margin); declared where not measured\n"
+            ));
+            for s in list {
+                sources.push_str(&format!("{s}\n"));
+            }
+        }
+    }
     let certificate =
-        match embodied::spec::timing::analyse(&loaded.spec, loaded.index.as_ref(), deployment) {
+        match embodied::spec::timing::analyse(&spec, loaded.index.as_ref(), deployment) {
             Ok(analysis) => {
                 findings.extend(analysis.findings.iter().cloned());
-                Some(analysis.to_string())
+                Some(format!("{sources}{analysis}"))
             }
             Err(why) => {
                 errln!("error: {}: {why}", path.display());

@@ -163,7 +163,7 @@ pub(crate) fn run<A: Application>(
     }
     let sample_dropped = member.sample_dropped();
     let left = member.close();
-    let recorded = recorder.is_none_or(record::finish);
+    let recorded = recorder.is_none_or(|r| record::finish_timed(r, report, process));
     if !common.quiet {
         output::err(format_args!("{report}"));
     }

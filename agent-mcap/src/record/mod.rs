@@ -40,7 +40,10 @@
 //!   on the threads' timing; what a replay feeds;
 //! * `/fsm/<node>`: each behaviour switch, with the arc and the value of every
 //!   predicate at the decision, and the end of a final behaviour;
-//! * `/errors`: every error the executor met, with its time.
+//! * `/errors`: every error the executor met, with its time;
+//! * `/timing`: a real-time run's timing statistics, one JSON message per
+//!   process at its end ([`McapRecorder::timing`], [`crate::timing`]); a
+//!   deterministic run has none (no wall clock).
 //!
 //! Metadata `system`: the nodes, behaviours and links; `end`: when the run
 //! ended, how many iterations each node made and the instants of its first
@@ -252,6 +255,14 @@ impl McapRecorder {
     /// The file being written.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Write the real-time executor's timing statistics on the `/timing`
+    /// channel (made with its first message), stamped `time` (the run's last
+    /// instant). Call it after the run's `join`, before [`McapRecorder::finish`].
+    pub fn timing(&mut self, time: Time, stats: &crate::timing::TimingStats) {
+        let json = stats.to_json();
+        self.part.send(Record::Timing { time, json });
     }
 
     /// Close the file (its summary and index) and say what it holds, or why

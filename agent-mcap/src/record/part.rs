@@ -39,6 +39,12 @@ pub(super) enum Record {
     },
     /// A part ends: what it counted.
     Counted(Counts),
+    /// The real-time executor's timing statistics of one process (JSON), at
+    /// the run's last instant.
+    Timing {
+        time: Time,
+        json: String,
+    },
     /// The recording's owner finished it.
     End,
 }
@@ -186,7 +192,7 @@ impl Part {
     }
 
     /// Send the batch (if not empty), then `record`.
-    fn send(&mut self, record: Record) {
+    pub(super) fn send(&mut self, record: Record) {
         self.flush();
         self.send_now(record);
     }

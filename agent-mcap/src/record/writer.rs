@@ -46,6 +46,8 @@ impl Output {
         backlog: &Backlog,
     ) -> Result<RecordSummary, RecordError> {
         let mut error_count = 0u32;
+        // The `/timing` channel (made with its first message) and its count.
+        let mut timing = (None, 0u32);
         let mut give_back: BTreeMap<u16, Sender<Vec<u8>>> = BTreeMap::new();
         let mut counts = Counts::default();
         let mut finished = false;
@@ -90,6 +92,9 @@ impl Output {
                         &data.to_string().into_bytes(),
                     )?;
                     error_count += 1;
+                }
+                Record::Timing { time, json } => {
+                    self.timing(&mut timing, time, json.as_bytes())?;
                 }
                 Record::Part { part, give_back: g } => {
                     give_back.insert(part, g);
@@ -141,6 +146,33 @@ impl Output {
             message: e.to_string(),
         })?;
         Ok(summary)
+    }
+
+    /// One process's timing statistics on `/timing`, the channel made with
+    /// the first (`channel`: its id, if made, and its count of messages).
+    fn timing(
+        &mut self,
+        channel: &mut (Option<u16>, u32),
+        time: Time,
+        json: &[u8],
+    ) -> Result<(), RecordError> {
+        let id = match channel.0 {
+            Some(c) => c,
+            None => {
+                let made = self.w.add_channel(
+                    0,
+                    crate::timing::TIMING_TOPIC,
+                    crate::timing::TIMING_ENCODING,
+                    &BTreeMap::new(),
+                );
+                let c = made.map_err(|e| self.fail(&e))?;
+                channel.0 = Some(c);
+                c
+            }
+        };
+        self.write(id, channel.1, time, json)?;
+        channel.1 += 1;
+        Ok(())
     }
 
     fn fail(&self, e: &mcap::McapError) -> RecordError {
