@@ -42,6 +42,17 @@ use embodied::spec::timing::{Analysis, WCET_MARGIN, analyse, use_measured_wcets}
 /// The deployment whose placement is the `--no-vo` system in one process.
 const DEPLOYMENT: &str = "simulation_without_vo";
 
+/// The deployment of two processes (`world`, `locomotion`) without the
+/// visual odometry, launched with `rex launch`.
+const SPLIT: &str = "split_without_vo";
+
+/// The program that runs Rex: `REX_BIN` if set (a release build gives
+/// figures closer to the robot's), else this package's.
+fn rex_bin() -> PathBuf {
+    std::env::var_os("REX_BIN")
+        .map_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_rex")), PathBuf::from)
+}
+
 /// The link c1 writes only when c3 has sent a new pose.
 const RELAY: &str = "c1.e11.pose";
 
@@ -51,10 +62,10 @@ fn spec_path() -> PathBuf {
 
 /// Run Rex for `seconds` with `extra` flags, recorded to `file`.
 fn record(file: &Path, seconds: &str, extra: &[&str]) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rex"))
+    let out = Command::new(rex_bin())
+        .args(extra)
         .args(["--no-vo", "--quiet", "--for", seconds, "--record"])
         .arg(file)
-        .args(extra)
         // Its report folder (`target/rex-report`) goes beside the recording.
         .current_dir(file.parent().expect("a folder"))
         .output()
@@ -66,9 +77,9 @@ fn record(file: &Path, seconds: &str, extra: &[&str]) {
     );
 }
 
-/// The analysis of Rex's spec placed by [`DEPLOYMENT`], with the WCETs
+/// The analysis of Rex's spec placed by `deployment`, with the WCETs
 /// `measured` (times the margin) where given.
-fn analysis(measured: Option<&BTreeMap<String, u64>>) -> Analysis {
+fn analysis(measured: Option<&BTreeMap<String, u64>>, deployment: &str) -> Analysis {
     let text = std::fs::read_to_string(spec_path()).expect("the spec reads");
     let loaded = embodied::spec::load("rex.ron", text).expect("the spec loads");
     let mut spec = loaded.spec.clone();
@@ -91,7 +102,7 @@ fn analysis(measured: Option<&BTreeMap<String, u64>>) -> Analysis {
             println!("{s}");
         }
     }
-    analyse(&spec, None, Some(DEPLOYMENT)).expect("the analysis runs")
+    analyse(&spec, None, Some(deployment)).expect("the analysis runs")
 }
 
 /// One hop's reads: (reader's instant, writer's instant of the value), in
@@ -317,61 +328,83 @@ fn measured_data_ages_and_response_times_are_within_the_bounds() {
         "a deterministic run records no timing statistics"
     );
     assert!(read_timing(&rec).is_err());
-    let a = analysis(None);
+    let a = analysis(None, DEPLOYMENT);
     assert!(a.is_certified(), "not certified: {a}");
     compare("simulation", &rec, &a);
 
-    // Real time: the WCETs measured in the same recording.
-    let rt = dir.join("rt.mcap");
-    record(&rt, "3", &["--realtime"]);
-    let rec = Recording::open(&rt).expect("the real-time recording reads");
+    // Real time, in one process and as two: the WCETs measured in the same
+    // recording.
+    realtime(
+        "realtime",
+        &dir.join("rt.mcap"),
+        &["--realtime"],
+        DEPLOYMENT,
+        1,
+    );
+    realtime(
+        "split",
+        &dir.join("split.mcap"),
+        &["launch", "--deployment", SPLIT],
+        SPLIT,
+        2,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Record a real-time run (`args`: how to start it) of `processes`
+/// processes to `file`, and compare what it measured with the bounds of
+/// `deployment` computed with the WCETs it measured.
+fn realtime(run: &str, file: &Path, args: &[&str], deployment: &str, processes: usize) {
+    record(file, "3", args);
+    let rec = Recording::open(file).expect("the real-time recording reads");
     let stats = read_timing(&rec).expect("a real-time run records its timing statistics");
-    assert_eq!(stats.len(), 1, "one process, one message");
+    assert_eq!(stats.len(), processes, "one message per process");
     let measured = measured_wcets(&stats);
     for node in ["c1", "e11", "c3", "r31", "E1"] {
         assert!(measured.contains_key(node), "{node} measured: {measured:?}");
     }
-    let a = analysis(Some(&measured));
+    let a = analysis(Some(&measured), deployment);
     if !a.is_certified() && cfg!(debug_assertions) {
-        // An unoptimised build may measure the 1 ms world thread near its
-        // period: nothing is certified, so there is no bound to compare with.
+        // An unoptimised build may measure times that do not fit the periods:
+        // nothing is certified, so there is no bound to compare with.
         println!(
-            "timing_sound=- run=realtime not_certified=\"debug build: the measured WCETs do not fit\"\n{a}"
+            "timing_sound=- run={run} not_certified=\"debug build: the measured WCETs do not fit\"\n{a}"
         );
-        let _ = std::fs::remove_dir_all(&dir);
         return;
     }
     assert!(
         a.is_certified(),
         "not certified with the measured WCETs: {a}"
     );
-    compare("realtime", &rec, &a);
-    for n in &stats[0].nodes {
-        let Some(t) = a.threads.iter().find(|t| t.component == n.node) else {
-            continue;
-        };
-        let bound = t.response.expect("certified: every response time bounded");
-        let measured = n.lateness_max_ns + n.exec_max_ns;
-        // Drivers sharing the simulated world's thread are not modelled (one
-        // delays the other on it): their figures are printed, not asserted.
-        let own_thread = n.thread == n.node;
-        println!(
-            "timing_sound={} run=realtime component={} figure=response bound_ms={:.3} measured_max_ms={:.3} tightness={:.2} own_thread={} rt_priority={}",
-            u8::from(measured <= bound),
-            n.node,
-            bound as f64 / 1e6,
-            measured as f64 / 1e6,
-            bound as f64 / measured.max(1) as f64,
-            u8::from(own_thread),
-            stats[0].rt_priority
-        );
-        if stats[0].rt_priority && own_thread {
-            assert!(
-                measured <= bound,
-                "{}: lateness + execution {measured} ns above R = {bound} ns",
-                n.node
+    compare(run, &rec, &a);
+    for s in &stats {
+        for n in &s.nodes {
+            let Some(t) = a.threads.iter().find(|t| t.component == n.node) else {
+                continue;
+            };
+            let bound = t.response.expect("certified: every response time bounded");
+            let measured = n.lateness_max_ns + n.exec_max_ns;
+            // Drivers sharing the simulated world's thread are not modelled
+            // (one delays the other on it): printed, not asserted.
+            let own_thread = n.thread == n.node;
+            println!(
+                "timing_sound={} run={run} process={} component={} figure=response bound_ms={:.3} measured_max_ms={:.3} tightness={:.2} own_thread={} rt_priority={}",
+                u8::from(measured <= bound),
+                s.process,
+                n.node,
+                bound as f64 / 1e6,
+                measured as f64 / 1e6,
+                bound as f64 / measured.max(1) as f64,
+                u8::from(own_thread),
+                s.rt_priority
             );
+            if s.rt_priority && own_thread {
+                assert!(
+                    measured <= bound,
+                    "{run}: {}: lateness + execution {measured} ns above R = {bound} ns",
+                    n.node
+                );
+            }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
