@@ -568,8 +568,8 @@ impl Monitors {
         self.invariants.iter().map(|i| i.contract)
     }
 
-    /// Start watching at `t`: the rate windows start here and every run of a
-    /// behaviour is forgotten.
+    /// Start watching at `t`: the rate windows start here; every run of a
+    /// behaviour and every pending trigger is forgotten.
     pub fn start(&mut self, t: Time) {
         for r in &mut self.rates {
             r.last = t;

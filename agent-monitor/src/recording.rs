@@ -175,8 +175,10 @@ pub fn evaluate(monitors: &mut Monitors, recording: &Recording) -> Result<Report
     let mut not_evaluable: Vec<(ContractId, String)> = Vec::new();
     let links = links(recording);
     for c in recording.channels.values() {
+        // Only the subsystems a bound watches: the others' switches feed nothing.
         if let Some(node) = c.topic.strip_prefix("/fsm/")
             && let Some(s) = monitors.subsystem(node)
+            && monitors.bounds.iter().any(|b| b.subsystem == s)
         {
             roles.insert(c.id, Role::Fsm(s));
         }
