@@ -184,9 +184,7 @@ impl Ros2Out {
                     "--ros2: topic `{topic}` cannot feed its input: {e}"
                 ))
             };
-            let id = rt
-                .info()
-                .link_id(link)
+            let id = agent_core::LinkId::of(rt.info(), link)
                 .ok_or_else(|| refused(&format_args!("the system has no link #{link}")))?;
             let inbox = rt
                 .feed(id, &format!("ros2:{topic}"))

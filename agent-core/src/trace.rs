@@ -124,13 +124,6 @@ pub struct SystemInfo {
     pub links: Vec<LinkInfo>,
 }
 
-impl SystemInfo {
-    /// The id of link `index` of [`SystemInfo::links`], if the system has it.
-    pub fn link_id(&self, index: usize) -> Option<crate::LinkId> {
-        (index < self.links.len()).then_some(crate::LinkId(index))
-    }
-}
-
 /// An FSM transition.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TransitionEvent {

@@ -53,9 +53,6 @@ fn rex_bin() -> PathBuf {
         .map_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_rex")), PathBuf::from)
 }
 
-/// The link c1 writes only when c3 has sent a new pose.
-const RELAY: &str = "c1.e11.pose";
-
 fn spec_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs/rex.ron")
 }
@@ -83,19 +80,6 @@ fn analysis(measured: Option<&BTreeMap<String, u64>>, deployment: &str) -> Analy
     let text = std::fs::read_to_string(spec_path()).expect("the spec reads");
     let loaded = embodied::spec::load("rex.ron", text).expect("the spec loads");
     let mut spec = loaded.spec.clone();
-    // c1 relays the map pose to e11 when c3 sends one (every 20 ms, c3's
-    // period), not at each of its 10 ms activations, as the recordings show;
-    // `specs/rex.ron` does not say so, and the analysis would assume a write
-    // every 10 ms: declared here.
-    if let Some(timing) = spec.timing.as_mut()
-        && !timing.writes.iter().any(|w| w.link == RELAY)
-    {
-        timing.writes.push(embodied::spec::contracts::Writes {
-            link: RELAY.to_owned(),
-            min_interval_ms: None,
-            max_interval_ms: Some(20.0),
-        });
-    }
     if let Some(m) = measured {
         let sources = use_measured_wcets(&mut spec, m, WCET_MARGIN).expect("a timing section");
         for s in sources {

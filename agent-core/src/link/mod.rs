@@ -47,6 +47,14 @@ impl LinkId {
     pub fn index(self) -> usize {
         self.0
     }
+
+    /// The id of link `index` of a system described by `info` (its
+    /// [`SystemInfo::links`](crate::trace::SystemInfo::links)), if it has
+    /// one: for code that finds a link in the description (a bridge feeding
+    /// it).
+    pub fn of(info: &crate::trace::SystemInfo, index: usize) -> Option<LinkId> {
+        (index < info.links.len()).then_some(LinkId(index))
+    }
 }
 
 /// Counters of one link.

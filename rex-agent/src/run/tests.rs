@@ -243,7 +243,7 @@ fn a_listening_rex_executes_and_acknowledges_a_plan_fed_into_c1_from_outside() {
         .links
         .iter()
         .position(|l| l.name == PLAN_LINK)
-        .and_then(|i| system.info().link_id(i))
+        .and_then(|i| embodied::LinkId::of(system.info(), i))
         .expect("c1's input from c2 has a link");
     let (mut probes, seen) = Probes::new(PROBES);
     install_probes(&mut probes, &h, &|_| true);
