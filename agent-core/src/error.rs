@@ -504,6 +504,21 @@ pub enum ExecError {
         #[source]
         source: DriverError,
     },
+    /// A promise of the spec broken: a contract that a monitor watching the run
+    /// found violated (agent-monitor's), raised by the run's observer
+    /// ([`Observer::raised`](crate::Observer::raised)) and handled by the error
+    /// policy as the subsystem's own error would be.
+    #[error("subsystem `{subsystem}` at {time}: {source}")]
+    Contract {
+        /// The subsystem the contract holds of.
+        subsystem: String,
+        /// When it was broken.
+        time: Time,
+        /// The violation: the contract and the values that broke it (a typed error
+        /// of the monitor's crate, to downcast).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The executor stopped on an earlier error (with [`OnError::Stop`](crate::OnError::Stop)).
     #[error("the executor stopped after an error; build a new executor to run again")]
     Stopped,

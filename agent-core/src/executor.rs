@@ -54,9 +54,18 @@ pub enum OnError {
     /// sent nothing and is retried at the next period; a value refused by a full queue is
     /// counted in the link's statistics.
     Continue,
+    /// As [`OnError::Continue`], and at the first error the run safe-stops: every
+    /// subsystem is halted (none acts or sends again) and every driver's
+    /// [`Driver::safe_stop`] is called once, before its next step; the drivers
+    /// go on stepping, so the world goes on (a real effector holding its safe
+    /// state: Rex's platform brakes and holds) until the run ends. In the
+    /// real-time executor every thread of the run safe-stops at its next
+    /// instant; a deployment's other processes are not told (they see the
+    /// values stop, which their own contracts watch).
+    SafeStop,
 }
 
-/// Under [`OnError::Continue`], whether an error halts its node (a violated FSM
+/// Under [`OnError::Continue`] (and [`OnError::SafeStop`]), whether an error halts its node (a violated FSM
 /// contract) rather than letting it retry at its next period. One rule for both
 /// executors.
 pub(crate) fn halts_under_continue(e: &ExecError) -> bool {
@@ -111,6 +120,9 @@ pub struct RunReport {
     pub error_count: u64,
     /// Instants executed.
     pub instants: u64,
+    /// When the run safe-stopped ([`OnError::SafeStop`]): the instant of the
+    /// error that stopped it.
+    pub safe_stopped: Option<Time>,
 }
 
 /// Runs a [`System`] in virtual time, deterministically, on the calling thread. See
@@ -331,6 +343,12 @@ impl<O: Observer> Executor<O> {
                     self.handle_error(i, tn, *e)?;
                 }
             }
+            if observe {
+                while let Some(e) = self.observer.raised() {
+                    self.observer.error(t, &e);
+                    self.handle_raised(t, e)?;
+                }
+            }
             if let Some(probes) = self.probes.get_mut(i) {
                 for f in probes {
                     f(t, self.nodes[i].core());
@@ -358,17 +376,46 @@ impl<O: Observer> Executor<O> {
                 self.stopped = true;
                 Err(e)
             }
-            OnError::Continue => {
+            OnError::Continue | OnError::SafeStop => {
                 if halts_under_continue(&e) {
                     self.nodes[i].halt();
                     self.next[i] = u64::MAX;
                 } else {
                     self.next[i] = tn.saturating_add(self.periods[i]);
                 }
-                if self.report.errors.len() < self.config.max_recorded_errors {
-                    self.report.errors.push(e);
-                }
+                self.keep(Time::from_nanos(tn), e);
                 Ok(())
+            }
+        }
+    }
+
+    /// Apply the error policy to an error the observer raised at `t` (a broken
+    /// contract): it names its subsystem, and no node's schedule changes
+    /// unless the run stops or safe-stops.
+    #[cold]
+    fn handle_raised(&mut self, t: Time, e: ExecError) -> Result<(), ExecError> {
+        self.report.error_count += 1;
+        if self.config.on_error == OnError::Stop {
+            self.stopped = true;
+            return Err(e);
+        }
+        self.keep(t, e);
+        Ok(())
+    }
+
+    /// Keep an error in the report (up to the limit); under
+    /// [`OnError::SafeStop`], safe-stop the run at its first.
+    fn keep(&mut self, t: Time, e: ExecError) {
+        if self.report.errors.len() < self.config.max_recorded_errors {
+            self.report.errors.push(e);
+        }
+        if self.config.on_error == OnError::SafeStop && self.report.safe_stopped.is_none() {
+            self.report.safe_stopped = Some(t);
+            for (i, node) in self.nodes.iter_mut().enumerate() {
+                node.safe_stop();
+                if node.is_halted() {
+                    self.next[i] = u64::MAX;
+                }
             }
         }
     }

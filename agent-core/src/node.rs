@@ -52,6 +52,9 @@ pub(crate) trait InProcessNode {
         cx: &mut LinkCx<'_>,
     ) -> Result<NodeStep, Box<ExecError>>;
     fn halt(&mut self);
+    /// The run safe-stops ([`OnError::SafeStop`](crate::OnError::SafeStop)): a
+    /// subsystem halts, a driver makes its device safe and runs on.
+    fn safe_stop(&mut self);
     fn is_halted(&self) -> bool;
     fn iteration(&self) -> u64;
     /// The node's core (a `SubsystemCore`, an `Audited` one, or a `DriverCore`),
@@ -91,6 +94,10 @@ pub(crate) trait NodeCore: Send + Sized + 'static {
         self.compute(now, index, cx)
     }
     fn halt(&mut self);
+    /// [`InProcessNode::safe_stop`]: a subsystem halts (the default).
+    fn safe_stop(&mut self) {
+        self.halt();
+    }
     fn is_halted(&self) -> bool;
     fn iteration(&self) -> u64;
 }
@@ -149,6 +156,9 @@ impl<C: NodeCore> NodeCore for Audited<C> {
     }
     fn halt(&mut self) {
         self.0.halt();
+    }
+    fn safe_stop(&mut self) {
+        self.0.safe_stop();
     }
     fn is_halted(&self) -> bool {
         self.0.is_halted()
@@ -234,6 +244,10 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
 
     fn halt(&mut self) {
         self.core.halt();
+    }
+
+    fn safe_stop(&mut self) {
+        self.core.safe_stop();
     }
 
     fn is_halted(&self) -> bool {
@@ -489,6 +503,10 @@ impl<D: Driver> NodeCore for DriverCore<D> {
 
     fn halt(&mut self) {
         self.halted = true;
+    }
+
+    fn safe_stop(&mut self) {
+        self.driver.safe_stop();
     }
 
     fn is_halted(&self) -> bool {

@@ -207,6 +207,14 @@ pub trait Driver: Send + 'static {
         input: &Self::Input,
         output: &mut Self::Output,
     ) -> Result<(), DriverError>;
+
+    /// Bring the device to a safe state: called once when the run safe-stops
+    /// ([`OnError::SafeStop`](crate::OnError::SafeStop)), before the driver's next
+    /// step. Every subsystem is then halted, and the driver goes on stepping with
+    /// the last commands its input buffers hold: a real effector should latch
+    /// the safe state and hold it whatever they say (Rex's platform brakes and
+    /// holds). The default does nothing (a receptor has no state to make safe).
+    fn safe_stop(&mut self) {}
 }
 
 // Defined here rather than with `Shape`, so that descriptions do not depend on the

@@ -220,6 +220,14 @@ pub trait Observer: Send {
     fn received(&mut self, _event: &ReadEvent, _value: &dyn ErasedPayload) {}
     /// An error occurred (whether the run stops or continues).
     fn error(&mut self, _time: Time, _error: &ExecError) {}
+    /// An error the observer found in what it saw (a contract monitor's
+    /// violation), taken by the executor right after each step of a node and
+    /// handled by its error policy as that node's own error would be (then
+    /// given to [`Observer::error`], so a recorder beside the monitor records
+    /// it). Called until it returns `None`.
+    fn raised(&mut self) -> Option<ExecError> {
+        None
+    }
 }
 
 /// A boxed observer observes as the box's content does.
@@ -250,6 +258,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn error(&mut self, time: Time, error: &ExecError) {
         (**self).error(time, error);
+    }
+    fn raised(&mut self) -> Option<ExecError> {
+        (**self).raised()
     }
 }
 
@@ -322,6 +333,20 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         if self.1.enabled() {
             self.1.error(time, error);
         }
+    }
+    fn raised(&mut self) -> Option<ExecError> {
+        let first = if self.0.enabled() {
+            self.0.raised()
+        } else {
+            None
+        };
+        first.or_else(|| {
+            if self.1.enabled() {
+                self.1.raised()
+            } else {
+                None
+            }
+        })
     }
 }
 

@@ -141,6 +141,7 @@ impl<O: Observer> Executor<O> {
             errors: report.errors,
             error_count: report.error_count,
             last_instant: now,
+            safe_stopped: report.safe_stopped,
             probe_dropped: probes_dropped
                 .iter()
                 .map(|d| d.load(std::sync::atomic::Ordering::Relaxed))

@@ -423,6 +423,7 @@ impl Running {
                     timings.extend(done.timings);
                     report.errors.extend(done.errors);
                     report.last_instant = report.last_instant.max(done.last);
+                    report.safe_stopped = report.safe_stopped.or(done.safe_stopped);
                     report.threads.push(ThreadReport {
                         name: done.name,
                         priority_asked: done.priority.as_ref().map(|(p, _)| *p),

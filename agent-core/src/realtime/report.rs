@@ -76,6 +76,9 @@ pub struct RtReport {
     pub wall: Duration,
     /// The last instant executed.
     pub last_instant: Time,
+    /// When the run safe-stopped ([`OnError::SafeStop`](crate::OnError::SafeStop)):
+    /// the instant of the error that stopped it.
+    pub safe_stopped: Option<Time>,
 }
 
 impl RtReport {

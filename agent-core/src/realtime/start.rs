@@ -90,6 +90,7 @@ impl RealTime {
             end,
             config: config.exec,
             errors: AtomicU64::new(0),
+            safe_stopped: AtomicU64::new(u64::MAX),
             halted: (0..info.nodes.len())
                 .map(|_| AtomicBool::new(false))
                 .collect(),

@@ -55,6 +55,9 @@ pub(crate) struct Shared {
     pub(crate) end: u64,
     pub(crate) config: ExecConfig,
     pub(crate) errors: AtomicU64,
+    /// When the run safe-stopped (ns; `u64::MAX`: it has not): every thread
+    /// safe-stops its nodes at its next instant.
+    pub(crate) safe_stopped: AtomicU64,
     /// Per node (global index): whether it has halted.
     pub(crate) halted: Vec<AtomicBool>,
 }
@@ -71,6 +74,8 @@ pub(crate) struct Done {
     pub(crate) priority: Option<(u8, Result<(), Refused>)>,
     /// The virtual time of the last instant executed.
     pub(crate) last: Time,
+    /// When the run safe-stopped, if it did.
+    pub(crate) safe_stopped: Option<Time>,
 }
 
 /// Run a thread's work: build its nodes, run their instants until the end, a
@@ -149,6 +154,8 @@ struct Thread<'a> {
     errors: Vec<ExecError>,
     /// The virtual time of the last instant executed.
     last: Time,
+    /// Whether this thread's nodes were safe-stopped.
+    safe_stopped: bool,
     environment: Option<Box<dyn Any + Send>>,
     // The observer is dropped before the probes, as it always was.
     observer: Option<Box<dyn Observer>>,
@@ -187,6 +194,7 @@ impl<'a> Thread<'a> {
             recorders,
             errors: Vec::new(),
             last: Time::ZERO,
+            safe_stopped: false,
             environment,
             observer,
             probes,
@@ -212,6 +220,9 @@ impl<'a> Thread<'a> {
         let jitter = woke.saturating_sub(t);
         let now = Time::from_nanos(t);
         self.last = now;
+        if !self.safe_stopped && self.shared.safe_stopped.load(Ordering::Relaxed) != u64::MAX {
+            self.safe_stop_nodes();
+        }
         let unread = self.read_due(t, now);
         for (k, e) in unread {
             self.link_failed(k, now, e);
@@ -261,11 +272,7 @@ impl<'a> Thread<'a> {
                 self.errors.push(e);
                 self.next[k] = u64::MAX;
             }
-            OnError::Continue => {
-                if self.errors.len() < self.shared.config.max_recorded_errors {
-                    self.errors.push(e);
-                }
-            }
+            OnError::Continue | OnError::SafeStop => self.keep(now, e),
         }
     }
 
@@ -287,6 +294,9 @@ impl<'a> Thread<'a> {
             Ok(NodeStep::Ran) => self.next[k] = t.saturating_add(self.periods[k]),
             Ok(NodeStep::Halted) => self.next[k] = u64::MAX,
             Err(e) => self.step_failed(k, t, now, e),
+        }
+        if self.observer.is_some() {
+            self.raised(now);
         }
         if self.next[k] != u64::MAX && ended > self.next[k] {
             self.recorders[k].overruns += 1;
@@ -317,15 +327,65 @@ impl<'a> Thread<'a> {
                 self.errors.push(*e);
                 self.next[k] = u64::MAX;
             }
-            OnError::Continue => {
+            OnError::Continue | OnError::SafeStop => {
                 if halts_under_continue(&e) {
                     self.nodes[k].halt();
                     self.next[k] = u64::MAX;
                 } else {
                     self.next[k] = t.saturating_add(self.periods[k]);
                 }
-                if self.errors.len() < self.shared.config.max_recorded_errors {
-                    self.errors.push(*e);
+                self.keep(now, *e);
+            }
+        }
+    }
+
+    /// The errors the observer raised after a step (broken contracts), through
+    /// the policy: no node's schedule changes unless the run stops or
+    /// safe-stops.
+    fn raised(&mut self, now: Time) {
+        while let Some(e) = self.observer.as_deref_mut().and_then(|o| o.raised()) {
+            self.shared.errors.fetch_add(1, Ordering::Relaxed);
+            if let Some(o) = self.observer.as_deref_mut() {
+                o.error(now, &e);
+            }
+            if self.shared.config.on_error == OnError::Stop {
+                self.shared.stop.store(true, Ordering::Relaxed);
+                self.errors.push(e);
+            } else {
+                self.keep(now, e);
+            }
+        }
+    }
+
+    /// Keep an error (up to the limit); under [`OnError::SafeStop`], safe-stop
+    /// the run at its first: this thread's nodes now, the others' at their
+    /// next instant.
+    fn keep(&mut self, now: Time, e: ExecError) {
+        if self.errors.len() < self.shared.config.max_recorded_errors {
+            self.errors.push(e);
+        }
+        if self.shared.config.on_error == OnError::SafeStop && !self.safe_stopped {
+            let _ = self.shared.safe_stopped.compare_exchange(
+                u64::MAX,
+                now.as_nanos(),
+                Ordering::Relaxed,
+                Ordering::Relaxed,
+            );
+            self.safe_stop_nodes();
+        }
+    }
+
+    /// Safe-stop this thread's nodes: subsystems halt, drivers make their
+    /// devices safe and run on.
+    #[cold]
+    fn safe_stop_nodes(&mut self) {
+        self.safe_stopped = true;
+        for (k, node) in self.nodes.iter_mut().enumerate() {
+            node.safe_stop();
+            if node.is_halted() {
+                self.next[k] = u64::MAX;
+                if let Some(h) = self.shared.halted.get(self.ids[k]) {
+                    h.store(true, Ordering::Relaxed);
                 }
             }
         }
@@ -370,6 +430,10 @@ impl<'a> Thread<'a> {
             errors: self.errors,
             priority,
             last: self.last,
+            safe_stopped: match self.shared.safe_stopped.load(Ordering::Relaxed) {
+                u64::MAX => None,
+                ns => Some(Time::from_nanos(ns)),
+            },
         }
     }
 }
