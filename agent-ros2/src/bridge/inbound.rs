@@ -5,12 +5,11 @@
 //! bytes.
 
 use agent_core::{System, SystemInfo};
-use agent_mcap::cdr::root_name;
 use agent_spec::ros2::{Interface as SpecInterface, Topic};
 
 use super::adapter::{Adapters, Decoder};
-use super::plan::{PlanError, key_of, qos_of};
-use crate::types::{Messages, messages};
+use super::plan::{PlanError, message_plan};
+use crate::types::Messages;
 use crate::wire::{Qos, TopicKey};
 
 /// One ROS 2 topic feeding one input buffer.
@@ -69,58 +68,34 @@ pub(crate) fn subscribed(
     })?;
     let payload = system.info().links[link].payload;
     let fingerprint = system.payload_fingerprint(link).unwrap_or(0);
-    let not_a_message = |reason: String| PlanError::NotAMessage {
-        buffer: t.buffer.clone(),
-        topic: t.name.clone(),
-        payload: payload.to_owned(),
-        reason,
-    };
-    let (messages, decoder) = match &t.message {
-        None => {
-            let shape = system
-                .payload_shape(link)
-                .ok_or_else(|| not_a_message("its type's shape cannot be traced".to_owned()))?;
-            let made = messages(&shape, &interface.package, root_name(payload))
-                .map_err(|e| not_a_message(e.to_string()))?;
-            let json = serde_json::to_string(&(&shape.root, &shape.registry))
-                .map_err(|e| not_a_message(format!("its shape: {e}")))?;
-            (made, Decoder::Own(json))
-        }
-        Some(message) => {
+    let plan = message_plan(
+        t,
+        interface,
+        system,
+        link,
+        payload,
+        |message, fingerprint| {
             let adapter = adapters.find_inbound(fingerprint, message).ok_or_else(|| {
                 PlanError::NoInboundAdapter {
                     buffer: t.buffer.clone(),
                     topic: t.name.clone(),
                     payload: payload.to_owned(),
-                    message: message.clone(),
+                    message: message.to_owned(),
                     available: adapters.inbound_messages_of(fingerprint),
                 }
             })?;
-            if !adapter.traceable {
-                return Err(not_a_message(format!(
-                    "the shape of `{message}`'s Rust type cannot be traced"
-                )));
-            }
-            (
-                adapter.messages.clone(),
-                Decoder::Adapted(adapter.make.clone()),
-            )
-        }
-    };
-    let key = key_of(interface.domain, &t.name, &messages).map_err(not_a_message)?;
-    let qos = qos_of(t.qos).ok_or_else(|| PlanError::TransientLocal {
-        buffer: t.buffer.clone(),
-        topic: t.name.clone(),
-    })?;
+            Ok((adapter.traceable, &adapter.messages, &adapter.make))
+        },
+    )?;
     Ok(SubscribedTopic {
         buffer: t.buffer.clone(),
         link,
         payload,
         fingerprint,
-        messages,
-        key,
-        qos,
-        decoder,
+        messages: plan.messages,
+        key: plan.key,
+        qos: plan.qos,
+        decoder: plan.conversion,
     })
 }
 

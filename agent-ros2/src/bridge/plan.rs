@@ -6,12 +6,14 @@
 //! subscribed alike, each message name has one definition (`intern`: a
 //! helper or root defined differently by two topics is numbered, `Item2`).
 
+use std::sync::Arc;
+
 use agent_core::{System, SystemInfo};
 use agent_mcap::cdr::root_name;
 use agent_spec::model::{Deployment, Durability, Reliability, Spec};
 use agent_spec::ros2::{self as spec_ros2, Interface as SpecInterface, QosProfile, Topic};
 
-use super::adapter::{Adapters, Encoder};
+use super::adapter::{Adapters, Conversion, Encoder};
 use super::inbound::{SubscribedTopic, subscribed};
 use super::intern::one_definition_per_name;
 use crate::types::standard::builtin_interfaces::Time;
@@ -367,13 +369,78 @@ fn published(
         topic: t.name.clone(),
     })?;
     let payload = info.links[link].payload;
+    let plan = message_plan(
+        t,
+        interface,
+        system,
+        link,
+        payload,
+        |message, fingerprint| {
+            let adapter =
+                adapters
+                    .find(fingerprint, message)
+                    .ok_or_else(|| PlanError::NoAdapter {
+                        buffer: t.buffer.clone(),
+                        topic: t.name.clone(),
+                        payload: payload.to_owned(),
+                        message: message.to_owned(),
+                        available: adapters.messages_of(fingerprint),
+                    })?;
+            Ok((adapter.traceable, &adapter.messages, &adapter.make))
+        },
+    )?;
+    Ok(PublishedTopic {
+        buffer: t.buffer.clone(),
+        link,
+        payload,
+        messages: plan.messages,
+        key: plan.key,
+        qos: plan.qos,
+        encoder: plan.conversion,
+    })
+}
+
+/// What the plans of a published and of a subscribed topic share, past the
+/// link: the message, how the bridge converts it, its key and QoS.
+pub(crate) struct MessagePlan<F: ?Sized> {
+    /// The message and every message it uses.
+    pub(crate) messages: Messages,
+    /// The buffer type's own message (its shape as JSON), or the adapter's.
+    pub(crate) conversion: Conversion<F>,
+    /// The data key.
+    pub(crate) key: TopicKey,
+    /// The quality of service.
+    pub(crate) qos: Qos,
+}
+
+/// An adapter as [`message_plan`] takes it: whether its message's shape can
+/// be traced, its messages, and what makes its conversion.
+pub(crate) type FoundAdapter<'a, F> = (
+    bool,
+    &'a Messages,
+    &'a Arc<dyn Fn() -> Option<Box<F>> + Send + Sync>,
+);
+
+/// The plan of topic `t` on link `link` (of buffer type `payload`): without
+/// a message named in the spec, the message made from the buffer type's
+/// shape; with one, the adapter `adapter` finds for it and the buffer type's
+/// fingerprint (or the error it gives), refused when its message's shape
+/// cannot be traced; then the key and the QoS.
+pub(crate) fn message_plan<'a, F: ?Sized + 'a>(
+    t: &Topic,
+    interface: &SpecInterface,
+    system: &System,
+    link: usize,
+    payload: &'static str,
+    adapter: impl FnOnce(&str, u64) -> Result<FoundAdapter<'a, F>, PlanError>,
+) -> Result<MessagePlan<F>, PlanError> {
     let not_a_message = |reason: String| PlanError::NotAMessage {
         buffer: t.buffer.clone(),
         topic: t.name.clone(),
         payload: payload.to_owned(),
         reason,
     };
-    let (messages, encoder) = match &t.message {
+    let (messages, conversion) = match &t.message {
         None => {
             let shape = system
                 .payload_shape(link)
@@ -382,29 +449,17 @@ fn published(
                 .map_err(|e| not_a_message(e.to_string()))?;
             let json = serde_json::to_string(&(&shape.root, &shape.registry))
                 .map_err(|e| not_a_message(format!("its shape: {e}")))?;
-            (made, Encoder::Own(json))
+            (made, Conversion::Own(json))
         }
         Some(message) => {
             let fingerprint = system.payload_fingerprint(link).unwrap_or(0);
-            let adapter =
-                adapters
-                    .find(fingerprint, message)
-                    .ok_or_else(|| PlanError::NoAdapter {
-                        buffer: t.buffer.clone(),
-                        topic: t.name.clone(),
-                        payload: payload.to_owned(),
-                        message: message.clone(),
-                        available: adapters.messages_of(fingerprint),
-                    })?;
-            if !adapter.traceable {
+            let (traceable, messages, make) = adapter(message, fingerprint)?;
+            if !traceable {
                 return Err(not_a_message(format!(
                     "the shape of `{message}`'s Rust type cannot be traced"
                 )));
             }
-            (
-                adapter.messages.clone(),
-                Encoder::Adapted(adapter.make.clone()),
-            )
+            (messages.clone(), Conversion::Adapted(make.clone()))
         }
     };
     let key = key_of(interface.domain, &t.name, &messages).map_err(not_a_message)?;
@@ -412,14 +467,11 @@ fn published(
         buffer: t.buffer.clone(),
         topic: t.name.clone(),
     })?;
-    Ok(PublishedTopic {
-        buffer: t.buffer.clone(),
-        link,
-        payload,
+    Ok(MessagePlan {
         messages,
+        conversion,
         key,
         qos,
-        encoder,
     })
 }
 
