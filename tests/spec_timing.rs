@@ -9,20 +9,10 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use std::process::Command;
+#[path = "common/binary.rs"]
+mod binary;
 
-fn embodied(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use binary::embodied;
 
 #[test]
 fn rex_gets_a_certificate_as_one_process_and_as_the_paper_places_it() {

@@ -11,26 +11,17 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+#[path = "common/binary.rs"]
+mod binary;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use embodied::record::TimingStats;
 use embodied::record::mcap;
 use embodied::record::timing::NodeStats;
 
-fn embodied(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use binary::embodied;
 
 fn node(name: &str, exec_max_ns: u64) -> NodeStats {
     NodeStats {
