@@ -27,6 +27,27 @@ pub struct Cli<F: Args> {
     pub command: Option<Command>,
 }
 
+/// `--on-error`: the executors' error policy ([`agent_core::OnError`]).
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnErrorArg {
+    /// Stop the run at the error.
+    Stop,
+    /// Report the error and go on.
+    Continue,
+    /// Safe-stop: halt every subsystem, make every device safe, go on.
+    SafeStop,
+}
+
+impl From<OnErrorArg> for agent_core::OnError {
+    fn from(a: OnErrorArg) -> Self {
+        match a {
+            OnErrorArg::Stop => agent_core::OnError::Stop,
+            OnErrorArg::Continue => agent_core::OnError::Continue,
+            OnErrorArg::SafeStop => agent_core::OnError::SafeStop,
+        }
+    }
+}
+
 /// The flags of every application built on the layer.
 #[derive(Args, Clone, Debug, Default)]
 pub struct Common {
@@ -60,6 +81,13 @@ pub struct Common {
     /// Print only the summary (no progress, no timing table).
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// What an error does, a node's or a broken contract's (the spec's
+    /// `contracts`, watched in every executor): `stop` the run there,
+    /// `continue` (report it and go on), or `safe-stop` (every subsystem
+    /// halted and every device made safe, Rex's platform braking and holding,
+    /// the run going on to its end). Default: the application's.
+    #[arg(long, global = true, value_name = "POLICY")]
+    pub on_error: Option<OnErrorArg>,
     /// Print every FSM transition as it happens (`t=0.100000 s c2: ask ->
     /// wait (arc 0, when true)`), on standard output.
     #[arg(long, global = true)]
@@ -133,6 +161,15 @@ impl Common {
     /// `--wait`, checked.
     pub fn wait(&self) -> Result<Option<Duration>, AppError> {
         seconds("--wait", self.wait)
+    }
+
+    /// The executors' settings: the application's, with `--on-error`'s policy
+    /// if given.
+    pub fn exec(&self, application: agent_core::ExecConfig) -> agent_core::ExecConfig {
+        agent_core::ExecConfig {
+            on_error: self.on_error.map_or(application.on_error, Into::into),
+            ..application
+        }
     }
 }
 

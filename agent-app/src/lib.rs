@@ -49,6 +49,7 @@
 //! judgement against the simulation's truth, its report folder).
 
 mod cli;
+mod contracts;
 mod credentials;
 #[cfg(feature = "distributed")]
 mod deploy;
@@ -76,7 +77,8 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 
 pub use cli::{
-    BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, ROS2_ENDPOINT, parse_fault,
+    BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, OnErrorArg, ROS2_ENDPOINT,
+    parse_fault,
 };
 pub use credentials::ROS2_LISTEN;
 pub use error::{AppError, BoxError, Status};

@@ -12,6 +12,9 @@ use agent_core::{
 };
 use agent_mcap::McapRecorder;
 
+use agent_monitor::live::Live;
+
+use crate::contracts;
 use crate::error::{AppError, Status};
 use crate::ros2::Ros2Out;
 use crate::transitions::{self, Transitions};
@@ -36,12 +39,13 @@ pub(crate) fn run<A: Application>(
     let limit = common.limit()?.unwrap_or_else(|| app.limit(config));
     let end = app.end(config);
     let rule_stated = end.is_stated();
-    let exec = app.exec(config);
+    let exec = common.exec(app.exec(config));
     let record_to = common
         .record
         .clone()
         .or_else(|| app.default_record(config, common));
     let system = app.build(config, &Target::Whole)?;
+    let contracts = contracts::live(&spec, &system)?;
     let (mut probes, seen) = Probes::new(PROBE_CAPACITY);
     app.probes(&mut probes, &|_| true);
     let mut watcher = app.watcher(config, common);
@@ -69,6 +73,7 @@ pub(crate) fn run<A: Application>(
         limit,
         quiet: common.quiet,
         transitions: common.transitions,
+        contracts: contracts.clone(),
     };
     let (ran, recorder, ros2, mode) = if common.realtime {
         let config = RtConfig {
@@ -98,7 +103,7 @@ pub(crate) fn run<A: Application>(
         (ran, mode, rule_stated),
         watcher.as_mut(),
         recorder,
-        bridged,
+        (bridged, contracts.as_ref()),
     )
 }
 
@@ -121,6 +126,9 @@ pub struct Watched<'w, M> {
     pub quiet: bool,
     /// Print every FSM transition as it happens.
     pub transitions: bool,
+    /// The spec's contracts, watched in the executor ([`contracts::live`];
+    /// `None`: a spec without contracts).
+    pub contracts: Option<Live>,
 }
 
 /// A run that ended: its nodes, how it ended, its wall-clock time.
@@ -168,7 +176,8 @@ impl<M: Send + 'static> Watched<'_, M> {
         observer: O,
     ) -> Result<(Ran, O), AppError> {
         let halting = halting_nodes(&system, &self.end)?;
-        let observer = (observer, Transitions::new(self.transitions));
+        let watch = self.contracts.as_ref().map(Live::watch);
+        let observer = (observer, (Transitions::new(self.transitions), watch));
         let mut ex = Executor::with_observer(system, exec, observer);
         ex.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
         let end = Time::ZERO.saturating_add(self.limit);
@@ -245,7 +254,15 @@ impl<M: Send + 'static> Watched<'_, M> {
         let mut rt = RealTime::new(system, config);
         rt.watch(std::mem::replace(&mut self.probes, Probes::new(1).0));
         let threads = ros2.as_deref().and_then(Ros2Out::threads);
-        transitions::observe(&mut rt, recorder, self.transitions, threads);
+        transitions::observe(
+            &mut rt,
+            transitions::Observers {
+                recorder,
+                print: self.transitions,
+                ros2: threads,
+                contracts: self.contracts.as_ref(),
+            },
+        );
         if let Some(ros2) = ros2.as_deref_mut() {
             ros2.feed(&mut rt)?;
         }
@@ -361,7 +378,7 @@ fn conclude<A: Application>(
     (ran, mode, rule_stated): (Ran, Mode, bool),
     watcher: &mut dyn Watcher<A::Seen>,
     recorder: Option<McapRecorder>,
-    bridged: bool,
+    (bridged, contracts): (bool, Option<&Live>),
 ) -> Result<(Status, String), AppError> {
     let Ran {
         finished,
@@ -395,6 +412,9 @@ fn conclude<A: Application>(
             report.nodes.iter().map(|n| n.overruns).sum::<u64>(),
             report.error_count
         ));
+    }
+    if let Some(live) = contracts {
+        contracts::say(live, common.quiet);
     }
     let summary = RunSummary {
         spec: spec.spec.name.clone(),

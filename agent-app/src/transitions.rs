@@ -7,6 +7,7 @@
 
 use agent_core::{NoObserver, NodeInfo, Observer, RealTime, Step, SystemInfo, TransitionEvent};
 use agent_mcap::McapRecorder;
+use agent_monitor::live::Live;
 
 use crate::output;
 use crate::ros2::Threads;
@@ -91,36 +92,40 @@ impl Observer for Transitions {
     }
 }
 
-/// Give a real-time run its observers: on each thread its part of
-/// `recorder`'s recording and of the ROS 2 bridge's (`ros2`) beside a
-/// transition printer (printing if `print`); with neither, a printer only if
-/// it prints.
-pub(crate) fn observe(
-    rt: &mut RealTime,
-    recorder: Option<&McapRecorder>,
-    print: bool,
-    ros2: Option<Threads>,
-) {
-    match (recorder, ros2) {
-        (Some(r), None) => {
-            let mut parts = r.threads();
-            rt.observe(move |thread, nodes| {
-                Box::new((parts(thread, nodes), Transitions::new(print)))
-            });
-        }
-        (recorder, Some(mut bridge)) => {
-            let mut parts = recorder.map(McapRecorder::threads);
-            rt.observe(move |thread, nodes| {
-                let part: Box<dyn Observer> = match &mut parts {
-                    Some(parts) => parts(thread, nodes),
-                    None => Box::new(NoObserver),
-                };
-                Box::new(((part, bridge(thread, nodes)), Transitions::new(print)))
-            });
-        }
-        (None, None) if print => {
-            rt.observe(|_, _| Box::new(Transitions::new(true)));
-        }
-        (None, None) => {}
+/// What observes each thread of a real-time run.
+pub(crate) struct Observers<'a> {
+    /// The recording, whose part each thread gets.
+    pub(crate) recorder: Option<&'a McapRecorder>,
+    /// Whether transitions are printed.
+    pub(crate) print: bool,
+    /// The ROS 2 bridge's parts.
+    pub(crate) ros2: Option<Threads>,
+    /// The spec's contracts, whose watch of its subsystems each thread gets.
+    pub(crate) contracts: Option<&'a Live>,
+}
+
+/// Give a real-time run its observers: on each thread its part of the
+/// recording and of the ROS 2 bridge, a transition printer (printing if
+/// asked) and the watch of the contracts of the thread's subsystems; none if
+/// there is nothing to observe.
+pub(crate) fn observe(rt: &mut RealTime, o: Observers<'_>) {
+    if o.recorder.is_none() && o.ros2.is_none() && !o.print && o.contracts.is_none() {
+        return;
     }
+    let mut parts = o.recorder.map(McapRecorder::threads);
+    let mut bridge = o.ros2;
+    let contracts = o.contracts.cloned();
+    let print = o.print;
+    rt.observe(move |thread, nodes| {
+        let part: Box<dyn Observer> = match &mut parts {
+            Some(parts) => Box::new(parts(thread, nodes)),
+            None => Box::new(NoObserver),
+        };
+        let bridged: Box<dyn Observer> = match &mut bridge {
+            Some(bridge) => Box::new(bridge(thread, nodes)),
+            None => Box::new(NoObserver),
+        };
+        let watch = contracts.as_ref().map(|c| c.watch_nodes(nodes));
+        Box::new(((part, bridged), (Transitions::new(print), watch)))
+    });
 }

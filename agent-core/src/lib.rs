@@ -44,6 +44,7 @@ pub mod testing;
 pub mod time;
 pub mod trace;
 pub mod transition;
+pub mod untyped;
 
 pub use behaviour::Behaviour;
 pub use buffer::{BufferPort, Direction, Group, In, Out, Payload};

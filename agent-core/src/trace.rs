@@ -350,6 +350,56 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
     }
 }
 
+/// An observer that may be absent: observes as its content does, if any.
+impl<O: Observer> Observer for Option<O> {
+    fn enabled(&self) -> bool {
+        self.as_ref().is_some_and(Observer::enabled)
+    }
+    fn start(&mut self, system: &SystemInfo) {
+        if let Some(o) = self {
+            o.start(system);
+        }
+    }
+    fn transition(&mut self, event: &TransitionEvent) {
+        if let Some(o) = self {
+            o.transition(event);
+        }
+    }
+    fn action(&mut self, event: &ActionEvent) {
+        if let Some(o) = self {
+            o.action(event);
+        }
+    }
+    fn audit(&mut self, event: &AuditEvent) {
+        if let Some(o) = self {
+            o.audit(event);
+        }
+    }
+    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
+        if let Some(o) = self {
+            o.transfer(event, value);
+        }
+    }
+    fn read(&mut self, event: &ReadEvent) {
+        if let Some(o) = self {
+            o.read(event);
+        }
+    }
+    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
+        if let Some(o) = self {
+            o.received(event, value);
+        }
+    }
+    fn error(&mut self, time: Time, error: &ExecError) {
+        if let Some(o) = self {
+            o.error(time, error);
+        }
+    }
+    fn raised(&mut self) -> Option<ExecError> {
+        self.as_mut().and_then(Observer::raised)
+    }
+}
+
 /// The observer that observes nothing.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct NoObserver;

@@ -211,21 +211,21 @@ impl Writer<'_, '_> {
             Format::Char => self.char()?,
             Format::Str => self.string()?,
             Format::Bytes => {
-                let n = self.c.len()?;
+                let n = self.c.length()?;
                 let s = self.c.take(n)?;
                 self.count(n)?;
                 self.out.extend_from_slice(s);
             }
             Format::Option(inner) => self.option(inner)?,
             Format::Seq(inner) => {
-                let n = self.c.len()?;
+                let n = self.c.length()?;
                 self.count(n)?;
                 for _ in 0..n {
                     self.value(inner)?;
                 }
             }
             Format::Map { key, value } => {
-                let n = self.c.len()?;
+                let n = self.c.length()?;
                 self.count(n)?;
                 for _ in 0..n {
                     self.value(key)?;
@@ -252,7 +252,7 @@ impl Writer<'_, '_> {
     /// A char (postcard: its UTF-8 bytes behind their length) as CDR's
     /// 32-bit code point.
     fn char(&mut self) -> Result<(), DecodeError> {
-        let n = self.c.len()?;
+        let n = self.c.length()?;
         let at = self.c.at;
         let s = self.c.take(n)?;
         let mut cs = std::str::from_utf8(s).ok().map(str::chars);
@@ -270,7 +270,7 @@ impl Writer<'_, '_> {
 
     /// A string as CDR's: its length counting a closing NUL, its bytes, the NUL.
     fn string(&mut self) -> Result<(), DecodeError> {
-        let n = self.c.len()?;
+        let n = self.c.length()?;
         let at = self.c.at;
         let s = self.c.take(n)?;
         std::str::from_utf8(s).map_err(|e| DecodeError {

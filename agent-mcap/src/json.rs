@@ -145,7 +145,7 @@ impl Reader<'_> {
                 }
             },
             Format::Seq(inner) => {
-                let n = self.c.len()?;
+                let n = self.c.length()?;
                 self.array(std::iter::repeat_n(&**inner, n))?;
             }
             Format::Map { key, value } => self.map(key, value)?,
@@ -166,7 +166,7 @@ impl Reader<'_> {
 
     /// A char or a string as a JSON string.
     fn string(&mut self) -> Result<(), DecodeError> {
-        let n = self.c.len()?;
+        let n = self.c.length()?;
         let at = self.c.at;
         self.c.take(n)?;
         let bytes: &[u8] = self.c.bytes;
@@ -180,7 +180,7 @@ impl Reader<'_> {
 
     /// Bytes as a JSON array of numbers.
     fn bytes(&mut self) -> Result<(), DecodeError> {
-        let n = self.c.len()?;
+        let n = self.c.length()?;
         let at = self.c.at;
         self.c.take(n)?;
         self.out.push(b'[');
@@ -197,7 +197,7 @@ impl Reader<'_> {
 
     /// A map as a JSON object.
     fn map(&mut self, key: &Format, value: &Format) -> Result<(), DecodeError> {
-        let n = self.c.len()?;
+        let n = self.c.length()?;
         self.out.push(b'{');
         for k in 0..n {
             if k > 0 {

@@ -12,9 +12,12 @@
 //! Semantics, per kind (`t` an event's instant; a bound is never violated by
 //! equality):
 //!
-//! * **freshness** (`input`, `max_age_ms`): each read of `input` at `t` of a
-//!   value stamped `s` has age `t - s`; violated when `t - s > max_age`.
-//!   Reported at the read.
+//! * **freshness** (`input`, `max_age_ms`): every activation of the reader at
+//!   `t` reads the value its buffer holds, stamped `s`, of age `t - s`;
+//!   violated when `t - s > max_age`. Reported at the read of a value already
+//!   too old, or, when no newer value comes, at the first activation of the
+//!   reader (on its period's grid, from the spec) after `s + max_age`, once
+//!   per value held: a sensor that stops sending is found here.
 //! * **rate** (`input`, `min_hz`): with `W = 1 / min_hz`, every half-open
 //!   window `(u, u + W]` from the start ([`Monitors::start`]) to the end
 //!   ([`Monitors::finish`]) holds at least one arrival at `input`:
@@ -55,6 +58,9 @@ use agent_core::{Expr, Time};
 use agent_spec::Spec;
 use agent_spec::model::Subsystem;
 
+mod ends;
+mod field;
+pub mod live;
 #[cfg(feature = "recording")]
 pub mod recording;
 
@@ -224,6 +230,25 @@ struct FreshnessM {
     contract: ContractId,
     input: InputId,
     max: u64,
+    /// The reader's period (ns; 0: unknown, judged at reads only).
+    period: u64,
+    /// The stamp of the value the input holds, and whether its age was
+    /// reported.
+    held: Option<(Time, bool)>,
+}
+
+impl FreshnessM {
+    /// The first activation of the reader at which the value held is too
+    /// old (none once reported, or with no period).
+    fn deadline(&self) -> Option<u64> {
+        match self.held {
+            Some((s, false)) if self.period > 0 => {
+                let last_fresh = s.as_nanos().saturating_add(self.max);
+                Some((last_fresh / self.period + 1).saturating_mul(self.period))
+            }
+            _ => None,
+        }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -255,6 +280,8 @@ struct RangeM {
     contract: ContractId,
     min: Option<f64>,
     max: Option<f64>,
+    /// Judged here ([`Monitors::retain_subsystems`] keeps the index).
+    active: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -320,6 +347,23 @@ fn positive_ns(
     }
 }
 
+/// The period of component `name` (ns; 0 if the spec has no such component
+/// or its period is not a positive finite number).
+fn period_ns(spec: &Spec, name: &str) -> u64 {
+    let subsystems = spec.agents.iter().flat_map(|a| a.subsystems.iter());
+    let devices = spec.agents.iter().flat_map(|a| a.devices.iter());
+    let period = subsystems
+        .map(|s| (&s.name, s.period_ms))
+        .chain(devices.map(|d| (&d.name, d.period_ms)))
+        .find(|(n, _)| *n == name)
+        .map_or(0.0, |(_, p)| p);
+    if period.is_finite() && period > 0.0 {
+        (period * 1e6).round() as u64
+    } else {
+        0
+    }
+}
+
 /// The component a `component.group.buffer` name starts with.
 fn component(name: &str) -> &str {
     name.split('.').next().unwrap_or(name)
@@ -381,6 +425,8 @@ impl Monitors {
                 contract,
                 input,
                 max,
+                period: period_ns(spec, component(&f.input)),
+                held: None,
             });
         }
         for r in &c.rates {
@@ -405,6 +451,7 @@ impl Monitors {
                 contract,
                 min: r.min,
                 max: r.max,
+                active: true,
             });
         }
         for r in &c.responses {
@@ -558,9 +605,49 @@ impl Monitors {
             .map(|(i, (b, f))| (RangeId(i as u32), b.as_str(), f.as_deref()))
     }
 
-    /// The contract a range monitor checks.
+    /// The contract a range monitor checks (`None` once it is not judged
+    /// here: [`Monitors::retain_subsystems`]).
     pub fn range_contract(&self, range: RangeId) -> Option<ContractId> {
-        self.ranges.get(range.0 as usize).map(|r| r.contract)
+        self.ranges
+            .get(range.0 as usize)
+            .filter(|r| r.active)
+            .map(|r| r.contract)
+    }
+
+    /// The name of a subsystem.
+    pub fn subsystem_name(&self, id: SubsystemId) -> &str {
+        self.subsystems
+            .get(id.0 as usize)
+            .map_or("", |s| s.name.as_str())
+    }
+
+    /// Judge only the contracts of the subsystems `keep` accepts (those of a
+    /// thread or a process of a run): the others are never judged here.
+    /// Contract, input, output and range ids stay what they were.
+    pub fn retain_subsystems(&mut self, keep: impl Fn(&str) -> bool) {
+        let contracts = &self.contracts;
+        let k = |c: ContractId| keep(&contracts[c.0 as usize].subsystem);
+        self.freshness.retain(|f| k(f.contract));
+        self.rates.retain(|r| k(r.contract));
+        self.bounds.retain(|b| k(b.contract));
+        self.responses.retain(|r| k(r.contract));
+        self.invariants.retain(|i| k(i.contract));
+        for r in &mut self.ranges {
+            r.active &= k(r.contract);
+        }
+        self.recompute_deadline();
+    }
+
+    /// The contracts judged here (every one, unless
+    /// [`Monitors::retain_subsystems`] kept some only).
+    pub fn judged(&self) -> impl Iterator<Item = ContractId> + '_ {
+        let f = self.freshness.iter().map(|m| m.contract);
+        let r = self.rates.iter().map(|m| m.contract);
+        let b = self.bounds.iter().map(|m| m.contract);
+        let v = self.ranges.iter().filter(|m| m.active).map(|m| m.contract);
+        let p = self.responses.iter().map(|m| m.contract);
+        let i = self.invariants.iter().map(|m| m.contract);
+        f.chain(r).chain(b).chain(v).chain(p).chain(i)
     }
 
     /// The contract of each invariant, for a caller that cannot evaluate them.
@@ -571,6 +658,9 @@ impl Monitors {
     /// Start watching at `t`: the rate windows start here; every run of a
     /// behaviour and every pending trigger is forgotten.
     pub fn start(&mut self, t: Time) {
+        for f in &mut self.freshness {
+            f.held = None;
+        }
         for r in &mut self.rates {
             r.last = t;
             r.reported = false;
@@ -593,7 +683,8 @@ impl Monitors {
     pub fn read(&mut self, input: InputId, t: Time, stamp: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
         let age = t.as_nanos().saturating_sub(stamp.as_nanos());
-        for f in self.freshness.iter().filter(|f| f.input == input) {
+        for f in self.freshness.iter_mut().filter(|f| f.input == input) {
+            f.held = Some((stamp, age > f.max));
             if age > f.max {
                 sink(Violation {
                     time: t,
@@ -605,6 +696,7 @@ impl Monitors {
                 });
             }
         }
+        self.recompute_deadline();
     }
 
     /// A new value reaches `input` at `t` (its writer's send, or its arrival
@@ -639,7 +731,7 @@ impl Monitors {
     /// The field of range `range` took `x` at `t`.
     pub fn value(&mut self, range: RangeId, t: Time, x: f64, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
-        let Some(r) = self.ranges.get(range.0 as usize) else {
+        let Some(r) = self.ranges.get(range.0 as usize).filter(|r| r.active) else {
             return;
         };
         let inside = r.min.is_none_or(|m| x >= m) && r.max.is_none_or(|m| x <= m);
@@ -720,6 +812,21 @@ impl Monitors {
             Some(d) if t > d => {}
             _ => return,
         }
+        for f in &mut self.freshness {
+            if let (Some(a), Some((s, _))) = (f.deadline(), f.held)
+                && t.as_nanos() > a
+            {
+                f.held = Some((s, true));
+                sink(Violation {
+                    time: Time::from_nanos(a),
+                    contract: f.contract,
+                    broke: Broke::Age {
+                        age: Duration::from_nanos(a - s.as_nanos()),
+                        max: Duration::from_nanos(f.max),
+                    },
+                });
+            }
+        }
         for r in &mut self.rates {
             let end = r.last.as_nanos().saturating_add(r.window);
             if !r.reported && t.as_nanos() > end {
@@ -776,7 +883,12 @@ impl Monitors {
             r.pending
                 .map(|(o, _)| o.as_nanos().saturating_add(r.within))
         });
-        self.next_deadline = rates.chain(responses).min().map(Time::from_nanos);
+        let stale = self.freshness.iter().filter_map(FreshnessM::deadline);
+        self.next_deadline = rates
+            .chain(responses)
+            .chain(stale)
+            .min()
+            .map(Time::from_nanos);
     }
 
     /// A violation as a line: `time subsystem kind name: values`.

@@ -39,7 +39,11 @@ fn freshness_is_violated_only_past_its_bound() {
     });
     let done = m.input("c1.e1.done").expect("named");
     let v = collect(|s| {
-        m.read(done, ms(100), ms(50), &mut |v| s(v)); // age 50: the bound itself
+        // Values every 10 ms (c1's period), each read 50 ms after it was sent:
+        // the bound itself, never past it.
+        for k in 0..10 {
+            m.read(done, ms(100 + 10 * k), ms(50 + 10 * k), &mut |v| s(v));
+        }
         m.read(done, ms(200), ms(127), &mut |v| s(v)); // 73 > 50
         m.read(done, ms(300), ms(300), &mut |v| s(v));
     });
@@ -60,6 +64,50 @@ fn freshness_is_violated_only_past_its_bound() {
     let line = m.display(&v[0]).to_string();
     assert!(line.contains("age 73.000 ms > 50.000 ms"), "{line}");
     assert!(line.contains("t=0.200000s subsystem=c1"), "{line}");
+}
+
+#[test]
+fn a_value_that_is_not_renewed_is_too_old_at_the_readers_next_activation() {
+    let mut m = monitors(Contracts {
+        freshness: vec![Freshness {
+            input: "c1.e1.done".into(),
+            max_age_ms: 25.0,
+        }],
+        ..Contracts::default()
+    });
+    let done = m.input("c1.e1.done").expect("named");
+    let v = collect(|s| {
+        m.start(ms(0));
+        m.read(done, ms(10), ms(5), &mut |v| s(v));
+        // The sender stops. c1 (every 10 ms) reads the value stamped 5 ms at
+        // 20 (age 15) and 30 (age 25: the bound), and at 40 (age 35) it is
+        // too old; the instant 40 itself does not yet tell (another value
+        // could arrive for it).
+        m.advance(ms(40), &mut |v| s(v));
+        assert!(m.next_deadline == Some(ms(40)));
+    });
+    assert!(v.is_empty(), "{v:?}");
+    let v = collect(|s| {
+        m.advance(ms(41), &mut |v| s(v));
+        m.advance(ms(500), &mut |v| s(v)); // once per value held
+    });
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert_eq!(v[0].time, ms(40));
+    assert_eq!(
+        v[0].broke,
+        Broke::Age {
+            age: Duration::from_millis(35),
+            max: Duration::from_millis(25)
+        }
+    );
+    // A new value renews it; its own staleness is judged again.
+    let v = collect(|s| {
+        m.read(done, ms(510), ms(505), &mut |v| s(v));
+        m.advance(ms(530), &mut |v| s(v));
+        m.finish(ms(600), &mut |v| s(v));
+    });
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert_eq!(v[0].time, ms(540));
 }
 
 #[test]

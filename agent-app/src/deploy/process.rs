@@ -15,9 +15,9 @@ use agent_zenoh::{Member, MemberError, Options};
 use super::{NOTE, Note, SEEN};
 use crate::error::{AppError, Status};
 use crate::local::{PROBE_CAPACITY, halting_nodes};
-use crate::ros2::{Part, Ros2Out, Threads};
+use crate::ros2::{Part, Ros2Out};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
-use crate::{transitions, watch};
+use crate::{contracts, transitions, watch};
 
 /// How long processes get to come up, agree on instant zero and start.
 const LEAD: Duration = Duration::from_millis(1000);
@@ -115,14 +115,18 @@ pub(crate) fn run<A: Application>(
         }
         None => None,
     };
+    let contracts = contracts::live(&spec, &system)?;
     let mut rt = real_time(
         app,
         &config,
-        system,
-        probes,
-        recorder.as_ref(),
-        common.transitions,
-        ros2.threads(),
+        (system, probes),
+        common,
+        transitions::Observers {
+            recorder: recorder.as_ref(),
+            print: common.transitions,
+            ros2: ros2.threads(),
+            contracts: contracts.as_ref(),
+        },
     );
     ros2.feed(&mut rt)?;
     let (running, end) = start_run(rt, &mut member, limit, &mut recorder)?;
@@ -166,6 +170,9 @@ pub(crate) fn run<A: Application>(
     let recorded = recorder.is_none_or(|r| record::finish_timed(r, report, process));
     if !common.quiet {
         output::err(format_args!("{report}"));
+    }
+    if let Some(live) = &contracts {
+        contracts::say(live, common.quiet);
     }
     output::out(format_args!(
         "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
@@ -322,22 +329,21 @@ fn start_recording<A: Application>(
     record::create(file, system, options)
 }
 
-/// The real-time run of `system`, watched by `probes`, observed by the
-/// recorder's parts, the ROS 2 bridge's (`ros2`) and, if `print`, by a
-/// printer of transitions.
+/// The real-time run of `system`, watched by `probes`, observed by
+/// `observers` (the recorder's parts, the ROS 2 bridge's, a printer of
+/// transitions, the watch of the contracts).
 fn real_time<A: Application>(
     app: &A,
     config: &A::Config,
-    system: agent_core::System,
-    probes: Probes<A::Seen>,
-    recorder: Option<&agent_mcap::McapRecorder>,
-    print: bool,
-    ros2: Option<Threads>,
+    (system, probes): (agent_core::System, Probes<A::Seen>),
+    common: &Common,
+    observers: transitions::Observers<'_>,
 ) -> RealTime {
     // A lost peer or a gap is reported and the run goes on: a deployment
-    // lives with processes that come and go.
+    // lives with processes that come and go (unless `--on-error` says
+    // otherwise).
     let exec = ExecConfig {
-        on_error: OnError::Continue,
+        on_error: common.on_error.map_or(OnError::Continue, Into::into),
         ..app.exec(config)
     };
     let mut rt = RealTime::new(
@@ -348,7 +354,7 @@ fn real_time<A: Application>(
         },
     );
     rt.watch(probes);
-    transitions::observe(&mut rt, recorder, print, ros2);
+    transitions::observe(&mut rt, observers);
     rt
 }
 

@@ -1,0 +1,548 @@
+//! The monitors inside a running executor: an [`Observer`] that feeds the
+//! run's events to [`Monitors`] as they happen and raises each violation as an
+//! [`ExecError::Contract`], which the executor's error policy handles
+//! ([`agent_core::OnError`]: stop, continue, or safe-stop).
+//!
+//! [`Live::new`] maps the spec's buffers to the system's links once (the
+//! ends matched by name as over a recording) and traces the shapes of the
+//! values the ranges read. [`Live::watch`] is the observer of a whole run
+//! (the deterministic executor); [`Live::watch_nodes`] that of some of its
+//! nodes (a thread of the real-time executor, or a process of a deployment):
+//! it judges the contracts of those subsystems only, from what its thread
+//! sees. Each watch hands its verdicts to the [`Live`] when it is dropped
+//! (the executors drop their observers when the run ends).
+//!
+//! Where each kind's events come from (the semantics are the crate's):
+//!
+//! * freshness: the reader's reads, stamped by the sender, and its
+//!   activations on its period's grid;
+//! * rate: a value's send when its writer is watched here (its stamp, as
+//!   over a recording), else the reader's take of it (from another thread or
+//!   process; the instant it arrived for the reader);
+//! * response: the responder's sends; the trigger's send, or its take by a
+//!   watched reader when its writer is elsewhere;
+//! * bound: the subsystem's behaviour switches and activations;
+//! * range: each value sent by a watched writer, or received from another
+//!   process by a watched reader: the field read from its postcard bytes
+//!   with the payload's shape ([`agent_core::reflect`]), without decoding the
+//!   rest;
+//! * invariant: not judged while running (the executors give no predicate
+//!   values after each activation); [`Verdicts::not_judged`] names them.
+//!
+//! Cost: a few nanoseconds per event for Rex's contracts (`bench_core`);
+//! nothing is allocated per event, except the error of a violation.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use agent_core::trace::{ErasedPayload, ReadEvent, TransferEvent};
+use agent_core::{ActionEvent, ExecError, Observer, Step, System, Time, TransitionEvent};
+
+use crate::ends::Ends;
+use crate::field::Layout;
+use crate::{
+    BehaviourId, ContractId, ContractInfo, InputId, Monitors, OutputId, RangeId, SubsystemId,
+    Violation,
+};
+
+/// How many violations a watch keeps for its verdicts (the rest are counted).
+pub const KEPT: usize = 1024;
+
+/// How many violations may wait between two steps for the executor to take
+/// them (the rest are counted in [`Verdicts::unraised`], never lost from the
+/// verdicts).
+const PENDING: usize = 64;
+
+/// A contract broken while the system ran: the source of its
+/// [`ExecError::Contract`], to downcast.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContractViolation {
+    /// When, which contract, and the values that broke it.
+    pub violation: Violation,
+    /// What the contract is.
+    pub contract: ContractInfo,
+    /// The violation as one line (`t=... subsystem=... contract=kind:name: values`).
+    pub line: String,
+}
+
+impl fmt::Display for ContractViolation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.line)
+    }
+}
+
+impl std::error::Error for ContractViolation {}
+
+/// What one link is to the monitors.
+#[derive(Clone, Debug, Default)]
+struct Role {
+    from: usize,
+    to: usize,
+    /// The spec's input it is the reader's end of.
+    input: Option<InputId>,
+    /// The spec's output it is the writer's end of.
+    output: Option<OutputId>,
+    /// The ranges its values are judged by, with their field paths.
+    ranges: Vec<(RangeId, Vec<String>)>,
+    /// Its payload's layout (for the ranges).
+    shape: Option<Arc<Layout>>,
+}
+
+/// The verdicts of a run's watches, gathered as each ends.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Verdicts {
+    /// The contracts some watch judged.
+    pub judged: Vec<ContractId>,
+    /// The contracts no watch could judge, each with why.
+    pub not_judged: Vec<(ContractId, String)>,
+    /// The violations kept (at most [`KEPT`] per watch), in time order.
+    pub violations: Vec<Violation>,
+    /// Every violation, kept or not.
+    pub count: u64,
+    /// Violations the executor did not take as errors because too many
+    /// waited at once (they are in the counts and, up to the limit, kept).
+    pub unraised: u64,
+    /// Values a range could not read (bytes that do not decode as the
+    /// payload's shape says: a broken encoder).
+    pub undecodable: u64,
+}
+
+impl Verdicts {
+    /// How many contracts were violated, at least once.
+    pub fn contracts_violated(&self) -> usize {
+        let mut c: Vec<ContractId> = self.violations.iter().map(|v| v.contract).collect();
+        c.sort_unstable();
+        c.dedup();
+        c.len()
+    }
+}
+
+struct Shared {
+    monitors: Monitors,
+    roles: Vec<Role>,
+    /// Per node of the system: its subsystem in the spec, if any.
+    subsystems: Vec<Option<SubsystemId>>,
+    /// Per node: its behaviours (by the executor's index) in the spec.
+    behaviours: Vec<Vec<Option<BehaviourId>>>,
+    /// Per range: why it cannot be judged on this system, if it cannot.
+    unjudgeable: Vec<Option<String>>,
+    verdicts: Mutex<Verdicts>,
+}
+
+/// The monitors of one run: made once from the spec's [`Monitors`] and the
+/// system, then watched by one or more [`Watch`]es (see the module docs).
+#[derive(Clone)]
+pub struct Live {
+    shared: Arc<Shared>,
+}
+
+impl fmt::Debug for Live {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Live")
+            .field("contracts", &self.shared.monitors.contracts().len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Live {
+    /// The monitors of `monitors`' contracts over `system`'s links and nodes.
+    /// A range whose buffer is on no link, or whose field does not lead to a
+    /// number in the link's payload, is not judged ([`Verdicts::not_judged`]).
+    pub fn new(monitors: Monitors, system: &System) -> Live {
+        let info = system.info();
+        let mut roles = Vec::with_capacity(info.links.len());
+        for (i, l) in info.links.iter().enumerate() {
+            let mut role = Role {
+                from: l.from,
+                to: l.to,
+                ..Role::default()
+            };
+            if let Some(ends) = Ends::parse(&l.name) {
+                role.input = (0..monitors.inputs.len())
+                    .find(|&k| ends.is_input(&monitors.inputs[k]))
+                    .map(|k| InputId(k as u32));
+                role.output = (0..monitors.outputs.len())
+                    .find(|&k| ends.is_output(&monitors.outputs[k]))
+                    .map(|k| OutputId(k as u32));
+                let shape = || system.payload_shape(i).map(|s| Arc::new(Layout::of(&s)));
+                for (k, (buffer, field)) in monitors.ranges_of.iter().enumerate() {
+                    if ends.is_input(buffer) || ends.is_output(buffer) {
+                        role.shape = role.shape.take().or_else(shape);
+                        let path = field
+                            .as_deref()
+                            .map(|f| f.split('.').map(str::to_owned).collect())
+                            .unwrap_or_default();
+                        role.ranges.push((RangeId(k as u32), path));
+                    }
+                }
+            }
+            roles.push(role);
+        }
+        let unjudgeable = (0..monitors.ranges_of.len())
+            .map(|k| {
+                let id = RangeId(k as u32);
+                let (buffer, field) = &monitors.ranges_of[k];
+                let found = roles.iter().find_map(|r| {
+                    let (_, path) = r.ranges.iter().find(|(x, _)| *x == id)?;
+                    Some((r.shape.as_deref(), path))
+                });
+                match found {
+                    None => Some(format!("`{buffer}` is on no link of the system")),
+                    Some((None, _)) => {
+                        Some(format!("the payload of `{buffer}` has no shape to read"))
+                    }
+                    Some((Some(shape), path)) if !crate::field::reaches_number(shape, path) => {
+                        Some(format!(
+                            "`{}` does not lead to a number in `{buffer}`",
+                            field.as_deref().unwrap_or("")
+                        ))
+                    }
+                    Some(_) => None,
+                }
+            })
+            .collect();
+        let subsystems: Vec<Option<SubsystemId>> = info
+            .nodes
+            .iter()
+            .map(|n| monitors.subsystem(&n.name))
+            .collect();
+        let behaviours = info
+            .nodes
+            .iter()
+            .zip(&subsystems)
+            .map(|(n, s)| {
+                n.behaviours
+                    .iter()
+                    .map(|b| s.and_then(|s| monitors.behaviour(s, b)))
+                    .collect()
+            })
+            .collect();
+        Live {
+            shared: Arc::new(Shared {
+                monitors,
+                roles,
+                subsystems,
+                behaviours,
+                unjudgeable,
+                verdicts: Mutex::new(Verdicts::default()),
+            }),
+        }
+    }
+
+    /// The observer of the whole run.
+    pub fn watch(&self) -> Watch {
+        let n = self.shared.subsystems.len();
+        self.watch_nodes(&(0..n).collect::<Vec<_>>())
+    }
+
+    /// The observer of the nodes `nodes` (indices into [`SystemInfo::nodes`],
+    /// as the real-time executor gives each thread's observer maker): it
+    /// judges the contracts of those subsystems only.
+    pub fn watch_nodes(&self, nodes: &[usize]) -> Watch {
+        let s = &self.shared;
+        let mut here = vec![false; s.subsystems.len()];
+        for &n in nodes {
+            if let Some(h) = here.get_mut(n) {
+                *h = true;
+            }
+        }
+        let names: Vec<&str> = nodes
+            .iter()
+            .filter_map(|&n| s.subsystems.get(n).copied().flatten())
+            .map(|id| s.monitors.subsystem_name(id))
+            .collect();
+        let mut monitors = s.monitors.clone();
+        monitors.retain_subsystems(|sub| names.contains(&sub));
+        let mut not_judged: Vec<(ContractId, String)> = s
+            .unjudgeable
+            .iter()
+            .enumerate()
+            .filter_map(|(k, why)| {
+                let c = monitors.range_contract(RangeId(k as u32))?;
+                Some((c, why.clone()?))
+            })
+            .collect();
+        for c in monitors.invariant_contracts() {
+            not_judged.push((
+                c,
+                "invariants need the predicates after every activation, which the executors \
+                 do not give"
+                    .to_owned(),
+            ));
+        }
+        let judged = monitors
+            .judged()
+            .filter(|c| !not_judged.iter().any(|(n, _)| n == c))
+            .collect();
+        Watch {
+            shared: self.shared.clone(),
+            monitors,
+            here,
+            current: vec![None; s.subsystems.len()],
+            bytes: Vec::new(),
+            sink: Sink {
+                pending: VecDeque::with_capacity(PENDING),
+                kept: Vec::with_capacity(KEPT),
+                count: 0,
+                unraised: 0,
+            },
+            undecodable: 0,
+            started: false,
+            last: Time::ZERO,
+            judged,
+            not_judged,
+        }
+    }
+
+    /// The verdicts of the watches that have ended.
+    pub fn verdicts(&self) -> Verdicts {
+        self.shared
+            .verdicts
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// The monitors (their contracts' names, and [`Monitors::display`]).
+    pub fn monitors(&self) -> &Monitors {
+        &self.shared.monitors
+    }
+}
+
+/// Where a watch's violations go: raised to the executor, and kept.
+struct Sink {
+    pending: VecDeque<Violation>,
+    kept: Vec<Violation>,
+    count: u64,
+    unraised: u64,
+}
+
+impl Sink {
+    fn take(&mut self, v: Violation) {
+        self.count += 1;
+        if self.kept.len() < KEPT {
+            self.kept.push(v);
+        }
+        if self.pending.len() < PENDING {
+            self.pending.push_back(v);
+        } else {
+            self.unraised += 1;
+        }
+    }
+}
+
+/// A [`Live`]'s observer (see the module docs).
+pub struct Watch {
+    shared: Arc<Shared>,
+    monitors: Monitors,
+    /// Per node: whether this watch runs with it.
+    here: Vec<bool>,
+    /// Per node: the behaviour it is in (the executor's index).
+    current: Vec<Option<usize>>,
+    /// A value's postcard bytes, reused.
+    bytes: Vec<u8>,
+    sink: Sink,
+    undecodable: u64,
+    started: bool,
+    last: Time,
+    judged: Vec<ContractId>,
+    not_judged: Vec<(ContractId, String)>,
+}
+
+impl fmt::Debug for Watch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Watch")
+            .field("judged", &self.judged.len())
+            .field("violations", &self.sink.count)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Watch {
+    /// Time has reached `t` (the watch starts at its first event).
+    fn at(&mut self, t: Time) {
+        if !self.started {
+            self.started = true;
+            self.monitors.start(t);
+        }
+        self.last = self.last.max(t);
+    }
+
+    /// Judge the ranges of link `link`'s value at `t`.
+    fn ranges(&mut self, link: usize, t: Time, value: &dyn ErasedPayload) {
+        let shared = &self.shared;
+        let Some(role) = shared.roles.get(link) else {
+            return;
+        };
+        let Some(shape) = role.shape.as_deref() else {
+            return;
+        };
+        if role.ranges.is_empty() {
+            return;
+        }
+        self.bytes.clear();
+        if value.encode(&mut self.bytes).is_err() {
+            self.undecodable += 1;
+            return;
+        }
+        for (range, path) in &role.ranges {
+            if self.monitors.range_contract(*range).is_none() {
+                continue;
+            }
+            match crate::field::number(shape, &self.bytes, path) {
+                Ok(Some(x)) => self
+                    .monitors
+                    .value(*range, t, x, &mut |v| self.sink.take(v)),
+                Ok(None) => {}
+                Err(_) => self.undecodable += 1,
+            }
+        }
+    }
+}
+
+impl Observer for Watch {
+    fn transition(&mut self, e: &TransitionEvent) {
+        self.at(e.time);
+        let Some(Some(sub)) = self.shared.subsystems.get(e.node).copied() else {
+            return;
+        };
+        if !self.here[e.node] {
+            return;
+        }
+        match e.step {
+            Step::Entered { to, .. } => {
+                self.current[e.node] = Some(to);
+                let b = self.shared.behaviours[e.node].get(to).copied().flatten();
+                self.monitors
+                    .entered(sub, b, e.time, &mut |v| self.sink.take(v));
+            }
+            Step::Finished => {
+                self.monitors
+                    .entered(sub, None, e.time, &mut |v| self.sink.take(v));
+            }
+            Step::Run => {}
+        }
+    }
+
+    fn action(&mut self, e: &ActionEvent) {
+        self.at(e.time);
+        let sub = self.shared.subsystems.get(e.node).copied().flatten();
+        match (sub, e.behaviour) {
+            (Some(sub), Some(b)) if self.here[e.node] => {
+                if self.current[e.node].is_none() {
+                    // The initial behaviour, entered at the first activation.
+                    self.current[e.node] = Some(b);
+                    let id = self.shared.behaviours[e.node].get(b).copied().flatten();
+                    self.monitors
+                        .entered(sub, id, e.time, &mut |v| self.sink.take(v));
+                }
+                self.monitors
+                    .activation(sub, e.time, None, &mut |v| self.sink.take(v));
+            }
+            _ => self.monitors.advance(e.time, &mut |v| self.sink.take(v)),
+        }
+    }
+
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        let t = e.stamp.time;
+        self.at(t);
+        let Some(role) = self.shared.roles.get(e.link) else {
+            return;
+        };
+        if !self.here.get(role.from).copied().unwrap_or(false) {
+            return;
+        }
+        let (output, input, to) = (role.output, role.input, role.to);
+        if let Some(o) = output {
+            self.monitors.sent(o, t, &mut |v| self.sink.take(v));
+        }
+        if let Some(i) = input
+            && self.here.get(to).copied().unwrap_or(false)
+        {
+            self.monitors.arrived(i, t, &mut |v| self.sink.take(v));
+        }
+        self.ranges(e.link, t, value);
+    }
+
+    fn read(&mut self, e: &ReadEvent) {
+        self.at(e.time);
+        let Some(role) = self.shared.roles.get(e.link) else {
+            return;
+        };
+        if !self.here.get(role.to).copied().unwrap_or(false) {
+            return;
+        }
+        let writer_here = self.here.get(role.from).copied().unwrap_or(false);
+        let (output, input) = (role.output, role.input);
+        let stamp = e.stamp.time;
+        if !writer_here {
+            if let Some(o) = output {
+                self.monitors.sent(o, stamp, &mut |v| self.sink.take(v));
+            }
+            if let Some(i) = input {
+                self.monitors.arrived(i, e.time, &mut |v| self.sink.take(v));
+            }
+        }
+        if let Some(i) = input {
+            self.monitors
+                .read(i, e.time, stamp, &mut |v| self.sink.take(v));
+        }
+    }
+
+    fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
+        let Some(role) = self.shared.roles.get(e.link) else {
+            return;
+        };
+        if self.here.get(role.to).copied().unwrap_or(false)
+            && !self.here.get(role.from).copied().unwrap_or(false)
+        {
+            self.ranges(e.link, e.time, value);
+        }
+    }
+
+    fn raised(&mut self) -> Option<ExecError> {
+        let v = self.sink.pending.pop_front()?;
+        let contract = self.monitors.contract(v.contract)?.clone();
+        let line = self.monitors.display(&v).to_string();
+        Some(ExecError::Contract {
+            subsystem: contract.subsystem.clone(),
+            time: v.time,
+            source: Box::new(ContractViolation {
+                violation: v,
+                contract,
+                line,
+            }),
+        })
+    }
+}
+
+impl Drop for Watch {
+    fn drop(&mut self) {
+        if self.started {
+            let last = self.last;
+            self.monitors.finish(last, &mut |v| self.sink.take(v));
+        }
+        let mut all = self
+            .shared
+            .verdicts
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        for c in &self.judged {
+            if !all.judged.contains(c) {
+                all.judged.push(*c);
+            }
+        }
+        all.judged.sort_unstable();
+        for (c, why) in &self.not_judged {
+            if !all.not_judged.iter().any(|(n, _)| n == c) {
+                all.not_judged.push((*c, why.clone()));
+            }
+        }
+        all.violations.extend(self.sink.kept.iter().copied());
+        all.violations.sort_by_key(|v| v.time);
+        all.count += self.sink.count;
+        all.unraised += self.sink.unraised;
+        all.undecodable += self.undecodable;
+    }
+}
