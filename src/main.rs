@@ -50,7 +50,8 @@ enum Command {
     /// that arcs are exclusive and complete), periods and deployments.
     ///
     /// Prints every finding with its code and a pointer into the file. Exits with
-    /// status 1 if any file has an error, 0 if there are only warnings.
+    /// status 1 if any file has an error, 0 if there are only warnings; 2 if the
+    /// recording of --wcet-from cannot be used (nothing is checked then).
     Check {
         /// Spec files.
         #[arg(required = true)]
@@ -70,7 +71,8 @@ enum Command {
         /// With --timing: take each component's WCET from a recording of a
         /// real-time run (its `/timing` channel): the largest execution time
         /// measured, times 1.2; a component the recording lacks keeps its
-        /// declared WCET.
+        /// declared WCET. A recording that cannot be read, or has no timing
+        /// statistics (made without `--realtime`), exits with status 2.
         #[arg(long, requires = "timing", value_name = "FILE.mcap")]
         wcet_from: Option<PathBuf>,
     },
@@ -195,8 +197,9 @@ fn main() -> ExitCode {
                 None => None,
                 Some(Ok(m)) => Some(m),
                 Some(Err(why)) => {
+                    // Not a verdict on the spec: its timing could not be evaluated.
                     errln!("error: {why}");
-                    return ExitCode::FAILURE;
+                    return ExitCode::from(2);
                 }
             };
             cli::check::run(

@@ -1,7 +1,8 @@
 //! `embodied check --timing --wcet-from FILE.mcap`: the WCETs measured in a
 //! recording's `/timing` channel (times the margin 1.2) replace the declared
 //! ones; a component the recording lacks keeps its declaration, said; a
-//! recording without the channel is refused. Needs the `cli` feature:
+//! recording without the channel, or unreadable, is refused with status 2.
+//! Needs the `cli` feature:
 //! `cargo test --features cli --test spec_wcet_from`.
 
 #![cfg(feature = "cli")]
@@ -130,10 +131,33 @@ fn a_measured_time_that_breaks_the_schedule_is_a_finding() {
 
 #[test]
 fn a_recording_without_timing_statistics_is_refused() {
+    // Status 2: the timing could not be evaluated (not 1: a broken promise).
     let file = recording("wcet-from-none", None);
     let (code, out, err) = check(&file);
-    assert_eq!(code, 1, "{out}{err}");
-    assert!(err.contains("has no `/timing` channel"), "{err}");
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains(&format!(
+            "--wcet-from {}: the recording has no `/timing` channel",
+            file.display()
+        )),
+        "{err}"
+    );
+    assert!(err.contains("made without `--realtime`"), "{err}");
     assert!(err.contains("deterministic run"), "{err}");
+    assert!(
+        !out.contains("certified") && !out.contains("FAILED"),
+        "{out}"
+    );
     let _ = std::fs::remove_file(file);
+}
+
+#[test]
+fn a_recording_that_cannot_be_read_is_refused() {
+    let file = std::env::temp_dir().join(format!("wcet-from-missing-{}.mcap", std::process::id()));
+    let (code, out, err) = check(&file);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains(&format!("--wcet-from {}", file.display())),
+        "{err}"
+    );
 }

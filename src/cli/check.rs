@@ -37,12 +37,19 @@ pub(crate) struct Timing<'a> {
 }
 
 /// The WCETs measured in the recording at `path` (its `/timing` channel): per
-/// component, the largest execution time \[ns\]; or why there are none.
+/// component, the largest execution time \[ns\]; or why there are none (the
+/// file cannot be read, has no `/timing` channel, or no message on it).
 pub(crate) fn measured_wcets(path: &Path) -> Result<BTreeMap<String, u64>, String> {
-    use embodied::record::timing::{TIMING_TOPIC, measured_wcets, read_timing};
+    use embodied::record::timing::{TIMING_TOPIC, TimingReadError, measured_wcets, read_timing};
     let recording = embodied::record::Recording::open_filtered(path, |c| c.topic == TIMING_TOPIC)
         .map_err(|e| format!("--wcet-from {}: {e}", path.display()))?;
-    let stats = read_timing(&recording).map_err(|e| format!("--wcet-from: {e}"))?;
+    let stats = read_timing(&recording).map_err(|e| match e {
+        TimingReadError::NoChannel(_) => format!(
+            "--wcet-from {}: the recording has no `/timing` channel: it was made without `--realtime` (only real-time runs record timing statistics; a deterministic run has no wall clock)",
+            path.display()
+        ),
+        e => format!("--wcet-from: {e}"),
+    })?;
     if stats.is_empty() {
         return Err(format!(
             "--wcet-from {}: the `/timing` channel has no message (a run that did not finish?)",
