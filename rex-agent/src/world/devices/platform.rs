@@ -1,6 +1,10 @@
 //! The platform E1, the real effector of a1: the full model driven by `e1,1`'s
 //! torques, with its sensors (wheel encoders, IMU, force sensors) and their noise.
 //! It writes the ground truth every step.
+//!
+//! When the run safe-stops ([`Driver::safe_stop`]) the platform brakes and holds:
+//! from its next step on, each wheel gets a braking torque against its own rate,
+//! whatever `e11` commands, until the end of the run.
 
 use embodied::{Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, In, Out};
 use serde::{Deserialize, Serialize};
@@ -134,6 +138,12 @@ pub struct Platform {
     timeouts: u64,
     resets: u64,
     rejected_resets: u64,
+    /// The torques the motors delivered in the last step.
+    applied: Torques,
+    /// [`Driver::safe_stop`] was called: the brake holds from the next step on.
+    held: bool,
+    /// When the brake first acted \[s\].
+    safe_stopped: Option<f64>,
 }
 
 impl Platform {
@@ -154,6 +164,9 @@ impl Platform {
             timeouts: 0,
             resets: 0,
             rejected_resets: 0,
+            applied: [0.0; 4],
+            held: false,
+            safe_stopped: None,
         })
     }
 
@@ -177,11 +190,60 @@ impl Platform {
 
     /// The torque command in force: the last one received, cleaned (NaN torques
     /// zeroed, the others clamped to `±torque_max`), and when it arrived \[s\].
+    /// Once the platform is safe-stopped, the commands are still received,
+    /// cleaned and counted, but the wheels do not obey them.
     pub fn command(&self) -> Option<(Torques, f64)> {
         self.last_command
     }
 
-    /// Steps run with zero torque because the last command was too old.
+    /// The wheel torques the motors delivered in the last step \[N m\]: the
+    /// command in force, or the brake's once safe-stopped, as [`Plant::available`]
+    /// limits them (never beyond `±torque_max`). Zero before the first step.
+    pub fn torques(&self) -> Torques {
+        self.applied
+    }
+
+    /// When the platform safe-stopped: the simulation time of its first step
+    /// after [`Driver::safe_stop`] \[s\], the first step it braked. `None` if it
+    /// was not safe-stopped, or has not stepped since.
+    pub fn safe_stopped(&self) -> Option<f64> {
+        self.safe_stopped
+    }
+
+    /// The braking torques for a step of `dt` seconds: `τ_i = −k θ̇_i` on each
+    /// wheel, saturated at `±torque_max`, with `k = J_w / (2 dt)`.
+    ///
+    /// The brake torque is held over the step (computed from the rates at its
+    /// start), so a wheel without grip (in the air, or skidding where the slip
+    /// force is flat) follows `θ̇ ← (1 − k dt / J_w) θ̇`: monotone for `k < J_w /
+    /// dt`, and `J_w / (2 dt)` halves the rate every step. A rolling wheel has
+    /// more margin (the slip stiffness, `r² μ_x N (2/π) k_s` ≈ 10 N m s/rad,
+    /// integrated implicitly, adds to `J_w / dt`), but 3 `J_w / dt` no longer
+    /// settles within the bounds of `tests/safe_stop.rs`.
+    ///
+    /// For the 40 kg platform (`J_w` = 0.01 kg m², r = 0.1 m) at its period of
+    /// 1 ms, `k` = 5 N m s/rad: saturated at 10 N m above 2 rad/s (0.2 m/s at
+    /// the rim), where the wheels skid and the ground's friction
+    /// (μ_x = 0.8 on concrete, at most 7.8 m/s² smoothed by the slip sign)
+    /// decelerates the platform (6.7 m/s² measured); below, the wheels roll and
+    /// the speed decays with the time constant `m_eff r² / (4 k)` = 44 × 0.01 / 20
+    /// = 22 ms (30 ms measured, the tyres' slip adding to it). From 2.93 m/s, after
+    /// 2 s of full torque, the platform is below 1 cm/s 0.51 s later, 0.65 m
+    /// further, without reversing (`tests/safe_stop.rs`); then it is at rest: the
+    /// brake's torque vanishes with the rates, and on flat ground no force moves
+    /// it (3·10⁻¹¹ m in 2 s).
+    fn brake(&self, dt: f64) -> Torques {
+        let p = self.plant.params();
+        let k = p.wheel_inertia / (2.0 * dt);
+        let max = p.torque_max;
+        self.plant
+            .state
+            .theta_dot
+            .map(|w| (-k * w).clamp(-max, max))
+    }
+
+    /// Steps run with zero torque because the last command was too old (not
+    /// counted once safe-stopped: no command is obeyed then).
     pub fn timeouts(&self) -> u64 {
         self.timeouts
     }
@@ -202,6 +264,7 @@ impl Platform {
     /// the sensors.
     pub fn advance(&mut self, command: Torques, dt: f64) -> (Imu, WheelLoads, Encoders) {
         let tau = self.plant.available(command);
+        self.applied = tau;
         self.plant.step(tau, dt);
         let s = self.plant.state;
         let p = &self.params;
@@ -271,13 +334,18 @@ impl Driver for Platform {
                 self.rejected_resets += 1;
             }
         }
-        let command = match self.last_command {
-            Some((tau, at)) if now - at <= self.params.command_timeout => tau,
-            Some(_) => {
-                self.timeouts += 1;
-                [0.0; 4]
+        let command = if self.held {
+            self.safe_stopped.get_or_insert(now);
+            self.brake(dt)
+        } else {
+            match self.last_command {
+                Some((tau, at)) if now - at <= self.params.command_timeout => tau,
+                Some(_) => {
+                    self.timeouts += 1;
+                    [0.0; 4]
+                }
+                None => [0.0; 4],
             }
-            None => [0.0; 4],
         };
         let (imu, forces, mut encoders) = self.advance(command, dt);
         encoders.time = now + dt;
@@ -289,5 +357,12 @@ impl Driver for Platform {
         y.e11.forces.set(forces);
         y.e11.encoders.set(encoders);
         Ok(())
+    }
+
+    /// Brake and hold: from the next step on, the wheels get the brake's torques
+    /// (`Platform::brake`) whatever `e11` commands, until the end of the run; the
+    /// IMU resets are still obeyed. Latched: a second call changes nothing.
+    fn safe_stop(&mut self) {
+        self.held = true;
     }
 }
