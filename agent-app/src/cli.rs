@@ -82,10 +82,13 @@ pub struct Common {
     #[arg(long, short, global = true)]
     pub quiet: bool,
     /// What an error does, a node's or a broken contract's (the spec's
-    /// `contracts`, watched in every executor): `stop` the run there,
-    /// `continue` (report it and go on), or `safe-stop` (every subsystem
-    /// halted and every device made safe, Rex's platform braking and holding,
-    /// the run going on to its end). Default: the application's.
+    /// `contracts`, watched in every executor and process): `stop` the run
+    /// there (it fails), `continue` (report it and go on; a broken contract
+    /// is counted in `contracts_violated=` but does not fail the run), or
+    /// `safe-stop` (every subsystem halted and every device made safe, Rex's
+    /// platform braking and holding, the run going on to its end, and
+    /// failing). Default: the application's (a deployment's processes:
+    /// `continue`).
     #[arg(long, global = true, value_name = "POLICY")]
     pub on_error: Option<OnErrorArg>,
     /// Print every FSM transition as it happens (`t=0.100000 s c2: ask ->

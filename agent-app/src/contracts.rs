@@ -32,8 +32,9 @@ pub(crate) fn live(spec: &SpecFile, system: &System) -> Result<Option<Live>, App
 }
 
 /// Say what the watches found: the violations and the contracts not judged
-/// (on standard error, unless `quiet`), and the figure line.
-pub(crate) fn say(live: &Live, quiet: bool) {
+/// (on standard error, unless `quiet`), and the figure line. Whether every
+/// contract was kept (a run that broke one fails).
+pub(crate) fn say(live: &Live, quiet: bool) -> bool {
     let verdicts = live.verdicts();
     let monitors = live.monitors();
     if !quiet {
@@ -64,4 +65,5 @@ pub(crate) fn say(live: &Live, quiet: bool) {
         verdicts.contracts_violated(),
         verdicts.not_judged.len()
     ));
+    verdicts.count == 0
 }

@@ -7,8 +7,8 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use agent_core::{
-    ExecConfig, Executor, Finished, NoObserver, NodeId, Observer, Probes, RealTime, RtConfig,
-    System, Time,
+    ExecConfig, Executor, Finished, NoObserver, NodeId, Observer, OnError, Probes, RealTime,
+    RtConfig, System, Time,
 };
 use agent_mcap::McapRecorder;
 
@@ -103,7 +103,7 @@ pub(crate) fn run<A: Application>(
         (ran, mode, rule_stated),
         watcher.as_mut(),
         recorder,
-        (bridged, contracts.as_ref()),
+        (bridged, contracts.as_ref(), exec.on_error),
     )
 }
 
@@ -378,7 +378,7 @@ fn conclude<A: Application>(
     (ran, mode, rule_stated): (Ran, Mode, bool),
     watcher: &mut dyn Watcher<A::Seen>,
     recorder: Option<McapRecorder>,
-    (bridged, contracts): (bool, Option<&Live>),
+    (bridged, contracts, on_error): (bool, Option<&Live>, OnError),
 ) -> Result<(Status, String), AppError> {
     let Ran {
         finished,
@@ -413,8 +413,15 @@ fn conclude<A: Application>(
             report.error_count
         ));
     }
-    if let Some(live) = contracts {
-        contracts::say(live, common.quiet);
+    // Under `continue` a broken contract is reported, and the run judged as
+    // if it had not been; otherwise it fails the run.
+    let kept = contracts.is_none_or(|live| contracts::say(live, common.quiet))
+        || on_error == OnError::Continue;
+    if let Some(t) = report.safe_stopped {
+        output::err(format_args!(
+            "safe-stopped at t={:.6}s: every subsystem halted, every device made safe",
+            t.as_secs_f64()
+        ));
     }
     let summary = RunSummary {
         spec: spec.spec.name.clone(),
@@ -427,5 +434,8 @@ fn conclude<A: Application>(
         first_errors: watch::first_errors(&report.errors),
     };
     let verdict = output::judgement(watcher, &summary);
-    Ok((summary.status(verdict.passed, recorded), verdict.line))
+    Ok((
+        summary.status(verdict.passed && kept, recorded),
+        verdict.line,
+    ))
 }

@@ -16,8 +16,10 @@
 //!   `t` reads the value its buffer holds, stamped `s`, of age `t - s`;
 //!   violated when `t - s > max_age`. Reported at the read of a value already
 //!   too old, or, when no newer value comes, at the first activation of the
-//!   reader (on its period's grid, from the spec) after `s + max_age`, once
-//!   per value held: a sensor that stops sending is found here.
+//!   reader after `s + max_age` (given by the executor,
+//!   [`Monitors::at_activations`]; over a recording, on the reader's period's
+//!   grid from the spec), once per value held: a sensor that stops sending is
+//!   found here.
 //! * **rate** (`input`, `min_hz`): with `W = 1 / min_hz`, every half-open
 //!   window `(u, u + W]` from the start ([`Monitors::start`]) to the end
 //!   ([`Monitors::finish`]) holds at least one arrival at `input`:
@@ -232,6 +234,9 @@ struct FreshnessM {
     max: u64,
     /// The reader's period (ns; 0: unknown, judged at reads only).
     period: u64,
+    /// The reader, when it is a subsystem (its activations are given when
+    /// the monitors watch a running executor).
+    reader: Option<SubsystemId>,
     /// The stamp of the value the input holds, and whether its age was
     /// reported.
     held: Option<(Time, bool)>,
@@ -239,8 +244,12 @@ struct FreshnessM {
 
 impl FreshnessM {
     /// The first activation of the reader at which the value held is too
-    /// old (none once reported, or with no period).
-    fn deadline(&self) -> Option<u64> {
+    /// old, on its period's grid (none once reported, with no period, or when
+    /// the reader's activations are given: `activations`).
+    fn deadline(&self, activations: bool) -> Option<u64> {
+        if activations && self.reader.is_some() {
+            return None;
+        }
         match self.held {
             Some((s, false)) if self.period > 0 => {
                 let last_fresh = s.as_nanos().saturating_add(self.max);
@@ -327,6 +336,8 @@ pub struct Monitors {
     invariants: Vec<InvariantM>,
     /// The earliest deadline a rate or response monitor waits for.
     next_deadline: Option<Time>,
+    /// Whether the readers' activations are given ([`Monitors::at_activations`]).
+    activations: bool,
 }
 
 fn positive_ns(
@@ -413,6 +424,7 @@ impl Monitors {
             responses: Vec::new(),
             invariants: Vec::new(),
             next_deadline: None,
+            activations: false,
         };
         let Some(c) = &spec.contracts else {
             return Ok(m);
@@ -421,11 +433,13 @@ impl Monitors {
             let contract = m.add(ContractKind::Freshness, &f.input, component(&f.input));
             let max = positive_ns(ContractKind::Freshness, &f.input, f.max_age_ms, 1e6)?;
             let input = InputId(intern(&mut m.inputs, &f.input));
+            let reader = m.subsystem(component(&f.input));
             m.freshness.push(FreshnessM {
                 contract,
                 input,
                 max,
                 period: period_ns(spec, component(&f.input)),
+                reader,
                 held: None,
             });
         }
@@ -638,6 +652,15 @@ impl Monitors {
         self.recompute_deadline();
     }
 
+    /// The readers' activations will be given ([`Monitors::activation`], as a
+    /// running executor's watch does): a freshness whose reader is a
+    /// subsystem is then judged at each of its activations (a subsystem that
+    /// halted reads nothing, and is not judged), not on its period's grid.
+    pub fn at_activations(&mut self) {
+        self.activations = true;
+        self.recompute_deadline();
+    }
+
     /// The contracts judged here (every one, unless
     /// [`Monitors::retain_subsystems`] kept some only).
     pub fn judged(&self) -> impl Iterator<Item = ContractId> + '_ {
@@ -783,6 +806,24 @@ impl Monitors {
         for b in self.bounds.iter_mut().filter(|b| b.subsystem == subsystem) {
             b.activation(t, sink);
         }
+        if self.activations {
+            for f in &mut self.freshness {
+                if let (Some(reader), Some((s, false))) = (f.reader, f.held)
+                    && reader == subsystem
+                    && t.as_nanos().saturating_sub(s.as_nanos()) > f.max
+                {
+                    f.held = Some((s, true));
+                    sink(Violation {
+                        time: t,
+                        contract: f.contract,
+                        broke: Broke::Age {
+                            age: Duration::from_nanos(t.as_nanos() - s.as_nanos()),
+                            max: Duration::from_nanos(f.max),
+                        },
+                    });
+                }
+            }
+        }
         let Some(values) = predicates else {
             return;
         };
@@ -813,7 +854,7 @@ impl Monitors {
             _ => return,
         }
         for f in &mut self.freshness {
-            if let (Some(a), Some((s, _))) = (f.deadline(), f.held)
+            if let (Some(a), Some((s, _))) = (f.deadline(self.activations), f.held)
                 && t.as_nanos() > a
             {
                 f.held = Some((s, true));
@@ -883,7 +924,11 @@ impl Monitors {
             r.pending
                 .map(|(o, _)| o.as_nanos().saturating_add(r.within))
         });
-        let stale = self.freshness.iter().filter_map(FreshnessM::deadline);
+        let activations = self.activations;
+        let stale = self
+            .freshness
+            .iter()
+            .filter_map(|f| f.deadline(activations));
         self.next_deadline = rates
             .chain(responses)
             .chain(stale)

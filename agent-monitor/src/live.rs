@@ -15,7 +15,7 @@
 //! Where each kind's events come from (the semantics are the crate's):
 //!
 //! * freshness: the reader's reads, stamped by the sender, and its
-//!   activations on its period's grid;
+//!   activations (a halted subsystem is judged no more);
 //! * rate: a value's send when its writer is watched here (its stamp, as
 //!   over a recording), else the reader's take of it (from another thread or
 //!   process; the instant it arrived for the reader);
@@ -254,6 +254,7 @@ impl Live {
             .collect();
         let mut monitors = s.monitors.clone();
         monitors.retain_subsystems(|sub| names.contains(&sub));
+        monitors.at_activations();
         let mut not_judged: Vec<(ContractId, String)> = s
             .unjudgeable
             .iter()

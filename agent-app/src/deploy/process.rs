@@ -171,9 +171,12 @@ pub(crate) fn run<A: Application>(
     if !common.quiet {
         output::err(format_args!("{report}"));
     }
-    if let Some(live) = &contracts {
-        contracts::say(live, common.quiet);
-    }
+    let kept = contracts
+        .as_ref()
+        .is_none_or(|live| contracts::say(live, common.quiet))
+        || common
+            .on_error
+            .is_none_or(|p| p == crate::OnErrorArg::Continue);
     output::out(format_args!(
         "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
         if report.rt_priority() { "yes" } else { "no" },
@@ -191,7 +194,7 @@ pub(crate) fn run<A: Application>(
     if let Err(e) = &left {
         output::error(e);
     }
-    Ok(if recorded && bridged {
+    Ok(if recorded && bridged && kept {
         Status::Success
     } else {
         Status::Failed

@@ -82,6 +82,9 @@ fn realtime(
         limit,
         quiet: true,
         transitions: false,
+        // The library's mission runs judge the mission; the spec's contracts
+        // are watched in the program's runs (`rex`, through the layer).
+        contracts: None,
     }
     .realtime(
         system,

@@ -88,6 +88,17 @@ impl Crate<'_> {
         } else {
             files::parts::ENDS.fill(&[("halting", &halting.join(", "))])?
         };
+        // A spec with contracts: they are watched in every run, and the stubs keep
+        // none yet.
+        let ends = if self.spec.contracts.is_some() {
+            ends + "        // spec.ron states contracts, watched in every run (`contracts_violated=` after\n        \
+                    // it). The stubs keep none yet: their violations are reported and the run\n        \
+                    // goes on. Remove this line once your code keeps them (a run then stops at\n        \
+                    // the first; `--on-error` chooses too).\n        \
+                    .exec(embodied::ExecConfig::continue_on_error())\n"
+        } else {
+            ends
+        };
         Ok(files::MAIN.fill(&[
             ("lib", self.lib),
             (

@@ -1,0 +1,165 @@
+//! Rex's contracts (specs/rex.ron) watched while it runs, through the program
+//! as a user runs it: the main mission keeps every one; seeded defects are
+//! found with their place and time, handled by the error policy (Rex brakes
+//! and holds under `--on-error safe-stop`), and found again, at the same
+//! instant, over the run's recording.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use embodied::monitor::Monitors;
+use embodied::monitor::recording::{evaluate, needed};
+use embodied::record::Recording;
+
+const WORLD: &str = include_str!("../config/world.ron");
+const SPEC: &str = include_str!("../../specs/rex.ron");
+
+/// A folder of this test's own.
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("contracts-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `rex ARGS` (no report folder): its status, standard output and error.
+fn rex(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rex"))
+        .args(args)
+        .arg("--no-report")
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `text` with `from` replaced by `to` (which must be there once).
+fn edited(text: &str, from: &str, to: &str) -> String {
+    assert_eq!(text.matches(from).count(), 1, "`{from}` once");
+    text.replace(from, to)
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path.display().to_string()
+}
+
+#[test]
+fn the_main_mission_keeps_every_contract() {
+    let (code, out, err) = rex(&[]);
+    assert_eq!(code, Some(0), "{out}\n{err}");
+    assert!(
+        out.contains("contracts_checked=12 contracts_violated=0 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+    assert!(!err.contains("contract violated"), "{err}");
+}
+
+#[test]
+fn a_motion_capture_that_stops_is_found_and_rex_safe_stops() {
+    let dir = scratch("mocap");
+    // The capture's first dropout (at 0.5 s of the main mission) never ends.
+    let world = write(
+        &dir,
+        "world.ron",
+        &edited(WORLD, "dropout_length: 0.5,", "dropout_length: 1000.0,"),
+    );
+    let recording = dir.join("run.mcap");
+    let (code, out, err) = rex(&[
+        "--world",
+        &world,
+        "--for",
+        "4",
+        "--on-error",
+        "safe-stop",
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "a safe-stopped run fails: {out}\n{err}");
+    // The last pose came at 0.5 s: no pose for 1.25 s breaks the rate at 1.75 s
+    // (the rate's window), which safe-stops the run at the next instant (every
+    // subsystem halted: none judges a stale value after it).
+    let found = "t=1.750000s subsystem=c1 contract=rate:c1.c3.pose: no value for 1250.000 ms since t=0.500000s";
+    assert!(
+        err.contains(&format!("contract violated: {found}")),
+        "{err}"
+    );
+    assert!(
+        err.contains("safe-stopped at t=1.751000s"),
+        "the first violation safe-stops the run: {err}"
+    );
+    assert_eq!(
+        err.matches("contract violated").count(),
+        1,
+        "the halted subsystems are judged no more: {err}"
+    );
+    assert!(out.contains("contracts_violated=1"), "{out}");
+    assert!(
+        !err.contains("contract=range:torque_wheel"),
+        "no torque beyond the platform's limit, braking included: {err}"
+    );
+
+    // The same violation, at the same instant, over the recording.
+    let recorded = Recording::open_filtered(&recording, needed).unwrap();
+    let mut monitors = Monitors::new(&embodied::spec::load("rex.ron", SPEC).unwrap().spec).unwrap();
+    let report = evaluate(&mut monitors, &recorded).unwrap();
+    let lines: Vec<String> = report
+        .violations
+        .iter()
+        .map(|v| monitors.display(v).to_string())
+        .collect();
+    assert_eq!(lines.first().map(String::as_str), Some(found), "{lines:#?}");
+
+    // Reported and gone on with, the stale pose is found at c1's first
+    // activation past 0.5 + 1.25 s, and e11's at its own.
+    let (code, out, err) = rex(&["--world", &world, "--for", "2.5", "--on-error", "continue"]);
+    assert_eq!(code, Some(1), "the mission did not complete: {out}\n{err}");
+    for found in [
+        "t=1.760000s subsystem=c1 contract=freshness:c1.c3.pose: age 1260.000 ms > 1250.000 ms",
+        "t=1.850000s subsystem=e11 contract=freshness:e11.c1.pose: age 1340.000 ms > 1300.000 ms",
+    ] {
+        assert!(
+            err.contains(&format!("contract violated: {found}")),
+            "{err}"
+        );
+    }
+    assert!(out.contains("contracts_violated=3"), "{out}");
+}
+
+#[test]
+fn a_behaviour_that_never_ends_is_found_by_its_bound() {
+    let dir = scratch("bound");
+    // The operator's promise: a plan comes within 2 s, so c1 leaves B1 (waiting
+    // for one) within 2 s. With no plans from a2 (`listen`) and no ROS 2,
+    // none ever comes.
+    let spec = write(
+        &dir,
+        "rex.ron",
+        &edited(
+            SPEC,
+            r#"bounds: [(behaviour: "c1.B3", max_iterations: 1)],"#,
+            r#"bounds: [(behaviour: "c1.B3", max_iterations: 1), (behaviour: "c1.B1", max_s: 2.0)],"#,
+        ),
+    );
+    let (code, out, err) = rex(&["--spec", &spec, "--mission", "listen", "--for", "5"]);
+    assert_eq!(code, Some(1), "{out}\n{err}");
+    assert!(
+        err.contains(
+            "t=2.000000s subsystem=c1 contract=bound:c1.B1: entered at t=0.000000s, still running after 2.000 s"
+        ),
+        "{err}"
+    );
+    // Rex's policy is to stop at the first error: the run ended there.
+    assert!(out.contains("the run failed before its end"), "{out}");
+    assert!(out.contains("contracts_violated=1"), "{out}");
+}
