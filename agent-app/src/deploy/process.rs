@@ -10,6 +10,7 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, SystemTime};
 
 use agent_core::{ExecConfig, NodeId, OnError, Probes, RealTime, RtConfig, Running};
+use agent_monitor::live::Live;
 use agent_zenoh::{Member, MemberError, Options};
 
 use super::{NOTE, Note, SEEN};
@@ -168,23 +169,13 @@ pub(crate) fn run<A: Application>(
     let sample_dropped = member.sample_dropped();
     let left = member.close();
     let recorded = recorder.is_none_or(|r| record::finish_timed(r, report, process));
-    if !common.quiet {
-        output::err(format_args!("{report}"));
-    }
-    let kept = contracts
-        .as_ref()
-        .is_none_or(|live| contracts::say(live, common.quiet))
-        || common
-            .on_error
-            .is_none_or(|p| p == crate::OnErrorArg::Continue);
-    output::out(format_args!(
-        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
-        if report.rt_priority() { "yes" } else { "no" },
-        report.error_count,
-    ));
-    for e in report.errors.iter().take(watch::FIRST_ERRORS) {
-        output::error(e);
-    }
+    let kept = say_end(
+        common,
+        process,
+        report,
+        (overruns, sample_dropped, refused),
+        contracts.as_ref(),
+    );
     if let Some(why) = &stopped {
         output::err(format_args!(
             "{}: process `{process}` stopped: {why}",
@@ -199,6 +190,35 @@ pub(crate) fn run<A: Application>(
     } else {
         Status::Failed
     })
+}
+
+/// What a process says at its end: the timing table, the contracts' verdicts,
+/// its figure line and its first errors. Whether its contracts were kept (a
+/// broken one fails the process unless `--on-error continue`, the default
+/// of a deployment's processes, only reports it).
+fn say_end(
+    common: &Common,
+    process: &str,
+    report: &agent_core::RtReport,
+    (overruns, sample_dropped, refused): (u64, u64, u64),
+    contracts: Option<&Live>,
+) -> bool {
+    if !common.quiet {
+        output::err(format_args!("{report}"));
+    }
+    let kept = contracts.is_none_or(|live| contracts::say(live, common.quiet))
+        || common
+            .on_error
+            .is_none_or(|p| p == crate::OnErrorArg::Continue);
+    output::out(format_args!(
+        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
+        if report.rt_priority() { "yes" } else { "no" },
+        report.error_count,
+    ));
+    for e in report.errors.iter().take(watch::FIRST_ERRORS) {
+        output::error(e);
+    }
+    kept
 }
 
 /// Join the deployment as this start of its process: the member, and the
