@@ -10,6 +10,7 @@
 //! | `torques.svg` | the four wheel torques over time |
 //! | `friction.svg` | the estimator's friction of the ground `(μ_x, μ_y, μ_r)` over time (the MHE's; the EKF estimates none) |
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
+//! | `timing.txt` | the timing certificate of the spec, as one process on one host (`embodied check --timing`'s: [`embodied::spec::timing::analyse`]) |
 //! | `diagrams/` | every subsystem's FSM (SVG and Mermaid) and data flow, the agents' structure ([`diagram::render_all`]) |
 
 use std::fmt::Write as _;
@@ -46,10 +47,22 @@ pub fn write(
     put("torques.svg", torques(outcome).to_svg())?;
     put("friction.svg", friction(outcome).to_svg())?;
     put("timeline.svg", behaviour_timeline(outcome))?;
+    put("timing.txt", timing(spec))?;
     for (name, text) in diagram::render_all(spec) {
         put(&format!("diagrams/{name}"), text)?;
     }
     Ok(files)
+}
+
+/// The text of `timing.txt`: the certificate, or why there is none.
+fn timing(spec: &Spec) -> String {
+    match embodied::spec::timing::analyse(spec, None, None) {
+        Ok(analysis) => format!(
+            "# The timing analysis of `{}` as one process on one host (embodied check --timing)\n{analysis}",
+            spec.name
+        ),
+        Err(why) => format!("no timing analysis: {why}\n"),
+    }
 }
 
 /// The text of `summary.txt`.
