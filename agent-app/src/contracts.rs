@@ -10,13 +10,13 @@
 //! Each violation is an executor error too ([`agent_core::ExecError::Contract`]),
 //! handled by the run's policy (`--on-error`) and recorded on `/errors`.
 
-use agent_core::System;
+use agent_core::{ExecError, OnError, RtReport, System};
 use agent_monitor::Monitors;
 use agent_monitor::live::Live;
 
 use crate::SpecFile;
 use crate::error::AppError;
-use crate::output;
+use crate::{output, watch};
 
 /// How many violations are named after the run (all are counted).
 const NAMED: usize = 10;
@@ -66,4 +66,25 @@ pub(crate) fn say(live: &Live, quiet: bool) -> bool {
         verdicts.not_judged.len()
     ));
     verdicts.count == 0
+}
+
+/// The run's own errors, counted and the first ones shown: under `continue` a
+/// broken contract is reported apart (the violations) and is not the run's.
+pub(crate) fn run_errors(
+    report: &RtReport,
+    live: Option<&Live>,
+    on_error: OnError,
+) -> (u64, Vec<String>) {
+    if on_error != OnError::Continue {
+        return (report.error_count, watch::first_errors(&report.errors));
+    }
+    let raised = live.map_or(0, |l| l.verdicts().raised);
+    let own = report
+        .errors
+        .iter()
+        .filter(|e| !matches!(e, ExecError::Contract { .. }));
+    (
+        report.error_count.saturating_sub(raised),
+        watch::first_errors(own),
+    )
 }

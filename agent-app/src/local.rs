@@ -18,7 +18,7 @@ use crate::contracts;
 use crate::error::{AppError, Status};
 use crate::ros2::Ros2Out;
 use crate::transitions::{self, Transitions};
-use crate::watch::{self, End, Ended, Mode, RunSummary, Watcher};
+use crate::watch::{End, Ended, Mode, RunSummary, Watcher};
 use crate::{Application, Common, Signals, SpecFile, Target, output, record};
 
 /// Results a probe set's channel holds before results are dropped (counted):
@@ -423,6 +423,8 @@ fn conclude<A: Application>(
             t.as_secs_f64()
         ));
     }
+    // ... and its errors are not the run's.
+    let (errors, first_errors) = contracts::run_errors(report, contracts, on_error);
     let summary = RunSummary {
         spec: spec.spec.name.clone(),
         mode,
@@ -430,8 +432,8 @@ fn conclude<A: Application>(
         ended,
         last: report.last_instant,
         wall,
-        errors: report.error_count,
-        first_errors: watch::first_errors(&report.errors),
+        errors,
+        first_errors,
     };
     let verdict = output::judgement(watcher, &summary);
     Ok((

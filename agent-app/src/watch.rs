@@ -117,9 +117,9 @@ pub struct RunSummary {
 pub(crate) const FIRST_ERRORS: usize = 5;
 
 /// The first [`FIRST_ERRORS`] of a run's `errors`, as text, for its summary.
-pub(crate) fn first_errors(errors: &[ExecError]) -> Vec<String> {
+pub(crate) fn first_errors<'e>(errors: impl IntoIterator<Item = &'e ExecError>) -> Vec<String> {
     errors
-        .iter()
+        .into_iter()
         .take(FIRST_ERRORS)
         .map(ToString::to_string)
         .collect()

@@ -358,6 +358,14 @@ fn positive_ns(
     }
 }
 
+/// How many contracts `violations` break (each counted once).
+fn contracts_violated(violations: &[Violation]) -> usize {
+    let mut c: Vec<ContractId> = violations.iter().map(|v| v.contract).collect();
+    c.sort_unstable();
+    c.dedup();
+    c.len()
+}
+
 /// The period of component `name` (ns; 0 if the spec has no such component
 /// or its period is not a positive finite number).
 fn period_ns(spec: &Spec, name: &str) -> u64 {

@@ -100,6 +100,9 @@ pub struct Verdicts {
     pub violations: Vec<Violation>,
     /// Every violation, kept or not.
     pub count: u64,
+    /// Violations the executor took as errors (the others were found after
+    /// the run's last step, or did not fit [`Verdicts::unraised`]).
+    pub raised: u64,
     /// Violations the executor did not take as errors because too many
     /// waited at once (they are in the counts and, up to the limit, kept).
     pub unraised: u64,
@@ -111,10 +114,7 @@ pub struct Verdicts {
 impl Verdicts {
     /// How many contracts were violated, at least once.
     pub fn contracts_violated(&self) -> usize {
-        let mut c: Vec<ContractId> = self.violations.iter().map(|v| v.contract).collect();
-        c.sort_unstable();
-        c.dedup();
-        c.len()
+        crate::contracts_violated(&self.violations)
     }
 }
 
@@ -289,6 +289,7 @@ impl Live {
                 unraised: 0,
             },
             undecodable: 0,
+            raised: 0,
             started: false,
             last: Time::ZERO,
             judged,
@@ -345,6 +346,8 @@ pub struct Watch {
     bytes: Vec<u8>,
     sink: Sink,
     undecodable: u64,
+    /// Violations taken by the executor.
+    raised: u64,
     started: bool,
     last: Time,
     judged: Vec<ContractId>,
@@ -504,6 +507,7 @@ impl Observer for Watch {
 
     fn raised(&mut self) -> Option<ExecError> {
         let v = self.sink.pending.pop_front()?;
+        self.raised += 1;
         let contract = self.monitors.contract(v.contract)?.clone();
         let line = self.monitors.display(&v).to_string();
         Some(ExecError::Contract {
@@ -544,6 +548,7 @@ impl Drop for Watch {
         all.violations.sort_by_key(|v| v.time);
         all.count += self.sink.count;
         all.unraised += self.sink.unraised;
+        all.raised += self.raised;
         all.undecodable += self.undecodable;
     }
 }

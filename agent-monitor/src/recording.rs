@@ -84,10 +84,7 @@ pub struct Report {
 impl Report {
     /// How many contracts were violated (at least once).
     pub fn contracts_violated(&self) -> usize {
-        let mut c: Vec<ContractId> = self.violations.iter().map(|v| v.contract).collect();
-        c.sort_unstable();
-        c.dedup();
-        c.len()
+        crate::contracts_violated(&self.violations)
     }
 }
 

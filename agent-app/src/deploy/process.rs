@@ -143,16 +143,14 @@ pub(crate) fn run<A: Application>(
     let finished = running.join().map_err(|e| AppError::Run(e.to_string()));
     let bridged = ros2.finish();
     let finished = finished?;
-    for m in app.finished(&finished) {
-        vigil.send(SEEN, &m);
-    }
-    for m in seen.try_iter() {
+    for m in app.finished(&finished).into_iter().chain(seen.try_iter()) {
         vigil.send(SEEN, &m);
     }
     let report = finished.report();
     let overruns: u64 = report.nodes.iter().map(|n| n.overruns).sum();
     let refused = say_refused_links(&finished);
-    vigil.send_end(report, overruns, refused, refusals.as_ref());
+    let errors = contracts::run_errors(report, contracts.as_ref(), on_error(common));
+    vigil.send_end(report, errors, (overruns, refused), refusals.as_ref());
     let Vigil {
         undeliverable,
         stopped,
@@ -190,6 +188,11 @@ pub(crate) fn run<A: Application>(
     } else {
         Status::Failed
     })
+}
+
+/// A process's error policy: `--on-error`'s, else `continue`.
+fn on_error(common: &Common) -> OnError {
+    common.on_error.map_or(OnError::Continue, Into::into)
 }
 
 /// What a process says at its end: the timing table, the contracts' verdicts,
@@ -366,7 +369,7 @@ fn real_time<A: Application>(
     // lives with processes that come and go (unless `--on-error` says
     // otherwise).
     let exec = ExecConfig {
-        on_error: common.on_error.map_or(OnError::Continue, Into::into),
+        on_error: on_error(common),
         ..app.exec(config)
     };
     let mut rt = RealTime::new(
@@ -435,15 +438,15 @@ impl Vigil<'_> {
     fn send_end(
         &mut self,
         report: &agent_core::RtReport,
-        overruns: u64,
-        refused: u64,
+        (errors, first_errors): (u64, Vec<String>),
+        (overruns, refused): (u64, u64),
         refusals: Option<&agent_zenoh::security::Refusals>,
     ) {
         self.send(
             NOTE,
             &Note::Ended {
-                errors: report.error_count,
-                first_errors: watch::first_errors(&report.errors),
+                errors,
+                first_errors,
                 last_ns: report.last_instant.as_nanos(),
                 overruns,
                 refused,
