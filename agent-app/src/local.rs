@@ -126,8 +126,8 @@ pub struct Watched<'w, M> {
     pub quiet: bool,
     /// Print every FSM transition as it happens.
     pub transitions: bool,
-    /// The spec's contracts, watched in the executor ([`contracts::live`];
-    /// `None`: a spec without contracts).
+    /// The spec's contracts, watched in the executor (`None`: a spec
+    /// without contracts, or a run that does not watch them).
     pub contracts: Option<Live>,
 }
 

@@ -236,7 +236,7 @@ impl Live {
         self.watch_nodes(&(0..n).collect::<Vec<_>>())
     }
 
-    /// The observer of the nodes `nodes` (indices into [`SystemInfo::nodes`],
+    /// The observer of the nodes `nodes` (indices into [`agent_core::SystemInfo::nodes`],
     /// as the real-time executor gives each thread's observer maker): it
     /// judges the contracts of those subsystems only.
     pub fn watch_nodes(&self, nodes: &[usize]) -> Watch {
