@@ -1,0 +1,319 @@
+//! The events the monitors are fed, in time order, and what each kind makes
+//! of them (the semantics are the crate documentation's).
+
+use std::time::Duration;
+
+use agent_core::Time;
+
+use crate::*;
+
+impl Monitors {
+    /// Start watching at `t`: the rate windows start here; every run of a
+    /// behaviour and every pending trigger is forgotten.
+    pub fn start(&mut self, t: Time) {
+        for f in &mut self.freshness {
+            f.held = None;
+        }
+        for r in &mut self.rates {
+            r.last = t;
+            r.reported = false;
+        }
+        for b in &mut self.bounds {
+            b.run = None;
+        }
+        for r in &mut self.responses {
+            r.pending = None;
+            r.last_response = None;
+        }
+        self.next_deadline = self
+            .rates
+            .iter()
+            .map(|r| Time::from_nanos(r.last.as_nanos().saturating_add(r.window)))
+            .min();
+    }
+
+    /// A value stamped `stamp` read from `input` by an activation at `t`.
+    pub fn read(&mut self, input: InputId, t: Time, stamp: Time, sink: &mut impl FnMut(Violation)) {
+        self.advance(t, sink);
+        let age = t.as_nanos().saturating_sub(stamp.as_nanos());
+        for f in self.freshness.iter_mut().filter(|f| f.input == input) {
+            f.held = Some((stamp, age > f.max));
+            if age > f.max {
+                sink(Violation {
+                    time: t,
+                    contract: f.contract,
+                    broke: Broke::Age {
+                        age: Duration::from_nanos(age),
+                        max: Duration::from_nanos(f.max),
+                    },
+                });
+            }
+        }
+        self.recompute_deadline();
+    }
+
+    /// A new value reaches `input` at `t` (its writer's send, or its arrival
+    /// from another process).
+    pub fn arrived(&mut self, input: InputId, t: Time, sink: &mut impl FnMut(Violation)) {
+        self.advance(t, sink);
+        for r in self.rates.iter_mut().filter(|r| r.input == input) {
+            r.last = t;
+            r.reported = false;
+        }
+        self.recompute_deadline();
+    }
+
+    /// A value sent on `output` at `t`.
+    pub fn sent(&mut self, output: OutputId, t: Time, sink: &mut impl FnMut(Violation)) {
+        self.advance(t, sink);
+        for r in &mut self.responses {
+            if r.response == output {
+                r.last_response = Some(t);
+                r.pending = None;
+            }
+            if r.trigger == output && r.last_response != Some(t) {
+                r.pending = Some(match r.pending {
+                    Some((oldest, _)) => (oldest, t),
+                    None => (t, t),
+                });
+            }
+        }
+        self.recompute_deadline();
+    }
+
+    /// The field of range `range` took `x` at `t`.
+    pub fn value(&mut self, range: RangeId, t: Time, x: f64, sink: &mut impl FnMut(Violation)) {
+        self.advance(t, sink);
+        let Some(r) = self.ranges.get(range.0 as usize).filter(|r| r.active) else {
+            return;
+        };
+        let inside = r.min.is_none_or(|m| x >= m) && r.max.is_none_or(|m| x <= m);
+        if !inside {
+            sink(Violation {
+                time: t,
+                contract: r.contract,
+                broke: Broke::OutOfRange {
+                    value: x,
+                    min: r.min,
+                    max: r.max,
+                },
+            });
+        }
+    }
+
+    /// `subsystem` entered `behaviour` at `t` (leaving the one it was in); an
+    /// executor calls it for the initial behaviour too. `None`: it ended (a
+    /// final behaviour finished).
+    pub fn entered(
+        &mut self,
+        subsystem: SubsystemId,
+        behaviour: Option<BehaviourId>,
+        t: Time,
+        sink: &mut impl FnMut(Violation),
+    ) {
+        self.advance(t, sink);
+        for b in self.bounds.iter_mut().filter(|b| b.subsystem == subsystem) {
+            b.close(t, sink);
+            if behaviour == Some(b.behaviour) {
+                b.run = Some((t, 0));
+                b.lasted_reported = false;
+                b.iterations_reported = false;
+            }
+        }
+    }
+
+    /// An activation of `subsystem` at `t` (after its transition, if it made
+    /// one); with the values of its predicates (in the spec's order) when the
+    /// caller has them, for the invariants.
+    pub fn activation(
+        &mut self,
+        subsystem: SubsystemId,
+        t: Time,
+        predicates: Option<&[bool]>,
+        sink: &mut impl FnMut(Violation),
+    ) {
+        self.advance(t, sink);
+        for b in self.bounds.iter_mut().filter(|b| b.subsystem == subsystem) {
+            b.activation(t, sink);
+        }
+        if self.activations {
+            for f in &mut self.freshness {
+                if let (Some(reader), Some((s, false))) = (f.reader, f.held)
+                    && reader == subsystem
+                    && t.as_nanos().saturating_sub(s.as_nanos()) > f.max
+                {
+                    f.held = Some((s, true));
+                    sink(Violation {
+                        time: t,
+                        contract: f.contract,
+                        broke: Broke::Age {
+                            age: Duration::from_nanos(t.as_nanos() - s.as_nanos()),
+                            max: Duration::from_nanos(f.max),
+                        },
+                    });
+                }
+            }
+        }
+        let Some(values) = predicates else {
+            return;
+        };
+        for i in self.invariants.iter().filter(|i| i.subsystem == subsystem) {
+            if !i
+                .holds
+                .eval(&mut |&k| values.get(k).copied().unwrap_or(false))
+            {
+                let bits = values
+                    .iter()
+                    .take(64)
+                    .enumerate()
+                    .fold(0u64, |acc, (k, &v)| acc | (u64::from(v) << k));
+                sink(Violation {
+                    time: t,
+                    contract: i.contract,
+                    broke: Broke::False { predicates: bits },
+                });
+            }
+        }
+    }
+
+    /// Time has reached `t`: report the rate windows and response deadlines
+    /// that passed before it (every event calls this first).
+    pub fn advance(&mut self, t: Time, sink: &mut impl FnMut(Violation)) {
+        match self.next_deadline {
+            Some(d) if t > d => {}
+            _ => return,
+        }
+        for f in &mut self.freshness {
+            if let (Some(a), Some((s, _))) = (f.deadline(self.activations), f.held)
+                && t.as_nanos() > a
+            {
+                f.held = Some((s, true));
+                sink(Violation {
+                    time: Time::from_nanos(a),
+                    contract: f.contract,
+                    broke: Broke::Age {
+                        age: Duration::from_nanos(a - s.as_nanos()),
+                        max: Duration::from_nanos(f.max),
+                    },
+                });
+            }
+        }
+        for r in &mut self.rates {
+            let end = r.last.as_nanos().saturating_add(r.window);
+            if !r.reported && t.as_nanos() > end {
+                r.reported = true;
+                sink(Violation {
+                    time: Time::from_nanos(end),
+                    contract: r.contract,
+                    broke: Broke::Silent {
+                        since: r.last,
+                        window: Duration::from_nanos(r.window),
+                    },
+                });
+            }
+        }
+        for r in &mut self.responses {
+            while let Some((oldest, newest)) = r.pending {
+                let deadline = oldest.as_nanos().saturating_add(r.within);
+                if t.as_nanos() <= deadline {
+                    break;
+                }
+                sink(Violation {
+                    time: Time::from_nanos(deadline),
+                    contract: r.contract,
+                    broke: Broke::Unanswered {
+                        trigger: oldest,
+                        within: Duration::from_nanos(r.within),
+                    },
+                });
+                r.pending = (newest != oldest).then_some((newest, newest));
+            }
+        }
+        self.recompute_deadline();
+    }
+
+    /// The run ended at `t`: the windows and deadlines up to `t` are judged
+    /// (a deadline after `t` is not: the run ended before it), and each
+    /// behaviour's current run is judged on its duration so far.
+    pub fn finish(&mut self, t: Time, sink: &mut impl FnMut(Violation)) {
+        // `advance` reports deadlines strictly before its instant; the end
+        // itself is inside every window that reaches it.
+        self.advance(t, sink);
+        for b in &mut self.bounds {
+            b.close(t, sink);
+        }
+    }
+
+    pub(crate) fn recompute_deadline(&mut self) {
+        let rates = self
+            .rates
+            .iter()
+            .filter(|r| !r.reported)
+            .map(|r| r.last.as_nanos().saturating_add(r.window));
+        let responses = self.responses.iter().filter_map(|r| {
+            r.pending
+                .map(|(o, _)| o.as_nanos().saturating_add(r.within))
+        });
+        let activations = self.activations;
+        let stale = self
+            .freshness
+            .iter()
+            .filter_map(|f| f.deadline(activations));
+        self.next_deadline = rates
+            .chain(responses)
+            .chain(stale)
+            .min()
+            .map(Time::from_nanos);
+    }
+}
+
+impl BoundM {
+    /// The current run ends at `t`: judge its duration.
+    fn close(&mut self, t: Time, sink: &mut impl FnMut(Violation)) {
+        let Some((entered, _)) = self.run.take() else {
+            return;
+        };
+        self.check_lasted(entered, t, sink);
+    }
+
+    fn check_lasted(&mut self, entered: Time, t: Time, sink: &mut impl FnMut(Violation)) {
+        if let Some(max) = self.max
+            && !self.lasted_reported
+            && t.as_nanos().saturating_sub(entered.as_nanos()) > max
+        {
+            self.lasted_reported = true;
+            sink(Violation {
+                time: Time::from_nanos(entered.as_nanos().saturating_add(max)),
+                contract: self.contract,
+                broke: Broke::Lasted {
+                    entered,
+                    max: Duration::from_nanos(max),
+                },
+            });
+        }
+    }
+
+    fn activation(&mut self, t: Time, sink: &mut impl FnMut(Violation)) {
+        let Some((entered, n)) = self.run else {
+            return;
+        };
+        let n = n + 1;
+        self.run = Some((entered, n));
+        self.check_lasted(entered, t, sink);
+        if let Some(max) = self.max_iterations
+            && n > max
+            && !self.iterations_reported
+        {
+            self.iterations_reported = true;
+            sink(Violation {
+                time: t,
+                contract: self.contract,
+                broke: Broke::Iterations {
+                    entered,
+                    iterations: n,
+                    max,
+                },
+            });
+        }
+    }
+}
