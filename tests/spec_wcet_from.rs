@@ -35,6 +35,8 @@ fn node(name: &str, exec_max_ns: u64) -> NodeStats {
         exec_p50_ns: exec_max_ns / 4,
         lateness_max_ns: 50_000,
         lateness_p99_ns: 20_000,
+        response_max_ns: 0,
+        response_p99_ns: 0,
         overruns: 0,
         priority_asked: Some(79),
         priority_granted: Some(79),

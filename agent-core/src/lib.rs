@@ -68,7 +68,7 @@ pub use offload::{Offload, OffloadError, OffloadMode, UnknownOffloadMode};
 pub use probe::Probes;
 pub use realtime::{
     Finished, Placement, Probed, RealTime, Refused, RtConfig, RtError, RtReport, Running,
-    StopHandle, ThreadReport,
+    StopHandle, ThreadReport, Threading,
 };
 /// The tracer of payload types' shapes ([`reflect`]), for reading [`TypeShape`]s.
 pub use serde_reflection;

@@ -71,6 +71,14 @@ pub struct NodeStats {
     pub lateness_max_ns: u64,
     /// Lateness, 99th percentile \[ns\].
     pub lateness_p99_ns: u64,
+    /// Response time (from the release to the activation's end: lateness,
+    /// reads, the nodes before it on its thread, its execution): largest
+    /// \[ns\]; 0 in recordings made before it was measured.
+    #[serde(default)]
+    pub response_max_ns: u64,
+    /// Response time, 99th percentile \[ns\].
+    #[serde(default)]
+    pub response_p99_ns: u64,
     /// Activations that ended after the node's next release.
     pub overruns: u64,
     /// The `SCHED_FIFO` priority its thread asked for (`None`: ordinary).
@@ -112,6 +120,8 @@ impl TimingStats {
                     exec_p50_ns: ns(n.compute.p50),
                     lateness_max_ns: ns(n.jitter.max),
                     lateness_p99_ns: ns(n.jitter.p99),
+                    response_max_ns: ns(n.response.max),
+                    response_p99_ns: ns(n.response.p99),
                     overruns: n.overruns,
                     priority_asked: asked,
                     priority_granted: granted,
@@ -209,6 +219,8 @@ mod tests {
             exec_p50_ns: max / 4,
             lateness_max_ns: 10,
             lateness_p99_ns: 5,
+            response_max_ns: 0,
+            response_p99_ns: 0,
             overruns: 0,
             priority_asked: Some(80),
             priority_granted: None,

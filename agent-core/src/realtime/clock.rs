@@ -166,3 +166,47 @@ pub(crate) fn unlock_memory() {
         let _ = nix::sys::mman::munlockall();
     }
 }
+
+/// The CPUs this process may run on (its affinity mask), in order; empty where
+/// the platform does not say.
+pub(crate) fn allowed_cpus() -> Vec<usize> {
+    #[cfg(target_os = "linux")]
+    {
+        use nix::sched::{CpuSet, sched_getaffinity};
+        use nix::unistd::Pid;
+        match sched_getaffinity(Pid::from_raw(0)) {
+            Ok(set) => (0..CpuSet::count())
+                .filter(|&c| set.is_set(c).unwrap_or(false))
+                .collect(),
+            Err(_) => Vec::new(),
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        Vec::new()
+    }
+}
+
+/// Pin the calling thread to `cpu`.
+pub(crate) fn pin_to(cpu: usize) -> Result<(), Refused> {
+    #[cfg(target_os = "linux")]
+    {
+        use nix::sched::{CpuSet, sched_setaffinity};
+        use nix::unistd::Pid;
+        let refused = |e: nix::errno::Errno| Refused::Affinity {
+            cpu,
+            reason: e.to_string(),
+        };
+        let mut set = CpuSet::new();
+        set.set(cpu).map_err(refused)?;
+        // Pid 0: the calling thread.
+        sched_setaffinity(Pid::from_raw(0), &set).map_err(refused)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        Err(Refused::Unsupported {
+            what: format!("pinning to CPU {cpu}"),
+            why: "not on this platform",
+        })
+    }
+}

@@ -23,6 +23,61 @@ pub struct RtConfig {
     pub lead: Duration,
     /// Capacity of each probe's channel.
     pub probe_capacity: usize,
+    /// How nodes are put on threads: a bounded pool of workers per core (the
+    /// default), or a thread per subsystem.
+    pub threading: Threading,
+}
+
+/// How the real-time executor puts the nodes it runs on threads.
+///
+/// Drivers that share the system's environment always run together on one
+/// thread, the world's (see the [module](super)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Threading {
+    /// A bounded set of worker threads: the nodes of each period are dealt
+    /// out over `cores` cores (round-robin in declaration order, each period
+    /// starting one core further), and on each core one worker runs the nodes
+    /// of one period, in declaration order (real receptors last). So a system
+    /// has at most `cores` × (distinct periods) workers however many
+    /// subsystems it has; a worker's FIFO priority is its period's rank
+    /// (rate-monotonic, as a thread's in [`Threading::PerSubsystem`]), so a
+    /// worker of a shorter period preempts the longer ones on its core.
+    ///
+    /// Within a worker, an activation that overruns delays the nodes after it
+    /// (they run late, on the same absolute deadlines, and none loses an
+    /// instant); other workers are not delayed by it beyond their share of
+    /// the core.
+    Pool {
+        /// How many cores to deal the nodes over; `0`: as many as the process
+        /// may use (`std::thread::available_parallelism`).
+        cores: u16,
+        /// Pin each worker to its core (Linux: `sched_setaffinity`, core `k`
+        /// being the `k`-th CPU of the process's affinity mask, modulo its
+        /// size); what the OS refuses is reported, and the run goes on
+        /// unpinned.
+        pin: bool,
+    },
+    /// One thread per subsystem, and per driver without a shared
+    /// environment: where isolation matters more than the thread count (a
+    /// node that blocks delays no other node).
+    PerSubsystem,
+}
+
+impl Default for Threading {
+    /// A pool over every core the process may use, unpinned.
+    fn default() -> Self {
+        Threading::Pool {
+            cores: 0,
+            pin: false,
+        }
+    }
+}
+
+impl Threading {
+    /// A pool over `cores` cores (`0`: all the process may use), pinned.
+    pub fn pinned(cores: u16) -> Self {
+        Threading::Pool { cores, pin: true }
+    }
 }
 
 impl Default for RtConfig {
@@ -34,6 +89,7 @@ impl Default for RtConfig {
             lock_memory: false,
             lead: Duration::from_millis(20),
             probe_capacity: 4096,
+            threading: Threading::default(),
         }
     }
 }

@@ -3,11 +3,16 @@
 //!
 //! # Threads
 //!
-//! Every subsystem runs on a thread of its own. Drivers that share the system's
-//! environment ([`SystemBuilder::environment`]) run together on one thread, the
-//! world's, in the deterministic order (real receptors last in an instant), since
-//! the environment is theirs alone; without an environment each driver has its own
-//! thread.
+//! By default ([`Threading::Pool`]) a bounded set of worker threads runs the
+//! subsystems: the subsystems of each period are dealt out over the cores,
+//! and on each core one worker runs those of one period, in declaration order.
+//! A system of a thousand subsystems at two periods on two cores runs on four
+//! workers, not a thousand threads. [`Threading::PerSubsystem`] gives every
+//! subsystem a thread of its own instead, where isolation matters more.
+//! Drivers that share the system's environment ([`SystemBuilder::environment`])
+//! run together on one thread, the world's, in the deterministic order (real
+//! receptors last in an instant), since the environment is theirs alone;
+//! without an environment drivers are placed as subsystems are.
 //!
 //! # Timing
 //!
@@ -16,8 +21,10 @@
 //! late wake-up or a long activation never shifts later deadlines; an activation
 //! that ends after the node's next deadline is an overrun, and the next one starts
 //! at once. Nodes see the nominal instant as their time (`k·period`, as in the
-//! deterministic executor). With [`RtConfig::realtime`] each thread asks for
-//! `SCHED_FIFO` priority, higher for shorter periods (rate-monotonic), and the
+//! deterministic executor). [`NodeTiming`] keeps each node's wake-up jitter,
+//! compute time and response time (deadline to end). With
+//! [`RtConfig::realtime`] each thread asks for `SCHED_FIFO` priority, higher
+//! for shorter periods (rate-monotonic), and the
 //! process locks its memory (`mlockall`); what the OS refuses is reported in
 //! [`RtReport`] and the run goes on without it.
 //!
@@ -77,7 +84,7 @@ use crate::time::Time;
 use crate::trace::{Observer, SystemInfo};
 
 pub use crate::probe::Probed;
-pub use config::{RtConfig, RtError};
+pub use config::{RtConfig, RtError, Threading};
 pub use finished::Finished;
 pub use report::{Refused, RtReport, ThreadReport};
 pub use timing::{NodeTiming, Spread};
@@ -428,6 +435,8 @@ impl Running {
                         name: done.name,
                         priority_asked: done.priority.as_ref().map(|(p, _)| *p),
                         priority_refused: done.priority.and_then(|(_, r)| r.err()),
+                        pinned_to: done.pinned.as_ref().map(|(cpu, _)| *cpu),
+                        pin_refused: done.pinned.and_then(|(_, r)| r.err()),
                     });
                 }
                 Err(_) => {

@@ -17,6 +17,13 @@ pub struct ThreadReport {
     pub priority_asked: Option<u8>,
     /// Why it was refused, if it was.
     pub priority_refused: Option<Refused>,
+    /// The CPU a pool worker asked to be pinned to ([`Threading::Pool`]'s
+    /// `pin`), if any.
+    ///
+    /// [`Threading::Pool`]: super::Threading::Pool
+    pub pinned_to: Option<usize>,
+    /// Why the pinning was refused, if it was.
+    pub pin_refused: Option<Refused>,
 }
 
 /// What the OS refused a real-time run: the run goes on without it (at ordinary
@@ -43,6 +50,14 @@ pub enum Refused {
     /// The OS refused `mlockall` (on Linux: `RLIMIT_MEMLOCK` too small).
     #[error("mlockall refused: {reason}")]
     LockMemory {
+        /// What the OS said.
+        reason: String,
+    },
+    /// The OS refused to pin a thread to a CPU (`sched_setaffinity`).
+    #[error("pinning to CPU {cpu} refused: {reason}")]
+    Affinity {
+        /// The CPU asked for.
+        cpu: usize,
         /// What the OS said.
         reason: String,
     },
@@ -135,6 +150,11 @@ impl fmt::Display for RtReport {
                 (Some(_), Some(why)) => {
                     writeln!(f, "thread {}: ordinary priority (fallback: {why})", t.name)?
                 }
+            }
+            match (t.pinned_to, &t.pin_refused) {
+                (Some(cpu), None) => writeln!(f, "thread {}: pinned to CPU {cpu}", t.name)?,
+                (Some(_), Some(why)) => writeln!(f, "thread {}: not pinned ({why})", t.name)?,
+                (None, _) => {}
             }
         }
         match &self.memory_locked {

@@ -3,7 +3,7 @@
 //! out, the clock agreed, the threads spawned.
 
 use std::any::Any;
-use std::collections::HashSet;
+use std::collections::{BTreeMap, HashSet};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
@@ -19,7 +19,8 @@ use crate::system::System;
 use crate::trace::SystemInfo;
 
 use super::{
-    MakeObserver, Placement, RealTime, Refused, RtError, Running, StopHandle, clock, worker,
+    MakeObserver, Placement, RealTime, Refused, RtError, Running, StopHandle, Threading, clock,
+    worker,
 };
 
 /// A transport and the first part of its keys.
@@ -52,7 +53,7 @@ impl RealTime {
             environment,
         } = system;
         let here = placed_here(&info, placement.as_ref(), nodes.len());
-        let threads = Threads::assign(&info, &here, environment.is_some());
+        let threads = Threads::assign(&info, &here, environment.is_some(), config.threading);
         let priorities = threads.priorities(&info, config.priority);
         let epoch = placement
             .as_ref()
@@ -68,7 +69,7 @@ impl RealTime {
             inboxes,
         } = make_links(&info, &channels, &here, &threads, epoch, transport.as_mut())?;
         let rxs = feed_links(&info, &channels, &here, &threads, rxs, feeds)?;
-        let mut works = threads.empty_works(txs, rxs, priorities);
+        let mut works = threads.empty_works(txs, rxs, priorities, &clock::allowed_cpus());
         give_nodes(&mut works, &threads, &info, nodes, outs, ins);
         if let Some(w) = threads.world {
             works[w].environment = environment;
@@ -112,6 +113,15 @@ impl RealTime {
     }
 }
 
+/// The cores a pool deals its nodes over: `cores`, or with `0` as many as
+/// the process may use.
+fn pool_cores(cores: u16) -> usize {
+    match cores {
+        0 => std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
+        n => usize::from(n),
+    }
+}
+
 /// Per node: whether this process runs it (every node, without a placement).
 fn placed_here(info: &SystemInfo, placement: Option<&Placement>, n: usize) -> Vec<bool> {
     match placement {
@@ -128,38 +138,95 @@ fn placed_here(info: &SystemInfo, placement: Option<&Placement>, n: usize) -> Ve
 struct Threads {
     /// Per node: its thread, or `usize::MAX` for a node not run here.
     thread_of: Vec<usize>,
-    /// Per thread: its name (a subsystem's, a driver's, or `world`).
+    /// Per thread: its name (a subsystem's, a driver's, `world`, or a pool
+    /// worker's `core<k>@<period>`).
     names: Vec<String>,
+    /// Per thread: the core a pool worker is pinned to (`None`: not pinned).
+    pins: Vec<Option<usize>>,
     /// The thread of the drivers that share the environment, if they do.
     world: Option<usize>,
 }
 
 impl Threads {
-    /// One thread per subsystem; the drivers together if they share an
-    /// environment, else one each.
-    fn assign(info: &SystemInfo, here: &[bool], has_env: bool) -> Threads {
-        let mut thread_of = vec![usize::MAX; here.len()];
-        let mut names: Vec<String> = Vec::new();
-        let mut world = None;
+    /// The drivers together if they share an environment; the other nodes as
+    /// `threading` says: a pool worker per core and period, or one thread
+    /// each.
+    fn assign(info: &SystemInfo, here: &[bool], has_env: bool, threading: Threading) -> Threads {
+        let mut threads = Threads {
+            thread_of: vec![usize::MAX; here.len()],
+            names: Vec::new(),
+            pins: Vec::new(),
+            world: None,
+        };
+        let pool = match threading {
+            Threading::Pool { cores, pin } => Some((pool_cores(cores), pin)),
+            Threading::PerSubsystem => None,
+        };
+        // Pool: per period (ns), the core its next node goes to; per (core,
+        // period), the worker's thread.
+        let mut next_core: BTreeMap<u64, usize> = BTreeMap::new();
+        let mut workers: BTreeMap<(usize, u64), usize> = BTreeMap::new();
         for (i, node) in info.nodes.iter().enumerate() {
             if !here[i] {
                 continue;
             }
             let is_driver = matches!(node.kind, NodeKind::RealEffector | NodeKind::RealReceptor);
-            thread_of[i] = if is_driver && has_env {
-                *world.get_or_insert_with(|| {
-                    names.push("world".to_owned());
-                    names.len() - 1
-                })
+            threads.thread_of[i] = if is_driver && has_env {
+                match threads.world {
+                    Some(w) => w,
+                    None => {
+                        let w = threads.push("world".to_owned(), None);
+                        threads.world = Some(w);
+                        w
+                    }
+                }
+            } else if let Some((cores, pin)) = pool {
+                let period = node.period.as_nanos();
+                // Each period starts one core further, so that periods with
+                // one node each spread too.
+                let classes = next_core.len();
+                let core = next_core.entry(period).or_insert(classes % cores);
+                let k = *core;
+                *core = (k + 1) % cores;
+                match workers.get(&(k, period)) {
+                    Some(&w) => w,
+                    None => {
+                        let name = format!("core{k}@{}", node.period);
+                        let w = threads.push(name, pin.then_some(k));
+                        workers.insert((k, period), w);
+                        w
+                    }
+                }
             } else {
-                names.push(node.name.clone());
-                names.len() - 1
+                threads.push(node.name.clone(), None)
             };
         }
-        Threads {
-            thread_of,
-            names,
-            world,
+        threads.name_lone_workers(info);
+        threads
+    }
+
+    /// A new thread; its index.
+    fn push(&mut self, name: String, pin: Option<usize>) -> usize {
+        self.names.push(name);
+        self.pins.push(pin);
+        self.names.len() - 1
+    }
+
+    /// A pool worker that runs one node is named after it, as its own thread
+    /// would be.
+    fn name_lone_workers(&mut self, info: &SystemInfo) {
+        let mut count = vec![0usize; self.names.len()];
+        let mut lone = vec![usize::MAX; self.names.len()];
+        for (i, &th) in self.thread_of.iter().enumerate() {
+            if let Some(c) = count.get_mut(th) {
+                *c += 1;
+                lone[th] = i;
+            }
+        }
+        for (th, name) in self.names.iter_mut().enumerate() {
+            if count[th] == 1 && Some(th) != self.world {
+                *name = info.nodes[lone[th]].name.clone();
+            }
         }
     }
 
@@ -194,18 +261,22 @@ impl Threads {
     }
 
     /// Per thread, a work holding its link halves and priority, nothing else yet.
+    /// A pool worker pinned to core `k` is pinned to the `k`-th CPU of
+    /// `cpus` (the process's, modulo their number; CPU `k` if unknown).
     fn empty_works(
         &self,
         txs: Vec<ThreadHalves>,
         rxs: Vec<ThreadHalves>,
         priorities: Vec<Option<u8>>,
+        cpus: &[usize],
     ) -> Vec<worker::Work> {
         self.names
             .iter()
+            .zip(&self.pins)
             .zip(txs)
             .zip(rxs)
             .zip(priorities)
-            .map(|(((name, txs), rxs), priority)| worker::Work {
+            .map(|((((name, pin), txs), rxs), priority)| worker::Work {
                 name: name.clone(),
                 nodes: Vec::new(),
                 seeds: Vec::new(),
@@ -215,6 +286,10 @@ impl Threads {
                 rxs,
                 environment: None,
                 priority,
+                pin: pin.map(|k| match cpus.len() {
+                    0 => k,
+                    n => cpus[k % n],
+                }),
                 probes: Vec::new(),
                 observer: None,
             })

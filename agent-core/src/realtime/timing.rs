@@ -47,8 +47,12 @@ pub struct NodeTiming {
     pub activations: u64,
     /// How late it woke after each deadline.
     pub jitter: Spread,
-    /// How long each activation took (read, decision, action, send).
+    /// How long each activation took (decision, action, send).
     pub compute: Spread,
+    /// From each activation's deadline (its instant) to its end: the
+    /// response time, with the wake-up's lateness, the reads, and the nodes
+    /// that ran before it on its thread in that instant.
+    pub response: Spread,
     /// Activations that ended after the node's next deadline.
     pub overruns: u64,
 }
@@ -57,6 +61,7 @@ pub struct NodeTiming {
 pub(crate) struct Recorder {
     jitter: Option<Histogram<u64>>,
     compute: Option<Histogram<u64>>,
+    response: Option<Histogram<u64>>,
     pub(crate) activations: u64,
     pub(crate) overruns: u64,
 }
@@ -70,19 +75,23 @@ impl Recorder {
         Recorder {
             jitter: make(),
             compute: make(),
+            response: make(),
             activations: 0,
             overruns: 0,
         }
     }
 
     #[inline]
-    pub(crate) fn record(&mut self, jitter_ns: u64, compute_ns: u64) {
+    pub(crate) fn record(&mut self, jitter_ns: u64, compute_ns: u64, response_ns: u64) {
         self.activations += 1;
-        if let Some(h) = &mut self.jitter {
-            h.saturating_record(jitter_ns.clamp(1, RANGE_NS));
-        }
-        if let Some(h) = &mut self.compute {
-            h.saturating_record(compute_ns.clamp(1, RANGE_NS));
+        for (h, ns) in [
+            (&mut self.jitter, jitter_ns),
+            (&mut self.compute, compute_ns),
+            (&mut self.response, response_ns),
+        ] {
+            if let Some(h) = h {
+                h.saturating_record(ns.clamp(1, RANGE_NS));
+            }
         }
     }
 
@@ -102,6 +111,7 @@ impl Recorder {
             activations: self.activations,
             jitter: spread(&self.jitter),
             compute: spread(&self.compute),
+            response: spread(&self.response),
             overruns: self.overruns,
         }
     }
@@ -115,7 +125,7 @@ mod tests {
     fn percentiles_come_from_what_was_recorded() {
         let mut r = Recorder::new();
         for i in 1..=100u64 {
-            r.record(i * 1000, 5000);
+            r.record(i * 1000, 5000, i * 1000 + 5000);
         }
         let t = r.finish("n".into(), "t".into(), Period::from_millis(1).unwrap());
         assert_eq!(t.activations, 100);
@@ -124,5 +134,6 @@ mod tests {
         assert!(near(t.jitter.p99, 99.0), "{:?}", t.jitter);
         assert!(near(t.jitter.max, 100.0), "{:?}", t.jitter);
         assert!(near(t.compute.max, 5.0), "{:?}", t.compute);
+        assert!(near(t.response.max, 105.0), "{:?}", t.response);
     }
 }

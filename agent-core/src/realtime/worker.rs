@@ -36,6 +36,8 @@ pub(crate) struct Work {
     pub(crate) rxs: ThreadHalves,
     pub(crate) environment: Option<Box<dyn Any + Send>>,
     pub(crate) priority: Option<u8>,
+    /// The CPU to pin the thread to, if any.
+    pub(crate) pin: Option<usize>,
     /// Called on this thread after each activation of the node they watch
     /// (the environment's: after each instant).
     pub(crate) probes: Vec<(Target, ProbeFn)>,
@@ -72,6 +74,8 @@ pub(crate) struct Done {
     pub(crate) errors: Vec<ExecError>,
     /// The priority asked for and what the OS said.
     pub(crate) priority: Option<(u8, Result<(), Refused>)>,
+    /// The CPU asked to be pinned to and what the OS said.
+    pub(crate) pinned: Option<(usize, Result<(), Refused>)>,
     /// The virtual time of the last instant executed.
     pub(crate) last: Time,
     /// When the run safe-stopped, if it did.
@@ -91,9 +95,11 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         mut rxs,
         environment,
         priority,
+        pin,
         probes,
         observer,
     } = work;
+    let pinned = pin.map(|cpu| (cpu, clock::pin_to(cpu)));
     let mut observer = observer.filter(|o| o.enabled());
     if let Some(o) = observer.as_deref_mut() {
         o.start(&shared.info);
@@ -108,7 +114,7 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
     while let Some(t) = thread.next_instant() {
         thread.run_instant(t);
     }
-    thread.finish(name, priority)
+    thread.finish(name, priority, pinned)
 }
 
 /// Give each node the thread-link ports of its outputs, then of its inputs.
@@ -289,7 +295,11 @@ impl<'a> Thread<'a> {
         };
         let result = self.nodes[k].step(now, self.ids[k], &mut cx);
         let ended = shared.clock.now();
-        self.recorders[k].record(jitter, ended.saturating_sub(started));
+        self.recorders[k].record(
+            jitter,
+            ended.saturating_sub(started),
+            ended.saturating_sub(t),
+        );
         match result {
             Ok(NodeStep::Ran) => self.next[k] = t.saturating_add(self.periods[k]),
             Ok(NodeStep::Halted) => self.next[k] = u64::MAX,
@@ -404,7 +414,12 @@ impl<'a> Thread<'a> {
 
     /// What the thread hands back: its nodes' timings and cores, the
     /// environment, the errors recorded.
-    fn finish(self, name: String, priority: Option<(u8, Result<(), Refused>)>) -> Done {
+    fn finish(
+        self,
+        name: String,
+        priority: Option<(u8, Result<(), Refused>)>,
+        pinned: Option<(usize, Result<(), Refused>)>,
+    ) -> Done {
         let info = &self.shared.info;
         let timings = self
             .ids
@@ -429,6 +444,7 @@ impl<'a> Thread<'a> {
             timings,
             errors: self.errors,
             priority,
+            pinned,
             last: self.last,
             safe_stopped: match self.shared.safe_stopped.load(Ordering::Relaxed) {
                 u64::MAX => None,
