@@ -245,6 +245,7 @@ fn one_thread_per_subsystem_remains_an_option() {
     for n in &f.report().nodes {
         assert_eq!(n.thread, n.name);
     }
+    assert!(f.report().threads.iter().all(|t| t.core.is_none()));
 }
 
 #[cfg(target_os = "linux")]

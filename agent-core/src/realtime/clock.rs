@@ -210,3 +210,19 @@ pub(crate) fn pin_to(cpu: usize) -> Result<(), Refused> {
         })
     }
 }
+
+/// The CPU time the calling thread has used; `None` where the platform does
+/// not say.
+pub(crate) fn thread_cpu_time() -> Option<Duration> {
+    #[cfg(target_os = "linux")]
+    {
+        use nix::time::{ClockId, clock_gettime};
+        clock_gettime(ClockId::CLOCK_THREAD_CPUTIME_ID)
+            .ok()
+            .map(Duration::from)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        None
+    }
+}

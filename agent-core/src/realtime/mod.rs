@@ -437,6 +437,8 @@ impl Running {
                         priority_refused: done.priority.and_then(|(_, r)| r.err()),
                         pinned_to: done.pinned.as_ref().map(|(cpu, _)| *cpu),
                         pin_refused: done.pinned.and_then(|(_, r)| r.err()),
+                        core: done.core,
+                        cpu_time: done.cpu_time,
                     });
                 }
                 Err(_) => {

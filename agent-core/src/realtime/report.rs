@@ -24,6 +24,12 @@ pub struct ThreadReport {
     pub pinned_to: Option<usize>,
     /// Why the pinning was refused, if it was.
     pub pin_refused: Option<Refused>,
+    /// The core of the pool whose nodes a worker runs (`None`: not a pool
+    /// worker).
+    pub core: Option<usize>,
+    /// The CPU time the thread used over the run (`None` where the platform
+    /// does not say): over the run's wall time, its share of a CPU.
+    pub cpu_time: Option<Duration>,
 }
 
 /// What the OS refused a real-time run: the run goes on without it (at ordinary

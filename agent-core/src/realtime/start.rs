@@ -141,8 +141,11 @@ struct Threads {
     /// Per thread: its name (a subsystem's, a driver's, `world`, or a pool
     /// worker's `core<k>@<period>`).
     names: Vec<String>,
-    /// Per thread: the core a pool worker is pinned to (`None`: not pinned).
-    pins: Vec<Option<usize>>,
+    /// Per thread: the pool's core whose nodes it runs (`None`: not a pool
+    /// worker).
+    cores: Vec<Option<usize>>,
+    /// Per thread: whether it is pinned to its core.
+    pins: Vec<bool>,
     /// The thread of the drivers that share the environment, if they do.
     world: Option<usize>,
 }
@@ -155,6 +158,7 @@ impl Threads {
         let mut threads = Threads {
             thread_of: vec![usize::MAX; here.len()],
             names: Vec::new(),
+            cores: Vec::new(),
             pins: Vec::new(),
             world: None,
         };
@@ -175,7 +179,7 @@ impl Threads {
                 match threads.world {
                     Some(w) => w,
                     None => {
-                        let w = threads.push("world".to_owned(), None);
+                        let w = threads.push("world".to_owned(), None, false);
                         threads.world = Some(w);
                         w
                     }
@@ -192,13 +196,13 @@ impl Threads {
                     Some(&w) => w,
                     None => {
                         let name = format!("core{k}@{}", node.period);
-                        let w = threads.push(name, pin.then_some(k));
+                        let w = threads.push(name, Some(k), pin);
                         workers.insert((k, period), w);
                         w
                     }
                 }
             } else {
-                threads.push(node.name.clone(), None)
+                threads.push(node.name.clone(), None, false)
             };
         }
         threads.name_lone_workers(info);
@@ -206,8 +210,9 @@ impl Threads {
     }
 
     /// A new thread; its index.
-    fn push(&mut self, name: String, pin: Option<usize>) -> usize {
+    fn push(&mut self, name: String, core: Option<usize>, pin: bool) -> usize {
         self.names.push(name);
+        self.cores.push(core);
         self.pins.push(pin);
         self.names.len() - 1
     }
@@ -272,27 +277,30 @@ impl Threads {
     ) -> Vec<worker::Work> {
         self.names
             .iter()
-            .zip(&self.pins)
+            .zip(self.cores.iter().zip(&self.pins))
             .zip(txs)
             .zip(rxs)
             .zip(priorities)
-            .map(|((((name, pin), txs), rxs), priority)| worker::Work {
-                name: name.clone(),
-                nodes: Vec::new(),
-                seeds: Vec::new(),
-                outs: Vec::new(),
-                ins: Vec::new(),
-                txs,
-                rxs,
-                environment: None,
-                priority,
-                pin: pin.map(|k| match cpus.len() {
-                    0 => k,
-                    n => cpus[k % n],
-                }),
-                probes: Vec::new(),
-                observer: None,
-            })
+            .map(
+                |((((name, (&core, &pin)), txs), rxs), priority)| worker::Work {
+                    name: name.clone(),
+                    nodes: Vec::new(),
+                    seeds: Vec::new(),
+                    outs: Vec::new(),
+                    ins: Vec::new(),
+                    txs,
+                    rxs,
+                    environment: None,
+                    priority,
+                    pin: core.filter(|_| pin).map(|k| match cpus.len() {
+                        0 => k,
+                        n => cpus[k % n],
+                    }),
+                    core,
+                    probes: Vec::new(),
+                    observer: None,
+                },
+            )
             .collect()
     }
 }

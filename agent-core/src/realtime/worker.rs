@@ -38,6 +38,8 @@ pub(crate) struct Work {
     pub(crate) priority: Option<u8>,
     /// The CPU to pin the thread to, if any.
     pub(crate) pin: Option<usize>,
+    /// The pool's core whose nodes this worker runs, if it is a pool worker.
+    pub(crate) core: Option<usize>,
     /// Called on this thread after each activation of the node they watch
     /// (the environment's: after each instant).
     pub(crate) probes: Vec<(Target, ProbeFn)>,
@@ -76,6 +78,10 @@ pub(crate) struct Done {
     pub(crate) priority: Option<(u8, Result<(), Refused>)>,
     /// The CPU asked to be pinned to and what the OS said.
     pub(crate) pinned: Option<(usize, Result<(), Refused>)>,
+    /// The pool's core, if a pool worker.
+    pub(crate) core: Option<usize>,
+    /// The CPU time the thread used.
+    pub(crate) cpu_time: Option<std::time::Duration>,
     /// The virtual time of the last instant executed.
     pub(crate) last: Time,
     /// When the run safe-stopped, if it did.
@@ -96,6 +102,7 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         environment,
         priority,
         pin,
+        core,
         probes,
         observer,
     } = work;
@@ -114,7 +121,10 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
     while let Some(t) = thread.next_instant() {
         thread.run_instant(t);
     }
-    thread.finish(name, priority, pinned)
+    let mut done = thread.finish(name, priority, pinned);
+    done.core = core;
+    done.cpu_time = clock::thread_cpu_time();
+    done
 }
 
 /// Give each node the thread-link ports of its outputs, then of its inputs.
@@ -445,6 +455,8 @@ impl<'a> Thread<'a> {
             errors: self.errors,
             priority,
             pinned,
+            core: None,
+            cpu_time: None,
             last: self.last,
             safe_stopped: match self.shared.safe_stopped.load(Ordering::Relaxed) {
                 u64::MAX => None,
