@@ -67,8 +67,8 @@ pub use link::{Access, InjectError, LinkId, LinkStats, Port};
 pub use offload::{Offload, OffloadError, OffloadMode, UnknownOffloadMode};
 pub use probe::Probes;
 pub use realtime::{
-    Finished, Placement, Probed, RealTime, Refused, RtConfig, RtError, RtReport, Running,
-    StopHandle, ThreadReport, Threading,
+    Finished, NodeTiming, Placement, Probed, RealTime, Refused, RtConfig, RtError, RtReport,
+    Running, Spread, StopHandle, ThreadReport, Threading,
 };
 /// The tracer of payload types' shapes ([`reflect`]), for reading [`TypeShape`]s.
 pub use serde_reflection;
