@@ -215,6 +215,14 @@ impl Walk {
         if flags.contains(&"--realtime") {
             assert!(ran.stdout.contains("rt_priority="), "{said}");
         }
+        if flags.windows(2).any(|w| w == ["--threads", "pinned"]) {
+            // The timing report names each worker's CPU (or why the OS
+            // refused it).
+            assert!(
+                ran.stderr.contains("pinned to CPU") || ran.stderr.contains("not pinned ("),
+                "{said}"
+            );
+        }
         if let Some(file) = flags
             .iter()
             .position(|f| *f == "--record")

@@ -48,6 +48,30 @@ impl From<OnErrorArg> for agent_core::OnError {
     }
 }
 
+/// How `--realtime` (and each process of a deployment) puts subsystems on
+/// threads ([`agent_core::Threading`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ThreadsArg {
+    /// A worker per core and period, the subsystems of each period dealt
+    /// over the cores (the default).
+    #[default]
+    Pool,
+    /// The pool, each worker pinned to its core.
+    Pinned,
+    /// A thread per subsystem.
+    PerSubsystem,
+}
+
+impl From<ThreadsArg> for agent_core::Threading {
+    fn from(a: ThreadsArg) -> Self {
+        match a {
+            ThreadsArg::Pool => agent_core::Threading::default(),
+            ThreadsArg::Pinned => agent_core::Threading::pinned(0),
+            ThreadsArg::PerSubsystem => agent_core::Threading::PerSubsystem,
+        }
+    }
+}
+
 /// The flags of every application built on the layer.
 #[derive(Args, Clone, Debug, Default)]
 pub struct Common {
@@ -62,13 +86,25 @@ pub struct Common {
         allow_negative_numbers = true
     )]
     pub limit: Option<f64>,
-    /// Run in real time, as on the robot: each subsystem on a thread of its own
-    /// and the drivers that share the world on one, on absolute deadlines of the
-    /// wall clock, with SCHED_FIFO priority and locked memory where the OS
-    /// grants them (what it refuses is reported). Prints each node's period,
-    /// wake-up jitter, compute time and overruns.
+    /// Run in real time, as on the robot: the subsystems on worker threads
+    /// (`--threads`) and the drivers that share the world on one, on absolute
+    /// deadlines of the wall clock, with SCHED_FIFO priority and locked memory
+    /// where the OS grants them (what it refuses is reported). Prints each
+    /// node's period, wake-up jitter, compute time and overruns.
     #[arg(long, global = true)]
     pub realtime: bool,
+    /// How a real-time run (`--realtime`, each process of a deployment) puts
+    /// subsystems on threads: `pool` (a worker per core and period), `pinned`
+    /// (the pool, each worker pinned to its core), `per-subsystem` (a thread
+    /// each).
+    #[arg(
+        long,
+        global = true,
+        value_enum,
+        value_name = "HOW",
+        default_value = "pool"
+    )]
+    pub threads: ThreadsArg,
     /// Record the run to this MCAP file (open it in Foxglove; `replay` it):
     /// every value sent on a link, with its type's schema, and as exact bytes;
     /// each behaviour switch with its predicates' values; errors; the spec and

@@ -78,7 +78,7 @@ use serde::de::DeserializeOwned;
 
 pub use cli::{
     BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, OnErrorArg, ROS2_ENDPOINT,
-    parse_fault,
+    ThreadsArg, parse_fault,
 };
 pub use credentials::ROS2_LISTEN;
 pub use error::{AppError, BoxError, Status};

@@ -78,6 +78,7 @@ pub(crate) fn run<A: Application>(
     let (ran, recorder, ros2, mode) = if common.realtime {
         let config = RtConfig {
             exec,
+            threading: common.threads.into(),
             ..RtConfig::realtime()
         };
         let mut ros2 = ros2;

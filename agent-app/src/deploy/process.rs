@@ -376,6 +376,7 @@ fn real_time<A: Application>(
         system,
         RtConfig {
             exec,
+            threading: common.threads.into(),
             ..RtConfig::realtime()
         },
     );
