@@ -1,0 +1,348 @@
+//! The deterministic executor as the system grows.
+//!
+//! A small benchmark agent, built through agent-core's public API: a control
+//! subsystem `c` with one virtual effector `e` and one virtual receptor `r`,
+//! sample and queue links between them, and a transmission buffer from `c` to
+//! the next agent's `c` (the agents form a ring; one agent alone has none).
+//! Every subsystem has the same period, so every instant activates all of them:
+//! an instant of `n` subsystems is `n` elementary actions.
+//!
+//! For each size, the same measurements and the same repeat policy:
+//!
+//! * `build_ms`: median over [`BUILDS`] builds of the time to declare the
+//!   system on a [`SystemBuilder`], build it and make its [`Executor`]
+//!   (FSMs included);
+//! * `bytes_per_subsystem`: the heap that system and executor hold once warmed
+//!   up (queues filled), per subsystem, counted by the byte-counting global
+//!   allocator of `main.rs`;
+//! * `action_ns_p50`, `action_ns_p99`: the time of an instant divided by its
+//!   actions, over batches of about [`ACTIONS_PER_BATCH`] actions (whole
+//!   instants), median and 99th percentile of the batches, after a warm-up of
+//!   the same length;
+//! * `allocs_per_action`: heap allocations per action over the measured batches.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use embodied::*;
+
+use super::heap;
+
+// ---------------------------------------------------------------------------
+// The agent: c, e, r.
+
+macro_rules! group {
+    ($name:ident, $peer:ident { $($field:ident: $ty:ty),* }) => {
+        #[derive(Debug, Default)]
+        struct $name {
+            $($field: $ty),*
+        }
+        impl Group for $name {
+            const PEER: NodeKind = NodeKind::$peer;
+        }
+    };
+}
+group!(CfromE, VirtualEffector { state: In<f64> });
+group!(CfromR, VirtualReceptor { meas: In<f64>, count: In<u64> });
+group!(CfromC, Control { t: In<f64> });
+group!(CtoE, VirtualEffector { cmd: Out<f64>, seq: Out<u64> });
+group!(CtoR, VirtualReceptor { gain: Out<f64> });
+group!(CtoC, Control { t: Out<f64> });
+group!(EfromC, Control { cmd: In<f64>, seq: In<u64> });
+group!(EtoC, Control { state: Out<f64> });
+group!(RfromC, Control { gain: In<f64> });
+group!(RtoC, Control { meas: Out<f64>, count: Out<u64> });
+
+#[derive(Debug, Default)]
+struct CIn {
+    e: CfromE,
+    r: CfromR,
+    n: CfromC,
+}
+#[derive(Debug, Default)]
+struct COut {
+    e: CtoE,
+    r: CtoR,
+    n: CtoC,
+}
+#[derive(Debug, Default)]
+struct EIn {
+    c: EfromC,
+}
+#[derive(Debug, Default)]
+struct EOut {
+    c: EtoC,
+}
+#[derive(Debug, Default)]
+struct RIn {
+    c: RfromC,
+}
+#[derive(Debug, Default)]
+struct ROut {
+    c: RtoC,
+}
+
+struct Ctl;
+impl Subsystem for Ctl {
+    const KIND: SubsystemKind = SubsystemKind::Control;
+    type Memory = u64;
+    type Input = CIn;
+    type Output = COut;
+}
+
+struct Eff;
+impl Subsystem for Eff {
+    const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+    type Memory = f64;
+    type Input = EIn;
+    type Output = EOut;
+}
+
+struct Rec;
+impl Subsystem for Rec {
+    const KIND: SubsystemKind = SubsystemKind::VirtualReceptor;
+    type Memory = u64;
+    type Input = RIn;
+    type Output = ROut;
+}
+
+fn value<T: Copy + Default>(x: &In<T>) -> T {
+    x.get().copied().unwrap_or_default()
+}
+
+/// `c`: commands `e` (a sample and a sequence number on a queue), tunes `r`,
+/// passes a value on to the next agent, counts what `r` queued.
+fn ctl_fsm() -> Result<Fsm<Ctl>, FsmBuildError> {
+    Fsm::single(Behaviour::while_loop(
+        "run",
+        Action::<Ctl>::new()
+            .output(
+                |y| &mut y.e,
+                |m: &u64, x: &CIn, y: &mut CtoE| {
+                    y.cmd.set(value(&x.e.state) + 0.5 * value(&x.n.t));
+                    y.seq.set(*m);
+                },
+            )
+            .output(
+                |y| &mut y.r,
+                |_: &u64, x: &CIn, y: &mut CtoR| y.gain.set(1.0 + 0.1 * value(&x.r.meas)),
+            )
+            .output(
+                |y| &mut y.n,
+                |_: &u64, x: &CIn, y: &mut CtoC| y.t.set(0.9 * value(&x.r.meas)),
+            )
+            .memory(|m: &mut u64, x: &CIn| *m += 1 + (value(&x.r.count) & 1)),
+        "false",
+    ))
+}
+
+/// `e`: follows the command, reports its state.
+fn eff_fsm() -> Result<Fsm<Eff>, FsmBuildError> {
+    Fsm::single(Behaviour::while_loop(
+        "run",
+        Action::<Eff>::new()
+            .output(
+                |y| &mut y.c,
+                |m: &f64, _: &EIn, y: &mut EtoC| y.state.set(*m),
+            )
+            .memory(|m: &mut f64, x: &EIn| {
+                *m += 0.5 * (value(&x.c.cmd) - *m) + (value(&x.c.seq) & 1) as f64 * 1e-3;
+            }),
+        "false",
+    ))
+}
+
+/// `r`: a measurement (a sample) and a count (on a queue).
+fn rec_fsm() -> Result<Fsm<Rec>, FsmBuildError> {
+    Fsm::single(Behaviour::while_loop(
+        "run",
+        Action::<Rec>::new()
+            .output(
+                |y| &mut y.c,
+                |m: &u64, x: &RIn, y: &mut RtoC| {
+                    y.meas.set(value(&x.c.gain) * (*m % 7) as f64);
+                    y.count.set(*m);
+                },
+            )
+            .memory(|m: &mut u64, _: &RIn| *m += 1),
+        "false",
+    ))
+}
+
+/// `agents` copies of the agent in a ring: `3 * agents` subsystems, 7 links per
+/// agent (6 within it, 1 to the next agent's `c`; none for one agent alone);
+/// and the subsystems' ids.
+pub(crate) fn system(agents: usize) -> Result<(System, Vec<NodeId>), Box<dyn std::error::Error>> {
+    let period = Period::from_millis(1)?;
+    let queue = Policy::queue(4);
+    let mut b = SystemBuilder::new();
+    let mut controls = Vec::with_capacity(agents);
+    let mut ids = Vec::with_capacity(3 * agents);
+    for i in 0..agents {
+        let a = b.agent(format!("a{i}"));
+        let c = b.subsystem(a, format!("c{i}"), period, 0, ctl_fsm()?);
+        let e = b.subsystem(a, format!("e{i}"), period, 0.0, eff_fsm()?);
+        let r = b.subsystem(a, format!("r{i}"), period, 0, rec_fsm()?);
+        b.connect(
+            c.output(port!(COut, e.cmd)),
+            e.input(port!(EIn, c.cmd)),
+            Policy::Sample,
+        );
+        b.connect(
+            c.output(port!(COut, e.seq)),
+            e.input(port!(EIn, c.seq)),
+            queue,
+        );
+        b.connect(
+            e.output(port!(EOut, c.state)),
+            c.input(port!(CIn, e.state)),
+            Policy::Sample,
+        );
+        b.connect(
+            c.output(port!(COut, r.gain)),
+            r.input(port!(RIn, c.gain)),
+            Policy::Sample,
+        );
+        b.connect(
+            r.output(port!(ROut, c.meas)),
+            c.input(port!(CIn, r.meas)),
+            Policy::Sample,
+        );
+        b.connect(
+            r.output(port!(ROut, c.count)),
+            c.input(port!(CIn, r.count)),
+            queue,
+        );
+        controls.push(c);
+        ids.extend([c.id(), e.id(), r.id()]);
+    }
+    if agents > 1 {
+        for i in 0..agents {
+            let (from, to) = (controls[i], controls[(i + 1) % agents]);
+            b.connect(
+                from.output(port!(COut, n.t)),
+                to.input(port!(CIn, n.t)),
+                Policy::Sample,
+            );
+        }
+    }
+    Ok((b.build()?, ids))
+}
+
+// ---------------------------------------------------------------------------
+// Measuring.
+
+/// Builds per size (the median is reported).
+const BUILDS: usize = 5;
+/// Elementary actions per timed batch (rounded to whole instants).
+pub(crate) const ACTIONS_PER_BATCH: u64 = 40_000;
+
+/// What one size measured.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Figures {
+    /// Subsystems.
+    pub(crate) n: usize,
+    /// Median time per elementary action over the batches \[ns\].
+    pub(crate) action_ns_p50: f64,
+    /// 99th percentile of the batches' time per action \[ns\].
+    pub(crate) action_ns_p99: f64,
+    /// Heap held by the warmed-up executor, per subsystem \[bytes\].
+    pub(crate) bytes_per_subsystem: f64,
+    /// Median time to build the system and its executor \[ms\].
+    pub(crate) build_ms: f64,
+    /// Heap allocations per measured action.
+    pub(crate) allocs_per_action: f64,
+}
+
+impl Figures {
+    /// The `det ...` line.
+    pub(crate) fn line(&self) -> String {
+        format!(
+            "det n={} action_ns_p50={:.1} action_ns_p99={:.1} bytes_per_subsystem={:.0} \
+             build_ms={:.3} build_us_per_subsystem={:.2} allocs_per_action={}",
+            self.n,
+            self.action_ns_p50,
+            self.action_ns_p99,
+            self.bytes_per_subsystem,
+            self.build_ms,
+            self.build_ms * 1e3 / self.n as f64,
+            self.allocs_per_action
+        )
+    }
+}
+
+/// The value at quantile `q` of `v` (nearest rank).
+pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    v[rank - 1]
+}
+
+fn executor(agents: usize) -> Result<(Executor, Vec<NodeId>), Box<dyn std::error::Error>> {
+    let (system, ids) = system(agents)?;
+    Ok((Executor::new(system, ExecConfig::default()), ids))
+}
+
+/// Measures `agents` agents (`3 * agents` subsystems) over `batches` batches.
+pub(crate) fn measure(
+    agents: usize,
+    batches: usize,
+) -> Result<Figures, Box<dyn std::error::Error>> {
+    let n = 3 * agents;
+    let mut builds = Vec::with_capacity(BUILDS);
+    for _ in 0..BUILDS {
+        let start = Instant::now();
+        let exec = black_box(executor(agents)?);
+        builds.push(start.elapsed().as_secs_f64() * 1e3);
+        drop(exec);
+    }
+    let build_ms = quantile(&mut builds, 0.5);
+
+    let before = heap::live();
+    let (mut exec, ids) = executor(agents)?;
+    let per_batch = (ACTIONS_PER_BATCH / n as u64).max(1);
+    for _ in 0..per_batch {
+        exec.step()?; // warm-up: every buffer written, every queue in use
+    }
+    let ids_bytes = ids.capacity() * std::mem::size_of::<NodeId>();
+    let bytes = heap::live().saturating_sub(before + ids_bytes);
+
+    let warm_up = exec.report().instants;
+    let mut action_ns = Vec::with_capacity(batches);
+    let allocations = allocations::total();
+    for _ in 0..batches {
+        let start = Instant::now();
+        for _ in 0..per_batch {
+            exec.step()?;
+        }
+        let ns = start.elapsed().as_nanos() as f64;
+        action_ns.push(ns / (per_batch * n as u64) as f64);
+    }
+    let allocations = allocations::total() - allocations;
+
+    // Every measured instant ran every subsystem once, without error.
+    let report = exec.report();
+    let instants = report.instants - warm_up;
+    let expected = per_batch * batches as u64;
+    let iterations: u64 = ids.iter().filter_map(|&i| exec.iteration(i)).sum();
+    if instants != expected
+        || report.error_count != 0
+        || iterations != (expected + warm_up) * n as u64
+    {
+        return Err(format!(
+            "n={n}: expected {expected} error-free instants of {n} actions each; ran {instants} \
+             ({} errors, {iterations} actions in all)",
+            report.error_count
+        )
+        .into());
+    }
+    let actions = (expected * n as u64) as f64;
+    Ok(Figures {
+        n,
+        action_ns_p50: quantile(&mut action_ns, 0.5),
+        action_ns_p99: quantile(&mut action_ns, 0.99),
+        bytes_per_subsystem: bytes as f64 / n as f64,
+        build_ms,
+        allocs_per_action: allocations as f64 / actions,
+    })
+}

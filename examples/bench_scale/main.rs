@@ -1,0 +1,242 @@
+//! How every part's cost grows with the system (issue 57).
+//!
+//! ```text
+//! cargo run --release --example bench_scale [-- --quick]
+//! ```
+//!
+//! One line per size and part, `key=value`:
+//!
+//! * `det n=<subsystems> action_ns_p50=.. action_ns_p99=.. bytes_per_subsystem=..
+//!   build_ms=.. ..`: the deterministic executor on `n / 3` copies of a small agent
+//!   (`c` with one `e` and one `r`, sample and queue links, a transmission buffer
+//!   to the next agent's `c`), from 3 to 9,999 subsystems ([`det`]);
+//! * `tools n_behaviours=.. check_ms=.. diagram_ms=.. new_ms=.. ..`: `embodied
+//!   check` (with the arc proofs), `embodied diagram` and `embodied new` on
+//!   generated specs up to 10,000 behaviours, 1,000 subsystems and a deployment
+//!   of 100 processes ([`tools`]).
+//!
+//! and at the end exactly one line,
+//!
+//! ```text
+//! scale action_ratio_10000=<..> rt_subsystems=<..> rt_jitter_us_p99=<..> zenoh_ratio_32=<..> fleet_robots=<..> fleet_cost_ratio=<..>
+//! ```
+//!
+//! `action_ratio_10000`: the median time per action at the largest size over
+//! the one at 3 subsystems (aim: at most 1.5). A figure not measured prints `na`.
+//!
+//! `--quick`: small sizes and few batches only (a test's run: a few seconds in
+//! a debug build). The figures are then not comparable with a full run's.
+
+mod det;
+mod tools;
+
+use std::alloc::{GlobalAlloc, Layout};
+use std::fmt;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use embodied::allocations::CountingAllocator;
+
+/// Counts allocations (agent-core's [`CountingAllocator`], for
+/// [`embodied::allocations::total`]) and the bytes live on the heap ([`heap::live`]).
+#[global_allocator]
+static GLOBAL: heap::Counting = heap::Counting;
+
+/// The bytes live on the heap.
+mod heap {
+    use super::*;
+
+    static LIVE: AtomicUsize = AtomicUsize::new(0);
+
+    /// [`CountingAllocator`] that also keeps the live bytes.
+    pub(crate) struct Counting;
+
+    // SAFETY: every method forwards to `CountingAllocator` (the system
+    // allocator, counting) with the caller's arguments unchanged; the rest is
+    // an atomic counter.
+    #[expect(
+        unsafe_code,
+        reason = "a global allocator is an unsafe trait; this one only counts"
+    )]
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            // SAFETY: the caller's contract, passed on.
+            let p = unsafe { CountingAllocator.alloc(layout) };
+            if !p.is_null() {
+                LIVE.fetch_add(layout.size(), Ordering::Relaxed);
+            }
+            p
+        }
+
+        unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+            // SAFETY: the caller's contract, passed on.
+            let p = unsafe { CountingAllocator.alloc_zeroed(layout) };
+            if !p.is_null() {
+                LIVE.fetch_add(layout.size(), Ordering::Relaxed);
+            }
+            p
+        }
+
+        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+            // SAFETY: the caller's contract, passed on.
+            let p = unsafe { CountingAllocator.realloc(ptr, layout, new_size) };
+            if !p.is_null() {
+                LIVE.fetch_add(new_size, Ordering::Relaxed);
+                LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+            }
+            p
+        }
+
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            // SAFETY: the caller's contract, passed on.
+            unsafe { CountingAllocator.dealloc(ptr, layout) };
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+    }
+
+    /// The bytes allocated and not yet freed, by every thread.
+    pub(crate) fn live() -> usize {
+        LIVE.load(Ordering::Relaxed)
+    }
+}
+
+/// The figures of the final line; `None` prints `na` (not measured).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Scale {
+    /// Median time per action at the largest size over that at 3 subsystems.
+    pub(crate) action_ratio_10000: Option<f64>,
+    /// The most subsystems the real-time executor ran at 100 Hz within the aim.
+    pub(crate) rt_subsystems: Option<f64>,
+    /// Its wake-up jitter, 99th percentile \[us\].
+    pub(crate) rt_jitter_us_p99: Option<f64>,
+    /// Zenoh's latency p50 at 32 processes over that at 2.
+    pub(crate) zenoh_ratio_32: Option<f64>,
+    /// The most Rex robots of the fleet run.
+    pub(crate) fleet_robots: Option<f64>,
+    /// The fleet's cost per robot at that size over one robot's.
+    pub(crate) fleet_cost_ratio: Option<f64>,
+}
+
+impl fmt::Display for Scale {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = |x: Option<f64>| match x {
+            None => "na".to_owned(),
+            Some(x) if x.fract() == 0.0 && x.abs() < 1e15 => format!("{x:.0}"),
+            Some(x) => format!("{x:.3}"),
+        };
+        write!(
+            f,
+            "scale action_ratio_10000={} rt_subsystems={} rt_jitter_us_p99={} zenoh_ratio_32={} \
+             fleet_robots={} fleet_cost_ratio={}",
+            v(self.action_ratio_10000),
+            v(self.rt_subsystems),
+            v(self.rt_jitter_us_p99),
+            v(self.zenoh_ratio_32),
+            v(self.fleet_robots),
+            v(self.fleet_cost_ratio)
+        )
+    }
+}
+
+/// The sizes and repeats of a run.
+struct Plan {
+    /// Agents of the deterministic executor's systems (3 subsystems each).
+    det_agents: &'static [usize],
+    /// Timed batches per size.
+    det_batches: usize,
+    /// Agents of the generated specs (2 subsystems, 20 behaviours each).
+    tool_agents: &'static [usize],
+}
+
+const FULL: Plan = Plan {
+    det_agents: &[1, 10, 100, 1000, 3333],
+    det_batches: 201,
+    tool_agents: &[5, 50, 500],
+};
+
+const QUICK: Plan = Plan {
+    det_agents: &[1, 10, 100],
+    det_batches: 11,
+    tool_agents: &[2, 5],
+};
+
+/// What a run measures, and with what.
+pub(crate) struct Options {
+    /// Small sizes and few batches only (`--quick`).
+    pub(crate) quick: bool,
+    /// The `embodied` binary, for `embodied new` (and the structure diagram of
+    /// large specs); `None`: not measured.
+    pub(crate) embodied_bin: Option<PathBuf>,
+}
+
+/// `cargo run --release --example bench_scale [-- --quick]`.
+pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let options = Options {
+        quick: std::env::args().skip(1).any(|a| a == "--quick"),
+        embodied_bin: tools::embodied_bin(),
+    };
+    run(&options, &mut std::io::stdout())?;
+    Ok(())
+}
+
+/// Measures, writing the lines to `out`; the figures of the final line.
+pub(crate) fn run(
+    options: &Options,
+    out: &mut dyn Write,
+) -> Result<Scale, Box<dyn std::error::Error>> {
+    let plan = if options.quick { QUICK } else { FULL };
+    let mut scale = Scale::default();
+
+    // The deterministic executor.
+    let mut det = Vec::new();
+    for &agents in plan.det_agents {
+        let figures = det::measure(agents, plan.det_batches)?;
+        writeln!(out, "{}", figures.line())?;
+        det.push(figures);
+    }
+    if let (Some(first), Some(last)) = (det.first(), det.last()) {
+        scale.action_ratio_10000 = Some(last.action_ns_p50 / first.action_ns_p50);
+        writeln!(
+            out,
+            "det growth: action {:.2}x from n={} to n={} (aim <= 1.5), bytes per subsystem {:.2}x, \
+             build time per subsystem {:.2}x (1 is linear)",
+            last.action_ns_p50 / first.action_ns_p50,
+            first.n,
+            last.n,
+            last.bytes_per_subsystem / first.bytes_per_subsystem,
+            (last.build_ms / last.n as f64) / (first.build_ms / first.n as f64)
+        )?;
+    }
+
+    // The real-time executor: `rt::run(options.quick, out)`
+    // (examples/bench_scale/rt.rs) writes its `rt ...` lines and gives
+    // `scale.rt_subsystems` and `scale.rt_jitter_us_p99` here.
+
+    // The checker and the tools.
+    let dir = std::env::temp_dir().join(format!("bench_scale_{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let bin = options.embodied_bin.as_deref();
+    let tools = plan
+        .tool_agents
+        .iter()
+        .map(|&agents| tools::measure(agents, &dir, bin))
+        .collect::<Result<Vec<_>, _>>();
+    let _ = std::fs::remove_dir_all(&dir);
+    for figures in &tools? {
+        writeln!(out, "{}", figures.line())?;
+    }
+    if bin.is_none() {
+        writeln!(
+            out,
+            "tools: new_ms=na: the `embodied` binary is not built \
+             (cargo build --release --features cli --bin embodied, or set EMBODIED_BIN)"
+        )?;
+    }
+
+    // Zenoh (`zenoh_ratio_32`) and the fleet (`fleet_robots`,
+    // `fleet_cost_ratio`): not measured yet.
+
+    writeln!(out, "{scale}")?;
+    Ok(scale)
+}

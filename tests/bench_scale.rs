@@ -1,0 +1,113 @@
+//! `cargo run --example bench_scale -- --quick`, run here: the example's code
+//! (`examples/bench_scale/`) is a module of this test, so that it runs without
+//! a second build. Checks the shape of its lines and that the deterministic
+//! executor's figures are finite and positive. `embodied new` is timed when the
+//! `embodied` binary is built with the tests (feature `cli`).
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a failing unwrap is a failing test"
+)]
+
+#[path = "../examples/bench_scale/main.rs"]
+#[expect(dead_code, reason = "the example's `main` is not called here")]
+mod program;
+
+/// The value of `key=` in `line`.
+fn field<'a>(line: &'a str, key: &str) -> &'a str {
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(key)?.strip_prefix('='))
+        .unwrap_or_else(|| panic!("no `{key}=` in `{line}`"))
+}
+
+fn positive(line: &str, key: &str) -> f64 {
+    let v: f64 = field(line, key)
+        .parse()
+        .unwrap_or_else(|e| panic!("`{key}` in `{line}`: {e}"));
+    assert!(v.is_finite() && v > 0.0, "`{key}` in `{line}`");
+    v
+}
+
+#[test]
+fn quick_run_prints_its_figures_and_the_scale_line() {
+    let options = program::Options {
+        quick: true,
+        embodied_bin: option_env!("CARGO_BIN_EXE_embodied").map(Into::into),
+    };
+    let mut out = Vec::new();
+    let scale = program::run(&options, &mut out).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+
+    let det: Vec<&str> = lines
+        .iter()
+        .copied()
+        .filter(|l| l.starts_with("det n="))
+        .collect();
+    assert!(det.len() >= 2, "{text}");
+    assert_eq!(field(det[0], "n"), "3", "{text}");
+    for l in &det {
+        for key in [
+            "action_ns_p50",
+            "action_ns_p99",
+            "bytes_per_subsystem",
+            "build_ms",
+        ] {
+            positive(l, key);
+        }
+        assert!(positive(l, "action_ns_p99") >= positive(l, "action_ns_p50"));
+        assert_eq!(field(l, "allocs_per_action"), "0", "steady state: {l}");
+    }
+
+    let tools: Vec<&str> = lines
+        .iter()
+        .copied()
+        .filter(|l| l.starts_with("tools n_behaviours="))
+        .collect();
+    assert!(!tools.is_empty(), "{text}");
+    for l in &tools {
+        positive(l, "check_ms");
+        positive(l, "diagram_ms");
+        positive(l, "diagram_fsm_ms");
+        let new = field(l, "new_ms");
+        assert!(
+            new == "na" || new.parse::<f64>().is_ok_and(|v| v > 0.0),
+            "{l}"
+        );
+    }
+
+    // Exactly one final line, with the six figures in order, `na` where not measured.
+    let last = lines.last().unwrap();
+    assert_eq!(lines.iter().filter(|l| l.starts_with("scale ")).count(), 1);
+    let keys: Vec<&str> = last
+        .strip_prefix("scale ")
+        .unwrap()
+        .split(' ')
+        .map(|kv| kv.split_once('=').unwrap().0)
+        .collect();
+    assert_eq!(
+        keys,
+        [
+            "action_ratio_10000",
+            "rt_subsystems",
+            "rt_jitter_us_p99",
+            "zenoh_ratio_32",
+            "fleet_robots",
+            "fleet_cost_ratio"
+        ],
+        "{last}"
+    );
+    for key in &keys[1..] {
+        let v = field(last, key);
+        assert!(
+            v == "na" || v.parse::<f64>().is_ok_and(f64::is_finite),
+            "{last}"
+        );
+    }
+    let ratio = positive(last, "action_ratio_10000");
+    assert_eq!(
+        Some(ratio),
+        scale.action_ratio_10000.map(|r| (r * 1e3).round() / 1e3)
+    );
+}
