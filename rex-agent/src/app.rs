@@ -94,6 +94,11 @@ pub struct RexFlags {
     /// camera, about 160 MB for the figure-eight; see `--record`).
     #[arg(long, global = true)]
     pub no_record: bool,
+    /// Also print the spec's timing certificate after the summary (the text
+    /// of the report folder's `timing.txt`: `embodied check --timing`'s
+    /// analysis of the spec as one process on one host).
+    #[arg(long, global = true)]
+    pub verbose: bool,
 }
 
 /// What `rex --help` says above the flags.
@@ -337,6 +342,7 @@ impl Application for RexApp {
                 spec: spec.spec,
                 report: (!self.flags.no_report).then(|| self.flags.out.clone()),
                 limit_s: config.limit_s,
+                verbose: self.flags.verbose,
             }),
             // `configure` resolved it already: this does not happen.
             _ => Box::new(embodied::app::Quiet),
@@ -466,6 +472,8 @@ struct RexWatch {
     report: Option<PathBuf>,
     /// The run's time limit \[s\].
     limit_s: f64,
+    /// Print the timing certificate (`--verbose`).
+    verbose: bool,
 }
 
 impl Watcher<Seen> for RexWatch {
@@ -520,6 +528,9 @@ impl Watcher<Seen> for RexWatch {
                 "{failed} of {} plans not achieved (see the plan lines above)\n",
                 out.plans
             ));
+        }
+        if self.verbose {
+            text.push_str(&crate::report::timing(&self.spec));
         }
         Verdict {
             passed: out.succeeded(),

@@ -56,13 +56,25 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
 
 #[test]
 fn the_main_mission_keeps_every_contract() {
-    let (code, out, err) = rex(&[]);
+    let (code, out, err) = rex(&["--verbose"]);
     assert_eq!(code, Some(0), "{out}\n{err}");
     assert!(
         out.contains("contracts_checked=12 contracts_violated=0 contracts_not_evaluable=0\n"),
         "{out}"
     );
     assert!(!err.contains("contract violated"), "{err}");
+    // `--verbose` prints the timing certificate, as the report folder's
+    // `timing.txt` has it.
+    let spec = embodied::spec::load("rex.ron", SPEC).unwrap().spec;
+    let analysis = embodied::spec::timing::analyse(&spec, None, None).unwrap();
+    let certificate = format!(
+        "# The timing analysis of `rex` as one process on one host (embodied check --timing)\n{analysis}"
+    );
+    assert!(out.contains(&certificate), "{out}");
+    assert!(
+        out.contains("mocap_to_wheels"),
+        "the chains' certificates: {out}"
+    );
 }
 
 #[test]

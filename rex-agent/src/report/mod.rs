@@ -54,8 +54,9 @@ pub fn write(
     Ok(files)
 }
 
-/// The text of `timing.txt`: the certificate, or why there is none.
-fn timing(spec: &Spec) -> String {
+/// The text of `timing.txt`: the certificate, or why there is none (also
+/// what `rex --verbose` prints after the summary).
+pub fn timing(spec: &Spec) -> String {
     match embodied::spec::timing::analyse(spec, None, None) {
         Ok(analysis) => format!(
             "# The timing analysis of `{}` as one process on one host (embodied check --timing)\n{analysis}",
