@@ -120,6 +120,28 @@ fn split_end(end: &str) -> Option<(&str, &str)> {
 /// buffers' types); links to components `builder` does not have are left out.
 /// Returns how many links were made; problems are [`SystemBuilder::build`]'s.
 pub fn wire(builder: &mut SystemBuilder, spec: &Spec) -> usize {
+    wire_aliased(builder, spec, &HashMap::new())
+}
+
+/// `group.buffer` of a link end with the group named as the code names it:
+/// `aliases` maps a spec peer to the code's group (see [`Assembly::alias`]).
+fn code_path(path: &str, aliases: &HashMap<String, String>) -> String {
+    match path.split_once('.') {
+        Some((group, buffer)) => match aliases.get(group) {
+            Some(code) => format!("{code}.{buffer}"),
+            None => path.to_owned(),
+        },
+        None => path.to_owned(),
+    }
+}
+
+/// [`wire`], with the groups named by `aliases` (spec peer to the code's
+/// group name) where they differ.
+fn wire_aliased(
+    builder: &mut SystemBuilder,
+    spec: &Spec,
+    aliases: &HashMap<String, String>,
+) -> usize {
     let mut made = 0;
     for link in &spec.links {
         let (Some((src, out)), Some((dst, inp))) = (split_end(&link.from), split_end(&link.to))
@@ -129,8 +151,13 @@ pub fn wire(builder: &mut SystemBuilder, spec: &Spec) -> usize {
         if builder.node(src).is_none() || builder.node(dst).is_none() {
             continue;
         }
+        let (out, inp) = if aliases.is_empty() {
+            (out.to_owned(), inp.to_owned())
+        } else {
+            (code_path(out, aliases), code_path(inp, aliases))
+        };
         if builder
-            .connect_named(src, out, dst, inp, link.policy)
+            .connect_named(src, &out, dst, &inp, link.policy)
             .is_some()
         {
             made += 1;
@@ -156,6 +183,7 @@ pub struct Assembly<'s> {
     builder: SystemBuilder,
     agents: HashMap<&'s str, AgentId>,
     periods: HashMap<String, Period>,
+    aliases: HashMap<String, String>,
 }
 
 impl std::fmt::Debug for Assembly<'_> {
@@ -232,7 +260,18 @@ impl<'s> Assembly<'s> {
             builder: SystemBuilder::new(),
             agents: HashMap::new(),
             periods: HashMap::new(),
+            aliases: HashMap::new(),
         }
+    }
+
+    /// Name the groups towards spec component `peer` as `group` in the code:
+    /// the buffers of a component's group are named by the peer in the spec
+    /// (`e11_3.traj` in `c1_3`, a robot of a fleet) and by a field in the code
+    /// (`e11.traj` in `C1`'s outputs). Copies of a component made from one
+    /// type (a fleet's robots) are linked with their type's group names.
+    pub fn alias(&mut self, peer: &str, group: &str) -> &mut Self {
+        self.aliases.insert(peer.to_owned(), group.to_owned());
+        self
     }
 
     /// Whether the deployment runs component `name`.
@@ -439,7 +478,7 @@ impl<'s> Assembly<'s> {
                 )
             })
             .collect();
-        wire(&mut self.builder, self.spec);
+        wire_aliased(&mut self.builder, self.spec, &self.aliases);
         match self.builder.build() {
             Ok(system) if problems.is_empty() => Ok(system),
             Ok(_) => Err(AssemblyError::Build { problems }),
