@@ -491,80 +491,16 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     let mut rex = Assembly::new(&spec, name)?;
     world::add_environment(&mut rex);
     let dt = rex.period("e11")?.as_secs_f64();
-    let settings = PlannerSettings {
-        dt,
-        ..config.planner_settings.clone()
-    };
-    let trajgen = TrajGen::new(
-        config.planner,
-        settings.clone(),
-        config.runtime,
-        config.planning_latency,
-    );
-    let c1_memory = C1Memory::new(
-        trajgen,
-        C1Params {
-            map: config.limits.plan_map(&config.world),
-            ground: config
-                .limits
-                .ground_timing(&config.world, settings.max_duration),
-            ..config.c1.clone()
-        },
-    );
-    let c1 = rex.subsystem("c1", c1_memory, c1_fsm()?)?;
-    let p = config.world.platform.clone();
-    let e11_memory = E11Memory::new(
-        config.tracker.build(p.clone(), dt)?,
-        config.estimator.build(
-            p,
-            settings.slip,
-            config.limits.cautious_ground,
-            dt,
-            config
-                .world
-                .sensors
-                .encoder_window(rex.period("E1")?.as_secs_f64()),
-        )?,
-        dt,
-        settings.slip.x_icr,
-    )
-    .with_safety(config.limits.safety(&config.world));
+    let c1 = rex.subsystem("c1", c1_memory(config, dt), c1_fsm()?)?;
+    let e11_memory = e11_memory(config, dt, rex.period("E1")?.as_secs_f64())?;
     let e11 = rex.subsystem("e11", e11_memory, e11_fsm()?)?;
     let platform = world::add_platform(&mut rex, &config.world)?;
     let c2 = world::add_ontology(&mut rex, config.mission.clone())?;
     let map = world::add_map_agent(&mut rex, &config.world)?;
     let vision = if rex.runs("r11") {
-        let camera_config = &config.world.camera;
-        // On workers, the odometry takes the cores the rest leaves: the renderer's
-        // worker, the executor and the recorder's writer keep about one busy. Its
-        // helpers then match the circles and refine the matches (the same motions
-        // on any number: each is found and refined alone). On two cores, one
-        // thread: its helpers only competed with the renderer there (the main
-        // job alternated six times, one thread against two: `realtime_factor`
-        // 1.00-1.15x, median 1.01x, with the report; 0.99-1.32x, median 1.05x,
-        // without; never slower by more than 1 %).
-        let threads = match config.vision {
-            OffloadMode::Worker => std::thread::available_parallelism()
-                .map_or(1, |n| n.get().saturating_sub(1).clamp(1, 4)),
-            OffloadMode::Inline => 1,
-        };
-        let odom = Odometry::pipelined(
-            camera_config.calibration(),
-            camera_config.mount(),
-            VoSettings {
-                threads,
-                ..VoSettings::default()
-            },
-            config.vision,
-            config.vo_latency,
-        )
-        .map_err(|e| RexError::Spec {
-            path: config.spec.clone(),
-            message: e.to_string(),
-        })?;
         let r11 = rex.subsystem(
             "r11",
-            R11Memory::new(odom, config.acquire_every),
+            R11Memory::new(odometry(config)?, config.acquire_every),
             r11_fsm()?,
         )?;
         let camera = world::add_camera(&mut rex, &config.world, config.vision)?;
@@ -584,6 +520,89 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
             vision,
         },
     ))
+}
+
+/// The planner's settings for fragments stepped every `dt` seconds (e11's period).
+fn planner_settings(config: &RexConfig, dt: f64) -> PlannerSettings {
+    PlannerSettings {
+        dt,
+        ..config.planner_settings.clone()
+    }
+}
+
+/// c1's initial memory for `config`: its planner, its map (the world's scene
+/// with the clearance plans keep) and its settings; `dt` is e11's period \[s\].
+pub fn c1_memory(config: &RexConfig, dt: f64) -> C1Memory {
+    let settings = planner_settings(config, dt);
+    let trajgen = TrajGen::new(
+        config.planner,
+        settings.clone(),
+        config.runtime,
+        config.planning_latency,
+    );
+    C1Memory::new(
+        trajgen,
+        C1Params {
+            map: config.limits.plan_map(&config.world),
+            ground: config
+                .limits
+                .ground_timing(&config.world, settings.max_duration),
+            ..config.c1.clone()
+        },
+    )
+}
+
+/// e11's initial memory for `config`: its tracker, its estimator and its safety
+/// monitor; `dt` is its period and `e1_period` the platform's \[s\].
+pub fn e11_memory(config: &RexConfig, dt: f64, e1_period: f64) -> Result<E11Memory, RexError> {
+    let settings = planner_settings(config, dt);
+    let p = config.world.platform.clone();
+    Ok(E11Memory::new(
+        config.tracker.build(p.clone(), dt)?,
+        config.estimator.build(
+            p,
+            settings.slip,
+            config.limits.cautious_ground,
+            dt,
+            config.world.sensors.encoder_window(e1_period),
+        )?,
+        dt,
+        settings.slip.x_icr,
+    )
+    .with_safety(config.limits.safety(&config.world)))
+}
+
+/// r11's visual odometry for `config`: the camera's calibration and mount,
+/// on workers or inline as `config.vision` says.
+pub fn odometry(config: &RexConfig) -> Result<Odometry, RexError> {
+    let camera_config = &config.world.camera;
+    // On workers, the odometry takes the cores the rest leaves: the renderer's
+    // worker, the executor and the recorder's writer keep about one busy. Its
+    // helpers then match the circles and refine the matches (the same motions
+    // on any number: each is found and refined alone). On two cores, one
+    // thread: its helpers only competed with the renderer there (the main
+    // job alternated six times, one thread against two: `realtime_factor`
+    // 1.00-1.15x, median 1.01x, with the report; 0.99-1.32x, median 1.05x,
+    // without; never slower by more than 1 %).
+    let threads = match config.vision {
+        OffloadMode::Worker => std::thread::available_parallelism()
+            .map_or(1, |n| n.get().saturating_sub(1).clamp(1, 4)),
+        OffloadMode::Inline => 1,
+    };
+    Odometry::pipelined(
+        camera_config.calibration(),
+        camera_config.mount(),
+        VoSettings {
+            threads,
+            ..VoSettings::default()
+        },
+        config.vision,
+        config.vo_latency,
+    )
+    .map_err(|e| RexError::Spec {
+        path: config.spec.clone(),
+        message: e.to_string(),
+    })
 }
 
 /// The map a1 is given: the scene the camera renders (the same room and boxes).

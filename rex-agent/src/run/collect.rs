@@ -254,11 +254,37 @@ pub(crate) fn install_probes(
     h: &RexHandles,
     here: &dyn Fn(&str) -> bool,
 ) {
+    // In the order they always were: e11, c1, c2, the truth, the motion capture.
+    install_probes_as(probes, h, &|name| name != "R3" && here(name), |seen| seen);
+    if here("E1") {
+        probes.environment(|_, w: &Truth| {
+            let s = &w.state;
+            // The truth after the world's step at `t` is the state at `w.time`.
+            let at = Time::from_nanos((w.time * 1e9).round().max(0.0) as u64);
+            Some(Seen::Truth {
+                at,
+                pose: [s.x, s.y, s.phi],
+            })
+        });
+    }
+    install_probes_as(probes, h, &|name| name == "R3" && here(name), |seen| seen);
+}
+
+/// [`install_probes`] but for the truth, each report passed through `tag`
+/// (a fleet's probes say which robot reports; the fleet reads its truth
+/// itself).
+pub(crate) fn install_probes_as<M: Send + 'static>(
+    probes: &mut Probes<M>,
+    h: &RexHandles,
+    here: &dyn Fn(&str) -> bool,
+    tag: impl Fn(Seen) -> M + Clone + Send + 'static,
+) {
     if here("e11") {
-        probes.subsystem(&h.e11, |p| {
+        let tag = tag.clone();
+        probes.subsystem(&h.e11, move |p| {
             let m = p.memory;
             let est = m.estym.estimate.x;
-            Some(Seen::E11 {
+            Some(tag(Seen::E11 {
                 t: p.time,
                 sample: Sample {
                     t: p.time.as_secs_f64(),
@@ -282,10 +308,11 @@ pub(crate) fn install_probes(
                     && m.track.queue.is_empty()
                     && m.arrival.is_none()
                     && m.outbox.is_empty(),
-            })
+            }))
         });
     }
     if here("c1") {
+        let tag = tag.clone();
         let mut last = None;
         let mut last_took = None;
         probes.subsystem(&h.c1, move |p| {
@@ -303,10 +330,11 @@ pub(crate) fn install_probes(
             });
             // Only changes: c1's behaviour is a state, not a stream.
             (last.replace(b) != Some(b) || took.is_some())
-                .then_some(Seen::C1 { behaviour: b, took })
+                .then(|| tag(Seen::C1 { behaviour: b, took }))
         });
     }
     if here("c2") {
+        let tag = tag.clone();
         let mut acks_sent = 0;
         let mut sent = 0;
         probes.subsystem(&h.c2, move |p| {
@@ -314,22 +342,13 @@ pub(crate) fn install_probes(
             acks_sent = p.memory.acks.len();
             let more = p.memory.next != sent;
             sent = p.memory.next;
-            (!new.is_empty() || p.halted || more).then_some(Seen::C2 {
-                t: p.time,
-                acks: new,
-                halted: p.halted,
-                sent,
-            })
-        });
-    }
-    if here("E1") {
-        probes.environment(|_, w: &Truth| {
-            let s = &w.state;
-            // The truth after the world's step at `t` is the state at `w.time`.
-            let at = Time::from_nanos((w.time * 1e9).round().max(0.0) as u64);
-            Some(Seen::Truth {
-                at,
-                pose: [s.x, s.y, s.phi],
+            (!new.is_empty() || p.halted || more).then(|| {
+                tag(Seen::C2 {
+                    t: p.time,
+                    acks: new,
+                    halted: p.halted,
+                    sent,
+                })
             })
         });
     }
@@ -339,7 +358,7 @@ pub(crate) fn install_probes(
             let at = m.last_delivered().map(|(at, _)| at);
             (at.is_some() && at != last).then(|| {
                 last = at;
-                Seen::Mocap(at)
+                tag(Seen::Mocap(at))
             })
         });
     }

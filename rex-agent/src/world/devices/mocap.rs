@@ -6,7 +6,6 @@ use std::collections::VecDeque;
 use embodied::{Buffers, DeviceKind, Driver, DriverContext, DriverError, Group, Out};
 use serde::{Deserialize, Serialize};
 
-use super::Truth;
 use crate::config::{self, ConfigError, Invalid, Validate, non_negative};
 use crate::math::geometry::wrap;
 use crate::math::rng::Rng;
@@ -85,11 +84,13 @@ pub struct MotionCapture {
     delivered: u64,
     dropped: u64,
     last: Option<(f64, MapPose)>,
+    /// The robot of a fleet it observes ([`super::FleetTruth`]); `None`: the single Rex.
+    robot: Option<usize>,
 }
 
 impl MotionCapture {
     /// A motion-capture system (`params` validated) observing the system's
-    /// environment, [`Truth`].
+    /// environment, [`Truth`](super::Truth).
     pub fn new(params: MocapParams) -> Result<MotionCapture, ConfigError> {
         config::check("mocap", &params)?;
         Ok(MotionCapture {
@@ -100,7 +101,15 @@ impl MotionCapture {
             delivered: 0,
             dropped: 0,
             last: None,
+            robot: None,
         })
+    }
+
+    /// The motion capture of robot `robot` of a fleet: it observes the robot's
+    /// entry of the fleet's [`super::FleetTruth`].
+    pub fn in_fleet(mut self, robot: usize) -> MotionCapture {
+        self.robot = Some(robot);
+        self
     }
 
     /// Poses delivered and samples lost to dropouts.
@@ -125,7 +134,7 @@ impl Driver for MotionCapture {
         _: &(),
         y: &mut MocapOutput,
     ) -> Result<(), DriverError> {
-        let truth = *cx.environment::<Truth>()?;
+        let truth = *super::truth(&mut cx, self.robot)?;
         let now = cx.now.as_secs_f64();
         let s = truth.state;
         self.history.push_back((

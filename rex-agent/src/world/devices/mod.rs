@@ -33,5 +33,33 @@ pub struct Truth {
     pub state: FullState,
 }
 
+/// The simulated world of a fleet (`crate::fleet`): each robot's [`Truth`], by
+/// the robot's index. A device of robot `i` (made with its `in_fleet(i)`) writes
+/// or reads `robots[i]`; a device of a single Rex, the system's [`Truth`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FleetTruth {
+    /// Each robot's truth.
+    pub robots: Vec<Truth>,
+}
+
+/// The truth a device of `robot` (`None`: the single Rex) acts on or senses.
+fn truth<'a>(
+    cx: &'a mut embodied::DriverContext<'_>,
+    robot: Option<usize>,
+) -> Result<&'a mut Truth, embodied::DriverError> {
+    match robot {
+        None => cx.environment::<Truth>(),
+        Some(i) => {
+            let fleet = cx.environment::<FleetTruth>()?;
+            let n = fleet.robots.len();
+            fleet.robots.get_mut(i).ok_or_else(|| {
+                embodied::DriverError::new(format!(
+                    "robot {i} is not in the fleet's truth ({n} robots)"
+                ))
+            })
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -144,6 +144,8 @@ pub struct Platform {
     held: bool,
     /// When the brake first acted \[s\].
     safe_stopped: Option<f64>,
+    /// The robot of a fleet it is ([`super::FleetTruth`]); `None`: the single Rex.
+    robot: Option<usize>,
 }
 
 impl Platform {
@@ -167,7 +169,15 @@ impl Platform {
             applied: [0.0; 4],
             held: false,
             safe_stopped: None,
+            robot: None,
         })
+    }
+
+    /// The platform of robot `robot` of a fleet: it writes the robot's entry of
+    /// the fleet's [`super::FleetTruth`] instead of the system's [`Truth`].
+    pub fn in_fleet(mut self, robot: usize) -> Platform {
+        self.robot = Some(robot);
+        self
     }
 
     /// The plant (ground truth).
@@ -349,7 +359,7 @@ impl Driver for Platform {
         };
         let (imu, forces, mut encoders) = self.advance(command, dt);
         encoders.time = now + dt;
-        *cx.environment::<Truth>()? = Truth {
+        *super::truth(&mut cx, self.robot)? = Truth {
             time: now + dt,
             state: self.plant.state,
         };

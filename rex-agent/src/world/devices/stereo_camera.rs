@@ -7,7 +7,6 @@ use embodied::{
 };
 use nalgebra::{UnitComplex, Vector2};
 
-use super::Truth;
 use crate::payload::{AcquireCommand, StereoPair};
 use crate::world::camera::kitti::SequenceWriter;
 use crate::world::camera::{Exposure, Renderer};
@@ -76,6 +75,8 @@ pub struct StereoCamera {
     spare: StereoPair,
     frames: u64,
     recorder: Option<SequenceWriter>,
+    /// The robot of a fleet it rides on ([`super::FleetTruth`]); `None`: the single Rex.
+    robot: Option<usize>,
 }
 
 impl std::fmt::Debug for StereoCamera {
@@ -90,7 +91,7 @@ impl std::fmt::Debug for StereoCamera {
 
 impl StereoCamera {
     /// A camera rendering with `renderer` (on a worker thread or inline, `mode`),
-    /// looking from the pose in the system's environment, [`Truth`].
+    /// looking from the pose in the system's environment, [`Truth`](super::Truth).
     pub fn new(renderer: Renderer, mode: OffloadMode) -> StereoCamera {
         StereoCamera {
             camera: renderer.camera().clone(),
@@ -101,7 +102,15 @@ impl StereoCamera {
             spare: StereoPair::default(),
             frames: 0,
             recorder: None,
+            robot: None,
         }
+    }
+
+    /// The camera of robot `robot` of a fleet: it looks from the robot's entry
+    /// of the fleet's [`super::FleetTruth`].
+    pub fn in_fleet(mut self, robot: usize) -> StereoCamera {
+        self.robot = Some(robot);
+        self
     }
 
     /// Also write every rendered pair, with its true pose, to a KITTI sequence.
@@ -177,7 +186,7 @@ impl Driver for StereoCamera {
             self.spare = pair;
         }
         if let Some(cmd) = x.r11.cmd_R11.fresh() {
-            let truth = *cx.environment::<Truth>()?;
+            let truth = *super::truth(&mut cx, self.robot)?;
             let s = truth.state;
             let body = [s.x, s.y, s.phi];
             let v = UnitComplex::new(s.phi) * Vector2::new(s.vx, s.vy);
