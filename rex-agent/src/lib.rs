@@ -28,6 +28,7 @@ pub mod a1;
 pub mod algorithms;
 pub mod app;
 pub mod config;
+pub mod fleet;
 pub mod math;
 pub mod mission;
 pub mod model;

@@ -18,7 +18,7 @@ mod realtime;
 #[cfg(test)]
 mod tests;
 pub use collect::Seen;
-pub(crate) use collect::{Collector, install_probes};
+pub(crate) use collect::{Collector, install_probes, install_probes_as};
 pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
 
 use embodied::app::{End, Ran, Watched, Watcher};

@@ -1,0 +1,206 @@
+//! The spec of a fleet, generated from Rex's: every agent of `specs/rex.ron`
+//! (a1, a2, a3) copied once per robot, each copy's components named with the
+//! robot's index (`a1_3` holds `c1_3`, `e11_3`, `E1_3`...; `a2_3` holds `c2_3`;
+//! `a3_3` holds `c3_3`, `r31_3`, `R3_3`), its groups, reads, targets and links
+//! renamed alike. Nothing is copied by hand: a change to Rex's spec is a change
+//! to every robot of the fleet. The generated spec passes the same checker.
+//!
+//! The code of a copy is Rex's: its groups are named by the code's fields
+//! (`e11`, `c1`), and the fleet's assembly aliases `e11_3` to `e11`
+//! ([`embodied::spec::Assembly::alias`]).
+//!
+//! Why one ontology agent per robot (`a2_3`), not one `a2` for all: a
+//! subsystem's groups are fields of its Rust type, fixed when it is compiled,
+//! and an agent has exactly one control subsystem, so a single `c2` cannot
+//! have M peers chosen when the fleet is built. The dispatching is done once,
+//! in code ([`super::Warehouse::mission`]): every robot's plans come from one
+//! assignment of lanes, and each `c2_i` sends its robot's plans as Rex's `c2`
+//! does.
+//!
+//! Deployments: `simulation` (everything in one process), `simulation_without_vo`
+//! (without `r11_i` and `R1_i`), and `grouped_without_vo`: the shared world
+//! (every platform and motion capture, which share the fleet's truth) with the
+//! partner agents in one process, and the robots' a1 parts in processes of
+//! `per_process` robots each, for a deployment over Zenoh.
+
+use embodied::spec::Report;
+use embodied::spec::model::{Deployment, Host, Link, Process, Spec, Target};
+
+/// The components of one robot (a1, a2 and a3 of Rex), the template's names.
+pub const PARTS: [&str; 9] = ["c1", "e11", "r11", "E1", "R1", "c2", "c3", "r31", "R3"];
+
+/// The agents of Rex copied for every robot.
+pub const AGENTS: [&str; 3] = ["a1", "a2", "a3"];
+
+/// The name of part `name` of robot `robot`: `c1_3`.
+pub fn robot_name(name: &str, robot: usize) -> String {
+    format!("{name}_{robot}")
+}
+
+/// `name`, renamed for `robot` when it is one of [`PARTS`].
+fn rename(name: &str, robot: usize) -> String {
+    if PARTS.contains(&name) {
+        robot_name(name, robot)
+    } else {
+        name.to_owned()
+    }
+}
+
+/// A read `peer.buffer` (or a plain memory name) renamed for `robot`.
+fn rename_read(read: &str, robot: usize) -> String {
+    match read.split_once('.') {
+        Some((peer, rest)) => format!("{}.{rest}", rename(peer, robot)),
+        None => read.to_owned(),
+    }
+}
+
+/// A link end `component.peer.buffer` renamed for `robot`.
+fn rename_end(end: &str, robot: usize) -> String {
+    let mut parts = end.splitn(3, '.');
+    let (Some(c), Some(peer), Some(buffer)) = (parts.next(), parts.next(), parts.next()) else {
+        return end.to_owned();
+    };
+    format!("{}.{}.{buffer}", rename(c, robot), rename(peer, robot))
+}
+
+/// The spec of a fleet of `robots` robots made from Rex's spec `rex`; the
+/// grouped deployment puts `per_process` robots' a1 in each process.
+pub fn fleet_spec(rex: &Spec, robots: usize, per_process: usize) -> Spec {
+    let mut agents = Vec::new();
+    let mut links = Vec::new();
+    for i in 0..robots {
+        for template in rex
+            .agents
+            .iter()
+            .filter(|a| AGENTS.contains(&a.name.as_str()))
+        {
+            let mut a = template.clone();
+            a.name = robot_name(&template.name, i);
+            a.doc = template.doc.as_ref().map(|d| format!("Robot {i}: {d}"));
+            for s in &mut a.subsystems {
+                s.name = rename(&s.name, i);
+                for g in s.inputs.iter_mut().chain(s.outputs.iter_mut()) {
+                    g.peer = rename(&g.peer, i);
+                }
+                for p in &mut s.predicates {
+                    p.reads = p.reads.iter().map(|r| rename_read(r, i)).collect();
+                }
+                for f in &mut s.functions {
+                    f.reads = f.reads.iter().map(|r| rename_read(r, i)).collect();
+                    if let Target::Output(peer) = &f.target {
+                        f.target = Target::Output(rename(peer, i));
+                    }
+                }
+            }
+            for d in &mut a.devices {
+                d.name = rename(&d.name, i);
+                for g in d.inputs.iter_mut().chain(d.outputs.iter_mut()) {
+                    g.peer = rename(&g.peer, i);
+                }
+            }
+            agents.push(a);
+        }
+        links.extend(rex.links.iter().map(|l| Link {
+            from: rename_end(&l.from, i),
+            to: rename_end(&l.to, i),
+            policy: l.policy,
+        }));
+    }
+    let names = |parts: &[&str], range: std::ops::Range<usize>| -> Vec<String> {
+        range
+            .flat_map(|i| parts.iter().map(move |p| robot_name(p, i)))
+            .collect()
+    };
+    let one_process = |name: &str, omit: Vec<String>| {
+        let runs = names(&PARTS, 0..robots)
+            .into_iter()
+            .filter(|n| !omit.contains(n))
+            .collect();
+        Deployment {
+            name: name.into(),
+            hosts: vec![Host {
+                name: "localhost".into(),
+                address: None,
+                processes: vec![Process {
+                    name: "fleet".into(),
+                    runs,
+                    listen: None,
+                    restarts: None,
+                }],
+            }],
+            omit,
+            ..empty_deployment()
+        }
+    };
+    let without_vo = names(&["r11", "R1"], 0..robots);
+    let per_process = per_process.max(1);
+    let mut processes = vec![Process {
+        name: "world".into(),
+        runs: names(&["E1", "R3", "c2", "c3", "r31"], 0..robots),
+        listen: None,
+        // The fleet's truth lives in this process: a new one would put every
+        // platform back at its start.
+        restarts: Some(0),
+    }];
+    for (k, start) in (0..robots).step_by(per_process).enumerate() {
+        processes.push(Process {
+            name: format!("robots_{k}"),
+            runs: names(&["c1", "e11"], start..(start + per_process).min(robots)),
+            listen: None,
+            restarts: None,
+        });
+    }
+    let grouped = Deployment {
+        name: "grouped_without_vo".into(),
+        hosts: vec![Host {
+            name: "localhost".into(),
+            address: None,
+            processes,
+        }],
+        omit: without_vo.clone(),
+        secure: Some(false),
+        ..empty_deployment()
+    };
+    Spec {
+        name: format!("rex_fleet_{robots}"),
+        doc: Some(format!(
+            "A fleet of {robots} Rex robots in one warehouse, generated from specs/rex.ron (rex-agent/src/fleet/spec.rs)."
+        )),
+        agents,
+        links,
+        deployments: vec![
+            one_process("simulation", Vec::new()),
+            one_process("simulation_without_vo", without_vo),
+            grouped,
+        ],
+        ros2: None,
+        contracts: None,
+        timing: None,
+    }
+}
+
+fn empty_deployment() -> Deployment {
+    Deployment {
+        name: String::new(),
+        hosts: Vec::new(),
+        omit: Vec::new(),
+        port: None,
+        router: None,
+        timeout_ms: None,
+        secure: None,
+        ros2: None,
+    }
+}
+
+/// The fleet's spec as RON text (what `embodied check` reads).
+pub fn to_text(spec: &Spec) -> String {
+    embodied::spec::options()
+        .to_string_pretty(spec, ron::ser::PrettyConfig::default())
+        .expect("a spec serialises")
+}
+
+/// Check the fleet's spec as a file would be checked: its text parsed back
+/// and given to the checker. Returns the checked spec and the report.
+pub fn check(spec: &Spec) -> (Option<Spec>, Report) {
+    embodied::spec::check_source(format!("{}.ron", spec.name), to_text(spec))
+}
