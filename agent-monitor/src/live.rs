@@ -29,8 +29,10 @@
 //! * invariant: not judged while running (the executors give no predicate
 //!   values after each activation); [`Verdicts::not_judged`] names them.
 //!
-//! Cost: a few nanoseconds per event for Rex's contracts (`bench_core`);
-//! nothing is allocated per event, except the error of a violation.
+//! Cost: `bench_core` measures a watch of Rex's contracts on a system shaped
+//! like Rex (`monitor_ns_per_cycle`): about 160 ns per action, the
+//! executor's events to the observer included; nothing is allocated per
+//! event, except the error of a violation.
 
 use std::collections::VecDeque;
 use std::fmt;
