@@ -486,3 +486,16 @@ fn a_fed_value_from_its_future_or_of_another_type_is_not_taken() {
     assert_eq!(errors.len(), 2, "{errors:?}");
     assert!(errors[0].contains("outside/count"), "{errors:?}");
 }
+
+#[test]
+fn a_start_whose_agreement_fails_ends_every_thread_and_says_why() {
+    let p = pair(1, 3, 1, Policy::Sample, false);
+    let started = RealTime::new(p.system, RtConfig::default())
+        .start_when(Duration::from_secs(60), || Err("no other process answered"));
+    // Every thread had built its nodes and waited at the gate: closed, they
+    // end without running an instant (a deadlock would hang here).
+    match started {
+        Err(RtError::Sync(why)) => assert!(why.contains("no other process"), "{why}"),
+        other => panic!("expected a sync error, got {other:?}"),
+    }
+}

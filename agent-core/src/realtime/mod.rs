@@ -309,14 +309,17 @@ impl RealTime {
     }
 
     /// Start the threads and run for at most `limit` (until stopped, or until
-    /// every node halted, if that comes first).
+    /// every node halted, if that comes first). Each thread builds its nodes
+    /// first; instant zero is [`RtConfig::lead`] after the last is ready, so
+    /// that the time a large system takes to build is not lateness.
     pub fn start(self, limit: Duration) -> Result<Running, RtError> {
         self.start_inner(limit, None)
     }
 
     /// As [`RealTime::start`], with instant zero at the wall-clock time that
     /// `sync` returns, called once every link is made (every subscription of a
-    /// placed process declared) and before any thread starts. The processes of
+    /// placed process declared) and every thread has built its nodes, before
+    /// any runs an instant. The processes of
     /// a deployment agree on it there (each announces itself ready, and one of
     /// them sets instant zero for all), so their instants line up (on one host
     /// exactly; across hosts as well as their clocks agree) and, normally, no
@@ -346,6 +349,7 @@ pub struct Running {
     stats: Vec<Arc<SharedStats>>,
     dropped: Vec<Arc<AtomicU64>>,
     memory_locked: Option<Result<(), Refused>>,
+    clock: clock::Clock,
     started: Instant,
     lead: Duration,
     /// Links from other processes stay subscribed while the run goes on.
@@ -372,7 +376,7 @@ impl Running {
     /// [`RealTime::feed`]; a value's instant is the wall-clock time minus
     /// this).
     pub fn zero(&self) -> SystemTime {
-        self.shared.clock.zero_on_wall()
+        self.clock.zero_on_wall()
     }
 
     /// Ask every thread to end after its current instant.

@@ -4,8 +4,8 @@
 
 use std::any::Any;
 use std::collections::{BTreeMap, HashSet};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, mpsc};
 use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime};
 
@@ -78,16 +78,11 @@ impl RealTime {
         give_probes(&mut works, &threads, probes);
         let memory_locked = config.lock_memory.then(clock::lock_memory);
         let stop = Arc::new(AtomicBool::new(false));
-        let (clock, joining) = start_clock(sync, &inboxes, memory_locked.as_ref(), config.lead)?;
         let end = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
-        // Decided once for every thread: a thread spawned late on a loaded
-        // machine still runs from instant zero (its deadlines catch up).
-        let first = if joining { clock.now() } else { 0 };
         let shared = Arc::new(worker::Shared {
             info: info.clone(),
-            clock,
+            gate: worker::Gate::default(),
             stop: stop.clone(),
-            first,
             end,
             config: config.exec,
             errors: AtomicU64::new(0),
@@ -96,7 +91,37 @@ impl RealTime {
                 .map(|_| AtomicBool::new(false))
                 .collect(),
         });
-        let handles = spawn(works, &shared, &stop, memory_locked.as_ref())?;
+        // The threads build their nodes, then wait at the gate: instant zero
+        // is fixed once every thread is ready, so that building a large
+        // system's nodes is not taken for lateness.
+        let (ready, readies) = mpsc::channel();
+        let handles = spawn(works, &shared, &stop, memory_locked.as_ref(), &ready)?;
+        drop(ready);
+        if readies.iter().take(handles.len()).count() < handles.len() {
+            // A thread ended before it was ready: it panicked building its
+            // nodes.
+            stop.store(true, Ordering::Relaxed);
+            let name = abandon(&shared, handles).unwrap_or_else(|| "(unknown)".to_owned());
+            if memory_locked.as_ref().is_some_and(Result::is_ok) {
+                clock::unlock_memory();
+            }
+            return Err(RtError::Panicked(name));
+        }
+        let (clock, joining) =
+            match start_clock(sync, &inboxes, memory_locked.as_ref(), config.lead) {
+                Ok(started) => started,
+                Err(e) => {
+                    // `start_clock` unlocked the memory.
+                    stop.store(true, Ordering::Relaxed);
+                    let _ = abandon(&shared, handles);
+                    return Err(e);
+                }
+            };
+        // Decided once for every thread: a thread woken late on a loaded
+        // machine still runs from instant zero (its deadlines catch up); a
+        // process joining a running deployment begins now.
+        let first = if joining { clock.now() } else { 0 };
+        shared.gate.open(clock, first);
         Ok(Running {
             info,
             handles,
@@ -105,6 +130,7 @@ impl RealTime {
             stats,
             dropped,
             memory_locked,
+            clock,
             started: std::time::Instant::now(),
             lead: config.lead,
             _subscriptions: subscriptions,
@@ -589,28 +615,30 @@ fn start_clock(
     }
 }
 
-/// One thread per work; if one cannot be spawned, the run stops, the threads
-/// spawned are joined and memory is unlocked before the error is returned.
+/// One thread per work, each told to say on `ready` when it has built its
+/// nodes; if one cannot be spawned, the run stops, the threads spawned are
+/// let through the gate closed and joined, and memory is unlocked before the
+/// error is returned.
 fn spawn(
     works: Vec<worker::Work>,
     shared: &Arc<worker::Shared>,
     stop: &AtomicBool,
     memory_locked: Option<&Result<(), Refused>>,
+    ready: &mpsc::Sender<()>,
 ) -> Result<Vec<(String, JoinHandle<worker::Done>)>, RtError> {
     let mut handles = Vec::with_capacity(works.len());
     for work in works {
         let name = work.name.clone();
-        let shared = shared.clone();
+        let given = shared.clone();
+        let ready = ready.clone();
         let spawned = std::thread::Builder::new()
             .name(format!("rt-{name}"))
-            .spawn(move || worker::run(work, &shared));
+            .spawn(move || worker::run(work, &given, ready));
         match spawned {
             Ok(h) => handles.push((name, h)),
             Err(source) => {
                 stop.store(true, Ordering::Relaxed);
-                for (_, h) in handles {
-                    let _ = h.join();
-                }
+                let _ = abandon(shared, handles);
                 if memory_locked.is_some() {
                     clock::unlock_memory();
                 }
@@ -622,4 +650,21 @@ fn spawn(
         }
     }
     Ok(handles)
+}
+
+/// Close the gate on the threads spawned (they end without running an
+/// instant, handing their nodes back) and join them: the name of one that
+/// panicked, if one did.
+fn abandon(
+    shared: &worker::Shared,
+    handles: Vec<(String, JoinHandle<worker::Done>)>,
+) -> Option<String> {
+    shared.gate.close();
+    let mut panicked = None;
+    for (name, h) in handles {
+        if h.join().is_err() {
+            panicked.get_or_insert(name);
+        }
+    }
+    panicked
 }

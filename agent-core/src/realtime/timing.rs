@@ -45,7 +45,8 @@ pub struct NodeTiming {
     pub period: Period,
     /// Activations executed.
     pub activations: u64,
-    /// How late it woke after each deadline.
+    /// How late its thread woke after each deadline (the thread's instants:
+    /// the nodes of a thread share it).
     pub jitter: Spread,
     /// How long each activation took (decision, action, send).
     pub compute: Spread,
@@ -57,61 +58,94 @@ pub struct NodeTiming {
     pub overruns: u64,
 }
 
-/// Histograms of one node, filled by its thread.
-pub(crate) struct Recorder {
-    jitter: Option<Histogram<u64>>,
-    compute: Option<Histogram<u64>>,
-    response: Option<Histogram<u64>>,
-    pub(crate) activations: u64,
-    pub(crate) overruns: u64,
-}
+/// One series of durations: a fixed histogram (`u32` counts, 2 significant
+/// digits over 1 ns to a minute: about 15 KB), allocated once.
+struct Series(Option<Histogram<u32>>);
 
 /// Durations recorded are clamped to this (one minute), the histograms' range.
 const RANGE_NS: u64 = 60_000_000_000;
 
-impl Recorder {
-    pub(crate) fn new() -> Recorder {
-        let make = || Histogram::<u64>::new_with_bounds(1, RANGE_NS, 2).ok();
-        Recorder {
-            jitter: make(),
-            compute: make(),
-            response: make(),
-            activations: 0,
-            overruns: 0,
-        }
+impl Series {
+    fn new() -> Series {
+        Series(Histogram::<u32>::new_with_bounds(1, RANGE_NS, 2).ok())
     }
 
     #[inline]
-    pub(crate) fn record(&mut self, jitter_ns: u64, compute_ns: u64, response_ns: u64) {
-        self.activations += 1;
-        for (h, ns) in [
-            (&mut self.jitter, jitter_ns),
-            (&mut self.compute, compute_ns),
-            (&mut self.response, response_ns),
-        ] {
-            if let Some(h) = h {
-                h.saturating_record(ns.clamp(1, RANGE_NS));
-            }
+    fn record(&mut self, ns: u64) {
+        if let Some(h) = &mut self.0 {
+            h.saturating_record(ns.clamp(1, RANGE_NS));
         }
     }
 
-    pub(crate) fn finish(&self, name: String, thread: String, period: Period) -> NodeTiming {
-        let spread = |h: &Option<Histogram<u64>>| match h {
+    fn spread(&self) -> Spread {
+        match &self.0 {
             Some(h) if !h.is_empty() => Spread {
                 p50: Duration::from_nanos(h.value_at_quantile(0.5)),
                 p99: Duration::from_nanos(h.value_at_quantile(0.99)),
                 max: Duration::from_nanos(h.max()),
             },
             _ => Spread::default(),
-        };
+        }
+    }
+}
+
+/// How late one thread woke after each of its instants' deadlines: every node
+/// of the thread due at an instant woke then, so the thread keeps one series
+/// for them all.
+pub(crate) struct Wakes(Series);
+
+impl Wakes {
+    pub(crate) fn new() -> Wakes {
+        Wakes(Series::new())
+    }
+
+    #[inline]
+    pub(crate) fn record(&mut self, jitter_ns: u64) {
+        self.0.record(jitter_ns);
+    }
+}
+
+/// The histograms of one node, filled by its thread.
+pub(crate) struct Recorder {
+    compute: Series,
+    response: Series,
+    pub(crate) activations: u64,
+    pub(crate) overruns: u64,
+}
+
+impl Recorder {
+    pub(crate) fn new() -> Recorder {
+        Recorder {
+            compute: Series::new(),
+            response: Series::new(),
+            activations: 0,
+            overruns: 0,
+        }
+    }
+
+    #[inline]
+    pub(crate) fn record(&mut self, compute_ns: u64, response_ns: u64) {
+        self.activations += 1;
+        self.compute.record(compute_ns);
+        self.response.record(response_ns);
+    }
+
+    /// The node's timing; its jitter is its thread's (`wakes`).
+    pub(crate) fn finish(
+        &self,
+        name: String,
+        thread: String,
+        period: Period,
+        wakes: &Wakes,
+    ) -> NodeTiming {
         NodeTiming {
             name,
             thread,
             period,
             activations: self.activations,
-            jitter: spread(&self.jitter),
-            compute: spread(&self.compute),
-            response: spread(&self.response),
+            jitter: wakes.0.spread(),
+            compute: self.compute.spread(),
+            response: self.response.spread(),
             overruns: self.overruns,
         }
     }
@@ -123,11 +157,12 @@ mod tests {
 
     #[test]
     fn percentiles_come_from_what_was_recorded() {
-        let mut r = Recorder::new();
+        let (mut r, mut w) = (Recorder::new(), Wakes::new());
         for i in 1..=100u64 {
-            r.record(i * 1000, 5000, i * 1000 + 5000);
+            w.record(i * 1000);
+            r.record(5000, i * 1000 + 5000);
         }
-        let t = r.finish("n".into(), "t".into(), Period::from_millis(1).unwrap());
+        let t = r.finish("n".into(), "t".into(), Period::from_millis(1).unwrap(), &w);
         assert_eq!(t.activations, 100);
         let near = |d: Duration, us: f64| (d.as_secs_f64() * 1e6 - us).abs() <= us * 0.02;
         assert!(near(t.jitter.p50, 50.0), "{:?}", t.jitter);

@@ -7,8 +7,9 @@
 //! reaches an instant first is up to the scheduler, as on a real robot.
 
 use std::any::Any;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::Sender;
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 
 use crate::error::{ExecError, LinkError};
 use crate::executor::{ExecConfig, OnError, halts_under_continue};
@@ -21,7 +22,7 @@ use crate::probe::{ProbeFn, Target};
 
 use super::Refused;
 use super::clock::{self, Clock};
-use super::timing::{NodeTiming, Recorder};
+use super::timing::{NodeTiming, Recorder, Wakes};
 
 /// What a thread is given.
 pub(crate) struct Work {
@@ -47,14 +48,55 @@ pub(crate) struct Work {
     pub(crate) observer: Option<Box<dyn Observer>>,
 }
 
+/// Where the threads wait, their nodes built, for instant zero.
+#[derive(Default)]
+pub(crate) struct Gate {
+    /// `None` while closed and undecided; then the clock and the first
+    /// instant the threads run (ns since the clock's origin: zero, or for a
+    /// process joining a running deployment the time it joined), or `None`
+    /// if the run does not start.
+    start: Mutex<Option<Option<(Clock, u64)>>>,
+    opened: Condvar,
+}
+
+impl Gate {
+    /// Let the threads run from `first` on `clock`.
+    pub(crate) fn open(&self, clock: Clock, first: u64) {
+        self.decide(Some((clock, first)));
+    }
+
+    /// The run does not start: the threads end without running an instant.
+    pub(crate) fn close(&self) {
+        self.decide(None);
+    }
+
+    fn decide(&self, start: Option<(Clock, u64)>) {
+        let mut decided = self.start.lock().unwrap_or_else(PoisonError::into_inner);
+        decided.get_or_insert(start);
+        self.opened.notify_all();
+    }
+
+    /// Wait for the decision: the clock and the first instant, or `None`.
+    fn wait(&self) -> Option<(Clock, u64)> {
+        let mut decided = self.start.lock().unwrap_or_else(PoisonError::into_inner);
+        loop {
+            if let Some(start) = *decided {
+                return start;
+            }
+            decided = self
+                .opened
+                .wait(decided)
+                .unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+}
+
 /// What the threads share.
 pub(crate) struct Shared {
     pub(crate) info: SystemInfo,
-    pub(crate) clock: Clock,
+    /// Instant zero, once every thread is ready.
+    pub(crate) gate: Gate,
     pub(crate) stop: Arc<AtomicBool>,
-    /// The first instant the threads run (ns since the clock's origin): zero,
-    /// or for a process joining a running deployment the time it joined.
-    pub(crate) first: u64,
     /// Instants at or after this end the run (ns since the clock's origin).
     pub(crate) end: u64,
     pub(crate) config: ExecConfig,
@@ -88,9 +130,10 @@ pub(crate) struct Done {
     pub(crate) safe_stopped: Option<Time>,
 }
 
-/// Run a thread's work: build its nodes, run their instants until the end, a
-/// stop, or every node halted, and hand back what it holds.
-pub(crate) fn run(work: Work, shared: &Shared) -> Done {
+/// Run a thread's work: build its nodes, say so on `ready`, wait at the gate,
+/// run their instants until the end, a stop, or every node halted, and hand
+/// back what it holds.
+pub(crate) fn run(work: Work, shared: &Shared, ready: Sender<()>) -> Done {
     let Work {
         name,
         nodes: ids,
@@ -117,9 +160,27 @@ pub(crate) fn run(work: Work, shared: &Shared) -> Done {
         .map(|s| s.into_in_process(shared.config.audit))
         .collect();
     install_ports(&ids, &mut nodes, &outs, &ins, &mut txs, &mut rxs);
-    let mut thread = Thread::new(shared, ids, nodes, environment, observer, probes);
-    while let Some(t) = thread.next_instant() {
-        thread.run_instant(t);
+    let recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
+    // The receiver counts the ready threads; gone, the run is being abandoned.
+    let _ = ready.send(());
+    drop(ready);
+    let start = shared.gate.wait();
+    let (clock, first) = start.unwrap_or((Clock::starting_in(std::time::Duration::ZERO), u64::MAX));
+    let mut thread = Thread::new(
+        shared,
+        clock,
+        first,
+        ids,
+        nodes,
+        recorders,
+        environment,
+        observer,
+        probes,
+    );
+    if start.is_some() {
+        while let Some(t) = thread.next_instant() {
+            thread.run_instant(t);
+        }
     }
     let mut done = thread.finish(name, priority, pinned);
     done.core = core;
@@ -159,6 +220,7 @@ fn install_ports(
 /// what it records.
 struct Thread<'a> {
     shared: &'a Shared,
+    clock: Clock,
     /// Global node indices, in stepping order.
     ids: Vec<usize>,
     nodes: Vec<Box<dyn InProcessNode>>,
@@ -167,6 +229,7 @@ struct Thread<'a> {
     /// Per node: its next instant (ns), `u64::MAX` once it runs no more.
     next: Vec<u64>,
     recorders: Vec<Recorder>,
+    wakes: Wakes,
     errors: Vec<ExecError>,
     /// The virtual time of the last instant executed.
     last: Time,
@@ -181,10 +244,17 @@ struct Thread<'a> {
 impl<'a> Thread<'a> {
     /// The thread before its first instant: each node due at its first
     /// instant.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the thread's parts, each moved in once"
+    )]
     fn new(
         shared: &'a Shared,
+        clock: Clock,
+        first: u64,
         ids: Vec<usize>,
         nodes: Vec<Box<dyn InProcessNode>>,
+        recorders: Vec<Recorder>,
         environment: Option<Box<dyn Any + Send>>,
         observer: Option<Box<dyn Observer>>,
         probes: Vec<(Target, ProbeFn)>,
@@ -198,16 +268,17 @@ impl<'a> Thread<'a> {
         // thread was spawned.
         let next: Vec<u64> = periods
             .iter()
-            .map(|&p| shared.first.div_ceil(p.max(1)).saturating_mul(p))
+            .map(|&p| first.div_ceil(p.max(1)).saturating_mul(p))
             .collect();
-        let recorders: Vec<Recorder> = ids.iter().map(|_| Recorder::new()).collect();
         Thread {
             shared,
+            clock,
             ids,
             nodes,
             periods,
             next,
             recorders,
+            wakes: Wakes::new(),
             errors: Vec::new(),
             last: Time::ZERO,
             safe_stopped: false,
@@ -230,10 +301,10 @@ impl<'a> Thread<'a> {
     /// Run instant `t` at its deadline: the nodes due read, then step in order,
     /// then the environment's probes see it.
     fn run_instant(&mut self, t: u64) {
-        let clock = self.shared.clock;
+        let clock = self.clock;
         clock.sleep_until(t);
         let woke = clock.now();
-        let jitter = woke.saturating_sub(t);
+        self.wakes.record(woke.saturating_sub(t));
         let now = Time::from_nanos(t);
         self.last = now;
         if !self.safe_stopped && self.shared.safe_stopped.load(Ordering::Relaxed) != u64::MAX {
@@ -248,7 +319,7 @@ impl<'a> Thread<'a> {
             if self.next[k] != t {
                 continue;
             }
-            started = self.step(k, t, now, jitter, started);
+            started = self.step(k, t, now, started);
         }
         self.probe_environment(now);
     }
@@ -295,7 +366,7 @@ impl<'a> Thread<'a> {
     /// Step node `k` at instant `t` (its activation timed from `started`),
     /// schedule its next instant, and let its probes see it; when the step
     /// ended.
-    fn step(&mut self, k: usize, t: u64, now: Time, jitter: u64, started: u64) -> u64 {
+    fn step(&mut self, k: usize, t: u64, now: Time, started: u64) -> u64 {
         let shared = self.shared;
         let mut cx = LinkCx {
             time: now,
@@ -304,12 +375,8 @@ impl<'a> Thread<'a> {
             environment: self.environment.as_deref_mut(),
         };
         let result = self.nodes[k].step(now, self.ids[k], &mut cx);
-        let ended = shared.clock.now();
-        self.recorders[k].record(
-            jitter,
-            ended.saturating_sub(started),
-            ended.saturating_sub(t),
-        );
+        let ended = self.clock.now();
+        self.recorders[k].record(ended.saturating_sub(started), ended.saturating_sub(t));
         match result {
             Ok(NodeStep::Ran) => self.next[k] = t.saturating_add(self.periods[k]),
             Ok(NodeStep::Halted) => self.next[k] = u64::MAX,
@@ -437,7 +504,10 @@ impl<'a> Thread<'a> {
             .zip(&self.recorders)
             .map(|(&g, r)| {
                 let n = &info.nodes[g];
-                (g, r.finish(n.name.clone(), name.clone(), n.period))
+                (
+                    g,
+                    r.finish(n.name.clone(), name.clone(), n.period, &self.wakes),
+                )
             })
             .collect();
         let cores = self
