@@ -283,66 +283,123 @@ fn executor(agents: usize) -> Result<(Executor, Vec<NodeId>), Box<dyn std::error
     Ok((Executor::new(system, ExecConfig::default()), ids))
 }
 
-/// Measures `agents` agents (`3 * agents` subsystems) over `batches` batches.
-pub(crate) fn measure(
-    agents: usize,
-    batches: usize,
-) -> Result<Figures, Box<dyn std::error::Error>> {
-    let n = 3 * agents;
-    let mut builds = Vec::with_capacity(BUILDS);
-    for _ in 0..BUILDS {
-        let start = Instant::now();
-        let exec = black_box(executor(agents)?);
-        builds.push(start.elapsed().as_secs_f64() * 1e3);
-        drop(exec);
-    }
-    let build_ms = quantile(&mut builds, 0.5);
+/// One size's executor, batch by batch.
+struct Bench {
+    n: usize,
+    exec: Executor,
+    ids: Vec<NodeId>,
+    /// Instants per batch.
+    per_batch: u64,
+    warm_up: u64,
+    bytes: usize,
+    build_ms: Vec<f64>,
+    action_ns: Vec<f64>,
+    allocations: u64,
+}
 
-    let before = heap::live();
-    let (mut exec, ids) = executor(agents)?;
-    let per_batch = (ACTIONS_PER_BATCH / n as u64).max(1);
-    for _ in 0..per_batch {
-        exec.step()?; // warm-up: every buffer written, every queue in use
-    }
-    let ids_bytes = ids.capacity() * std::mem::size_of::<NodeId>();
-    let bytes = heap::live().saturating_sub(before + ids_bytes);
-
-    let warm_up = exec.report().instants;
-    let mut action_ns = Vec::with_capacity(batches);
-    let allocations = allocations::total();
-    for _ in 0..batches {
-        let start = Instant::now();
+impl Bench {
+    /// The executor of `agents` agents, warmed up: the heap it holds then.
+    fn new(agents: usize) -> Result<Bench, Box<dyn std::error::Error>> {
+        let n = 3 * agents;
+        let before = heap::live();
+        let (mut exec, ids) = executor(agents)?;
+        let per_batch = (ACTIONS_PER_BATCH / n as u64).max(1);
         for _ in 0..per_batch {
-            exec.step()?;
+            exec.step()?; // warm-up: every buffer written, every queue in use
+        }
+        let ids_bytes = ids.capacity() * std::mem::size_of::<NodeId>();
+        let bytes = heap::live().saturating_sub(before + ids_bytes);
+        let warm_up = exec.report().instants;
+        Ok(Bench {
+            n,
+            exec,
+            ids,
+            per_batch,
+            warm_up,
+            bytes,
+            build_ms: Vec::new(),
+            action_ns: Vec::new(),
+            allocations: 0,
+        })
+    }
+
+    /// One timed build of a system of the same size, and its executor.
+    fn build(&mut self) -> Result<(), Box<dyn std::error::Error>> {
+        let start = Instant::now();
+        let exec = black_box(executor(self.n / 3)?);
+        self.build_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        drop(exec);
+        Ok(())
+    }
+
+    /// One timed batch.
+    fn batch(&mut self) -> Result<(), ExecError> {
+        let allocations = allocations::total();
+        let start = Instant::now();
+        for _ in 0..self.per_batch {
+            self.exec.step()?;
         }
         let ns = start.elapsed().as_nanos() as f64;
-        action_ns.push(ns / (per_batch * n as u64) as f64);
+        self.allocations += allocations::total() - allocations;
+        self.action_ns
+            .push(ns / (self.per_batch * self.n as u64) as f64);
+        Ok(())
     }
-    let allocations = allocations::total() - allocations;
 
-    // Every measured instant ran every subsystem once, without error.
-    let report = exec.report();
-    let instants = report.instants - warm_up;
-    let expected = per_batch * batches as u64;
-    let iterations: u64 = ids.iter().filter_map(|&i| exec.iteration(i)).sum();
-    if instants != expected
-        || report.error_count != 0
-        || iterations != (expected + warm_up) * n as u64
-    {
-        return Err(format!(
-            "n={n}: expected {expected} error-free instants of {n} actions each; ran {instants} \
-             ({} errors, {iterations} actions in all)",
-            report.error_count
-        )
-        .into());
+    /// The figures, after checking that every measured instant ran every
+    /// subsystem once, without error.
+    fn figures(mut self) -> Result<Figures, Box<dyn std::error::Error>> {
+        let n = self.n;
+        let report = self.exec.report();
+        let instants = report.instants - self.warm_up;
+        let expected = self.per_batch * self.action_ns.len() as u64;
+        let iterations: u64 = self
+            .ids
+            .iter()
+            .filter_map(|&i| self.exec.iteration(i))
+            .sum();
+        if instants != expected
+            || report.error_count != 0
+            || iterations != (expected + self.warm_up) * n as u64
+        {
+            return Err(format!(
+                "n={n}: expected {expected} error-free instants of {n} actions each; ran \
+                 {instants} ({} errors, {iterations} actions in all)",
+                report.error_count
+            )
+            .into());
+        }
+        let actions = (expected * n as u64) as f64;
+        Ok(Figures {
+            n,
+            action_ns_p50: quantile(&mut self.action_ns, 0.5),
+            action_ns_p99: quantile(&mut self.action_ns, 0.99),
+            bytes_per_subsystem: self.bytes as f64 / n as f64,
+            build_ms: quantile(&mut self.build_ms, 0.5),
+            allocs_per_action: self.allocations as f64 / actions,
+        })
     }
-    let actions = (expected * n as u64) as f64;
-    Ok(Figures {
-        n,
-        action_ns_p50: quantile(&mut action_ns, 0.5),
-        action_ns_p99: quantile(&mut action_ns, 0.99),
-        bytes_per_subsystem: bytes as f64 / n as f64,
-        build_ms,
-        allocs_per_action: allocations as f64 / actions,
-    })
+}
+
+/// Measures systems of `agents` agents each (`3 * agents` subsystems), one
+/// size after the other: its builds, then its executor alone on the machine,
+/// as a program runs one system. (Sizes taking turns batch by batch would
+/// measure each with its caches filled by the others: a large system's time
+/// per action then doubles.)
+pub(crate) fn measure(
+    agents: &[usize],
+    batches: usize,
+) -> Result<Vec<Figures>, Box<dyn std::error::Error>> {
+    let mut figures = Vec::with_capacity(agents.len());
+    for &a in agents {
+        let mut bench = Bench::new(a)?;
+        for _ in 0..BUILDS {
+            bench.build()?;
+        }
+        for _ in 0..batches {
+            bench.batch()?;
+        }
+        figures.push(bench.figures()?);
+    }
+    Ok(figures)
 }

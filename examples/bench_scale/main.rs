@@ -189,11 +189,9 @@ pub(crate) fn run(
     let mut scale = Scale::default();
 
     // The deterministic executor.
-    let mut det = Vec::new();
-    for &agents in plan.det_agents {
-        let figures = det::measure(agents, plan.det_batches)?;
+    let det = det::measure(plan.det_agents, plan.det_batches)?;
+    for figures in &det {
         writeln!(out, "{}", figures.line())?;
-        det.push(figures);
     }
     if let (Some(first), Some(last)) = (det.first(), det.last()) {
         scale.action_ratio_10000 = Some(last.action_ns_p50 / first.action_ns_p50);
