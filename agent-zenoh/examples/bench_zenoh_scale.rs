@@ -56,8 +56,8 @@ use agent_zenoh::zenoh::Wait;
 
 type Payload64 = [u64; 8];
 
-/// The rate of every link.
-const PERIOD: Duration = Duration::from_millis(10);
+/// The rate of every link, unless `--rate-hz` says otherwise.
+const RATE_HZ: u64 = 100;
 /// A value's slots: its number, its sending time (ns on the pinger's clock),
 /// whether it was sent in the measuring window.
 const SEQ: usize = 0;
@@ -251,9 +251,13 @@ fn cpu_ns() -> u64 {
         .sum()
 }
 
-/// What the parent says on the process's standard input: go (warm-up and
-/// window in ms), or nothing more (end of input: the process ends).
-fn listen_stdin(wake: Arc<Wake>) -> Arc<Mutex<Option<(u64, u64)>>> {
+/// When to go, as the parent says: warm-up and window in ms, the links' rate
+/// in Hz.
+type Go = Arc<Mutex<Option<(u64, u64, u64)>>>;
+
+/// What the parent says on the process's standard input: go, or nothing more
+/// (end of input: the process ends).
+fn listen_stdin(wake: Arc<Wake>) -> Go {
     let go = Arc::new(Mutex::new(None));
     let go2 = go.clone();
     std::thread::spawn(move || {
@@ -262,7 +266,7 @@ fn listen_stdin(wake: Arc<Wake>) -> Arc<Mutex<Option<(u64, u64)>>> {
             let mut w = line.split_whitespace();
             if w.next() == Some("go") {
                 let mut ms = || w.next().unwrap().parse::<u64>().unwrap();
-                *go2.lock().unwrap() = Some((ms(), ms()));
+                *go2.lock().unwrap() = Some((ms(), ms(), ms()));
                 wake.0.unpark();
             }
         }
@@ -310,9 +314,10 @@ fn child_main(args: &[String]) {
         problems: 0,
     };
     node.probe(&go);
-    let (warmup, window) = go.lock().unwrap().unwrap();
+    let (warmup, window, rate) = go.lock().unwrap().unwrap();
     let (cpu, msgs) = node.measure(
         a.index as f64 / a.k as f64,
+        Duration::from_secs(1) / rate as u32,
         Duration::from_millis(warmup),
         Duration::from_millis(window),
     );
@@ -395,7 +400,7 @@ impl Node {
 
     /// Until told to go: ping every 20 ms, echo, and say `ready` once every
     /// link pinged from here was answered.
-    fn probe(&mut self, go: &Mutex<Option<(u64, u64)>>) {
+    fn probe(&mut self, go: &Mutex<Option<(u64, u64, u64)>>) {
         let mut said = false;
         let mut next = Instant::now();
         while go.lock().unwrap().is_none() {
@@ -416,10 +421,16 @@ impl Node {
 
     /// Warm up, then measure a window; the process's CPU time in it and the
     /// messages received in it. Pings start `phase` of a period in.
-    fn measure(&mut self, phase: f64, warmup: Duration, window: Duration) -> (u64, u64) {
+    fn measure(
+        &mut self,
+        phase: f64,
+        period: Duration,
+        warmup: Duration,
+        window: Duration,
+    ) -> (u64, u64) {
         let t0 = Instant::now();
         let (start, end) = (t0 + warmup, t0 + warmup + window);
-        let mut next = t0 + PERIOD.mul_f64(phase);
+        let mut next = t0 + period.mul_f64(phase);
         let mut cpu0 = None;
         // The last pings' echoes: a grace after the window.
         let grace = end + Duration::from_millis(300);
@@ -442,7 +453,7 @@ impl Node {
             }
             if now >= next && next < end {
                 self.ping(next >= start);
-                next += PERIOD;
+                next += period;
             }
             let until = if next < end { next } else { grace };
             std::thread::park_timeout(until.saturating_duration_since(Instant::now()));
@@ -602,6 +613,7 @@ struct Run {
     connect: Connect,
     warmup: Duration,
     window: Duration,
+    rate_hz: u64,
 }
 
 /// What one run measured.
@@ -715,7 +727,12 @@ fn field<'a>(line: &'a str, name: &str) -> &'a str {
 fn measure(run: &Run, hosts: Option<&Hosts>) -> Result<Figures, String> {
     let (mut procs, lines) = start(run, hosts);
     gather(&lines, run.k, "ready", Duration::from_secs(120))?;
-    let go = format!("go {} {}\n", run.warmup.as_millis(), run.window.as_millis());
+    let go = format!(
+        "go {} {} {}\n",
+        run.warmup.as_millis(),
+        run.window.as_millis(),
+        run.rate_hz
+    );
     for (_, stdin) in &mut procs.children {
         let stdin = stdin.as_mut().unwrap();
         stdin.write_all(go.as_bytes()).map_err(|e| e.to_string())?;
@@ -754,10 +771,13 @@ fn report(run: &Run, hosts: Option<&Hosts>) -> Result<f64, String> {
     let p99 = percentile(&mut f.samples_us, 0.99);
     let max = f.samples_us.iter().copied().fold(0.0, f64::max);
     let cpu = f.cpu_ns as f64 / 1e3 / f.msgs.max(1) as f64;
-    let extra = match run.connect {
+    let mut extra = match run.connect {
         Connect::Mesh => String::new(),
         Connect::Needed => " connect=needed".into(),
     };
+    if run.rate_hz != RATE_HZ {
+        extra += &format!(" rate_hz={}", run.rate_hz);
+    }
     let problems = if f.problems > 0 {
         format!(" problems={}", f.problems)
     } else {
@@ -774,11 +794,16 @@ fn report(run: &Run, hosts: Option<&Hosts>) -> Result<f64, String> {
     Ok(p50)
 }
 
-/// The command line: `--quick`, `--max-k N`, `--connect mesh|needed`.
+/// The command line: `--quick`, `--max-k N`, `--connect mesh|needed`, and
+/// for experiments `--rate-hz N`, `--topology ring|star`, `--hosts 1|4`
+/// (only those runs).
 struct Options {
     quick: bool,
     max_k: usize,
     connect: Connect,
+    rate_hz: u64,
+    topology: Option<Topology>,
+    hosts: Option<usize>,
 }
 
 fn options(args: &[String]) -> Options {
@@ -786,6 +811,9 @@ fn options(args: &[String]) -> Options {
         quick: false,
         max_k: 32,
         connect: Connect::Mesh,
+        rate_hz: RATE_HZ,
+        topology: None,
+        hosts: None,
     };
     let mut i = 0;
     while i < args.len() {
@@ -799,8 +827,22 @@ fn options(args: &[String]) -> Options {
                 i += 1;
                 o.connect = Connect::parse(&args[i]);
             }
+            "--rate-hz" => {
+                i += 1;
+                o.rate_hz = args[i].parse().expect("--rate-hz N");
+            }
+            "--topology" => {
+                i += 1;
+                o.topology = Some(Topology::parse(&args[i]));
+            }
+            "--hosts" => {
+                i += 1;
+                o.hosts = Some(args[i].parse().expect("--hosts 1|4"));
+            }
             other => {
-                panic!("unknown argument `{other}`: --quick, --max-k N, --connect mesh|needed")
+                panic!(
+                    "unknown argument `{other}`: --quick, --max-k N, --connect mesh|needed, --rate-hz N, --topology ring|star, --hosts 1|4"
+                )
             }
         }
         i += 1;
@@ -826,6 +868,13 @@ fn main() {
         )
     };
     let ks: Vec<usize> = ks.into_iter().filter(|&k| k <= o.max_k).collect();
+    let topologies: Vec<Topology> = topologies
+        .into_iter()
+        .filter(|t| o.topology.is_none_or(|o| o == *t))
+        .collect();
+    let layouts = layouts
+        .into_iter()
+        .filter(|&four| o.hosts.is_none_or(|h| (h == HOSTS) == four));
     let mut ratio = (None, None);
     for four in layouts {
         let hosts = if four {
@@ -848,6 +897,7 @@ fn main() {
                     connect: o.connect,
                     warmup: Duration::from_millis(warmup),
                     window: Duration::from_millis(window),
+                    rate_hz: o.rate_hz,
                 };
                 let p50 = report(&run, hosts.as_ref()).unwrap_or_else(|e| panic!("{e}"));
                 if !four && topology == Topology::Ring {
