@@ -294,9 +294,8 @@ pub(crate) fn embodied_bin() -> Option<PathBuf> {
     bin.is_file().then_some(bin)
 }
 
-/// Runs `embodied new` on the spec at `path` into a fresh folder under `dir`.
+/// Runs `embodied new` on the spec at `path` into `dir` (which does not exist).
 fn scaffold(bin: &Path, path: &Path, dir: &Path) -> Result<(), String> {
-    let _ = std::fs::remove_dir_all(dir);
     let out = Command::new(bin)
         .args(["new", "scale_agent", "--spec"])
         .arg(path)
@@ -382,10 +381,14 @@ pub(crate) fn measure(agents: usize, dir: &Path, bin: Option<&Path>) -> Result<F
     let new_ms = match bin {
         None => None,
         Some(bin) => {
-            let made = dir.join(format!("new_{agents}"));
-            let (ms, ()) = median_ms(RUNS, |_| scaffold(bin, &path, &made))?;
-            let _ = std::fs::remove_dir_all(&made);
-            Some(ms)
+            // Each run into a folder of its own, removed after the runs: the
+            // time is the command's, not the removal of the last run's crate.
+            let made = |run: usize| dir.join(format!("new_{agents}_{run}"));
+            let timed = median_ms(RUNS, |run| scaffold(bin, &path, &made(run)));
+            for run in 0..RUNS {
+                let _ = std::fs::remove_dir_all(made(run));
+            }
+            Some(timed?.0)
         }
     };
     Ok(Figures {
