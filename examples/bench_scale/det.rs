@@ -169,11 +169,19 @@ fn rec_fsm() -> Result<Fsm<Rec>, FsmBuildError> {
     ))
 }
 
-/// `agents` copies of the agent in a ring: `3 * agents` subsystems, 7 links per
-/// agent (6 within it, 1 to the next agent's `c`; none for one agent alone);
-/// and the subsystems' ids.
+/// `agents` copies of the agent in a ring, every subsystem every millisecond
+/// (see [`system_at`]).
 pub(crate) fn system(agents: usize) -> Result<(System, Vec<NodeId>), Box<dyn std::error::Error>> {
-    let period = Period::from_millis(1)?;
+    system_at(agents, Period::from_millis(1)?)
+}
+
+/// `agents` copies of the agent in a ring: `3 * agents` subsystems of period
+/// `period`, 7 links per agent (6 within it, 1 to the next agent's `c`; none
+/// for one agent alone); and the subsystems' ids.
+pub(crate) fn system_at(
+    agents: usize,
+    period: Period,
+) -> Result<(System, Vec<NodeId>), Box<dyn std::error::Error>> {
     let queue = Policy::queue(4);
     let mut b = SystemBuilder::new();
     let mut controls = Vec::with_capacity(agents);

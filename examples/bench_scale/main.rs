@@ -10,6 +10,11 @@
 //!   build_ms=.. ..`: the deterministic executor on `n / 3` copies of a small agent
 //!   (`c` with one `e` and one `r`, sample and queue links, a transmission buffer
 //!   to the next agent's `c`), from 3 to 9,999 subsystems ([`det`]);
+//! * `rt n=<subsystems> mode=<pool|per_subsystem> jitter_us_p50=.. jitter_us_p99=..
+//!   overruns=.. util_core<k>=.. ..`: the real-time executor on the same agents at
+//!   100 Hz on the machine's cores, by its worker pool (pinned) and, up to 1,002
+//!   subsystems, by a thread per subsystem; the largest size the pool ran with
+//!   jitter p99 <= 1 ms and no overrun, and where it stopped ([`rt`]);
 //! * `tools n_behaviours=.. check_ms=.. diagram_ms=.. new_ms=.. ..`: `embodied
 //!   check` (with the arc proofs), `embodied diagram` and `embodied new` on
 //!   generated specs up to 10,000 behaviours, 1,000 subsystems and a deployment
@@ -28,6 +33,7 @@
 //! a debug build). The figures are then not comparable with a full run's.
 
 mod det;
+mod rt;
 mod tools;
 
 use std::alloc::{GlobalAlloc, Layout};
@@ -147,18 +153,30 @@ struct Plan {
     det_batches: usize,
     /// Agents of the generated specs (2 subsystems, 20 behaviours each).
     tool_agents: &'static [usize],
+    /// Agents of the real-time executor's systems (3 subsystems each, 100 Hz).
+    rt_agents: &'static [usize],
+    /// Wall-clock seconds each real-time size runs.
+    rt_seconds: f64,
+    /// The most subsystems also run with a thread each (beside the pool).
+    rt_per_subsystem_max: usize,
 }
 
 const FULL: Plan = Plan {
     det_agents: &[1, 10, 100, 1000, 3333],
     det_batches: 201,
     tool_agents: &[5, 50, 500],
+    rt_agents: &[1, 10, 100, 334, 1000, 3333],
+    rt_seconds: 5.0,
+    rt_per_subsystem_max: 1002,
 };
 
 const QUICK: Plan = Plan {
     det_agents: &[1, 10, 100],
     det_batches: 11,
     tool_agents: &[2, 5],
+    rt_agents: &[1, 10],
+    rt_seconds: 0.3,
+    rt_per_subsystem_max: 30,
 };
 
 /// What a run measures, and with what.
@@ -207,9 +225,16 @@ pub(crate) fn run(
         )?;
     }
 
-    // The real-time executor: `rt::run(options.quick, out)`
-    // (examples/bench_scale/rt.rs) writes its `rt ...` lines and gives
-    // `scale.rt_subsystems` and `scale.rt_jitter_us_p99` here.
+    // The real-time executor.
+    if let Some((n, jitter)) = rt::run(
+        plan.rt_agents,
+        plan.rt_seconds,
+        plan.rt_per_subsystem_max,
+        out,
+    )? {
+        scale.rt_subsystems = Some(n as f64);
+        scale.rt_jitter_us_p99 = Some(jitter);
+    }
 
     // The checker and the tools.
     let dir = std::env::temp_dir().join(format!("bench_scale_{}", std::process::id()));
