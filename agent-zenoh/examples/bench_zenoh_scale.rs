@@ -35,6 +35,22 @@
 //! cpu_us_per_msg=.. msgs=..`, and last `zenoh_ratio_32=..` (p50 at K = 32 over
 //! p50 at K = 2, ring, one host; `zenoh_ratio_<K>` with a smaller largest K).
 //! Four hosts need root and `ip`; otherwise `zenoh hosts=4 skipped=<reason>`.
+//!
+//! Seen on the 2-core VM (shared with other work), three runs: p50 at K = 32 is
+//! 0.55x to 1.5x of K = 2's in every topology and layout (one host, ring: 1.04x
+//! and 1.19x; a lone link idles more between messages, and a CPU woken from
+//! idle is slower to answer, so K = 2 is not always the fastest); p99 grows
+//! from about 1 ms to 10-50 ms at K = 32. The tail follows the machine's total
+//! message rate, not K or Zenoh's routing: K = 32 at 10 Hz had a p99 of 0.85
+//! ms, K = 8 at 400 Hz (the message rate of K = 32 at 100 Hz) 12.8 ms;
+//! `--connect needed` changed neither beyond the noise; running every process
+//! `SCHED_FIFO` (`chrt -f 10`) halved it. Each message costs about 100 us of
+//! CPU over all threads of both processes (several thread wake-ups: the
+//! outbox's thread, Zenoh's, the callback's wake of the reader), so K = 32 at
+//! 100 Hz keeps about three quarters of a core busy and the wake-ups queue on
+//! 2 cores; at low
+//! rates `cpu_us_per_msg` is dominated by each idle session's own cost (about 4
+//! ms of CPU a second a process).
 
 #![allow(
     clippy::unwrap_used,
