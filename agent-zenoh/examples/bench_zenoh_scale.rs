@@ -47,10 +47,9 @@
 //! `SCHED_FIFO` (`chrt -f 10`) halved it. Each message costs about 100 us of
 //! CPU over all threads of both processes (several thread wake-ups: the
 //! outbox's thread, Zenoh's, the callback's wake of the reader), so K = 32 at
-//! 100 Hz keeps about three quarters of a core busy and the wake-ups queue on
-//! 2 cores; at low
-//! rates `cpu_us_per_msg` is dominated by each idle session's own cost (about 4
-//! ms of CPU a second a process).
+//! 100 Hz keeps about three quarters of a core busy and the wake-ups queue on 2
+//! cores; at low rates `cpu_us_per_msg` is dominated by each idle session's own
+//! cost (about 4 ms of CPU a second a process).
 
 #![allow(
     clippy::unwrap_used,
