@@ -461,7 +461,7 @@ impl FleetOutcome {
 /// What the fleet's probes report: a robot's report (Rex's), or every robot's
 /// true pose at an instant.
 enum FleetSeen {
-    Robot(usize, Seen),
+    Robot(usize, Box<Seen>),
     Truths { at: Time, poses: Vec<[f64; 3]> },
 }
 
@@ -505,7 +505,7 @@ impl Watcher<FleetSeen> for FleetWatch {
     fn see(&mut self, seen: FleetSeen) {
         match seen {
             FleetSeen::Robot(i, seen) => {
-                self.robots[i].see(seen);
+                self.robots[i].see(*seen);
                 self.dirty[i] = true;
             }
             FleetSeen::Truths { at, poses } => {
@@ -544,20 +544,22 @@ pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetEr
     for (i, h) in handles.iter().enumerate() {
         // Everything of Rex's probes but the truth, which the fleet reads whole.
         install_probes_as(&mut probes, h, &|name| name != "E1", move |seen| {
-            FleetSeen::Robot(i, seen)
+            FleetSeen::Robot(i, Box::new(seen))
         });
     }
     probes.environment(|_, w: &FleetTruth| {
         let first = w.robots.first()?;
         let at = Time::from_nanos((first.time * 1e9).round().max(0.0) as u64);
-        (at.as_nanos() % TRUTH_EVERY_NS == 0).then(|| FleetSeen::Truths {
-            at,
-            poses: w
-                .robots
-                .iter()
-                .map(|t| [t.state.x, t.state.y, t.state.phi])
-                .collect(),
-        })
+        at.as_nanos()
+            .is_multiple_of(TRUTH_EVERY_NS)
+            .then(|| FleetSeen::Truths {
+                at,
+                poses: w
+                    .robots
+                    .iter()
+                    .map(|t| [t.state.x, t.state.y, t.state.phi])
+                    .collect(),
+            })
     });
     let tick = Duration::from_secs(3600);
     let mut watch = FleetWatch {

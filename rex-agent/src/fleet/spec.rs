@@ -24,7 +24,7 @@
 //! `per_process` robots each, for a deployment over Zenoh.
 
 use embodied::spec::Report;
-use embodied::spec::model::{Deployment, Host, Link, Process, Spec, Target};
+use embodied::spec::model::{Agent, Deployment, Host, Link, Process, Spec, Target};
 
 /// The components of one robot (a1, a2 and a3 of Rex), the template's names.
 pub const PARTS: [&str; 9] = ["c1", "e11", "r11", "E1", "R1", "c2", "c3", "r31", "R3"];
@@ -69,43 +69,66 @@ pub fn fleet_spec(rex: &Spec, robots: usize, per_process: usize) -> Spec {
     let mut agents = Vec::new();
     let mut links = Vec::new();
     for i in 0..robots {
-        for template in rex
-            .agents
-            .iter()
-            .filter(|a| AGENTS.contains(&a.name.as_str()))
-        {
-            let mut a = template.clone();
-            a.name = robot_name(&template.name, i);
-            a.doc = template.doc.as_ref().map(|d| format!("Robot {i}: {d}"));
-            for s in &mut a.subsystems {
-                s.name = rename(&s.name, i);
-                for g in s.inputs.iter_mut().chain(s.outputs.iter_mut()) {
-                    g.peer = rename(&g.peer, i);
-                }
-                for p in &mut s.predicates {
-                    p.reads = p.reads.iter().map(|r| rename_read(r, i)).collect();
-                }
-                for f in &mut s.functions {
-                    f.reads = f.reads.iter().map(|r| rename_read(r, i)).collect();
-                    if let Target::Output(peer) = &f.target {
-                        f.target = Target::Output(rename(peer, i));
-                    }
-                }
-            }
-            for d in &mut a.devices {
-                d.name = rename(&d.name, i);
-                for g in d.inputs.iter_mut().chain(d.outputs.iter_mut()) {
-                    g.peer = rename(&g.peer, i);
-                }
-            }
-            agents.push(a);
-        }
+        agents.extend(robot_agents(rex, i));
         links.extend(rex.links.iter().map(|l| Link {
             from: rename_end(&l.from, i),
             to: rename_end(&l.to, i),
             policy: l.policy,
         }));
     }
+    Spec {
+        name: format!("rex_fleet_{robots}"),
+        doc: Some(format!(
+            "A fleet of {robots} Rex robots in one warehouse, generated from specs/rex.ron (rex-agent/src/fleet/spec.rs)."
+        )),
+        agents,
+        links,
+        deployments: deployments(robots, per_process),
+        ros2: None,
+        contracts: None,
+        timing: None,
+    }
+}
+
+/// Rex's agents a1, a2 and a3, copied for robot `i`.
+fn robot_agents(rex: &Spec, i: usize) -> Vec<Agent> {
+    let mut agents = Vec::new();
+    for template in rex
+        .agents
+        .iter()
+        .filter(|a| AGENTS.contains(&a.name.as_str()))
+    {
+        let mut a = template.clone();
+        a.name = robot_name(&template.name, i);
+        a.doc = template.doc.as_ref().map(|d| format!("Robot {i}: {d}"));
+        for s in &mut a.subsystems {
+            s.name = rename(&s.name, i);
+            for g in s.inputs.iter_mut().chain(s.outputs.iter_mut()) {
+                g.peer = rename(&g.peer, i);
+            }
+            for p in &mut s.predicates {
+                p.reads = p.reads.iter().map(|r| rename_read(r, i)).collect();
+            }
+            for f in &mut s.functions {
+                f.reads = f.reads.iter().map(|r| rename_read(r, i)).collect();
+                if let Target::Output(peer) = &f.target {
+                    f.target = Target::Output(rename(peer, i));
+                }
+            }
+        }
+        for d in &mut a.devices {
+            d.name = rename(&d.name, i);
+            for g in d.inputs.iter_mut().chain(d.outputs.iter_mut()) {
+                g.peer = rename(&g.peer, i);
+            }
+        }
+        agents.push(a);
+    }
+    agents
+}
+
+/// The fleet's deployments (see the [module](self)).
+fn deployments(robots: usize, per_process: usize) -> Vec<Deployment> {
     let names = |parts: &[&str], range: std::ops::Range<usize>| -> Vec<String> {
         range
             .flat_map(|i| parts.iter().map(move |p| robot_name(p, i)))
@@ -161,22 +184,11 @@ pub fn fleet_spec(rex: &Spec, robots: usize, per_process: usize) -> Spec {
         secure: Some(false),
         ..empty_deployment()
     };
-    Spec {
-        name: format!("rex_fleet_{robots}"),
-        doc: Some(format!(
-            "A fleet of {robots} Rex robots in one warehouse, generated from specs/rex.ron (rex-agent/src/fleet/spec.rs)."
-        )),
-        agents,
-        links,
-        deployments: vec![
-            one_process("simulation", Vec::new()),
-            one_process("simulation_without_vo", without_vo),
-            grouped,
-        ],
-        ros2: None,
-        contracts: None,
-        timing: None,
-    }
+    vec![
+        one_process("simulation", Vec::new()),
+        one_process("simulation_without_vo", without_vo),
+        grouped,
+    ]
 }
 
 fn empty_deployment() -> Deployment {
@@ -193,6 +205,10 @@ fn empty_deployment() -> Deployment {
 }
 
 /// The fleet's spec as RON text (what `embodied check` reads).
+#[expect(
+    clippy::expect_used,
+    reason = "a spec is strings, numbers and lists: it always serialises"
+)]
 pub fn to_text(spec: &Spec) -> String {
     embodied::spec::options()
         .to_string_pretty(spec, ron::ser::PrettyConfig::default())
