@@ -34,6 +34,7 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
     let options = program::Options {
         quick: true,
         embodied_bin: option_env!("CARGO_BIN_EXE_embodied").map(Into::into),
+        skip_external: true,
     };
     let mut out = Vec::new();
     let scale = program::run(&options, &mut out).unwrap();
@@ -74,6 +75,43 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
         assert!(
             new == "na" || new.parse::<f64>().is_ok_and(|v| v > 0.0),
             "{l}"
+        );
+    }
+
+    // The real-time executor: the pool at every size, a thread per subsystem
+    // at the small ones; every activation ran (no figure is missing), and the
+    // pool's threads are bounded (2 cores or fewer: at most 2 workers at one
+    // period).
+    let rt: Vec<&str> = lines
+        .iter()
+        .copied()
+        .filter(|l| l.starts_with("rt n="))
+        .collect();
+    assert!(rt.iter().any(|l| field(l, "mode") == "pool"), "{text}");
+    assert!(
+        rt.iter().any(|l| field(l, "mode") == "per_subsystem"),
+        "{text}"
+    );
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    for l in &rt {
+        positive(l, "jitter_us_p99");
+        positive(l, "response_us_p99");
+        positive(l, "bytes_per_subsystem");
+        let n: usize = field(l, "n").parse().unwrap();
+        let threads: usize = field(l, "threads").parse().unwrap();
+        match field(l, "mode") {
+            "pool" => assert!(threads <= cores.min(n), "{l}"),
+            _ => assert_eq!(threads, n, "{l}"),
+        }
+        let schedulable = field(l, "schedulable");
+        assert!(schedulable == "0" || schedulable == "1", "{l}");
+    }
+    // The figures of the final line come from the pool's lines.
+    if let Some(n) = scale.rt_subsystems {
+        assert!(
+            rt.iter()
+                .any(|l| field(l, "mode") == "pool" && field(l, "n") == format!("{n}")),
+            "{text}"
         );
     }
 

@@ -29,10 +29,18 @@
 //! `action_ratio_10000`: the median time per action at the largest size over
 //! the one at 3 subsystems (aim: at most 1.5). A figure not measured prints `na`.
 //!
-//! `--quick`: small sizes and few batches only (a test's run: a few seconds in
-//! a debug build). The figures are then not comparable with a full run's.
+//! * `zenoh k=.. topology=.. hosts=.. p50_us=.. ..` and `zenoh_ratio_32=..`:
+//!   agent-zenoh's `bench_zenoh_scale`, K processes over Zenoh; `fleet robots=..
+//!   ..` and `fleet_robots=.. fleet_cost_ratio=..`: rex-agent's `fleet`, M Rex
+//!   robots in one warehouse ([`external`]: each built and run by cargo).
+//!
+//! `--quick`: small sizes and few batches only, and not the other crates'
+//! benchmarks (a test's run: a few seconds in a debug build). The figures are
+//! then not comparable with a full run's. `--skip-external`: a full run
+//! without the other crates' benchmarks.
 
 mod det;
+mod external;
 mod rt;
 mod tools;
 
@@ -159,6 +167,8 @@ struct Plan {
     rt_seconds: f64,
     /// The most subsystems also run with a thread each (beside the pool).
     rt_per_subsystem_max: usize,
+    /// Run the other crates' benchmarks (Zenoh between processes, the fleet).
+    external: bool,
 }
 
 const FULL: Plan = Plan {
@@ -168,6 +178,7 @@ const FULL: Plan = Plan {
     rt_agents: &[1, 10, 100, 334, 1000, 3333],
     rt_seconds: 5.0,
     rt_per_subsystem_max: 1002,
+    external: true,
 };
 
 const QUICK: Plan = Plan {
@@ -177,6 +188,7 @@ const QUICK: Plan = Plan {
     rt_agents: &[1, 10],
     rt_seconds: 0.3,
     rt_per_subsystem_max: 30,
+    external: false,
 };
 
 /// What a run measures, and with what.
@@ -186,12 +198,16 @@ pub(crate) struct Options {
     /// The `embodied` binary, for `embodied new` (and the structure diagram of
     /// large specs); `None`: not measured.
     pub(crate) embodied_bin: Option<PathBuf>,
+    /// Leave out the other crates' benchmarks (`--skip-external`: Zenoh
+    /// between processes, the fleet), which a full run builds and runs.
+    pub(crate) skip_external: bool,
 }
 
 /// `cargo run --release --example bench_scale [-- --quick]`.
 pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     let options = Options {
         quick: std::env::args().skip(1).any(|a| a == "--quick"),
+        skip_external: std::env::args().skip(1).any(|a| a == "--skip-external"),
         embodied_bin: tools::embodied_bin(),
     };
     run(&options, &mut std::io::stdout())?;
@@ -257,8 +273,19 @@ pub(crate) fn run(
         )?;
     }
 
-    // Zenoh (`zenoh_ratio_32`) and the fleet (`fleet_robots`,
-    // `fleet_cost_ratio`): not measured yet.
+    // Zenoh between processes and the fleet: the other crates' benchmarks.
+    if plan.external && !options.skip_external {
+        let zenoh = external::run("agent-zenoh", "bench_zenoh_scale", &[], out)?;
+        scale.zenoh_ratio_32 = external::figure(&zenoh, "zenoh_ratio_32");
+        let fleet = external::run(
+            "rex-agent",
+            "fleet",
+            &["--robots", "1,4,16,64", "--no-vo"],
+            out,
+        )?;
+        scale.fleet_robots = external::figure(&fleet, "fleet_robots");
+        scale.fleet_cost_ratio = external::figure(&fleet, "fleet_cost_ratio");
+    }
 
     writeln!(out, "{scale}")?;
     Ok(scale)

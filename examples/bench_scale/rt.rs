@@ -1,10 +1,10 @@
 //! The real-time executor as the system grows.
 //!
-//! The benchmark agents of [`det`](crate::det), every subsystem at 100 Hz, run
-//! on the wall clock for [`Plan::seconds`](crate::Plan) per size, by the
+//! The benchmark agents of [`det`](super::det), every subsystem at 100 Hz, run
+//! on the wall clock for `Plan::rt_seconds` per size, by the
 //! worker pool (the default: per core, one worker per period; here pinned,
 //! with `SCHED_FIFO` priority if the OS grants it) and, up to
-//! [`Plan::rt_per_subsystem_max`](crate::Plan), by one thread per subsystem
+//! `Plan::rt_per_subsystem_max`, by one thread per subsystem
 //! beside it. Per size and mode one line:
 //!
 //! * `jitter_us_p50`, `jitter_us_p99`, `jitter_us_max`: how late the threads
@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 
 use embodied::*;
 
-use crate::{det, heap};
+use super::{det, heap};
 
 /// 100 Hz.
 const PERIOD_MS: u64 = 10;
