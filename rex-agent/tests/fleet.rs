@@ -64,3 +64,26 @@ fn two_robots_achieve_every_plan_in_their_aisles_and_keep_apart() {
         );
     }
 }
+
+#[test]
+fn each_of_64_robots_has_an_aisle_of_its_own_with_its_plans_on_its_map() {
+    let fleet = Fleet::new(64, false).unwrap();
+    let configs = fleet.configs().expect("every plan on its robot's aisle");
+    let w = &fleet.warehouse;
+    let clearance = fleet.base.limits.clearance_m;
+    for (i, c) in configs.iter().enumerate() {
+        let room = &c.world.scene.room;
+        // The robot's free space: its aisle between two rows of shelves.
+        let (y0, y1) = (room.y0 + w.shelf_depth, room.y1 - w.shelf_depth);
+        assert!((y1 - y0 - w.aisle_width).abs() < 1e-9);
+        assert!(y0 <= c.world.start.y && c.world.start.y <= y1);
+        if let Some(next) = configs.get(i + 1) {
+            let next_y0 = next.world.scene.room.y0 + w.shelf_depth;
+            // Two centres each `clearance` inside their aisles: a row of
+            // shelves and two clearances apart, more than the safety distance.
+            assert!(next_y0 - y1 + 2.0 * clearance >= fleet.safety_m() + w.shelf_depth - 1e-9);
+        }
+    }
+    let (_, report) = fleet::spec::check(&fleet.spec());
+    assert!(report.is_ok(), "{}", report.short());
+}
