@@ -113,6 +113,16 @@ pub struct Limits {
     /// The ground fragments are timed for until the estimate has settled (the
     /// slipperiest expected).
     pub cautious_ground: Friction,
+    /// The torque `e11` commands at most per wheel \[N m\]; `None`: the
+    /// platform's `torque_max` (the world file's). Above the platform's limit
+    /// the platform clamps the commands, and the spec's contracts on `e11`'s
+    /// torques (`torque_wheel_1..4`, ±10 N m) are broken when `e11` asks for more.
+    pub torque_nm: Option<f64>,
+    /// The share of each wheel's traction on the ground `e11` estimates that
+    /// its NMPC's torques may use (above it the wheel spins); more than 1
+    /// lets it ask what the ground cannot take (a stop then brakes harder
+    /// than the wheels grip, up to `torque_nm`).
+    pub traction_margin: f64,
 }
 
 impl Default for Limits {
@@ -132,6 +142,8 @@ impl Default for Limits {
                 mu_lat: 0.07,
                 rolling: 0.01,
             },
+            torque_nm: None,
+            traction_margin: crate::algorithms::tracking::TRACTION_MARGIN,
         }
     }
 }
@@ -168,7 +180,11 @@ impl Validate for Limits {
         config::non_negative(
             "limits.cautious_ground.rolling",
             self.cautious_ground.rolling,
-        )
+        )?;
+        if let Some(t) = self.torque_nm {
+            config::positive("limits.torque_nm", t)?;
+        }
+        config::positive("limits.traction_margin", self.traction_margin)
     }
 }
 
@@ -203,6 +219,8 @@ impl Limits {
             final_margin: self.final_margin_m,
             settle: self.settle_s,
             brake_decel: self.brake_decel,
+            torque_max: self.torque_nm,
+            traction_margin: self.traction_margin,
         }
     }
 }

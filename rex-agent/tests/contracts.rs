@@ -18,6 +18,7 @@ use embodied::monitor::recording::{evaluate, needed};
 use embodied::record::Recording;
 
 const WORLD: &str = include_str!("../config/world.ron");
+const CONFIG: &str = include_str!("../config/rex.ron");
 const SPEC: &str = include_str!("../../specs/rex.ron");
 
 /// A folder of this test's own.
@@ -174,4 +175,92 @@ fn a_behaviour_that_never_ends_is_found_by_its_bound() {
     // Rex's policy is to stop at the first error: the run ended there.
     assert!(out.contains("the run failed before its end"), "{out}");
     assert!(out.contains("contracts_violated=1"), "{out}");
+}
+
+#[test]
+fn a_torque_bound_raised_past_the_platform_limit_is_found_by_the_ranges() {
+    let dir = scratch("torque");
+    write(&dir, "world.ron", WORLD);
+    // The changed gain: e11's NMPC may ask twice the traction of the ground,
+    // up to 20 N m a wheel (the platform's limit, and the contracts', is 10).
+    // Tracking is smooth well within 10 N m; a stop at speed (the tracking
+    // limit tightened to 3 cm) brakes with all the bound allows.
+    let mut config = edited(CONFIG, "traction_margin: 0.85,", "traction_margin: 2.0,");
+    config = edited(&config, "torque_nm: None,", "torque_nm: Some(20.0),");
+    config = edited(&config, "tracking_m: 0.30,", "tracking_m: 0.03,");
+    let config = write(&dir, "rex.ron", &config);
+    let recording = dir.join("run.mcap");
+    let (code, out, err) = rex(&[
+        "--config",
+        &config,
+        "--for",
+        "20",
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "{out}\n{err}");
+    // Rex's policy stops the run at the first error: the first torque beyond
+    // 10 N m, with its time and value.
+    let found = err
+        .lines()
+        .find_map(|l| l.strip_prefix("contract violated: "))
+        .expect("a violation")
+        .to_owned();
+    assert!(
+        found.starts_with("t=12.950000s subsystem=e11 contract=range:torque_wheel_"),
+        "{err}"
+    );
+    let value: f64 = found
+        .split("value ")
+        .nth(1)
+        .and_then(|v| v.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .expect("the value");
+    assert!(value.abs() > 10.0 && value.abs() <= 20.0, "{found}");
+    assert!(found.ends_with("outside [-10, 10]"), "{found}");
+    assert!(out.contains("the run failed before its end"), "{out}");
+
+    // Over the recording the ranges are not evaluable: Rex records its values
+    // as CDR, which the offline monitor does not decode (it says so, per
+    // contract; the other contracts are evaluated and kept).
+    let recorded = Recording::open_filtered(&recording, needed).unwrap();
+    let mut monitors = Monitors::new(&embodied::spec::load("rex.ron", SPEC).unwrap().spec).unwrap();
+    let report = evaluate(&mut monitors, &recorded).unwrap();
+    assert!(report.violations.is_empty(), "{:#?}", report.violations);
+    let not_evaluable: Vec<String> = report
+        .not_evaluable
+        .iter()
+        .filter(|(_, why)| why.contains("CDR"))
+        .filter_map(|(c, _)| Some(monitors.contract(*c)?.name.clone()))
+        .collect();
+    assert_eq!(
+        not_evaluable,
+        [
+            "torque_wheel_1",
+            "torque_wheel_2",
+            "torque_wheel_3",
+            "torque_wheel_4"
+        ],
+        "{:#?}",
+        report.not_evaluable
+    );
+
+    // The bounds are checked before anything runs.
+    for (from, to, field) in [
+        (
+            "traction_margin: 0.85,",
+            "traction_margin: -1.0,",
+            "limits.traction_margin",
+        ),
+        (
+            "torque_nm: None,",
+            "torque_nm: Some(NaN),",
+            "limits.torque_nm",
+        ),
+    ] {
+        let bad = write(&dir, "bad.ron", &edited(CONFIG, from, to));
+        let (code, out, err) = rex(&["--config", &bad]);
+        assert_eq!(code, Some(2), "{out}\n{err}");
+        assert!(err.contains(field), "{err}");
+    }
 }

@@ -31,7 +31,19 @@ pub trait Tracker: Send + std::fmt::Debug {
     fn report(&self) -> TrackerReport {
         TrackerReport::default()
     }
+
+    /// Bound each wheel's torque by `torque_max` \[N m\] (`None`: the
+    /// platform's, as built) and, for a tracker that keeps within the ground's
+    /// traction (the NMPC), by `traction_margin` times that traction. A bound
+    /// above the platform's limit lets the commands exceed it (the platform
+    /// clamps them). The values are checked by the run file's validation;
+    /// one not positive and finite changes nothing.
+    fn set_torque_bounds(&mut self, torque_max: Option<f64>, traction_margin: f64);
 }
+
+/// The share of each wheel's traction the NMPC's torques may use by default
+/// ([`Tracker::set_torque_bounds`]).
+pub const TRACTION_MARGIN: f64 = 0.85;
 
 /// What a tracker reports about its work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -144,7 +156,7 @@ impl NmpcTracker {
         Ok(NmpcTracker {
             nmpc: LateralNmpc::new(Lateral::new(params), settings)?,
             observer: DisturbanceObserver::new(DisturbanceSettings::<6>::default()),
-            traction_margin: 0.85,
+            traction_margin: TRACTION_MARGIN,
             reference: Vec::new(),
             last: [0.0; 4],
             refused: 0,
@@ -285,6 +297,15 @@ impl Tracker for NmpcTracker {
         self.observer.gap();
     }
 
+    fn set_torque_bounds(&mut self, torque_max: Option<f64>, traction_margin: f64) {
+        if let Some(t) = torque_max {
+            let _ = self.nmpc.set_torque_max(t);
+        }
+        if traction_margin.is_finite() && traction_margin > 0.0 {
+            self.traction_margin = traction_margin;
+        }
+    }
+
     fn report(&self) -> TrackerReport {
         let s = self.nmpc.stats();
         TrackerReport {
@@ -396,6 +417,12 @@ impl Backstepping {
 impl Tracker for Backstepping {
     fn name(&self) -> &'static str {
         "backstepping"
+    }
+
+    fn set_torque_bounds(&mut self, torque_max: Option<f64>, _: f64) {
+        if let Some(t) = torque_max.filter(|t| t.is_finite() && *t > 0.0) {
+            self.model.params.torque_max = t;
+        }
     }
 
     fn control(&mut self, e: &Estimate, horizon: &[[f64; 5]], dt: f64) -> Torques {

@@ -63,6 +63,11 @@ pub struct Safety {
     pub settle: f64,
     /// The deceleration the platform is assumed to brake with \[m/s²\].
     pub brake_decel: f64,
+    /// The torque the tracker commands at most per wheel \[N m\]; `None`: the
+    /// platform's `torque_max` ([`Tracker::set_torque_bounds`]).
+    pub torque_max: Option<f64>,
+    /// The share of each wheel's traction the NMPC's torques may use.
+    pub traction_margin: f64,
 }
 
 impl Default for Safety {
@@ -74,6 +79,8 @@ impl Default for Safety {
             final_margin: 0.03,
             settle: 3.0,
             brake_decel: 1.0,
+            torque_max: None,
+            traction_margin: crate::algorithms::tracking::TRACTION_MARGIN,
         }
     }
 }
@@ -283,8 +290,12 @@ impl E11Memory {
         }
     }
 
-    /// The same with these safety limits.
+    /// The same with these safety limits (the tracker's torque bounds
+    /// among them).
     pub fn with_safety(mut self, safety: Safety) -> E11Memory {
+        self.track
+            .tracker
+            .set_torque_bounds(safety.torque_max, safety.traction_margin);
         self.safety = safety;
         self
     }

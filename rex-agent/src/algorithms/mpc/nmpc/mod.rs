@@ -425,6 +425,18 @@ impl<M: Dynamics<NX, NP>, const NX: usize, const NP: usize> Nmpc<M, NX, NP> {
         Ok(())
     }
 
+    /// Set the torque bound of each wheel, `torque_max` (the limits
+    /// [`Nmpc::set_torque_limits`] lowers it to start from it too). Refused
+    /// (nothing changes) unless it is positive and finite.
+    pub fn set_torque_max(&mut self, torque_max: f64) -> Result<(), NmpcError> {
+        if !(torque_max.is_finite() && torque_max > 0.0) {
+            return Err(NmpcError::NotFinite("torque bound"));
+        }
+        self.s.torque_max = torque_max;
+        self.limits = [torque_max; NU];
+        Ok(())
+    }
+
     /// The torque bounds in use.
     pub fn torque_limits(&self) -> [f64; NU] {
         self.limits
