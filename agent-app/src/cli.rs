@@ -52,8 +52,8 @@ impl From<OnErrorArg> for agent_core::OnError {
 /// threads ([`agent_core::Threading`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum ThreadsArg {
-    /// A worker per core and period, the subsystems of each period dealt
-    /// over the cores (the default).
+    /// A worker per core and period, the agents dealt over the cores (the
+    /// default).
     #[default]
     Pool,
     /// The pool, each worker pinned to its core.

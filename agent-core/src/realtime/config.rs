@@ -34,10 +34,11 @@ pub struct RtConfig {
 /// thread, the world's (see the [module](super)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Threading {
-    /// A bounded set of worker threads: the nodes of each period are dealt
-    /// out over `cores` cores (round-robin in declaration order, each period
-    /// starting one core further), and on each core one worker runs the nodes
-    /// of one period, in declaration order (real receptors last). So a system
+    /// A bounded set of worker threads: the agents are dealt out over `cores`
+    /// cores in declaration order, each to the core with the fewest nodes so
+    /// far (an agent's subsystems stay together, so the links within an
+    /// agent stay on one core), and on each core one worker runs the nodes of
+    /// one period, in declaration order (real receptors last). So a system
     /// has at most `cores` × (distinct periods) workers however many
     /// subsystems it has; a worker's FIFO priority is its period's rank
     /// (rate-monotonic, as a thread's in [`Threading::PerSubsystem`]), so a
@@ -48,7 +49,7 @@ pub enum Threading {
     /// instant); other workers are not delayed by it beyond their share of
     /// the core.
     Pool {
-        /// How many cores to deal the nodes over; `0`: as many as the process
+        /// How many cores to deal the agents over; `0`: as many as the process
         /// may use (`std::thread::available_parallelism`).
         cores: u16,
         /// Pin each worker to its core (Linux: `sched_setaffinity`, core `k`

@@ -4,8 +4,10 @@
 //! # Threads
 //!
 //! By default ([`Threading::Pool`]) a bounded set of worker threads runs the
-//! subsystems: the subsystems of each period are dealt out over the cores,
-//! and on each core one worker runs those of one period, in declaration order.
+//! subsystems: the agents are dealt out over the cores (each to the core with
+//! the fewest subsystems so far, so that an agent's links stay on one core),
+//! and on each core one worker runs the subsystems of one period, in
+//! declaration order.
 //! A system of a thousand subsystems at two periods on two cores runs on four
 //! workers, not a thousand threads. [`Threading::PerSubsystem`] gives every
 //! subsystem a thread of its own instead, where isolation matters more.

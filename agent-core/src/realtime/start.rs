@@ -192,9 +192,12 @@ impl Threads {
             Threading::Pool { cores, pin } => Some((pool_cores(cores), pin)),
             Threading::PerSubsystem => None,
         };
-        // Pool: per period (ns), the core its next node goes to; per (core,
-        // period), the worker's thread.
-        let mut next_core: BTreeMap<u64, usize> = BTreeMap::new();
+        // Pool: each agent's core, dealt in declaration order to the core
+        // with the fewest nodes so far (an agent's nodes stay together, so
+        // that the links within it stay on one core); per (core, period),
+        // the worker's thread.
+        let mut load: Vec<usize> = pool.map_or(Vec::new(), |(cores, _)| vec![0; cores]);
+        let mut agent_core: BTreeMap<&str, usize> = BTreeMap::new();
         let mut workers: BTreeMap<(usize, u64), usize> = BTreeMap::new();
         for (i, node) in info.nodes.iter().enumerate() {
             if !here[i] {
@@ -210,14 +213,14 @@ impl Threads {
                         w
                     }
                 }
-            } else if let Some((cores, pin)) = pool {
+            } else if let Some((_, pin)) = pool {
+                let k = *agent_core
+                    .entry(node.agent.as_str())
+                    .or_insert_with(|| (0..load.len()).min_by_key(|&c| (load[c], c)).unwrap_or(0));
+                if let Some(l) = load.get_mut(k) {
+                    *l += 1;
+                }
                 let period = node.period.as_nanos();
-                // Each period starts one core further, so that periods with
-                // one node each spread too.
-                let classes = next_core.len();
-                let core = next_core.entry(period).or_insert(classes % cores);
-                let k = *core;
-                *core = (k + 1) % cores;
                 match workers.get(&(k, period)) {
                     Some(&w) => w,
                     None => {
