@@ -13,6 +13,10 @@
 //! first M, 1 when it is listed first>`, each plan not achieved on a line of
 //! its own, and at the end `fleet_robots=<largest M> fleet_cost_ratio=<..>`.
 //!
+//! A fleet whose run takes less than a second runs again until a second has
+//! passed; the fastest run's figures are printed (the plans are the same in
+//! every run: the executor is deterministic).
+//!
 //! Options: `--robots <list>` (default `1,4,16,64`), `--no-vo` (without visual
 //! odometry: the cameras and r11 are left out), `--short` (the short
 //! warehouse of the tests), `--limit <s>` (simulated time limit, default 120),
@@ -59,7 +63,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if !report.is_ok() {
             return Err(format!("the spec of {m} robots: {}", report.short()).into());
         }
-        let out = fleet::run_fleet(&fleet, Duration::from_secs_f64(limit))?;
+        // The run is deterministic, its wall-clock time is not: a small fleet
+        // runs again until a second has passed, and its least disturbed run
+        // is the figure (on a shared machine, a short run measures the load).
+        let mut out = fleet::run_fleet(&fleet, Duration::from_secs_f64(limit))?;
+        let (mut wall, mut runs) = (out.wall_s, 1);
+        while wall < 1.0 && runs < 20 {
+            let again = fleet::run_fleet(&fleet, Duration::from_secs_f64(limit))?;
+            wall += again.wall_s;
+            runs += 1;
+            if again.wall_s < out.wall_s {
+                out = again;
+            }
+        }
         let cost = out.cost_per_robot_ms();
         let ratio = cost / *first.get_or_insert(cost);
         println!("{}", out.line(ratio));
