@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use embodied::spec::diagram::{Format, Kind};
+use embodied::spec::diagram::{Detail, Format, Kind};
 
 /// Check embodied-agent specifications (RON) and draw their diagrams.
 #[derive(Parser, Debug)]
@@ -91,6 +91,15 @@ enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value_t = FormatArg::Svg)]
         format: FormatArg,
+        /// For `structure`: draw the overview (one box per agent, one edge per
+        /// pair of linked agents with the links' count), whatever the size. By
+        /// default it is drawn above 60 subsystems, the detailed structure up to.
+        #[arg(long, conflicts_with = "detailed")]
+        overview: bool,
+        /// For `structure`: draw every component and link, whatever the size
+        /// (slow and very wide above 60 subsystems).
+        #[arg(long)]
+        detailed: bool,
         /// Write to this file instead of standard output.
         #[arg(short, long, value_name = "PATH")]
         output: Option<PathBuf>,
@@ -156,7 +165,8 @@ enum Style {
 enum KindArg {
     /// The FSM of each subsystem: behaviours and arcs labelled with their conditions (Fig. 5).
     Fsm,
-    /// The agents: components, buffers and links (Figs. 2 and 4).
+    /// The agents: components, buffers and links (Figs. 2 and 4); above 60
+    /// subsystems an overview (agents and counted links between them).
     Structure,
     /// The data flow of each behaviour's transition functions (Figs. 6-8).
     Dataflow,
@@ -219,6 +229,8 @@ fn main() -> ExitCode {
             kind,
             subsystem,
             format,
+            overview,
+            detailed,
             output,
         } => cli::diagram::run(
             &file,
@@ -232,6 +244,11 @@ fn main() -> ExitCode {
                 FormatArg::Dot => Format::Dot,
                 FormatArg::Mermaid => Format::Mermaid,
                 FormatArg::Svg => Format::Svg,
+            },
+            match (overview, detailed) {
+                (true, _) => Detail::Overview,
+                (_, true) => Detail::Detailed,
+                _ => Detail::Auto,
             },
             output.as_deref(),
         ),

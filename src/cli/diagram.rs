@@ -4,15 +4,16 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use embodied::spec::diagram::{self, Format, Kind};
+use embodied::spec::diagram::{self, Detail, Format, Kind};
 
-/// Draws `kind` of `file` (only `subsystem`, if given) in `format`, to `output` or
-/// standard output.
+/// Draws `kind` of `file` (only `subsystem`, if given) in `format`, the structure
+/// as `detail` says, to `output` or standard output.
 pub(crate) fn run(
     file: &Path,
     kind: Kind,
     subsystem: Option<&str>,
     format: Format,
+    detail: Detail,
     output: Option<&Path>,
 ) -> ExitCode {
     // Drawing needs the structure, not the arc proof (`check` does that).
@@ -34,7 +35,7 @@ pub(crate) fn run(
             file.display()
         );
     }
-    let text = match diagram::render(&spec, kind, subsystem, format) {
+    let text = match diagram::render_with(&spec, kind, subsystem, format, detail) {
         Ok(t) => t,
         Err(e) => {
             errln!("error: {e}");

@@ -3,7 +3,9 @@
 //! * [`Kind::Fsm`]: the FSM of a subsystem, like Fig. 5 of the paper: behaviours with
 //!   their kind and terminal condition, arcs labelled with initial conditions.
 //! * [`Kind::Structure`]: agents, their components with buffers, and the links
-//!   between them, like Figs. 2 and 4.
+//!   between them, like Figs. 2 and 4; above [`OVERVIEW_THRESHOLD`] subsystems
+//!   (see [`Detail`]), an overview instead: one box per agent, one edge per pair
+//!   of linked agents with the links' count, in rows.
 //! * [`Kind::Dataflow`]: for each behaviour of a subsystem, which buffers its
 //!   transition functions read and write, like Figs. 6-8.
 //!
@@ -15,6 +17,7 @@ mod fsm;
 #[doc(hidden)]
 pub mod geometry;
 mod layout;
+mod overview;
 mod structure;
 mod svg;
 
@@ -22,6 +25,8 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::model::{Spec, Subsystem};
+
+pub use overview::THRESHOLD as OVERVIEW_THRESHOLD;
 
 /// Which diagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -32,6 +37,26 @@ pub enum Kind {
     Structure,
     /// What the transition functions read and write.
     Dataflow,
+}
+
+/// How much of the structure to draw ([`Kind::Structure`]; the other kinds
+/// ignore it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Detail {
+    /// The detailed structure up to [`OVERVIEW_THRESHOLD`] (60) subsystems in
+    /// the agents drawn, the overview above.
+    #[default]
+    Auto,
+    /// One box per agent (its components' names, or their counts), one edge per
+    /// pair of linked agents (the buffers' names, or the links' count), in rows
+    /// of at most 24 agents in link order: time and size linear in the agents
+    /// and links, readable at 500 agents.
+    Overview,
+    /// Every component with its buffers and every link, whatever the size (the
+    /// layout of the links between agents that are not neighbours grows
+    /// quadratically: slow and very wide above [`OVERVIEW_THRESHOLD`]
+    /// subsystems).
+    Detailed,
 }
 
 /// Output format.
@@ -124,6 +149,9 @@ impl fmt::Display for Format {
 /// one subsystem; without it every subsystem is drawn. [`Kind::Structure`] draws the
 /// whole system (or, with `subsystem`, the agent that holds it).
 ///
+/// The structure is detailed up to [`OVERVIEW_THRESHOLD`] subsystems, an
+/// overview above ([`Detail::Auto`]; [`render_with`] chooses).
+///
 /// The spec should have passed the checker; references that do not resolve are left
 /// out of the drawing rather than reported.
 pub fn render(
@@ -132,12 +160,54 @@ pub fn render(
     subsystem: Option<&str>,
     format: Format,
 ) -> Result<String, DiagramError> {
+    render_with(spec, kind, subsystem, format, Detail::Auto)
+}
+
+/// [`render`], the structure drawn as `detail` says.
+pub fn render_with(
+    spec: &Spec,
+    kind: Kind,
+    subsystem: Option<&str>,
+    format: Format,
+    detail: Detail,
+) -> Result<String, DiagramError> {
     let subs = select(spec, subsystem)?;
     Ok(match kind {
         Kind::Fsm => fsm::render(spec, &subs, format),
         Kind::Dataflow => dataflow::render(spec, &subs, format),
-        Kind::Structure => structure::render(spec, &agents_of(spec, subsystem), format),
+        Kind::Structure => structure_of(spec, &agents_of(spec, subsystem), format, detail),
     })
+}
+
+/// The structure of `agents`, detailed or as an overview.
+fn structure_of(spec: &Spec, agents: &[usize], format: Format, detail: Detail) -> String {
+    if overview_for(spec, agents, detail) {
+        overview::render(spec, agents, format)
+    } else {
+        structure::render(spec, agents, format)
+    }
+}
+
+/// Whether `detail` draws the overview of `agents`.
+fn overview_for(spec: &Spec, agents: &[usize], detail: Detail) -> bool {
+    match detail {
+        Detail::Overview => true,
+        Detail::Detailed => false,
+        Detail::Auto => {
+            let subsystems: usize = agents
+                .iter()
+                .map(|&a| spec.agents[a].subsystems.len())
+                .sum();
+            subsystems > OVERVIEW_THRESHOLD
+        }
+    }
+}
+
+/// The SVG of the structure's overview ([`Detail::Overview`]) and what it
+/// placed, for tests of the layout.
+#[doc(hidden)]
+pub fn render_overview_scene(spec: &Spec) -> (String, geometry::Scene) {
+    overview::draw(spec, &agents_of(spec, None))
 }
 
 /// The SVG that [`render`] draws with [`Format::Svg`], and the geometry of what it
@@ -168,7 +238,7 @@ fn agents_of(spec: &Spec, subsystem: Option<&str>) -> Vec<usize> {
 
 /// Every diagram of `spec`, as `(file name, text)` for a folder of them: each
 /// subsystem's FSM (`fsm_NAME.svg`, and `fsm_NAME.mmd` for Markdown), the structure
-/// (`structure.svg`), and each subsystem's data flow (`dataflow_NAME.svg`),
+/// (`structure.svg`, an overview above [`OVERVIEW_THRESHOLD`] subsystems), and each subsystem's data flow (`dataflow_NAME.svg`),
 /// subsystems in the spec's order.
 pub fn render_all(spec: &Spec) -> Vec<(String, String)> {
     let mut files = Vec::new();
@@ -185,7 +255,7 @@ pub fn render_all(spec: &Spec) -> Vec<(String, String)> {
     }
     files.push((
         "structure.svg".to_owned(),
-        structure::render(spec, &agents_of(spec, None), Format::Svg),
+        structure_of(spec, &agents_of(spec, None), Format::Svg, Detail::Auto),
     ));
     for (_, sub) in spec.subsystems() {
         files.push((

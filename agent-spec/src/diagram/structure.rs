@@ -1,4 +1,10 @@
 //! Agents, components with their buffers, and links (Figs. 2 and 4).
+//!
+//! Drawn by default up to [`super::OVERVIEW_THRESHOLD`] (60) subsystems in the
+//! agents shown; above, [`super::Detail::Auto`] draws the overview
+//! ([`super::overview`]) instead: placing the links between agents that are
+//! not neighbours (the arches over the frames) grows with their square, and
+//! the drawing's width with the components.
 
 use std::fmt::Write as _;
 
