@@ -354,18 +354,18 @@ fn draw_model(spec: &Spec, m: &Model) -> (String, Scene) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::model::Link;
 
     /// `n` copies of the spec's first agent, their components renamed with the
     /// copy's number, and a link from each copy's first subsystem to the next
     /// copy's: a ring.
-    fn ring(n: usize) -> Spec {
-        let base = crate::load("tank.ron", include_str!("../../../specs/tank.ron"))
-            .ok()
-            .expect("tank.ron loads")
-            .spec;
+    pub(crate) fn ring(n: usize) -> Spec {
+        let Ok(loaded) = crate::load("tank.ron", include_str!("../../../specs/tank.ron")) else {
+            panic!("tank.ron loads");
+        };
+        let base = loaded.spec;
         let mut spec = base.clone();
         spec.name = format!("ring{n}");
         spec.links.clear();

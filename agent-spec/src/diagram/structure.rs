@@ -106,8 +106,15 @@ fn bundles(spec: &Spec, comps: &[Comp<'_>]) -> Vec<(usize, usize, String)> {
         .collect()
 }
 
-/// Agents ordered for drawing: the most connected in the middle, the others
-/// alternately to its left and right, so links between agents stay short.
+/// Above this many agents, [`arrange`] places them in link order.
+const LINK_ORDER_ABOVE: usize = 8;
+
+/// Agents ordered for drawing: up to [`LINK_ORDER_ABOVE`], the most connected
+/// in the middle, the others alternately to its left and right, so links
+/// between agents stay short. Above, in link order (depth first along the
+/// links from the first agent): in a chain or a ring of agents, neighbours are
+/// drawn side by side instead of far apart, so that their links need no arch
+/// over the frames (placing the arches grows with their square).
 fn arrange(spec: &Spec, agents: &[usize]) -> Vec<usize> {
     let agent_of = |comp: &str| {
         spec.agents.iter().position(|a| {
@@ -115,6 +122,7 @@ fn arrange(spec: &Spec, agents: &[usize]) -> Vec<usize> {
         })
     };
     let mut degree = vec![0usize; spec.agents.len()];
+    let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); spec.agents.len()];
     for l in &spec.links {
         let f = l.from.split('.').next().and_then(agent_of);
         let t = l.to.split('.').next().and_then(agent_of);
@@ -123,7 +131,14 @@ fn arrange(spec: &Spec, agents: &[usize]) -> Vec<usize> {
         {
             degree[f] += 1;
             degree[t] += 1;
+            if agents.len() > LINK_ORDER_ABOVE {
+                adjacent[f].push(t);
+                adjacent[t].push(f);
+            }
         }
+    }
+    if agents.len() > LINK_ORDER_ABOVE {
+        return link_order(agents, &adjacent);
     }
     let mut by_degree = agents.to_vec();
     by_degree.sort_by(|a, b| degree[*b].cmp(&degree[*a]).then(a.cmp(b)));
@@ -136,6 +151,35 @@ fn arrange(spec: &Spec, agents: &[usize]) -> Vec<usize> {
         }
     }
     out.into_iter().collect()
+}
+
+/// `agents` depth first along `adjacent` (per agent of the spec, the agents
+/// its links join), from each agent not yet reached, in `agents`' order.
+fn link_order(agents: &[usize], adjacent: &[Vec<usize>]) -> Vec<usize> {
+    let mut shown = vec![false; adjacent.len()];
+    for &a in agents {
+        shown[a] = true;
+    }
+    let mut reached = vec![false; adjacent.len()];
+    let mut out = Vec::with_capacity(agents.len());
+    let mut stack = Vec::new();
+    for &start in agents {
+        stack.push(start);
+        while let Some(a) = stack.pop() {
+            if reached[a] {
+                continue;
+            }
+            reached[a] = true;
+            out.push(a);
+            stack.extend(
+                adjacent[a]
+                    .iter()
+                    .rev()
+                    .filter(|&&n| shown[n] && !reached[n]),
+            );
+        }
+    }
+    out
 }
 
 pub(crate) fn render(spec: &Spec, agents: &[usize], format: Format) -> String {
@@ -599,5 +643,34 @@ fn draw_links(
             (Some(ids[*a]), Some(ids[*b])),
             None,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::overview::tests::ring;
+    use super::*;
+
+    #[test]
+    fn many_agents_are_drawn_in_link_order() {
+        let spec = ring(12);
+        let shuffled = [0, 6, 1, 7, 2, 8, 3, 9, 4, 10, 5, 11];
+        let order = arrange(&spec, &shuffled);
+        assert_eq!(order, (0..12).collect::<Vec<_>>());
+        // Few agents: the most connected in the middle, as before.
+        let spec = ring(3);
+        assert_eq!(arrange(&spec, &[0, 1, 2]), vec![1, 0, 2]);
+    }
+
+    #[test]
+    fn a_ring_of_agents_needs_one_arch() {
+        let spec = ring(20);
+        let agents = arrange(&spec, &(0..20).collect::<Vec<_>>());
+        let comps = components(&spec, &agents);
+        let links = bundles(&spec, &comps);
+        let titles: Vec<String> = agents.iter().map(|a| format!("agent a{a}")).collect();
+        let boxes: Vec<Boxed> = comps.iter().map(|c| Boxed::new(c.lines.clone())).collect();
+        let p = lay_out(&agents, &comps, &links, &titles, &boxes);
+        assert_eq!(p.arches.len(), 1, "only the link closing the ring");
     }
 }
