@@ -205,10 +205,14 @@ pub(crate) struct Options {
 
 /// `cargo run --release --example bench_scale [-- --quick]`.
 pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let quick = std::env::args().skip(1).any(|a| a == "--quick");
     let options = Options {
-        quick: std::env::args().skip(1).any(|a| a == "--quick"),
+        quick,
         skip_external: std::env::args().skip(1).any(|a| a == "--skip-external"),
-        embodied_bin: tools::embodied_bin(),
+        // A full run builds the `embodied` binary if it is not there (for
+        // `embodied new`).
+        embodied_bin: tools::embodied_bin()
+            .or_else(|| (!quick).then(tools::build_embodied).flatten()),
     };
     run(&options, &mut std::io::stdout())?;
     Ok(())

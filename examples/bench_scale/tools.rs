@@ -14,11 +14,10 @@
 //! * `diagram_ms`: read, load and check the structure, then draw the structure
 //!   of the whole system as SVG (`embodied diagram FILE --kind structure`);
 //!   `diagram_fsm_ms` every subsystem's FSM (`--kind fsm`); medians of [`RUNS`].
-//!   The structure's layout grows faster than the square of the agents (its
-//!   arches over the frames: every link between agents that are not
-//!   neighbours in the drawing): above [`STRUCTURE_IN_PROCESS`] agents it is
-//!   drawn once, by the `embodied` binary, stopped after [`STRUCTURE_BUDGET_S`]
-//!   (`diagram_ms=>30000`), or not at all without the binary (`na`);
+//!   Above 60 subsystems the structure is the overview (an agent a box, one
+//!   edge per pair of linked agents), as `embodied diagram` draws it; the
+//!   detailed drawing grows with the square of the agents and is not bounded
+//!   in size;
 //! * `new_ms`: run `embodied new` on it (the binary, from its own process: the
 //!   generator is the command's), median of [`RUNS`] runs into fresh folders;
 //!   `na` when the binary is not built (`cargo build --release --features cli
@@ -29,8 +28,8 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Instant;
 
 use embodied::spec::diagram::{self, Format, Kind};
 
@@ -44,10 +43,6 @@ pub(crate) const AGENTS_PER_PROCESS: usize = 5;
 pub(crate) const PROCESSES_PER_HOST: usize = 10;
 /// Timed runs per command and size (the median is reported).
 pub(crate) const RUNS: usize = 5;
-/// The most agents whose structure diagram is drawn in this process.
-pub(crate) const STRUCTURE_IN_PROCESS: usize = 50;
-/// How long `embodied diagram --kind structure` may run on a larger spec \[s\].
-pub(crate) const STRUCTURE_BUDGET_S: u64 = 30;
 
 /// One subsystem: `B` behaviours `b{k}`, each ended by `p{k}`, out of which
 /// `q{k}` picks the next one or the first (the last goes back to `b0`).
@@ -294,6 +289,28 @@ pub(crate) fn embodied_bin() -> Option<PathBuf> {
     bin.is_file().then_some(bin)
 }
 
+/// Build the `embodied` binary in release with the cargo that runs this
+/// benchmark: its path, or `None` if that fails.
+pub(crate) fn build_embodied() -> Option<PathBuf> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let built = Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "--features",
+            "cli",
+            "--bin",
+            "embodied",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .status()
+        .ok()?;
+    // Beside this program's folder, as `embodied_bin` looks for it (a run
+    // from a debug build finds no release binary there: not measured).
+    built.success().then(embodied_bin).flatten()
+}
+
 /// Runs `embodied new` on the spec at `path` into `dir` (which does not exist).
 fn scaffold(bin: &Path, path: &Path, dir: &Path) -> Result<(), String> {
     let out = Command::new(bin)
@@ -310,40 +327,6 @@ fn scaffold(bin: &Path, path: &Path, dir: &Path) -> Result<(), String> {
         ));
     }
     Ok(())
-}
-
-/// `embodied diagram FILE --kind structure -o OUT` once, stopped after
-/// [`STRUCTURE_BUDGET_S`]: `Ok(ms)`, or `Err(budget in ms)` when stopped.
-fn structure_by_binary(bin: &Path, path: &Path, out: &Path) -> Result<Result<f64, u64>, String> {
-    let start = Instant::now();
-    let mut child = Command::new(bin)
-        .arg("diagram")
-        .arg(path)
-        .args(["--kind", "structure", "-o"])
-        .arg(out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .map_err(|e| format!("cannot run {}: {e}", bin.display()))?;
-    let budget = Duration::from_secs(STRUCTURE_BUDGET_S);
-    loop {
-        if let Some(status) = child.try_wait().map_err(|e| e.to_string())? {
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            let _ = std::fs::remove_file(out);
-            return if status.success() {
-                Ok(Ok(ms))
-            } else {
-                Err(format!("embodied diagram failed ({status})"))
-            };
-        }
-        if start.elapsed() > budget {
-            let _ = child.kill();
-            let _ = child.wait();
-            let _ = std::fs::remove_file(out);
-            return Ok(Err(STRUCTURE_BUDGET_S * 1000));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 /// Measures a spec of `agents` agents, written under `dir`.
@@ -366,16 +349,10 @@ pub(crate) fn measure(agents: usize, dir: &Path, bin: Option<&Path>) -> Result<F
         }
         Ok(())
     })?;
-    let (diagram_ms, structure_svg) = if agents <= STRUCTURE_IN_PROCESS {
+    let (diagram_ms, structure_svg) = {
         let (ms, svg) = median_ms(RUNS, |_| draw(&path, Kind::Structure))?;
         let (w, h) = svg_size(&svg);
         (Some(Ok(ms)), Some((svg.len() / 1024, w, h)))
-    } else {
-        let ms = match bin {
-            None => None,
-            Some(bin) => Some(structure_by_binary(bin, &path, &dir.join("structure.svg"))?),
-        };
-        (ms, None)
     };
     let (diagram_fsm_ms, _) = median_ms(RUNS, |_| draw(&path, Kind::Fsm))?;
     let new_ms = match bin {
