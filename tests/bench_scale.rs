@@ -78,42 +78,7 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
         );
     }
 
-    // The real-time executor: the pool at every size, a thread per subsystem
-    // at the small ones; every activation ran (no figure is missing), and the
-    // pool's threads are bounded (2 cores or fewer: at most 2 workers at one
-    // period).
-    let rt: Vec<&str> = lines
-        .iter()
-        .copied()
-        .filter(|l| l.starts_with("rt n="))
-        .collect();
-    assert!(rt.iter().any(|l| field(l, "mode") == "pool"), "{text}");
-    assert!(
-        rt.iter().any(|l| field(l, "mode") == "per_subsystem"),
-        "{text}"
-    );
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-    for l in &rt {
-        positive(l, "jitter_us_p99");
-        positive(l, "response_us_p99");
-        positive(l, "bytes_per_subsystem");
-        let n: usize = field(l, "n").parse().unwrap();
-        let threads: usize = field(l, "threads").parse().unwrap();
-        match field(l, "mode") {
-            "pool" => assert!(threads <= cores.min(n), "{l}"),
-            _ => assert_eq!(threads, n, "{l}"),
-        }
-        let schedulable = field(l, "schedulable");
-        assert!(schedulable == "0" || schedulable == "1", "{l}");
-    }
-    // The figures of the final line come from the pool's lines.
-    if let Some(n) = scale.rt_subsystems {
-        assert!(
-            rt.iter()
-                .any(|l| field(l, "mode") == "pool" && field(l, "n") == format!("{n}")),
-            "{text}"
-        );
-    }
+    real_time_lines(&lines, &text, scale.rt_subsystems);
 
     // Exactly one final line, with the six figures in order, `na` where not measured.
     let last = lines.last().unwrap();
@@ -148,4 +113,42 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
         Some(ratio),
         scale.action_ratio_10000.map(|r| (r * 1e3).round() / 1e3)
     );
+}
+
+/// The real-time executor's lines: the pool at every size, a thread per
+/// subsystem at the small ones; every figure present, and the pool's threads
+/// bounded by the cores (at most one worker a core at one period). The final
+/// line's `rt_subsystems` is one of the pool's sizes.
+fn real_time_lines(lines: &[&str], text: &str, rt_subsystems: Option<f64>) {
+    let rt: Vec<&str> = lines
+        .iter()
+        .copied()
+        .filter(|l| l.starts_with("rt n="))
+        .collect();
+    assert!(rt.iter().any(|l| field(l, "mode") == "pool"), "{text}");
+    assert!(
+        rt.iter().any(|l| field(l, "mode") == "per_subsystem"),
+        "{text}"
+    );
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    for l in &rt {
+        positive(l, "jitter_us_p99");
+        positive(l, "response_us_p99");
+        positive(l, "bytes_per_subsystem");
+        let n: usize = field(l, "n").parse().unwrap();
+        let threads: usize = field(l, "threads").parse().unwrap();
+        match field(l, "mode") {
+            "pool" => assert!(threads <= cores.min(n), "{l}"),
+            _ => assert_eq!(threads, n, "{l}"),
+        }
+        let schedulable = field(l, "schedulable");
+        assert!(schedulable == "0" || schedulable == "1", "{l}");
+    }
+    if let Some(n) = rt_subsystems {
+        assert!(
+            rt.iter()
+                .any(|l| field(l, "mode") == "pool" && field(l, "n") == format!("{n}")),
+            "{text}"
+        );
+    }
 }
