@@ -28,6 +28,7 @@
 //! `2 × clearance_m`). The run measures it: [`FleetOutcome::min_separation_m`]
 //! is the smallest distance between two robots' true positions, every 10 ms.
 
+pub mod app;
 pub mod spec;
 
 use std::time::Duration;
@@ -57,7 +58,7 @@ use spec::{PARTS, robot_name};
 /// a robot. Row `k` spans `y ∈ [k·pitch, k·pitch + shelf_depth]`, `x ∈ [0,
 /// length]`; aisle `i` lies between rows `i` and `i + 1`; the walls stand
 /// `cross` beyond the rows' ends (cross aisles no robot is sent into).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Warehouse {
     /// Aisles (robots).
     pub aisles: usize,
@@ -458,26 +459,64 @@ impl FleetOutcome {
     }
 }
 
-/// What the fleet's probes report: a robot's report (Rex's), or every robot's
-/// true pose at an instant.
-enum FleetSeen {
+/// What the fleet's probes report (in one process, or from every process
+/// of a deployment to its launcher): a robot's report (Rex's), or every
+/// robot's true pose at an instant.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub enum FleetSeen {
+    /// Robot `.0`'s report, as Rex's probes make it.
     Robot(usize, Box<Seen>),
-    Truths { at: Time, poses: Vec<[f64; 3]> },
+    /// Every robot's true pose `(X, Y, φ)` at `at`, in robot order.
+    Truths {
+        /// The instant of the poses.
+        at: Time,
+        /// The poses.
+        poses: Vec<[f64; 3]>,
+    },
 }
+
+/// What a robot's watch tells of its progress (acknowledgements, ticks).
+pub(crate) type Printer = Box<dyn FnMut(Progress<'_>) + Send>;
 
 fn quiet(_: Progress<'_>) {}
 
 /// Reads the fleet's run: one Rex watch a robot, and the separation.
-struct FleetWatch {
-    robots: Vec<MissionWatch<fn(Progress<'_>)>>,
+pub(crate) struct FleetWatch {
+    pub(crate) robots: Vec<MissionWatch<Printer>>,
     dirty: Vec<bool>,
     done: Vec<bool>,
-    min_separation: f64,
-    closest: Option<(f64, usize, usize)>,
+    pub(crate) min_separation: f64,
+    pub(crate) closest: Option<(f64, usize, usize)>,
     order: Vec<usize>,
 }
 
 impl FleetWatch {
+    /// A watch of the robots configured by `configs`, each telling its
+    /// progress to the printer `printer(i)` makes (a tick every `tick`).
+    pub(crate) fn new(
+        configs: &[RexConfig],
+        tick: Duration,
+        mut printer: impl FnMut(usize) -> Printer,
+    ) -> FleetWatch {
+        FleetWatch {
+            robots: configs
+                .iter()
+                .enumerate()
+                .map(|(i, c)| MissionWatch::new(c, tick, printer(i)))
+                .collect(),
+            dirty: vec![false; configs.len()],
+            done: vec![false; configs.len()],
+            min_separation: f64::INFINITY,
+            closest: None,
+            order: Vec::with_capacity(configs.len()),
+        }
+    }
+
+    /// Robots whose mission has ended.
+    pub(crate) fn robots_done(&self) -> usize {
+        self.done.iter().filter(|&&d| d).count()
+    }
+
     /// The smallest distance between two of `poses`, sweeping them in y order
     /// (the aisles are stacked in y).
     fn separation(&mut self, t: f64, poses: &[[f64; 3]]) {
@@ -504,11 +543,18 @@ impl FleetWatch {
 impl Watcher<FleetSeen> for FleetWatch {
     fn see(&mut self, seen: FleetSeen) {
         match seen {
+            // A report of a robot the fleet does not have (another build's
+            // process) is not this run's: left out.
             FleetSeen::Robot(i, seen) => {
-                self.robots[i].see(*seen);
-                self.dirty[i] = true;
+                if let Some(watch) = self.robots.get_mut(i) {
+                    watch.see(*seen);
+                    self.dirty[i] = true;
+                }
             }
             FleetSeen::Truths { at, poses } => {
+                if poses.len() != self.robots.len() {
+                    return;
+                }
                 self.separation(at.as_secs_f64(), &poses);
                 for (i, pose) in poses.into_iter().enumerate() {
                     self.robots[i].see(Seen::Truth { at, pose });
@@ -529,23 +575,23 @@ impl Watcher<FleetSeen> for FleetWatch {
     }
 }
 
-/// Every how many nanoseconds the truth is read (for the separation and to
-/// pair with e11's samples, whose period is a multiple of it).
-const TRUTH_EVERY_NS: u64 = 10_000_000;
-
-/// Run `fleet` in the deterministic executor until every robot's mission has
-/// ended (or `limit` of simulated time): each robot judged against the truth,
-/// the smallest separation measured.
-pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetError> {
-    let spec = fleet.spec();
-    let configs = fleet.configs()?;
-    let (system, handles) = build(&spec, fleet.deployment(), &configs)?;
-    let (mut probes, seen) = Probes::new(crate::run::PROBES);
+/// Probes on the fleet's robots (`handles`, in robot order) for the
+/// components `here` says run in this process (the spec's names, `c1_3`):
+/// each robot's as Rex's, tagged with the robot, but for the truth, read
+/// whole every [`TRUTH_EVERY_NS`] where the platforms run.
+pub(crate) fn install_probes(
+    probes: &mut Probes<FleetSeen>,
+    handles: &[RexHandles],
+    here: &dyn Fn(&str) -> bool,
+) {
     for (i, h) in handles.iter().enumerate() {
-        // Everything of Rex's probes but the truth, which the fleet reads whole.
-        install_probes_as(&mut probes, h, &|name| name != "E1", move |seen| {
+        let here = |name: &str| name != "E1" && here(&robot_name(name, i));
+        install_probes_as(probes, h, &here, move |seen| {
             FleetSeen::Robot(i, Box::new(seen))
         });
+    }
+    if !(0..handles.len()).any(|i| here(&robot_name("E1", i))) {
+        return;
     }
     probes.environment(|_, w: &FleetTruth| {
         let first = w.robots.first()?;
@@ -561,18 +607,23 @@ pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetEr
                     .collect(),
             })
     });
+}
+
+/// Every how many nanoseconds the truth is read (for the separation and to
+/// pair with e11's samples, whose period is a multiple of it).
+const TRUTH_EVERY_NS: u64 = 10_000_000;
+
+/// Run `fleet` in the deterministic executor until every robot's mission has
+/// ended (or `limit` of simulated time): each robot judged against the truth,
+/// the smallest separation measured.
+pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetError> {
+    let spec = fleet.spec();
+    let configs = fleet.configs()?;
+    let (system, handles) = build(&spec, fleet.deployment(), &configs)?;
+    let (mut probes, seen) = Probes::new(crate::run::PROBES);
+    install_probes(&mut probes, &handles, &|_| true);
     let tick = Duration::from_secs(3600);
-    let mut watch = FleetWatch {
-        robots: configs
-            .iter()
-            .map(|c| MissionWatch::new(c, tick, quiet as fn(Progress<'_>)))
-            .collect(),
-        dirty: vec![false; configs.len()],
-        done: vec![false; configs.len()],
-        min_separation: f64::INFINITY,
-        closest: None,
-        order: Vec::with_capacity(configs.len()),
-    };
+    let mut watch = FleetWatch::new(&configs, tick, |_| Box::new(quiet));
     let exec = fleet.base.exec;
     let (ran, _) = Watched {
         probes,
