@@ -280,6 +280,10 @@ pub(crate) struct SubsystemCore<S: Subsystem> {
     pub(crate) fsm: Fsm<S>,
     pub(crate) state: FsmState,
     pub(crate) iteration: u64,
+    /// The predicates the observer wants after each activation
+    /// ([`Observer::predicates_wanted`](crate::Observer::predicates_wanted)),
+    /// once asked.
+    wanted: Option<u64>,
 }
 
 impl<S: Subsystem> SubsystemCore<S> {
@@ -292,6 +296,7 @@ impl<S: Subsystem> SubsystemCore<S> {
             state: fsm.start(),
             fsm,
             iteration: 0,
+            wanted: None,
         }
     }
 
@@ -321,12 +326,21 @@ impl<S: Subsystem> SubsystemCore<S> {
                             writes,
                         });
                     }
-                    o.action(&ActionEvent {
+                    let event = ActionEvent {
                         time: now,
                         node: index,
                         iteration,
                         behaviour: Some(behaviour),
-                    });
+                    };
+                    o.action(&event);
+                    // Asked once; most runs want none, and pay one branch.
+                    let wanted = *self
+                        .wanted
+                        .get_or_insert_with(|| o.predicates_wanted(index));
+                    if wanted != 0 {
+                        let values = self.fsm.valuation(wanted, &self.memory, &self.input);
+                        o.predicates(&event, values);
+                    }
                 }
                 self.iteration += 1;
                 Ok(Some(Stamp::new(iteration, now)))

@@ -220,6 +220,20 @@ pub trait Observer: Send {
     fn received(&mut self, _event: &ReadEvent, _value: &dyn ErasedPayload) {}
     /// An error occurred (whether the run stops or continues).
     fn error(&mut self, _time: Time, _error: &ExecError) {}
+    /// The predicates of subsystem `node` whose values this observer wants
+    /// after each of its activations ([`Observer::predicates`]): bit `i` for
+    /// predicate `i` of its FSM ([`FsmShape::predicates`] order, the first
+    /// 64). Asked once per node, at its first activation; none by default,
+    /// and then the executor evaluates nothing more.
+    fn predicates_wanted(&self, _node: usize) -> u64 {
+        0
+    }
+    /// The values of the predicates wanted ([`Observer::predicates_wanted`],
+    /// by any observer of the run) after an activation of a subsystem, right
+    /// after its [`Observer::action`]: evaluated on the memory and inputs its
+    /// action left (`values.known`: which were evaluated). What a contract
+    /// monitor judges invariants by.
+    fn predicates(&mut self, _event: &ActionEvent, _values: Valuation) {}
     /// An error the observer found in what it saw (a contract monitor's
     /// violation), taken by the executor right after each step of a node and
     /// handled by its error policy as that node's own error would be (then
@@ -258,6 +272,12 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn error(&mut self, time: Time, error: &ExecError) {
         (**self).error(time, error);
+    }
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        (**self).predicates_wanted(node)
+    }
+    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
+        (**self).predicates(event, values);
     }
     fn raised(&mut self) -> Option<ExecError> {
         (**self).raised()
@@ -334,6 +354,27 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
             self.1.error(time, error);
         }
     }
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        let a = if self.0.enabled() {
+            self.0.predicates_wanted(node)
+        } else {
+            0
+        };
+        let b = if self.1.enabled() {
+            self.1.predicates_wanted(node)
+        } else {
+            0
+        };
+        a | b
+    }
+    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
+        if self.0.enabled() {
+            self.0.predicates(event, values);
+        }
+        if self.1.enabled() {
+            self.1.predicates(event, values);
+        }
+    }
     fn raised(&mut self) -> Option<ExecError> {
         let first = if self.0.enabled() {
             self.0.raised()
@@ -393,6 +434,14 @@ impl<O: Observer> Observer for Option<O> {
     fn error(&mut self, time: Time, error: &ExecError) {
         if let Some(o) = self {
             o.error(time, error);
+        }
+    }
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        self.as_ref().map_or(0, |o| o.predicates_wanted(node))
+    }
+    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
+        if let Some(o) = self {
+            o.predicates(event, values);
         }
     }
     fn raised(&mut self) -> Option<ExecError> {

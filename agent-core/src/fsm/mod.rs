@@ -432,6 +432,24 @@ impl<S: Subsystem> Fsm<S> {
             && self.eval(&node.terminal, memory, input, memo)
     }
 
+    /// The values of the predicates of `wanted` (bit `i`: predicate `i`, the
+    /// first 64) on `memory` and `input`: what an observer that judges
+    /// invariants is given after an activation
+    /// ([`Observer::predicates`](crate::Observer::predicates)).
+    pub fn valuation(&self, wanted: u64, memory: &S::Memory, input: &S::Input) -> Valuation {
+        let mut v = Valuation::default();
+        for (i, p) in self.predicates.iter().enumerate().take(64) {
+            let bit = 1u64 << i;
+            if wanted & bit != 0 {
+                v.known |= bit;
+                if p.holds(memory, input) {
+                    v.value |= bit;
+                }
+            }
+        }
+        v
+    }
+
     /// One decision: test the current behaviour's terminal condition (before every
     /// iteration for while-type, after each iteration for repeat-type; see
     /// [`Fsm::ends`]) and, if it holds, select the one arc whose initial condition
