@@ -12,6 +12,15 @@
 //! * [`run_fleet`]: the fleet in the deterministic executor; each robot judged
 //!   as Rex is ([`crate::run::judge`]) against the truth, and the smallest
 //!   distance between any two robots measured from the truth.
+//! * [`app`]: the fleet on the application layer ([`app::FleetApp`]), as Rex
+//!   is: the same judgement from the same probes in either executor, and
+//!   the deployment `grouped_without_vo` launched over Zenoh (`fleet launch
+//!   --deployment grouped_without_vo --robots M --per-process P`), a process
+//!   of robots killed and restarted (`--kill robots_K@SECONDS`: its robots'
+//!   platforms held by their watchdogs meanwhile, their `c2` sending the lost
+//!   plans again to the new `c1`), recorded and replayed. The shared world
+//!   is never restarted (`restarts: 0`: a new one would put every platform
+//!   back at its start).
 //!
 //! # The collision rule: one aisle per robot
 //!
