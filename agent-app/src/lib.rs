@@ -56,9 +56,11 @@ mod deploy;
 mod error;
 mod local;
 mod output;
+mod pair;
 pub mod plot;
 mod record;
 mod replay;
+pub mod report;
 mod ros2;
 mod signals;
 mod simple;
@@ -84,9 +86,10 @@ pub use credentials::ROS2_LISTEN;
 pub use error::{AppError, BoxError, Status};
 pub use local::{Ran, Watched};
 pub use output::{emit, writable_folder};
+pub use pair::Pairs;
 pub use signals::Signals;
 pub use simple::App;
-pub use watch::{End, Ended, Mode, Quiet, RunSummary, Verdict, Watcher};
+pub use watch::{End, Ended, Mode, Quiet, RunSummary, Tally, Verdict, Watcher};
 
 /// A spec as the layer uses it: the model, where it came from, its text (kept
 /// in recordings).
@@ -154,6 +157,39 @@ impl Target<'_> {
             Target::Process { deployment, .. } => Some(deployment),
         }
     }
+}
+
+/// Check that the components `names` run in one process of `deployment` in
+/// `spec` (drivers that share the system's environment, say: a simulated
+/// world), for [`Application::check_deployment`]. If not, invalid input that
+/// says `why` (the rule, as the start of a sentence) and where each runs.
+/// A deployment the spec lacks, and components it does not place, pass (the
+/// layer names those).
+pub fn check_together(
+    spec: &agent_spec::Spec,
+    deployment: &str,
+    names: &[&str],
+    why: &str,
+) -> Result<(), AppError> {
+    let Some(dep) = spec.deployment(deployment) else {
+        return Ok(());
+    };
+    let mut places: Vec<(String, &str)> = names
+        .iter()
+        .filter_map(|n| Some((dep.process_of(n)?.name.clone(), *n)))
+        .collect();
+    places.sort();
+    if places.windows(2).all(|w| w[0].0 == w[1].0) {
+        return Ok(());
+    }
+    let places: Vec<String> = places
+        .iter()
+        .map(|(p, n)| format!("{n} runs in `{p}`"))
+        .collect();
+    Err(AppError::invalid(format!(
+        "deployment `{deployment}`: {why}, but {}",
+        places.join(", ")
+    )))
 }
 
 /// What a program built on the layer is: its flags, the configurations of its
@@ -510,4 +546,29 @@ pub(crate) fn recorded_metadata<A: Application>(
             ]),
         ),
     ]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn components_apart_in_a_deployment_are_named_with_their_processes() {
+        let tank = SpecFile::parse("tank.ron", include_str!("../../specs/tank.ron"));
+        let Ok(tank) = tank else {
+            panic!("the tank's spec is valid");
+        };
+        let why = "they share the tank and must run in one process";
+        for deployment in ["split", "simulation", "no such deployment"] {
+            assert!(check_together(&tank.spec, deployment, &["E1", "R1"], why).is_ok());
+        }
+        let apart = check_together(&tank.spec, "split", &["E1", "c2", "R1"], why);
+        assert_eq!(
+            apart.map_err(|e| e.to_string()),
+            Err(
+                "deployment `split`: they share the tank and must run in one process, but c2 runs in `operator`, E1 runs in `station`, R1 runs in `station`"
+                    .to_owned()
+            )
+        );
+    }
 }

@@ -3,6 +3,7 @@
 //! application's probes, ended by its rule, its limit or a signal, and
 //! summarised the same way whichever ended it.
 
+use std::path::Path;
 use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
@@ -10,7 +11,7 @@ use agent_core::{
     ExecConfig, Executor, Finished, NoObserver, NodeId, Observer, OnError, Probes, RealTime,
     RtConfig, System, Time,
 };
-use agent_mcap::McapRecorder;
+use agent_mcap::{McapRecorder, RecordOptions, RecordSummary};
 
 use agent_monitor::live::Live;
 
@@ -148,7 +149,45 @@ fn signalled() -> Option<&'static str> {
     Signals::installed().and_then(Signals::received)
 }
 
-impl<M: Send + 'static> Watched<'_, M> {
+impl<'w, M: Send + 'static> Watched<'w, M> {
+    /// A run watched by `watcher` to `limit` (or to the watcher's end), with
+    /// probes to install ([`Watched::probes`]): for a program (a library's
+    /// function, a test) that runs a system itself, without the command
+    /// line. No status line, no transition printed, no end rule but the
+    /// watcher's and no contract watched; the fields say otherwise.
+    pub fn new(watcher: &'w mut dyn Watcher<M>, limit: Duration) -> Self {
+        let (probes, seen) = Probes::new(PROBE_CAPACITY);
+        Watched {
+            probes,
+            seen,
+            watcher,
+            end: End::Limit,
+            limit,
+            quiet: true,
+            transitions: false,
+            contracts: None,
+        }
+    }
+
+    /// [`Watched::realtime`], recorded to `record`'s file with its options
+    /// when given (every thread's part of the run: what each node sent and
+    /// read, its behaviour switches, the errors), without a word on standard
+    /// output: the recording's summary is returned.
+    pub fn realtime_recorded(
+        self,
+        system: System,
+        config: RtConfig,
+        record: Option<(&Path, RecordOptions)>,
+    ) -> Result<(Ran, Option<RecordSummary>), AppError> {
+        let recorder = match record {
+            Some((path, options)) => Some(McapRecorder::create(path, &system, options)?),
+            None => None,
+        };
+        let ran = self.realtime(system, config, recorder.as_ref())?;
+        let summary = recorder.map(McapRecorder::finish).transpose()?;
+        Ok((ran, summary))
+    }
+
     /// Take the probes' reports in; whether the watcher says the run has
     /// ended.
     fn take(&mut self, finished: bool) -> bool {

@@ -334,6 +334,79 @@ pub struct Row {
     pub spans: Vec<(f64, f64, String, &'static str)>,
 }
 
+impl Row {
+    /// The row of a value sampled over time (`(t, value)` in time order): a
+    /// span for each run of equal values, from its first sample to the next
+    /// run's first (the last run's to `end`), labelled and coloured by
+    /// `style` (a subsystem's behaviour, the task it executes).
+    pub fn of_changes<V: PartialEq>(
+        name: impl Into<String>,
+        samples: impl IntoIterator<Item = (f64, V)>,
+        end: f64,
+        style: impl Fn(&V) -> (String, &'static str),
+    ) -> Row {
+        let spans = runs(samples).into_iter().map(|(t0, t1, v)| {
+            let (label, colour) = style(&v);
+            (t0, t1.unwrap_or(end), label, colour)
+        });
+        Row {
+            name: name.into(),
+            spans: spans.collect(),
+        }
+    }
+
+    /// The row of instants (`(t, label)`: messages received, say), each a
+    /// narrow span in `colour` on a timeline that ends at `end`.
+    pub fn of_instants(
+        name: impl Into<String>,
+        instants: impl IntoIterator<Item = (f64, String)>,
+        end: f64,
+        colour: &'static str,
+    ) -> Row {
+        Row {
+            name: name.into(),
+            spans: instants
+                .into_iter()
+                .map(|(t, label)| (t, t + end * 0.004, label, colour))
+                .collect(),
+        }
+    }
+}
+
+/// The runs of equal values of a value sampled over time (`(t, value)` in
+/// time order): each run's first instant, the next run's (`None` for the
+/// last run) and its value. What a timeline row draws
+/// ([`Row::of_changes`]); the intervals a condition held, kept `true`.
+pub fn runs<V: PartialEq>(
+    samples: impl IntoIterator<Item = (f64, V)>,
+) -> Vec<(f64, Option<f64>, V)> {
+    let mut runs: Vec<(f64, Option<f64>, V)> = Vec::new();
+    for (t, v) in samples {
+        match runs.last_mut() {
+            Some(last) if last.2 == v => {}
+            Some(last) => {
+                last.1 = Some(t);
+                runs.push((t, None, v));
+            }
+            None => runs.push((t, None, v)),
+        }
+    }
+    runs
+}
+
+/// One series a name, coloured from the [`PALETTE`] in turn, the `i`-th of
+/// the points `points(i)` (the components of a vector over time, say).
+pub fn series_each(
+    names: &[&str],
+    points: impl Fn(usize) -> Vec<Option<(f64, f64)>>,
+) -> Vec<Series> {
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| Series::new(*n, PALETTE[i % PALETTE.len()], points(i)))
+        .collect()
+}
+
 /// A timeline of rows (FSM behaviours over time, fragments being executed).
 pub fn timeline(title: &str, rows: &[Row], t_end: f64) -> String {
     let w = WIDTH - LEFT - 20.0;
@@ -418,5 +491,47 @@ mod tests {
         assert_eq!(path.matches('M').count(), 2, "{path}");
         assert!(svg.contains("t &lt;1&gt;"));
         assert_eq!(svg, plot.to_svg());
+    }
+
+    #[test]
+    fn a_row_of_changes_has_a_span_for_each_run_of_equal_values() {
+        let samples = [(0.0, 'a'), (1.0, 'a'), (2.0, 'b'), (3.0, 'a'), (4.0, 'a')];
+        let row = Row::of_changes("c1", samples, 5.0, |v| (v.to_string(), "#000000"));
+        let spans: Vec<_> = row.spans.iter().map(|s| (s.0, s.1, s.2.as_str())).collect();
+        assert_eq!(spans, [(0.0, 2.0, "a"), (2.0, 3.0, "b"), (3.0, 5.0, "a")]);
+        assert!(
+            Row::of_changes("c1", Vec::<(f64, u8)>::new(), 1.0, |_| (String::new(), ""))
+                .spans
+                .is_empty()
+        );
+        let acks = Row::of_instants("a2", [(1.0, "ack 1".to_owned())], 10.0, "#d62728");
+        assert_eq!(
+            acks.spans,
+            [(1.0, 1.0 + 10.0 * 0.004, "ack 1".to_owned(), "#d62728")]
+        );
+    }
+
+    #[test]
+    fn runs_end_where_the_next_begins() {
+        let lost = [
+            (0.0, false),
+            (1.0, true),
+            (2.0, true),
+            (3.0, false),
+            (4.0, true),
+        ];
+        let held: Vec<_> = runs(lost)
+            .into_iter()
+            .filter(|r| r.2)
+            .map(|(from, to, _)| (from, to))
+            .collect();
+        assert_eq!(held, [(1.0, Some(3.0)), (4.0, None)]);
+    }
+
+    #[test]
+    fn series_each_takes_the_palette_in_turn() {
+        let s = series_each(&["x", "y"], |i| vec![Some((0.0, i as f64))]);
+        assert_eq!((s[0].color, s[1].color), (PALETTE[0], PALETTE[1]));
+        assert_eq!(s[1].points, [Some((0.0, 1.0))]);
     }
 }

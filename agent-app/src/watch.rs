@@ -220,6 +220,56 @@ pub trait Watcher<M> {
     }
 }
 
+/// Counts of a run's parts added up. Each process of a deployment reports
+/// its components' counters when it ends ([`Application::finished`](crate::Application::finished)),
+/// and the watcher adds them: numbers saturating (they arrive over the
+/// network), tuples element by element, lists joined.
+///
+/// ```
+/// use agent_app::Tally;
+///
+/// let mut counts = (3u32, vec!["stop at 1 s"], 7u64);
+/// counts.tally((1, vec!["stop at 2 s"], u64::MAX));
+/// assert_eq!(counts, (4, vec!["stop at 1 s", "stop at 2 s"], u64::MAX));
+/// ```
+pub trait Tally {
+    /// Add `other`'s counts to these.
+    fn tally(&mut self, other: Self);
+}
+
+macro_rules! tally_numbers {
+    ($($t:ty),*) => {$(
+        impl Tally for $t {
+            fn tally(&mut self, other: $t) {
+                *self = self.saturating_add(other);
+            }
+        }
+    )*};
+}
+
+tally_numbers!(u8, u16, u32, u64, u128, usize);
+
+impl<T> Tally for Vec<T> {
+    fn tally(&mut self, other: Vec<T>) {
+        self.extend(other);
+    }
+}
+
+impl<A: Tally, B: Tally> Tally for (A, B) {
+    fn tally(&mut self, (a, b): (A, B)) {
+        self.0.tally(a);
+        self.1.tally(b);
+    }
+}
+
+impl<A: Tally, B: Tally, C: Tally> Tally for (A, B, C) {
+    fn tally(&mut self, (a, b, c): (A, B, C)) {
+        self.0.tally(a);
+        self.1.tally(b);
+        self.2.tally(c);
+    }
+}
+
 /// A watcher that reads nothing and judges as the layer does.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Quiet;

@@ -162,6 +162,16 @@ impl Application for Tank {
         Duration::from_secs(3600)
     }
 
+    fn check_deployment(&self, config: &TankConfig, deployment: &str) -> Result<(), AppError> {
+        // The pump and the gauge share the tank, the system's environment.
+        embodied::app::check_together(
+            &self.spec(config)?.spec,
+            deployment,
+            &["E1", "R1"],
+            "the pump and the gauge share the tank and must run in one process",
+        )
+    }
+
     fn announce(&self, config: &TankConfig) -> Option<String> {
         Some(format!(
             "tank filling station: {} orders, tank at 0.20 m, seed {}",
