@@ -3,10 +3,14 @@
 //! with the partner agents in `world`, the robots' c1 and e11 two by two in
 //! `robots_0` and `robots_1`), `robots_1` killed (SIGKILL, as a crash) in the
 //! middle of the missions and restarted, the run recorded. Every plan of
-//! every robot is judged against the simulation's truth, the restarted
-//! robots' c2 send their lost plans again and no fragment runs twice, the
-//! parts of the recording (both starts of `robots_1` among them) are merged,
-//! and the killed process's c1 replays equivalent from the merged file.
+//! every robot is judged against the simulation's truth (never a false
+//! success), the parts of the recording (both starts of `robots_1` among
+//! them) are merged; on a run that kept real time (up to three attempts:
+//! one whose world process overran or dropped samples may fail its plans
+//! honestly) every plan is achieved, the restarted robots' c2 send their lost
+//! plans again and no fragment runs twice, and the killed process's c1
+//! replays equivalent from the merged file. Invalid input is refused with
+//! exit 2 first.
 //!
 //! `harness = false`: this binary is the `fleet` example (the same file,
 //! `examples/fleet.rs`) when `REX_FLEET_PROGRAM` is set, so that the launch
@@ -40,8 +44,7 @@ fn main() -> ExitCode {
     let started = Instant::now();
     invalid_input_is_refused_with_exit_2(&scratch);
     println!("ok: invalid input refused with exit 2");
-    let record = scratch.join("fleet.mcap");
-    a_launched_fleet_with_a_killed_process_achieves_every_plan(&scratch, &record);
+    let record = a_launched_fleet_with_a_killed_process_achieves_every_plan(&scratch);
     println!("ok: the fleet launched, robots_1 killed and restarted, every plan judged");
     the_killed_process_replays_equivalent(&scratch, &record);
     println!(
@@ -124,9 +127,78 @@ fn invalid_input_is_refused_with_exit_2(dir: &Path) {
     }
 }
 
-fn a_launched_fleet_with_a_killed_process_achieves_every_plan(dir: &Path, record: &Path) {
-    let record = record.to_str().unwrap();
-    let (out, stdout, stderr) = fleet(
+/// Overruns of the world process, at most, for a failed plan to be blamed on
+/// the machine rather than the fleet: the world steps every platform at
+/// 1 kHz on one thread, and on a machine that does not give it its CPU (a
+/// busy or descheduled virtual machine) the robots' tracking degrades until
+/// e11 stops them, and the judge says FAILED. Runs here overran 19 times
+/// with four robots when they kept real time.
+const REAL_TIME_OVERRUNS: f64 = 100.0;
+
+/// The launch, up to three times: every attempt judges every plan against the
+/// truth (never a false success), restarts the killed process and merges the
+/// recording; the first that kept real time must achieve every plan. The
+/// recording of that attempt.
+fn a_launched_fleet_with_a_killed_process_achieves_every_plan(dir: &Path) -> PathBuf {
+    let mut lost = Vec::new();
+    for attempt in 1..=3 {
+        let record = dir.join(format!("fleet-{attempt}.mcap"));
+        let (out, stdout, stderr) = launch(dir, &record);
+        let said = format!("{stdout}\n{stderr}");
+        let last = stdout.lines().last().unwrap_or_default();
+        assert!(last.starts_with("fleet robots=4 plans=8 "), "{said}");
+        assert!(last.ends_with("processes=3 restarts=1"), "{said}");
+        // Every plan of every robot judged against the truth; none claimed
+        // achieved that was not.
+        for robot in 0..4 {
+            for plan in 1..=2 {
+                let judged = line(&stdout, &format!("robot {robot}: plan {plan}: "));
+                assert!(!judged.contains("FALSE SUCCESS"), "{judged}\n{said}");
+            }
+        }
+        assert!(
+            stderr.contains("[robots_1] exited (killed by a signal); restarting it"),
+            "{said}"
+        );
+        // Every process's part, both starts of robots_1 among them, merged.
+        let merged = line(&stdout, "record: ");
+        assert!(
+            merged.contains("merged from 3 processes and 1 restarts"),
+            "{merged}"
+        );
+        let world = line(&stderr, "[world] process=world ");
+        if out.status.code() != Some(0)
+            && (figure(world, "overruns") > REAL_TIME_OVERRUNS
+                || figure(world, "sample_dropped") > 0.0)
+        {
+            eprintln!("attempt {attempt}: the machine did not keep real time ({world}); again");
+            lost.push(world.to_owned());
+            continue;
+        }
+        assert_eq!(out.status.code(), Some(0), "{said}");
+        for robot in 0..4 {
+            for plan in 1..=2 {
+                let judged = line(&stdout, &format!("robot {robot}: plan {plan}: "));
+                assert!(judged.contains(": achieved"), "{judged}\n{said}");
+            }
+        }
+        assert_eq!(figure(last, "achieved"), 8.0, "{last}");
+        // Both robots of the killed process were restarted; their c2 heard it
+        // and sent again what was lost; no fragment ran twice.
+        assert_eq!(figure(last, "c1_restarts"), 2.0, "{last}");
+        assert_eq!(figure(last, "fragments_repeated"), 0.0, "{last}");
+        assert!(figure(last, "min_separation_m") >= 0.9, "{last}");
+        return record;
+    }
+    panic!(
+        "no attempt kept real time ({lost:?}; at most {REAL_TIME_OVERRUNS} overruns and no sample dropped expected): this machine cannot run the fleet's processes now"
+    );
+}
+
+/// One launch of four robots in `grouped_without_vo`, `robots_1` killed at
+/// 4 s, recorded to `record`.
+fn launch(dir: &Path, record: &Path) -> (Output, String, String) {
+    fleet(
         dir,
         &[
             "launch",
@@ -140,42 +212,14 @@ fn a_launched_fleet_with_a_killed_process_achieves_every_plan(dir: &Path, record
             "--kill",
             "robots_1@4",
             "--record",
-            record,
+            record.to_str().unwrap(),
             "--port",
             "17940",
             "--for",
             "60",
             "--quiet",
         ],
-    );
-    let said = format!("{stdout}\n{stderr}");
-    assert_eq!(out.status.code(), Some(0), "{said}");
-    let last = stdout.lines().last().unwrap_or_default();
-    assert!(last.starts_with("fleet robots=4 plans=8 "), "{said}");
-    assert!(last.ends_with("processes=3 restarts=1"), "{said}");
-    // Every plan of every robot judged against the truth, and achieved.
-    for robot in 0..4 {
-        for plan in 1..=2 {
-            let judged = line(&stdout, &format!("robot {robot}: plan {plan}: "));
-            assert!(judged.contains(": achieved"), "{judged}\n{said}");
-        }
-    }
-    assert_eq!(figure(last, "achieved"), 8.0, "{last}");
-    assert!(
-        stderr.contains("[robots_1] exited (killed by a signal); restarting it"),
-        "{said}"
-    );
-    // Both robots of the killed process were restarted; their c2 heard it and
-    // sent again what was lost; no fragment ran twice.
-    assert_eq!(figure(last, "c1_restarts"), 2.0, "{last}");
-    assert_eq!(figure(last, "fragments_repeated"), 0.0, "{last}");
-    assert!(figure(last, "min_separation_m") >= 0.5, "{last}");
-    // Every process's part, both starts of robots_1 among them, merged.
-    let merged = line(&stdout, "record: ");
-    assert!(
-        merged.contains("merged from 3 processes and 1 restarts"),
-        "{merged}"
-    );
+    )
 }
 
 fn the_killed_process_replays_equivalent(dir: &Path, record: &Path) {
