@@ -591,8 +591,14 @@ mod rex_shaped {
             while B1 until false { e11 <- relay, c2 <- acknowledge, memory <- tick }
             initial B1;
         }?;
+        // With the predicates of c2 that Rex's invariant reads (evaluated
+        // after each activation, for the watch).
         let c2 = fsm! {
             subsystem C2;
+            predicates {
+                more: |m: &Count, _| m.n < u64::MAX,
+                lost: |m: &Count, _| m.n == u64::MAX,
+            }
             while B1 until false { c1 <- order, memory <- tick }
             initial B1;
         }?;

@@ -1,8 +1,9 @@
 //! `embodied monitor` over recordings of the tank example: contracts that
-//! hold, a range seeded to break (found at the first value out of it), a level
-//! sensor that stops sending (the rate and freshness found at the instants the
-//! recording implies), the contracts a recording cannot show, and the exit
-//! codes.
+//! hold, a range seeded to break (found at the first value out of it, over
+//! JSON and CDR values alike), a level sensor that stops sending (the rate and
+//! freshness found at the instants the recording implies), invariants judged
+//! live and over the predicates the recorder kept (the same verdicts), the
+//! contracts a recording cannot show, damaged values, and the exit codes.
 
 #![allow(
     clippy::unwrap_used,
@@ -298,9 +299,12 @@ fn what_a_recording_cannot_show_is_named_not_passed() {
         spec.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{out}{err}");
+    // Recorded without the contracts' watch: no predicates after each
+    // activation.
     assert!(
         out.contains(
-            "not evaluable offline: contract=invariant:order_means_valid subsystem=c1: invariants need"
+            "not evaluable offline: contract=invariant:order_means_valid subsystem=c1: no \
+             `/predicates/c1` channel"
         ),
         "{out}"
     );
@@ -387,28 +391,324 @@ fn bounds_and_responses_seeded_to_break_are_found_at_their_deadlines() {
     );
 }
 
+/// 20 s of the tank, values as CDR (the recorder's default), the spec with
+/// [`kept`] in its metadata.
+fn cdr_recording() -> &'static Path {
+    static FILE: OnceLock<PathBuf> = OnceLock::new();
+    FILE.get_or_init(|| {
+        let path = tmp("monitor_cdr.mcap");
+        let options = RecordOptions {
+            metadata: BTreeMap::from([(
+                "spec".to_owned(),
+                BTreeMap::from([("text".to_owned(), spec_text(kept()))]),
+            )]),
+            ..RecordOptions::default()
+        };
+        let s = system();
+        let recorder = McapRecorder::create(&path, &s, options).unwrap();
+        let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
+        exec.run_for(Duration::from_secs(20)).unwrap();
+        exec.into_observer().finish().unwrap();
+        path
+    })
+}
+
 #[test]
-fn ranges_over_cdr_values_are_named_not_evaluable() {
-    let path = tmp("monitor_cdr.mcap");
-    let s = system();
-    let recorder = McapRecorder::create(&path, &s, RecordOptions::default()).unwrap();
-    let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
-    exec.run_for(Duration::from_secs(2)).unwrap();
-    exec.into_observer().finish().unwrap();
-    let spec = write("monitor_cdr.ron", &spec_text(kept()));
-    let (code, out, err) = embodied(&[
-        "monitor",
-        path.to_str().unwrap(),
-        "--spec",
-        spec.to_str().unwrap(),
-    ]);
+fn ranges_over_cdr_values_give_the_verdicts_of_json_values() {
+    let file = cdr_recording().to_str().unwrap();
+    let r = Recording::open(cdr_recording()).unwrap();
+    assert_eq!(r.channel(LEVEL).unwrap().message_encoding, "cdr");
+    let (code, out, err) = embodied(&["monitor", file]);
     assert_eq!(code, 0, "{out}{err}");
     assert!(
-        out.contains("not evaluable offline: contract=range:level_in_tank subsystem=r1: `r1.c1.level` is recorded as CDR"),
+        out.ends_with("contracts_checked=5 contracts_violated=0 contracts_not_evaluable=0\n"),
+        "{out}"
+    );
+    // The range seeded to break: the same lines as over the JSON values.
+    let mut c = kept();
+    c.ranges[0].max = Some(0.9);
+    let spec = write("monitor_cdr_range.ron", &spec_text(c));
+    let spec = spec.to_str().unwrap();
+    let (code, cdr, err) = embodied(&["monitor", file, "--spec", spec]);
+    assert_eq!(code, 1, "{cdr}{err}");
+    let json = recording().to_str().unwrap();
+    let (_, from_json, _) = embodied(&["monitor", json, "--spec", spec]);
+    assert_eq!(cdr, from_json);
+    assert!(
+        cdr.starts_with("t=") && cdr.contains("contract=range:level_in_tank: value "),
+        "{cdr}"
+    );
+}
+
+/// `from` copied to `to` with each channel's metadata and each message's
+/// bytes as `edit` makes them (`None`: the message left out).
+fn rewrite(
+    from: &Path,
+    to: &Path,
+    meta: impl Fn(&str, &BTreeMap<String, String>) -> BTreeMap<String, String>,
+    mut edit: impl FnMut(&str, usize, &[u8]) -> Option<Vec<u8>>,
+) {
+    let r = Recording::open(from).unwrap();
+    let mut w =
+        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
+    let schemas: BTreeMap<u16, u16> = r
+        .schemas
+        .iter()
+        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
+        .collect();
+    let mut channels = BTreeMap::new();
+    for (&id, c) in &r.channels {
+        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
+        let metadata = meta(&c.topic, &c.metadata);
+        let new = w
+            .add_channel(schema, &c.topic, &c.message_encoding, &metadata)
+            .unwrap();
+        channels.insert(id, (new, c.topic.clone(), 0usize));
+    }
+    for (name, metadata) in &r.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })
+        .unwrap();
+    }
+    for m in &r.messages {
+        let (channel, topic, count) = channels.get_mut(&m.channel).unwrap();
+        *count += 1;
+        let Some(data) = edit(topic, *count - 1, &m.data) else {
+            continue;
+        };
+        let header = mcap::records::MessageHeader {
+            channel_id: *channel,
+            sequence: m.sequence,
+            log_time: m.log_time,
+            publish_time: m.publish_time,
+        };
+        w.write_to_known_channel(&header, &data).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn cdr_values_without_their_shape_or_damaged_are_said_not_passed() {
+    use embodied::record::record::SHAPE_KEY;
+    // An older recorder's file: CDR values without the payload's shape.
+    let old = tmp("monitor_cdr_shapeless.mcap");
+    rewrite(
+        cdr_recording(),
+        &old,
+        |_, m| {
+            let mut m = m.clone();
+            m.remove(SHAPE_KEY);
+            m
+        },
+        |_, _, d| Some(d.to_vec()),
+    );
+    let (code, out, err) = embodied(&["monitor", old.to_str().unwrap()]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.contains(
+            "not evaluable offline: contract=range:level_in_tank subsystem=r1: `r1.c1.level` is \
+             recorded as CDR without its payload's shape"
+        ),
         "{out}"
     );
     assert!(
         out.ends_with("contracts_checked=4 contracts_violated=0 contracts_not_evaluable=1\n"),
         "{out}"
     );
+    // A shape that is not one.
+    let garbled = tmp("monitor_cdr_garbled_shape.mcap");
+    rewrite(
+        cdr_recording(),
+        &garbled,
+        |_, m| {
+            let mut m = m.clone();
+            if let Some(s) = m.get_mut(SHAPE_KEY) {
+                *s = "[\"F64\", {".to_owned();
+            }
+            m
+        },
+        |_, _, d| Some(d.to_vec()),
+    );
+    let (code, out, err) = embodied(&["monitor", garbled.to_str().unwrap()]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.contains("`r1.c1.level` is recorded as CDR, and its payload's shape does not read"),
+        "{out}"
+    );
+    // Damaged values: cut short, a foreign encapsulation, bytes after the
+    // value; each an error that names the channel and the offset.
+    for (name, damage) in [
+        (
+            "short",
+            (|d: &[u8]| d[..d.len() - 3].to_vec()) as fn(&[u8]) -> Vec<u8>,
+        ),
+        ("big_endian", |d: &[u8]| {
+            [&[0u8, 0, 0, 0][..], &d[4..]].concat()
+        }),
+        ("trailing", |d: &[u8]| [d, &[1, 2, 3, 4, 5][..]].concat()),
+        ("empty", |_: &[u8]| Vec::new()),
+    ] {
+        let bad = tmp(&format!("monitor_cdr_{name}.mcap"));
+        rewrite(
+            cdr_recording(),
+            &bad,
+            |_, m| m.clone(),
+            |topic, k, d| {
+                Some(if topic == LEVEL && k == 7 {
+                    damage(d)
+                } else {
+                    d.to_vec()
+                })
+            },
+        );
+        let (code, out, err) = embodied(&["monitor", bad.to_str().unwrap()]);
+        assert_eq!(code, 2, "{name}: {out}{err}");
+        assert!(
+            err.contains(&format!("{LEVEL}: message at offset"))
+                && err.contains("not CDR of its payload's shape"),
+            "{name}: {err}"
+        );
+    }
+}
+
+#[test]
+fn invariants_are_judged_live_and_over_the_predicates_recorded() {
+    use embodied::monitor::Monitors;
+    use embodied::monitor::live::Live;
+    use embodied::monitor::recording::{evaluate, needed};
+    let mut c = kept();
+    c.invariants = vec![
+        // Kept: the orders of the tank's mission are all valid.
+        Invariant {
+            name: "orders_are_valid".into(),
+            subsystem: "c1".into(),
+            holds: "!has_order || order_valid".into(),
+        },
+        // Seeded to break: c1 gets an order.
+        Invariant {
+            name: "never_ordered".into(),
+            subsystem: "c1".into(),
+            holds: "!has_order".into(),
+        },
+    ];
+    let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
+    let path = tmp("monitor_invariants.mcap");
+    let s = system();
+    let recorder = McapRecorder::create(&path, &s, RecordOptions::default()).unwrap();
+    let live = Live::new(Monitors::new(&spec).unwrap(), &s);
+    let exec = ExecConfig {
+        on_error: OnError::Continue,
+        ..ExecConfig::default()
+    };
+    let mut exec = Executor::with_observer(s, exec, (recorder, live.watch()));
+    exec.run_for(Duration::from_secs(20)).unwrap();
+    let (recorder, watch) = exec.into_observer();
+    drop(watch);
+    recorder.finish().unwrap();
+    let verdicts = live.verdicts();
+    assert!(verdicts.not_judged.is_empty(), "{:?}", verdicts.not_judged);
+    let shown = |m: &Monitors, v: &[embodied::monitor::Violation]| -> Vec<String> {
+        v.iter().map(|v| m.display(v).to_string()).collect()
+    };
+    let live_lines = shown(live.monitors(), &verdicts.violations);
+    assert!(!live_lines.is_empty());
+    assert!(
+        live_lines
+            .iter()
+            .all(|l| l.contains("contract=invariant:never_ordered: false with has_order=true")),
+        "{live_lines:#?}"
+    );
+
+    let recorded = Recording::open_filtered(&path, needed).unwrap();
+    let mut monitors = Monitors::new(&spec).unwrap();
+    let report = evaluate(&mut monitors, &recorded).unwrap();
+    assert!(
+        report.not_evaluable.is_empty(),
+        "{:?}",
+        report.not_evaluable
+    );
+    assert_eq!(shown(&monitors, &report.violations), live_lines);
+    // The predicates of c1 only, those its invariants read.
+    let all = Recording::open(&path).unwrap();
+    let topics: Vec<&str> = all
+        .channels
+        .values()
+        .map(|c| c.topic.as_str())
+        .filter(|t| t.starts_with("/predicates/"))
+        .collect();
+    assert_eq!(topics, ["/predicates/c1"]);
+    let first = messages(&path, "/predicates/c1")[0].1.clone();
+    let first = String::from_utf8(first).unwrap();
+    assert!(
+        first.contains("\"predicates\":{\"has_order\":") && !first.contains("reached"),
+        "{first}"
+    );
+}
+
+#[test]
+fn invariants_are_judged_in_each_thread_of_a_real_time_run_and_over_its_recording() {
+    use embodied::monitor::Monitors;
+    use embodied::monitor::live::Live;
+    use embodied::monitor::recording::{evaluate, needed};
+    // The invariant alone (the rates of `kept` are judged at c1's takes of
+    // values sent from another thread, which a real-time run does not keep).
+    let c = Contracts {
+        invariants: vec![Invariant {
+            name: "never_ordered".into(),
+            subsystem: "c1".into(),
+            holds: "!has_order".into(),
+        }],
+        ..Contracts::default()
+    };
+    let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
+    let path = tmp("monitor_invariants_rt.mcap");
+    let s = system();
+    let recorder = McapRecorder::create(&path, &s, RecordOptions::default()).unwrap();
+    let live = Live::new(Monitors::new(&spec).unwrap(), &s);
+    let config = RtConfig {
+        exec: ExecConfig {
+            on_error: OnError::Continue,
+            ..ExecConfig::default()
+        },
+        ..RtConfig::default()
+    };
+    let mut rt = RealTime::new(s, config);
+    let mut parts = recorder.threads();
+    let contracts = live.clone();
+    rt.observe(move |thread, nodes| Box::new((parts(thread, nodes), contracts.watch_nodes(nodes))));
+    rt.start(Duration::from_millis(1500))
+        .unwrap()
+        .join()
+        .unwrap();
+    recorder.finish().unwrap();
+    let verdicts = live.verdicts();
+    assert!(verdicts.not_judged.is_empty(), "{:?}", verdicts.not_judged);
+    let lines: Vec<String> = verdicts
+        .violations
+        .iter()
+        .map(|v| live.monitors().display(v).to_string())
+        .collect();
+    assert!(!lines.is_empty(), "c1 gets its first order within 1.5 s");
+    assert!(
+        lines.iter().all(|l| l
+            .contains("subsystem=c1 contract=invariant:never_ordered: false with has_order=true")),
+        "{lines:#?}"
+    );
+    // The recording of the threads' predicates: the same verdicts.
+    let recorded = Recording::open_filtered(&path, needed).unwrap();
+    let mut monitors = Monitors::new(&spec).unwrap();
+    let report = evaluate(&mut monitors, &recorded).unwrap();
+    let offline: Vec<String> = report
+        .violations
+        .iter()
+        .filter(|v| {
+            monitors
+                .contract(v.contract)
+                .is_some_and(|c| c.name == "never_ordered")
+        })
+        .map(|v| monitors.display(v).to_string())
+        .collect();
+    assert_eq!(offline, lines);
 }

@@ -73,6 +73,21 @@ pub struct ChannelInfo {
     pub schema_id: u16,
 }
 
+impl ChannelInfo {
+    /// The payload's shape its metadata holds ([`SHAPE_KEY`](crate::record::SHAPE_KEY):
+    /// a CDR value channel's, written by this crate's recorder since it
+    /// records shapes); `None` without one, an error when the text does not
+    /// read as a shape.
+    pub fn payload_shape(&self) -> Option<Result<agent_core::TypeShape, String>> {
+        let text = self.metadata.get(crate::record::SHAPE_KEY)?;
+        Some(
+            serde_json::from_str(text)
+                .map(|(root, registry)| agent_core::TypeShape { root, registry })
+                .map_err(|e| format!("its payload's shape does not read: {e}")),
+        )
+    }
+}
+
 /// A schema of a recording.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SchemaInfo {

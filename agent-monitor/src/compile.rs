@@ -218,11 +218,16 @@ impl Monitors {
                 .position(|p| p == name)
                 .ok_or_else(|| unknown(format!("no predicate `{name}` in `{}`", i.subsystem)))
         })?;
+        let mut uses = Some(0u64);
+        holds.for_each_atom(&mut |&k| {
+            uses = uses.and_then(|u| (k < 64).then_some(u | 1 << k));
+        });
         let contract = self.add(kind, &i.name, &i.subsystem);
         self.invariants.push(InvariantM {
             contract,
             subsystem,
             holds,
+            uses,
         });
         Ok(())
     }

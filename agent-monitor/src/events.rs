@@ -157,20 +157,38 @@ impl Monitors {
         let Some(values) = predicates else {
             return;
         };
+        let (mut known, mut value) = (0u64, 0u64);
+        for (k, &v) in values.iter().take(64).enumerate() {
+            known |= 1 << k;
+            value |= u64::from(v) << k;
+        }
+        self.predicates(subsystem, t, known, value, sink);
+    }
+
+    /// The values of `subsystem`'s predicates after an activation at `t`
+    /// (bit `i`: its predicate `i` in the spec's order,
+    /// [`Monitors::predicate_names`]; `known`: those evaluated): each of its
+    /// invariants whose predicates are all known is judged.
+    pub fn predicates(
+        &mut self,
+        subsystem: SubsystemId,
+        t: Time,
+        known: u64,
+        value: u64,
+        sink: &mut impl FnMut(Violation),
+    ) {
         for i in self.invariants.iter().filter(|i| i.subsystem == subsystem) {
-            if !i
-                .holds
-                .eval(&mut |&k| values.get(k).copied().unwrap_or(false))
-            {
-                let bits = values
-                    .iter()
-                    .take(64)
-                    .enumerate()
-                    .fold(0u64, |acc, (k, &v)| acc | (u64::from(v) << k));
+            let Some(uses) = i.uses.filter(|u| known & u == *u) else {
+                continue;
+            };
+            if !i.holds.eval(&mut |&k| value >> k & 1 == 1) {
                 sink(Violation {
                     time: t,
                     contract: i.contract,
-                    broke: Broke::False { predicates: bits },
+                    broke: Broke::False {
+                        predicates: value & uses,
+                        reads: uses,
+                    },
                 });
             }
         }

@@ -46,9 +46,10 @@
 //!   oldest and the newest are not reported one by one (the count of
 //!   violations is then a lower bound).
 //! * **invariant** (`subsystem`, `holds`): after each activation of the
-//!   subsystem whose predicate values are given, `holds` is true. Reported at
-//!   the activation, with the predicate values (bit `i`: predicate `i`, the
-//!   first 64).
+//!   subsystem whose predicate values are given ([`Monitors::predicates`]),
+//!   `holds` is true. Reported at the activation, with the values of the
+//!   predicates it reads (bit `i`: predicate `i`, the first 64). An
+//!   activation whose values lack one of its predicates does not judge it.
 //!
 //! Chains are not monitored here (their data age needs the whole path's
 //! stamps; the timing analysis, [`agent_spec::timing`], bounds them).
@@ -186,8 +187,11 @@ pub enum Broke {
     },
     /// An invariant false after an activation.
     False {
-        /// The predicate values (bit `i`: predicate `i` of the subsystem).
+        /// The values of the predicates it reads (bit `i`: predicate `i` of
+        /// the subsystem, in the spec's order).
         predicates: u64,
+        /// Which predicates it reads (the bits of `predicates` that count).
+        reads: u64,
     },
 }
 
@@ -310,6 +314,9 @@ struct InvariantM {
     contract: ContractId,
     subsystem: SubsystemId,
     holds: Expr<usize>,
+    /// The predicates it reads (bit `i`: the subsystem's predicate `i`);
+    /// `None` when one is past the 64th (then it is never judged).
+    uses: Option<u64>,
 }
 
 /// A subsystem's names, for resolving events.
@@ -466,6 +473,24 @@ impl Monitors {
     /// The contract of each invariant, for a caller that cannot evaluate them.
     pub fn invariant_contracts(&self) -> impl Iterator<Item = ContractId> + '_ {
         self.invariants.iter().map(|i| i.contract)
+    }
+
+    /// Each invariant judged here: its contract, its subsystem and the
+    /// predicates it reads (bit `i`: the subsystem's predicate `i` in the
+    /// spec's order, [`Monitors::predicate_names`]; `None`: one is past the
+    /// 64th, which [`Monitors::predicates`] cannot be given).
+    pub fn invariants(&self) -> impl Iterator<Item = (ContractId, SubsystemId, Option<u64>)> + '_ {
+        self.invariants
+            .iter()
+            .map(|i| (i.contract, i.subsystem, i.uses))
+    }
+
+    /// The predicates of a subsystem, in the spec's order (the bits of
+    /// [`Monitors::predicates`]).
+    pub fn predicate_names(&self, subsystem: SubsystemId) -> &[String] {
+        self.subsystems
+            .get(subsystem.0 as usize)
+            .map_or(&[], |s| s.predicates.as_slice())
     }
 
     /// A violation as a line: `time subsystem kind name: values`.

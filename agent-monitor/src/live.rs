@@ -26,8 +26,14 @@
 //!   process by a watched reader: the field read from its postcard bytes
 //!   with the payload's shape ([`agent_core::reflect`]), without decoding the
 //!   rest;
-//! * invariant: not judged while running (the executors give no predicate
-//!   values after each activation); [`Verdicts::not_judged`] names them.
+//! * invariant: after each activation of a watched subsystem that carries
+//!   invariants, the values of the predicates they read, which the watch
+//!   asks of the executor ([`Observer::predicates_wanted`]: those predicates
+//!   only, found in the node's FSM by name) and the executor evaluates on
+//!   the memory and inputs the action left ([`Observer::predicates`]); a
+//!   subsystem without invariants costs nothing. An invariant whose
+//!   subsystem is not in the system, or whose FSM lacks one of its
+//!   predicates, is not judged ([`Verdicts::not_judged`] says why).
 //!
 //! Cost: `bench_core` measures a watch of Rex's contracts on a system shaped
 //! like Rex (`monitor_ns_per_cycle`): about 160 ns per action, the
@@ -39,7 +45,9 @@ use std::fmt;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use agent_core::trace::{ErasedPayload, ReadEvent, TransferEvent};
-use agent_core::{ActionEvent, ExecError, Observer, Step, System, Time, TransitionEvent};
+use agent_core::{
+    ActionEvent, ExecError, Observer, Step, System, Time, TransitionEvent, Valuation,
+};
 
 use crate::ends::Ends;
 use crate::field::Layout;
@@ -129,6 +137,11 @@ struct Shared {
     behaviours: Vec<Vec<Option<BehaviourId>>>,
     /// Per range: why it cannot be judged on this system, if it cannot.
     unjudgeable: Vec<Option<String>>,
+    /// Per node: its FSM's predicates that are its subsystem's in the spec,
+    /// as (the FSM's index, the spec's index), both below 64.
+    predicates: Vec<Vec<(u8, u8)>>,
+    /// The invariants that cannot be judged on this system, with why.
+    invariants_unjudgeable: Vec<(ContractId, String)>,
     verdicts: Mutex<Verdicts>,
 }
 
@@ -220,6 +233,24 @@ impl Live {
                     .collect()
             })
             .collect();
+        let predicates: Vec<Vec<(u8, u8)>> = info
+            .nodes
+            .iter()
+            .zip(&subsystems)
+            .map(|(n, s)| {
+                let (Some(s), Some(fsm)) = (s, &n.fsm) else {
+                    return Vec::new();
+                };
+                let names = monitors.predicate_names(*s).iter().enumerate().take(64);
+                names
+                    .filter_map(|(k, name)| {
+                        let f = fsm.predicates.iter().position(|p| p == name)?;
+                        Some((u8::try_from(f).ok().filter(|f| *f < 64)?, k as u8))
+                    })
+                    .collect()
+            })
+            .collect();
+        let invariants_unjudgeable = invariants_unjudgeable(&monitors, &subsystems, &predicates);
         Live {
             shared: Arc::new(Shared {
                 monitors,
@@ -227,6 +258,8 @@ impl Live {
                 subsystems,
                 behaviours,
                 unjudgeable,
+                predicates,
+                invariants_unjudgeable,
                 verdicts: Mutex::new(Verdicts::default()),
             }),
         }
@@ -267,12 +300,25 @@ impl Live {
             })
             .collect();
         for c in monitors.invariant_contracts() {
-            not_judged.push((
-                c,
-                "invariants need the predicates after every activation, which the executors \
-                 do not give"
-                    .to_owned(),
-            ));
+            if let Some((_, why)) = s.invariants_unjudgeable.iter().find(|(n, _)| *n == c) {
+                not_judged.push((c, why.clone()));
+            }
+        }
+        // The predicates each watched node's invariants read, by its FSM's index.
+        let mut wanted = vec![0u64; s.subsystems.len()];
+        for &n in nodes {
+            let Some(Some(sub)) = s.subsystems.get(n).copied() else {
+                continue;
+            };
+            let spec = monitors
+                .invariants()
+                .filter(|(c, i, _)| *i == sub && !not_judged.iter().any(|(n, _)| n == c))
+                .filter_map(|(_, _, uses)| uses)
+                .fold(0u64, |a, u| a | u);
+            wanted[n] = s.predicates[n]
+                .iter()
+                .filter(|(_, k)| spec >> k & 1 == 1)
+                .fold(0u64, |a, (f, _)| a | 1 << f);
         }
         let judged = monitors
             .judged()
@@ -282,6 +328,7 @@ impl Live {
             shared: self.shared.clone(),
             monitors,
             here,
+            wanted,
             current: vec![None; s.subsystems.len()],
             bytes: Vec::new(),
             sink: Sink {
@@ -314,6 +361,40 @@ impl Live {
     }
 }
 
+/// The invariants that cannot be judged on a system (`subsystems`: each
+/// node's subsystem; `predicates`: each node's predicates found in its FSM),
+/// with why.
+fn invariants_unjudgeable(
+    monitors: &Monitors,
+    subsystems: &[Option<SubsystemId>],
+    predicates: &[Vec<(u8, u8)>],
+) -> Vec<(ContractId, String)> {
+    let mut out = Vec::new();
+    for (c, sub, uses) in monitors.invariants() {
+        let name = monitors.subsystem_name(sub);
+        let Some(uses) = uses else {
+            out.push((c, format!("it reads a predicate of `{name}` past the 64th")));
+            continue;
+        };
+        let Some(node) = subsystems.iter().position(|s| *s == Some(sub)) else {
+            out.push((c, format!("`{name}` is not in the system")));
+            continue;
+        };
+        let found = predicates[node].iter().fold(0u64, |a, (_, k)| a | 1 << k);
+        if let Some(k) = (0..64).find(|k| (uses & !found) >> k & 1 == 1) {
+            let missing = monitors
+                .predicate_names(sub)
+                .get(k)
+                .map_or("?", String::as_str);
+            out.push((
+                c,
+                format!("`{name}`'s FSM has no predicate `{missing}` (by the spec's name)"),
+            ));
+        }
+    }
+    out
+}
+
 /// Where a watch's violations go: raised to the executor, and kept.
 struct Sink {
     pending: VecDeque<Violation>,
@@ -342,6 +423,8 @@ pub struct Watch {
     monitors: Monitors,
     /// Per node: whether this watch runs with it.
     here: Vec<bool>,
+    /// Per node: the predicates its invariants read (the FSM's bits).
+    wanted: Vec<u64>,
     /// Per node: the behaviour it is in (the executor's index).
     current: Vec<Option<usize>>,
     /// A value's postcard bytes, reused.
@@ -505,6 +588,34 @@ impl Observer for Watch {
         {
             self.ranges(e.link, e.time, value);
         }
+    }
+
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        self.wanted.get(node).copied().unwrap_or(0)
+    }
+
+    fn predicates(&mut self, e: &ActionEvent, values: Valuation) {
+        let Some(Some(sub)) = self.shared.subsystems.get(e.node).copied() else {
+            return;
+        };
+        if !self.here.get(e.node).copied().unwrap_or(false) {
+            return;
+        }
+        // The FSM's bits to the spec's.
+        let (mut known, mut value) = (0u64, 0u64);
+        for &(f, k) in self
+            .shared
+            .predicates
+            .get(e.node)
+            .map_or(&[][..], Vec::as_slice)
+        {
+            if values.known >> f & 1 == 1 {
+                known |= 1 << k;
+                value |= (values.value >> f & 1) << k;
+            }
+        }
+        self.monitors
+            .predicates(sub, e.time, known, value, &mut |v| self.sink.take(v));
     }
 
     fn raised(&mut self) -> Option<ExecError> {

@@ -14,13 +14,26 @@
 //!   subsystem's iteration (a run entered at iteration `i` and left at
 //!   iteration `j` took `j - i` activations); the initial behaviour is entered
 //!   at the subsystem's first activation (metadata `end`, `first/<node>`);
-//! * range: the value channel, when it is JSON (`RecordOptions::values`
-//!   `Values::Json`): the field read from the JSON form, where a non-finite
-//!   number is `null` (read as NaN: out of range). A CDR value channel is not
-//!   decoded here: the range is reported not evaluable, as is a range on a
-//!   memory buffer (the recorder writes links only);
-//! * invariant: not evaluable offline: the recording holds predicate values at
-//!   behaviour switches only (`/fsm`), not after every activation.
+//! * range: the value channel. CDR (the recorder's default): each message
+//!   read back into the value's postcard bytes by the payload's shape the
+//!   channel's metadata holds ([`agent_mcap::read::ChannelInfo::payload_shape`],
+//!   [`agent_mcap::cdr::read_cdr`], which checks every length, tag and the
+//!   message's end), then the field read as the live watch reads it (the
+//!   payload's layout, `field`): the same values as while the robot ran,
+//!   NaN included. A CDR channel without a shape (a recording made before the
+//!   recorder kept them) makes its ranges not evaluable, said so. JSON
+//!   (`RecordOptions::values` `Values::Json`): the field read from the JSON
+//!   form, where a non-finite number is `null` (read as NaN: out of range).
+//!   A message that does not decode is an error naming its channel and
+//!   offset. A range on a memory buffer is not evaluable (the recorder writes
+//!   links only);
+//! * invariant: `/predicates/<subsystem>`, the values of the predicates the
+//!   live watch asked for after each activation of the subsystem (the
+//!   recorder writes them for the subsystems whose invariants a watch beside
+//!   it judged, and for no other). A recording without that channel (made
+//!   without the watch, or by an older recorder) makes the subsystem's
+//!   invariants not evaluable, said so; `/fsm` holds predicate values at
+//!   behaviour switches only, which is not enough.
 //!
 //! A contract is matched to a link by its ends: the input `c.g.b` is the end
 //! of the link from node `g` into node `c` whose port is `g.b` or ends with
@@ -32,13 +45,16 @@
 //! the first message) and ends at the last activation (or the last message).
 
 use std::collections::BTreeMap;
+use std::rc::Rc;
 
-use agent_core::Time;
+use agent_core::{Time, TypeShape};
 use agent_mcap::Recording;
 use agent_mcap::read::ChannelInfo;
+use agent_mcap::record::PREDICATES_PREFIX;
 use serde_json::Value;
 
 use crate::ends::Ends;
+use crate::field::Layout;
 use crate::{
     BehaviourId, ContractId, InputId, Monitors, OutputId, RangeId, SubsystemId, Violation,
 };
@@ -91,7 +107,7 @@ impl Report {
 /// The channels [`evaluate`] reads: open a recording with this filter to
 /// keep no other messages.
 pub fn needed(c: &ChannelInfo) -> bool {
-    ["/links/", "/reads/links/", "/fsm/"]
+    ["/links/", "/reads/links/", "/fsm/", PREDICATES_PREFIX]
         .iter()
         .any(|p| c.topic.starts_with(p))
 }
@@ -111,13 +127,27 @@ enum Event {
     Read(InputId, Time),
     Value(RangeId, f64),
     Entered(SubsystemId, Option<BehaviourId>, u64),
+    /// A subsystem's predicates after an activation (known, value; the
+    /// spec's bits).
+    Predicates(SubsystemId, u64, u64),
+}
+
+/// How a value channel's messages are read for its ranges.
+enum Decode {
+    /// JSON text.
+    Json,
+    /// CDR, by the payload's shape (read back to postcard bytes) and layout.
+    Cdr(Rc<(TypeShape, Layout)>),
+    /// Not read (no range on it).
+    No,
 }
 
 /// What a channel is to the monitors.
 enum Role {
-    Values(Feeds, bool),
+    Values(Feeds, Decode),
     Reads(InputId),
     Fsm(SubsystemId),
+    Predicates(SubsystemId),
 }
 
 /// Evaluate `monitors`' contracts over `recording` (opened with [`needed`] as
@@ -171,13 +201,23 @@ pub fn evaluate(monitors: &mut Monitors, recording: &Recording) -> Result<Report
             ));
         }
     }
-    for c in monitors.invariant_contracts() {
-        not_evaluable.push((
-            c,
-            "invariants need the predicates after every activation; a recording holds them \
-             at behaviour switches only"
-                .to_owned(),
-        ));
+    for (c, sub, _) in monitors.invariants() {
+        let node = monitors.subsystem_name(sub);
+        let topic = format!("{PREDICATES_PREFIX}{node}");
+        match recording.channels.values().find(|ch| ch.topic == topic) {
+            Some(ch) => {
+                roles.insert(ch.id, Role::Predicates(sub));
+                seen.push(c);
+            }
+            None => not_evaluable.push((
+                c,
+                format!(
+                    "no `{topic}` channel: the recorder writes a subsystem's predicates after \
+                     each activation when the contracts' watch judged its invariants in the \
+                     run (a recording without it, or an older recorder's, has none)"
+                ),
+            )),
+        }
     }
     for (i, c) in monitors.contracts.iter().enumerate() {
         let id = ContractId(i as u32);
@@ -220,11 +260,13 @@ fn link_roles(
     seen: &mut Vec<ContractId>,
     not_evaluable: &mut Vec<(ContractId, String)>,
 ) {
-    let json = recording
+    let channel = recording
         .channels
         .values()
-        .find(|c| &c.topic == value_topic)
-        .map(|c| (c.id, c.message_encoding == "json"));
+        .find(|c| &c.topic == value_topic);
+    let json = channel.is_some_and(|c| c.message_encoding == "json");
+    // A CDR channel's shape, read once (and only when a range needs it).
+    let mut cdr: Option<Result<Rc<(TypeShape, Layout)>, String>> = None;
     let mut feeds = Feeds::default();
     for f in &monitors.freshness {
         if ends.is_input(&monitors.inputs[f.input.0 as usize]) {
@@ -253,27 +295,69 @@ fn link_roles(
             continue;
         }
         let contract = monitors.ranges[i].contract;
-        match json {
-            Some((_, true)) => {
+        let path: Vec<String> = field
+            .as_deref()
+            .map(|f| f.split('.').map(str::to_owned).collect())
+            .unwrap_or_default();
+        match channel {
+            Some(_) if json => {
                 seen.push(contract);
-                let path = field
-                    .as_deref()
-                    .map(|f| f.split('.').map(str::to_owned).collect())
-                    .unwrap_or_default();
                 feeds.ranges.push((RangeId(i as u32), path));
             }
-            _ => not_evaluable.push((
+            Some(c) if c.message_encoding == "cdr" => {
+                let shape = cdr.get_or_insert_with(|| cdr_layout(c, buffer)).clone();
+                match shape {
+                    Ok(s) if crate::field::reaches_number(&s.1, &path) => {
+                        seen.push(contract);
+                        feeds.ranges.push((RangeId(i as u32), path));
+                    }
+                    Ok(_) => not_evaluable.push((
+                        contract,
+                        format!(
+                            "`{}` does not lead to a number in `{buffer}`",
+                            field.as_deref().unwrap_or("")
+                        ),
+                    )),
+                    Err(why) => not_evaluable.push((contract, why)),
+                }
+            }
+            Some(c) => not_evaluable.push((
                 contract,
                 format!(
-                    "`{buffer}` is recorded as CDR, which this monitor does not decode: \
-                     record with JSON values to check ranges offline"
+                    "`{buffer}` is recorded as `{}`, which this monitor does not read",
+                    c.message_encoding
                 ),
+            )),
+            None => not_evaluable.push((
+                contract,
+                format!("`{buffer}` has no value channel in the recording"),
             )),
         }
     }
     feeds.outputs.dedup();
-    if let Some((id, json)) = json {
-        roles.insert(id, Role::Values(feeds, json));
+    if let Some(c) = channel {
+        let decode = match cdr {
+            _ if feeds.ranges.is_empty() => Decode::No,
+            _ if json => Decode::Json,
+            Some(Ok(s)) => Decode::Cdr(s),
+            _ => Decode::No,
+        };
+        roles.insert(c.id, Role::Values(feeds, decode));
+    }
+}
+
+/// The shape and layout of a CDR value channel's payload, from its metadata.
+fn cdr_layout(c: &ChannelInfo, buffer: &str) -> Result<Rc<(TypeShape, Layout)>, String> {
+    match c.payload_shape() {
+        Some(Ok(shape)) => {
+            let layout = Layout::of(&shape);
+            Ok(Rc::new((shape, layout)))
+        }
+        Some(Err(why)) => Err(format!("`{buffer}` is recorded as CDR, and {why}")),
+        None => Err(format!(
+            "`{buffer}` is recorded as CDR without its payload's shape (a recording made \
+             before the recorder kept shapes): record again, or with JSON values"
+        )),
     }
 }
 
@@ -322,6 +406,8 @@ fn events(
     roles: &BTreeMap<u16, Role>,
 ) -> Result<Vec<(Time, Event)>, RecordingError> {
     let mut out = Vec::new();
+    // A CDR value's postcard bytes, reused.
+    let mut bytes = Vec::new();
     for m in &recording.messages {
         let Some(role) = roles.get(&m.channel) else {
             continue;
@@ -346,19 +432,58 @@ fn events(
                     .ok_or_else(|| bad(format!("a read of {} bytes, not 16", m.data.len())))?;
                 out.push((t, Event::Read(*input, Time::from_nanos(stamp))));
             }
-            Role::Values(feeds, json) => {
+            Role::Values(feeds, decode) => {
                 out.extend(feeds.inputs.iter().map(|&i| (t, Event::Arrived(i))));
                 out.extend(feeds.outputs.iter().map(|&o| (t, Event::Sent(o))));
-                if *json && !feeds.ranges.is_empty() {
-                    let v: Value = serde_json::from_slice(&m.data)
-                        .map_err(|e| bad(format!("not JSON: {e}")))?;
-                    for (r, path) in &feeds.ranges {
-                        let x = field(&v, path).ok_or_else(|| {
-                            bad(format!("no number at field `{}`", path.join(".")))
-                        })?;
-                        out.push((t, Event::Value(*r, x)));
+                match decode {
+                    Decode::No => {}
+                    Decode::Json => {
+                        let v: Value = serde_json::from_slice(&m.data)
+                            .map_err(|e| bad(format!("not JSON: {e}")))?;
+                        for (r, path) in &feeds.ranges {
+                            let x = field(&v, path).ok_or_else(|| {
+                                bad(format!("no number at field `{}`", path.join(".")))
+                            })?;
+                            out.push((t, Event::Value(*r, x)));
+                        }
+                    }
+                    Decode::Cdr(s) => {
+                        let (shape, layout) = &**s;
+                        bytes.clear();
+                        agent_mcap::cdr::read_cdr(shape, &m.data, &mut bytes)
+                            .map_err(|e| bad(format!("not CDR of its payload's shape: {e}")))?;
+                        for (r, path) in &feeds.ranges {
+                            // An absent option or a short sequence: no value there.
+                            if let Some(x) = crate::field::number(layout, &bytes, path)
+                                .map_err(|e| bad(format!("field `{}`: {e}", path.join("."))))?
+                            {
+                                out.push((t, Event::Value(*r, x)));
+                            }
+                        }
                     }
                 }
+            }
+            Role::Predicates(s) => {
+                let v: Value =
+                    serde_json::from_slice(&m.data).map_err(|e| bad(format!("not JSON: {e}")))?;
+                let values = v
+                    .get("predicates")
+                    .and_then(Value::as_object)
+                    .ok_or_else(|| bad("no `predicates` object".to_owned()))?;
+                let (mut known, mut value) = (0u64, 0u64);
+                for (k, name) in monitors.predicate_names(*s).iter().enumerate().take(64) {
+                    match values.get(name) {
+                        Some(Value::Bool(b)) => {
+                            known |= 1 << k;
+                            value |= u64::from(*b) << k;
+                        }
+                        Some(other) => {
+                            return Err(bad(format!("predicate `{name}` is {other}, not a bool")));
+                        }
+                        None => {}
+                    }
+                }
+                out.push((t, Event::Predicates(*s, known, value)));
             }
             Role::Fsm(s) => {
                 let v: Value =
@@ -427,6 +552,9 @@ fn feed(
             Event::Sent(o) => monitors.sent(o, t, &mut sink),
             Event::Read(i, stamp) => monitors.read(i, t, stamp, &mut sink),
             Event::Value(r, x) => monitors.value(r, t, x, &mut sink),
+            Event::Predicates(s, known, value) => {
+                monitors.predicates(s, t, known, value, &mut sink);
+            }
             Event::Entered(s, b, iteration) => {
                 // The activations of the run being left, then the switch.
                 let before = iterations.insert(s.0, iteration).unwrap_or(0);

@@ -66,7 +66,23 @@ impl fmt::Display for Shown<'_> {
                 trigger.as_secs_f64(),
                 within.as_secs_f64()
             ),
-            Broke::False { predicates } => write!(f, "false (predicate bits {predicates:#b})"),
+            Broke::False { predicates, reads } => {
+                f.write_str("false with")?;
+                let names = self
+                    .m
+                    .invariants
+                    .iter()
+                    .find(|i| i.contract == v.contract)
+                    .map_or(&[][..], |i| self.m.predicate_names(i.subsystem));
+                for k in (0..64).filter(|k| reads >> k & 1 == 1) {
+                    let value = predicates >> k & 1 == 1;
+                    match names.get(k) {
+                        Some(n) => write!(f, " {n}={value}")?,
+                        None => write!(f, " #{k}={value}")?,
+                    }
+                }
+                Ok(())
+            }
         }
     }
 }

@@ -323,10 +323,25 @@ fn an_invariant_is_judged_on_the_predicates_given() {
         m.activation(c1, ms(1), Some(&[true, false]), &mut |v| s(v));
         m.activation(c1, ms(2), Some(&[true, true]), &mut |v| s(v));
         m.activation(c1, ms(3), None, &mut |v| s(v)); // not evaluable: nothing
+        // By bits: `finished` unknown judges nothing; known, it breaks it.
+        m.predicates(c1, ms(4), 0b01, 0b01, &mut |v| s(v));
+        m.predicates(c1, ms(5), 0b11, 0b11, &mut |v| s(v));
+        m.predicates(c1, ms(6), 0b11, 0b01, &mut |v| s(v));
     });
-    assert_eq!(v.len(), 1);
-    assert_eq!(v[0].time, ms(2));
-    assert_eq!(v[0].broke, Broke::False { predicates: 0b11 });
+    let times: Vec<_> = v.iter().map(|v| v.time).collect();
+    assert_eq!(times, [ms(2), ms(5)]);
+    assert_eq!(
+        v[0].broke,
+        Broke::False {
+            predicates: 0b11,
+            reads: 0b11
+        }
+    );
+    assert_eq!(
+        m.display(&v[1]).to_string(),
+        "t=0.005000s subsystem=c1 contract=invariant:no_order_when_done: \
+         false with got_order=true finished=true"
+    );
 }
 
 #[test]

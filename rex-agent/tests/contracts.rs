@@ -1,8 +1,10 @@
 //! Rex's contracts (specs/rex.ron) watched while it runs, through the program
-//! as a user runs it: the main mission keeps every one; seeded defects are
-//! found with their place and time, handled by the error policy (Rex brakes
-//! and holds under `--on-error safe-stop`), and found again, at the same
-//! instant, over the run's recording.
+//! as a user runs it: the main mission keeps every one (its invariant judged
+//! after every activation of c2); seeded defects are found with their place
+//! and time, handled by the error policy (Rex brakes and holds under
+//! `--on-error safe-stop`), and found again, at the same instant, over the
+//! run's recording (ranges read from its CDR values, invariants from the
+//! predicates it recorded after each activation).
 
 #![allow(
     clippy::unwrap_used,
@@ -60,7 +62,7 @@ fn the_main_mission_keeps_every_contract() {
     let (code, out, err) = rex(&["--verbose"]);
     assert_eq!(code, Some(0), "{out}\n{err}");
     assert!(
-        out.contains("contracts_checked=12 contracts_violated=0 contracts_not_evaluable=0\n"),
+        out.contains("contracts_checked=13 contracts_violated=0 contracts_not_evaluable=0\n"),
         "{out}"
     );
     assert!(!err.contains("contract violated"), "{err}");
@@ -220,30 +222,34 @@ fn a_torque_bound_raised_past_the_platform_limit_is_found_by_the_ranges() {
     assert!(found.ends_with("outside [-10, 10]"), "{found}");
     assert!(out.contains("the run failed before its end"), "{out}");
 
-    // Over the recording the ranges are not evaluable: Rex records its values
-    // as CDR, which the offline monitor does not decode (it says so, per
-    // contract; the other contracts are evaluated and kept).
+    // The same violation, at the same instant, over the recording: Rex
+    // records its values as CDR, read back by the payload's shape.
     let recorded = Recording::open_filtered(&recording, needed).unwrap();
     let mut monitors = Monitors::new(&embodied::spec::load("rex.ron", SPEC).unwrap().spec).unwrap();
     let report = evaluate(&mut monitors, &recorded).unwrap();
-    assert!(report.violations.is_empty(), "{:#?}", report.violations);
-    let not_evaluable: Vec<String> = report
-        .not_evaluable
-        .iter()
-        .filter(|(_, why)| why.contains("CDR"))
-        .filter_map(|(c, _)| Some(monitors.contract(*c)?.name.clone()))
-        .collect();
-    assert_eq!(
-        not_evaluable,
-        [
-            "torque_wheel_1",
-            "torque_wheel_2",
-            "torque_wheel_3",
-            "torque_wheel_4"
-        ],
+    assert!(
+        report.not_evaluable.is_empty(),
         "{:#?}",
         report.not_evaluable
     );
+    let first = report.violations.first().expect("a violation offline");
+    assert_eq!(monitors.display(first).to_string(), found);
+    // Every range the live watch raised before the stop, offline too.
+    let live: Vec<&str> = err
+        .lines()
+        .filter_map(|l| l.strip_prefix("contract violated: "))
+        .collect();
+    let offline: Vec<String> = report
+        .violations
+        .iter()
+        .map(|v| monitors.display(v).to_string())
+        .collect();
+    for l in &live {
+        assert!(
+            offline.iter().any(|o| o == l),
+            "{l} not offline: {offline:#?}"
+        );
+    }
 
     // The bounds are checked before anything runs.
     for (from, to, field) in [
@@ -263,4 +269,100 @@ fn a_torque_bound_raised_past_the_platform_limit_is_found_by_the_ranges() {
         assert_eq!(code, Some(2), "{out}\n{err}");
         assert!(err.contains(field), "{err}");
     }
+}
+
+#[test]
+fn an_invariant_broken_by_a_seeded_defect_is_found_live_and_over_the_recording() {
+    let dir = scratch("invariant");
+    // The operator's promise: on the main mission e11 never has to stop the
+    // platform (c1's `stopped`: e11 stopped it since the plan was taken).
+    let spec = write(
+        &dir,
+        "rex.ron",
+        &edited(
+            SPEC,
+            r#"invariants: [(name: "lost_plans_are_resent", subsystem: "c2", holds: "!lost || more")],"#,
+            r#"invariants: [(name: "lost_plans_are_resent", subsystem: "c2", holds: "!lost || more"), (name: "never_stopped", subsystem: "c1", holds: "!stopped")],"#,
+        ),
+    );
+    // The defect: a tracking limit of 3 cm, which e11's safety monitor
+    // enforces by stopping the platform.
+    let config = write(
+        &dir,
+        "rex.ron.config",
+        &edited(CONFIG, "tracking_m: 0.30,", "tracking_m: 0.03,"),
+    );
+    let recording = dir.join("run.mcap");
+    let (code, out, err) = rex(&[
+        "--spec",
+        &spec,
+        "--config",
+        &config,
+        "--for",
+        "20",
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "{out}\n{err}");
+    // Rex's policy stops the run at the first error: the invariant, at the
+    // activation of c1 after e11's stop, with the predicate's value.
+    let found = err
+        .lines()
+        .find_map(|l| l.strip_prefix("contract violated: "))
+        .expect("a violation")
+        .to_owned();
+    assert!(
+        found.contains(" subsystem=c1 contract=invariant:never_stopped: false with stopped=true"),
+        "{err}"
+    );
+    assert!(out.contains("the run failed before its end"), "{out}");
+
+    // Over the recording: the predicates c1's invariant reads, recorded after
+    // each of its activations, give the same violation at the same instant;
+    // c2's invariant is judged too, and kept.
+    let recorded = Recording::open_filtered(&recording, needed).unwrap();
+    let spec = embodied::spec::load("rex.ron", std::fs::read_to_string(&spec).unwrap()).unwrap();
+    let mut monitors = Monitors::new(&spec.spec).unwrap();
+    let report = evaluate(&mut monitors, &recorded).unwrap();
+    assert!(
+        report.not_evaluable.is_empty(),
+        "{:#?}",
+        report.not_evaluable
+    );
+    let first = report.violations.first().expect("a violation offline");
+    assert_eq!(monitors.display(first).to_string(), found);
+    let names: Vec<&str> = report
+        .checked
+        .iter()
+        .filter_map(|c| monitors.contract(*c))
+        .filter(|c| c.kind == embodied::monitor::ContractKind::Invariant)
+        .map(|c| c.name.as_str())
+        .collect();
+    assert_eq!(names, ["lost_plans_are_resent", "never_stopped"]);
+    assert!(
+        report.violations.iter().all(|v| monitors
+            .contract(v.contract)
+            .is_some_and(|c| c.name != "lost_plans_are_resent")),
+        "{:#?}",
+        report.violations
+    );
+    // Only the subsystems with invariants have their predicates recorded.
+    let all = Recording::open(&recording).unwrap();
+    let mut topics: Vec<&str> = all
+        .channels
+        .values()
+        .map(|c| c.topic.as_str())
+        .filter(|t| t.starts_with("/predicates/"))
+        .collect();
+    topics.sort_unstable();
+    assert_eq!(topics, ["/predicates/c1", "/predicates/c2"]);
+    // The violation is the run's error, on `/errors` with its line.
+    let errors = all.channel("/errors").expect("an errors channel").id;
+    assert!(
+        all.messages
+            .iter()
+            .filter(|m| m.channel == errors)
+            .any(|m| String::from_utf8_lossy(&m.data).contains(&found)),
+        "{found} on /errors"
+    );
 }

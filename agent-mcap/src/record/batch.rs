@@ -8,9 +8,11 @@
 //! value's postcard bytes (encoded in place: the wire header a raw message
 //! carries is the writer's to make), for a read the stamp read (iteration,
 //! instant: `u64`s), for a value received from another process as for a
-//! transfer; little-endian.
+//! transfer; for the predicates of a node after an activation, the node in
+//! the link's place, the iteration, and the values' `known` and `value` bits
+//! (`u64`s); little-endian.
 
-use agent_core::{Stamp, Time};
+use agent_core::{Stamp, Time, Valuation};
 
 /// The size at which a part queues its batch.
 pub(super) const BATCH_BYTES: usize = 64 * 1024;
@@ -23,6 +25,7 @@ pub(super) const BATCH_CAPACITY: usize = BATCH_BYTES + 4 * 1024;
 const TRANSFER: u8 = 0;
 const READ: u8 = 1;
 const RECEIVED: u8 = 2;
+const PREDICATES: u8 = 3;
 
 /// One event of a batch.
 #[derive(Debug, PartialEq, Eq)]
@@ -41,6 +44,13 @@ pub(super) enum Entry<'a> {
         link: u32,
         stamp: Stamp,
         body: &'a [u8],
+    },
+    /// The predicates of `node` after its activation at `time`.
+    Predicates {
+        node: u32,
+        time: Time,
+        iteration: u64,
+        values: Valuation,
     },
 }
 
@@ -97,6 +107,22 @@ pub(super) fn push_read(out: &mut Vec<u8>, link: u32, time: Time, stamp: Stamp) 
     out.extend_from_slice(&stamp.time.as_nanos().to_le_bytes());
 }
 
+/// Append the predicates of `node` after its activation `iteration` at `time`.
+pub(super) fn push_predicates(
+    out: &mut Vec<u8>,
+    node: u32,
+    time: Time,
+    iteration: u64,
+    values: Valuation,
+) {
+    out.push(PREDICATES);
+    out.extend_from_slice(&node.to_le_bytes());
+    out.extend_from_slice(&time.as_nanos().to_le_bytes());
+    out.extend_from_slice(&iteration.to_le_bytes());
+    out.extend_from_slice(&values.known.to_le_bytes());
+    out.extend_from_slice(&values.value.to_le_bytes());
+}
+
 /// The entries of a batch, in the order they were pushed. A batch is made by
 /// the functions above in this process; should one ever be cut short, the
 /// iteration ends at the cut.
@@ -122,6 +148,20 @@ pub(super) fn entries(batch: &[u8]) -> impl Iterator<Item = Entry<'_>> {
             READ => {
                 let stamp = Stamp::new(u64_at(r, 12)?, Time::from_nanos(u64_at(r, 20)?));
                 (Entry::Read { link, time, stamp }, 28)
+            }
+            PREDICATES => {
+                let values = Valuation {
+                    known: u64_at(r, 20)?,
+                    value: u64_at(r, 28)?,
+                };
+                let iteration = u64_at(r, 12)?;
+                let entry = Entry::Predicates {
+                    node: link,
+                    time,
+                    iteration,
+                    values,
+                };
+                (entry, 36)
             }
             _ => return None,
         };
@@ -153,6 +193,11 @@ mod tests {
         push_read(&mut b, 4, Time::from_nanos(20), s(7, 15));
         push_transfer(&mut b, u32::MAX, s(u64::MAX, u64::MAX), bytes(b"")).expect("pushed");
         push_received(&mut b, 5, s(3, 30), bytes(b"rx")).expect("pushed");
+        let values = Valuation {
+            known: 0b1011,
+            value: 0b0010,
+        };
+        push_predicates(&mut b, 6, Time::from_nanos(40), 9, values);
         let all: Vec<_> = entries(&b).collect();
         assert_eq!(
             all,
@@ -177,11 +222,17 @@ mod tests {
                     stamp: s(3, 30),
                     body: b"rx"
                 },
+                Entry::Predicates {
+                    node: 6,
+                    time: Time::from_nanos(40),
+                    iteration: 9,
+                    values
+                },
             ]
         );
         for cut in 0..b.len() {
             let n = entries(&b[..cut]).count();
-            assert!(n < 4, "a batch cut at {cut} yields only whole entries");
+            assert!(n < 5, "a batch cut at {cut} yields only whole entries");
         }
         assert_eq!(entries(&b[..32]).count(), 1, "the first entry is 32 bytes");
         assert_eq!(entries(&b[..31]).count(), 0);

@@ -40,6 +40,13 @@
 //!   on the threads' timing; what a replay feeds;
 //! * `/fsm/<node>`: each behaviour switch, with the arc and the value of every
 //!   predicate at the decision, and the end of a final behaviour;
+//! * `/predicates/<node>` (JSON, made with its first message): after each
+//!   activation of a subsystem, the values of the predicates an observer
+//!   beside the recorder asked the executor for
+//!   ([`Observer::predicates_wanted`]: a contract monitor's invariants; the
+//!   recorder asks for none itself, so a run without invariants records
+//!   none), with the instant and the iteration: what the invariants are
+//!   judged by over a recording;
 //! * `/errors`: every error the executor met, with its time;
 //! * `/timing`: a real-time run's timing statistics, one JSON message per
 //!   process at its end ([`McapRecorder::timing`], [`crate::timing`]); a
@@ -72,7 +79,7 @@ use std::thread::JoinHandle;
 use agent_core::trace::{
     ActionEvent, ErasedPayload, Observer, ReadEvent, TransferEvent, TransitionEvent,
 };
-use agent_core::{ExecError, Stamp, System, Time};
+use agent_core::{ExecError, Stamp, System, Time, Valuation};
 
 mod batch;
 mod frames;
@@ -88,6 +95,16 @@ use open::Plan;
 use part::{Backlog, Part, Record, WriterGone};
 use writer::Output;
 pub(crate) use writer::transition_json;
+
+/// The metadata key of a CDR value channel (`/links/...`) that holds its
+/// payload's shape: `serde-reflection`'s root format and registry as JSON,
+/// what [`read_cdr`](crate::cdr::read_cdr) reads a value back by without the
+/// Rust type ([`ChannelInfo::payload_shape`](crate::read::ChannelInfo::payload_shape)).
+pub const SHAPE_KEY: &str = "shape";
+
+/// The topic of a node's predicates after each activation:
+/// `/predicates/<node>`.
+pub const PREDICATES_PREFIX: &str = "/predicates/";
 
 /// The message encoding of the reads channels: the stamp of the value read
 /// (the sender's iteration, then its instant in ns; little-endian `u64`s).
@@ -308,6 +325,9 @@ impl Observer for McapRecorder {
     }
     fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
         self.part.received(e, value);
+    }
+    fn predicates(&mut self, e: &ActionEvent, values: Valuation) {
+        self.part.predicates(e, values);
     }
     fn error(&mut self, time: Time, error: &ExecError) {
         self.part.error(time, error);

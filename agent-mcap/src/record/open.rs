@@ -13,7 +13,8 @@ use agent_core::trace::{LinkInfo, SystemInfo};
 
 use super::writer::{LinkChannels, Output};
 use super::{
-    Derive, FRAMES_ENCODING, READ_ENCODING, RecordError, RecordOptions, RecordSummary, Values,
+    Derive, FRAMES_ENCODING, READ_ENCODING, RecordError, RecordOptions, RecordSummary, SHAPE_KEY,
+    Values,
 };
 use crate::cdr::{root_name, ros2msg_schema};
 use crate::codec::CODEC_KEY;
@@ -44,7 +45,8 @@ impl Output {
             fingerprints,
             mut options,
         } = plan;
-        let shapes = read_shapes(&shapes);
+        let texts = shapes;
+        let shapes = read_shapes(&texts);
         let mut d = Declare {
             w: start_file(file, &path)?,
             path: &path,
@@ -52,7 +54,10 @@ impl Output {
         };
         let mut links = Vec::with_capacity(info.links.len());
         for ((k, link), topic) in info.links.iter().enumerate().zip(link_topics(&info)) {
-            let shape = shapes.get(k).and_then(Option::as_ref);
+            let shape = shapes
+                .get(k)
+                .and_then(Option::as_ref)
+                .zip(texts.get(k).and_then(Option::as_deref));
             let fingerprint = fingerprints.get(k).copied().unwrap_or(0);
             links.push(d.link(k, link, topic, shape, fingerprint, &mut options)?);
         }
@@ -69,6 +74,7 @@ impl Output {
             path,
             info,
             links,
+            predicates: vec![(None, 0); fsm.len()],
             fsm,
             errors,
             derived: options.derived,
@@ -170,13 +176,14 @@ impl Declare<'_> {
     }
 
     /// The channels of link `k` (its value channel, raw, reads and derived
-    /// channels), and how to write its values.
+    /// channels), and how to write its values; `shape`: the payload's shape
+    /// and its JSON text.
     fn link(
         &mut self,
         k: usize,
         link: &LinkInfo,
         topic: String,
-        shape: Option<&TypeShape>,
+        shape: Option<(&TypeShape, &str)>,
         fingerprint: u64,
         options: &mut RecordOptions,
     ) -> Result<LinkChannels, RecordError> {
@@ -219,14 +226,17 @@ impl Declare<'_> {
 
     /// The channel of a link's values in the form tools read (CDR with its
     /// `ros2msg` schema if asked for and the type has a ROS 2 message, else
-    /// JSON), and whether it is CDR.
+    /// JSON), and whether it is CDR. A CDR channel's metadata [`SHAPE_KEY`]
+    /// holds the payload's shape (its JSON text), by which a reader without
+    /// the Rust type reads a value back ([`read_cdr`](crate::cdr::read_cdr)).
     fn value_channel(
         &mut self,
         link: &LinkInfo,
         topic: &str,
-        shape: Option<&TypeShape>,
+        shape: Option<(&TypeShape, &str)>,
         values: Values,
     ) -> Result<(u16, bool), RecordError> {
+        let (shape, text) = (shape.map(|(s, _)| s), shape.map(|(_, t)| t));
         let ros2 = match (shape, values) {
             (Some(s), Values::Cdr) => match ros2msg_schema(s, root_name(link.payload)) {
                 Ok(r) => Some(r),
@@ -246,7 +256,11 @@ impl Declare<'_> {
             }
             (None, None) => (0, "json"),
         };
-        let value = self.channel(schema, topic, encoding, &BTreeMap::new())?;
+        let mut metadata = BTreeMap::new();
+        if let (Some(_), Some(text)) = (&ros2, text) {
+            metadata.insert(SHAPE_KEY.to_owned(), text.to_owned());
+        }
+        let value = self.channel(schema, topic, encoding, &metadata)?;
         Ok((value, ros2.is_some()))
     }
 

@@ -10,7 +10,7 @@ use std::sync::mpsc::{Receiver, Sender, SyncSender, TrySendError, channel};
 use agent_core::trace::{
     ActionEvent, ErasedPayload, Observer, ReadEvent, TransferEvent, TransitionEvent,
 };
-use agent_core::{ExecError, Step, Time};
+use agent_core::{ExecError, Step, Time, Valuation};
 
 use super::batch::{self, BATCH_BYTES, BATCH_CAPACITY};
 use super::small;
@@ -316,6 +316,13 @@ impl Observer for Part {
 
     fn received(&mut self, e: &ReadEvent, value: &dyn ErasedPayload) {
         self.push(|out| batch::push_received(out, small(e.link), e.stamp, |b| value.encode(b)));
+    }
+
+    fn predicates(&mut self, e: &ActionEvent, values: Valuation) {
+        self.push(|out| {
+            batch::push_predicates(out, small(e.node), e.time, e.iteration, values);
+            Ok::<(), Infallible>(())
+        });
     }
 
     fn error(&mut self, time: Time, error: &ExecError) {

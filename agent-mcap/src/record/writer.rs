@@ -11,12 +11,14 @@ use std::time::Duration;
 
 use agent_core::link::remote::HEADER_LEN;
 use agent_core::trace::{NodeInfo, SystemInfo};
-use agent_core::{Stamp, Step, Time, TypeShape, WireHeader};
+use agent_core::{Stamp, Step, Time, TypeShape, Valuation, WireHeader};
 use serde_json::{Value, json};
 
 use super::batch::{Entry, entries};
 use super::part::{Backlog, Counts, Record};
-use super::{Derive, RecordError, RecordSummary, WIRE_ENCODING, encode_read, small};
+use super::{
+    Derive, PREDICATES_PREFIX, RecordError, RecordSummary, WIRE_ENCODING, encode_read, small,
+};
 use crate::cdr::write_cdr;
 use crate::codec::Codec;
 use crate::json::write_json;
@@ -28,6 +30,9 @@ pub(super) struct Output {
     pub(super) info: SystemInfo,
     pub(super) links: Vec<LinkChannels>,
     pub(super) fsm: Vec<u16>,
+    /// Per node: its `/predicates/<node>` channel (made with its first
+    /// message) and its count of messages.
+    pub(super) predicates: Vec<(Option<u16>, u32)>,
     pub(super) errors: u16,
     pub(super) derived: Vec<Box<dyn Derive>>,
     pub(super) value_max_bytes: usize,
@@ -55,18 +60,7 @@ impl Output {
         for record in Polled::new(rx) {
             match record {
                 Record::Batch { part, bytes } => {
-                    for entry in entries(&bytes) {
-                        match entry {
-                            Entry::Transfer { link, stamp, body } => {
-                                let shape = shapes.get(link as usize).and_then(Option::as_ref);
-                                self.transfer(link, shape, stamp, body)?;
-                            }
-                            Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
-                            Entry::Received { link, stamp, body } => {
-                                self.received(link, stamp, body)?;
-                            }
-                        }
-                    }
+                    self.batch(&bytes, shapes)?;
                     // One raw message per link and batch.
                     self.write_pending()?;
                     // Counted out after the buffer is given back: a backlog of
@@ -146,6 +140,27 @@ impl Output {
             message: e.to_string(),
         })?;
         Ok(summary)
+    }
+
+    /// The entries of one part's batch.
+    fn batch(&mut self, bytes: &[u8], shapes: &[Option<TypeShape>]) -> Result<(), RecordError> {
+        for entry in entries(bytes) {
+            match entry {
+                Entry::Transfer { link, stamp, body } => {
+                    let shape = shapes.get(link as usize).and_then(Option::as_ref);
+                    self.transfer(link, shape, stamp, body)?;
+                }
+                Entry::Read { link, time, stamp } => self.read(link, time, stamp)?,
+                Entry::Received { link, stamp, body } => self.received(link, stamp, body)?,
+                Entry::Predicates {
+                    node,
+                    time,
+                    iteration,
+                    values,
+                } => self.predicates(node, time, iteration, values)?,
+            }
+        }
+        Ok(())
     }
 
     /// One process's timing statistics on `/timing`, the channel made with
@@ -400,6 +415,51 @@ impl Output {
         Ok(())
     }
 
+    /// The predicates of node `node` after its activation at `time` (those
+    /// an observer beside the recorder asked for: a contract monitor's
+    /// invariants), on its `/predicates/<node>` channel, made with the first.
+    fn predicates(
+        &mut self,
+        node: u32,
+        time: Time,
+        iteration: u64,
+        values: Valuation,
+    ) -> Result<(), RecordError> {
+        let Some(n) = self.info.nodes.get(node as usize) else {
+            return Ok(());
+        };
+        let names = n.fsm.as_ref().map_or(&[][..], |f| f.predicates.as_slice());
+        let map: serde_json::Map<String, Value> = names
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| Some((p.clone(), Value::Bool(values.get(i)?))))
+            .collect();
+        let data = json!({"time_s": time.as_secs_f64(), "iteration": iteration, "predicates": map});
+        let topic = format!("{PREDICATES_PREFIX}{}", n.name);
+        let Some(slot) = self.predicates.get(node as usize).copied() else {
+            return Ok(());
+        };
+        let id = match slot.0 {
+            Some(c) => c,
+            None => {
+                let schema = self
+                    .w
+                    .add_schema(
+                        "embodied.Predicates",
+                        "jsonschema",
+                        PREDICATES_SCHEMA.as_bytes(),
+                    )
+                    .map_err(|e| self.fail(&e))?;
+                let made = self.w.add_channel(schema, &topic, "json", &BTreeMap::new());
+                made.map_err(|e| self.fail(&e))?
+            }
+        };
+        if let Some(s) = self.predicates.get_mut(node as usize) {
+            *s = (Some(id), slot.1.wrapping_add(1));
+        }
+        self.write(id, slot.1, time, &data.to_string().into_bytes())
+    }
+
     fn transition(
         &mut self,
         node: u32,
@@ -452,6 +512,9 @@ pub(super) struct LinkChannels {
     pub(super) received: Option<u16>,
     pub(super) received_count: u64,
 }
+
+/// The schema of a `/predicates/<node>` message.
+const PREDICATES_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"embodied.Predicates","type":"object","properties":{"time_s":{"type":"number"},"iteration":{"type":"integer"},"predicates":{"type":"object","additionalProperties":{"type":"boolean"}}},"required":["time_s","iteration","predicates"]}"#;
 
 /// A behaviour switch of node `n` as recorded on its `/fsm/<node>` channel
 /// (and as a replay compares it).
