@@ -15,7 +15,7 @@ use embodied::app::{
 };
 use embodied::record::RecordOptions;
 use embodied::replay::ReplayOptions;
-use embodied::{ExecConfig, Finished, OffloadMode, Probes, System};
+use embodied::{Finished, OffloadMode, Probes, System};
 
 use crate::a1::c1::trajgen::Runtime;
 use crate::a1::e11::{EstimatorKind, TrackerKind};
@@ -214,29 +214,6 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
     s
 }
 
-/// Check that `deployment` keeps the simulated world's drivers in one process.
-fn check_world(spec: &embodied::spec::Spec, deployment: &str) -> Result<(), AppError> {
-    let Some(dep) = spec.deployment(deployment) else {
-        return Ok(()); // the layer names a deployment the spec lacks
-    };
-    let mut places: Vec<(String, &str)> = WORLD_DRIVERS
-        .iter()
-        .filter_map(|d| Some((dep.process_of(d)?.name.clone(), *d)))
-        .collect();
-    places.sort();
-    if places.windows(2).any(|w| w[0].0 != w[1].0) {
-        return Err(AppError::invalid(format!(
-            "deployment `{deployment}`: the simulated world's drivers share one environment and must run in one process, but {}",
-            places
-                .iter()
-                .map(|(p, d)| format!("{d} runs in `{p}`"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )));
-    }
-    Ok(())
-}
-
 /// Prints acknowledgements and a line every few seconds (nothing when `quiet`).
 pub fn printer(quiet: bool) -> impl FnMut(Progress<'_>) + Send + 'static {
     move |p: Progress<'_>| match p {
@@ -365,27 +342,16 @@ impl Application for RexApp {
         Duration::try_from_secs_f64(config.limit_s).unwrap_or(Duration::from_secs(300))
     }
 
-    fn exec(&self, _: &RunSettings) -> ExecConfig {
-        ExecConfig::default()
-    }
-
     fn announce(&self, config: &RunSettings) -> Option<String> {
         let c = RexApp::resolve(config).ok()?;
-        if c.mission.listens() {
-            return Some(format!(
-                "rex: mission `{}` (no plans from a2: c1 takes plans from elsewhere, ROS 2 /rex/plan with --ros2, until the time limit), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
-                c.mission.name,
-                c.planner.name(),
-                c.tracker,
-                c.estimator,
-                c.runtime,
-                if c.visual_odometry { "on" } else { "off" }
-            ));
-        }
+        let plans = if c.mission.listens() {
+            "no plans from a2: c1 takes plans from elsewhere, ROS 2 /rex/plan with --ros2, until the time limit".to_owned()
+        } else {
+            format!("{} plans", c.mission.plans.len())
+        };
         Some(format!(
-            "rex: mission `{}` ({} plans), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
+            "rex: mission `{}` ({plans}), planner {}, tracker {:?}, estimator {:?}, planning {:?}, visual odometry {}",
             c.mission.name,
-            c.mission.plans.len(),
             c.planner.name(),
             c.tracker,
             c.estimator,
@@ -456,7 +422,12 @@ impl Application for RexApp {
                 "--no-vo: deployment `{deployment}` runs the visual odometry (r11); choose one that omits it (split_without_vo, split_secure_without_vo)"
             )));
         }
-        check_world(&spec, deployment)
+        embodied::app::check_together(
+            &spec,
+            deployment,
+            &WORLD_DRIVERS,
+            "the simulated world's drivers share one environment and must run in one process",
+        )
     }
 }
 
@@ -530,7 +501,7 @@ impl Watcher<Seen> for RexWatch {
             ));
         }
         if self.verbose {
-            text.push_str(&crate::report::timing(&self.spec));
+            text.push_str(&embodied::app::report::timing(&self.spec));
         }
         Verdict {
             passed: out.succeeded(),

@@ -10,19 +10,19 @@
 //! | `torques.svg` | the four wheel torques over time |
 //! | `friction.svg` | the estimator's friction of the ground `(μ_x, μ_y, μ_r)` over time (the MHE's; the EKF estimates none) |
 //! | `timeline.svg` | `c1`'s behaviour (B1, B2, B3) and the fragment `e11` executes, over time |
-//! | `timing.txt` | the timing certificate of the spec, as one process on one host (`embodied check --timing`'s: [`embodied::spec::timing::analyse`]) |
-//! | `diagrams/` | every subsystem's FSM (SVG and Mermaid) and data flow, the agents' structure ([`diagram::render_all`]) |
+//! | `timing.txt` | the timing certificate of the spec, as one process on one host (`embodied check --timing`'s: [`embodied::app::report::timing`]) |
+//! | `diagrams/` | every subsystem's FSM (SVG and Mermaid) and data flow, the agents' structure ([`embodied::spec::diagram::render_all`]) |
 
 use std::fmt::Write as _;
 use std::io;
 use std::path::{Path, PathBuf};
 
+use embodied::app::report::Report;
 use embodied::spec::Spec;
-use embodied::spec::diagram;
 
 use crate::run::{Outcome, Sample};
 use crate::system::RexConfig;
-use embodied::app::plot::{Marker, PALETTE, Plot, Row, Series, timeline};
+use embodied::app::plot::{Marker, PALETTE, Plot, Row, Series, series_each, timeline};
 
 /// Write the report of `outcome` into `dir` (created if needed); returns the files
 /// written.
@@ -32,38 +32,16 @@ pub fn write(
     config: &RexConfig,
     spec: &Spec,
 ) -> io::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir.join("diagrams"))?;
-    let mut files = Vec::new();
-    let mut put = |name: &str, text: String| -> io::Result<()> {
-        let path = dir.join(name);
-        std::fs::write(&path, text)?;
-        files.push(path);
-        Ok(())
-    };
-    put("summary.txt", summary(outcome))?;
-    put("samples.csv", csv(&outcome.samples))?;
-    put("trajectory.svg", trajectory(outcome, config).to_svg())?;
-    put("tracking_error.svg", tracking_error(outcome).to_svg())?;
-    put("torques.svg", torques(outcome).to_svg())?;
-    put("friction.svg", friction(outcome).to_svg())?;
-    put("timeline.svg", behaviour_timeline(outcome))?;
-    put("timing.txt", timing(spec))?;
-    for (name, text) in diagram::render_all(spec) {
-        put(&format!("diagrams/{name}"), text)?;
-    }
-    Ok(files)
-}
-
-/// The text of `timing.txt`: the certificate, or why there is none (also
-/// what `rex --verbose` prints after the summary).
-pub fn timing(spec: &Spec) -> String {
-    match embodied::spec::timing::analyse(spec, None, None) {
-        Ok(analysis) => format!(
-            "# The timing analysis of `{}` as one process on one host (embodied check --timing)\n{analysis}",
-            spec.name
-        ),
-        Err(why) => format!("no timing analysis: {why}\n"),
-    }
+    let mut report = Report::create(dir)?;
+    report.put("summary.txt", summary(outcome))?;
+    report.put("samples.csv", csv(&outcome.samples))?;
+    report.put("trajectory.svg", trajectory(outcome, config).to_svg())?;
+    report.put("tracking_error.svg", tracking_error(outcome).to_svg())?;
+    report.put("torques.svg", torques(outcome).to_svg())?;
+    report.put("friction.svg", friction(outcome).to_svg())?;
+    report.put("timeline.svg", behaviour_timeline(outcome))?;
+    report.spec(spec)?;
+    Ok(report.files().to_vec())
 }
 
 /// The text of `summary.txt`.
@@ -338,7 +316,9 @@ fn friction(o: &Outcome) -> Plot {
         title: format!("{}: friction of the ground ({})", o.mission, o.parts[2]),
         x_label: "time [s]".into(),
         y_label: "estimate".into(),
-        series: over_time(o, &["mu_long", "mu_lat", "rolling"], |s, i| s.friction[i]),
+        series: series_each(&["mu_long", "mu_lat", "rolling"], |i| {
+            over_time(o, |s| s.friction[i])
+        }),
         ..Plot::default()
     }
 }
@@ -354,85 +334,35 @@ fn torques(o: &Outcome) -> Plot {
         title: format!("{}: wheel torques", o.mission),
         x_label: "time [s]".into(),
         y_label: "torque [N m]".into(),
-        series: over_time(o, &names, |s, i| s.tau[i]),
+        series: series_each(&names, |i| over_time(o, |s| s.tau[i])),
         ..Plot::default()
     }
 }
 
-/// One series per name, the `i`-th plotting `value(sample, i)` over time.
-fn over_time(o: &Outcome, names: &[&str], value: impl Fn(&Sample, usize) -> f64) -> Vec<Series> {
-    names
-        .iter()
-        .enumerate()
-        .map(|(i, n)| {
-            Series::new(
-                *n,
-                PALETTE[i % PALETTE.len()],
-                o.samples.iter().map(|s| Some((s.t, value(s, i)))).collect(),
-            )
-        })
-        .collect()
+/// The points of `value` at every sample.
+fn over_time(o: &Outcome, value: impl Fn(&Sample) -> f64) -> Vec<Option<(f64, f64)>> {
+    o.samples.iter().map(|s| Some((s.t, value(s)))).collect()
 }
 
 fn behaviour_timeline(o: &Outcome) -> String {
     const COLOURS: [&str; 3] = ["#7f7f7f", "#1f77b4", "#2ca02c"];
-    let mut c1 = Row {
-        name: "c1".into(),
-        spans: Vec::new(),
-    };
-    let mut e11 = Row {
-        name: "e11".into(),
-        spans: Vec::new(),
-    };
-    let mut open_b: Option<(f64, u8)> = None;
-    let mut open_f: Option<(f64, Option<(u32, u32)>)> = None;
     let end = o.samples.last().map_or(0.0, |s| s.t);
-    let frag_label = |f: Option<(u32, u32)>| match f {
-        Some((p, i)) => (format!("{p}.{i}"), PALETTE[(i as usize) % 2 * 3]),
+    let behaviours = o.samples.iter().map(|s| (s.t, s.behaviour));
+    let c1 = Row::of_changes("c1", behaviours, end, |&b| {
+        (format!("B{}", b + 1), COLOURS[b as usize % 3])
+    });
+    let fragments = o.samples.iter().map(|s| (s.t, s.fragment));
+    let e11 = Row::of_changes("e11", fragments, end, |f| match f {
+        Some((p, i)) => (format!("{p}.{i}"), PALETTE[(*i as usize) % 2 * 3]),
         None => ("hold".into(), "#bbbbbb"),
-    };
-    for s in &o.samples {
-        match open_b {
-            Some((_, b)) if b == s.behaviour => {}
-            Some((t0, b)) => {
-                c1.spans
-                    .push((t0, s.t, format!("B{}", b + 1), COLOURS[b as usize % 3]));
-                open_b = Some((s.t, s.behaviour));
-            }
-            None => open_b = Some((s.t, s.behaviour)),
-        }
-        match open_f {
-            Some((_, f)) if f == s.fragment => {}
-            Some((t0, f)) => {
-                let (label, colour) = frag_label(f);
-                e11.spans.push((t0, s.t, label, colour));
-                open_f = Some((s.t, s.fragment));
-            }
-            None => open_f = Some((s.t, s.fragment)),
-        }
-    }
-    if let Some((t0, b)) = open_b {
-        c1.spans
-            .push((t0, end, format!("B{}", b + 1), COLOURS[b as usize % 3]));
-    }
-    if let Some((t0, f)) = open_f {
-        let (label, colour) = frag_label(f);
-        e11.spans.push((t0, end, label, colour));
-    }
-    let mut acks = Row {
-        name: "a2".into(),
-        spans: Vec::new(),
-    };
-    for (t, ack) in &o.acks {
-        acks.spans
-            .push((*t, *t + end * 0.004, format!("ack {}", ack.plan), "#d62728"));
-    }
+    });
+    let acks = o.acks.iter().map(|(t, a)| (*t, format!("ack {}", a.plan)));
     timeline(
         &format!(
             "{}: behaviours of c1, fragments of e11 (plan.index), acknowledgements",
             o.mission
         ),
-        &[c1, e11, acks],
+        &[c1, e11, Row::of_instants("a2", acks, end, "#d62728")],
         end,
     )
 }

@@ -4,8 +4,7 @@
 //! platform's true pose at `t`), the same end of mission (every plan sent and
 //! acknowledged, the last fragment executed), the same judgement.
 
-use std::collections::BTreeMap;
-
+use embodied::app::Pairs;
 use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
@@ -68,8 +67,9 @@ pub enum Seen {
 /// Turns what the probes report into an outcome.
 pub(crate) struct Collector {
     pub(crate) out: Outcome,
-    truths: BTreeMap<Time, [f64; 3]>,
-    pending: Vec<(Time, Sample, Option<PlanOutcome>, bool)>,
+    /// e11's reports (a sample, a plan outcome, whether idle) paired with the
+    /// true pose at their instant.
+    pairs: Pairs<(Sample, Option<PlanOutcome>, bool), [f64; 3]>,
     behaviour: u8,
     delivered_at: Option<f64>,
     mocap_since: Option<f64>,
@@ -81,8 +81,6 @@ pub(crate) struct Collector {
     /// The mission's plans (ids `1..=n`): c1's plans numbered after them came
     /// from another sender.
     own: u32,
-    /// The latest instant of e11 seen: truths from it on may still be needed.
-    last_e11: Time,
     pub(crate) sent: usize,
     tick_ns: u128,
     next_tick: u128,
@@ -97,8 +95,7 @@ impl Collector {
                 plans: config.mission.plans.len(),
                 ..Outcome::default()
             },
-            truths: BTreeMap::new(),
-            pending: Vec::new(),
+            pairs: Pairs::default(),
             behaviour: 0,
             delivered_at: None,
             mocap_since: None,
@@ -106,7 +103,6 @@ impl Collector {
             idle: false,
             listen: config.mission.listens(),
             own: config.mission.plans.len() as u32,
-            last_e11: Time::ZERO,
             sent: 0,
             tick_ns,
             next_tick: tick_ns,
@@ -121,10 +117,7 @@ impl Collector {
                 sample,
                 event,
                 idle,
-            } => {
-                self.last_e11 = self.last_e11.max(t);
-                self.pending.push((t, sample, event, idle));
-            }
+            } => self.pairs.sample(t, (sample, event, idle)),
             Seen::C1 { behaviour, took } => {
                 self.behaviour = behaviour;
                 // A plan numbered after the mission's is another sender's: it
@@ -152,9 +145,7 @@ impl Collector {
                 self.a2_done |= halted;
                 self.sent = self.sent.max(sent);
             }
-            Seen::Truth { at, pose } => {
-                self.truths.insert(at, pose);
-            }
+            Seen::Truth { at, pose } => self.pairs.reference(at, pose),
             Seen::Mocap(at) => self.delivered_at = at.or(self.delivered_at),
             Seen::Counters(c) => self.out.counters.absorb(*c),
             Seen::Parts(parts) => {
@@ -178,26 +169,13 @@ impl Collector {
         finished: bool,
         progress: &mut impl FnMut(Progress<'_>),
     ) -> bool {
-        let world_at = self
-            .truths
-            .keys()
-            .next_back()
-            .copied()
-            .unwrap_or(Time::ZERO);
-        self.pending.sort_by_key(|p| p.0);
-        let split = self
-            .pending
-            .iter()
-            .position(|p| !(p.0 <= world_at || finished))
-            .unwrap_or(self.pending.len());
-        let ready: Vec<_> = self.pending.drain(..split).collect();
-        for (t, mut sample, event, idle) in ready {
+        for (t, (mut sample, event, idle), truth) in self.pairs.take(finished) {
             let ts = t.as_secs_f64();
             if let Some(o) = event {
                 self.out.outcomes.push((ts, o));
             }
             self.idle = idle;
-            let Some(pose) = self.truths.get(&t) else {
+            let Some(pose) = truth else {
                 continue;
             };
             let delivering = self.delivered_at.is_some_and(|at| at >= ts - 0.05);
@@ -206,7 +184,7 @@ impl Collector {
             } else {
                 None
             };
-            sample.truth = *pose;
+            sample.truth = pose;
             sample.behaviour = self.behaviour;
             sample.mocap_for = self.mocap_since.map_or(0.0, |since| ts - since);
             self.out.samples.push(sample);
@@ -218,10 +196,6 @@ impl Collector {
                 });
             }
         }
-        // Truth older than the oldest sample waiting, and than the latest sample
-        // seen, is no longer needed (a sample's truth often arrives first).
-        let keep_from = self.pending.first().map_or(self.last_e11, |p| p.0);
-        self.truths = self.truths.split_off(&keep_from);
         if self.listen {
             if finished {
                 self.out.completed = self.idle && self.foreign_answered();

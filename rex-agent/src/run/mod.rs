@@ -21,8 +21,8 @@ pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes, install_probes_as};
 pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
 
-use embodied::app::{End, Ran, Watched, Watcher};
-use embodied::{ExecError, Finished, NoObserver, Probes};
+use embodied::app::{Ran, Tally, Watched, Watcher};
+use embodied::{ExecError, Finished, NoObserver};
 
 use crate::payload::{Ack, AckStatus, PlanOutcome};
 use crate::system::{RexConfig, RexError, RexHandles, build};
@@ -128,47 +128,36 @@ impl Counters {
     /// deployment): each counter comes from one component, so the parts add up
     /// (saturating: they arrive over the network).
     pub fn absorb(&mut self, o: Counters) {
-        self.fragments_received = self.fragments_received.saturating_add(o.fragments_received);
-        self.fragments_completed = self
-            .fragments_completed
-            .saturating_add(o.fragments_completed);
-        self.fragments_rejected = self.fragments_rejected.saturating_add(o.fragments_rejected);
-        self.fragments_stale = self.fragments_stale.saturating_add(o.fragments_stale);
-        self.stops.extend(o.stops);
-        self.watchdog_steps = self.watchdog_steps.saturating_add(o.watchdog_steps);
+        self.fragments_received.tally(o.fragments_received);
+        self.fragments_completed.tally(o.fragments_completed);
+        self.fragments_rejected.tally(o.fragments_rejected);
+        self.fragments_stale.tally(o.fragments_stale);
+        self.stops.tally(o.stops);
+        self.watchdog_steps.tally(o.watchdog_steps);
         let (e, f) = (&mut self.estimator, o.estimator);
-        e.rejected = e.rejected.saturating_add(f.rejected);
-        e.rejected_poses = e.rejected_poses.saturating_add(f.rejected_poses);
-        e.relocalisations = e.relocalisations.saturating_add(f.relocalisations);
-        self.clamped_torques = self.clamped_torques.saturating_add(o.clamped_torques);
-        self.c1_restarts = self.c1_restarts.saturating_add(o.c1_restarts);
-        self.plans_resent = self.plans_resent.saturating_add(o.plans_resent);
-        self.fragments_repeated = self.fragments_repeated.saturating_add(o.fragments_repeated);
-        self.vo_outages = self.vo_outages.saturating_add(o.vo_outages);
-        self.plans_out_of_sequence = self
-            .plans_out_of_sequence
-            .saturating_add(o.plans_out_of_sequence);
-        self.planned = self.planned.saturating_add(o.planned);
-        self.planner_iterations = self.planner_iterations.saturating_add(o.planner_iterations);
-        self.planner_failures = self.planner_failures.saturating_add(o.planner_failures);
-        self.executor_errors = self.executor_errors.saturating_add(o.executor_errors);
-        self.mocap = (
-            self.mocap.0.saturating_add(o.mocap.0),
-            self.mocap.1.saturating_add(o.mocap.1),
-        );
-        self.vo = (
-            self.vo.0.saturating_add(o.vo.0),
-            self.vo.1.saturating_add(o.vo.1),
-            self.vo.2.saturating_add(o.vo.2),
-        );
+        e.rejected.tally(f.rejected);
+        e.rejected_poses.tally(f.rejected_poses);
+        e.relocalisations.tally(f.relocalisations);
+        self.clamped_torques.tally(o.clamped_torques);
+        self.c1_restarts.tally(o.c1_restarts);
+        self.plans_resent.tally(o.plans_resent);
+        self.fragments_repeated.tally(o.fragments_repeated);
+        self.vo_outages.tally(o.vo_outages);
+        self.plans_out_of_sequence.tally(o.plans_out_of_sequence);
+        self.planned.tally(o.planned);
+        self.planner_iterations.tally(o.planner_iterations);
+        self.planner_failures.tally(o.planner_failures);
+        self.executor_errors.tally(o.executor_errors);
+        self.mocap.tally(o.mocap);
+        self.vo.tally(o.vo);
         let (t, u) = (&mut self.tracker, o.tracker);
-        t.solves = t.solves.saturating_add(u.solves);
-        t.constrained = t.constrained.saturating_add(u.constrained);
-        t.clarabel = t.clarabel.saturating_add(u.clarabel);
-        t.failures = t.failures.saturating_add(u.failures);
-        t.fallbacks = t.fallbacks.saturating_add(u.fallbacks);
-        t.safe_stops = t.safe_stops.saturating_add(u.safe_stops);
-        t.refused = t.refused.saturating_add(u.refused);
+        t.solves.tally(u.solves);
+        t.constrained.tally(u.constrained);
+        t.clarabel.tally(u.clarabel);
+        t.failures.tally(u.failures);
+        t.fallbacks.tally(u.fallbacks);
+        t.safe_stops.tally(u.safe_stops);
+        t.refused.tally(u.refused);
     }
 }
 
@@ -228,20 +217,9 @@ impl Outcome {
     /// When `e11` lost the visual odometry it was receiving, and when it came
     /// back (`None`: not before the end) \[s\].
     pub fn vo_outages(&self) -> Vec<(f64, Option<f64>)> {
-        let mut out: Vec<(f64, Option<f64>)> = Vec::new();
-        let mut lost = false;
-        for s in &self.samples {
-            if s.vo_lost && !lost {
-                out.push((s.t, None));
-            } else if !s.vo_lost
-                && lost
-                && let Some(last) = out.last_mut()
-            {
-                last.1 = Some(s.t);
-            }
-            lost = s.vo_lost;
-        }
-        out
+        let lost = self.samples.iter().map(|s| (s.t, s.vo_lost));
+        let runs = embodied::app::plot::runs(lost).into_iter().filter(|r| r.2);
+        runs.map(|(from, to, _)| (from, to)).collect()
     }
 
     /// The estimator's friction of the ground `(μ_x, μ_y, μ_r)` at the run's last
@@ -389,22 +367,12 @@ pub fn run_mission_observed<O: embodied::Observer + 'static>(
 ) -> Result<(Outcome, O), RunError> {
     let (system, h) = build(config)?;
     let observer = observer(&system)?;
-    let (mut probes, seen) = Probes::new(PROBES);
-    install_probes(&mut probes, &h, &|_| true);
     let mut watch = MissionWatch::new(config, tick, progress);
-    let (ran, observer) = Watched {
-        probes,
-        seen,
-        watcher: &mut watch,
-        end: End::Limit,
-        limit,
-        quiet: true,
-        transitions: false,
-        // The library's mission runs judge the mission; the spec's contracts
-        // are watched in the program's runs (`rex`, through the layer).
-        contracts: None,
-    }
-    .simulate(system, config.exec, observer)?;
+    // The library's mission runs judge the mission; the spec's contracts
+    // are watched in the program's runs (`rex`, through the layer).
+    let mut run = Watched::new(&mut watch, limit);
+    install_probes(&mut run.probes, &h, &|_| true);
+    let (ran, observer) = run.simulate(system, config.exec, observer)?;
     Ok((watch.conclude(&ran, &h), observer))
 }
 

@@ -8,11 +8,11 @@
 use std::path::Path;
 use std::time::Duration;
 
-use embodied::app::{End, Watched};
-use embodied::record::{McapRecorder, RecordOptions, RecordSummary};
-use embodied::{Probes, RtConfig, RtReport};
+use embodied::app::Watched;
+use embodied::record::{RecordOptions, RecordSummary};
+use embodied::{RtConfig, RtReport};
 
-use super::{MissionWatch, Outcome, PROBES, Progress, RunError, install_probes};
+use super::{MissionWatch, Outcome, Progress, RunError, install_probes};
 use crate::system::{RexConfig, build};
 
 /// Why the real-time run failed to start or ended badly.
@@ -65,40 +65,20 @@ fn realtime(
     progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, RtReport, Option<RecordSummary>), RtRunError> {
     let (system, h) = build(config).map_err(RunError::from)?;
-    let recorder = match record {
-        Some((path, options)) => {
-            Some(McapRecorder::create(path, &system, options).map_err(RunError::from)?)
-        }
-        None => None,
-    };
-    let (mut probes, seen) = Probes::new(PROBES);
-    install_probes(&mut probes, &h, &|_| true);
     let mut watch = MissionWatch::new(config, tick, progress);
-    let ran = Watched {
-        probes,
-        seen,
-        watcher: &mut watch,
-        end: End::Limit,
-        limit,
-        quiet: true,
-        transitions: false,
-        // The library's mission runs judge the mission; the spec's contracts
-        // are watched in the program's runs (`rex`, through the layer).
-        contracts: None,
-    }
-    .realtime(
-        system,
-        RtConfig {
-            exec: config.exec,
-            ..rt
-        },
-        recorder.as_ref(),
-    )
-    .map_err(RunError::from)?;
-    let outcome = watch.conclude(&ran, &h);
-    let summary = recorder
-        .map(McapRecorder::finish)
-        .transpose()
+    // Watched as the deterministic run is (see `run_mission_observed`).
+    let mut run = Watched::new(&mut watch, limit);
+    install_probes(&mut run.probes, &h, &|_| true);
+    let rt = RtConfig {
+        exec: config.exec,
+        ..rt
+    };
+    let (ran, summary) = run
+        .realtime_recorded(system, rt, record)
         .map_err(RunError::from)?;
-    Ok((outcome, ran.finished.into_report(), summary))
+    Ok((
+        watch.conclude(&ran, &h),
+        ran.finished.into_report(),
+        summary,
+    ))
 }
