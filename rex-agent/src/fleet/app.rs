@@ -174,26 +174,16 @@ const WORLD_DRIVERS: [&str; 3] = ["E1", "R1", "R3"];
 /// Check that `deployment` keeps every robot's world drivers in one process:
 /// they share the fleet's truth.
 fn check_world(spec: &Spec, deployment: &str, robots: usize) -> Result<(), AppError> {
-    let Some(dep) = spec.deployment(deployment) else {
-        return Ok(()); // the layer names a deployment the spec lacks
-    };
-    let mut places: Vec<(String, String)> = (0..robots)
+    let drivers: Vec<String> = (0..robots)
         .flat_map(|i| WORLD_DRIVERS.iter().map(move |d| robot_name(d, i)))
-        .filter_map(|d| Some((dep.process_of(&d)?.name.clone(), d)))
         .collect();
-    places.sort();
-    places.dedup_by(|a, b| a.0 == b.0);
-    if places.len() > 1 {
-        return Err(AppError::invalid(format!(
-            "deployment `{deployment}`: the robots' platforms and sensors share the fleet's truth and must run in one process, but {}",
-            places
-                .iter()
-                .map(|(p, d)| format!("{d} runs in `{p}`"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )));
-    }
-    Ok(())
+    let drivers: Vec<&str> = drivers.iter().map(String::as_str).collect();
+    embodied::app::check_together(
+        spec,
+        deployment,
+        &drivers,
+        "the robots' platforms and sensors share the fleet's truth and must run in one process",
+    )
 }
 
 impl Application for FleetApp {
@@ -448,4 +438,68 @@ fn launch_line(out: &FleetOutcome) -> String {
         c.fragments_repeated,
         out.realtime_factor()
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flags(robots: usize, per_process: usize) -> FleetFlags {
+        FleetFlags {
+            robots,
+            per_process,
+            short: true,
+            no_vo: true,
+        }
+    }
+
+    #[test]
+    fn a_fleet_without_robots_or_processes_without_robots_is_invalid_input() {
+        for (robots, per_process, says) in [
+            (0, 2, "--robots 0"),
+            (MAX_ROBOTS + 1, 2, "--robots 1025"),
+            (3, 0, "--per-process 0"),
+        ] {
+            let e = FleetConfig::of(&flags(robots, per_process)).expect_err(says);
+            assert!(matches!(e, AppError::Invalid(_)), "{e}");
+            assert!(e.to_string().contains(says), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_world_split_over_processes_is_refused_and_the_grouped_deployment_passes() {
+        let config = FleetConfig::of(&flags(2, 1)).expect("valid flags");
+        let mut spec = config.fleet().expect("a fleet").spec();
+        assert!(check_world(&spec, "grouped_without_vo", 2).is_ok());
+        let dep = spec
+            .deployments
+            .iter_mut()
+            .find(|d| d.name == "grouped_without_vo")
+            .expect("the grouped deployment");
+        let processes = &mut dep.hosts[0].processes;
+        processes[0].runs.retain(|n| n != "E1_1");
+        processes[1].runs.push("E1_1".into());
+        let e = check_world(&spec, "grouped_without_vo", 2).expect_err("split world");
+        assert!(e.to_string().contains("E1_1 runs in `robots_0`"), "{e}");
+    }
+
+    #[test]
+    fn a_process_builds_its_robots_c1_planning_on_a_thread_with_the_starts_epoch() {
+        let config = FleetConfig::of(&flags(4, 2)).expect("valid flags");
+        let fleet = config.fleet().expect("a fleet");
+        let spec = fleet.spec();
+        let target = Target::Process {
+            deployment: "grouped_without_vo",
+            process: "robots_1",
+            incarnation: 1,
+            boot: 77,
+        };
+        let configs = FleetApp::configs(&fleet, &spec, &target).expect("configs");
+        let threads: Vec<bool> = configs
+            .iter()
+            .map(|c| c.runtime == Runtime::Thread)
+            .collect();
+        assert_eq!(threads, [false, false, true, true]);
+        assert!(configs.iter().all(|c| c.c1.boot == 77));
+    }
 }
