@@ -120,6 +120,40 @@ impl FleetConfig {
         })
     }
 
+    /// Check a configuration read back from a recording (`replay`): as many
+    /// robots as a fleet may have, a warehouse of finite positive sizes, at
+    /// least one robot a process, a positive time limit; every robot's plans
+    /// on its aisle.
+    pub fn validate(&self) -> Result<(), AppError> {
+        let w = &self.warehouse;
+        let invalid = |what: String| {
+            Err(AppError::invalid(format!(
+                "the fleet's configuration: {what}"
+            )))
+        };
+        if w.aisles == 0 || w.aisles > MAX_ROBOTS {
+            return invalid(format!("{} robots (1 to {MAX_ROBOTS})", w.aisles));
+        }
+        if self.per_process == 0 {
+            return invalid("per_process 0".into());
+        }
+        let sizes = [
+            ("length", w.length),
+            ("aisle_width", w.aisle_width),
+            ("shelf_depth", w.shelf_depth),
+            ("shelf_height", w.shelf_height),
+            ("limit_s", self.limit_s),
+        ];
+        if let Some((name, v)) = sizes.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return invalid(format!("{name} = {v} (a finite positive number)"));
+        }
+        if !(w.cross.is_finite() && w.cross >= 0.0 && w.start_x.is_finite()) {
+            return invalid(format!("cross = {}, start_x = {}", w.cross, w.start_x));
+        }
+        self.fleet()?.configs().map_err(AppError::invalid)?;
+        Ok(())
+    }
+
     /// The fleet it describes.
     pub fn fleet(&self) -> Result<Fleet, AppError> {
         let mut fleet = Fleet::in_warehouse(self.warehouse.clone(), self.visual_odometry)
@@ -201,8 +235,20 @@ impl Application for FleetApp {
             config.limit_s = limit.as_secs_f64();
         }
         // Every robot's plans on its aisle, before anything runs.
-        config.fleet()?.configs().map_err(AppError::invalid)?;
+        config.validate()?;
         Ok(vec![config])
+    }
+
+    fn reconfigure(
+        &mut self,
+        recorded: FleetConfig,
+        _: &FleetFlags,
+        _: &Common,
+    ) -> Result<FleetConfig, AppError> {
+        // The recorded fleet is replayed whatever the flags say: its spec and
+        // its robots are the recording's.
+        recorded.validate()?;
+        Ok(recorded)
     }
 
     fn spec(&self, config: &FleetConfig) -> Result<SpecFile, AppError> {
@@ -463,6 +509,30 @@ mod tests {
             let e = FleetConfig::of(&flags(robots, per_process)).expect_err(says);
             assert!(matches!(e, AppError::Invalid(_)), "{e}");
             assert!(e.to_string().contains(says), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_recorded_configuration_out_of_bounds_is_invalid_input() {
+        let good = FleetConfig::of(&flags(2, 1)).expect("valid flags");
+        assert!(good.validate().is_ok());
+        let mut huge = good.clone();
+        huge.warehouse.aisles = usize::MAX;
+        let mut nan = good.clone();
+        nan.warehouse.length = f64::NAN;
+        let mut none = good.clone();
+        none.per_process = 0;
+        let mut off = good;
+        off.warehouse.plans = vec![vec![(3.0, 5.0)]];
+        for (bad, says) in [
+            (huge, "robots"),
+            (nan, "length = NaN"),
+            (none, "per_process 0"),
+            (off, "off its aisle"),
+        ] {
+            let e = bad.validate().expect_err(says);
+            assert!(matches!(e, AppError::Invalid(_)), "{e}");
+            assert!(e.to_string().contains(says), "{says}: {e}");
         }
     }
 
