@@ -84,6 +84,8 @@ fn events_and_violations_allocate_nothing() {
             Some(&[k.is_multiple_of(3), k.is_multiple_of(11)]),
             &mut sink,
         );
+        // As a running executor's watch gives them: bits.
+        m.predicates(c1, t, 0b11, u64::from(k.is_multiple_of(5)) << 1, &mut sink);
     };
     m.start(Time::ZERO);
     for k in 0..100 {
