@@ -20,8 +20,10 @@
 //! Deployments: `simulation` (everything in one process), `simulation_without_vo`
 //! (without `r11_i` and `R1_i`), and `grouped_without_vo`: the shared world
 //! (every platform and motion capture, which share the fleet's truth) with the
-//! partner agents in one process, and the robots' a1 parts in processes of
-//! `per_process` robots each, for a deployment over Zenoh.
+//! partner agents in one process (never restarted: a new one would put every
+//! platform back at its start), and the robots' a1 parts in processes
+//! `robots_k` of `per_process` robots each, launched over Zenoh by
+//! [`super::app`] (`fleet launch --deployment grouped_without_vo`).
 
 use embodied::spec::Report;
 use embodied::spec::model::{Agent, Deployment, Host, Link, Process, Spec, Target};
