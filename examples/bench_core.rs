@@ -24,8 +24,10 @@
 //!   dispatch or allocation: the ratios are 1 within the noise.
 //!
 //! * The monitors of Rex's contracts (specs/rex.ron: freshness, rates, a
-//!   behaviour bound, the four torque ranges, a response) watching a system
-//!   with Rex's names, links and payload types where those contracts read
+//!   behaviour bound, the four torque ranges, a response, c2's invariant over
+//!   the predicates the executor evaluates after each of its activations)
+//!   watching a system with Rex's names, links, payload types and predicates
+//!   where those contracts read
 //!   (c1, e11, the platform E1, c2, c3, on one period: this crate cannot build
 //!   Rex itself), as every run with a spec's contracts watches it: run without
 //!   and with the watch in alternating batches, `monitor_ns_per_cycle` is the
