@@ -2,7 +2,8 @@
 //! command line: the tank's mission in the deterministic executor to its end
 //! rule, the filter's estimate paired with the tank's true level at each of
 //! its activations (`Pairs`), and a real-time run recorded without a word on
-//! standard output (`Watched::realtime_recorded`).
+//! standard output (`Watched::realtime_recorded`), each concluded by
+//! `Ran::conclude`.
 
 #![allow(clippy::expect_used, reason = "a failing expect is a failing test")]
 
@@ -83,7 +84,7 @@ fn a_program_runs_the_tank_to_its_end_and_pairs_estimates_with_the_truth() {
     let (ran, NoObserver) = run
         .simulate(system, ExecConfig::default(), NoObserver)
         .expect("the tank runs");
-    watcher.ended(true);
+    ran.conclude(&mut watcher, []);
     assert_eq!(ran.ended, Ended::Rule("c2 halted".into()));
     assert!(ran.finished.report().last_instant < Time::from_nanos(600_000_000_000));
     assert_eq!(watcher.acks, 2, "both orders acknowledged");
@@ -108,7 +109,7 @@ fn a_program_records_a_real_time_run_quietly() {
             Some((&file, RecordOptions::default())),
         )
         .expect("the tank runs in real time");
-    watcher.ended(true);
+    ran.conclude(&mut watcher, []);
     assert_eq!(ran.ended, Ended::Limit);
     let summary = summary.expect("a recording was asked for");
     assert!(summary.messages > 0 && summary.channels > 0, "{summary:?}");

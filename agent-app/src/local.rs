@@ -144,6 +144,19 @@ pub struct Ran {
     pub wall: Duration,
 }
 
+impl Ran {
+    /// Tell `watcher` the run's `last` reports (read off its nodes, as an
+    /// application's [`finished`](crate::Application::finished) does), then
+    /// that the run is finished ([`Watcher::ended`]): the end of a run a
+    /// program drives itself, as the command line ends each of its runs.
+    pub fn conclude<M>(&self, watcher: &mut dyn Watcher<M>, last: impl IntoIterator<Item = M>) {
+        for m in last {
+            watcher.see(m);
+        }
+        watcher.ended(true);
+    }
+}
+
 /// The stop signal, if the program installed the handlers ([`Signals::get`]).
 fn signalled() -> Option<&'static str> {
     Signals::installed().and_then(Signals::received)
@@ -420,15 +433,12 @@ fn conclude<A: Application>(
     recorder: Option<McapRecorder>,
     (bridged, contracts, on_error): (bool, Option<&Live>, OnError),
 ) -> Result<(Status, String), AppError> {
+    ran.conclude(watcher, app.finished(&ran.finished));
     let Ran {
         finished,
         ended,
         wall,
     } = ran;
-    for m in app.finished(&finished) {
-        watcher.see(m);
-    }
-    watcher.ended(true);
     let report = finished.report();
     if report.probe_dropped > 0 {
         output::warn(format_args!(

@@ -410,10 +410,7 @@ impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
     /// The end of a run in this process: the last reports read off its
     /// nodes, then the outcome.
     pub(crate) fn conclude(&mut self, ran: &Ran, h: &RexHandles) -> Outcome {
-        for seen in last_reports(&ran.finished, h) {
-            self.see(seen);
-        }
-        self.ended(true);
+        ran.conclude(self, last_reports(&ran.finished, h));
         self.outcome(
             ran.wall.as_secs_f64(),
             ran.finished.report().last_instant.as_secs_f64(),
