@@ -4,7 +4,7 @@
 //! after the run beside the other figures:
 //!
 //! ```text
-//! contracts_checked=12 contracts_violated=0 contracts_not_evaluable=0
+//! contracts_checked=13 contracts_violated=0 contracts_not_evaluable=0
 //! ```
 //!
 //! Each violation is an executor error too ([`agent_core::ExecError::Contract`]),

@@ -42,7 +42,7 @@ pub mod spec;
 
 use std::time::Duration;
 
-use embodied::app::{End, Watched, Watcher};
+use embodied::app::{Watched, Watcher};
 use embodied::spec::Assembly;
 use embodied::spec::model::Spec;
 use embodied::{NoObserver, OffloadMode, Probes, System, Time};
@@ -629,23 +629,14 @@ pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetEr
     let spec = fleet.spec();
     let configs = fleet.configs()?;
     let (system, handles) = build(&spec, fleet.deployment(), &configs)?;
-    let (mut probes, seen) = Probes::new(crate::run::PROBES);
-    install_probes(&mut probes, &handles, &|_| true);
     let tick = Duration::from_secs(3600);
     let mut watch = FleetWatch::new(&configs, tick, |_| Box::new(quiet));
     let exec = fleet.base.exec;
-    let (ran, _) = Watched {
-        probes,
-        seen,
-        watcher: &mut watch,
-        end: End::Limit,
-        limit,
-        quiet: true,
-        transitions: false,
-        contracts: None,
-    }
-    .simulate(system, exec, NoObserver)
-    .map_err(RunError::from)?;
+    let mut run = Watched::new(&mut watch, limit);
+    install_probes(&mut run.probes, &handles, &|_| true);
+    let (ran, _) = run
+        .simulate(system, exec, NoObserver)
+        .map_err(RunError::from)?;
     let robots: Vec<Outcome> = watch
         .robots
         .iter_mut()

@@ -376,9 +376,6 @@ pub fn run_mission_observed<O: embodied::Observer + 'static>(
     Ok((watch.conclude(&ran, &h), observer))
 }
 
-/// Results a run's probes may hold before they are taken in.
-pub(crate) const PROBES: usize = 1 << 16;
-
 /// What reads a mission as it runs (through Rex's probes, in any executor and
 /// from every process of a deployment): the [`Collector`] that pairs e11's
 /// samples with the truth, and what it tells `progress`.

@@ -245,7 +245,7 @@ fn a_listening_rex_executes_and_acknowledges_a_plan_fed_into_c1_from_outside() {
         .position(|l| l.name == PLAN_LINK)
         .and_then(|i| embodied::LinkId::of(system.info(), i))
         .expect("c1's input from c2 has a link");
-    let (mut probes, seen) = Probes::new(PROBES);
+    let (mut probes, seen) = Probes::new(1 << 16);
     install_probes(&mut probes, &h, &|_| true);
     let mut rt = RealTime::new(
         system,
