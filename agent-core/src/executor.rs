@@ -4,7 +4,8 @@
 //!
 //! Every node (subsystem or driver) has a period and is activated at
 //! `0, period, 2·period, …` of virtual time. The executor jumps from one activation
-//! instant to the next. At an instant `t`, with `D` the nodes due at `t` in
+//! instant to the next. It keeps the nodes grouped by period and next instant,
+//! so an instant costs the nodes due at it, not all the system's nodes. At an instant `t`, with `D` the nodes due at `t` in
 //! declaration order (the order they were added to the [`SystemBuilder`]), the real
 //! receptors moved after all the others:
 //!
@@ -29,6 +30,8 @@
 //! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
 
 use std::any::Any;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::time::Duration;
 
 use crate::error::ExecError;
@@ -132,9 +135,18 @@ pub struct Executor<O: Observer = NoObserver> {
     pub(crate) info: SystemInfo,
     pub(crate) nodes: Vec<Box<dyn InProcessNode>>,
     periods: Vec<u64>,
+    /// Each node's next instant (`u64::MAX`: never again), the truth that
+    /// `schedule` indexes.
     next: Vec<u64>,
-    /// The order of the nodes within an instant (real receptors last).
+    /// The order of the nodes within an instant (real receptors last): a
+    /// node's rank is its position here.
     order: Vec<usize>,
+    /// The ranks below this are the components', the others the real
+    /// receptors' (each part in declaration order).
+    receptors_from: usize,
+    /// The nodes by period and next instant, so that an instant visits only
+    /// the nodes due.
+    schedule: Schedule,
     /// The system's environment, which drivers reach through their context.
     pub(crate) environment: Option<Box<dyn Any + Send>>,
     pub(crate) channels: Channels,
@@ -206,14 +218,19 @@ impl<O: Observer> Executor<O> {
         // receptors, so that they sense what the effectors did in that instant.
         let (mut order, receptors): (Vec<usize>, Vec<usize>) =
             (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
+        let receptors_from = order.len();
         order.extend(receptors);
+        let next = vec![0; n];
+        let schedule = Schedule::new(&next, &periods, &order);
         Executor {
             channels,
             info,
             nodes,
             periods,
-            next: vec![0; n],
+            next,
             order,
+            receptors_from,
+            schedule,
             environment,
             now: Time::ZERO,
             config,
@@ -280,12 +297,16 @@ impl<O: Observer> Executor<O> {
 
     /// The next instant at which some node is due, or `None` if every node halted.
     pub fn next_instant(&self) -> Option<Time> {
-        self.next
-            .iter()
-            .copied()
-            .min()
-            .filter(|t| *t != u64::MAX)
-            .map(Time::from_nanos)
+        if self.schedule.stale {
+            return self
+                .next
+                .iter()
+                .copied()
+                .min()
+                .filter(|t| *t != u64::MAX)
+                .map(Time::from_nanos);
+        }
+        self.schedule.next_instant().map(Time::from_nanos)
     }
 
     /// Execute one instant (see the module docs). Returns the instant executed, or
@@ -298,10 +319,30 @@ impl<O: Observer> Executor<O> {
             self.started = true;
             self.observer.start(&self.info);
         }
+        if self.schedule.stale {
+            self.schedule = Schedule::new(&self.next, &self.periods, &self.order);
+        }
         let Some(t) = self.next_instant() else {
             return Ok(None);
         };
         self.now = t;
+        let tn = t.as_nanos();
+        self.schedule.take_due(tn);
+        let result = self.run_due(t);
+        if result.is_ok() {
+            self.schedule.reschedule(tn, &self.next);
+        } else {
+            // Stopped (some nodes due were not stepped): `next` alone says
+            // what is due.
+            self.schedule.stale = true;
+        }
+        result?;
+        self.report.instants += 1;
+        Ok(Some(t))
+    }
+
+    /// Read, then step, the nodes due at `t` (`self.schedule.due`).
+    fn run_due(&mut self, t: Time) -> Result<(), ExecError> {
         let tn = t.as_nanos();
         let observe = self.observer.enabled();
         let mut cx = LinkCx {
@@ -310,16 +351,33 @@ impl<O: Observer> Executor<O> {
             links: &self.info.links,
             environment: None,
         };
-        for (node, next) in self.nodes.iter_mut().zip(&self.next) {
-            if *next == tn {
-                let read = node.read(&mut cx);
+        // Reads in declaration order: the components due, then the
+        // receptors due (each in declaration order) merged.
+        let (due, rank) = (&self.schedule.due, &self.schedule.rank);
+        let receptors = due.partition_point(|&i| rank[i] < self.receptors_from);
+        if receptors == due.len() {
+            for &i in due {
+                let read = self.nodes[i].read(&mut cx);
+                debug_assert!(read.is_ok(), "in-process links report no problem");
+            }
+        } else {
+            let (components, receptors) = due.split_at(receptors);
+            let (mut a, mut b) = (components.iter().peekable(), receptors.iter().peekable());
+            loop {
+                let i = match (a.peek(), b.peek()) {
+                    (Some(&&x), Some(&&y)) if y < x => b.next(),
+                    (Some(_), _) => a.next(),
+                    (None, _) => b.next(),
+                };
+                let Some(&i) = i else { break };
+                let read = self.nodes[i].read(&mut cx);
                 debug_assert!(read.is_ok(), "in-process links report no problem");
             }
         }
         // Whether a driver (the environment's, if there is one) ran.
         let mut world_ran = false;
-        for k in 0..self.order.len() {
-            let i = self.order[k];
+        for k in 0..self.schedule.due.len() {
+            let i = self.schedule.due[k];
             if self.next[i] != tn {
                 continue;
             }
@@ -335,7 +393,10 @@ impl<O: Observer> Executor<O> {
             };
             match self.nodes[i].step(t, i, &mut cx) {
                 Ok(NodeStep::Ran) => self.next[i] = tn.saturating_add(self.periods[i]),
-                Ok(NodeStep::Halted) => self.next[i] = u64::MAX,
+                Ok(NodeStep::Halted) => {
+                    self.next[i] = u64::MAX;
+                    self.schedule.halted = true;
+                }
                 Err(e) => {
                     if let Some(o) = cx.observer.as_deref_mut() {
                         o.error(t, &e);
@@ -363,8 +424,7 @@ impl<O: Observer> Executor<O> {
                 f(t, env);
             }
         }
-        self.report.instants += 1;
-        Ok(Some(t))
+        Ok(())
     }
 
     /// Apply the error policy to an error of node `i` at instant `tn`.
@@ -380,6 +440,7 @@ impl<O: Observer> Executor<O> {
                 if halts_under_continue(&e) {
                     self.nodes[i].halt();
                     self.next[i] = u64::MAX;
+                    self.schedule.halted = true;
                 } else {
                     self.next[i] = tn.saturating_add(self.periods[i]);
                 }
@@ -417,6 +478,8 @@ impl<O: Observer> Executor<O> {
                     self.next[i] = u64::MAX;
                 }
             }
+            self.schedule.halted = true;
+            self.schedule.prune(&self.next);
         }
     }
 
@@ -517,6 +580,7 @@ impl<O: Observer> Executor<O> {
                 *next = u64::MAX;
             }
         }
+        self.schedule.stale = true;
     }
 
     /// Let `node` run from instant `from` on (its first activation at or after
@@ -530,6 +594,7 @@ impl<O: Observer> Executor<O> {
         {
             let p = period.max(1);
             *next = from.as_nanos().div_ceil(p).saturating_mul(p);
+            self.schedule.stale = true;
         }
     }
 
@@ -563,5 +628,148 @@ impl<O: Observer> Executor<O> {
             .stats
             .get(link.index())
             .map(|c| c.borrow().pending())
+    }
+}
+
+/// The nodes of one period due at one instant.
+#[derive(Debug)]
+struct Group {
+    period: u64,
+    /// The instant its nodes are due at.
+    next: u64,
+    /// The nodes, in the executor's `order`.
+    members: Vec<usize>,
+}
+
+/// The executor's nodes grouped by (period, next instant), the groups in a
+/// heap by next instant: an instant pops the groups due (one per period at
+/// most), steps their nodes in order and puts each group back at its next
+/// instant, so that its cost is the nodes due (and the logarithm of the
+/// groups), not all nodes. Nodes of one period started together stay
+/// together: nodes are parted only by [`Executor::start_at`] (groups of the
+/// same period at different instants).
+///
+/// Invariant unless `stale`: every group in the heap is not empty and every
+/// member's `next` is the group's; a node whose `next` is `u64::MAX` is in
+/// none; `groups` outside the heap (and not popped) are empty.
+#[derive(Debug)]
+struct Schedule {
+    groups: Vec<Group>,
+    /// `(next, group)`, earliest first.
+    heap: BinaryHeap<Reverse<(u64, usize)>>,
+    /// Each node's rank: its position in the executor's `order`.
+    rank: Vec<usize>,
+    /// The groups due at the instant being executed.
+    popped: Vec<usize>,
+    /// The nodes due at the instant being executed, in the executor's
+    /// `order`.
+    due: Vec<usize>,
+    /// Some node halted during the instant being executed (its group must
+    /// drop it).
+    halted: bool,
+    /// `next` was changed outside an instant ([`Executor::isolate`],
+    /// [`Executor::start_at`]) or an instant was left half done (a stopping
+    /// error): the groups are rebuilt before the next instant, and until then
+    /// `next` alone says when that is.
+    stale: bool,
+}
+
+impl Schedule {
+    /// The schedule of nodes due at `next`, of periods `periods`, stepped
+    /// in `order`.
+    fn new(next: &[u64], periods: &[u64], order: &[usize]) -> Schedule {
+        let mut rank = vec![0; order.len()];
+        for (r, &i) in order.iter().enumerate() {
+            rank[i] = r;
+        }
+        let mut nodes: Vec<usize> = order
+            .iter()
+            .copied()
+            .filter(|&i| next[i] != u64::MAX)
+            .collect();
+        // Stable: each group's nodes stay in `order`.
+        nodes.sort_by_key(|&i| (periods[i], next[i]));
+        let mut groups: Vec<Group> = Vec::new();
+        for i in nodes {
+            let (period, at) = (periods[i], next[i]);
+            match groups.last_mut() {
+                Some(g) if g.period == period && g.next == at => g.members.push(i),
+                _ => groups.push(Group {
+                    period,
+                    next: at,
+                    members: vec![i],
+                }),
+            }
+        }
+        let heap = groups
+            .iter()
+            .enumerate()
+            .map(|(k, g)| Reverse((g.next, k)))
+            .collect();
+        Schedule {
+            rank,
+            popped: Vec::with_capacity(groups.len()),
+            due: Vec::with_capacity(order.len()),
+            groups,
+            heap,
+            halted: false,
+            stale: false,
+        }
+    }
+
+    /// The earliest instant a node is due at.
+    fn next_instant(&self) -> Option<u64> {
+        self.heap.peek().map(|Reverse((t, _))| *t)
+    }
+
+    /// Take the groups due at `tn` out of the heap; their nodes into `due`.
+    fn take_due(&mut self, tn: u64) {
+        self.popped.clear();
+        self.due.clear();
+        while let Some(&Reverse((t, g))) = self.heap.peek() {
+            if t != tn {
+                break;
+            }
+            self.heap.pop();
+            self.popped.push(g);
+            self.due.extend_from_slice(&self.groups[g].members);
+        }
+        if self.popped.len() > 1 {
+            // Several periods due together: their nodes interleaved (in
+            // place, no allocation).
+            let rank = &self.rank;
+            self.due.sort_unstable_by_key(|&i| rank[i]);
+        }
+    }
+
+    /// After a whole instant `tn`: put the groups due back at their next
+    /// instant, without the nodes that halted.
+    fn reschedule(&mut self, tn: u64, next: &[u64]) {
+        let halted = std::mem::take(&mut self.halted);
+        for &g in &self.popped {
+            let group = &mut self.groups[g];
+            group.next = tn.saturating_add(group.period);
+            if group.next == u64::MAX {
+                group.members.clear();
+            } else if halted {
+                let at = group.next;
+                group.members.retain(|&i| next[i] == at);
+            }
+            if !group.members.is_empty() {
+                self.heap.push(Reverse((group.next, g)));
+            }
+        }
+        self.popped.clear();
+    }
+
+    /// Drop from the groups waiting in the heap the nodes that halted (a
+    /// safe-stop), and the groups left empty.
+    fn prune(&mut self, next: &[u64]) {
+        for &Reverse((at, g)) in self.heap.iter() {
+            self.groups[g].members.retain(|&i| next[i] == at);
+        }
+        let groups = &self.groups;
+        self.heap
+            .retain(|&Reverse((_, g))| !groups[g].members.is_empty());
     }
 }
