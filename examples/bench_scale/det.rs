@@ -182,12 +182,22 @@ pub(crate) fn system_at(
     agents: usize,
     period: Period,
 ) -> Result<(System, Vec<NodeId>), Box<dyn std::error::Error>> {
+    system_with(agents, |_| period)
+}
+
+/// `agents` copies of the agent in a ring, agent `i`'s subsystems of period
+/// `period(i)` (see [`system_at`]).
+fn system_with(
+    agents: usize,
+    period: impl Fn(usize) -> Period,
+) -> Result<(System, Vec<NodeId>), Box<dyn std::error::Error>> {
     let queue = Policy::queue(4);
     let mut b = SystemBuilder::new();
     let mut controls = Vec::with_capacity(agents);
     let mut ids = Vec::with_capacity(3 * agents);
     for i in 0..agents {
         let a = b.agent(format!("a{i}"));
+        let period = period(i);
         let c = b.subsystem(a, format!("c{i}"), period, 0, ctl_fsm()?);
         let e = b.subsystem(a, format!("e{i}"), period, 0.0, eff_fsm()?);
         let r = b.subsystem(a, format!("r{i}"), period, 0, rec_fsm()?);
@@ -408,6 +418,101 @@ pub(crate) fn measure(
             bench.batch()?;
         }
         figures.push(bench.figures()?);
+    }
+    Ok(figures)
+}
+
+// ---------------------------------------------------------------------------
+// Several rates.
+
+/// The slow agents' period over the fast agent's.
+const RATIO: u64 = 100;
+
+/// What one size of the multi-rate system measured.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rates {
+    /// Subsystems (3 of them fast).
+    pub(crate) n: usize,
+    /// Median over the batches of the mean time of an instant at which only
+    /// the fast agent runs (3 actions) \[ns\].
+    pub(crate) fast_instant_ns: f64,
+    /// Median over the batches of the mean time of an instant, all instants
+    /// of whole slow periods counted \[ns\].
+    pub(crate) instant_ns: f64,
+    /// Heap allocations per measured instant.
+    pub(crate) allocs_per_instant: f64,
+}
+
+impl Rates {
+    /// The `multirate ...` line.
+    pub(crate) fn line(&self) -> String {
+        format!(
+            "multirate n={} fast_n=3 ratio={RATIO} fast_instant_ns={:.1} instant_ns={:.1} \
+             allocs_per_instant={}",
+            self.n, self.fast_instant_ns, self.instant_ns, self.allocs_per_instant
+        )
+    }
+}
+
+/// Systems of `agents` agents (`3 * agents` subsystems) of which the first
+/// runs every millisecond and the others every [`RATIO`] milliseconds: each
+/// slow period is `RATIO - 1` instants of the fast agent's 3 actions and one
+/// instant of every subsystem. Batches of whole slow periods (about
+/// [`ACTIONS_PER_BATCH`] actions), each instant timed, after a warm-up of a
+/// batch; checks that every subsystem ran at every instant of its period.
+pub(crate) fn measure_rates(
+    agents: &[usize],
+    batches: usize,
+) -> Result<Vec<Rates>, Box<dyn std::error::Error>> {
+    let (fast, slow) = (Period::from_millis(1)?, Period::from_millis(RATIO)?);
+    let mut figures = Vec::with_capacity(agents.len());
+    for &a in agents {
+        let n = 3 * a;
+        let (system, ids) = system_with(a, |i| if i == 0 { fast } else { slow })?;
+        let mut exec = Executor::new(system, ExecConfig::default());
+        let per_slow_period = 3 * (RATIO - 1) + n as u64;
+        let periods = (ACTIONS_PER_BATCH / per_slow_period).max(1);
+        let instants = periods * RATIO;
+        for _ in 0..instants {
+            exec.step()?;
+        }
+        let (mut fast_ns, mut instant_ns) = (Vec::new(), Vec::new());
+        let mut allocs = 0;
+        for _ in 0..batches {
+            let (mut fast_total, mut total) = (0u128, 0u128);
+            let before = allocations::total();
+            for _ in 0..instants {
+                let start = Instant::now();
+                let t = exec.step()?;
+                let ns = start.elapsed().as_nanos();
+                total += ns;
+                if t.is_some_and(|t| t.as_nanos() % (RATIO * 1_000_000) != 0) {
+                    fast_total += ns;
+                }
+            }
+            allocs += allocations::total() - before;
+            fast_ns.push(fast_total as f64 / (periods * (RATIO - 1)) as f64);
+            instant_ns.push(total as f64 / instants as f64);
+        }
+        let done = instants * (batches as u64 + 1);
+        let ran = |i: usize| exec.iteration(ids[i]).unwrap_or(0);
+        if exec.report().instants != done
+            || exec.report().error_count != 0
+            || (0..3).any(|i| ran(i) != done)
+            || (3..n).any(|i| ran(i) != done / RATIO)
+        {
+            return Err(format!(
+                "n={n}: expected {done} error-free instants, the fast agent at each, the others \
+                 at one in {RATIO}"
+            )
+            .into());
+        }
+        figures.push(Rates {
+            n,
+            fast_instant_ns: quantile(&mut fast_ns, 0.5),
+            instant_ns: quantile(&mut instant_ns, 0.5),
+            allocs_per_instant: allocs as f64 / (instants * batches as u64) as f64,
+        });
     }
     Ok(figures)
 }

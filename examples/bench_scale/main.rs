@@ -10,6 +10,10 @@
 //!   build_ms=.. ..`: the deterministic executor on `n / 3` copies of a small agent
 //!   (`c` with one `e` and one `r`, sample and queue links, a transmission buffer
 //!   to the next agent's `c`), from 3 to 9,999 subsystems ([`det`]);
+//! * `multirate n=<subsystems> fast_instant_ns=.. instant_ns=.. ..`: the same
+//!   agents, the first every millisecond and the others every 100 ms, 99 to
+//!   9,999 subsystems: the time of an instant at which only the fast agent
+//!   runs, and of an instant on average ([`det::measure_rates`]);
 //! * `rt n=<subsystems> mode=<pool|per_subsystem> jitter_us_p50=.. jitter_us_p99=..
 //!   overruns=.. util_core<k>=.. ..`: the real-time executor on the same agents at
 //!   100 Hz on the machine's cores, by its worker pool (pinned) and, up to 1,002
@@ -37,7 +41,8 @@
 //! `--quick`: small sizes and few batches only, and not the other crates'
 //! benchmarks (a test's run: a few seconds in a debug build). The figures are
 //! then not comparable with a full run's. `--skip-external`: a full run
-//! without the other crates' benchmarks.
+//! without the other crates' benchmarks. `--multirate`: the `multirate` lines
+//! of a full run only.
 
 mod det;
 mod external;
@@ -159,6 +164,8 @@ struct Plan {
     det_agents: &'static [usize],
     /// Timed batches per size.
     det_batches: usize,
+    /// Agents of the multi-rate systems (one fast, the others 100 times slower).
+    rates_agents: &'static [usize],
     /// Agents of the generated specs (2 subsystems, 20 behaviours each).
     tool_agents: &'static [usize],
     /// Agents of the real-time executor's systems (3 subsystems each, 100 Hz).
@@ -174,6 +181,7 @@ struct Plan {
 const FULL: Plan = Plan {
     det_agents: &[1, 10, 100, 1000, 3333],
     det_batches: 201,
+    rates_agents: &[33, 333, 3333],
     tool_agents: &[5, 50, 500],
     rt_agents: &[1, 10, 100, 334, 1000, 3333],
     rt_seconds: 5.0,
@@ -184,6 +192,7 @@ const FULL: Plan = Plan {
 const QUICK: Plan = Plan {
     det_agents: &[1, 10, 100],
     det_batches: 11,
+    rates_agents: &[33, 333],
     tool_agents: &[2, 5],
     rt_agents: &[1, 10],
     rt_seconds: 0.3,
@@ -206,6 +215,12 @@ pub(crate) struct Options {
 /// `cargo run --release --example bench_scale [-- --quick]`.
 pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     let quick = std::env::args().skip(1).any(|a| a == "--quick");
+    if std::env::args().skip(1).any(|a| a == "--multirate") {
+        for figures in det::measure_rates(FULL.rates_agents, FULL.det_batches)? {
+            println!("{}", figures.line());
+        }
+        return Ok(());
+    }
     let options = Options {
         quick,
         skip_external: std::env::args().skip(1).any(|a| a == "--skip-external"),
@@ -243,6 +258,11 @@ pub(crate) fn run(
             last.bytes_per_subsystem / first.bytes_per_subsystem,
             (last.build_ms / last.n as f64) / (first.build_ms / first.n as f64)
         )?;
+    }
+
+    // The deterministic executor, several rates.
+    for figures in det::measure_rates(plan.rates_agents, plan.det_batches)? {
+        writeln!(out, "{}", figures.line())?;
     }
 
     // The real-time executor.
