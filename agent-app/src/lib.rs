@@ -78,6 +78,8 @@ use agent_core::{ExecConfig, Finished, Probes, System};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
+/// `#[derive(Tally)]`: a struct's counts tallied field by field.
+pub use agent_macros::Tally;
 pub use cli::{
     BadFault, Cli, Command, Common, DiagramFormat, DiagramKind, NoFlags, OnErrorArg, ROS2_ENDPOINT,
     ThreadsArg, parse_fault,

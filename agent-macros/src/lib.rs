@@ -21,6 +21,7 @@ mod chain;
 mod derive;
 mod fsm;
 mod synth;
+mod tally;
 mod util;
 
 use proc_macro::TokenStream;
@@ -113,6 +114,46 @@ pub fn derive_subsystem(input: TokenStream) -> TokenStream {
     let input = syn::parse_macro_input!(input as syn::DeriveInput);
     derive::parse_subsystem(input)
         .map(|m| derive::generate_subsystem(&m))
+        .unwrap_or_else(syn::Error::into_compile_error)
+        .into()
+}
+
+/// Counts that add up: implements `embodied::app::Tally` (the application
+/// layer's, feature `app`) for a struct by tallying each field with the
+/// other's, so every field's type must be `Tally` itself (numbers saturate,
+/// lists join, tuples and derived structs go field by field). What a
+/// deployment's processes report at their end is added up this way.
+///
+/// ```
+/// use embodied::app::Tally;
+///
+/// #[derive(Debug, Default, PartialEq, Tally)]
+/// struct Health {
+///     rejected: u64,
+///     stops: Vec<String>,
+/// }
+///
+/// #[derive(Debug, Default, PartialEq, Tally)]
+/// struct Counts {
+///     solves: u32,
+///     health: Health,
+///     delivered_lost: (u64, u64),
+/// }
+///
+/// let mut run = Counts { solves: 3, delivered_lost: (10, 1), ..Counts::default() };
+/// run.tally(Counts {
+///     solves: u32::MAX,
+///     health: Health { rejected: 2, stops: vec!["at 1 s".into()] },
+///     delivered_lost: (5, 0),
+/// });
+/// assert_eq!(run.solves, u32::MAX);
+/// assert_eq!(run.health, Health { rejected: 2, stops: vec!["at 1 s".into()] });
+/// assert_eq!(run.delivered_lost, (15, 1));
+/// ```
+#[proc_macro_derive(Tally)]
+pub fn derive_tally(input: TokenStream) -> TokenStream {
+    let input = syn::parse_macro_input!(input as syn::DeriveInput);
+    tally::derive_tally(input)
         .unwrap_or_else(syn::Error::into_compile_error)
         .into()
 }

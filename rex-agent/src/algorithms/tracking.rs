@@ -46,7 +46,17 @@ pub trait Tracker: Send + std::fmt::Debug {
 pub const TRACTION_MARGIN: f64 = 0.85;
 
 /// What a tracker reports about its work.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    embodied::app::Tally,
+)]
 pub struct TrackerReport {
     /// Optimisation problems solved.
     pub solves: u64,

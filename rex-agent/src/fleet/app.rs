@@ -412,7 +412,7 @@ impl Watcher<FleetSeen> for FleetAppWatch {
 fn counters(out: &FleetOutcome) -> Counters {
     let mut all = Counters::default();
     for robot in &out.robots {
-        all.absorb(robot.counters.clone());
+        embodied::app::Tally::tally(&mut all, robot.counters.clone());
     }
     all
 }

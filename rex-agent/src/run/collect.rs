@@ -4,7 +4,7 @@
 //! platform's true pose at `t`), the same end of mission (every plan sent and
 //! acknowledged, the last fragment executed), the same judgement.
 
-use embodied::app::Pairs;
+use embodied::app::{Pairs, Tally};
 use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
@@ -147,7 +147,7 @@ impl Collector {
             }
             Seen::Truth { at, pose } => self.pairs.reference(at, pose),
             Seen::Mocap(at) => self.delivered_at = at.or(self.delivered_at),
-            Seen::Counters(c) => self.out.counters.absorb(*c),
+            Seen::Counters(c) => self.out.counters.tally(*c),
             Seen::Parts(parts) => {
                 for (mine, given) in self.out.parts.iter_mut().zip(parts) {
                     if let Some(name) = given {

@@ -76,8 +76,10 @@ impl Sample {
     }
 }
 
-/// Counters gathered at the end of a run.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+/// Counters gathered at the end of a run. The counters of another part of
+/// the same run (another process of a deployment) add up with
+/// [`Tally`](embodied::app::Tally): each counter comes from one component.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, Tally)]
 pub struct Counters {
     /// Fragments received by `e11`.
     pub fragments_received: u32,
@@ -121,44 +123,6 @@ pub struct Counters {
     /// Plans `c1` refused as numbered out of sequence (a plan lost on the
     /// way, or a sender that is not `a2`).
     pub plans_out_of_sequence: u32,
-}
-
-impl Counters {
-    /// Add the counters of another part of the same run (another process of a
-    /// deployment): each counter comes from one component, so the parts add up
-    /// (saturating: they arrive over the network).
-    pub fn absorb(&mut self, o: Counters) {
-        self.fragments_received.tally(o.fragments_received);
-        self.fragments_completed.tally(o.fragments_completed);
-        self.fragments_rejected.tally(o.fragments_rejected);
-        self.fragments_stale.tally(o.fragments_stale);
-        self.stops.tally(o.stops);
-        self.watchdog_steps.tally(o.watchdog_steps);
-        let (e, f) = (&mut self.estimator, o.estimator);
-        e.rejected.tally(f.rejected);
-        e.rejected_poses.tally(f.rejected_poses);
-        e.relocalisations.tally(f.relocalisations);
-        self.clamped_torques.tally(o.clamped_torques);
-        self.c1_restarts.tally(o.c1_restarts);
-        self.plans_resent.tally(o.plans_resent);
-        self.fragments_repeated.tally(o.fragments_repeated);
-        self.vo_outages.tally(o.vo_outages);
-        self.plans_out_of_sequence.tally(o.plans_out_of_sequence);
-        self.planned.tally(o.planned);
-        self.planner_iterations.tally(o.planner_iterations);
-        self.planner_failures.tally(o.planner_failures);
-        self.executor_errors.tally(o.executor_errors);
-        self.mocap.tally(o.mocap);
-        self.vo.tally(o.vo);
-        let (t, u) = (&mut self.tracker, o.tracker);
-        t.solves.tally(u.solves);
-        t.constrained.tally(u.constrained);
-        t.clarabel.tally(u.clarabel);
-        t.failures.tally(u.failures);
-        t.fallbacks.tally(u.fallbacks);
-        t.safe_stops.tally(u.safe_stops);
-        t.refused.tally(u.refused);
-    }
 }
 
 /// What a run produced.
