@@ -95,6 +95,15 @@ fn our_hashes_of_the_standard_messages_are_the_official_ones() {
     let Some(python) = python() else { return };
     let catalog = standard_messages();
     let names: Vec<String> = catalog.iter().map(|m| m.name.to_string()).collect();
+    // The standard messages Rex's poses, path, IMU and camera go as (issue 55).
+    for required in [
+        "geometry_msgs/msg/PoseStamped",
+        "nav_msgs/msg/Path",
+        "sensor_msgs/msg/Imu",
+        "sensor_msgs/msg/CompressedImage",
+    ] {
+        assert!(names.iter().any(|n| n == required), "{required}: {names:?}");
+    }
     let answer = rosbags(
         &python,
         &json!({"register": [], "hash": names, "decode": []}),

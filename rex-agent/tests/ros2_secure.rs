@@ -257,6 +257,12 @@ fn a_ros_2_node_with_the_credentials_rex_made_drives_the_secure_deployment_and_n
     let (_, context) = listened("rex launch", &out, took, &answer);
     assert_eq!(answer["problems"], json!([]), "{context}");
     assert_eq!(answer["token"]["kind"], "MS", "{context}");
+    // c1 runs in `locomotion`: that process's bridge is node `<node>_<process>`.
+    assert_eq!(
+        (&answer["token"]["node"], &answer["token"]["namespace"]),
+        (&json!("rex_locomotion"), &json!("/rex")),
+        "{context}"
+    );
 
     plan_done(&answer);
     refused(&answer, &log);
