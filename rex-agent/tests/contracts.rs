@@ -57,6 +57,47 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     path.display().to_string()
 }
 
+/// A run of `rex` that its policy stopped at a contract's violation.
+struct Stopped {
+    /// Its standard error.
+    err: String,
+    /// The first violation's line, without `contract violated: `.
+    found: String,
+    /// Its recording.
+    recording: PathBuf,
+}
+
+/// `rex ARGS --config CONFIG --for 20 --record RECORDING`, with `config` (a
+/// run file: the shipped one edited) written to `dir` and the recording in
+/// it: a run that fails (status 1) and stops at its first contract violation
+/// (Rex's policy), whose line it returns.
+fn stopped_by_a_violation(dir: &Path, config: &str, args: &[&str]) -> Stopped {
+    let config = write(dir, "config.ron", config);
+    let recording = dir.join("run.mcap");
+    let mut all = args.to_vec();
+    all.extend([
+        "--config",
+        &config,
+        "--for",
+        "20",
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    let (code, out, err) = rex(&all);
+    assert_eq!(code, Some(1), "{out}\n{err}");
+    let found = err
+        .lines()
+        .find_map(|l| l.strip_prefix("contract violated: "))
+        .expect("a violation")
+        .to_owned();
+    assert!(out.contains("the run failed before its end"), "{out}");
+    Stopped {
+        err,
+        found,
+        recording,
+    }
+}
+
 #[test]
 fn the_main_mission_keeps_every_contract() {
     let (code, out, err) = rex(&["--verbose"]);
@@ -190,24 +231,13 @@ fn a_torque_bound_raised_past_the_platform_limit_is_found_by_the_ranges() {
     let mut config = edited(CONFIG, "traction_margin: 0.85,", "traction_margin: 2.0,");
     config = edited(&config, "torque_nm: None,", "torque_nm: Some(20.0),");
     config = edited(&config, "tracking_m: 0.30,", "tracking_m: 0.03,");
-    let config = write(&dir, "rex.ron", &config);
-    let recording = dir.join("run.mcap");
-    let (code, out, err) = rex(&[
-        "--config",
-        &config,
-        "--for",
-        "20",
-        "--record",
-        recording.to_str().unwrap(),
-    ]);
-    assert_eq!(code, Some(1), "{out}\n{err}");
     // Rex's policy stops the run at the first error: the first torque beyond
     // 10 N m, with its time and value.
-    let found = err
-        .lines()
-        .find_map(|l| l.strip_prefix("contract violated: "))
-        .expect("a violation")
-        .to_owned();
+    let Stopped {
+        err,
+        found,
+        recording,
+    } = stopped_by_a_violation(&dir, &config, &[]);
     assert!(
         found.starts_with("t=12.950000s subsystem=e11 contract=range:torque_wheel_"),
         "{err}"
@@ -220,7 +250,6 @@ fn a_torque_bound_raised_past_the_platform_limit_is_found_by_the_ranges() {
         .expect("the value");
     assert!(value.abs() > 10.0 && value.abs() <= 20.0, "{found}");
     assert!(found.ends_with("outside [-10, 10]"), "{found}");
-    assert!(out.contains("the run failed before its end"), "{out}");
 
     // The same violation, at the same instant, over the recording: Rex
     // records its values as CDR, read back by the payload's shape.
@@ -287,35 +316,21 @@ fn an_invariant_broken_by_a_seeded_defect_is_found_live_and_over_the_recording()
     );
     // The defect: a tracking limit of 3 cm, which e11's safety monitor
     // enforces by stopping the platform.
-    let config = write(
-        &dir,
-        "rex.ron.config",
-        &edited(CONFIG, "tracking_m: 0.30,", "tracking_m: 0.03,"),
-    );
-    let recording = dir.join("run.mcap");
-    let (code, out, err) = rex(&[
-        "--spec",
-        &spec,
-        "--config",
-        &config,
-        "--for",
-        "20",
-        "--record",
-        recording.to_str().unwrap(),
-    ]);
-    assert_eq!(code, Some(1), "{out}\n{err}");
     // Rex's policy stops the run at the first error: the invariant, at the
     // activation of c1 after e11's stop, with the predicate's value.
-    let found = err
-        .lines()
-        .find_map(|l| l.strip_prefix("contract violated: "))
-        .expect("a violation")
-        .to_owned();
+    let Stopped {
+        err,
+        found,
+        recording,
+    } = stopped_by_a_violation(
+        &dir,
+        &edited(CONFIG, "tracking_m: 0.30,", "tracking_m: 0.03,"),
+        &["--spec", &spec],
+    );
     assert!(
         found.contains(" subsystem=c1 contract=invariant:never_stopped: false with stopped=true"),
         "{err}"
     );
-    assert!(out.contains("the run failed before its end"), "{out}");
 
     // Over the recording: the predicates c1's invariant reads, recorded after
     // each of its activations, give the same violation at the same instant;
