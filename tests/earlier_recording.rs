@@ -15,27 +15,25 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+#[path = "common/recording.rs"]
+mod recording;
 #[path = "common/tank_run.rs"]
 mod tank_run;
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::time::Duration;
 
 use embodied::record::record::{FRAMES_ENCODING, WIRE_ENCODING};
-use embodied::record::{McapRecorder, RecordOptions, mcap};
+use embodied::record::{RecordOptions, mcap};
 use embodied::replay::{Difference, Recording, ReplayOptions, Replayed, replay_file};
 use embodied::*;
 
+use recording::copy_without_messages;
 use tank_run::{subsystems, system, tmp};
 
 /// 20 s of the tank example, recorded today.
 fn record(path: &Path) {
-    let s = system();
-    let recorder = McapRecorder::create(path, &s, RecordOptions::default()).unwrap();
-    let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
-    exec.run_for(Duration::from_secs(20)).unwrap();
-    exec.into_observer().finish().unwrap();
+    recording::record(path, system(), RecordOptions::default());
 }
 
 /// `from` written again to `to` with its raw channels in the earlier
@@ -43,40 +41,20 @@ fn record(path: &Path) {
 /// that link's topic and count (from 1). Returns (raw values, raw messages
 /// of `from`).
 fn to_earlier(from: &Path, to: &Path, change: Option<(&str, u64)>) -> (usize, usize) {
-    let r = Recording::open(from).unwrap();
-    let mut w =
-        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
-    let schemas: BTreeMap<u16, u16> = r
-        .schemas
-        .iter()
-        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
-        .collect();
-    let mut channels = BTreeMap::new();
-    for (&id, c) in &r.channels {
-        let framed = c.message_encoding == FRAMES_ENCODING;
-        let encoding = if framed {
+    let (r, mut w, channels) = copy_without_messages(from, to, |c| {
+        let encoding = if c.message_encoding == FRAMES_ENCODING {
             WIRE_ENCODING
         } else {
             c.message_encoding.as_str()
         };
-        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
-        let new = w
-            .add_channel(schema, &c.topic, encoding, &c.metadata)
-            .unwrap();
-        channels.insert(id, (new, framed, c.topic.clone()));
-    }
-    for (name, metadata) in &r.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })
-        .unwrap();
-    }
+        (encoding.to_owned(), c.metadata.clone())
+    });
     let (mut values, mut frames) = (0, 0);
     let mut counts: BTreeMap<u16, u32> = BTreeMap::new();
     for m in &r.messages {
-        let (channel, framed, topic) = &channels[&m.channel];
-        if !framed {
+        let channel = &channels[&m.channel];
+        let topic = &r.channels[&m.channel].topic;
+        if r.channels[&m.channel].message_encoding != FRAMES_ENCODING {
             let header = mcap::records::MessageHeader {
                 channel_id: *channel,
                 sequence: m.sequence,

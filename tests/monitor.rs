@@ -11,22 +11,28 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+#[path = "common/binary.rs"]
+mod binary;
+#[path = "common/recording.rs"]
+mod recording;
 #[path = "common/tank_run.rs"]
 #[allow(dead_code, reason = "shared with the tests that replay each subsystem")]
 mod tank_run;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
 use std::time::Duration;
 
+use embodied::record::read::Message;
 use embodied::record::{McapRecorder, RecordOptions, Recording, Values, mcap};
 use embodied::spec::contracts::{
     Bound, Contracts, Freshness, Invariant, Rate, Response, ValueRange,
 };
 use embodied::*;
 
+use binary::embodied;
+use recording::{copy_without_messages, record};
 use tank_run::{system, tmp};
 
 /// The level filter's output, read by the station (c1) every 50 ms.
@@ -75,44 +81,46 @@ fn kept() -> Contracts {
     }
 }
 
-/// 20 s of the tank, values as JSON, the spec with [`kept`] in its metadata.
-fn recording() -> &'static Path {
-    static FILE: OnceLock<PathBuf> = OnceLock::new();
-    FILE.get_or_init(|| {
-        let path = tmp("monitor_tank.mcap");
+/// 20 s of the tank recorded to `name` (once for all the tests), values as
+/// `values`, the spec with [`kept`] in its metadata.
+fn recorded_once(file: &'static OnceLock<PathBuf>, name: &str, values: Values) -> &'static Path {
+    file.get_or_init(|| {
+        let path = tmp(name);
         let options = RecordOptions {
-            values: Values::Json,
+            values,
             metadata: BTreeMap::from([(
                 "spec".to_owned(),
                 BTreeMap::from([("text".to_owned(), spec_text(kept()))]),
             )]),
             ..RecordOptions::default()
         };
-        let s = system();
-        let recorder = McapRecorder::create(&path, &s, options).unwrap();
-        let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
-        exec.run_for(Duration::from_secs(20)).unwrap();
-        exec.into_observer().finish().unwrap();
+        record(&path, system(), options);
         path
     })
 }
 
-fn embodied(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_embodied"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+/// 20 s of the tank, values as JSON, the spec with [`kept`] in its metadata.
+fn recording() -> &'static Path {
+    static FILE: OnceLock<PathBuf> = OnceLock::new();
+    recorded_once(&FILE, "monitor_tank.mcap", Values::Json)
 }
 
 fn write(name: &str, text: &str) -> PathBuf {
     let p = tmp(name);
     std::fs::write(&p, text).unwrap();
     p
+}
+
+/// `embodied monitor` over [`recording`] with the tank's spec with
+/// `contracts` (written to `name`): its exit status, output and error.
+fn monitor_with(contracts: Contracts, name: &str) -> (i32, String, String) {
+    let spec = write(name, &spec_text(contracts));
+    embodied(&[
+        "monitor",
+        recording().to_str().unwrap(),
+        "--spec",
+        spec.to_str().unwrap(),
+    ])
 }
 
 /// Each message of `topic`: (log time, data).
@@ -141,13 +149,7 @@ fn the_contracts_the_tank_keeps_pass_with_the_recorded_spec() {
 fn a_range_seeded_to_break_is_found_at_the_first_value_out_of_it() {
     let mut c = kept();
     c.ranges[0].max = Some(0.9);
-    let spec = write("monitor_range.ron", &spec_text(c));
-    let (code, out, err) = embodied(&[
-        "monitor",
-        recording().to_str().unwrap(),
-        "--spec",
-        spec.to_str().unwrap(),
-    ]);
+    let (code, out, err) = monitor_with(c, "monitor_range.ron");
     // The first level above 0.9, read from the recording independently.
     let levels: Vec<_> = messages(recording(), LEVEL)
         .into_iter()
@@ -181,54 +183,28 @@ fn serde_json_number(d: &[u8]) -> f64 {
 /// its values after then dropped, and c1's reads after then of the last value
 /// sent (the stamp it keeps reading).
 fn stop_level_sensor(from: &Path, to: &Path, stop: u64) {
-    let r = Recording::open(from).unwrap();
-    let mut w =
-        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
-    let schemas: BTreeMap<u16, u16> = r
-        .schemas
-        .iter()
-        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
-        .collect();
-    let mut channels = BTreeMap::new();
-    for (&id, c) in &r.channels {
-        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
-        let new = w
-            .add_channel(schema, &c.topic, &c.message_encoding, &c.metadata)
-            .unwrap();
-        channels.insert(id, (new, c.topic.clone()));
-    }
-    for (name, metadata) in &r.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })
-        .unwrap();
-    }
     let reads = format!("/reads{LEVEL}");
     let mut last_stamp = None;
-    for m in &r.messages {
-        let (channel, topic) = &channels[&m.channel];
-        let mut data = m.data.clone();
-        if *topic == LEVEL && m.log_time > stop {
-            continue;
-        }
-        if *topic == LEVEL {
-            last_stamp = Some(m.log_time);
-        }
-        if *topic == reads && m.log_time > stop {
-            // The value read is the last one sent: its stamp (the sender's
-            // iteration is left as it was; only the instant is read).
-            data[8..16].copy_from_slice(&last_stamp.unwrap().to_le_bytes());
-        }
-        let header = mcap::records::MessageHeader {
-            channel_id: *channel,
-            sequence: m.sequence,
-            log_time: m.log_time,
-            publish_time: m.publish_time,
-        };
-        w.write_to_known_channel(&header, &data).unwrap();
-    }
-    w.finish().unwrap();
+    rewrite(
+        from,
+        to,
+        |_, m| m.clone(),
+        |topic, _, m| {
+            if topic == LEVEL && m.log_time > stop {
+                return None;
+            }
+            if topic == LEVEL {
+                last_stamp = Some(m.log_time);
+            }
+            let mut data = m.data.clone();
+            if topic == reads && m.log_time > stop {
+                // The value read is the last one sent: its stamp (the sender's
+                // iteration is left as it was; only the instant is read).
+                data[8..16].copy_from_slice(&last_stamp.unwrap().to_le_bytes());
+            }
+            Some(data)
+        },
+    );
 }
 
 #[test]
@@ -291,13 +267,7 @@ fn what_a_recording_cannot_show_is_named_not_passed() {
         subsystem: "c1".into(),
         holds: "!has_order || order_valid || !order_valid".into(),
     }];
-    let spec = write("monitor_invariant.ron", &spec_text(c));
-    let (code, out, err) = embodied(&[
-        "monitor",
-        recording().to_str().unwrap(),
-        "--spec",
-        spec.to_str().unwrap(),
-    ]);
+    let (code, out, err) = monitor_with(c, "monitor_invariant.ron");
     assert_eq!(code, 0, "{out}{err}");
     // Recorded without the contracts' watch: no predicates after each
     // activation.
@@ -349,13 +319,7 @@ fn bounds_and_responses_seeded_to_break_are_found_at_their_deadlines() {
     c.bounds[0].max_s = Some(1.0);
     c.bounds[0].max_iterations = None;
     c.responses[0].within_s = 0.01;
-    let spec = write("monitor_deadlines.ron", &spec_text(c));
-    let (code, out, err) = embodied(&[
-        "monitor",
-        recording().to_str().unwrap(),
-        "--spec",
-        spec.to_str().unwrap(),
-    ]);
+    let (code, out, err) = monitor_with(c, "monitor_deadlines.ron");
     assert_eq!(code, 1, "{out}{err}");
     // c1's first run of `fill`, from its switches.
     let switches: Vec<String> = messages(recording(), "/fsm/c1")
@@ -395,22 +359,7 @@ fn bounds_and_responses_seeded_to_break_are_found_at_their_deadlines() {
 /// [`kept`] in its metadata.
 fn cdr_recording() -> &'static Path {
     static FILE: OnceLock<PathBuf> = OnceLock::new();
-    FILE.get_or_init(|| {
-        let path = tmp("monitor_cdr.mcap");
-        let options = RecordOptions {
-            metadata: BTreeMap::from([(
-                "spec".to_owned(),
-                BTreeMap::from([("text".to_owned(), spec_text(kept()))]),
-            )]),
-            ..RecordOptions::default()
-        };
-        let s = system();
-        let recorder = McapRecorder::create(&path, &s, options).unwrap();
-        let mut exec = Executor::with_observer(s, ExecConfig::default(), recorder);
-        exec.run_for(Duration::from_secs(20)).unwrap();
-        exec.into_observer().finish().unwrap();
-        path
-    })
+    recorded_once(&FILE, "monitor_cdr.mcap", RecordOptions::default().values)
 }
 
 #[test]
@@ -441,45 +390,26 @@ fn ranges_over_cdr_values_give_the_verdicts_of_json_values() {
 }
 
 /// `from` copied to `to` with each channel's metadata and each message's
-/// bytes as `edit` makes them (`None`: the message left out).
+/// bytes as `edit` makes them from its channel's topic, its count in the
+/// channel (from 0) and the message (`None`: the message left out).
 fn rewrite(
     from: &Path,
     to: &Path,
     meta: impl Fn(&str, &BTreeMap<String, String>) -> BTreeMap<String, String>,
-    mut edit: impl FnMut(&str, usize, &[u8]) -> Option<Vec<u8>>,
+    mut edit: impl FnMut(&str, usize, &Message) -> Option<Vec<u8>>,
 ) {
-    let r = Recording::open(from).unwrap();
-    let mut w =
-        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
-    let schemas: BTreeMap<u16, u16> = r
-        .schemas
-        .iter()
-        .map(|(&id, s)| (id, w.add_schema(&s.name, &s.encoding, &s.data).unwrap()))
-        .collect();
-    let mut channels = BTreeMap::new();
-    for (&id, c) in &r.channels {
-        let schema = schemas.get(&c.schema_id).copied().unwrap_or(0);
-        let metadata = meta(&c.topic, &c.metadata);
-        let new = w
-            .add_channel(schema, &c.topic, &c.message_encoding, &metadata)
-            .unwrap();
-        channels.insert(id, (new, c.topic.clone(), 0usize));
-    }
-    for (name, metadata) in &r.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })
-        .unwrap();
-    }
+    let (r, mut w, channels) = copy_without_messages(from, to, |c| {
+        (c.message_encoding.clone(), meta(&c.topic, &c.metadata))
+    });
+    let mut counts: BTreeMap<u16, usize> = BTreeMap::new();
     for m in &r.messages {
-        let (channel, topic, count) = channels.get_mut(&m.channel).unwrap();
+        let count = counts.entry(m.channel).or_default();
         *count += 1;
-        let Some(data) = edit(topic, *count - 1, &m.data) else {
+        let Some(data) = edit(&r.channels[&m.channel].topic, *count - 1, m) else {
             continue;
         };
         let header = mcap::records::MessageHeader {
-            channel_id: *channel,
+            channel_id: channels[&m.channel],
             sequence: m.sequence,
             log_time: m.log_time,
             publish_time: m.publish_time,
@@ -502,7 +432,7 @@ fn cdr_values_without_their_shape_or_damaged_are_said_not_passed() {
             m.remove(SHAPE_KEY);
             m
         },
-        |_, _, d| Some(d.to_vec()),
+        |_, _, m| Some(m.data.clone()),
     );
     let (code, out, err) = embodied(&["monitor", old.to_str().unwrap()]);
     assert_eq!(code, 0, "{out}{err}");
@@ -529,7 +459,7 @@ fn cdr_values_without_their_shape_or_damaged_are_said_not_passed() {
             }
             m
         },
-        |_, _, d| Some(d.to_vec()),
+        |_, _, m| Some(m.data.clone()),
     );
     let (code, out, err) = embodied(&["monitor", garbled.to_str().unwrap()]);
     assert_eq!(code, 0, "{out}{err}");
@@ -555,11 +485,11 @@ fn cdr_values_without_their_shape_or_damaged_are_said_not_passed() {
             cdr_recording(),
             &bad,
             |_, m| m.clone(),
-            |topic, k, d| {
+            |topic, k, m| {
                 Some(if topic == LEVEL && k == 7 {
-                    damage(d)
+                    damage(&m.data)
                 } else {
-                    d.to_vec()
+                    m.data.clone()
                 })
             },
         );
