@@ -18,6 +18,8 @@ use std::path::{Path, PathBuf};
 
 use agent_spec::Spec;
 
+use crate::AppError;
+
 /// A report folder being written: the files put in it, in order.
 #[derive(Debug)]
 pub struct Report {
@@ -62,6 +64,88 @@ impl Report {
     /// The files written so far, in order.
     pub fn files(&self) -> &[PathBuf] {
         &self.files
+    }
+}
+
+/// The flags of a program that writes a report folder at the end of each run
+/// (`--out DIR`, `--no-report`, `--no-record`): flatten them into the
+/// application's flags (`#[command(flatten)] report: ReportFlags`). Each run
+/// (a mission, say) writes into a sub-folder of its own, which also holds
+/// the run's recording (`run.mcap`) unless `--no-record` or `--record FILE`.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct ReportFlags {
+    /// Report folder (default: `target/<program>-report`, for example
+    /// `target/rex-report`); one sub-folder per run.
+    #[arg(long, global = true, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Do not write the report folder (nor the recording it holds).
+    #[arg(long, global = true)]
+    pub no_report: bool,
+    /// Do not record the run into its report folder (`<out>/<run>/run.mcap`,
+    /// made by default; see `--record`).
+    #[arg(long, global = true)]
+    pub no_record: bool,
+}
+
+impl ReportFlags {
+    /// The report folder's root, unless `--no-report`.
+    pub fn root(&self) -> Option<PathBuf> {
+        if self.no_report {
+            return None;
+        }
+        Some(self.out.clone().unwrap_or_else(|| {
+            let program = crate::output::program();
+            let stem = program.strip_suffix(".exe").unwrap_or(&program);
+            PathBuf::from(format!("target/{stem}-report"))
+        }))
+    }
+
+    /// Check, before anything runs, that the report folder can be written
+    /// ([`writable_folder`](crate::writable_folder); nothing to check with
+    /// `--no-report`). Call it from
+    /// [`Application::configure`](crate::Application::configure).
+    pub fn check(&self) -> Result<(), AppError> {
+        self.root()
+            .map_or(Ok(()), |root| crate::writable_folder("--out", &root))
+    }
+
+    /// The folder of the run `run`, unless `--no-report`.
+    pub fn folder(&self, run: &str) -> Option<PathBuf> {
+        self.root().map(|root| root.join(run))
+    }
+
+    /// Where the run `run` is recorded by default (`<out>/<run>/run.mcap`,
+    /// its folder made), unless `--no-report` or `--no-record`: what
+    /// [`Application::default_record`](crate::Application::default_record)
+    /// returns.
+    pub fn recording(&self, run: &str) -> Option<PathBuf> {
+        let dir = self.folder(run).filter(|_| !self.no_record)?;
+        std::fs::create_dir_all(&dir).ok()?;
+        Some(dir.join("run.mcap"))
+    }
+
+    /// Write the report of the run `run` with `write` (given the folder,
+    /// it returns the files it wrote), unless `--no-report`. Returns the
+    /// summary's line for it (`report: DIR (N files)`); a folder that could
+    /// not be written is said on standard error, and the run's verdict is
+    /// left to its judgement.
+    pub fn write(
+        &self,
+        run: &str,
+        write: impl FnOnce(&Path) -> io::Result<Vec<PathBuf>>,
+    ) -> Option<String> {
+        let dir = self.folder(run)?;
+        match write(&dir) {
+            Ok(files) => Some(format!(
+                "report: {} ({} files)\n",
+                dir.display(),
+                files.len()
+            )),
+            Err(e) => {
+                crate::output::error(&format_args!("report {}: {e}", dir.display()));
+                None
+            }
+        }
     }
 }
 
@@ -110,5 +194,61 @@ mod tests {
             "{timed}"
         );
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn the_report_flags_name_the_folders_and_the_recording() {
+        let root = std::env::temp_dir().join(format!("agent-app-flags-{}", std::process::id()));
+        let flags = ReportFlags {
+            out: Some(root.clone()),
+            ..ReportFlags::default()
+        };
+        assert_eq!(flags.check().map_err(|e| e.to_string()), Ok(()));
+        assert_eq!(flags.folder("square"), Some(root.join("square")));
+        let recording = flags.recording("square");
+        assert_eq!(recording, Some(root.join("square/run.mcap")));
+        assert!(root.join("square").is_dir(), "the run's folder is made");
+        let line = flags.write("square", |dir| {
+            let mut report = Report::create(dir)?;
+            report.put("summary.txt", "passed\n")?;
+            Ok(report.files().to_vec())
+        });
+        let expected = format!("report: {} (1 files)\n", root.join("square").display());
+        assert_eq!(line, Some(expected));
+        // A report that cannot be written is said, and gives no line.
+        let failed = flags.write("square", |_| Err(io::Error::other("disk full")));
+        assert_eq!(failed, None);
+
+        let unrecorded = ReportFlags {
+            no_record: true,
+            ..flags.clone()
+        };
+        assert_eq!(unrecorded.recording("square"), None);
+        assert_eq!(unrecorded.folder("square"), Some(root.join("square")));
+        let none = ReportFlags {
+            no_report: true,
+            ..flags
+        };
+        assert_eq!(none.root(), None);
+        assert_eq!(none.recording("square"), None);
+        assert_eq!(none.write("square", |_| panic!("not called")), None);
+        assert!(none.check().is_ok());
+        // The default root is named after the program.
+        let default = ReportFlags::default().root().unwrap_or_default();
+        let name = default
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned());
+        assert!(name.is_some_and(|n| n.ends_with("-report")), "{default:?}");
+        assert!(default.starts_with("target"), "{default:?}");
+        // A file where the folder should be is invalid input, named.
+        let file = root.join("a-file");
+        std::fs::write(&file, b"").ok();
+        let blocked = ReportFlags {
+            out: Some(file),
+            ..ReportFlags::default()
+        };
+        let why = blocked.check().map_err(|e| e.to_string());
+        assert!(why.as_ref().is_err_and(|w| w.contains("--out")), "{why:?}");
+        std::fs::remove_dir_all(&root).ok();
     }
 }

@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use embodied::app::report::ReportFlags;
 use embodied::app::{
     AppError, Application, Common, Mode, RunSummary, SpecFile, Target, Verdict, Watcher,
 };
@@ -78,22 +79,10 @@ pub struct RexFlags {
     /// pair arrives); 0: in the step the pair arrives.
     #[arg(long, global = true, value_name = "STEPS")]
     pub vo_latency: Option<u32>,
-    /// Report folder; one sub-folder per mission.
-    #[arg(
-        long,
-        global = true,
-        value_name = "DIR",
-        default_value = "target/rex-report"
-    )]
-    pub out: PathBuf,
-    /// Do not write the report folder.
-    #[arg(long, global = true)]
-    pub no_report: bool,
-    /// Do not record the run into the report folder (`<out>/<mission>/run.mcap`,
-    /// made by default: it costs a few percent of the run's time with the
-    /// camera, about 160 MB for the figure-eight; see `--record`).
-    #[arg(long, global = true)]
-    pub no_record: bool,
+    /// The report folder (`--out`, default `target/rex-report`, one
+    /// sub-folder per mission), `--no-report`, `--no-record`.
+    #[command(flatten)]
+    pub report: ReportFlags,
     /// Also print the spec's timing certificate after the summary (the text
     /// of the report folder's `timing.txt`: `embodied check --timing`'s
     /// analysis of the spec as one process on one host).
@@ -253,9 +242,7 @@ impl Application for RexApp {
         self.flags = flags.clone();
         let (settings, base) = RexApp::settings(flags, common)?;
         // The report folder is checked before the simulation, not after it.
-        if !flags.no_report {
-            embodied::app::writable_folder("--out", &flags.out)?;
-        }
+        flags.report.check()?;
         let missions: Vec<String> = if settings.mission == "all" {
             Mission::SHIPPED.iter().map(|m| (*m).to_owned()).collect()
         } else {
@@ -317,7 +304,7 @@ impl Application for RexApp {
                     Box::new(printer(common.quiet)),
                 ),
                 spec: spec.spec,
-                report: (!self.flags.no_report).then(|| self.flags.out.clone()),
+                report: self.flags.report.clone(),
                 limit_s: config.limit_s,
                 verbose: self.flags.verbose,
             }),
@@ -386,13 +373,8 @@ impl Application for RexApp {
     }
 
     fn default_record(&self, config: &RunSettings, _: &Common) -> Option<PathBuf> {
-        if self.flags.no_report || self.flags.no_record {
-            return None;
-        }
         let rex = RexApp::resolve(config).ok()?;
-        let dir = self.flags.out.join(&rex.mission.name);
-        std::fs::create_dir_all(&dir).ok()?;
-        Some(dir.join("run.mcap"))
+        self.flags.report.recording(&rex.mission.name)
     }
 
     fn reconfigure(
@@ -439,8 +421,8 @@ type Printer = Box<dyn FnMut(Progress<'_>) + Send>;
 struct RexWatch {
     watch: MissionWatch<Printer>,
     spec: embodied::spec::Spec,
-    /// The report folder's root, unless `--no-report`.
-    report: Option<PathBuf>,
+    /// The report folder's flags.
+    report: ReportFlags,
     /// The run's time limit \[s\].
     limit_s: f64,
     /// Print the timing certificate (`--verbose`).
@@ -461,19 +443,9 @@ impl Watcher<Seen> for RexWatch {
             .watch
             .outcome(run.wall.as_secs_f64(), run.last.as_secs_f64());
         let mut text = crate::report::summary(&out);
-        if let Some(root) = &self.report {
-            let dir = root.join(&out.mission);
-            match crate::report::write(&dir, &out, &self.watch.config, &self.spec) {
-                Ok(files) => {
-                    text.push_str(&format!(
-                        "report: {} ({} files)\n",
-                        dir.display(),
-                        files.len()
-                    ));
-                }
-                Err(e) => eprintln!("rex: report {}: {e}", dir.display()),
-            }
-        }
+        let (config, spec) = (&self.watch.config, &self.spec);
+        let write = |dir: &Path| crate::report::write(dir, &out, config, spec);
+        text.push_str(&self.report.write(&out.mission, write).unwrap_or_default());
         let listens = self.watch.config.mission.listens();
         if listens {
             text.push_str(&match out.foreign.len() {
