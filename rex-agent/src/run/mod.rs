@@ -19,7 +19,7 @@ mod realtime;
 mod tests;
 pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes, install_probes_as};
-pub use realtime::{RtRunError, run_mission_realtime, run_mission_realtime_recorded};
+pub use realtime::{run_mission_realtime, run_mission_realtime_recorded};
 
 use embodied::app::{Ran, Tally, Watched, Watcher};
 use embodied::{ExecError, Finished, NoObserver};

@@ -1,7 +1,7 @@
 //! Running a Rex mission in real time: the same system as [`run_mission`](super::run_mission),
 //! on threads against the wall clock ([`embodied::RealTime`]): the world (the 1 kHz
-//! plant, the camera, the motion capture) on one thread, every subsystem on its
-//! own, as on the robot. The run is watched through the same probes, paired and
+//! plant, the camera, the motion capture) on one thread, the subsystems on the
+//! executor's workers (`RtConfig::threading`). The run is watched through the same probes, paired and
 //! judged the same way, and ends the same way: every plan sent, acknowledged,
 //! and the last fragment executed.
 
@@ -15,17 +15,6 @@ use embodied::{RtConfig, RtReport};
 use super::{MissionWatch, Outcome, Progress, RunError, install_probes};
 use crate::system::{RexConfig, build};
 
-/// Why the real-time run failed to start or ended badly.
-#[derive(Debug, thiserror::Error)]
-pub enum RtRunError {
-    /// Rex could not be built or the executor failed.
-    #[error(transparent)]
-    Run(#[from] RunError),
-    /// The threads could not run.
-    #[error(transparent)]
-    Rt(#[from] embodied::RtError),
-}
-
 /// Run `config`'s mission in real time, for at most `limit` of wall-clock time.
 /// Returns the outcome (judged as the deterministic run's is) and what the
 /// executor measured.
@@ -35,7 +24,7 @@ pub fn run_mission_realtime(
     tick: Duration,
     rt: RtConfig,
     progress: impl FnMut(Progress<'_>),
-) -> Result<(Outcome, RtReport), RtRunError> {
+) -> Result<(Outcome, RtReport), RunError> {
     let (outcome, report, _) = realtime(config, limit, tick, rt, None, progress)?;
     Ok((outcome, report))
 }
@@ -49,7 +38,7 @@ pub fn run_mission_realtime_recorded(
     rt: RtConfig,
     (path, options): (&Path, RecordOptions),
     progress: impl FnMut(Progress<'_>),
-) -> Result<(Outcome, RtReport, RecordSummary), RtRunError> {
+) -> Result<(Outcome, RtReport, RecordSummary), RunError> {
     let (outcome, report, summary) =
         realtime(config, limit, tick, rt, Some((path, options)), progress)?;
     // A recording was asked for: `realtime` returns its summary.
@@ -63,8 +52,8 @@ fn realtime(
     rt: RtConfig,
     record: Option<(&Path, RecordOptions)>,
     progress: impl FnMut(Progress<'_>),
-) -> Result<(Outcome, RtReport, Option<RecordSummary>), RtRunError> {
-    let (system, h) = build(config).map_err(RunError::from)?;
+) -> Result<(Outcome, RtReport, Option<RecordSummary>), RunError> {
+    let (system, h) = build(config)?;
     let mut watch = MissionWatch::new(config, tick, progress);
     // Watched as the deterministic run is (see `run_mission_observed`).
     let mut run = Watched::new(&mut watch, limit);
@@ -73,9 +62,7 @@ fn realtime(
         exec: config.exec,
         ..rt
     };
-    let (ran, summary) = run
-        .realtime_recorded(system, rt, record)
-        .map_err(RunError::from)?;
+    let (ran, summary) = run.realtime_recorded(system, rt, record)?;
     Ok((
         watch.conclude(&ran, &h),
         ran.finished.into_report(),
