@@ -1,4 +1,4 @@
-//! The Zenoh scaling benchmark (`examples/bench_zenoh_scale.rs`) runs in its
+//! The Zenoh scaling benchmark (`examples/bench_zenoh_scale/`) runs in its
 //! quick form (K = 2 and 4 processes, one host, a ring, a second's window) and
 //! prints its lines in their shape, with finite positive latencies.
 
@@ -13,18 +13,21 @@ use std::process::Command;
 
 /// The example's binary: the one `cargo test` built beside this test (it
 /// builds the examples, with the same features), or, if there is none or it is
-/// older than its source (`cargo test --test bench_zenoh_scale` builds no
-/// example), one built now by this test's cargo.
+/// older than one of its sources (`cargo test --test bench_zenoh_scale` builds
+/// no example), one built now by this test's cargo.
 fn example() -> PathBuf {
     let built = std::env::current_exe()
         .unwrap()
         .parent()
         .and_then(|deps| deps.parent())
         .map(|profile| profile.join("examples/bench_zenoh_scale"));
-    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/bench_zenoh_scale.rs");
+    let sources = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/bench_zenoh_scale");
     let modified = |p: &std::path::Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let newest_source = std::fs::read_dir(sources)
+        .ok()
+        .and_then(|files| files.filter_map(|f| modified(&f.ok()?.path())).max());
     if let Some(exe) = built
-        && let (Some(e), Some(s)) = (modified(&exe), modified(source.as_ref()))
+        && let (Some(e), Some(s)) = (modified(&exe), newest_source)
         && e >= s
     {
         return exe;
