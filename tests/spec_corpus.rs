@@ -222,7 +222,10 @@ fn relations_are_what_make_the_arc_proofs_succeed() {
 
 #[test]
 fn every_code_is_demonstrated_and_its_diagnostic_is_stable() {
-    for code in Code::ALL {
+    // A code only programs find (the Rust types behind the buffers) is
+    // demonstrated by the program's test: agent-app's
+    // `a_buffer_type_that_cannot_be_the_message_is_said_at_the_specs_entry`.
+    for code in Code::ALL.iter().filter(|c| !c.is_found_by_programs()) {
         let name = code.as_str().trim_start_matches("spec::");
         let report = check_invalid(name);
         assert!(
@@ -276,6 +279,7 @@ fn extra_cases_point_at_the_offending_name_and_their_diagnostics_are_stable() {
 fn every_invalid_file_is_a_tested_case() {
     let mut expected: Vec<String> = Code::ALL
         .iter()
+        .filter(|c| !c.is_found_by_programs())
         .map(|c| c.as_str().trim_start_matches("spec::").to_owned())
         .chain(EXTRA_CASES.iter().map(|(name, ..)| (*name).to_owned()))
         .collect();

@@ -45,6 +45,35 @@ pub(crate) struct Ros2Out {
     bridge: Option<agent_ros2::bridge::Bridge>,
 }
 
+#[cfg(feature = "ros2")]
+/// A plan the spec cannot make, as invalid input (`--ros2 ENDPOINT: ...`); a
+/// buffer whose Rust type cannot be its topic's message is said at the
+/// spec's entry, in the checker's format (`spec::ros2_type`): the spec alone
+/// does not know the types, the program does.
+fn refused(
+    file: &SpecFile,
+    deployment: Option<&str>,
+    endpoint: &str,
+    e: &agent_ros2::bridge::PlanError,
+) -> AppError {
+    use agent_spec::{Code, Finding, Report};
+    let at = e.mistyped_buffer().and_then(|buffer| {
+        agent_spec::ros2::entry_span(&file.spec, &file.text, deployment, buffer)
+    });
+    let Some(span) = at else {
+        return AppError::invalid(format!("--ros2 {endpoint}: {e}"));
+    };
+    let finding = Finding::new(Code::Ros2Type, span, "this buffer's type", e.to_string()).help(
+        "publish a buffer whose type a ROS 2 message can carry, name a message an adapter makes of it, or give the program that adapter (Application::ros2_adapters)",
+    );
+    let report = Report::new(file.path.clone(), file.text.clone(), vec![finding]);
+    AppError::invalid(format!(
+        "--ros2 {endpoint}: specification {}:\n{}",
+        file.path,
+        report.short().trim_end()
+    ))
+}
+
 #[cfg(not(feature = "ros2"))]
 impl Ros2Out {
     /// No bridge: `--ros2` is refused (built without the feature).
@@ -110,6 +139,7 @@ impl Ros2Out {
         };
         let invalid =
             |e: &dyn std::fmt::Display| AppError::invalid(format!("--ros2 {endpoint}: {e}"));
+        let file = spec;
         let (spec, absent) = in_the_system(&spec.spec, part.map(|p| p.deployment), system);
         if !absent.is_empty() {
             crate::output::warn(format_args!(
@@ -124,7 +154,8 @@ impl Ros2Out {
             None => None,
         };
         let adapters = app.ros2_adapters();
-        let mut plan = Plan::new(&spec, deployment, system, &adapters).map_err(|e| invalid(&e))?;
+        let mut plan = Plan::new(&spec, deployment, system, &adapters)
+            .map_err(|e| refused(file, part.map(|p| p.deployment), endpoint, &e))?;
         if let Some(p) = part {
             let node = format!("{}_{}", plan.node, node_name_part(p.process));
             plan = plan

@@ -150,6 +150,12 @@ codes! {
     Ros2Overwritten = "spec::ros2_overwritten", Warning;
     /// A ROS 2 publish of an output that no link carries: its values reach no one, the bridge included.
     Ros2Unlinked = "spec::ros2_unlinked", Error;
+    /// A ROS 2 topic whose buffer's Rust type cannot be its message: the
+    /// type cannot be a ROS 2 message (no shape, or a shape CDR cannot carry),
+    /// or no adapter makes (or reads) the standard message the entry names.
+    /// Found by the program that builds the bridge (`--ros2`), which knows the
+    /// types; said in the checker's format at the entry.
+    Ros2Type = "spec::ros2_type", Error;
     /// A contract or timing figure with a bad value (not a positive finite number, limits the wrong way round, a field path its buffer's type cannot have), or one that names no deployment or no queue link.
     Contract = "spec::contract", Error;
     /// A chain whose hops are not carried by links, do not connect, or do not run from a real receptor to a real effector.
@@ -165,6 +171,13 @@ codes! {
 }
 
 impl Code {
+    /// Whether only a program finds it, not the checker: it needs the Rust
+    /// types behind the spec's buffers (a program building its ROS 2 bridge
+    /// reports it at the spec's entry, in the checker's format).
+    pub const fn is_found_by_programs(self) -> bool {
+        matches!(self, Code::Ros2Type)
+    }
+
     /// Whether a finding of this code is a root cause: something wrong where it is
     /// written (the syntax, a name, a reference to something that does not exist, a
     /// bad value). The other findings are about the whole (the wiring, the FSM

@@ -459,6 +459,38 @@ pub fn section<'s>(spec: &'s Spec, deployment: Option<&'s Deployment>) -> Option
         .or(spec.ros2.as_ref())
 }
 
+/// Where, in `text` (the spec's source), the entry of the `ros2` section
+/// that applies to `deployment` ([`section`]) showing `buffer` is: the span
+/// of its `buffer` value, the published entry's if both sides show it. For
+/// what only a program can find (a buffer's Rust type that cannot be the
+/// message: [`Code::Ros2Type`](crate::Code::Ros2Type)), said in the
+/// checker's format. `None` when no entry shows `buffer`, or the text does
+/// not parse.
+pub fn entry_span(
+    spec: &Spec,
+    text: &str,
+    deployment: Option<&str>,
+    buffer: &str,
+) -> Option<Range<usize>> {
+    use crate::span::Seg::{Field, Item};
+    let d = deployment.and_then(|name| spec.deployments.iter().position(|d| d.name == name));
+    let own = d.filter(|&d| spec.deployments[d].ros2.is_some());
+    let (mut path, ros2) = match own {
+        Some(d) => (
+            vec![Field("deployments"), Item(d), Field("ros2")],
+            spec.deployments[d].ros2.as_ref()?,
+        ),
+        None => (vec![Field("ros2")], spec.ros2.as_ref()?),
+    };
+    let (side, k) = [("publish", &ros2.publish), ("subscribe", &ros2.subscribe)]
+        .into_iter()
+        .find_map(|(side, entries)| {
+            Some((side, entries.iter().position(|e| e.buffer == buffer)?))
+        })?;
+    path.extend([Field(side), Item(k), Field("buffer")]);
+    Some(crate::span::parse(text)?.at(&path)?.content_span())
+}
+
 /// The node a `ros2` section of `spec` names: its own, else the system's name.
 pub fn node_of<'s>(spec: &'s Spec, section: &'s Ros2) -> &'s str {
     section.node.as_deref().unwrap_or(&spec.name)

@@ -218,6 +218,43 @@ fn a_spec_that_shows_nothing_to_ros_2_is_invalid_input() {
     );
 }
 
+#[cfg(feature = "ros2")]
+#[test]
+fn a_buffer_type_that_cannot_be_the_message_is_said_at_the_specs_entry() {
+    let endpoint = free_endpoint();
+    // `Status` is no pose, and the small program gives no adapter.
+    let pose = r#"(node: "small", publish: [(buffer: "c.e.status", topic: "status", message: "geometry_msgs/msg/PoseStamped")])"#;
+    assert_eq!(
+        crate::run(&mut app(pose), &cli(&[&format!("--ros2={endpoint}")])),
+        Exit::Invalid
+    );
+    let text = spec(pose);
+    let file = SpecFile::parse("small.ron", text.clone()).unwrap();
+    let common = cli(&[&format!("--ros2={endpoint}")]).common;
+    let e = Ros2Out::start(&app(pose), &common, &file, &system(), None).unwrap_err();
+    assert_eq!(e.status(), Exit::Invalid);
+    let message = e.to_string();
+    // The checker's format: the file, the entry's line and column, the code.
+    let at = text.find("buffer: \"c.e.status\", topic").unwrap() + "buffer: \"".len();
+    let (line, col) = agent_spec::diag::line_col(&text, at);
+    assert!(
+        message.contains(&format!("small.ron:{line}:{col}")),
+        "{message}"
+    );
+    assert!(message.contains("spec::ros2_type"), "{message}");
+    assert!(
+        message.contains("geometry_msgs/msg/PoseStamped"),
+        "{message}"
+    );
+    // A buffer whose entry is not the type's fault is said as before.
+    let ghost = r#"(publish: [(buffer: "c.e.ghost", topic: "ghost")])"#;
+    let file = SpecFile::parse("small.ron", spec(ghost));
+    if let Ok(file) = file {
+        let e = Ros2Out::start(&app(ghost), &common, &file, &system(), None).unwrap_err();
+        assert!(!e.to_string().contains("spec::"), "{e}");
+    }
+}
+
 #[cfg(not(feature = "ros2"))]
 #[test]
 fn without_the_feature_the_flag_is_refused() {

@@ -140,6 +140,21 @@ pub enum PlanError {
     },
 }
 
+impl PlanError {
+    /// The buffer whose Rust type cannot be its topic's message
+    /// ([`PlanError::NotAMessage`], [`PlanError::NoAdapter`],
+    /// [`PlanError::NoInboundAdapter`]): what only the program finds, for it
+    /// to point at the spec's entry (`agent_spec::ros2::entry_span`).
+    pub fn mistyped_buffer(&self) -> Option<&str> {
+        match self {
+            PlanError::NotAMessage { buffer, .. }
+            | PlanError::NoAdapter { buffer, .. }
+            | PlanError::NoInboundAdapter { buffer, .. } => Some(buffer),
+            _ => None,
+        }
+    }
+}
+
 /// One buffer published on one topic.
 #[derive(Clone)]
 pub struct PublishedTopic {
