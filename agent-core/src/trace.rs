@@ -16,6 +16,11 @@ use crate::fsm::{FsmShape, Step, Valuation};
 use crate::kinds::{NodeKind, Policy};
 use crate::time::{Period, Stamp, Time};
 
+mod forward;
+mod pick;
+
+pub use pick::{FieldPath, PickError};
+
 /// A value in a buffer, seen through the observer without knowing its type.
 pub trait ErasedPayload {
     /// The value for `{:?}`.
@@ -23,6 +28,9 @@ pub trait ErasedPayload {
     /// Append the value's canonical binary encoding (postcard) to `out`; on
     /// an error `out` is left as it was.
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), EncodeError>;
+    /// The number at `path` in the value, read through its `Serialize` impl
+    /// without encoding it (see [`FieldPath`]); `Ok(None)` where it has none.
+    fn number_at(&self, path: &FieldPath) -> Result<Option<f64>, PickError>;
 }
 
 /// A value could not be encoded.
@@ -43,6 +51,10 @@ impl<T: Payload> ErasedPayload for T {
                 Err(EncodeError(e.to_string()))
             }
         }
+    }
+    #[inline]
+    fn number_at(&self, path: &FieldPath) -> Result<Option<f64>, PickError> {
+        path.number(self)
     }
 }
 
@@ -241,211 +253,6 @@ pub trait Observer: Send {
     /// it). Called until it returns `None`.
     fn raised(&mut self) -> Option<ExecError> {
         None
-    }
-}
-
-/// A boxed observer observes as the box's content does.
-impl<O: Observer + ?Sized> Observer for Box<O> {
-    fn enabled(&self) -> bool {
-        (**self).enabled()
-    }
-    fn start(&mut self, system: &SystemInfo) {
-        (**self).start(system);
-    }
-    fn transition(&mut self, event: &TransitionEvent) {
-        (**self).transition(event);
-    }
-    fn action(&mut self, event: &ActionEvent) {
-        (**self).action(event);
-    }
-    fn audit(&mut self, event: &AuditEvent) {
-        (**self).audit(event);
-    }
-    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
-        (**self).transfer(event, value);
-    }
-    fn read(&mut self, event: &ReadEvent) {
-        (**self).read(event);
-    }
-    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
-        (**self).received(event, value);
-    }
-    fn error(&mut self, time: Time, error: &ExecError) {
-        (**self).error(time, error);
-    }
-    fn predicates_wanted(&self, node: usize) -> u64 {
-        (**self).predicates_wanted(node)
-    }
-    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
-        (**self).predicates(event, values);
-    }
-    fn raised(&mut self) -> Option<ExecError> {
-        (**self).raised()
-    }
-}
-
-/// Two observers of one run (a recorder and a printer, say): each event goes to
-/// the first, then to the second, to each only if it is enabled.
-impl<A: Observer, B: Observer> Observer for (A, B) {
-    fn enabled(&self) -> bool {
-        self.0.enabled() || self.1.enabled()
-    }
-    fn start(&mut self, system: &SystemInfo) {
-        if self.0.enabled() {
-            self.0.start(system);
-        }
-        if self.1.enabled() {
-            self.1.start(system);
-        }
-    }
-    fn transition(&mut self, event: &TransitionEvent) {
-        if self.0.enabled() {
-            self.0.transition(event);
-        }
-        if self.1.enabled() {
-            self.1.transition(event);
-        }
-    }
-    fn action(&mut self, event: &ActionEvent) {
-        if self.0.enabled() {
-            self.0.action(event);
-        }
-        if self.1.enabled() {
-            self.1.action(event);
-        }
-    }
-    fn audit(&mut self, event: &AuditEvent) {
-        if self.0.enabled() {
-            self.0.audit(event);
-        }
-        if self.1.enabled() {
-            self.1.audit(event);
-        }
-    }
-    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
-        if self.0.enabled() {
-            self.0.transfer(event, value);
-        }
-        if self.1.enabled() {
-            self.1.transfer(event, value);
-        }
-    }
-    fn read(&mut self, event: &ReadEvent) {
-        if self.0.enabled() {
-            self.0.read(event);
-        }
-        if self.1.enabled() {
-            self.1.read(event);
-        }
-    }
-    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
-        if self.0.enabled() {
-            self.0.received(event, value);
-        }
-        if self.1.enabled() {
-            self.1.received(event, value);
-        }
-    }
-    fn error(&mut self, time: Time, error: &ExecError) {
-        if self.0.enabled() {
-            self.0.error(time, error);
-        }
-        if self.1.enabled() {
-            self.1.error(time, error);
-        }
-    }
-    fn predicates_wanted(&self, node: usize) -> u64 {
-        let a = if self.0.enabled() {
-            self.0.predicates_wanted(node)
-        } else {
-            0
-        };
-        let b = if self.1.enabled() {
-            self.1.predicates_wanted(node)
-        } else {
-            0
-        };
-        a | b
-    }
-    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
-        if self.0.enabled() {
-            self.0.predicates(event, values);
-        }
-        if self.1.enabled() {
-            self.1.predicates(event, values);
-        }
-    }
-    fn raised(&mut self) -> Option<ExecError> {
-        let first = if self.0.enabled() {
-            self.0.raised()
-        } else {
-            None
-        };
-        first.or_else(|| {
-            if self.1.enabled() {
-                self.1.raised()
-            } else {
-                None
-            }
-        })
-    }
-}
-
-/// An observer that may be absent: observes as its content does, if any.
-impl<O: Observer> Observer for Option<O> {
-    fn enabled(&self) -> bool {
-        self.as_ref().is_some_and(Observer::enabled)
-    }
-    fn start(&mut self, system: &SystemInfo) {
-        if let Some(o) = self {
-            o.start(system);
-        }
-    }
-    fn transition(&mut self, event: &TransitionEvent) {
-        if let Some(o) = self {
-            o.transition(event);
-        }
-    }
-    fn action(&mut self, event: &ActionEvent) {
-        if let Some(o) = self {
-            o.action(event);
-        }
-    }
-    fn audit(&mut self, event: &AuditEvent) {
-        if let Some(o) = self {
-            o.audit(event);
-        }
-    }
-    fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
-        if let Some(o) = self {
-            o.transfer(event, value);
-        }
-    }
-    fn read(&mut self, event: &ReadEvent) {
-        if let Some(o) = self {
-            o.read(event);
-        }
-    }
-    fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
-        if let Some(o) = self {
-            o.received(event, value);
-        }
-    }
-    fn error(&mut self, time: Time, error: &ExecError) {
-        if let Some(o) = self {
-            o.error(time, error);
-        }
-    }
-    fn predicates_wanted(&self, node: usize) -> u64 {
-        self.as_ref().map_or(0, |o| o.predicates_wanted(node))
-    }
-    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
-        if let Some(o) = self {
-            o.predicates(event, values);
-        }
-    }
-    fn raised(&mut self) -> Option<ExecError> {
-        self.as_mut().and_then(Observer::raised)
     }
 }
 

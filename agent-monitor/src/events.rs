@@ -36,8 +36,10 @@ impl Monitors {
     pub fn read(&mut self, input: InputId, t: Time, stamp: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
         let age = t.as_nanos().saturating_sub(stamp.as_nanos());
+        let (activations, mut due) = (self.activations, None);
         for f in self.freshness.iter_mut().filter(|f| f.input == input) {
             f.held = Some((stamp, age > f.max));
+            due = earliest(due, f.deadline(activations));
             if age > f.max {
                 sink(Violation {
                     time: t,
@@ -49,36 +51,38 @@ impl Monitors {
                 });
             }
         }
-        self.recompute_deadline();
+        self.due(due);
     }
 
     /// A new value reaches `input` at `t` (its writer's send, or its arrival
     /// from another process).
     pub fn arrived(&mut self, input: InputId, t: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
+        let mut due = None;
         for r in self.rates.iter_mut().filter(|r| r.input == input) {
             r.last = t;
             r.reported = false;
+            due = earliest(due, Some(t.as_nanos().saturating_add(r.window)));
         }
-        self.recompute_deadline();
+        self.due(due);
     }
 
     /// A value sent on `output` at `t`.
     pub fn sent(&mut self, output: OutputId, t: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
+        let mut due = None;
         for r in &mut self.responses {
             if r.response == output {
                 r.last_response = Some(t);
                 r.pending = None;
             }
             if r.trigger == output && r.last_response != Some(t) {
-                r.pending = Some(match r.pending {
-                    Some((oldest, _)) => (oldest, t),
-                    None => (t, t),
-                });
+                let oldest = r.pending.map_or(t, |(oldest, _)| oldest);
+                r.pending = Some((oldest, t));
+                due = earliest(due, Some(oldest.as_nanos().saturating_add(r.within)));
             }
         }
-        self.recompute_deadline();
+        self.due(due);
     }
 
     /// The field of range `range` took `x` at `t`.
@@ -262,6 +266,18 @@ impl Monitors {
         }
     }
 
+    /// A deadline at `d` (ns), if any, may come before the next one known.
+    /// Only deadlines added or moved earlier are told: one that passed or
+    /// moved later leaves `next_deadline` early, which costs one
+    /// scan in [`Monitors::advance`] when it comes (which then recomputes it),
+    /// instead of a scan of every monitor at every event.
+    fn due(&mut self, d: Option<u64>) {
+        if let Some(d) = d.map(Time::from_nanos) {
+            self.next_deadline = Some(self.next_deadline.map_or(d, |n| n.min(d)));
+        }
+    }
+
+    /// The earliest deadline of every monitor (a scan of them all).
     pub(crate) fn recompute_deadline(&mut self) {
         let rates = self
             .rates
@@ -282,6 +298,14 @@ impl Monitors {
             .chain(stale)
             .min()
             .map(Time::from_nanos);
+    }
+}
+
+/// The earlier of two deadlines, either absent.
+fn earliest(a: Option<u64>, b: Option<u64>) -> Option<u64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     }
 }
 

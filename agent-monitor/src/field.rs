@@ -1,7 +1,7 @@
 //! A number inside a buffer value's postcard bytes, found by a range's field
 //! path (`"0"`, `"pose.x"`) through the value's layout, without decoding the
 //! rest of the value and without allocating: what a range monitor reads of
-//! each value sent while the robot runs.
+//! each value in a recording.
 //!
 //! A [`Layout`] is a payload's [`TypeShape`] (its serde data model) made
 //! owned and shareable between threads (the shape's formats are not `Send`).
@@ -11,6 +11,18 @@
 //! integer or a float; `bool` is not one). An absent `Option`, a sequence
 //! shorter than the index and an enum on the path have no value there:
 //! `Ok(None)`, and the range is not judged for that value.
+//!
+//! A running watch reads the typed value itself ([`agent_core::trace::FieldPath`],
+//! the same path read through the value's `Serialize` impl); it checks only
+//! that a range's path can lead to a number ([`reaches_number`]). The bytes
+//! are walked over a recording.
+#![cfg_attr(
+    not(any(feature = "recording", test)),
+    allow(
+        dead_code,
+        reason = "without `recording` no bytes are walked: the live watch reads typed values"
+    )
+)]
 
 use agent_core::TypeShape;
 use agent_core::serde_reflection::{ContainerFormat, Format, Named, VariantFormat};
