@@ -47,16 +47,19 @@ impl<T> Payload for T where T: Clone + fmt::Debug + Serialize + DeserializeOwned
 ///     const PEER: NodeKind = NodeKind::VirtualEffector;
 /// }
 /// ```
-pub trait Group: Send + 'static {
+pub trait Group: Sized + Send + 'static {
     /// The kind of component at the other end of every buffer in this group.
     const PEER: NodeKind;
 
     /// The buffer `buffer` of this group, reached from a struct `B` through
     /// `group` (the field `group_name`), for links made by name. `#[derive(Group)]`
     /// writes it; a hand-written group has no buffers found by name.
+    ///
+    /// `group` is any projection (a `fn`, or a closure holding an index: a
+    /// [`Fan`]'s element `k` is reached through one).
     fn buffer_port<B: Send + 'static>(
         group_name: &'static str,
-        group: fn(&mut B) -> &mut Self,
+        group: impl crate::link::Access<B, Self>,
         buffer: &str,
     ) -> Option<BufferPort> {
         let _ = (group_name, group, buffer);
@@ -89,7 +92,25 @@ pub struct BufferPort {
     /// The link layer's typed plan makers, erased: buffers and their descriptions
     /// name this type without depending on links.
     pub(crate) plans: Box<dyn Any>,
+    /// For a buffer of one element of a [`Fan`]: which element, and how to
+    /// count the fan's elements in the component's buffer struct (the builder
+    /// checks the index against it).
+    pub(crate) fan: Option<FanIndex>,
 }
+
+/// The element of a [`Fan`] a [`BufferPort`] reaches, checked when the link is
+/// made: the fan's length is known only from the component's buffers.
+pub(crate) struct FanIndex {
+    /// The fan's field (`c1`).
+    pub(crate) group: &'static str,
+    /// The element (`3` in `c1[3].plan`).
+    pub(crate) index: usize,
+    /// The fan's length in a buffer struct given as `Any` (`None`: another type).
+    pub(crate) len: FanLen,
+}
+
+/// How a [`FanIndex`] counts its fan's elements in an erased buffer struct.
+pub(crate) type FanLen = Box<dyn Fn(&mut dyn Any) -> Option<usize>>;
 
 impl fmt::Debug for BufferPort {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -379,6 +400,138 @@ impl<T> Out<T> {
         } else {
             None
         }
+    }
+}
+
+/// A group repeated once per peer, as many times as the system has peers: the
+/// buffers of a subsystem towards M components of one kind when M is known
+/// only when the system is built (an ontology agent dispatching plans to every
+/// robot of a fleet).
+///
+/// A field `c1: Fan<FromRobot>` of an input or output struct is a group whose
+/// element `k` is reached by name as `c1[k]` (a link made from a spec names
+/// `c2.c1[3].plan`) or by [`port!`](crate::port) as `port!(Input, c1[3].plan)`.
+/// Its length is fixed when the subsystem's buffers are made
+/// ([`Fan::new`], given to
+/// [`SystemBuilder::subsystem_with_buffers`](crate::SystemBuilder::subsystem_with_buffers));
+/// a [`Default`] fan has no element, and a link to an element it does not have
+/// is a build problem. A fan cannot grow or shrink: it derefs to a slice.
+///
+/// Described as its group (the same [`GroupShape`](crate::describe::GroupShape)
+/// and fields); a buffer of the fan is fresh when it is fresh in any element.
+///
+/// ```
+/// use agent_core::{Fan, Group, In, NodeKind};
+/// #[derive(Debug, Default)]
+/// struct FromRobot { ack: In<u32> }
+/// impl Group for FromRobot { const PEER: NodeKind = NodeKind::Control; }
+/// let robots: Fan<FromRobot> = Fan::new(3);
+/// assert_eq!(robots.len(), 3);
+/// assert!(robots.iter().all(|r| r.ack.get().is_none()));
+/// ```
+pub struct Fan<G> {
+    groups: Box<[G]>,
+}
+
+impl<G> Default for Fan<G> {
+    fn default() -> Self {
+        Fan {
+            groups: Box::new([]),
+        }
+    }
+}
+
+impl<G: Default> Fan<G> {
+    /// A fan of `peers` groups, each its default (empty buffers).
+    pub fn new(peers: usize) -> Self {
+        Fan {
+            groups: (0..peers).map(|_| G::default()).collect(),
+        }
+    }
+}
+
+impl<G> std::ops::Deref for Fan<G> {
+    type Target = [G];
+    fn deref(&self) -> &[G] {
+        &self.groups
+    }
+}
+
+impl<G> std::ops::DerefMut for Fan<G> {
+    fn deref_mut(&mut self) -> &mut [G] {
+        &mut self.groups
+    }
+}
+
+impl<G: fmt::Debug> fmt::Debug for Fan<G> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(self.groups.iter()).finish()
+    }
+}
+
+/// `[3].plan` (what follows a fan's name in a buffer's path): the element and
+/// the buffer. The index is written in decimal without leading zeros, so that
+/// one element has one name.
+pub(crate) fn fan_element(rest: &str) -> Option<(usize, &str)> {
+    let (index, buffer) = rest.strip_prefix('[')?.split_once("].")?;
+    let canonical = !index.is_empty()
+        && index.bytes().all(|b| b.is_ascii_digit())
+        && (index == "0" || !index.starts_with('0'));
+    if !canonical || buffer.is_empty() {
+        return None;
+    }
+    Some((index.parse().ok()?, buffer))
+}
+
+impl<G: Group> Group for Fan<G> {
+    const PEER: NodeKind = G::PEER;
+
+    /// `buffer` is `[k].name`: buffer `name` of element `k`, whose port is
+    /// named `group_name[k].name`. Whether the fan has element `k` is checked
+    /// when the link is made.
+    fn buffer_port<B: Send + 'static>(
+        group_name: &'static str,
+        group: impl crate::link::Access<B, Self>,
+        buffer: &str,
+    ) -> Option<BufferPort> {
+        let (index, buffer) = fan_element(buffer)?;
+        let element = crate::link::intern_name(format!("{group_name}[{index}]"));
+        let mut port = G::buffer_port(
+            element,
+            move |b: &mut B| &mut group(b).groups[index],
+            buffer,
+        )?;
+        if port.fan.is_some() {
+            // A fan of fans: one index is checked, so none is made.
+            return None;
+        }
+        port.fan = Some(FanIndex {
+            group: group_name,
+            index,
+            len: Box::new(move |any| any.downcast_mut::<B>().map(|b| group(b).len())),
+        });
+        Some(port)
+    }
+}
+
+impl<G: crate::describe::Fields> crate::describe::Fields for Fan<G> {
+    const FIELDS: &'static [crate::describe::Field] = G::FIELDS;
+}
+
+impl<G: crate::describe::Buffers> crate::describe::Buffers for Fan<G> {
+    const GROUPS: &'static [crate::describe::GroupShape] = G::GROUPS;
+
+    /// A buffer is fresh when it is fresh in any element.
+    fn fresh(&self) -> crate::describe::Fresh {
+        crate::describe::Fresh(self.groups.iter().fold(0, |bits, g| bits | g.fresh().0))
+    }
+
+    fn take_reads(&self) -> crate::describe::Fresh {
+        crate::describe::Fresh(
+            self.groups
+                .iter()
+                .fold(0, |bits, g| bits | g.take_reads().0),
+        )
     }
 }
 

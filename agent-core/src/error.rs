@@ -439,6 +439,23 @@ pub enum BuildProblem {
         /// The buffers it has, as `" (it has: a.b, c.d)"`, or empty.
         known: String,
     },
+    /// A link to an element of a [`Fan`](crate::Fan) the component's fan does
+    /// not have (its length is fixed when the component's buffers are made).
+    #[error(
+        "link `{link}`: `{node}`'s fan `{group}` has {len} element(s), so no `{group}[{index}]`; make the subsystem's buffers with a fan of more (SystemBuilder::subsystem_with_buffers) or link to an index below {len}"
+    )]
+    NoFanElement {
+        /// The link.
+        link: String,
+        /// The component.
+        node: String,
+        /// The fan's field.
+        group: String,
+        /// The index linked to.
+        index: usize,
+        /// The fan's length.
+        len: usize,
+    },
     /// `SystemBuilder::environment` was called twice.
     #[error("the system has two environments; a system has one (make it a struct of both)")]
     SeveralEnvironments,

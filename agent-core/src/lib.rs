@@ -47,7 +47,7 @@ pub mod transition;
 pub mod untyped;
 
 pub use behaviour::Behaviour;
-pub use buffer::{BufferPort, Direction, Group, In, Out, Payload};
+pub use buffer::{BufferPort, Direction, Fan, Group, In, Out, Payload};
 pub use describe::{Buffers, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use error::{
     ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,
@@ -111,5 +111,10 @@ pub mod __private {
     /// The peer kind of the group a projection returns (the projection is never called).
     pub fn peer_of<B, G: Group>(_projection: fn(&mut B) -> &mut G) -> NodeKind {
         G::PEER
+    }
+
+    /// `group[index].field`, interned: the name of a port of a fan's element.
+    pub fn fan_port_name(group: &str, index: usize, field: &str) -> &'static str {
+        crate::link::intern_name(format!("{group}[{index}].{field}"))
     }
 }

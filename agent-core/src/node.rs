@@ -28,6 +28,9 @@ pub(crate) enum NodeStep {
 pub(crate) trait NodeSeed: Send {
     /// `TypeId` of the input and output buffer structs, to check handles.
     fn buffer_types(&self) -> (TypeId, TypeId);
+    /// The output (`output`) or input buffer struct, erased: what the builder
+    /// counts a fan's elements in.
+    fn buffers_any(&mut self, output: bool) -> &mut dyn Any;
     /// The node for the in-process executor; its activations audited
     /// (`ExecConfig::audit`) if `audit`.
     fn into_in_process(self: Box<Self>, audit: bool) -> Box<dyn InProcessNode>;
@@ -105,6 +108,10 @@ pub(crate) trait NodeCore: Send + Sized + 'static {
 impl<C: NodeCore> NodeSeed for C {
     fn buffer_types(&self) -> (TypeId, TypeId) {
         (TypeId::of::<C::Input>(), TypeId::of::<C::Output>())
+    }
+
+    fn buffers_any(&mut self, output: bool) -> &mut dyn Any {
+        if output { self.output() } else { self.input() }
     }
 
     fn into_in_process(self: Box<Self>, audit: bool) -> Box<dyn InProcessNode> {

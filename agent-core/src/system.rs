@@ -295,6 +295,36 @@ impl SystemBuilder {
         }
     }
 
+    /// As [`SystemBuilder::subsystem`], with the subsystem's first input and
+    /// output buffers given rather than their defaults: how the length of a
+    /// [`Fan`](crate::Fan) (one group per peer) is fixed when the system is
+    /// built (`Input { c1: Fan::new(robots), .. }`).
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "SystemBuilder::subsystem's five, and the two buffer structs"
+    )]
+    pub fn subsystem_with_buffers<S: Subsystem>(
+        &mut self,
+        agent: AgentId,
+        name: impl Into<String>,
+        period: Period,
+        memory: S::Memory,
+        fsm: Fsm<S>,
+        input: S::Input,
+        output: S::Output,
+    ) -> SubsystemHandle<S> {
+        let handle = self.subsystem(agent, name, period, memory, fsm);
+        if let Some(node) = self.nodes.get_mut(handle.node) {
+            if let Some(x) = node.buffers_any(false).downcast_mut::<S::Input>() {
+                *x = input;
+            }
+            if let Some(y) = node.buffers_any(true).downcast_mut::<S::Output>() {
+                *y = output;
+            }
+        }
+        handle
+    }
+
     /// Add driver `name` (a real effector or receptor) to `agent`, stepped every `period`.
     pub fn driver<D: Driver>(
         &mut self,
@@ -499,6 +529,8 @@ impl SystemBuilder {
             .map_or_else(|| format!("<node #{dst}>"), |i| i.name.clone());
         if src < self.info.nodes.len() && dst < self.info.nodes.len() {
             self.check_link(&name, src, &out, dst, &inp, policy);
+            self.check_fan(&name, src, &out, true);
+            self.check_fan(&name, dst, &inp, false);
         }
         let dst_key = (dst, inp.name());
         if let Some(&first) = self.fed.get(&dst_key) {
@@ -569,6 +601,25 @@ impl SystemBuilder {
                     actual,
                 });
             }
+        }
+    }
+
+    /// A link to element `k` of a fan of `node`: the fan must have it (a
+    /// [`BuildProblem::NoFanElement`] otherwise, and the executor never reaches
+    /// an element the fan lacks).
+    fn check_fan(&mut self, link: &str, node: usize, port: &BufferPort, output: bool) {
+        let (Some(fan), Some(seed)) = (port.fan.as_ref(), self.nodes.get_mut(node)) else {
+            return;
+        };
+        let len = (fan.len)(seed.buffers_any(output)).unwrap_or(0);
+        if fan.index >= len {
+            self.problems.push(BuildProblem::NoFanElement {
+                link: link.to_owned(),
+                node: self.info.nodes[node].name.clone(),
+                group: fan.group.to_owned(),
+                index: fan.index,
+                len,
+            });
         }
     }
 

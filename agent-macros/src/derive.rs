@@ -233,7 +233,7 @@ pub(crate) fn generate_group(m: &GroupModel) -> TokenStream {
         quote! {
             fn buffer_port<B: ::core::marker::Send + 'static>(
                 group_name: &'static str,
-                group: fn(&mut B) -> &mut Self,
+                group: impl #rt::Access<B, Self>,
                 buffer: &str,
             ) -> ::core::option::Option<#rt::BufferPort> {
                 let _ = (group_name, group);
@@ -384,7 +384,14 @@ fn generate_group_buffers(input: &DeriveInput, groups: &[NamedField]) -> TokenSt
         });
         quote! {
             fn port(path: &str) -> ::core::option::Option<#rt::BufferPort> {
-                let (group, buffer) = path.split_once('.')?;
+                // `group.buffer`, or `group[k].buffer` for a fan (whose lookup
+                // reads the `[k].buffer` left).
+                let (group, rest) = path.split_at(path.find(['.', '['])?);
+                let buffer = match rest.strip_prefix('.') {
+                    ::core::option::Option::Some(b) if !b.starts_with('[') => b,
+                    ::core::option::Option::Some(_) => return ::core::option::Option::None,
+                    ::core::option::Option::None => rest,
+                };
                 match group {
                     #(#arms,)*
                     _ => ::core::option::Option::None,

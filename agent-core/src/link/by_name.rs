@@ -4,7 +4,7 @@
 use std::any::TypeId;
 use std::borrow::Cow;
 
-use crate::buffer::{BufferPort, Direction, In, Out, Payload};
+use crate::buffer::{BufferPort, Direction, FanIndex, In, Out, Payload};
 use crate::kinds::Policy;
 
 use super::{Access, ChannelPlan, InPlan, OutPlan, Port, TypedInPlan, TypedOutPlan, channel_plan};
@@ -40,6 +40,7 @@ impl BufferPort {
             direction: Direction::Out,
             payload: TypeId::of::<T>(),
             payload_name: std::any::type_name::<T>(),
+            fan: port.fan.map(fan_index::<O>),
             plans: Box::new(PlanMakers {
                 channel: channel_plan::<T>,
                 plan: PlanMaker::Out(Box::new(move |link| {
@@ -65,6 +66,7 @@ impl BufferPort {
             direction: Direction::In,
             payload: TypeId::of::<T>(),
             payload_name: std::any::type_name::<T>(),
+            fan: port.fan.map(fan_index::<I>),
             plans: Box::new(PlanMakers {
                 channel: channel_plan::<T>,
                 plan: PlanMaker::In(Box::new(move |link, name| {
@@ -74,11 +76,12 @@ impl BufferPort {
         }
     }
 
-    /// The buffer `field` of the group that `group` (a projection from `B`) returns;
-    /// the port is named `group_name.field`. For derived code: `Group` lookups.
+    /// The buffer `field` of the group that `group` (a projection from `B`: a
+    /// `fn`, or a closure holding a [`Fan`](crate::Fan)'s index) returns; the
+    /// port is named `group_name.field`. For derived code: `Group` lookups.
     pub fn in_group<B, G, T>(
         group_name: &'static str,
-        group: fn(&mut B) -> &mut G,
+        group: impl Access<B, G>,
         field_name: &'static str,
         field: fn(&mut G) -> &mut In<T>,
     ) -> BufferPort
@@ -97,7 +100,7 @@ impl BufferPort {
     /// As [`BufferPort::in_group`], for an output buffer.
     pub fn out_group<B, G, T>(
         group_name: &'static str,
-        group: fn(&mut B) -> &mut G,
+        group: impl Access<B, G>,
         field_name: &'static str,
         field: fn(&mut G) -> &mut Out<T>,
     ) -> BufferPort
@@ -138,14 +141,29 @@ impl BufferPort {
     }
 }
 
-/// `group.field` as a `&'static str`, made once per distinct name: port names are
+/// A typed port's fan element as the builder checks it.
+fn fan_index<B: 'static>(
+    (group, index, len): (&'static str, usize, fn(&mut B) -> usize),
+) -> FanIndex {
+    FanIndex {
+        group,
+        index,
+        len: Box::new(move |any| any.downcast_mut::<B>().map(len)),
+    }
+}
+
+/// `group.field` as a `&'static str` ([`intern_name`]).
+fn intern(group: &str, field: &str) -> &'static str {
+    intern_name(format!("{group}.{field}"))
+}
+
+/// `name` as a `&'static str`, made once per distinct name: port names are
 /// static (links, traces and records keep them), and a name found at run time is
 /// interned so that building systems again does not leak.
-fn intern(group: &str, field: &str) -> &'static str {
+pub(crate) fn intern_name(name: String) -> &'static str {
     use std::collections::HashSet;
     use std::sync::{Mutex, OnceLock};
     static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
-    let name = format!("{group}.{field}");
     let mut names = NAMES
         .get_or_init(Default::default)
         .lock()

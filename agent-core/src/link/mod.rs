@@ -28,6 +28,7 @@ use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, ReadEvent, TransferEvent};
 
 mod by_name;
+pub(crate) use by_name::intern_name;
 pub mod endpoint;
 pub mod remote;
 pub mod shape;
@@ -84,6 +85,10 @@ pub trait Access<B, X>: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'stat
 
 impl<B, X, F> Access<B, X> for F where F: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
 
+/// A [`Port`]'s fan element: the fan's name, the index, and how to count the
+/// fan's elements in the buffer struct `B`.
+pub(crate) type PortFan<B> = (&'static str, usize, fn(&mut B) -> usize);
+
 /// A typed reference to one buffer field of a component's input or output struct.
 ///
 /// Make one with the [`port!`](crate::port) macro, which records the field's path as
@@ -92,6 +97,9 @@ pub struct Port<B, X, A = fn(&mut B) -> &mut X> {
     name: &'static str,
     access: A,
     peer: Option<NodeKind>,
+    /// In a [`Fan`](crate::Fan)'s element: the fan's name, the index, and how
+    /// to count the fan's elements (checked when the link is made).
+    fan: Option<PortFan<B>>,
     _b: PhantomData<fn(&mut B) -> &mut X>,
 }
 
@@ -119,8 +127,18 @@ where
             name,
             access,
             peer,
+            fan: None,
             _b: PhantomData,
         }
+    }
+
+    /// The port of a buffer of element `index` of the [`Fan`](crate::Fan)
+    /// `group`, whose elements `len` counts: a link to it is a build problem
+    /// unless the fan has that element. [`port!`](crate::port) calls it for
+    /// `port!(Type, group[index].field)`.
+    pub fn in_fan(mut self, group: &'static str, index: usize, len: fn(&mut B) -> usize) -> Self {
+        self.fan = Some((group, index, len));
+        self
     }
 
     /// The field path, e.g. `to_valve.flow`.
@@ -143,7 +161,9 @@ where
 ///
 /// `port!(Type, group.field)` names a field inside a [`Group`](crate::Group) (the
 /// link is then checked against the group's peer kind); `port!(Type, field)` names a
-/// top-level field (used by drivers, whose buffers need no groups).
+/// top-level field (used by drivers, whose buffers need no groups);
+/// `port!(Type, group[index].field)` names a field of element `index` of a
+/// [`Fan`](crate::Fan) (whether the fan has it is checked when the link is made).
 ///
 /// ```
 /// use agent_core::{port, Group, NodeKind, Out};
@@ -156,6 +176,15 @@ where
 /// ```
 #[macro_export]
 macro_rules! port {
+    ($ty:ty, $group:ident [ $index:expr ] . $field:ident) => {{
+        let index: usize = $index;
+        $crate::Port::new(
+            $crate::__private::fan_port_name(stringify!($group), index, stringify!($field)),
+            move |b: &mut $ty| &mut b.$group[index].$field,
+            ::core::option::Option::Some($crate::__private::peer_of(|b: &mut $ty| &mut b.$group)),
+        )
+        .in_fan(stringify!($group), index, |b: &mut $ty| b.$group.len())
+    }};
     ($ty:ty, $group:ident . $field:ident) => {
         $crate::Port::new(
             concat!(stringify!($group), ".", stringify!($field)),
