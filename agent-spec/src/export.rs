@@ -149,6 +149,7 @@ impl Peers<'_> {
                         None => out.push(Group {
                             peer,
                             buffers: vec![buffer],
+                            peers: Vec::new(),
                         }),
                     }
                 }
@@ -171,6 +172,7 @@ impl Peers<'_> {
                             doc: None,
                         })
                         .collect(),
+                    peers: Vec::new(),
                 });
             }
         }

@@ -127,10 +127,16 @@ pub struct Buffer {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Group {
-    /// The component at the other end.
+    /// The component at the other end; for a fan, the fan's name.
     pub peer: String,
     /// Its buffers.
     pub buffers: Vec<Buffer>,
+    /// A fan (agent-core's `Fan`: the group repeated once per peer, as many
+    /// times as the system has peers): the component at the other end of each
+    /// element, in order. A link names element `k`'s buffers
+    /// `component.peer[k].buffer`; empty for an ordinary group.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub peers: Vec<String>,
 }
 
 /// A named predicate over memory and inputs.

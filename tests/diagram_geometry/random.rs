@@ -223,6 +223,7 @@ pub(crate) fn add_to_group(groups: &mut Vec<Group>, peer: &str, buf: &str) {
         None => groups.push(Group {
             peer: peer.to_owned(),
             buffers: vec![buffer(buf)],
+            peers: Vec::new(),
         }),
     }
 }

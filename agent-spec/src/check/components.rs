@@ -182,40 +182,68 @@ impl<'a> Checker<'a> {
                 let gpath = join(&path, &[F(side), I(g)]);
                 let buffers = group.buffers.iter().map(|x| x.name.as_str());
                 self.unique("buffer", names_at(&gpath, "buffers", buffers));
-                let peer_path = join(&gpath, &[F("peer")]);
-                match self.comps.get(group.peer.as_str()) {
-                    None => {
-                        let known = self.known_components();
-                        let guess = self.guess_component(&group.peer);
-                        self.push(
-                            Finding::new(
-                                Code::UnknownComponent,
-                                self.span(&peer_path),
-                                "no such component",
-                                format!("group peer `{}` of `{name}` is not a component of the system", group.peer),
-                            )
-                            .help(format!("{guess}a group names the component at the other end of its buffers; components: {known}")),
-                        );
-                    }
-                    Some(peer) => {
-                        let (src, dst) = if outgoing {
-                            (kind, peer.kind)
-                        } else {
-                            (peer.kind, kind)
-                        };
-                        if let Some(reason) = structure_violation(src, dst, agent == peer.agent) {
-                            let peer_kind = peer.kind;
-                            self.push(
-                                Finding::new(
-                                    Code::Structure,
-                                    self.span(&peer_path),
-                                    format!("a {peer_kind}"),
-                                    format!("`{name}` ({kind}) cannot have {side} from/to `{}`: {reason}", group.peer),
-                                )
-                                .help("see the agent structure of Fig. 2: c talks to its e, r and other agents' c; e to its E; r to its R"),
-                            );
-                        }
-                    }
+                // A fan's peers, each checked as an ordinary group's peer is.
+                let peers: Vec<(&str, Path)> = if group.peers.is_empty() {
+                    vec![(group.peer.as_str(), join(&gpath, &[F("peer")]))]
+                } else {
+                    let peers = group.peers.iter().enumerate();
+                    peers
+                        .map(|(k, p)| (p.as_str(), join(&gpath, &[F("peers"), I(k)])))
+                        .collect()
+                };
+                if !group.peers.is_empty() {
+                    self.unique("peer of a fan", peers.clone());
+                }
+                for (peer, peer_path) in peers {
+                    self.group_peer((name, kind, agent), side, outgoing, peer, &peer_path);
+                }
+            }
+        }
+    }
+
+    /// The peer `peer` of a group of component `name` (its `kind`, its agent)
+    /// on `side`, named at `peer_path`: a component the agent structure lets
+    /// it talk to.
+    fn group_peer(
+        &mut self,
+        (name, kind, agent): (&str, NodeKind, usize),
+        side: &str,
+        outgoing: bool,
+        peer: &str,
+        peer_path: &[Seg<'static>],
+    ) {
+        let peer_name = peer;
+        match self.comps.get(peer_name) {
+            None => {
+                let known = self.known_components();
+                let guess = self.guess_component(peer_name);
+                self.push(
+                    Finding::new(
+                        Code::UnknownComponent,
+                        self.span(peer_path),
+                        "no such component",
+                        format!("group peer `{peer_name}` of `{name}` is not a component of the system"),
+                    )
+                    .help(format!("{guess}a group names the component at the other end of its buffers; components: {known}")),
+                );
+            }
+            Some(peer) => {
+                let (src, dst) = if outgoing {
+                    (kind, peer.kind)
+                } else {
+                    (peer.kind, kind)
+                };
+                if let Some(reason) = structure_violation(src, dst, agent == peer.agent) {
+                    let peer_kind = peer.kind;
+                    self.push(
+                        Finding::new(
+                            Code::Structure,
+                            self.span(peer_path),
+                            format!("a {peer_kind}"),
+                            format!("`{name}` ({kind}) cannot have {side} from/to `{peer_name}`: {reason}"),
+                        )
+                        .help("see the agent structure of Fig. 2: c talks to its e, r and other agents' c; e to its E; r to its R"),
+                    );
                 }
             }
         }

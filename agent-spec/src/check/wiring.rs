@@ -19,14 +19,29 @@ impl<'a> Checker<'a> {
         let Some(c) = self.comps.get(comp) else {
             return Err(EndpointError::Component(comp.to_owned()));
         };
+        // `c1[3]`: element 3 of fan `c1` (an index the fan lacks names nothing).
+        let (group, index) = match group.split_once('[') {
+            Some((fan, rest)) => match rest.strip_suffix(']').and_then(fan_index) {
+                Some(k) => (fan, Some(k)),
+                None => return Err(EndpointError::Buffer),
+            },
+            None => (group, None),
+        };
         let find = |groups: &'a [Group]| {
             groups
                 .iter()
-                .find(|g| g.peer == group)
+                .find(|g| {
+                    g.peer == group && index.map_or(g.peers.is_empty(), |k| k < g.peers.len())
+                })
                 .and_then(|g| g.buffers.iter().find(|b| b.name == buffer).map(|b| (g, b)))
         };
         match find(if outputs { c.outputs } else { c.inputs }) {
-            Some((g, b)) => Ok((c.name, g.peer.as_str(), b.ty.as_str())),
+            // An element's group is for its own peer.
+            Some((g, b)) => Ok((
+                c.name,
+                index.map_or(g.peer.as_str(), |k| g.peers[k].as_str()),
+                b.ty.as_str(),
+            )),
             None if find(if outputs { c.inputs } else { c.outputs }).is_some() => {
                 Err(EndpointError::Direction)
             }
@@ -154,12 +169,20 @@ impl<'a> Checker<'a> {
                 for (g, group) in groups.iter().enumerate() {
                     for (b, buffer) in group.buffers.iter().enumerate() {
                         let path = join(&c.path, &[F(side), I(g), F("buffers"), I(b), F("name")]);
-                        let at = BufferRef::new(c.name, group, buffer, path);
-                        found.extend(if outgoing {
-                            self.unread_output(feeds, &at)
+                        // A fan's buffer once per element, an ordinary group's once.
+                        let elements: Vec<Option<usize>> = if group.peers.is_empty() {
+                            vec![None]
                         } else {
-                            self.input_feed(feeds, &at)
-                        });
+                            (0..group.peers.len()).map(Some).collect()
+                        };
+                        for element in elements {
+                            let at = BufferRef::new(c.name, group, element, buffer, path.clone());
+                            found.extend(if outgoing {
+                                self.unread_output(feeds, &at)
+                            } else {
+                                self.input_feed(feeds, &at)
+                            });
+                        }
                     }
                 }
             }
@@ -182,7 +205,7 @@ impl<'a> Checker<'a> {
             )
             .help(format!(
                 "link it: `(from: \"{dotted}\", to: \"{}.{}.{}\")`, or remove it",
-                at.group.peer, at.component, at.buffer.name
+                at.peer, at.component, at.buffer.name
             )),
         )
     }
@@ -217,7 +240,7 @@ impl<'a> Checker<'a> {
                 )
                 .help(self.feeding_help(
                     at.component,
-                    at.group,
+                    &at.peer,
                     at.buffer,
                     dotted,
                     &feeds.read_outputs,
@@ -277,6 +300,10 @@ impl<'a> Checker<'a> {
                 ),
             )
             .help("a link goes from an output buffer (`from`) to an input buffer (`to`)"),
+            EndpointError::Buffer if self.fan_problem(text, outputs).is_some() => {
+                let (label, message, help) = self.fan_problem(text, outputs).unwrap_or_default();
+                Finding::new(Code::UnknownBuffer, self.span(path), label, message).help(help)
+            }
             EndpointError::Buffer => {
                 // `component.group.buffer`: the buffers it has on that side.
                 let (component, rest) = text.split_once('.').unwrap_or((text, ""));
@@ -297,6 +324,50 @@ impl<'a> Checker<'a> {
             }
         };
         self.push(f);
+    }
+
+    /// Why link end `text` names no buffer when a fan is involved: an index
+    /// the fan lacks (or not written as one), a fan named without an index, an
+    /// index on an ordinary group. `(label, message, help)`; `None` otherwise.
+    fn fan_problem(&self, text: &str, outputs: bool) -> Option<(String, String, String)> {
+        let mut parts = text.split('.');
+        let (comp, group, buffer) = (parts.next()?, parts.next()?, parts.next()?);
+        let c = self.comps.get(comp)?;
+        let (name, index) = match group.split_once('[') {
+            Some((name, rest)) => (name, Some(rest.strip_suffix(']').and_then(fan_index))),
+            None => (group, None),
+        };
+        let groups = if outputs { c.outputs } else { c.inputs };
+        let g = groups.iter().find(|g| g.peer == name)?;
+        let len = g.peers.len();
+        match index {
+            None if len > 0 => Some((
+                "a fan, without an element".into(),
+                format!("link end `{text}` names fan `{name}` of `{comp}` without an element"),
+                format!(
+                    "name one of its {len} elements: `{comp}.{name}[k].{buffer}` with k from 0 to {}",
+                    len - 1
+                ),
+            )),
+            Some(_) if len == 0 => Some((
+                "not a fan".into(),
+                format!("link end `{text}` indexes group `{name}` of `{comp}`, which is not a fan"),
+                format!("name its buffers `{comp}.{name}.{buffer}`; a group with `peers` is a fan"),
+            )),
+            Some(Some(k)) if k >= len => Some((
+                format!("no element {k}"),
+                format!(
+                    "link end `{text}` names element {k} of fan `{name}` of `{comp}`, which has {len} element(s)"
+                ),
+                format!("an index below {len}, or one more peer in the fan's `peers`"),
+            )),
+            Some(None) => Some((
+                "not an index".into(),
+                format!("link end `{text}` does not index fan `{name}` of `{comp}` with a number"),
+                "write the index in decimal without leading zeros: `[0]`, `[12]`".into(),
+            )),
+            _ => None,
+        }
     }
 
     // -----------------------------------------------------------------------
@@ -494,17 +565,16 @@ impl<'a> Checker<'a> {
     }
 
     /// What really feeds input `dotted` (buffer `buffer` of `component`'s group
-    /// `group`): an existing output of the peer towards `component` (one not linked
+    /// for `peer`): an existing output of the peer towards `component` (one not linked
     /// yet, of the same type, the same name first), or else the output to add.
     pub(super) fn feeding_help(
         &self,
         component: &str,
-        group: &Group,
+        peer: &str,
         buffer: &Buffer,
         dotted: &str,
         read_outputs: &HashSet<(String, String, String)>,
     ) -> String {
-        let peer = group.peer.as_str();
         let Some(p) = self.comps.get(peer) else {
             return format!("the group's peer `{peer}` is not a component; fix the peer first");
         };
@@ -569,7 +639,8 @@ struct Feeds {
 /// declares it.
 struct BufferRef<'b> {
     component: &'b str,
-    group: &'b Group,
+    /// The component at the other end (a fan element's own peer).
+    peer: String,
     buffer: &'b Buffer,
     /// `(component, group, buffer)`, as in [`Feeds`].
     key: (String, String, String),
@@ -580,18 +651,34 @@ struct BufferRef<'b> {
 }
 
 impl<'b> BufferRef<'b> {
-    fn new(component: &'b str, group: &'b Group, buffer: &'b Buffer, path: Path) -> Self {
+    /// Buffer `buffer` of `group`, or of its element `element` if it is a fan.
+    fn new(
+        component: &'b str,
+        group: &'b Group,
+        element: Option<usize>,
+        buffer: &'b Buffer,
+        path: Path,
+    ) -> Self {
+        let (peer, name) = match element.and_then(|k| Some((k, group.peers.get(k)?))) {
+            Some((k, peer)) => (peer.clone(), format!("{}[{k}]", group.peer)),
+            None => (group.peer.clone(), group.peer.clone()),
+        };
         BufferRef {
             component,
-            group,
+            key: (component.to_owned(), peer.clone(), buffer.name.clone()),
+            dotted: format!("{component}.{name}.{}", buffer.name),
+            peer,
             buffer,
-            key: (
-                component.to_owned(),
-                group.peer.clone(),
-                buffer.name.clone(),
-            ),
-            dotted: format!("{}.{}.{}", component, group.peer, buffer.name),
             path,
         }
     }
+}
+
+/// A fan's index as a link writes it (`3` in `c1[3]`): decimal, without
+/// leading zeros, so that one element has one name.
+fn fan_index(text: &str) -> Option<usize> {
+    let canonical = !text.is_empty()
+        && text.bytes().all(|b| b.is_ascii_digit())
+        && (text == "0" || !text.starts_with('0'));
+    canonical.then(|| text.parse().ok()).flatten()
 }

@@ -1,0 +1,192 @@
+//! Fans in a spec: a group with `peers` is one group per peer, its elements
+//! named `component.group[k].buffer` in links; the checker resolves each
+//! element to its own peer and reports, with a span, an index the fan lacks,
+//! a fan named without an index, an index on an ordinary group, and an element
+//! left unlinked.
+
+#![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
+
+use agent_spec::{Code, Report, check_source};
+
+/// A hub `c2` with a fan `c1` of `peers` peers `c1_0`...; robots `c1_0`... of
+/// which the first `robots` exist; `links` as RON.
+fn spec(peers: usize, robots: usize, links: &str) -> String {
+    let names: Vec<String> = (0..peers).map(|k| format!("\"c1_{k}\"")).collect();
+    let peers = names.join(", ");
+    let mut agents = format!(
+        r#"(
+            name: "a2",
+            subsystems: [(
+                name: "c2",
+                kind: Control,
+                period_ms: 10.0,
+                inputs: [(peer: "c1", peers: [{peers}], buffers: [(name: "ack", type: "u64")])],
+                outputs: [(peer: "c1", peers: [{peers}], buffers: [(name: "plan", type: "u64")])],
+                functions: [
+                    (name: "dispatch", target: Output("c1"), reads: ["c1.ack"], writes: ["plan"]),
+                ],
+                behaviours: [(name: "run", kind: While, functions: ["dispatch"], terminal: "false")],
+                fsm: (initial: "run"),
+            )],
+        ),"#
+    );
+    for k in 0..robots {
+        agents.push_str(&format!(
+            r#"(
+            name: "a1_{k}",
+            subsystems: [(
+                name: "c1_{k}",
+                kind: Control,
+                period_ms: 10.0,
+                inputs: [(peer: "c2", buffers: [(name: "plan", type: "u64")])],
+                outputs: [(peer: "c2", buffers: [(name: "ack", type: "u64")])],
+                functions: [
+                    (name: "acknowledge", target: Output("c2"), reads: ["c2.plan"], writes: ["ack"]),
+                ],
+                behaviours: [(name: "run", kind: While, functions: ["acknowledge"], terminal: "false")],
+                fsm: (initial: "run"),
+            )],
+        ),"#
+        ));
+    }
+    format!("(name: \"fleet\", agents: [{agents}], links: [{links}])")
+}
+
+/// The links of robot `k` to element `k`.
+fn robot_links(k: usize) -> String {
+    format!(
+        r#"(from: "c2.c1[{k}].plan", to: "c1_{k}.c2.plan"), (from: "c1_{k}.c2.ack", to: "c2.c1[{k}].ack"),"#
+    )
+}
+
+fn report(peers: usize, robots: usize, links: &str) -> Report {
+    let (spec, report) = check_source("fleet.ron", spec(peers, robots, links));
+    assert!(spec.is_some(), "{}", report.render(100));
+    report
+}
+
+/// The errors' codes and messages, with the text under each primary span.
+fn errors(report: &Report) -> Vec<(Code, String, String)> {
+    report
+        .findings
+        .iter()
+        .filter(|f| f.severity() == agent_spec::Severity::Error)
+        .map(|f| {
+            let span = f.labels[0].span.clone();
+            (f.code, f.message.clone(), report.source[span].to_owned())
+        })
+        .collect()
+}
+
+#[test]
+fn every_element_linked_to_its_own_peer_checks() {
+    for robots in [1, 3] {
+        let links: String = (0..robots).map(robot_links).collect();
+        let report = report(robots, robots, &links);
+        assert_eq!(report.errors(), 0, "{}", report.render(100));
+    }
+}
+
+#[test]
+fn an_index_the_fan_lacks_is_an_error_at_the_link() {
+    let links = format!("{}{}", robot_links(0), robot_links(1));
+    // Two robots, a fan of one peer.
+    let report = report(1, 2, &links);
+    let errors = errors(&report);
+    let lacking: Vec<_> = errors
+        .iter()
+        .filter(|(_, m, _)| m.contains("element 1 of fan `c1` of `c2`, which has 1 element"))
+        .collect();
+    assert_eq!(lacking.len(), 2, "{}", report.render(100));
+    assert!(
+        lacking
+            .iter()
+            .all(|(code, _, _)| *code == Code::UnknownBuffer)
+    );
+    // The span is the link end.
+    assert_eq!(lacking[0].2, "c2.c1[1].plan", "{errors:?}");
+}
+
+#[test]
+fn a_fan_of_no_peers_has_no_element() {
+    let report = report(0, 1, &robot_links(0));
+    let errors = errors(&report);
+    assert!(
+        errors.iter().any(|(_, m, span)| m
+            .contains("indexes group `c1` of `c2`, which is not a fan")
+            && span == "c2.c1[0].plan"),
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn a_fan_is_named_with_an_index() {
+    let links =
+        r#"(from: "c2.c1.plan", to: "c1_0.c2.plan"), (from: "c1_0.c2.ack", to: "c2.c1[0].ack"),"#;
+    let report = report(1, 1, links);
+    let errors = errors(&report);
+    assert!(
+        errors
+            .iter()
+            .any(|(_, m, _)| m.contains("names fan `c1` of `c2` without an element")),
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn malformed_indices_are_errors() {
+    for index in ["x", "", "01", "-1", "99999999999999999999999"] {
+        let links = format!(
+            r#"(from: "c2.c1[{index}].plan", to: "c1_0.c2.plan"), (from: "c1_0.c2.ack", to: "c2.c1[0].ack"),"#
+        );
+        let report = report(1, 1, &links);
+        let errors = errors(&report);
+        assert!(
+            errors
+                .iter()
+                .any(|(code, _, span)| *code == Code::UnknownBuffer
+                    && span == &format!("c2.c1[{index}].plan")),
+            "[{index}]: {errors:?}"
+        );
+    }
+}
+
+#[test]
+fn an_element_must_reach_its_own_peer() {
+    // Element 1 linked to robot 0 (whose group is for `c2` too): the element's
+    // peer is `c1_1`, so the groups do not name each other.
+    let links = format!(
+        "{}{}",
+        robot_links(0),
+        r#"(from: "c2.c1[1].plan", to: "c1_0.c2.plan"),"#
+    );
+    let report = report(2, 1, &links);
+    assert!(
+        report.findings.iter().any(|f| f.code == Code::PeerMismatch),
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn an_unlinked_element_is_reported_by_its_index() {
+    // Three peers, robots 0 and 2 linked: element 1's plan is read by nobody
+    // and its ack fed by nothing.
+    let links = format!("{}{}", robot_links(0), robot_links(2));
+    let (_, report) = check_source("fleet.ron", spec(3, 3, &links));
+    let messages: Vec<&str> = report.findings.iter().map(|f| f.message.as_str()).collect();
+    assert!(
+        messages.contains(&"input `c2.c1[1].ack` is fed by no output"),
+        "{messages:?}"
+    );
+    assert!(
+        messages.contains(&"output `c2.c1[1].plan` is linked to no input"),
+        "{messages:?}"
+    );
+    assert!(
+        !messages
+            .iter()
+            .any(|m| m.contains("c2.c1[0]") || m.contains("c2.c1[2]")),
+        "{messages:?}"
+    );
+}
