@@ -59,13 +59,21 @@ pub trait Group: Sized + Send + 'static {
     /// [`Fan`]'s element `k` is reached through one).
     fn buffer_port<B: Send + 'static>(
         group_name: &'static str,
-        group: impl crate::link::Access<B, Self>,
+        group: impl Access<B, Self>,
         buffer: &str,
     ) -> Option<BufferPort> {
         let _ = (group_name, group, buffer);
         None
     }
 }
+
+/// How a [`Port`](crate::Port) reaches its field: a projection from the buffer
+/// struct `B` to the field `X`. Usually a closure made by [`port!`](crate::port),
+/// which the compiler inlines into the link's transfer code; a [`Fan`]'s element
+/// carries its index in it.
+pub trait Access<B, X>: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
+
+impl<B, X, F> Access<B, X> for F where F: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
 
 /// Whether a buffer is an input or an output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -491,11 +499,11 @@ impl<G: Group> Group for Fan<G> {
     /// when the link is made.
     fn buffer_port<B: Send + 'static>(
         group_name: &'static str,
-        group: impl crate::link::Access<B, Self>,
+        group: impl Access<B, Self>,
         buffer: &str,
     ) -> Option<BufferPort> {
         let (index, buffer) = fan_element(buffer)?;
-        let element = crate::link::intern_name(format!("{group_name}[{index}]"));
+        let element = crate::names::intern_name(format!("{group_name}[{index}]"));
         let mut port = G::buffer_port(
             element,
             move |b: &mut B| &mut group(b).groups[index],
@@ -511,27 +519,6 @@ impl<G: Group> Group for Fan<G> {
             len: Box::new(move |any| any.downcast_mut::<B>().map(|b| group(b).len())),
         });
         Some(port)
-    }
-}
-
-impl<G: crate::describe::Fields> crate::describe::Fields for Fan<G> {
-    const FIELDS: &'static [crate::describe::Field] = G::FIELDS;
-}
-
-impl<G: crate::describe::Buffers> crate::describe::Buffers for Fan<G> {
-    const GROUPS: &'static [crate::describe::GroupShape] = G::GROUPS;
-
-    /// A buffer is fresh when it is fresh in any element.
-    fn fresh(&self) -> crate::describe::Fresh {
-        crate::describe::Fresh(self.groups.iter().fold(0, |bits, g| bits | g.fresh().0))
-    }
-
-    fn take_reads(&self) -> crate::describe::Fresh {
-        crate::describe::Fresh(
-            self.groups
-                .iter()
-                .fold(0, |bits, g| bits | g.take_reads().0),
-        )
     }
 }
 

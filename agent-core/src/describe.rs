@@ -236,6 +236,24 @@ pub struct Shape {
     pub outputs: &'static [GroupShape],
 }
 
+/// A fan is described as its group ([`Fan`](crate::buffer::Fan)).
+impl<G: Fields> Fields for crate::buffer::Fan<G> {
+    const FIELDS: &'static [Field] = G::FIELDS;
+}
+
+impl<G: Buffers> Buffers for crate::buffer::Fan<G> {
+    const GROUPS: &'static [GroupShape] = G::GROUPS;
+
+    /// A buffer is fresh when it is fresh in any element.
+    fn fresh(&self) -> Fresh {
+        Fresh(self.iter().fold(0, |bits, g| bits | g.fresh().0))
+    }
+
+    fn take_reads(&self) -> Fresh {
+        Fresh(self.iter().fold(0, |bits, g| bits | g.take_reads().0))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

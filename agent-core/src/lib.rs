@@ -47,7 +47,7 @@ pub mod transition;
 pub mod untyped;
 
 pub use behaviour::Behaviour;
-pub use buffer::{BufferPort, Direction, Fan, Group, In, Out, Payload};
+pub use buffer::{Access, BufferPort, Direction, Fan, Group, In, Out, Payload};
 pub use describe::{Buffers, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use error::{
     ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,
@@ -63,7 +63,7 @@ pub use kinds::{BehaviourKind, DeviceKind, NodeKind, Policy, SubsystemKind};
 pub use link::remote::{
     Inbox, Publisher, Transport, TransportError, TypeShape, WireHeader, reflect,
 };
-pub use link::{Access, InjectError, LinkId, LinkStats, Port};
+pub use link::{InjectError, LinkId, LinkStats, Port};
 pub use offload::{Offload, OffloadError, OffloadMode, UnknownOffloadMode};
 pub use probe::Probes;
 pub use realtime::{
@@ -115,6 +115,6 @@ pub mod __private {
 
     /// `group[index].field`, interned: the name of a port of a fan's element.
     pub fn fan_port_name(group: &str, index: usize, field: &str) -> &'static str {
-        crate::link::intern_name(format!("{group}[{index}].{field}"))
+        crate::names::intern_name(format!("{group}[{index}].{field}"))
     }
 }

@@ -152,26 +152,7 @@ fn fan_index<B: 'static>(
     }
 }
 
-/// `group.field` as a `&'static str` ([`intern_name`]).
+/// `group.field` as a `&'static str` ([`intern_name`](crate::names::intern_name)).
 fn intern(group: &str, field: &str) -> &'static str {
-    intern_name(format!("{group}.{field}"))
-}
-
-/// `name` as a `&'static str`, made once per distinct name: port names are
-/// static (links, traces and records keep them), and a name found at run time is
-/// interned so that building systems again does not leak.
-pub(crate) fn intern_name(name: String) -> &'static str {
-    use std::collections::HashSet;
-    use std::sync::{Mutex, OnceLock};
-    static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
-    let mut names = NAMES
-        .get_or_init(Default::default)
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    if let Some(known) = names.get(name.as_str()) {
-        return known;
-    }
-    let leaked: &'static str = Box::leak(name.into_boxed_str());
-    names.insert(leaked);
-    leaked
+    crate::names::intern_name(format!("{group}.{field}"))
 }

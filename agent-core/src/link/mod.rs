@@ -28,7 +28,7 @@ use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, Observer, ReadEvent, TransferEvent};
 
 mod by_name;
-pub(crate) use by_name::intern_name;
+
 pub mod endpoint;
 pub mod remote;
 pub mod shape;
@@ -78,12 +78,7 @@ pub struct LinkStats {
     pub refused: u64,
 }
 
-/// How a [`Port`] reaches its field: a projection from the buffer struct `B` to the
-/// field `X`. Usually a closure made by [`port!`](crate::port), which the compiler
-/// inlines into the link's transfer code.
-pub trait Access<B, X>: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
-
-impl<B, X, F> Access<B, X> for F where F: for<'a> Fn(&'a mut B) -> &'a mut X + Copy + Send + 'static {}
+pub use crate::buffer::Access;
 
 /// A [`Port`]'s fan element: the fan's name, the index, and how to count the
 /// fan's elements in the buffer struct `B`.
