@@ -78,7 +78,7 @@ impl Sample {
 
 /// Counters gathered at the end of a run. The counters of another part of
 /// the same run (another process of a deployment) add up with
-/// [`Tally`](embodied::app::Tally): each counter comes from one component.
+/// [`Tally`]: each counter comes from one component.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, Tally)]
 pub struct Counters {
     /// Fragments received by `e11`.
