@@ -46,17 +46,7 @@ pub trait Tracker: Send + std::fmt::Debug {
 pub const TRACTION_MARGIN: f64 = 0.85;
 
 /// What a tracker reports about its work.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    embodied::app::Tally,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct TrackerReport {
     /// Optimisation problems solved.
     pub solves: u64,

@@ -125,6 +125,28 @@ pub struct Counters {
     pub plans_out_of_sequence: u32,
 }
 
+// The algorithms' reports know nothing of the framework (tests/layout.rs):
+// their counts add up here.
+impl Tally for crate::algorithms::tracking::TrackerReport {
+    fn tally(&mut self, o: Self) {
+        self.solves.tally(o.solves);
+        self.constrained.tally(o.constrained);
+        self.clarabel.tally(o.clarabel);
+        self.failures.tally(o.failures);
+        self.fallbacks.tally(o.fallbacks);
+        self.safe_stops.tally(o.safe_stops);
+        self.refused.tally(o.refused);
+    }
+}
+
+impl Tally for crate::algorithms::estimation::EstimatorHealth {
+    fn tally(&mut self, o: Self) {
+        self.rejected.tally(o.rejected);
+        self.rejected_poses.tally(o.rejected_poses);
+        self.relocalisations.tally(o.relocalisations);
+    }
+}
+
 /// What a run produced.
 #[derive(Clone, Debug, Default)]
 pub struct Outcome {

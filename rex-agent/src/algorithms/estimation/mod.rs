@@ -114,17 +114,7 @@ pub struct Measurements {
 
 /// How an estimator has coped with its measurements: what it threw away, and how
 /// often it had to start again from the map.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    embodied::app::Tally,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct EstimatorHealth {
     /// Measurements rejected (non-finite, implausible, or failing the gate).
     pub rejected: u64,
