@@ -430,8 +430,9 @@ pub struct RexHandles {
     pub e11: SubsystemHandle<E11>,
     /// The platform.
     pub platform: DriverHandle<Platform>,
-    /// a2's control subsystem.
-    pub c2: SubsystemHandle<Ontology>,
+    /// a2's control subsystem: Rex's own; none for a robot of a fleet, whose
+    /// plans come from the fleet's one `c2` (`crate::fleet`).
+    pub c2: Option<SubsystemHandle<Ontology>>,
     /// The map agent.
     pub map: MapAgentHandles,
     /// a1's virtual receptor and the camera, when visual odometry runs.
@@ -533,7 +534,7 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
             c1,
             e11,
             platform,
-            c2,
+            c2: Some(c2),
             map,
             vision,
         },

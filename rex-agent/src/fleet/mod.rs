@@ -400,7 +400,7 @@ pub fn build(
             c1,
             e11,
             platform,
-            c2,
+            c2: Some(c2),
             map: MapAgentHandles { c3, r31, mocap },
             vision,
         });

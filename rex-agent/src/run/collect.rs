@@ -307,11 +307,11 @@ pub(crate) fn install_probes_as<M: Send + 'static>(
                 .then(|| tag(Seen::C1 { behaviour: b, took }))
         });
     }
-    if here("c2") {
+    if let Some(c2) = h.c2.filter(|_| here("c2")) {
         let tag = tag.clone();
         let mut acks_sent = 0;
         let mut sent = 0;
-        probes.subsystem(&h.c2, move |p| {
+        probes.subsystem(&c2, move |p| {
             let new: Vec<Ack> = p.memory.acks.iter().skip(acks_sent).cloned().collect();
             acks_sent = p.memory.acks.len();
             let more = p.memory.next != sent;

@@ -458,7 +458,7 @@ pub(crate) fn finish_counters(x: &Finished, h: &RexHandles, c: &mut Counters) ->
     if let Some(m) = h.vision.and_then(|(r11, _)| x.memory(&r11)) {
         c.vo = (m.odom.pairs, m.odom.motions, m.odom.no_estimates);
     }
-    x.memory(&h.c2).map_or(0, |m| {
+    h.c2.and_then(|c2| x.memory(&c2)).map_or(0, |m| {
         c.c1_restarts = m.restarts;
         c.plans_resent = m.resent;
         c.fragments_repeated = m.repeated;
