@@ -54,6 +54,7 @@ mod credentials;
 #[cfg(feature = "distributed")]
 mod deploy;
 mod error;
+pub mod figures;
 mod local;
 mod output;
 mod pair;
@@ -62,9 +63,11 @@ mod record;
 mod replay;
 pub mod report;
 mod ros2;
+pub mod settings;
 mod signals;
 mod simple;
 mod spec_cmd;
+pub mod table;
 mod transitions;
 mod watch;
 
@@ -91,7 +94,7 @@ pub use output::{emit, writable_folder};
 pub use pair::Pairs;
 pub use signals::Signals;
 pub use simple::App;
-pub use watch::{End, Ended, Mode, Quiet, RunSummary, Tally, Verdict, Watcher};
+pub use watch::{End, Ended, Every, Mode, Quiet, RunSummary, Tally, Verdict, Watcher};
 
 /// A spec as the layer uses it: the model, where it came from, its text (kept
 /// in recordings).

@@ -48,6 +48,17 @@ impl Series {
         }
     }
 
+    /// A solid line of a point for each of a run's `rows` (its samples, say),
+    /// `None` where `point` has none (a break in the line).
+    pub fn of<T>(
+        name: impl Into<String>,
+        color: &'static str,
+        rows: impl IntoIterator<Item = T>,
+        point: impl FnMut(T) -> Option<(f64, f64)>,
+    ) -> Self {
+        Series::new(name, color, rows.into_iter().map(point).collect())
+    }
+
     /// The same line, dashed.
     pub fn dashed(mut self) -> Self {
         self.dashed = true;
@@ -407,6 +418,21 @@ pub fn series_each(
         .collect()
 }
 
+/// One series per name over a run's `rows` (its samples, say): `values` of a
+/// row gives the row's instant and a value per series, the `i`-th series
+/// drawing the `i`-th (the components of a vector over time). Coloured as
+/// [`series_each`] colours them.
+pub fn series_over<T, const N: usize>(
+    names: [&str; N],
+    rows: &[T],
+    values: impl Fn(&T) -> (f64, [f64; N]),
+) -> Vec<Series> {
+    let points: Vec<(f64, [f64; N])> = rows.iter().map(values).collect();
+    series_each(&names, |i| {
+        points.iter().map(|(t, v)| Some((*t, v[i]))).collect()
+    })
+}
+
 /// A timeline of rows (FSM behaviours over time, fragments being executed).
 pub fn timeline(title: &str, rows: &[Row], t_end: f64) -> String {
     let w = WIDTH - LEFT - 20.0;
@@ -526,6 +552,27 @@ mod tests {
             .map(|(from, to, _)| (from, to))
             .collect();
         assert_eq!(held, [(1.0, Some(3.0)), (4.0, None)]);
+    }
+
+    #[test]
+    fn a_series_of_rows_has_a_point_or_a_break_for_each() {
+        let rows = [(0.0, Some(1.0)), (1.0, None), (2.0, Some(3.0))];
+        let s = Series::of("y", PALETTE[3], &rows, |(t, y)| y.map(|y| (*t, y))).dashed();
+        assert_eq!(s.points, [Some((0.0, 1.0)), None, Some((2.0, 3.0))]);
+        assert_eq!(
+            (s.name.as_str(), s.color, s.dashed),
+            ("y", PALETTE[3], true)
+        );
+    }
+
+    #[test]
+    fn series_over_rows_draw_each_component() {
+        let rows = [(0.0, [1.0, 2.0]), (0.5, [3.0, 4.0])];
+        let s = series_over(["a", "b"], &rows, |r| (r.0, r.1));
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].points, [Some((0.0, 1.0)), Some((0.5, 3.0))]);
+        assert_eq!(s[1].points, [Some((0.0, 2.0)), Some((0.5, 4.0))]);
+        assert_eq!((s[0].name.as_str(), s[1].color), ("a", PALETTE[1]));
     }
 
     #[test]

@@ -149,6 +149,54 @@ impl ReportFlags {
     }
 }
 
+/// What went wrong in a run, whether or not its judgement failed of it (a
+/// command clamped, a sample dropped, a component restarted), said as one
+/// line of the summary: `none`, or the findings joined by `; `.
+///
+/// ```
+/// use agent_app::report::Findings;
+///
+/// let mut faults = Findings::default();
+/// assert_eq!(faults.to_string(), "none");
+/// faults.count(0u32, "planner failures");
+/// faults.push("the platform stopped at 3.20 s");
+/// faults.count(2u64, "torque commands clamped");
+/// assert_eq!(faults.to_string(), "the platform stopped at 3.20 s; 2 torque commands clamped");
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Findings(Vec<String>);
+
+impl Findings {
+    /// One finding.
+    pub fn push(&mut self, finding: impl Into<String>) {
+        self.0.push(finding.into());
+    }
+
+    /// `"{n} {what}"` when `n` is not zero: a count of something that went
+    /// wrong (nothing when it never did).
+    pub fn count(&mut self, n: impl Into<u64>, what: &str) {
+        let n = n.into();
+        if n > 0 {
+            self.push(format!("{n} {what}"));
+        }
+    }
+
+    /// Whether nothing went wrong.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl std::fmt::Display for Findings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_empty() {
+            f.write_str("none")
+        } else {
+            f.write_str(&self.0.join("; "))
+        }
+    }
+}
+
 /// The timing certificate of `spec` run as one process on one host
 /// (`embodied check --timing`'s analysis), or why there is none, as text.
 pub fn timing(spec: &Spec) -> String {
@@ -194,6 +242,18 @@ mod tests {
             "{timed}"
         );
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn findings_list_what_went_wrong_in_order() {
+        let mut f = Findings::default();
+        assert!(f.is_empty());
+        assert_eq!(f.to_string(), "none");
+        f.count(3u32, "fragments refused");
+        f.count(0u64, "executor errors");
+        f.push(String::from("c1 restarted 1 times"));
+        assert!(!f.is_empty());
+        assert_eq!(f.to_string(), "3 fragments refused; c1 restarted 1 times");
     }
 
     #[test]

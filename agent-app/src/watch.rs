@@ -270,10 +270,137 @@ impl<A: Tally, B: Tally, C: Tally> Tally for (A, B, C) {
     }
 }
 
+/// [`Tally`] for a struct that cannot derive it (defined where the framework
+/// is not imported: an algorithm's report, say), its fields named: each is
+/// tallied with the other's, as `#[derive(Tally)]` would.
+///
+/// ```
+/// use agent_app::Tally;
+///
+/// #[derive(Debug, Default, PartialEq)]
+/// pub struct SolverReport {
+///     pub solves: u64,
+///     pub failures: u32,
+/// }
+/// agent_app::tally_fields!(SolverReport: solves, failures);
+///
+/// let mut run = SolverReport { solves: 10, failures: 1 };
+/// run.tally(SolverReport { solves: 5, failures: 0 });
+/// assert_eq!(run, SolverReport { solves: 15, failures: 1 });
+/// ```
+#[macro_export]
+macro_rules! tally_fields {
+    ($ty:ty: $($field:ident),+ $(,)?) => {
+        impl $crate::Tally for $ty {
+            fn tally(&mut self, other: Self) {
+                $($crate::Tally::tally(&mut self.$field, other.$field);)+
+            }
+        }
+    };
+}
+
+/// Something to do every `period` of a run's time, as the run reports its
+/// instants: a progress line every few seconds of simulated time, say. The
+/// first is due one period after the start; each due instant moves the next
+/// one period on (after a gap in the instants, each is due until the due
+/// instants have caught up).
+///
+/// ```
+/// use std::time::Duration;
+/// use agent_app::Every;
+/// use agent_core::Time;
+///
+/// let mut every = Every::new(Duration::from_secs(5));
+/// let due: Vec<u64> = (0..=12)
+///     .filter(|s| every.due(Time::from_nanos(s * 1_000_000_000)))
+///     .collect();
+/// assert_eq!(due, [5, 10]);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Every {
+    period_ns: u128,
+    next_ns: u128,
+}
+
+impl Every {
+    /// Every `period` (at least a nanosecond).
+    pub fn new(period: Duration) -> Every {
+        let period_ns = period.as_nanos().max(1);
+        Every {
+            period_ns,
+            next_ns: period_ns,
+        }
+    }
+
+    /// Whether the instant `t` has reached the next due one; if so, the next
+    /// is a period later.
+    pub fn due(&mut self, t: Time) -> bool {
+        let due = u128::from(t.as_nanos()) >= self.next_ns;
+        if due {
+            self.next_ns += self.period_ns;
+        }
+        due
+    }
+}
+
 /// A watcher that reads nothing and judges as the layer does.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Quiet;
 
 impl<M> Watcher<M> for Quiet {
     fn see(&mut self, _: M) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Default, PartialEq)]
+    struct Report {
+        solves: u64,
+        stops: Vec<&'static str>,
+        pairs: (u8, u8),
+    }
+    crate::tally_fields!(Report: solves, stops, pairs);
+
+    #[test]
+    fn tally_fields_adds_each_field_named() {
+        let mut a = Report {
+            solves: u64::MAX - 1,
+            stops: vec!["at 1 s"],
+            pairs: (1, 2),
+        };
+        a.tally(Report {
+            solves: 5,
+            stops: vec!["at 2 s"],
+            pairs: (250, 3),
+        });
+        let want = Report {
+            solves: u64::MAX,
+            stops: vec!["at 1 s", "at 2 s"],
+            pairs: (251, 5),
+        };
+        assert_eq!(a, want);
+    }
+
+    #[test]
+    fn every_is_due_once_per_period_reached() {
+        let mut every = Every::new(Duration::from_millis(100));
+        let ms = |k: u64| Time::from_nanos(k * 1_000_000);
+        assert!(!every.due(ms(99)));
+        assert!(every.due(ms(100)));
+        assert!(!every.due(ms(150)));
+        // After a jump past several periods, each instant is due until the
+        // due instants have caught up (one period each).
+        assert!(every.due(ms(450)));
+        assert!(every.due(ms(451)));
+        assert!(every.due(ms(452)));
+        assert!(!every.due(ms(453)), "the next is at 500 ms");
+        assert!(every.due(ms(500)));
+        let mut zero = Every::new(Duration::ZERO);
+        assert!(
+            zero.due(Time::from_nanos(1)),
+            "a zero period is a nanosecond"
+        );
+    }
 }
