@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use embodied::app::report::ReportFlags;
+use embodied::app::settings::{absolute, run_file};
 use embodied::app::{
     AppError, Application, Common, Mode, RunSummary, SpecFile, Target, Verdict, Watcher,
 };
@@ -130,16 +131,8 @@ impl RexApp {
     /// The run file's settings with the command line's flags over them, and
     /// the folder the file's relative paths are taken from.
     fn settings(flags: &RexFlags, common: &Common) -> Result<(RunSettings, PathBuf), AppError> {
-        let (mut s, base) = match &flags.config {
-            Some(path) => (
-                RunSettings::load(path).map_err(AppError::invalid)?,
-                path.parent().map_or_else(PathBuf::new, Path::to_path_buf),
-            ),
-            None => (
-                RunSettings::shipped().map_err(AppError::invalid)?,
-                config::config_dir(),
-            ),
-        };
+        let shipped = config::config_dir().join("rex.ron");
+        let (mut s, base) = run_file(flags.config.as_deref(), &shipped, RunSettings::load)?;
         overrides(flags, common, &mut s)?;
         Ok((s, base))
     }
@@ -155,13 +148,12 @@ fn overrides(flags: &RexFlags, common: &Common, s: &mut RunSettings) -> Result<(
     if let Some(m) = &flags.mission {
         s.mission = m.clone();
     }
-    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
     // A file given on the command line is relative to the current folder.
     if let Some(w) = &flags.world {
-        s.world = Some(absolute(w));
+        s.world = Some(absolute(Path::new(""), w));
     }
     if let Some(spec) = &flags.spec {
-        s.spec = Some(absolute(spec));
+        s.spec = Some(absolute(Path::new(""), spec));
     }
     if flags.surface.is_some() {
         s.surface = flags.surface.clone();
@@ -185,11 +177,9 @@ fn overrides(flags: &RexFlags, common: &Common, s: &mut RunSettings) -> Result<(
 /// so that a recording's settings build the same Rex from any folder.
 fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings {
     let mut s = s.clone();
-    let absolute = |p: &Path| std::path::absolute(base.join(p)).unwrap_or_else(|_| base.join(p));
-    s.world = s.world.as_deref().map(absolute);
-    s.spec = Some(absolute(
-        s.spec.as_deref().unwrap_or(&crate::system::default_spec()),
-    ));
+    s.world = s.world.map(|w| absolute(base, &w));
+    let spec = s.spec.unwrap_or_else(crate::system::default_spec);
+    s.spec = Some(absolute(base, &spec));
     if !Mission::is_shipped(&s.mission) {
         // A mission file named on the command line is relative to the
         // current folder; one in a run file, to the run file's.
@@ -198,7 +188,7 @@ fn self_contained(flags: &RexFlags, s: &RunSettings, base: &Path) -> RunSettings
         } else {
             base.to_owned()
         };
-        s.mission = absolute(&from.join(&s.mission)).display().to_string();
+        s.mission = absolute(&from, Path::new(&s.mission)).display().to_string();
     }
     s
 }

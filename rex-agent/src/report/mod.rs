@@ -20,9 +20,12 @@ use std::path::{Path, PathBuf};
 use embodied::app::report::Report;
 use embodied::spec::Spec;
 
+use embodied::app::plot::{Marker, PALETTE, Plot, Row, Series, series_over, timeline};
+use embodied::app::report::Findings;
+use embodied::app::table::Csv;
+
 use crate::run::{Outcome, Sample};
 use crate::system::RexConfig;
-use embodied::app::plot::{Marker, PALETTE, Plot, Row, Series, series_each, timeline};
 
 /// Write the report of `outcome` into `dir` (created if needed); returns the files
 /// written.
@@ -129,7 +132,7 @@ pub fn faults(o: &Outcome) -> String {
     let c = &o.counters;
     let e = &c.estimator;
     let t = &c.tracker;
-    let mut list = Vec::new();
+    let mut list = Findings::default();
     if e.rejected > 0 || e.relocalisations > 0 {
         list.push(format!(
             "the estimator rejected {} measurements ({} map poses) and relocalised {} times",
@@ -155,105 +158,58 @@ pub fn faults(o: &Outcome) -> String {
             ),
         });
     }
-    let counts = [
-        (
-            c.fragments_stale,
-            "fragments refused as handed over before a stop",
-        ),
-        (
-            c.fragments_rejected,
-            "fragments refused as empty or not finite",
-        ),
-        (c.planner_failures as u32, "planner failures"),
-        (
-            c.plans_out_of_sequence,
-            "plans refused by c1 as numbered out of sequence (a plan lost, or a sender that is not a2)",
-        ),
-    ];
-    for (n, what) in counts {
-        if n > 0 {
-            list.push(format!("{n} {what}"));
-        }
-    }
-    let counts = [
-        (
-            c.clamped_torques,
-            "torque commands clamped or zeroed by the platform",
-        ),
-        (
-            c.watchdog_steps,
-            "platform steps at zero torque (command watchdog)",
-        ),
-        (c.executor_errors, "executor errors"),
-        (t.failures, "tracker solves failed"),
-        (t.safe_stops, "tracker samples braking after failed solves"),
-    ];
-    for (n, what) in counts {
-        if n > 0 {
-            list.push(format!("{n} {what}"));
-        }
-    }
-    if list.is_empty() {
-        "none".into()
-    } else {
-        list.join("; ")
-    }
+    list.count(
+        c.fragments_stale,
+        "fragments refused as handed over before a stop",
+    );
+    list.count(
+        c.fragments_rejected,
+        "fragments refused as empty or not finite",
+    );
+    list.count(c.planner_failures, "planner failures");
+    list.count(
+        c.plans_out_of_sequence,
+        "plans refused by c1 as numbered out of sequence (a plan lost, or a sender that is not a2)",
+    );
+    list.count(
+        c.clamped_torques,
+        "torque commands clamped or zeroed by the platform",
+    );
+    list.count(
+        c.watchdog_steps,
+        "platform steps at zero torque (command watchdog)",
+    );
+    list.count(c.executor_errors, "executor errors");
+    list.count(t.failures, "tracker solves failed");
+    list.count(t.safe_stops, "tracker samples braking after failed solves");
+    list.to_string()
 }
 
+/// Every sample, a line each, as `samples.csv`.
 fn csv(samples: &[Sample]) -> String {
-    let mut s = String::from(
-        "t,x,y,phi,x_est,y_est,phi_est,x_ref,y_ref,phi_ref,v_ref,w_ref,error,tau1,tau2,tau3,tau4,behaviour,plan,fragment,mu_long_est,mu_lat_est,rolling_est\n",
-    );
-    for p in samples {
-        let r = p.reference.map_or([f64::NAN; 5], |r| r);
-        let (plan, frag) = p.fragment.map_or((String::new(), String::new()), |(a, b)| {
-            (a.to_string(), b.to_string())
-        });
-        let _ = writeln!(
-            s,
-            "{:.3},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},B{},{plan},{frag},{:.5},{:.5},{:.5}",
-            p.t,
-            p.truth[0],
-            p.truth[1],
-            p.truth[2],
-            p.estimate[0],
-            p.estimate[1],
-            p.estimate[2],
-            r[0],
-            r[1],
-            r[2],
-            r[3],
-            r[4],
-            p.error().unwrap_or(f64::NAN),
-            p.tau[0],
-            p.tau[1],
-            p.tau[2],
-            p.tau[3],
-            p.behaviour + 1,
-            p.friction[0],
-            p.friction[1],
-            p.friction[2]
-        );
-    }
-    s
+    Csv::new()
+        .number("t", 3, |p: &Sample| p.t)
+        .numbers(["x", "y", "phi"], 5, |p| p.truth)
+        .numbers(["x_est", "y_est", "phi_est"], 5, |p| p.estimate)
+        .numbers(["x_ref", "y_ref", "phi_ref", "v_ref", "w_ref"], 5, |p| {
+            p.reference.unwrap_or([f64::NAN; 5])
+        })
+        .number("error", 5, |p| p.error().unwrap_or(f64::NAN))
+        .numbers(["tau1", "tau2", "tau3", "tau4"], 4, |p| p.tau)
+        .text("behaviour", |p| format!("B{}", p.behaviour + 1))
+        .text("plan", |p| {
+            p.fragment.map_or(String::new(), |f| f.0.to_string())
+        })
+        .text("fragment", |p| {
+            p.fragment.map_or(String::new(), |f| f.1.to_string())
+        })
+        .numbers(["mu_long_est", "mu_lat_est", "rolling_est"], 5, |p| {
+            p.friction
+        })
+        .write(samples)
 }
 
 fn trajectory(o: &Outcome, config: &RexConfig) -> Plot {
-    let reference = o
-        .samples
-        .iter()
-        .map(|s| s.fragment.and(s.reference).map(|r| (r[0], r[1])))
-        .collect();
-    let truth = o
-        .samples
-        .iter()
-        .map(|s| Some((s.truth[0], s.truth[1])))
-        .collect();
-    let estimate = o
-        .samples
-        .iter()
-        .map(|s| Some((s.estimate[0], s.estimate[1])))
-        .collect();
     let mut markers = Vec::new();
     for (i, plan) in config.mission.plans.iter().enumerate() {
         for (k, p) in plan.iter().enumerate() {
@@ -269,31 +225,23 @@ fn trajectory(o: &Outcome, config: &RexConfig) -> Plot {
         y_label: "y [m]".into(),
         equal_aspect: true,
         series: vec![
-            Series::new("reference", PALETTE[0], reference).dashed(),
-            Series::new("true", PALETTE[1], truth),
-            Series::new("estimate", PALETTE[2], estimate),
+            Series::of("reference", PALETTE[0], &o.samples, |s| {
+                s.fragment.and(s.reference).map(|r| (r[0], r[1]))
+            })
+            .dashed(),
+            Series::of("true", PALETTE[1], &o.samples, |s| {
+                Some((s.truth[0], s.truth[1]))
+            }),
+            Series::of("estimate", PALETTE[2], &o.samples, |s| {
+                Some((s.estimate[0], s.estimate[1]))
+            }),
         ],
         markers,
     }
 }
 
 fn tracking_error(o: &Outcome) -> Plot {
-    let err = o
-        .samples
-        .iter()
-        .map(|s| {
-            if s.executing {
-                s.error().map(|e| (s.t, e))
-            } else {
-                None
-            }
-        })
-        .collect();
-    let est = o
-        .samples
-        .iter()
-        .map(|s| Some((s.t, s.estimate_error())))
-        .collect();
+    let err = |s: &Sample| s.error().filter(|_| s.executing).map(|e| (s.t, e));
     Plot {
         title: format!(
             "{}: tracking error (rms {:.1} mm, max {:.1} mm)",
@@ -304,8 +252,11 @@ fn tracking_error(o: &Outcome) -> Plot {
         x_label: "time [s]".into(),
         y_label: "error [m]".into(),
         series: vec![
-            Series::new("|true - reference|", PALETTE[1], err),
-            Series::new("|estimate - true|", PALETTE[2], est).dashed(),
+            Series::of("|true - reference|", PALETTE[1], &o.samples, err),
+            Series::of("|estimate - true|", PALETTE[2], &o.samples, |s| {
+                Some((s.t, s.estimate_error()))
+            })
+            .dashed(),
         ],
         ..Plot::default()
     }
@@ -316,8 +267,8 @@ fn friction(o: &Outcome) -> Plot {
         title: format!("{}: friction of the ground ({})", o.mission, o.parts[2]),
         x_label: "time [s]".into(),
         y_label: "estimate".into(),
-        series: series_each(&["mu_long", "mu_lat", "rolling"], |i| {
-            over_time(o, |s| s.friction[i])
+        series: series_over(["mu_long", "mu_lat", "rolling"], &o.samples, |s| {
+            (s.t, s.friction)
         }),
         ..Plot::default()
     }
@@ -334,14 +285,9 @@ fn torques(o: &Outcome) -> Plot {
         title: format!("{}: wheel torques", o.mission),
         x_label: "time [s]".into(),
         y_label: "torque [N m]".into(),
-        series: series_each(&names, |i| over_time(o, |s| s.tau[i])),
+        series: series_over(names, &o.samples, |s| (s.t, s.tau)),
         ..Plot::default()
     }
-}
-
-/// The points of `value` at every sample.
-fn over_time(o: &Outcome, value: impl Fn(&Sample) -> f64) -> Vec<Option<(f64, f64)>> {
-    o.samples.iter().map(|s| Some((s.t, value(s)))).collect()
 }
 
 fn behaviour_timeline(o: &Outcome) -> String {

@@ -4,7 +4,7 @@
 //! platform's true pose at `t`), the same end of mission (every plan sent and
 //! acknowledged, the last fragment executed), the same judgement.
 
-use embodied::app::{Pairs, Tally};
+use embodied::app::{Every, Pairs, Tally};
 use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
@@ -82,13 +82,12 @@ pub(crate) struct Collector {
     /// from another sender.
     own: u32,
     pub(crate) sent: usize,
-    tick_ns: u128,
-    next_tick: u128,
+    /// When a progress tick is due.
+    tick: Every,
 }
 
 impl Collector {
     pub(crate) fn new(config: &RexConfig, tick: std::time::Duration) -> Self {
-        let tick_ns = tick.as_nanos().max(1);
         Collector {
             out: Outcome {
                 mission: config.mission.name.clone(),
@@ -104,8 +103,7 @@ impl Collector {
             listen: config.mission.listens(),
             own: config.mission.plans.len() as u32,
             sent: 0,
-            tick_ns,
-            next_tick: tick_ns,
+            tick: Every::new(tick),
         }
     }
 
@@ -188,8 +186,7 @@ impl Collector {
             sample.behaviour = self.behaviour;
             sample.mocap_for = self.mocap_since.map_or(0.0, |since| ts - since);
             self.out.samples.push(sample);
-            if u128::from(t.as_nanos()) >= self.next_tick {
-                self.next_tick += self.tick_ns;
+            if self.tick.due(t) {
                 progress(Progress::Tick {
                     t: ts,
                     sample: &sample,

@@ -21,7 +21,7 @@ pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes, install_probes_as};
 pub use realtime::{run_mission_realtime, run_mission_realtime_recorded};
 
-use embodied::app::{Ran, Tally, Watched, Watcher};
+use embodied::app::{Ran, Tally, Watched, Watcher, figures};
 use embodied::{ExecError, Finished, NoObserver};
 
 use crate::payload::{Ack, AckStatus, PlanOutcome};
@@ -127,25 +127,10 @@ pub struct Counters {
 
 // The algorithms' reports know nothing of the framework (tests/layout.rs):
 // their counts add up here.
-impl Tally for crate::algorithms::tracking::TrackerReport {
-    fn tally(&mut self, o: Self) {
-        self.solves.tally(o.solves);
-        self.constrained.tally(o.constrained);
-        self.clarabel.tally(o.clarabel);
-        self.failures.tally(o.failures);
-        self.fallbacks.tally(o.fallbacks);
-        self.safe_stops.tally(o.safe_stops);
-        self.refused.tally(o.refused);
-    }
-}
-
-impl Tally for crate::algorithms::estimation::EstimatorHealth {
-    fn tally(&mut self, o: Self) {
-        self.rejected.tally(o.rejected);
-        self.rejected_poses.tally(o.rejected_poses);
-        self.relocalisations.tally(o.relocalisations);
-    }
-}
+embodied::app::tally_fields!(crate::algorithms::tracking::TrackerReport:
+    solves, constrained, clarabel, failures, fallbacks, safe_stops, refused);
+embodied::app::tally_fields!(crate::algorithms::estimation::EstimatorHealth:
+    rejected, rejected_poses, relocalisations);
 
 /// What a run produced.
 #[derive(Clone, Debug, Default)]
@@ -250,27 +235,17 @@ impl Outcome {
 
     /// RMS of the tracking error over the samples that follow a fragment \[m\].
     pub fn rms(&self) -> f64 {
-        let (n, sum) = self
-            .tracking_errors()
-            .fold((0usize, 0.0), |(n, s), e| (n + 1, s + e * e));
-        if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+        figures::rms(self.tracking_errors())
     }
 
     /// Largest tracking error while following fragments \[m\].
     pub fn max_error(&self) -> f64 {
-        self.tracking_errors().fold(0.0, f64::max)
+        figures::largest(self.tracking_errors())
     }
 
     /// RMS of the estimator's position error over the whole run \[m\].
     pub fn estimate_rms(&self) -> f64 {
-        let n = self.samples.len().max(1) as f64;
-        (self
-            .samples
-            .iter()
-            .map(|s| s.estimate_error().powi(2))
-            .sum::<f64>()
-            / n)
-            .sqrt()
+        figures::rms(self.samples.iter().map(Sample::estimate_error))
     }
 
     /// Simulated seconds per wall-clock second.
