@@ -182,6 +182,20 @@ pub(crate) struct InProcess<C: NodeCore> {
     outs: Vec<Box<dyn OutPort<C::Output>>>,
 }
 
+impl<C: NodeCore> InProcess<C> {
+    /// Every port publishes what it holds for readers in other processes
+    /// ([`OutPort::flush`]); the first refusal.
+    fn flush(&mut self) -> Option<crate::link::Refused> {
+        let mut first = None;
+        for p in &mut self.outs {
+            if let Err(refused) = p.flush() {
+                first.get_or_insert(refused);
+            }
+        }
+        first
+    }
+}
+
 impl<C: NodeCore> InProcessNode for InProcess<C> {
     fn install_out(&mut self, port: Box<dyn Any>) -> bool {
         match port.downcast::<Box<dyn OutPort<C::Output>>>() {
@@ -238,7 +252,17 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
                     Some(r) => Err(Box::new(ExecError::Link(r.into_error(stamp, cx.links)))),
                 }
             }
-            Ok(None) => Ok(NodeStep::Halted),
+            Ok(None) => {
+                // What the node wrote last still reaches its readers in
+                // other processes.
+                match self.flush() {
+                    None => Ok(NodeStep::Halted),
+                    Some(r) => {
+                        let stamp = Stamp::new(self.core.iteration(), now);
+                        Err(Box::new(ExecError::Link(r.into_error(stamp, cx.links))))
+                    }
+                }
+            }
             Err(e) => {
                 let output = self.core.output();
                 for p in &mut self.outs {
@@ -251,10 +275,14 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
 
     fn halt(&mut self) {
         self.core.halt();
+        // Halted from outside (an error, a stop): nobody to tell of a
+        // value that could not be published.
+        let _ = self.flush();
     }
 
     fn safe_stop(&mut self) {
         self.core.safe_stop();
+        let _ = self.flush();
     }
 
     fn is_halted(&self) -> bool {

@@ -30,6 +30,7 @@ use crate::trace::{LinkInfo, Observer, ReadEvent, TransferEvent};
 mod by_name;
 
 pub mod endpoint;
+pub(crate) mod reads;
 pub mod remote;
 pub mod shape;
 mod stats;
@@ -433,6 +434,11 @@ pub(crate) trait OutPort<O> {
     fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), Refused>;
     /// Forget a write (the action failed).
     fn discard(&mut self, y: &mut O);
+    /// The node halts: a value held for a reader in another process is
+    /// published now ([`remote::RemoteTx::flush`]).
+    fn flush(&mut self) -> Result<(), Refused> {
+        Ok(())
+    }
 }
 
 pub(crate) trait InPort<I> {
@@ -587,9 +593,13 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
                 Some((l, *tx.downcast::<thread::ThreadTx<T>>().ok()?))
             })
             .collect::<Option<Vec<_>>>()?;
+        let away = links
+            .iter()
+            .any(|(_, tx)| matches!(tx, thread::ThreadTx::Remote(_)));
         let port: Box<dyn OutPort<O>> = Box::new(thread::ThreadOut {
             port: self.port,
             links,
+            away,
         });
         Some(Box::new(port))
     }

@@ -60,6 +60,7 @@ use crate::kinds::Policy;
 use crate::time::{Stamp, Time};
 use crate::trace::{LinkInfo, SystemInfo};
 
+use super::reads::{Held, ReadGrid};
 use super::stats::SharedStats;
 
 /// How far ahead of the reading activation's instant a value's stamp may be:
@@ -215,6 +216,12 @@ pub fn new_epoch() -> u64 {
 // Sending
 
 /// The sending half of a link to another process.
+///
+/// A sample link whose readers elsewhere read less often than its writer
+/// writes has a [`ReadGrid`]: a value is held, encoded, until the writer's
+/// last activation before the read that sees it, and published then; a value
+/// written over while held is counted as overwritten, as in-process
+/// ([`super::reads`]).
 pub(crate) struct RemoteTx {
     /// `None` when another link of the same output publishes on the key (one
     /// publication reaches every subscriber).
@@ -223,6 +230,9 @@ pub(crate) struct RemoteTx {
     header: Header,
     buf: Vec<u8>,
     stats: Arc<SharedStats>,
+    /// When the readers read, and the value held for them (sample links
+    /// thinned to their readers' instants).
+    reads: Option<(ReadGrid, Held)>,
 }
 
 impl RemoteTx {
@@ -248,39 +258,112 @@ impl RemoteTx {
             },
             buf: Vec::with_capacity(256),
             stats,
+            reads: None,
         }
     }
 
-    /// Encode and publish `value`.
+    /// Publish only the values read at `grid`'s instants (a sample link's
+    /// publisher; `None`: every value).
+    pub(crate) fn at_reads(mut self, grid: Option<ReadGrid>) -> Self {
+        self.reads = grid.map(|g| (g, Held::default()));
+        self
+    }
+
+    /// Encode and publish `value` (or hold it for the read that sees it).
     pub(crate) fn put<T: Payload>(&mut self, value: &T, stamp: Stamp) -> Result<(), RemoteProblem> {
-        let Some(publisher) = self.publisher.as_mut() else {
+        if self.publisher.is_none() {
+            self.stats.sent.fetch_add(1, Ordering::Relaxed);
+            return Ok(());
+        }
+        let Some((grid, held)) = self.reads.as_ref() else {
+            self.encode(value, stamp)?;
+            self.publish()?;
             self.stats.sent.fetch_add(1, Ordering::Relaxed);
             return Ok(());
         };
-        self.header.seq += 1;
-        self.header.stamp = stamp;
-        let mut buf = std::mem::take(&mut self.buf);
-        write_header(&mut buf, &self.header);
-        let encoded = postcard::to_extend(value, buf);
-        let buf = match encoded {
-            Ok(buf) => buf,
-            Err(e) => {
-                self.header.seq -= 1;
-                return Err(RemoteProblem::Encode(e.to_string()));
-            }
-        };
-        let sent = publisher.put(&buf);
-        self.buf = buf;
-        match sent {
-            Ok(()) => {
-                self.stats.sent.fetch_add(1, Ordering::Relaxed);
+        let (read, pending) = (grid.next_read(stamp.time), held.read);
+        // A held value whose read is past (the writer's activations before
+        // it were skipped) goes first, late; one whose read is still ahead
+        // is written over before any reader sees it.
+        let late = match pending {
+            Some(r) if r <= stamp.time.as_nanos() => self.release(),
+            Some(_) => {
+                self.stats.overwritten.fetch_add(1, Ordering::Relaxed);
                 Ok(())
             }
-            Err(e) => Err(RemoteProblem::Transport(format!(
-                "publishing on `{}`: {e}",
-                self.key
-            ))),
+            None => Ok(()),
+        };
+        self.encode(value, stamp)?;
+        if let Some((_, held)) = self.reads.as_mut() {
+            std::mem::swap(&mut held.message, &mut self.buf);
+            held.read = Some(read);
         }
+        self.stats.sent.fetch_add(1, Ordering::Relaxed);
+        late.and(self.idle(stamp.time))
+    }
+
+    /// The writer's activation at `now` (with or without a write): the held
+    /// value is published if no later activation comes before its read.
+    pub(crate) fn idle(&mut self, now: Time) -> Result<(), RemoteProblem> {
+        match &self.reads {
+            Some((grid, Held { read: Some(r), .. })) if grid.last_before(now, *r) => self.release(),
+            _ => Ok(()),
+        }
+    }
+
+    /// Publish the held value now, if there is one (the writer halts).
+    pub(crate) fn flush(&mut self) -> Result<(), RemoteProblem> {
+        self.release()
+    }
+
+    /// Publish the held value, if there is one.
+    fn release(&mut self) -> Result<(), RemoteProblem> {
+        let Some((_, held)) = self.reads.as_mut() else {
+            return Ok(());
+        };
+        if held.read.take().is_none() {
+            return Ok(());
+        }
+        std::mem::swap(&mut held.message, &mut self.buf);
+        self.publish()
+    }
+
+    /// The message of `value` into `buf`, numbered after the last published.
+    fn encode<T: Payload>(&mut self, value: &T, stamp: Stamp) -> Result<(), RemoteProblem> {
+        let header = Header {
+            seq: self.header.seq + 1,
+            stamp,
+            ..self.header
+        };
+        let mut buf = std::mem::take(&mut self.buf);
+        write_header(&mut buf, &header);
+        match postcard::to_extend(value, buf) {
+            Ok(buf) => {
+                self.buf = buf;
+                Ok(())
+            }
+            Err(e) => Err(RemoteProblem::Encode(e.to_string())),
+        }
+    }
+
+    /// Publish the message in `buf` (numbered when it was encoded).
+    fn publish(&mut self) -> Result<(), RemoteProblem> {
+        let Some(publisher) = self.publisher.as_mut() else {
+            return Ok(());
+        };
+        self.header.seq += 1;
+        publisher
+            .put(&self.buf)
+            .map_err(|e| RemoteProblem::Transport(format!("publishing on `{}`: {e}", self.key)))
+    }
+}
+
+impl Drop for RemoteTx {
+    /// The value held when the writer's run ends is published: a reader that
+    /// runs on takes it at its next read, as it would in-process.
+    fn drop(&mut self) {
+        // Nobody is left to tell of a failure; the receiver sees no value.
+        let _ = self.release();
     }
 }
 

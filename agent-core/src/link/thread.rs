@@ -251,13 +251,43 @@ pub(crate) struct ThreadOut<O, T: Send, A> {
     pub(crate) port: Port<O, Out<T>, A>,
     /// (link index, sending half), one per destination.
     pub(crate) links: Vec<(usize, ThreadTx<T>)>,
+    /// Whether a destination is in another process: its half hears of the
+    /// activations without a write (a held value may be due).
+    pub(crate) away: bool,
+}
+
+impl<O, T: Payload, A> ThreadOut<O, T, A> {
+    /// Every half to another process, told of the activation at `now`
+    /// ([`RemoteTx::idle`]), or told to publish what it holds (`now`: `None`).
+    fn remote_halves(&mut self, now: Option<Time>) -> Result<(), Refused> {
+        let mut result = Ok(());
+        for (link, tx) in &mut self.links {
+            if let ThreadTx::Remote(tx) = tx {
+                let r = match now {
+                    Some(now) => tx.idle(now),
+                    None => tx.flush(),
+                };
+                if let (Err(problem), true) = (r, result.is_ok()) {
+                    result = Err(Refused {
+                        link: *link,
+                        cause: Cause::Remote(tx.key().clone(), problem),
+                    });
+                }
+            }
+        }
+        result
+    }
 }
 
 impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for ThreadOut<O, T, A> {
     #[inline]
     fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), Refused> {
         let Some(value) = self.port.get(y).pending() else {
-            return Ok(());
+            return if self.away {
+                self.remote_halves(Some(stamp.time))
+            } else {
+                Ok(())
+            };
         };
         let n = self.links.len();
         let mut result = Ok(());
@@ -277,6 +307,14 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for ThreadOut<O, T
 
     fn discard(&mut self, y: &mut O) {
         self.port.get(y).discard();
+    }
+
+    fn flush(&mut self) -> Result<(), Refused> {
+        if self.away {
+            self.remote_halves(None)
+        } else {
+            Ok(())
+        }
     }
 }
 

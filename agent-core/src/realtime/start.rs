@@ -10,6 +10,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime};
 
 use crate::kinds::NodeKind;
+use crate::link::reads::ReadGrid;
 use crate::link::remote::{self, Transport};
 use crate::link::thread::SharedStats;
 use crate::link::{ChannelPlan, InPlan, OutPlan, ThreadHalves};
@@ -362,6 +363,7 @@ fn make_links(
     let threads_n = threads.names.len();
     let mut maker = LinkMaker {
         info,
+        here,
         thread_of: &threads.thread_of,
         epoch,
         published: HashSet::new(),
@@ -432,6 +434,8 @@ fn empty(n: usize) -> ThreadHalves {
 /// Makes the links one by one (see [`make_links`]).
 struct LinkMaker<'a> {
     info: &'a SystemInfo,
+    /// Per node: whether it runs here.
+    here: &'a [bool],
     thread_of: &'a [usize],
     /// The epoch this process's values carry on the links that leave it.
     epoch: u64,
@@ -465,6 +469,7 @@ impl LinkMaker<'_> {
         let link = &info.links[l];
         let key = remote::link_key(prefix, info, link);
         let s = Arc::new(SharedStats::default());
+        let mut grid = None;
         let publisher = if self.published.insert(key.clone()) {
             let policy = info
                 .links
@@ -480,6 +485,7 @@ impl LinkMaker<'_> {
                     key: key.clone(),
                     error,
                 })?;
+            grid = self.read_grid(l, policy);
             Some(made)
         } else {
             None
@@ -490,10 +496,29 @@ impl LinkMaker<'_> {
             plan.fingerprint(),
             self.epoch,
             s.clone(),
-        );
+        )
+        .at_reads(grid);
         self.links.txs[self.thread_of[link.from]][l] = Some(plan.remote_tx(tx));
         self.links.stats.push(s);
         Ok(())
+    }
+
+    /// When the readers in other processes of link `l`'s output read, for a
+    /// sample key: its publisher sends only the values they see
+    /// ([`ReadGrid`]); none for a queue (every value is read).
+    fn read_grid(&self, l: usize, policy: crate::Policy) -> Option<ReadGrid> {
+        let info = self.info;
+        let link = &info.links[l];
+        if !matches!(policy, crate::Policy::Sample) {
+            return None;
+        }
+        let readers = info
+            .links
+            .iter()
+            .filter(|k| k.from == link.from && k.from_port == link.from_port)
+            .filter(|k| !self.here.get(k.to).copied().unwrap_or(false))
+            .map(|k| info.nodes[k.to].period);
+        ReadGrid::new(info.nodes[link.from].period, readers)
     }
 
     /// Link `l` from a node of another process to a node here: its receiving

@@ -1,0 +1,93 @@
+//! When the readers of a sample link in other processes read: its writer
+//! publishes only the values they can see.
+//!
+//! A sample link's reader sees, at each of its activations, the latest value
+//! written before it; a value written over before the next read is never seen
+//! (in-process it is counted as overwritten). Every node runs at the multiples
+//! of its period from the instant zero its deployment shares, so the writer's
+//! process knows every read instant of a reader in another process, and its
+//! own next activation: a value is published at the writer's last activation
+//! before the read that sees it (at once when the writer writes at that
+//! activation, which a writer that writes at every activation always does).
+//! A 1 kHz sensor read every 50 ms crosses 20 times a second, not 1,000.
+//!
+//! The values read are those of a link between threads at the same instants:
+//! the deterministic executor's rule (a value sent at `t` is read at the
+//! reader's first activation strictly after `t`) picks which value each read
+//! sees, and the real-time reader takes it if it arrived (as over any link
+//! between processes). A queue link is never thinned (every value is read).
+
+use crate::time::{Period, Time};
+
+/// The read instants of a sample link's readers in other processes, and its
+/// writer's period.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct ReadGrid {
+    /// The writer's period \[ns\]: after an activation at `t`, its next is at
+    /// `t + writer`.
+    writer: u64,
+    /// The readers' periods \[ns\], ascending, none a multiple of another:
+    /// each reads at its multiples.
+    readers: Vec<u64>,
+}
+
+impl ReadGrid {
+    /// The grid of a writer of period `writer` whose readers elsewhere have
+    /// the periods `readers`; `None` when every written value is seen (no
+    /// reader, or one as fast as the writer): then every value is published.
+    pub(crate) fn new(
+        writer: Period,
+        readers: impl IntoIterator<Item = Period>,
+    ) -> Option<ReadGrid> {
+        let writer = writer.as_nanos();
+        let mut periods: Vec<u64> = readers.into_iter().map(Period::as_nanos).collect();
+        periods.sort_unstable();
+        periods.dedup();
+        if periods.first().is_none_or(|&fastest| fastest <= writer) {
+            return None;
+        }
+        // A reader whose period is a multiple of another's reads at some of
+        // that one's instants: it adds none.
+        let mut readers: Vec<u64> = Vec::with_capacity(periods.len());
+        for p in periods {
+            if !readers.iter().any(|&r| p.is_multiple_of(r)) {
+                readers.push(p);
+            }
+        }
+        Some(ReadGrid { writer, readers })
+    }
+
+    /// The first read instant strictly after `t` \[ns\]: where a value
+    /// written at `t` is read (`u64::MAX` past the end of time).
+    pub(crate) fn next_read(&self, t: Time) -> u64 {
+        let t = t.as_nanos();
+        self.readers
+            .iter()
+            .map(|&r| (t / r).saturating_add(1).saturating_mul(r))
+            .min()
+            .unwrap_or(u64::MAX)
+    }
+
+    /// Whether the writer's activation at `now` is its last before the read
+    /// at `read`: its next activation is not before that read (or `now` is
+    /// already past it: activations were skipped, and the value is late).
+    pub(crate) fn last_before(&self, now: Time, read: u64) -> bool {
+        now.as_nanos().saturating_add(self.writer) >= read
+    }
+}
+
+/// A value written and not yet published: its message, and the read that
+/// sees it.
+#[derive(Debug, Default)]
+pub(crate) struct Held {
+    /// The read instant that sees the value, if one is held \[ns\].
+    pub(crate) read: Option<u64>,
+    /// The message, encoded when the value was written.
+    pub(crate) message: Vec<u8>,
+}
+
+// Beside this file, as remote_tests.rs: agent-core's module-graph test reads
+// one folder level per top-level module.
+#[cfg(test)]
+#[path = "reads_tests.rs"]
+mod tests;
