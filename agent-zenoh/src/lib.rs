@@ -5,8 +5,10 @@
 //!
 //! * [`ZenohTransport`] implements agent-core's byte [`Transport`]: a publisher
 //!   per output buffer that leaves the process (queue links: reliable, blocking
-//!   congestion control; sample links: dropping), a callback subscriber per input
-//!   buffer fed from elsewhere. Nodes hand their messages to wait-free rings that
+//!   congestion control; sample links: dropping, and given only the values their
+//!   readers can see: agent-core's runtime publishes a sample value at the
+//!   writer's last activation before the read that sees it), a callback
+//!   subscriber per input buffer fed from elsewhere. Nodes hand their messages to wait-free rings that
 //!   the transport's own thread publishes from, so a real-time node never waits
 //!   for Zenoh.
 //! * [`Member`] is the process's membership in the running deployment: its Zenoh
