@@ -171,7 +171,12 @@ pub(crate) fn run<A: Application>(
         common,
         process,
         report,
-        (overruns, sample_dropped, refused),
+        Figures {
+            overruns,
+            sample_dropped,
+            refused,
+            crossing: sample_crossing(&finished, &runs),
+        },
         contracts.as_ref(),
     );
     if let Some(why) = &stopped {
@@ -195,6 +200,54 @@ fn on_error(common: &Common) -> OnError {
     common.on_error.map_or(OnError::Continue, Into::into)
 }
 
+/// The figures of a process's line.
+struct Figures {
+    /// Overruns of its nodes.
+    overruns: u64,
+    /// Sample values its publishing thread was too far behind to take.
+    sample_dropped: u64,
+    /// Messages its links from other processes refused.
+    refused: u64,
+    /// Its sample links with other processes ([`sample_crossing`]).
+    crossing: Crossing,
+}
+
+/// The values of the sample links between a process and the others.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Crossing {
+    /// Written here and published.
+    published: u64,
+    /// Written here and not published: each was written over before any
+    /// reader elsewhere read (a sample link crosses at its readers'
+    /// instants).
+    withheld: u64,
+    /// From elsewhere, replaced before a read here: they arrived after the
+    /// read that wanted them.
+    late: u64,
+}
+
+/// The sample links between the nodes that run here (`runs`) and the others:
+/// what crossed, what was not published, what came late.
+fn sample_crossing(finished: &agent_core::Finished, runs: &[String]) -> Crossing {
+    let info = finished.info();
+    let here = |node: usize| runs.iter().any(|r| *r == info.nodes[node].name);
+    let mut crossing = Crossing::default();
+    for (link, stats) in info.links.iter().zip(finished.links()) {
+        if link.policy != agent_core::Policy::Sample {
+            continue;
+        }
+        match (here(link.from), here(link.to)) {
+            (true, false) => {
+                crossing.withheld += stats.overwritten;
+                crossing.published += stats.sent.saturating_sub(stats.overwritten);
+            }
+            (false, true) => crossing.late += stats.overwritten,
+            _ => {}
+        }
+    }
+    crossing
+}
+
 /// What a process says at its end: the timing table, the contracts' verdicts,
 /// its figure line and its first errors. Whether its contracts were kept (a
 /// broken one fails the process unless `--on-error continue`, the default
@@ -203,9 +256,15 @@ fn say_end(
     common: &Common,
     process: &str,
     report: &agent_core::RtReport,
-    (overruns, sample_dropped, refused): (u64, u64, u64),
+    figures: Figures,
     contracts: Option<&Live>,
 ) -> bool {
+    let Figures {
+        overruns,
+        sample_dropped,
+        refused,
+        crossing,
+    } = figures;
     if !common.quiet {
         output::err(format_args!("{report}"));
     }
@@ -214,9 +273,12 @@ fn say_end(
             .on_error
             .is_none_or(|p| p == crate::OnErrorArg::Continue);
     output::out(format_args!(
-        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused}\n",
+        "process={process} rt_priority={} overruns={overruns} executor_errors={} sample_dropped={sample_dropped} refused={refused} sample_published={} sample_withheld={} sample_late={}\n",
         if report.rt_priority() { "yes" } else { "no" },
         report.error_count,
+        crossing.published,
+        crossing.withheld,
+        crossing.late,
     ));
     for e in report.errors.iter().take(watch::FIRST_ERRORS) {
         output::error(e);
