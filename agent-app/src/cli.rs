@@ -131,6 +131,11 @@ pub struct Common {
     /// wait (arc 0, when true)`), on standard output.
     #[arg(long, global = true)]
     pub transitions: bool,
+    /// Also print the spec's timing certificate after the summary (the text
+    /// of a report folder's `timing.txt`: `embodied check --timing`'s
+    /// analysis of the spec as one process on one host).
+    #[arg(long, global = true)]
+    pub verbose: bool,
     /// A deployment of the spec to run split into processes over Zenoh (with
     /// `--process`, or `launch`).
     #[arg(long, global = true, value_name = "NAME")]

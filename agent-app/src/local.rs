@@ -485,7 +485,7 @@ fn conclude<A: Application>(
         errors,
         first_errors,
     };
-    let verdict = output::judgement(watcher, &summary);
+    let verdict = output::judgement(watcher, &summary, common.verbose.then_some(&spec.spec));
     Ok((
         summary.status(verdict.passed && kept, recorded),
         verdict.line,

@@ -5,6 +5,8 @@
 use std::io::Write;
 use std::path::Path;
 
+use agent_spec::Spec;
+
 use crate::AppError;
 use crate::watch::{Ended, RunSummary, Verdict, Watcher};
 
@@ -78,26 +80,83 @@ fn check_folder(dir: &Path) -> std::io::Result<()> {
 }
 
 /// Judge the run `summary` tells of with `watcher`, and print the verdict's
-/// text and, if the run was stopped or failed before its end, why.
-pub(crate) fn judgement<M>(watcher: &mut dyn Watcher<M>, summary: &RunSummary) -> Verdict {
+/// text ([`said`]).
+pub(crate) fn judgement<M>(
+    watcher: &mut dyn Watcher<M>,
+    summary: &RunSummary,
+    timing: Option<&Spec>,
+) -> Verdict {
     let verdict = watcher.judge(summary);
-    out(format_args!("{}", verdict.text));
-    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
-        out(format_args!(
-            "the run {} before its end: {why}\n",
-            if matches!(summary.ended, Ended::Failed(_)) {
-                "failed"
-            } else {
-                "was stopped"
-            }
-        ));
-    }
+    out(format_args!("{}", said(&verdict, summary, timing)));
     verdict
+}
+
+/// What a run's summary says of its `verdict`: its text, the timing
+/// certificate of the spec `timing` names (`--verbose`), and, if the run was
+/// stopped or failed before its end, why.
+fn said(verdict: &Verdict, summary: &RunSummary, timing: Option<&Spec>) -> String {
+    let mut text = verdict.text.clone();
+    if let Some(spec) = timing {
+        text.push_str(&crate::report::timing(spec));
+    }
+    if let Ended::Stopped(why) | Ended::Failed(why) = &summary.ended {
+        let how = if matches!(summary.ended, Ended::Failed(_)) {
+            "failed"
+        } else {
+            "was stopped"
+        };
+        text.push_str(&format!("the run {how} before its end: {why}\n"));
+    }
+    text
 }
 
 #[cfg(test)]
 mod tests {
     use super::writable_folder;
+
+    #[test]
+    fn the_verdict_is_said_with_the_timing_certificate_and_why_it_ended() {
+        use crate::watch::{Ended, Mode, RunSummary, Verdict};
+        let spec = crate::SpecFile::parse("rex.ron", include_str!("../../specs/rex.ron"));
+        let Ok(spec) = spec.map(|s| s.spec) else {
+            panic!("Rex's spec is valid");
+        };
+        let verdict = Verdict {
+            passed: false,
+            text: "2 of 3 plans achieved\n".into(),
+            line: "plans=2/3".into(),
+        };
+        let mut summary = RunSummary {
+            spec: "rex".into(),
+            mode: Mode::Simulated,
+            ended: Ended::Limit,
+            rule_stated: false,
+            last: agent_core::Time::ZERO,
+            wall: std::time::Duration::ZERO,
+            errors: 0,
+            first_errors: Vec::new(),
+        };
+        assert_eq!(super::said(&verdict, &summary, None), verdict.text);
+        let timing = crate::report::timing(&spec);
+        assert!(
+            timing.starts_with("# The timing analysis of `rex`"),
+            "{timing}"
+        );
+        summary.ended = Ended::Stopped("SIGTERM received".into());
+        assert_eq!(
+            super::said(&verdict, &summary, Some(&spec)),
+            format!(
+                "{}{timing}the run was stopped before its end: SIGTERM received\n",
+                verdict.text
+            )
+        );
+        summary.ended = Ended::Failed("a step failed".into());
+        let said = super::said(&verdict, &summary, None);
+        assert!(
+            said.ends_with("the run failed before its end: a step failed\n"),
+            "{said}"
+        );
+    }
 
     fn message(flag: &str, dir: &std::path::Path) -> String {
         writable_folder(flag, dir).map_or_else(|e| e.to_string(), |()| "ok".to_owned())

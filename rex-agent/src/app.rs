@@ -28,7 +28,7 @@ use crate::run::{MissionWatch, Progress, Seen, install_probes, last_reports};
 use crate::system::{RexConfig, RexHandles, RunSettings, build, build_deployment, deployment};
 
 /// Rex's own flags (the layer adds `--for/--limit`, `--realtime`, `--record`,
-/// `--quiet`, `--deployment`, `--process`, `--port`, `--wait`,
+/// `--quiet`, `--verbose`, `--deployment`, `--process`, `--port`, `--wait`,
 /// `--credentials`). Every choice can also be written in a run file
 /// (`--config`, default `rex-agent/config/rex.ron`); a flag overrides the file.
 #[derive(clap::Args, Clone, Debug, Default)]
@@ -84,11 +84,6 @@ pub struct RexFlags {
     /// sub-folder per mission), `--no-report`, `--no-record`.
     #[command(flatten)]
     pub report: ReportFlags,
-    /// Also print the spec's timing certificate after the summary (the text
-    /// of the report folder's `timing.txt`: `embodied check --timing`'s
-    /// analysis of the spec as one process on one host).
-    #[arg(long, global = true)]
-    pub verbose: bool,
 }
 
 /// What `rex --help` says above the flags.
@@ -296,7 +291,6 @@ impl Application for RexApp {
                 spec: spec.spec,
                 report: self.flags.report.clone(),
                 limit_s: config.limit_s,
-                verbose: self.flags.verbose,
             }),
             // `configure` resolved it already: this does not happen.
             _ => Box::new(embodied::app::Quiet),
@@ -415,8 +409,6 @@ struct RexWatch {
     report: ReportFlags,
     /// The run's time limit \[s\].
     limit_s: f64,
-    /// Print the timing certificate (`--verbose`).
-    verbose: bool,
 }
 
 impl Watcher<Seen> for RexWatch {
@@ -461,9 +453,6 @@ impl Watcher<Seen> for RexWatch {
                 "{failed} of {} plans not achieved (see the plan lines above)\n",
                 out.plans
             ));
-        }
-        if self.verbose {
-            text.push_str(&embodied::app::report::timing(&self.spec));
         }
         Verdict {
             passed: out.succeeded(),

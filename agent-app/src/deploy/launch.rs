@@ -159,7 +159,7 @@ pub(crate) fn launch<A: Application>(
     };
     Ok(say_verdict(
         watcher.as_mut(),
-        &summary,
+        (&summary, common.verbose.then_some(&spec.spec)),
         &gathered,
         &report,
         recorded,
@@ -438,15 +438,16 @@ fn say_line(line: &Line) {
 }
 
 /// The judgement of the whole deployment's run, said with what the
-/// processes refused and the launch's figures: its status.
+/// processes refused and the launch's figures (and the spec's timing
+/// certificate, given `timing`: `--verbose`): its status.
 fn say_verdict<M>(
     watcher: &mut dyn Watcher<M>,
-    summary: &RunSummary,
+    (summary, timing): (&RunSummary, Option<&agent_spec::Spec>),
     gathered: &Gathered,
     report: &LaunchReport,
     recorded: bool,
 ) -> Status {
-    let verdict = output::judgement(watcher, summary);
+    let verdict = output::judgement(watcher, summary, timing);
     if gathered.acl_refused > 0 {
         output::out(format_args!(
             "security acl_refused={} (messages the access control refused; each process names them)\n",
