@@ -92,6 +92,7 @@ impl Monitors {
             invariants: Vec::new(),
             next_deadline: None,
             activations: false,
+            index: Index::default(),
         };
         let Some(c) = &spec.contracts else {
             return Ok(m);
@@ -152,6 +153,7 @@ impl Monitors {
         for i in &c.invariants {
             m.add_invariant(i)?;
         }
+        m.reindex();
         Ok(m)
     }
 
@@ -228,6 +230,7 @@ impl Monitors {
             subsystem,
             holds,
             uses,
+            last: None,
         });
         Ok(())
     }

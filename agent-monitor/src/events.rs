@@ -37,7 +37,8 @@ impl Monitors {
         self.advance(t, sink);
         let age = t.as_nanos().saturating_sub(stamp.as_nanos());
         let (activations, mut due) = (self.activations, None);
-        for f in self.freshness.iter_mut().filter(|f| f.input == input) {
+        for &k in listed(&self.index.freshness_of, input.0) {
+            let f = &mut self.freshness[k as usize];
             f.held = Some((stamp, age > f.max));
             due = earliest(due, f.deadline(activations));
             if age > f.max {
@@ -59,7 +60,8 @@ impl Monitors {
     pub fn arrived(&mut self, input: InputId, t: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
         let mut due = None;
-        for r in self.rates.iter_mut().filter(|r| r.input == input) {
+        for &k in listed(&self.index.rates_of, input.0) {
+            let r = &mut self.rates[k as usize];
             r.last = t;
             r.reported = false;
             due = earliest(due, Some(t.as_nanos().saturating_add(r.window)));
@@ -71,7 +73,8 @@ impl Monitors {
     pub fn sent(&mut self, output: OutputId, t: Time, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
         let mut due = None;
-        for r in &mut self.responses {
+        for &k in listed(&self.index.responses_of, output.0) {
+            let r = &mut self.responses[k as usize];
             if r.response == output {
                 r.last_response = Some(t);
                 r.pending = None;
@@ -88,21 +91,25 @@ impl Monitors {
     /// The field of range `range` took `x` at `t`.
     pub fn value(&mut self, range: RangeId, t: Time, x: f64, sink: &mut impl FnMut(Violation)) {
         self.advance(t, sink);
-        let Some(r) = self.ranges.get(range.0 as usize).filter(|r| r.active) else {
-            return;
-        };
-        let inside = r.min.is_none_or(|m| x >= m) && r.max.is_none_or(|m| x <= m);
-        if !inside {
-            sink(Violation {
-                time: t,
-                contract: r.contract,
-                broke: Broke::OutOfRange {
-                    value: x,
-                    min: r.min,
-                    max: r.max,
-                },
-            });
+        if let Some(v) = self.judge(range, t, x) {
+            sink(v);
         }
+    }
+
+    /// What range `range` makes of `x` at `t` (time already advanced to `t`).
+    #[inline]
+    pub(crate) fn judge(&self, range: RangeId, t: Time, x: f64) -> Option<Violation> {
+        let r = self.ranges.get(range.0 as usize).filter(|r| r.active)?;
+        let inside = r.min.is_none_or(|m| x >= m) && r.max.is_none_or(|m| x <= m);
+        (!inside).then_some(Violation {
+            time: t,
+            contract: r.contract,
+            broke: Broke::OutOfRange {
+                value: x,
+                min: r.min,
+                max: r.max,
+            },
+        })
     }
 
     /// `subsystem` entered `behaviour` at `t` (leaving the one it was in); an
@@ -116,7 +123,8 @@ impl Monitors {
         sink: &mut impl FnMut(Violation),
     ) {
         self.advance(t, sink);
-        for b in self.bounds.iter_mut().filter(|b| b.subsystem == subsystem) {
+        for &k in listed(&self.index.bounds_of, subsystem.0) {
+            let b = &mut self.bounds[k as usize];
             b.close(t, sink);
             if behaviour == Some(b.behaviour) {
                 b.run = Some((t, 0));
@@ -137,13 +145,13 @@ impl Monitors {
         sink: &mut impl FnMut(Violation),
     ) {
         self.advance(t, sink);
-        for b in self.bounds.iter_mut().filter(|b| b.subsystem == subsystem) {
-            b.activation(t, sink);
+        for &k in listed(&self.index.bounds_of, subsystem.0) {
+            self.bounds[k as usize].activation(t, sink);
         }
         if self.activations {
-            for f in &mut self.freshness {
-                if let (Some(reader), Some((s, false))) = (f.reader, f.held)
-                    && reader == subsystem
+            for &k in listed(&self.index.read_by, subsystem.0) {
+                let f = &mut self.freshness[k as usize];
+                if let Some((s, false)) = f.held
                     && t.as_nanos().saturating_sub(s.as_nanos()) > f.max
                 {
                     f.held = Some((s, true));
@@ -181,11 +189,21 @@ impl Monitors {
         value: u64,
         sink: &mut impl FnMut(Violation),
     ) {
-        for i in self.invariants.iter().filter(|i| i.subsystem == subsystem) {
+        for &k in listed(&self.index.invariants_of, subsystem.0) {
+            let i = &mut self.invariants[k as usize];
             let Some(uses) = i.uses.filter(|u| known & u == *u) else {
                 continue;
             };
-            if !i.holds.eval(&mut |&k| value >> k & 1 == 1) {
+            let read = value & uses;
+            let holds = match i.last {
+                Some((last, holds)) if last == read => holds,
+                _ => {
+                    let holds = i.holds.eval(&mut |&k| read >> k & 1 == 1);
+                    i.last = Some((read, holds));
+                    holds
+                }
+            };
+            if !holds {
                 sink(Violation {
                     time: t,
                     contract: i.contract,

@@ -317,6 +317,46 @@ struct InvariantM {
     /// The predicates it reads (bit `i`: the subsystem's predicate `i`);
     /// `None` when one is past the 64th (then it is never judged).
     uses: Option<u64>,
+    /// The last values of the predicates it reads it was judged on, and its
+    /// verdict then (a subsystem's predicates rarely change from one
+    /// activation to the next: the expression is evaluated when they do).
+    last: Option<(u64, bool)>,
+}
+
+/// Which monitors each kind of event concerns, by their indices in the
+/// monitors' vectors: made when the set of monitors changes
+/// ([`Monitors::reindex`]), so that an event visits those only.
+#[derive(Clone, Debug, Default)]
+struct Index {
+    /// Per input: its freshness monitors.
+    freshness_of: Vec<Vec<u32>>,
+    /// Per input: its rate monitors.
+    rates_of: Vec<Vec<u32>>,
+    /// Per output: the responses it triggers or answers.
+    responses_of: Vec<Vec<u32>>,
+    /// Per subsystem: its bounds.
+    bounds_of: Vec<Vec<u32>>,
+    /// Per subsystem: the freshness monitors of the inputs it reads.
+    read_by: Vec<Vec<u32>>,
+    /// Per subsystem: its invariants.
+    invariants_of: Vec<Vec<u32>>,
+}
+
+/// The indices `k` of `items` (by `key`) for each of `n` keys.
+fn index_by<T>(n: usize, items: &[T], key: impl Fn(&T) -> Option<usize>) -> Vec<Vec<u32>> {
+    let mut out = vec![Vec::new(); n];
+    for (k, item) in items.iter().enumerate() {
+        if let Some(slot) = key(item).and_then(|i| out.get_mut(i)) {
+            slot.push(k as u32);
+        }
+    }
+    out
+}
+
+/// The monitors of `index`'s list `i` (none when `i` is out of it).
+#[inline]
+fn listed(index: &[Vec<u32>], i: u32) -> &[u32] {
+    index.get(i as usize).map_or(&[], Vec::as_slice)
 }
 
 /// A subsystem's names, for resolving events.
@@ -346,6 +386,8 @@ pub struct Monitors {
     next_deadline: Option<Time>,
     /// Whether the readers' activations are given ([`Monitors::at_activations`]).
     activations: bool,
+    /// Which monitors each event concerns.
+    index: Index,
 }
 
 /// How many contracts `violations` break (each counted once).
@@ -446,7 +488,33 @@ impl Monitors {
         for r in &mut self.ranges {
             r.active &= k(r.contract);
         }
+        self.reindex();
         self.recompute_deadline();
+    }
+
+    /// Make the [`Index`] of the monitors as they are now.
+    pub(crate) fn reindex(&mut self) {
+        let (inputs, outputs, subsystems) =
+            (self.inputs.len(), self.outputs.len(), self.subsystems.len());
+        let reads = |f: &FreshnessM| f.reader.map(|s| s.0 as usize);
+        self.index = Index {
+            freshness_of: index_by(inputs, &self.freshness, |f| Some(f.input.0 as usize)),
+            rates_of: index_by(inputs, &self.rates, |r| Some(r.input.0 as usize)),
+            responses_of: (0..outputs)
+                .map(|o| {
+                    let o = OutputId(o as u32);
+                    let on = self.responses.iter().enumerate();
+                    on.filter(|(_, r)| r.trigger == o || r.response == o)
+                        .map(|(k, _)| k as u32)
+                        .collect()
+                })
+                .collect(),
+            bounds_of: index_by(subsystems, &self.bounds, |b| Some(b.subsystem.0 as usize)),
+            read_by: index_by(subsystems, &self.freshness, reads),
+            invariants_of: index_by(subsystems, &self.invariants, |i| {
+                Some(i.subsystem.0 as usize)
+            }),
+        };
     }
 
     /// The readers' activations will be given ([`Monitors::activation`], as a

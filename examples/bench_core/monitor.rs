@@ -286,6 +286,29 @@ mod rex_shaped {
 /// and the platform E1).
 pub(super) const REX_ACTIONS_PER_CYCLE: u64 = 5;
 
+/// An observer that takes every event the watch takes and judges nothing:
+/// what the executor's events cost any observer (the floor under a watch's
+/// cost), with the predicates the watch asks for evaluated as for it.
+struct Silent {
+    /// Per node: the predicates the watch wants after its activations.
+    wanted: Vec<u64>,
+}
+
+impl Observer for Silent {
+    fn transfer(&mut self, e: &trace::TransferEvent, value: &dyn trace::ErasedPayload) {
+        std::hint::black_box((e, value));
+    }
+    fn read(&mut self, e: &trace::ReadEvent) {
+        std::hint::black_box(e);
+    }
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        self.wanted.get(node).copied().unwrap_or(0)
+    }
+    fn predicates(&mut self, e: &ActionEvent, values: Valuation) {
+        std::hint::black_box((e, values));
+    }
+}
+
 /// One batch of instants of `exec`: ns per instant, and the allocations.
 fn cycles<O: Observer>(exec: &mut Executor<O>) -> Result<(f64, u64), ExecError> {
     let before = allocations::total();
@@ -303,6 +326,9 @@ pub(super) struct MonitorCost {
     pub(super) plain_ns: f64,
     /// Median ns per cycle added by the watch.
     pub(super) watch_ns: f64,
+    /// Median ns per cycle added by an observer that takes the same events
+    /// and judges nothing ([`Silent`]): the executor's share of `watch_ns`.
+    pub(super) events_ns: f64,
     /// Allocations per watched cycle.
     pub(super) allocs_per_cycle: f64,
     /// The contracts judged, and those broken (0: the system keeps them).
@@ -310,10 +336,11 @@ pub(super) struct MonitorCost {
     pub(super) violated: usize,
 }
 
-/// The Rex-shaped system ([`rex_shaped`]) in two executors, one watched by
+/// The Rex-shaped system ([`rex_shaped`]) in three executors, one watched by
 /// the monitors of specs/rex.ron's contracts (`embodied run`'s
-/// [`agent_monitor::live::Live`] watch), in alternating batches; the watch's
-/// cost is the difference of their medians per cycle. It includes what the
+/// [`agent_monitor::live::Live`] watch), one by [`Silent`], in alternating
+/// batches; the watch's cost is the difference of their medians per cycle
+/// (and the events' cost, [`Silent`]'s). It includes what the
 /// executor does for an observer (read and transfer events, the torques
 /// handed over type-erased), as a run with contracts pays it.
 pub(super) fn monitor_cost() -> Result<MonitorCost, Box<dyn std::error::Error>> {
@@ -322,19 +349,29 @@ pub(super) fn monitor_cost() -> Result<MonitorCost, Box<dyn std::error::Error>> 
     let system = rex_shaped::system()?;
     let live = agent_monitor::live::Live::new(monitors, &system);
     let mut plain = Executor::new(rex_shaped::system()?, ExecConfig::default());
+    let watch = live.watch();
+    let wanted = (0..system.info().nodes.len())
+        .map(|n| watch.predicates_wanted(n))
+        .collect();
+    drop(watch);
+    let silent = Silent { wanted };
     let mut watched = Executor::with_observer(system, ExecConfig::default(), live.watch());
+    let mut floor = Executor::with_observer(rex_shaped::system()?, ExecConfig::default(), silent);
     // Warm-up: buffers and queues filled, every monitor started.
     plain.run_for(Duration::from_millis(BATCH))?;
     watched.run_for(Duration::from_millis(BATCH))?;
-    let (mut plain_ns, mut watched_ns) = (Vec::new(), Vec::new());
+    floor.run_for(Duration::from_millis(BATCH))?;
+    let (mut plain_ns, mut watched_ns, mut floor_ns) = (Vec::new(), Vec::new(), Vec::new());
     let mut allocations = 0;
     for _ in 0..BATCHES {
         plain_ns.push(cycles(&mut plain)?.0);
+        floor_ns.push(cycles(&mut floor)?.0);
         let (ns, allocs) = cycles(&mut watched)?;
         watched_ns.push(ns);
         allocations += allocs;
     }
-    let errors = watched.report().error_count + plain.report().error_count;
+    let errors =
+        watched.report().error_count + plain.report().error_count + floor.report().error_count;
     drop(watched.into_observer()); // the watch hands its verdicts over
     let verdicts = live.verdicts();
     if errors != 0 || !verdicts.not_judged.is_empty() {
@@ -348,6 +385,7 @@ pub(super) fn monitor_cost() -> Result<MonitorCost, Box<dyn std::error::Error>> 
     Ok(MonitorCost {
         plain_ns,
         watch_ns: median(watched_ns) - plain_ns,
+        events_ns: median(floor_ns) - plain_ns,
         allocs_per_cycle: allocations as f64 / (BATCHES as u64 * BATCH) as f64,
         judged: verdicts.judged.len(),
         violated: verdicts.contracts_violated(),
