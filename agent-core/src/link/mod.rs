@@ -77,6 +77,11 @@ pub struct LinkStats {
     /// errors): undecodable, of another payload type, a repeat, from a second
     /// sender, stamped implausibly far ahead.
     pub refused: u64,
+    /// Between processes: values that arrived after a read they were due
+    /// for (stamped before its instant), counted by the receiver: the
+    /// transport took longer than the time between their sending and the
+    /// read.
+    pub late: u64,
 }
 
 pub use crate::buffer::Access;

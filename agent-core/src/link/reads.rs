@@ -9,13 +9,17 @@
 //! own next activation: a value is published at the writer's last activation
 //! before the read that sees it (at once when the writer writes at that
 //! activation, which a writer that writes at every activation always does).
-//! A 1 kHz sensor read every 50 ms crosses 20 times a second, not 1,000.
+//! So is the last value written before a fallback instant a tenth of the
+//! reader's period before each read ([`FALLBACK`]): what a read takes when its
+//! own value arrives after it. A 1 kHz sensor read every 50 ms crosses 40
+//! times a second, not 1,000.
 //!
 //! The values read are those of a link between threads at the same instants:
 //! the deterministic executor's rule (a value sent at `t` is read at the
 //! reader's first activation strictly after `t`) picks which value each read
 //! sees, and the real-time reader takes it if it arrived (as over any link
-//! between processes). A queue link is never thinned (every value is read).
+//! between processes), else the fallback. A queue link is never thinned
+//! (every value is read).
 
 use crate::time::{Period, Time};
 
@@ -26,10 +30,21 @@ pub(crate) struct ReadGrid {
     /// The writer's period \[ns\]: after an activation at `t`, its next is at
     /// `t + writer`.
     writer: u64,
-    /// The readers' periods \[ns\], ascending, none a multiple of another:
-    /// each reads at its multiples.
-    readers: Vec<u64>,
+    /// The instants a value is published for, as (period, lead) \[ns\]: the
+    /// multiples of `period` less `lead`. Each reader's reads (lead 0; none
+    /// whose period is a multiple of another's: its reads are among that
+    /// one's), and its fallbacks ([`FALLBACK`]).
+    instants: Vec<(u64, u64)>,
 }
+
+/// A reader's fallback instant is this fraction of its period before each of
+/// its reads: the last value written before it is published too, so that a
+/// read whose own value arrives late (the transport's latency is not zero,
+/// and the writer publishes one writer period before the read) takes one
+/// written a tenth of a period before, not nothing. On time, the read's own
+/// value replaces it before the read, which takes what a link in one process
+/// gives.
+pub(crate) const FALLBACK: u64 = 10;
 
 impl ReadGrid {
     /// The grid of a writer of period `writer` whose readers elsewhere have
@@ -46,24 +61,35 @@ impl ReadGrid {
         if periods.first().is_none_or(|&fastest| fastest <= writer) {
             return None;
         }
-        // A reader whose period is a multiple of another's reads at some of
-        // that one's instants: it adds none.
-        let mut readers: Vec<u64> = Vec::with_capacity(periods.len());
-        for p in periods {
-            if !readers.iter().any(|&r| p.is_multiple_of(r)) {
-                readers.push(p);
+        let mut instants: Vec<(u64, u64)> = Vec::with_capacity(2 * periods.len());
+        for &p in &periods {
+            if !instants.iter().any(|&(r, _)| p.is_multiple_of(r)) {
+                instants.push((p, 0));
             }
         }
-        Some(ReadGrid { writer, readers })
+        // A fallback at least a writer period before the read: another value.
+        for p in periods {
+            let lead = p / FALLBACK;
+            if lead > writer {
+                instants.push((p, lead));
+            }
+        }
+        Some(ReadGrid { writer, instants })
     }
 
-    /// The first read instant strictly after `t` \[ns\]: where a value
-    /// written at `t` is read (`u64::MAX` past the end of time).
+    /// The first instant strictly after `t` that a value is published for
+    /// \[ns\]: a value written at `t` is read at the first read after it
+    /// (`u64::MAX` past the end of time).
     pub(crate) fn next_read(&self, t: Time) -> u64 {
         let t = t.as_nanos();
-        self.readers
+        self.instants
             .iter()
-            .map(|&r| (t / r).saturating_add(1).saturating_mul(r))
+            .map(|&(r, lead)| {
+                (t.saturating_add(lead) / r)
+                    .saturating_add(1)
+                    .saturating_mul(r)
+                    .saturating_sub(lead)
+            })
             .min()
             .unwrap_or(u64::MAX)
     }

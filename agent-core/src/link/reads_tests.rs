@@ -1,5 +1,6 @@
 //! A sample link thinned to its readers' instants gives each read what a link
-//! in one process gives it, and publishes about one value a read.
+//! in one process gives it, and publishes about two values a read (its own
+//! and its fallback's).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -32,15 +33,30 @@ fn a_reader_as_fast_as_the_writer_sees_every_value() {
 #[test]
 fn reads_are_the_first_instants_strictly_after_a_write() {
     let grid = ReadGrid::new(ms(1), [ms(50), ms(100), ms(30)]).unwrap();
-    // 100 ms is a multiple of 50 ms: its reads are among 50 ms's.
-    assert_eq!(grid.readers, vec![30_000_000, 50_000_000]);
-    assert_eq!(grid.next_read(at(0)), 30_000_000);
-    assert_eq!(grid.next_read(at(30)), 50_000_000);
-    assert_eq!(grid.next_read(at(49)), 50_000_000);
-    assert_eq!(grid.next_read(at(50)), 60_000_000);
+    // 100 ms is a multiple of 50 ms: its reads are among 50 ms's; each
+    // reader's fallback is a tenth of its period before its reads.
+    assert_eq!(
+        grid.instants,
+        vec![
+            (30_000_000, 0),
+            (50_000_000, 0),
+            (30_000_000, 3_000_000),
+            (50_000_000, 5_000_000),
+            (100_000_000, 10_000_000),
+        ]
+    );
+    assert_eq!(grid.next_read(at(0)), 27_000_000);
+    assert_eq!(grid.next_read(at(27)), 30_000_000);
+    assert_eq!(grid.next_read(at(30)), 45_000_000);
+    assert_eq!(grid.next_read(at(45)), 50_000_000);
+    assert_eq!(grid.next_read(at(50)), 57_000_000);
+    assert_eq!(grid.next_read(at(88)), 90_000_000);
     assert!(!grid.last_before(at(48), 50_000_000));
     assert!(grid.last_before(at(49), 50_000_000));
     assert!(grid.last_before(at(55), 50_000_000));
+    // A fallback no earlier than the writer's last activation: none.
+    let slow = ReadGrid::new(ms(10), [ms(50)]).unwrap();
+    assert_eq!(slow.instants, vec![(50_000_000, 0)]);
 }
 
 /// A publisher that hands each message to every reader's inbox at once, and
@@ -154,15 +170,29 @@ impl Bench {
 }
 
 #[test]
-fn a_1_ms_writer_read_every_50_ms_publishes_20_values_a_second() {
+fn a_1_ms_writer_read_every_50_ms_publishes_40_values_a_second() {
     let mut bench = Bench::new(1, &[50]);
     let (away, here) = bench.run(1_000, |_| true, |_| false);
     assert_eq!(away, here);
-    // The values written at 49, 99, ..., 999 ms: one a read.
-    assert_eq!(bench.published(), 20);
+    // The values written at 44 and 49, 94 and 99, ..., 994 and 999 ms: a
+    // read's fallback and its own.
+    assert_eq!(bench.published(), 40);
     assert_eq!(away[0][1], (50, Some(49)));
+    assert_eq!(bench.inboxes[0].stats().overwritten, 20, "the fallbacks");
     let stats = bench.stats.snapshot();
-    assert_eq!((stats.sent, stats.overwritten), (1_001, 980));
+    assert_eq!((stats.sent, stats.overwritten), (1_001, 960));
+}
+
+#[test]
+fn a_read_whose_own_value_is_late_takes_the_fallback() {
+    let mut bench = Bench::new(1, &[50]);
+    let (away, _) = bench.run(48, |_| true, |_| false);
+    assert_eq!(bench.published(), 1, "the fallback, written at 44 ms");
+    // The read at 50 ms comes before the value written at 49 ms arrives.
+    let mut x = In::<u64>::default();
+    bench.inboxes[0].take_into(&mut x, at(50)).unwrap();
+    assert_eq!(x.fresh(), Some(&44));
+    assert_eq!(away[0], vec![(0, None)]);
 }
 
 #[test]
@@ -178,15 +208,19 @@ fn a_value_written_before_activations_without_a_write_is_published_at_the_last_b
 
 #[test]
 fn a_held_value_whose_read_was_missed_goes_late_rather_than_never() {
-    // The writer is not activated from 45 to 60 ms (an overrun skipped its
-    // instants): the value of 44 ms missed the read at 50 and goes at 61 ms,
-    // before the value written then is held.
+    // The writer is not activated from 44 to 60 ms (an overrun skipped its
+    // instants): the value of 43 ms missed the fallback at 45 and the read at
+    // 50 and goes at 61 ms, before the value written then is held.
     let mut bench = Bench::new(1, &[50]);
-    let (away, _) = bench.run(100, |_| true, |t| (45..=60).contains(&t));
+    let (away, _) = bench.run(100, |_| true, |t| (44..=60).contains(&t));
     assert_eq!(away[0][1], (50, None));
-    assert_eq!(bench.inboxes[0].stats().overwritten, 1, "44 ms, then 99 ms");
+    assert_eq!(
+        bench.inboxes[0].stats().overwritten,
+        2,
+        "43, then 94, 99 ms"
+    );
     assert_eq!(away[0][2], (100, Some(99)));
-    assert_eq!(bench.published(), 2, "44 ms late, 99 ms in time");
+    assert_eq!(bench.published(), 3, "43 ms late, 94 and 99 ms in time");
 }
 
 #[test]
@@ -208,7 +242,7 @@ proptest! {
 
     /// Any writer period, readers of any periods, any pattern of writes: every
     /// read over the thinned link takes what the links in one process give,
-    /// and no more values cross than the reads (and the writes) number.
+    /// and no more values cross than twice the reads (a value and its fallback).
     #[test]
     fn every_read_takes_what_a_link_in_one_process_gives(
         writer in 1u64..12,
@@ -223,6 +257,11 @@ proptest! {
             .filter(|t| readers.iter().any(|r| t % r == 0))
             .count() as u64;
         let written = (0..=600 / writer).filter(|&k| writes(k)).count() as u64;
-        prop_assert!(bench.published() <= reads.min(written) + 1);
+        // A read's value and each reader's fallbacks, each written before it.
+        let mut periods = readers.clone();
+        periods.sort_unstable();
+        periods.dedup();
+        let fallbacks: u64 = periods.iter().map(|r| 600 / r + 1).sum();
+        prop_assert!(bench.published() <= (reads + fallbacks).min(written) + 2);
     }
 }

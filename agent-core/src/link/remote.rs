@@ -408,6 +408,9 @@ struct InboxState {
     /// The epoch the sending process announced ([`Inbox::expect`]): the
     /// only one whose values are taken, once known.
     expected: Option<u64>,
+    /// The instant of the reader's last read: a value stamped before it
+    /// arrives late.
+    last_read: Option<Time>,
 }
 
 impl fmt::Debug for Inbox {
@@ -586,6 +589,9 @@ impl Inbox {
             }
         }
         state.next = header.seq.wrapping_add(1);
+        if state.last_read.is_some_and(|read| header.stamp.time < read) {
+            self.stats.late.fetch_add(1, Ordering::Relaxed);
+        }
         let mut body = state.spare.pop().unwrap_or_default();
         body.clear();
         body.extend_from_slice(&message[HEADER_LEN..]);
@@ -642,6 +648,9 @@ impl Inbox {
         now: Time,
     ) -> Result<(), RemoteProblem> {
         let mut state = self.lock();
+        if now != Time::NEVER {
+            state.last_read = Some(now);
+        }
         if let Some(p) = state.problems.pop_front() {
             x.age();
             return Err(p);

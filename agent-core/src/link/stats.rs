@@ -16,6 +16,7 @@ pub(crate) struct SharedStats {
     pub(crate) overflowed: AtomicU64,
     pub(crate) max_pending: AtomicUsize,
     pub(crate) refused: AtomicU64,
+    pub(crate) late: AtomicU64,
 }
 
 impl SharedStats {
@@ -27,6 +28,7 @@ impl SharedStats {
             overflowed: self.overflowed.load(Ordering::Relaxed),
             max_pending: self.max_pending.load(Ordering::Relaxed),
             refused: self.refused.load(Ordering::Relaxed),
+            late: self.late.load(Ordering::Relaxed),
         }
     }
 }
