@@ -1,7 +1,7 @@
 //! A sample link between two processes over real Zenoh sessions carries only
-//! the values its reader can see: a 1 ms writer read every 50 ms publishes
-//! about 20 values a second, not 1,000, and the reader takes what a link in
-//! one process gives it at the same instants.
+//! the values its reader can see, and a fallback a read: a 1 ms writer read
+//! every 50 ms publishes about 40 values a second, not 1,000, and the reader
+//! takes what a link in one process gives it at the same instants.
 //!
 //! The two processes are two members of deployment `two` in this test
 //! process, each with its own Zenoh session on loopback and its own real-time
@@ -99,8 +99,9 @@ fn in_one_process(every: u64, iterations: usize) -> Vec<Option<u64>> {
 }
 
 /// Run both processes with a counting tap on `c`'s key; `e`'s reads (one
-/// per instant, `None` where nothing new came) and the messages that crossed.
-fn over_zenoh(port: u16, every: u64) -> (Vec<Option<u64>>, u64, LinkStats) {
+/// per instant, `None` where nothing new came), the messages that crossed,
+/// and the link's counters on the writer's side and on the reader's.
+fn over_zenoh(port: u16, every: u64) -> (Vec<Option<u64>>, u64, LinkStats, LinkStats) {
     let crossed = Arc::new(AtomicU64::new(0));
     let tap = open_peer(
         None,
@@ -134,12 +135,14 @@ fn over_zenoh(port: u16, every: u64) -> (Vec<Option<u64>>, u64, LinkStats) {
         read[i as usize] = Some(v);
     }
     let sent = writer.finished.link_stats(writer.down).unwrap();
-    (read, crossed.load(Ordering::Relaxed), sent)
+    let received = reader.finished.link_stats(reader.down).unwrap();
+    (read, crossed.load(Ordering::Relaxed), sent, received)
 }
 
 /// `e`'s reads over Zenoh against those in one process: the same value at
-/// the same instant, but where it arrived after the read (then it is taken
-/// at the next read, unless a newer one came): at most a few of those.
+/// the same instant, but where it arrived after the read, which then took the
+/// fallback (written after the previous read's value, before this one's) or
+/// nothing new: at most a third of the reads. How many differ.
 fn assert_as_in_one_process(read: &[Option<u64>], every: u64) -> usize {
     let reference = in_one_process(every, read.len());
     let mut late = 0;
@@ -147,19 +150,20 @@ fn assert_as_in_one_process(read: &[Option<u64>], every: u64) -> usize {
         if *got == reference[i] {
             continue;
         }
-        // A value late: it is one the link in one process gave at an
-        // earlier read (never one it did not give), and that read saw
-        // nothing new over Zenoh.
-        let earlier = reference[..i].iter().position(|r| r == got);
+        let previous = reference[..i].iter().rev().find_map(|r| *r);
+        let fallback = matches!(
+            (got, reference[i]),
+            (Some(v), Some(r)) if *v < r && previous.is_none_or(|p| *v > p)
+        );
         assert!(
-            got.is_none() || earlier.is_some_and(|k| read[k].is_none()),
+            got.is_none() || fallback,
             "read {i}: {got:?}, in one process {:?}\nover Zenoh {read:?}\nin one process {reference:?}",
             reference[i]
         );
         late += 1;
     }
     assert!(
-        late * 10 <= read.len(),
+        late * 3 <= read.len(),
         "{late} of {} reads differ\nover Zenoh {read:?}\nin one process {reference:?}",
         read.len()
     );
@@ -167,34 +171,35 @@ fn assert_as_in_one_process(read: &[Option<u64>], every: u64) -> usize {
 }
 
 #[test]
-fn a_1_ms_writer_read_every_50_ms_crosses_20_values_a_second_and_the_reads_are_as_in_one_process() {
-    let (read, crossed, sent) = over_zenoh(17_470, 1);
+fn a_1_ms_writer_read_every_50_ms_crosses_40_values_a_second_and_the_reads_are_as_in_one_process() {
+    let (read, crossed, sent, received) = over_zenoh(17_470, 1);
     assert!(read.len() >= 55, "{} reads in 3 s", read.len());
     let late = assert_as_in_one_process(&read, 1);
     eprintln!(
-        "reads={} late={late} crossed={crossed} written={} withheld={}",
+        "reads={} differing={late} crossed={crossed} written={} withheld={} arrived_late={}",
         read.len(),
         sent.sent,
-        sent.overwritten
+        sent.overwritten,
+        received.late
     );
-    // 3 s: about 60 values cross (one per read), where every write (about
-    // 3,000) crossed before.
+    // 3 s: about 120 values cross (a read's and its fallback), where every
+    // write (about 3,000) crossed before.
     let reads = read.len() as u64;
     assert!(
-        crossed <= reads + 1 && crossed + 5 >= reads,
+        crossed <= 2 * reads + 2 && crossed + 10 >= 2 * reads,
         "{crossed} messages for {reads} reads"
     );
     assert!(sent.sent >= 2_900, "{sent:?}");
-    assert!(sent.overwritten >= sent.sent - reads - 2, "{sent:?}");
+    assert!(sent.overwritten >= sent.sent - 2 * reads - 2, "{sent:?}");
 }
 
 #[test]
 fn a_writer_that_writes_now_and_then_is_read_as_in_one_process() {
     // c writes every 7 ms: the value is held through the activations without
     // a write and goes at the last before each read.
-    let (read, crossed, _) = over_zenoh(17_480, 7);
+    let (read, crossed, _, _) = over_zenoh(17_480, 7);
     assert!(read.len() >= 55, "{} reads in 3 s", read.len());
     let late = assert_as_in_one_process(&read, 7);
-    eprintln!("reads={} late={late} crossed={crossed}", read.len());
-    assert!(crossed <= read.len() as u64 + 1, "{crossed} messages");
+    eprintln!("reads={} differing={late} crossed={crossed}", read.len());
+    assert!(crossed <= 2 * read.len() as u64 + 2, "{crossed} messages");
 }

@@ -221,8 +221,8 @@ struct Crossing {
     /// reader elsewhere read (a sample link crosses at its readers'
     /// instants).
     withheld: u64,
-    /// From elsewhere, replaced before a read here: they arrived after the
-    /// read that wanted them.
+    /// From elsewhere, arrived after a read they were due for (which took
+    /// the fallback, or nothing new).
     late: u64,
 }
 
@@ -241,7 +241,7 @@ fn sample_crossing(finished: &agent_core::Finished, runs: &[String]) -> Crossing
                 crossing.withheld += stats.overwritten;
                 crossing.published += stats.sent.saturating_sub(stats.overwritten);
             }
-            (false, true) => crossing.late += stats.overwritten,
+            (false, true) => crossing.late += stats.late,
             _ => {}
         }
     }
