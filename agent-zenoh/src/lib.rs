@@ -7,7 +7,8 @@
 //!   per output buffer that leaves the process (queue links: reliable, blocking
 //!   congestion control; sample links: dropping, and given only the values their
 //!   readers can see: agent-core's runtime publishes a sample value at the
-//!   writer's last activation before the read that sees it), a callback
+//!   writer's last activation before the read that sees it, and a fallback a
+//!   read), a callback
 //!   subscriber per input buffer fed from elsewhere. Nodes hand their messages to wait-free rings that
 //!   the transport's own thread publishes from, so a real-time node never waits
 //!   for Zenoh.
