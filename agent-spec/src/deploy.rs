@@ -384,6 +384,28 @@ impl<'s> Assembly<'s> {
         self.stand_in(name, memory, fsm)
     }
 
+    /// As [`Assembly::subsystem`], with the subsystem's first input and output
+    /// buffers given rather than their defaults: how the length of a fan (a
+    /// group with `peers` in the spec, agent-core's `Fan` in the code) is
+    /// fixed when the system is built
+    /// ([`SystemBuilder::subsystem_with_buffers`]). The spec's links to the
+    /// fan's elements (`c2.c1[3].plan`) are made by [`Assembly::build`]; one
+    /// to an element the fan lacks is a build problem.
+    pub fn subsystem_with_buffers<S: Subsystem>(
+        &mut self,
+        name: &str,
+        memory: S::Memory,
+        fsm: Fsm<S>,
+        input: S::Input,
+        output: S::Output,
+    ) -> Result<SubsystemHandle<S>, AssemblyError> {
+        let fsm = self.spec_graph(name, fsm)?;
+        let (agent, period) = self.place(name, S::KIND.into(), std::any::type_name::<S>())?;
+        Ok(self
+            .builder
+            .subsystem_with_buffers(agent, name, period, memory, fsm, input, output))
+    }
+
     /// Add a stand-in for subsystem `name` (a test double: a stub in place of
     /// the real component), in the agent and with the period of the spec, with
     /// its own FSM: the spec's graph is not applied, since the stand-in does

@@ -11,8 +11,8 @@
 //!   or for a deployment's process, whose part the layer runs: the robots
 //!   whose `c1` runs in the process plan on a thread of their own (as Rex
 //!   does in real time), the others' (never run here) inline; every `c1`
-//!   of a start carries the start's epoch, so that its `c2` tells a restart
-//!   and sends the lost plans again.
+//!   of a start carries the start's epoch, so that the fleet's `c2` tells
+//!   its restart and sends that robot's lost plans again.
 //! * Its watcher reads every robot as Rex's watcher reads Rex (the same
 //!   probes, tagged with the robot), the world process's truth every 10 ms,
 //!   and judges every plan of every robot against that truth; the run ends
@@ -38,10 +38,12 @@ use embodied::{Finished, Probes, System};
 use serde::{Deserialize, Serialize};
 
 use super::spec::robot_name;
-use super::{Fleet, FleetOutcome, FleetSeen, FleetWatch, Printer, Warehouse};
+use super::{
+    Fleet, FleetHandles, FleetOutcome, FleetSeen, FleetWatch, Printer, Warehouse, dispatch_counters,
+};
 use crate::a1::c1::trajgen::Runtime;
-use crate::run::{Counters, Progress, judge::Verdict as PlanVerdict, last_reports};
-use crate::system::{RexConfig, RexHandles};
+use crate::run::{Counters, Progress, Seen, judge::Verdict as PlanVerdict, last_reports};
+use crate::system::RexConfig;
 
 /// The most robots a fleet may have: one aisle each, every robot's agents in
 /// the spec (the checker and the processes' builds grow with it).
@@ -166,9 +168,9 @@ impl FleetConfig {
 /// The fleet as an [`Application`] of the layer.
 #[derive(Debug, Default)]
 pub struct FleetApp {
-    /// The handles of the fleet last built, in robot order (for its probes
-    /// and last reports).
-    handles: Vec<RexHandles>,
+    /// The handles of the fleet last built (for its probes and last
+    /// reports).
+    handles: Option<FleetHandles>,
 }
 
 impl FleetApp {
@@ -266,7 +268,7 @@ impl Application for FleetApp {
         let deployment = target.deployment().unwrap_or(fleet.deployment());
         let (system, handles) =
             super::build(&spec, deployment, &configs).map_err(|e| AppError::Build(Box::new(e)))?;
-        self.handles = handles;
+        self.handles = Some(handles);
         Ok(system)
     }
 
@@ -290,19 +292,31 @@ impl Application for FleetApp {
     }
 
     fn probes(&mut self, probes: &mut Probes<FleetSeen>, here: &dyn Fn(&str) -> bool) {
-        super::install_probes(probes, &self.handles, here);
+        if let Some(handles) = &self.handles {
+            super::install_probes(probes, handles, here);
+        }
     }
 
     fn finished(&mut self, run: &Finished) -> Vec<FleetSeen> {
-        self.handles
+        let Some(handles) = &self.handles else {
+            return Vec::new();
+        };
+        handles
+            .robots
             .iter()
             .enumerate()
             .flat_map(|(i, h)| {
                 last_reports(run, h).into_iter().map(move |mut seen| {
-                    // The process's executor errors once, not once a robot:
-                    // the layer counts them for the run.
-                    if let crate::run::Seen::Counters(c) = &mut seen {
+                    if let Seen::Counters(c) = &mut seen {
+                        // The process's executor errors once, not once a
+                        // robot: the layer counts them for the run.
                         c.executor_errors = 0;
+                        // What the fleet's c2 counted of this robot, where
+                        // it ran.
+                        embodied::app::Tally::tally(
+                            c.as_mut(),
+                            dispatch_counters(run, &handles.c2, i),
+                        );
                     }
                     FleetSeen::Robot(i, Box::new(seen))
                 })
@@ -426,6 +440,14 @@ fn judgement(out: &FleetOutcome, safety_m: f64, limit_s: f64) -> String {
             let _ = writeln!(text, "robot {i}: {r}");
         }
         let _ = writeln!(text, "robot {i}: {}", robot.summary_line());
+        // What the fleet's c2 counted of this robot: a restart of its c1,
+        // and what was sent to it again.
+        let c = &robot.counters;
+        let _ = writeln!(
+            text,
+            "robot {i}: recovery c1_restarts={} plans_resent={} fragments_repeated={}",
+            c.c1_restarts, c.plans_resent, c.fragments_repeated
+        );
     }
     let c = counters(out);
     let _ = writeln!(

@@ -2,8 +2,14 @@
 //!
 //! * [`spec`]: the fleet's spec, generated from `specs/rex.ron`: per robot `i`
 //!   the agents `a1_i` (c1_i, e11_i, E1_i; r11_i and R1_i with visual
-//!   odometry), `a2_i` (c2_i, its ontology) and `a3_i` (c3_i, r31_i, R3_i, its
-//!   motion capture), checked by the same checker.
+//!   odometry) and `a3_i` (c3_i, r31_i, R3_i, its motion capture), and one
+//!   ontology agent `a2` for the whole fleet, whose `c2`'s groups to and from
+//!   the robots' `c1_i` are fans of M peers (`c2.c1[i].desired_plan`),
+//!   checked by the same checker.
+//! * [`ontology`]: that `c2`: every robot dispatched as Rex's `c2` dispatches
+//!   Rex (its mission's plans one by one, the outcomes kept, the plans not
+//!   settled sent again when the robot's `c1` restarts), by Rex's code, its
+//!   place in Rex's FSM kept per robot.
 //! * [`Warehouse`]: the shared world: walls around rows of shelves; between two
 //!   rows, an aisle; robot `i` has aisle `i`, starts at its west end and is
 //!   sent along it. One environment, [`FleetTruth`], holds every platform's
@@ -17,10 +23,10 @@
 //!   the deployment `grouped_without_vo` launched over Zenoh (`fleet launch
 //!   --deployment grouped_without_vo --robots M --per-process P`), a process
 //!   of robots killed and restarted (`--kill robots_K@SECONDS`: its robots'
-//!   platforms held by their watchdogs meanwhile, their `c2` sending the lost
-//!   plans again to the new `c1`), recorded and replayed. The shared world
-//!   is never restarted (`restarts: 0`: a new one would put every platform
-//!   back at its start).
+//!   platforms held by their watchdogs meanwhile, the fleet's `c2` sending
+//!   those robots' lost plans again to their new `c1`, and only theirs),
+//!   recorded and replayed. The shared world (with `c2`) is never restarted
+//!   (`restarts: 0`: a new one would put every platform back at its start).
 //!
 //! # The collision rule: one aisle per robot
 //!
@@ -38,6 +44,7 @@
 //! is the smallest distance between two robots' true positions, every 10 ms.
 
 pub mod app;
+pub mod ontology;
 pub mod spec;
 
 use std::time::Duration;
@@ -45,23 +52,22 @@ use std::time::Duration;
 use embodied::app::{Watched, Watcher};
 use embodied::spec::Assembly;
 use embodied::spec::model::Spec;
-use embodied::{NoObserver, OffloadMode, Probes, System, Time};
+use embodied::{Finished, NoObserver, OffloadMode, Probes, SubsystemHandle, System, Time};
 
 use crate::a1::c1::c1_fsm;
 use crate::a1::c1::trajgen::Runtime;
 use crate::a1::e11::e11_fsm;
 use crate::a1::r11::{R11Memory, r11_fsm};
 use crate::mission::Mission;
-use crate::payload::{Point2, Pose2};
-use crate::run::{MissionWatch, Outcome, Progress, RunError, Seen, install_probes_as};
+use crate::payload::{Ack, Point2, Pose2};
+use crate::run::{Counters, MissionWatch, Outcome, Progress, RunError, Seen, install_probes_as};
 use crate::system::{self, RexConfig, RexError, RexHandles};
 use crate::world::camera::{Obstacle, Renderer, Room, SceneConfig};
 use crate::world::devices::{FleetTruth, MotionCapture, Platform, StereoCamera, Truth};
-use crate::world::partners::{
-    MapMemory, MocapMemory, OntologyMemory, map_fsm, mocap_receptor_fsm, ontology_fsm,
-};
+use crate::world::partners::{MapMemory, MocapMemory, map_fsm, mocap_receptor_fsm};
 use crate::world::{MapAgentHandles, WorldConfig, WorldError};
-use spec::{PARTS, robot_name};
+use ontology::{FleetOntology, FleetOntologyInput, FleetOntologyMemory, FleetOntologyOutput};
+use spec::{ONTOLOGY, PARTS, robot_name};
 
 /// The warehouse: rows of shelves along x, an aisle between two rows, one aisle
 /// a robot. Row `k` spans `y ∈ [k·pitch, k·pitch + shelf_depth]`, `x ∈ [0,
@@ -325,14 +331,25 @@ impl Fleet {
     }
 }
 
+/// Handles to the parts of a built fleet.
+#[derive(Clone, Debug)]
+pub struct FleetHandles {
+    /// Each robot's parts (a1 and a3), in robot order; none has a `c2` of
+    /// its own ([`RexHandles::c2`] is `None`).
+    pub robots: Vec<RexHandles>,
+    /// The fleet's one `c2`, dispatching to every robot.
+    pub c2: SubsystemHandle<FleetOntology>,
+}
+
 /// Build the fleet (as the spec's deployment `deployment` says, in one process)
 /// with the robots' configurations `configs` (from [`Fleet::configs`]):
-/// every robot's parts, Rex's code under the robot's names, one environment.
+/// every robot's parts, Rex's code under the robot's names, the one `c2`
+/// with a fan of `configs.len()` robots, one environment.
 pub fn build(
     spec: &Spec,
     deployment: &str,
     configs: &[RexConfig],
-) -> Result<(System, Vec<RexHandles>), RexError> {
+) -> Result<(System, FleetHandles), RexError> {
     let mut fleet = Assembly::new(spec, deployment)?;
     let mut truth = FleetTruth::default();
     for (i, config) in configs.iter().enumerate() {
@@ -346,7 +363,15 @@ pub fn build(
         }
     }
     fleet.environment(truth);
-    let mut handles = Vec::with_capacity(configs.len());
+    let robots = configs.len();
+    let c2 = fleet.subsystem_with_buffers(
+        ONTOLOGY.1,
+        FleetOntologyMemory::new(configs.iter().map(|c| c.mission.clone())),
+        ontology::fleet_ontology_fsm()?,
+        FleetOntologyInput::new(robots),
+        FleetOntologyOutput::new(robots),
+    )?;
+    let mut handles = Vec::with_capacity(robots);
     for (i, config) in configs.iter().enumerate() {
         let name = |part: &str| robot_name(part, i);
         let dt = fleet.period(&name("e11"))?.as_secs_f64();
@@ -365,11 +390,6 @@ pub fn build(
         .map_err(WorldError::from)?
         .in_fleet(i);
         let platform = fleet.driver(&name("E1"), platform)?;
-        let c2 = fleet.subsystem(
-            &name("c2"),
-            OntologyMemory::new(config.mission.clone()),
-            ontology_fsm()?,
-        )?;
         let c3 = fleet.subsystem(&name("c3"), MapMemory::default(), map_fsm()?)?;
         let r31 = fleet.subsystem(
             &name("r31"),
@@ -400,12 +420,18 @@ pub fn build(
             c1,
             e11,
             platform,
-            c2: Some(c2),
+            c2: None,
             map: MapAgentHandles { c3, r31, mocap },
             vision,
         });
     }
-    Ok((fleet.build()?, handles))
+    Ok((
+        fleet.build()?,
+        FleetHandles {
+            robots: handles,
+            c2,
+        },
+    ))
 }
 
 /// What a fleet's run produced.
@@ -475,6 +501,10 @@ impl FleetOutcome {
 pub enum FleetSeen {
     /// Robot `.0`'s report, as Rex's probes make it.
     Robot(usize, Box<Seen>),
+    /// What the fleet's `c2` did for the robots it has news of: for each,
+    /// what Rex's `c2` probe reports ([`Seen::C2`]: its new
+    /// acknowledgements, whether its mission ended, the plans sent).
+    Dispatch(Vec<(usize, Seen)>),
     /// Every robot's true pose `(X, Y, φ)` at `at`, in robot order.
     Truths {
         /// The instant of the poses.
@@ -560,6 +590,14 @@ impl Watcher<FleetSeen> for FleetWatch {
                     self.dirty[i] = true;
                 }
             }
+            FleetSeen::Dispatch(robots) => {
+                for (i, seen) in robots {
+                    if let Some(watch) = self.robots.get_mut(i) {
+                        watch.see(seen);
+                        self.dirty[i] = true;
+                    }
+                }
+            }
             FleetSeen::Truths { at, poses } => {
                 if poses.len() != self.robots.len() {
                     return;
@@ -584,22 +622,26 @@ impl Watcher<FleetSeen> for FleetWatch {
     }
 }
 
-/// Probes on the fleet's robots (`handles`, in robot order) for the
-/// components `here` says run in this process (the spec's names, `c1_3`):
-/// each robot's as Rex's, tagged with the robot, but for the truth, read
-/// whole every [`TRUTH_EVERY_NS`] where the platforms run.
+/// Probes on the fleet's robots (`handles`) for the components `here` says
+/// run in this process (the spec's names, `c1_3`, `c2`): each robot's as
+/// Rex's, tagged with the robot, but for the truth, read whole every
+/// [`TRUTH_EVERY_NS`] where the platforms run, and for `c2`, the fleet's one,
+/// whose news of every robot come together ([`FleetSeen::Dispatch`]).
 pub(crate) fn install_probes(
     probes: &mut Probes<FleetSeen>,
-    handles: &[RexHandles],
+    handles: &FleetHandles,
     here: &dyn Fn(&str) -> bool,
 ) {
-    for (i, h) in handles.iter().enumerate() {
+    for (i, h) in handles.robots.iter().enumerate() {
         let here = |name: &str| name != "E1" && here(&robot_name(name, i));
         install_probes_as(probes, h, &here, move |seen| {
             FleetSeen::Robot(i, Box::new(seen))
         });
     }
-    if !(0..handles.len()).any(|i| here(&robot_name("E1", i))) {
+    if here(ONTOLOGY.1) {
+        install_dispatch_probe(probes, &handles.c2);
+    }
+    if !(0..handles.robots.len()).any(|i| here(&robot_name("E1", i))) {
         return;
     }
     probes.environment(|_, w: &FleetTruth| {
@@ -616,6 +658,56 @@ pub(crate) fn install_probes(
                     .collect(),
             })
     });
+}
+
+/// A probe on the fleet's `c2`: for every robot with news (new
+/// acknowledgements, plans sent, its mission ended), what Rex's probe on
+/// Rex's `c2` reports ([`Seen::C2`]).
+fn install_dispatch_probe(probes: &mut Probes<FleetSeen>, c2: &SubsystemHandle<FleetOntology>) {
+    // Per robot: the acknowledgements and plans sent already told, and
+    // whether its end was.
+    let mut told: Vec<(usize, usize, bool)> = Vec::new();
+    probes.subsystem(c2, move |p| {
+        let robots = &p.memory.robots;
+        told.resize(robots.len(), (0, 0, false));
+        let mut news = Vec::new();
+        for (i, (r, told)) in robots.iter().zip(told.iter_mut()).enumerate() {
+            let m = &r.ontology;
+            let halted = p.halted || r.halted();
+            if m.acks.len() == told.0 && m.next == told.1 && halted == told.2 {
+                continue;
+            }
+            let acks: Vec<Ack> = m.acks.get(told.0..).unwrap_or_default().to_vec();
+            *told = (m.acks.len(), m.next, halted);
+            news.push((
+                i,
+                Seen::C2 {
+                    t: p.time,
+                    acks,
+                    halted,
+                    sent: m.next,
+                },
+            ));
+        }
+        (!news.is_empty()).then_some(FleetSeen::Dispatch(news))
+    });
+}
+
+/// What the fleet's `c2` counted of robot `robot` (its `c1`'s restarts, the
+/// plans it sent again, the fragments reported twice), as Rex's counters
+/// count them of Rex's `c2`; zero where `c2` did not run.
+pub(crate) fn dispatch_counters(
+    run: &Finished,
+    c2: &SubsystemHandle<FleetOntology>,
+    robot: usize,
+) -> Counters {
+    let mut c = Counters::default();
+    if let Some(r) = run.memory(c2).and_then(|m| m.robots.get(robot)) {
+        c.c1_restarts = r.ontology.restarts;
+        c.plans_resent = r.ontology.resent;
+        c.fragments_repeated = r.ontology.repeated;
+    }
+    c
 }
 
 /// Every how many nanoseconds the truth is read (for the separation and to
@@ -640,8 +732,13 @@ pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetEr
     let robots: Vec<Outcome> = watch
         .robots
         .iter_mut()
-        .zip(&handles)
-        .map(|(w, h)| w.conclude(&ran, h))
+        .zip(&handles.robots)
+        .enumerate()
+        .map(|(i, (w, h))| {
+            let dispatched = dispatch_counters(&ran.finished, &handles.c2, i);
+            w.see(Seen::Counters(Box::new(dispatched)));
+            w.conclude(&ran, h)
+        })
         .collect();
     Ok(FleetOutcome {
         completed: robots.iter().all(|o| o.completed),

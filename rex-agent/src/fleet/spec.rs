@@ -1,38 +1,48 @@
-//! The spec of a fleet, generated from Rex's: every agent of `specs/rex.ron`
-//! (a1, a2, a3) copied once per robot, each copy's components named with the
-//! robot's index (`a1_3` holds `c1_3`, `e11_3`, `E1_3`...; `a2_3` holds `c2_3`;
-//! `a3_3` holds `c3_3`, `r31_3`, `R3_3`), its groups, reads, targets and links
-//! renamed alike. Nothing is copied by hand: a change to Rex's spec is a change
-//! to every robot of the fleet. The generated spec passes the same checker.
+//! The spec of a fleet, generated from Rex's: Rex's agents a1 and a3 (of
+//! `specs/rex.ron`) copied once per robot, each copy's components named with
+//! the robot's index (`a1_3` holds `c1_3`, `e11_3`, `E1_3`...; `a3_3` holds
+//! `c3_3`, `r31_3`, `R3_3`), its groups, reads, targets and links renamed
+//! alike; and ONE ontology agent `a2` for the whole fleet, whose `c2`
+//! dispatches plans to every robot. Nothing of a robot is copied by hand: a
+//! change to Rex's spec is a change to every robot of the fleet. The
+//! generated spec passes the same checker.
 //!
 //! The code of a copy is Rex's: its groups are named by the code's fields
 //! (`e11`, `c1`), and the fleet's assembly aliases `e11_3` to `e11`
 //! ([`embodied::spec::Assembly::alias`]).
 //!
-//! Why one ontology agent per robot (`a2_3`), not one `a2` for all: a
-//! subsystem's groups are fields of its Rust type, fixed when it is compiled,
-//! and an agent has exactly one control subsystem, so a single `c2` cannot
-//! have M peers chosen when the fleet is built. The dispatching is done once,
-//! in code ([`super::Warehouse::mission`]): every robot's plans come from one
-//! assignment of lanes, and each `c2_i` sends its robot's plans as Rex's `c2`
-//! does.
+//! The fleet's `a2` ([`fleet_a2`]) is Rex's `a2` with its groups made fans
+//! (`peers`: `c1_0` ... `c1_{M-1}`, agent-core's `Fan`, M fixed when the fleet
+//! is built): Rex's links between `c2` and `c1` become, for robot `k`,
+//! `c2.c1[k].desired_plan -> c1_k.c2.desired_plan` and `c1_k.c2.ack ->
+//! c2.c1[k].ack` (and `outcome`, `progress`, `alive`), with Rex's policies.
+//! Its memory, predicates, functions and FSM are those of
+//! [`super::ontology`]: every robot's dispatch, stepped as Rex's `c2` steps
+//! (its behaviours `dispatch` and `done`).
 //!
 //! Deployments: `simulation` (everything in one process), `simulation_without_vo`
 //! (without `r11_i` and `R1_i`), and `grouped_without_vo`: the shared world
 //! (every platform and motion capture, which share the fleet's truth) with the
-//! partner agents in one process (never restarted: a new one would put every
-//! platform back at its start), and the robots' a1 parts in processes
-//! `robots_k` of `per_process` robots each, launched over Zenoh by
-//! [`super::app`] (`fleet launch --deployment grouped_without_vo`).
+//! partner agents (`c2`, every `c3_i` and `r31_i`) in one process (never
+//! restarted: a new one would put every platform back at its start), and the
+//! robots' a1 parts in processes `robots_k` of `per_process` robots each,
+//! launched over Zenoh by [`super::app`] (`fleet launch --deployment
+//! grouped_without_vo`).
 
 use embodied::spec::Report;
-use embodied::spec::model::{Agent, Deployment, Host, Link, Process, Spec, Target};
+use embodied::spec::model::{
+    Agent, Behaviour, BehaviourKind, Buffer, Deployment, Fsm, FsmArc, Function, Host, Link,
+    Predicate, Process, Spec, Target,
+};
 
-/// The components of one robot (a1, a2 and a3 of Rex), the template's names.
-pub const PARTS: [&str; 9] = ["c1", "e11", "r11", "E1", "R1", "c2", "c3", "r31", "R3"];
+/// The components of one robot (a1 and a3 of Rex), the template's names.
+pub const PARTS: [&str; 8] = ["c1", "e11", "r11", "E1", "R1", "c3", "r31", "R3"];
 
 /// The agents of Rex copied for every robot.
-pub const AGENTS: [&str; 3] = ["a1", "a2", "a3"];
+pub const AGENTS: [&str; 2] = ["a1", "a3"];
+
+/// The fleet's one ontology agent and its control subsystem (Rex's names).
+pub const ONTOLOGY: (&str, &str) = ("a2", "c2");
 
 /// The name of part `name` of robot `robot`: `c1_3`.
 pub fn robot_name(name: &str, robot: usize) -> String {
@@ -56,19 +66,24 @@ fn rename_read(read: &str, robot: usize) -> String {
     }
 }
 
-/// A link end `component.peer.buffer` renamed for `robot`.
+/// A link end `component.peer.buffer` renamed for `robot`: a robot's part
+/// gets the robot's index (`c1_3.c2.ack`), the fleet's `c2` its fan's
+/// element (`c2.c1[3].ack`).
 fn rename_end(end: &str, robot: usize) -> String {
     let mut parts = end.splitn(3, '.');
     let (Some(c), Some(peer), Some(buffer)) = (parts.next(), parts.next(), parts.next()) else {
         return end.to_owned();
     };
+    if c == ONTOLOGY.1 {
+        return format!("{c}.{peer}[{robot}].{buffer}");
+    }
     format!("{}.{}.{buffer}", rename(c, robot), rename(peer, robot))
 }
 
 /// The spec of a fleet of `robots` robots made from Rex's spec `rex`; the
 /// grouped deployment puts `per_process` robots' a1 in each process.
 pub fn fleet_spec(rex: &Spec, robots: usize, per_process: usize) -> Spec {
-    let mut agents = Vec::new();
+    let mut agents: Vec<Agent> = fleet_a2(rex, robots).into_iter().collect();
     let mut links = Vec::new();
     for i in 0..robots {
         agents.extend(robot_agents(rex, i));
@@ -129,6 +144,106 @@ fn robot_agents(rex: &Spec, i: usize) -> Vec<Agent> {
     agents
 }
 
+/// The fleet's one ontology agent: Rex's `a2` (`None` if Rex's spec has
+/// none), its `c2`'s groups towards `c1` made fans of the `robots` robots'
+/// `c1_k`, its memory, predicates, functions and FSM those of the fleet's
+/// code ([`super::ontology::fleet_ontology_fsm`]).
+pub fn fleet_a2(rex: &Spec, robots: usize) -> Option<Agent> {
+    let (agent, c2) = ONTOLOGY;
+    let mut a2 = rex.agents.iter().find(|a| a.name == agent)?.clone();
+    a2.doc = Some(format!(
+        "The fleet's ontology agent: one c2 dispatching to the {robots} robots' c1, each as Rex's a2 dispatches Rex ({})",
+        a2.doc
+            .as_deref()
+            .unwrap_or("sends plans, waits for each acknowledgement")
+    ));
+    let s = a2.subsystems.iter_mut().find(|s| s.name == c2)?;
+    let fan: Vec<String> = (0..robots).map(|i| robot_name("c1", i)).collect();
+    for g in s.inputs.iter_mut().chain(s.outputs.iter_mut()) {
+        if g.peer == "c1" {
+            g.peers.clone_from(&fan);
+        }
+    }
+    let text = |t: &str| Some(t.to_owned());
+    let strings = |v: &[&str]| v.iter().map(|&x| x.to_owned()).collect::<Vec<_>>();
+    s.doc = text(
+        "Every robot's dispatch, stepped at each activation as Rex's c2 steps at its own (rex-agent/src/fleet/ontology.rs).",
+    );
+    s.memory = vec![Buffer {
+        name: "robots".into(),
+        ty: "Vec<Dispatch>".into(),
+        doc: text(
+            "each robot's dispatch: Rex's c2 memory (mission, plans sent, acknowledgements, outcomes, c1's incarnation) and its place in Rex's c2 FSM",
+        ),
+    }];
+    s.predicates = vec![Predicate {
+        name: "settled".into(),
+        reads: strings(&["robots"]),
+        doc: text(
+            "every robot's mission settled, its last record made (where Rex's c2 would have halted)",
+        ),
+    }];
+    s.relations.clear();
+    let every = ["robots", "ack", "outcome", "progress", "alive"];
+    let function =
+        |name: &str, target: Target, reads: &[&str], writes: &[&str], doc: &str| Function {
+            name: name.into(),
+            target,
+            reads: strings(reads),
+            writes: strings(writes),
+            doc: text(doc),
+        };
+    s.functions = vec![
+        function(
+            "decide",
+            Target::Common,
+            &every,
+            &["robots"],
+            "each robot's decisions of Rex's c2 on its predicates (more, acked, lost, settled): send, record, or nothing",
+        ),
+        function(
+            "send_plans",
+            Target::Output("c1".into()),
+            &["robots"],
+            &["desired_plan"],
+            "the next plan of each robot that sends one, from its first point not known reached",
+        ),
+        function(
+            "advance",
+            Target::Memory,
+            &every,
+            &["robots"],
+            "each robot's Rex advance after a plan sent, Rex record while it waits",
+        ),
+    ];
+    s.behaviours = vec![
+        Behaviour {
+            name: "dispatch".into(),
+            kind: BehaviourKind::While,
+            functions: strings(&["decide", "send_plans", "advance"]),
+            terminal: "settled".into(),
+            doc: text("every robot's step of Rex's c2"),
+        },
+        Behaviour {
+            name: "done".into(),
+            kind: BehaviourKind::Repeat,
+            functions: Vec::new(),
+            terminal: "true".into(),
+            doc: None,
+        },
+    ];
+    s.fsm = Fsm {
+        initial: text("dispatch"),
+        arcs: vec![FsmArc {
+            from: "dispatch".into(),
+            to: "done".into(),
+            when: "true".into(),
+        }],
+        finals: strings(&["done"]),
+    };
+    Some(a2)
+}
+
 /// The fleet's deployments (see the [module](self)).
 fn deployments(robots: usize, per_process: usize) -> Vec<Deployment> {
     let names = |parts: &[&str], range: std::ops::Range<usize>| -> Vec<String> {
@@ -137,8 +252,8 @@ fn deployments(robots: usize, per_process: usize) -> Vec<Deployment> {
             .collect()
     };
     let one_process = |name: &str, omit: Vec<String>| {
-        let runs = names(&PARTS, 0..robots)
-            .into_iter()
+        let runs = std::iter::once(ONTOLOGY.1.to_owned())
+            .chain(names(&PARTS, 0..robots))
             .filter(|n| !omit.contains(n))
             .collect();
         Deployment {
@@ -161,7 +276,9 @@ fn deployments(robots: usize, per_process: usize) -> Vec<Deployment> {
     let per_process = per_process.max(1);
     let mut processes = vec![Process {
         name: "world".into(),
-        runs: names(&["E1", "R3", "c2", "c3", "r31"], 0..robots),
+        runs: std::iter::once(ONTOLOGY.1.to_owned())
+            .chain(names(&["E1", "R3", "c3", "r31"], 0..robots))
+            .collect(),
         listen: None,
         // The fleet's truth lives in this process: a new one would put every
         // platform back at its start.

@@ -125,6 +125,35 @@ impl OntologyMemory {
     fn last_sent(&self) -> Option<u32> {
         self.next.checked_sub(1).map(|k| k as u32 + 1)
     }
+
+    /// Whether a plan of the mission is left to send (the predicate `more`).
+    pub fn more(&self) -> bool {
+        self.next < self.mission.plans.len()
+    }
+
+    /// Whether the last plan sent was acknowledged as ready, now (`x`) or
+    /// before by this incarnation of `c1` (the predicate `acked`).
+    pub fn acked(&self, x: &OntologyFromC1) -> bool {
+        self.last_sent().is_some_and(|id| {
+            self.answered.contains(&id) || x.ack.fresh().is_some_and(|a| a.plan == id && a.ready())
+        })
+    }
+
+    /// The plan [`OntologyMemory::to_send`] gave was sent: keep what arrived
+    /// with `x`, and go on to the next plan (the function `advance`).
+    pub fn advance(&mut self, x: &OntologyFromC1) {
+        keep(self, x);
+        self.lost = false;
+        self.next += 1;
+    }
+
+    /// Keep a fresh final acknowledgement, a fresh outcome and progress; when
+    /// `c1` is a new incarnation, go back to the first plan it does not have
+    /// (the function `record`, run by every behaviour that waits).
+    pub fn record(&mut self, x: &OntologyFromC1) {
+        keep(self, x);
+        watch(self, x);
+    }
 }
 
 /// `c2`'s inputs from `c1`.
@@ -167,25 +196,24 @@ pub struct OntologyOutput {
 /// acting behaviour runs it, so none is lost); when `c1` is a new incarnation,
 /// go back to the first plan it does not have ([`watch`]).
 fn record(m: &mut OntologyMemory, x: &OntologyInput) {
-    keep(m, x);
-    watch(m, x);
+    m.record(&x.c1);
 }
 
 /// Keep a fresh final acknowledgement, a fresh outcome and progress. Those of
 /// a plan `c2` does not own (another sender's) are kept in `acks` and
 /// `outcomes` for the watcher, but never answer a wait, and their progress
 /// is not a resumption point ([`OntologyMemory::owns`]).
-fn keep(m: &mut OntologyMemory, x: &OntologyInput) {
-    if let Some(ack) = x.c1.ack.fresh().filter(|a| a.ready()) {
+fn keep(m: &mut OntologyMemory, x: &OntologyFromC1) {
+    if let Some(ack) = x.ack.fresh().filter(|a| a.ready()) {
         if m.owns(ack.plan) {
             m.answered.insert(ack.plan);
         }
         m.acks.push(ack.clone());
     }
-    if let Some(o) = x.c1.outcome.fresh() {
+    if let Some(o) = x.outcome.fresh() {
         m.outcomes.push(o.clone());
     }
-    if let Some(p) = x.c1.progress.fresh().filter(|p| m.owns(p.plan)) {
+    if let Some(p) = x.progress.fresh().filter(|p| m.owns(p.plan)) {
         let points = m
             .mission
             .plans
@@ -207,8 +235,8 @@ fn keep(m: &mut OntologyMemory, x: &OntologyInput) {
 /// and is not settled: it will be sent again. Not while a plan is being sent
 /// (`send`): `c1`'s `alive` read then was written before it could have the
 /// plan; the next activation looks.
-fn watch(m: &mut OntologyMemory, x: &OntologyInput) {
-    if let Some(&alive) = x.c1.alive.get()
+fn watch(m: &mut OntologyMemory, x: &OntologyFromC1) {
+    if let Some(&alive) = x.alive.get()
         && m.boot != Some(alive.boot)
     {
         // A new incarnation has none of the plans sent before; the first one
@@ -235,14 +263,9 @@ fn watch(m: &mut OntologyMemory, x: &OntologyInput) {
 /// outcome after the last one is sent, `done` is final.
 pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
     Fsm::builder()
-        .predicate("more", |m: &OntologyMemory, _| {
-            m.next < m.mission.plans.len()
-        })
+        .predicate("more", |m: &OntologyMemory, _| m.more())
         .predicate("acked", |m: &OntologyMemory, x: &OntologyInput| {
-            m.last_sent().is_some_and(|id| {
-                m.answered.contains(&id)
-                    || x.c1.ack.fresh().is_some_and(|a| a.plan == id && a.ready())
-            })
+            m.acked(&x.c1)
         })
         .predicate("lost", |m: &OntologyMemory, _| m.lost)
         .behaviour(Behaviour::while_loop(
@@ -264,11 +287,7 @@ pub fn ontology_fsm() -> Result<Fsm<Ontology>, FsmBuildError> {
                     },
                 )
                 .named("send_plan")
-                .memory(|m: &mut OntologyMemory, x: &OntologyInput| {
-                    keep(m, x);
-                    m.lost = false;
-                    m.next += 1;
-                })
+                .memory(|m: &mut OntologyMemory, x: &OntologyInput| m.advance(&x.c1))
                 .named("advance"),
             "true",
         ))
@@ -520,4 +539,4 @@ pub fn map_fsm() -> Result<Fsm<MapAgent>, FsmBuildError> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -93,8 +93,8 @@ fn the_ontology_sends_every_plan_and_finishes() {
 /// what it held is lost. It executes a plan's points one per `step`
 /// activations, reporting each as progress, and reports the plan reached
 /// after its last point; it acknowledges `Done` (early) when it starts the
-/// last point.
-struct Crasher {
+/// last point. (The fleet's `c2` is driven by it too, robot by robot.)
+pub(crate) struct Crasher {
     step: u64,
     crash_at: u64,
     down: u64,
@@ -108,11 +108,29 @@ struct Crasher {
     /// Every plan received, as received.
     received: Vec<Plan>,
     /// Points executed to their end, by plan and point.
-    executed: Vec<(u32, u32)>,
+    pub(crate) executed: Vec<(u32, u32)>,
 }
 
 impl Crasher {
-    fn inputs(&mut self, k: u64, previous: &OntologyOutput, x: &mut OntologyInput) {
+    /// A `c1` executing a point every `step` activations, crashing at
+    /// `crash_at` for `down` activations, in incarnation `boot` first.
+    pub(crate) fn new(step: u64, crash_at: u64, down: u64, boot: u64) -> Self {
+        Crasher {
+            step,
+            crash_at,
+            down,
+            boot,
+            newest: 0,
+            running: None,
+            waiting: Default::default(),
+            received: Vec::new(),
+            executed: Vec::new(),
+        }
+    }
+
+    /// What `c1` sends at activation `k` of `c2`, given what `c2` sent at the
+    /// previous one.
+    pub(crate) fn inputs(&mut self, k: u64, previous: &OntologyOutput, x: &mut OntologyInput) {
         let up = !(self.crash_at..self.crash_at + self.down).contains(&k);
         if k == self.crash_at {
             self.boot += 1;
@@ -217,17 +235,7 @@ fn plans_lost_with_a_crashed_c1_are_sent_again_from_where_they_got_to() {
     };
     // A crash at every moment of the mission (and one after it).
     for crash_at in 0..40 {
-        let mut env = Crasher {
-            step: 3,
-            crash_at,
-            down: 4,
-            boot: 7,
-            newest: 0,
-            running: None,
-            waiting: Default::default(),
-            received: Vec::new(),
-            executed: Vec::new(),
-        };
+        let mut env = Crasher::new(3, crash_at, 4, 7);
         let mut m = OntologyMemory::new(mission.clone());
         let mut st = fsm.start();
         let mut y = OntologyOutput::default();
