@@ -99,20 +99,7 @@ fn each_robot_is_dispatched_as_rexs_c2_dispatches_rex_activation_by_activation()
         // crashed robots' plans sent again, the other's not.
         for (j, (env, dispatch)) in envs.iter().zip(&memory.robots).enumerate() {
             let m = &dispatch.ontology;
-            for id in 1..=m.mission.plans.len() as u32 {
-                assert!(
-                    m.outcomes.iter().any(|o| o.plan == id && o.reached()),
-                    "crash at {crash_at}: robot {j}'s plan {id} not reached"
-                );
-                let done: Vec<u32> = env
-                    .executed
-                    .iter()
-                    .filter(|e| e.0 == id)
-                    .map(|e| e.1)
-                    .collect();
-                assert_eq!(done, [0, 1, 2], "crash at {crash_at}, robot {j}, plan {id}");
-            }
-            assert_eq!(m.repeated, 0);
+            env.every_plan_reached_once(m, 3, &format!("crash at {crash_at}, robot {j}"));
             if j == 3 {
                 assert_eq!((m.restarts, m.resent), (0, 0), "crash at {crash_at}");
             }

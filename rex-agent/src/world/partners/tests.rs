@@ -128,6 +128,26 @@ impl Crasher {
         }
     }
 
+    /// Assert that every plan of `m`'s mission was reached (its outcome in
+    /// `m`) and each of its `points` points executed once, in order, and no
+    /// fragment reported twice; `at` says which case.
+    pub(crate) fn every_plan_reached_once(&self, m: &OntologyMemory, points: u32, at: &str) {
+        for id in 1..=m.mission.plans.len() as u32 {
+            assert!(
+                m.outcomes.iter().any(|o| o.plan == id && o.reached()),
+                "{at}: plan {id} not reached; {m:?}"
+            );
+            let done: Vec<u32> = self
+                .executed
+                .iter()
+                .filter(|e| e.0 == id)
+                .map(|e| e.1)
+                .collect();
+            assert_eq!(done, (0..points).collect::<Vec<_>>(), "{at}, plan {id}");
+        }
+        assert_eq!(m.repeated, 0, "{at}");
+    }
+
     /// What `c1` sends at activation `k` of `c2`, given what `c2` sent at the
     /// previous one.
     pub(crate) fn inputs(&mut self, k: u64, previous: &OntologyOutput, x: &mut OntologyInput) {
@@ -248,21 +268,8 @@ fn plans_lost_with_a_crashed_c1_are_sent_again_from_where_they_got_to() {
             k += 1;
             assert!(k < 200, "crash at {crash_at}: no end; {m:?}");
         }
-        // Every plan reached, every point executed once, in order.
-        for id in 1..=plans as u32 {
-            assert!(
-                m.outcomes.iter().any(|o| o.plan == id && o.reached()),
-                "crash at {crash_at}: plan {id} not reached; {m:?}"
-            );
-            let done: Vec<u32> = env
-                .executed
-                .iter()
-                .filter(|e| e.0 == id)
-                .map(|e| e.1)
-                .collect();
-            assert_eq!(done, [0, 1, 2], "crash at {crash_at}, plan {id}");
-        }
-        assert_eq!(m.repeated, 0);
+        assert_eq!(m.mission.plans.len(), plans);
+        env.every_plan_reached_once(&m, points, &format!("crash at {crash_at}"));
         let crashed = m.restarts > 0;
         assert_eq!(m.restarts, u32::from(crashed));
         // A plan sent again starts after the points known done.
