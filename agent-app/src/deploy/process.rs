@@ -151,16 +151,7 @@ pub(crate) fn run<A: Application>(
     let refused = say_refused_links(&finished);
     let errors = contracts::run_errors(report, contracts.as_ref(), on_error(common));
     vigil.send_end(report, errors, (overruns, refused), refusals.as_ref());
-    let Vigil {
-        undeliverable,
-        stopped,
-        ..
-    } = vigil;
-    if undeliverable > 0 {
-        output::warn(format_args!(
-            "{undeliverable} reports could not be sent to the launcher"
-        ));
-    }
+    let stopped = vigil.close();
     if let Some(r) = &refusals {
         say_refusals(r);
     }
@@ -491,6 +482,18 @@ struct Vigil<'m> {
 }
 
 impl Vigil<'_> {
+    /// The end of the watch: warns of the reports the launcher could not be
+    /// sent; returns why the process was stopped, if it was.
+    fn close(self) -> Option<String> {
+        if self.undeliverable > 0 {
+            output::warn(format_args!(
+                "{} reports could not be sent to the launcher",
+                self.undeliverable
+            ));
+        }
+        self.stopped
+    }
+
     /// Send one report to the launcher; count what cannot go.
     fn send<T: serde::Serialize>(&mut self, name: &str, value: &T) {
         observe(self.member, name, value, &mut self.undeliverable);
