@@ -11,7 +11,6 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-#[path = "../../agent-core/tests/common/mod.rs"]
 mod common;
 
 use std::process::{Command, Stdio};
@@ -84,17 +83,7 @@ fn child_main(
             std::process::exit(3);
         }
     };
-    let mut rt = RealTime::new(
-        system,
-        RtConfig {
-            exec: ExecConfig {
-                on_error: OnError::Continue,
-                ..ExecConfig::default()
-            },
-            ..RtConfig::default()
-        },
-    );
-    rt.place(member.placement().unwrap()).unwrap();
+    let rt = placed(system, &mut member);
     let mut origin = None;
     let running = match rt.start_when(Duration::from_millis(limit_ms), || {
         let zero = member.ready(Duration::from_millis(300));

@@ -13,7 +13,6 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-#[path = "../../agent-core/tests/common/mod.rs"]
 mod common;
 
 use std::sync::Arc;
@@ -63,17 +62,7 @@ fn process(process: &'static str, port: u16, every: u64) -> std::thread::JoinHan
             ..Options::default()
         };
         let mut member = Member::join(&spec(), "two", process, &options).unwrap();
-        let mut rt = RealTime::new(
-            system,
-            RtConfig {
-                exec: ExecConfig {
-                    on_error: OnError::Continue,
-                    ..ExecConfig::default()
-                },
-                ..RtConfig::default()
-            },
-        );
-        rt.place(member.placement().unwrap()).unwrap();
+        let rt = placed(system, &mut member);
         let running = rt
             .start_when(RUN, || member.ready(Duration::from_millis(300)))
             .unwrap();
