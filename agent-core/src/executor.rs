@@ -153,6 +153,8 @@ pub struct Executor<O: Observer = NoObserver> {
     pub(crate) now: Time,
     config: ExecConfig,
     pub(crate) observer: O,
+    /// Per link, the sends and reads the observer needs (asked at the start).
+    link_events: Vec<crate::trace::LinkEvents>,
     started: bool,
     stopped: bool,
     pub(crate) report: RunReport,
@@ -235,6 +237,7 @@ impl<O: Observer> Executor<O> {
             now: Time::ZERO,
             config,
             observer,
+            link_events: Vec::new(),
             started: false,
             stopped: false,
             report: RunReport::default(),
@@ -318,6 +321,10 @@ impl<O: Observer> Executor<O> {
         if !self.started {
             self.started = true;
             self.observer.start(&self.info);
+            if self.observer.enabled() {
+                let links = 0..self.info.links.len();
+                self.link_events = links.map(|l| self.observer.link_events(l)).collect();
+            }
         }
         if self.schedule.stale {
             self.schedule = Schedule::new(&self.next, &self.periods, &self.order);
@@ -348,6 +355,7 @@ impl<O: Observer> Executor<O> {
         let mut cx = LinkCx {
             time: t,
             observer: observe.then_some(&mut self.observer as &mut dyn Observer),
+            wants: &self.link_events,
             links: &self.info.links,
             environment: None,
         };
@@ -388,6 +396,7 @@ impl<O: Observer> Executor<O> {
             let mut cx = LinkCx {
                 time: t,
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
+                wants: &self.link_events,
                 links: &self.info.links,
                 environment: self.environment.as_deref_mut(),
             };

@@ -18,8 +18,10 @@ use crate::time::{Period, Stamp, Time};
 
 mod forward;
 mod pick;
+mod wants;
 
 pub use pick::{FieldPath, PickError};
+pub use wants::{LinkEvents, NumberBound, within};
 
 /// A value in a buffer, seen through the observer without knowing its type.
 pub trait ErasedPayload {
@@ -221,6 +223,15 @@ pub trait Observer: Send {
     /// with [`ExecConfig::audit`](crate::ExecConfig::audit); before the action's
     /// [`Observer::action`]).
     fn audit(&mut self, _event: &AuditEvent) {}
+    /// Which of link `link`'s sends and reads this observer needs
+    /// ([`LinkEvents`]): asked once per link, at the start of a run of the
+    /// deterministic executor, which then leaves out the others where the
+    /// link sends or reads. Every event by default. A hint only: the
+    /// observer must see the same whether or not it gets what it did not ask
+    /// for (other executors and other observers of the run may deliver it).
+    fn link_events(&self, _link: usize) -> LinkEvents {
+        LinkEvents::all()
+    }
     /// A value was sent into a link.
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// A node took a value from a link (before its activation's step).

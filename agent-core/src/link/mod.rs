@@ -25,7 +25,7 @@ use crate::buffer::{In, Out, Payload};
 use crate::error::LinkError;
 use crate::kinds::{NodeKind, Policy};
 use crate::time::{Stamp, Time};
-use crate::trace::{LinkInfo, Observer, ReadEvent, TransferEvent};
+use crate::trace::{LinkEvents, LinkInfo, Observer, ReadEvent, TransferEvent};
 
 mod by_name;
 
@@ -385,6 +385,8 @@ pub(crate) struct LinkCx<'a> {
     /// The instant being executed.
     pub(crate) time: Time,
     pub(crate) observer: Option<&'a mut dyn Observer>,
+    /// Per link, the sends and reads the observer needs (none given: all).
+    pub(crate) wants: &'a [LinkEvents],
     pub(crate) links: &'a [LinkInfo],
     /// The system's environment, for drivers.
     pub(crate) environment: Option<&'a mut (dyn std::any::Any + Send)>,
@@ -472,7 +474,9 @@ impl<O, T: Payload, A> LocalOut<O, T, A> {
         stamp: Stamp,
         cx: &mut LinkCx<'_>,
     ) -> Result<(), Refused> {
-        if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref()) {
+        if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref())
+            && cx.wants.get(*link).is_none_or(|w| w.transfer(v))
+        {
             obs.transfer(&TransferEvent { link: *link, stamp }, v);
         }
         channel
@@ -525,6 +529,7 @@ pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
     if let Some(obs) = cx.observer.as_deref_mut()
         && x.is_new()
         && let Some(stamp) = x.stamp()
+        && cx.wants.get(link).is_none_or(|w| w.reads)
     {
         obs.read(&ReadEvent {
             time: cx.time,

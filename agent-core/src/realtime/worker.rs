@@ -330,6 +330,7 @@ impl<'a> Thread<'a> {
         let mut cx = LinkCx {
             time: now,
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
+            wants: &[],
             links: &self.shared.info.links,
             environment: None,
         };
@@ -371,6 +372,7 @@ impl<'a> Thread<'a> {
         let mut cx = LinkCx {
             time: now,
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
+            wants: &[],
             links: &shared.info.links,
             environment: self.environment.as_deref_mut(),
         };

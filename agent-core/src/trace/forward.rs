@@ -7,8 +7,8 @@ use crate::fsm::Valuation;
 use crate::time::Time;
 
 use super::{
-    ActionEvent, AuditEvent, ErasedPayload, Observer, ReadEvent, SystemInfo, TransferEvent,
-    TransitionEvent,
+    ActionEvent, AuditEvent, ErasedPayload, LinkEvents, Observer, ReadEvent, SystemInfo,
+    TransferEvent, TransitionEvent,
 };
 
 /// A boxed observer observes as the box's content does.
@@ -27,6 +27,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn audit(&mut self, event: &AuditEvent) {
         (**self).audit(event);
+    }
+    fn link_events(&self, link: usize) -> LinkEvents {
+        (**self).link_events(link)
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         (**self).transfer(event, value);
@@ -88,6 +91,16 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         if self.1.enabled() {
             self.1.audit(event);
         }
+    }
+    fn link_events(&self, link: usize) -> LinkEvents {
+        let events = |o: &dyn Observer| {
+            if o.enabled() {
+                o.link_events(link)
+            } else {
+                LinkEvents::none()
+            }
+        };
+        events(&self.0).union(events(&self.1))
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         if self.0.enabled() {
@@ -182,6 +195,10 @@ impl<O: Observer> Observer for Option<O> {
         if let Some(o) = self {
             o.audit(event);
         }
+    }
+    fn link_events(&self, link: usize) -> LinkEvents {
+        self.as_ref()
+            .map_or_else(LinkEvents::none, |o| o.link_events(link))
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         if let Some(o) = self {

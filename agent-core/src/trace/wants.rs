@@ -1,0 +1,156 @@
+//! Which of a link's events an observer needs ([`LinkEvents`], asked once per
+//! link at the start of a run, [`Observer::link_events`](super::Observer::link_events)):
+//! the executor leaves out the others where the link sends or reads, before
+//! any call to the observer. A contract monitor's range is a check compiled
+//! into the sending link this way ([`NumberBound`]): the number at its field
+//! path is read from the typed value as it is sent, and the observer hears of
+//! the value only when it is out of bounds (or cannot be read).
+
+use serde::Serialize;
+
+use super::pick::FieldPath;
+
+/// Whether `x` lies within `[min, max]` (either end open when `None`; NaN
+/// lies beyond any end given): the one definition of a range, shared by the checks
+/// compiled into links and the monitors that judge them.
+#[inline]
+pub fn within(x: f64, min: Option<f64>, max: Option<f64>) -> bool {
+    min.is_none_or(|m| x >= m) && max.is_none_or(|m| x <= m)
+}
+
+/// A number inside a link's values, by its field path, and the bounds it is
+/// expected within.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NumberBound {
+    /// Where the number is in each value.
+    pub path: FieldPath,
+    /// The least expected.
+    pub min: Option<f64>,
+    /// The greatest expected.
+    pub max: Option<f64>,
+}
+
+impl NumberBound {
+    /// Whether `value` breaks the bound: its number is outside it, or it
+    /// cannot be read (a failing `Serialize` impl). A value without a number
+    /// at the path breaks nothing.
+    #[inline]
+    pub fn broken_by<T: Serialize + ?Sized>(&self, value: &T) -> bool {
+        match self.path.number(value) {
+            Ok(Some(x)) => !within(x, self.min, self.max),
+            Ok(None) => false,
+            Err(_) => true,
+        }
+    }
+}
+
+/// The events of one link an observer needs (see the module docs). It is a
+/// hint: an executor may deliver more (a pair of observers gets the union of
+/// their needs, the real-time executor every event), and an observer judges
+/// the same whether or not it gets the events it did not ask for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkEvents {
+    /// Every value sent ([`Observer::transfer`](super::Observer::transfer)).
+    pub transfers: bool,
+    /// Without `transfers`: the values sent that break one of these bounds,
+    /// checked on the typed value where it is sent.
+    pub out_of: Vec<NumberBound>,
+    /// Every value taken ([`Observer::read`](super::Observer::read)).
+    pub reads: bool,
+}
+
+impl Default for LinkEvents {
+    /// Every event.
+    fn default() -> Self {
+        LinkEvents::all()
+    }
+}
+
+impl LinkEvents {
+    /// Every event of the link.
+    pub fn all() -> LinkEvents {
+        LinkEvents {
+            transfers: true,
+            out_of: Vec::new(),
+            reads: true,
+        }
+    }
+
+    /// None of the link's sends and reads.
+    pub fn none() -> LinkEvents {
+        LinkEvents {
+            transfers: false,
+            out_of: Vec::new(),
+            reads: false,
+        }
+    }
+
+    /// What either `self` or `other` needs.
+    pub fn union(mut self, other: LinkEvents) -> LinkEvents {
+        self.transfers |= other.transfers;
+        self.reads |= other.reads;
+        if self.transfers {
+            self.out_of.clear();
+        } else {
+            self.out_of.extend(other.out_of);
+        }
+        self
+    }
+
+    /// Whether the observer needs the send of `value`.
+    #[inline]
+    pub fn transfer<T: Serialize + ?Sized>(&self, value: &T) -> bool {
+        self.transfers || self.out_of.iter().any(|b| b.broken_by(value))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bound(path: &str, min: f64, max: f64) -> NumberBound {
+        NumberBound {
+            path: FieldPath::parse(path),
+            min: Some(min),
+            max: Some(max),
+        }
+    }
+
+    #[test]
+    fn a_value_is_delivered_when_it_breaks_a_bound_only() {
+        let w = LinkEvents {
+            transfers: false,
+            out_of: vec![bound("0", -1.0, 1.0), bound("2", 0.0, 0.0)],
+            reads: false,
+        };
+        assert!(!w.transfer(&[0.5f64, 9.0, 0.0]), "within both");
+        assert!(
+            !w.transfer(&[1.0f64, 9.0, 0.0]),
+            "a bound is never broken by equality"
+        );
+        assert!(w.transfer(&[1.5f64, 0.0, 0.0]), "the first broken");
+        assert!(w.transfer(&[0.0f64, 0.0, -0.1]), "the second broken");
+        assert!(w.transfer(&[f64::NAN, 0.0, 0.0]), "NaN is within nothing");
+        assert!(!w.transfer(&[0.0f64]), "no number at the second path");
+        assert!(!LinkEvents::none().transfer(&[99.0f64]));
+        assert!(LinkEvents::all().transfer(&[0.0f64]));
+    }
+
+    #[test]
+    fn a_union_needs_what_either_needs() {
+        let some = LinkEvents {
+            transfers: false,
+            out_of: vec![bound("0", -1.0, 1.0)],
+            reads: false,
+        };
+        let u = some.clone().union(LinkEvents::none());
+        assert_eq!(u, some);
+        let u = LinkEvents::none().union(some.clone());
+        assert_eq!(u, some);
+        let u = some.clone().union(LinkEvents::all());
+        assert_eq!(u, LinkEvents::all(), "every value: the bounds are moot");
+        let u = some.clone().union(some.clone());
+        assert_eq!(u.out_of.len(), 2);
+        assert!(within(1.0, None, Some(1.0)) && !within(f64::NAN, Some(0.0), None));
+    }
+}
