@@ -421,17 +421,36 @@ pub fn default_spec() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs/rex.ron")
 }
 
-/// Handles to the parts of a built Rex system.
+/// Handles to the parts of a built Rex system: a robot ([`RobotHandles`],
+/// which it dereferences to) with its own ontology agent a2.
 #[derive(Clone, Copy, Debug)]
 pub struct RexHandles {
+    /// The robot's parts (its `c2` is [`RexHandles::c2`]).
+    pub robot: RobotHandles,
+    /// a2's control subsystem.
+    pub c2: SubsystemHandle<Ontology>,
+}
+
+impl std::ops::Deref for RexHandles {
+    type Target = RobotHandles;
+
+    fn deref(&self) -> &RobotHandles {
+        &self.robot
+    }
+}
+
+/// Handles to the parts of one robot of Rex's kind: a whole Rex's
+/// ([`RexHandles`]) or a robot's of a fleet (`crate::fleet`).
+#[derive(Clone, Copy, Debug)]
+pub struct RobotHandles {
     /// a1's control subsystem.
     pub c1: SubsystemHandle<C1>,
     /// a1's virtual effector.
     pub e11: SubsystemHandle<E11>,
     /// The platform.
     pub platform: DriverHandle<Platform>,
-    /// a2's control subsystem: Rex's own; none for a robot of a fleet, whose
-    /// plans come from the fleet's one `c2` (`crate::fleet`).
+    /// The robot's own a2's control subsystem: a whole Rex's; none for a
+    /// robot of a fleet, whose plans come from the fleet's one `c2`.
     pub c2: Option<SubsystemHandle<Ontology>>,
     /// The map agent.
     pub map: MapAgentHandles,
@@ -531,12 +550,15 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     Ok((
         system,
         RexHandles {
-            c1,
-            e11,
-            platform,
-            c2: Some(c2),
-            map,
-            vision,
+            robot: RobotHandles {
+                c1,
+                e11,
+                platform,
+                c2: Some(c2),
+                map,
+                vision,
+            },
+            c2,
         },
     ))
 }

@@ -623,7 +623,7 @@ fn a_platform_pushed_out_of_the_free_space_is_stopped_and_its_plan_failed() {
     let (at, why) = e11.stops.first().cloned().expect("a stop");
     assert!(at < 4.5, "stopped at {at} s");
     assert!(why.contains("not 0.45 m inside the room"), "{why}");
-    let c2 = exec.memory(&h.c2.unwrap()).unwrap();
+    let c2 = exec.memory(&h.c2).unwrap();
     let failed = |plan: u32| {
         c2.acks
             .iter()

@@ -61,7 +61,7 @@ use crate::a1::r11::{R11Memory, r11_fsm};
 use crate::mission::Mission;
 use crate::payload::{Ack, Point2, Pose2};
 use crate::run::{Counters, MissionWatch, Outcome, Progress, RunError, Seen, install_probes_as};
-use crate::system::{self, RexConfig, RexError, RexHandles};
+use crate::system::{self, RexConfig, RexError, RobotHandles};
 use crate::world::camera::{Obstacle, Renderer, Room, SceneConfig};
 use crate::world::devices::{FleetTruth, MotionCapture, Platform, StereoCamera, Truth};
 use crate::world::partners::{MapMemory, MocapMemory, map_fsm, mocap_receptor_fsm};
@@ -335,8 +335,8 @@ impl Fleet {
 #[derive(Clone, Debug)]
 pub struct FleetHandles {
     /// Each robot's parts (a1 and a3), in robot order; none has a `c2` of
-    /// its own ([`RexHandles::c2`] is `None`).
-    pub robots: Vec<RexHandles>,
+    /// its own ([`RobotHandles::c2`] is `None`).
+    pub robots: Vec<RobotHandles>,
     /// The fleet's one `c2`, dispatching to every robot.
     pub c2: SubsystemHandle<FleetOntology>,
 }
@@ -416,7 +416,7 @@ pub fn build(
         } else {
             None
         };
-        handles.push(RexHandles {
+        handles.push(RobotHandles {
             c1,
             e11,
             platform,

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Outcome, Progress, Sample};
 use crate::payload::{Ack, PlanOutcome, Point2};
-use crate::system::{RexConfig, RexHandles};
+use crate::system::{RexConfig, RobotHandles};
 use crate::world::devices::{MotionCapture, Truth};
 
 /// One report of a probe on Rex (or of a process at its end): what a run's
@@ -222,7 +222,7 @@ impl Collector {
 /// pose) and the motion capture (deliveries).
 pub(crate) fn install_probes(
     probes: &mut Probes<Seen>,
-    h: &RexHandles,
+    h: &RobotHandles,
     here: &dyn Fn(&str) -> bool,
 ) {
     // In the order they always were: e11, c1, c2, the truth, the motion capture.
@@ -246,7 +246,7 @@ pub(crate) fn install_probes(
 /// itself).
 pub(crate) fn install_probes_as<M: Send + 'static>(
     probes: &mut Probes<M>,
-    h: &RexHandles,
+    h: &RobotHandles,
     here: &dyn Fn(&str) -> bool,
     tag: impl Fn(Seen) -> M + Clone + Send + 'static,
 ) {

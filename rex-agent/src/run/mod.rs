@@ -25,7 +25,7 @@ use embodied::app::{Ran, Tally, Watched, Watcher, figures};
 use embodied::{ExecError, Finished, NoObserver};
 
 use crate::payload::{Ack, AckStatus, PlanOutcome};
-use crate::system::{RexConfig, RexError, RexHandles, build};
+use crate::system::{RexConfig, RexError, RobotHandles, build};
 use judge::{PlanReport, Verdict};
 
 /// One sample of a run, at every activation of `e11`.
@@ -367,7 +367,7 @@ impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
 
     /// The end of a run in this process: the last reports read off its
     /// nodes, then the outcome.
-    pub(crate) fn conclude(&mut self, ran: &Ran, h: &RexHandles) -> Outcome {
+    pub(crate) fn conclude(&mut self, ran: &Ran, h: &RobotHandles) -> Outcome {
         ran.conclude(self, last_reports(&ran.finished, h));
         self.outcome(
             ran.wall.as_secs_f64(),
@@ -388,7 +388,7 @@ impl<P: FnMut(Progress<'_>)> Watcher<Seen> for MissionWatch<P> {
 
 /// What a run's nodes say at its end (those this process ran): the counters,
 /// and the names of the planner, tracker and estimator.
-pub(crate) fn last_reports(run: &Finished, h: &RexHandles) -> Vec<Seen> {
+pub(crate) fn last_reports(run: &Finished, h: &RobotHandles) -> Vec<Seen> {
     let mut counters = Counters::default();
     finish_counters(run, h, &mut counters);
     counters.executor_errors = run.report().error_count;
@@ -404,7 +404,7 @@ pub(crate) fn last_reports(run: &Finished, h: &RexHandles) -> Vec<Seen> {
 }
 
 /// The counters of a run, read at its end; returns how many plans `a2` sent.
-pub(crate) fn finish_counters(x: &Finished, h: &RexHandles, c: &mut Counters) -> usize {
+pub(crate) fn finish_counters(x: &Finished, h: &RobotHandles, c: &mut Counters) -> usize {
     if let Some(m) = x.memory(&h.e11) {
         c.fragments_received = m.track.received;
         c.fragments_completed = m.track.completed;

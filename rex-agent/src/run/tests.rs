@@ -319,8 +319,7 @@ fn a_listening_rex_executes_and_acknowledges_a_plan_fed_into_c1_from_outside() {
     assert_eq!((s.delivered, s.refused), (1, 0), "{s:?}");
     assert_eq!(report.error_count, 0, "{report}");
     // a2 sent nothing and did not halt.
-    let c2 = h.c2.and_then(|c2| finished.memory(&c2));
-    let c2 = c2.expect("c2 ran here");
+    let c2 = finished.memory(&h.c2).expect("c2 ran here");
     assert_eq!(c2.next, 0);
     assert!(c2.acks.iter().any(|a| a.plan == 41 && a.ready()));
     assert!(c2.answered.is_empty() && c2.done.is_empty());
