@@ -148,7 +148,7 @@ pub fn run_case(
     camera_scale: f64,
 ) -> Result<SoakResult, RunError> {
     let mut world = WorldConfig::shipped()
-        .map_err(|e| RunError::Build(crate::system::RexError::World(e.into())))?;
+        .map_err(|e| RunError::Build(Box::new(crate::system::RexError::World(e.into()))))?;
     // The camera's resolution changes; its calibration follows from it.
     world.surfaces.default = "concrete".into();
     world.surfaces.patches.clear();

@@ -726,9 +726,7 @@ pub fn run_fleet(fleet: &Fleet, limit: Duration) -> Result<FleetOutcome, FleetEr
     let exec = fleet.base.exec;
     let mut run = Watched::new(&mut watch, limit);
     install_probes(&mut run.probes, &handles, &|_| true);
-    let (ran, _) = run
-        .simulate(system, exec, NoObserver)
-        .map_err(RunError::from)?;
+    let (ran, _) = run.simulate(system, exec, NoObserver)?;
     let robots: Vec<Outcome> = watch
         .robots
         .iter_mut()

@@ -21,11 +21,11 @@ pub use collect::Seen;
 pub(crate) use collect::{Collector, install_probes, install_probes_as};
 pub use realtime::{run_mission_realtime, run_mission_realtime_recorded};
 
-use embodied::app::{Ran, Tally, Watched, Watcher, figures};
-use embodied::{ExecError, Finished, NoObserver};
+use embodied::app::{AppError, Ran, Tally, Watched, Watcher, figures};
+use embodied::{Finished, NoObserver};
 
 use crate::payload::{Ack, AckStatus, PlanOutcome};
-use crate::system::{RexConfig, RexError, RobotHandles, build};
+use crate::system::{RexConfig, RobotHandles, build};
 use judge::{PlanReport, Verdict};
 
 /// One sample of a run, at every activation of `e11`.
@@ -268,22 +268,10 @@ impl Outcome {
     }
 }
 
-/// Why a run failed.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// Rex could not be built.
-    #[error(transparent)]
-    Build(#[from] RexError),
-    /// The executor stopped on an error.
-    #[error(transparent)]
-    Exec(#[from] ExecError),
-    /// The recording could not start.
-    #[error(transparent)]
-    Record(#[from] embodied::record::RecordError),
-    /// The run could not be made.
-    #[error(transparent)]
-    App(#[from] embodied::app::AppError),
-}
+/// Why a run failed: the application layer's error, as for every run of
+/// the layer (Rex could not be built, [`AppError::Build`]; the executor
+/// stopped on an error; the recording could not be made).
+pub type RunError = AppError;
 
 /// What a run reports while it goes.
 #[derive(Clone, Debug)]
@@ -326,7 +314,7 @@ pub fn run_mission_observed<O: embodied::Observer + 'static>(
     observer: impl FnOnce(&embodied::System) -> Result<O, RunError>,
     progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, O), RunError> {
-    let (system, h) = build(config)?;
+    let (system, h) = build(config).map_err(|e| AppError::Build(Box::new(e)))?;
     let observer = observer(&system)?;
     let mut watch = MissionWatch::new(config, tick, progress);
     // The library's mission runs judge the mission; the spec's contracts

@@ -53,7 +53,7 @@ fn realtime(
     record: Option<(&Path, RecordOptions)>,
     progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, RtReport, Option<RecordSummary>), RunError> {
-    let (system, h) = build(config)?;
+    let (system, h) = build(config).map_err(|e| RunError::Build(Box::new(e)))?;
     let mut watch = MissionWatch::new(config, tick, progress);
     // Watched as the deterministic run is (see `run_mission_observed`).
     let mut run = Watched::new(&mut watch, limit);
