@@ -68,10 +68,10 @@ enum Command {
         /// whole system as one process).
         #[arg(long, requires = "timing")]
         deployment: Option<String>,
-        /// With --timing: take each component's WCET from a recording of a
-        /// real-time run (its `/timing` channel): the largest execution time
-        /// measured, times 1.2; a component the recording lacks keeps its
-        /// declared WCET. A recording that cannot be read, or has no timing
+        /// With --timing: take each component's WCET and release jitter from a
+        /// recording of a real-time run (its `/timing` channel): the largest
+        /// execution time and the largest wake-up lateness measured, times 1.2;
+        /// a component the recording lacks keeps its declared figures. A recording that cannot be read, or has no timing
         /// statistics (made without `--realtime`), exits with status 2.
         #[arg(long, requires = "timing", value_name = "FILE.mcap")]
         wcet_from: Option<PathBuf>,
@@ -203,7 +203,7 @@ fn main() -> ExitCode {
             deployment,
             wcet_from,
         } => {
-            let measured = match wcet_from.as_deref().map(cli::check::measured_wcets) {
+            let measured = match wcet_from.as_deref().map(cli::check::measured) {
                 None => None,
                 Some(Ok(m)) => Some(m),
                 Some(Err(why)) => {

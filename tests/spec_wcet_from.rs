@@ -1,6 +1,6 @@
-//! `embodied check --timing --wcet-from FILE.mcap`: the WCETs measured in a
-//! recording's `/timing` channel (times the margin 1.2) replace the declared
-//! ones; a component the recording lacks keeps its declaration, said; a
+//! `embodied check --timing --wcet-from FILE.mcap`: the WCETs and wake-up
+//! latenesses measured in a recording's `/timing` channel (times the margin
+//! 1.2) replace the declared WCETs and release jitters; a component the recording lacks keeps its declaration, said; a
 //! recording without the channel, or unreadable, is refused with status 2.
 //! Needs the `cli` feature:
 //! `cargo test --features cli --test spec_wcet_from`.
@@ -129,6 +129,32 @@ fn a_measured_time_that_breaks_the_schedule_is_a_finding() {
     assert!(err.contains("spec::unschedulable"), "{err}");
     assert!(err.contains("`e11`"), "{err}");
     let _ = std::fs::remove_file(file);
+}
+
+#[test]
+fn measured_wake_up_lateness_is_the_release_jitter() {
+    // c1 woke at most 0.05 ms late: J = 0.06 ms, in the certificate; then
+    // 9.5 ms late (of a 10 ms period): J + C passes the period.
+    let file = recording("wcet-from-late", Some(&stats(vec![node("c1", 1_000_000)])));
+    let (code, out, err) = check(&file);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(out.contains("largest wake-up lateness x 1.2"), "{out}");
+    assert!(
+        out.contains(
+            "release_jitter c1         declared_ms=- measured_max_ms=0.0500 used_ms=0.0600 from=measured"
+        ),
+        "{out}"
+    );
+    assert!(out.contains("C =      1.2 ms  J =     0.06 ms"), "{out}");
+    let mut late = node("c1", 1_000_000);
+    late.lateness_max_ns = 9_500_000;
+    let file2 = recording("wcet-from-later", Some(&stats(vec![late])));
+    let (code, out, err) = check(&file2);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(err.contains("spec::unschedulable"), "{err}");
+    assert!(err.contains("J = 11.4 ms"), "{err}");
+    let _ = std::fs::remove_file(file);
+    let _ = std::fs::remove_file(file2);
 }
 
 #[test]

@@ -49,4 +49,4 @@ pub use record::{
 pub use replay::{
     Difference, Divergence, ReplayError, ReplayOptions, Replayed, Window, replay, replay_file,
 };
-pub use timing::{TimingStats, measured_wcets, read_timing};
+pub use timing::{TimingStats, measured_lateness, measured_wcets, read_timing};

@@ -14,7 +14,8 @@
 //!
 //! [`read_timing`] reads every message back; [`measured_wcets`] takes the
 //! largest execution time of each node over them (the measured WCETs the
-//! timing analysis may take in place of the declared ones).
+//! timing analysis may take in place of the declared ones), and
+//! [`measured_lateness`] its largest wake-up lateness (its release jitter).
 
 use std::collections::BTreeMap;
 
@@ -194,11 +195,24 @@ pub fn read_timing(recording: &Recording) -> Result<Vec<TimingStats>, TimingRead
 /// (higher priority) delays the other, as running before it on the shared
 /// thread does.
 pub fn measured_wcets(stats: &[TimingStats]) -> BTreeMap<String, u64> {
+    largest(stats, |n| n.exec_max_ns)
+}
+
+/// The largest wake-up lateness of each node over `stats` \[ns\]: how late
+/// its thread started an activation after its release, the release jitter
+/// the timing analysis may take (`--wcet-from`); nodes that never ran are
+/// left out.
+pub fn measured_lateness(stats: &[TimingStats]) -> BTreeMap<String, u64> {
+    largest(stats, |n| n.lateness_max_ns)
+}
+
+/// The largest `figure` of each node that ran, over every process.
+fn largest(stats: &[TimingStats], figure: impl Fn(&NodeStats) -> u64) -> BTreeMap<String, u64> {
     let mut out = BTreeMap::new();
     for s in stats {
         for n in s.nodes.iter().filter(|n| n.activations > 0) {
             let e = out.entry(n.node.clone()).or_insert(0u64);
-            *e = (*e).max(n.exec_max_ns);
+            *e = (*e).max(figure(n));
         }
     }
     out
@@ -254,6 +268,12 @@ mod tests {
             None,
             "a node that never ran measured nothing"
         );
+        let mut late = a.clone();
+        late.nodes[0].lateness_max_ns = 600_000;
+        let j = measured_lateness(&[a.clone(), late]);
+        assert_eq!(j.get("c1"), Some(&600_000), "the largest lateness");
+        assert_eq!(j.get("e11"), Some(&10));
+        assert_eq!(j.get("idle"), None, "a node that never ran woke never");
         let text = serde_json::to_string(&a).unwrap_or_default();
         let back: TimingStats = serde_json::from_str(&text).unwrap_or_else(|_| b_default());
         assert_eq!(back, a);

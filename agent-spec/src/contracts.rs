@@ -156,6 +156,10 @@ pub struct Timing {
     /// Links written less often than once per activation of their writer.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub writes: Vec<Writes>,
+    /// Per component, how late the operating system may start an activation
+    /// after its release; a component not listed: 0.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub release_jitter: Vec<ReleaseJitter>,
 }
 
 /// The worst-case execution time of one activation of a component.
@@ -165,6 +169,19 @@ pub struct Wcet {
     /// A subsystem or device.
     pub component: String,
     /// Its worst-case execution time \[ms\] (reading, stepping, sending).
+    pub ms: f64,
+}
+
+/// The release jitter of a component's activations: the largest time from an
+/// activation's release (its instant on the absolute clock) to its thread
+/// running, the operating system's wake-up lateness (what `cyclictest`
+/// measures of a host; a recording's `/timing` channel holds each node's).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReleaseJitter {
+    /// A subsystem or device.
+    pub component: String,
+    /// Its release jitter \[ms\], 0 or more.
     pub ms: f64,
 }
 

@@ -19,7 +19,12 @@
 //! of its target). Add them by hand for the data-flow diagrams.
 //! The peer a group is connected to is the component its links go to; a group linked
 //! to nothing is named by its field (as `agent!` names fields after peers), and the
-//! checker then says whether that is a component.
+//! checker then says whether that is a component. A fan (agent-core's `Fan`, its
+//! ports `c1[k].buffer`) is a group named by its field with `peers`: element `k`'s
+//! peer is the component element `k`'s links go to, for every element up to the
+//! last linked one (an element below it linked to nothing cannot be named, and is
+//! an error); links name its elements `c2.c1[k].buffer`. A fan none of whose
+//! elements is linked is written as an ordinary group named by its field.
 
 use std::collections::HashMap;
 
@@ -154,12 +159,18 @@ impl Peers<'_> {
                     }
                 }
             } else {
-                let prefix = format!("{}.", g.name);
-                // A group linked to nothing (an output nobody reads is only a warning of
-                // the checker) is named by its field: `agent!` names fields after peers.
-                let peer = match self.peer_of(node, input, g.name, |p| p.starts_with(&prefix)) {
-                    Err(ExportError::Unlinked { .. }) => g.name.to_owned(),
-                    other => other?,
+                let fan = self.fan_peers(node, input, g)?;
+                let peer = if fan.is_empty() {
+                    let prefix = format!("{}.", g.name);
+                    // A group linked to nothing (an output nobody reads is only a warning of
+                    // the checker) is named by its field: `agent!` names fields after peers.
+                    match self.peer_of(node, input, g.name, |p| p.starts_with(&prefix)) {
+                        Err(ExportError::Unlinked { .. }) => g.name.to_owned(),
+                        other => other?,
+                    }
+                } else {
+                    // A fan is named by its field; its elements' peers follow.
+                    g.name.to_owned()
                 };
                 out.push(Group {
                     peer,
@@ -172,11 +183,66 @@ impl Peers<'_> {
                             doc: None,
                         })
                         .collect(),
-                    peers: Vec::new(),
+                    peers: fan,
                 });
             }
         }
         Ok(out)
+    }
+
+    /// The peers of group `g` if it is a fan whose elements are linked
+    /// (ports `name[k].buffer`): element `k`'s peer is the component its links
+    /// go to. Empty for an ordinary group, and for a fan none of whose elements
+    /// is linked (the system says nothing of its peers then).
+    fn fan_peers(
+        &self,
+        node: usize,
+        input: bool,
+        g: &GroupShape,
+    ) -> Result<Vec<String>, ExportError> {
+        let prefix = format!("{}[", g.name);
+        let mut elements: Vec<usize> = self
+            .links_of(node, input)
+            .filter_map(|l| {
+                let port = unraw(if input { l.to_port } else { l.from_port });
+                fan_element(port.strip_prefix(&prefix)?)
+            })
+            .collect();
+        elements.sort_unstable();
+        elements.dedup();
+        let Some(&last) = elements.last() else {
+            return Ok(Vec::new());
+        };
+        (0..=last)
+            .map(|k| {
+                let element = format!("{}[{k}]", g.name);
+                let dotted = format!("{element}.");
+                self.peer_of(node, input, &element, |p| p.starts_with(&dotted))
+            })
+            .collect()
+    }
+}
+
+/// `3` in a fan element's port `c1[3].plan` (given `3].plan`): decimal
+/// without leading zeros, as agent-core names the elements.
+fn fan_element(rest: &str) -> Option<usize> {
+    let (index, _) = rest.split_once("].")?;
+    let canonical = !index.is_empty()
+        && index.bytes().all(|b| b.is_ascii_digit())
+        && (index == "0" || !index.starts_with('0'));
+    canonical.then(|| index.parse().ok()).flatten()
+}
+
+/// One end of link `l` as a spec names it: `component.group.buffer`, the
+/// group being the component at the other end, or a fan's element
+/// (`c2.c1[3].plan`) as the port names it.
+fn link_end(component: &str, other: &str, port: &str) -> String {
+    let port = unraw(port);
+    let (group, buffer) = port.rsplit_once('.').unwrap_or(("", &port));
+    if group.ends_with(']') {
+        format!("{component}.{group}.{buffer}")
+    } else {
+        format!("{component}.{other}.{buffer}")
     }
 }
 
@@ -194,12 +260,30 @@ fn unraw(port: &str) -> String {
         .join(".")
 }
 
-/// `a::b::Name` -> `Name` (generic types are left whole).
-fn last_segment(ty: &str) -> &str {
-    if ty.contains('<') {
-        return ty;
+/// A type without its paths or spaces: `a::b::Name` -> `Name`,
+/// `agent_core::buffer::Fan<x::ToRobot>` -> `Fan<ToRobot>` (the type of a part's
+/// target as the compiler names it, against a group's type as its field writes
+/// it).
+fn bare_type(ty: &str) -> String {
+    let mut out = String::with_capacity(ty.len());
+    // Where the identifier being written starts in `out`.
+    let mut start = 0;
+    let mut chars = ty.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            ':' if chars.peek() == Some(&':') => {
+                chars.next();
+                out.truncate(start);
+            }
+            c if c.is_whitespace() => {}
+            c if c.is_alphanumeric() || c == '_' => out.push(c),
+            c => {
+                out.push(c);
+                start = out.len();
+            }
+        }
     }
-    ty.rsplit("::").next().unwrap_or(ty)
+    out
 }
 
 fn subsystem(
@@ -304,7 +388,7 @@ fn part_target(
                 .enumerate()
                 .filter(|(_, g)| match field {
                     Some(f) => g.name == *f,
-                    None => last_segment(g.ty) == last_segment(group),
+                    None => bare_type(g.ty) == bare_type(group),
                 })
                 .collect();
             let [(k, g)] = candidates[..] else {
@@ -417,16 +501,10 @@ pub fn spec_of(name: &str, info: &SystemInfo) -> Result<Spec, ExportError> {
     let links = info
         .links
         .iter()
-        .map(|l| {
-            let buffer = |port: &str| {
-                let port = unraw(port);
-                port.rsplit('.').next().unwrap_or(&port).to_owned()
-            };
-            Link {
-                from: format!("{}.{}.{}", node(l.from), node(l.to), buffer(l.from_port)),
-                to: format!("{}.{}.{}", node(l.to), node(l.from), buffer(l.to_port)),
-                policy: l.policy,
-            }
+        .map(|l| Link {
+            from: link_end(node(l.from), node(l.to), l.from_port),
+            to: link_end(node(l.to), node(l.from), l.to_port),
+            policy: l.policy,
         })
         .collect();
     Ok(Spec {
@@ -503,6 +581,16 @@ mod tests {
     fn ports_and_periods_are_written_as_specs_write_them() {
         assert_eq!(unraw("r#type.r#in"), "type.in");
         assert_eq!(unraw("pump.flow"), "pump.flow");
+        assert_eq!(bare_type("tank::Command"), "Command");
+        assert_eq!(
+            bare_type("agent_core::buffer::Fan<fleet::ToRobot>"),
+            "Fan<ToRobot>"
+        );
+        assert_eq!(bare_type("Fan < ToRobot >"), "Fan<ToRobot>");
+        assert_eq!(bare_type("[f64; 4]"), "[f64;4]");
+        assert_eq!(link_end("c2", "c1_3", "r#c1[3].plan"), "c2.c1[3].plan");
+        assert_eq!(link_end("c1_3", "c2", "c2.plan"), "c1_3.c2.plan");
+        assert_eq!(link_end("E1", "e11", "speed"), "E1.e11.speed");
         for ms in [1, 9, 11, 13, 45, 1000] {
             let p = agent_core::Period::from_millis(ms).expect("a period");
             assert_eq!(millis(p), ms as f64);

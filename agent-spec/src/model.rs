@@ -17,8 +17,8 @@
 use serde::{Deserialize, Serialize};
 
 pub use crate::contracts::{
-    Bound, Chain, Contracts, Freshness, Invariant, Latency, Rate, Response, Timing, ValueRange,
-    Wcet, Writes,
+    Bound, Chain, Contracts, Freshness, Invariant, Latency, Rate, ReleaseJitter, Response, Timing,
+    ValueRange, Wcet, Writes,
 };
 
 /// The formalism's vocabulary, shared with the runtime (`agent-core`): the kinds of

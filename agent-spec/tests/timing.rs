@@ -7,7 +7,9 @@
     reason = "a failing unwrap is a failing test"
 )]
 
-use agent_spec::timing::{Analysis, analyse, liu_layland, queue_needs, response_time};
+use agent_spec::timing::{
+    Analysis, analyse, liu_layland, queue_needs, response_time, response_time_with_jitter,
+};
 use agent_spec::{Code, Report, load};
 use proptest::prelude::*;
 
@@ -119,6 +121,79 @@ fn response_times_of_a_textbook_task_set() {
     assert!(u > liu_layland(3));
     // T 4 C 2 above T 6 C 3: R = 3, 5, 7 > 6: not schedulable.
     assert_eq!(response_time(3, &[(4, 2)], 6), None);
+}
+
+#[test]
+fn release_jitter_delays_a_thread_and_crowds_its_interferers() {
+    // Own J counts from the release: R = J + w.
+    assert_eq!(response_time_with_jitter(2, 1, &[(10, 3, 0)], 20), Some(6));
+    // An interferer released up to 8 late can put two of its jobs in the
+    // window: w = 2 + ⌈(w + 8)/10⌉·3 = 8, R = 9 (5 without the jitters).
+    assert_eq!(response_time_with_jitter(2, 1, &[(10, 3, 8)], 20), Some(9));
+    assert_eq!(response_time(2, &[(10, 3)], 20), Some(5));
+    // Every jitter 0: the plain recurrence.
+    assert_eq!(
+        response_time_with_jitter(5, 0, &[(7, 3, 0), (12, 3, 0)], 20),
+        response_time(5, &[(7, 3), (12, 3)], 20)
+    );
+    // The jitter itself can break the deadline: J 16 + w 5 > 20.
+    assert_eq!(response_time_with_jitter(2, 16, &[(10, 3, 0)], 20), None);
+    assert_eq!(response_time_with_jitter(2, 25, &[], 20), None);
+}
+
+#[test]
+fn a_declared_release_jitter_enters_the_certificate() {
+    let with = system(20.0, "Sample", 5.0, "", "").replace(
+        "latency: [(deployment:",
+        "release_jitter: [(component: \"E1\", ms: 0.3), (component: \"c1\", ms: 0.5)],\n        latency: [(deployment:",
+    );
+    let (report, a) = run(&with, None);
+    assert!(report.is_ok(), "{}", report.render(100));
+    let r = |c: &str| a.threads.iter().find(|t| t.component == c).unwrap();
+    // E1 (T 1, C 0.1, J 0.3): R = 0.3 + 0.1.
+    assert_eq!(r("E1").response, Some(4 * MS / 10));
+    // e1 (C 1): w = 1 + ⌈(w + 0.3)/1⌉·0.1 = 1.2 (⌈1.5⌉ = 2 jobs of E1), no own J.
+    assert_eq!(r("e1").response, Some(12 * MS / 10));
+    // c1 (C 1, J 0.5), with R1 at its priority: w = 1 + 4·0.1 + 1 (e1) + 1 (R1)
+    // = 3.4 as before (⌈(3.4 + 0.3)/1⌉ = 4 jobs of E1), R = 0.5 + 3.4.
+    assert_eq!(r("c1").response, Some(39 * MS / 10));
+    assert!(a.to_string().contains("J =      0.5 ms"), "{a}");
+    // A jitter that eats the period: E1 unschedulable, named with its J.
+    let late = with.replace(
+        "(component: \"E1\", ms: 0.3)",
+        "(component: \"E1\", ms: 0.95)",
+    );
+    let (report, _) = run(&late, None);
+    let f = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::Unschedulable)
+        .unwrap_or_else(|| panic!("{}", report.render(100)));
+    assert!(
+        f.labels[0].text.contains("J = 0.95 ms"),
+        "{}",
+        f.labels[0].text
+    );
+}
+
+#[test]
+fn a_release_jitter_of_an_unknown_component_or_negative_is_refused() {
+    let bad = system(20.0, "Sample", 5.0, "", "").replace(
+        "latency: [(deployment:",
+        "release_jitter: [(component: \"c11\", ms: 0.3), (component: \"e1\", ms: -1.0), (component: \"e1\", ms: 0.0)],\n        latency: [(deployment:",
+    );
+    let loaded = load("t.ron", bad).unwrap_or_else(|r| panic!("{}", r.render(100)));
+    let report = agent_spec::check(&loaded);
+    let text = report.render(100);
+    assert!(text.contains("did you mean `c1`"), "{text}");
+    assert!(
+        text.contains("release jitter -1 ms is not a finite number of at least 0"),
+        "{text}"
+    );
+    assert!(
+        text.contains("the release jitter of `e1` is given twice"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -378,6 +453,82 @@ proptest! {
             let smaller = c.saturating_sub(shrink).max(1);
             let r2 = response_time(smaller, &higher, deadline);
             prop_assert!(r2.is_some_and(|r2| r2 <= r));
+        }
+    }
+}
+
+/// A fixed-priority preemptive uniprocessor, simulated in unit steps over
+/// `horizon`: task `i` (in priority order, the first highest) of period
+/// `T_i`, WCET `C_i` released at `k·T_i` and ready `lateness(i, k) ≤ J_i`
+/// later. Returns each task's largest response time, from the release to
+/// the end of the job (`None` if a job did not finish before the horizon).
+fn simulate_fixed_priority(
+    tasks: &[(u64, u64, u64)],
+    lateness: &dyn Fn(usize, u64) -> u64,
+    horizon: u64,
+) -> Vec<Option<u64>> {
+    // Per task, its pending jobs: (release, ready, work left).
+    let mut jobs: Vec<std::collections::VecDeque<(u64, u64, u64)>> =
+        vec![std::collections::VecDeque::new(); tasks.len()];
+    let mut worst = vec![Some(0u64); tasks.len()];
+    for now in 0..horizon {
+        for (i, &(t, c, j)) in tasks.iter().enumerate() {
+            if now % t == 0 {
+                let k = now / t;
+                jobs[i].push_back((now, now + lateness(i, k).min(j), c));
+            }
+        }
+        let running = (0..tasks.len()).find(|&i| jobs[i].front().is_some_and(|j| j.1 <= now));
+        if let Some(i) = running {
+            let job = jobs[i].front_mut().unwrap();
+            job.2 -= 1;
+            if job.2 == 0 {
+                let response = now + 1 - job.0;
+                worst[i] = worst[i].map(|w| w.max(response));
+                jobs[i].pop_front();
+            }
+        }
+    }
+    for (i, q) in jobs.iter().enumerate() {
+        // A job released long enough before the horizon that should have ended.
+        if q.iter().any(|j| j.0 + tasks[i].0 < horizon) {
+            worst[i] = None;
+        }
+    }
+    worst
+}
+
+proptest! {
+    /// Soundness of the response time with release jitter against a
+    /// simulated fixed-priority processor whose jobs start late by any
+    /// amount up to their jitter: every measured response time is within the
+    /// bound of every thread the analysis calls schedulable.
+    #[test]
+    fn response_time_with_jitter_bounds_a_simulated_processor(
+        mut tasks in proptest::collection::vec((5u64..40, 1u64..6, 0u64..6), 1..4),
+        seed in any::<u64>(),
+    ) {
+        tasks.sort_by_key(|t| t.0);
+        let lateness = |i: usize, k: u64| {
+            // A mix of on-time, worst and scattered wake-ups.
+            let h = (seed ^ (i as u64).wrapping_mul(0x9E37_79B9) ^ k.wrapping_mul(0x85EB_CA6B))
+                .wrapping_mul(0xC2B2_AE35);
+            match h % 4 {
+                0 => 0,
+                1 => u64::MAX,
+                _ => h >> 8,
+            }
+        };
+        let measured = simulate_fixed_priority(&tasks, &lateness, 2_000);
+        let mut schedulable_above = true;
+        for (i, &(t, c, j)) in tasks.iter().enumerate() {
+            let higher: Vec<_> = tasks[..i].to_vec();
+            let bound = response_time_with_jitter(c, j, &higher, t);
+            if let (Some(b), true) = (bound, schedulable_above) {
+                let m = measured[i];
+                prop_assert!(m.is_some_and(|m| m <= b), "task {i} {tasks:?}: measured {m:?} above {b}");
+            }
+            schedulable_above &= bound.is_some();
         }
     }
 }

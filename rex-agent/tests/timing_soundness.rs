@@ -3,9 +3,10 @@
 //! deterministic executor and in real time; every chain's data age is measured
 //! from the recording and compared with the bound `embodied check --timing`
 //! computes for the deployment `simulation_without_vo` (the `--no-vo` system
-//! as one process), with the WCETs measured in the same recording (real time:
-//! its `/timing` channel, times [`WCET_MARGIN`]) or the declared ones
-//! (deterministic: no wall clock, no `/timing` channel).
+//! as one process), with the WCETs and release jitters (wake-up lateness)
+//! measured in the same recording (real time: its `/timing` channel, times
+//! [`WCET_MARGIN`]) or the declared ones (deterministic: no wall clock, no
+//! `/timing` channel).
 //!
 //! Data age, measured: for each activation of the chain's effector (each
 //! actuation), its instant minus the stamp of the receptor's value behind the
@@ -15,9 +16,9 @@
 //! the writer's activation that sent it, whose own input is followed next.
 //! The bound is the analysis's worst-case data age (which adds the
 //! effector's response time `R_n`: the measured age stops at the effector's
-//! release). Response times: each node's largest lateness plus its largest
-//! execution time (an upper estimate of its largest measured response time)
-//! against the analysis's `R`.
+//! release). Response times: each node's largest response time as the
+//! executor measured it, from the release (its wake-up lateness included) to
+//! the activation's end, against the analysis's `R = J + w`.
 //!
 //! Each comparison prints one line, `timing_sound=1 run=.. chain=..
 //! bound_ms=.. measured_max_ms=.. tightness=..` (tightness: the bound over
@@ -36,8 +37,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use embodied::record::Recording;
-use embodied::record::timing::{TIMING_TOPIC, measured_wcets, read_timing};
-use embodied::spec::timing::{Analysis, WCET_MARGIN, analyse, use_measured_wcets};
+use embodied::record::timing::{TIMING_TOPIC, measured_lateness, measured_wcets, read_timing};
+use embodied::spec::timing::{
+    Analysis, WCET_MARGIN, analyse, use_measured_release_jitters, use_measured_wcets,
+};
 
 /// The deployment whose placement is the `--no-vo` system in one process.
 const DEPLOYMENT: &str = "simulation_without_vo";
@@ -74,15 +77,22 @@ fn record(file: &Path, seconds: &str, extra: &[&str]) {
     );
 }
 
-/// The analysis of Rex's spec placed by `deployment`, with the WCETs
-/// `measured` (times the margin) where given.
-fn analysis(measured: Option<&BTreeMap<String, u64>>, deployment: &str) -> Analysis {
+/// What a real-time recording measured, per node \[ns\]: the largest
+/// execution time and the largest wake-up lateness.
+type Measured = (BTreeMap<String, u64>, BTreeMap<String, u64>);
+
+/// The analysis of Rex's spec placed by `deployment`, with the WCETs and
+/// release jitters `measured` (times the margin) where given, as
+/// `embodied check --timing --wcet-from` takes them.
+fn analysis(measured: Option<&Measured>, deployment: &str) -> Analysis {
     let text = std::fs::read_to_string(spec_path()).expect("the spec reads");
     let loaded = embodied::spec::load("rex.ron", text).expect("the spec loads");
     let mut spec = loaded.spec.clone();
-    if let Some(m) = measured {
-        let sources = use_measured_wcets(&mut spec, m, WCET_MARGIN).expect("a timing section");
-        for s in sources {
+    if let Some((wcets, lateness)) = measured {
+        let sources = use_measured_wcets(&mut spec, wcets, WCET_MARGIN).expect("a timing section");
+        let jitters = use_measured_release_jitters(&mut spec, lateness, WCET_MARGIN)
+            .expect("a timing section");
+        for s in sources.iter().chain(&jitters) {
             println!("{s}");
         }
     }
@@ -343,9 +353,13 @@ fn realtime(run: &str, file: &Path, args: &[&str], deployment: &str, processes: 
     let rec = Recording::open(file).expect("the real-time recording reads");
     let stats = read_timing(&rec).expect("a real-time run records its timing statistics");
     assert_eq!(stats.len(), processes, "one message per process");
-    let measured = measured_wcets(&stats);
+    let measured = (measured_wcets(&stats), measured_lateness(&stats));
     for node in ["c1", "e11", "c3", "r31", "E1"] {
-        assert!(measured.contains_key(node), "{node} measured: {measured:?}");
+        assert!(
+            measured.0.contains_key(node),
+            "{node} measured: {measured:?}"
+        );
+        assert!(measured.1.contains_key(node), "{node} woke: {measured:?}");
     }
     let a = analysis(Some(&measured), deployment);
     if !a.is_certified() {

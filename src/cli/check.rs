@@ -26,21 +26,33 @@ const TIMING: [Code; 4] = [
 ];
 
 /// What `--timing` analyses: the deployment (`None`: the whole system as one
-/// process), and the WCETs measured in a recording (`--wcet-from`), per
-/// component \[ns\], if given.
+/// process), and the WCETs and release jitters measured in a recording
+/// (`--wcet-from`), if given.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Timing<'a> {
     /// `--deployment`.
     pub(crate) deployment: Option<&'a str>,
     /// `--wcet-from`'s measurements.
-    pub(crate) measured: Option<&'a BTreeMap<String, u64>>,
+    pub(crate) measured: Option<&'a Measured>,
 }
 
-/// The WCETs measured in the recording at `path` (its `/timing` channel): per
-/// component, the largest execution time \[ns\]; or why there are none (the
-/// file cannot be read, has no `/timing` channel, or no message on it).
-pub(crate) fn measured_wcets(path: &Path) -> Result<BTreeMap<String, u64>, String> {
-    use embodied::record::timing::{TIMING_TOPIC, TimingReadError, measured_wcets, read_timing};
+/// What a recording measured of each component \[ns\]: its largest
+/// execution time and its largest wake-up lateness.
+#[derive(Clone, Debug)]
+pub(crate) struct Measured {
+    /// Per component, the largest execution time.
+    pub(crate) wcet: BTreeMap<String, u64>,
+    /// Per component, the largest wake-up lateness (its release jitter).
+    pub(crate) lateness: BTreeMap<String, u64>,
+}
+
+/// The WCETs and release jitters measured in the recording at `path` (its
+/// `/timing` channel); or why there are none (the file cannot be read, has no
+/// `/timing` channel, or no message on it).
+pub(crate) fn measured(path: &Path) -> Result<Measured, String> {
+    use embodied::record::timing::{
+        TIMING_TOPIC, TimingReadError, measured_lateness, measured_wcets, read_timing,
+    };
     let recording = embodied::record::Recording::open_filtered(path, |c| c.topic == TIMING_TOPIC)
         .map_err(|e| format!("--wcet-from {}: {e}", path.display()))?;
     let stats = read_timing(&recording).map_err(|e| match e {
@@ -66,7 +78,10 @@ pub(crate) fn measured_wcets(path: &Path) -> Result<BTreeMap<String, u64>, Strin
             );
         }
     }
-    Ok(measured_wcets(&stats))
+    Ok(Measured {
+        wcet: measured_wcets(&stats),
+        lateness: measured_lateness(&stats),
+    })
 }
 
 /// Checks `files`: status 1 if any has an error or cannot be read, else 0.
@@ -154,10 +169,21 @@ fn with_timing(path: &Path, timing: Timing<'_>) -> std::io::Result<(Report, Opti
     let mut spec = loaded.spec.clone();
     let mut sources = String::new();
     if let Some(measured) = timing.measured {
-        use embodied::spec::timing::{WCET_MARGIN, use_measured_wcets};
-        if let Some(list) = use_measured_wcets(&mut spec, measured, WCET_MARGIN) {
+        use embodied::spec::timing::{
+            WCET_MARGIN, use_measured_release_jitters, use_measured_wcets,
+        };
+        if let Some(list) = use_measured_wcets(&mut spec, &measured.wcet, WCET_MARGIN) {
             sources.push_str(&format!(
                 "WCETs from the recording: measured max x {WCET_MARGIN} (margin); declared where not measured\n"
+            ));
+            for s in list {
+                sources.push_str(&format!("{s}\n"));
+            }
+        }
+        let jitters = use_measured_release_jitters(&mut spec, &measured.lateness, WCET_MARGIN);
+        if let Some(list) = jitters {
+            sources.push_str(&format!(
+                "release jitters from the recording: largest wake-up lateness x {WCET_MARGIN} (margin); declared where not measured\n"
             ));
             for s in list {
                 sources.push_str(&format!("{s}\n"));

@@ -140,32 +140,13 @@ impl<'a> Checker<'a> {
     fn timing_section(&mut self, t: &'a crate::model::Timing) {
         {
             let base: Path = vec![F("timing")];
-            let mut seen: HashMap<&str, Path> = HashMap::new();
-            for (i, w) in t.wcet.iter().enumerate() {
-                let at = join(&base, &[F("wcet"), I(i)]);
-                let cpath = join(&at, &[F("component")]);
-                if !self.comps.contains_key(w.component.as_str()) {
-                    self.unknown_component(&w.component, &cpath, "a worst-case execution time");
-                } else if let Some(first) = seen.get(w.component.as_str()) {
-                    let first = self.span(first);
-                    self.push(
-                        Finding::new(
-                            Code::DuplicateName,
-                            self.span(&cpath),
-                            "given again here",
-                            format!(
-                                "the worst-case execution time of `{}` is given twice",
-                                w.component
-                            ),
-                        )
-                        .label(first, "first given here")
-                        .help("give each component's worst-case execution time once"),
-                    );
-                } else {
-                    seen.insert(&w.component, cpath);
-                }
-                self.positive(w.ms, &join(&at, &[F("ms")]), "an execution time [ms]");
-            }
+            let wcets = t.wcet.iter().map(|w| (w.component.as_str(), w.ms));
+            self.per_component(&base, "wcet", wcets, "worst-case execution time", true);
+            let jitters = t
+                .release_jitter
+                .iter()
+                .map(|j| (j.component.as_str(), j.ms));
+            self.per_component(&base, "release_jitter", jitters, "release jitter", false);
             let mut seen: HashMap<&str, Path> = HashMap::new();
             for (i, l) in t.latency.iter().enumerate() {
                 let at = join(&base, &[F("latency"), I(i)]);
@@ -217,6 +198,52 @@ impl<'a> Checker<'a> {
             }
             for (i, w) in t.writes.iter().enumerate() {
                 self.writes_entry(i, w, &base);
+            }
+        }
+    }
+
+    /// A list of `timing.<field>` giving each component a figure `what` in
+    /// ms: known components, each once, the figure positive (`positive`) or
+    /// else at least 0.
+    fn per_component(
+        &mut self,
+        base: &[Seg<'static>],
+        field: &'static str,
+        entries: impl Iterator<Item = (&'a str, f64)>,
+        what: &str,
+        positive: bool,
+    ) {
+        let mut seen: HashMap<&str, Path> = HashMap::new();
+        for (i, (component, ms)) in entries.enumerate() {
+            let at = join(base, &[F(field), I(i)]);
+            let cpath = join(&at, &[F("component")]);
+            if !self.comps.contains_key(component) {
+                self.unknown_component(component, &cpath, &format!("a {what}"));
+            } else if let Some(first) = seen.get(component) {
+                let first = self.span(first);
+                self.push(
+                    Finding::new(
+                        Code::DuplicateName,
+                        self.span(&cpath),
+                        "given again here",
+                        format!("the {what} of `{component}` is given twice"),
+                    )
+                    .label(first, "first given here")
+                    .help(format!("give each component's {what} once")),
+                );
+            } else {
+                seen.insert(component, cpath);
+            }
+            let mpath = join(&at, &[F("ms")]);
+            if positive {
+                self.positive(ms, &mpath, &format!("a {what} [ms]"));
+            } else if !(ms.is_finite() && ms >= 0.0) {
+                self.contract_finding(
+                    &mpath,
+                    "not a time",
+                    format!("{what} {ms} ms is not a finite number of at least 0"),
+                    format!("a {what} is in milliseconds, 0 or more"),
+                );
             }
         }
     }

@@ -14,11 +14,15 @@ impl fmt::Display for WcetSource {
         let from = match (self.measured_ms, self.declared_ms) {
             (Some(_), _) => "measured",
             (None, Some(_)) => "declared (not in the recording)",
-            (None, None) => "none (not in the recording, not declared)",
+            (None, None) => match self.figure {
+                super::Figure::Wcet => "none (not in the recording, not declared)",
+                super::Figure::ReleaseJitter => "none (not in the recording, not declared: 0)",
+            },
         };
         write!(
             f,
-            "wcet {:<10} declared_ms={} measured_max_ms={} used_ms={} from={from}",
+            "{} {:<10} declared_ms={} measured_max_ms={} used_ms={} from={from}",
+            self.figure.field(),
             self.component,
             show(self.declared_ms),
             show(self.measured_ms),
@@ -56,9 +60,14 @@ impl fmt::Display for Analysis {
                 let r = t
                     .response
                     .map_or("> T (misses)".into(), |r| format!("{} ms", ms(r)));
+                let j = if t.release_jitter > 0 {
+                    format!("  J = {:>8} ms", ms(t.release_jitter))
+                } else {
+                    String::new()
+                };
                 writeln!(
                     f,
-                    "  {:<12} T = {:>8} ms  C = {:>8} ms  prio {:>2}  R = {r}",
+                    "  {:<12} T = {:>8} ms  C = {:>8} ms{j}  prio {:>2}  R = {r}",
                     t.component,
                     ms(t.period),
                     ms(t.wcet),

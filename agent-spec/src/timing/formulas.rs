@@ -5,23 +5,53 @@
 /// The least fixed point of `R = C + Σ ⌈R / T_j⌉ C_j` over the interfering
 /// threads `higher` (period `T_j`, WCET `C_j`), iterated from `R = C` (Joseph
 /// & Pandya 1986; Audsley, Burns, Richardson, Tindell & Wellings 1993); `None`
-/// when it passes `deadline` (not schedulable). All in the same unit.
+/// when it passes `deadline` (not schedulable). All in the same unit. Without
+/// release jitter: [`response_time_with_jitter`] with every jitter 0.
 pub fn response_time(wcet: u64, higher: &[(u64, u64)], deadline: u64) -> Option<u64> {
-    let mut r = wcet;
+    fixed_point(wcet, 0, deadline, higher.iter().map(|&(t, c)| (t, c, 0)))
+}
+
+/// The worst-case response time, from the release, of a thread of WCET `C`
+/// whose activations start up to `J` after their releases (release jitter),
+/// under the interfering threads `higher` (period `T_j`, WCET `C_j`, release
+/// jitter `J_j`): `R = J + w` with `w` the least fixed point of
+/// `w = C + Σ ⌈(w + J_j) / T_j⌉ C_j` (Audsley, Burns, Richardson, Tindell &
+/// Wellings 1993, with release jitter); `None` when `R` passes `deadline`.
+/// A late-starting interferer can crowd more of its jobs into the window,
+/// hence `J_j` in the ceiling. All in the same unit.
+pub fn response_time_with_jitter(
+    wcet: u64,
+    jitter: u64,
+    higher: &[(u64, u64, u64)],
+    deadline: u64,
+) -> Option<u64> {
+    fixed_point(wcet, jitter, deadline, higher.iter().copied())
+}
+
+/// `J + w`, `w = C + Σ ⌈(w + J_j) / T_j⌉ C_j` iterated from `w = C`; `None`
+/// past `deadline`.
+fn fixed_point(
+    wcet: u64,
+    jitter: u64,
+    deadline: u64,
+    higher: impl Iterator<Item = (u64, u64, u64)> + Clone,
+) -> Option<u64> {
+    let budget = deadline.checked_sub(jitter)?;
+    let mut w = wcet;
     loop {
-        if r > deadline {
+        if w > budget {
             return None;
         }
         let mut next = u128::from(wcet);
-        for &(t, c) in higher {
+        for (t, c, j) in higher.clone() {
             let t = u128::from(t.max(1));
-            next += u128::from(r).div_ceil(t) * u128::from(c);
+            next += (u128::from(w) + u128::from(j)).div_ceil(t) * u128::from(c);
         }
         let next = u64::try_from(next).unwrap_or(u64::MAX);
-        if next == r {
-            return Some(r);
+        if next == w {
+            return Some(jitter + w);
         }
-        r = next;
+        w = next;
     }
 }
 

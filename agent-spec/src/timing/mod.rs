@@ -35,8 +35,16 @@
 //!   exact. Threads of the same priority interfere with each other (FIFO
 //!   among equals), and a thread of another process on the host interferes
 //!   with a thread of its own priority or below whatever their periods.
-//! * Release jitter and blocking are zero: threads share no locks (links are
-//!   wait-free), and the executor releases each instant on an absolute clock.
+//! * Blocking is zero: threads share no locks (links are wait-free).
+//! * The executor releases each instant on an absolute clock, but the
+//!   operating system wakes a thread up to its release jitter `J` late
+//!   (`timing.release_jitter`, 0 for a component not listed; with
+//!   `--wcet-from`, each node's largest wake-up lateness in the recording
+//!   times [`WCET_MARGIN`]). A thread's response time counts from its
+//!   release: `R = J + w`, `w = C + Σ ⌈(w + J_j) / T_j⌉ C_j`
+//!   ([`response_time_with_jitter`]). A `J` of 0 claims wake-ups on time: on
+//!   a general-purpose kernel a late wake-up (a tenth of a millisecond to a
+//!   millisecond on a virtual machine) can then pass the bound.
 //! * A value between two processes of a deployment arrives within the
 //!   deployment's declared latency (`timing.latency`) of its write.
 //! * A queue link's writer writes at most once per activation, or at most once
@@ -54,10 +62,12 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 
 use crate::diag::{Code, Finding};
-use crate::model::{Policy, Spec};
+use crate::model::{Policy, Spec, Timing};
 use crate::span::{SNode, Seg};
 
-pub use formulas::{liu_layland, ms, priorities, queue_needs, response_time};
+pub use formulas::{
+    liu_layland, ms, priorities, queue_needs, response_time, response_time_with_jitter,
+};
 
 use chains::Placed;
 use schedule::{placement, schedule};
@@ -78,6 +88,9 @@ pub struct Thread {
     pub period: u64,
     /// Worst-case execution time `C` \[ns\].
     pub wcet: u64,
+    /// Release jitter `J` \[ns\]: how late after its release an activation
+    /// may start.
+    pub release_jitter: u64,
     /// `SCHED_FIFO` priority, as the executor assigns it in its process.
     pub priority: u8,
     /// Worst-case response time `R` \[ns\]; `None`: above the period.
@@ -86,7 +99,8 @@ pub struct Thread {
 
 impl Thread {
     /// `R - C`: how much later than its earliest an activation may start
-    /// reading (its reads are at its start) or end writing.
+    /// reading (its reads are at its start) or end writing; the release
+    /// jitter included (`R` counts from the release).
     pub fn jitter(&self) -> Option<u64> {
         self.response.map(|r| r - self.wcet.min(r))
     }
@@ -218,21 +232,89 @@ impl Spans<'_> {
     }
 }
 
-/// The margin a measured execution time is multiplied by to stand for a WCET
-/// (`--wcet-from`): a recording's largest time is what happened, not a worst
-/// case, so the analysis takes 20 % more.
+/// The margin a measured execution time (or wake-up lateness) is multiplied
+/// by to stand for a WCET (or release jitter) (`--wcet-from`): a recording's
+/// largest time is what happened, not a worst case, so the analysis takes
+/// 20 % more.
 pub const WCET_MARGIN: f64 = 1.2;
 
-/// Where one component's WCET comes from, after [`use_measured_wcets`].
+/// A per-component figure of the `timing` section that a recording can
+/// measure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Figure {
+    /// The worst-case execution time (`timing.wcet`; a node's largest
+    /// execution time).
+    Wcet,
+    /// The release jitter (`timing.release_jitter`; a node's largest wake-up
+    /// lateness).
+    ReleaseJitter,
+}
+
+impl Figure {
+    /// Its field in the `timing` section.
+    pub fn field(self) -> &'static str {
+        match self {
+            Figure::Wcet => "wcet",
+            Figure::ReleaseJitter => "release_jitter",
+        }
+    }
+
+    /// The figures of `timing`: (component, ms).
+    fn entries(self, timing: &Timing) -> Vec<(String, f64)> {
+        match self {
+            Figure::Wcet => timing
+                .wcet
+                .iter()
+                .map(|w| (w.component.clone(), w.ms))
+                .collect(),
+            Figure::ReleaseJitter => timing
+                .release_jitter
+                .iter()
+                .map(|j| (j.component.clone(), j.ms))
+                .collect(),
+        }
+    }
+
+    /// Give `component` the figure `ms` in `timing`.
+    fn set(self, timing: &mut Timing, component: &str, ms: f64) {
+        match self {
+            Figure::Wcet => match timing.wcet.iter_mut().find(|w| w.component == component) {
+                Some(w) => w.ms = ms,
+                None => timing.wcet.push(crate::contracts::Wcet {
+                    component: component.to_owned(),
+                    ms,
+                }),
+            },
+            Figure::ReleaseJitter => {
+                match timing
+                    .release_jitter
+                    .iter_mut()
+                    .find(|j| j.component == component)
+                {
+                    Some(j) => j.ms = ms,
+                    None => timing.release_jitter.push(crate::contracts::ReleaseJitter {
+                        component: component.to_owned(),
+                        ms,
+                    }),
+                }
+            }
+        }
+    }
+}
+
+/// Where one component's WCET (or release jitter) comes from, after
+/// [`use_measured_wcets`] (or [`use_measured_release_jitters`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct WcetSource {
+    /// Which figure.
+    pub figure: Figure,
     /// The component.
     pub component: String,
-    /// The WCET declared in the spec \[ms\], if any.
+    /// The figure declared in the spec \[ms\], if any.
     pub declared_ms: Option<f64>,
-    /// The largest execution time measured \[ms\], if the recording has it.
+    /// The largest value measured \[ms\], if the recording has it.
     pub measured_ms: Option<f64>,
-    /// The WCET the analysis takes \[ms\]: measured × margin, else declared.
+    /// The figure the analysis takes \[ms\]: measured × margin, else declared.
     pub used_ms: Option<f64>,
 }
 
@@ -247,13 +329,30 @@ pub fn use_measured_wcets(
     measured: &BTreeMap<String, u64>,
     margin: f64,
 ) -> Option<Vec<WcetSource>> {
-    let mut names: Vec<String> = spec
-        .timing
-        .as_ref()?
-        .wcet
-        .iter()
-        .map(|w| w.component.clone())
-        .collect();
+    use_measured(spec, Figure::Wcet, measured, margin)
+}
+
+/// Replace the release jitters of `spec`'s `timing` section by the wake-up
+/// latenesses `measured` \[ns\] (per component, the largest a recording
+/// holds) times `margin`, as [`use_measured_wcets`] does the WCETs; a
+/// component neither measured nor declared keeps a jitter of 0.
+pub fn use_measured_release_jitters(
+    spec: &mut Spec,
+    measured: &BTreeMap<String, u64>,
+    margin: f64,
+) -> Option<Vec<WcetSource>> {
+    use_measured(spec, Figure::ReleaseJitter, measured, margin)
+}
+
+/// [`use_measured_wcets`] for either figure.
+fn use_measured(
+    spec: &mut Spec,
+    figure: Figure,
+    measured: &BTreeMap<String, u64>,
+    margin: f64,
+) -> Option<Vec<WcetSource>> {
+    let declared = figure.entries(spec.timing.as_ref()?);
+    let mut names: Vec<String> = declared.iter().map(|(c, _)| c.clone()).collect();
     for c in measured.keys() {
         if component_period(spec, c).is_some() && !names.contains(c) {
             names.push(c.clone());
@@ -262,25 +361,16 @@ pub fn use_measured_wcets(
     let timing = spec.timing.as_mut()?;
     let mut out = Vec::new();
     for name in names {
-        let declared = timing
-            .wcet
-            .iter()
-            .find(|w| w.component == name)
-            .map(|w| w.ms);
+        let declared_ms = declared.iter().find(|(c, _)| *c == name).map(|(_, ms)| *ms);
         let measured_ms = measured.get(&name).map(|&n| n as f64 / 1e6);
-        let used = measured_ms.map(|m| m * margin).or(declared);
+        let used = measured_ms.map(|m| m * margin).or(declared_ms);
         if let Some(ms) = used {
-            match timing.wcet.iter_mut().find(|w| w.component == name) {
-                Some(w) => w.ms = ms,
-                None => timing.wcet.push(crate::contracts::Wcet {
-                    component: name.clone(),
-                    ms,
-                }),
-            }
+            figure.set(timing, &name, ms);
         }
         out.push(WcetSource {
+            figure,
             component: name,
-            declared_ms: declared,
+            declared_ms,
             measured_ms,
             used_ms: used,
         });

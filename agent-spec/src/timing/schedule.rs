@@ -8,7 +8,7 @@ use crate::diag::{Code, Finding};
 use crate::model::{Spec, Timing};
 use crate::span::Seg;
 
-use super::formulas::{liu_layland, ms, ns, ns_up, priorities, response_time};
+use super::formulas::{liu_layland, ms, ns, ns_up, priorities, response_time_with_jitter};
 use super::{ProcessFigures, Spans, TOP_PRIORITY, Thread, component_period};
 use Seg::{Field as F, Item as I};
 
@@ -93,6 +93,11 @@ pub(super) fn schedule(
                 host: host.clone(),
                 period: ns(period),
                 wcet: ns_up(w.ms),
+                release_jitter: timing
+                    .release_jitter
+                    .iter()
+                    .find(|j| j.component == *c)
+                    .map_or(0, |j| ns_up(j.ms)),
                 priority: 0,
                 response: None,
             }),
@@ -144,12 +149,12 @@ pub(super) fn schedule(
     // Response times per host.
     let all = threads.clone();
     for t in &mut threads {
-        let higher: Vec<(u64, u64)> = all
+        let higher: Vec<(u64, u64, u64)> = all
             .iter()
             .filter(|o| o.host == t.host && o.component != t.component && o.priority >= t.priority)
-            .map(|o| (o.period, o.wcet))
+            .map(|o| (o.period, o.wcet, o.release_jitter))
             .collect();
-        t.response = response_time(t.wcet, &higher, t.period);
+        t.response = response_time_with_jitter(t.wcet, t.release_jitter, &higher, t.period);
     }
     unschedulable(&threads, timing, spans, findings);
     threads.sort_by(|a, b| {
@@ -179,13 +184,25 @@ fn unschedulable(
                 .filter(|o| {
                     o.host == t.host && o.component != t.component && o.priority >= t.priority
                 })
-                .map(|o| format!("`{}` (T={} C={})", o.component, ms(o.period), ms(o.wcet)))
+                .map(|o| {
+                    let j = if o.release_jitter > 0 {
+                        format!(" J={}", ms(o.release_jitter))
+                    } else {
+                        String::new()
+                    };
+                    format!("`{}` (T={} C={}{j})", o.component, ms(o.period), ms(o.wcet))
+                })
                 .collect();
             findings.push(
                 Finding::new(
                     Code::Unschedulable,
                     spans.at(&path),
-                    format!("C = {} ms, T = {} ms", ms(t.wcet), ms(t.period)),
+                    format!(
+                        "C = {} ms, J = {} ms, T = {} ms",
+                        ms(t.wcet),
+                        ms(t.release_jitter),
+                        ms(t.period)
+                    ),
                     format!(
                         "thread `{}` (process `{}`, priority {}) can miss its deadline: its response time passes its period {} ms",
                         t.component,
