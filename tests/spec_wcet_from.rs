@@ -141,7 +141,7 @@ fn measured_wake_up_lateness_is_the_release_jitter() {
     assert!(out.contains("largest wake-up lateness x 1.2"), "{out}");
     assert!(
         out.contains(
-            "release_jitter c1         declared_ms=- measured_max_ms=0.0500 used_ms=0.0600 from=measured"
+            "release_jitter c1         declared_ms=0.5000 measured_max_ms=0.0500 used_ms=0.0600 from=measured"
         ),
         "{out}"
     );

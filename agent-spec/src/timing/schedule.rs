@@ -198,9 +198,13 @@ fn unschedulable(
                     Code::Unschedulable,
                     spans.at(&path),
                     format!(
-                        "C = {} ms, J = {} ms, T = {} ms",
+                        "C = {} ms, {}T = {} ms",
                         ms(t.wcet),
-                        ms(t.release_jitter),
+                        if t.release_jitter > 0 {
+                            format!("J = {} ms, ", ms(t.release_jitter))
+                        } else {
+                            String::new()
+                        },
                         ms(t.period)
                     ),
                     format!(
