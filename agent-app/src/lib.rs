@@ -280,10 +280,13 @@ pub trait Application {
         agent_mcap::RecordOptions::default()
     }
 
-    /// How recordings are replayed (the codecs they were recorded with).
+    /// How recordings are replayed. By default as they were recorded: with
+    /// the codecs [`record_options`](Application::record_options) gives
+    /// and the error policy of [`exec`](Application::exec).
     fn replay_options(&self, config: &Self::Config) -> agent_mcap::ReplayOptions {
         agent_mcap::ReplayOptions {
             exec: self.exec(config),
+            codecs: self.record_options(config).codecs,
             ..agent_mcap::ReplayOptions::default()
         }
     }
@@ -555,7 +558,74 @@ pub(crate) fn recorded_metadata<A: Application>(
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
+    use agent_core::OnError;
+
     use super::*;
+
+    /// A codec that encodes a value as its own bytes.
+    struct Plain;
+
+    impl agent_mcap::Codec for Plain {
+        fn payload(&self) -> &str {
+            "u8"
+        }
+        fn name(&self) -> &str {
+            "plain/1"
+        }
+        fn encode(&self, body: &[u8], out: &mut Vec<u8>) {
+            out.extend_from_slice(body);
+        }
+        fn decode(&self, data: &[u8], out: &mut Vec<u8>) -> Result<(), agent_mcap::DecodeError> {
+            out.extend_from_slice(data);
+            Ok(())
+        }
+    }
+
+    /// A program that records with a codec and continues on errors, and
+    /// says nothing of how it replays.
+    struct Coded;
+
+    impl Application for Coded {
+        type Flags = NoFlags;
+        type Config = ();
+        type Seen = ();
+
+        fn configure(&mut self, _: &NoFlags, _: &Common) -> Result<Vec<()>, AppError> {
+            Ok(vec![()])
+        }
+        fn spec(&self, _: &()) -> Result<SpecFile, AppError> {
+            SpecFile::parse("tank.ron", include_str!("../../specs/tank.ron"))
+        }
+        fn build(&mut self, _: &(), _: &Target<'_>) -> Result<System, AppError> {
+            Err(AppError::invalid("not built in this test"))
+        }
+        fn watcher(&mut self, _: &(), _: &Common) -> Box<dyn Watcher<()>> {
+            Box::new(Quiet)
+        }
+        fn exec(&self, _: &()) -> ExecConfig {
+            ExecConfig {
+                on_error: OnError::Continue,
+                ..ExecConfig::default()
+            }
+        }
+        fn record_options(&self, _: &()) -> agent_mcap::RecordOptions {
+            agent_mcap::RecordOptions {
+                codecs: vec![Arc::new(Plain)],
+                ..agent_mcap::RecordOptions::default()
+            }
+        }
+    }
+
+    #[test]
+    fn a_recording_replays_by_default_with_its_codecs_and_error_policy() {
+        let options = Coded.replay_options(&());
+        let codecs: Vec<&str> = options.codecs.iter().map(|c| c.name()).collect();
+        assert_eq!(codecs, ["plain/1"]);
+        assert_eq!(options.exec.on_error, OnError::Continue);
+        assert_eq!(options.window, None);
+    }
 
     #[test]
     fn components_apart_in_a_deployment_are_named_with_their_processes() {

@@ -16,7 +16,6 @@ use embodied::app::{
     AppError, Application, Common, Mode, RunSummary, SpecFile, Target, Verdict, Watcher,
 };
 use embodied::record::RecordOptions;
-use embodied::replay::ReplayOptions;
 use embodied::{Finished, OffloadMode, Probes, System};
 
 use crate::a1::c1::trajgen::Runtime;
@@ -350,10 +349,6 @@ impl Application for RexApp {
             );
         }
         options
-    }
-
-    fn replay_options(&self, config: &RunSettings) -> ReplayOptions {
-        crate::record::replay_options(self.exec(config))
     }
 
     fn default_record(&self, config: &RunSettings, _: &Common) -> Option<PathBuf> {

@@ -32,7 +32,6 @@ use embodied::app::{
     AppError, Application, Common, RunSummary, SpecFile, Target, Verdict, Watcher,
 };
 use embodied::record::RecordOptions;
-use embodied::replay::ReplayOptions;
 use embodied::spec::model::Spec;
 use embodied::{Finished, Probes, System};
 use serde::{Deserialize, Serialize};
@@ -344,10 +343,6 @@ impl Application for FleetApp {
             codecs: crate::record::codecs(),
             ..RecordOptions::default()
         }
-    }
-
-    fn replay_options(&self, config: &FleetConfig) -> ReplayOptions {
-        crate::record::replay_options(self.exec(config))
     }
 
     fn check_deployment(&self, config: &FleetConfig, deployment: &str) -> Result<(), AppError> {
