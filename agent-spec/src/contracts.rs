@@ -8,6 +8,9 @@
 //! behaviour) and carries its bound as plain data, so that a monitor can be
 //! made from each one without the spec's text: a freshness contract is a
 //! buffer and a largest age, a range a buffer, a field path and two limits.
+//! A buffer of a fan is named by its element (`c2.c1[3].plan`), or by the
+//! whole fan (`c2.c1[*].plan`: the contract once per element,
+//! [`Contracts::per_element`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -36,6 +39,77 @@ pub struct Contracts {
     /// Cause-effect chains from a real receptor to a real effector.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub chains: Vec<Chain>,
+}
+
+impl Contracts {
+    /// These contracts with every whole fan (`c2.c1[*].plan`,
+    /// [`crate::fans`]) replaced by its elements: a freshness, rate or range
+    /// on a whole fan is one contract per element (a range named `name`
+    /// becomes `name[k]`); a response with a whole fan on one side is one
+    /// response per element of it, and with the same fan's elements on both
+    /// sides one per element, element `k` answered on element `k` (`name[k]`).
+    /// What monitors are made from; a spec the checker passed.
+    pub fn per_element(&self, spec: &crate::Spec) -> Contracts {
+        use crate::fans::{elements, named};
+        let mut out = Contracts {
+            bounds: self.bounds.clone(),
+            invariants: self.invariants.clone(),
+            chains: self.chains.clone(),
+            ..Contracts::default()
+        };
+        for f in &self.freshness {
+            out.freshness.extend(
+                elements(spec, &f.input)
+                    .into_iter()
+                    .map(|(input, _)| Freshness { input, ..f.clone() }),
+            );
+        }
+        for r in &self.rates {
+            out.rates.extend(
+                elements(spec, &r.input)
+                    .into_iter()
+                    .map(|(input, _)| Rate { input, ..r.clone() }),
+            );
+        }
+        for r in &self.ranges {
+            out.ranges
+                .extend(
+                    elements(spec, &r.buffer)
+                        .into_iter()
+                        .map(|(buffer, k)| ValueRange {
+                            name: named(&r.name, k),
+                            buffer,
+                            ..r.clone()
+                        }),
+                );
+        }
+        for r in &self.responses {
+            let (triggers, responses) = (elements(spec, &r.trigger), elements(spec, &r.response));
+            let pairs: Vec<_> = match (triggers.len(), responses.len()) {
+                (_, 1) => triggers
+                    .into_iter()
+                    .map(|(t, k)| (t, responses[0].0.clone(), k))
+                    .collect(),
+                (1, _) => responses
+                    .into_iter()
+                    .map(|(x, k)| (triggers[0].0.clone(), x, k))
+                    .collect(),
+                _ => triggers
+                    .into_iter()
+                    .zip(responses)
+                    .map(|((t, k), (x, _))| (t, x, k))
+                    .collect(),
+            };
+            out.responses
+                .extend(pairs.into_iter().map(|(trigger, response, k)| Response {
+                    name: named(&r.name, k),
+                    trigger,
+                    response,
+                    ..r.clone()
+                }));
+        }
+        out
+    }
 }
 
 /// `input`'s values are never older than `max_age_ms` when an activation reads them.

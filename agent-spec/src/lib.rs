@@ -25,6 +25,7 @@ pub mod deploy;
 pub mod diag;
 pub mod diagram;
 pub mod export;
+pub mod fans;
 pub mod model;
 pub mod names;
 mod proof;

@@ -556,17 +556,23 @@ pub fn interface(spec: &Spec, deployment: Option<&Deployment>) -> Option<Interfa
     let topics = |entries: &[Ros2Topic], output: bool| -> Vec<Topic> {
         entries
             .iter()
-            .filter_map(|entry| {
-                let (component, ty) = buffer_type(spec, &entry.buffer, output)?;
+            .flat_map(|entry| {
+                crate::fans::elements(spec, &entry.buffer)
+                    .into_iter()
+                    .map(move |(buffer, k)| (entry, buffer, k))
+            })
+            .filter_map(|(entry, buffer, k)| {
+                let (component, ty) = buffer_type(spec, &buffer, output)?;
                 let runs = deployment.is_none_or(|d| d.runs().any(|r| r == component));
+                let topic = element_topic(&entry.topic, k);
                 runs.then(|| Topic {
-                    buffer: entry.buffer.clone(),
                     component: component.to_owned(),
                     ty: ty.to_owned(),
-                    name: expand_topic(&entry.topic, &node, &namespace),
+                    name: expand_topic(&topic, &node, &namespace),
                     message: entry.message.clone(),
-                    qos: QosProfile::of_link(link_policy(spec, &entry.buffer, output))
+                    qos: QosProfile::of_link(link_policy(spec, &buffer, output))
                         .with(entry.qos.as_ref()),
+                    buffer,
                 })
             })
             .collect()
@@ -581,12 +587,27 @@ pub fn interface(spec: &Spec, deployment: Option<&Deployment>) -> Option<Interfa
     })
 }
 
+/// The topic of element `k` of an entry naming a whole fan (`[*]`):
+/// `topic_k` (`plans` -> `plans_3`; a topic's token may not start with a
+/// digit, so the index is joined to its last token); `topic` itself for an
+/// entry naming one buffer.
+pub fn element_topic(topic: &str, k: Option<usize>) -> String {
+    k.map_or_else(|| topic.to_owned(), |k| format!("{topic}_{k}"))
+}
+
 /// The component and type of buffer `component.group.buffer` among the
-/// outputs (`output`) or inputs of its component.
+/// outputs (`output`) or inputs of its component; a fan's element is
+/// `component.fan[k].buffer` (a whole fan, `[*]`, is its element 0's).
 pub fn buffer_type<'s>(spec: &'s Spec, buffer: &str, output: bool) -> Option<(&'s str, &'s str)> {
-    let parts: Vec<&str> = buffer.split('.').collect();
+    let one = crate::fans::element(buffer, 0);
+    let parts: Vec<&str> = one.split('.').collect();
     let [component, peer, name] = parts[..] else {
         return None;
+    };
+    // `c1[3]`: element 3 of fan `c1`, which must have it.
+    let (peer, index) = match peer.split_once('[') {
+        Some((fan, rest)) => (fan, Some(rest.strip_suffix(']')?.parse::<usize>().ok()?)),
+        None => (peer, None),
     };
     let groups = spec.agents.iter().find_map(|a| {
         let side = |inputs, outputs| if output { outputs } else { inputs };
@@ -604,7 +625,7 @@ pub fn buffer_type<'s>(spec: &'s Spec, buffer: &str, output: bool) -> Option<(&'
     let (component, groups) = groups?;
     groups
         .iter()
-        .filter(|g| g.peer == peer)
+        .filter(|g| g.peer == peer && index.map_or(g.peers.is_empty(), |k| k < g.peers.len()))
         .flat_map(|g| &g.buffers)
         .find(|b| b.name == name)
         .map(|b| (component, b.ty.as_str()))

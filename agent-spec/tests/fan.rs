@@ -190,3 +190,199 @@ fn an_unlinked_element_is_reported_by_its_index() {
         "{messages:?}"
     );
 }
+
+/// The fleet of three robots, all linked, with `extra` (RON fields of the
+/// system: `contracts: (...)`, `ros2: (...)`) added.
+fn fleet_with(extra: &str) -> (Option<agent_spec::Spec>, Report) {
+    let links: String = (0..3).map(robot_links).collect();
+    let text = spec(3, 3, &links);
+    let text = format!("{}, {extra})", text.strip_suffix(')').unwrap());
+    check_source("fleet.ron", text)
+}
+
+#[test]
+fn contracts_name_one_element_or_every_element_of_a_fan() {
+    let (spec, report) = fleet_with(
+        r#"contracts: (
+            freshness: [(input: "c2.c1[1].ack", max_age_ms: 50.0)],
+            rates: [(input: "c2.c1[*].ack", min_hz: 10.0)],
+            ranges: [
+                (name: "plan", buffer: "c2.c1[*].plan", max: 100.0),
+                (name: "ack_0", buffer: "c2.c1[0].ack", min: 0.0),
+            ],
+            responses: [
+                (name: "acked", trigger: "c2.c1[*].plan", response: "c2.c1[*].ack", within_s: 1.0),
+                (name: "first", trigger: "c2.c1[0].plan", response: "c2.c1[*].ack", within_s: 1.0),
+            ],
+        )"#,
+    );
+    assert_eq!(report.errors(), 0, "{}", report.render(100));
+    let spec = spec.unwrap();
+    let each = spec.contracts.as_ref().unwrap().per_element(&spec);
+    let rates: Vec<&str> = each.rates.iter().map(|r| r.input.as_str()).collect();
+    assert_eq!(rates, ["c2.c1[0].ack", "c2.c1[1].ack", "c2.c1[2].ack"]);
+    let ranges: Vec<(&str, &str)> = each
+        .ranges
+        .iter()
+        .map(|r| (r.name.as_str(), r.buffer.as_str()))
+        .collect();
+    assert_eq!(
+        ranges,
+        [
+            ("plan[0]", "c2.c1[0].plan"),
+            ("plan[1]", "c2.c1[1].plan"),
+            ("plan[2]", "c2.c1[2].plan"),
+            ("ack_0", "c2.c1[0].ack"),
+        ]
+    );
+    let responses: Vec<(&str, &str, &str)> = each
+        .responses
+        .iter()
+        .map(|r| (r.name.as_str(), r.trigger.as_str(), r.response.as_str()))
+        .collect();
+    assert_eq!(
+        responses,
+        [
+            ("acked[0]", "c2.c1[0].plan", "c2.c1[0].ack"),
+            ("acked[1]", "c2.c1[1].plan", "c2.c1[1].ack"),
+            ("acked[2]", "c2.c1[2].plan", "c2.c1[2].ack"),
+            ("first[0]", "c2.c1[0].plan", "c2.c1[0].ack"),
+            ("first[1]", "c2.c1[0].plan", "c2.c1[1].ack"),
+            ("first[2]", "c2.c1[0].plan", "c2.c1[2].ack"),
+        ]
+    );
+    assert_eq!(each.freshness[0].input, "c2.c1[1].ack");
+}
+
+#[test]
+fn a_contract_on_a_fan_element_the_fan_lacks_or_misnames_is_an_error_at_its_name() {
+    // (the buffer as written, what the message says, what the help says)
+    let cases = [
+        (
+            "c2.c1[5].ack",
+            "names element 5 of fan `c1` of `c2`, which has 3 element(s)",
+            "an index below 3",
+        ),
+        (
+            "c2.c1_1.ack",
+            "names `c1_1`, which is element 1 of fan `c1` of `c2`",
+            "`c2.c1[1].ack`",
+        ),
+        (
+            "c2.c1[*].acks",
+            "names no buffer `acks` of fan `c1` of `c2`",
+            "did you mean `c2.c1[*].ack`?",
+        ),
+        (
+            "c2.c11[0].ack",
+            "names fan `c11`, which `c2` does not have on that side",
+            "did you mean `c1`?",
+        ),
+        (
+            "c1_0.c2[*].plan",
+            "indexes group `c2` of `c1_0`, which is not a fan",
+            "a group with `peers` is a fan",
+        ),
+        (
+            "c2.c1[03].ack",
+            "does not index fan `c1` of `c2` with a number",
+            "or `[*]`, every element",
+        ),
+    ];
+    for (buffer, message, help) in cases {
+        let (_, report) = fleet_with(&format!(
+            r#"contracts: (rates: [(input: "{buffer}", min_hz: 10.0)])"#
+        ));
+        let errors: Vec<_> = report
+            .findings
+            .iter()
+            .filter(|f| f.severity() == agent_spec::Severity::Error)
+            .collect();
+        assert_eq!(errors.len(), 1, "{buffer}: {}", report.render(100));
+        let f = errors[0];
+        assert_eq!(f.code, Code::UnknownBuffer, "{buffer}");
+        assert!(f.message.contains(message), "{buffer}: {}", f.message);
+        let helps = format!("{:?}", f.help);
+        assert!(helps.contains(help), "{buffer}: {helps}");
+        assert_eq!(&report.source[f.labels[0].span.clone()], buffer);
+    }
+}
+
+#[test]
+fn a_whole_fan_is_no_link_end_and_an_ordinary_group_has_no_whole_fan() {
+    let links = format!(
+        "{}{}",
+        robot_links(0),
+        r#"(from: "c2.c1[*].plan", to: "c1_1.c2.plan"),"#
+    );
+    let (_, report) = check_source("fleet.ron", spec(2, 2, &links));
+    let every = report
+        .findings
+        .iter()
+        .find(|f| {
+            f.message
+                .contains("names every element of fan `c1` of `c2`")
+        })
+        .unwrap_or_else(|| panic!("{}", report.render(100)));
+    assert_eq!(
+        &report.source[every.labels[0].span.clone()],
+        "c2.c1[*].plan"
+    );
+
+    // c1_0's ordinary group is no fan: its `[*]` is refused as such.
+    let (_, report) = fleet_with(
+        r#"contracts: (responses: [
+            (name: "bad", trigger: "c2.c1[*].plan", response: "c1_0.c2[*].ack", within_s: 1.0),
+        ])"#,
+    );
+    assert!(
+        report.findings.iter().any(|f| f
+            .message
+            .contains("indexes group `c2` of `c1_0`, which is not a fan")),
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn a_ros_2_entry_on_a_whole_fan_is_one_topic_per_element() {
+    let (spec, report) = fleet_with(
+        r#"ros2: (
+            publish: [(buffer: "c2.c1[*].plan", topic: "plans"), (buffer: "c2.c1[1].plan", topic: "second")],
+            subscribe: [(buffer: "c2.c1[2].ack", topic: "ack_2")],
+        )"#,
+    );
+    assert_eq!(report.errors(), 0, "{}", report.render(100));
+    let spec = spec.unwrap();
+    let interface = agent_spec::ros2::interface(&spec, None).unwrap();
+    let published: Vec<(&str, &str)> = interface
+        .publish
+        .iter()
+        .map(|t| (t.buffer.as_str(), t.name.as_str()))
+        .collect();
+    assert_eq!(
+        published,
+        [
+            ("c2.c1[0].plan", "/plans_0"),
+            ("c2.c1[1].plan", "/plans_1"),
+            ("c2.c1[2].plan", "/plans_2"),
+            ("c2.c1[1].plan", "/second"),
+        ]
+    );
+    assert_eq!(interface.subscribe[0].buffer, "c2.c1[2].ack");
+    assert_eq!(interface.subscribe[0].ty, "u64");
+
+    let (_, report) = fleet_with(r#"ros2: (publish: [(buffer: "c2.c1[7].plan", topic: "plans")])"#);
+    let f = report
+        .findings
+        .iter()
+        .find(|f| f.severity() == agent_spec::Severity::Error)
+        .unwrap_or_else(|| panic!("{}", report.render(100)));
+    assert!(
+        f.message
+            .contains("element 7 of fan `c1` of `c2`, which has 3"),
+        "{}",
+        f.message
+    );
+    assert_eq!(&report.source[f.labels[0].span.clone()], "c2.c1[7].plan");
+}

@@ -123,6 +123,7 @@ impl<'a> Checker<'a> {
                 let at = join(&base, &[F("responses"), I(i)]);
                 self.buffer_ref(&r.trigger, &join(&at, &[F("trigger")]));
                 self.buffer_ref(&r.response, &join(&at, &[F("response")]));
+                self.paired_fans(r, &at);
                 self.positive(r.within_s, &join(&at, &[F("within_s")]), "a deadline [s]");
             }
             self.unique(
@@ -401,8 +402,38 @@ impl<'a> Checker<'a> {
 
     /// An input buffer `component.group.buffer`.
     fn input_ref(&mut self, text: &str, path: &[Seg<'static>]) {
-        if let Err(e) = self.endpoint(text, false) {
+        if let Err(e) = self.endpoint(&self.one_element(text), false) {
             self.endpoint_error(&e, text, path, false);
+        }
+    }
+
+    /// What an entry naming buffer `text` is checked as: `text`, or for a
+    /// whole fan (`c2.c1[*].plan`, [`crate::fans`]) that `text`'s component
+    /// has, its element 0 (every element has the same buffers).
+    pub(super) fn one_element(&self, text: &str) -> String {
+        match crate::fans::elements(self.spec, text).into_iter().next() {
+            Some((first, Some(_))) => first,
+            _ => text.to_owned(),
+        }
+    }
+
+    /// A response whose trigger and response both name a whole fan: element
+    /// `k` answered on element `k`, so the fans have as many elements.
+    fn paired_fans(&mut self, r: &crate::model::Response, at: &[Seg<'static>]) {
+        let (t, x) = (
+            crate::fans::elements(self.spec, &r.trigger).len(),
+            crate::fans::elements(self.spec, &r.response).len(),
+        );
+        if crate::fans::is_every(&r.trigger) && crate::fans::is_every(&r.response) && t != x {
+            self.contract_finding(
+                &join(at, &[F("response")]),
+                &format!("{x} element(s), the trigger's fan {t}"),
+                format!(
+                    "response `{}` pairs fans of different sizes: `{}` has {t} element(s), `{}` {x}",
+                    r.name, r.trigger, r.response
+                ),
+                "with a whole fan on both sides, element k is answered on element k: name fans of the same peers, or one element on a side",
+            );
         }
     }
 
@@ -427,9 +458,10 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        match self.endpoint(text, true) {
+        let one = self.one_element(text);
+        match self.endpoint(&one, true) {
             Ok((_, _, ty)) => Some(Found { ty }),
-            Err(EndpointError::Direction) => match self.endpoint(text, false) {
+            Err(EndpointError::Direction) => match self.endpoint(&one, false) {
                 Ok((_, _, ty)) => Some(Found { ty }),
                 Err(e) => {
                     self.endpoint_error(&e, text, path, false);

@@ -145,11 +145,22 @@ impl<'a> Checker<'a> {
                 if entry.qos.and_then(|q| q.depth) == Some(0) {
                     self.ros2_depth(&join(&path, &[F("qos"), F("depth")]), &entry.topic);
                 }
-                if let Some(component) = component.filter(|_| !output) {
-                    self.ros2_overwritten(s, entry, &path, component);
-                }
-                if component.is_some() && output {
-                    self.ros2_unlinked(entry, &path);
+                // Per element of a whole fan (`[*]`): each its own topic.
+                let elements = component.map_or_else(Vec::new, |_| {
+                    crate::fans::elements(self.spec, &entry.buffer)
+                });
+                for (buffer, k) in elements {
+                    let one = Ros2Topic {
+                        buffer,
+                        topic: rules::element_topic(&entry.topic, k),
+                        ..entry.clone()
+                    };
+                    match component {
+                        Some(component) if !output => {
+                            self.ros2_overwritten(s, &one, &path, component);
+                        }
+                        _ => self.ros2_unlinked(&one, &path),
+                    }
                 }
             }
         }
@@ -340,7 +351,7 @@ impl<'a> Checker<'a> {
         } else {
             ("subscribe", "input")
         };
-        let f = match self.endpoint(text, output) {
+        let f = match self.endpoint(&self.one_element(text), output) {
             Ok((component, _, _)) => match s.deployment {
                 Some(dep) if !dep.runs().any(|r| r == component) => {
                     self.ros2_not_deployed(dep, component, text, &at)
@@ -387,7 +398,12 @@ impl<'a> Checker<'a> {
                 )
                 .help(format!("`publish` shows an output (a link's `from`), `subscribe` feeds an input (a link's `to`); move the entry to `{move_to}` if that is what you mean"))
             }
-            Err(EndpointError::Buffer) => self.ros2_unknown_buffer(text, &at, side, kind, output),
+            Err(EndpointError::Buffer) => match self.fan_problem(text, output) {
+                Some((label, message, help)) => {
+                    Finding::new(Code::UnknownBuffer, self.span(&at), label, message).help(help)
+                }
+                None => self.ros2_unknown_buffer(text, &at, side, kind, output),
+            },
         };
         self.push(f);
         None

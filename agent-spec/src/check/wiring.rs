@@ -328,45 +328,81 @@ impl<'a> Checker<'a> {
 
     /// Why link end `text` names no buffer when a fan is involved: an index
     /// the fan lacks (or not written as one), a fan named without an index, an
-    /// index on an ordinary group. `(label, message, help)`; `None` otherwise.
-    fn fan_problem(&self, text: &str, outputs: bool) -> Option<(String, String, String)> {
+    /// index on an ordinary group, a fan's peer named instead of its element,
+    /// a fan or a fan's buffer misspelt, every element (`[*]`) where one is
+    /// needed. `(label, message, help)`; `None` otherwise.
+    pub(super) fn fan_problem(
+        &self,
+        text: &str,
+        outputs: bool,
+    ) -> Option<(String, String, String)> {
         let mut parts = text.split('.');
         let (comp, group, buffer) = (parts.next()?, parts.next()?, parts.next()?);
         let c = self.comps.get(comp)?;
-        let (name, index) = match group.split_once('[') {
-            Some((name, rest)) => (name, Some(rest.strip_suffix(']').and_then(fan_index))),
-            None => (group, None),
-        };
         let groups = if outputs { c.outputs } else { c.inputs };
-        let g = groups.iter().find(|g| g.peer == name)?;
+        let Some((name, rest)) = group.split_once('[') else {
+            return match groups.iter().find(|g| g.peer == group) {
+                Some(g) if !g.peers.is_empty() => {
+                    let len = g.peers.len();
+                    Some((
+                        "a fan, without an element".into(),
+                        format!(
+                            "link end `{text}` names fan `{group}` of `{comp}` without an element"
+                        ),
+                        format!(
+                            "name one of its {len} elements: `{comp}.{group}[k].{buffer}` with k from 0 to {}",
+                            len - 1
+                        ),
+                    ))
+                }
+                Some(_) => None,
+                None => peer_of_fan(groups, comp, group, buffer, text),
+            };
+        };
+        let index = rest.strip_suffix(']');
+        let Some(g) = groups.iter().find(|g| g.peer == name) else {
+            return misspelt_fan(groups, comp, name, text);
+        };
         let len = g.peers.len();
-        match index {
-            None if len > 0 => Some((
-                "a fan, without an element".into(),
-                format!("link end `{text}` names fan `{name}` of `{comp}` without an element"),
-                format!(
-                    "name one of its {len} elements: `{comp}.{name}[k].{buffer}` with k from 0 to {}",
-                    len - 1
-                ),
-            )),
-            Some(_) if len == 0 => Some((
+        let every = index == Some("*");
+        match index.and_then(fan_index) {
+            _ if len == 0 => Some((
                 "not a fan".into(),
                 format!("link end `{text}` indexes group `{name}` of `{comp}`, which is not a fan"),
                 format!("name its buffers `{comp}.{name}.{buffer}`; a group with `peers` is a fan"),
             )),
-            Some(Some(k)) if k >= len => Some((
+            Some(k) if k >= len => Some((
                 format!("no element {k}"),
                 format!(
                     "link end `{text}` names element {k} of fan `{name}` of `{comp}`, which has {len} element(s)"
                 ),
                 format!("an index below {len}, or one more peer in the fan's `peers`"),
             )),
-            Some(None) => Some((
+            None if !every => Some((
                 "not an index".into(),
                 format!("link end `{text}` does not index fan `{name}` of `{comp}` with a number"),
-                "write the index in decimal without leading zeros: `[0]`, `[12]`".into(),
+                "write the index in decimal without leading zeros: `[0]`, `[12]` (or `[*]`, every element, in contracts and ROS 2 entries)".into(),
             )),
-            _ => None,
+            _ if !g.buffers.iter().any(|b| b.name == buffer) => {
+                let names = g.buffers.iter().map(|b| b.name.as_str());
+                let guess = crate::names::did_you_mean(buffer, names.clone())
+                    .map(|b| format!("did you mean `{comp}.{group}.{b}`? "))
+                    .unwrap_or_default();
+                Some((
+                    "no such buffer".into(),
+                    format!("`{text}` names no buffer `{buffer}` of fan `{name}` of `{comp}`"),
+                    format!("{guess}its buffers: {}", names.collect::<Vec<_>>().join(", ")),
+                ))
+            }
+            None => Some((
+                "every element".into(),
+                format!("`{text}` names every element of fan `{name}` of `{comp}`, where one element is needed"),
+                format!(
+                    "name one element, `{comp}.{name}[k].{buffer}` with k from 0 to {}: links, chains' hops and write intervals join one element; `[*]` is for contracts and ROS 2 entries",
+                    len - 1
+                ),
+            )),
+            Some(_) => None,
         }
     }
 
@@ -681,4 +717,50 @@ fn fan_index(text: &str) -> Option<usize> {
         && text.bytes().all(|b| b.is_ascii_digit())
         && (text == "0" || !text.starts_with('0'));
     canonical.then(|| text.parse().ok()).flatten()
+}
+
+/// `comp.peer.buffer` where `peer` is element `k` of one of `groups`' fans:
+/// the element is named by its index.
+fn peer_of_fan(
+    groups: &[Group],
+    comp: &str,
+    peer: &str,
+    buffer: &str,
+    text: &str,
+) -> Option<(String, String, String)> {
+    groups.iter().find_map(|g| {
+        let k = g.peers.iter().position(|p| p == peer)?;
+        let fan = &g.peer;
+        Some((
+            format!("element {k} of fan `{fan}`"),
+            format!("`{text}` names `{peer}`, which is element {k} of fan `{fan}` of `{comp}`"),
+            format!("name the element by its index: `{comp}.{fan}[{k}].{buffer}`"),
+        ))
+    })
+}
+
+/// `comp.name[..].buffer` where `groups` have no group `name`: a guess among
+/// their fans, if they have any.
+fn misspelt_fan(
+    groups: &[Group],
+    comp: &str,
+    name: &str,
+    text: &str,
+) -> Option<(String, String, String)> {
+    let fans: Vec<&str> = groups
+        .iter()
+        .filter(|g| !g.peers.is_empty())
+        .map(|g| g.peer.as_str())
+        .collect();
+    if fans.is_empty() {
+        return None;
+    }
+    let guess = crate::names::did_you_mean(name, fans.iter().copied())
+        .map(|f| format!("did you mean `{f}`? "))
+        .unwrap_or_default();
+    Some((
+        "no such fan".into(),
+        format!("`{text}` names fan `{name}`, which `{comp}` does not have on that side"),
+        format!("{guess}fans of `{comp}` there: {}", fans.join(", ")),
+    ))
 }
