@@ -642,3 +642,67 @@ fn invariants_are_judged_in_each_thread_of_a_real_time_run_and_over_its_recordin
         .collect();
     assert_eq!(offline, lines);
 }
+
+/// An observer that wants every event of every link (and does nothing with
+/// them): beside a watch, it makes the executor deliver everything.
+struct Everything;
+
+impl Observer for Everything {}
+
+#[test]
+fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
+    use embodied::monitor::Monitors;
+    use embodied::monitor::live::{Live, Verdicts};
+    use embodied::trace::LinkEvents;
+    // Seeded to break: the level's range (checked where r1 sends it, no
+    // other contract counting those sends), its freshness, the response.
+    let mut c = kept();
+    c.rates.clear();
+    c.ranges[0].max = Some(0.9);
+    c.freshness[0].max_age_ms = 5.0;
+    c.responses[0].within_s = 0.001;
+    let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
+    let run = |every: bool| -> (Verdicts, Vec<String>, Vec<LinkEvents>) {
+        let s = system();
+        let live = Live::new(Monitors::new(&spec).unwrap(), &s);
+        let watch = live.watch();
+        let asked = (0..s.info().links.len())
+            .map(|l| watch.link_events(l))
+            .collect();
+        let config = ExecConfig {
+            on_error: OnError::Continue,
+            ..ExecConfig::default()
+        };
+        let errors = if every {
+            let mut exec = Executor::with_observer(s, config, (Everything, watch));
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        } else {
+            let mut exec = Executor::with_observer(s, config, watch);
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        };
+        (live.verdicts(), errors, asked)
+    };
+    let (asked_only, errors, asked) = run(false);
+    let (every, every_errors, _) = run(true);
+    assert_eq!(asked_only, every);
+    assert_eq!(errors, every_errors);
+    let kinds = |v: &Verdicts| {
+        let mut k: Vec<u32> = v.violations.iter().map(|v| v.contract.0).collect();
+        k.sort_unstable();
+        k.dedup();
+        k.len()
+    };
+    assert_eq!(kinds(&every), 3, "range, freshness and response broken");
+    assert!(asked_only.raised > 0 && asked_only.undecodable == 0);
+    // The watch asked for less than everything: no events of the links no
+    // contract reads, and r1's levels only when out of range.
+    assert!(asked.contains(&LinkEvents::none()), "{asked:?}");
+    assert!(
+        asked
+            .iter()
+            .any(|w| !w.transfers && w.out_of.len() == 1 && w.reads),
+        "{asked:?}"
+    );
+}

@@ -100,8 +100,7 @@ impl Monitors {
     #[inline]
     pub(crate) fn judge(&self, range: RangeId, t: Time, x: f64) -> Option<Violation> {
         let r = self.ranges.get(range.0 as usize).filter(|r| r.active)?;
-        let inside = r.min.is_none_or(|m| x >= m) && r.max.is_none_or(|m| x <= m);
-        (!inside).then_some(Violation {
+        (!agent_core::trace::within(x, r.min, r.max)).then_some(Violation {
             time: t,
             contract: r.contract,
             broke: Broke::OutOfRange {

@@ -342,6 +342,17 @@ struct Index {
     invariants_of: Vec<Vec<u32>>,
 }
 
+/// What the monitors count of a link's ends ([`Monitors::counts`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Counts {
+    /// The reads of its input (a freshness).
+    pub(crate) reads: bool,
+    /// The arrivals at its input (a rate).
+    pub(crate) arrivals: bool,
+    /// The sends on its output (a response).
+    pub(crate) sends: bool,
+}
+
 /// The indices `k` of `items` (by `key`) for each of `n` keys.
 fn index_by<T>(n: usize, items: &[T], key: impl Fn(&T) -> Option<usize>) -> Vec<Vec<u32>> {
     let mut out = vec![Vec::new(); n];
@@ -465,6 +476,28 @@ impl Monitors {
             .get(range.0 as usize)
             .filter(|r| r.active)
             .map(|r| r.contract)
+    }
+
+    /// The bounds of a range monitor judged here (`None` once it is not:
+    /// [`Monitors::retain_subsystems`]).
+    pub(crate) fn range_bounds(&self, range: RangeId) -> Option<(Option<f64>, Option<f64>)> {
+        self.ranges
+            .get(range.0 as usize)
+            .filter(|r| r.active)
+            .map(|r| (r.min, r.max))
+    }
+
+    /// Whether a monitor here counts the reads of `input` (a freshness), its
+    /// arrivals (a rate), the sends on `output` (a response).
+    pub(crate) fn counts(&self, input: Option<InputId>, output: Option<OutputId>) -> Counts {
+        let any =
+            |index: &[Vec<u32>], i: Option<u32>| i.is_some_and(|i| !listed(index, i).is_empty());
+        let i = input.map(|i| i.0);
+        Counts {
+            reads: any(&self.index.freshness_of, i),
+            arrivals: any(&self.index.rates_of, i),
+            sends: any(&self.index.responses_of, output.map(|o| o.0)),
+        }
     }
 
     /// The name of a subsystem.

@@ -61,7 +61,9 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::sync::{Arc, Mutex, PoisonError};
 
-use agent_core::trace::{ErasedPayload, FieldPath, ReadEvent, TransferEvent};
+use agent_core::trace::{
+    ErasedPayload, FieldPath, LinkEvents, NumberBound, ReadEvent, TransferEvent,
+};
 use agent_core::{
     ActionEvent, ExecError, Observer, Step, System, Time, TransitionEvent, Valuation,
 };
@@ -547,6 +549,36 @@ impl Watch {
 }
 
 impl Observer for Watch {
+    /// The events of link `link` that change a monitor: the sends a response
+    /// or rate counts (by a writer watched here), the reads a freshness,
+    /// rate or response counts (by a reader watched here), and, of the other
+    /// sends by a watched writer, those out of a range only (the range's
+    /// bounds checked on the typed value where it is sent). The events left
+    /// out would have moved the watch's clock only, which the same instant's
+    /// activations move.
+    fn link_events(&self, link: usize) -> LinkEvents {
+        let Some(p) = self.links.get(link) else {
+            return LinkEvents::all();
+        };
+        let out_of = (p.ranges.iter())
+            .filter(|_| p.writer)
+            .filter_map(|(id, path)| {
+                let (min, max) = self.monitors.range_bounds(*id)?;
+                Some(NumberBound {
+                    path: path.clone(),
+                    min,
+                    max,
+                })
+            })
+            .collect();
+        let c = self.monitors.counts(p.input, p.output);
+        LinkEvents {
+            transfers: p.writer && (c.sends || (c.arrivals && p.reader)),
+            out_of,
+            reads: p.reader && (c.reads || (!p.writer && (c.sends || c.arrivals))),
+        }
+    }
+
     fn transition(&mut self, e: &TransitionEvent) {
         self.at(e.time);
         let Some(Some(sub)) = self.watched.get(e.node).copied() else {
