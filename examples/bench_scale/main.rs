@@ -42,7 +42,8 @@
 //! benchmarks (a test's run: a few seconds in a debug build). The figures are
 //! then not comparable with a full run's. `--skip-external`: a full run
 //! without the other crates' benchmarks. `--multirate`: the `multirate` lines
-//! of a full run only.
+//! of a full run only. `--only det`: the `det` lines, the growth line and the
+//! final line (its other figures `na`) only, in a few seconds.
 
 mod det;
 mod external;
@@ -214,8 +215,26 @@ pub(crate) struct Options {
 
 /// `cargo run --release --example bench_scale [-- --quick]`.
 pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let quick = std::env::args().skip(1).any(|a| a == "--quick");
-    if std::env::args().skip(1).any(|a| a == "--multirate") {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    if args.windows(2).any(|w| w[0] == "--only" && w[1] == "det") {
+        let mut scale = Scale::default();
+        let out = &mut std::io::stdout();
+        let mut plan = if quick { QUICK } else { FULL };
+        // `--agents 1,3333`, `--batches 3`: other sizes and repeats (a profiler's run).
+        let value = |key: &str| args.windows(2).find(|w| w[0] == key).map(|w| w[1].clone());
+        if let Some(list) = value("--agents") {
+            let agents: Vec<usize> = list.split(',').map(str::parse).collect::<Result<_, _>>()?;
+            plan.det_agents = agents.leak();
+        }
+        if let Some(batches) = value("--batches") {
+            plan.det_batches = batches.parse()?;
+        }
+        deterministic(&plan, out, &mut scale)?;
+        writeln!(out, "{scale}")?;
+        return Ok(());
+    }
+    if args.iter().any(|a| a == "--multirate") {
         for figures in det::measure_rates(FULL.rates_agents, FULL.det_batches)? {
             println!("{}", figures.line());
         }
@@ -223,7 +242,7 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let options = Options {
         quick,
-        skip_external: std::env::args().skip(1).any(|a| a == "--skip-external"),
+        skip_external: args.iter().any(|a| a == "--skip-external"),
         // A full run builds the `embodied` binary if it is not there (for
         // `embodied new`).
         embodied_bin: tools::embodied_bin()
@@ -233,15 +252,14 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// Measures, writing the lines to `out`; the figures of the final line.
-pub(crate) fn run(
-    options: &Options,
+/// The deterministic executor's part of a run: its `det` lines and the growth
+/// line, written to `out`; `action_ratio_10000` into `scale`. Alone, as
+/// `--only det`, it is followed by the final line (the other figures `na`).
+fn deterministic(
+    plan: &Plan,
     out: &mut dyn Write,
-) -> Result<Scale, Box<dyn std::error::Error>> {
-    let plan = if options.quick { QUICK } else { FULL };
-    let mut scale = Scale::default();
-
-    // The deterministic executor.
+    scale: &mut Scale,
+) -> Result<(), Box<dyn std::error::Error>> {
     let det = det::measure(plan.det_agents, plan.det_batches)?;
     for figures in &det {
         writeln!(out, "{}", figures.line())?;
@@ -259,6 +277,18 @@ pub(crate) fn run(
             (last.build_ms / last.n as f64) / (first.build_ms / first.n as f64)
         )?;
     }
+    Ok(())
+}
+
+/// Measures, writing the lines to `out`; the figures of the final line.
+pub(crate) fn run(
+    options: &Options,
+    out: &mut dyn Write,
+) -> Result<Scale, Box<dyn std::error::Error>> {
+    let plan = if options.quick { QUICK } else { FULL };
+    let mut scale = Scale::default();
+
+    deterministic(&plan, out, &mut scale)?;
 
     // The deterministic executor, several rates.
     for figures in det::measure_rates(plan.rates_agents, plan.det_batches)? {
