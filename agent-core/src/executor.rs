@@ -36,8 +36,8 @@ use std::time::Duration;
 
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
-use crate::link::{Channels, LinkCx, LinkId, LinkStats};
-use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
+use crate::link::{ChannelPlan, Channels, InPlan, LinkCx, LinkId, LinkStats, OutPlan};
+use crate::node::{DriverCore, InProcessNode, NodeSeed, NodeStep, SubsystemCore};
 use crate::probe::{ProbeFn, Probes, Target};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
@@ -135,6 +135,10 @@ pub struct Executor<O: Observer = NoObserver> {
     pub(crate) info: SystemInfo,
     pub(crate) nodes: Vec<Box<dyn InProcessNode>>,
     periods: Vec<u64>,
+    /// Whether each node is a driver (a real effector or receptor): whether
+    /// an instant at which it runs moves the world, so that an action need
+    /// not reach the node's description.
+    drives: Vec<bool>,
     /// Each node's next instant (`u64::MAX`: never again), the truth that
     /// `schedule` indexes.
     next: Vec<u64>,
@@ -193,35 +197,20 @@ impl<O: Observer> Executor<O> {
             channels,
             environment,
         } = system;
-        let (typed, stats) = channels.iter().map(|c| c.local()).unzip();
-        let channels = Channels { typed, stats };
-        let mut nodes: Vec<Box<dyn InProcessNode>> = nodes
-            .into_iter()
-            .map(|n| n.into_in_process(config.audit))
-            .collect();
-        // Handles were checked against the nodes' buffer types when the links were
-        // declared, and every plan's channel was made from the same payload type, so
-        // installation cannot fail.
-        for (node, plan) in &outs {
-            let installed = plan
-                .local(&channels)
-                .is_some_and(|port| nodes[*node].install_out(port));
-            debug_assert!(installed, "output port type checked at connect()");
-        }
-        for (node, plan) in &ins {
-            let installed = plan
-                .local(&channels)
-                .is_some_and(|port| nodes[*node].install_in(port));
-            debug_assert!(installed, "input port type checked at connect()");
-        }
-        let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
-        let n = nodes.len();
+        let n = info.nodes.len();
         // Within an instant: every component in declaration order, then the real
         // receptors, so that they sense what the effectors did in that instant.
         let (mut order, receptors): (Vec<usize>, Vec<usize>) =
             (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
         let receptors_from = order.len();
         order.extend(receptors);
+        let (nodes, channels) = in_process(nodes, outs, ins, &channels, &order, config.audit);
+        let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
+        let drives = info
+            .nodes
+            .iter()
+            .map(|n| matches!(n.kind, NodeKind::RealEffector | NodeKind::RealReceptor))
+            .collect();
         let next = vec![0; n];
         let schedule = Schedule::new(&next, &periods, &order);
         Executor {
@@ -229,6 +218,7 @@ impl<O: Observer> Executor<O> {
             info,
             nodes,
             periods,
+            drives,
             next,
             order,
             receptors_from,
@@ -389,10 +379,7 @@ impl<O: Observer> Executor<O> {
             if self.next[i] != tn {
                 continue;
             }
-            world_ran |= matches!(
-                self.info.nodes[i].kind,
-                NodeKind::RealEffector | NodeKind::RealReceptor
-            );
+            world_ran |= self.drives[i];
             let mut cx = LinkCx {
                 time: t,
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
@@ -575,8 +562,7 @@ impl<O: Observer> Executor<O> {
     /// Counters of a link.
     pub fn link_stats(&self, link: LinkId) -> Option<LinkStats> {
         self.channels
-            .stats
-            .get(link.index())
+            .stats(link.index())
             .map(|c| *c.borrow().stats())
     }
 
@@ -617,8 +603,7 @@ impl<O: Observer> Executor<O> {
         stamp: crate::Stamp,
     ) -> Result<(), crate::InjectError> {
         self.channels
-            .stats
-            .get(link)
+            .stats(link)
             .ok_or(crate::InjectError::NoLink(link))?
             .borrow_mut()
             .put_encoded(body, stamp)
@@ -626,7 +611,7 @@ impl<O: Observer> Executor<O> {
 
     /// Drop the values waiting in link `link` (those no isolated node reads).
     pub fn discard(&mut self, link: usize) {
-        if let Some(c) = self.channels.stats.get(link) {
+        if let Some(c) = self.channels.stats(link) {
             c.borrow_mut().clear();
         }
     }
@@ -634,10 +619,70 @@ impl<O: Observer> Executor<O> {
     /// Values waiting in a link (0 or 1 for a sample link).
     pub fn pending(&self, link: LinkId) -> Option<usize> {
         self.channels
-            .stats
-            .get(link.index())
+            .stats(link.index())
             .map(|c| c.borrow().pending())
     }
+}
+
+/// The in-process nodes of `seeds` with their ports, and the links' channels
+/// (`plans`), made node by node in stepping `order`: a node, the channels of
+/// its links not made yet and its ports one after the other, so that what an
+/// instant touches lies on the heap in the order it is touched (rather than
+/// all nodes, then all channels, then all ports). Each node's ports keep their
+/// order (that of the trace's events).
+fn in_process(
+    seeds: Vec<Box<dyn NodeSeed>>,
+    outs: Vec<(usize, Box<dyn OutPlan>)>,
+    ins: Vec<(usize, Box<dyn InPlan>)>,
+    plans: &[Box<dyn ChannelPlan>],
+    order: &[usize],
+    audit: bool,
+) -> (Vec<Box<dyn InProcessNode>>, Channels) {
+    let n = seeds.len();
+    let mut outs_of: Vec<Vec<Box<dyn OutPlan>>> = (0..n).map(|_| Vec::new()).collect();
+    for (node, plan) in outs {
+        outs_of[node].push(plan);
+    }
+    let mut ins_of: Vec<Vec<Box<dyn InPlan>>> = (0..n).map(|_| Vec::new()).collect();
+    for (node, plan) in ins {
+        ins_of[node].push(plan);
+    }
+    let mut seeds: Vec<Option<Box<dyn NodeSeed>>> = seeds.into_iter().map(Some).collect();
+    let mut made: Vec<Option<Box<dyn InProcessNode>>> = (0..n).map(|_| None).collect();
+    let mut channels = Channels::unmade(plans.len());
+    for &i in order {
+        let Some(seed) = seeds[i].take() else {
+            continue;
+        };
+        let mut node = seed.into_in_process(audit);
+        // Handles were checked against the nodes' buffer types when the links
+        // were declared, and every plan's channel was made from the same payload
+        // type, so installation cannot fail.
+        for plan in &outs_of[i] {
+            for &l in plan.links() {
+                channels.make(l, plans);
+            }
+            let installed = plan
+                .local(&channels)
+                .is_some_and(|port| node.install_out(port));
+            debug_assert!(installed, "output port type checked at connect()");
+        }
+        for plan in &ins_of[i] {
+            channels.make(plan.link(), plans);
+            let installed = plan
+                .local(&channels)
+                .is_some_and(|port| node.install_in(port));
+            debug_assert!(installed, "input port type checked at connect()");
+        }
+        made[i] = Some(node);
+    }
+    // Links no port of this system uses (none, unless a plan refused).
+    for l in 0..plans.len() {
+        channels.make(l, plans);
+    }
+    let nodes: Vec<Box<dyn InProcessNode>> = made.into_iter().flatten().collect();
+    debug_assert_eq!(nodes.len(), n, "every node is in the stepping order");
+    (nodes, channels)
 }
 
 /// The nodes of one period due at one instant.

@@ -368,15 +368,58 @@ impl<T: Payload> AnyChannel for Channel<T> {
 pub(crate) type Shared<T> = Rc<RefCell<Channel<T>>>;
 
 /// The channels of all links of a system, by link index: typed (erased as `Any`, each
-/// a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics.
+/// a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics. The
+/// deterministic executor makes them one by one ([`Channels::make`]), in the
+/// order its nodes first use them, so that they lie on the heap near their
+/// ports.
 pub(crate) struct Channels {
-    pub(crate) typed: Vec<Box<dyn Any>>,
-    pub(crate) stats: Vec<Rc<RefCell<dyn AnyChannel>>>,
+    typed: Vec<Option<Box<dyn Any>>>,
+    stats: Vec<Option<Rc<RefCell<dyn AnyChannel>>>>,
 }
 
 impl Channels {
+    /// The channels of `links` links, none made yet.
+    pub(crate) fn unmade(links: usize) -> Channels {
+        Channels {
+            typed: (0..links).map(|_| None).collect(),
+            stats: (0..links).map(|_| None).collect(),
+        }
+    }
+
+    /// Make the channel of link `link` from its plan in `plans`, unless it
+    /// is made already (or there is no such link).
+    pub(crate) fn make(&mut self, link: usize, plans: &[Box<dyn ChannelPlan>]) {
+        if let (Some(typed @ None), Some(stats), Some(plan)) = (
+            self.typed.get_mut(link),
+            self.stats.get_mut(link),
+            plans.get(link),
+        ) {
+            let (t, s) = plan.local();
+            *typed = Some(t);
+            *stats = Some(s);
+        }
+    }
+
+    /// The channel of link `link`, erased, for its statistics.
+    pub(crate) fn stats(&self, link: usize) -> Option<&Rc<RefCell<dyn AnyChannel>>> {
+        self.stats.get(link)?.as_ref()
+    }
+
+    /// Every link's counters, by link index (a link without a channel counts
+    /// nothing).
+    pub(crate) fn all_stats(&self) -> Vec<LinkStats> {
+        self.stats
+            .iter()
+            .map(|c| c.as_ref().map(|c| *c.borrow().stats()).unwrap_or_default())
+            .collect()
+    }
+
     fn shared<T: Payload>(&self, link: usize) -> Option<Shared<T>> {
-        self.typed.get(link)?.downcast_ref::<Shared<T>>().cloned()
+        self.typed
+            .get(link)?
+            .as_ref()?
+            .downcast_ref::<Shared<T>>()
+            .cloned()
     }
 }
 
@@ -456,12 +499,18 @@ pub(crate) trait InPort<I> {
     fn attach(&self, x: &mut I);
 }
 
+/// The sending half of in-process links: what an action's send touches, in
+/// its first bytes (the port's accessor of the buffer, not its name and
+/// checks, which the plan keeps), so that a port costs one cache line.
+#[repr(C)]
 pub(crate) struct LocalOut<O, T, A> {
-    port: Port<O, Out<T>, A>,
     /// The first destination (link index, channel), inline: most outputs have one.
     first: (usize, Shared<T>),
+    /// The output buffer, from the output struct.
+    access: A,
     /// Further destinations of a fanned-out output.
     more: Vec<(usize, Shared<T>)>,
+    _o: PhantomData<fn(&mut O)>,
 }
 
 impl<O, T: Payload, A> LocalOut<O, T, A> {
@@ -492,7 +541,7 @@ impl<O, T: Payload, A> LocalOut<O, T, A> {
 impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T, A> {
     #[inline]
     fn send(&mut self, y: &mut O, stamp: Stamp, cx: &mut LinkCx<'_>) -> Result<(), Refused> {
-        let Some(value) = self.port.get(y).pending() else {
+        let Some(value) = (self.access)(y).pending() else {
             return Ok(());
         };
         if self.more.is_empty() {
@@ -512,15 +561,20 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
     }
 
     fn discard(&mut self, y: &mut O) {
-        self.port.get(y).discard();
+        (self.access)(y).discard();
     }
 }
 
+/// The receiving half of an in-process link: what a read touches first (see
+/// [`LocalOut`]), the buffer's name (given once) last.
+#[repr(C)]
 pub(crate) struct LocalIn<I, T, A> {
-    port: Port<I, In<T>, A>,
     channel: Shared<T>,
-    name: Cow<'static, str>,
     link: usize,
+    /// The input buffer, from the input struct.
+    access: A,
+    name: Cow<'static, str>,
+    _i: PhantomData<fn(&mut I)>,
 }
 
 /// Tell the observer that the buffer `x` just took a value from `link` (if it did).
@@ -542,14 +596,14 @@ pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
 impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A> {
     #[inline]
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
-        let x = self.port.get(x);
+        let x = (self.access)(x);
         self.channel.borrow_mut().take_into(x);
         observe_read(x, self.link, cx);
         Ok(())
     }
 
     fn attach(&self, x: &mut I) {
-        self.port.get(x).set_name(self.name.clone());
+        (self.access)(x).set_name(self.name.clone());
     }
 }
 
@@ -561,6 +615,8 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A>
 /// instantiates it.
 pub(crate) trait OutPlan: Send {
     fn add_link(&mut self, link: usize);
+    /// The links it sends into.
+    fn links(&self) -> &[usize];
     /// A `Box<dyn OutPort<O>>` for the in-process executor, erased as `Any`.
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
     /// A `Box<dyn OutPort<O>>` over links between threads, erased as `Any`; takes
@@ -577,6 +633,9 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
     fn add_link(&mut self, link: usize) {
         self.links.push(link);
     }
+    fn links(&self) -> &[usize] {
+        &self.links
+    }
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
         let mut links = self
             .links
@@ -588,9 +647,10 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
         }
         let first = links.remove(0);
         let port: Box<dyn OutPort<O>> = Box::new(LocalOut {
-            port: self.port,
             first,
+            access: self.port.access,
             more: links,
+            _o: PhantomData,
         });
         Some(Box::new(port))
     }
@@ -617,6 +677,8 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
 
 /// The typed receiving half of a link.
 pub(crate) trait InPlan: Send {
+    /// The link it reads.
+    fn link(&self) -> usize;
     /// A `Box<dyn InPort<I>>` for the in-process executor, erased as `Any`.
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>>;
     /// A `Box<dyn InPort<I>>` over a link between threads, erased as `Any`; takes
@@ -631,12 +693,16 @@ pub(crate) struct TypedInPlan<I, T, A> {
 }
 
 impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<I, T, A> {
+    fn link(&self) -> usize {
+        self.link
+    }
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
         let port: Box<dyn InPort<I>> = Box::new(LocalIn {
-            port: self.port,
             channel: channels.shared::<T>(self.link)?,
-            name: self.name.clone(),
             link: self.link,
+            access: self.port.access,
+            name: self.name.clone(),
+            _i: PhantomData,
         });
         Some(Box::new(port))
     }

@@ -131,7 +131,7 @@ impl<O: Observer> Executor<O> {
             probes_dropped,
             ..
         } = self;
-        let links: Vec<LinkStats> = channels.stats.iter().map(|c| *c.borrow().stats()).collect();
+        let links: Vec<LinkStats> = channels.all_stats();
         let cores = nodes
             .into_iter()
             .enumerate()
