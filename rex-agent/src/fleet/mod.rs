@@ -8,8 +8,8 @@
 //!   checked by the same checker.
 //! * [`ontology`]: that `c2`: every robot dispatched as Rex's `c2` dispatches
 //!   Rex (its mission's plans one by one, the outcomes kept, the plans not
-//!   settled sent again when the robot's `c1` restarts), by Rex's code, its
-//!   place in Rex's FSM kept per robot.
+//!   settled sent again when the robot's `c1` restarts): one activation of
+//!   Rex's `c2` FSM per robot, on Rex's memory, at each of its own.
 //! * [`Warehouse`]: the shared world: walls around rows of shelves; between two
 //!   rows, an aisle; robot `i` has aisle `i`, starts at its west end and is
 //!   sent along it. One environment, [`FleetTruth`], holds every platform's

@@ -8,74 +8,52 @@
 //! the previous one was acknowledged, the outcome of every plan kept, and,
 //! when its `c1` comes back as a new incarnation (its process was killed and
 //! restarted), its plans not settled sent again from their first point not
-//! known reached. The per-robot logic is Rex's, not a copy: each robot has an
-//! [`OntologyMemory`] and the predicates and functions of Rex's `c2` run on
-//! it ([`OntologyMemory::more`], [`OntologyMemory::acked`],
-//! [`OntologyMemory::settled`], [`OntologyMemory::advance`],
-//! [`OntologyMemory::record`]). What one FSM cannot be is in Rex's
-//! behaviours for every robot at once, so each robot's place in Rex's FSM
-//! (`next_plan`, `wait`, `settle`, `done`) is kept in memory ([`Phase`]),
-//! and at every activation of the fleet's `c2` each robot takes the steps
-//! Rex's `c2` takes in one activation: the same decisions on the same
-//! predicates, then the same action (send its next plan, or record what
-//! arrived). A robot's plans and memory are then those Rex's `c2` would have
-//! had with the same inputs, activation by activation (the module's tests
-//! run both side by side).
+//! known reached. The per-robot logic is Rex's, not a copy, and so is its
+//! FSM: each robot has Rex's `c2` memory ([`OntologyMemory`]) and its own
+//! state in Rex's `c2` FSM ([`ontology_fsm`]), a machine per robot inside
+//! the fleet's one `c2`. At every activation of the fleet's `c2` each robot's
+//! machine takes one activation of Rex's FSM ([`Fsm::activate`]: its
+//! decisions on Rex's predicates, then Rex's action) on the robot's element
+//! of the fan, and the plan Rex's action sends goes out on the robot's
+//! element of the output fan. A robot's plans and memory are then those
+//! Rex's `c2` would have had with the same inputs, activation by activation
+//! (the module's tests run both side by side).
 //!
-//! The fleet's `c2` has two behaviours: `dispatch` (every robot's step,
-//! until every robot's mission is settled) and the final `done`.
+//! The fleet's `c2` has two behaviours: `dispatch` (every robot's
+//! activation, until every robot's mission is settled) and the final `done`.
 
 use embodied::{
-    Action, ActionError, Behaviour, Buffers, Fan, Fsm, FsmBuildError, Memory, Subsystem,
+    Action, ActionError, Behaviour, Buffers, Fan, Fsm, FsmBuildError, FsmState, Memory, Step,
+    Subsystem,
 };
 
 use crate::mission::Mission;
-use crate::world::partners::{OntologyFromC1, OntologyMemory, OntologyToC1};
+use crate::payload::Plan;
+use crate::world::partners::{
+    Ontology, OntologyFromC1, OntologyInput, OntologyMemory, OntologyOutput, OntologyToC1,
+    ontology_fsm,
+};
 
 /// The fleet's control subsystem `c2` of its ontology agent `a2`.
 #[derive(Subsystem)]
 #[subsystem(kind = Control, memory = FleetOntologyMemory, input = FleetOntologyInput, output = FleetOntologyOutput)]
 pub struct FleetOntology;
 
-/// Where a robot is in Rex's `c2` FSM (its behaviours).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Phase {
-    /// `next_plan`: decide whether to send a plan or settle.
-    #[default]
-    NextPlan,
-    /// `wait`: a plan was sent; wait for its acknowledgement.
-    Wait,
-    /// `settle`: every plan was sent; wait for every outcome.
-    Settle,
-    /// `done`: its one last record.
-    Done,
-    /// Rex's `c2` would have halted: nothing more for this robot.
-    Halted,
-}
-
-/// What a robot's step does at this activation (Rex's action of the
-/// behaviour it is in).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Step {
-    /// Nothing (halted).
-    #[default]
-    Idle,
-    /// `send`: its next plan goes out, then `advance`.
-    Send,
-    /// `record`: keep what arrived, watch `c1`'s incarnation.
-    Record,
-}
-
-/// One robot's dispatch: Rex's `c2` memory and its place in Rex's FSM.
+/// One robot's dispatch: Rex's `c2` memory and its state in Rex's `c2` FSM.
 #[derive(Clone, Debug, Default)]
 pub struct Dispatch {
     /// What Rex's `c2` keeps of its robot: the mission, the plans sent, the
     /// acknowledgements and outcomes, `c1`'s incarnation.
     pub ontology: OntologyMemory,
-    /// Its place in Rex's FSM.
-    pub phase: Phase,
-    /// What it does at the current activation.
-    pub step: Step,
+    /// Its state in Rex's `c2` FSM; `None` before its first activation (the
+    /// FSM's initial behaviour).
+    pub state: Option<FsmState>,
+    /// Whether Rex's `c2` has halted, or halts at its next decision (its
+    /// final behaviour ends and no arc leaves it): nothing more for this
+    /// robot.
+    pub halted: bool,
+    /// The plan Rex's action sent at the current activation.
+    pub sending: Option<Plan>,
 }
 
 impl Dispatch {
@@ -83,46 +61,42 @@ impl Dispatch {
     pub fn new(mission: Mission) -> Self {
         Dispatch {
             ontology: OntologyMemory::new(mission),
-            phase: Phase::NextPlan,
-            step: Step::Idle,
+            ..Dispatch::default()
         }
     }
 
-    /// The decisions of one activation of Rex's `c2` with input `x`: from
-    /// behaviour to behaviour on the predicates until one acts, which sets
-    /// [`Dispatch::step`]. Rex's graph has no cycle without an action (a
-    /// plan lost means one to send); a robot that found one is an error, as
-    /// Rex's FSM's livelock is.
-    fn decide(&mut self, robot: usize, x: &OntologyFromC1) -> Result<(), ActionError> {
-        let m = &self.ontology;
-        // At most one transition out of each behaviour, as in Rex's FSM.
-        for _ in 0..5 {
-            let (phase, step) = match self.phase {
-                Phase::NextPlan if m.more() => (Phase::Wait, Some(Step::Send)),
-                Phase::NextPlan => (Phase::Settle, None),
-                Phase::Wait if m.acked(x) || m.lost => (Phase::NextPlan, None),
-                Phase::Settle if m.lost => (Phase::NextPlan, None),
-                Phase::Settle if m.settled() => (Phase::Done, None),
-                Phase::Wait | Phase::Settle => (self.phase, Some(Step::Record)),
-                Phase::Done => (Phase::Halted, Some(Step::Record)),
-                Phase::Halted => (Phase::Halted, Some(Step::Idle)),
-            };
-            self.phase = phase;
-            if let Some(step) = step {
-                self.step = step;
-                return Ok(());
-            }
-        }
-        Err(ActionError::failed(format!(
-            "robot {robot}: Rex's c2 went round its behaviours without an action ({:?})",
-            self.phase
-        )))
+    /// One activation of Rex's `c2` FSM `rex` for robot `robot`, on the
+    /// robot's inputs `x`: Rex's decisions and Rex's action; the plan it
+    /// sends kept in [`Dispatch::sending`].
+    fn activate(
+        &mut self,
+        rex: &Fsm<Ontology>,
+        robot: usize,
+        x: &OntologyFromC1,
+    ) -> Result<(), ActionError> {
+        self.sending = None;
+        let state = self.state.get_or_insert_with(|| rex.start());
+        let input = OntologyInput { c1: x.clone() };
+        let mut output = OntologyOutput::default();
+        rex.activate(state, &mut self.ontology, &input, &mut output, |_| {})
+            .map_err(|e| ActionError::failed(format!("robot {robot}: Rex's c2: {e}")))?;
+        self.sending = output.c1.desired_plan.written().cloned();
+        // A final behaviour that ends with no arc out halts at the next
+        // decision, which changes nothing else: said now, so that the fleet
+        // does not wait an activation more per robot.
+        let mut next = *state;
+        self.halted = state.is_halted()
+            || (rex.is_final(state.behaviour())
+                && matches!(
+                    rex.step(&mut next, &self.ontology, &input),
+                    Ok(Step::Finished)
+                ));
+        Ok(())
     }
 
-    /// Whether Rex's `c2` would have halted: every plan settled, its last
-    /// record made.
+    /// Whether Rex's `c2` has halted or halts at its next decision.
     pub fn halted(&self) -> bool {
-        self.phase == Phase::Halted
+        self.halted
     }
 }
 
@@ -181,9 +155,14 @@ impl FleetOntologyOutput {
     }
 }
 
-/// Every robot's decisions (the common part `decide`): the fan must have a
-/// robot's element for every robot of the memory.
-fn decide(m: &mut FleetOntologyMemory, x: &FleetOntologyInput) -> Result<(), ActionError> {
+/// Every robot's activation of Rex's `c2` FSM `rex` (the common part
+/// `activate_robots`): the fan must have a robot's element for every robot
+/// of the memory.
+fn activate_robots(
+    rex: &Fsm<Ontology>,
+    m: &mut FleetOntologyMemory,
+    x: &FleetOntologyInput,
+) -> Result<(), ActionError> {
     if x.c1.len() != m.robots.len() {
         return Err(ActionError::failed(format!(
             "{} robots to dispatch to, but {} elements in the fan from c1",
@@ -192,58 +171,44 @@ fn decide(m: &mut FleetOntologyMemory, x: &FleetOntologyInput) -> Result<(), Act
         )));
     }
     for (k, (robot, x)) in m.robots.iter_mut().zip(x.c1.iter()).enumerate() {
-        robot.decide(k, x)?;
-    }
-    Ok(())
-}
-
-/// The next plan of every robot that sends one (`send_plans`), from its
-/// first point not known reached.
-fn send_plans(m: &FleetOntologyMemory, y: &mut Fan<OntologyToC1>) -> Result<(), ActionError> {
-    for (k, (robot, y)) in m.robots.iter().zip(y.iter_mut()).enumerate() {
-        if robot.step == Step::Send {
-            let plan = robot
-                .ontology
-                .to_send(robot.ontology.next)
-                .ok_or_else(|| ActionError::failed(format!("robot {k}: no plan left to send")))?;
-            y.desired_plan.set(plan);
+        if !robot.halted {
+            robot.activate(rex, k, x)?;
         }
     }
     Ok(())
 }
 
-/// Every robot's memory after its step (`advance`): Rex's `advance` after a
-/// plan was sent, Rex's `record` while it waits.
-fn advance(m: &mut FleetOntologyMemory, x: &FleetOntologyInput) {
-    for (robot, x) in m.robots.iter_mut().zip(x.c1.iter()) {
-        match robot.step {
-            Step::Send => robot.ontology.advance(x),
-            Step::Record => robot.ontology.record(x),
-            Step::Idle => {}
+/// The plan each robot's activation sent (`send_plans`), to that robot.
+fn send_plans(m: &FleetOntologyMemory, y: &mut Fan<OntologyToC1>) {
+    for (robot, y) in m.robots.iter().zip(y.iter_mut()) {
+        if let Some(plan) = &robot.sending {
+            y.desired_plan.set(plan.clone());
         }
     }
 }
 
 /// The FSM of the fleet's `c2` (as the fleet's spec says,
-/// [`super::spec::fleet_spec`]): `dispatch` steps every robot until every
-/// robot's mission is settled, then the final `done`.
+/// [`super::spec::fleet_spec`]): `dispatch` activates every robot's machine
+/// (Rex's `c2` FSM, [`ontology_fsm`]) until every robot's mission is
+/// settled, then the final `done`.
 pub fn fleet_ontology_fsm() -> Result<Fsm<FleetOntology>, FsmBuildError> {
+    let rex = ontology_fsm()?;
     Fsm::builder()
         .predicate("settled", |m: &FleetOntologyMemory, _| m.settled())
         .behaviour(Behaviour::while_loop(
             "dispatch",
             Action::<FleetOntology>::new()
-                .common(decide)
-                .named("decide")
+                .common(move |m: &mut FleetOntologyMemory, x: &FleetOntologyInput| {
+                    activate_robots(&rex, m, x)
+                })
+                .named("activate_robots")
                 .output(
                     |y| &mut y.c1,
                     |m: &FleetOntologyMemory, _: &FleetOntologyInput, y: &mut Fan<OntologyToC1>| {
-                        send_plans(m, y)
+                        send_plans(m, y);
                     },
                 )
-                .named("send_plans")
-                .memory(advance)
-                .named("advance"),
+                .named("send_plans"),
             "settled",
         ))
         .behaviour(Behaviour::repeat_loop(

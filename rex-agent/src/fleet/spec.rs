@@ -17,8 +17,8 @@
 //! `c2.c1[k].desired_plan -> c1_k.c2.desired_plan` and `c1_k.c2.ack ->
 //! c2.c1[k].ack` (and `outcome`, `progress`, `alive`), with Rex's policies.
 //! Its memory, predicates, functions and FSM are those of
-//! [`super::ontology`]: every robot's dispatch, stepped as Rex's `c2` steps
-//! (its behaviours `dispatch` and `done`).
+//! [`super::ontology`]: every robot's dispatch, one activation of Rex's `c2`
+//! FSM per robot at each of its own (its behaviours `dispatch` and `done`).
 //!
 //! Deployments: `simulation` (everything in one process), `simulation_without_vo`
 //! (without `r11_i` and `R1_i`), and `grouped_without_vo`: the shared world
@@ -167,13 +167,13 @@ pub fn fleet_a2(rex: &Spec, robots: usize) -> Option<Agent> {
     let text = |t: &str| Some(t.to_owned());
     let strings = |v: &[&str]| v.iter().map(|&x| x.to_owned()).collect::<Vec<_>>();
     s.doc = text(
-        "Every robot's dispatch, stepped at each activation as Rex's c2 steps at its own (rex-agent/src/fleet/ontology.rs).",
+        "Every robot's dispatch: at each activation, one activation of Rex's c2 FSM per robot (rex-agent/src/fleet/ontology.rs).",
     );
     s.memory = vec![Buffer {
         name: "robots".into(),
         ty: "Vec<Dispatch>".into(),
         doc: text(
-            "each robot's dispatch: Rex's c2 memory (mission, plans sent, acknowledgements, outcomes, c1's incarnation) and its place in Rex's c2 FSM",
+            "each robot's dispatch: Rex's c2 memory (mission, plans sent, acknowledgements, outcomes, c1's incarnation) and its state in Rex's c2 FSM",
         ),
     }];
     s.predicates = vec![Predicate {
@@ -195,34 +195,27 @@ pub fn fleet_a2(rex: &Spec, robots: usize) -> Option<Agent> {
         };
     s.functions = vec![
         function(
-            "decide",
+            "activate_robots",
             Target::Common,
             &every,
             &["robots"],
-            "each robot's decisions of Rex's c2 on its predicates (more, acked, lost, settled): send, record, or nothing",
+            "each robot's activation of Rex's c2 FSM on its inputs: Rex's decisions on its predicates (more, acked, lost, settled), then Rex's action (send_plan and advance, or record), the plan sent kept",
         ),
         function(
             "send_plans",
             Target::Output("c1".into()),
             &["robots"],
             &["desired_plan"],
-            "the next plan of each robot that sends one, from its first point not known reached",
-        ),
-        function(
-            "advance",
-            Target::Memory,
-            &every,
-            &["robots"],
-            "each robot's Rex advance after a plan sent, Rex record while it waits",
+            "the plan each robot's activation sent, to that robot",
         ),
     ];
     s.behaviours = vec![
         Behaviour {
             name: "dispatch".into(),
             kind: BehaviourKind::While,
-            functions: strings(&["decide", "send_plans", "advance"]),
+            functions: strings(&["activate_robots", "send_plans"]),
             terminal: "settled".into(),
-            doc: text("every robot's step of Rex's c2"),
+            doc: text("every robot's activation of Rex's c2 FSM"),
         },
         Behaviour {
             name: "done".into(),

@@ -145,6 +145,12 @@ fn the_first_activation_sends_every_robot_its_first_plan() {
         assert_eq!(plan.id, 1);
         assert_eq!(plan.points[0].x, (10 * k) as f64, "robot {k}'s own plan");
     }
-    assert!(memory.robots.iter().all(|r| r.phase == Phase::Wait));
+    // Each robot's machine in Rex's `send`, its action done (it goes on to
+    // `wait` at its next decision).
+    let rex = ontology_fsm().unwrap();
+    assert!(memory.robots.iter().all(|r| {
+        r.state
+            .is_some_and(|s| rex.behaviour_name(s.behaviour()) == "send" && s.actions_done())
+    }));
     assert!(!memory.settled());
 }
