@@ -97,6 +97,8 @@ impl Monitors {
         let Some(c) = &spec.contracts else {
             return Ok(m);
         };
+        // A contract on a whole fan (`c2.c1[*].plan`) is one per element.
+        let c = &c.per_element(spec);
         for f in &c.freshness {
             let contract = m.add(ContractKind::Freshness, &f.input, component(&f.input));
             let max = positive_ns(ContractKind::Freshness, &f.input, f.max_age_ms, 1e6)?;
