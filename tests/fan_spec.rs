@@ -1,9 +1,12 @@
-//! A system with a fan exported to a spec and read back keeps the fan: the
-//! hub's group is written with its `peers` (element `k`'s peer the robot its
-//! links reach), its links name the elements `hub.robots[k].buffer`, and the
-//! RON text parses and passes the checker with the same peers. An element
-//! below the last linked one that is linked to nothing cannot be named: the
-//! export says which.
+//! A system with a fan, in its spec. Exported and read back it keeps the
+//! fan: the hub's group is written with its `peers` (element `k`'s peer the
+//! robot its links reach), its links name the elements `hub.robots[k].buffer`,
+//! and the RON text parses and passes the checker with the same peers; an
+//! element below the last linked one that is linked to nothing cannot be
+//! named, and the export says which. Its contracts name one element
+//! (`hub.robots[1].plan`) or every element (`hub.robots[*].plan`), and the
+//! monitors judge each element on its own peer's values, live and over the
+//! run's recording alike.
 
 #![allow(
     clippy::unwrap_used,
@@ -11,6 +14,13 @@
     reason = "a failing unwrap is a failing test"
 )]
 
+use std::time::Duration;
+
+use embodied::monitor::live::Live;
+use embodied::monitor::recording::{evaluate, needed};
+use embodied::monitor::{Broke, Monitors, Violation};
+use embodied::record::{McapRecorder, RecordOptions, Recording, Values};
+use embodied::spec::contracts::{Contracts, ValueRange};
 use embodied::spec::export::{ExportError, spec_of, to_ron};
 use embodied::*;
 
@@ -81,8 +91,9 @@ fn hub_fsm() -> Fsm<Hub> {
         .output(
             |y| &mut y.robots,
             |m: &HubMemory, _: &HubIn, y: &mut Fan<ToRobot>| {
-                for r in y.iter_mut() {
-                    r.plan.set(m.n);
+                // Robot k's plans count from 1000 k.
+                for (k, r) in y.iter_mut().enumerate() {
+                    r.plan.set(1000 * k as u64 + m.n);
                 }
             },
         )
@@ -199,4 +210,98 @@ fn an_element_linked_to_nothing_below_a_linked_one_is_named() {
         matches!(&err, ExportError::Unlinked { node, group } if node == "hub" && group == "robots[1]"),
         "{err}"
     );
+}
+
+/// A range of at most `max` on `buffer`, named `name`.
+fn at_most(name: &str, buffer: &str, max: f64) -> ValueRange {
+    ValueRange {
+        name: name.into(),
+        buffer: buffer.into(),
+        field: None,
+        min: None,
+        max: Some(max),
+    }
+}
+
+/// Each violation as (contract, value), in order.
+fn shown(m: &Monitors, v: &[Violation]) -> Vec<(String, f64)> {
+    v.iter()
+        .map(|v| {
+            let name = m.contract(v.contract).map_or("?", |c| c.name.as_str());
+            let value = match v.broke {
+                Broke::OutOfRange { value, .. } => value,
+                _ => f64::NAN,
+            };
+            (name.to_owned(), value)
+        })
+        .collect()
+}
+
+#[test]
+fn a_range_on_one_element_is_judged_on_that_peers_values_only_live_and_recorded() {
+    // Robot k is sent 1000 k + n at the hub's n-th activation (10 ms): in
+    // 1 s, n runs to about 100. At most 1050 on element 1 breaks from n = 51
+    // on that element; at most 2050 on every element breaks on element 2
+    // only (element 0 stays below 200, element 1 below 1200).
+    let system = fleet(3, &[0, 1, 2]);
+    let mut spec = spec_of("fleet", system.info()).expect("exports");
+    spec.contracts = Some(Contracts {
+        ranges: vec![
+            at_most("one", "hub.robots[1].plan", 1050.0),
+            at_most("every", "hub.robots[*].plan", 2050.0),
+        ],
+        ..Contracts::default()
+    });
+    let text = to_ron(&spec).expect("as RON");
+    let (_, report) = embodied::spec::check_source("fleet.ron", text.as_str());
+    assert!(report.is_ok(), "{}", report.render(100));
+
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("fan_ranges.mcap");
+    let options = RecordOptions {
+        values: Values::Json,
+        ..RecordOptions::default()
+    };
+    let recorder = McapRecorder::create(&path, &system, options).expect("a recording");
+    let live = Live::new(Monitors::new(&spec).expect("monitors"), &system);
+    let config = ExecConfig {
+        on_error: OnError::Continue,
+        ..ExecConfig::default()
+    };
+    let mut exec = Executor::with_observer(system, config, (recorder, live.watch()));
+    exec.run_for(Duration::from_secs(1)).expect("runs");
+    let (recorder, watch) = exec.into_observer();
+    drop(watch);
+    recorder.finish().expect("written");
+
+    let verdicts = live.verdicts();
+    assert!(verdicts.not_judged.is_empty(), "{:?}", verdicts.not_judged);
+    let lines = shown(live.monitors(), &verdicts.violations);
+    let names: std::collections::BTreeSet<&str> = lines.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names.into_iter().collect::<Vec<_>>(),
+        ["every[2]", "one"],
+        "{lines:?}"
+    );
+    for (name, value) in &lines {
+        let on = if name == "one" {
+            1051.0..1200.0
+        } else {
+            2051.0..2200.0
+        };
+        assert!(on.contains(value), "{name}: {value} is not its peer's");
+    }
+    // Every activation from n = 51 on, on each broken element.
+    let ones = lines.iter().filter(|(n, _)| n == "one").count();
+    assert!(ones >= 40, "{ones} violations of `one`: {lines:?}");
+
+    // `embodied monitor` over the recording: the same verdicts.
+    let recorded = Recording::open_filtered(&path, needed).expect("opens");
+    let mut monitors = Monitors::new(&spec).expect("monitors");
+    let offline = evaluate(&mut monitors, &recorded).expect("evaluates");
+    assert!(
+        offline.not_evaluable.is_empty(),
+        "{:?}",
+        offline.not_evaluable
+    );
+    assert_eq!(shown(&monitors, &offline.violations), lines);
 }
