@@ -305,3 +305,34 @@ fn a_range_on_one_element_is_judged_on_that_peers_values_only_live_and_recorded(
     );
     assert_eq!(shown(&monitors, &offline.violations), lines);
 }
+
+#[cfg(feature = "ros2")]
+#[test]
+fn a_whole_fan_published_to_ros_2_is_one_topic_per_element_on_its_own_link() {
+    use embodied::ros2::bridge::{Adapters, Plan};
+    let system = fleet(3, &[0, 1, 2]);
+    let spec = spec_of("fleet", system.info()).expect("exports");
+    let text = to_ron(&spec).expect("as RON");
+    let body = text.trim_end().strip_suffix(')').expect("a struct");
+    let text = format!(
+        "{},\n    ros2: (publish: [(buffer: \"hub.robots[*].plan\", topic: \"plans\")], subscribe: [(buffer: \"hub.robots[*].ack\", topic: \"acks\")]),\n)",
+        body.trim_end().trim_end_matches(',')
+    );
+    let (spec, report) = embodied::spec::check_source("fleet.ron", text.as_str());
+    assert!(report.is_ok(), "{}", report.render(100));
+    let spec = spec.expect("parses");
+    let plan = Plan::new(&spec, None, &system, &Adapters::new()).expect("a plan");
+    let info = system.info();
+    for k in 0..3 {
+        let topic = &plan.topics[k];
+        assert_eq!(topic.buffer, format!("hub.robots[{k}].plan"));
+        assert_eq!(topic.key.topic(), format!("/plans_{k}"));
+        // Its own element's link: to robot k (named 10 - k).
+        let link = &info.links[topic.link];
+        assert_eq!(info.nodes[link.to].name, format!("robot_{}", 10 - k));
+        let inbound = &plan.subscriptions[k];
+        assert_eq!(inbound.buffer, format!("hub.robots[{k}].ack"));
+        assert_eq!(inbound.key.topic(), format!("/acks_{k}"));
+    }
+    assert_eq!((plan.topics.len(), plan.subscriptions.len()), (3, 3));
+}
