@@ -564,11 +564,11 @@ pub fn interface(spec: &Spec, deployment: Option<&Deployment>) -> Option<Interfa
             .filter_map(|(entry, buffer, k)| {
                 let (component, ty) = buffer_type(spec, &buffer, output)?;
                 let runs = deployment.is_none_or(|d| d.runs().any(|r| r == component));
-                let topic = element_topic(&entry.topic, k);
+                let name = element_topic(&expand_topic(&entry.topic, &node, &namespace), k);
                 runs.then(|| Topic {
                     component: component.to_owned(),
                     ty: ty.to_owned(),
-                    name: expand_topic(&topic, &node, &namespace),
+                    name,
                     message: entry.message.clone(),
                     qos: QosProfile::of_link(link_policy(spec, &buffer, output))
                         .with(entry.qos.as_ref()),
@@ -587,10 +587,10 @@ pub fn interface(spec: &Spec, deployment: Option<&Deployment>) -> Option<Interfa
     })
 }
 
-/// The topic of element `k` of an entry naming a whole fan (`[*]`):
-/// `topic_k` (`plans` -> `plans_3`; a topic's token may not start with a
-/// digit, so the index is joined to its last token); `topic` itself for an
-/// entry naming one buffer.
+/// The topic of element `k` of an entry naming a whole fan (`[*]`), given
+/// the entry's (fully qualified) topic: `topic_k` (`/x/plans` -> `/x/plans_3`;
+/// a topic's token may not start with a digit, so the index is joined to its
+/// last token); `topic` itself for an entry naming one buffer.
 pub fn element_topic(topic: &str, k: Option<usize>) -> String {
     k.map_or_else(|| topic.to_owned(), |k| format!("{topic}_{k}"))
 }

@@ -386,3 +386,63 @@ fn a_ros_2_entry_on_a_whole_fan_is_one_topic_per_element() {
     );
     assert_eq!(&report.source[f.labels[0].span.clone()], "c2.c1[7].plan");
 }
+
+#[test]
+fn a_whole_fans_topics_meet_the_other_entries_and_ross_rules_element_by_element() {
+    // `plans_1` is element 1's topic already; `c2.c1[2].ack` is fed by
+    // element 2's `acks_2` already; `plans_` would make `plans__0`.
+    let (_, report) = fleet_with(
+        r#"ros2: (
+            publish: [(buffer: "c2.c1[*].plan", topic: "plans"), (buffer: "c2.c1[0].plan", topic: "plans_1")],
+            subscribe: [(buffer: "c2.c1[*].ack", topic: "acks"), (buffer: "c2.c1[2].ack", topic: "other")],
+        )"#,
+    );
+    let messages: Vec<&str> = report.findings.iter().map(|f| f.message.as_str()).collect();
+    assert!(
+        messages.contains(
+            &"topic `/plans_1` is published twice, from `c2.c1[1].plan` and `c2.c1[0].plan`"
+        ),
+        "{messages:#?}"
+    );
+    assert!(
+        messages.contains(&"input `c2.c1[2].ack` is fed by two topics, `/acks_2` and `/other`"),
+        "{messages:#?}"
+    );
+    let (_, report) =
+        fleet_with(r#"ros2: (publish: [(buffer: "c2.c1[*].plan", topic: "plans_")])"#);
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| f.code == Code::Ros2Name && f.message.contains("`/plans__0` for element 0")),
+        "{}",
+        report.render(100)
+    );
+}
+
+#[test]
+fn a_response_pairs_whole_fans_of_as_many_elements() {
+    // A hub whose fan of inputs has 2 peers and whose fan of outputs 3.
+    let text = r#"(name: "f", agents: [(name: "a", subsystems: [
+        (
+            name: "hub", kind: Control, period_ms: 10.0,
+            inputs: [(peer: "from", peers: ["r0", "r1"], buffers: [(name: "ack", type: "u64")])],
+            outputs: [(peer: "to", peers: ["r0", "r1", "r2"], buffers: [(name: "plan", type: "u64")])],
+            behaviours: [(name: "run", kind: While, terminal: "false")], fsm: (initial: "run"),
+        ),
+    ])], contracts: (responses: [
+        (name: "acked", trigger: "hub.to[*].plan", response: "hub.from[*].ack", within_s: 1.0),
+    ]))"#;
+    let (_, report) = check_source("f.ron", text);
+    let f = report
+        .findings
+        .iter()
+        .find(|f| f.code == Code::Contract)
+        .unwrap_or_else(|| panic!("{}", report.render(100)));
+    assert!(
+        f.message.contains("response `acked` pairs fans of different sizes: `hub.to[*].plan` has 3 element(s), `hub.from[*].ack` 2"),
+        "{}",
+        f.message
+    );
+    assert_eq!(&report.source[f.labels[0].span.clone()], "hub.from[*].ack");
+}

@@ -16,7 +16,7 @@ struct Section<'a> {
 }
 
 /// A topic of a section as the duplicate check sees it.
-struct Shown<'a> {
+struct Shown {
     /// The fully qualified name (as written when the node's names are invalid).
     name: String,
     /// The entry's path.
@@ -25,7 +25,8 @@ struct Shown<'a> {
     output: bool,
     /// Whether its buffer is one the section may show.
     buffer_valid: bool,
-    entry: &'a Ros2Topic,
+    /// Its buffer: the entry's, or one element's of a whole fan (`[*]`).
+    buffer: String,
 }
 
 /// What a name is, for messages and help lines.
@@ -130,13 +131,7 @@ impl<'a> Checker<'a> {
                 let component = self.ros2_buffer(s, entry, &path, output);
                 let name = self.ros2_topic(entry, &path, names_valid.then_some((node, namespace)));
                 if let Some(name) = name {
-                    shown.push(Shown {
-                        name,
-                        path: path.clone(),
-                        output,
-                        buffer_valid: component.is_some(),
-                        entry,
-                    });
+                    self.ros2_shown(&mut shown, name, &path, output, component.is_some(), entry);
                 }
                 if let Some(message) = &entry.message {
                     let at = join(&path, &[F("message")]);
@@ -165,6 +160,52 @@ impl<'a> Checker<'a> {
             }
         }
         self.ros2_duplicates(&shown);
+    }
+
+    /// The topics entry `entry` (at `path`, its full topic `name`) shows, for
+    /// the duplicate check: its topic, or for a whole fan (`[*]`) each
+    /// element's, `name_k`, whose full name must follow ROS 2's rules too.
+    fn ros2_shown(
+        &mut self,
+        shown: &mut Vec<Shown>,
+        name: String,
+        path: &[Seg<'static>],
+        output: bool,
+        buffer_valid: bool,
+        entry: &'a Ros2Topic,
+    ) {
+        let mut elements = crate::fans::elements(self.spec, &entry.buffer);
+        if elements.is_empty() {
+            // A whole fan the component lacks: reported with the buffer.
+            elements.push((entry.buffer.clone(), None));
+        }
+        for (buffer, k) in elements {
+            let name = rules::element_topic(&name, k);
+            if k == Some(0)
+                && let Err(e) = rules::check_full_topic(&name)
+            {
+                self.push(
+                    Finding::new(
+                        Code::Ros2Name,
+                        self.span(&join(path, &[F("topic")])),
+                        format!("`{}` for element 0", abbreviate(&name, 60)),
+                        format!(
+                            "topic `{}` of every element of a fan is `{}` for element 0, which breaks ROS 2's naming rules: {e}",
+                            abbreviate(&entry.topic, 60),
+                            abbreviate(&name, 60)
+                        ),
+                    )
+                    .help("each element's topic is the topic with `_k` joined to it: end the topic with a letter or a digit, or shorten it"),
+                );
+            }
+            shown.push(Shown {
+                name,
+                path: path.to_vec(),
+                output,
+                buffer_valid,
+                buffer,
+            });
+        }
     }
 
     /// The domain, node, namespace and package of section `s`; whether the
@@ -465,9 +506,9 @@ impl<'a> Checker<'a> {
     }
 
     /// Topics given twice, by their full names, and inputs fed by two topics.
-    fn ros2_duplicates(&mut self, shown: &[Shown<'a>]) {
-        let mut topics: HashMap<&str, &Shown<'a>> = HashMap::new();
-        let mut inputs: HashMap<&str, &Shown<'a>> = HashMap::new();
+    fn ros2_duplicates(&mut self, shown: &[Shown]) {
+        let mut topics: HashMap<&str, &Shown> = HashMap::new();
+        let mut inputs: HashMap<&str, &Shown> = HashMap::new();
         for t in shown {
             match topics.get(t.name.as_str()) {
                 Some(first) => {
@@ -481,7 +522,7 @@ impl<'a> Checker<'a> {
             if t.output || !t.buffer_valid {
                 continue;
             }
-            match inputs.get(t.entry.buffer.as_str()) {
+            match inputs.get(t.buffer.as_str()) {
                 Some(first) => self.push(
                     Finding::new(
                         Code::Ros2Duplicate,
@@ -489,7 +530,7 @@ impl<'a> Checker<'a> {
                         "fed again",
                         format!(
                             "input `{}` is fed by two topics, `{}` and `{}`",
-                            t.entry.buffer, first.name, t.name
+                            t.buffer, first.name, t.name
                         ),
                     )
                     .label(
@@ -499,26 +540,26 @@ impl<'a> Checker<'a> {
                     .help("an input buffer has one writer; keep one of the entries"),
                 ),
                 None => {
-                    inputs.insert(&t.entry.buffer, t);
+                    inputs.insert(&t.buffer, t);
                 }
             }
         }
     }
 
     /// The finding about topic `t`, which `first` gives already.
-    fn ros2_topic_twice(&self, first: &Shown<'a>, t: &Shown<'a>) -> Finding {
+    fn ros2_topic_twice(&self, first: &Shown, t: &Shown) -> Finding {
         let (message, help) = match (first.output, t.output) {
             (true, true) => (
                 format!(
                     "topic `{}` is published twice, from `{}` and `{}`",
-                    t.name, first.entry.buffer, t.entry.buffer
+                    t.name, first.buffer, t.buffer
                 ),
                 "give each buffer its own topic (one buffer may be published under several topics)",
             ),
             (false, false) => (
                 format!(
                     "topic `{}` is subscribed twice, into `{}` and `{}`",
-                    t.name, first.entry.buffer, t.entry.buffer
+                    t.name, first.buffer, t.buffer
                 ),
                 "a topic feeds one input buffer; give each entry its own topic",
             ),
@@ -527,7 +568,7 @@ impl<'a> Checker<'a> {
                 (
                     format!(
                         "topic `{}` is both published and subscribed: the node would feed its own `{}` back into `{}`",
-                        t.name, out.entry.buffer, inp.entry.buffer
+                        t.name, out.buffer, inp.buffer
                     ),
                     "give the published and the subscribed buffer different topics",
                 )
