@@ -18,6 +18,7 @@ use crate::time::{Period, Stamp, Time};
 
 mod forward;
 mod pick;
+mod picks;
 mod wants;
 
 pub use pick::{FieldPath, PickError};
