@@ -175,14 +175,11 @@ impl<C: NodeCore> NodeCore for Audited<C> {
     }
 }
 
-/// A node with the ports of the in-process executor. In declaration order
-/// (`repr(C)`), as its core's fields: what an activation touches first and
-/// together, so that it spans few cache lines.
-#[repr(C)]
+/// A node with the ports of the in-process executor.
 pub(crate) struct InProcess<C: NodeCore> {
+    pub(crate) core: C,
     ins: Vec<Box<dyn InPort<C::Input>>>,
     outs: Vec<Box<dyn OutPort<C::Output>>>,
-    pub(crate) core: C,
 }
 
 impl<C: NodeCore> InProcess<C> {
@@ -309,21 +306,19 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
     }
 }
 
-/// A subsystem: its buffers, memory and FSM; what an activation touches
-/// first (`repr(C)`: in this order), its description (errors only) last.
-#[repr(C)]
+/// A subsystem: its buffers, memory and FSM.
 pub(crate) struct SubsystemCore<S: Subsystem> {
-    pub(crate) iteration: u64,
+    pub(crate) info: NodeInfo,
+    pub(crate) memory: S::Memory,
+    pub(crate) input: S::Input,
+    pub(crate) output: S::Output,
+    pub(crate) fsm: Fsm<S>,
     pub(crate) state: FsmState,
+    pub(crate) iteration: u64,
     /// The predicates the observer wants after each activation
     /// ([`Observer::predicates_wanted`](crate::Observer::predicates_wanted)),
     /// once asked.
     wanted: Option<u64>,
-    pub(crate) fsm: Fsm<S>,
-    pub(crate) memory: S::Memory,
-    pub(crate) input: S::Input,
-    pub(crate) output: S::Output,
-    pub(crate) info: NodeInfo,
 }
 
 impl<S: Subsystem> SubsystemCore<S> {
@@ -482,16 +477,14 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
     }
 }
 
-/// A driver: the device and its buffers (`repr(C)`: its description last,
-/// as [`SubsystemCore`]'s).
-#[repr(C)]
+/// A driver: the device and its buffers.
 pub(crate) struct DriverCore<D: Driver> {
-    pub(crate) iteration: u64,
-    halted: bool,
+    pub(crate) info: NodeInfo,
+    pub(crate) driver: D,
     pub(crate) input: D::Input,
     pub(crate) output: D::Output,
-    pub(crate) driver: D,
-    pub(crate) info: NodeInfo,
+    pub(crate) iteration: u64,
+    halted: bool,
 }
 
 impl<D: Driver> DriverCore<D> {
