@@ -198,7 +198,7 @@ fn a_release_jitter_of_an_unknown_component_or_negative_is_refused() {
 
 #[test]
 fn queue_needs_follows_its_formula() {
-    // ⌈(T_r + J_r + 2 (J_w + L)) / I⌉
+    // ⌈(T_r + S_r + 2 (E_w + L)) / I⌉
     assert_eq!(queue_needs(10, 0, 0, 0, 10), Some(1));
     assert_eq!(queue_needs(10, 1, 0, 0, 10), Some(2));
     assert_eq!(queue_needs(10, 4, 2, 0, 10), Some(2));
@@ -244,16 +244,17 @@ fn a_sound_system_gets_a_certificate_with_hand_computed_figures() {
 }
 
 #[test]
-fn a_queue_hop_adds_the_writers_jitter_and_its_queue_is_sized() {
-    let (report, a) = run(&system(20.0, "Queue(1)", 5.0, "", ""), None);
+fn a_queue_hop_adds_the_writers_end_spread_and_its_queue_is_sized() {
+    let (report, a) = run(&system(20.0, "Queue(2)", 5.0, "", ""), None);
     let hop = &a.chains[0].hops[2];
-    // R_c1 3.4 + J_c1 (3.4 - 1) + T_e1 5 = 10.8, both for age and reaction.
-    assert_eq!((hop.age, hop.reaction), (108 * MS / 10, 108 * MS / 10));
-    // ⌈(T_r 5 + J_r 0.2 + 2 J_w 4.8) / I 10⌉ = 1: Queue(1) suffices, exactly.
-    assert_eq!(a.queues[0].needs, Some(1));
-    // Age 13.4 + 24.5 + 10.8 + 6.2 + 0.1 = 55 holds; the reaction time
-    // 10 + 23.4 + 14.5 + 10.8 + 2.2 + 0.1 = 61 passes 60, at the queue's hop.
-    assert_eq!((a.chains[0].age, a.chains[0].reaction), (55 * MS, 61 * MS));
+    // 2 R_c1 (its ends spread over R_c1 3.4) + T_e1 5 = 11.8, both for age
+    // and reaction.
+    assert_eq!((hop.age, hop.reaction), (118 * MS / 10, 118 * MS / 10));
+    // ⌈(T_r 5 + S_r 0.2 + 2 E_w 6.8) / I 10⌉ = 2: Queue(2) suffices, exactly.
+    assert_eq!(a.queues[0].needs, Some(2));
+    // Age 13.4 + 24.5 + 11.8 + 6.2 + 0.1 = 56 holds; the reaction time
+    // 10 + 23.4 + 14.5 + 11.8 + 2.2 + 0.1 = 62 passes 60, at the queue's hop.
+    assert_eq!((a.chains[0].age, a.chains[0].reaction), (56 * MS, 62 * MS));
     let f: Vec<_> = report
         .findings
         .iter()
@@ -261,7 +262,7 @@ fn a_queue_hop_adds_the_writers_jitter_and_its_queue_is_sized() {
         .collect();
     assert_eq!(f.len(), 1, "{}", report.render(100));
     assert!(
-        f[0].message.contains("reaction time 61 ms passes 60 ms"),
+        f[0].message.contains("reaction time 62 ms passes 60 ms"),
         "{}",
         f[0].message
     );
@@ -535,7 +536,8 @@ proptest! {
 
 /// One hop simulated as the executor runs it: the writer's activations
 /// released at least `interval` apart (sporadically), each ending within
-/// `[C_w, R_w]` of its release, in order, its value delivered up to `latency`
+/// `[1, R_w]` of its release (an activation may run much shorter than its
+/// WCET), in order, its value delivered up to `latency`
 /// later (in order); the reader released every `T_r`, reading at most
 /// `J_r` after its release the oldest value delivered before its read and
 /// stamped at or before its release. Returns the most values in the queue
@@ -545,7 +547,7 @@ proptest! {
 #[allow(clippy::too_many_arguments, reason = "the hop's figures, named")]
 fn simulate_queue_hop(
     seed: u64,
-    (cw, rw): (u64, u64),
+    rw: u64,
     interval: u64,
     extra_gap: u64,
     (tr, jr): (u64, u64),
@@ -566,7 +568,7 @@ fn simulate_queue_hop(
     // before the reader's first.
     let (mut a, mut last_f, mut last_d) = (reader_phase + rand(interval), 0, 0);
     while a < 200 * interval.max(tr) {
-        let f = (a + cw + rand(rw - cw)).max(last_f);
+        let f = (a + 1 + rand(rw - 1)).max(last_f);
         let d = (f + rand(latency)).max(last_d);
         values.push((a, d));
         (last_f, last_d) = (f, d);
@@ -612,30 +614,88 @@ proptest! {
     ) {
         let rw = cw + jitter_w;
         let interval = tr + faster_by; // I >= T_r
-        let needs = queue_needs(tr, jr, rw - cw, latency, interval).unwrap();
+        let needs = queue_needs(tr, jr, rw, latency, interval).unwrap();
         let (most, wait) =
-            simulate_queue_hop(seed, (cw, rw), interval, extra_gap, (tr, jr), latency, reader_phase);
+            simulate_queue_hop(seed, rw, interval, extra_gap, (tr, jr), latency, reader_phase);
         prop_assert!(most as u64 <= needs, "held {most} > needs {needs}");
-        // Age term of a queue hop: R_w + J_w + 2L + T_r.
-        let term = rw + (rw - cw) + 2 * latency + tr;
+        // Age term of a queue hop: 2 R_w + 2L + T_r.
+        let term = 2 * rw + 2 * latency + tr;
         prop_assert!(wait <= term, "waited {wait} > term {term}");
     }
 }
 
 #[test]
 fn the_queue_bound_is_reached_or_nearly_in_simulation() {
-    // A writer with a large jitter at the reader's rate: needs
-    // ⌈(10 + 5 + 2·9) / 10⌉ = 4; the worst of many runs holds within one of it.
-    let needs = queue_needs(10, 5, 9, 0, 10).unwrap();
+    // A writer whose ends spread over 10 at the reader's rate: needs
+    // ⌈(10 + 5 + 2·10) / 10⌉ = 4; the worst of many runs holds within one of it.
+    let needs = queue_needs(10, 5, 10, 0, 10).unwrap();
     assert_eq!(needs, 4);
     let most = (1..2000u64)
-        .map(|seed| simulate_queue_hop(seed, (1, 10), 10, 0, (10, 5), 0, seed % 10).0)
+        .map(|seed| simulate_queue_hop(seed, 10, 10, 0, (10, 5), 0, seed % 10).0)
         .max()
         .unwrap();
     assert!(
         most as u64 <= needs && most as u64 + 1 >= needs,
         "held at most {most}"
     );
+}
+
+#[test]
+fn a_writer_shorter_than_its_wcet_bunches_its_values() {
+    // WCET 19, response 20, every 5 ms, its reader every 5 ms: with every
+    // activation ending between 19 and 20 after its release, the writes
+    // would come about 5 apart and 2 values would do (⌈(5 + 2·1) / 5⌉); but
+    // an activation may end 1 after its release, behind one that took 20:
+    // several values arrive at once. The bound counts the ends' spread as
+    // R_w: ⌈(5 + 2·20) / 5⌉ = 9.
+    let needs = queue_needs(5, 0, 20, 0, 5).unwrap();
+    assert_eq!(needs, 9);
+    let most = (1..500u64)
+        .map(|seed| simulate_queue_hop(seed, 20, 5, 0, (5, 0), 0, seed % 5).0)
+        .max()
+        .unwrap();
+    assert!(
+        most > 2,
+        "held at most {most}: the spread R_w - C_w undercounts"
+    );
+    assert!(most as u64 <= needs, "held {most} > needs {needs}");
+}
+
+#[test]
+fn a_freshness_contract_on_a_whole_fan_is_analysed_per_element() {
+    // A hub c2 whose fan of inputs `c1` has two peers, c1_0 and c1_1 (10 ms).
+    let robot = |k: usize| {
+        format!(
+            r#"(name: "a1_{k}", subsystems: [(name: "c1_{k}", kind: Control, period_ms: 10.0,
+                inputs: [(peer: "c2", buffers: [(name: "plan", type: "u64")])],
+                outputs: [(peer: "c2", buffers: [(name: "ack", type: "u64")])],
+                behaviours: [(name: "run", kind: While, terminal: "false")], fsm: (initial: "run"))]),"#
+        )
+    };
+    let text = format!(
+        r#"(name: "fleet", agents: [
+            (name: "a2", subsystems: [(name: "c2", kind: Control, period_ms: 20.0,
+                inputs: [(peer: "c1", peers: ["c1_0", "c1_1"], buffers: [(name: "ack", type: "u64")])],
+                outputs: [(peer: "c1", peers: ["c1_0", "c1_1"], buffers: [(name: "plan", type: "u64")])],
+                behaviours: [(name: "run", kind: While, terminal: "false")], fsm: (initial: "run"))]),
+            {r0} {r1}
+        ],
+        links: [
+            (from: "c2.c1[0].plan", to: "c1_0.c2.plan"), (from: "c1_0.c2.ack", to: "c2.c1[0].ack"),
+            (from: "c2.c1[1].plan", to: "c1_1.c2.plan"), (from: "c1_1.c2.ack", to: "c2.c1[1].ack"),
+        ],
+        contracts: (freshness: [(input: "c2.c1[*].ack", max_age_ms: 15.0)]),
+        timing: (wcet: [(component: "c2", ms: 1.0), (component: "c1_0", ms: 1.0), (component: "c1_1", ms: 1.0)]),
+        )"#,
+        r0 = robot(0),
+        r1 = robot(1),
+    );
+    let (report, a) = run(&text, None);
+    assert!(report.is_ok(), "{}", report.render(100));
+    let inputs: Vec<&str> = a.freshness.iter().map(|f| f.input.as_str()).collect();
+    assert_eq!(inputs, ["c2.c1[0].ack", "c2.c1[1].ack"]);
+    // c1_k (T 10, R 2: the two at one priority) writes, c2 reads: age < 10 + 2.
+    assert!(a.freshness.iter().all(|f| f.bound == Some(12 * MS)), "{a}");
 }
 
 #[test]

@@ -156,9 +156,7 @@ fn write_chain(f: &mut fmt::Formatter<'_>, c: &ChainFigures) -> fmt::Result {
 pub(super) fn hop_formula(h: &Hop, threads: &[Thread]) -> String {
     let w = threads.iter().find(|t| t.component == h.writer);
     let r = threads.iter().find(|t| t.component == h.reader);
-    let (tw, rw, jw) = w.map_or((0, 0, 0), |t| {
-        (t.period, t.response.unwrap_or(0), t.jitter().unwrap_or(0))
-    });
+    let (tw, rw) = w.map_or((0, 0), |t| (t.period, t.response.unwrap_or(0)));
     let tr = r.map_or(0, |t| t.period);
     match h.policy {
         Policy::Sample => format!(
@@ -169,10 +167,9 @@ pub(super) fn hop_formula(h: &Hop, threads: &[Thread]) -> String {
             ms(h.latency)
         ),
         Policy::Queue { .. } => format!(
-            "`{}`: queue, R_w {} + J_w {} + 2L {} + T_r {}",
+            "`{}`: queue, 2 R_w {} + 2L {} + T_r {}",
             h.buffer,
-            ms(rw),
-            ms(jw),
+            ms(2 * rw),
             ms(2 * h.latency),
             ms(tr)
         ),

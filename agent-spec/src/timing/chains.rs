@@ -68,7 +68,7 @@ impl<'s> Placed<'s> {
         policy: Policy,
         w: &Thread,
         r: &Thread,
-        (rw, jw): (u64, u64),
+        rw: u64,
         l: u64,
     ) -> (u64, u64) {
         // M: the greatest time between two writing activations' releases
@@ -77,7 +77,10 @@ impl<'s> Placed<'s> {
         match policy {
             Policy::Sample => (m + rw + l, (m - w.period) + rw + l + r.period),
             Policy::Queue { .. } => {
-                let t = rw + jw + 2 * l + r.period;
+                // The writer's ends spread over `R_w` (an activation may end
+                // as soon as it starts): `R_w` for the delivery, `R_w` more
+                // for the spread of the deliveries ahead of it.
+                let t = 2 * rw + 2 * l + r.period;
                 (t, (m - w.period) + t)
             }
         }
@@ -90,20 +93,22 @@ impl<'s> Placed<'s> {
         let Some(c) = &self.spec.contracts else {
             return Vec::new();
         };
-        c.freshness
+        // A contract on a whole fan (`c2.c1[*].ack`) is one per element.
+        c.per_element(self.spec)
+            .freshness
             .iter()
             .filter_map(|f| {
                 let link = self.spec.links.iter().find(|l| l.to == f.input)?;
                 let writer = link.from.split('.').next()?;
                 let reader = f.input.split('.').next()?;
                 let (w, r) = (self.thread(writer)?, self.thread(reader)?);
-                let bound = w.response.zip(w.jitter()).map(|rj| {
+                let bound = w.response.map(|rw| {
                     self.terms(
                         &link.from,
                         link.policy,
                         w,
                         r,
-                        rj,
+                        rw,
                         self.hop_latency(writer, reader),
                     )
                     .0
@@ -146,19 +151,19 @@ impl<'s> Placed<'s> {
             let (Some(w), Some(r)) = (self.thread(writer), self.thread(reader)) else {
                 continue;
             };
-            let (Some(jw), Some(jr)) = (w.jitter(), r.jitter()) else {
+            let (Some(ew), Some(sr)) = (w.response, r.start_lag()) else {
                 continue; // unschedulable: said above
             };
             let l = self.hop_latency(writer, reader);
             latency_needed |= l > 0
                 || self.place.get(writer).map(|p| &p.0) != self.place.get(reader).map(|p| &p.0);
             let interval = self.interval_of(&link.from, w);
-            let needs = queue_needs(r.period, jr, jw, l, interval);
+            let needs = queue_needs(r.period, sr, ew, l, interval);
             let figures = QueueFigures {
                 link: format!("{} -> {}", link.from, link.to),
                 has: bound,
                 needs,
-                terms: [r.period, jr, jw, l, interval],
+                terms: [r.period, sr, ew, l, interval],
             };
             let broken = needs.is_none_or(|n| n > bound as u64);
             if broken {
@@ -186,8 +191,8 @@ impl<'s> Placed<'s> {
                         message,
                     )
                     .help(format!(
-                        "⌈(T_r + J_r + 2(J_w + L)) / I⌉ with T_r = {} ms (`{reader}`), J_r = {} ms, J_w = {} ms (`{writer}`), L = {} ms, I = {} ms; raise the bound, or declare a longer write interval in `timing.writes` if the writer writes less often",
-                        ms(r.period), ms(jr), ms(jw), ms(l), ms(interval)
+                        "⌈(T_r + S_r + 2(R_w + L)) / I⌉ with T_r = {} ms (`{reader}`), S_r = R_r - C_r = {} ms, R_w = {} ms (`{writer}`), L = {} ms, I = {} ms; raise the bound, or declare a longer write interval in `timing.writes` if the writer writes less often",
+                        ms(r.period), ms(sr), ms(ew), ms(l), ms(interval)
                     )),
                 );
             }
@@ -232,7 +237,7 @@ impl<'s> Placed<'s> {
                     ok = false;
                     break;
                 };
-                let (Some(rw), Some(jw)) = (w.response, w.jitter()) else {
+                let Some(rw) = w.response else {
                     skipped.push((ch.name.clone(), format!("`{writer}` is not schedulable")));
                     ok = false;
                     break;
@@ -242,7 +247,7 @@ impl<'s> Placed<'s> {
                 if self.place.get(writer).map(|p| &p.0) != self.place.get(reader).map(|p| &p.0) {
                     latency_needed = true;
                 }
-                let (age, reaction) = self.terms(hop, policy, w, r, (rw, jw), l);
+                let (age, reaction) = self.terms(hop, policy, w, r, rw, l);
                 if hi == 0 {
                     first = Some(w.period);
                 }

@@ -85,16 +85,18 @@ pub fn priorities(periods: &[u64], top: u8) -> Vec<u8> {
 }
 
 /// The bound a queue link needs: the most values in it when one is written,
-/// that one included, `⌈(T_r + J_r + 2 (J_w + L)) / I⌉` for a reader of
-/// period `T_r` taking one value per activation whose reads start up to `J_r`
-/// after its releases, a writer whose writes end up to `J_w` after their
-/// earliest ends and come at least `I` apart, and a latency of at most `L`;
-/// `None` when the writer may outpace the reader (`I < T_r`): no bound holds.
-/// The derivation is in `docs/spec-reference.md` (Timing analysis).
+/// that one included, `⌈(T_r + S_r + 2 (E_w + L)) / I⌉` for a reader of
+/// period `T_r` taking one value per activation whose reads start up to `S_r`
+/// after its releases, a writer whose writes end up to `E_w` after their
+/// releases (the spread of its ends: its response time, as an activation may
+/// run shorter than its WCET) and come at least `I` apart, and a latency of
+/// at most `L`; `None` when the writer may outpace the reader (`I < T_r`):
+/// no bound holds. The derivation is in `docs/spec-reference.md` (Timing
+/// analysis).
 pub fn queue_needs(
     reader_period: u64,
-    reader_jitter: u64,
-    writer_jitter: u64,
+    reader_lag: u64,
+    writer_spread: u64,
     latency: u64,
     interval: u64,
 ) -> Option<u64> {
@@ -102,8 +104,8 @@ pub fn queue_needs(
         return None;
     }
     let window = u128::from(reader_period)
-        + u128::from(reader_jitter)
-        + 2 * (u128::from(writer_jitter) + u128::from(latency));
+        + u128::from(reader_lag)
+        + 2 * (u128::from(writer_spread) + u128::from(latency));
     u64::try_from(window.div_ceil(u128::from(interval))).ok()
 }
 

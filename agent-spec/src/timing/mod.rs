@@ -98,10 +98,12 @@ pub struct Thread {
 }
 
 impl Thread {
-    /// `R - C`: how much later than its earliest an activation may start
-    /// reading (its reads are at its start) or end writing; the release
-    /// jitter included (`R` counts from the release).
-    pub fn jitter(&self) -> Option<u64> {
+    /// `R - C`: how much later than its release an activation may start, and
+    /// so read (its reads are at its start); its release jitter included (`R`
+    /// counts from the release). An activation ends anywhere up to `R` after
+    /// its release (it may run shorter than its WCET), so the spread of its
+    /// ends, and of its writes, is `R` itself.
+    pub fn start_lag(&self) -> Option<u64> {
         self.response.map(|r| r - self.wcet.min(r))
     }
 }
@@ -132,11 +134,11 @@ pub struct Hop {
     pub policy: Policy,
     /// The latency `L` added between processes.
     pub latency: u64,
-    /// Its term of the data age: sample `M + R_w + L`; queue `R_w + J_w + 2L + T_r`
+    /// Its term of the data age: sample `M + R_w + L`; queue `2 R_w + 2L + T_r`
     /// (`M` the greatest time between writes, the writer's period `T_w` unless declared).
     pub age: u64,
     /// Its term of the reaction time: sample `(M - T_w) + R_w + L + T_r`; queue
-    /// `(M - T_w) + R_w + J_w + 2L + T_r`.
+    /// `(M - T_w) + 2 R_w + 2L + T_r`.
     pub reaction: u64,
 }
 
@@ -170,7 +172,8 @@ pub struct QueueFigures {
     pub has: usize,
     /// What it needs; `None`: the writer may outpace the reader.
     pub needs: Option<u64>,
-    /// Reader period, reader jitter, writer jitter, latency, write interval \[ns\].
+    /// Reader period, reader start lag (`R_r - C_r`), writer end spread
+    /// (`R_w`), latency, write interval \[ns\].
     pub terms: [u64; 5],
 }
 
