@@ -61,14 +61,18 @@ pub struct NodeStats {
     pub period_ns: u64,
     /// Activations executed.
     pub activations: u64,
-    /// Execution time of one activation (read, decide, act, send): largest
-    /// \[ns\].
+    /// Execution time of one activation (decide, act, send; the first node
+    /// of an instant on its thread also carries every due node's reads,
+    /// which all happen before any steps): largest \[ns\].
     pub exec_max_ns: u64,
     /// Execution time, 99th percentile \[ns\].
     pub exec_p99_ns: u64,
     /// Execution time, median \[ns\].
     pub exec_p50_ns: u64,
-    /// How late the thread woke after the activation's release: largest \[ns\].
+    /// How late the thread woke after the activation's release: largest
+    /// \[ns\]. Under `SCHED_FIFO` it includes the time a higher-priority
+    /// thread kept it from running after its timer fired (which the timing
+    /// analysis also counts as interference: pessimistic, not unsound).
     pub lateness_max_ns: u64,
     /// Lateness, 99th percentile \[ns\].
     pub lateness_p99_ns: u64,

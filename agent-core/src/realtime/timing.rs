@@ -48,7 +48,9 @@ pub struct NodeTiming {
     /// How late its thread woke after each deadline (the thread's instants:
     /// the nodes of a thread share it).
     pub jitter: Spread,
-    /// How long each activation took (decision, action, send).
+    /// How long each activation took (decision, action, send; the first
+    /// node of an instant on its thread also carries the reads of every node
+    /// due then, which all read before any steps).
     pub compute: Spread,
     /// From each activation's deadline (its instant) to its end: the
     /// response time, with the wake-up's lateness, the reads, and the nodes

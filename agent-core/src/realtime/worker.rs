@@ -314,7 +314,11 @@ impl<'a> Thread<'a> {
         for (k, e) in unread {
             self.link_failed(k, now, e);
         }
-        let mut started = clock.now();
+        // The instant's reads count in the execution time of its first node
+        // (every node due reads before any steps): the work of the instant's
+        // nodes, summed, is then all of it, as the timing analysis's WCETs
+        // need (the nodes of one worker share a priority and interfere).
+        let mut started = woke;
         for k in 0..self.nodes.len() {
             if self.next[k] != t {
                 continue;

@@ -83,7 +83,10 @@ impl Dispatch {
         self.sending = output.c1.desired_plan.written().cloned();
         // A final behaviour that ends with no arc out halts at the next
         // decision, which changes nothing else: said now, so that the fleet
-        // does not wait an activation more per robot.
+        // does not wait an activation more per robot. Decided on this
+        // activation's input, which is the next one's only while the final
+        // behaviour's end does not read its input: Rex's `done` ends after
+        // one action whatever it reads (its terminal condition is `true`).
         let mut next = *state;
         self.halted = state.is_halted()
             || (rex.is_final(state.behaviour())
@@ -170,11 +173,17 @@ fn activate_robots(
             x.c1.len()
         )));
     }
-    for (k, (robot, x)) in m.robots.iter_mut().zip(x.c1.iter()).enumerate() {
+    // All or nothing: an error stops the action before its output part, so a
+    // robot whose plan went into memory as sent would never see it written.
+    // A failed activation changes no robot and is retried at the next period,
+    // as a failed action of Rex's own `c2` is (its memory part comes last).
+    let mut next = m.robots.clone();
+    for (k, (robot, x)) in next.iter_mut().zip(x.c1.iter()).enumerate() {
         if !robot.halted {
             robot.activate(rex, k, x)?;
         }
     }
+    m.robots = next;
     Ok(())
 }
 

@@ -154,3 +154,35 @@ fn the_first_activation_sends_every_robot_its_first_plan() {
     }));
     assert!(!memory.settled());
 }
+
+#[test]
+fn a_failed_robot_activation_changes_no_robot_and_is_retried() {
+    // Rex's c2 cannot fail on a valid memory; an FSM of Rex's c2 type whose
+    // action fails for the robot of mission `bad` stands in for a failure.
+    let failing = Fsm::<Ontology>::builder()
+        .behaviour(Behaviour::while_loop(
+            "count",
+            Action::<Ontology>::new().memory(|m: &mut OntologyMemory, _: &OntologyInput| {
+                if m.mission.name == "bad" && m.next > 0 {
+                    return Err(ActionError::failed("bad robot"));
+                }
+                m.next += 1;
+                Ok(())
+            }),
+            "false",
+        ))
+        .initial("count")
+        .build()
+        .unwrap();
+    let mut missions: Vec<Mission> = (0..3).map(|k| mission(k, 2, 2)).collect();
+    missions[2].name = "bad".into();
+    let mut memory = FleetOntologyMemory::new(missions);
+    let x = FleetOntologyInput::new(3);
+    activate_robots(&failing, &mut memory, &x).unwrap();
+    let before: Vec<usize> = memory.robots.iter().map(|r| r.ontology.next).collect();
+    assert_eq!(before, [1, 1, 1]);
+    let e = activate_robots(&failing, &mut memory, &x).expect_err("robot 2 fails");
+    assert!(e.to_string().contains("robot 2"), "{e}");
+    let after: Vec<usize> = memory.robots.iter().map(|r| r.ontology.next).collect();
+    assert_eq!(after, before, "robots 0 and 1 are not half-activated");
+}
