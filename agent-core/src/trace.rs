@@ -18,7 +18,6 @@ use crate::time::{Period, Stamp, Time};
 
 mod forward;
 mod pick;
-mod picks;
 mod wants;
 
 pub use pick::{FieldPath, PickError};

@@ -23,9 +23,9 @@ use serde::ser::{
 
 /// One step of a [`FieldPath`]: a field's name, and the index it reads as.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub(super) struct Step {
-    pub(super) name: String,
-    pub(super) index: Option<usize>,
+struct Step {
+    name: String,
+    index: Option<usize>,
 }
 
 /// A path to a number inside a value, its steps separated by dots (see the
@@ -50,16 +50,6 @@ impl FieldPath {
                 })
                 .collect(),
         }
-    }
-
-    /// Its step `k` (the first is 0).
-    pub(super) fn step(&self, k: usize) -> Option<&Step> {
-        self.steps.get(k)
-    }
-
-    /// How many steps it has.
-    pub(super) fn len(&self) -> usize {
-        self.steps.len()
     }
 
     /// The number at this path in `value` (`Ok(None)`: none there).

@@ -100,7 +100,7 @@ impl LinkEvents {
     /// Whether the observer needs the send of `value`.
     #[inline]
     pub fn transfer<T: Serialize + ?Sized>(&self, value: &T) -> bool {
-        self.transfers || (!self.out_of.is_empty() && super::picks::any_broken(&self.out_of, value))
+        self.transfers || self.out_of.iter().any(|b| b.broken_by(value))
     }
 }
 
