@@ -471,6 +471,16 @@ impl<G> std::ops::DerefMut for Fan<G> {
     }
 }
 
+/// A copy of every element (the input of a subsystem whose inputs are
+/// `Clone`, as `agent!` makes them).
+impl<G: Clone> Clone for Fan<G> {
+    fn clone(&self) -> Self {
+        Fan {
+            groups: self.groups.clone(),
+        }
+    }
+}
+
 impl<G: fmt::Debug> fmt::Debug for Fan<G> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_list().entries(self.groups.iter()).finish()

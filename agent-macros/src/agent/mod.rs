@@ -348,7 +348,11 @@ fn groups(
             if input { "From" } else { "To" },
             camel(&group.peer)
         );
-        let peer = format_ident!("{}", peer_kind(spec, &group.peer));
+        // A fan's peers are components of one kind: its first one's.
+        let peer = format_ident!(
+            "{}",
+            peer_kind(spec, group.peers.first().unwrap_or(&group.peer))
+        );
         let mut fields = Vec::new();
         for (b, buffer) in group.buffers.iter().enumerate() {
             let path: Vec<Seg<'_>> = base
@@ -395,12 +399,19 @@ fn groups(
             pub struct #gname { #(#fields),* }
         });
         let member = ident(&group.peer);
-        let member_doc = format!(
-            " The group {} `{}`.",
-            if input { "from" } else { "to" },
-            group.peer
-        );
-        members.push(quote!(#[doc = #member_doc] pub #member: #gname));
+        let direction = if input { "from" } else { "to" };
+        if group.peers.is_empty() {
+            let member_doc = format!(" The group {direction} `{}`.", group.peer);
+            members.push(quote!(#[doc = #member_doc] pub #member: #gname));
+        } else {
+            let member_doc = format!(
+                " Fan `{}`: the group {direction} each of {}, element `k` {direction} the `k`-th; a default one has no element: make it with `Fan::new({})` and build the subsystem with `subsystem_with_buffers`.",
+                group.peer,
+                group.peers.join(", "),
+                group.peers.len()
+            );
+            members.push(quote!(#[doc = #member_doc] pub #member: #rt::Fan<#gname>));
+        }
     }
     let (sname, derives, doc) = if input {
         (

@@ -122,7 +122,7 @@ fn trait_methods(
         .functions
         .iter()
         .enumerate()
-        .map(|(k, f)| function_method(found, base, k, f))
+        .map(|(k, f)| function_method(found, base, k, f, sub))
         .collect();
     for (k, p) in sub.predicates.iter().enumerate() {
         let at = location(
@@ -152,10 +152,16 @@ fn trait_methods(
     Ok(methods)
 }
 
-/// The method of transition function `f` (the `k`-th), by its target: the
-/// next memory (or common results) from the memory and input, or an output
-/// group.
-fn function_method(found: &Found, base: &[Seg<'_>], k: usize, f: &model::Function) -> TokenStream {
+/// The method of transition function `f` (the `k`-th) of `sub`, by its
+/// target: the next memory (or common results) from the memory and input, or
+/// an output group (every element of it for a fan, `Fan<To...>`).
+fn function_method(
+    found: &Found,
+    base: &[Seg<'_>],
+    k: usize,
+    f: &model::Function,
+    sub: &model::Subsystem,
+) -> TokenStream {
     let rt = runtime();
     let name = ident(&f.name);
     let at = location(
@@ -181,7 +187,16 @@ fn function_method(found: &Found, base: &[Seg<'_>], k: usize, f: &model::Functio
             fn #name(memory: &mut Memory, input: &Input) -> ::core::result::Result<(), #rt::ActionError>;
         },
         model::Target::Output(peer) => {
-            let group = format_ident!("To{}", camel(peer));
+            let to = format_ident!("To{}", camel(peer));
+            let fan = sub
+                .outputs
+                .iter()
+                .any(|g| g.peer == *peer && !g.peers.is_empty());
+            let group = if fan {
+                quote!(#rt::Fan<#to>)
+            } else {
+                quote!(#to)
+            };
             quote! {
                 #doc
                 fn #name(memory: &Memory, input: &Input, output: &mut #group) -> ::core::result::Result<(), #rt::ActionError>;

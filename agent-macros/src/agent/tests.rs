@@ -192,3 +192,23 @@ fn each_finding_is_reported_once_by_the_agent_it_belongs_to() {
         "items despite the finding"
     );
 }
+
+#[test]
+fn a_fan_of_the_spec_is_a_fan_of_its_group_and_its_function_writes_every_element() {
+    const HUB: &str = include_str!("../../../tests/fan_hub.ron");
+    let a = args(quote!(spec = "fan_hub.ron", agent = "a0"));
+    let found = load(&a.spec, HUB.into(), &a.agent).expect("loads");
+    assert!(found.errors.is_none(), "a valid spec");
+    let code = generate(&found, &a, None).expect("generates").to_string();
+    for fan in ["Fan < FromRobots >", "Fan < ToRobots >"] {
+        assert!(code.contains("pub robots : "), "{code}");
+        assert!(code.contains(fan), "{fan} in {code}");
+    }
+    // `send` writes every element of the fan.
+    assert!(
+        code.contains(
+            "fn send (memory : & Memory , input : & Input , output : & mut :: embodied :: Fan < ToRobots >)"
+        ),
+        "{code}"
+    );
+}
