@@ -26,7 +26,12 @@
 //!   process by a watched reader: the field read from the typed value through
 //!   its `Serialize` impl ([`agent_core::trace::FieldPath`]: the path's steps
 //!   followed, the rest skipped, nothing encoded), the path checked once
-//!   against the payload's shape ([`agent_core::reflect`]);
+//!   against the payload's shape ([`agent_core::reflect`]). In the
+//!   deterministic executor the check is compiled into the sending link
+//!   ([`Observer::link_events`]: the ranges' bounds, checked on the typed
+//!   value in one walk for all the ranges of a link, by
+//!   [`agent_core::trace::within`], which the monitors judge by too), and the
+//!   watch hears only of the values out of a range, which it judges again;
 //! * invariant: after each activation of a watched subsystem that carries
 //!   invariants, the values of the predicates they read, which the watch
 //!   asks of the executor ([`Observer::predicates_wanted`]: those predicates
@@ -36,26 +41,35 @@
 //!   subsystem is not in the system, or whose FSM lacks one of its
 //!   predicates, is not judged ([`Verdicts::not_judged`] says why).
 //!
+//! Which events a watch takes: it tells the executor once per link
+//! ([`Observer::link_events`]) the sends and reads that change one of its
+//! monitors (a rate's or response's send, a freshness's, rate's or
+//! response's read) and the range checks; the deterministic executor leaves
+//! out the others before calling any observer (they would only have moved
+//! the watch's clock, which the same instant's activations move). A watch
+//! beside an observer that takes every event (a recorder) is given every
+//! event and judges them the same (tests/monitor.rs checks the verdicts).
+//!
 //! Cost: `bench_core` measures a watch of Rex's contracts on a system shaped
-//! like Rex (`monitor_ns_per_cycle`), the executor's events to the observer
-//! included: `monitor_cost_ratio` (the watch's ns per action over an
-//! action's) 0.37 (0.37 to 0.46 over 3 runs alternated with the code before,
-//! 0.51, 0.45 to 0.52), from 1.38 before the ranges read the typed value and
-//! the deadlines were kept as events add them; the aim is 0.05. Each event
-//! visits only the monitors it concerns (the monitors' index per input,
-//! output and subsystem; a plan per link, made once per watch, says what its
-//! sends and reads are to this watch), the ranges of one value advance time
-//! once, an invariant is evaluated only when the predicates it reads change,
-//! and the executor asks for raised violations through an inlined test.
-//! `monitor_events_ns_per_cycle` is what the same events cost an observer
-//! that judges nothing: 24 ns per cycle, 0.09 of an action by itself, so no
-//! observer called per event reaches the aim; that needs the checks compiled
-//! into the links (evaluated where a value is written or read, its type
-//! known), which the executors do not have.
-//! Every link of that system is one a contract reads, so each of its events
-//! is judged. The earliest deadline is kept as events add one (every monitor
-//! is scanned only when it passes), and nothing is allocated per event,
-//! except the error of a violation.
+//! like Rex (`monitor_ns_per_cycle`, `monitor_cost_ratio`: the watch's ns per
+//! action over an action's; the aim is 0.05). Counted in instructions per
+//! cycle (callgrind over the bench), the watch added 2,261 to the plain
+//! system's 3,064 before its range checks were compiled into the links and
+//! it was given only the events it needs, and 1,935 to 3,119 after (-14 %;
+//! `monitor_cost_ratio` about 0.32 where 2,261 measured 0.37; the wall-clock
+//! figures of a shared machine vary more than that, docs/measurements.md).
+//! What is left is the watch's own work on the events that do change a
+//! monitor (in that system, per cycle: 4 freshness reads, 4 sends for rates
+//! and responses, 5 activations and c2's predicates, of 14 reads and 7
+//! sends; the torques' 4 ranges are checked in their link), each an observer call that advances the monitors' clock and
+//! visits the monitors the event concerns (the monitors' index per input,
+//! output and subsystem; a plan per link, made once per watch). The aim needs
+//! those in the links and the executor too: a freshness judged at the read
+//! from the stamp the buffer holds, a rate's and a response's sends read
+//! from the links' last stamps once per instant; not done. The earliest
+//! deadline is kept as events add one (every monitor is scanned only when it
+//! passes), and nothing is allocated per event, except the error of a
+//! violation.
 
 use std::collections::VecDeque;
 use std::fmt;

@@ -286,9 +286,10 @@ mod rex_shaped {
 /// and the platform E1).
 pub(super) const REX_ACTIONS_PER_CYCLE: u64 = 5;
 
-/// An observer that takes every event the watch takes and judges nothing:
-/// what the executor's events cost any observer (the floor under a watch's
-/// cost), with the predicates the watch asks for evaluated as for it.
+/// An observer that takes every event of the run and judges nothing: what
+/// the executor's events cost an observer called for each (the watch asks
+/// for fewer, `Observer::link_events`), with the predicates the watch asks
+/// for evaluated as for it.
 struct Silent {
     /// Per node: the predicates the watch wants after its activations.
     wanted: Vec<u64>,
@@ -326,8 +327,9 @@ pub(super) struct MonitorCost {
     pub(super) plain_ns: f64,
     /// Median ns per cycle added by the watch.
     pub(super) watch_ns: f64,
-    /// Median ns per cycle added by an observer that takes the same events
-    /// and judges nothing ([`Silent`]): the executor's share of `watch_ns`.
+    /// Median ns per cycle added by an observer that takes every event and
+    /// judges nothing ([`Silent`]): what an observer called per event pays
+    /// before it judges anything.
     pub(super) events_ns: f64,
     /// Allocations per watched cycle.
     pub(super) allocs_per_cycle: f64,
@@ -341,8 +343,9 @@ pub(super) struct MonitorCost {
 /// [`agent_monitor::live::Live`] watch), one by [`Silent`], in alternating
 /// batches; the watch's cost is the difference of their medians per cycle
 /// (and the events' cost, [`Silent`]'s). It includes what the
-/// executor does for an observer (read and transfer events, the torques
-/// handed over type-erased), as a run with contracts pays it.
+/// executor does for the watch (the read and transfer events it asks for,
+/// the torques' range checks compiled into their link), as a run with
+/// contracts pays it.
 pub(super) fn monitor_cost() -> Result<MonitorCost, Box<dyn std::error::Error>> {
     let loaded = embodied::spec::load("specs/rex.ron", REX_SPEC).map_err(|r| r.short())?;
     let monitors = agent_monitor::Monitors::new(&loaded.spec)?;
