@@ -421,21 +421,49 @@ pub fn default_spec() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs/rex.ron")
 }
 
-/// Handles to the parts of a built Rex system: a robot ([`RobotHandles`],
-/// which it dereferences to) with its own ontology agent a2.
+/// Handles to the parts of a built Rex system: a robot's parts with its own
+/// ontology agent a2 ([`RexHandles::robot`] gives them as a robot's of any
+/// kind, [`RobotHandles`]).
 #[derive(Clone, Copy, Debug)]
 pub struct RexHandles {
-    /// The robot's parts (its `c2` is [`RexHandles::c2`]).
-    pub robot: RobotHandles,
+    /// a1's control subsystem.
+    pub c1: SubsystemHandle<C1>,
+    /// a1's virtual effector.
+    pub e11: SubsystemHandle<E11>,
+    /// The platform.
+    pub platform: DriverHandle<Platform>,
     /// a2's control subsystem.
     pub c2: SubsystemHandle<Ontology>,
+    /// The map agent.
+    pub map: MapAgentHandles,
+    /// a1's virtual receptor and the camera, when visual odometry runs.
+    pub vision: Option<(SubsystemHandle<R11>, DriverHandle<StereoCamera>)>,
 }
 
-impl std::ops::Deref for RexHandles {
-    type Target = RobotHandles;
+impl RexHandles {
+    /// The same parts as a robot's, which is what the probes and counters
+    /// shared with the fleet take.
+    pub fn robot(&self) -> RobotHandles {
+        RobotHandles {
+            c1: self.c1,
+            e11: self.e11,
+            platform: self.platform,
+            c2: Some(self.c2),
+            map: self.map,
+            vision: self.vision,
+        }
+    }
+}
 
-    fn deref(&self) -> &RobotHandles {
-        &self.robot
+impl From<&RexHandles> for RobotHandles {
+    fn from(h: &RexHandles) -> RobotHandles {
+        h.robot()
+    }
+}
+
+impl From<&RobotHandles> for RobotHandles {
+    fn from(h: &RobotHandles) -> RobotHandles {
+        *h
     }
 }
 
@@ -550,15 +578,12 @@ pub fn build_deployment(config: &RexConfig, name: &str) -> Result<(System, RexHa
     Ok((
         system,
         RexHandles {
-            robot: RobotHandles {
-                c1,
-                e11,
-                platform,
-                c2: Some(c2),
-                map,
-                vision,
-            },
+            c1,
+            e11,
+            platform,
             c2,
+            map,
+            vision,
         },
     ))
 }

@@ -222,9 +222,10 @@ impl Collector {
 /// pose) and the motion capture (deliveries).
 pub(crate) fn install_probes(
     probes: &mut Probes<Seen>,
-    h: &RobotHandles,
+    h: impl Into<RobotHandles>,
     here: &dyn Fn(&str) -> bool,
 ) {
+    let h = &h.into();
     // In the order they always were: e11, c1, c2, the truth, the motion capture.
     install_probes_as(probes, h, &|name| name != "R3" && here(name), |seen| seen);
     if here("E1") {

@@ -355,7 +355,7 @@ impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
 
     /// The end of a run in this process: the last reports read off its
     /// nodes, then the outcome.
-    pub(crate) fn conclude(&mut self, ran: &Ran, h: &RobotHandles) -> Outcome {
+    pub(crate) fn conclude(&mut self, ran: &Ran, h: impl Into<RobotHandles>) -> Outcome {
         ran.conclude(self, last_reports(&ran.finished, h));
         self.outcome(
             ran.wall.as_secs_f64(),
@@ -376,7 +376,8 @@ impl<P: FnMut(Progress<'_>)> Watcher<Seen> for MissionWatch<P> {
 
 /// What a run's nodes say at its end (those this process ran): the counters,
 /// and the names of the planner, tracker and estimator.
-pub(crate) fn last_reports(run: &Finished, h: &RobotHandles) -> Vec<Seen> {
+pub(crate) fn last_reports(run: &Finished, h: impl Into<RobotHandles>) -> Vec<Seen> {
+    let h = &h.into();
     let mut counters = Counters::default();
     finish_counters(run, h, &mut counters);
     counters.executor_errors = run.report().error_count;
