@@ -236,6 +236,11 @@ pub trait Observer: Send {
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// A node took a value from a link (before its activation's step).
     fn read(&mut self, _event: &ReadEvent) {}
+    /// A node's read took nothing new from a link, and the value its buffer
+    /// still holds (stamped `event.stamp`) is older than the observer's
+    /// bound ([`LinkEvents::older_than`]; only then, and only from the
+    /// deterministic executor).
+    fn held(&mut self, _event: &ReadEvent) {}
     /// A node took a value that came from another process (after its
     /// [`Observer::read`]): the value itself, which no recorder of this
     /// process saw sent (its sender's may not have kept it: a process killed

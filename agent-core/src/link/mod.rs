@@ -577,19 +577,34 @@ pub(crate) struct LocalIn<I, T, A> {
     _i: PhantomData<fn(&mut I)>,
 }
 
-/// Tell the observer that the buffer `x` just took a value from `link` (if it did).
+/// Tell the observer that the buffer `x` just took a value from `link` (if it
+/// did), or holds one older than the observer's bound
+/// ([`LinkEvents::older_than`]).
 #[inline]
 pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
-    if let Some(obs) = cx.observer.as_deref_mut()
-        && x.is_new()
-        && let Some(stamp) = x.stamp()
-        && cx.wants.get(link).is_none_or(|w| w.reads)
-    {
-        obs.read(&ReadEvent {
-            time: cx.time,
-            link,
-            stamp,
-        });
+    let Some(obs) = cx.observer.as_deref_mut() else {
+        return;
+    };
+    let new = x.is_new();
+    let Some(stamp) = x.stamp() else {
+        return;
+    };
+    let told = match cx.wants.get(link) {
+        Some(w) => w.read(new, cx.time.as_nanos(), stamp.time.as_nanos()),
+        None => new.then_some(true),
+    };
+    let Some(new) = told else {
+        return;
+    };
+    let e = ReadEvent {
+        time: cx.time,
+        link,
+        stamp,
+    };
+    if new {
+        obs.read(&e);
+    } else {
+        obs.held(&e);
     }
 }
 

@@ -37,6 +37,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     fn read(&mut self, event: &ReadEvent) {
         (**self).read(event);
     }
+    fn held(&mut self, event: &ReadEvent) {
+        (**self).held(event);
+    }
     fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
         (**self).received(event, value);
     }
@@ -116,6 +119,14 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         }
         if self.1.enabled() {
             self.1.read(event);
+        }
+    }
+    fn held(&mut self, event: &ReadEvent) {
+        if self.0.enabled() {
+            self.0.held(event);
+        }
+        if self.1.enabled() {
+            self.1.held(event);
         }
     }
     fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {
@@ -208,6 +219,11 @@ impl<O: Observer> Observer for Option<O> {
     fn read(&mut self, event: &ReadEvent) {
         if let Some(o) = self {
             o.read(event);
+        }
+    }
+    fn held(&mut self, event: &ReadEvent) {
+        if let Some(o) = self {
+            o.held(event);
         }
     }
     fn received(&mut self, event: &ReadEvent, value: &dyn ErasedPayload) {

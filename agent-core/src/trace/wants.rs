@@ -57,6 +57,14 @@ pub struct LinkEvents {
     pub out_of: Vec<NumberBound>,
     /// Every value taken ([`Observer::read`](super::Observer::read)).
     pub reads: bool,
+    /// At each read by the link's reader, whether it takes a new value or
+    /// not: a value older than this (ns, the read's instant less the value's
+    /// stamp) is told, a new one through
+    /// [`Observer::read`](super::Observer::read) (without `reads`, the new
+    /// values this old only) and one the buffer still holds through
+    /// [`Observer::held`](super::Observer::held). A freshness bound judged
+    /// where the value is read.
+    pub older_than: Option<u64>,
 }
 
 impl Default for LinkEvents {
@@ -73,6 +81,7 @@ impl LinkEvents {
             transfers: true,
             out_of: Vec::new(),
             reads: true,
+            older_than: None,
         }
     }
 
@@ -82,6 +91,7 @@ impl LinkEvents {
             transfers: false,
             out_of: Vec::new(),
             reads: false,
+            older_than: None,
         }
     }
 
@@ -89,6 +99,10 @@ impl LinkEvents {
     pub fn union(mut self, other: LinkEvents) -> LinkEvents {
         self.transfers |= other.transfers;
         self.reads |= other.reads;
+        self.older_than = match (self.older_than, other.older_than) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
         if self.transfers {
             self.out_of.clear();
         } else {
@@ -101,6 +115,22 @@ impl LinkEvents {
     #[inline]
     pub fn transfer<T: Serialize + ?Sized>(&self, value: &T) -> bool {
         self.transfers || self.out_of.iter().any(|b| b.broken_by(value))
+    }
+
+    /// How the observer is told of a read at `now` of a value stamped
+    /// `stamp`, `new` or still held: `Some(true)` through
+    /// [`Observer::read`](super::Observer::read), `Some(false)` through
+    /// [`Observer::held`](super::Observer::held), `None` not at all.
+    #[inline]
+    pub fn read(&self, new: bool, now: u64, stamp: u64) -> Option<bool> {
+        let old = || {
+            self.older_than
+                .is_some_and(|max| now.saturating_sub(stamp) > max)
+        };
+        match new {
+            true => (self.reads || old()).then_some(true),
+            false => old().then_some(false),
+        }
     }
 }
 
@@ -122,6 +152,7 @@ mod tests {
             transfers: false,
             out_of: vec![bound("0", -1.0, 1.0), bound("2", 0.0, 0.0)],
             reads: false,
+            older_than: None,
         };
         assert!(!w.transfer(&[0.5f64, 9.0, 0.0]), "within both");
         assert!(
@@ -142,6 +173,7 @@ mod tests {
             transfers: false,
             out_of: vec![bound("0", -1.0, 1.0)],
             reads: false,
+            older_than: None,
         };
         let u = some.clone().union(LinkEvents::none());
         assert_eq!(u, some);
@@ -152,5 +184,36 @@ mod tests {
         let u = some.clone().union(some.clone());
         assert_eq!(u.out_of.len(), 2);
         assert!(within(1.0, None, Some(1.0)) && !within(f64::NAN, Some(0.0), None));
+        let bounded = |ns| LinkEvents {
+            older_than: Some(ns),
+            ..LinkEvents::none()
+        };
+        assert_eq!(bounded(50).union(bounded(20)).older_than, Some(20));
+        let u = LinkEvents::all().union(bounded(50));
+        assert!(
+            u.reads && u.older_than == Some(50),
+            "every read, and the held"
+        );
+        assert_eq!(some.union(bounded(50)).older_than, Some(50));
+    }
+
+    #[test]
+    fn a_read_is_told_when_asked_for_or_older_than_the_bound() {
+        let fresh = LinkEvents {
+            older_than: Some(50),
+            ..LinkEvents::none()
+        };
+        assert_eq!(fresh.read(true, 150, 100), None, "exactly 50 old: fresh");
+        assert_eq!(
+            fresh.read(true, 151, 100),
+            Some(true),
+            "a new value too old"
+        );
+        assert_eq!(fresh.read(false, 151, 100), Some(false), "held too old");
+        assert_eq!(fresh.read(false, 150, 100), None);
+        assert_eq!(fresh.read(true, 10, 100), None, "a stamp after the read");
+        assert_eq!(LinkEvents::all().read(true, 0, 0), Some(true));
+        assert_eq!(LinkEvents::all().read(false, 999, 0), None);
+        assert_eq!(LinkEvents::none().read(true, 999, 0), None);
     }
 }
