@@ -697,12 +697,14 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     assert_eq!(kinds(&every), 3, "range, freshness and response broken");
     assert!(asked_only.raised > 0 && asked_only.undecodable == 0);
     // The watch asked for less than everything: no events of the links no
-    // contract reads, and r1's levels only when out of range.
+    // contract reads, r1's levels only when out of range, and their reads
+    // (a freshness alone) only of a value older than its 5 ms.
     assert!(asked.contains(&LinkEvents::none()), "{asked:?}");
     assert!(
-        asked
-            .iter()
-            .any(|w| !w.transfers && w.out_of.len() == 1 && w.reads),
+        asked.iter().any(|w| !w.transfers
+            && w.out_of.len() == 1
+            && !w.reads
+            && w.older_than == Some(5_000_000)),
         "{asked:?}"
     );
 }

@@ -111,6 +111,7 @@ impl Monitors {
                 period: period_ns(spec, component(&f.input)),
                 reader,
                 held: None,
+                held_at: None,
             });
         }
         for r in &c.rates {

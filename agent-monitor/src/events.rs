@@ -13,6 +13,7 @@ impl Monitors {
     pub fn start(&mut self, t: Time) {
         for f in &mut self.freshness {
             f.held = None;
+            f.held_at = None;
         }
         for r in &mut self.rates {
             r.last = t;
@@ -40,6 +41,7 @@ impl Monitors {
         for &k in listed(&self.index.freshness_of, input.0) {
             let f = &mut self.freshness[k as usize];
             f.held = Some((stamp, age > f.max));
+            f.held_at = None;
             due = earliest(due, f.deadline(activations));
             if age > f.max {
                 sink(Violation {
@@ -53,6 +55,24 @@ impl Monitors {
             }
         }
         self.due(due);
+    }
+
+    /// The reader of `input` still holds, at its read at `t`, the value
+    /// stamped `stamp` (no new value taken), and it may be too old: each
+    /// freshness it is too old for reports it at the reader's activation at
+    /// `t` ([`Monitors::activation`]), unless reported already, as if every
+    /// read had been told ([`Monitors::freshness_bound`]: the reads of a
+    /// fresh value may then be left out). Nothing is reported here, and time
+    /// does not advance (the activation's event advances it).
+    pub fn held(&mut self, input: InputId, t: Time, stamp: Time) {
+        let age = t.as_nanos().saturating_sub(stamp.as_nanos());
+        for &k in listed(&self.index.freshness_of, input.0) {
+            let f = &mut self.freshness[k as usize];
+            if age > f.max && f.held != Some((stamp, true)) {
+                f.held = Some((stamp, false));
+                f.held_at = Some(t);
+            }
+        }
     }
 
     /// A new value reaches `input` at `t` (its writer's send, or its arrival
@@ -151,6 +171,7 @@ impl Monitors {
             for &k in listed(&self.index.read_by, subsystem.0) {
                 let f = &mut self.freshness[k as usize];
                 if let Some((s, false)) = f.held
+                    && f.held_at.is_none_or(|at| at == t)
                     && t.as_nanos().saturating_sub(s.as_nanos()) > f.max
                 {
                     f.held = Some((s, true));

@@ -245,6 +245,10 @@ struct FreshnessM {
     /// The stamp of the value the input holds, and whether its age was
     /// reported.
     held: Option<(Time, bool)>,
+    /// When the value held was last told by [`Monitors::held`] (`None`: by a
+    /// read): an activation at another instant does not judge it (the reader
+    /// may have taken a fresh value since, which no read told).
+    held_at: Option<Time>,
 }
 
 impl FreshnessM {
@@ -485,6 +489,21 @@ impl Monitors {
             .get(range.0 as usize)
             .filter(|r| r.active)
             .map(|r| (r.min, r.max))
+    }
+
+    /// The age beyond which a read of `input` changes a monitor here, when
+    /// that is all its reads are for: every freshness of `input` has the
+    /// same bound and a reader whose activations are given
+    /// ([`Monitors::at_activations`]). Then a read of a fresh value may be
+    /// left out, and the value a reader holds is told only when it is older
+    /// ([`Monitors::held`]): each activation judges it as it would have.
+    pub(crate) fn freshness_bound(&self, input: InputId) -> Option<u64> {
+        let mut all = listed(&self.index.freshness_of, input.0)
+            .iter()
+            .map(|&k| &self.freshness[k as usize]);
+        let first = all.next()?;
+        let same = |f: &FreshnessM| f.max == first.max && f.reader.is_some();
+        (self.activations && same(first) && all.all(same)).then_some(first.max)
     }
 
     /// Whether a monitor here counts the reads of `input` (a freshness), its

@@ -586,10 +586,17 @@ impl Observer for Watch {
             })
             .collect();
         let c = self.monitors.counts(p.input, p.output);
+        let other_reads = !p.writer && (c.sends || c.arrivals);
+        // A freshness alone judged where the value is read: the reads of a
+        // value older than its bound only, new or held.
+        let older_than = (p.input)
+            .filter(|_| p.reader && c.reads && !other_reads)
+            .and_then(|i| self.monitors.freshness_bound(i));
         LinkEvents {
             transfers: p.writer && (c.sends || (c.arrivals && p.reader)),
             out_of,
-            reads: p.reader && (c.reads || (!p.writer && (c.sends || c.arrivals))),
+            reads: p.reader && ((c.reads && older_than.is_none()) || other_reads),
+            older_than,
         }
     }
 
@@ -677,6 +684,16 @@ impl Observer for Watch {
         if let Some(i) = input {
             self.monitors
                 .read(i, e.time, stamp, &mut |v| self.sink.take(v));
+        }
+    }
+
+    fn held(&mut self, e: &ReadEvent) {
+        self.at(e.time);
+        let Some(plan) = self.links.get(e.link) else {
+            return;
+        };
+        if let (true, Some(i)) = (plan.reader, plan.input) {
+            self.monitors.held(i, e.time, e.stamp.time);
         }
     }
 
