@@ -59,6 +59,10 @@ pub enum AppError {
     /// An executor stopped on an error.
     #[error("{0}")]
     Run(String),
+    /// The real-time executor could not start, or a thread of it failed
+    /// (typed, for a library caller to match).
+    #[error(transparent)]
+    RealTime(#[from] agent_core::RtError),
     /// A recording could not be made or finished.
     #[error(transparent)]
     Record(#[from] agent_mcap::RecordError),
@@ -118,5 +122,21 @@ impl AppError {
             AppError::Record(agent_mcap::RecordError::Create { .. }) => Status::Invalid,
             _ => Status::Failed,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_real_time_error_stays_typed_and_fails_the_run() {
+        let e: AppError = agent_core::RtError::Panicked("c1".into()).into();
+        assert!(
+            matches!(&e, AppError::RealTime(agent_core::RtError::Panicked(t)) if t == "c1"),
+            "{e:?}"
+        );
+        assert_eq!(e.to_string(), "thread `c1` panicked");
+        assert_eq!(e.status(), Status::Failed);
     }
 }

@@ -319,9 +319,7 @@ impl<'w, M: Send + 'static> Watched<'w, M> {
         if let Some(ros2) = ros2.as_deref_mut() {
             ros2.feed(&mut rt)?;
         }
-        let running = rt
-            .start(self.limit)
-            .map_err(|e| AppError::Run(e.to_string()))?;
+        let running = rt.start(self.limit)?;
         if let Some(ros2) = ros2.as_deref() {
             ros2.started(&running);
         }
@@ -354,7 +352,7 @@ impl<'w, M: Send + 'static> Watched<'w, M> {
             }
             std::thread::sleep(Duration::from_millis(2));
         }
-        let finished = running.join().map_err(|e| AppError::Run(e.to_string()))?;
+        let finished = running.join()?;
         let wall = wall.elapsed();
         for m in self.seen.try_iter() {
             self.watcher.see(m);

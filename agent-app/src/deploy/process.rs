@@ -140,7 +140,7 @@ pub(crate) fn run<A: Application>(
         stopped: None,
     };
     vigil.until_over(&running, &seen, &halting, end, recorder.as_ref());
-    let finished = running.join().map_err(|e| AppError::Run(e.to_string()));
+    let finished = running.join().map_err(AppError::from);
     let bridged = ros2.finish();
     let finished = finished?;
     for m in app.finished(&finished).into_iter().chain(seen.try_iter()) {
@@ -464,7 +464,7 @@ fn start_run(
             if let Some(r) = recorder.take() {
                 record::finish(r);
             }
-            Err(AppError::Run(e.to_string()))
+            Err(AppError::from(e))
         }
     }
 }
