@@ -381,3 +381,66 @@ fn unknown_names_and_bad_bounds_are_refused() {
         Err(BuildError::Bound { .. })
     ));
 }
+
+/// The reads a watch is told when it asks for the old values only
+/// ([`Monitors::freshness_bound`]: a new value through [`Monitors::read`]
+/// when older than the bound, one still held through [`Monitors::held`])
+/// give the violations, times and ages of every read told, whatever the
+/// pattern of sends, ages and activations left out after a read.
+#[test]
+fn a_freshness_told_only_of_old_values_judges_as_one_told_every_read() {
+    let contracts = || Contracts {
+        freshness: vec![Freshness {
+            input: "c1.e1.done".into(),
+            max_age_ms: 25.0,
+        }],
+        ..Contracts::default()
+    };
+    let (mut every, mut old) = (monitors(contracts()), monitors(contracts()));
+    every.at_activations();
+    old.at_activations();
+    let done = every.input("c1.e1.done").expect("named");
+    let c1 = every.subsystem("c1").expect("named");
+    assert_eq!(old.freshness_bound(done), Some(25_000_000));
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = |n: u64| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed % n
+    };
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let mut stamp: Option<Time> = None;
+    every.start(ms(0));
+    old.start(ms(0));
+    for k in 1..2000u64 {
+        let t = ms(10 * k);
+        let new = next(3) == 0;
+        if new {
+            let lag = ms(next(40));
+            let s = Time::from_nanos(t.as_nanos() - lag.as_nanos());
+            stamp = Some(stamp.map_or(s, |p| p.max(s)));
+        }
+        let Some(s) = stamp else { continue };
+        let age = t.as_nanos() - s.as_nanos();
+        if new {
+            every.read(done, t, s, &mut |v| a.push(v));
+            if age > 25_000_000 {
+                old.read(done, t, s, &mut |v| b.push(v));
+            }
+        } else if age > 25_000_000 {
+            old.held(done, t, s);
+        }
+        // Now and then the reader reads but does not act (an error).
+        if next(10) != 0 {
+            every.activation(c1, t, None, &mut |v| a.push(v));
+            old.activation(c1, t, None, &mut |v| b.push(v));
+        }
+    }
+    assert!(
+        a.len() > 20,
+        "the pattern breaks the bound often: {}",
+        a.len()
+    );
+    assert_eq!(a, b);
+}
