@@ -54,31 +54,33 @@ impl<E: Into<ActionError>> Outcome for Result<(), E> {
     }
 }
 
-type MemoryFn<S> = Box<
-    dyn Fn(&mut <S as Subsystem>::Memory, &<S as Subsystem>::Input) -> Result<(), ActionError>
-        + Send,
->;
-type OutputFn<S> = Box<
+/// One part of an action as the executor runs it: every part (common, output,
+/// memory) behind one signature, so that an action's parts lie in one
+/// contiguous slice of 16-byte entries in evaluation order. What a part may
+/// write is fixed where it is made ([`Action::output`] gives its function
+/// `&Memory` and one group only).
+type PartFn<S> = Box<
     dyn Fn(
-            &<S as Subsystem>::Memory,
+            &mut <S as Subsystem>::Memory,
             &<S as Subsystem>::Input,
             &mut <S as Subsystem>::Output,
         ) -> Result<(), ActionError>
         + Send,
 >;
 
-struct OutputPart<S: Subsystem> {
+/// The description of an output part (cold: read by the builder and the
+/// descriptions, never by an action).
+struct OutputPart {
     target: TypeId,
     target_name: &'static str,
     peer: NodeKind,
     field: Option<&'static str>,
     name: Option<Cow<'static, str>>,
-    f: OutputFn<S>,
 }
 
-struct MemoryPart<S: Subsystem> {
+/// The description of the common or the memory part.
+struct MemoryPart {
     name: Option<Cow<'static, str>>,
-    f: MemoryFn<S>,
 }
 
 /// Which part [`Action::named`] names.
@@ -122,9 +124,13 @@ pub struct Part {
 /// An elementary action `A_{j,m}(f_{j,m})`: the decomposed transition function of one
 /// behaviour. The executor supplies the rest of Algorithm 1 (send, wait, read).
 pub struct Action<S: Subsystem> {
-    common: Option<MemoryPart<S>>,
-    outputs: Vec<OutputPart<S>>,
-    memory: Option<MemoryPart<S>>,
+    /// The parts' functions in evaluation order: the common part's (if
+    /// any), the output parts' in the order they were added, the memory
+    /// part's (if any). The only field an action's evaluation reads.
+    run: Vec<PartFn<S>>,
+    common: Option<MemoryPart>,
+    outputs: Vec<OutputPart>,
+    memory: Option<MemoryPart>,
     last: Last,
     defects: Vec<String>,
 }
@@ -132,6 +138,7 @@ pub struct Action<S: Subsystem> {
 impl<S: Subsystem> Default for Action<S> {
     fn default() -> Self {
         Action {
+            run: Vec::new(),
             common: None,
             outputs: Vec::new(),
             memory: None,
@@ -280,13 +287,19 @@ impl<S: Subsystem> Action<S> {
                 "two transition functions write the same target `{target_name}`"
             ));
         }
+        // After the common part and the output parts before it, before the
+        // memory part.
+        let at = usize::from(self.common.is_some()) + self.outputs.len();
+        self.run.insert(
+            at,
+            Box::new(move |m, x, y| f(m, x, target(y)).into_result()),
+        );
         self.outputs.push(OutputPart {
             target: id,
             target_name,
             peer: G::PEER,
             field: None,
             name: fn_name::<F>(),
-            f: Box::new(move |m, x, y| f(m, x, target(y)).into_result()),
         });
         self.last = Last::Output;
         self
@@ -299,12 +312,15 @@ impl<S: Subsystem> Action<S> {
         F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
         R: Outcome,
     {
+        let part: PartFn<S> = Box::new(move |m, x, _| f(m, x).into_result());
         if self.memory.is_some() {
             self.defects.push("the memory part is set twice".to_owned());
+            // The second replaces the first, last in evaluation order.
+            self.run.pop();
         }
+        self.run.push(part);
         self.memory = Some(MemoryPart {
             name: fn_name::<F>(),
-            f: Box::new(move |m, x| f(m, x).into_result()),
         });
         self.last = Last::Memory;
         self
@@ -317,12 +333,18 @@ impl<S: Subsystem> Action<S> {
         F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
         R: Outcome,
     {
+        let part: PartFn<S> = Box::new(move |m, x, _| f(m, x).into_result());
         if self.common.is_some() {
             self.defects.push("the common part is set twice".to_owned());
+            // The second replaces the first, first in evaluation order.
+            if let Some(first) = self.run.first_mut() {
+                *first = part;
+            }
+        } else {
+            self.run.insert(0, part);
         }
         self.common = Some(MemoryPart {
             name: fn_name::<F>(),
-            f: Box::new(move |m, x| f(m, x).into_result()),
         });
         self.last = Last::Common;
         self
@@ -375,14 +397,8 @@ impl<S: Subsystem> Action<S> {
         input: &S::Input,
         output: &mut S::Output,
     ) -> Result<(), ActionError> {
-        if let Some(c) = &self.common {
-            (c.f)(memory, input)?;
-        }
-        for part in &self.outputs {
-            (part.f)(memory, input, output)?;
-        }
-        if let Some(m) = &self.memory {
-            (m.f)(memory, input)?;
+        for f in &self.run {
+            f(memory, input, output)?;
         }
         Ok(())
     }
@@ -407,19 +423,9 @@ impl<S: Subsystem> Action<S> {
             written = now;
             *k += 1;
         };
-        if let Some(c) = &self.common {
+        for f in &self.run {
             let _ = S::audit(input, output);
-            (c.f)(memory, input)?;
-            observe(&mut k, output);
-        }
-        for part in &self.outputs {
-            let _ = S::audit(input, output);
-            (part.f)(memory, input, output)?;
-            observe(&mut k, output);
-        }
-        if let Some(m) = &self.memory {
-            let _ = S::audit(input, output);
-            (m.f)(memory, input)?;
+            f(memory, input, output)?;
             observe(&mut k, output);
         }
         Ok(())
@@ -575,6 +581,45 @@ mod tests {
             ActionError::Buffer(crate::BufferError::NoData { .. })
         ));
         assert!(mem.is_empty(), "the memory part did not run");
+    }
+
+    #[test]
+    fn parts_run_common_outputs_memory_whatever_order_they_were_added_in() {
+        // Each part appends its mark to the memory or (outputs) writes the
+        // memory's length: the order they ran in.
+        let action = Action::<S>::new()
+            .memory(|m: &mut Vec<i32>, _x: &X| m.push(8))
+            .output(
+                |y| &mut y.t,
+                |m: &Vec<i32>, _x: &X, y: &mut ToT| y.ack.set(m == &[1]),
+            )
+            .memory(|m: &mut Vec<i32>, _x: &X| m.push(9))
+            .common(|m: &mut Vec<i32>, _x: &X| m.push(0))
+            .output(
+                |y| &mut y.e,
+                |m: &Vec<i32>, _x: &X, y: &mut ToE| y.cmd.set(m.len() as i32),
+            )
+            .common(|m: &mut Vec<i32>, _x: &X| m.push(1));
+        // The second memory and common parts replace the first ones.
+        assert_eq!(action.defects().len(), 2);
+        assert_eq!(action.parts().len(), 4);
+        assert_eq!(action.parts()[0], PartTarget::Common);
+        assert_eq!(action.parts()[3], PartTarget::Memory);
+        let mut mem = vec![];
+        let mut y = Y::default();
+        action.compute(&mut mem, &X::default(), &mut y).unwrap();
+        assert_eq!(mem, vec![1, 9]);
+        assert_eq!(y.t.ack.written(), Some(&true));
+        assert_eq!(y.e.cmd.written(), Some(&1));
+        // Audited, the same order, each part observed once.
+        let mut mem = vec![];
+        let mut y = Y::default();
+        let mut seen = Vec::new();
+        action
+            .compute_audited(&mut mem, &X::default(), &mut y, &mut |k, _, _| seen.push(k))
+            .unwrap();
+        assert_eq!(mem, vec![1, 9]);
+        assert_eq!(seen, vec![0, 1, 2, 3]);
     }
 
     #[test]
