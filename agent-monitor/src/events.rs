@@ -61,7 +61,7 @@ impl Monitors {
     /// stamped `stamp` (no new value taken), and it may be too old: each
     /// freshness it is too old for reports it at the reader's activation at
     /// `t` ([`Monitors::activation`]), unless reported already, as if every
-    /// read had been told ([`Monitors::freshness_bound`]: the reads of a
+    /// read had been told ([`agent_core::trace::LinkEvents::older_than`]: the reads of a
     /// fresh value may then be left out). Nothing is reported here, and time
     /// does not advance (the activation's event advances it).
     pub fn held(&mut self, input: InputId, t: Time, stamp: Time) {

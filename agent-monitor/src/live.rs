@@ -15,7 +15,13 @@
 //! Where each kind's events come from (the semantics are the crate's):
 //!
 //! * freshness: the reader's reads, stamped by the sender, and its
-//!   activations (a halted subsystem is judged no more);
+//!   activations (a halted subsystem is judged no more); in the
+//!   deterministic executor, judged where the value is read when a
+//!   freshness is all that counts a link's reads
+//!   ([`LinkEvents::older_than`]: a value is told only when older than the
+//!   bound, a new one as a read, one still held through [`Observer::held`],
+//!   which the reader's activation of the same instant reports, as it
+//!   reports a held value when every read is told);
 //! * rate: a value's send when its writer is watched here (its stamp, as
 //!   over a recording), else the reader's take of it (from another thread or
 //!   process; the instant it arrived for the reader);
@@ -55,21 +61,23 @@
 //! action over an action's; the aim is 0.05). Counted in instructions per
 //! cycle (callgrind over the bench), the watch added 2,261 to the plain
 //! system's 3,064 before its range checks were compiled into the links and
-//! it was given only the events it needs, and 1,935 to 3,119 after (-14 %;
-//! `monitor_cost_ratio` about 0.32 where 2,261 measured 0.37; the wall-clock
-//! figures of a shared machine vary more than that, docs/measurements.md).
-//! What is left is the watch's own work on the events that do change a
-//! monitor (in that system, per cycle: 4 freshness reads, 4 sends for rates
-//! and responses, 5 activations and c2's predicates, of 14 reads and 7
-//! sends; the torques' 4 ranges are checked in their link), each an observer call that advances the monitors' clock and
-//! visits the monitors the event concerns (the monitors' index per input,
-//! output and subsystem; a plan per link, made once per watch). The aim needs
-//! those in the links and the executor too: a freshness judged at the read
-//! from the stamp the buffer holds, a rate's and a response's sends read
-//! from the links' last stamps once per instant; not done. The earliest
-//! deadline is kept as events add one (every monitor is scanned only when it
-//! passes), and nothing is allocated per event, except the error of a
-//! violation.
+//! it was given only the events it needs, 1,935 to 3,119 after (-14 %), and
+//! 1,523 to 3,115 once its freshness contracts were judged where their values are
+//! read (-21 %; `monitor_cost_ratio` about 0.25 where 1,935 measured about
+//! 0.35 in the same runs; the wall-clock figures of a shared machine vary
+//! more than that, docs/measurements.md). What is left is the watch's own
+//! work on the events that do change a monitor (in that system, per cycle:
+//! 4 sends for rates and responses, 5 activations and c2's predicates, of
+//! 14 reads and 7 sends; the 4 freshness reads are told only of a value
+//! too old, the torques' 4 ranges are checked in their link), each an
+//! observer call that advances the monitors' clock and visits the monitors
+//! the event concerns (the monitors' index per input, output and subsystem;
+//! a plan per link, made once per watch). The aim needs the rest in the
+//! links and the executor too: a rate's and a response's sends read from
+//! the links' last stamps once per instant, and the activations'
+//! bookkeeping; not done. The earliest deadline is kept as events add one
+//! (every monitor is scanned only when it passes), and nothing is allocated
+//! per event, except the error of a violation.
 
 use std::collections::VecDeque;
 use std::fmt;
