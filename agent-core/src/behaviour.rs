@@ -14,10 +14,13 @@ use crate::transition::Action;
 /// The terminal condition is a Boolean expression over the FSM's named predicates
 /// (for instance `"plan_done && !ready"`, or `"false"` for a behaviour that never
 /// ends); it is resolved when the FSM is built.
+#[repr(C)]
 pub struct Behaviour<S: Subsystem> {
-    pub(crate) name: Cow<'static, str>,
+    // The kind and the action's slice of parts first: what an action reads
+    // (the FSM's node is `repr(C)` too).
     pub(crate) kind: BehaviourKind,
     pub(crate) action: Action<S>,
+    pub(crate) name: Cow<'static, str>,
     pub(crate) terminal: Cow<'static, str>,
 }
 

@@ -123,10 +123,12 @@ pub struct Part {
 
 /// An elementary action `A_{j,m}(f_{j,m})`: the decomposed transition function of one
 /// behaviour. The executor supplies the rest of Algorithm 1 (send, wait, read).
+#[repr(C)]
 pub struct Action<S: Subsystem> {
     /// The parts' functions in evaluation order: the common part's (if
     /// any), the output parts' in the order they were added, the memory
-    /// part's (if any). The only field an action's evaluation reads.
+    /// part's (if any). The only field an action's evaluation reads, first
+    /// (the behaviour and the FSM's node are `repr(C)` too).
     run: Vec<PartFn<S>>,
     common: Option<MemoryPart>,
     outputs: Vec<OutputPart>,

@@ -114,13 +114,17 @@ pub struct FsmArc {
     pub text: Cow<'static, str>,
 }
 
+/// What an action reads of its behaviour first (`never_ends`, the
+/// behaviour's kind and its slice of parts), in the node's first 40 bytes:
+/// one cache line more often than not.
+#[repr(C)]
 struct Node<S: Subsystem> {
-    behaviour: Behaviour<S>,
-    terminal: Expr<usize>,
     /// The terminal condition is the constant `false`: the behaviour never ends.
     never_ends: bool,
-    arcs: Vec<FsmArc>,
     is_final: bool,
+    behaviour: Behaviour<S>,
+    terminal: Expr<usize>,
+    arcs: Vec<FsmArc>,
 }
 
 /// Where an FSM is: its current behaviour and whether an action of it already ran.
