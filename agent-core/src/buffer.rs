@@ -165,7 +165,10 @@ pub struct In<T> {
     value: Option<T>,
     new: bool,
     stamp: Option<Stamp>,
-    name: Cow<'static, str>,
+    /// The name of the link that feeds it, boxed (8 bytes here, none while
+    /// unlinked): cold, read only by errors and descriptions, so that the
+    /// buffer an action reads is 16 bytes smaller.
+    name: Option<Box<Cow<'static, str>>>,
     /// Whether a transition function looked at the buffer since the last
     /// [`Buffer::take_read`](crate::describe::Buffer::take_read): what an audit
     /// of reads observes (`ExecConfig::audit`). Only with the `audit` feature: the
@@ -180,7 +183,7 @@ impl<T> Default for In<T> {
             value: None,
             new: false,
             stamp: None,
-            name: Cow::Borrowed(""),
+            name: None,
             #[cfg(feature = "audit")]
             read: Cell::new(false),
         }
@@ -218,7 +221,7 @@ impl<T> In<T> {
             value: Some(value),
             new: true,
             stamp: Some(stamp),
-            name: Cow::Borrowed(""),
+            name: None,
             #[cfg(feature = "audit")]
             read: Cell::new(false),
         }
@@ -252,10 +255,9 @@ impl<T> In<T> {
     pub fn require(&self) -> Result<&T, BufferError> {
         self.mark_read();
         self.value.as_ref().ok_or_else(|| BufferError::NoData {
-            buffer: if self.name.is_empty() {
-                Cow::Borrowed("<unlinked>")
-            } else {
-                self.name.clone()
+            buffer: match self.name.as_deref() {
+                Some(name) if !name.is_empty() => name.clone(),
+                _ => Cow::Borrowed("<unlinked>"),
             },
         })
     }
@@ -301,7 +303,7 @@ impl<T> In<T> {
 
     /// The name of the link that feeds this buffer (empty until linked).
     pub fn name(&self) -> &str {
-        &self.name
+        self.name.as_deref().map_or("", |name| name.as_ref())
     }
 
     /// Deliver a new value, as a link does on a read (for environment models in tests).
@@ -331,7 +333,7 @@ impl<T> In<T> {
     }
 
     pub(crate) fn set_name(&mut self, name: Cow<'static, str>) {
-        self.name = name;
+        self.name = (!name.is_empty()).then(|| Box::new(name));
     }
 }
 
@@ -558,6 +560,29 @@ mod tests {
         assert_eq!(x.fresh(), None);
         assert_eq!(x.get(), Some(&7), "an old value stays readable");
         assert_eq!(format!("{x:?}"), "old 7");
+    }
+
+    #[test]
+    fn an_in_buffer_is_named_after_its_link_and_errors_say_so() {
+        let mut x: In<u32> = In::default();
+        assert_eq!(x.name(), "");
+        x.set_name(Cow::Borrowed("c.plan"));
+        assert_eq!(x.name(), "c.plan");
+        assert_eq!(x.clone().name(), "c.plan", "a copy keeps the name");
+        assert_eq!(
+            x.require(),
+            Err(BufferError::NoData {
+                buffer: "c.plan".into()
+            })
+        );
+        x.set_name(Cow::Owned(String::new()));
+        assert_eq!(x.name(), "");
+        assert_eq!(
+            x.require(),
+            Err(BufferError::NoData {
+                buffer: "<unlinked>".into()
+            })
+        );
     }
 
     #[test]
