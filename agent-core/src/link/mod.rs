@@ -508,10 +508,16 @@ pub(crate) struct LocalOut<O, T, A> {
     first: (usize, Shared<T>),
     /// The output buffer, from the output struct.
     access: A,
-    /// Further destinations of a fanned-out output.
-    more: Vec<(usize, Shared<T>)>,
+    /// Further destinations of a fanned-out output, boxed (8 bytes; none for
+    /// most outputs) so that the port is 24 bytes and its neighbours share
+    /// its cache line.
+    more: Option<Box<More<T>>>,
     _o: PhantomData<fn(&mut O)>,
 }
+
+/// The destinations of a fanned-out [`LocalOut`] after its first (link
+/// index, channel).
+struct More<T>(Vec<(usize, Shared<T>)>);
 
 impl<O, T: Payload, A> LocalOut<O, T, A> {
     #[inline]
@@ -544,14 +550,14 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
         let Some(value) = (self.access)(y).pending() else {
             return Ok(());
         };
-        if self.more.is_empty() {
+        let Some(more) = &self.more else {
             return self.put(&self.first, value, true, stamp, cx);
-        }
+        };
         // Fan-out: clone into all but the last destination; report the first refusal
         // after every destination had its chance.
         let mut result = self.put(&self.first, value, false, stamp, cx);
-        let n = self.more.len();
-        for (k, dest) in self.more.iter().enumerate() {
+        let n = more.0.len();
+        for (k, dest) in more.0.iter().enumerate() {
             let r = self.put(dest, value, k + 1 == n, stamp, cx);
             if result.is_ok() {
                 result = r;
@@ -573,7 +579,9 @@ pub(crate) struct LocalIn<I, T, A> {
     link: usize,
     /// The input buffer, from the input struct.
     access: A,
-    name: Cow<'static, str>,
+    /// Given to the buffer once ([`InPort::attach`]), boxed (8 bytes) so that
+    /// the port is 24 bytes and its neighbours share its cache line.
+    name: Box<Cow<'static, str>>,
     _i: PhantomData<fn(&mut I)>,
 }
 
@@ -618,7 +626,7 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A>
     }
 
     fn attach(&self, x: &mut I) {
-        (self.access)(x).set_name(self.name.clone());
+        (self.access)(x).set_name((*self.name).clone());
     }
 }
 
@@ -664,7 +672,7 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
         let port: Box<dyn OutPort<O>> = Box::new(LocalOut {
             first,
             access: self.port.access,
-            more: links,
+            more: (!links.is_empty()).then(|| Box::new(More(links))),
             _o: PhantomData,
         });
         Some(Box::new(port))
@@ -716,7 +724,7 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
             channel: channels.shared::<T>(self.link)?,
             link: self.link,
             access: self.port.access,
-            name: self.name.clone(),
+            name: Box::new(self.name.clone()),
             _i: PhantomData,
         });
         Some(Box::new(port))
