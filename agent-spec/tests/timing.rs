@@ -566,7 +566,7 @@ proptest! {
 /// `[1, R_w]` of its release (an activation may run much shorter than its
 /// WCET), in order, its value delivered up to `latency`
 /// later (in order); the reader released every `T_r`, reading at most
-/// `J_r` after its release the oldest value delivered before its read and
+/// `S_r` (its start lag) after its release the oldest value delivered before its read and
 /// stamped at or before its release. Returns the most values in the queue
 /// when one is delivered (it included) and the longest time from a value's
 /// writer release to the release of the reader activation that takes it.
@@ -753,7 +753,7 @@ fn freshness_is_proven_from_the_periods_where_it_can_be() {
 /// A sample hop simulated as the executor runs it: the writer released every
 /// `T_w` (from a phase not before the reader's), ending within `[C_w, R_w]`,
 /// delivered up to `latency` later; the reader released every `T_r` takes
-/// the newest value delivered before its read (at most `J_r` late) and
+/// the newest value delivered before its read (at most `S_r` late) and
 /// stamped at or before its release. The largest age (reader release minus
 /// the stamp of the value it takes) once the writer's first value is in.
 fn simulate_sample_hop(
