@@ -137,30 +137,7 @@ fn fleet(fan: usize, linked: &[usize]) -> System {
     // Robots named against their order, so that a peer taken from the
     // wrong element shows.
     for &k in linked {
-        let agent = b.agent(format!("a{}", k + 1));
-        let name = format!("robot_{}", 10 - k);
-        b.subsystem(
-            agent,
-            name.as_str(),
-            period,
-            RobotMemory::default(),
-            robot_fsm(),
-        );
-        let element = format!("robots[{k}]");
-        b.connect_named(
-            "hub",
-            &format!("{element}.plan"),
-            &name,
-            "hub.plan",
-            Policy::Sample,
-        );
-        b.connect_named(
-            &name,
-            "hub.ack",
-            "hub",
-            &format!("{element}.ack"),
-            Policy::Sample,
-        );
+        add_robot(&mut b, k, period);
     }
     b.build().expect("a fleet")
 }
@@ -392,30 +369,7 @@ fn a_hub_generated_by_agent_from_a_spec_with_a_fan_runs_and_exports_the_same_fan
         },
     );
     for k in 0..3 {
-        let agent = b.agent(format!("a{}", k + 1));
-        let name = format!("robot_{}", 10 - k);
-        b.subsystem(
-            agent,
-            name.as_str(),
-            period,
-            RobotMemory::default(),
-            robot_fsm(),
-        );
-        let element = format!("robots[{k}]");
-        b.connect_named(
-            "hub",
-            &format!("{element}.plan"),
-            &name,
-            "hub.plan",
-            Policy::Sample,
-        );
-        b.connect_named(
-            &name,
-            "hub.ack",
-            "hub",
-            &format!("{element}.ack"),
-            Policy::Sample,
-        );
+        add_robot(&mut b, k, period);
     }
     let system = b.build().expect("the hub and its robots");
     let exported = spec_of("hub_fleet", system.info()).expect("exports");
@@ -435,4 +389,34 @@ fn a_hub_generated_by_agent_from_a_spec_with_a_fan_runs_and_exports_the_same_fan
     exec.run_until(Time::from_nanos(100_000_000)).expect("runs");
     let acks = exec.memory(&h).expect("the hub").acks;
     assert!(acks >= 3 * 5, "{acks} acknowledgements from three robots");
+}
+
+/// Robot `k` (named against its order, `robot_{10 - k}`, so that a peer taken
+/// from the wrong element shows) in agent `a{k + 1}`, linked to the hub's
+/// element `robots[k]` both ways.
+fn add_robot(b: &mut SystemBuilder, k: usize, period: Period) {
+    let agent = b.agent(format!("a{}", k + 1));
+    let name = format!("robot_{}", 10 - k);
+    b.subsystem(
+        agent,
+        name.as_str(),
+        period,
+        RobotMemory::default(),
+        robot_fsm(),
+    );
+    let element = format!("robots[{k}]");
+    b.connect_named(
+        "hub",
+        &format!("{element}.plan"),
+        &name,
+        "hub.plan",
+        Policy::Sample,
+    );
+    b.connect_named(
+        &name,
+        "hub.ack",
+        "hub",
+        &format!("{element}.ack"),
+        Policy::Sample,
+    );
 }
