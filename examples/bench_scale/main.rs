@@ -43,7 +43,11 @@
 //! then not comparable with a full run's. `--skip-external`: a full run
 //! without the other crates' benchmarks. `--multirate`: the `multirate` lines
 //! of a full run only. `--only det`: the `det` lines, the growth line and the
-//! final line (its other figures `na`) only, in a few seconds.
+//! final line (its other figures `na`) only, in a few seconds; `--only rt`:
+//! the real-time executor's pool lines (no thread per subsystem) and the final
+//! line. With either, `--agents 1,334` chooses the sizes (agents of three
+//! subsystems), `--batches N` the deterministic repeats, `--seconds S` the
+//! real-time run of each size.
 
 mod det;
 mod external;
@@ -217,20 +221,45 @@ pub(crate) struct Options {
 pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let quick = args.iter().any(|a| a == "--quick");
-    if args.windows(2).any(|w| w[0] == "--only" && w[1] == "det") {
+    let value = |key: &str| args.windows(2).find(|w| w[0] == key).map(|w| w[1].clone());
+    let only = value("--only");
+    if let Some(part) = only.as_deref() {
         let mut scale = Scale::default();
         let out = &mut std::io::stdout();
         let mut plan = if quick { QUICK } else { FULL };
-        // `--agents 1,3333`, `--batches 3`: other sizes and repeats (a profiler's run).
-        let value = |key: &str| args.windows(2).find(|w| w[0] == key).map(|w| w[1].clone());
-        if let Some(list) = value("--agents") {
-            let agents: Vec<usize> = list.split(',').map(str::parse).collect::<Result<_, _>>()?;
-            plan.det_agents = agents.leak();
+        // `--agents 1,3333`, `--batches 3`, `--seconds 5`: other sizes and
+        // repeats (a profiler's run, an A/B of two builds).
+        let agents: Option<&'static [usize]> = match value("--agents") {
+            Some(list) => Some(
+                list.split(',')
+                    .map(str::parse)
+                    .collect::<Result<Vec<_>, _>>()?
+                    .leak(),
+            ),
+            None => None,
+        };
+        match part {
+            "det" => {
+                plan.det_agents = agents.unwrap_or(plan.det_agents);
+                if let Some(batches) = value("--batches") {
+                    plan.det_batches = batches.parse()?;
+                }
+                deterministic(&plan, out, &mut scale)?;
+            }
+            "rt" => {
+                let seconds = value("--seconds").map(|s| s.parse()).transpose()?;
+                if let Some((n, jitter)) = rt::run(
+                    agents.unwrap_or(plan.rt_agents),
+                    seconds.unwrap_or(plan.rt_seconds),
+                    0,
+                    out,
+                )? {
+                    scale.rt_subsystems = Some(n as f64);
+                    scale.rt_jitter_us_p99 = Some(jitter);
+                }
+            }
+            other => return Err(format!("--only {other}: `det` or `rt`").into()),
         }
-        if let Some(batches) = value("--batches") {
-            plan.det_batches = batches.parse()?;
-        }
-        deterministic(&plan, out, &mut scale)?;
         writeln!(out, "{scale}")?;
         return Ok(());
     }
