@@ -30,19 +30,22 @@
 //! [`SystemBuilder::environment`]: crate::SystemBuilder::environment
 
 use std::any::Any;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 use std::time::Duration;
+
+mod build;
+mod schedule;
 
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
-use crate::link::{ChannelPlan, Channels, InPlan, LinkCx, LinkId, LinkStats, OutPlan};
-use crate::node::{DriverCore, InProcessNode, NodeSeed, NodeStep, SubsystemCore};
+use crate::link::{Channels, LinkCx, LinkId, LinkStats};
+use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
 use crate::probe::{ProbeFn, Probes, Target};
 use crate::subsystem::{Driver, Subsystem};
 use crate::system::{DriverHandle, SubsystemHandle, System};
 use crate::time::Time;
 use crate::trace::{NoObserver, Observer, SystemInfo};
+use build::in_process;
+use schedule::Schedule;
 
 /// What the executor does when a node reports an error.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -621,209 +624,5 @@ impl<O: Observer> Executor<O> {
         self.channels
             .stats(link.index())
             .map(|c| c.borrow().pending())
-    }
-}
-
-/// The in-process nodes of `seeds` with their ports, and the links' channels
-/// (`plans`), made node by node in stepping `order`: a node, the channels of
-/// its links not made yet and its ports one after the other, so that what an
-/// instant touches lies on the heap in the order it is touched (rather than
-/// all nodes, then all channels, then all ports). Each node's ports keep their
-/// order (that of the trace's events).
-fn in_process(
-    seeds: Vec<Box<dyn NodeSeed>>,
-    outs: Vec<(usize, Box<dyn OutPlan>)>,
-    ins: Vec<(usize, Box<dyn InPlan>)>,
-    plans: &[Box<dyn ChannelPlan>],
-    order: &[usize],
-    audit: bool,
-) -> (Vec<Box<dyn InProcessNode>>, Channels) {
-    let n = seeds.len();
-    let mut outs_of: Vec<Vec<Box<dyn OutPlan>>> = (0..n).map(|_| Vec::new()).collect();
-    for (node, plan) in outs {
-        outs_of[node].push(plan);
-    }
-    let mut ins_of: Vec<Vec<Box<dyn InPlan>>> = (0..n).map(|_| Vec::new()).collect();
-    for (node, plan) in ins {
-        ins_of[node].push(plan);
-    }
-    let mut seeds: Vec<Option<Box<dyn NodeSeed>>> = seeds.into_iter().map(Some).collect();
-    let mut made: Vec<Option<Box<dyn InProcessNode>>> = (0..n).map(|_| None).collect();
-    let mut channels = Channels::unmade(plans.len());
-    for &i in order {
-        let Some(seed) = seeds[i].take() else {
-            continue;
-        };
-        let mut node = seed.into_in_process(audit);
-        // Handles were checked against the nodes' buffer types when the links
-        // were declared, and every plan's channel was made from the same payload
-        // type, so installation cannot fail.
-        for plan in &outs_of[i] {
-            for &l in plan.links() {
-                channels.make(l, plans);
-            }
-            let installed = plan
-                .local(&channels)
-                .is_some_and(|port| node.install_out(port));
-            debug_assert!(installed, "output port type checked at connect()");
-        }
-        for plan in &ins_of[i] {
-            channels.make(plan.link(), plans);
-            let installed = plan
-                .local(&channels)
-                .is_some_and(|port| node.install_in(port));
-            debug_assert!(installed, "input port type checked at connect()");
-        }
-        made[i] = Some(node);
-    }
-    // Links no port of this system uses (none, unless a plan refused).
-    for l in 0..plans.len() {
-        channels.make(l, plans);
-    }
-    let nodes: Vec<Box<dyn InProcessNode>> = made.into_iter().flatten().collect();
-    debug_assert_eq!(nodes.len(), n, "every node is in the stepping order");
-    (nodes, channels)
-}
-
-/// The nodes of one period due at one instant.
-#[derive(Debug)]
-struct Group {
-    period: u64,
-    /// The instant its nodes are due at.
-    next: u64,
-    /// The nodes, in the executor's `order`.
-    members: Vec<usize>,
-}
-
-/// The executor's nodes grouped by (period, next instant), the groups in a
-/// heap by next instant: an instant pops the groups due (one per period at
-/// most), steps their nodes in order and puts each group back at its next
-/// instant, so that its cost is the nodes due (and the logarithm of the
-/// groups), not all nodes. Nodes of one period started together stay
-/// together: nodes are parted only by [`Executor::start_at`] (groups of the
-/// same period at different instants).
-///
-/// Invariant unless `stale`: every group in the heap is not empty and every
-/// member's `next` is the group's; a node whose `next` is `u64::MAX` is in
-/// none; `groups` outside the heap (and not popped) are empty.
-#[derive(Debug)]
-struct Schedule {
-    groups: Vec<Group>,
-    /// `(next, group)`, earliest first.
-    heap: BinaryHeap<Reverse<(u64, usize)>>,
-    /// Each node's rank: its position in the executor's `order`.
-    rank: Vec<usize>,
-    /// The groups due at the instant being executed.
-    popped: Vec<usize>,
-    /// The nodes due at the instant being executed, in the executor's
-    /// `order`.
-    due: Vec<usize>,
-    /// Some node halted during the instant being executed (its group must
-    /// drop it).
-    halted: bool,
-    /// `next` was changed outside an instant ([`Executor::isolate`],
-    /// [`Executor::start_at`]) or an instant was left half done (a stopping
-    /// error): the groups are rebuilt before the next instant, and until then
-    /// `next` alone says when that is.
-    stale: bool,
-}
-
-impl Schedule {
-    /// The schedule of nodes due at `next`, of periods `periods`, stepped
-    /// in `order`.
-    fn new(next: &[u64], periods: &[u64], order: &[usize]) -> Schedule {
-        let mut rank = vec![0; order.len()];
-        for (r, &i) in order.iter().enumerate() {
-            rank[i] = r;
-        }
-        let mut nodes: Vec<usize> = order
-            .iter()
-            .copied()
-            .filter(|&i| next[i] != u64::MAX)
-            .collect();
-        // Stable: each group's nodes stay in `order`.
-        nodes.sort_by_key(|&i| (periods[i], next[i]));
-        let mut groups: Vec<Group> = Vec::new();
-        for i in nodes {
-            let (period, at) = (periods[i], next[i]);
-            match groups.last_mut() {
-                Some(g) if g.period == period && g.next == at => g.members.push(i),
-                _ => groups.push(Group {
-                    period,
-                    next: at,
-                    members: vec![i],
-                }),
-            }
-        }
-        let heap = groups
-            .iter()
-            .enumerate()
-            .map(|(k, g)| Reverse((g.next, k)))
-            .collect();
-        Schedule {
-            rank,
-            popped: Vec::with_capacity(groups.len()),
-            due: Vec::with_capacity(order.len()),
-            groups,
-            heap,
-            halted: false,
-            stale: false,
-        }
-    }
-
-    /// The earliest instant a node is due at.
-    fn next_instant(&self) -> Option<u64> {
-        self.heap.peek().map(|Reverse((t, _))| *t)
-    }
-
-    /// Take the groups due at `tn` out of the heap; their nodes into `due`.
-    fn take_due(&mut self, tn: u64) {
-        self.popped.clear();
-        self.due.clear();
-        while let Some(&Reverse((t, g))) = self.heap.peek() {
-            if t != tn {
-                break;
-            }
-            self.heap.pop();
-            self.popped.push(g);
-            self.due.extend_from_slice(&self.groups[g].members);
-        }
-        if self.popped.len() > 1 {
-            // Several periods due together: their nodes interleaved (in
-            // place, no allocation).
-            let rank = &self.rank;
-            self.due.sort_unstable_by_key(|&i| rank[i]);
-        }
-    }
-
-    /// After a whole instant `tn`: put the groups due back at their next
-    /// instant, without the nodes that halted.
-    fn reschedule(&mut self, tn: u64, next: &[u64]) {
-        let halted = std::mem::take(&mut self.halted);
-        for &g in &self.popped {
-            let group = &mut self.groups[g];
-            group.next = tn.saturating_add(group.period);
-            if group.next == u64::MAX {
-                group.members.clear();
-            } else if halted {
-                let at = group.next;
-                group.members.retain(|&i| next[i] == at);
-            }
-            if !group.members.is_empty() {
-                self.heap.push(Reverse((group.next, g)));
-            }
-        }
-        self.popped.clear();
-    }
-
-    /// Drop from the groups waiting in the heap the nodes that halted (a
-    /// safe-stop), and the groups left empty.
-    fn prune(&mut self, next: &[u64]) {
-        for &Reverse((at, g)) in self.heap.iter() {
-            self.groups[g].members.retain(|&i| next[i] == at);
-        }
-        let groups = &self.groups;
-        self.heap
-            .retain(|&Reverse((_, g))| !groups[g].members.is_empty());
     }
 }
