@@ -653,21 +653,26 @@ impl Observer for Everything {}
 fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     use embodied::monitor::Monitors;
     use embodied::monitor::live::{Live, Verdicts};
-    use embodied::trace::LinkEvents;
+    use embodied::trace::{LinkEvents, NodeEvents};
     // Seeded to break: the level's range (checked where r1 sends it, no
-    // other contract counting those sends), its freshness, the response.
+    // other contract counting those sends), its freshness, the response,
+    // c1's bound on `fill` (its activations there, of no other behaviour).
     let mut c = kept();
     c.rates.clear();
     c.ranges[0].max = Some(0.9);
     c.freshness[0].max_age_ms = 5.0;
     c.responses[0].within_s = 0.001;
+    c.bounds[0].max_iterations = Some(10);
     let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
-    let run = |every: bool| -> (Verdicts, Vec<String>, Vec<LinkEvents>) {
+    let run = |every: bool| -> (Verdicts, Vec<String>, Vec<LinkEvents>, Vec<NodeEvents>) {
         let s = system();
         let live = Live::new(Monitors::new(&spec).unwrap(), &s);
         let watch = live.watch();
         let asked = (0..s.info().links.len())
             .map(|l| watch.link_events(l))
+            .collect();
+        let nodes = (0..s.info().nodes.len())
+            .map(|n| watch.node_events(n))
             .collect();
         let config = ExecConfig {
             on_error: OnError::Continue,
@@ -682,10 +687,10 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
             exec.run_for(Duration::from_secs(20)).unwrap();
             exec.report().errors.iter().map(|e| e.to_string()).collect()
         };
-        (live.verdicts(), errors, asked)
+        (live.verdicts(), errors, asked, nodes)
     };
-    let (asked_only, errors, asked) = run(false);
-    let (every, every_errors, _) = run(true);
+    let (asked_only, errors, asked, nodes) = run(false);
+    let (every, every_errors, _, _) = run(true);
     assert_eq!(asked_only, every);
     assert_eq!(errors, every_errors);
     let kinds = |v: &Verdicts| {
@@ -694,7 +699,11 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
         k.dedup();
         k.len()
     };
-    assert_eq!(kinds(&every), 3, "range, freshness and response broken");
+    assert_eq!(
+        kinds(&every),
+        4,
+        "range, freshness, response and bound broken"
+    );
     assert!(asked_only.raised > 0 && asked_only.undecodable == 0);
     // The watch asked for less than everything: no events of the links no
     // contract reads, r1's levels only when out of range, and their reads
@@ -707,4 +716,20 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
             && w.older_than == Some(5_000_000)),
         "{asked:?}"
     );
+    // Of the nodes' activations, c1's in `fill` only (its bound), with its
+    // transitions; of the others, none (the clock moves at every instant).
+    let s = system();
+    let info = s.info();
+    let c1 = info.nodes.iter().position(|n| n.name == "c1").unwrap();
+    let fill = info.nodes[c1].behaviours.iter().position(|b| b == "fill").unwrap();
+    assert_eq!(
+        nodes[c1],
+        NodeEvents {
+            transitions: true,
+            actions: 1 << fill
+        }
+    );
+    for (n, asked) in nodes.iter().enumerate().filter(|(n, _)| *n != c1) {
+        assert_eq!(*asked, NodeEvents::none(), "{}", info.nodes[n].name);
+    }
 }

@@ -351,6 +351,11 @@ impl<S: Subsystem> SubsystemCore<S> {
         match result {
             Ok(Activated::Ran { behaviour }) => {
                 if let Some(o) = cx.observer.as_deref_mut() {
+                    let told = cx
+                        .wants
+                        .nodes
+                        .get(index)
+                        .is_none_or(|n| n.action(Some(behaviour)));
                     for &(part, reads, writes) in seen {
                         o.audit(&AuditEvent {
                             time: now,
@@ -367,7 +372,9 @@ impl<S: Subsystem> SubsystemCore<S> {
                         iteration,
                         behaviour: Some(behaviour),
                     };
-                    o.action(&event);
+                    if told {
+                        o.action(&event);
+                    }
                     // Asked once; most runs want none, and pay one branch.
                     let wanted = *self
                         .wanted
@@ -411,6 +418,8 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         let iteration = self.iteration;
+        let transitions =
+            cx.observer.is_some() && cx.wants.nodes.get(index).is_none_or(|n| n.transitions);
         let observer = &mut cx.observer;
         let result = self.fsm.activate(
             &mut self.state,
@@ -418,7 +427,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
             &self.input,
             &mut self.output,
             |step| {
-                if let Some(o) = observer.as_deref_mut() {
+                if let Some(o) = observer.as_deref_mut().filter(|_| transitions) {
                     o.transition(&TransitionEvent {
                         time: now,
                         node: index,
@@ -442,6 +451,8 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         let iteration = self.iteration;
+        let transitions =
+            cx.observer.is_some() && cx.wants.nodes.get(index).is_none_or(|n| n.transitions);
         let observer = &mut cx.observer;
         let mut seen: Vec<(usize, Fresh, Fresh)> = Vec::new();
         let result = self.fsm.activate_audited(
@@ -450,7 +461,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
             &self.input,
             &mut self.output,
             |step| {
-                if let Some(o) = observer.as_deref_mut() {
+                if let Some(o) = observer.as_deref_mut().filter(|_| transitions) {
                     o.transition(&TransitionEvent {
                         time: now,
                         node: index,
@@ -538,7 +549,9 @@ impl<D: Driver> NodeCore for DriverCore<D> {
                     source,
                 })
             })?;
-        if let Some(o) = cx.observer.as_deref_mut() {
+        if let Some(o) = cx.observer.as_deref_mut()
+            && cx.wants.nodes.get(index).is_none_or(|n| n.action(None))
+        {
             o.action(&ActionEvent {
                 time: now,
                 node: index,

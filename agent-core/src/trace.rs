@@ -21,7 +21,7 @@ mod pick;
 mod wants;
 
 pub use pick::{FieldPath, PickError};
-pub use wants::{LinkEvents, NumberBound, within};
+pub use wants::{LinkEvents, NodeEvents, NumberBound, within};
 
 /// A value in a buffer, seen through the observer without knowing its type.
 pub trait ErasedPayload {
@@ -232,6 +232,19 @@ pub trait Observer: Send {
     fn link_events(&self, _link: usize) -> LinkEvents {
         LinkEvents::all()
     }
+    /// Which of node `node`'s transitions and activations this observer
+    /// needs ([`NodeEvents`]): asked once per node, at the start of a run of
+    /// the deterministic executor, which then leaves out the others (and
+    /// tells [`Observer::instant`] at every instant). Every event by default.
+    /// A hint, as [`Observer::link_events`] is.
+    fn node_events(&self, _node: usize) -> NodeEvents {
+        NodeEvents::all()
+    }
+    /// The deterministic executor starts instant `time` (before its reads):
+    /// the clock of an observer that asked for fewer events than every
+    /// node's activations ([`Observer::node_events`]). Other executors do not
+    /// call it; they tell every activation.
+    fn instant(&mut self, _time: Time) {}
     /// A value was sent into a link.
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// A node took a value from a link (before its activation's step).

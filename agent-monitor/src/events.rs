@@ -75,6 +75,30 @@ impl Monitors {
         }
     }
 
+    /// [`Monitors::held`], judged at once: each freshness of `input` that
+    /// the value is too old for reports it now, at `t`, as the reader's
+    /// activation at `t` would ([`Monitors::activation`]; it then reports
+    /// nothing more of it). For a caller that does not give the reader's
+    /// activations (the deterministic executor's watch, which asks for the
+    /// reads of too old a value instead).
+    pub fn held_judged(
+        &mut self,
+        input: InputId,
+        t: Time,
+        stamp: Time,
+        sink: &mut impl FnMut(Violation),
+    ) {
+        self.held(input, t, stamp);
+        for &k in listed(&self.index.freshness_of, input.0) {
+            let f = &mut self.freshness[k as usize];
+            if f.held_at == Some(t)
+                && let Some(v) = f.stale_at(t)
+            {
+                sink(v);
+            }
+        }
+    }
+
     /// A new value reaches `input` at `t` (its writer's send, or its arrival
     /// from another process).
     pub fn arrived(&mut self, input: InputId, t: Time, sink: &mut impl FnMut(Violation)) {
@@ -170,19 +194,10 @@ impl Monitors {
         if self.activations {
             for &k in listed(&self.index.read_by, subsystem.0) {
                 let f = &mut self.freshness[k as usize];
-                if let Some((s, false)) = f.held
-                    && f.held_at.is_none_or(|at| at == t)
-                    && t.as_nanos().saturating_sub(s.as_nanos()) > f.max
+                if f.held_at.is_none_or(|at| at == t)
+                    && let Some(v) = f.stale_at(t)
                 {
-                    f.held = Some((s, true));
-                    sink(Violation {
-                        time: t,
-                        contract: f.contract,
-                        broke: Broke::Age {
-                            age: Duration::from_nanos(t.as_nanos() - s.as_nanos()),
-                            max: Duration::from_nanos(f.max),
-                        },
-                    });
+                    sink(v);
                 }
             }
         }
@@ -344,6 +359,29 @@ fn earliest(a: Option<u64>, b: Option<u64>) -> Option<u64> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
+    }
+}
+
+impl FreshnessM {
+    /// The violation of a value held at `t` too old and not yet reported
+    /// (then marked reported).
+    fn stale_at(&mut self, t: Time) -> Option<Violation> {
+        let Some((s, false)) = self.held else {
+            return None;
+        };
+        let age = t.as_nanos().saturating_sub(s.as_nanos());
+        if age <= self.max {
+            return None;
+        }
+        self.held = Some((s, true));
+        Some(Violation {
+            time: t,
+            contract: self.contract,
+            broke: Broke::Age {
+                age: Duration::from_nanos(age),
+                max: Duration::from_nanos(self.max),
+            },
+        })
     }
 }
 

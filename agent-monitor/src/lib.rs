@@ -491,6 +491,14 @@ impl Monitors {
             .map(|r| (r.min, r.max))
     }
 
+    /// The behaviours of `subsystem` that bounds count the activations and
+    /// duration of.
+    pub(crate) fn bounded(&self, subsystem: SubsystemId) -> impl Iterator<Item = BehaviourId> + '_ {
+        listed(&self.index.bounds_of, subsystem.0)
+            .iter()
+            .map(|&k| self.bounds[k as usize].behaviour)
+    }
+
     /// The age beyond which a read of `input` changes a monitor here, when
     /// that is all its reads are for: every freshness of `input` has the
     /// same bound and a reader whose activations are given

@@ -20,14 +20,16 @@
 //!   freshness is all that counts a link's reads
 //!   ([`LinkEvents::older_than`]: a value is told only when older than the
 //!   bound, a new one as a read, one still held through [`Observer::held`],
-//!   which the reader's activation of the same instant reports, as it
-//!   reports a held value when every read is told);
+//!   which is judged as it is told, at the read, rather than at the
+//!   reader's activation of the same instant, which reports a held value
+//!   when every read is told: the same violation, at the same time);
 //! * rate: a value's send when its writer is watched here (its stamp, as
 //!   over a recording), else the reader's take of it (from another thread or
 //!   process; the instant it arrived for the reader);
 //! * response: the responder's sends; the trigger's send, or its take by a
 //!   watched reader when its writer is elsewhere;
-//! * bound: the subsystem's behaviour switches and activations;
+//! * bound: the subsystem's behaviour switches and its activations in the
+//!   bounded behaviour;
 //! * range: each value sent by a watched writer, or received from another
 //!   process by a watched reader: the field read from the typed value through
 //!   its `Serialize` impl ([`agent_core::trace::FieldPath`]: the path's steps
@@ -52,7 +54,14 @@
 //! monitors (a rate's or response's send, a freshness's, rate's or
 //! response's read) and the range checks; the deterministic executor leaves
 //! out the others before calling any observer (they would only have moved
-//! the watch's clock, which the same instant's activations move). A watch
+//! the watch's clock). Likewise per node ([`Observer::node_events`]): the
+//! transitions of a subsystem with behaviour bounds and its activations in
+//! the bounded behaviours, every activation of a reader whose held values
+//! a freshness judges at its activations, and of the other nodes none; the
+//! deterministic executor tells [`Observer::instant`] at every instant
+//! instead, which moves the watch's clock (a rate's or response's deadline
+//! that passed is found there), and the invariants' predicates after every
+//! activation of their subsystem whether its action is told or not. A watch
 //! beside an observer that takes every event (a recorder) is given every
 //! event and judges them the same (tests/monitor.rs checks the verdicts).
 //!
@@ -65,26 +74,36 @@
 //! 1,523 to 3,115 once its freshness contracts were judged where their values are
 //! read (-21 %; `monitor_cost_ratio` about 0.25 where 1,935 measured about
 //! 0.35 in the same runs; the wall-clock figures of a shared machine vary
-//! more than that, docs/measurements.md). What is left is the watch's own
-//! work on the events that do change a monitor (in that system, per cycle:
-//! 4 sends for rates and responses, 5 activations and c2's predicates, of
-//! 14 reads and 7 sends; the 4 freshness reads are told only of a value
-//! too old, the torques' 4 ranges are checked in their link), each an
-//! observer call that advances the monitors' clock and visits the monitors
-//! the event concerns (the monitors' index per input, output and subsystem;
-//! a plan per link, made once per watch). The aim needs the rest in the
-//! links and the executor too: a rate's and a response's sends read from
-//! the links' last stamps once per instant, and the activations'
-//! bookkeeping; not done. The earliest deadline is kept as events add one
-//! (every monitor is scanned only when it passes), and nothing is allocated
-//! per event, except the error of a violation.
+//! more than that, docs/measurements.md), and 1,252 to 3,041 once it was
+//! told only the activations that change a monitor (c1's in its bounded
+//! behaviour, none of the other four) and moved its clock once an instant
+//! (-17 %; the executor's `step` inclusive, watched less plain, over the
+//! same 2,020,000 cycles; the plain cycle 42 instructions shorter, a send's
+//! transfer to its channel inlined again; an observer that asks for every
+//! event pays about 14 instructions an activation for the table it is
+//! looked up in; `monitor_cost_ratio` 0.263 before and 0.183 after, medians
+//! of 9 alternating runs). What is left is the watch's own work on the
+//! events that do change a monitor (in that system, per cycle: 4 sends for
+//! rates and responses and c2's predicates, of 14 reads and 7 sends; the 4
+//! freshness reads are told only of a value too old, the torques' 4 ranges
+//! are checked in their link), each an observer call that advances the
+//! monitors' clock and visits the monitors the event concerns (the
+//! monitors' index per input, output and subsystem; a plan per link, made
+//! once per watch), the range checks' walks of the torques (about 175), and
+//! the clock's instant. The aim needs the rest in the links and the
+//! executor too: a rate's and a response's sends read from the links' last
+//! stamps once per instant, a range read by a compiled accessor rather
+//! than a walk of the value's `Serialize`; not done. The earliest deadline
+//! is kept as events add one (every monitor is scanned only when it
+//! passes), and nothing is allocated per event, except the error of a
+//! violation.
 
 use std::collections::VecDeque;
 use std::fmt;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use agent_core::trace::{
-    ErasedPayload, FieldPath, LinkEvents, NumberBound, ReadEvent, TransferEvent,
+    ErasedPayload, FieldPath, LinkEvents, NodeEvents, NumberBound, ReadEvent, TransferEvent,
 };
 use agent_core::{
     ActionEvent, ExecError, Observer, Step, System, Time, TransitionEvent, Valuation,
@@ -608,6 +627,51 @@ impl Observer for Watch {
         }
     }
 
+    /// The transitions and activations of node `node` that change a
+    /// monitor: none of a node not watched here; a watched subsystem's
+    /// transitions when it has behaviour bounds, and its activations in the
+    /// bounded behaviours; every activation of a reader whose held values a
+    /// freshness judges at its activations (a link of its that tells every
+    /// read but not the held values too old, [`LinkEvents::older_than`]).
+    /// The invariants' predicates are told after every activation anyway,
+    /// a held value too old is judged when told ([`Observer::held`]), and the
+    /// clock moves at every instant ([`Observer::instant`]).
+    fn node_events(&self, node: usize) -> NodeEvents {
+        let Some(Some(sub)) = self.watched.get(node).copied() else {
+            return NodeEvents::none();
+        };
+        let mut events = NodeEvents::none();
+        let behaviours = self
+            .shared
+            .behaviours
+            .get(node)
+            .map_or(&[][..], Vec::as_slice);
+        for bounded in self.monitors.bounded(sub) {
+            events.transitions = true;
+            for (b, id) in behaviours.iter().enumerate() {
+                if *id == Some(bounded) {
+                    events.actions |= 1 << b.min(63);
+                }
+            }
+        }
+        let held_at_activations = (self.shared.roles.iter().enumerate()).any(|(l, role)| {
+            role.to == node
+                && role
+                    .input
+                    .is_some_and(|i| self.monitors.counts(Some(i), None).reads)
+                && self.link_events(l).older_than.is_none()
+        });
+        if held_at_activations {
+            events.actions = u64::MAX;
+        }
+        events
+    }
+
+    fn instant(&mut self, time: Time) {
+        self.at(time);
+        self.monitors.advance(time, &mut |v| self.sink.take(v));
+    }
+
     fn transition(&mut self, e: &TransitionEvent) {
         self.at(e.time);
         let Some(Some(sub)) = self.watched.get(e.node).copied() else {
@@ -701,7 +765,10 @@ impl Observer for Watch {
             return;
         };
         if let (true, Some(i)) = (plan.reader, plan.input) {
-            self.monitors.held(i, e.time, e.stamp.time);
+            // Judged now, at the reader's read: the deterministic executor
+            // may not tell its activation (`node_events`).
+            self.monitors
+                .held_judged(i, e.time, e.stamp.time, &mut |v| self.sink.take(v));
         }
     }
 

@@ -37,7 +37,7 @@ mod schedule;
 
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
-use crate::link::{Channels, LinkCx, LinkId, LinkStats};
+use crate::link::{Channels, LinkCx, LinkId, LinkStats, Wants};
 use crate::node::{DriverCore, InProcessNode, NodeStep, SubsystemCore};
 use crate::probe::{ProbeFn, Probes, Target};
 use crate::subsystem::{Driver, Subsystem};
@@ -161,7 +161,7 @@ pub struct Executor<O: Observer = NoObserver> {
     config: ExecConfig,
     pub(crate) observer: O,
     /// Per link, the sends and reads the observer needs (asked at the start).
-    link_events: Vec<crate::trace::LinkEvents>,
+    wants: Wants,
     started: bool,
     stopped: bool,
     pub(crate) report: RunReport,
@@ -230,7 +230,7 @@ impl<O: Observer> Executor<O> {
             now: Time::ZERO,
             config,
             observer,
-            link_events: Vec::new(),
+            wants: Wants::default(),
             started: false,
             stopped: false,
             report: RunReport::default(),
@@ -316,7 +316,11 @@ impl<O: Observer> Executor<O> {
             self.observer.start(&self.info);
             if self.observer.enabled() {
                 let links = 0..self.info.links.len();
-                self.link_events = links.map(|l| self.observer.link_events(l)).collect();
+                let nodes = 0..self.info.nodes.len();
+                self.wants = Wants {
+                    links: links.map(|l| self.observer.link_events(l)).collect(),
+                    nodes: nodes.map(|n| self.observer.node_events(n)).collect(),
+                };
             }
         }
         if self.schedule.stale {
@@ -345,10 +349,13 @@ impl<O: Observer> Executor<O> {
     fn run_due(&mut self, t: Time) -> Result<(), ExecError> {
         let tn = t.as_nanos();
         let observe = self.observer.enabled();
+        if observe {
+            self.observer.instant(t);
+        }
         let mut cx = LinkCx {
             time: t,
             observer: observe.then_some(&mut self.observer as &mut dyn Observer),
-            wants: &self.link_events,
+            wants: &self.wants,
             links: &self.info.links,
             environment: None,
         };
@@ -386,7 +393,7 @@ impl<O: Observer> Executor<O> {
             let mut cx = LinkCx {
                 time: t,
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
-                wants: &self.link_events,
+                wants: &self.wants,
                 links: &self.info.links,
                 environment: self.environment.as_deref_mut(),
             };

@@ -10,15 +10,35 @@ use super::{Access, Shared};
 use crate::buffer::{In, Out, Payload};
 use crate::error::LinkError;
 use crate::time::{Stamp, Time};
-use crate::trace::{LinkEvents, LinkInfo, Observer, ReadEvent, TransferEvent};
+use crate::trace::{LinkEvents, LinkInfo, NodeEvents, Observer, ReadEvent, TransferEvent};
+
+/// The events an observer needs, asked at the start of a run
+/// ([`Observer::link_events`], [`Observer::node_events`]); an entry not
+/// given (an executor that asks nothing) is every event.
+#[derive(Debug, Default)]
+pub(crate) struct Wants {
+    /// Per link, its sends and reads.
+    pub(crate) links: Vec<LinkEvents>,
+    /// Per node, its transitions and activations.
+    pub(crate) nodes: Vec<NodeEvents>,
+}
+
+impl Wants {
+    /// Every event of every link and node.
+    pub(crate) const ALL: Wants = Wants {
+        links: Vec::new(),
+        nodes: Vec::new(),
+    };
+}
 
 /// What ports need from the executor during a transfer.
 pub(crate) struct LinkCx<'a> {
     /// The instant being executed.
     pub(crate) time: Time,
     pub(crate) observer: Option<&'a mut dyn Observer>,
-    /// Per link, the sends and reads the observer needs (none given: all).
-    pub(crate) wants: &'a [LinkEvents],
+    /// The events the observer needs (one reference: a transfer without an
+    /// observer pays nothing for it).
+    pub(crate) wants: &'a Wants,
     pub(crate) links: &'a [LinkInfo],
     /// The system's environment, for drivers.
     pub(crate) environment: Option<&'a mut (dyn std::any::Any + Send)>,
@@ -106,7 +126,7 @@ pub(crate) struct LocalOut<O, T, A> {
 pub(super) struct More<T>(pub(super) Vec<(usize, Shared<T>)>);
 
 impl<O, T: Payload, A> LocalOut<O, T, A> {
-    #[inline]
+    #[inline(always)]
     fn put(
         &self,
         (link, channel): &(usize, Shared<T>),
@@ -116,7 +136,7 @@ impl<O, T: Payload, A> LocalOut<O, T, A> {
         cx: &mut LinkCx<'_>,
     ) -> Result<(), Refused> {
         if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref())
-            && cx.wants.get(*link).is_none_or(|w| w.transfer(v))
+            && cx.wants.links.get(*link).is_none_or(|w| w.transfer(v))
         {
             obs.transfer(&TransferEvent { link: *link, stamp }, v);
         }
@@ -183,7 +203,7 @@ pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
     let Some(stamp) = x.stamp() else {
         return;
     };
-    let told = match cx.wants.get(link) {
+    let told = match cx.wants.links.get(link) {
         Some(w) => w.read(new, cx.time.as_nanos(), stamp.time.as_nanos()),
         None => new.then_some(true),
     };

@@ -13,7 +13,7 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 
 use crate::error::{ExecError, LinkError};
 use crate::executor::{ExecConfig, OnError, halts_under_continue};
-use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves};
+use crate::link::{InPlan, LinkCx, OutPlan, ThreadHalves, Wants};
 use crate::node::{InProcessNode, NodeSeed, NodeStep};
 use crate::time::Time;
 use crate::trace::{Observer, SystemInfo};
@@ -334,7 +334,7 @@ impl<'a> Thread<'a> {
         let mut cx = LinkCx {
             time: now,
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
-            wants: &[],
+            wants: &Wants::ALL,
             links: &self.shared.info.links,
             environment: None,
         };
@@ -376,7 +376,7 @@ impl<'a> Thread<'a> {
         let mut cx = LinkCx {
             time: now,
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
-            wants: &[],
+            wants: &Wants::ALL,
             links: &shared.info.links,
             environment: self.environment.as_deref_mut(),
         };

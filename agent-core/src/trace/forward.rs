@@ -7,8 +7,8 @@ use crate::fsm::Valuation;
 use crate::time::Time;
 
 use super::{
-    ActionEvent, AuditEvent, ErasedPayload, LinkEvents, Observer, ReadEvent, SystemInfo,
-    TransferEvent, TransitionEvent,
+    ActionEvent, AuditEvent, ErasedPayload, LinkEvents, NodeEvents, Observer, ReadEvent,
+    SystemInfo, TransferEvent, TransitionEvent,
 };
 
 /// A boxed observer observes as the box's content does.
@@ -30,6 +30,12 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn link_events(&self, link: usize) -> LinkEvents {
         (**self).link_events(link)
+    }
+    fn node_events(&self, node: usize) -> NodeEvents {
+        (**self).node_events(node)
+    }
+    fn instant(&mut self, time: Time) {
+        (**self).instant(time);
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         (**self).transfer(event, value);
@@ -104,6 +110,24 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
             }
         };
         events(&self.0).union(events(&self.1))
+    }
+    fn node_events(&self, node: usize) -> NodeEvents {
+        let events = |o: &dyn Observer| {
+            if o.enabled() {
+                o.node_events(node)
+            } else {
+                NodeEvents::none()
+            }
+        };
+        events(&self.0).union(events(&self.1))
+    }
+    fn instant(&mut self, time: Time) {
+        if self.0.enabled() {
+            self.0.instant(time);
+        }
+        if self.1.enabled() {
+            self.1.instant(time);
+        }
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         if self.0.enabled() {
@@ -210,6 +234,15 @@ impl<O: Observer> Observer for Option<O> {
     fn link_events(&self, link: usize) -> LinkEvents {
         self.as_ref()
             .map_or_else(LinkEvents::none, |o| o.link_events(link))
+    }
+    fn node_events(&self, node: usize) -> NodeEvents {
+        self.as_ref()
+            .map_or_else(NodeEvents::none, |o| o.node_events(node))
+    }
+    fn instant(&mut self, time: Time) {
+        if let Some(o) = self {
+            o.instant(time);
+        }
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         if let Some(o) = self {

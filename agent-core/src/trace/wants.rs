@@ -134,6 +134,66 @@ impl LinkEvents {
     }
 }
 
+/// The activations of one node an observer needs, asked once per node at the
+/// start of a run of the deterministic executor
+/// ([`Observer::node_events`](super::Observer::node_events)), which leaves out
+/// the others. A hint, as [`LinkEvents`] is: other executors and observers may
+/// deliver more. The predicates an observer wants are told after every
+/// activation whether or not its action is
+/// ([`Observer::predicates_wanted`](super::Observer::predicates_wanted)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NodeEvents {
+    /// Its FSM's transitions ([`Observer::transition`](super::Observer::transition)).
+    pub transitions: bool,
+    /// Its activations ([`Observer::action`](super::Observer::action)) in
+    /// these behaviours: bit `b` for the FSM's behaviour `b` (bit 63 also for
+    /// every behaviour past it); a driver's steps when any bit is set.
+    pub actions: u64,
+}
+
+impl Default for NodeEvents {
+    /// Every event.
+    fn default() -> Self {
+        NodeEvents::all()
+    }
+}
+
+impl NodeEvents {
+    /// Every transition and activation of the node.
+    pub const fn all() -> NodeEvents {
+        NodeEvents {
+            transitions: true,
+            actions: u64::MAX,
+        }
+    }
+
+    /// None of them.
+    pub const fn none() -> NodeEvents {
+        NodeEvents {
+            transitions: false,
+            actions: 0,
+        }
+    }
+
+    /// What either `self` or `other` needs.
+    pub const fn union(self, other: NodeEvents) -> NodeEvents {
+        NodeEvents {
+            transitions: self.transitions || other.transitions,
+            actions: self.actions | other.actions,
+        }
+    }
+
+    /// Whether the observer needs an activation in `behaviour` (`None`: a
+    /// driver's step).
+    #[inline]
+    pub const fn action(&self, behaviour: Option<usize>) -> bool {
+        match behaviour {
+            Some(b) => self.actions >> (if b < 63 { b } else { 63 }) & 1 == 1,
+            None => self.actions != 0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -195,6 +255,26 @@ mod tests {
             "every read, and the held"
         );
         assert_eq!(some.union(bounded(50)).older_than, Some(50));
+    }
+
+    #[test]
+    fn a_node_s_activations_are_told_in_the_behaviours_asked_for() {
+        let bounded = NodeEvents {
+            transitions: true,
+            actions: 1 << 2,
+        };
+        assert!(bounded.action(Some(2)) && !bounded.action(Some(1)));
+        assert!(bounded.action(None), "a driver's step: any bit");
+        assert!(!NodeEvents::none().action(None) && !NodeEvents::none().action(Some(0)));
+        let last = NodeEvents {
+            transitions: false,
+            actions: 1 << 63,
+        };
+        assert!(last.action(Some(63)) && last.action(Some(200)) && !last.action(Some(62)));
+        assert!(NodeEvents::all().action(Some(500)));
+        let u = bounded.union(last);
+        assert!(u.transitions && u.action(Some(2)) && u.action(Some(99)) && !u.action(Some(0)));
+        assert_eq!(NodeEvents::none().union(bounded), bounded);
     }
 
     #[test]
