@@ -649,6 +649,47 @@ struct Everything;
 
 impl Observer for Everything {}
 
+/// A watch that is told every event but not the executor's instants (as the
+/// real-time executor tells it): it moves its clock by the events, where one
+/// given the instants and only the activations it asks for moves it there.
+struct Unclocked<O>(O);
+
+impl<O: Observer> Observer for Unclocked<O> {
+    fn start(&mut self, system: &trace::SystemInfo) {
+        self.0.start(system);
+    }
+    fn transition(&mut self, event: &TransitionEvent) {
+        self.0.transition(event);
+    }
+    fn action(&mut self, event: &ActionEvent) {
+        self.0.action(event);
+    }
+    fn transfer(&mut self, event: &trace::TransferEvent, value: &dyn trace::ErasedPayload) {
+        self.0.transfer(event, value);
+    }
+    fn read(&mut self, event: &trace::ReadEvent) {
+        self.0.read(event);
+    }
+    fn held(&mut self, event: &trace::ReadEvent) {
+        self.0.held(event);
+    }
+    fn received(&mut self, event: &trace::ReadEvent, value: &dyn trace::ErasedPayload) {
+        self.0.received(event, value);
+    }
+    fn error(&mut self, time: Time, error: &ExecError) {
+        self.0.error(time, error);
+    }
+    fn predicates_wanted(&self, node: usize) -> u64 {
+        self.0.predicates_wanted(node)
+    }
+    fn predicates(&mut self, event: &ActionEvent, values: Valuation) {
+        self.0.predicates(event, values);
+    }
+    fn raised(&mut self) -> Option<ExecError> {
+        self.0.raised()
+    }
+}
+
 #[test]
 fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     use embodied::monitor::Monitors;
@@ -664,7 +705,15 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     c.responses[0].within_s = 0.001;
     c.bounds[0].max_iterations = Some(10);
     let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
-    let run = |every: bool| -> (Verdicts, Vec<String>, Vec<LinkEvents>, Vec<NodeEvents>) {
+    /// What the watch is given: what it asks for, every event beside it, or
+    /// every event and no instant.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Given {
+        Asked,
+        Every,
+        Unclocked,
+    }
+    let run = |given: Given| -> (Verdicts, Vec<String>, Vec<LinkEvents>, Vec<NodeEvents>) {
         let s = system();
         let live = Live::new(Monitors::new(&spec).unwrap(), &s);
         let watch = live.watch();
@@ -678,8 +727,12 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
             on_error: OnError::Continue,
             ..ExecConfig::default()
         };
-        let errors = if every {
+        let errors = if given == Given::Every {
             let mut exec = Executor::with_observer(s, config, (Everything, watch));
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        } else if given == Given::Unclocked {
+            let mut exec = Executor::with_observer(s, config, Unclocked(watch));
             exec.run_for(Duration::from_secs(20)).unwrap();
             exec.report().errors.iter().map(|e| e.to_string()).collect()
         } else {
@@ -689,10 +742,15 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
         };
         (live.verdicts(), errors, asked, nodes)
     };
-    let (asked_only, errors, asked, nodes) = run(false);
-    let (every, every_errors, _, _) = run(true);
+    let (asked_only, errors, asked, nodes) = run(Given::Asked);
+    let (every, every_errors, _, _) = run(Given::Every);
     assert_eq!(asked_only, every);
     assert_eq!(errors, every_errors);
+    // Told every event and no instant (its clock moved by the events, every
+    // activation told): the same verdicts and errors.
+    let (unclocked, unclocked_errors, _, _) = run(Given::Unclocked);
+    assert_eq!(unclocked, every);
+    assert_eq!(unclocked_errors, every_errors);
     let kinds = |v: &Verdicts| {
         let mut k: Vec<u32> = v.violations.iter().map(|v| v.contract.0).collect();
         k.sort_unstable();
@@ -721,7 +779,11 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     let s = system();
     let info = s.info();
     let c1 = info.nodes.iter().position(|n| n.name == "c1").unwrap();
-    let fill = info.nodes[c1].behaviours.iter().position(|b| b == "fill").unwrap();
+    let fill = info.nodes[c1]
+        .behaviours
+        .iter()
+        .position(|b| b == "fill")
+        .unwrap();
     assert_eq!(
         nodes[c1],
         NodeEvents {
