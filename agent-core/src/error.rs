@@ -197,6 +197,10 @@ pub enum FsmProblem {
     /// The FSM has no behaviour.
     #[error("the FSM has no behaviour")]
     Empty,
+    /// An FSM shared with another subsystem (a clone of it is alive) cannot
+    /// give its behaviours to a new graph ([`Fsm::regraph`](crate::Fsm::regraph)).
+    #[error("the FSM is shared (a clone of it is alive): regraph it before cloning")]
+    Shared,
     /// Two behaviours have the same name.
     #[error("behaviour `{0}` is defined twice")]
     DuplicateBehaviour(String),

@@ -65,7 +65,8 @@ type PartFn<S> = Box<
             &<S as Subsystem>::Input,
             &mut <S as Subsystem>::Output,
         ) -> Result<(), ActionError>
-        + Send,
+        + Send
+        + Sync,
 >;
 
 /// The description of an output part (cold: read by the builder and the
@@ -278,8 +279,8 @@ impl<S: Subsystem> Action<S> {
     pub fn output<G, P, F, R>(mut self, target: P, f: F) -> Self
     where
         G: Group,
-        P: for<'a> Fn(&'a mut S::Output) -> &'a mut G + Send + 'static,
-        F: Fn(&S::Memory, &S::Input, &mut G) -> R + Send + 'static,
+        P: for<'a> Fn(&'a mut S::Output) -> &'a mut G + Send + Sync + 'static,
+        F: Fn(&S::Memory, &S::Input, &mut G) -> R + Send + Sync + 'static,
         R: Outcome,
     {
         let id = TypeId::of::<G>();
@@ -311,7 +312,7 @@ impl<S: Subsystem> Action<S> {
     /// `memory^ι` and the inputs. It runs after every output part.
     pub fn memory<F, R>(mut self, f: F) -> Self
     where
-        F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
+        F: Fn(&mut S::Memory, &S::Input) -> R + Send + Sync + 'static,
         R: Outcome,
     {
         let part: PartFn<S> = Box::new(move |m, x, _| f(m, x).into_result());
@@ -332,7 +333,7 @@ impl<S: Subsystem> Action<S> {
     /// memory before the output parts run.
     pub fn common<F, R>(mut self, f: F) -> Self
     where
-        F: Fn(&mut S::Memory, &S::Input) -> R + Send + 'static,
+        F: Fn(&mut S::Memory, &S::Input) -> R + Send + Sync + 'static,
         R: Outcome,
     {
         let part: PartFn<S> = Box::new(move |m, x, _| f(m, x).into_result());

@@ -5,7 +5,9 @@
 //! sample and queue links between them, and a transmission buffer from `c` to
 //! the next agent's `c` (the agents form a ring; one agent alone has none).
 //! Every subsystem has the same period, so every instant activates all of them:
-//! an instant of `n` subsystems is `n` elementary actions.
+//! an instant of `n` subsystems is `n` elementary actions. The copies share
+//! their FSMs' definitions (each FSM built once and cloned, as `Fsm`'s clones
+//! share it), each subsystem with its own state.
 //!
 //! For each size, the same measurements and the same repeat policy:
 //!
@@ -195,12 +197,15 @@ fn system_with(
     let mut b = SystemBuilder::new();
     let mut controls = Vec::with_capacity(agents);
     let mut ids = Vec::with_capacity(3 * agents);
+    // One definition of each FSM, shared by every copy of the agent (an
+    // `Fsm`'s clones share it), as a fleet's robots share theirs.
+    let (ctl, eff, rec) = (ctl_fsm()?, eff_fsm()?, rec_fsm()?);
     for i in 0..agents {
         let a = b.agent(format!("a{i}"));
         let period = period(i);
-        let c = b.subsystem(a, format!("c{i}"), period, 0, ctl_fsm()?);
-        let e = b.subsystem(a, format!("e{i}"), period, 0.0, eff_fsm()?);
-        let r = b.subsystem(a, format!("r{i}"), period, 0, rec_fsm()?);
+        let c = b.subsystem(a, format!("c{i}"), period, 0, ctl.clone());
+        let e = b.subsystem(a, format!("e{i}"), period, 0.0, eff.clone());
+        let r = b.subsystem(a, format!("r{i}"), period, 0, rec.clone());
         b.connect(
             c.output(port!(COut, e.cmd)),
             e.input(port!(EIn, c.cmd)),

@@ -3,9 +3,10 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use super::rules::{self, Place, ShapeProblem};
-use super::{Fsm, FsmArc, Node, Predicate, Relation};
+use super::{Fsm, FsmArc, FsmDef, Node, Predicate, Relation};
 use crate::behaviour::Behaviour;
 use crate::error::{FsmBuildError, FsmProblem};
 use crate::expr::Expr;
@@ -43,7 +44,7 @@ impl<S: Subsystem> FsmBuilder<S> {
     /// Declare a named predicate usable in conditions.
     pub fn predicate<F>(mut self, name: impl Into<Cow<'static, str>>, f: F) -> Self
     where
-        F: Fn(&S::Memory, &S::Input) -> bool + Send + 'static,
+        F: Fn(&S::Memory, &S::Input) -> bool + Send + Sync + 'static,
     {
         self.predicates.push(Predicate {
             name: name.into(),
@@ -293,10 +294,12 @@ impl<S: Subsystem> FsmBuilder<S> {
             })
             .collect();
         Fsm {
-            predicates: self.predicates,
-            relations: self.relations,
-            nodes,
-            initial,
+            def: Arc::new(FsmDef {
+                predicates: self.predicates,
+                relations: self.relations,
+                nodes,
+                initial,
+            }),
         }
     }
 }
@@ -322,10 +325,16 @@ impl<S: Subsystem> Fsm<S> {
     /// [`FsmBuilder::build`] checks any FSM. This is how a spec drives the
     /// FSM of code that supplies the actions and predicates: an edited arc in
     /// the spec is an edited arc in the running system.
+    ///
+    /// The FSM must not be shared yet (no clone of it alive): its behaviours
+    /// move into the new one ([`FsmProblem::Shared`] otherwise).
     pub fn regraph(self, graph: &FsmGraph) -> Result<Fsm<S>, FsmBuildError> {
         let mut problems = Vec::new();
+        let def = Arc::try_unwrap(self.def).map_err(|_| FsmBuildError {
+            problems: vec![FsmProblem::Shared],
+        })?;
         let mut behaviours: Vec<Behaviour<S>> =
-            self.nodes.into_iter().map(|n| n.behaviour).collect();
+            def.nodes.into_iter().map(|n| n.behaviour).collect();
         for (name, terminal) in &graph.terminals {
             match behaviours.iter_mut().find(|b| b.name == name.as_str()) {
                 Some(b) => b.terminal = Cow::Owned(terminal.clone()),
@@ -339,8 +348,8 @@ impl<S: Subsystem> Fsm<S> {
             return Err(FsmBuildError { problems });
         }
         FsmBuilder {
-            predicates: self.predicates,
-            relations: self.relations,
+            predicates: def.predicates,
+            relations: def.relations,
             behaviours,
             arcs: graph
                 .arcs

@@ -10,6 +10,7 @@
 
 use std::borrow::Cow;
 use std::fmt;
+use std::sync::Arc;
 
 use crate::behaviour::Behaviour;
 use crate::describe::Fresh;
@@ -25,7 +26,7 @@ pub mod rules;
 pub use builder::{FsmBuilder, FsmGraph};
 
 type PredicateFn<S> =
-    Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send>;
+    Box<dyn Fn(&<S as Subsystem>::Memory, &<S as Subsystem>::Input) -> bool + Send + Sync>;
 
 /// A named predicate over memory and inputs: the atoms of initial and terminal
 /// conditions (`f^σ`, `f^τ`).
@@ -247,7 +248,27 @@ impl Memo {
 }
 
 /// The FSM of one subsystem: behaviours, predicates, arcs and the initial behaviour.
+///
+/// An FSM is immutable once built, and a handle to its definition: a clone
+/// shares it (behaviours, their actions' functions, predicates), so that many
+/// subsystems of one kind (the robots of a fleet, the copies of an agent in a
+/// large graph) keep one copy, which an instant's actions then find in the
+/// caches. Each subsystem keeps its own state ([`FsmState`]).
 pub struct Fsm<S: Subsystem> {
+    def: Arc<FsmDef<S>>,
+}
+
+impl<S: Subsystem> Clone for Fsm<S> {
+    /// The same FSM, shared.
+    fn clone(&self) -> Self {
+        Fsm {
+            def: Arc::clone(&self.def),
+        }
+    }
+}
+
+/// What an [`Fsm`] is, shared by its clones.
+struct FsmDef<S: Subsystem> {
     predicates: Vec<Predicate<S>>,
     relations: Vec<Relation>,
     nodes: Vec<Node<S>>,
@@ -257,9 +278,9 @@ pub struct Fsm<S: Subsystem> {
 impl<S: Subsystem> fmt::Debug for Fsm<S> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Fsm")
-            .field("behaviours", &self.nodes.len())
-            .field("predicates", &self.predicates.len())
-            .field("initial", &self.behaviour_name(self.initial))
+            .field("behaviours", &self.def.nodes.len())
+            .field("predicates", &self.def.predicates.len())
+            .field("initial", &self.behaviour_name(self.def.initial))
             .finish()
     }
 }
@@ -279,77 +300,78 @@ impl<S: Subsystem> Fsm<S> {
 
     /// The state at the start: in the initial behaviour, no action done yet.
     pub fn start(&self) -> FsmState {
-        FsmState::entering(self.initial)
+        FsmState::entering(self.def.initial)
     }
 
     /// The state on entering behaviour `index` afresh, as when an arc into it is
     /// followed (`None` for an unknown index). The termination helpers start a
     /// behaviour this way.
     pub fn start_at(&self, index: usize) -> Option<FsmState> {
-        (index < self.nodes.len()).then(|| FsmState::entering(index))
+        (index < self.def.nodes.len()).then(|| FsmState::entering(index))
     }
 
     /// Number of behaviours.
     pub fn len(&self) -> usize {
-        self.nodes.len()
+        self.def.nodes.len()
     }
 
     /// Whether the FSM has no behaviour (never true for a built FSM).
     pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
+        self.def.nodes.is_empty()
     }
 
     /// Index of the initial behaviour.
     pub fn initial(&self) -> usize {
-        self.initial
+        self.def.initial
     }
 
     /// The behaviour at `index`.
     pub fn behaviour(&self, index: usize) -> Option<&Behaviour<S>> {
-        self.nodes.get(index).map(|n| &n.behaviour)
+        self.def.nodes.get(index).map(|n| &n.behaviour)
     }
 
     /// The name of the behaviour at `index` (`"?"` if out of range).
     pub fn behaviour_name(&self, index: usize) -> &str {
-        self.nodes.get(index).map_or("?", |n| &n.behaviour.name)
+        self.def.nodes.get(index).map_or("?", |n| &n.behaviour.name)
     }
 
     /// The index of the behaviour called `name`.
     pub fn behaviour_index(&self, name: &str) -> Option<usize> {
-        self.nodes.iter().position(|n| n.behaviour.name == name)
+        self.def.nodes.iter().position(|n| n.behaviour.name == name)
     }
 
     /// The arcs leaving behaviour `index`.
     pub fn arcs(&self, index: usize) -> &[FsmArc] {
-        self.nodes.get(index).map_or(&[], |n| &n.arcs)
+        self.def.nodes.get(index).map_or(&[], |n| &n.arcs)
     }
 
     /// The resolved terminal condition of behaviour `index`.
     pub fn terminal(&self, index: usize) -> Option<&Expr<usize>> {
-        self.nodes.get(index).map(|n| &n.terminal)
+        self.def.nodes.get(index).map(|n| &n.terminal)
     }
 
     /// Whether the terminal condition of behaviour `index` holds (false for an
     /// unknown index).
     pub fn terminal_holds(&self, index: usize, memory: &S::Memory, input: &S::Input) -> bool {
-        self.nodes
+        self.def
+            .nodes
             .get(index)
             .is_some_and(|n| self.eval(&n.terminal, memory, input, &mut Memo::default()))
     }
 
     /// Whether behaviour `index` is declared final.
     pub fn is_final(&self, index: usize) -> bool {
-        self.nodes.get(index).is_some_and(|n| n.is_final)
+        self.def.nodes.get(index).is_some_and(|n| n.is_final)
     }
 
     /// The declared predicates.
     pub fn predicates(&self) -> &[Predicate<S>] {
-        &self.predicates
+        &self.def.predicates
     }
 
     /// The declared relations between predicates.
     pub fn relations(&self) -> &[Relation] {
-        &self.relations
+        &self.def.relations
     }
 
     /// What a spec says of this FSM: predicates, relations, behaviours with their
@@ -357,9 +379,15 @@ impl<S: Subsystem> Fsm<S> {
     /// and `agent-spec` exports it.
     pub fn describe(&self) -> FsmShape {
         FsmShape {
-            predicates: self.predicates.iter().map(|p| p.name.to_string()).collect(),
-            relations: self.relations.clone(),
+            predicates: self
+                .def
+                .predicates
+                .iter()
+                .map(|p| p.name.to_string())
+                .collect(),
+            relations: self.def.relations.clone(),
             behaviours: self
+                .def
                 .nodes
                 .iter()
                 .map(|n| BehaviourShape {
@@ -369,8 +397,9 @@ impl<S: Subsystem> Fsm<S> {
                     parts: n.behaviour.action.describe(),
                 })
                 .collect(),
-            initial: self.behaviour_name(self.initial).to_owned(),
+            initial: self.behaviour_name(self.def.initial).to_owned(),
             arcs: self
+                .def
                 .nodes
                 .iter()
                 .flat_map(|n| n.arcs.iter())
@@ -383,6 +412,7 @@ impl<S: Subsystem> Fsm<S> {
                 })
                 .collect(),
             finals: self
+                .def
                 .nodes
                 .iter()
                 .filter(|n| n.is_final)
@@ -393,11 +423,12 @@ impl<S: Subsystem> Fsm<S> {
 
     #[inline]
     fn eval(&self, e: &Expr<usize>, m: &S::Memory, x: &S::Input, memo: &mut Memo) -> bool {
-        e.eval(&mut |&i: &usize| memo.get(i, || self.predicates[i].holds(m, x)))
+        e.eval(&mut |&i: &usize| memo.get(i, || self.def.predicates[i].holds(m, x)))
     }
 
     fn assignment(&self, m: &S::Memory, x: &S::Input) -> String {
         let parts: Vec<String> = self
+            .def
             .predicates
             .iter()
             .map(|p| format!("{}={}", p.name, p.holds(m, x)))
@@ -430,7 +461,7 @@ impl<S: Subsystem> Fsm<S> {
         input: &S::Input,
         memo: &mut Memo,
     ) -> bool {
-        let node = &self.nodes[state.node];
+        let node = &self.def.nodes[state.node];
         !node.never_ends
             && node.behaviour.kind.tests_terminal(state.actions_done)
             && self.eval(&node.terminal, memory, input, memo)
@@ -442,7 +473,7 @@ impl<S: Subsystem> Fsm<S> {
     /// ([`Observer::predicates`](crate::Observer::predicates)).
     pub fn valuation(&self, wanted: u64, memory: &S::Memory, input: &S::Input) -> Valuation {
         let mut v = Valuation::default();
-        for (i, p) in self.predicates.iter().enumerate().take(64) {
+        for (i, p) in self.def.predicates.iter().enumerate().take(64) {
             let bit = 1u64 << i;
             if wanted & bit != 0 {
                 v.known |= bit;
@@ -470,7 +501,7 @@ impl<S: Subsystem> Fsm<S> {
         if !self.ends_with(state, memory, input, &mut memo) {
             return Ok(Step::Run);
         }
-        let node = &self.nodes[from];
+        let node = &self.def.nodes[from];
         let mut chosen = None;
         let mut count = 0usize;
         for (i, a) in node.arcs.iter().enumerate() {
@@ -483,8 +514,8 @@ impl<S: Subsystem> Fsm<S> {
             (1, Some(arc)) => {
                 let to = node.arcs[arc].to;
                 *state = FsmState::entering(to);
-                for i in 0..self.predicates.len().min(64) {
-                    memo.get(i, || self.predicates[i].holds(memory, input));
+                for i in 0..self.def.predicates.len().min(64) {
+                    memo.get(i, || self.def.predicates[i].holds(memory, input));
                 }
                 Ok(Step::Entered {
                     from,
@@ -591,7 +622,7 @@ impl<S: Subsystem> Fsm<S> {
                 step @ Step::Entered { .. } => {
                     on_step(&step);
                     transitions += 1;
-                    if transitions >= self.nodes.len() {
+                    if transitions >= self.def.nodes.len() {
                         return Err(self.livelock(start, transitions, state));
                     }
                 }
@@ -621,7 +652,7 @@ impl<S: Subsystem> Fsm<S> {
             &mut S::Output,
         ) -> Result<(), crate::ActionError>,
     ) -> Result<Activated, FsmError> {
-        let node = &self.nodes[state.node];
+        let node = &self.def.nodes[state.node];
         compute(&node.behaviour.action, memory, input, output).map_err(|source| {
             FsmError::Action {
                 behaviour: node.behaviour.name.to_string(),

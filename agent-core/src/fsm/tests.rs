@@ -416,3 +416,61 @@ fn a_transition_carries_the_value_of_every_predicate() {
     assert_eq!(predicates.get(3), None);
     assert_eq!(predicates.get(64), None);
 }
+
+#[test]
+fn clones_share_one_definition_and_keep_their_own_states() {
+    let fsm = builder()
+        .behaviour(Behaviour::repeat_loop("run", count(), "three"))
+        .behaviour(Behaviour::while_loop("rest", Action::new(), "false"))
+        .initial("run")
+        .arc("run", "rest", "true")
+        .build()
+        .unwrap();
+    let other = fsm.clone();
+    assert!(Arc::ptr_eq(&fsm.def, &other.def), "one definition");
+    // Two subsystems on the same definition: each its state and memory.
+    let (mut a, mut b) = (fsm.start(), other.start());
+    let (mut ma, mut mb, x) = (0u32, 0u32, input(false, false));
+    let mut y = Y::default();
+    for _ in 0..3 {
+        fsm.activate(&mut a, &mut ma, &x, &mut y, |_| {}).unwrap();
+    }
+    other.activate(&mut b, &mut mb, &x, &mut y, |_| {}).unwrap();
+    assert_eq!((ma, mb), (3, 1));
+    assert_eq!(
+        a.behaviour(),
+        0,
+        "run ends after its action, at the next activation"
+    );
+    fsm.activate(&mut a, &mut ma, &x, &mut y, |_| {}).unwrap();
+    assert_eq!(
+        (a.behaviour(), b.behaviour()),
+        (1, 0),
+        "a rests, b still runs"
+    );
+}
+
+#[test]
+fn a_shared_fsm_is_not_regraphed_and_says_so() {
+    let fsm = builder()
+        .behaviour(Behaviour::while_loop("run", count(), "false"))
+        .initial("run")
+        .build()
+        .unwrap();
+    let graph = FsmGraph {
+        initial: "run".into(),
+        arcs: Vec::new(),
+        terminals: vec![("run".into(), "three".into())],
+        finals: vec!["run".into()],
+    };
+    let kept = fsm.clone();
+    let err = fsm.regraph(&graph).unwrap_err();
+    assert_eq!(err.problems, vec![FsmProblem::Shared]);
+    // Alone again, it is.
+    let alone = kept.clone();
+    drop(kept);
+    let regraphed = alone.regraph(&graph).unwrap();
+    assert!(regraphed.is_final(0));
+    let x = input(false, false);
+    assert!(regraphed.terminal_holds(0, &3, &x) && !regraphed.terminal_holds(0, &2, &x));
+}
