@@ -421,6 +421,14 @@ impl<'s> Assembly<'s> {
         Ok(self.builder.subsystem(agent, name, period, memory, fsm))
     }
 
+    /// `fsm` with the spec's graph for subsystem `name` ([`Fsm::regraph`]),
+    /// not added: several subsystems of one kind and one graph (a fleet's
+    /// robots) can then be given clones of it, which share one definition
+    /// ([`Assembly::subsystem`] passes an FSM that has its graph through).
+    pub fn graphed<S: Subsystem>(&self, name: &str, fsm: Fsm<S>) -> Result<Fsm<S>, AssemblyError> {
+        self.spec_graph(name, fsm)
+    }
+
     /// `fsm` with the spec's graph for subsystem `name`.
     fn spec_graph<S: Subsystem>(&self, name: &str, fsm: Fsm<S>) -> Result<Fsm<S>, AssemblyError> {
         let Some(declared) = self

@@ -326,9 +326,14 @@ impl<S: Subsystem> Fsm<S> {
     /// FSM of code that supplies the actions and predicates: an edited arc in
     /// the spec is an edited arc in the running system.
     ///
-    /// The FSM must not be shared yet (no clone of it alive): its behaviours
-    /// move into the new one ([`FsmProblem::Shared`] otherwise).
+    /// An FSM that already has the graph is returned as it is, shared or not
+    /// (a clone of a regraphed FSM for another subsystem with the same graph).
+    /// Otherwise its behaviours move into the new one, so it must not be
+    /// shared (no clone of it alive: [`FsmProblem::Shared`] otherwise).
     pub fn regraph(self, graph: &FsmGraph) -> Result<Fsm<S>, FsmBuildError> {
+        if self.has_graph(graph) {
+            return Ok(self);
+        }
         let mut problems = Vec::new();
         let def = Arc::try_unwrap(self.def).map_err(|_| FsmBuildError {
             problems: vec![FsmProblem::Shared],
@@ -360,6 +365,49 @@ impl<S: Subsystem> Fsm<S> {
             finals: graph.finals.iter().map(|f| f.clone().into()).collect(),
         }
         .build()
+    }
+}
+
+impl<S: Subsystem> Fsm<S> {
+    /// Whether the FSM's graph is `graph`: its initial behaviour, each
+    /// behaviour's arcs in order with their initial conditions, the terminal
+    /// conditions `graph` names and the final behaviours, the conditions
+    /// compared as resolved (not as written).
+    pub fn has_graph(&self, graph: &FsmGraph) -> bool {
+        let def = &self.def;
+        let preds: HashMap<&str, usize> = (def.predicates.iter().enumerate())
+            .map(|(i, p)| (p.name.as_ref(), i))
+            .collect();
+        let condition = |text: &str| resolve(&preds, &mut Vec::new(), String::new(), text);
+        let index = |name: &str| def.nodes.iter().position(|n| n.behaviour.name == name);
+        if index(&graph.initial) != Some(def.initial) {
+            return false;
+        }
+        let mut finals: Vec<Option<usize>> = graph.finals.iter().map(|f| index(f)).collect();
+        finals.sort_unstable();
+        finals.dedup();
+        let own: Vec<Option<usize>> = (def.nodes.iter().enumerate())
+            .filter(|(_, n)| n.is_final)
+            .map(|(i, _)| Some(i))
+            .collect();
+        if finals != own {
+            return false;
+        }
+        let terminals_equal = graph.terminals.iter().all(|(name, text)| {
+            index(name).is_some_and(|b| condition(text).as_ref() == Some(&def.nodes[b].terminal))
+        });
+        let arcs_equal = def.nodes.iter().enumerate().all(|(b, node)| {
+            let name = node.behaviour.name.as_ref();
+            let mut given = graph.arcs.iter().filter(|(from, _, _)| from == name);
+            node.arcs.iter().all(|arc| {
+                given.next().is_some_and(|(_, to, when)| {
+                    index(to) == Some(arc.to)
+                        && arc.from == b
+                        && condition(when).as_ref() == Some(&arc.condition)
+                })
+            }) && given.next().is_none()
+        });
+        terminals_equal && arcs_equal
     }
 }
 

@@ -464,6 +464,7 @@ fn a_shared_fsm_is_not_regraphed_and_says_so() {
         finals: vec!["run".into()],
     };
     let kept = fsm.clone();
+    assert!(!fsm.has_graph(&graph));
     let err = fsm.regraph(&graph).unwrap_err();
     assert_eq!(err.problems, vec![FsmProblem::Shared]);
     // Alone again, it is.
@@ -471,6 +472,21 @@ fn a_shared_fsm_is_not_regraphed_and_says_so() {
     drop(kept);
     let regraphed = alone.regraph(&graph).unwrap();
     assert!(regraphed.is_final(0));
+    // A clone of an FSM that has the graph is passed through, shared: the
+    // conditions compared as resolved, not as written.
+    let same = FsmGraph {
+        terminals: vec![("run".into(), "(three)".into())],
+        ..graph.clone()
+    };
+    let shared = regraphed.clone();
+    assert!(shared.has_graph(&same));
+    let passed = shared.regraph(&same).unwrap();
+    assert!(Arc::ptr_eq(&passed.def, &regraphed.def));
+    let other = FsmGraph {
+        finals: Vec::new(),
+        ..graph.clone()
+    };
+    assert!(!regraphed.has_graph(&other), "not final there");
     let x = input(false, false);
     assert!(regraphed.terminal_holds(0, &3, &x) && !regraphed.terminal_holds(0, &2, &x));
 }

@@ -372,15 +372,25 @@ pub fn build(
         FleetOntologyOutput::new(robots),
     )?;
     let mut handles = Vec::with_capacity(robots);
+    // Every robot's FSMs are one definition each, with the spec's graph
+    // (the robots' are the same): each robot's subsystems share it.
+    let first = |part: &str| robot_name(part, 0);
+    let fsms = (
+        fleet.graphed(&first("c1"), c1_fsm()?)?,
+        fleet.graphed(&first("e11"), e11_fsm()?)?,
+        fleet.graphed(&first("c3"), map_fsm()?)?,
+        fleet.graphed(&first("r31"), mocap_receptor_fsm()?)?,
+        fleet.graphed(&first("r11"), r11_fsm()?)?,
+    );
     for (i, config) in configs.iter().enumerate() {
         let name = |part: &str| robot_name(part, i);
         let dt = fleet.period(&name("e11"))?.as_secs_f64();
-        let c1 = fleet.subsystem(&name("c1"), system::c1_memory(config, dt), c1_fsm()?)?;
+        let c1 = fleet.subsystem(&name("c1"), system::c1_memory(config, dt), fsms.0.clone())?;
         let e1_period = fleet.period(&name("E1"))?.as_secs_f64();
         let e11 = fleet.subsystem(
             &name("e11"),
             system::e11_memory(config, dt, e1_period)?,
-            e11_fsm()?,
+            fsms.1.clone(),
         )?;
         let world = &config.world;
         let platform = Platform::new(
@@ -390,14 +400,14 @@ pub fn build(
         .map_err(WorldError::from)?
         .in_fleet(i);
         let platform = fleet.driver(&name("E1"), platform)?;
-        let c3 = fleet.subsystem(&name("c3"), MapMemory::default(), map_fsm()?)?;
+        let c3 = fleet.subsystem(&name("c3"), MapMemory::default(), fsms.2.clone())?;
         let r31 = fleet.subsystem(
             &name("r31"),
             MocapMemory {
                 max_speed: 3.0 * world.platform.speed_max,
                 ..MocapMemory::default()
             },
-            mocap_receptor_fsm()?,
+            fsms.3.clone(),
         )?;
         let mocap = MotionCapture::new(world.mocap.clone())
             .map_err(WorldError::from)?
@@ -407,7 +417,7 @@ pub fn build(
             let r11 = fleet.subsystem(
                 &name("r11"),
                 R11Memory::new(system::odometry(config)?, config.acquire_every),
-                r11_fsm()?,
+                fsms.4.clone(),
             )?;
             let renderer = Renderer::new(world.camera.clone(), world.scene.clone())
                 .map_err(WorldError::from)?;
