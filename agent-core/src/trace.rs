@@ -270,8 +270,9 @@ pub trait Observer: Send {
         0
     }
     /// The values of the predicates wanted ([`Observer::predicates_wanted`],
-    /// by any observer of the run) after an activation of a subsystem, right
-    /// after its [`Observer::action`]: evaluated on the memory and inputs its
+    /// by any observer of the run) after each activation of a subsystem, right
+    /// after its [`Observer::action`] (whether or not that is told:
+    /// [`Observer::node_events`]): evaluated on the memory and inputs its
     /// action left (`values.known`: which were evaluated). What a contract
     /// monitor judges invariants by.
     fn predicates(&mut self, _event: &ActionEvent, _values: Valuation) {}
