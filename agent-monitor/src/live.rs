@@ -394,7 +394,7 @@ impl Live {
         let watched = (s.subsystems.iter().enumerate())
             .map(|(n, sub)| sub.filter(|_| is_here(n)))
             .collect();
-        Watch {
+        let mut watch = Watch {
             links: plans(&s.roles, &here, &monitors),
             watched,
             shared: self.shared.clone(),
@@ -413,7 +413,10 @@ impl Live {
             last: Time::ZERO,
             judged,
             not_judged,
-        }
+            held_at_activations: Vec::new(),
+        };
+        watch.held_at_activations = watch.readers_held_at_activations();
+        watch
     }
 
     /// The verdicts of the watches that have ended.
@@ -544,6 +547,10 @@ pub struct Watch {
     wanted: Vec<u64>,
     /// Per node: the behaviour it is in (the executor's index).
     current: Vec<Option<usize>>,
+    /// Per node: whether it reads a freshness's input whose held values are
+    /// judged at its activations (its link tells every read, not only the
+    /// values too old: [`LinkEvents::older_than`]).
+    held_at_activations: Vec<bool>,
     sink: Sink,
     undecodable: u64,
     /// Violations taken by the executor.
@@ -572,6 +579,23 @@ impl Watch {
             self.monitors.start(t);
         }
         self.last = self.last.max(t);
+    }
+
+    /// Per node, whether it reads a freshness's input whose held values are
+    /// judged at its activations (one pass over the links).
+    fn readers_held_at_activations(&self) -> Vec<bool> {
+        let mut held = vec![false; self.watched.len()];
+        for (l, role) in self.shared.roles.iter().enumerate() {
+            if role
+                .input
+                .is_some_and(|i| self.monitors.counts(Some(i), None).reads)
+                && self.link_events(l).older_than.is_none()
+                && let Some(h) = held.get_mut(role.to)
+            {
+                *h = true;
+            }
+        }
+        held
     }
 
     /// Judge the ranges of link `link`'s value at `t`.
@@ -661,14 +685,7 @@ impl Observer for Watch {
                 }
             }
         }
-        let held_at_activations = (self.shared.roles.iter().enumerate()).any(|(l, role)| {
-            role.to == node
-                && role
-                    .input
-                    .is_some_and(|i| self.monitors.counts(Some(i), None).reads)
-                && self.link_events(l).older_than.is_none()
-        });
-        if held_at_activations {
+        if self.held_at_activations.get(node) == Some(&true) {
             events.actions = u64::MAX;
         }
         events
