@@ -308,7 +308,9 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
 
 /// A subsystem: its buffers, memory and FSM.
 pub(crate) struct SubsystemCore<S: Subsystem> {
-    pub(crate) info: NodeInfo,
+    /// Its description, boxed: read by errors and descriptions only, so
+    /// that the fields an action touches lie together.
+    pub(crate) info: Box<NodeInfo>,
     pub(crate) memory: S::Memory,
     pub(crate) input: S::Input,
     pub(crate) output: S::Output,
@@ -324,7 +326,7 @@ pub(crate) struct SubsystemCore<S: Subsystem> {
 impl<S: Subsystem> SubsystemCore<S> {
     pub(crate) fn new(info: NodeInfo, memory: S::Memory, fsm: Fsm<S>) -> Self {
         SubsystemCore {
-            info,
+            info: Box::new(info),
             memory,
             input: S::Input::default(),
             output: S::Output::default(),
