@@ -10,10 +10,10 @@ use std::any::{Any, TypeId};
 use crate::describe::Fresh;
 use crate::error::{ExecError, FsmError, LinkError};
 use crate::fsm::{Activated, Fsm, FsmState};
-use crate::link::{InPort, LinkCx, OutPort};
+use crate::link::{InPort, LinkCx, OutPort, Wants};
 use crate::subsystem::{Driver, DriverContext, Subsystem};
 use crate::time::{Stamp, Time};
-use crate::trace::{ActionEvent, AuditEvent, NodeInfo, TransitionEvent};
+use crate::trace::{ActionEvent, AuditEvent, NodeEvents, NodeInfo, TransitionEvent};
 
 /// What one activation of a node did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -46,6 +46,10 @@ pub(crate) trait InProcessNode {
     /// Every port is read; the first problem of a link between processes is
     /// returned (in-process and thread links have none).
     fn read(&mut self, cx: &mut LinkCx<'_>) -> Result<(), LinkError>;
+    /// The observer's needs, once at the start of a run (the node is node
+    /// `index`): the ports leave out the events of links whose observer needs
+    /// none, the node the activations and transitions it needs not.
+    fn observe(&mut self, index: usize, wants: &Wants);
     /// FSM decision, action (or driver step) and send.
     /// Errors are boxed: they are rare, and a small `Result` keeps the hot path lean.
     fn step(
@@ -96,6 +100,9 @@ pub(crate) trait NodeCore: Send + Sized + 'static {
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         self.compute(now, index, cx)
     }
+    /// The transitions and activations the observer needs
+    /// ([`InProcessNode::observe`]; every one until told).
+    fn observe(&mut self, events: NodeEvents);
     fn halt(&mut self);
     /// [`InProcessNode::safe_stop`]: a subsystem halts (the default).
     fn safe_stop(&mut self) {
@@ -160,6 +167,9 @@ impl<C: NodeCore> NodeCore for Audited<C> {
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         self.0.compute_audited(now, index, cx)
+    }
+    fn observe(&mut self, events: NodeEvents) {
+        self.0.observe(events);
     }
     fn halt(&mut self) {
         self.0.halt();
@@ -229,6 +239,14 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
             }
         }
         first
+    }
+
+    fn observe(&mut self, index: usize, wants: &Wants) {
+        self.ins.iter_mut().for_each(|p| p.observe(&wants.links));
+        self.outs.iter_mut().for_each(|p| p.observe(&wants.links));
+        if let Some(events) = wants.nodes.get(index) {
+            self.core.observe(*events);
+        }
     }
 
     #[inline]
@@ -321,6 +339,8 @@ pub(crate) struct SubsystemCore<S: Subsystem> {
     /// ([`Observer::predicates_wanted`](crate::Observer::predicates_wanted)),
     /// once asked.
     wanted: Option<u64>,
+    /// The transitions and activations the observer needs.
+    events: NodeEvents,
 }
 
 impl<S: Subsystem> SubsystemCore<S> {
@@ -334,6 +354,7 @@ impl<S: Subsystem> SubsystemCore<S> {
             fsm,
             iteration: 0,
             wanted: None,
+            events: NodeEvents::all(),
         }
     }
 
@@ -353,11 +374,7 @@ impl<S: Subsystem> SubsystemCore<S> {
         match result {
             Ok(Activated::Ran { behaviour }) => {
                 if let Some(o) = cx.observer.as_deref_mut() {
-                    let told = cx
-                        .wants
-                        .nodes
-                        .get(index)
-                        .is_none_or(|n| n.action(Some(behaviour)));
+                    let told = self.events.action(Some(behaviour));
                     for &(part, reads, writes) in seen {
                         o.audit(&AuditEvent {
                             time: now,
@@ -420,8 +437,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         let iteration = self.iteration;
-        let transitions =
-            cx.observer.is_some() && cx.wants.nodes.get(index).is_none_or(|n| n.transitions);
+        let transitions = cx.observer.is_some() && self.events.transitions;
         let observer = &mut cx.observer;
         let result = self.fsm.activate(
             &mut self.state,
@@ -453,8 +469,7 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
         cx: &mut LinkCx<'_>,
     ) -> Result<Option<Stamp>, Box<ExecError>> {
         let iteration = self.iteration;
-        let transitions =
-            cx.observer.is_some() && cx.wants.nodes.get(index).is_none_or(|n| n.transitions);
+        let transitions = cx.observer.is_some() && self.events.transitions;
         let observer = &mut cx.observer;
         let mut seen: Vec<(usize, Fresh, Fresh)> = Vec::new();
         let result = self.fsm.activate_audited(
@@ -475,6 +490,10 @@ impl<S: Subsystem> NodeCore for SubsystemCore<S> {
             &mut |part, reads, writes| seen.push((part, reads, writes)),
         );
         self.finish(result, now, index, cx, &seen)
+    }
+
+    fn observe(&mut self, events: NodeEvents) {
+        self.events = events;
     }
 
     fn halt(&mut self) {
@@ -498,6 +517,8 @@ pub(crate) struct DriverCore<D: Driver> {
     pub(crate) output: D::Output,
     pub(crate) iteration: u64,
     halted: bool,
+    /// Whether the observer needs its steps.
+    told: bool,
 }
 
 impl<D: Driver> DriverCore<D> {
@@ -509,6 +530,7 @@ impl<D: Driver> DriverCore<D> {
             output: D::Output::default(),
             iteration: 0,
             halted: false,
+            told: true,
         }
     }
 }
@@ -552,7 +574,7 @@ impl<D: Driver> NodeCore for DriverCore<D> {
                 })
             })?;
         if let Some(o) = cx.observer.as_deref_mut()
-            && cx.wants.nodes.get(index).is_none_or(|n| n.action(None))
+            && self.told
         {
             o.action(&ActionEvent {
                 time: now,
@@ -563,6 +585,10 @@ impl<D: Driver> NodeCore for DriverCore<D> {
         }
         self.iteration += 1;
         Ok(Some(Stamp::new(iteration, now)))
+    }
+
+    fn observe(&mut self, events: NodeEvents) {
+        self.told = events.action(None);
     }
 
     fn halt(&mut self) {

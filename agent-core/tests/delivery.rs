@@ -6,12 +6,16 @@
 //! node read before any steps and sends. Every read (new or not, the value
 //! held) and every link's counters must be the same. (A one-pass executor,
 //! each node reading right before the first of its writers steps, was tried
-//! against this test: docs/scaling.md.)
+//! against this test: docs/scaling.md.) An observer that asks for some of
+//! the links' and nodes' events ([`Observer::link_events`],
+//! [`Observer::node_events`]) is told exactly those of an every-event
+//! observer's events that its asks select.
 
 #![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
 
 use std::collections::VecDeque;
 
+use agent_core::trace::{ErasedPayload, FieldPath, LinkEvents, NodeEvents, NumberBound, within};
 use agent_core::*;
 use proptest::prelude::*;
 
@@ -161,8 +165,8 @@ fn policy(w: &Wire) -> Policy {
 /// overwritten).
 type Delivered = (Vec<Vec<Seen>>, Vec<(u64, u64, u64)>);
 
-/// The executor's reads and the links' counters.
-fn run(net: &Net, end_ms: u64) -> Delivered {
+/// The system of `net`: its nodes' handles and its links.
+fn build(net: &Net) -> (System, Vec<SubsystemHandle<Hub>>, Vec<LinkId>) {
     let mut b = SystemBuilder::new();
     let mut handles = Vec::new();
     for (i, &(period, every)) in net.nodes.iter().enumerate() {
@@ -193,7 +197,13 @@ fn run(net: &Net, end_ms: u64) -> Delivered {
         );
         links.push(link);
     }
-    let mut x = Executor::new(b.build().unwrap(), ExecConfig::default());
+    (b.build().unwrap(), handles, links)
+}
+
+/// The executor's reads and the links' counters.
+fn run(net: &Net, end_ms: u64) -> Delivered {
+    let (system, handles, links) = build(net);
+    let mut x = Executor::new(system, ExecConfig::default());
     x.run_until(Time::from_nanos(end_ms * 1_000_000)).unwrap();
     let seen = handles
         .iter()
@@ -317,4 +327,130 @@ fn a_reader_before_and_after_its_writer_in_a_ring() {
     // c0 at iteration 3 holds c2's value of iteration 2 (c2 steps after c0).
     assert!(seen[0].contains(&(3, 0, true, Some(value(3, 2, 0)))));
     assert_eq!(stats, vec![(5, 4, 0); 3]);
+}
+
+/// One event an observer was told: a send (link, instant, iteration, the
+/// value), a read (link, instant, the value's instant), an activation or a
+/// transition (node, instant).
+#[derive(Clone, Debug, PartialEq)]
+enum Told {
+    Transfer(usize, Time, u64, f64),
+    Read(usize, Time, Time),
+    Action(usize, Time),
+    Transition(usize, Time),
+}
+
+/// An observer that asks for `links` and `nodes` (every event where `None`)
+/// and logs what it is told.
+struct Asking {
+    links: Option<Vec<LinkEvents>>,
+    nodes: Option<Vec<NodeEvents>>,
+    told: std::sync::Arc<std::sync::Mutex<Vec<Told>>>,
+}
+
+impl Asking {
+    fn log(&self, t: Told) {
+        self.told.lock().unwrap().push(t);
+    }
+}
+
+impl Observer for Asking {
+    fn link_events(&self, link: usize) -> LinkEvents {
+        (self.links.as_ref()).map_or_else(LinkEvents::all, |l| l[link].clone())
+    }
+    fn node_events(&self, node: usize) -> NodeEvents {
+        (self.nodes.as_ref()).map_or_else(NodeEvents::all, |n| n[node])
+    }
+    fn transfer(&mut self, e: &TransferEvent, value: &dyn ErasedPayload) {
+        let x = value.number_at(&FieldPath::parse("")).unwrap().unwrap();
+        self.log(Told::Transfer(e.link, e.stamp.time, e.stamp.iteration, x));
+    }
+    fn read(&mut self, e: &ReadEvent) {
+        self.log(Told::Read(e.link, e.time, e.stamp.time));
+    }
+    fn action(&mut self, e: &ActionEvent) {
+        self.log(Told::Action(e.node, e.time));
+    }
+    fn transition(&mut self, e: &TransitionEvent) {
+        self.log(Told::Transition(e.node, e.time));
+    }
+}
+
+/// What an observer asking for `links` and `nodes` is told over `end_ms`.
+fn told(net: &Net, links: Option<Vec<LinkEvents>>, nodes: Option<Vec<NodeEvents>>) -> Vec<Told> {
+    let told = std::sync::Arc::default();
+    let observer = Asking {
+        links,
+        nodes,
+        told: std::sync::Arc::clone(&told),
+    };
+    let (system, _, _) = build(net);
+    let mut x = Executor::with_observer(system, ExecConfig::default(), observer);
+    x.run_until(Time::from_nanos(12_000_000)).unwrap();
+    drop(x);
+    told.lock().unwrap().clone()
+}
+
+/// Per link: every send or none, every read or none, a bound on the values
+/// sent (a send out of it told); per node: its transitions or not, its
+/// activations or not.
+fn asks(links: usize, nodes: usize) -> impl Strategy<Value = (Vec<LinkEvents>, Vec<NodeEvents>)> {
+    let link = (
+        any::<bool>(),
+        any::<bool>(),
+        prop::option::of(1_000_000u64..6_000_000),
+    )
+        .prop_map(|(transfers, reads, max)| LinkEvents {
+            transfers,
+            reads,
+            out_of: max
+                .map(|m| NumberBound {
+                    path: FieldPath::parse(""),
+                    min: None,
+                    max: Some(m as f64),
+                })
+                .into_iter()
+                .collect(),
+            older_than: None,
+        });
+    let node = (any::<bool>(), any::<bool>()).prop_map(|(transitions, actions)| NodeEvents {
+        transitions,
+        actions: if actions { 1 } else { 0 },
+    });
+    (
+        prop::collection::vec(link, links..=links),
+        prop::collection::vec(node, nodes..=nodes),
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    #[test]
+    fn an_observer_is_told_the_events_it_asks_for_and_no_others(
+        (net, (links, nodes)) in net().prop_flat_map(|net| {
+            let (l, n) = (net.wires.len(), net.nodes.len());
+            (Just(net), asks(l, n))
+        })
+    ) {
+        let every = told(&net, None, None);
+        // The every-event observer is told each send and each value taken.
+        let (_, stats) = run(&net, 12);
+        for (l, &(sent, delivered, _)) in stats.iter().enumerate() {
+            let count = |f: fn(&Told) -> Option<usize>| {
+                every.iter().filter(|t| f(t) == Some(l)).count() as u64
+            };
+            prop_assert_eq!(count(|t| match t { Told::Transfer(l, ..) => Some(*l), _ => None }), sent);
+            prop_assert_eq!(count(|t| match t { Told::Read(l, ..) => Some(*l), _ => None }), delivered);
+        }
+        let wanted = |t: &Told| match *t {
+            Told::Transfer(l, _, _, x) => links[l].transfers
+                || links[l].out_of.iter().any(|b| !within(x, b.min, b.max)),
+            Told::Read(l, ..) => links[l].reads,
+            Told::Action(n, _) => nodes[n].action(Some(0)),
+            Told::Transition(n, _) => nodes[n].transitions,
+        };
+        let expected: Vec<Told> = every.iter().filter(|t| wanted(t)).cloned().collect();
+        let got = told(&net, Some(links.clone()), Some(nodes.clone()));
+        prop_assert_eq!(got, expected);
+    }
 }

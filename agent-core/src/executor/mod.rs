@@ -321,6 +321,9 @@ impl<O: Observer> Executor<O> {
                     links: links.map(|l| self.observer.link_events(l)).collect(),
                     nodes: nodes.map(|n| self.observer.node_events(n)).collect(),
                 };
+                for (i, node) in self.nodes.iter_mut().enumerate() {
+                    node.observe(i, &self.wants);
+                }
             }
         }
         if self.schedule.stale {

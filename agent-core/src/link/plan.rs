@@ -8,7 +8,7 @@ use std::cell::RefCell;
 use std::marker::PhantomData;
 use std::rc::Rc;
 
-use super::port::{InPort, LocalIn, LocalOut, More, OutPort};
+use super::port::{Dest, InPort, LocalIn, LocalOut, More, OutPort};
 use super::{AnyChannel, Channel, Channels, Port, Shared, ThreadHalves, remote, thread};
 use crate::buffer::{Access, In, Out, Payload};
 use crate::kinds::Policy;
@@ -42,7 +42,7 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
         let mut links = self
             .links
             .iter()
-            .map(|&l| Some((l, channels.shared::<T>(l)?)))
+            .map(|&l| Dest::new(l, channels.shared::<T>(l)?))
             .collect::<Option<Vec<_>>>()?;
         if links.is_empty() {
             return None;
@@ -101,7 +101,9 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
         let port: Box<dyn InPort<I>> = Box::new(LocalIn {
             channel: channels.shared::<T>(self.link)?,
-            link: self.link,
+            // 32 bits: a system of more links would not fit in memory.
+            link: u32::try_from(self.link).ok()?,
+            observed: true,
             access: self.port.access,
             name: Box::new(self.name.clone()),
             _i: PhantomData,

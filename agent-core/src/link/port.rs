@@ -95,6 +95,10 @@ pub(crate) trait OutPort<O> {
     fn flush(&mut self) -> Result<(), Refused> {
         Ok(())
     }
+    /// The observer's needs, per link, once at the start of a run: a port
+    /// may leave out, before anything else, the sends of links whose
+    /// observer needs none of them. A port never told keeps every event.
+    fn observe(&mut self, _links: &[LinkEvents]) {}
 }
 
 pub(crate) trait InPort<I> {
@@ -103,6 +107,34 @@ pub(crate) trait InPort<I> {
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError>;
     /// Called once when the port is installed: names the buffer after its link.
     fn attach(&self, x: &mut I);
+    /// As [`OutPort::observe`], for the reads.
+    fn observe(&mut self, _links: &[LinkEvents]) {}
+}
+
+/// One destination of an in-process send: its link, whether the observer
+/// needs any of the link's sends ([`OutPort::observe`]; every send until
+/// told), and its channel.
+pub(crate) struct Dest<T> {
+    pub(super) link: u32,
+    pub(super) observed: bool,
+    pub(super) channel: Shared<T>,
+}
+
+impl<T> Dest<T> {
+    /// `None` for a link index past 32 bits (a system that large would not
+    /// fit in memory).
+    pub(super) fn new(link: usize, channel: Shared<T>) -> Option<Dest<T>> {
+        Some(Dest {
+            link: u32::try_from(link).ok()?,
+            observed: true,
+            channel,
+        })
+    }
+
+    fn observe(&mut self, links: &[LinkEvents]) {
+        self.observed =
+            (links.get(self.link as usize)).is_none_or(|w| w.transfers || !w.out_of.is_empty());
+    }
 }
 
 /// The sending half of in-process links: what an action's send touches, in
@@ -110,8 +142,8 @@ pub(crate) trait InPort<I> {
 /// checks, which the plan keeps), so that a port costs one cache line.
 #[repr(C)]
 pub(crate) struct LocalOut<O, T, A> {
-    /// The first destination (link index, channel), inline: most outputs have one.
-    pub(super) first: (usize, Shared<T>),
+    /// The first destination, inline: most outputs have one.
+    pub(super) first: Dest<T>,
     /// The output buffer, from the output struct.
     pub(super) access: A,
     /// Further destinations of a fanned-out output, boxed (8 bytes; none for
@@ -121,30 +153,31 @@ pub(crate) struct LocalOut<O, T, A> {
     pub(super) _o: PhantomData<fn(&mut O)>,
 }
 
-/// The destinations of a fanned-out [`LocalOut`] after its first (link
-/// index, channel).
-pub(super) struct More<T>(pub(super) Vec<(usize, Shared<T>)>);
+/// The destinations of a fanned-out [`LocalOut`] after its first.
+pub(super) struct More<T>(pub(super) Vec<Dest<T>>);
 
 impl<O, T: Payload, A> LocalOut<O, T, A> {
     #[inline(always)]
     fn put(
         &self,
-        (link, channel): &(usize, Shared<T>),
+        dest: &Dest<T>,
         value: &mut Option<T>,
         last: bool,
         stamp: Stamp,
         cx: &mut LinkCx<'_>,
     ) -> Result<(), Refused> {
+        let link = dest.link as usize;
         if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref())
-            && cx.wants.links.get(*link).is_none_or(|w| w.transfer(v))
+            && dest.observed
+            && cx.wants.links.get(link).is_none_or(|w| w.transfer(v))
         {
-            obs.transfer(&TransferEvent { link: *link, stamp }, v);
+            obs.transfer(&TransferEvent { link, stamp }, v);
         }
-        channel
+        dest.channel
             .borrow_mut()
             .put(value, last, stamp)
             .map_err(|bound| Refused {
-                link: *link,
+                link,
                 cause: Cause::Full(bound),
             })
     }
@@ -175,6 +208,13 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
     fn discard(&mut self, y: &mut O) {
         (self.access)(y).discard();
     }
+
+    fn observe(&mut self, links: &[LinkEvents]) {
+        self.first.observe(links);
+        if let Some(more) = &mut self.more {
+            more.0.iter_mut().for_each(|d| d.observe(links));
+        }
+    }
 }
 
 /// The receiving half of an in-process link: what a read touches first (see
@@ -182,7 +222,10 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
 #[repr(C)]
 pub(crate) struct LocalIn<I, T, A> {
     pub(super) channel: Shared<T>,
-    pub(super) link: usize,
+    pub(super) link: u32,
+    /// Whether the observer needs any of the link's reads
+    /// ([`InPort::observe`]; every read until told).
+    pub(super) observed: bool,
     /// The input buffer, from the input struct.
     pub(super) access: A,
     /// Given to the buffer once ([`InPort::attach`]), boxed (8 bytes) so that
@@ -193,7 +236,7 @@ pub(crate) struct LocalIn<I, T, A> {
 
 /// Tell the observer that the buffer `x` just took a value from `link` (if it
 /// did), or holds one older than the observer's bound
-/// ([`LinkEvents::older_than`]).
+/// ([`LinkEvents::older_than`](crate::trace::LinkEvents::older_than)).
 #[inline]
 pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
     let Some(obs) = cx.observer.as_deref_mut() else {
@@ -227,11 +270,18 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A>
     fn read(&mut self, x: &mut I, cx: &mut LinkCx<'_>) -> Result<(), LinkError> {
         let x = (self.access)(x);
         self.channel.borrow_mut().take_into(x);
-        observe_read(x, self.link, cx);
+        if cx.observer.is_some() && self.observed {
+            observe_read(x, self.link as usize, cx);
+        }
         Ok(())
     }
 
     fn attach(&self, x: &mut I) {
         (self.access)(x).set_name((*self.name).clone());
+    }
+
+    fn observe(&mut self, links: &[LinkEvents]) {
+        self.observed =
+            (links.get(self.link as usize)).is_none_or(|w| w.reads || w.older_than.is_some());
     }
 }

@@ -89,6 +89,7 @@ use crate::{
     Violation,
 };
 
+mod remap;
 mod watch;
 
 pub use watch::Watch;
@@ -192,6 +193,8 @@ struct Shared {
     /// Per node: its FSM's predicates that are its subsystem's in the spec,
     /// as (the FSM's index, the spec's index), both below 64.
     predicates: Vec<Vec<(u8, u8)>>,
+    /// Per node: the same map, applied to a valuation's bits at once.
+    remaps: Vec<remap::Remap>,
     /// The invariants that cannot be judged on this system, with why.
     invariants_unjudgeable: Vec<(ContractId, String)>,
     verdicts: Mutex<Verdicts>,
@@ -287,6 +290,7 @@ impl Live {
             })
             .collect();
         let invariants_unjudgeable = invariants_unjudgeable(&monitors, &subsystems, &predicates);
+        let remaps = predicates.iter().map(|p| remap::Remap::new(p)).collect();
         Live {
             shared: Arc::new(Shared {
                 monitors,
@@ -295,6 +299,7 @@ impl Live {
                 behaviours,
                 unjudgeable,
                 predicates,
+                remaps,
                 invariants_unjudgeable,
                 verdicts: Mutex::new(Verdicts::default()),
             }),

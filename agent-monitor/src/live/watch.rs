@@ -351,18 +351,11 @@ impl Observer for Watch {
             return;
         };
         // The FSM's bits to the spec's.
-        let (mut known, mut value) = (0u64, 0u64);
-        for &(f, k) in self
-            .shared
-            .predicates
-            .get(e.node)
-            .map_or(&[][..], Vec::as_slice)
-        {
-            if values.known >> f & 1 == 1 {
-                known |= 1 << k;
-                value |= (values.value >> f & 1) << k;
-            }
-        }
+        let Some(remap) = self.shared.remaps.get(e.node) else {
+            return;
+        };
+        let known = remap.apply(values.known);
+        let value = remap.apply(values.value & values.known);
         self.monitors
             .predicates(sub, e.time, known, value, &mut |v| self.sink.take(v));
     }
