@@ -25,6 +25,7 @@
 pub mod allocations;
 pub mod behaviour;
 pub mod buffer;
+mod cache;
 pub mod describe;
 pub mod error;
 pub mod executor;

@@ -369,7 +369,7 @@ impl<O: Observer> Executor<O> {
         if receptors == due.len() {
             for (k, &i) in due.iter().enumerate() {
                 if let Some(&j) = due.get(k + AHEAD) {
-                    prefetch(&*self.nodes[j]);
+                    crate::cache::prefetch(&*self.nodes[j], 4);
                 }
                 let read = self.nodes[i].read(&mut cx);
                 debug_assert!(read.is_ok(), "in-process links report no problem");
@@ -393,7 +393,7 @@ impl<O: Observer> Executor<O> {
         for k in 0..self.schedule.due.len() {
             let i = self.schedule.due[k];
             if let Some(&j) = self.schedule.due.get(k + AHEAD) {
-                prefetch(&*self.nodes[j]);
+                crate::cache::prefetch(&*self.nodes[j], 4);
             }
             if self.next[i] != tn {
                 continue;
@@ -644,32 +644,5 @@ impl<O: Observer> Executor<O> {
 }
 
 /// How many nodes ahead of the one being read or stepped the executor asks
-/// the cache for (see [`prefetch`]).
+/// the cache for ([`crate::cache::prefetch`]).
 const AHEAD: usize = 8;
-
-/// Ask the cache for the first 256 bytes of a node (its FSM state, buffers
-/// and port tables) a few nodes ahead of the walk over the nodes due: in a
-/// system of thousands of subsystems the nodes no longer fit in the caches,
-/// and an instant's two walks over them (every read, then every step) wait
-/// on each node's lines otherwise. Measured in docs/scaling.md (about 7 %
-/// an action at 9,999 subsystems, nothing at 3); elsewhere than on x86_64,
-/// nothing.
-#[inline(always)]
-fn prefetch<T: ?Sized>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    #[allow(unsafe_code, reason = "a cache hint: it reads nothing")]
-    // SAFETY: a prefetch is a hint to the cache: it neither reads nor writes
-    // memory as the program sees it and cannot fault, whatever the address
-    // (here a live node's and the lines after it); SSE is part of every
-    // x86_64 target.
-    unsafe {
-        let p = (x as *const T).cast::<i8>();
-        for line in 0..4 {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                p.wrapping_add(64 * line),
-            );
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
-}
