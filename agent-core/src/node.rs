@@ -50,6 +50,11 @@ pub(crate) trait InProcessNode {
     /// `index`): the ports leave out the events of links whose observer needs
     /// none, the node the activations and transitions it needs not.
     fn observe(&mut self, index: usize, wants: &Wants);
+    /// The addresses beyond the node's own that its read and its step touch
+    /// (its port tables, ports and their channels), pushed onto `read` and
+    /// `step`: what the executor asks the cache for a few nodes ahead
+    /// ([`crate::cache`]).
+    fn reach(&self, read: &mut Vec<usize>, step: &mut Vec<usize>);
     /// FSM decision, action (or driver step) and send.
     /// Errors are boxed: they are rare, and a small `Result` keeps the hot path lean.
     fn step(
@@ -246,6 +251,19 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
         self.outs.iter_mut().for_each(|p| p.observe(&wants.links));
         if let Some(events) = wants.nodes.get(index) {
             self.core.observe(*events);
+        }
+    }
+
+    fn reach(&self, read: &mut Vec<usize>, step: &mut Vec<usize>) {
+        crate::cache::address_of(self.ins.as_slice(), read);
+        for p in &self.ins {
+            crate::cache::address_of(&**p, read);
+            p.reach(read);
+        }
+        crate::cache::address_of(self.outs.as_slice(), step);
+        for p in &self.outs {
+            crate::cache::address_of(&**p, step);
+            p.reach(step);
         }
     }
 

@@ -33,6 +33,7 @@ use std::any::Any;
 use std::time::Duration;
 
 mod build;
+mod reach;
 mod schedule;
 
 use crate::error::ExecError;
@@ -162,6 +163,8 @@ pub struct Executor<O: Observer = NoObserver> {
     pub(crate) observer: O,
     /// Per link, the sends and reads the observer needs (asked at the start).
     wants: Wants,
+    /// What each node's read and step touch, for the cache ([`crate::cache`]).
+    reach: reach::Reach,
     started: bool,
     stopped: bool,
     pub(crate) report: RunReport,
@@ -216,7 +219,9 @@ impl<O: Observer> Executor<O> {
             .collect();
         let next = vec![0; n];
         let schedule = Schedule::new(&next, &periods, &order);
+        let reach = reach::Reach::of(&nodes);
         Executor {
+            reach,
             channels,
             info,
             nodes,
@@ -369,7 +374,7 @@ impl<O: Observer> Executor<O> {
         if receptors == due.len() {
             for (k, &i) in due.iter().enumerate() {
                 if let Some(&j) = due.get(k + AHEAD) {
-                    crate::cache::prefetch(&*self.nodes[j], 4);
+                    self.reach.prefetch(&*self.nodes[j], j, false);
                 }
                 let read = self.nodes[i].read(&mut cx);
                 debug_assert!(read.is_ok(), "in-process links report no problem");
@@ -393,7 +398,7 @@ impl<O: Observer> Executor<O> {
         for k in 0..self.schedule.due.len() {
             let i = self.schedule.due[k];
             if let Some(&j) = self.schedule.due.get(k + AHEAD) {
-                crate::cache::prefetch(&*self.nodes[j], 4);
+                self.reach.prefetch(&*self.nodes[j], j, true);
             }
             if self.next[i] != tn {
                 continue;

@@ -364,6 +364,20 @@ impl<T: Payload> AnyChannel for Channel<T> {
 /// executor is single-threaded, so sharing needs no lock.
 pub(crate) type Shared<T> = Rc<RefCell<Channel<T>>>;
 
+/// The addresses a transfer through `channel` touches (pushed onto `to`):
+/// the channel's (its `RefCell`'s flag, then the channel), and a queue's
+/// storage (made once, at its bound: it never moves; `as_slices` of the
+/// queue, empty when the executor is made, starts at the storage's
+/// start). For the executor's prefetch ([`OutPort::reach`](port::OutPort::reach)).
+pub(crate) fn reach<T>(channel: &Shared<T>, to: &mut Vec<usize>) {
+    crate::cache::address_of(&**channel, to);
+    if let Ok(c) = channel.try_borrow()
+        && let ChannelState::Queue { items, .. } = &c.state
+    {
+        to.push(items.as_slices().0.as_ptr().addr());
+    }
+}
+
 /// The channels of all links of a system, by link index: typed (erased as `Any`, each
 /// a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics. The
 /// deterministic executor makes them one by one ([`Channels::make`]), in the

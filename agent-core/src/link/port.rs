@@ -99,6 +99,11 @@ pub(crate) trait OutPort<O> {
     /// may leave out, before anything else, the sends of links whose
     /// observer needs none of them. A port never told keeps every event.
     fn observe(&mut self, _links: &[LinkEvents]) {}
+    /// The addresses a send touches beyond the port itself (its channels'),
+    /// pushed onto `to`: what the executor asks the cache for a few nodes
+    /// ahead ([`crate::cache`]). A port that touches nothing else pushes
+    /// nothing.
+    fn reach(&self, _to: &mut Vec<usize>) {}
 }
 
 pub(crate) trait InPort<I> {
@@ -109,6 +114,8 @@ pub(crate) trait InPort<I> {
     fn attach(&self, x: &mut I);
     /// As [`OutPort::observe`], for the reads.
     fn observe(&mut self, _links: &[LinkEvents]) {}
+    /// As [`OutPort::reach`], for a read.
+    fn reach(&self, _to: &mut Vec<usize>) {}
 }
 
 /// One destination of an in-process send: its link, whether the observer
@@ -215,6 +222,14 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
             more.0.iter_mut().for_each(|d| d.observe(links));
         }
     }
+
+    fn reach(&self, to: &mut Vec<usize>) {
+        super::reach(&self.first.channel, to);
+        if let Some(more) = &self.more {
+            crate::cache::address_of(more.0.as_slice(), to);
+            more.0.iter().for_each(|d| super::reach(&d.channel, to));
+        }
+    }
 }
 
 /// The receiving half of an in-process link: what a read touches first (see
@@ -283,5 +298,9 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A>
     fn observe(&mut self, links: &[LinkEvents]) {
         self.observed =
             (links.get(self.link as usize)).is_none_or(|w| w.reads || w.older_than.is_some());
+    }
+
+    fn reach(&self, to: &mut Vec<usize>) {
+        super::reach(&self.channel, to);
     }
 }

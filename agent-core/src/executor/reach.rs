@@ -1,0 +1,194 @@
+//! What each node's read and step touch, asked of the cache a few nodes
+//! ahead of the executor's walks ([`crate::cache`]).
+
+use crate::cache::{prefetch, prefetch_addr};
+use crate::node::InProcessNode;
+
+/// The addresses each node's read and step touch beyond the node itself
+/// (its ports and their channels, [`InProcessNode::reach`]), gathered once
+/// when the executor is made: nodes, ports and channels never move.
+#[derive(Debug, Default)]
+pub(crate) struct Reach {
+    read: Vec<usize>,
+    step: Vec<usize>,
+    /// Per node, where its addresses start in `read` and `step` (one more
+    /// entry: the end).
+    at: Vec<(u32, u32)>,
+}
+
+impl Reach {
+    /// The addresses of `nodes`, in their order.
+    pub(crate) fn of(nodes: &[Box<dyn InProcessNode>]) -> Reach {
+        let mut r = Reach::default();
+        for node in nodes {
+            r.at.push((len32(&r.read), len32(&r.step)));
+            node.reach(&mut r.read, &mut r.step);
+        }
+        r.at.push((len32(&r.read), len32(&r.step)));
+        r
+    }
+
+    /// Ask the cache for what node `i` touches when it is read (`step`
+    /// false) or stepped: its first lines and the addresses of its reach.
+    #[inline(always)]
+    pub(crate) fn prefetch(&self, node: &dyn InProcessNode, i: usize, step: bool) {
+        prefetch(node, NODE_LINES);
+        let (Some(&(r0, s0)), Some(&(r1, s1))) = (self.at.get(i), self.at.get(i + 1)) else {
+            return;
+        };
+        let (list, from, to) = if step {
+            (&self.step, s0, s1)
+        } else {
+            (&self.read, r0, r1)
+        };
+        for &at in list.get(from as usize..to as usize).unwrap_or_default() {
+            prefetch_addr(at, REACH_LINES);
+        }
+    }
+}
+
+/// The lines asked of a node (its FSM state, buffers and port tables first).
+const NODE_LINES: usize = 4;
+/// The lines asked from each address of a node's reach: a port, a
+/// channel, a queue's storage or a port table, each at most 128 bytes
+/// for the values benchmarked (and the first two lines of a larger one
+/// are those a transfer touches first). Measured against the exact lines
+/// each value spans, which were slower (docs/scaling.md).
+const REACH_LINES: usize = 2;
+
+fn len32(v: &[usize]) -> u32 {
+    u32::try_from(v.len()).unwrap_or(u32::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failing unwrap is a failing test")]
+
+    use crate::*;
+
+    struct C;
+    #[derive(Debug, Default)]
+    struct ToE {
+        v: Out<u64>,
+    }
+    impl Group for ToE {
+        const PEER: NodeKind = NodeKind::VirtualEffector;
+    }
+    #[derive(Debug, Default)]
+    struct COut {
+        e: ToE,
+    }
+    #[derive(Debug, Default)]
+    struct FromE {
+        v: In<u64>,
+    }
+    impl Group for FromE {
+        const PEER: NodeKind = NodeKind::VirtualEffector;
+    }
+    #[derive(Debug, Default)]
+    struct CIn {
+        e: FromE,
+    }
+    impl Subsystem for C {
+        const KIND: SubsystemKind = SubsystemKind::Control;
+        type Memory = u64;
+        type Input = CIn;
+        type Output = COut;
+    }
+
+    struct E;
+    #[derive(Debug, Default)]
+    struct ToC {
+        v: Out<u64>,
+    }
+    impl Group for ToC {
+        const PEER: NodeKind = NodeKind::Control;
+    }
+    #[derive(Debug, Default)]
+    struct EOut {
+        c: ToC,
+    }
+    #[derive(Debug, Default)]
+    struct FromC {
+        v: In<u64>,
+    }
+    impl Group for FromC {
+        const PEER: NodeKind = NodeKind::Control;
+    }
+    #[derive(Debug, Default)]
+    struct EIn {
+        c: FromC,
+    }
+    impl Subsystem for E {
+        const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
+        type Memory = u64;
+        type Input = EIn;
+        type Output = EOut;
+    }
+
+    fn shared(a: &[usize], b: &[usize]) -> usize {
+        a.iter().filter(|x| b.contains(x)).count()
+    }
+
+    /// The reach of a link's two ends names the same channel (and a queue's
+    /// storage): what the writer's step touches is what the reader's read
+    /// touches, and the ports (one per end) are their own.
+    #[test]
+    fn each_end_of_a_link_reaches_its_channel() {
+        let mut b = SystemBuilder::new();
+        let a = b.agent("a");
+        let period = Period::from_millis(1).unwrap();
+        let c_fsm = Fsm::single(Behaviour::while_loop(
+            "run",
+            Action::<C>::new().output(|y| &mut y.e, |m: &u64, _: &CIn, y: &mut ToE| y.v.set(*m)),
+            "false",
+        ))
+        .unwrap();
+        let e_fsm = Fsm::single(Behaviour::while_loop(
+            "run",
+            Action::<E>::new().output(|y| &mut y.c, |m: &u64, _: &EIn, y: &mut ToC| y.v.set(*m)),
+            "false",
+        ))
+        .unwrap();
+        let c = b.subsystem(a, "c", period, 0, c_fsm);
+        let e = b.subsystem(a, "e", period, 0, e_fsm);
+        b.connect(
+            c.output(port!(COut, e.v)),
+            e.input(port!(EIn, c.v)),
+            Policy::queue(4),
+        );
+        b.connect(
+            e.output(port!(EOut, c.v)),
+            c.input(port!(CIn, e.v)),
+            Policy::Sample,
+        );
+        let x = Executor::new(b.build().unwrap(), ExecConfig::default());
+        let r = &x.reach;
+        let list = |node: usize, step: bool| {
+            let (from, to) = (r.at[node], r.at[node + 1]);
+            if step {
+                r.step[from.1 as usize..to.1 as usize].to_vec()
+            } else {
+                r.read[from.0 as usize..to.0 as usize].to_vec()
+            }
+        };
+        let (ci, ei) = (c.id().index(), e.id().index());
+        // The port table, the port, then the channel (and a queue's storage).
+        assert_eq!(list(ci, true).len(), 4);
+        assert_eq!(list(ei, false).len(), 4);
+        assert_eq!(list(ei, true).len(), 3);
+        assert_eq!(list(ci, false).len(), 3);
+        assert_eq!(
+            shared(&list(ci, true), &list(ei, false)),
+            2,
+            "queue: channel and storage"
+        );
+        assert_eq!(
+            shared(&list(ei, true), &list(ci, false)),
+            1,
+            "sample: channel"
+        );
+        assert_eq!(shared(&list(ci, true), &list(ci, false)), 0);
+        assert!(r.read.iter().chain(&r.step).all(|&a| a != 0));
+    }
+}
