@@ -160,6 +160,9 @@ fn real_time_lines(lines: &[&str], text: &str, rt_subsystems: Option<f64>) {
             1
         };
         assert_eq!(runs.len(), expected, "{text}");
+        for (k, run) in runs.iter().enumerate() {
+            assert_eq!(field(run, "run"), format!("{}", k + 1), "{run}");
+        }
     }
     if let Some(n) = rt_subsystems {
         let runs = pool_runs(&format!("{n}"));
