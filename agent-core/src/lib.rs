@@ -19,8 +19,8 @@
 //! | links | [`SystemBuilder::connect`] with a [`Policy`] (sample or queue) |
 //!
 //! Start with [`Subsystem`], [`Action`], [`Behaviour`], [`Fsm`], then
-//! [`SystemBuilder`] and [`Executor`]. The `testing` feature adds
-//! [`testing`]: termination properties checked with proptest.
+//! [`SystemBuilder`] and [`Executor`]. The `testing` feature adds the
+//! module `testing`: termination properties checked with proptest.
 
 pub mod allocations;
 pub mod behaviour;
