@@ -690,10 +690,65 @@ impl<O: Observer> Observer for Unclocked<O> {
     }
 }
 
+/// What a watch is given: what it asks for, every event beside it, or
+/// every event and no instant.
+#[derive(Clone, Copy, PartialEq)]
+enum Given {
+    Asked,
+    Every,
+    Unclocked,
+}
+
+/// 20 s of the tank watched by `spec`'s contracts, the watch given `given`:
+/// its verdicts, the executor's errors, and what it asked of each link and
+/// node.
+fn watched(
+    spec: &embodied::spec::Spec,
+    given: Given,
+) -> (
+    embodied::monitor::live::Verdicts,
+    Vec<String>,
+    Vec<trace::LinkEvents>,
+    Vec<trace::NodeEvents>,
+) {
+    use embodied::monitor::Monitors;
+    use embodied::monitor::live::Live;
+    let s = system();
+    let live = Live::new(Monitors::new(spec).unwrap(), &s);
+    let watch = live.watch();
+    let asked = (0..s.info().links.len())
+        .map(|l| watch.link_events(l))
+        .collect();
+    let nodes = (0..s.info().nodes.len())
+        .map(|n| watch.node_events(n))
+        .collect();
+    let config = ExecConfig {
+        on_error: OnError::Continue,
+        ..ExecConfig::default()
+    };
+    let errors = match given {
+        Given::Every => {
+            let mut exec = Executor::with_observer(s, config, (Everything, watch));
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        }
+        Given::Unclocked => {
+            let mut exec = Executor::with_observer(s, config, Unclocked(watch));
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        }
+        Given::Asked => {
+            let mut exec = Executor::with_observer(s, config, watch);
+            exec.run_for(Duration::from_secs(20)).unwrap();
+            exec.report().errors.iter().map(|e| e.to_string()).collect()
+        }
+    };
+    (live.verdicts(), errors, asked, nodes)
+}
+
 #[test]
 fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
-    use embodied::monitor::Monitors;
-    use embodied::monitor::live::{Live, Verdicts};
+    use embodied::monitor::live::Verdicts;
     use embodied::trace::{LinkEvents, NodeEvents};
     // Seeded to break: the level's range (checked where r1 sends it, no
     // other contract counting those sends), its freshness, the response,
@@ -705,43 +760,7 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     c.responses[0].within_s = 0.001;
     c.bounds[0].max_iterations = Some(10);
     let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
-    /// What the watch is given: what it asks for, every event beside it, or
-    /// every event and no instant.
-    #[derive(Clone, Copy, PartialEq)]
-    enum Given {
-        Asked,
-        Every,
-        Unclocked,
-    }
-    let run = |given: Given| -> (Verdicts, Vec<String>, Vec<LinkEvents>, Vec<NodeEvents>) {
-        let s = system();
-        let live = Live::new(Monitors::new(&spec).unwrap(), &s);
-        let watch = live.watch();
-        let asked = (0..s.info().links.len())
-            .map(|l| watch.link_events(l))
-            .collect();
-        let nodes = (0..s.info().nodes.len())
-            .map(|n| watch.node_events(n))
-            .collect();
-        let config = ExecConfig {
-            on_error: OnError::Continue,
-            ..ExecConfig::default()
-        };
-        let errors = if given == Given::Every {
-            let mut exec = Executor::with_observer(s, config, (Everything, watch));
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        } else if given == Given::Unclocked {
-            let mut exec = Executor::with_observer(s, config, Unclocked(watch));
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        } else {
-            let mut exec = Executor::with_observer(s, config, watch);
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        };
-        (live.verdicts(), errors, asked, nodes)
-    };
+    let run = |given| watched(&spec, given);
     let (asked_only, errors, asked, nodes) = run(Given::Asked);
     let (every, every_errors, _, _) = run(Given::Every);
     assert_eq!(asked_only, every);
@@ -793,5 +812,43 @@ fn a_watch_given_only_the_events_it_asks_for_judges_as_one_given_every_event() {
     );
     for (n, asked) in nodes.iter().enumerate().filter(|(n, _)| *n != c1) {
         assert_eq!(*asked, NodeEvents::none(), "{}", info.nodes[n].name);
+    }
+}
+
+#[test]
+fn a_rate_judged_from_the_executor_s_stamps_judges_as_one_told_every_send() {
+    use embodied::monitor::Broke;
+    // The level's rate alone, seeded to break: a window of 6.7 ms, r1
+    // sending every 10 ms, so that each gap between its sends breaks it
+    // once (a silence reported, then its end found at the next send).
+    let c = Contracts {
+        rates: vec![Rate {
+            input: "c1.r1.level".into(),
+            min_hz: 150.0,
+        }],
+        ..Contracts::default()
+    };
+    let spec = embodied::spec::load("tank.ron", spec_text(c)).unwrap().spec;
+    let (asked, errors, links, _) = watched(&spec, Given::Asked);
+    // The level's sends are not told: their instants are kept.
+    let kept: Vec<_> = links.iter().filter(|w| w.stamps).collect();
+    assert_eq!(kept.len(), 1, "{links:?}");
+    assert!(!kept[0].transfers && !kept[0].reads, "{links:?}");
+    let (every, every_errors, _, _) = watched(&spec, Given::Every);
+    let (unclocked, unclocked_errors, _, _) = watched(&spec, Given::Unclocked);
+    assert_eq!(asked, every);
+    assert_eq!(errors, every_errors);
+    assert_eq!(unclocked, every);
+    assert_eq!(unclocked_errors, every_errors);
+    // One silence a gap: 2,000 sends in 20 s.
+    assert!((1_990..=2_001).contains(&asked.count), "{}", asked.count);
+    for v in &asked.violations {
+        match v.broke {
+            Broke::Silent { since, window } => {
+                assert_eq!(v.time, since.saturating_add(window), "{v:?}");
+                assert!(window < Duration::from_millis(7), "{v:?}");
+            }
+            _ => panic!("{v:?}"),
+        }
     }
 }

@@ -21,7 +21,7 @@ mod pick;
 mod wants;
 
 pub use pick::{FieldPath, PickError};
-pub use wants::{LinkEvents, NodeEvents, NumberBound, within};
+pub use wants::{LinkEvents, NodeEvents, NumberBound, SendStamps, within};
 
 /// A value in a buffer, seen through the observer without knowing its type.
 pub trait ErasedPayload {
@@ -245,6 +245,13 @@ pub trait Observer: Send {
     /// node's activations ([`Observer::node_events`]). Other executors do not
     /// call it; they tell every activation.
     fn instant(&mut self, _time: Time) {}
+    /// The deterministic executor keeps the instant of the last value sent
+    /// into each link this observer asked it to ([`LinkEvents::stamps`]) in
+    /// `stamps`, given once before the first instant when any link asked:
+    /// the observer reads it when it needs to (at [`Observer::instant`], say)
+    /// instead of hearing of each send. Other executors do not call it; they
+    /// tell every send.
+    fn stamps(&mut self, _stamps: &SendStamps) {}
     /// A value was sent into a link.
     fn transfer(&mut self, _event: &TransferEvent, _value: &dyn ErasedPayload) {}
     /// A node took a value from a link (before its activation's step).

@@ -15,7 +15,9 @@
 
 use std::collections::VecDeque;
 
-use agent_core::trace::{ErasedPayload, FieldPath, LinkEvents, NodeEvents, NumberBound, within};
+use agent_core::trace::{
+    ErasedPayload, FieldPath, LinkEvents, NodeEvents, NumberBound, SendStamps, within,
+};
 use agent_core::*;
 use proptest::prelude::*;
 
@@ -338,6 +340,9 @@ enum Told {
     Read(usize, Time, Time),
     Action(usize, Time),
     Transition(usize, Time),
+    /// At an instant, a link whose last sends' instants the observer asked
+    /// the executor to keep, and the one its table holds.
+    Stamp(usize, Time, Option<Time>),
 }
 
 /// An observer that asks for `links` and `nodes` (every event where `None`)
@@ -346,6 +351,8 @@ struct Asking {
     links: Option<Vec<LinkEvents>>,
     nodes: Option<Vec<NodeEvents>>,
     told: std::sync::Arc<std::sync::Mutex<Vec<Told>>>,
+    /// The executor's table of the last sends' instants, once given.
+    stamps: Option<SendStamps>,
 }
 
 impl Asking {
@@ -374,6 +381,19 @@ impl Observer for Asking {
     fn transition(&mut self, e: &TransitionEvent) {
         self.log(Told::Transition(e.node, e.time));
     }
+    fn stamps(&mut self, stamps: &SendStamps) {
+        self.stamps = Some(stamps.clone());
+    }
+    fn instant(&mut self, time: Time) {
+        let (Some(links), Some(stamps)) = (&self.links, &self.stamps) else {
+            return;
+        };
+        for (l, w) in links.iter().enumerate() {
+            if w.stamps {
+                self.log(Told::Stamp(l, time, stamps.last(l)));
+            }
+        }
+    }
 }
 
 /// What an observer asking for `links` and `nodes` is told over `end_ms`.
@@ -383,6 +403,7 @@ fn told(net: &Net, links: Option<Vec<LinkEvents>>, nodes: Option<Vec<NodeEvents>
         links,
         nodes,
         told: std::sync::Arc::clone(&told),
+        stamps: None,
     };
     let (system, _, _) = build(net);
     let mut x = Executor::with_observer(system, ExecConfig::default(), observer);
@@ -399,10 +420,12 @@ fn asks(links: usize, nodes: usize) -> impl Strategy<Value = (Vec<LinkEvents>, V
         any::<bool>(),
         any::<bool>(),
         prop::option::of(1_000_000u64..6_000_000),
+        any::<bool>(),
     )
-        .prop_map(|(transfers, reads, max)| LinkEvents {
+        .prop_map(|(transfers, reads, max, stamps)| LinkEvents {
             transfers,
             reads,
+            stamps,
             out_of: max
                 .map(|m| NumberBound {
                     path: FieldPath::parse(""),
@@ -448,9 +471,31 @@ proptest! {
             Told::Read(l, ..) => links[l].reads,
             Told::Action(n, _) => nodes[n].action(Some(0)),
             Told::Transition(n, _) => nodes[n].transitions,
+            Told::Stamp(..) => false,
         };
         let expected: Vec<Told> = every.iter().filter(|t| wanted(t)).cloned().collect();
-        let got = told(&net, Some(links.clone()), Some(nodes.clone()));
+        let (stamps, got): (Vec<Told>, Vec<Told>) = told(&net, Some(links.clone()), Some(nodes.clone()))
+            .into_iter()
+            .partition(|t| matches!(t, Told::Stamp(..)));
         prop_assert_eq!(got, expected);
+        // At each instant, the table holds the instant of each asked link's
+        // last send before it (the executor gives it when any link asks).
+        let instants = every.iter().filter_map(|t| match t {
+            Told::Action(_, at) => Some(*at),
+            _ => None,
+        });
+        let mut instants: Vec<Time> = instants.collect();
+        instants.dedup();
+        let asked = links.iter().filter(|w| w.stamps).count();
+        prop_assert_eq!(stamps.len(), instants.len() * asked);
+        for t in &stamps {
+            if let Told::Stamp(l, at, last) = *t {
+                let sent = every.iter().filter_map(|e| match *e {
+                    Told::Transfer(k, time, ..) if k == l && time < at => Some(time),
+                    _ => None,
+                });
+                prop_assert_eq!(last, sent.max(), "link {} at {:?}", l, at);
+            }
+        }
     }
 }

@@ -91,6 +91,7 @@ impl Monitors {
             responses: Vec::new(),
             invariants: Vec::new(),
             next_deadline: None,
+            silent: 0,
             activations: false,
             index: Index::default(),
         };

@@ -19,6 +19,7 @@ impl Monitors {
             r.last = t;
             r.reported = false;
         }
+        self.silent = 0;
         for b in &mut self.bounds {
             b.run = None;
         }
@@ -107,7 +108,10 @@ impl Monitors {
         for &k in listed(&self.index.rates_of, input.0) {
             let r = &mut self.rates[k as usize];
             r.last = t;
-            r.reported = false;
+            if r.reported {
+                r.reported = false;
+                self.silent = self.silent.saturating_sub(1);
+            }
             due = earliest(due, Some(t.as_nanos().saturating_add(r.window)));
         }
         self.due(due);
@@ -251,6 +255,20 @@ impl Monitors {
         }
     }
 
+    /// Whether a deadline may have passed before `t` (a rate's window
+    /// closed, a response or a freshness due): whether [`Monitors::advance`]
+    /// to `t` would judge anything.
+    #[inline]
+    pub(crate) fn due_before(&self, t: Time) -> bool {
+        self.next_deadline.is_some_and(|d| t > d)
+    }
+
+    /// Whether a rate's window closed empty and it waits for an arrival.
+    #[inline]
+    pub(crate) fn silent(&self) -> bool {
+        self.silent > 0
+    }
+
     /// Time has reached `t`: report the rate windows and response deadlines
     /// that passed before it (every event calls this first).
     pub fn advance(&mut self, t: Time, sink: &mut impl FnMut(Violation)) {
@@ -277,6 +295,7 @@ impl Monitors {
             let end = r.last.as_nanos().saturating_add(r.window);
             if !r.reported && t.as_nanos() > end {
                 r.reported = true;
+                self.silent += 1;
                 sink(Violation {
                     time: Time::from_nanos(end),
                     contract: r.contract,

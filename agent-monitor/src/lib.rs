@@ -399,6 +399,9 @@ pub struct Monitors {
     invariants: Vec<InvariantM>,
     /// The earliest deadline a rate or response monitor waits for.
     next_deadline: Option<Time>,
+    /// The rates whose window closed empty, waiting for an arrival (they
+    /// have no deadline until it comes).
+    silent: u32,
     /// Whether the readers' activations are given ([`Monitors::at_activations`]).
     activations: bool,
     /// Which monitors each event concerns.

@@ -163,6 +163,9 @@ pub struct Executor<O: Observer = NoObserver> {
     pub(crate) observer: O,
     /// Per link, the sends and reads the observer needs (asked at the start).
     wants: Wants,
+    /// The last sends' instants the observer asked for, if it asked
+    /// ([`LinkEvents::stamps`](crate::trace::LinkEvents::stamps)).
+    stamps: Option<crate::trace::SendStamps>,
     /// What each node's read and step touch, for the cache ([`crate::cache`]).
     reach: reach::Reach,
     started: bool,
@@ -222,6 +225,7 @@ impl<O: Observer> Executor<O> {
         let reach = reach::Reach::of(&nodes);
         Executor {
             reach,
+            stamps: None,
             channels,
             info,
             nodes,
@@ -329,6 +333,11 @@ impl<O: Observer> Executor<O> {
                 for (i, node) in self.nodes.iter_mut().enumerate() {
                     node.observe(i, &self.wants);
                 }
+                if self.wants.links.iter().any(|w| w.stamps) {
+                    let stamps = crate::trace::SendStamps::new(self.info.links.len());
+                    self.observer.stamps(&stamps);
+                    self.stamps = Some(stamps);
+                }
             }
         }
         if self.schedule.stale {
@@ -365,6 +374,7 @@ impl<O: Observer> Executor<O> {
             observer: observe.then_some(&mut self.observer as &mut dyn Observer),
             wants: &self.wants,
             links: &self.info.links,
+            stamps: self.stamps.as_ref(),
             environment: None,
         };
         // Reads in declaration order: the components due, then the
@@ -409,6 +419,7 @@ impl<O: Observer> Executor<O> {
                 observer: observe.then_some(&mut self.observer as &mut dyn Observer),
                 wants: &self.wants,
                 links: &self.info.links,
+                stamps: self.stamps.as_ref(),
                 environment: self.environment.as_deref_mut(),
             };
             match self.nodes[i].step(t, i, &mut cx) {

@@ -10,7 +10,9 @@ use super::{Access, Shared};
 use crate::buffer::{In, Out, Payload};
 use crate::error::LinkError;
 use crate::time::{Stamp, Time};
-use crate::trace::{LinkEvents, LinkInfo, NodeEvents, Observer, ReadEvent, TransferEvent};
+use crate::trace::{
+    LinkEvents, LinkInfo, NodeEvents, Observer, ReadEvent, SendStamps, TransferEvent,
+};
 
 /// The events an observer needs, asked at the start of a run
 /// ([`Observer::link_events`], [`Observer::node_events`]); an entry not
@@ -40,6 +42,9 @@ pub(crate) struct LinkCx<'a> {
     /// observer pays nothing for it).
     pub(crate) wants: &'a Wants,
     pub(crate) links: &'a [LinkInfo],
+    /// The last sends' instants the observer asked the executor to keep
+    /// ([`LinkEvents::stamps`]).
+    pub(crate) stamps: Option<&'a SendStamps>,
     /// The system's environment, for drivers.
     pub(crate) environment: Option<&'a mut (dyn std::any::Any + Send)>,
 }
@@ -120,10 +125,11 @@ pub(crate) trait InPort<I> {
 
 /// One destination of an in-process send: its link, whether the observer
 /// needs any of the link's sends ([`OutPort::observe`]; every send until
-/// told), and its channel.
+/// told) and their instants kept ([`LinkEvents::stamps`]), and its channel.
 pub(crate) struct Dest<T> {
     pub(super) link: u32,
     pub(super) observed: bool,
+    pub(super) stamped: bool,
     pub(super) channel: Shared<T>,
 }
 
@@ -134,13 +140,15 @@ impl<T> Dest<T> {
         Some(Dest {
             link: u32::try_from(link).ok()?,
             observed: true,
+            stamped: false,
             channel,
         })
     }
 
     fn observe(&mut self, links: &[LinkEvents]) {
-        self.observed =
-            (links.get(self.link as usize)).is_none_or(|w| w.transfers || !w.out_of.is_empty());
+        let wants = links.get(self.link as usize);
+        self.observed = wants.is_none_or(|w| w.transfers || !w.out_of.is_empty());
+        self.stamped = wants.is_some_and(|w| w.stamps);
     }
 }
 
@@ -174,11 +182,19 @@ impl<O, T: Payload, A> LocalOut<O, T, A> {
         cx: &mut LinkCx<'_>,
     ) -> Result<(), Refused> {
         let link = dest.link as usize;
-        if let (Some(obs), Some(v)) = (cx.observer.as_deref_mut(), value.as_ref())
-            && dest.observed
-            && cx.wants.links.get(link).is_none_or(|w| w.transfer(v))
-        {
-            obs.transfer(&TransferEvent { link, stamp }, v);
+        // Without an observer, one test: a run unobserved pays nothing more.
+        if let Some(obs) = cx.observer.as_deref_mut() {
+            if dest.stamped
+                && let Some(stamps) = cx.stamps
+            {
+                stamps.sent(link, stamp.time);
+            }
+            if let Some(v) = value.as_ref()
+                && dest.observed
+                && cx.wants.links.get(link).is_none_or(|w| w.transfer(v))
+            {
+                obs.transfer(&TransferEvent { link, stamp }, v);
+            }
         }
         dest.channel
             .borrow_mut()

@@ -336,6 +336,7 @@ impl<'a> Thread<'a> {
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
             wants: &Wants::ALL,
             links: &self.shared.info.links,
+            stamps: None,
             environment: None,
         };
         let mut unread = Vec::new();
@@ -378,6 +379,7 @@ impl<'a> Thread<'a> {
             observer: self.observer.as_deref_mut().map(|o| o as &mut dyn Observer),
             wants: &Wants::ALL,
             links: &shared.info.links,
+            stamps: None,
             environment: self.environment.as_deref_mut(),
         };
         let result = self.nodes[k].step(now, self.ids[k], &mut cx);

@@ -8,7 +8,7 @@ use crate::time::Time;
 
 use super::{
     ActionEvent, AuditEvent, ErasedPayload, LinkEvents, NodeEvents, Observer, ReadEvent,
-    SystemInfo, TransferEvent, TransitionEvent,
+    SendStamps, SystemInfo, TransferEvent, TransitionEvent,
 };
 
 /// A boxed observer observes as the box's content does.
@@ -36,6 +36,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn instant(&mut self, time: Time) {
         (**self).instant(time);
+    }
+    fn stamps(&mut self, stamps: &SendStamps) {
+        (**self).stamps(stamps);
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
         (**self).transfer(event, value);
@@ -127,6 +130,14 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         }
         if self.1.enabled() {
             self.1.instant(time);
+        }
+    }
+    fn stamps(&mut self, stamps: &SendStamps) {
+        if self.0.enabled() {
+            self.0.stamps(stamps);
+        }
+        if self.1.enabled() {
+            self.1.stamps(stamps);
         }
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {
@@ -242,6 +253,11 @@ impl<O: Observer> Observer for Option<O> {
     fn instant(&mut self, time: Time) {
         if let Some(o) = self {
             o.instant(time);
+        }
+    }
+    fn stamps(&mut self, stamps: &SendStamps) {
+        if let Some(o) = self {
+            o.stamps(stamps);
         }
     }
     fn transfer(&mut self, event: &TransferEvent, value: &dyn ErasedPayload) {

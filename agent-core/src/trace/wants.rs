@@ -6,9 +6,13 @@
 //! path is read from the typed value as it is sent, and the observer hears of
 //! the value only when it is out of bounds (or cannot be read).
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use serde::Serialize;
 
 use super::pick::FieldPath;
+use crate::time::Time;
 
 /// Whether `x` lies within `[min, max]` (either end open when `None`; NaN
 /// lies beyond any end given): the one definition of a range, shared by the checks
@@ -16,6 +20,38 @@ use super::pick::FieldPath;
 #[inline]
 pub fn within(x: f64, min: Option<f64>, max: Option<f64>) -> bool {
     min.is_none_or(|m| x >= m) && max.is_none_or(|m| x <= m)
+}
+
+/// The instant of the last value sent into each link whose observer asked
+/// for it ([`LinkEvents::stamps`]): kept by the deterministic executor, one
+/// store a send, and read by the observer when it needs it
+/// ([`Observer::stamps`](super::Observer::stamps)). A clone shares the table.
+#[derive(Clone, Debug)]
+pub struct SendStamps(Arc<[AtomicU64]>);
+
+impl SendStamps {
+    /// A table for `links` links, nothing sent yet.
+    pub fn new(links: usize) -> SendStamps {
+        SendStamps((0..links).map(|_| AtomicU64::new(0)).collect())
+    }
+
+    /// A value was sent into `link` at `time` (a link past the table's is
+    /// not kept).
+    #[inline]
+    pub fn sent(&self, link: usize, time: Time) {
+        if let Some(at) = self.0.get(link) {
+            // 0 is "nothing sent": an instant is kept one nanosecond late.
+            at.store(time.as_nanos().saturating_add(1), Ordering::Relaxed);
+        }
+    }
+
+    /// The instant of the last value sent into `link`, if any was (and the
+    /// link is in the table).
+    #[inline]
+    pub fn last(&self, link: usize) -> Option<Time> {
+        let at = self.0.get(link)?.load(Ordering::Relaxed);
+        (at != 0).then(|| Time::from_nanos(at - 1))
+    }
 }
 
 /// A number inside a link's values, by its field path, and the bounds it is
@@ -65,6 +101,12 @@ pub struct LinkEvents {
     /// [`Observer::held`](super::Observer::held). A freshness bound judged
     /// where the value is read.
     pub older_than: Option<u64>,
+    /// Without `transfers`: the instant of the last value sent kept in the
+    /// table given to [`Observer::stamps`](super::Observer::stamps), for an
+    /// observer that reads it when it needs it (a rate judged when its
+    /// window closes) rather than hear of every send. The deterministic
+    /// executor keeps it; other executors tell every send instead.
+    pub stamps: bool,
 }
 
 impl Default for LinkEvents {
@@ -82,6 +124,7 @@ impl LinkEvents {
             out_of: Vec::new(),
             reads: true,
             older_than: None,
+            stamps: false,
         }
     }
 
@@ -92,6 +135,7 @@ impl LinkEvents {
             out_of: Vec::new(),
             reads: false,
             older_than: None,
+            stamps: false,
         }
     }
 
@@ -99,6 +143,7 @@ impl LinkEvents {
     pub fn union(mut self, other: LinkEvents) -> LinkEvents {
         self.transfers |= other.transfers;
         self.reads |= other.reads;
+        self.stamps |= other.stamps;
         self.older_than = match (self.older_than, other.older_than) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -213,6 +258,7 @@ mod tests {
             out_of: vec![bound("0", -1.0, 1.0), bound("2", 0.0, 0.0)],
             reads: false,
             older_than: None,
+            stamps: false,
         };
         assert!(!w.transfer(&[0.5f64, 9.0, 0.0]), "within both");
         assert!(
@@ -234,6 +280,7 @@ mod tests {
             out_of: vec![bound("0", -1.0, 1.0)],
             reads: false,
             older_than: None,
+            stamps: false,
         };
         let u = some.clone().union(LinkEvents::none());
         assert_eq!(u, some);
@@ -255,6 +302,27 @@ mod tests {
             "every read, and the held"
         );
         assert_eq!(some.union(bounded(50)).older_than, Some(50));
+        let stamped = LinkEvents {
+            stamps: true,
+            ..LinkEvents::none()
+        };
+        let u = stamped.clone().union(LinkEvents::all());
+        assert!(u.stamps && u.transfers, "both, each for its observer");
+        assert_eq!(LinkEvents::none().union(stamped.clone()), stamped);
+    }
+
+    #[test]
+    fn a_stamp_table_keeps_the_last_send_of_each_link() {
+        let s = SendStamps::new(2);
+        assert_eq!((s.last(0), s.last(1), s.last(2)), (None, None, None));
+        s.sent(0, Time::ZERO);
+        s.sent(1, Time::from_nanos(7));
+        s.sent(1, Time::from_nanos(9));
+        s.sent(5, Time::from_nanos(1));
+        let shared = s.clone();
+        assert_eq!(shared.last(0), Some(Time::ZERO), "an instant 0 is kept");
+        assert_eq!(shared.last(1), Some(Time::from_nanos(9)), "the last");
+        assert_eq!(shared.last(5), None, "past the table");
     }
 
     #[test]

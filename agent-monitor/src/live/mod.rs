@@ -25,7 +25,15 @@
 //!   when every read is told: the same violation, at the same time);
 //! * rate: a value's send when its writer is watched here (its stamp, as
 //!   over a recording), else the reader's take of it (from another thread or
-//!   process; the instant it arrived for the reader);
+//!   process; the instant it arrived for the reader); in the deterministic
+//!   executor, when a link's sends count for rates only and both its ends
+//!   are watched here, the executor keeps the instant of its last send
+//!   ([`LinkEvents::stamps`](agent_core::trace::LinkEvents::stamps), one
+//!   store a send) and the watch reads it at an instant when a window may
+//!   have closed or a rate is silent, before judging: the same verdicts as
+//!   a send told at each send, since the executor tells every instant (a
+//!   window that closed at `d` is judged at the first instant after it, when
+//!   the last send read is the last one at or before `d`);
 //! * response: the responder's sends; the trigger's send, or its take by a
 //!   watched reader when its writer is elsewhere;
 //! * bound: the subsystem's behaviour switches and its activations in the

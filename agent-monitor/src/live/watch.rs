@@ -6,12 +6,23 @@ use std::fmt;
 use std::sync::{Arc, PoisonError};
 
 use agent_core::trace::{
-    ErasedPayload, LinkEvents, NodeEvents, NumberBound, ReadEvent, TransferEvent,
+    ErasedPayload, LinkEvents, NodeEvents, NumberBound, ReadEvent, SendStamps, TransferEvent,
 };
 use agent_core::{ActionEvent, ExecError, Observer, Step, Time, TransitionEvent, Valuation};
 
 use super::{ContractViolation, KEPT, LinkPlan, PENDING, Shared};
-use crate::{ContractId, Monitors, SubsystemId, Violation};
+use crate::{ContractId, InputId, Monitors, SubsystemId, Violation};
+
+/// A link whose sends only rates count, both ends watched here: its last
+/// send's instant read from the executor's table when a rate's window may
+/// have closed ([`Watch::lazy_arrivals`]), not told at each send.
+#[derive(Debug)]
+struct Lazy {
+    link: usize,
+    input: InputId,
+    /// The last send told to the monitors.
+    fed: Option<Time>,
+}
 
 /// Where a watch's violations go: raised to the executor, and kept.
 struct Sink {
@@ -51,6 +62,10 @@ pub struct Watch {
     /// judged at its activations (its link tells every read, not only the
     /// values too old: [`LinkEvents::older_than`]).
     held_at_activations: Vec<bool>,
+    /// The executor's table of the last sends' instants, and the links read
+    /// from it ([`Observer::stamps`]).
+    stamps: Option<SendStamps>,
+    lazy: Vec<Lazy>,
     sink: Sink,
     undecodable: u64,
     /// Violations taken by the executor.
@@ -103,6 +118,8 @@ impl Watch {
             judged,
             not_judged,
             held_at_activations: Vec::new(),
+            stamps: None,
+            lazy: Vec::new(),
         };
         watch.held_at_activations = watch.readers_held_at_activations();
         watch
@@ -135,6 +152,41 @@ impl Watch {
         held
     }
 
+    /// Whether link `link`'s sends only rates count, its writer and reader
+    /// both watched here: the executor can keep its last send's instant
+    /// instead of telling each ([`LinkEvents::stamps`]).
+    fn stamped(&self, link: usize) -> bool {
+        let Some(p) = self.links.get(link) else {
+            return false;
+        };
+        let c = self.monitors.counts(p.input, p.output);
+        p.writer && p.reader && c.arrivals && !c.sends
+    }
+
+    /// The last send on each link read from the executor's table, told to
+    /// its rates if they have not heard of it: before the monitors judge
+    /// a window that may have closed. Exact in the deterministic executor,
+    /// which calls [`Observer::instant`] at every instant: a window that
+    /// closed at `d` is judged at the first instant after `d`, before any
+    /// send of that instant, so the last send read is the last one at or
+    /// before `d` (and the sends between two windows' judgements are
+    /// within one window of each other: only the last counts).
+    fn lazy_arrivals(&mut self) {
+        let Some(stamps) = &self.stamps else {
+            return;
+        };
+        for z in &mut self.lazy {
+            let last = stamps.last(z.link);
+            if last > z.fed
+                && let Some(t) = last
+            {
+                z.fed = last;
+                self.monitors
+                    .arrived(z.input, t, &mut |v| self.sink.take(v));
+            }
+        }
+    }
+
     /// Judge the ranges of link `link`'s value at `t`.
     #[inline]
     fn ranges(&mut self, link: usize, t: Time, value: &dyn ErasedPayload) {
@@ -162,7 +214,12 @@ impl Observer for Watch {
     /// or rate counts (by a writer watched here), the reads a freshness,
     /// rate or response counts (by a reader watched here), and, of the other
     /// sends by a watched writer, those out of a range only (the range's
-    /// bounds checked on the typed value where it is sent). The events left
+    /// bounds checked on the typed value where it is sent); of a link whose
+    /// sends only rates count, with both ends watched here, none: the
+    /// deterministic executor keeps the last one's instant
+    /// ([`LinkEvents::stamps`]), read when a rate's window may have closed
+    /// (other executors tell every send, which the rates take as they
+    /// come). The events left
     /// out would have moved the watch's clock only, which the same instant's
     /// activations move.
     fn link_events(&self, link: usize) -> LinkEvents {
@@ -187,12 +244,33 @@ impl Observer for Watch {
         let older_than = (p.input)
             .filter(|_| p.reader && c.reads && !other_reads)
             .and_then(|i| self.monitors.freshness_bound(i));
+        // Sends only rates count, both ends here: their instants kept by
+        // the executor, read when a window may have closed.
+        let stamps = self.stamped(link);
         LinkEvents {
-            transfers: p.writer && (c.sends || (c.arrivals && p.reader)),
+            transfers: p.writer && (c.sends || (c.arrivals && p.reader && !stamps)),
             out_of,
             reads: p.reader && ((c.reads && older_than.is_none()) || other_reads),
             older_than,
+            stamps,
         }
+    }
+
+    /// The executor keeps the instants of the sends `link_events` asked it
+    /// to: the rates of those links read them from now on.
+    fn stamps(&mut self, stamps: &SendStamps) {
+        self.lazy = (0..self.links.len())
+            .filter(|&l| self.stamped(l))
+            .filter_map(|link| {
+                let input = self.links.get(link)?.input?;
+                Some(Lazy {
+                    link,
+                    input,
+                    fed: None,
+                })
+            })
+            .collect();
+        self.stamps = Some(stamps.clone());
     }
 
     /// The transitions and activations of node `node` that change a
@@ -230,6 +308,10 @@ impl Observer for Watch {
 
     fn instant(&mut self, time: Time) {
         self.at(time);
+        // A window may have closed, or a silent rate waits for its arrival.
+        if !self.lazy.is_empty() && (self.monitors.due_before(time) || self.monitors.silent()) {
+            self.lazy_arrivals();
+        }
         self.monitors.advance(time, &mut |v| self.sink.take(v));
     }
 
@@ -290,6 +372,11 @@ impl Observer for Watch {
             && reader
         {
             self.monitors.arrived(i, t, &mut |v| self.sink.take(v));
+            // Told of a send it also reads from the table (an executor
+            // or a second observer that asked for every send).
+            if let Some(z) = self.lazy.iter_mut().find(|z| z.link == e.link) {
+                z.fed = Some(t);
+            }
         }
         if has_ranges {
             self.ranges(e.link, t, value);
@@ -393,6 +480,7 @@ impl Drop for Watch {
     fn drop(&mut self) {
         if self.started {
             let last = self.last;
+            self.lazy_arrivals();
             self.monitors.finish(last, &mut |v| self.sink.take(v));
         }
         let mut all = self
