@@ -58,6 +58,9 @@ pub struct Watch {
     wanted: Vec<u64>,
     /// Per node: the behaviour it is in (the executor's index).
     current: Vec<Option<usize>>,
+    /// Per node: the predicates' values (known, value; the FSM's bits) at
+    /// its last activation, if every invariant held after it.
+    held: Vec<Option<(u64, u64)>>,
     /// Per node: whether it reads a freshness's input whose held values are
     /// judged at its activations (its link tells every read, not only the
     /// values too old: [`LinkEvents::older_than`]).
@@ -105,6 +108,7 @@ impl Watch {
             monitors,
             wanted,
             current: vec![None; nodes],
+            held: vec![None; nodes],
             sink: Sink {
                 pending: VecDeque::with_capacity(PENDING),
                 kept: Vec::with_capacity(KEPT),
@@ -437,14 +441,27 @@ impl Observer for Watch {
         let Some(Some(sub)) = self.watched.get(e.node).copied() else {
             return;
         };
+        let raw = (values.known, values.value & values.known);
+        // The same values as at an activation after which every invariant
+        // held: they hold again (an invariant is a function of them).
+        if self.held.get(e.node) == Some(&Some(raw)) {
+            return;
+        }
         // The FSM's bits to the spec's.
         let Some(remap) = self.shared.remaps.get(e.node) else {
             return;
         };
-        let known = remap.apply(values.known);
-        let value = remap.apply(values.value & values.known);
+        let (known, value) = (remap.apply(raw.0), remap.apply(raw.1));
+        let mut broken = false;
+        let sink = &mut self.sink;
         self.monitors
-            .predicates(sub, e.time, known, value, &mut |v| self.sink.take(v));
+            .predicates(sub, e.time, known, value, &mut |v| {
+                broken = true;
+                sink.take(v);
+            });
+        if let Some(h) = self.held.get_mut(e.node) {
+            *h = (!broken).then_some(raw);
+        }
     }
 
     #[inline]
