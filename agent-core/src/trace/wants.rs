@@ -25,20 +25,21 @@ pub fn within(x: f64, min: Option<f64>, max: Option<f64>) -> bool {
 /// The instant of the last value sent into each link whose observer asked
 /// for it ([`LinkEvents::stamps`]): kept by the deterministic executor, one
 /// store a send, and read by the observer when it needs it
-/// ([`Observer::stamps`](super::Observer::stamps)). A clone shares the table.
+/// ([`Observer::stamps`](super::Observer::stamps)). A clone shares the table;
+/// only the executor writes it.
 #[derive(Clone, Debug)]
 pub struct SendStamps(Arc<[AtomicU64]>);
 
 impl SendStamps {
     /// A table for `links` links, nothing sent yet.
-    pub fn new(links: usize) -> SendStamps {
+    pub(crate) fn new(links: usize) -> SendStamps {
         SendStamps((0..links).map(|_| AtomicU64::new(0)).collect())
     }
 
     /// A value was sent into `link` at `time` (a link past the table's is
     /// not kept).
     #[inline]
-    pub fn sent(&self, link: usize, time: Time) {
+    pub(crate) fn sent(&self, link: usize, time: Time) {
         if let Some(at) = self.0.get(link) {
             // 0 is "nothing sent": an instant is kept one nanosecond late.
             at.store(time.as_nanos().saturating_add(1), Ordering::Relaxed);
