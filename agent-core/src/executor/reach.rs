@@ -66,64 +66,36 @@ mod tests {
 
     use crate::*;
 
+    /// A control subsystem that sends its count to another agent's and
+    /// reads the other's.
     struct C;
     #[derive(Debug, Default)]
-    struct ToE {
+    struct ToPeer {
         v: Out<u64>,
     }
-    impl Group for ToE {
-        const PEER: NodeKind = NodeKind::VirtualEffector;
+    impl Group for ToPeer {
+        const PEER: NodeKind = NodeKind::Control;
+    }
+    #[derive(Debug, Default)]
+    struct FromPeer {
+        v: In<u64>,
+    }
+    impl Group for FromPeer {
+        const PEER: NodeKind = NodeKind::Control;
     }
     #[derive(Debug, Default)]
     struct COut {
-        e: ToE,
-    }
-    #[derive(Debug, Default)]
-    struct FromE {
-        v: In<u64>,
-    }
-    impl Group for FromE {
-        const PEER: NodeKind = NodeKind::VirtualEffector;
+        p: ToPeer,
     }
     #[derive(Debug, Default)]
     struct CIn {
-        e: FromE,
+        p: FromPeer,
     }
     impl Subsystem for C {
         const KIND: SubsystemKind = SubsystemKind::Control;
         type Memory = u64;
         type Input = CIn;
         type Output = COut;
-    }
-
-    struct E;
-    #[derive(Debug, Default)]
-    struct ToC {
-        v: Out<u64>,
-    }
-    impl Group for ToC {
-        const PEER: NodeKind = NodeKind::Control;
-    }
-    #[derive(Debug, Default)]
-    struct EOut {
-        c: ToC,
-    }
-    #[derive(Debug, Default)]
-    struct FromC {
-        v: In<u64>,
-    }
-    impl Group for FromC {
-        const PEER: NodeKind = NodeKind::Control;
-    }
-    #[derive(Debug, Default)]
-    struct EIn {
-        c: FromC,
-    }
-    impl Subsystem for E {
-        const KIND: SubsystemKind = SubsystemKind::VirtualEffector;
-        type Memory = u64;
-        type Input = EIn;
-        type Output = EOut;
     }
 
     fn shared(a: &[usize], b: &[usize]) -> usize {
@@ -136,32 +108,22 @@ mod tests {
     #[test]
     fn each_end_of_a_link_reaches_its_channel() {
         let mut b = SystemBuilder::new();
-        let a = b.agent("a");
         let period = Period::from_millis(1).unwrap();
-        let c_fsm = Fsm::single(Behaviour::while_loop(
-            "run",
-            Action::<C>::new().output(|y| &mut y.e, |m: &u64, _: &CIn, y: &mut ToE| y.v.set(*m)),
-            "false",
-        ))
-        .unwrap();
-        let e_fsm = Fsm::single(Behaviour::while_loop(
-            "run",
-            Action::<E>::new().output(|y| &mut y.c, |m: &u64, _: &EIn, y: &mut ToC| y.v.set(*m)),
-            "false",
-        ))
-        .unwrap();
-        let c = b.subsystem(a, "c", period, 0, c_fsm);
-        let e = b.subsystem(a, "e", period, 0, e_fsm);
-        b.connect(
-            c.output(port!(COut, e.v)),
-            e.input(port!(EIn, c.v)),
-            Policy::queue(4),
-        );
-        b.connect(
-            e.output(port!(EOut, c.v)),
-            c.input(port!(CIn, e.v)),
-            Policy::Sample,
-        );
+        let fsm = || {
+            Fsm::single(Behaviour::while_loop(
+                "run",
+                Action::<C>::new()
+                    .output(|y| &mut y.p, |m: &u64, _: &CIn, y: &mut ToPeer| y.v.set(*m)),
+                "false",
+            ))
+            .unwrap()
+        };
+        let (a1, a2) = (b.agent("a1"), b.agent("a2"));
+        let c1 = b.subsystem(a1, "c1", period, 0, fsm());
+        let c2 = b.subsystem(a2, "c2", period, 0, fsm());
+        let (out, into) = (port!(COut, p.v), port!(CIn, p.v));
+        b.connect(c1.output(out), c2.input(into), Policy::queue(4));
+        b.connect(c2.output(out), c1.input(into), Policy::Sample);
         let x = Executor::new(b.build().unwrap(), ExecConfig::default());
         let r = &x.reach;
         let list = |node: usize, step: bool| {
@@ -172,23 +134,20 @@ mod tests {
                 r.read[from.0 as usize..to.0 as usize].to_vec()
             }
         };
-        let (ci, ei) = (c.id().index(), e.id().index());
+        let (i, j) = (c1.id().index(), c2.id().index());
         // The port table, the port, then the channel (and a queue's storage).
-        assert_eq!(list(ci, true).len(), 4);
-        assert_eq!(list(ei, false).len(), 4);
-        assert_eq!(list(ei, true).len(), 3);
-        assert_eq!(list(ci, false).len(), 3);
+        assert_eq!(list(i, true).len(), 4);
+        assert_eq!(list(j, false).len(), 4);
+        assert_eq!(list(j, true).len(), 3);
+        assert_eq!(list(i, false).len(), 3);
+        let queue = shared(&list(i, true), &list(j, false));
+        assert_eq!(queue, 2, "queue: channel and storage");
         assert_eq!(
-            shared(&list(ci, true), &list(ei, false)),
-            2,
-            "queue: channel and storage"
-        );
-        assert_eq!(
-            shared(&list(ei, true), &list(ci, false)),
+            shared(&list(j, true), &list(i, false)),
             1,
             "sample: channel"
         );
-        assert_eq!(shared(&list(ci, true), &list(ci, false)), 0);
+        assert_eq!(shared(&list(i, true), &list(i, false)), 0);
         assert!(r.read.iter().chain(&r.step).all(|&a| a != 0));
     }
 }
