@@ -727,23 +727,18 @@ fn watched(
         ..ExecConfig::default()
     };
     let errors = match given {
-        Given::Every => {
-            let mut exec = Executor::with_observer(s, config, (Everything, watch));
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        }
-        Given::Unclocked => {
-            let mut exec = Executor::with_observer(s, config, Unclocked(watch));
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        }
-        Given::Asked => {
-            let mut exec = Executor::with_observer(s, config, watch);
-            exec.run_for(Duration::from_secs(20)).unwrap();
-            exec.report().errors.iter().map(|e| e.to_string()).collect()
-        }
+        Given::Every => run_20s(s, config, (Everything, watch)),
+        Given::Unclocked => run_20s(s, config, Unclocked(watch)),
+        Given::Asked => run_20s(s, config, watch),
     };
     (live.verdicts(), errors, asked, nodes)
+}
+
+/// 20 s of `system` observed by `observer`: the executor's errors.
+fn run_20s<O: Observer>(system: System, config: ExecConfig, observer: O) -> Vec<String> {
+    let mut exec = Executor::with_observer(system, config, observer);
+    exec.run_for(Duration::from_secs(20)).unwrap();
+    exec.report().errors.iter().map(|e| e.to_string()).collect()
 }
 
 #[test]
