@@ -242,6 +242,8 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
     fn reach(&self, to: &mut Vec<usize>) {
         super::reach(&self.first.channel, to);
         if let Some(more) = &self.more {
+            // The box (the list's header), then the list.
+            crate::cache::address_of(&**more, to);
             crate::cache::address_of(more.0.as_slice(), to);
             more.0.iter().for_each(|d| super::reach(&d.channel, to));
         }
