@@ -118,12 +118,15 @@ mod tests {
             ))
             .unwrap()
         };
-        let (a1, a2) = (b.agent("a1"), b.agent("a2"));
+        let (a1, a2, a3) = (b.agent("a1"), b.agent("a2"), b.agent("a3"));
         let c1 = b.subsystem(a1, "c1", period, 0, fsm());
         let c2 = b.subsystem(a2, "c2", period, 0, fsm());
         let (out, into) = (port!(COut, p.v), port!(CIn, p.v));
         b.connect(c1.output(out), c2.input(into), Policy::queue(4));
         b.connect(c2.output(out), c1.input(into), Policy::Sample);
+        // c2's output fanned out to c3 too.
+        let c3 = b.subsystem(a3, "c3", period, 0, fsm());
+        b.connect(c2.output(out), c3.input(into), Policy::Sample);
         let x = Executor::new(b.build().unwrap(), ExecConfig::default());
         let r = &x.reach;
         let list = |node: usize, step: bool| {
@@ -134,19 +137,21 @@ mod tests {
                 r.read[from.0 as usize..to.0 as usize].to_vec()
             }
         };
-        let (i, j) = (c1.id().index(), c2.id().index());
-        // The port table, the port, then the channel (and a queue's storage).
+        let (i, j, k) = (c1.id().index(), c2.id().index(), c3.id().index());
+        // The port table, the port, then the channel (and a queue's storage;
+        // a fanned-out port's further destinations' header, list and
+        // channels).
         assert_eq!(list(i, true).len(), 4);
         assert_eq!(list(j, false).len(), 4);
-        assert_eq!(list(j, true).len(), 3);
+        assert_eq!(list(j, true).len(), 6);
         assert_eq!(list(i, false).len(), 3);
+        assert_eq!(list(k, false).len(), 3);
         let queue = shared(&list(i, true), &list(j, false));
         assert_eq!(queue, 2, "queue: channel and storage");
-        assert_eq!(
-            shared(&list(j, true), &list(i, false)),
-            1,
-            "sample: channel"
-        );
+        let sample = shared(&list(j, true), &list(i, false));
+        assert_eq!(sample, 1, "sample: channel");
+        let fanned = shared(&list(j, true), &list(k, false));
+        assert_eq!(fanned, 1, "the fanned-out port's second channel");
         assert_eq!(shared(&list(i, true), &list(i, false)), 0);
         assert!(r.read.iter().chain(&r.step).all(|&a| a != 0));
     }
