@@ -4,7 +4,7 @@
 //! platform's true pose at `t`), the same end of mission (every plan sent and
 //! acknowledged, the last fragment executed), the same judgement.
 
-use embodied::app::{Every, Pairs, Tally};
+use embodied::app::{Every, Pairs, Ran, Tally, Watcher};
 use embodied::{Probes, Time};
 use serde::{Deserialize, Serialize};
 
@@ -64,9 +64,14 @@ pub enum Seen {
     Parts([Option<String>; 3]),
 }
 
-/// Turns what the probes report into an outcome.
-pub(crate) struct Collector {
+/// What reads a mission as it runs (through Rex's probes, in any executor and
+/// from every process of a deployment): it pairs e11's samples with the truth,
+/// tells `progress` of acknowledgements and ticks, decides the mission's end
+/// and judges the outcome.
+pub(crate) struct MissionWatch<P> {
     pub(crate) out: Outcome,
+    pub(crate) config: RexConfig,
+    pub(crate) progress: P,
     /// e11's reports (a sample, a plan outcome, whether idle) paired with the
     /// true pose at their instant.
     pairs: Pairs<(Sample, Option<PlanOutcome>, bool), [f64; 3]>,
@@ -75,40 +80,69 @@ pub(crate) struct Collector {
     mocap_since: Option<f64>,
     a2_done: bool,
     idle: bool,
-    /// The mission listens ([`crate::mission::Mission::listens`]): the run
-    /// ends at its limit, never by the mission's end.
-    listen: bool,
     /// The mission's plans (ids `1..=n`): c1's plans numbered after them came
     /// from another sender.
     own: u32,
-    pub(crate) sent: usize,
+    sent: usize,
     /// When a progress tick is due.
     tick: Every,
 }
 
-impl Collector {
-    pub(crate) fn new(config: &RexConfig, tick: std::time::Duration) -> Self {
-        Collector {
+impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
+    pub(crate) fn new(config: &RexConfig, tick: std::time::Duration, progress: P) -> Self {
+        MissionWatch {
             out: Outcome {
                 mission: config.mission.name.clone(),
                 plans: config.mission.plans.len(),
                 ..Outcome::default()
             },
+            config: config.clone(),
+            progress,
             pairs: Pairs::default(),
             behaviour: 0,
             delivered_at: None,
             mocap_since: None,
             a2_done: false,
             idle: false,
-            listen: config.mission.listens(),
             own: config.mission.plans.len() as u32,
             sent: 0,
             tick: Every::new(tick),
         }
     }
 
+    /// The run's outcome, judged, once every report is in (`wall` and `sim`:
+    /// the run's wall-clock and simulated seconds).
+    pub(crate) fn outcome(&mut self, wall: f64, sim: f64) -> Outcome {
+        let mut out = std::mem::take(&mut self.out);
+        out.wall_s = wall;
+        out.sim_s = sim;
+        out.reports = super::judge::judge(&out, &self.config, self.sent);
+        out
+    }
+
+    /// The end of a run in this process: the last reports read off its
+    /// nodes, then the outcome.
+    pub(crate) fn conclude(&mut self, ran: &Ran, h: impl Into<RobotHandles>) -> Outcome {
+        ran.conclude(self, super::last_reports(&ran.finished, h));
+        let sim = ran.finished.report().last_instant.as_secs_f64();
+        self.outcome(ran.wall.as_secs_f64(), sim)
+    }
+
+    /// Whether every plan c1 took from another sender has its final
+    /// acknowledgement.
+    fn foreign_answered(&self) -> bool {
+        self.out.foreign.iter().all(|(id, _)| {
+            self.out
+                .acks
+                .iter()
+                .any(|(_, a)| a.plan == *id && a.ready())
+        })
+    }
+}
+
+impl<P: FnMut(Progress<'_>)> Watcher<Seen> for MissionWatch<P> {
     /// Take one report in.
-    pub(crate) fn see(&mut self, seen: Seen, progress: &mut impl FnMut(Progress<'_>)) {
+    fn see(&mut self, seen: Seen) {
         match seen {
             Seen::E11 {
                 t,
@@ -137,7 +171,7 @@ impl Collector {
             } => {
                 for ack in acks {
                     let ts = t.as_secs_f64();
-                    progress(Progress::Ack { t: ts, ack: &ack });
+                    (self.progress)(Progress::Ack { t: ts, ack: &ack });
                     self.out.acks.push((ts, ack));
                 }
                 self.a2_done |= halted;
@@ -162,11 +196,7 @@ impl Collector {
     /// mission never ends before the run does: once `finished`, it is
     /// complete if every plan c1 took has its final acknowledgement and e11
     /// is idle (nothing left executing).
-    pub(crate) fn advance(
-        &mut self,
-        finished: bool,
-        progress: &mut impl FnMut(Progress<'_>),
-    ) -> bool {
+    fn ended(&mut self, finished: bool) -> bool {
         for (t, (mut sample, event, idle), truth) in self.pairs.take(finished) {
             let ts = t.as_secs_f64();
             if let Some(o) = event {
@@ -187,13 +217,13 @@ impl Collector {
             sample.mocap_for = self.mocap_since.map_or(0.0, |since| ts - since);
             self.out.samples.push(sample);
             if self.tick.due(t) {
-                progress(Progress::Tick {
+                (self.progress)(Progress::Tick {
                     t: ts,
                     sample: &sample,
                 });
             }
         }
-        if self.listen {
+        if self.config.mission.listens() {
             if finished {
                 self.out.completed = self.idle && self.foreign_answered();
             }
@@ -203,17 +233,6 @@ impl Collector {
             self.out.completed = true;
         }
         self.out.completed
-    }
-
-    /// Whether every plan c1 took from another sender has its final
-    /// acknowledgement.
-    fn foreign_answered(&self) -> bool {
-        self.out.foreign.iter().all(|(id, _)| {
-            self.out
-                .acks
-                .iter()
-                .any(|(_, a)| a.plan == *id && a.ready())
-        })
     }
 }
 

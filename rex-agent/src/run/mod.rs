@@ -10,19 +10,19 @@
 //! runs would add. The same reports, from every process of a deployment, are
 //! what `rex launch` judges.
 
+use std::path::Path;
 use std::time::Duration;
 
 mod collect;
 pub mod judge;
-mod realtime;
 #[cfg(test)]
 mod tests;
 pub use collect::Seen;
-pub(crate) use collect::{Collector, install_probes, install_probes_as};
-pub use realtime::{run_mission_realtime, run_mission_realtime_recorded};
+pub(crate) use collect::{MissionWatch, install_probes, install_probes_as};
 
-use embodied::app::{AppError, Ran, Tally, Watched, Watcher, figures};
-use embodied::{Finished, NoObserver};
+use embodied::app::{AppError, Ran, Tally, Watched, figures};
+use embodied::record::{RecordOptions, RecordSummary};
+use embodied::{Finished, NoObserver, RtConfig, RtReport, System};
 
 use crate::payload::{Ack, AckStatus, PlanOutcome};
 use crate::system::{RexConfig, RobotHandles, build};
@@ -311,67 +311,80 @@ pub fn run_mission_observed<O: embodied::Observer + 'static>(
     config: &RexConfig,
     limit: Duration,
     tick: Duration,
-    observer: impl FnOnce(&embodied::System) -> Result<O, RunError>,
+    observer: impl FnOnce(&System) -> Result<O, RunError>,
     progress: impl FnMut(Progress<'_>),
 ) -> Result<(Outcome, O), RunError> {
+    let run = |run: Watched<'_, Seen>, system: System| {
+        let observer = observer(&system)?;
+        run.simulate(system, config.exec, observer)
+    };
+    watched(config, (limit, tick), progress, run).map(|(out, _, observer)| (out, observer))
+}
+
+/// Run `config`'s mission in real time (the same system on threads against
+/// the wall clock, [`embodied::RealTime`]: the world on one thread, the
+/// subsystems on the executor's workers), for at most `limit` of wall-clock
+/// time, ended and judged as the deterministic run is. Returns the outcome
+/// and what the executor measured.
+pub fn run_mission_realtime(
+    config: &RexConfig,
+    limit: Duration,
+    tick: Duration,
+    rt: RtConfig,
+    progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, RtReport), RunError> {
+    realtime(config, (limit, tick), rt, None, progress).map(|(out, report, _)| (out, report))
+}
+
+/// [`run_mission_realtime`], recorded to `path` (every thread's part of the
+/// run: what each node sent and read, its behaviour switches, the errors).
+pub fn run_mission_realtime_recorded(
+    config: &RexConfig,
+    limit: Duration,
+    tick: Duration,
+    rt: RtConfig,
+    (path, options): (&Path, RecordOptions),
+    progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, RtReport, RecordSummary), RunError> {
+    let (out, report, summary) =
+        realtime(config, (limit, tick), rt, Some((path, options)), progress)?;
+    // A recording was asked for: the run returns its summary.
+    Ok((out, report, summary.unwrap_or_default()))
+}
+
+fn realtime(
+    config: &RexConfig,
+    times: (Duration, Duration),
+    rt: RtConfig,
+    record: Option<(&Path, RecordOptions)>,
+    progress: impl FnMut(Progress<'_>),
+) -> Result<(Outcome, RtReport, Option<RecordSummary>), RunError> {
+    let rt = RtConfig {
+        exec: config.exec,
+        ..rt
+    };
+    let run = |run: Watched<'_, Seen>, system| run.realtime_recorded(system, rt, record);
+    let (out, ran, summary) = watched(config, times, progress, run)?;
+    Ok((out, ran.finished.into_report(), summary))
+}
+
+/// Build `config`'s Rex, put its probes on it (every component: the whole
+/// system runs here), run it with `run` to `limit` (a tick of progress every
+/// `tick`), and judge it. The library's mission runs judge the mission; the
+/// spec's contracts are watched in the program's runs (`rex`, through the
+/// layer).
+fn watched<R>(
+    config: &RexConfig,
+    (limit, tick): (Duration, Duration),
+    progress: impl FnMut(Progress<'_>),
+    run: impl FnOnce(Watched<'_, Seen>, System) -> Result<(Ran, R), RunError>,
+) -> Result<(Outcome, Ran, R), RunError> {
     let (system, h) = build(config).map_err(|e| AppError::Build(Box::new(e)))?;
-    let observer = observer(&system)?;
     let mut watch = MissionWatch::new(config, tick, progress);
-    // The library's mission runs judge the mission; the spec's contracts
-    // are watched in the program's runs (`rex`, through the layer).
-    let mut run = Watched::new(&mut watch, limit);
-    install_probes(&mut run.probes, &h, &|_| true);
-    let (ran, observer) = run.simulate(system, config.exec, observer)?;
-    Ok((watch.conclude(&ran, &h), observer))
-}
-
-/// What reads a mission as it runs (through Rex's probes, in any executor and
-/// from every process of a deployment): the [`Collector`] that pairs e11's
-/// samples with the truth, and what it tells `progress`.
-pub(crate) struct MissionWatch<P> {
-    pub(crate) collect: Collector,
-    pub(crate) config: RexConfig,
-    pub(crate) progress: P,
-}
-
-impl<P: FnMut(Progress<'_>)> MissionWatch<P> {
-    pub(crate) fn new(config: &RexConfig, tick: Duration, progress: P) -> Self {
-        MissionWatch {
-            collect: Collector::new(config, tick),
-            config: config.clone(),
-            progress,
-        }
-    }
-
-    /// The run's outcome, judged, once every report is in (`wall` and `sim`:
-    /// the run's wall-clock and simulated seconds).
-    pub(crate) fn outcome(&mut self, wall: f64, sim: f64) -> Outcome {
-        let mut out = std::mem::take(&mut self.collect.out);
-        out.wall_s = wall;
-        out.sim_s = sim;
-        out.reports = judge::judge(&out, &self.config, self.collect.sent);
-        out
-    }
-
-    /// The end of a run in this process: the last reports read off its
-    /// nodes, then the outcome.
-    pub(crate) fn conclude(&mut self, ran: &Ran, h: impl Into<RobotHandles>) -> Outcome {
-        ran.conclude(self, last_reports(&ran.finished, h));
-        self.outcome(
-            ran.wall.as_secs_f64(),
-            ran.finished.report().last_instant.as_secs_f64(),
-        )
-    }
-}
-
-impl<P: FnMut(Progress<'_>)> Watcher<Seen> for MissionWatch<P> {
-    fn see(&mut self, seen: Seen) {
-        self.collect.see(seen, &mut self.progress);
-    }
-
-    fn ended(&mut self, finished: bool) -> bool {
-        self.collect.advance(finished, &mut self.progress)
-    }
+    let mut watched = Watched::new(&mut watch, limit);
+    install_probes(&mut watched.probes, &h, &|_| true);
+    let (ran, r) = run(watched, system)?;
+    Ok((watch.conclude(&ran, &h), ran, r))
 }
 
 /// What a run's nodes say at its end (those this process ran): the counters,

@@ -4,6 +4,7 @@
 
 use std::time::{Duration, Instant};
 
+use embodied::app::Watcher;
 use embodied::{Probes, RealTime, RtConfig, Stamp, Time, WireHeader};
 
 use super::*;
@@ -208,7 +209,7 @@ fn a_plan_from_elsewhere_after_a_mission_is_judged_with_the_missions() {
 
 /// Whether the watcher has plan `id`'s final acknowledgement and outcome.
 fn answered<P>(w: &MissionWatch<P>, id: u32) -> bool {
-    let out = &w.collect.out;
+    let out = &w.out;
     out.acks.iter().any(|(_, a)| a.plan == id && a.ready())
         && out.outcomes.iter().any(|(_, o)| o.plan == id)
 }
