@@ -28,6 +28,16 @@ impl Reach {
         r
     }
 
+    /// Every address of `nodes` (those the reach was gathered from) and of
+    /// their reach: the memory an instant's walks touch.
+    pub(crate) fn addresses<'a>(
+        &'a self,
+        nodes: &'a [Box<dyn InProcessNode>],
+    ) -> impl Iterator<Item = usize> + 'a {
+        let nodes = nodes.iter().map(|n| std::ptr::from_ref(&**n).addr());
+        nodes.chain(self.read.iter().chain(&self.step).copied())
+    }
+
     /// Ask the cache for what node `i` touches when it is read (`step`
     /// false) or stepped: its first lines and the addresses of its reach.
     #[inline(always)]
