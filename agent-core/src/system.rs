@@ -482,16 +482,19 @@ impl SystemBuilder {
     }
 
     fn link_name(&self, src: usize, src_port: &str, dst: usize, dst_port: &str) -> String {
-        let node_name = |n: usize| {
-            self.info
-                .nodes
-                .get(n)
-                .map_or_else(|| format!("<node #{n}>"), |i| i.name.clone())
-        };
         format!(
             "{}.{src_port} -> {}.{dst_port}",
-            node_name(src),
-            node_name(dst)
+            self.node_name(src),
+            self.node_name(dst)
+        )
+    }
+
+    /// Node `n`'s name, borrowed (a system of thousands of links copies none
+    /// of its nodes' names to name them).
+    fn node_name(&self, n: usize) -> Cow<'_, str> {
+        self.info.nodes.get(n).map_or_else(
+            || Cow::Owned(format!("<node #{n}>")),
+            |i| Cow::Borrowed(i.name.as_str()),
         )
     }
 
@@ -522,11 +525,7 @@ impl SystemBuilder {
             });
             return LinkId(link);
         };
-        let dst_name = self
-            .info
-            .nodes
-            .get(dst)
-            .map_or_else(|| format!("<node #{dst}>"), |i| i.name.clone());
+        let input = format!("{}.{}", self.node_name(dst), inp.name());
         if src < self.info.nodes.len() && dst < self.info.nodes.len() {
             self.check_link(&name, src, &out, dst, &inp, policy);
             self.check_fan(&name, src, &out, true);
@@ -535,7 +534,7 @@ impl SystemBuilder {
         let dst_key = (dst, inp.name());
         if let Some(&first) = self.fed.get(&dst_key) {
             self.problems.push(BuildProblem::InputFedTwice {
-                input: format!("{dst_name}.{}", inp.name()),
+                input: input.clone(),
                 first: self.info.links[first].name.clone(),
                 second: name.clone(),
             });
@@ -552,7 +551,7 @@ impl SystemBuilder {
                 }
             }
         }
-        if let Some(plan) = inp.in_plan(link, Cow::Owned(format!("{dst_name}.{}", inp.name()))) {
+        if let Some(plan) = inp.in_plan(link, Cow::Owned(input)) {
             self.ins.push((dst, plan));
         }
         self.channels.push(channel);

@@ -378,13 +378,13 @@ pub(crate) fn reach<T>(channel: &Shared<T>, to: &mut Vec<usize>) {
     }
 }
 
-/// The channels of all links of a system, by link index: typed (erased as `Any`, each
-/// a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics. The
+/// The channels of all links of a system, by link index: typed (an `Rc` erased as
+/// `Any`, each a `Shared<T>`) for the ports, and as [`AnyChannel`] for statistics. The
 /// deterministic executor makes them one by one ([`Channels::make`]), in the
 /// order its nodes first use them, so that they lie on the heap near their
 /// ports.
 pub(crate) struct Channels {
-    typed: Vec<Option<Box<dyn Any>>>,
+    typed: Vec<Option<Rc<dyn Any>>>,
     stats: Vec<Option<Rc<RefCell<dyn AnyChannel>>>>,
 }
 
@@ -426,11 +426,8 @@ impl Channels {
     }
 
     fn shared<T: Payload>(&self, link: usize) -> Option<Shared<T>> {
-        self.typed
-            .get(link)?
-            .as_ref()?
-            .downcast_ref::<Shared<T>>()
-            .cloned()
+        let any = self.typed.get(link)?.as_ref()?;
+        Rc::clone(any).downcast::<RefCell<Channel<T>>>().ok()
     }
 }
 

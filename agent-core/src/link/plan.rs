@@ -39,19 +39,14 @@ impl<O: Send + 'static, T: Payload, A: Access<O, Out<T>>> OutPlan for TypedOutPl
         &self.links
     }
     fn local(&self, channels: &Channels) -> Option<Box<dyn Any>> {
-        let mut links = self
-            .links
-            .iter()
-            .map(|&l| Dest::new(l, channels.shared::<T>(l)?))
-            .collect::<Option<Vec<_>>>()?;
-        if links.is_empty() {
-            return None;
-        }
-        let first = links.remove(0);
+        let mut dests = (self.links.iter()).map(|&l| Dest::new(l, channels.shared::<T>(l)?));
+        let first = dests.next()??;
+        // The further destinations of a fan-out (none: no allocation).
+        let more = dests.collect::<Option<Vec<_>>>()?;
         let port: Box<dyn OutPort<O>> = Box::new(LocalOut {
             first,
             access: self.port.access,
-            more: (!links.is_empty()).then(|| Box::new(More(links))),
+            more: (!more.is_empty()).then(|| Box::new(More(more))),
             _o: PhantomData,
         });
         Some(Box::new(port))
@@ -124,7 +119,9 @@ impl<I: Send + 'static, T: Payload, A: Access<I, In<T>>> InPlan for TypedInPlan<
 
 /// Makes the in-process channel of one link.
 pub(crate) trait ChannelPlan: Send {
-    fn local(&self) -> (Box<dyn Any>, Rc<RefCell<dyn AnyChannel>>);
+    /// The channel, erased twice: as `Any` (a `Shared<T>`) and for its
+    /// statistics (one allocation: both are the same `Rc`).
+    fn local(&self) -> (Rc<dyn Any>, Rc<RefCell<dyn AnyChannel>>);
     /// The two halves of a link between threads (a `ThreadTx<T>` and a
     /// `ThreadRx<T>`, erased) and its counters.
     fn threaded(
@@ -168,10 +165,10 @@ struct TypedChannelPlan<T> {
 }
 
 impl<T: Payload> ChannelPlan for TypedChannelPlan<T> {
-    fn local(&self) -> (Box<dyn Any>, Rc<RefCell<dyn AnyChannel>>) {
+    fn local(&self) -> (Rc<dyn Any>, Rc<RefCell<dyn AnyChannel>>) {
         let shared: Shared<T> = Rc::new(RefCell::new(Channel::new(self.policy)));
         let stats: Rc<RefCell<dyn AnyChannel>> = shared.clone();
-        (Box::new(shared), stats)
+        (shared, stats)
     }
     fn threaded(
         &self,
