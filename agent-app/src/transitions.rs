@@ -5,6 +5,8 @@
 //! t=0.100000 s c2: ask -> wait (arc 0, when true)
 //! ```
 
+use std::sync::Arc;
+
 use agent_core::{NoObserver, NodeInfo, Observer, RealTime, Step, SystemInfo, TransitionEvent};
 use agent_mcap::McapRecorder;
 use agent_monitor::live::Live;
@@ -24,7 +26,7 @@ pub(crate) struct Transitions {
 #[derive(Debug, Default)]
 struct Node {
     name: String,
-    behaviours: Vec<String>,
+    behaviours: Arc<[String]>,
     /// The conditions of the arcs out of each behaviour, by behaviour and arc.
     arcs: Vec<Vec<String>>,
 }

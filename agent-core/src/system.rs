@@ -16,6 +16,7 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::fmt;
 use std::marker::PhantomData;
+use std::sync::Arc;
 
 use crate::buffer::BufferPort;
 use crate::buffer::{In, Out, Payload};
@@ -282,11 +283,9 @@ impl SystemBuilder {
             kind: S::KIND.into(),
             agent: self.agent_name(agent),
             period,
-            behaviours: (0..fsm.len())
-                .map(|i| fsm.behaviour_name(i).to_owned())
-                .collect(),
+            behaviours: fsm.behaviour_names(),
             shape: S::shape(),
-            fsm: Some(fsm.describe()),
+            fsm: Some(fsm.shape()),
         };
         let node = Box::new(SubsystemCore::new(info.clone(), memory, fsm));
         SubsystemHandle {
@@ -338,7 +337,7 @@ impl SystemBuilder {
             kind: D::KIND.into(),
             agent: self.agent_name(agent),
             period,
-            behaviours: Vec::new(),
+            behaviours: Arc::from([]),
             shape: D::shape(),
             fsm: None,
         };
@@ -481,6 +480,8 @@ impl SystemBuilder {
         Some(self.link(s, out, d, inp, policy))
     }
 
+    /// `src.src_port -> dst.dst_port`, in one allocation (`format!` grows
+    /// its string as it writes: three for a link's name).
     fn link_name(&self, src: usize, src_port: &str, dst: usize, dst_port: &str) -> String {
         format!(
             "{}.{src_port} -> {}.{dst_port}",

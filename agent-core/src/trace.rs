@@ -6,6 +6,7 @@
 //! [`NoObserver`] these calls compile to nothing.
 
 use std::fmt;
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
@@ -95,16 +96,18 @@ pub struct NodeInfo {
     pub agent: String,
     /// Its period.
     pub period: Period,
-    /// Names of its behaviours, by index (empty for drivers).
-    pub behaviours: Vec<String>,
+    /// Names of its behaviours, by index (empty for drivers); shared by the
+    /// subsystems of one FSM ([`Fsm::behaviour_names`](crate::Fsm::behaviour_names)).
+    pub behaviours: Arc<[String]>,
     /// Its memory and buffers, if its types describe them ([`Subsystem::shape`],
     /// [`Driver::shape`]).
     ///
     /// [`Subsystem::shape`]: crate::Subsystem::shape
     /// [`Driver::shape`]: crate::Driver::shape
     pub shape: Option<Shape>,
-    /// Its FSM as a spec describes it (`None` for drivers).
-    pub fsm: Option<FsmShape>,
+    /// Its FSM as a spec describes it (`None` for drivers), shared by the
+    /// subsystems of one FSM ([`Fsm::shape`](crate::Fsm::shape)).
+    pub fsm: Option<Arc<FsmShape>>,
 }
 
 /// Static description of one link.
@@ -547,7 +550,7 @@ fn small(n: usize) -> u32 {
 impl Observer for Recorder {
     fn start(&mut self, system: &SystemInfo) {
         self.trace.nodes = system.nodes.iter().map(|n| n.name.clone()).collect();
-        self.trace.behaviours = system.nodes.iter().map(|n| n.behaviours.clone()).collect();
+        self.trace.behaviours = system.nodes.iter().map(|n| n.behaviours.to_vec()).collect();
         self.trace.links = system.links.iter().map(|l| l.name.clone()).collect();
     }
 

@@ -218,3 +218,37 @@ fn the_system_builder_refuses_names_the_spec_checker_refuses() {
         "{text}"
     );
 }
+
+// ---------------------------------------------------------------------------
+// What the nodes' descriptions share.
+
+/// The subsystems that run one FSM (clones of it, as the copies of an agent
+/// in a large system or the robots of a fleet) share its description and its
+/// behaviours' names rather than holding a copy each; an FSM built again from
+/// the same definition is described alike but not shared.
+#[test]
+fn subsystems_of_one_fsm_share_its_description() {
+    let mut b = SystemBuilder::new();
+    let (a1, a2, a3) = (b.agent("a1"), b.agent("a2"), b.agent("a3"));
+    let fsm = counter_fsm();
+    let memory = || CounterMemory { n: 0, every: 1 };
+    b.subsystem(a1, "c1", ms(10), memory(), fsm.clone());
+    b.subsystem(a2, "c2", ms(10), memory(), fsm);
+    b.subsystem(a3, "c3", ms(10), memory(), counter_fsm());
+    let system = b.build().unwrap();
+    let nodes = &system.info().nodes;
+    let (c1, c2, c3) = (&nodes[0], &nodes[1], &nodes[2]);
+    let (f1, f2, f3) = (c1.fsm.as_ref(), c2.fsm.as_ref(), c3.fsm.as_ref());
+    let (f1, f2, f3) = (f1.unwrap(), f2.unwrap(), f3.unwrap());
+    assert!(
+        std::sync::Arc::ptr_eq(f1, f2),
+        "one description for c1 and c2"
+    );
+    assert!(std::sync::Arc::ptr_eq(&c1.behaviours, &c2.behaviours));
+    assert!(!std::sync::Arc::ptr_eq(f1, f3), "c3's FSM was built apart");
+    assert_eq!(f1, f3, "and is described alike");
+    assert_eq!(**f1, counter_fsm().describe());
+    let names: Vec<&str> = f1.behaviours.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(*c1.behaviours, names, "the names are the description's");
+    assert!(!c1.behaviours.is_empty());
+}

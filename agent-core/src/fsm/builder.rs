@@ -299,6 +299,7 @@ impl<S: Subsystem> FsmBuilder<S> {
                 relations: self.relations,
                 nodes,
                 initial,
+                described: std::sync::OnceLock::new(),
             }),
         }
     }

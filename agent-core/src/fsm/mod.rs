@@ -10,7 +10,7 @@
 
 use std::borrow::Cow;
 use std::fmt;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use crate::behaviour::Behaviour;
 use crate::describe::Fresh;
@@ -273,6 +273,11 @@ struct FsmDef<S: Subsystem> {
     relations: Vec<Relation>,
     nodes: Vec<Node<S>>,
     initial: usize,
+    /// Its description ([`Fsm::shape`]) and its behaviours' names
+    /// ([`Fsm::behaviour_names`]), made once and shared by every subsystem
+    /// it runs: each subsystem's [`NodeInfo`](crate::trace::NodeInfo) holds
+    /// them, and ten thousand copies of an agent made ten thousand copies.
+    described: OnceLock<(Arc<FsmShape>, Arc<[String]>)>,
 }
 
 impl<S: Subsystem> fmt::Debug for Fsm<S> {
@@ -374,9 +379,28 @@ impl<S: Subsystem> Fsm<S> {
         &self.def.relations
     }
 
+    /// [`Fsm::describe`], made once and shared by this FSM's clones.
+    pub fn shape(&self) -> Arc<FsmShape> {
+        Arc::clone(&self.described().0)
+    }
+
+    /// The behaviours' names, by index, made once and shared by this FSM's
+    /// clones.
+    pub fn behaviour_names(&self) -> Arc<[String]> {
+        Arc::clone(&self.described().1)
+    }
+
+    fn described(&self) -> &(Arc<FsmShape>, Arc<[String]>) {
+        self.def.described.get_or_init(|| {
+            let names = self.def.nodes.iter();
+            let names = names.map(|n| n.behaviour.name.to_string()).collect();
+            (Arc::new(self.describe()), names)
+        })
+    }
+
     /// What a spec says of this FSM: predicates, relations, behaviours with their
-    /// parts, the initial behaviour, arcs and finals. The system builder records it,
-    /// and `agent-spec` exports it.
+    /// parts, the initial behaviour, arcs and finals. The system builder records it
+    /// (once an FSM: [`Fsm::shape`]), and `agent-spec` exports it.
     pub fn describe(&self) -> FsmShape {
         FsmShape {
             predicates: self
