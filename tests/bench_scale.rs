@@ -29,12 +29,26 @@ fn positive(line: &str, key: &str) -> f64 {
     v
 }
 
+/// The example's binary, which `cargo test` builds beside this test's
+/// (`target/<profile>/examples/` next to `target/<profile>/deps/`): the run
+/// starts it again for each first build in a fresh process.
+fn example() -> std::path::PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let profile = exe.parent().and_then(std::path::Path::parent).unwrap();
+    let example = profile
+        .join("examples")
+        .join(format!("bench_scale{}", std::env::consts::EXE_SUFFIX));
+    assert!(example.is_file(), "{} is not built", example.display());
+    example
+}
+
 #[test]
 fn quick_run_prints_its_figures_and_the_scale_line() {
     let options = program::Options {
         quick: true,
         embodied_bin: option_env!("CARGO_BIN_EXE_embodied").map(Into::into),
         skip_external: true,
+        program: Some(example()),
     };
     let mut out = Vec::new();
     let scale = program::run(&options, &mut out).unwrap();
@@ -54,6 +68,7 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
             "action_ns_p99",
             "bytes_per_subsystem",
             "build_ms",
+            "first_build_us_per_subsystem",
         ] {
             positive(l, key);
         }

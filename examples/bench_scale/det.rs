@@ -13,7 +13,13 @@
 //!
 //! * `build_ms`: median over [`BUILDS`] builds of the time to declare the
 //!   system on a [`SystemBuilder`], build it and make its [`Executor`]
-//!   (FSMs included);
+//!   (FSMs included), each after the last was dropped, in the process that
+//!   holds the measured executor of the same size: a rebuild, in a heap
+//!   whose free memory is scattered over the last system's;
+//! * `first_build_us_per_subsystem`: the same build as a program makes it,
+//!   once, in a fresh process (this program run again with `--first-build
+//!   AGENTS`), median over [`FIRST_BUILDS`] processes, per subsystem (`na`
+//!   when not measured: the test's quick run);
 //! * `bytes_per_subsystem`: the heap that system and executor hold once warmed
 //!   up (queues filled), per subsystem, counted by the byte-counting global
 //!   allocator of `main.rs`;
@@ -24,6 +30,8 @@
 //! * `allocs_per_action`: heap allocations per action over the measured batches.
 
 use std::hint::black_box;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use embodied::*;
@@ -257,6 +265,9 @@ fn system_with(
 
 /// Builds per size (the median is reported).
 const BUILDS: usize = 5;
+/// Fresh processes per size that each build the system once (the median is
+/// reported).
+const FIRST_BUILDS: usize = 5;
 /// Elementary actions per timed batch (rounded to whole instants).
 pub(crate) const ACTIONS_PER_BATCH: u64 = 40_000;
 
@@ -271,8 +282,10 @@ pub(crate) struct Figures {
     pub(crate) action_ns_p99: f64,
     /// Heap held by the warmed-up executor, per subsystem \[bytes\].
     pub(crate) bytes_per_subsystem: f64,
-    /// Median time to build the system and its executor \[ms\].
+    /// Median time to build the system and its executor again \[ms\].
     pub(crate) build_ms: f64,
+    /// Median time of a fresh process's one build, per subsystem \[us\].
+    pub(crate) first_build_us: Option<f64>,
     /// Heap allocations per measured action.
     pub(crate) allocs_per_action: f64,
 }
@@ -282,13 +295,16 @@ impl Figures {
     pub(crate) fn line(&self) -> String {
         format!(
             "det n={} action_ns_p50={:.1} action_ns_p99={:.1} bytes_per_subsystem={:.0} \
-             build_ms={:.3} build_us_per_subsystem={:.2} allocs_per_action={}",
+             build_ms={:.3} build_us_per_subsystem={:.2} first_build_us_per_subsystem={} \
+             allocs_per_action={}",
             self.n,
             self.action_ns_p50,
             self.action_ns_p99,
             self.bytes_per_subsystem,
             self.build_ms,
             self.build_ms * 1e3 / self.n as f64,
+            self.first_build_us
+                .map_or_else(|| "na".to_owned(), |us| format!("{us:.2}")),
             self.allocs_per_action
         )
     }
@@ -399,6 +415,7 @@ impl Bench {
             action_ns_p99: quantile(&mut self.action_ns, 0.99),
             bytes_per_subsystem: self.bytes as f64 / n as f64,
             build_ms: quantile(&mut self.build_ms, 0.5),
+            first_build_us: None,
             allocs_per_action: self.allocations as f64 / actions,
         })
     }
@@ -409,12 +426,20 @@ impl Bench {
 /// as a program runs one system. (Sizes taking turns batch by batch would
 /// measure each with its caches filled by the others: a large system's time
 /// per action then doubles.)
+///
+/// `program`: this benchmark's binary, run again for each first build
+/// ([`first_build`]); `None`: not measured.
 pub(crate) fn measure(
     agents: &[usize],
     batches: usize,
+    program: Option<&Path>,
 ) -> Result<Vec<Figures>, Box<dyn std::error::Error>> {
     let mut figures = Vec::with_capacity(agents.len());
     for &a in agents {
+        let first = match program {
+            Some(program) => Some(first_builds(program, a)?),
+            None => None,
+        };
         let mut bench = Bench::new(a)?;
         for _ in 0..BUILDS {
             bench.build()?;
@@ -422,9 +447,51 @@ pub(crate) fn measure(
         for _ in 0..batches {
             bench.batch()?;
         }
-        figures.push(bench.figures()?);
+        figures.push(Figures {
+            first_build_us: first,
+            ..bench.figures()?
+        });
     }
     Ok(figures)
+}
+
+/// The median over [`FIRST_BUILDS`] fresh processes (`program --first-build
+/// AGENTS`) of their one build's time per subsystem \[us\].
+fn first_builds(program: &Path, agents: usize) -> Result<f64, Box<dyn std::error::Error>> {
+    let mut us = Vec::with_capacity(FIRST_BUILDS);
+    for _ in 0..FIRST_BUILDS {
+        let out = Command::new(program)
+            .args(["--first-build", &agents.to_string()])
+            .stderr(Stdio::inherit())
+            .output()?;
+        let said = String::from_utf8_lossy(&out.stdout);
+        let value = said.lines().find_map(|l| l.strip_prefix("first_build_us="));
+        match (out.status.success(), value.map(str::parse::<f64>)) {
+            (true, Some(Ok(total))) => us.push(total / (3 * agents) as f64),
+            _ => {
+                return Err(format!(
+                    "{} --first-build {agents}: {}; said `{}`",
+                    program.display(),
+                    out.status,
+                    said.trim()
+                )
+                .into());
+            }
+        }
+    }
+    Ok(quantile(&mut us, 0.5))
+}
+
+/// `--first-build AGENTS`: build the system of `agents` agents and its
+/// executor once, as a program does, and print `first_build_us=<..>` (the
+/// whole build \[us\]).
+pub(crate) fn first_build(agents: usize) -> Result<(), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let exec = black_box(executor(agents)?);
+    let us = start.elapsed().as_secs_f64() * 1e6;
+    drop(exec);
+    println!("first_build_us={us:.1}");
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------

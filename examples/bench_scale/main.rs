@@ -47,7 +47,9 @@
 //! the real-time executor's pool lines (no thread per subsystem) and the final
 //! line. With either, `--agents 1,334` chooses the sizes (agents of three
 //! subsystems), `--batches N` the deterministic repeats, `--seconds S` the
-//! real-time run of each size.
+//! real-time run of each size. `--first-build AGENTS`: build the system of
+//! that many agents once and print `first_build_us=<..>` (what a run asks of
+//! fresh processes of this program for `first_build_us_per_subsystem`).
 
 mod det;
 mod external;
@@ -57,7 +59,7 @@ mod tools;
 use std::alloc::{GlobalAlloc, Layout};
 use std::fmt;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use embodied::allocations::CountingAllocator;
@@ -215,6 +217,9 @@ pub(crate) struct Options {
     /// Leave out the other crates' benchmarks (`--skip-external`: Zenoh
     /// between processes, the fleet), which a full run builds and runs.
     pub(crate) skip_external: bool,
+    /// This benchmark's binary, run again (`--first-build AGENTS`) for each
+    /// first build of a system in a fresh process; `None`: not measured.
+    pub(crate) program: Option<PathBuf>,
 }
 
 /// `cargo run --release --example bench_scale [-- --quick]`.
@@ -222,6 +227,10 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let quick = args.iter().any(|a| a == "--quick");
     let value = |key: &str| args.windows(2).find(|w| w[0] == key).map(|w| w[1].clone());
+    if let Some(agents) = value("--first-build") {
+        return det::first_build(agents.parse()?);
+    }
+    let program = std::env::current_exe().ok();
     let only = value("--only");
     if let Some(part) = only.as_deref() {
         let mut scale = Scale::default();
@@ -244,7 +253,7 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
                 if let Some(batches) = value("--batches") {
                     plan.det_batches = batches.parse()?;
                 }
-                deterministic(&plan, out, &mut scale)?;
+                deterministic(&plan, program.as_deref(), out, &mut scale)?;
             }
             "rt" => {
                 let seconds = value("--seconds").map(|s| s.parse()).transpose()?;
@@ -276,6 +285,7 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
         // `embodied new`).
         embodied_bin: tools::embodied_bin()
             .or_else(|| (!quick).then(tools::build_embodied).flatten()),
+        program,
     };
     run(&options, &mut std::io::stdout())?;
     Ok(())
@@ -284,26 +294,41 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// The deterministic executor's part of a run: its `det` lines and the growth
 /// line, written to `out`; `action_ratio_10000` into `scale`. Alone, as
 /// `--only det`, it is followed by the final line (the other figures `na`).
+/// `program`: this benchmark's binary, for the first builds.
 fn deterministic(
     plan: &Plan,
+    program: Option<&Path>,
     out: &mut dyn Write,
     scale: &mut Scale,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let det = det::measure(plan.det_agents, plan.det_batches)?;
+    let det = det::measure(plan.det_agents, plan.det_batches, program)?;
     for figures in &det {
         writeln!(out, "{}", figures.line())?;
     }
-    if let (Some(first), Some(last)) = (det.first(), det.last()) {
+    // Linear is judged from the first size of at least 300 subsystems: a
+    // smaller system's memory and build per subsystem hold the costs that do
+    // not grow with it (the executor's own tables, a first region's page).
+    let from = det.iter().find(|f| f.n >= 300).or(det.first());
+    if let (Some(first), Some(from), Some(last)) = (det.first(), from, det.last()) {
         scale.action_ratio_10000 = Some(last.action_ns_p50 / first.action_ns_p50);
+        let per = |f: &det::Figures| f.build_ms / f.n as f64;
+        let first_build = match (from.first_build_us, last.first_build_us) {
+            (Some(a), Some(b)) => format!("{:.2}x", b / a),
+            _ => "na".to_owned(),
+        };
         writeln!(
             out,
-            "det growth: action {:.2}x from n={} to n={} (aim <= 1.5), bytes per subsystem {:.2}x, \
-             build time per subsystem {:.2}x (1 is linear)",
+            "det growth: action {:.2}x from n={} to n={} (aim <= 1.5); from n={} to n={} \
+             (1 is linear): bytes per subsystem {:.2}x, build time per subsystem {first_build} \
+             (a program's one build, in a fresh process), {:.2}x (rebuilt in the process \
+             that holds one)",
             last.action_ns_p50 / first.action_ns_p50,
             first.n,
             last.n,
-            last.bytes_per_subsystem / first.bytes_per_subsystem,
-            (last.build_ms / last.n as f64) / (first.build_ms / first.n as f64)
+            from.n,
+            last.n,
+            last.bytes_per_subsystem / from.bytes_per_subsystem,
+            per(last) / per(from)
         )?;
     }
     Ok(())
@@ -317,7 +342,7 @@ pub(crate) fn run(
     let plan = if options.quick { QUICK } else { FULL };
     let mut scale = Scale::default();
 
-    deterministic(&plan, out, &mut scale)?;
+    deterministic(&plan, options.program.as_deref(), out, &mut scale)?;
 
     // The deterministic executor, several rates.
     for figures in det::measure_rates(plan.rates_agents, plan.det_batches)? {
