@@ -32,6 +32,7 @@
 use std::hint::black_box;
 use std::path::Path;
 use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use embodied::*;
@@ -317,9 +318,21 @@ pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
     v[rank - 1]
 }
 
+/// Whether the executors measured leave their memory on the pages the
+/// allocator gave (`--no-huge-pages`: [`ExecConfig::huge_pages`] off).
+pub(crate) static NO_HUGE_PAGES: AtomicBool = AtomicBool::new(false);
+
+/// The executor's settings: the default, but for `--no-huge-pages`.
+fn config() -> ExecConfig {
+    ExecConfig {
+        huge_pages: !NO_HUGE_PAGES.load(Ordering::Relaxed),
+        ..ExecConfig::default()
+    }
+}
+
 fn executor(agents: usize) -> Result<(Executor, Vec<NodeId>), Box<dyn std::error::Error>> {
     let (system, ids) = system(agents)?;
-    Ok((Executor::new(system, ExecConfig::default()), ids))
+    Ok((Executor::new(system, config()), ids))
 }
 
 /// One size's executor, batch by batch.
@@ -460,8 +473,12 @@ pub(crate) fn measure(
 fn first_builds(program: &Path, agents: usize) -> Result<f64, Box<dyn std::error::Error>> {
     let mut us = Vec::with_capacity(FIRST_BUILDS);
     for _ in 0..FIRST_BUILDS {
+        let huge = NO_HUGE_PAGES
+            .load(Ordering::Relaxed)
+            .then_some("--no-huge-pages");
         let out = Command::new(program)
             .args(["--first-build", &agents.to_string()])
+            .args(huge)
             .stderr(Stdio::inherit())
             .output()?;
         let said = String::from_utf8_lossy(&out.stdout);
@@ -541,7 +558,7 @@ pub(crate) fn measure_rates(
     for &a in agents {
         let n = 3 * a;
         let (system, ids) = system_with(a, |i| if i == 0 { fast } else { slow })?;
-        let mut exec = Executor::new(system, ExecConfig::default());
+        let mut exec = Executor::new(system, config());
         let per_slow_period = 3 * (RATIO - 1) + n as u64;
         let periods = (ACTIONS_PER_BATCH / per_slow_period).max(1);
         let instants = periods * RATIO;

@@ -47,7 +47,9 @@
 //! the real-time executor's pool lines (no thread per subsystem) and the final
 //! line. With either, `--agents 1,334` chooses the sizes (agents of three
 //! subsystems), `--batches N` the deterministic repeats, `--seconds S` the
-//! real-time run of each size. `--first-build AGENTS`: build the system of
+//! real-time run of each size. `--no-huge-pages`: the deterministic executors
+//! with `ExecConfig::huge_pages` off (the memory on the pages the allocator
+//! gave). `--first-build AGENTS`: build the system of
 //! that many agents once and print `first_build_us=<..>` (what a run asks of
 //! fresh processes of this program for `first_build_us_per_subsystem`).
 
@@ -227,6 +229,9 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let quick = args.iter().any(|a| a == "--quick");
     let value = |key: &str| args.windows(2).find(|w| w[0] == key).map(|w| w[1].clone());
+    if args.iter().any(|a| a == "--no-huge-pages") {
+        det::NO_HUGE_PAGES.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     if let Some(agents) = value("--first-build") {
         return det::first_build(agents.parse()?);
     }
