@@ -480,8 +480,6 @@ impl SystemBuilder {
         Some(self.link(s, out, d, inp, policy))
     }
 
-    /// `src.src_port -> dst.dst_port`, in one allocation (`format!` grows
-    /// its string as it writes: three for a link's name).
     fn link_name(&self, src: usize, src_port: &str, dst: usize, dst_port: &str) -> String {
         format!(
             "{}.{src_port} -> {}.{dst_port}",

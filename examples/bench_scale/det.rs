@@ -19,7 +19,7 @@
 //! * `first_build_us_per_subsystem`: the same build as a program makes it,
 //!   once, in a fresh process (this program run again with `--first-build
 //!   AGENTS`), median over [`FIRST_BUILDS`] processes, per subsystem (`na`
-//!   when not measured: the test's quick run);
+//!   when no program to run is given);
 //! * `bytes_per_subsystem`: the heap that system and executor hold once warmed
 //!   up (queues filled), per subsystem, counted by the byte-counting global
 //!   allocator of `main.rs`;
