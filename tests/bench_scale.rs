@@ -187,3 +187,15 @@ fn real_time_lines(lines: &[&str], text: &str, rt_subsystems: Option<f64>) {
         );
     }
 }
+
+/// `--agents` and `--first-build` take positive numbers of agents; anything
+/// else is refused with the flag named (an empty system has no time an
+/// action to divide by).
+#[test]
+fn a_number_of_agents_is_positive() {
+    assert_eq!(program::count("--agents", "3333"), Ok(3333));
+    for bad in ["0", "-1", "x", ""] {
+        let err = program::count("--agents", bad).unwrap_err();
+        assert!(err.starts_with("--agents: "), "{err}");
+    }
+}

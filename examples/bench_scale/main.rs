@@ -233,7 +233,7 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
         det::NO_HUGE_PAGES.store(true, std::sync::atomic::Ordering::Relaxed);
     }
     if let Some(agents) = value("--first-build") {
-        return det::first_build(agents.parse()?);
+        return det::first_build(count("--first-build", &agents)?);
     }
     let program = std::env::current_exe().ok();
     let only = value("--only");
@@ -246,7 +246,7 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
         let agents: Option<&'static [usize]> = match value("--agents") {
             Some(list) => Some(
                 list.split(',')
-                    .map(str::parse)
+                    .map(|a| count("--agents", a))
                     .collect::<Result<Vec<_>, _>>()?
                     .leak(),
             ),
@@ -294,6 +294,16 @@ pub(crate) fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     run(&options, &mut std::io::stdout())?;
     Ok(())
+}
+
+/// A number of agents given with `flag`: a positive whole number.
+pub(crate) fn count(flag: &str, given: &str) -> Result<usize, String> {
+    match given.trim().parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!(
+            "{flag}: `{given}` is not a positive number of agents"
+        )),
+    }
 }
 
 /// The deterministic executor's part of a run: its `det` lines and the growth
