@@ -344,9 +344,10 @@ impl<C: NodeCore> InProcessNode for InProcess<C> {
 
 /// A subsystem: its buffers, memory and FSM.
 pub(crate) struct SubsystemCore<S: Subsystem> {
-    /// Its description, boxed: read by errors and descriptions only, so
-    /// that the fields an action touches lie together.
-    pub(crate) info: Box<NodeInfo>,
+    /// Its name, for its errors (the rest of its description is the
+    /// system's, [`NodeInfo`]): 16 bytes, so that the fields an action
+    /// touches lie together.
+    pub(crate) name: Box<str>,
     pub(crate) memory: S::Memory,
     pub(crate) input: S::Input,
     pub(crate) output: S::Output,
@@ -362,9 +363,9 @@ pub(crate) struct SubsystemCore<S: Subsystem> {
 }
 
 impl<S: Subsystem> SubsystemCore<S> {
-    pub(crate) fn new(info: NodeInfo, memory: S::Memory, fsm: Fsm<S>) -> Self {
+    pub(crate) fn new(name: &str, memory: S::Memory, fsm: Fsm<S>) -> Self {
         SubsystemCore {
-            info: Box::new(info),
+            name: name.into(),
             memory,
             input: S::Input::default(),
             output: S::Output::default(),
@@ -426,7 +427,7 @@ impl<S: Subsystem> SubsystemCore<S> {
             }
             Ok(Activated::Halted) => Ok(None),
             Err(error) => Err(Box::new(ExecError::Fsm {
-                subsystem: self.info.name.clone(),
+                subsystem: self.name.to_string(),
                 iteration,
                 time: now,
                 error,

@@ -287,7 +287,7 @@ impl SystemBuilder {
             shape: S::shape(),
             fsm: Some(fsm.shape()),
         };
-        let node = Box::new(SubsystemCore::new(info.clone(), memory, fsm));
+        let node = Box::new(SubsystemCore::new(&info.name, memory, fsm));
         SubsystemHandle {
             node: self.add_node(agent, info, node, S::ports()),
             _s: PhantomData,
