@@ -448,35 +448,6 @@ fn driver_failure_stops_or_is_retried() {
     assert_eq!(x.report().error_count, 1);
 }
 
-/// `agents` agents of a counter and its receiver, linked both ways.
-fn pairs(agents: usize) -> System {
-    let mut b = SystemBuilder::new();
-    let (counter, recv) = (counter_fsm(), recv_fsm(false));
-    for i in 0..agents {
-        let a = b.agent(format!("a{i}"));
-        let memory = CounterMemory { n: 0, every: 1 };
-        let c = b.subsystem(a, format!("c{i}"), ms(10), memory, counter.clone());
-        let e = b.subsystem(
-            a,
-            format!("e{i}"),
-            ms(10),
-            RecvMemory::default(),
-            recv.clone(),
-        );
-        b.connect(
-            c.output(port!(CounterOut, e.count)),
-            e.input(port!(RecvIn, c.count)),
-            Policy::queue(4),
-        );
-        b.connect(
-            e.output(port!(RecvOut, c.echo)),
-            c.input(port!(CounterIn, e.echo)),
-            Policy::Sample,
-        );
-    }
-    b.build().unwrap()
-}
-
 /// A large system's memory backed with huge pages (`ExecConfig::huge_pages`,
 /// on by default) runs the same, event for event, as on the pages the
 /// allocator gave.
@@ -488,7 +459,7 @@ fn memory_made_huge_changes_nothing_the_system_does() {
             huge_pages,
             ..ExecConfig::default()
         };
-        let mut x = Executor::with_observer(pairs(3000), config, Recorder::new());
+        let mut x = Executor::with_observer(pairs(3000, 10, 10).system, config, Recorder::new());
         x.run_until(t_ms(100)).unwrap();
         x.observer().trace().clone()
     };

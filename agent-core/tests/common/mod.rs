@@ -197,6 +197,53 @@ pub(crate) fn pair(
     }
 }
 
+/// `pairs` agents `a<i>` of a pair `c<i>` → `e<i>` (declared in turn: c0, e0, c1, e1, ...), `c`
+/// every `c_ms`, `e` every `e_ms`, a lossless queue from each `c` to its `e`.
+pub(crate) struct Pairs {
+    pub(crate) system: System,
+    pub(crate) cs: Vec<SubsystemHandle<Counter>>,
+    pub(crate) es: Vec<SubsystemHandle<Recv>>,
+}
+
+pub(crate) fn pairs(pairs: usize, c_ms: u64, e_ms: u64) -> Pairs {
+    let mut b = SystemBuilder::new();
+    let (mut cs, mut es) = (Vec::new(), Vec::new());
+    for i in 0..pairs {
+        let a = b.agent(format!("a{i}"));
+        let c = b.subsystem(
+            a,
+            format!("c{i}"),
+            ms(c_ms),
+            CounterMemory { n: 0, every: 1 },
+            counter_fsm(),
+        );
+        let e = b.subsystem(
+            a,
+            format!("e{i}"),
+            ms(e_ms),
+            RecvMemory::default(),
+            recv_fsm(false),
+        );
+        b.connect(
+            c.output(port!(CounterOut, e.count)),
+            e.input(port!(RecvIn, c.count)),
+            Policy::queue(4096),
+        );
+        b.connect(
+            e.output(port!(RecvOut, c.echo)),
+            c.input(port!(CounterIn, e.echo)),
+            Policy::Sample,
+        );
+        cs.push(c);
+        es.push(e);
+    }
+    Pairs {
+        system: b.build().unwrap(),
+        cs,
+        es,
+    }
+}
+
 // A virtual receptor that records the values of its real receptor.
 
 pub(crate) struct Reader;
