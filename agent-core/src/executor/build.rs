@@ -2,6 +2,8 @@
 //! (the cache layout of issue 57's knee: what an instant touches lies on the
 //! heap in the order it is touched).
 
+use super::reach::Reach;
+use crate::cache::prefetch;
 use crate::link::{ChannelPlan, Channels, InPlan, OutPlan};
 use crate::node::{InProcessNode, NodeSeed};
 
@@ -11,6 +13,13 @@ use crate::node::{InProcessNode, NodeSeed};
 /// instant touches lies on the heap in the order it is touched (rather than
 /// all nodes, then all channels, then all ports). Each node's ports keep their
 /// order (that of the trace's events).
+///
+/// What is made is used while it is in the cache (issue 57's build of
+/// thousands of subsystems, whose memory exceeds the last-level cache): each
+/// node's reach is gathered as soon as it is made, and each node's plans are
+/// dropped once its ports are installed, rather than in passes over every
+/// node afterwards; the plans are sorted by node into one vector (not a
+/// vector a node).
 pub(super) fn in_process(
     seeds: Vec<Box<dyn NodeSeed>>,
     outs: Vec<(usize, Box<dyn OutPlan>)>,
@@ -18,28 +27,32 @@ pub(super) fn in_process(
     plans: &[Box<dyn ChannelPlan>],
     order: &[usize],
     audit: bool,
-) -> (Vec<Box<dyn InProcessNode>>, Channels) {
+) -> (Vec<Box<dyn InProcessNode>>, Channels, Reach) {
     let n = seeds.len();
-    let mut outs_of: Vec<Vec<Box<dyn OutPlan>>> = (0..n).map(|_| Vec::new()).collect();
-    for (node, plan) in outs {
-        outs_of[node].push(plan);
-    }
-    let mut ins_of: Vec<Vec<Box<dyn InPlan>>> = (0..n).map(|_| Vec::new()).collect();
-    for (node, plan) in ins {
-        ins_of[node].push(plan);
-    }
+    let mut outs_of = ByNode::new(n, outs);
+    let mut ins_of = ByNode::new(n, ins);
     let mut seeds: Vec<Option<Box<dyn NodeSeed>>> = seeds.into_iter().map(Some).collect();
     let mut made: Vec<Option<Box<dyn InProcessNode>>> = (0..n).map(|_| None).collect();
     let mut channels = Channels::unmade(plans.len());
-    for &i in order {
-        let Some(seed) = seeds[i].take() else {
+    let mut reach = Reach::with_nodes(n);
+    for (k, &i) in order.iter().enumerate() {
+        // What the node a few ahead is made from: its seed and plans, made
+        // by the builder before and out of the cache in a large system.
+        if let Some(&j) = order.get(k + AHEAD) {
+            if let Some(Some(seed)) = seeds.get(j) {
+                prefetch(&**seed, SEED_LINES);
+            }
+            outs_of.prefetch(j);
+            ins_of.prefetch(j);
+        }
+        let Some(seed) = seeds.get_mut(i).and_then(Option::take) else {
             continue;
         };
         let mut node = seed.into_in_process(audit);
         // Handles were checked against the nodes' buffer types when the links
         // were declared, and every plan's channel was made from the same payload
         // type, so installation cannot fail.
-        for plan in &outs_of[i] {
+        for plan in outs_of.take(i) {
             for &l in plan.links() {
                 channels.make(l, plans);
             }
@@ -48,14 +61,17 @@ pub(super) fn in_process(
                 .is_some_and(|port| node.install_out(port));
             debug_assert!(installed, "output port type checked at connect()");
         }
-        for plan in &ins_of[i] {
+        for plan in ins_of.take(i) {
             channels.make(plan.link(), plans);
             let installed = plan
                 .local(&channels)
                 .is_some_and(|port| node.install_in(port));
             debug_assert!(installed, "input port type checked at connect()");
         }
-        made[i] = Some(node);
+        reach.gather(i, &*node);
+        if let Some(slot) = made.get_mut(i) {
+            *slot = Some(node);
+        }
     }
     // Links no port of this system uses (none, unless a plan refused).
     for l in 0..plans.len() {
@@ -63,5 +79,73 @@ pub(super) fn in_process(
     }
     let nodes: Vec<Box<dyn InProcessNode>> = made.into_iter().flatten().collect();
     debug_assert_eq!(nodes.len(), n, "every node is in the stepping order");
-    (nodes, channels)
+    (nodes, channels, reach)
+}
+
+/// How many nodes ahead in the stepping order the build asks the cache for
+/// what a node is made from.
+const AHEAD: usize = 8;
+/// The lines asked of a node's seed (its core: FSM, buffers, memory).
+const SEED_LINES: usize = 4;
+
+/// Plans sorted by the node they belong to (a counting sort: one vector for
+/// all, each node's in the order given), taken node by node.
+struct ByNode<P> {
+    plans: Vec<Option<P>>,
+    /// Where each node's plans start in `plans` (one more entry: the end).
+    from: Vec<usize>,
+}
+
+impl<P> ByNode<P> {
+    fn new(nodes: usize, given: Vec<(usize, P)>) -> ByNode<P> {
+        let mut from = vec![0; nodes + 1];
+        for &(node, _) in &given {
+            if let Some(count) = from.get_mut(node + 1) {
+                *count += 1;
+            }
+        }
+        for k in 1..from.len() {
+            from[k] += from[k - 1];
+        }
+        let mut next = from.clone();
+        let mut plans: Vec<Option<P>> = (0..given.len()).map(|_| None).collect();
+        for (node, plan) in given {
+            // A plan of no node of this system (none: the builder made
+            // them for its nodes) is dropped.
+            if let Some(at) = next.get_mut(node) {
+                if let Some(slot) = plans.get_mut(*at) {
+                    *slot = Some(plan);
+                }
+                *at += 1;
+            }
+        }
+        ByNode { plans, from }
+    }
+
+    /// Ask the cache for node `node`'s plans.
+    fn prefetch(&self, node: usize)
+    where
+        P: std::ops::Deref,
+    {
+        let (a, b) = (
+            self.from.get(node).copied().unwrap_or(0),
+            self.from.get(node + 1).copied().unwrap_or(0),
+        );
+        for plan in self.plans.get(a..b).unwrap_or_default().iter().flatten() {
+            prefetch(&**plan, 1);
+        }
+    }
+
+    /// Node `node`'s plans, taken out (dropped by the caller once used).
+    fn take(&mut self, node: usize) -> impl Iterator<Item = P> + '_ {
+        let (a, b) = (
+            self.from.get(node).copied().unwrap_or(0),
+            self.from.get(node + 1).copied().unwrap_or(0),
+        );
+        self.plans
+            .get_mut(a..b)
+            .unwrap_or_default()
+            .iter_mut()
+            .filter_map(Option::take)
+    }
 }

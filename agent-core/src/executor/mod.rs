@@ -226,7 +226,8 @@ impl<O: Observer> Executor<O> {
             (0..n).partition(|&i| info.nodes[i].kind != NodeKind::RealReceptor);
         let receptors_from = order.len();
         order.extend(receptors);
-        let (nodes, channels) = in_process(nodes, outs, ins, &channels, &order, config.audit);
+        let (nodes, channels, reach) =
+            in_process(nodes, outs, ins, &channels, &order, config.audit);
         let periods: Vec<u64> = info.nodes.iter().map(|n| n.period.as_nanos()).collect();
         let drives = info
             .nodes
@@ -235,7 +236,6 @@ impl<O: Observer> Executor<O> {
             .collect();
         let next = vec![0; n];
         let schedule = Schedule::new(&next, &periods, &order);
-        let reach = reach::Reach::of(&nodes);
         if config.huge_pages {
             crate::cache::huge_pages(reach.addresses(&nodes));
         }

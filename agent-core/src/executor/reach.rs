@@ -11,20 +11,39 @@ use crate::node::InProcessNode;
 pub(crate) struct Reach {
     read: Vec<usize>,
     step: Vec<usize>,
-    /// Per node, where its addresses start in `read` and `step` (one more
-    /// entry: the end).
-    at: Vec<(u32, u32)>,
+    /// Per node (in the nodes' order), where its addresses lie in `read`
+    /// and in `step`: `[read from, read to, step from, step to]`. Gathered
+    /// in stepping order, as each node is made ([`Reach::gather`]).
+    at: Vec<[u32; 4]>,
 }
 
 impl Reach {
-    /// The addresses of `nodes`, in their order.
-    pub(crate) fn of(nodes: &[Box<dyn InProcessNode>]) -> Reach {
-        let mut r = Reach::default();
-        for node in nodes {
-            r.at.push((len32(&r.read), len32(&r.step)));
-            node.reach(&mut r.read, &mut r.step);
+    /// Room for the reach of `nodes` nodes, to be gathered node by node.
+    pub(crate) fn with_nodes(nodes: usize) -> Reach {
+        Reach {
+            at: vec![[0; 4]; nodes],
+            ..Reach::default()
         }
-        r.at.push((len32(&r.read), len32(&r.step)));
+    }
+
+    /// Gather the addresses of `node`, the `i`-th of the nodes (just made:
+    /// its ports and channels are still in the cache, where a pass over
+    /// every node afterwards would miss them in a large system).
+    pub(crate) fn gather(&mut self, i: usize, node: &dyn InProcessNode) {
+        let (r0, s0) = (len32(&self.read), len32(&self.step));
+        node.reach(&mut self.read, &mut self.step);
+        if let Some(at) = self.at.get_mut(i) {
+            *at = [r0, len32(&self.read), s0, len32(&self.step)];
+        }
+    }
+
+    /// The addresses of `nodes`, in their order.
+    #[cfg(test)]
+    pub(crate) fn of(nodes: &[Box<dyn InProcessNode>]) -> Reach {
+        let mut r = Reach::with_nodes(nodes.len());
+        for (i, node) in nodes.iter().enumerate() {
+            r.gather(i, &**node);
+        }
         r
     }
 
@@ -43,7 +62,7 @@ impl Reach {
     #[inline(always)]
     pub(crate) fn prefetch(&self, node: &dyn InProcessNode, i: usize, step: bool) {
         prefetch(node, NODE_LINES);
-        let (Some(&(r0, s0)), Some(&(r1, s1))) = (self.at.get(i), self.at.get(i + 1)) else {
+        let Some(&[r0, r1, s0, s1]) = self.at.get(i) else {
             return;
         };
         let (list, from, to) = if step {
@@ -108,6 +127,65 @@ mod tests {
         type Output = COut;
     }
 
+    /// A receptor that senses nothing: stepped after every other node.
+    struct Clock;
+    impl Driver for Clock {
+        const KIND: DeviceKind = DeviceKind::Receptor;
+        type Input = ();
+        type Output = ();
+        fn step(&mut self, _: DriverContext<'_>, _: &(), _: &mut ()) -> Result<(), DriverError> {
+            Ok(())
+        }
+    }
+
+    /// The reach the build gathers as it makes each node (in stepping
+    /// order: here the receptor, declared first, is made last) is, node by
+    /// node, what a pass over the made nodes gathers.
+    #[test]
+    fn the_reach_gathered_while_building_is_that_of_the_made_nodes() {
+        let mut b = SystemBuilder::new();
+        let period = Period::from_millis(1).unwrap();
+        let fsm = || {
+            Fsm::single(Behaviour::while_loop(
+                "run",
+                Action::<C>::new()
+                    .output(|y| &mut y.p, |m: &u64, _: &CIn, y: &mut ToPeer| y.v.set(*m)),
+                "false",
+            ))
+            .unwrap()
+        };
+        let agents: Vec<_> = (1..4).map(|i| b.agent(format!("a{i}"))).collect();
+        b.driver(agents[0], "clock", period, Clock);
+        let cs: Vec<_> = (0..3)
+            .map(|i| b.subsystem(agents[i], format!("c{}", i + 1), period, 0, fsm()))
+            .collect();
+        let (out, into) = (port!(COut, p.v), port!(CIn, p.v));
+        for (i, c) in cs.iter().enumerate() {
+            let next = cs[(i + 1) % cs.len()];
+            let policy = if i == 0 {
+                Policy::queue(4)
+            } else {
+                Policy::Sample
+            };
+            b.connect(c.output(out), next.input(into), policy);
+        }
+        let x = Executor::new(b.build().unwrap(), ExecConfig::default());
+        assert_eq!(x.order, [1, 2, 3, 0], "the receptor is made last");
+        let after = super::Reach::of(&x.nodes);
+        let slices = |r: &super::Reach, i: usize| {
+            let [r0, r1, s0, s1] = r.at[i];
+            (
+                r.read[r0 as usize..r1 as usize].to_vec(),
+                r.step[s0 as usize..s1 as usize].to_vec(),
+            )
+        };
+        for i in 0..x.nodes.len() {
+            assert_eq!(slices(&x.reach, i), slices(&after, i), "node {i}");
+        }
+        assert!(slices(&x.reach, 0).0.is_empty(), "the clock has no ports");
+        assert!(!slices(&x.reach, 1).1.is_empty(), "c1 sends");
+    }
+
     fn shared(a: &[usize], b: &[usize]) -> usize {
         a.iter().filter(|x| b.contains(x)).count()
     }
@@ -140,11 +218,11 @@ mod tests {
         let x = Executor::new(b.build().unwrap(), ExecConfig::default());
         let r = &x.reach;
         let list = |node: usize, step: bool| {
-            let (from, to) = (r.at[node], r.at[node + 1]);
+            let [r0, r1, s0, s1] = r.at[node];
             if step {
-                r.step[from.1 as usize..to.1 as usize].to_vec()
+                r.step[s0 as usize..s1 as usize].to_vec()
             } else {
-                r.read[from.0 as usize..to.0 as usize].to_vec()
+                r.read[r0 as usize..r1 as usize].to_vec()
             }
         };
         let (i, j, k) = (c1.id().index(), c2.id().index(), c3.id().index());
