@@ -45,6 +45,21 @@ pub(super) fn in_process(
             outs_of.prefetch(j);
             ins_of.prefetch(j);
         }
+        // Half as far ahead, that node's plans are in the cache: the plans
+        // of the channels of its links, asked for now.
+        if let Some(&j) = order.get(k + AHEAD / 2) {
+            let channel = |l: usize| {
+                if let Some(plan) = plans.get(l) {
+                    prefetch(&**plan, 1);
+                }
+            };
+            for plan in outs_of.peek(j) {
+                plan.links().iter().copied().for_each(channel);
+            }
+            for plan in ins_of.peek(j) {
+                channel(plan.link());
+            }
+        }
         let Some(seed) = seeds.get_mut(i).and_then(Option::take) else {
             continue;
         };
@@ -127,25 +142,27 @@ impl<P> ByNode<P> {
     where
         P: std::ops::Deref,
     {
-        let (a, b) = (
-            self.from.get(node).copied().unwrap_or(0),
-            self.from.get(node + 1).copied().unwrap_or(0),
-        );
-        for plan in self.plans.get(a..b).unwrap_or_default().iter().flatten() {
+        for plan in self.peek(node) {
             prefetch(&**plan, 1);
         }
     }
 
+    /// Where node `node`'s plans lie in `plans` (empty for no such node).
+    fn of(&self, node: usize) -> std::ops::Range<usize> {
+        let at = |k: usize| self.from.get(k).copied().unwrap_or(0);
+        at(node)..at(node + 1)
+    }
+
+    /// Node `node`'s plans, left in place.
+    fn peek(&self, node: usize) -> impl Iterator<Item = &P> + '_ {
+        let plans = self.plans.get(self.of(node)).unwrap_or_default();
+        plans.iter().flatten()
+    }
+
     /// Node `node`'s plans, taken out (dropped by the caller once used).
     fn take(&mut self, node: usize) -> impl Iterator<Item = P> + '_ {
-        let (a, b) = (
-            self.from.get(node).copied().unwrap_or(0),
-            self.from.get(node + 1).copied().unwrap_or(0),
-        );
-        self.plans
-            .get_mut(a..b)
-            .unwrap_or_default()
-            .iter_mut()
-            .filter_map(Option::take)
+        let range = self.of(node);
+        let plans = self.plans.get_mut(range).unwrap_or_default();
+        plans.iter_mut().filter_map(Option::take)
     }
 }
