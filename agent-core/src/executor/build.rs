@@ -18,8 +18,9 @@ use crate::node::{InProcessNode, NodeSeed};
 /// thousands of subsystems, whose memory exceeds the last-level cache): each
 /// node's reach is gathered as soon as it is made, and each node's plans are
 /// dropped once its ports are installed, rather than in passes over every
-/// node afterwards; the plans are sorted by node into one vector (not a
-/// vector a node).
+/// node afterwards; what the builder made long before (the seeds, the plans,
+/// the channels' plans) is asked of the cache a few nodes ahead of its use;
+/// the plans are sorted by node into one vector (not a vector a node).
 pub(super) fn in_process(
     seeds: Vec<Box<dyn NodeSeed>>,
     outs: Vec<(usize, Box<dyn OutPlan>)>,
