@@ -127,6 +127,16 @@ mod tests {
         type Output = COut;
     }
 
+    /// A subsystem that sends its count to its peer, forever.
+    fn sends() -> Fsm<C> {
+        Fsm::single(Behaviour::while_loop(
+            "run",
+            Action::<C>::new().output(|y| &mut y.p, |m: &u64, _: &CIn, y: &mut ToPeer| y.v.set(*m)),
+            "false",
+        ))
+        .unwrap()
+    }
+
     /// A receptor that senses nothing: stepped after every other node.
     struct Clock;
     impl Driver for Clock {
@@ -145,19 +155,10 @@ mod tests {
     fn the_reach_gathered_while_building_is_that_of_the_made_nodes() {
         let mut b = SystemBuilder::new();
         let period = Period::from_millis(1).unwrap();
-        let fsm = || {
-            Fsm::single(Behaviour::while_loop(
-                "run",
-                Action::<C>::new()
-                    .output(|y| &mut y.p, |m: &u64, _: &CIn, y: &mut ToPeer| y.v.set(*m)),
-                "false",
-            ))
-            .unwrap()
-        };
         let agents: Vec<_> = (1..4).map(|i| b.agent(format!("a{i}"))).collect();
         b.driver(agents[0], "clock", period, Clock);
         let cs: Vec<_> = (0..3)
-            .map(|i| b.subsystem(agents[i], format!("c{}", i + 1), period, 0, fsm()))
+            .map(|i| b.subsystem(agents[i], format!("c{}", i + 1), period, 0, sends()))
             .collect();
         let (out, into) = (port!(COut, p.v), port!(CIn, p.v));
         for (i, c) in cs.iter().enumerate() {
@@ -197,23 +198,14 @@ mod tests {
     fn each_end_of_a_link_reaches_its_channel() {
         let mut b = SystemBuilder::new();
         let period = Period::from_millis(1).unwrap();
-        let fsm = || {
-            Fsm::single(Behaviour::while_loop(
-                "run",
-                Action::<C>::new()
-                    .output(|y| &mut y.p, |m: &u64, _: &CIn, y: &mut ToPeer| y.v.set(*m)),
-                "false",
-            ))
-            .unwrap()
-        };
         let (a1, a2, a3) = (b.agent("a1"), b.agent("a2"), b.agent("a3"));
-        let c1 = b.subsystem(a1, "c1", period, 0, fsm());
-        let c2 = b.subsystem(a2, "c2", period, 0, fsm());
+        let c1 = b.subsystem(a1, "c1", period, 0, sends());
+        let c2 = b.subsystem(a2, "c2", period, 0, sends());
         let (out, into) = (port!(COut, p.v), port!(CIn, p.v));
         b.connect(c1.output(out), c2.input(into), Policy::queue(4));
         b.connect(c2.output(out), c1.input(into), Policy::Sample);
         // c2's output fanned out to c3 too.
-        let c3 = b.subsystem(a3, "c3", period, 0, fsm());
+        let c3 = b.subsystem(a3, "c3", period, 0, sends());
         b.connect(c2.output(out), c3.input(into), Policy::Sample);
         let x = Executor::new(b.build().unwrap(), ExecConfig::default());
         let r = &x.reach;
