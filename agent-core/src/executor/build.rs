@@ -167,3 +167,31 @@ impl<P> ByNode<P> {
         plans.iter_mut().filter_map(Option::take)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ByNode;
+
+    /// Each node's plans come out in the order they were given (the order of
+    /// its ports, and of the trace's events), once; a plan of no node is
+    /// never given to one.
+    #[test]
+    fn plans_by_node_keep_their_order_and_are_taken_once() {
+        let given = vec![
+            (2, "c0"),
+            (0, "a0"),
+            (2, "c1"),
+            (7, "none"),
+            (0, "a1"),
+            (2, "c2"),
+        ];
+        let mut by = ByNode::new(3, given);
+        assert_eq!(by.peek(2).copied().collect::<Vec<_>>(), ["c0", "c1", "c2"]);
+        assert_eq!(by.peek(1).count(), 0);
+        assert_eq!(by.take(0).collect::<Vec<_>>(), ["a0", "a1"]);
+        assert_eq!(by.take(0).count(), 0, "taken once");
+        assert_eq!(by.take(2).collect::<Vec<_>>(), ["c0", "c1", "c2"]);
+        assert_eq!(by.peek(7).count(), 0, "no such node");
+        assert_eq!(by.take(3).count(), 0, "no such node");
+    }
+}
