@@ -180,6 +180,7 @@ mod tests {
         let given = vec![
             (2, "c0"),
             (0, "a0"),
+            (3, "past"),
             (2, "c1"),
             (7, "none"),
             (0, "a1"),
@@ -192,6 +193,6 @@ mod tests {
         assert_eq!(by.take(0).count(), 0, "taken once");
         assert_eq!(by.take(2).collect::<Vec<_>>(), ["c0", "c1", "c2"]);
         assert_eq!(by.peek(7).count(), 0, "no such node");
-        assert_eq!(by.take(3).count(), 0, "no such node");
+        assert_eq!(by.take(3).count(), 0, "no such node: the one past the last");
     }
 }
