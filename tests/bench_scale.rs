@@ -73,6 +73,10 @@ fn quick_run_prints_its_figures_and_the_scale_line() {
             positive(l, key);
         }
         assert!(positive(l, "action_ns_p99") >= positive(l, "action_ns_p50"));
+        // The kernel's copy into huge pages, waited for before the actions
+        // are timed: none, or a time (zero for a small system asked in place).
+        let huge: f64 = field(l, "huge_pages_ms").parse().unwrap();
+        assert!(huge.is_finite() && huge >= 0.0, "{l}");
         assert_eq!(field(l, "allocs_per_action"), "0", "steady state: {l}");
     }
 

@@ -4,10 +4,13 @@
 //! channels no longer fit in the caches, and an instant's two walks over them
 //! (every read, then every step) would wait on each one's lines. The
 //! executor asks for them a few nodes ahead (`executor::reach`), and asks
-//! the kernel to back the memory they lie in with huge pages ([`huge_pages`]),
+//! the kernel to back the memory they lie in with huge pages ([`Collapse`]),
 //! whose entries in the TLB cover 512 times more. Measured in
 //! docs/scaling.md; the prefetch elsewhere than on x86_64 and the huge pages
 //! elsewhere than on Linux, nothing.
+
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 /// Ask the cache for the first `lines` cache lines (64 bytes each) of `x`
 /// (a node: its FSM state, buffers and port tables).
@@ -48,23 +51,119 @@ pub(crate) fn address_of<T: ?Sized>(value: &T, to: &mut Vec<usize>) {
 /// The size of a huge page on x86_64 and aarch64 Linux: 2 MiB.
 const HUGE_PAGE: usize = 2 << 20;
 
-/// Ask the kernel to back the huge-page-sized regions (2 MiB) that hold
-/// `addresses` with huge pages, now (Linux's `MADV_COLLAPSE`, 6.1 and
-/// later; whatever the system's transparent-huge-page setting). A node, its
-/// ports and its channels are then reached through a TLB entry shared with
-/// hundreds of others, not one of their own. Each region is asked alone: one
-/// the allocator's mapping does not wholly cover (at the ends of the heap), or
-/// that the kernel cannot collapse (no huge page free, an older kernel), stays
-/// as it is. Returns how many regions were collapsed. The memory a region's
-/// unused pages take becomes resident (at most 2 MiB a region).
-pub(crate) fn huge_pages(addresses: impl IntoIterator<Item = usize>) -> usize {
+/// The huge-page regions (their indices) that hold `addresses`, each once.
+fn regions(addresses: impl IntoIterator<Item = usize>) -> Vec<usize> {
     let mut regions: Vec<usize> = addresses.into_iter().map(|a| a / HUGE_PAGE).collect();
     regions.sort_unstable();
     regions.dedup();
     regions
-        .into_iter()
-        .filter(|&r| collapse(r * HUGE_PAGE))
-        .count()
+}
+
+/// Collapse `regions` one after the other.
+fn collapse_all(regions: &[usize]) -> HugePages {
+    let start = Instant::now();
+    let collapsed = regions.iter().filter(|&&r| collapse(r * HUGE_PAGE)).count();
+    HugePages {
+        regions: regions.len(),
+        collapsed,
+        took: start.elapsed(),
+    }
+}
+
+/// Regions asked for where the executor is made rather than on a thread of
+/// their own: at most this many (a thread's start, 20 to 90 µs and now and
+/// then near a millisecond on the machine of docs/scaling.md, costs more
+/// than their copy).
+const INLINE_REGIONS: usize = 2;
+
+/// What the kernel did with an executor's request for huge pages
+/// ([`ExecConfig::huge_pages`](crate::ExecConfig::huge_pages), told by
+/// [`Executor::wait_for_huge_pages`](crate::Executor::wait_for_huge_pages)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct HugePages {
+    /// The 2 MiB regions that hold the executor's nodes, ports and channels
+    /// (none when it asked for none).
+    pub regions: usize,
+    /// Those the kernel backed with a huge page: a region the allocator's
+    /// mapping does not wholly cover, or that the kernel refuses (no huge
+    /// page free, Linux before 6.1, another system), stays as it was.
+    pub collapsed: usize,
+    /// How long the kernel took over them.
+    pub took: Duration,
+}
+
+/// An executor's request for huge pages, on a thread of its own when it is
+/// more than a few regions: the kernel copies each region's small pages into
+/// a huge page (up to about a millisecond a region of fresh memory: tens of
+/// milliseconds for 10,000 subsystems), and since nothing the program sees
+/// changes meanwhile, the executor need not wait for it before it steps (its
+/// actions are the faster once the copy is done). Dropped before the copy
+/// is done (with its executor), it waits for it: the executor's memory goes
+/// back to the allocator on huge pages, as it would have without the thread,
+/// and no region is copied once its memory is another's.
+pub(crate) struct Collapse {
+    /// What it came to, once known.
+    done: Option<HugePages>,
+    /// The thread at work.
+    thread: Option<JoinHandle<HugePages>>,
+}
+
+impl Collapse {
+    /// Nothing asked for.
+    pub(crate) fn none() -> Collapse {
+        Collapse {
+            done: Some(HugePages::default()),
+            thread: None,
+        }
+    }
+
+    /// Ask the kernel to back the huge-page-sized regions (2 MiB) that hold
+    /// `addresses` with huge pages (Linux's `MADV_COLLAPSE`, 6.1 and later;
+    /// whatever the system's transparent-huge-page setting): here when they
+    /// are few ([`INLINE_REGIONS`]) or no thread can be started, else on a
+    /// thread of their own. A node, its ports and its channels are then
+    /// reached through a TLB entry shared with hundreds of others, not one of
+    /// their own. Each region is asked alone: one the allocator's mapping
+    /// does not wholly cover (at the ends of the heap), or that the kernel
+    /// cannot collapse (no huge page free, an older kernel), stays as it is.
+    /// The memory a region's unused pages take becomes resident (at most
+    /// 2 MiB a region).
+    pub(crate) fn start(addresses: impl IntoIterator<Item = usize>) -> Collapse {
+        let regions = regions(addresses);
+        if regions.len() > INLINE_REGIONS {
+            let theirs = regions.clone();
+            let spawned = std::thread::Builder::new()
+                .name("huge-pages".into())
+                .spawn(move || collapse_all(&theirs));
+            if let Ok(thread) = spawned {
+                return Collapse {
+                    done: None,
+                    thread: Some(thread),
+                };
+            }
+        }
+        Collapse {
+            done: Some(collapse_all(&regions)),
+            thread: None,
+        }
+    }
+
+    /// Wait until the kernel is done; what it did.
+    pub(crate) fn wait(&mut self) -> HugePages {
+        if let Some(thread) = self.thread.take() {
+            // A thread that panicked (nothing in it can) is counted as
+            // having collapsed nothing.
+            self.done = Some(thread.join().unwrap_or_default());
+        }
+        self.done.unwrap_or_default()
+    }
+}
+
+impl Drop for Collapse {
+    fn drop(&mut self) {
+        self.wait();
+    }
 }
 
 /// Collapse the huge-page region at `start` (aligned) into one huge page.
@@ -134,8 +233,10 @@ mod tests {
         let values: Vec<u64> = (0..1 << 20).map(pattern).collect();
         let base = values.as_ptr().addr();
         let every_page = (0..values.len()).step_by(512).map(|i| base + 8 * i);
-        let collapsed = huge_pages(every_page);
-        assert!(collapsed <= 5, "{collapsed} regions of an 8 MiB vector");
+        let done = Collapse::start(every_page).wait();
+        let collapsed = done.collapsed;
+        assert!((4..=5).contains(&done.regions), "{done:?}: an 8 MiB vector");
+        assert!(collapsed <= done.regions, "{done:?}");
         let changed = (values.iter().enumerate()).find(|&(i, &v)| v != pattern(i));
         assert_eq!(changed, None, "a value changed by the collapse");
         // What it says it collapsed, the kernel counts as huge pages (the
@@ -153,7 +254,37 @@ mod tests {
     #[test]
     fn a_region_not_wholly_mapped_is_left_as_it_is() {
         // The first 2 MiB of the address space are never all mapped.
-        assert_eq!(huge_pages([0x1000, 0x2000]), 0);
-        assert_eq!(huge_pages([]), 0);
+        let done = Collapse::start([0x1000, 0x2000]).wait();
+        assert_eq!((done.regions, done.collapsed), (1, 0));
+        let done = Collapse::start([]).wait();
+        assert_eq!((done.regions, done.collapsed), (0, 0));
+        assert_eq!(Collapse::none().wait(), HugePages::default());
+    }
+
+    #[test]
+    fn memory_written_while_its_regions_collapse_on_their_thread_keeps_every_value() {
+        // 32 MiB: the kernel copies region after region while this thread
+        // writes every value again, page by page.
+        let mut values: Vec<u64> = (0..1 << 22).map(pattern).collect();
+        let base = values.as_ptr().addr();
+        let every_page = (0..values.len()).step_by(512).map(|i| base + 8 * i);
+        let mut collapse = Collapse::start(every_page);
+        assert!(
+            collapse.thread.is_some(),
+            "16 regions or more, asked on a thread"
+        );
+        for round in 1..=4u64 {
+            for (i, v) in values.iter_mut().enumerate() {
+                *v = pattern(i) ^ round;
+            }
+        }
+        let done = collapse.wait();
+        assert!(
+            done.regions >= 16 && done.collapsed <= done.regions,
+            "{done:?}"
+        );
+        assert_eq!(collapse.wait(), done, "told again once done");
+        let changed = (values.iter().enumerate()).find(|&(i, &v)| v != pattern(i) ^ 4);
+        assert_eq!(changed, None, "a value lost to the collapse");
     }
 }

@@ -49,6 +49,7 @@ pub mod untyped;
 
 pub use behaviour::Behaviour;
 pub use buffer::{Access, BufferPort, Direction, Fan, Group, In, Out, Payload};
+pub use cache::HugePages;
 pub use describe::{Buffers, Field, Fields, Fresh, GroupShape, PortTable, Shape};
 pub use error::{
     ActionError, BufferError, BuildError, BuildProblem, DriverError, ExecError, FsmBuildError,

@@ -468,3 +468,32 @@ fn memory_made_huge_changes_nothing_the_system_does() {
     assert_eq!(on, off);
     assert!(on.events.len() > 6000 * 10, "every subsystem ran");
 }
+
+/// A large system's huge pages are asked for beside its first instants (on
+/// the executor's thread for them), told when waited for, and none are asked
+/// for when the setting is off.
+#[test]
+fn the_huge_pages_of_a_large_system_are_waited_for_and_told() {
+    let executor = |huge_pages: bool| {
+        let config = ExecConfig {
+            huge_pages,
+            ..ExecConfig::default()
+        };
+        Executor::new(pairs(3000, 10, 10).system, config)
+    };
+    let mut x = executor(true);
+    x.run_until(t_ms(20)).unwrap();
+    let done = x.wait_for_huge_pages();
+    // Several megabytes: more regions than are asked for in place. The
+    // kernel may refuse them all (an older one, no huge page free).
+    assert!(done.regions > 2, "{done:?}");
+    assert!(done.collapsed <= done.regions, "{done:?}");
+    assert_eq!(x.wait_for_huge_pages(), done, "told again, the same");
+    x.run_until(t_ms(40)).unwrap();
+    assert_eq!(x.report().error_count, 0);
+    let mut off = executor(false);
+    assert_eq!(off.wait_for_huge_pages(), HugePages::default());
+    // Dropped at once, while the kernel may still be copying: the drop
+    // waits for it, and nothing else is asked of the test.
+    drop(executor(true));
+}

@@ -9,7 +9,10 @@
 //! their FSMs' definitions (each FSM built once and cloned, as `Fsm`'s clones
 //! share it), each subsystem with its own state.
 //!
-//! For each size, the same measurements and the same repeat policy:
+//! For each size, the same measurements and the same repeat policy (the
+//! rebuilds and the actions in a process that has started a thread, so that
+//! the C library's allocator locks its arenas at every size:
+//! [`with_threads`]):
 //!
 //! * `build_ms`: median over [`BUILDS`] builds of the time to declare the
 //!   system on a [`SystemBuilder`], build it and make its [`Executor`]
@@ -19,7 +22,12 @@
 //! * `first_build_us_per_subsystem`: the same build as a program makes it,
 //!   once, in a fresh process (this program run again with `--first-build
 //!   AGENTS`), median over [`FIRST_BUILDS`] processes, per subsystem (`na`
-//!   when no program to run is given);
+//!   when no program to run is given). A build does not wait for the
+//!   kernel to back the executor's memory with huge pages
+//!   ([`ExecConfig::huge_pages`]: on a thread of the executor's);
+//! * `huge_pages_ms`: how long that took the kernel for the measured
+//!   executor ([`Executor::wait_for_huge_pages`], which waits for it before
+//!   anything else is measured);
 //! * `bytes_per_subsystem`: the heap that system and executor hold once warmed
 //!   up (queues filled), per subsystem, counted by the byte-counting global
 //!   allocator of `main.rs`;
@@ -287,6 +295,10 @@ pub(crate) struct Figures {
     pub(crate) build_ms: f64,
     /// Median time of a fresh process's one build, per subsystem \[us\].
     pub(crate) first_build_us: Option<f64>,
+    /// How long the kernel took to back the measured executor's memory with
+    /// huge pages, on the executor's thread for it (the builds do not wait
+    /// for it) \[ms\].
+    pub(crate) huge_pages_ms: f64,
     /// Heap allocations per measured action.
     pub(crate) allocs_per_action: f64,
 }
@@ -297,7 +309,7 @@ impl Figures {
         format!(
             "det n={} action_ns_p50={:.1} action_ns_p99={:.1} bytes_per_subsystem={:.0} \
              build_ms={:.3} build_us_per_subsystem={:.2} first_build_us_per_subsystem={} \
-             allocs_per_action={}",
+             huge_pages_ms={:.3} allocs_per_action={}",
             self.n,
             self.action_ns_p50,
             self.action_ns_p99,
@@ -306,6 +318,7 @@ impl Figures {
             self.build_ms * 1e3 / self.n as f64,
             self.first_build_us
                 .map_or_else(|| "na".to_owned(), |us| format!("{us:.2}")),
+            self.huge_pages_ms,
             self.allocs_per_action
         )
     }
@@ -316,6 +329,25 @@ pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
     let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
     v[rank - 1]
+}
+
+/// Make this process one that has started a thread, once, before anything
+/// is built or timed in it. The C library's allocator skips its arenas'
+/// locks in a process that never started one and takes them from the first
+/// thread on; a large system's executor starts one for its huge pages
+/// ([`ExecConfig::huge_pages`]), which would move the rebuilds of the sizes
+/// after it onto the slower path mid-run. Every rebuild is timed on the
+/// locked path (that of every program with threads: Zenoh's, a recorder's,
+/// the real-time executor's), 10 to 15 % slower than the other at every size
+/// (docs/scaling.md). A first build, in a fresh process, is timed before any
+/// thread starts.
+fn with_threads() {
+    static STARTED: std::sync::Once = std::sync::Once::new();
+    STARTED.call_once(|| {
+        // A thread that cannot start leaves the process as it was: the
+        // figures are then the single-threaded allocator's.
+        let _ = std::thread::Builder::new().spawn(|| ()).map(|t| t.join());
+    });
 }
 
 /// Whether the executors measured leave their memory on the pages the
@@ -344,6 +376,7 @@ struct Bench {
     per_batch: u64,
     warm_up: u64,
     bytes: usize,
+    huge_pages_ms: f64,
     build_ms: Vec<f64>,
     action_ns: Vec<f64>,
     allocations: u64,
@@ -352,9 +385,12 @@ struct Bench {
 impl Bench {
     /// The executor of `agents` agents, warmed up: the heap it holds then.
     fn new(agents: usize) -> Result<Bench, Box<dyn std::error::Error>> {
+        with_threads();
         let n = 3 * agents;
         let before = heap::live();
         let (mut exec, ids) = executor(agents)?;
+        // Its memory on huge pages before anything is measured.
+        let huge_pages_ms = exec.wait_for_huge_pages().took.as_secs_f64() * 1e3;
         let per_batch = (ACTIONS_PER_BATCH / n as u64).max(1);
         for _ in 0..per_batch {
             exec.step()?; // warm-up: every buffer written, every queue in use
@@ -369,6 +405,7 @@ impl Bench {
             per_batch,
             warm_up,
             bytes,
+            huge_pages_ms,
             build_ms: Vec::new(),
             action_ns: Vec::new(),
             allocations: 0,
@@ -429,6 +466,7 @@ impl Bench {
             bytes_per_subsystem: self.bytes as f64 / n as f64,
             build_ms: quantile(&mut self.build_ms, 0.5),
             first_build_us: None,
+            huge_pages_ms: self.huge_pages_ms,
             allocs_per_action: self.allocations as f64 / actions,
         })
     }
@@ -553,12 +591,14 @@ pub(crate) fn measure_rates(
     agents: &[usize],
     batches: usize,
 ) -> Result<Vec<Rates>, Box<dyn std::error::Error>> {
+    with_threads();
     let (fast, slow) = (Period::from_millis(1)?, Period::from_millis(RATIO)?);
     let mut figures = Vec::with_capacity(agents.len());
     for &a in agents {
         let n = 3 * a;
         let (system, ids) = system_with(a, |i| if i == 0 { fast } else { slow })?;
         let mut exec = Executor::new(system, config());
+        exec.wait_for_huge_pages();
         let per_slow_period = 3 * (RATIO - 1) + n as u64;
         let periods = (ACTIONS_PER_BATCH / per_slow_period).max(1);
         let instants = periods * RATIO;

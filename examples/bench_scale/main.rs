@@ -336,7 +336,7 @@ fn deterministic(
             "det growth: action {:.2}x from n={} to n={} (aim <= 1.5); from n={} to n={} \
              (1 is linear): bytes per subsystem {:.2}x, build time per subsystem {first_build} \
              (a program's one build, in a fresh process), {:.2}x (rebuilt in the process \
-             that holds one)",
+             that holds one, which has threads)",
             last.action_ns_p50 / first.action_ns_p50,
             first.n,
             last.n,

@@ -36,6 +36,7 @@ mod build;
 mod reach;
 mod schedule;
 
+use crate::cache::{Collapse, HugePages};
 use crate::error::ExecError;
 use crate::kinds::NodeKind;
 use crate::link::{Channels, LinkCx, LinkId, LinkStats, Wants};
@@ -101,12 +102,19 @@ pub struct ExecConfig {
     /// later: `MADV_COLLAPSE` of each 2 MiB region that holds one; elsewhere
     /// nothing). On by default: in a system of thousands of subsystems an
     /// instant's walks then miss the TLB far less (about 8 % faster an
-    /// action at 9,999 subsystems, docs/scaling.md); a small system's memory
-    /// is one region or none, a few microseconds at the start, while 10,000
-    /// subsystems' fresh memory takes up to about 85 ms to collapse. Off: the
-    /// pages the allocator gave (no region's unused pages made resident, at
-    /// most 2 MiB a region otherwise).
-    /// The real-time executor's threads do not ask (measured no better).
+    /// action at 9,999 subsystems, docs/scaling.md). A small system's memory
+    /// is one or two regions, asked for as the executor is made (microseconds);
+    /// more are asked for on a thread of the executor's own, so that the build
+    /// does not wait for the kernel to copy them (a few milliseconds for
+    /// 10,000 subsystems' fresh memory, up to about 85 ms on a loaded host):
+    /// the executor steps meanwhile, the same run on either pages, and
+    /// [`Executor::wait_for_huge_pages`] waits for the copy; dropping the
+    /// executor does too, before its memory is freed. That thread makes the
+    /// process one with threads, if it was not (the C library's allocator
+    /// then locks its arenas). Off: the pages the allocator gave (no
+    /// region's unused pages made resident, at most 2 MiB a region
+    /// otherwise). The real-time executor's threads do not ask (measured no
+    /// better).
     pub huge_pages: bool,
 }
 
@@ -149,6 +157,10 @@ pub struct RunReport {
 /// the module docs. (The executor itself is not `Send`: its links share channels
 /// without locks. Move the [`System`] to another thread and build the executor there.)
 pub struct Executor<O: Observer = NoObserver> {
+    /// The huge pages asked for its memory ([`ExecConfig::huge_pages`]).
+    /// First, so dropped first: a drop waits for the kernel's copy before
+    /// the memory it copies is freed.
+    huge_pages: Collapse,
     pub(crate) info: SystemInfo,
     pub(crate) nodes: Vec<Box<dyn InProcessNode>>,
     periods: Vec<u64>,
@@ -236,11 +248,14 @@ impl<O: Observer> Executor<O> {
             .collect();
         let next = vec![0; n];
         let schedule = Schedule::new(&next, &periods, &order);
-        if config.huge_pages {
-            crate::cache::huge_pages(reach.addresses(&nodes));
-        }
+        let huge_pages = if config.huge_pages {
+            Collapse::start(reach.addresses(&nodes))
+        } else {
+            Collapse::none()
+        };
         Executor {
             reach,
+            huge_pages,
             stamps: None,
             channels,
             info,
@@ -299,6 +314,17 @@ impl<O: Observer> Executor<O> {
     /// Errors and counters of the run so far.
     pub fn report(&self) -> &RunReport {
         &self.report
+    }
+
+    /// Wait until the kernel has backed the executor's memory with huge
+    /// pages ([`ExecConfig::huge_pages`]), and what it did. The executor
+    /// asks when it is made, on a thread of its own for more than a few
+    /// regions, so that a large system need not wait for the kernel's copy
+    /// to start stepping; this returns at once when the copy is done or none
+    /// was asked for. For a program that times the executor's actions, or
+    /// wants the copy off the machine's cores before its first instant.
+    pub fn wait_for_huge_pages(&mut self) -> HugePages {
+        self.huge_pages.wait()
     }
 
     /// The observer.
