@@ -448,6 +448,14 @@ fn driver_failure_stops_or_is_retried() {
     assert_eq!(x.report().error_count, 1);
 }
 
+/// The default settings, with the huge pages on or off.
+fn with_huge_pages(huge_pages: bool) -> ExecConfig {
+    ExecConfig {
+        huge_pages,
+        ..ExecConfig::default()
+    }
+}
+
 /// A large system's memory backed with huge pages (`ExecConfig::huge_pages`,
 /// on by default) runs the same, event for event, as on the pages the
 /// allocator gave.
@@ -455,10 +463,7 @@ fn driver_failure_stops_or_is_retried() {
 fn memory_made_huge_changes_nothing_the_system_does() {
     // 6,000 subsystems: several megabytes, regions of 2 MiB wholly theirs.
     let run = |huge_pages: bool| {
-        let config = ExecConfig {
-            huge_pages,
-            ..ExecConfig::default()
-        };
+        let config = with_huge_pages(huge_pages);
         let mut x = Executor::with_observer(pairs(3000, 10, 10).system, config, Recorder::new());
         x.run_until(t_ms(100)).unwrap();
         x.observer().trace().clone()
@@ -474,13 +479,8 @@ fn memory_made_huge_changes_nothing_the_system_does() {
 /// for when the setting is off.
 #[test]
 fn the_huge_pages_of_a_large_system_are_waited_for_and_told() {
-    let executor = |huge_pages: bool| {
-        let config = ExecConfig {
-            huge_pages,
-            ..ExecConfig::default()
-        };
-        Executor::new(pairs(3000, 10, 10).system, config)
-    };
+    let executor =
+        |huge_pages: bool| Executor::new(pairs(3000, 10, 10).system, with_huge_pages(huge_pages));
     let mut x = executor(true);
     x.run_until(t_ms(20)).unwrap();
     let done = x.wait_for_huge_pages();

@@ -338,7 +338,7 @@ pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
 /// ([`ExecConfig::huge_pages`]), which would move the rebuilds of the sizes
 /// after it onto the slower path mid-run. Every rebuild is timed on the
 /// locked path (that of every program with threads: Zenoh's, a recorder's,
-/// the real-time executor's), 10 to 15 % slower than the other at every size
+/// the real-time executor's), 15 to 25 % slower than the other at every size
 /// (docs/scaling.md). A first build, in a fresh process, is timed before any
 /// thread starts.
 fn with_threads() {
