@@ -95,7 +95,7 @@ pub struct HugePages {
 
 /// An executor's request for huge pages, on a thread of its own when it is
 /// more than a few regions: the kernel copies each region's small pages into
-/// a huge page (up to about a millisecond a region of fresh memory: tens of
+/// a huge page (0.2 to 1.4 ms a region of fresh memory: from a few to tens of
 /// milliseconds for 10,000 subsystems), and since nothing the program sees
 /// changes meanwhile, the executor need not wait for it before it steps (its
 /// actions are the faster once the copy is done). Dropped before the copy

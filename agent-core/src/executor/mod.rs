@@ -105,8 +105,9 @@ pub struct ExecConfig {
     /// action at 9,999 subsystems, docs/scaling.md). A small system's memory
     /// is one or two regions, asked for as the executor is made (microseconds);
     /// more are asked for on a thread of the executor's own, so that the build
-    /// does not wait for the kernel to copy them (a few milliseconds for
-    /// 10,000 subsystems' fresh memory, up to about 85 ms on a loaded host):
+    /// does not wait for the kernel to copy them (from a few to tens of
+    /// milliseconds for 10,000 subsystems' fresh memory, up to about 85 ms
+    /// on a loaded host):
     /// the executor steps meanwhile, the same run on either pages, and
     /// [`Executor::wait_for_huge_pages`] waits for the copy; dropping the
     /// executor does too, before its memory is freed. That thread makes the
