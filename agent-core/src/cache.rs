@@ -102,20 +102,20 @@ pub struct HugePages {
 /// is done (with its executor), it waits for it: the executor's memory goes
 /// back to the allocator on huge pages, as it would have without the thread,
 /// and no region is copied once its memory is another's.
-pub(crate) struct Collapse {
-    /// What it came to, once known.
-    done: Option<HugePages>,
+pub(crate) struct Collapse(Stage);
+
+/// Where a [`Collapse`] is.
+enum Stage {
+    /// Done: what it came to.
+    Done(HugePages),
     /// The thread at work.
-    thread: Option<JoinHandle<HugePages>>,
+    Running(JoinHandle<HugePages>),
 }
 
 impl Collapse {
     /// Nothing asked for.
     pub(crate) fn none() -> Collapse {
-        Collapse {
-            done: Some(HugePages::default()),
-            thread: None,
-        }
+        Collapse(Stage::Done(HugePages::default()))
     }
 
     /// Ask the kernel to back the huge-page-sized regions (2 MiB) that hold
@@ -137,26 +137,22 @@ impl Collapse {
                 .name("huge-pages".into())
                 .spawn(move || collapse_all(&theirs));
             if let Ok(thread) = spawned {
-                return Collapse {
-                    done: None,
-                    thread: Some(thread),
-                };
+                return Collapse(Stage::Running(thread));
             }
         }
-        Collapse {
-            done: Some(collapse_all(&regions)),
-            thread: None,
-        }
+        Collapse(Stage::Done(collapse_all(&regions)))
     }
 
     /// Wait until the kernel is done; what it did.
     pub(crate) fn wait(&mut self) -> HugePages {
-        if let Some(thread) = self.thread.take() {
+        let done = match std::mem::replace(&mut self.0, Stage::Done(HugePages::default())) {
+            Stage::Done(done) => done,
             // A thread that panicked (nothing in it can) is counted as
             // having collapsed nothing.
-            self.done = Some(thread.join().unwrap_or_default());
-        }
-        self.done.unwrap_or_default()
+            Stage::Running(thread) => thread.join().unwrap_or_default(),
+        };
+        self.0 = Stage::Done(done);
+        done
     }
 }
 
@@ -270,7 +266,7 @@ mod tests {
         let every_page = (0..values.len()).step_by(512).map(|i| base + 8 * i);
         let mut collapse = Collapse::start(every_page);
         assert!(
-            collapse.thread.is_some(),
+            matches!(collapse.0, Stage::Running(_)),
             "16 regions or more, asked on a thread"
         );
         for round in 1..=4u64 {
