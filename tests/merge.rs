@@ -57,8 +57,10 @@ fn run<O: Observer>(observer: O) -> O {
     exec.into_observer()
 }
 
-fn record() -> (PathBuf, Vec<PathBuf>) {
-    let whole = tmp("whole.mcap");
+/// As [`record`], the files' names starting with `prefix` and each part's
+/// `process` record naming launch `launch`.
+fn record_launch(prefix: &str, launch: &str) -> (PathBuf, Vec<PathBuf>) {
+    let whole = tmp(&format!("{prefix}whole.mcap"));
     let s = system();
     let recorder = McapRecorder::create(&whole, &s, RecordOptions::default()).unwrap();
     run(recorder).finish().unwrap();
@@ -70,7 +72,10 @@ fn record() -> (PathBuf, Vec<PathBuf>) {
         .iter()
         .map(|n| agents.iter().position(|a| *a == n.agent).unwrap())
         .collect();
-    let paths: Vec<PathBuf> = agents.iter().map(|a| tmp(&format!("{a}.mcap"))).collect();
+    let paths: Vec<PathBuf> = agents
+        .iter()
+        .map(|a| tmp(&format!("{prefix}{a}.mcap")))
+        .collect();
     let parts = agents
         .iter()
         .zip(&paths)
@@ -78,7 +83,11 @@ fn record() -> (PathBuf, Vec<PathBuf>) {
             let mut options = RecordOptions::default();
             options.metadata.insert(
                 "process".into(),
-                [("name".to_owned(), (*a).to_owned())].into(),
+                [
+                    ("name".to_owned(), (*a).to_owned()),
+                    ("launch".to_owned(), launch.to_owned()),
+                ]
+                .into(),
             );
             McapRecorder::create(p, &s, options).unwrap()
         })
@@ -93,6 +102,10 @@ fn record() -> (PathBuf, Vec<PathBuf>) {
         part.finish().unwrap();
     }
     (whole, paths)
+}
+
+fn record() -> (PathBuf, Vec<PathBuf>) {
+    record_launch("", "0123456789abcdef")
 }
 
 fn embodied(args: &[&str]) -> (i32, String, String) {
@@ -199,4 +212,43 @@ fn the_processes_recordings_merge_into_one_that_replays_as_the_whole_run() {
     let (code, _, stderr) = embodied(&["merge", "/nonexistent/run.mcap", "-o", &path(&merged)]);
     assert_eq!(code, 1);
     assert!(stderr.contains("/nonexistent/run.mcap"), "{stderr}");
+}
+
+/// A launch merges the parts it recorded and leaves out one that an earlier
+/// launch left under a name of the same pattern (a restart this launch did not
+/// have), saying so; a launch that recorded none of them merges nothing.
+#[test]
+fn a_launch_merges_its_own_parts_and_leaves_out_an_earlier_launchs() {
+    let (_, earlier) = record_launch("earlier-", "launch-1");
+    let (_, parts) = record_launch("later-", "launch-2");
+    let merged = tmp("later-merged.mcap");
+    let inputs = [parts[0].clone(), parts[1].clone(), earlier[1].clone()];
+    let m = embodied::record::merge_launch(&inputs, &merged, "launch-2").unwrap();
+    assert_eq!(m.files, 2);
+    assert_eq!(m.left_out, vec![earlier[1].clone()]);
+    let own: usize = parts
+        .iter()
+        .map(|p| Recording::open(p).unwrap().messages.len())
+        .sum();
+    let r = Recording::open(&merged).unwrap();
+    assert_eq!(
+        r.messages.len(),
+        own,
+        "the earlier launch's messages are not in"
+    );
+    for process in ["station", "operator"] {
+        assert_eq!(
+            r.metadata[&format!("process/{process}")]["launch"],
+            "launch-2"
+        );
+    }
+    // Every part's launch differs from the one asked: nothing to merge.
+    let none = embodied::record::merge_launch(&inputs, &tmp("none.mcap"), "launch-3");
+    assert!(
+        matches!(none, Err(embodied::record::MergeError::Empty)),
+        "{none:?}"
+    );
+    // `merge` takes every file given, as before.
+    let all = embodied::record::merge(&inputs, &tmp("all.mcap")).unwrap();
+    assert_eq!((all.files, all.left_out.len()), (3, 0));
 }

@@ -40,7 +40,7 @@ pub mod timing;
 pub use codec::{Codec, DecodeError};
 pub use export::{ExportError, ExportOptions, ExportSummary, LeftOut, LeftOutReason, export_ros2};
 pub use mcap;
-pub use merge::{MergeError, MergeSummary, merge};
+pub use merge::{MergeError, MergeSummary, merge, merge_launch};
 pub use read::{ReadError, Recording};
 pub use record::{
     Derive, DerivedChannel, McapRecorder, RecordError, RecordOptions, RecordSummary, Values,

@@ -16,6 +16,11 @@
 //! own `end` stays as `end/<process>`, and a run with restarts says which starts
 //! it holds (`restarts`). The result replays as a recording of the whole run,
 //! and each start of a restarted process replays on its own.
+//!
+//! [`merge_launch`] merges the parts of one launch only: a part whose
+//! `process` record names another launch (one an earlier launch left beside
+//! the file under the same name) is left out, and said
+//! ([`MergeSummary::left_out`]).
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -38,6 +43,9 @@ pub struct MergeSummary {
     /// The parts cut short (a process killed while it recorded): each kept up
     /// to where it ends, and said here (the file and where it ends).
     pub cut_short: Vec<String>,
+    /// The parts not merged because they were recorded by another launch
+    /// ([`merge_launch`]; none for [`merge`]).
+    pub left_out: Vec<PathBuf>,
 }
 
 /// Why files could not be merged.
@@ -82,7 +90,36 @@ pub enum MergeError {
 /// Merge the recordings `inputs` (of the processes of one run) into `output`
 /// (see the module's documentation).
 pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeError> {
-    let (files, cut_short) = read_parts(inputs)?;
+    let parts = read_parts(inputs)?;
+    merge_read(parts, output, Vec::new())
+}
+
+/// [`merge`] of the parts that launch `launch` recorded (the `launch` entry
+/// of each part's `process` record): a part of another launch, or of none, is
+/// left out and named in [`MergeSummary::left_out`]. What a launcher merges,
+/// so that a part an earlier launch left under the same name (a restart that
+/// this launch did not have) never joins this launch's recording.
+pub fn merge_launch(
+    inputs: &[PathBuf],
+    output: &Path,
+    launch: &str,
+) -> Result<MergeSummary, MergeError> {
+    let (parts, others): (Vec<_>, Vec<_>) = read_parts(inputs)?.into_iter().partition(|(f, _)| {
+        let of = f.metadata.get("process").and_then(|p| p.get("launch"));
+        of.is_some_and(|l| l == launch)
+    });
+    let left_out = others.into_iter().map(|(f, _)| f.path).collect();
+    merge_read(parts, output, left_out)
+}
+
+/// Merge the parts read into `output`.
+fn merge_read(
+    parts: Vec<(Recording, Option<String>)>,
+    output: &Path,
+    left_out: Vec<PathBuf>,
+) -> Result<MergeSummary, MergeError> {
+    let (files, cut_short): (Vec<Recording>, Vec<Option<String>>) = parts.into_iter().unzip();
+    let cut_short = cut_short.into_iter().flatten().collect();
     one_system(&files)?;
     let mut out = Merged::create(output)?;
     let ids = out.channels(&files)?;
@@ -98,20 +135,19 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<MergeSummary, MergeErr
         channels,
         finished: files.iter().all(Recording::finished),
         cut_short,
+        left_out,
     })
 }
 
-/// Every part, each read up to where it ends, and the parts cut short (each
-/// said as the error that says where it ends).
-fn read_parts(inputs: &[PathBuf]) -> Result<(Vec<Recording>, Vec<String>), MergeError> {
-    let mut cut_short = Vec::new();
+/// Every part, each read up to where it ends, with what says where a part
+/// cut short ends (the error that stopped its reading).
+fn read_parts(inputs: &[PathBuf]) -> Result<Vec<(Recording, Option<String>)>, MergeError> {
     let mut files = Vec::with_capacity(inputs.len());
     for p in inputs {
         let (f, cut) = Recording::open_salvaging(p)?;
-        cut_short.extend(cut.map(|e| e.to_string()));
-        files.push(f);
+        files.push((f, cut.map(|e| e.to_string())));
     }
-    Ok((files, cut_short))
+    Ok(files)
 }
 
 /// Refuses no file, and files of different systems.

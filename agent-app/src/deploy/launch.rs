@@ -30,10 +30,22 @@ const OWN_FLAGS: [(&str, bool); 5] = [
 ];
 
 /// The arguments of the children: this program's, without `launch` and its
-/// own flags.
-fn child_args() -> Vec<String> {
+/// own flags. An argument that is not UTF-8 is refused (the children are
+/// given their arguments as text).
+fn child_args() -> Result<Vec<String>, AppError> {
+    let given: Vec<String> = std::env::args_os()
+        .skip(1)
+        .map(|a| {
+            a.into_string().map_err(|a| {
+                AppError::invalid(format!(
+                    "launch: the argument {} is not UTF-8 text, which the processes are started with",
+                    a.to_string_lossy()
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
     let mut args = Vec::new();
-    let mut given = std::env::args().skip(1);
+    let mut given = given.into_iter();
     let mut launch_seen = false;
     while let Some(a) = given.next() {
         if !launch_seen && a == "launch" {
@@ -54,7 +66,7 @@ fn child_args() -> Vec<String> {
         }
         args.push(a);
     }
-    args
+    Ok(args)
 }
 
 /// The part of a recording each process writes: `<stem>.{process}.mcap`
@@ -133,16 +145,22 @@ pub(crate) fn launch<A: Application>(
             gathered.undecodable
         ));
     }
+    // The parts are merged however the launch ended: a process that could
+    // not start again (below) leaves what the others recorded.
+    let recorded = match (&common.record, &command.pattern) {
+        (Some(file), Some(pattern)) => {
+            let parts = parts_of(pattern, &budgets, report.restarts);
+            let none = parts.is_empty() && report.fatal.is_some();
+            none || merge_parts(file, &parts, &command.launch, budgets.len())
+        }
+        _ => true,
+    };
     if let Some((process, code)) = &report.fatal {
         return Err(AppError::invalid(format!(
             "process `{process}` cannot run (exit {code}: invalid input, see its lines above); the launch ended"
         )));
     }
     let ended = launch_end(&report, ended.map(|(e, _)| e), &budgets, signals);
-    let recorded = match (&common.record, &command.pattern) {
-        (Some(file), Some(pattern)) => merge_parts(file, pattern, &budgets),
-        _ => true,
-    };
     let summary = RunSummary {
         spec: spec.spec.name.clone(),
         mode: Mode::Launched {
@@ -225,6 +243,8 @@ struct ChildCommand {
     args: Vec<String>,
     /// The pattern of the recording's parts, if `--record` was given.
     pattern: Option<PathBuf>,
+    /// The launch's identity ([`launch_id`]).
+    launch: String,
     options: Options,
     /// Held to the launch's end, which removes them.
     _dev: Option<DevCredentials>,
@@ -246,7 +266,7 @@ impl ChildCommand {
             ))
         })?;
         let id = launch_id();
-        let mut args = child_args();
+        let mut args = child_args()?;
         let pattern = common.record.as_deref().map(parts_pattern);
         if let Some(p) = &pattern {
             args.push("--record".into());
@@ -283,6 +303,7 @@ impl ChildCommand {
             program,
             args,
             pattern,
+            launch: id,
             options,
             _dev: dev,
         })
@@ -354,10 +375,14 @@ impl<'w> Monitor<'w> {
         say_line(line);
         take(self.watch, watcher, &mut self.gathered, Duration::ZERO);
         self.look_for_end(watcher);
-        if let Some((_, since)) = &self.ended
-            && since.elapsed() > STOP_GRACE
-        {
-            return Control::Stop;
+        if let Some((_, since)) = &self.ended {
+            // The run is over and its processes are stopping: a kill now
+            // would be taken for a crash and restarted.
+            return if since.elapsed() > STOP_GRACE {
+                Control::Stop
+            } else {
+                Control::Continue
+            };
         }
         self.look_for_origin();
         self.fault_due()
@@ -548,17 +573,25 @@ fn take<M: serde::de::DeserializeOwned>(
     }
 }
 
-/// Merge every start's part of the recording into `file`; whether it went.
-fn merge_parts(file: &Path, pattern: &Path, processes: &[(String, u32)]) -> bool {
-    let parts: Vec<PathBuf> = processes
+/// The parts of the recording named by `pattern` that are on disk, of each
+/// start a launch with `restarts` restarts in all can have had (no process
+/// restarted more often than that, nor than its budget).
+fn parts_of(pattern: &Path, processes: &[(String, u32)], restarts: u32) -> Vec<PathBuf> {
+    processes
         .iter()
-        .flat_map(|(p, budget)| (0..=*budget).map(move |k| part_path(pattern, p, k)))
+        .flat_map(|(p, budget)| (0..=restarts.min(*budget)).map(move |k| part_path(pattern, p, k)))
         .filter(|f| f.exists())
-        .collect();
-    match agent_mcap::merge(&parts, file) {
+        .collect()
+}
+
+/// Merge the `parts` of the `processes` processes that launch `launch`
+/// recorded into `file`; whether it went. A part an earlier launch left
+/// under the same name is left out, and said.
+fn merge_parts(file: &Path, parts: &[PathBuf], launch: &str, processes: usize) -> bool {
+    match agent_mcap::merge_launch(parts, file, launch) {
         Ok(m) => {
             let size = std::fs::metadata(file).map_or(0, |m| m.len());
-            let restarts = parts.len().saturating_sub(processes.len());
+            let restarts = m.files.saturating_sub(processes);
             output::out(format_args!(
                 "record: {} (merged from {} processes{}: {} messages on {} channels, {:.1} MB{})\n",
                 file.display(),
@@ -580,6 +613,12 @@ fn merge_parts(file: &Path, pattern: &Path, processes: &[(String, u32)]) -> bool
             for cut in &m.cut_short {
                 output::out(format_args!(
                     "record: a part cut short, kept up to there: {cut}\n"
+                ));
+            }
+            for old in &m.left_out {
+                output::out(format_args!(
+                    "record: {} left out: another launch recorded it\n",
+                    old.display()
                 ));
             }
             true
