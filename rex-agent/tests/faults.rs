@@ -5,8 +5,8 @@
 //! crash beyond that ends the launch naming the process; a recording survives a
 //! restart and each start replays; every stop (SIGINT, SIGTERM) ends with the
 //! summary, the timing table and a finished recording; a full disk is named;
-//! a process waiting for its peers stops on a signal; bad command lines are
-//! refused with status 2.
+//! a process waiting for its peers stops on a signal, and one stopped by a
+//! signal mid-run exits 1; bad command lines are refused with status 2.
 //!
 //! The launches run one at a time (each is several real-time processes).
 
@@ -406,6 +406,54 @@ fn a_process_waiting_for_its_peers_stops_on_sigint() {
         stderr.contains("stopped while waiting for") && stderr.contains("`world`"),
         "{stderr}"
     );
+}
+
+/// A process of a deployment stopped by a signal in the middle of its run
+/// (not by the deployment's end) exits 1, as a run in one process does, and
+/// finishes its recording: a launcher would take it for a crash.
+#[test]
+fn a_process_stopped_by_a_signal_mid_run_exits_1_with_its_recording() {
+    let _one = one_at_a_time();
+    let dir = scratch("process-signal");
+    let mission = mission(&dir);
+    let record = dir.join("locomotion.mcap");
+    let process = |name: &str| {
+        let mut c = rex(&["--deployment", "split_without_vo", "--process", name]);
+        c.args([
+            "--no-vo",
+            "--no-report",
+            "--port",
+            "17960",
+            "--limit",
+            "120",
+        ])
+        .args(["--mission", &mission]);
+        c
+    };
+    let world = process("world").spawn().unwrap();
+    let locomotion = process("locomotion")
+        .arg("--record")
+        .arg(&record)
+        .spawn()
+        .unwrap();
+    // Both come up, agree on instant zero and run for a while.
+    std::thread::sleep(Duration::from_secs(10));
+    for (name, child) in [("locomotion", locomotion), ("world", world)] {
+        signal(child.id(), "TERM");
+        let (code, stdout, stderr) = said(&child.wait_with_output().unwrap());
+        assert_eq!(
+            code,
+            Some(1),
+            "{name}: stopped before its end\n{stdout}\n{stderr}"
+        );
+        assert!(
+            stderr.contains(&format!("process `{name}` stopped: SIGTERM received")),
+            "{name}: {stderr}"
+        );
+    }
+    let r = embodied::record::Recording::open(&record).unwrap();
+    assert!(r.finished(), "the recording is finished");
+    assert!(!r.messages.is_empty(), "it recorded the run");
 }
 
 #[test]

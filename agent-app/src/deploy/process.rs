@@ -170,7 +170,7 @@ pub(crate) fn run<A: Application>(
         },
         contracts.as_ref(),
     );
-    if let Some(why) = &stopped {
+    if let Some((why, _)) = &stopped {
         output::err(format_args!(
             "{}: process `{process}` stopped: {why}",
             output::program()
@@ -179,7 +179,11 @@ pub(crate) fn run<A: Application>(
     if let Err(e) = &left {
         output::error(e);
     }
-    Ok(if recorded && bridged && kept {
+    // Stopped before its end (a signal, its launcher gone): the run failed,
+    // as a run in one process does (status 1). A launcher that stops its
+    // processes restarts none, whatever their status.
+    let interrupted = stopped.as_ref().is_some_and(|(_, early)| *early);
+    Ok(if recorded && bridged && kept && !interrupted {
         Status::Success
     } else {
         Status::Failed
@@ -477,14 +481,17 @@ struct Vigil<'m> {
     process: &'m str,
     /// Reports that could not be sent.
     undeliverable: u64,
-    /// Why the run was stopped before its end, if it was.
-    stopped: Option<String>,
+    /// Why the run was stopped, if it was: by a participant's stop (the
+    /// deployment's end, `false`), or before its end (a signal, the launcher
+    /// gone: `true`).
+    stopped: Option<(String, bool)>,
 }
 
 impl Vigil<'_> {
     /// The end of the watch: warns of the reports the launcher could not be
-    /// sent; returns why the process was stopped, if it was.
-    fn close(self) -> Option<String> {
+    /// sent; returns why the process was stopped, if it was, and whether
+    /// before the run's end.
+    fn close(self) -> Option<(String, bool)> {
         if self.undeliverable > 0 {
             output::warn(format_args!(
                 "{} reports could not be sent to the launcher",
@@ -576,14 +583,12 @@ impl Vigil<'_> {
     fn look_for_stop(&mut self, running: &Running) {
         let member = self.member;
         if let Some(sig) = self.signals.received() {
-            self.stopped = Some(format!("{sig} received"));
+            self.stopped = Some((format!("{sig} received"), true));
         } else if member.launcher_gone() {
-            self.stopped = Some("its launcher is gone".into());
+            self.stopped = Some(("its launcher is gone".into(), true));
         } else if member.stop_requested() {
-            self.stopped = Some(format!(
-                "a stop from {}",
-                member.stopped_by().unwrap_or_else(|| "this process".into())
-            ));
+            let by = member.stopped_by().unwrap_or_else(|| "this process".into());
+            self.stopped = Some((format!("a stop from {by}"), false));
         }
         if self.stopped.is_some() {
             running.stop();
