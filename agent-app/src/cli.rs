@@ -272,7 +272,8 @@ pub enum Command {
     },
     /// Check the spec: names, types, wiring, agent structure, FSMs (with the
     /// proof that arcs are exclusive and complete), periods and deployments.
-    /// Exit 1 if it has an error.
+    /// Exit 2 if it has an error (an invalid spec is invalid input, as for
+    /// every command).
     Check,
     /// Write the ROS 2 interface package of the messages `--ros2` makes
     /// from this program's buffer types (the spec's `ros2` section's

@@ -373,11 +373,20 @@ fn run_main<A: Application>(mut app: A, program: Option<Program<'_>>) -> Status 
 /// Run `app` as the command line `cli` says (for a program that parses its
 /// command line itself); the exit status.
 pub fn run<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Status {
-    let signals = Signals::get();
-    if let Some(why) = signals.refused() {
-        output::warn(format_args!(
-            "cannot catch SIGINT/SIGTERM ({why}): a signal ends the program without its summary"
-        ));
+    // A run (in this process, one process of a deployment, a launch) stops at
+    // a signal with its summary and its recording finished; the other
+    // commands (a replay, the checker, a diagram) keep the signals' default
+    // and end at once.
+    if matches!(
+        cli.command,
+        None | Some(Command::Run | Command::Launch { .. })
+    ) {
+        let signals = Signals::get();
+        if let Some(why) = signals.refused() {
+            output::warn(format_args!(
+                "cannot catch SIGINT/SIGTERM ({why}): a signal ends the program without its summary"
+            ));
+        }
     }
     match dispatch(app, cli) {
         Ok(status) => status,
@@ -473,12 +482,31 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
             "--deployment runs a deployment with `launch` (every process) or with `--process NAME` (one of them)",
         ));
     }
+    run_each(app, &configs, common)
+}
+
+/// Run each configuration in this process, in turn, until a signal; then
+/// print their figure lines, also when a later run could not be made (its
+/// error then decides the status).
+fn run_each<A: Application>(
+    app: &mut A,
+    configs: &[A::Config],
+    common: &Common,
+) -> Result<Status, AppError> {
     let mut status = Status::Success;
     let mut lines = Vec::new();
-    for config in &configs {
-        let (s, line) = local::run(app, config, common)?;
-        status = status.and(s);
-        lines.push(line);
+    let mut failed = None;
+    for config in configs {
+        match local::run(app, config, common) {
+            Ok((s, line)) => {
+                status = status.and(s);
+                lines.push(line);
+            }
+            Err(e) => {
+                failed = Some(e);
+                break;
+            }
+        }
         if Signals::get().stopping() {
             break;
         }
@@ -486,7 +514,10 @@ fn dispatch<A: Application>(app: &mut A, cli: &Cli<A::Flags>) -> Result<Status, 
     for line in lines {
         output::out(format_args!("{line}\n"));
     }
-    Ok(status)
+    match failed {
+        Some(e) => Err(e),
+        None => Ok(status),
+    }
 }
 
 #[cfg(feature = "distributed")]
