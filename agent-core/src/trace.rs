@@ -22,6 +22,7 @@ mod pick;
 mod wants;
 
 pub use pick::{FieldPath, PickError};
+pub(crate) use wants::LinkWant;
 pub use wants::{LinkEvents, NodeEvents, NumberBound, SendStamps, within};
 
 /// A value in a buffer, seen through the observer without knowing its type.

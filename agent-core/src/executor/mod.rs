@@ -370,13 +370,15 @@ impl<O: Observer> Executor<O> {
                 let links = 0..self.info.links.len();
                 let nodes = 0..self.info.nodes.len();
                 self.wants = Wants {
-                    links: links.map(|l| self.observer.link_events(l)).collect(),
+                    links: links
+                        .map(|l| crate::trace::LinkWant::new(self.observer.link_events(l)))
+                        .collect(),
                     nodes: nodes.map(|n| self.observer.node_events(n)).collect(),
                 };
                 for (i, node) in self.nodes.iter_mut().enumerate() {
                     node.observe(i, &self.wants);
                 }
-                if self.wants.links.iter().any(|w| w.stamps) {
+                if self.wants.links.iter().any(|w| w.events.stamps) {
                     let stamps = crate::trace::SendStamps::new(self.info.links.len());
                     self.observer.stamps(&stamps);
                     self.stamps = Some(stamps);

@@ -11,7 +11,7 @@ use crate::buffer::{In, Out, Payload};
 use crate::error::LinkError;
 use crate::time::{Stamp, Time};
 use crate::trace::{
-    LinkEvents, LinkInfo, NodeEvents, Observer, ReadEvent, SendStamps, TransferEvent,
+    LinkInfo, LinkWant, NodeEvents, Observer, ReadEvent, SendStamps, TransferEvent,
 };
 
 /// The events an observer needs, asked at the start of a run
@@ -20,7 +20,7 @@ use crate::trace::{
 #[derive(Debug, Default)]
 pub(crate) struct Wants {
     /// Per link, its sends and reads.
-    pub(crate) links: Vec<LinkEvents>,
+    pub(crate) links: Vec<LinkWant>,
     /// Per node, its transitions and activations.
     pub(crate) nodes: Vec<NodeEvents>,
 }
@@ -103,7 +103,7 @@ pub(crate) trait OutPort<O> {
     /// The observer's needs, per link, once at the start of a run: a port
     /// may leave out, before anything else, the sends of links whose
     /// observer needs none of them. A port never told keeps every event.
-    fn observe(&mut self, _links: &[LinkEvents]) {}
+    fn observe(&mut self, _links: &[LinkWant]) {}
     /// The addresses a send touches beyond the port itself (its channels'),
     /// pushed onto `to`: what the executor asks the cache for a few nodes
     /// ahead ([`crate::cache`]). A port that touches nothing else pushes
@@ -118,7 +118,7 @@ pub(crate) trait InPort<I> {
     /// Called once when the port is installed: names the buffer after its link.
     fn attach(&self, x: &mut I);
     /// As [`OutPort::observe`], for the reads.
-    fn observe(&mut self, _links: &[LinkEvents]) {}
+    fn observe(&mut self, _links: &[LinkWant]) {}
     /// As [`OutPort::reach`], for a read.
     fn reach(&self, _to: &mut Vec<usize>) {}
 }
@@ -145,8 +145,8 @@ impl<T> Dest<T> {
         })
     }
 
-    fn observe(&mut self, links: &[LinkEvents]) {
-        let wants = links.get(self.link as usize);
+    fn observe(&mut self, links: &[LinkWant]) {
+        let wants = links.get(self.link as usize).map(|w| &w.events);
         self.observed = wants.is_none_or(|w| w.transfers || !w.out_of.is_empty());
         self.stamped = wants.is_some_and(|w| w.stamps);
     }
@@ -232,7 +232,7 @@ impl<O: 'static, T: Payload, A: Access<O, Out<T>>> OutPort<O> for LocalOut<O, T,
         (self.access)(y).discard();
     }
 
-    fn observe(&mut self, links: &[LinkEvents]) {
+    fn observe(&mut self, links: &[LinkWant]) {
         self.first.observe(links);
         if let Some(more) = &mut self.more {
             more.0.iter_mut().for_each(|d| d.observe(links));
@@ -280,7 +280,9 @@ pub(crate) fn observe_read<T>(x: &In<T>, link: usize, cx: &mut LinkCx<'_>) {
         return;
     };
     let told = match cx.wants.links.get(link) {
-        Some(w) => w.read(new, cx.time.as_nanos(), stamp.time.as_nanos()),
+        Some(w) => w
+            .events
+            .read(new, cx.time.as_nanos(), stamp.time.as_nanos()),
         None => new.then_some(true),
     };
     let Some(new) = told else {
@@ -313,9 +315,9 @@ impl<I: 'static, T: Payload, A: Access<I, In<T>>> InPort<I> for LocalIn<I, T, A>
         (self.access)(x).set_name((*self.name).clone());
     }
 
-    fn observe(&mut self, links: &[LinkEvents]) {
-        self.observed =
-            (links.get(self.link as usize)).is_none_or(|w| w.reads || w.older_than.is_some());
+    fn observe(&mut self, links: &[LinkWant]) {
+        self.observed = (links.get(self.link as usize))
+            .is_none_or(|w| w.events.reads || w.events.older_than.is_some());
     }
 
     fn reach(&self, to: &mut Vec<usize>) {

@@ -12,7 +12,14 @@
 //! must be a number (an integer or a float; `bool` is not one). An absent
 //! `Option`, a sequence shorter than the index, a map and an enum on the path
 //! have no value there: `Ok(None)`.
+//!
+//! A value that is an `f64`, an array of them (`[f64; N]`, N up to 32) or a
+//! `Vec<f64>` is read directly, by the index its path names, when the path
+//! has at most one step ([`FieldPath::number_of`]): the same number the walk
+//! would yield, without the walk (a range over a robot's wheel torques, its
+//! joint positions). Any other value goes through its `Serialize` impl.
 
+use std::any::Any;
 use std::fmt;
 
 use serde::Serialize;
@@ -30,31 +37,107 @@ struct Step {
 
 /// A path to a number inside a value, its steps separated by dots (see the
 /// module docs); parsed once, read on every value.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FieldPath {
     steps: Vec<Step>,
+    /// The path as read directly from numbers ([`FieldPath::number_of`]):
+    /// the value itself, one index, or `None` for any other path.
+    direct: Option<Direct>,
+}
+
+/// A path of at most one step, read directly from a number or an array of
+/// them: the value itself (`""`) or the number at an index (`"2"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Direct {
+    Whole,
+    Index(usize),
+}
+
+/// A value whose numbers are read without its `Serialize` impl.
+pub(crate) enum Numbers<'a> {
+    One(f64),
+    Many(&'a [f64]),
+}
+
+/// The numbers of `value` when its type is `f64`, `[f64; N]` (N ≤ 32) or
+/// `Vec<f64>` (`None` for any other type). Each test is of a type known when
+/// the caller is compiled: for a given `T`, all but one fold away.
+#[inline(always)]
+pub(crate) fn numbers<T: Any>(value: &T) -> Option<Numbers<'_>> {
+    let any: &dyn Any = value;
+    if let Some(&x) = any.downcast_ref::<f64>() {
+        return Some(Numbers::One(x));
+    }
+    if let Some(v) = any.downcast_ref::<Vec<f64>>() {
+        return Some(Numbers::Many(v));
+    }
+    macro_rules! arrays {
+        ($($n:literal)*) => {$(
+            if let Some(a) = any.downcast_ref::<[f64; $n]>() {
+                return Some(Numbers::Many(a));
+            }
+        )*};
+    }
+    arrays!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32);
+    None
 }
 
 impl FieldPath {
     /// The path `path` (`""`: the value itself).
     pub fn parse(path: &str) -> FieldPath {
         if path.is_empty() {
-            return FieldPath::default();
+            return FieldPath {
+                steps: Vec::new(),
+                direct: Some(Direct::Whole),
+            };
         }
-        FieldPath {
-            steps: path
-                .split('.')
-                .map(|s| Step {
-                    name: s.to_owned(),
-                    index: s.parse().ok(),
-                })
-                .collect(),
-        }
+        let steps: Vec<Step> = path
+            .split('.')
+            .map(|s| Step {
+                name: s.to_owned(),
+                index: s.parse().ok(),
+            })
+            .collect();
+        let direct = match steps.as_slice() {
+            [one] => one.index.map(Direct::Index),
+            _ => None,
+        };
+        FieldPath { steps, direct }
     }
 
     /// The number at this path in `value` (`Ok(None)`: none there).
     pub fn number<T: Serialize + ?Sized>(&self, value: &T) -> Result<Option<f64>, PickError> {
         value.serialize(Pick { path: &self.steps })
+    }
+
+    /// The path as read directly from numbers, if it can be.
+    pub(crate) fn direct(&self) -> Option<Direct> {
+        self.direct
+    }
+
+    /// [`FieldPath::number`] of a sized value: an `f64`, an array of them
+    /// or a `Vec<f64>` read directly by the path's index when the path has at
+    /// most one step (see the module docs), any other through its
+    /// `Serialize` impl. The same result either way.
+    #[inline]
+    pub fn number_of<T: Serialize + Any>(&self, value: &T) -> Result<Option<f64>, PickError> {
+        if let Some(direct) = self.direct
+            && let Some(numbers) = numbers(value)
+        {
+            return Ok(match (numbers, direct) {
+                (Numbers::One(x), Direct::Whole) => Some(x),
+                (Numbers::Many(xs), Direct::Index(i)) => xs.get(i).copied(),
+                (Numbers::One(_), Direct::Index(_)) | (Numbers::Many(_), Direct::Whole) => None,
+            });
+        }
+        self.number(value)
+    }
+}
+
+impl Default for FieldPath {
+    /// The value itself (`""`).
+    fn default() -> Self {
+        FieldPath::parse("")
     }
 }
 
@@ -398,6 +481,40 @@ mod tests {
 
     fn at<T: Serialize>(v: &T, p: &str) -> Option<f64> {
         FieldPath::parse(p).number(v).unwrap()
+    }
+
+    #[test]
+    fn numbers_are_read_directly_as_the_walk_reads_them() {
+        let four = [1.0f64, -2.0, f64::NAN, 4.0];
+        let many = four.to_vec();
+        for path in ["", "0", "1", "3", "4", "0.x", "x"] {
+            let p = FieldPath::parse(path);
+            let same = |a: Option<f64>, b: Option<f64>| a.map(f64::to_bits) == b.map(f64::to_bits);
+            assert!(
+                same(p.number_of(&four).unwrap(), p.number(&four).unwrap()),
+                "{path}"
+            );
+            assert!(
+                same(p.number_of(&many).unwrap(), p.number(&many).unwrap()),
+                "{path}"
+            );
+            assert!(
+                same(p.number_of(&7.5f64).unwrap(), p.number(&7.5f64).unwrap()),
+                "{path}"
+            );
+        }
+        assert_eq!(FieldPath::parse("1").number_of(&four).unwrap(), Some(-2.0));
+        assert_eq!(FieldPath::parse("").number_of(&7.5f64).unwrap(), Some(7.5));
+        assert_eq!(
+            FieldPath::parse("").number_of(&four).unwrap(),
+            None,
+            "an array is no number"
+        );
+        // Not numbers: walked.
+        assert_eq!(
+            FieldPath::parse("1").number_of(&(1u8, 2.5f32)).unwrap(),
+            Some(2.5)
+        );
     }
 
     #[test]

@@ -6,12 +6,13 @@
 //! path is read from the typed value as it is sent, and the observer hears of
 //! the value only when it is out of bounds (or cannot be read).
 
+use std::any::Any;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use serde::Serialize;
 
-use super::pick::FieldPath;
+use super::pick::{Direct, FieldPath, Numbers, numbers};
 use crate::time::Time;
 
 /// Whether `x` lies within `[min, max]` (either end open when `None`; NaN
@@ -180,6 +181,83 @@ impl LinkEvents {
     }
 }
 
+/// A link's [`LinkEvents`] as the deterministic executor keeps them for its
+/// ports: the bounds whose paths read a number directly (the value itself,
+/// or one index: [`FieldPath::number_of`]) also compiled into a flat list,
+/// each missing end an infinity, checked without a walk on a value that is
+/// an `f64`, an array of them or a `Vec<f64>` (a robot's wheel torques).
+#[derive(Clone, Debug)]
+pub(crate) struct LinkWant {
+    pub(crate) events: LinkEvents,
+    /// Every bound of `events.out_of` that can break, when each of them
+    /// reads directly (`None`: some path does not).
+    direct: Option<Box<[DirectBound]>>,
+}
+
+/// A bound read directly: where, and its ends (an infinity for a missing
+/// one; `!(x >= lo && x <= hi)` then breaks exactly where
+/// [`within`] does not hold, NaN included).
+#[derive(Clone, Copy, Debug)]
+struct DirectBound {
+    /// The index read, [`WHOLE`] for the value itself.
+    at: usize,
+    lo: f64,
+    hi: f64,
+}
+
+/// [`DirectBound::at`] of a bound on the value itself (no array is that
+/// long).
+const WHOLE: usize = usize::MAX;
+
+impl DirectBound {
+    #[inline(always)]
+    fn broken_by(&self, x: f64) -> bool {
+        !(x >= self.lo && x <= self.hi)
+    }
+}
+
+impl LinkWant {
+    pub(crate) fn new(events: LinkEvents) -> LinkWant {
+        let direct = events
+            .out_of
+            .iter()
+            // A bound without ends breaks with no number (`within`).
+            .filter(|b| b.min.is_some() || b.max.is_some())
+            .map(|b| {
+                Some(DirectBound {
+                    at: match b.path.direct()? {
+                        Direct::Whole => WHOLE,
+                        Direct::Index(i) => i.min(WHOLE - 1),
+                    },
+                    lo: b.min.unwrap_or(f64::NEG_INFINITY),
+                    hi: b.max.unwrap_or(f64::INFINITY),
+                })
+            })
+            .collect();
+        LinkWant { events, direct }
+    }
+
+    /// [`LinkEvents::transfer`], a value of numbers checked against the
+    /// compiled bounds: the same answer.
+    #[inline(always)]
+    pub(crate) fn transfer<T: Serialize + Any>(&self, value: &T) -> bool {
+        if self.events.transfers {
+            return true;
+        }
+        if let Some(direct) = &self.direct
+            && let Some(numbers) = numbers(value)
+        {
+            return match numbers {
+                Numbers::Many(xs) => direct
+                    .iter()
+                    .any(|b| xs.get(b.at).is_some_and(|&x| b.broken_by(x))),
+                Numbers::One(x) => direct.iter().any(|b| b.at == WHOLE && b.broken_by(x)),
+            };
+        }
+        self.events.transfer(value)
+    }
+}
+
 /// The activations of one node an observer needs, asked once per node at the
 /// start of a run of the deterministic executor
 /// ([`Observer::node_events`](super::Observer::node_events)), which leaves out
@@ -310,6 +388,105 @@ mod tests {
         let u = stamped.clone().union(LinkEvents::all());
         assert!(u.stamps && u.transfers, "both, each for its observer");
         assert_eq!(LinkEvents::none().union(stamped.clone()), stamped);
+    }
+
+    /// Numbers a range meets at its edges: the ends, just past them, the
+    /// infinities and NaN.
+    fn edgy() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            -12.0..12.0f64,
+            Just(10.0),
+            Just(-10.0),
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+            Just(f64::NEG_INFINITY),
+        ]
+    }
+
+    /// Bounds on paths that read directly ("", "0".."5"), past an array's
+    /// end, and that do not ("0.x", "x"); each end there or not, NaN too.
+    fn bounds() -> impl proptest::strategy::Strategy<Value = Vec<NumberBound>> {
+        use proptest::prelude::*;
+        let path = prop_oneof![
+            Just(String::new()),
+            (0usize..6).prop_map(|i| i.to_string()),
+            Just("0.x".to_owned()),
+            Just("x".to_owned()),
+        ];
+        let end = proptest::option::of(prop_oneof![-10.0..10.0f64, Just(f64::NAN)]);
+        let bound = (path, end.clone(), end).prop_map(|(p, min, max)| NumberBound {
+            path: FieldPath::parse(&p),
+            min,
+            max,
+        });
+        proptest::collection::vec(bound, 0..5)
+    }
+
+    fn want(out_of: Vec<NumberBound>) -> (LinkEvents, LinkWant) {
+        let events = LinkEvents {
+            out_of,
+            ..LinkEvents::none()
+        };
+        (events.clone(), LinkWant::new(events))
+    }
+
+    proptest::proptest! {
+        /// The bounds compiled for values of numbers answer as the walk of
+        /// each value through its `Serialize` impl does.
+        #[test]
+        fn compiled_bounds_answer_as_the_walk(
+            out_of in bounds(),
+            x in edgy(),
+            four in proptest::array::uniform4(edgy()),
+            some in proptest::collection::vec(edgy(), 0..6),
+        ) {
+            let (events, compiled) = want(out_of);
+            proptest::prop_assert_eq!(compiled.transfer(&x), events.transfer(&x));
+            proptest::prop_assert_eq!(compiled.transfer(&four), events.transfer(&four));
+            proptest::prop_assert_eq!(compiled.transfer(&some), events.transfer(&some));
+            // Not numbers: the walk itself.
+            let pair = (four[0], some.clone());
+            proptest::prop_assert_eq!(compiled.transfer(&pair), events.transfer(&pair));
+        }
+    }
+
+    #[test]
+    fn a_value_of_numbers_is_checked_without_a_walk_and_alike() {
+        let (events, compiled) = want(vec![
+            bound("1", -1.0, 1.0),
+            NumberBound {
+                path: FieldPath::parse("3"),
+                min: None,
+                max: Some(5.0),
+            },
+        ]);
+        assert!(compiled.direct.as_ref().is_some_and(|d| d.len() == 2));
+        for (value, broken) in [
+            ([0.0, 0.5, 0.0, 5.0], false),
+            ([9.0, -1.0, 9.0, f64::NEG_INFINITY], false),
+            ([0.0, 1.5, 0.0, 0.0], true),
+            ([0.0, 0.0, 0.0, 5.5], true),
+            ([0.0, f64::NAN, 0.0, 0.0], true),
+        ] {
+            assert_eq!(compiled.transfer(&value), broken, "{value:?}");
+            assert_eq!(events.transfer(&value), broken, "{value:?}");
+            assert_eq!(compiled.transfer(&value.to_vec()), broken, "{value:?}");
+        }
+        assert!(!compiled.transfer(&[9.0f64]), "no number at either path");
+        assert!(!compiled.transfer(&9.0f64), "a number has no parts");
+        // A path that does not read directly: every bound walks.
+        let (_, walked) = want(vec![bound("0.x", 0.0, 1.0), bound("0", 0.0, 1.0)]);
+        assert!(walked.direct.is_none());
+        assert!(walked.transfer(&[2.0f64]) && !walked.transfer(&[0.5f64]));
+        // Without ends a bound breaks with nothing, NaN included.
+        let (_, open) = want(vec![NumberBound {
+            path: FieldPath::parse(""),
+            min: None,
+            max: None,
+        }]);
+        assert!(!open.transfer(&f64::NAN));
+        assert_eq!(FieldPath::parse(""), FieldPath::default());
     }
 
     #[test]
